@@ -1,0 +1,168 @@
+"""Build the cascades of one frame: splits → slices → footprints → stabilized boxes.
+
+Reads top to bottom like DESIGN.md's CSM model, steps 1–3. The result, a :class:`CascadeSet`,
+is all the Warp kernels need to know of where each cascade lies.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from csmlab.camera import CameraPose
+from csmlab.cascades.fit import slice_intervals
+from csmlab.cascades.splits import split_distances
+from csmlab.cascades.stabilize import SliceFootprint, stabilize
+from csmlab.geometry import frustum_slice_corners, light_basis, slice_bounding_sphere
+from csmlab.settings import ShadowSettings
+
+__all__ = ["Cascade", "CascadeSet", "build_cascades", "radius_rounded_up"]
+
+
+@dataclass(frozen=True)
+class Cascade:
+    """One cascade's orthographic box in light space.
+
+    Attributes
+    ----------
+    split_near, split_far : float
+        The split interval ``[z_i, z_{i+1})`` in metres of view depth (interval selection).
+    slice_near, slice_far : float
+        The fitted view-depth interval the box covers (fit mode and blend band applied).
+    texel_size : ndarray, shape (2,)
+        Metres per texel along light-space x and y.
+    origin : ndarray, shape (2,)
+        Box minimum corner in texels of ``texel_size`` (whole numbers for exact and quantized).
+    resolution : int
+        Texels per side R.
+    depth_near, depth_far : float
+        Depth range in metres along the light direction (``dot(X, d)``, not relative to zref).
+    """
+
+    split_near: float
+    split_far: float
+    slice_near: float
+    slice_far: float
+    texel_size: np.ndarray
+    origin: np.ndarray
+    resolution: int
+    depth_near: float
+    depth_far: float
+
+    @property
+    def box_min(self) -> np.ndarray:
+        """Light-space x/y ``(2,)`` of the box's minimum corner, metres."""
+        return self.origin * self.texel_size
+
+    @property
+    def box_max(self) -> np.ndarray:
+        """Light-space x/y ``(2,)`` of the box's maximum corner, metres."""
+        return (self.origin + self.resolution) * self.texel_size
+
+    @property
+    def extent(self) -> np.ndarray:
+        """Box size ``(2,)`` in metres."""
+        return self.texel_size * self.resolution
+
+
+@dataclass(frozen=True)
+class CascadeSet:
+    """Every cascade of one frame and the light space they share.
+
+    Attributes
+    ----------
+    basis : ndarray, shape (3, 3)
+        Rows (right, up, d): world to light space; depends on the light direction only.
+    zref : float
+        Depth offset in metres subtracted from ``dot(X, d)`` before storing (fixed per light and
+        scene, never per box, so a moved box stores the same depths).
+    splits : ndarray, shape (C + 1,)
+        Split distances in metres of view depth.
+    cascades : tuple of Cascade
+    margin_texels : int
+        Texels kept free inside each box edge for the filter.
+    """
+
+    basis: np.ndarray
+    zref: float
+    splits: np.ndarray
+    cascades: tuple[Cascade, ...]
+    margin_texels: int
+
+    def __len__(self) -> int:
+        return len(self.cascades)
+
+    @property
+    def direction(self) -> np.ndarray:
+        """Unit light direction ``(3,)`` (light toward scene)."""
+        return self.basis[2]
+
+    def to_light(self, points) -> np.ndarray:
+        """Light-space coordinates ``(..., 3)`` (x, y metres; depth ``dot(X, d)`` metres) of world points."""
+        return np.asarray(points, dtype=np.float64) @ self.basis.T
+
+
+def radius_rounded_up(radius: float, *, bits: int = 12) -> float:
+    """``radius`` rounded up to a multiple of ``2^(floor(log2 r) - bits)`` so float noise cannot change it."""
+    quantum = np.ldexp(1.0, int(np.floor(np.log2(radius))) - bits)
+    return float(np.ceil(radius / quantum) * quantum)
+
+
+def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings: ShadowSettings) -> CascadeSet:
+    """The cascades of one frame, as an engine computes them on the CPU.
+
+    Parameters
+    ----------
+    pose : CameraPose
+        The camera.
+    light_direction : array_like, shape (3,)
+        From the light toward the scene; need not be unit length, must not be zero.
+    scene_corners : array_like, shape (K, 3)
+        Points bounding every shadow caster (e.g. the eight corners of the scene's bounds), metres.
+    settings : ShadowSettings
+        Split scheme, fit, stabilization and resolution.
+
+    Returns
+    -------
+    CascadeSet
+    """
+    settings.validated()
+    basis = light_basis(light_direction)
+    scene_light = np.asarray(scene_corners, dtype=np.float64).reshape(-1, 3) @ basis.T
+    far = min(settings.shadow_distance, pose.far)
+    splits = split_distances(near=pose.near, far=far, count=settings.cascades, method=settings.split,
+                             lambda_=settings.lambda_, splits=settings.splits)
+    intervals = slice_intervals(splits, method=settings.fit, blend_band=settings.blend_band)
+    frustum_light = _slice_light_corners(pose, basis, pose.near, far)
+    frustum_extent = frustum_light[:, :2].max(axis=0) - frustum_light[:, :2].min(axis=0)
+    margin = settings.margin_texels
+
+    cascades = []
+    for i, (z0, z1) in enumerate(intervals):
+        corners = _slice_light_corners(pose, basis, z0, z1)
+        sphere = slice_bounding_sphere(fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, z_near=z0, z_far=z1)
+        centre = basis @ (pose.position + pose.forward * sphere.centre_depth)
+        footprint = SliceFootprint(
+            lo=corners[:, :2].min(axis=0), hi=corners[:, :2].max(axis=0), centre=centre[:2],
+            radius=radius_rounded_up(sphere.radius), frustum_extent=frustum_extent,
+        )
+        texel, origin = stabilize(footprint, method=settings.stabilization, resolution=settings.resolution,
+                                  margin=margin, levels=settings.levels, quantized_base=settings.quantized_base)
+        # The near side is pushed toward the light to the scene's bounds ("pancaking"), so every
+        # caster in the box's x/y range is captured whatever the slice's own depth range is.
+        depth_near = float(min(corners[:, 2].min(), scene_light[:, 2].min()))
+        depth_far = float(max(corners[:, 2].max(), scene_light[:, 2].max()))
+        cascades.append(Cascade(
+            split_near=float(splits[i]), split_far=float(splits[i + 1]), slice_near=float(z0), slice_far=float(z1),
+            texel_size=texel, origin=origin, resolution=settings.resolution, depth_near=depth_near,
+            depth_far=depth_far,
+        ))
+    return CascadeSet(basis=basis, zref=float(scene_light[:, 2].min()), splits=splits, cascades=tuple(cascades),
+                      margin_texels=margin)
+
+
+def _slice_light_corners(pose: CameraPose, basis: np.ndarray, z0: float, z1: float) -> np.ndarray:
+    corners = frustum_slice_corners(position=pose.position, orientation=pose.orientation, fov_y_deg=pose.fov_y_deg,
+                                    aspect=pose.aspect, z_near=z0, z_far=z1)
+    return corners @ basis.T

@@ -1,0 +1,94 @@
+"""Split schemes: where along the view depth each cascade ends.
+
+References: NVIDIA, "Cascaded Shadow Maps" (2007), seed 000 — the logarithmic and practical
+(PSSM) schemes; Zhang et al., "Practical Cascaded Shadow Maps", seed 003.
+
+Every scheme returns the ``C + 1`` boundaries ``z_0 = n < z_1 < … < z_C = f`` in metres of
+view depth. Schemes are registered by name in :data:`SPLIT_METHODS`; :func:`split_distances`
+dispatches on ``method=``.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+__all__ = ["SPLIT_METHODS", "split_distances", "splits_log", "splits_manual", "splits_practical", "splits_uniform"]
+
+
+def splits_uniform(*, near: float, far: float, count: int, **_unused) -> np.ndarray:
+    """``z_i = n + (f - n) i / C``."""
+    i = np.arange(count + 1, dtype=np.float64)
+    return near + (far - near) * i / count
+
+
+def splits_log(*, near: float, far: float, count: int, **_unused) -> np.ndarray:
+    """``z_i = n (f / n)^(i / C)`` — the scheme that gives each cascade the same texel-to-pixel ratio."""
+    i = np.arange(count + 1, dtype=np.float64)
+    return near * (far / near) ** (i / count)
+
+
+def splits_practical(*, near: float, far: float, count: int, lambda_: float, **_unused) -> np.ndarray:
+    """``z_i = λ · log_i + (1 - λ) · uniform_i`` (PSSM, seed 000)."""
+    return lambda_ * splits_log(near=near, far=far, count=count) + (1.0 - lambda_) * splits_uniform(
+        near=near, far=far, count=count
+    )
+
+
+def splits_manual(*, near: float, far: float, count: int, splits=(), **_unused) -> np.ndarray:
+    """User-given far end of each cascade: ``count`` increasing values ending at ``far``.
+
+    Values that are all ≤ 1 are fractions of ``far`` (the shadow distance); otherwise metres.
+    """
+    ends = np.asarray(splits, dtype=np.float64).reshape(-1)
+    if ends.shape[0] != count:
+        raise ValueError(f"splits: expected {count} far ends (one per cascade), got {ends.shape[0]}")
+    if ends.size and np.all(ends <= 1.0):
+        ends = ends * far
+    z = np.concatenate([[near], ends])
+    if not np.all(np.isfinite(z)) or np.any(np.diff(z) <= 0):
+        raise ValueError(f"splits: expected increasing distances above near = {near} m, got {ends.tolist()}")
+    if not np.isclose(z[-1], far, rtol=1e-9):
+        raise ValueError(f"splits: expected the last cascade to end at the shadow distance {far} m, got {z[-1]}")
+    z[-1] = far
+    return z
+
+
+SPLIT_METHODS: dict[str, Callable[..., np.ndarray]] = {
+    "uniform": splits_uniform,
+    "log": splits_log,
+    "practical": splits_practical,
+    "manual": splits_manual,
+}
+"""Split schemes by name; add an entry to register a new one."""
+
+
+def split_distances(*, near: float, far: float, count: int, method: str = "practical", lambda_: float = 0.75,
+                    splits=()) -> np.ndarray:
+    """Cascade boundaries ``(count + 1,)`` in metres of view depth from ``near`` to ``far``.
+
+    Parameters
+    ----------
+    near, far : float
+        Camera near plane and shadow distance, metres, ``0 < near < far``.
+    count : int
+        Number of cascades.
+    method : str
+        A key of :data:`SPLIT_METHODS`.
+    lambda_ : float
+        practical: weight of the log scheme.
+    splits : sequence of float
+        manual: far ends (metres, or fractions of ``far``).
+    """
+    if method not in SPLIT_METHODS:
+        raise ValueError(f"split: expected one of {sorted(SPLIT_METHODS)}, got {method!r}")
+    if not (np.isfinite(near) and near > 0):
+        raise ValueError(f"near: expected a positive distance in metres, got {near}")
+    if not (np.isfinite(far) and far > near):
+        raise ValueError(f"shadow_distance: expected a distance greater than near ({near} m), got {far}")
+    if count < 1:
+        raise ValueError(f"cascades: expected at least 1, got {count}")
+    z = SPLIT_METHODS[method](near=near, far=far, count=count, lambda_=lambda_, splits=splits)
+    z[0], z[-1] = near, far
+    return z

@@ -1,0 +1,113 @@
+"""Stabilization: the light-space x/y box of one cascade, and whether it may move.
+
+Each method maps a slice's light-space footprint to a texel size ``(tx, ty)`` in metres and a
+box origin in whole or fractional texels; the box is then
+``[origin · t, (origin + R) · t]`` on each axis. Every method keeps ``margin`` texels free inside
+each edge so that the widest filter never reads outside the box (DESIGN.md, "Exact zero").
+
+References
+----------
+- Valient, "Stable Rendering of Cascaded Shadow Maps", ShaderX6 — bounding sphere, texel snap.
+- Zhang, Zaprjagaev, Bentham, "Practical Cascaded Shadow Maps", ShaderX7 (seed 003), listing
+  4.1.1 (exact) and 4.1.2 (quantized scale, 64 levels, snapped offset).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+__all__ = ["STABILIZATION_METHODS", "SliceFootprint", "stabilize", "stabilize_exact", "stabilize_none",
+           "stabilize_quantized"]
+
+
+@dataclass(frozen=True)
+class SliceFootprint:
+    """What stabilization needs to know of one frustum slice, in light-space metres.
+
+    Attributes
+    ----------
+    lo, hi : ndarray, shape (2,)
+        Tight x/y bounds of the slice's eight corners.
+    centre : ndarray, shape (2,)
+        x/y of the slice's bounding-sphere centre.
+    radius : float
+        The bounding sphere's radius, already rounded up to a quantum (bit-stable).
+    frustum_extent : ndarray, shape (2,)
+        x/y extent of the whole view frustum up to the shadow distance (quantized ``frustum`` base).
+    """
+
+    lo: np.ndarray
+    hi: np.ndarray
+    centre: np.ndarray
+    radius: float
+    frustum_extent: np.ndarray
+
+
+def stabilize_none(fp: SliceFootprint, *, resolution: int, margin: int, **_unused) -> tuple[np.ndarray, np.ndarray]:
+    """Tight box around the slice every frame: texel size and origin follow the camera continuously."""
+    extent = np.maximum(fp.hi - fp.lo, 1e-9)
+    texel = extent / (resolution - 2 * margin)
+    return texel, fp.lo / texel - margin
+
+
+def stabilize_exact(fp: SliceFootprint, *, resolution: int, margin: int, **_unused) -> tuple[np.ndarray, np.ndarray]:
+    """Bounding-sphere box: fixed extent ``2r``, origin an integer texel index.
+
+    The texel size depends on the (quantum-rounded) radius only, so it is bit-identical from
+    frame to frame; flooring the origin to a whole texel makes the texel grid fixed in the world.
+    One extra texel leaves room for the snap.
+    """
+    t = 2.0 * fp.radius / (resolution - 2 * margin - 1)
+    texel = np.array([t, t])
+    origin = np.floor((fp.centre - fp.radius) / texel) - margin
+    return texel, origin
+
+
+def stabilize_quantized(fp: SliceFootprint, *, resolution: int, margin: int, levels: int = 64,
+                        quantized_base: str = "sphere", **_unused) -> tuple[np.ndarray, np.ndarray]:
+    """Tight extent rounded *up* to one of ``levels`` steps of a base extent, origin snapped.
+
+    ``quantized_base = "sphere"`` takes the slice's bounding-sphere diameter (fixed per cascade,
+    so the steps never move); ``"frustum"`` takes the whole frustum's light-space box, as seed 003's
+    listing does in the light's post-projective space.
+    """
+    if quantized_base == "sphere":
+        base = np.array([2.0 * fp.radius, 2.0 * fp.radius])
+    elif quantized_base == "frustum":
+        base = np.asarray(fp.frustum_extent, dtype=np.float64)
+    else:
+        raise ValueError(f"quantized_base: expected 'sphere' or 'frustum', got {quantized_base!r}")
+    step = base / levels
+    extent = np.maximum(np.ceil((fp.hi - fp.lo) / step), 1.0) * step
+    texel = extent / (resolution - 2 * margin - 1)
+    origin = np.floor(fp.lo / texel) - margin
+    return texel, origin
+
+
+STABILIZATION_METHODS: dict[str, Callable[..., tuple[np.ndarray, np.ndarray]]] = {
+    "none": stabilize_none,
+    "exact": stabilize_exact,
+    "quantized": stabilize_quantized,
+}
+"""Stabilization methods by name: ``f(footprint, *, resolution, margin, levels, quantized_base)``."""
+
+
+def stabilize(fp: SliceFootprint, *, method: str, resolution: int, margin: int, levels: int = 64,
+              quantized_base: str = "sphere") -> tuple[np.ndarray, np.ndarray]:
+    """Texel size ``(2,)`` in metres and box origin ``(2,)`` in texels of one cascade.
+
+    Raises
+    ------
+    ValueError
+        If ``method`` is not a key of :data:`STABILIZATION_METHODS`, or the resolution leaves no
+        texel inside the margins.
+    """
+    if method not in STABILIZATION_METHODS:
+        raise ValueError(f"stabilization: expected one of {sorted(STABILIZATION_METHODS)}, got {method!r}")
+    if resolution - 2 * margin - 1 < 1:
+        raise ValueError(f"resolution: expected more than {2 * margin + 1} texels for a {margin}-texel margin, got {resolution}")
+    return STABILIZATION_METHODS[method](fp, resolution=resolution, margin=margin, levels=levels,
+                                         quantized_base=quantized_base)

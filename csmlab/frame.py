@@ -1,0 +1,143 @@
+"""The records one rendered frame is made of: what the camera sees, the shadow maps, the lookup.
+
+Plain frozen dataclasses of NumPy arrays, produced by :mod:`csmlab.render` and consumed by
+:mod:`csmlab.metrics` and :mod:`csmlab.report`. Image arrays are ``(H, W, …)`` with row 0 at
+the top of the image; pixel ``(row, col)`` has its centre at ``(col + 0.5, row + 0.5)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from csmlab.camera import CameraPose
+from csmlab.cascades import CascadeSet
+from csmlab.settings import ShadowSettings
+
+__all__ = ["Frame", "GBuffer", "ShadowLookup", "ShadowMaps", "View"]
+
+
+@dataclass(frozen=True)
+class GBuffer:
+    """Per-pixel first hit of the camera rays.
+
+    Attributes
+    ----------
+    position : ndarray, shape (H, W, 3), float64
+        World position of the hit, metres; NaN where the ray missed.
+    normal : ndarray, shape (H, W, 3), float32
+        Unit geometric normal of the hit triangle, turned to face the camera; 0 on a miss.
+    triangle : ndarray, shape (H, W), int32
+        Index of the hit triangle; -1 on a miss.
+    view_depth : ndarray, shape (H, W), float32
+        ``-z_view`` of the hit in metres; +inf on a miss.
+    dpdx, dpdy : ndarray, shape (H, W, 3), float32
+        Ray differentials: where the rays through the next pixel centre to the right (+x) and
+        below (+y) meet the hit point's tangent plane, minus the hit point; metres. 0 on a miss.
+    albedo : ndarray, shape (H, W, 3), float32
+        Linear RGB reflectance of the hit triangle; 0 on a miss.
+    """
+
+    position: np.ndarray
+    normal: np.ndarray
+    triangle: np.ndarray
+    view_depth: np.ndarray
+    dpdx: np.ndarray
+    dpdy: np.ndarray
+    albedo: np.ndarray
+
+    @property
+    def valid(self) -> np.ndarray:
+        """``(H, W)`` bool: the ray hit the scene."""
+        return self.triangle >= 0
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.triangle.shape
+
+
+@dataclass(frozen=True)
+class View:
+    """What depends on the camera and the light but not on the shadow method: shared by all methods.
+
+    Attributes
+    ----------
+    index : int
+        Frame number.
+    pose : CameraPose
+    light_direction : ndarray, shape (3,), float64
+        Unit direction from the light toward the scene.
+    gbuffer : GBuffer
+    reference : ndarray, shape (H, W), float32
+        Ray-traced hard shadow R: 1 lit, 0 shadowed, NaN on a miss.
+    timings : dict of str to float
+        Seconds per stage (``visibility``, ``reference``).
+    """
+
+    index: int
+    pose: CameraPose
+    light_direction: np.ndarray
+    gbuffer: GBuffer
+    reference: np.ndarray
+    timings: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ShadowMaps:
+    """One method's cascades and their rasterized depth maps for one frame.
+
+    Attributes
+    ----------
+    cascades : CascadeSet
+    depth : ndarray, shape (C, R, R), float32
+        ``dot(X, d) - zref`` in metres of the nearest caster at each texel centre; +inf where
+        empty. ``depth[c, j, i]`` is texel column ``i`` (light x), row ``j`` (light y) of cascade c.
+    texels_rasterized : int
+        Texel-centre coverage tests that passed (work done by the rasterizer).
+    """
+
+    cascades: CascadeSet
+    depth: np.ndarray
+    texels_rasterized: int
+
+
+@dataclass(frozen=True)
+class ShadowLookup:
+    """The shadow of one method at a set of receiver points.
+
+    Attributes
+    ----------
+    lit : ndarray, shape (...), float32
+        Lit fraction S in [0, 1]; NaN where there is no receiver or no cascade contains it.
+    cascade : ndarray, shape (...), int8
+        Selected cascade; -1 where none.
+    blend : ndarray, shape (...), bool
+        The point lies in a blend band (its S mixes two cascades).
+    """
+
+    lit: np.ndarray
+    cascade: np.ndarray
+    blend: np.ndarray
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One frame of one method: the shared view, the method's shadow maps and its shadow.
+
+    Attributes
+    ----------
+    view : View
+    settings : ShadowSettings
+    maps : ShadowMaps
+    shadow : ShadowLookup
+        Lookup at every pixel of ``view.gbuffer`` (shape (H, W)).
+    timings : dict of str to float
+        Seconds per method stage (``cascades``, ``raster``, ``shadow``).
+    """
+
+    view: View
+    settings: ShadowSettings
+    maps: ShadowMaps
+    shadow: ShadowLookup
+    timings: dict = field(default_factory=dict)

@@ -1,0 +1,96 @@
+"""The shadow settings of one method: every knob of DESIGN.md's ``[shadow]`` section.
+
+A plain record shared by the host cascades and the Warp shadow lookup. ``config.py`` builds it
+from TOML and validates it at the edge; :meth:`ShadowSettings.validated` repeats the range
+checks so that a settings object made in Python is held to the same contract.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+
+__all__ = ["ShadowSettings"]
+
+
+@dataclass(frozen=True)
+class ShadowSettings:
+    """Cascaded-shadow-map settings of one method."""
+
+    cascades: int = 4
+    """Number of cascades C."""
+    resolution: int = 1024
+    """Texels per side R of each cascade's depth map."""
+    split: str = "practical"
+    """Split scheme: uniform | log | practical | manual."""
+    lambda_: float = 0.75
+    """PSSM blend λ of log and uniform splits (TOML field ``lambda``)."""
+    splits: tuple[float, ...] = ()
+    """manual: far end of each cascade, metres, or fractions of shadow_distance when all ≤ 1."""
+    shadow_distance: float = 200.0
+    """View depth in metres that the last cascade ends at (clamped to the camera's far plane)."""
+    fit: str = "cascade"
+    """Fit: cascade (slice [z_i, z_i+1]) | scene (slice [near, z_i+1])."""
+    stabilization: str = "exact"
+    """none | exact | quantized."""
+    levels: int = 64
+    """quantized: number of extent steps of the base extent."""
+    quantized_base: str = "sphere"
+    """quantized: base extent, sphere (slice bounding-sphere diameter) | frustum (whole frustum box)."""
+    selection: str = "interval"
+    """Cascade selection: interval | map | best_resolution."""
+    filter: str = "pcf"
+    """Filter: none | pcf | pcf_bilinear."""
+    filter_size: int = 3
+    """pcf: taps per side N (odd)."""
+    bias_constant: float = 0.0
+    """Constant depth bias, metres along the light."""
+    bias_slope: float = 1.0
+    """Slope-scaled bias in texels: bias += bias_slope · texel · tan(angle(n, -d))."""
+    normal_offset: float = 0.5
+    """Receiver offset along its normal, in texels."""
+    blend_band: float = 0.0
+    """Fraction of a cascade's depth range blended with the next cascade, in [0, 0.5]."""
+    subtexel_bits: int = 8
+    """Fixed-point bits below a texel for vertices and receivers (DESIGN.md, "Exact zero")."""
+    depth_bytes: int = 4
+    """Bytes per stored depth texel (memory cost only)."""
+
+    def validated(self) -> "ShadowSettings":
+        """Return ``self`` after checking every field's range; raise ``ValueError`` naming the field."""
+        def need(ok: bool, name: str, expected: str, value) -> None:
+            if not ok:
+                raise ValueError(f"{name}: expected {expected}, got {value!r}")
+
+        need(isinstance(self.cascades, int) and 1 <= self.cascades <= 8, "cascades", "an integer in 1..8", self.cascades)
+        need(isinstance(self.resolution, int) and 16 <= self.resolution <= 16384, "resolution",
+             "an integer in 16..16384", self.resolution)
+        need(0.0 <= self.lambda_ <= 1.0, "lambda", "a value in [0, 1]", self.lambda_)
+        need(self.shadow_distance > 0, "shadow_distance", "a positive distance in metres", self.shadow_distance)
+        need(isinstance(self.levels, int) and self.levels >= 1, "levels", "a positive integer", self.levels)
+        need(self.quantized_base in ("sphere", "frustum"), "quantized_base", "sphere or frustum", self.quantized_base)
+        need(isinstance(self.filter_size, int) and self.filter_size >= 1 and self.filter_size % 2 == 1,
+             "filter_size", "an odd positive integer", self.filter_size)
+        need(self.bias_constant >= 0, "bias_constant", "a non-negative distance in metres", self.bias_constant)
+        need(self.bias_slope >= 0, "bias_slope", "a non-negative number of texels", self.bias_slope)
+        need(self.normal_offset >= 0, "normal_offset", "a non-negative number of texels", self.normal_offset)
+        need(0.0 <= self.blend_band <= 0.5, "blend_band", "a fraction in [0, 0.5]", self.blend_band)
+        need(isinstance(self.subtexel_bits, int) and 0 <= self.subtexel_bits <= 16, "subtexel_bits",
+             "an integer in 0..16", self.subtexel_bits)
+        return self
+
+    @property
+    def margin_texels(self) -> int:
+        """Texels kept free inside each box edge so that filter taps never clamp: filter radius + 1."""
+        radius = self.filter_size // 2 if self.filter == "pcf" else (1 if self.filter == "pcf_bilinear" else 0)
+        return radius + 1
+
+    def replace(self, **changes) -> "ShadowSettings":
+        """A copy with ``changes`` applied (TOML name ``lambda`` accepted for ``lambda_``)."""
+        if "lambda" in changes:
+            changes["lambda_"] = changes.pop("lambda")
+        return replace(self, **changes)
+
+    @classmethod
+    def field_names(cls) -> list[str]:
+        """Field names as a TOML file spells them (``lambda``, not ``lambda_``)."""
+        return ["lambda" if f.name == "lambda_" else f.name for f in fields(cls)]
