@@ -1,0 +1,52 @@
+"""Split schemes against the whitepaper's formulas (seed 000), written out independently here."""
+
+import math
+
+import numpy as np
+import pytest
+
+from csmlab.cascades.splits import SPLIT_METHODS, split_distances
+
+
+@pytest.mark.parametrize("n, f, count, lam", [(0.1, 200.0, 4, 0.75), (0.5, 1000.0, 3, 0.5), (1.0, 50.0, 8, 0.9),
+                                              (0.05, 120.0, 1, 0.3)])
+def test_log_and_practical_match_the_whitepaper(n, f, count, lam):
+    log = [n * math.pow(f / n, i / count) for i in range(count + 1)]
+    uni = [n + (f - n) * i / count for i in range(count + 1)]
+    practical = [lam * a + (1 - lam) * b for a, b in zip(log, uni)]
+    np.testing.assert_allclose(split_distances(near=n, far=f, count=count, method="log"), log, rtol=1e-12)
+    np.testing.assert_allclose(split_distances(near=n, far=f, count=count, method="uniform"), uni, rtol=1e-12)
+    np.testing.assert_allclose(split_distances(near=n, far=f, count=count, method="practical", lambda_=lam),
+                               practical, rtol=1e-12)
+
+
+def test_every_scheme_is_increasing_from_near_to_far():
+    for method in ("uniform", "log", "practical"):
+        z = split_distances(near=0.1, far=300.0, count=5, method=method)
+        assert z[0] == 0.1 and z[-1] == 300.0 and np.all(np.diff(z) > 0)
+
+
+def test_manual_accepts_distances_and_fractions():
+    metres = split_distances(near=0.1, far=100.0, count=3, method="manual", splits=[10.0, 40.0, 100.0])
+    fractions = split_distances(near=0.1, far=100.0, count=3, method="manual", splits=[0.1, 0.4, 1.0])
+    np.testing.assert_allclose(metres, [0.1, 10.0, 40.0, 100.0])
+    np.testing.assert_allclose(fractions, metres)
+
+
+@pytest.mark.parametrize("splits, match", [([10.0, 5.0, 100.0], "increasing"), ([10.0, 100.0], "3 far ends"),
+                                           ([10.0, 20.0, 30.0], "shadow distance")])
+def test_manual_rejects_bad_lists(splits, match):
+    with pytest.raises(ValueError, match=match):
+        split_distances(near=0.1, far=100.0, count=3, method="manual", splits=splits)
+
+
+def test_unknown_scheme_lists_the_valid_ones():
+    with pytest.raises(ValueError, match="practical"):
+        split_distances(near=0.1, far=100.0, count=3, method="pssm")
+    assert set(SPLIT_METHODS) == {"uniform", "log", "practical", "manual"}
+
+
+@pytest.mark.parametrize("near, far", [(0.0, 100.0), (-1.0, 100.0), (5.0, 5.0), (5.0, 1.0)])
+def test_bad_planes_name_the_field(near, far):
+    with pytest.raises(ValueError, match="near|shadow_distance"):
+        split_distances(near=near, far=far, count=4)
