@@ -1,0 +1,210 @@
+"""Recorded camera paths: the formats by name, and reading or writing a :class:`CameraPath`.
+
+:func:`read_path` reads a file in its format (:data:`PATH_FORMATS`), converts its poses from the
+format's (or the given) convention into csmlab's (:data:`~csmlab.paths.conventions.CONVENTIONS`),
+then scales positions and adds the offset, shifts times, and resamples to a frame rate when
+asked. A broken file stops with an :class:`~csmlab.errors.InputError` naming the file, line and
+field, before any pose is returned.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from csmlab.camera import CameraPath
+from csmlab.errors import InputError
+from csmlab.paths.conventions import convention_named, poses_from_opengl, poses_to_opengl
+from csmlab.paths.euroc import read_euroc, write_euroc
+from csmlab.paths.kitti import read_kitti, read_kitti_times, write_kitti
+from csmlab.paths.recorded import RecordedPoses, data_rows, require_poses, text_lines
+from csmlab.paths.tabular import read_csv, read_json, write_csv, write_json
+from csmlab.paths.tum import read_tum, write_tum
+
+__all__ = ["PATH_FORMATS", "PathFormat", "guess_format", "read_path", "write_path"]
+
+
+@dataclass(frozen=True)
+class PathFormat:
+    """One camera-path file format.
+
+    Attributes
+    ----------
+    read : callable
+        ``read(file) -> RecordedPoses``: the file's poses in its own axes, checked.
+    write : callable
+        ``write(poses: RecordedPoses, file) -> None``.
+    convention : str
+        The convention its files are read and written in unless one is given.
+    description : str
+        One line for ``csmlab list``.
+    """
+
+    read: Callable[..., RecordedPoses]
+    write: Callable[..., None]
+    convention: str
+    description: str
+
+
+PATH_FORMATS: dict[str, PathFormat] = {
+    "tum": PathFormat(read_tum, write_tum, "tum", "TUM: 'timestamp tx ty tz qx qy qz qw' per line, # comments"),
+    "kitti": PathFormat(read_kitti, write_kitti, "kitti",
+                        "KITTI odometry: 12 numbers per line (3×4 camera-to-world), times from times_file or fps"),
+    "euroc": PathFormat(read_euroc, write_euroc, "euroc",
+                        "EuRoC ground truth CSV: #timestamp [ns], p xyz, q wxyz, further columns ignored"),
+    "csv": PathFormat(read_csv, write_csv, "opengl",
+                      "csmlab CSV: header time,x,y,z then qx,qy,qz,qw or yaw,pitch,roll [,fov_y_deg]"),
+    "json": PathFormat(read_json, write_json, "opengl", "csmlab JSON: {\"poses\": [{time, x, y, z, qx, ...}, ...]}"),
+}
+"""Path formats by name; add an entry to register a new one."""
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def guess_format(file) -> str:
+    """The name of ``file``'s format in :data:`PATH_FORMATS`, from its extension and first lines.
+
+    ``.json`` or a leading ``{`` → json; a ``#timestamp`` header → euroc; a comma-separated
+    first row → csv when it is a header of names, euroc when it holds eight or more numbers;
+    a whitespace-separated first row of 8 numbers → tum, of 12 → kitti.
+
+    Raises
+    ------
+    InputError
+        If the file is empty or matches no rule.
+    """
+    lines = text_lines(file)
+    first = next((text.strip() for text in lines if text.strip()), "")
+    if Path(file).suffix.lower() == ".json" or first.startswith("{"):
+        return "json"
+    if first.lower().startswith("#timestamp"):
+        return "euroc"
+    rows = data_rows(lines)
+    require_poses(rows, file=file, line_count=len(lines))
+    number, tokens = rows[0]
+    text = lines[number - 1]
+    if "," in text:
+        fields = [f.strip() for f in text.split(",")]
+        if not _is_number(fields[0]):
+            return "csv"
+        if len(fields) >= 8:
+            return "euroc"
+    elif len(tokens) in (8, 12):
+        return "tum" if len(tokens) == 8 else "kitti"
+    raise InputError(f"cannot tell the path format from this line; pass format= one of {sorted(PATH_FORMATS)}",
+                     file=file, line=number, field="format")
+
+
+def _format(name: str) -> PathFormat:
+    if name not in PATH_FORMATS:
+        raise ValueError(f"format: expected one of {sorted(PATH_FORMATS)}, got {name!r}")
+    return PATH_FORMATS[name]
+
+
+def _times(recorded: RecordedPoses, *, times_file, fps) -> np.ndarray:
+    """Time stamps of ``recorded``: its own, else from ``times_file``, else ``i / fps``."""
+    if recorded.times is not None:
+        if times_file is not None:
+            raise ValueError(f"times_file: only for a format without time stamps (kitti); {recorded.file} has its own")
+        return recorded.times
+    if times_file is not None:
+        return read_kitti_times(times_file, count=recorded.positions.shape[0])
+    if fps is not None:
+        return np.arange(recorded.positions.shape[0], dtype=np.float64) / fps
+    raise InputError("this format has no time stamps: give times_file (one time per line) or fps",
+                     file=recorded.file, field="times_file")
+
+
+def read_path(file, *, format: str | None = None, convention: str | None = None, scale: float = 1.0,
+              offset=(0.0, 0.0, 0.0), time_offset: float = 0.0, fps: float | None = None, times_file=None,
+              fov_y_deg: float = 60.0, aspect: float = 16.0 / 9.0, near: float = 0.1,
+              far: float = 400.0) -> CameraPath:
+    """Read a recorded camera path into csmlab's convention.
+
+    Parameters
+    ----------
+    file : str or Path
+        The path file.
+    format : str, optional
+        A key of :data:`PATH_FORMATS`; guessed by :func:`guess_format` when ``None``.
+    convention : str, optional
+        A key of :data:`~csmlab.paths.conventions.CONVENTIONS`; the format's own when ``None``
+        (tum → ``tum``, kitti → ``kitti``, euroc → ``euroc``, csv/json → ``opengl``).
+    scale : float
+        Factor on positions after conversion to metres (desk-scale recordings → a scene).
+    offset : array_like, shape (3,)
+        Metres added to every position after scaling, in csmlab's world.
+    time_offset : float
+        Seconds added to every time stamp (``-t0`` starts a path at zero).
+    fps : float, optional
+        Frame rate in Hz: the path is resampled to it from its first time stamp (positions
+        linearly, orientations by slerp). For KITTI without ``times_file`` it sets the time
+        stamps ``i / fps`` instead.
+    times_file : str or Path, optional
+        KITTI only: one time in seconds per pose, one per line.
+    fov_y_deg, aspect, near, far : float
+        Projection (degrees, width/height, metres, metres); a file's ``fov_y_deg`` column wins.
+
+    Returns
+    -------
+    CameraPath
+        Named after the file.
+
+    Raises
+    ------
+    InputError
+        On a broken file, located (file, line, field).
+    ValueError
+        On a bad argument (unknown format or convention, non-positive scale or fps, ...).
+    """
+    spec = _format(format if format is not None else guess_format(file))
+    convention = convention if convention is not None else spec.convention
+    convention_named(convention)
+    offset = np.asarray(offset, dtype=np.float64)
+    if not np.isfinite(scale) or scale <= 0:
+        raise ValueError(f"scale: expected a positive factor, got {scale}")
+    if offset.shape != (3,) or not np.all(np.isfinite(offset)):
+        raise ValueError(f"offset: expected 3 finite coordinates in metres, got {offset.tolist()}")
+    if not np.isfinite(time_offset):
+        raise ValueError(f"time_offset: expected finite seconds, got {time_offset}")
+    if fps is not None and (not np.isfinite(fps) or fps <= 0):
+        raise ValueError(f"fps: expected a positive frame rate in Hz, got {fps}")
+
+    recorded = spec.read(file)
+    if recorded.angles_line is not None and convention != "opengl":
+        raise InputError(f"yaw/pitch/roll are defined in csmlab's own axes: read this file with convention "
+                         f"'opengl', or give quaternions (qx qy qz qw) for convention {convention!r}",
+                         file=file, line=recorded.angles_line, field="yaw")
+    times = _times(recorded, times_file=times_file, fps=fps)
+    positions, orientations = poses_to_opengl(recorded.positions, recorded.orientations, convention=convention)
+    path = CameraPath(
+        times=times + time_offset,
+        positions=positions * scale + offset,
+        orientations=orientations,
+        fov_y_deg=recorded.fov_y_deg if recorded.fov_y_deg is not None else fov_y_deg,
+        aspect=aspect, near=near, far=far, name=Path(file).name,
+    )
+    resample = fps is not None and (recorded.times is not None or times_file is not None)
+    return path.resample(fps) if resample else path
+
+
+def write_path(path: CameraPath, file, *, format: str, convention: str | None = None) -> None:
+    """Write ``path`` as ``format`` in ``convention`` (the format's own when ``None``).
+
+    Reading the file back with the same format and convention gives the same poses (positions and
+    rotations to float rounding; KITTI keeps no times, EuRoC rounds them to nanoseconds).
+    """
+    spec = _format(format)
+    positions, orientations = poses_from_opengl(path.positions, path.orientations,
+                                                convention=convention or spec.convention)
+    spec.write(RecordedPoses(file=str(file), lines=np.arange(1, len(path) + 1), times=path.times,
+                             positions=positions, orientations=orientations, fov_y_deg=path.fov_y_deg), file)
