@@ -1,0 +1,74 @@
+"""Scenes: the :class:`Scene` record, procedural generators by name, and mesh import.
+
+Every procedural scene is in world metres with Y up, deterministic from its ``seed``, and keeps
+the camera's area clear (see :mod:`csmlab.scene.layout`; ``plane_box`` excepted, whose box stands
+at the origin by design). :data:`SCENE_KINDS` maps each kind to its function; :func:`make_scene`
+dispatches on the name.
+"""
+
+from __future__ import annotations
+
+import inspect
+from typing import Callable
+
+from csmlab.scene.city import city
+from csmlab.scene.core import Scene
+from csmlab.scene.fence import fence
+from csmlab.scene.mesh import load_mesh
+from csmlab.scene.plane_box import plane_box
+from csmlab.scene.terrain import terrain
+
+__all__ = ["SCENE_KINDS", "Scene", "load_mesh", "make_scene"]
+
+SCENE_KINDS: dict[str, Callable[..., Scene]] = {
+    "plane_box": plane_box,
+    "terrain": terrain,
+    "city": city,
+    "fence": fence,
+    "mesh": load_mesh,
+}
+"""Scene generators by name; add an entry to register a new one. Each takes keyword arguments
+(``mesh`` takes the file as ``file``) and returns a :class:`Scene`."""
+
+
+def make_scene(kind: str, *, seed: int = 1, **params) -> Scene:
+    """Build the scene ``kind`` with its generator's keyword arguments.
+
+    Parameters
+    ----------
+    kind : str
+        A key of :data:`SCENE_KINDS`.
+    seed : int
+        Passed to generators that take a seed; ``plane_box`` and ``mesh`` have no randomness and
+        ignore it.
+    **params
+        The generator's keywords (see each function); ``mesh`` requires ``file``.
+
+    Returns
+    -------
+    Scene
+
+    Raises
+    ------
+    ValueError
+        On an unknown kind or keyword, or a missing required one, listing the valid names; or a
+        bad value, naming the keyword.
+    InputError
+        ``mesh`` only: a missing or broken mesh file (see :func:`load_mesh`).
+    """
+    if kind not in SCENE_KINDS:
+        raise ValueError(f"scene kind: expected one of {', '.join(SCENE_KINDS)}, got {kind!r}")
+    generator = SCENE_KINDS[kind]
+    signature = inspect.signature(generator)
+    accepted = [name for name in signature.parameters if name != "seed"]
+    unknown = sorted(set(params) - set(accepted))
+    if unknown:
+        raise ValueError(f"scene {kind!r}: unknown parameter(s) {', '.join(unknown)}; expected some of "
+                         f"{', '.join(accepted)}")
+    missing = [name for name, p in signature.parameters.items()
+               if p.default is inspect.Parameter.empty and name not in params and name != "seed"]
+    if missing:
+        raise ValueError(f"scene {kind!r}: expected parameter(s) {', '.join(missing)}")
+    if "seed" in signature.parameters:
+        params["seed"] = seed
+    return generator(**params)

@@ -1,0 +1,222 @@
+"""Mesh import: a user's level geometry read through PyVista/VTK and checked before use.
+
+Formats: Wavefront OBJ, PLY, STL, legacy VTK (``.vtk``), VTK XML (``.vtp``, ``.vtu``) and glTF
+2.0 (``.gltf``, ``.glb``) as far as VTK's readers go. Whatever the file holds — polygons, triangle
+strips, volume cells, a multi-block glTF scene — becomes its outer surface, triangulated; lines and
+points are ignored. Normals are recomputed per triangle from the winding (counter-clockwise seen
+from outside), never taken from the file.
+
+A broken file stops here with an :class:`~csmlab.errors.InputError` naming the file and what was
+expected. VTK reports failures in three ways — an exception, an error or warning event (with an
+empty or partial result), or silently an empty result — and prints to stderr while doing so; all
+three are caught and VTK's own output is silenced.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+import warnings
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+import pyvista as pv
+
+from csmlab.errors import InputError
+from csmlab.scene.core import Scene
+from csmlab.scene.shapes import height_field, scene_from_parts
+
+__all__ = ["GROUND_ALBEDO", "GROUND_SIZE_FACTOR", "MESH_FORMATS", "UP_AXES", "load_mesh"]
+
+MESH_FORMATS: dict[str, str] = {
+    ".obj": "Wavefront OBJ",
+    ".ply": "PLY",
+    ".stl": "STL",
+    ".vtk": "legacy VTK",
+    ".vtp": "VTK XML poly data",
+    ".vtu": "VTK XML unstructured grid",
+    ".gltf": "glTF",
+    ".glb": "binary glTF",
+}
+"""File suffixes :func:`load_mesh` accepts, with the format each names."""
+
+UP_AXES: dict[str, np.ndarray] = {
+    "y": np.eye(3),
+    "z": np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]),
+}
+"""Rotation ``(3, 3)`` taking a file's coordinates to csmlab's Y-up world, by the file's up axis.
+
+``"z"`` maps ``(x, y, z) → (x, z, −y)``: a −90° turn about +X, so the file's +Z becomes +Y and its
++Y (Blender's "back") becomes −Z; handedness is kept.
+"""
+
+GROUND_ALBEDO = (0.5, 0.5, 0.5)
+"""Linear RGB of the optional ground plane."""
+GROUND_SIZE_FACTOR = 8.0
+"""Side of the optional ground plane, in multiples of the mesh's largest bounding-box side."""
+
+
+def _drop_record(_record) -> bool:
+    return False
+
+
+@contextmanager
+def _quiet_vtk():
+    """Silence VTK and PyVista while reading; yield the error catcher and the warning list.
+
+    PyVista forwards VTK errors to the root logger, whose ``logging.error`` would install a
+    stderr handler on first use; a temporary null handler and a dropping filter prevent both.
+    """
+    root = logging.getLogger()
+    null = logging.NullHandler()
+    root.addHandler(null)
+    root.addFilter(_drop_record)
+    try:
+        with pv.vtk_verbosity("off"), pv.VtkErrorCatcher(send_to_logging=False) as catcher, \
+                warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            yield catcher, caught
+    finally:
+        root.removeFilter(_drop_record)
+        root.removeHandler(null)
+
+
+def _vtk_reason(text: str) -> str:
+    """The informative line of a VTK message, without source locations and object addresses."""
+    lines = [ln.strip() for ln in str(text).splitlines() if ln.strip()]
+    lines = [ln for ln in lines if not re.match(r"^(ERROR|Warning|Generic Warning): In ", ln)] or lines or ["no detail"]
+    return re.sub(r"\s*\(0x[0-9a-fA-F]+\)", "", lines[0])
+
+
+def _read_dataset(path: Path, fmt: str):
+    """Read ``path`` with VTK's reader for its suffix; any failure becomes an ``InputError``."""
+    expected = f"expected a mesh in {fmt} format that VTK can read"
+    try:
+        with _quiet_vtk() as (catcher, caught):
+            data = pv.get_reader(str(path)).read()
+            if isinstance(data, pv.MultiBlock):
+                data = data.combine()
+    except Exception as exc:  # VTK and PyVista raise many unrelated types on a bad file.
+        raise InputError(f"{expected}; reading failed: {_vtk_reason(exc)}", file=path, field="file") from exc
+    if catcher.events:
+        raise InputError(f"{expected}; VTK reported: {_vtk_reason(catcher.events[0].alert)}", file=path, field="file")
+    # Deprecation notices say nothing about the file; any other warning means a doubtful read.
+    doubts = [w for w in caught if not issubclass(w.category, (DeprecationWarning, PendingDeprecationWarning,
+                                                               FutureWarning))]
+    if doubts:
+        raise InputError(f"{expected}; reading warned: {_vtk_reason(doubts[0].message)}", file=path, field="file")
+    if data is None or data.n_points == 0:
+        raise InputError(f"{expected}; VTK read no vertices from it", file=path, field="file")
+    return data
+
+
+def _line_of_first_non_finite(path: Path) -> int | None:
+    """1-based line of the first NaN or infinite number in a text mesh file; None for a binary file."""
+    text = path.read_bytes()
+    if b"\0" in text[:8192]:
+        return None
+    for number, line in enumerate(text.decode("utf-8", errors="replace").splitlines(), start=1):
+        tokens = line.split()
+        if not tokens or tokens[0].startswith("#") or tokens[0] == "comment":
+            continue
+        for token in tokens:
+            try:
+                value = float(token)
+            except ValueError:
+                continue
+            if not np.isfinite(value):
+                return number
+    return None
+
+
+def _surface_triangles(data, path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Points ``(V, 3)`` float64 and triangles ``(T, 3)`` int64 of the dataset's triangulated surface."""
+    with _quiet_vtk():
+        surface = data if isinstance(data, pv.PolyData) else data.extract_surface()
+    points = np.asarray(surface.points, dtype=np.float64)
+    bad = ~np.all(np.isfinite(points), axis=1)
+    if np.any(bad):
+        raise InputError(f"expected finite vertex coordinates; {int(bad.sum())} of {bad.size} vertices are NaN or "
+                         f"infinite (first: vertex {int(np.argmax(bad)) + 1} in reading order)", file=path,
+                         line=_line_of_first_non_finite(path), field="vertices")
+    with _quiet_vtk():
+        triangulated = surface.triangulate()
+    faces = np.asarray(triangulated.faces, dtype=np.int64)
+    if faces.size == 0:
+        raise InputError(f"expected at least one polygon (triangle, quad, …); the file holds {data.n_points} "
+                         f"vertices and {data.n_cells} cells, none of them a surface", file=path, field="triangles")
+    return np.asarray(triangulated.points, dtype=np.float64), faces.reshape(-1, 4)[:, 1:]
+
+
+def _ground_under(scene: Scene) -> Scene:
+    """A square plane at the scene's lowest ``y``, centred under it, :data:`GROUND_SIZE_FACTOR` times its size."""
+    lo, hi = scene.bounds
+    half = GROUND_SIZE_FACTOR * float(np.max(hi - lo)) / 2.0
+    cx, cz = (lo[0] + hi[0]) / 2.0, (lo[2] + hi[2]) / 2.0
+    plane = height_field([cx - half, cx + half], [cz - half, cz + half], np.full((2, 2), lo[1]), albedo=GROUND_ALBEDO)
+    return scene_from_parts([plane], name="ground")
+
+
+def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, albedo=(0.6, 0.6, 0.6)) -> Scene:
+    """Read a mesh file (OBJ, PLY, STL, VTK, glTF) into a Scene in csmlab's world: metres, Y up.
+
+    Parameters
+    ----------
+    file : str or os.PathLike
+        A file whose suffix is a key of :data:`MESH_FORMATS`.
+    scale : float
+        Metres per file unit (0.001 for a file in millimetres), > 0. Applied first.
+    up : {"y", "z"}
+        The file's up axis; a Z-up file is turned to Y-up by :data:`UP_AXES` (``(x, y, z) →
+        (x, z, −y)``). The mesh is not moved: the file's origin stays the world origin.
+    ground : bool
+        Add a square ground plane (two triangles, facing +Y, albedo :data:`GROUND_ALBEDO`) at the
+        mesh's lowest point, centred under it, :data:`GROUND_SIZE_FACTOR` times its largest
+        bounding-box side, so a lone object casts a visible shadow. Its triangles come last.
+    albedo : (float, float, float)
+        Linear RGB in [0, 1] for every triangle of the mesh (file colours are not read).
+
+    Returns
+    -------
+    Scene
+        Named after the file; vertices in metres; zero-area triangles dropped.
+
+    Raises
+    ------
+    InputError
+        Naming the file and the field: ``file`` (missing, not a file, unknown suffix, unreadable
+        by VTK, no vertices), ``triangles`` (no polygon, or only zero-area ones), ``vertices``
+        (NaN or infinite coordinates).
+    ValueError
+        On a bad ``scale``, ``up`` or ``albedo``, naming the keyword.
+
+    Examples
+    --------
+    >>> box = load_mesh("cornell_box.obj", scale=0.001)  # doctest: +SKIP
+    """
+    path = Path(file)
+    scale_value = float(scale) if isinstance(scale, (int, float)) and not isinstance(scale, bool) else float("nan")
+    if not np.isfinite(scale_value) or scale_value <= 0.0:
+        raise ValueError(f"scale: expected a finite number > 0 (metres per file unit), got {scale!r}")
+    if up not in UP_AXES:
+        raise ValueError(f"up: expected one of {', '.join(repr(k) for k in UP_AXES)}, got {up!r}")
+    colour = np.asarray(albedo, dtype=np.float64)
+    if colour.shape != (3,) or not np.all((colour >= 0.0) & (colour <= 1.0)):
+        raise ValueError(f"albedo: expected three linear RGB values in [0, 1], got {albedo!r}")
+    if not path.is_file():
+        raise InputError("expected an existing mesh file, found " + ("a directory" if path.is_dir() else "nothing"),
+                         file=path, field="file")
+    fmt = MESH_FORMATS.get(path.suffix.lower())
+    if fmt is None:
+        raise InputError(f"expected a mesh file ending in one of {', '.join(MESH_FORMATS)}, "
+                         f"got {path.suffix or 'no suffix'!r}", file=path, field="file")
+
+    points, triangles = _surface_triangles(_read_dataset(path, fmt), path)
+    points = (points * scale_value) @ UP_AXES[up].T
+    try:
+        scene = Scene.from_triangles(points, triangles, albedo=colour, name=path.name)
+    except ValueError as exc:
+        raise InputError(f"expected at least one triangle of non-zero area, all {triangles.shape[0]} are degenerate",
+                         file=path, field="triangles") from exc
+    return scene.merged(_ground_under(scene)) if ground else scene
