@@ -1,0 +1,37 @@
+"""Warp kernels, each beside its one typed NumPy-in/NumPy-out host wrapper.
+
+- :mod:`csmlab.kernels.raster` — depth rasterization of every cascade (fixed-point, top-left rule).
+- :mod:`csmlab.kernels.visibility` — the scene's BVH on a device and the camera G-buffer.
+- :mod:`csmlab.kernels.shadow` — cascade selection, receiver depth test, filtering, blend band.
+- :mod:`csmlab.kernels.reference` — the ray-traced hard shadow (ground truth).
+- :mod:`csmlab.kernels.footprint` — texel footprint of a screen pixel (aliasing metric).
+
+Every wrapper takes ``device=`` (``"cpu"`` by default, ``"cuda"`` when asked) and checks it with
+:func:`checked_device` before any upload.
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+__all__ = ["checked_device"]
+
+
+def checked_device(device: str) -> str:
+    """Return ``device`` after checking that Warp can run on it.
+
+    Raises
+    ------
+    ValueError
+        If ``device`` is not ``"cpu"`` or a CUDA device name, or names a GPU that is not present.
+    """
+    name = str(device)
+    if name != "cpu" and not name.startswith("cuda"):
+        raise ValueError(f"device: expected 'cpu' or 'cuda' (or 'cuda:N'), got {device!r}")
+    if name.startswith("cuda") and wp.get_cuda_device_count() == 0:
+        raise ValueError(f"device: {device!r} was asked for but Warp finds no CUDA device; use device='cpu'")
+    try:
+        wp.get_device(name)
+    except (RuntimeError, ValueError) as error:
+        raise ValueError(f"device: Warp cannot use {device!r}: {error}") from None
+    return name

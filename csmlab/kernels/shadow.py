@@ -1,0 +1,283 @@
+"""Shadow lookup: cascade selection, receiver depth test, filtering, blend band (CSM model step 6).
+
+Receivers arrive as int64 fixed-point coordinates in ``2**-bits`` texels of each cascade (already
+moved along their normal) and a biased float32 depth per cascade
+(:func:`csmlab.texels.receiver_lookup`). Filter taps come from the integer texel index and the
+fixed-point remainder — exactly representable — never from float texel centres, so a box moved by
+whole texels gives bit-identical results at fixed receivers.
+
+Selection methods (:data:`SELECTION_METHODS`):
+
+- ``interval`` — cascade i for view depth in ``[z_i, z_{i+1})`` of the splits.
+- ``map`` — the first cascade whose box, less ``margin`` texels on each side, contains the point.
+- ``best_resolution`` — among those containing cascades, the one with the smallest texel area
+  (Zhang et al., seed 003, "optimized cascade selection"); the first on ties.
+
+Every selection also requires the selected box to hold all of the filter's taps, so clamping never
+changes a tap; a point that no cascade holds gets cascade −1 (S is NaN there).
+
+Filters (:data:`FILTER_METHODS`), S = lit fraction in [0, 1]:
+
+- ``none`` — the one texel that contains the point.
+- ``pcf`` — the N×N texels centred on it (N = ``filter_size``, odd), equal weights.
+- ``pcf_bilinear`` — the 2×2 texels around it, weighted by the fixed-point fraction of its
+  position between their centres (hardware bilinear percentage-closer filtering).
+
+Blend band: within the last ``blend_band`` fraction of the selected cascade's split interval, S
+moves linearly toward cascade i + 1's S (when i + 1 holds the point), reaching it at ``z_{i+1}``.
+
+References
+----------
+- Reeves, Salesin, Cook, "Rendering Antialiased Shadows with Depth Maps", SIGGRAPH 1987 — PCF.
+- Zhang, Zaprjagaev, Bentham, "Practical Cascaded Shadow Maps", ShaderX7 (seed 003).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from csmlab.kernels import checked_device
+
+__all__ = ["FILTER_METHODS", "SELECTION_METHODS", "filter_radius", "shadow_lookup"]
+
+SELECTION_METHODS: dict[str, int] = {"interval": 0, "map": 1, "best_resolution": 2}
+"""Cascade selection methods by name, mapped to the kernel's code."""
+
+FILTER_METHODS: dict[str, int] = {"none": 0, "pcf": 1, "pcf_bilinear": 2}
+"""Filters by name, mapped to the kernel's code."""
+
+
+def filter_radius(filter: str, filter_size: int) -> int:
+    """Texels a filter reads beyond the texel that contains the point (0, N // 2, or 1)."""
+    if filter not in FILTER_METHODS:
+        raise ValueError(f"filter: expected one of {sorted(FILTER_METHODS)}, got {filter!r}")
+    return {"none": 0, "pcf": filter_size // 2, "pcf_bilinear": 1}[filter]
+
+
+@wp.func
+def holds(coords: wp.array3d(dtype=wp.int64), c: int, k: int, inset: wp.int64, top: wp.int64) -> bool:
+    """The point lies in ``[inset, top)`` on both axes (fixed point)."""
+    x = coords[c, k, 0]
+    y = coords[c, k, 1]
+    return x >= inset and x < top and y >= inset and y < top
+
+
+@wp.func
+def tap(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int64, receiver: wp.float32) -> int:
+    """1 where the receiver is not behind the caster stored at texel (i, j), else 0 (also for a NaN receiver)."""
+    top = wp.int64(depth.shape[1] - 1)
+    ii = int(wp.clamp(i, wp.int64(0), top))
+    jj = int(wp.clamp(j, wp.int64(0), top))
+    if receiver <= depth[c, jj, ii]:
+        return 1
+    return 0
+
+
+@wp.func
+def lit_fraction(
+    depth: wp.array3d(dtype=wp.float32),
+    coords: wp.array3d(dtype=wp.int64),
+    receiver_depth: wp.array2d(dtype=wp.float32),
+    c: int,
+    k: int,
+    unit: wp.int64,
+    filter_code: int,
+    radius: int,
+) -> wp.float64:
+    """S of receiver k in cascade c with the filter of ``filter_code`` (2: bilinear, else box of ``radius``)."""
+    x = coords[c, k, 0]
+    y = coords[c, k, 1]
+    receiver = receiver_depth[c, k]
+    if filter_code == 2:
+        # Texel centres sit at (2i + 1)·unit in doubled units; i0 is the centre at or left of the point.
+        x2 = wp.int64(2) * x - unit
+        y2 = wp.int64(2) * y - unit
+        span = wp.int64(2) * unit
+        i0 = x2 // span
+        j0 = y2 // span
+        wx = wp.float64(x2 - i0 * span) / wp.float64(span)
+        wy = wp.float64(y2 - j0 * span) / wp.float64(span)
+        one = wp.int64(1)
+        s00 = wp.float64(tap(depth, c, i0, j0, receiver))
+        s10 = wp.float64(tap(depth, c, i0 + one, j0, receiver))
+        s01 = wp.float64(tap(depth, c, i0, j0 + one, receiver))
+        s11 = wp.float64(tap(depth, c, i0 + one, j0 + one, receiver))
+        w1 = wp.float64(1.0)
+        return (w1 - wy) * ((w1 - wx) * s00 + wx * s10) + wy * ((w1 - wx) * s01 + wx * s11)
+    # none (radius 0) and pcf: the (2r + 1)² texels centred on the one that contains the point.
+    i = x // unit
+    j = y // unit
+    count = int(0)
+    for dj in range(-radius, radius + 1):
+        for di in range(-radius, radius + 1):
+            count += tap(depth, c, i + wp.int64(di), j + wp.int64(dj), receiver)
+    side = 2 * radius + 1
+    return wp.float64(count) / wp.float64(side * side)
+
+
+@wp.kernel
+def shadow_lookup_kernel(
+    depth: wp.array3d(dtype=wp.float32),
+    coords: wp.array3d(dtype=wp.int64),
+    receiver_depth: wp.array2d(dtype=wp.float32),
+    view_depth: wp.array(dtype=wp.float64),
+    splits: wp.array(dtype=wp.float64),
+    texel_area: wp.array(dtype=wp.float64),
+    unit: wp.int64,
+    selection: int,
+    filter_code: int,
+    radius: int,
+    margin: int,
+    blend_band: wp.float64,
+    lit: wp.array(dtype=wp.float32),
+    cascade: wp.array(dtype=wp.int32),
+    blend: wp.array(dtype=wp.int32),
+):
+    k = wp.tid()
+    count = depth.shape[0]
+    size = wp.int64(depth.shape[1])
+    # A box holds a point for sampling when every tap is inside it, and for `map` selection when
+    # the point is also `margin` texels inside its edges.
+    tap_lo = wp.int64(radius) * unit
+    tap_hi = (size - wp.int64(radius)) * unit
+    select_lo = wp.int64(margin) * unit
+    select_hi = (size - wp.int64(margin)) * unit
+    z = view_depth[k]
+    chosen = int(-1)
+    if selection == 0:
+        for c in range(count):
+            if z >= splits[c] and z < splits[c + 1]:
+                chosen = c
+        if chosen >= 0:
+            if not holds(coords, chosen, k, tap_lo, tap_hi):
+                chosen = -1
+    else:
+        best = wp.float64(wp.inf)
+        for c in range(count):
+            if holds(coords, c, k, select_lo, select_hi):
+                if selection == 1 and chosen < 0:
+                    chosen = c
+                if selection == 2 and texel_area[c] < best:
+                    best = texel_area[c]
+                    chosen = c
+    cascade[k] = chosen
+    blend[k] = 0
+    if chosen < 0:
+        lit[k] = 0.0
+        return
+    s = lit_fraction(depth, coords, receiver_depth, chosen, k, unit, filter_code, radius)
+    nxt = chosen + 1
+    if blend_band > wp.float64(0.0) and nxt < count:
+        z0 = splits[chosen]
+        z1 = splits[nxt]
+        start = z1 - blend_band * (z1 - z0)
+        if z >= start and z < z1 and holds(coords, nxt, k, tap_lo, tap_hi):
+            w = (z - start) / (z1 - start)
+            s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, coords, receiver_depth, nxt, k, unit,
+                                                             filter_code, radius)
+            blend[k] = 1
+    lit[k] = wp.float32(s)
+
+
+def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_area, selection: str,
+                  filter: str, filter_size: int, margin: int, blend_band: float, bits: int,
+                  device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Lit fraction S and selected cascade at receiver points.
+
+    Parameters
+    ----------
+    depth : array_like, shape (C, R, R), float32
+        Depth maps (``depth[c, j, i]``, metres, +inf where empty).
+    coords : array_like, shape (C, N, 2), int64
+        Each receiver's position in each cascade in ``2**-bits`` texels from the box origin,
+        after the normal offset.
+    receiver_depth : array_like, shape (C, N), float32
+        Each receiver's biased depth in each cascade, metres; NaN (turned from the light) is
+        shadowed by every texel.
+    view_depth : array_like, shape (N,), float64
+        View depth in metres under the camera whose selection is wanted; NaN where no receiver.
+    splits : array_like, shape (C + 1,), float64
+        Split distances, metres of view depth.
+    texel_area : array_like, shape (C,), float64
+        Texel area of each cascade, m² (``best_resolution``).
+    selection : str
+        A key of :data:`SELECTION_METHODS`.
+    filter : str
+        A key of :data:`FILTER_METHODS`.
+    filter_size : int
+        ``pcf``: taps per side N, odd.
+    margin : int
+        ``map`` and ``best_resolution``: texels of each box edge that do not count as inside.
+    blend_band : float
+        Fraction in [0, 0.5] of a split interval blended toward the next cascade.
+    bits : int
+        Sub-texel bits of ``coords``.
+    device : str
+        ``"cpu"`` or ``"cuda"``.
+
+    Returns
+    -------
+    lit : ndarray, shape (N,), float32
+        S in [0, 1]; NaN where no cascade was selected.
+    cascade : ndarray, shape (N,), int8
+        Selected cascade, −1 where none.
+    blend : ndarray, shape (N,), bool
+        S mixes the selected cascade with the next one.
+
+    Raises
+    ------
+    ValueError
+        On an unknown selection or filter (the message lists the valid names), an even or
+        non-positive ``filter_size``, or shapes that do not match.
+    """
+    device = checked_device(device)
+    if selection not in SELECTION_METHODS:
+        raise ValueError(f"selection: expected one of {sorted(SELECTION_METHODS)}, got {selection!r}")
+    radius = filter_radius(filter, filter_size)
+    if not (isinstance(filter_size, (int, np.integer)) and filter_size >= 1 and filter_size % 2 == 1):
+        raise ValueError(f"filter_size: expected an odd positive integer, got {filter_size!r}")
+    maps = np.ascontiguousarray(depth, dtype=np.float32)
+    xy = np.ascontiguousarray(coords, dtype=np.int64)
+    rd = np.ascontiguousarray(receiver_depth, dtype=np.float32)
+    vd = np.ascontiguousarray(view_depth, dtype=np.float64)
+    z = np.ascontiguousarray(splits, dtype=np.float64)
+    area = np.ascontiguousarray(texel_area, dtype=np.float64)
+    count = maps.shape[0] if maps.ndim == 3 else 0
+    if maps.ndim != 3 or maps.shape[1] != maps.shape[2] or count == 0:
+        raise ValueError(f"depth: expected depth maps of shape (C, R, R), got {maps.shape}")
+    n = vd.shape[0] if vd.ndim == 1 else -1
+    if xy.shape != (count, n, 2) or rd.shape != (count, n):
+        raise ValueError(f"coords, receiver_depth, view_depth: expected shapes ({count}, N, 2), ({count}, N), (N,); "
+                         f"got {xy.shape}, {rd.shape}, {vd.shape}")
+    if z.shape != (count + 1,) or area.shape != (count,):
+        raise ValueError(f"splits, texel_area: expected shapes ({count + 1},), ({count},), got {z.shape}, {area.shape}")
+    if n == 0:
+        return np.zeros(0, np.float32), np.zeros(0, np.int8), np.zeros(0, bool)
+    lit = wp.empty(n, dtype=wp.float32, device=device)
+    chosen = wp.empty(n, dtype=wp.int32, device=device)
+    blended = wp.empty(n, dtype=wp.int32, device=device)
+    wp.launch(
+        shadow_lookup_kernel,
+        dim=n,
+        inputs=(
+            wp.array(maps, dtype=wp.float32, device=device),
+            wp.array(xy, dtype=wp.int64, device=device),
+            wp.array(rd, dtype=wp.float32, device=device),
+            wp.array(vd, dtype=wp.float64, device=device),
+            wp.array(z, dtype=wp.float64, device=device),
+            wp.array(area, dtype=wp.float64, device=device),
+            wp.int64(2**bits),
+            SELECTION_METHODS[selection],
+            FILTER_METHODS[filter],
+            radius,
+            max(int(margin), radius),
+            float(blend_band),
+        ),
+        outputs=(lit, chosen, blended),
+        device=device,
+    )
+    cascade = chosen.numpy()
+    s = lit.numpy()
+    s[cascade < 0] = np.nan
+    return s, cascade.astype(np.int8), blended.numpy().astype(bool)

@@ -1,0 +1,121 @@
+"""The measures of one frame of one method: aliasing, temporal change, perceptual change, error, cost.
+
+Each module is a pure function of :class:`csmlab.frame.Frame` records that returns per-pixel maps
+and a summary dict; :func:`measure_frame` composes them into one row of ``metrics.csv``. The
+definitions are DESIGN.md's "Metrics" section (a contract).
+
+Columns (:func:`metric_columns`): DESIGN.md's metrics.csv columns after ``frame, time_s, method,
+point`` in their order (:data:`METRIC_COLUMNS`), with ``utilization_c0 … utilization_c{C-1}``
+placed right after ``utilization``, then the per-cascade ρ summaries ``rho_median_c{i}, rho_p05_c{i},
+rho_p95_c{i}, rho_frac_lt1_c{i}, rho_frac_lt05_c{i}`` for each cascade i at the end. Temporal and
+perceptual columns (``flicker`` … ``flip``) are NaN at the first frame; any mean over an empty set
+of pixels (no pixel changed cascade, no pixel selected cascade i) is NaN too.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from csmlab.frame import Frame
+from csmlab.metrics.aliasing import RHO_SUMMARIES, aliasing_maps, aliasing_summary, utilization
+from csmlab.metrics.cost import cost_summary
+from csmlab.metrics.perceptual import perceptual_maps, perceptual_summary
+from csmlab.metrics.reference import reference_maps, reference_summary
+from csmlab.metrics.shading import shaded_rgb
+from csmlab.metrics.temporal import temporal_maps, temporal_summary
+
+__all__ = ["METRIC_COLUMNS", "FrameMeasures", "measure_frame", "metric_columns"]
+
+METRIC_COLUMNS: tuple[str, ...] = (
+    "rho_median", "rho_p05", "rho_p95", "rho_frac_lt1", "rho_frac_lt05", "sigma_min_p05", "utilization",
+    "flicker", "flicker_same", "flicker_changed", "flip_rate", "flip_same", "flip_changed",
+    "de2000_mean", "de2000_p99", "de2000_frac_jnd", "ssim", "flip",
+    "ref_false_shadow", "ref_false_light", "ref_boundary_px", "memory_bytes", "texels_rasterized",
+)
+"""DESIGN.md's metrics.csv columns after ``frame, time_s, method, point``, in order."""
+
+_BETWEEN_FRAMES = ("flicker", "flicker_same", "flicker_changed", "flip_rate", "flip_same", "flip_changed",
+                   "de2000_mean", "de2000_p99", "de2000_frac_jnd", "ssim", "flip")
+
+
+def metric_columns(cascades: int) -> tuple[str, ...]:
+    """Every metric column, in order, for ``cascades`` cascades (see the module docstring)."""
+    if not (isinstance(cascades, (int, np.integer)) and cascades >= 1):
+        raise ValueError(f"cascades: expected a positive integer, got {cascades!r}")
+    at = METRIC_COLUMNS.index("utilization") + 1
+    per_cascade = tuple(f"utilization_c{c}" for c in range(cascades))
+    rho = tuple(f"{key}_c{c}" for c in range(cascades) for key in RHO_SUMMARIES)
+    return METRIC_COLUMNS[:at] + per_cascade + METRIC_COLUMNS[at:] + rho
+
+
+@dataclass(frozen=True)
+class FrameMeasures:
+    """The measures of one frame of one method.
+
+    Attributes
+    ----------
+    values : dict of str to float
+        One value per :func:`metric_columns` entry, in that order; NaN where undefined.
+    pixels : dict of str to ndarray
+        Per-pixel maps for the report: ``rho`` (H, W) float32 texels per pixel; ``dS`` (H, W)
+        float64 |ΔS| (reference change subtracted when the light moved), NaN where not counted or
+        at the first frame; ``shaded`` (H, W, 3) float64 linear RGB of frame t, NaN where S is
+        undefined; ``ref_diff`` (H, W) int8, +1 false shadow, −1 false light, 0 otherwise;
+        ``de2000`` (H, W) float64, NaN where not compared or at the first frame.
+    """
+
+    values: dict[str, float]
+    pixels: dict[str, np.ndarray]
+
+
+def measure_frame(frame: Frame, previous: Frame | None = None, *, ambient: float = 0.25,
+                  device: str = "cpu") -> FrameMeasures:
+    """Every metric of ``frame``; the temporal and perceptual ones against ``previous``.
+
+    Parameters
+    ----------
+    frame : Frame
+        Frame t of one method.
+    previous : Frame or None
+        Frame t−1 of the same method (same settings); None at the first frame.
+    ambient : float
+        Ambient term of the shading used by the perceptual metrics, in units of the direct light.
+    device : str
+        Warp device for the footprint kernel and the lookup of frame t−1's maps.
+
+    Returns
+    -------
+    FrameMeasures
+
+    Raises
+    ------
+    ValueError
+        If ``previous`` was rendered with other shadow settings or another image size.
+    """
+    if previous is not None and previous.settings != frame.settings:
+        raise ValueError("previous: expected frame t-1 of the same method (equal shadow settings), "
+                         f"got settings that differ from frame {frame.view.index}'s")
+    cascades = len(frame.maps.cascades)
+    alias = aliasing_maps(frame, device=device)
+    share = utilization(frame)
+    errors = reference_maps(frame)
+    values = {**aliasing_summary(alias, cascades=cascades), "utilization": float(np.mean(share)),
+              **{f"utilization_c{c}": float(u) for c, u in enumerate(share)},
+              **reference_summary(errors), **cost_summary(frame)}
+    g = frame.view.gbuffer
+    if previous is None:
+        values.update(dict.fromkeys(_BETWEEN_FRAMES, float("nan")))
+        lit = np.where(g.valid, frame.shadow.lit, np.nan)
+        shaded = shaded_rgb(g.albedo, g.normal, lit, light_direction=frame.view.light_direction, ambient=ambient)
+        change = np.full(g.shape, np.nan)
+        de2000 = np.full(g.shape, np.nan)
+    else:
+        temporal = temporal_maps(frame, previous, device=device)
+        perceptual = perceptual_maps(frame, temporal.previous_lit, ambient=ambient)
+        values.update(temporal_summary(temporal))
+        values.update(perceptual_summary(perceptual))
+        shaded, change, de2000 = perceptual.shaded, np.abs(temporal.change), perceptual.de2000
+    pixels = {"rho": alias.rho, "dS": change, "shaded": shaded, "ref_diff": errors.diff, "de2000": de2000}
+    return FrameMeasures(values={key: values[key] for key in metric_columns(cascades)}, pixels=pixels)

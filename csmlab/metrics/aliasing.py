@@ -1,0 +1,149 @@
+"""Perspective aliasing: shadow texels per screen pixel (ρ, σ_min) and texel utilization.
+
+Definitions (DESIGN.md, "Metrics", a contract):
+
+- ρ = sqrt|det J| with J the 2×2 Jacobian from screen pixels to the selected cascade's texels,
+  from the G-buffer's ray differentials on the hit point's tangent plane. ρ = 1 is one texel per
+  pixel; ρ < 1 under-samples (blocky shadows); ρ ≫ 1 wastes resolution. σ_min(J) is the texel
+  density along the worst screen direction.
+- Utilization of cascade c: the fraction of its R² texels that contain the surface point of at
+  least one visible pixel that selects c. A pixel is counted at the texel its point falls in,
+  not at every filter tap, so that a wide PCF kernel does not pass for resolution that is used.
+
+References
+----------
+- Lloyd, Govindaraju, Molnar, Manocha, "Warping and Partitioning for Low Error Shadow Maps",
+  EGSR 2006 — perspective aliasing as the texel-to-pixel ratio.
+- Valient, "Stable Rendering of Cascaded Shadow Maps", ShaderX6 — why the bounding sphere wastes texels.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from csmlab.cascades import CascadeSet
+from csmlab.frame import Frame
+from csmlab.kernels.footprint import texel_footprint
+from csmlab.texels import texel_coordinates
+
+__all__ = ["AliasingMaps", "RHO_SUMMARIES", "aliasing_maps", "aliasing_summary", "texel_axes", "utilization"]
+
+
+@dataclass(frozen=True)
+class AliasingMaps:
+    """Per-pixel footprint of one frame.
+
+    Attributes
+    ----------
+    rho : ndarray, shape (H, W), float32
+        sqrt|det J|, shadow texels per screen pixel (linear); NaN where no cascade was selected.
+    sigma_min : ndarray, shape (H, W), float32
+        Smallest singular value of J, texels per pixel; NaN where no cascade was selected.
+    cascade : ndarray, shape (H, W), int8
+        The selected cascade (-1 where none), as in :attr:`csmlab.frame.ShadowLookup.cascade`.
+    """
+
+    rho: np.ndarray
+    sigma_min: np.ndarray
+    cascade: np.ndarray
+
+
+RHO_SUMMARIES: tuple[str, ...] = ("rho_median", "rho_p05", "rho_p95", "rho_frac_lt1", "rho_frac_lt05")
+"""The ρ summaries reported overall and, with a ``_c{i}`` suffix, per cascade."""
+
+
+def texel_axes(cascades: CascadeSet) -> np.ndarray:
+    """World directions of light-space x and y in texels per metre, ``(C, 2, 3)`` float64.
+
+    Row ``[c, k]`` is ``basis[k] / texel_size[c][k]``: the linear part of the map from world
+    metres to cascade c's texel coordinates (an orthographic projection).
+    """
+    return np.stack([cascades.basis[:2] / c.texel_size[:, None] for c in cascades.cascades])
+
+
+def aliasing_maps(frame: Frame, *, device: str = "cpu") -> AliasingMaps:
+    """ρ and σ_min of every visible pixel of ``frame`` in the cascade it selected.
+
+    Parameters
+    ----------
+    frame : Frame
+        Its G-buffer's ``dpdx``/``dpdy`` (metres) and its shadow's ``cascade`` are used.
+    device : str
+        Warp device of the footprint kernel.
+
+    Returns
+    -------
+    AliasingMaps
+    """
+    g = frame.view.gbuffer
+    cascade = np.where(g.valid, frame.shadow.cascade, -1).astype(np.int8)
+    rho, sigma_min = texel_footprint(g.dpdx, g.dpdy, cascade, texel_axes=texel_axes(frame.maps.cascades),
+                                     device=device)
+    return AliasingMaps(rho=rho, sigma_min=sigma_min, cascade=cascade)
+
+
+def _rho_statistics(rho: np.ndarray) -> dict[str, float]:
+    if rho.size == 0:
+        return dict.fromkeys(RHO_SUMMARIES, float("nan"))
+    p05, median, p95 = np.percentile(rho, [5.0, 50.0, 95.0])
+    return {
+        "rho_median": float(median),
+        "rho_p05": float(p05),
+        "rho_p95": float(p95),
+        "rho_frac_lt1": float(np.mean(rho < 1.0)),
+        "rho_frac_lt05": float(np.mean(rho < 0.5)),
+    }
+
+
+def aliasing_summary(maps: AliasingMaps, *, cascades: int) -> dict[str, float]:
+    """ρ summaries overall and per cascade, and the 5th percentile of σ_min.
+
+    Parameters
+    ----------
+    maps : AliasingMaps
+    cascades : int
+        Number of cascades C: keys ``…_c0`` to ``…_c{C-1}`` are always present.
+
+    Returns
+    -------
+    dict of str to float
+        ``rho_median, rho_p05, rho_p95, rho_frac_lt1, rho_frac_lt05, sigma_min_p05`` over every
+        pixel with a cascade, and each ρ key with suffix ``_c{i}`` over the pixels selecting
+        cascade i. Percentiles are linear-interpolated (NumPy's default) in float64; a key is NaN
+        when no pixel contributes to it.
+    """
+    selected = maps.cascade >= 0
+    rho = maps.rho[selected].astype(np.float64)
+    out = _rho_statistics(rho)
+    sigma = maps.sigma_min[selected].astype(np.float64)
+    out["sigma_min_p05"] = float(np.percentile(sigma, 5.0)) if sigma.size else float("nan")
+    for c in range(cascades):
+        per = _rho_statistics(maps.rho[maps.cascade == c].astype(np.float64))
+        out.update({f"{key}_c{c}": value for key, value in per.items()})
+    return out
+
+
+def utilization(frame: Frame) -> np.ndarray:
+    """Fraction of each cascade's texels that some visible pixel selecting it looks up, ``(C,)`` float64.
+
+    A pixel looks up the texel that contains its surface point (``floor`` of its texel
+    coordinates from :func:`csmlab.texels.texel_coordinates`); the count of distinct such texels
+    is divided by R². Points outside the R×R grid (impossible for a correct selection) are not
+    counted.
+    """
+    g = frame.view.gbuffer
+    cascades = frame.maps.cascades
+    selected = np.where(g.valid, frame.shadow.cascade, -1)
+    out = np.zeros(len(cascades), dtype=np.float64)
+    for c, cascade in enumerate(cascades.cascades):
+        points = g.position[selected == c]
+        if points.shape[0] == 0:
+            continue
+        texel = np.floor(texel_coordinates(cascades, c, points)).astype(np.int64)
+        r = cascade.resolution
+        inside = np.all((texel >= 0) & (texel < r), axis=1)
+        flat = texel[inside, 1] * r + texel[inside, 0]
+        out[c] = np.unique(flat).size / float(r * r)
+    return out

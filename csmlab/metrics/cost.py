@@ -1,0 +1,30 @@
+"""Cost of a method in one frame: texture memory, rasterization work and wall-clock time per stage.
+
+Memory and texels rasterized are results (deterministic, in ``metrics.csv``); seconds per stage
+are not (they go to ``timings.csv``, DESIGN.md "Interfaces").
+"""
+
+from __future__ import annotations
+
+from csmlab.frame import Frame
+from csmlab.settings import ShadowSettings
+
+__all__ = ["cost_summary", "shadow_memory_bytes", "stage_seconds"]
+
+
+def shadow_memory_bytes(settings: ShadowSettings) -> int:
+    """Texture memory of the depth maps in bytes: ``C · R² · depth_bytes``."""
+    return settings.cascades * settings.resolution * settings.resolution * settings.depth_bytes
+
+
+def cost_summary(frame: Frame) -> dict[str, float]:
+    """``memory_bytes`` and ``texels_rasterized`` of one frame, as floats for the metrics table."""
+    return {
+        "memory_bytes": float(shadow_memory_bytes(frame.settings)),
+        "texels_rasterized": float(frame.maps.texels_rasterized),
+    }
+
+
+def stage_seconds(frame: Frame) -> dict[str, float]:
+    """Seconds per stage: the view's (shared by all methods) then the method's, by stage name."""
+    return {**{k: float(v) for k, v in frame.view.timings.items()}, **{k: float(v) for k, v in frame.timings.items()}}

@@ -1,0 +1,97 @@
+"""Error of a method's shadow against the ray-traced reference of the same frame.
+
+Definitions (DESIGN.md, "Metrics", a contract). A pixel is *compared* where it is visible, the
+method has a shadow value (some cascade contains it) and the reference is defined. Its state is
+shadowed when ``S <= 0.5`` (the method) or ``R <= 0.5`` (the reference).
+
+- false shadow: the method says shadow where the reference is lit (acne, over-shadowing);
+- false light: the method says lit where the reference is shadowed (leaks, peter-panning);
+  both as fractions of the compared pixels.
+- boundary distance: the shadow boundary of an image is the set of its shadowed compared pixels
+  with a lit compared 4-neighbour. ``ref_boundary_px`` is the average symmetric boundary distance
+  (ASSD, as in image segmentation): the Euclidean distance in pixels from every boundary pixel of
+  each image to the nearest boundary pixel of the other, averaged over both sets together. It is
+  0 when neither image has a boundary and NaN when only one has.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.ndimage import distance_transform_edt
+
+from csmlab.frame import Frame
+
+__all__ = ["ReferenceMaps", "boundary_pixels", "mean_boundary_distance", "reference_maps", "reference_summary"]
+
+
+@dataclass(frozen=True)
+class ReferenceMaps:
+    """Per-pixel agreement of a method's shadow state with the reference.
+
+    Attributes
+    ----------
+    diff : ndarray, shape (H, W), int8
+        +1 false shadow, −1 false light, 0 agreement or not compared.
+    compared : ndarray, shape (H, W), bool
+    shadowed, reference_shadowed : ndarray, shape (H, W), bool
+        ``S <= 0.5`` and ``R <= 0.5`` at compared pixels; False elsewhere.
+    """
+
+    diff: np.ndarray
+    compared: np.ndarray
+    shadowed: np.ndarray
+    reference_shadowed: np.ndarray
+
+
+def reference_maps(frame: Frame) -> ReferenceMaps:
+    """Compare ``frame``'s shadow state ``S > 0.5`` with its view's reference R per pixel."""
+    lit = frame.shadow.lit
+    reference = frame.view.reference
+    compared = frame.view.gbuffer.valid & np.isfinite(lit) & np.isfinite(reference)
+    shadowed = compared & (lit <= 0.5)
+    reference_shadowed = compared & (reference <= 0.5)
+    diff = (shadowed & ~reference_shadowed).astype(np.int8) - (~shadowed & reference_shadowed).astype(np.int8)
+    return ReferenceMaps(diff=diff, compared=compared, shadowed=shadowed, reference_shadowed=reference_shadowed)
+
+
+def boundary_pixels(shadowed, compared) -> np.ndarray:
+    """``(H, W)`` bool: shadowed compared pixels with a lit compared pixel among their 4 neighbours."""
+    shadowed = np.asarray(shadowed, dtype=bool)
+    lit = np.asarray(compared, dtype=bool) & ~shadowed
+    padded = np.pad(lit, 1)
+    lit_neighbour = padded[:-2, 1:-1] | padded[2:, 1:-1] | padded[1:-1, :-2] | padded[1:-1, 2:]
+    return shadowed & lit_neighbour
+
+
+def mean_boundary_distance(a, b) -> float:
+    """Average symmetric distance in pixels between two boundary masks ``(H, W)`` bool.
+
+    Each pixel of ``a`` contributes its distance to the nearest pixel of ``b`` and vice versa; the
+    mean is over both sets together. 0 when both are empty, NaN when exactly one is.
+    """
+    a = np.asarray(a, dtype=bool)
+    b = np.asarray(b, dtype=bool)
+    if not a.any() and not b.any():
+        return 0.0
+    if not a.any() or not b.any():
+        return float("nan")
+    distances = np.concatenate([distance_transform_edt(~b)[a], distance_transform_edt(~a)[b]])
+    return float(np.mean(distances, dtype=np.float64))
+
+
+def reference_summary(maps: ReferenceMaps) -> dict[str, float]:
+    """``ref_false_shadow``, ``ref_false_light`` (fractions of compared pixels) and ``ref_boundary_px``.
+
+    All NaN when no pixel is compared.
+    """
+    count = int(maps.compared.sum())
+    if count == 0:
+        return dict.fromkeys(("ref_false_shadow", "ref_false_light", "ref_boundary_px"), float("nan"))
+    return {
+        "ref_false_shadow": float(np.count_nonzero(maps.diff == 1)) / count,
+        "ref_false_light": float(np.count_nonzero(maps.diff == -1)) / count,
+        "ref_boundary_px": mean_boundary_distance(boundary_pixels(maps.shadowed, maps.compared),
+                                                  boundary_pixels(maps.reference_shadowed, maps.compared)),
+    }

@@ -1,0 +1,174 @@
+"""Temporal shadow change (flicker) between consecutive frames of one method.
+
+Definition (DESIGN.md, "Metrics", a contract). Keep frame t−1's cascades, depth maps and camera.
+For every visible point X of frame t, evaluate S_{t−1}(X) with frame t−1's state — its own
+cascade selection, from ``pose_{t−1}.view_depth(X)`` — and count X only where it lies inside a
+t−1 cascade (and frame t has a shadow value there too). Then
+
+- flicker = mean |S_t(X) − S_{t−1}(X)|;
+- flip rate = fraction of counted points whose state ``S > 0.5`` changes;
+
+each also split into *same cascade* (both frames select the same cascade and neither blends:
+swimming from re-rasterization) and *cascade changed* (the selections differ, or the point lies
+in a blend band in either frame, where the blend weight follows the camera).
+
+When the light moved between t−1 and t (``view.light_direction`` differs), the reference's own
+change is subtracted: ``ΔS − ΔR`` with ``ΔR = R_t(X) − R_{t−1}(X)``, and a flip is a change of
+state that differs from the reference's change of state. R_{t−1}(X) is frame t−1's ray-traced
+reference at X. When the camera did not move, X is the same hit point in both frames and R_{t−1}
+at the same pixel is exact. When it did move, X is reprojected into frame t−1's image and the
+reference of the nearest pixel is taken if that pixel saw the same triangle (X was visible):
+exact except within a pixel of the reference's shadow boundary; points that fail the test are
+not counted.
+
+Exact stabilization must give exactly 0.0 same-cascade flicker under a static light.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from csmlab.camera import CameraPose
+from csmlab.frame import Frame
+from csmlab.render import lookup_shadow
+
+__all__ = ["TemporalMaps", "previous_reference_at", "temporal_maps", "temporal_summary"]
+
+
+@dataclass(frozen=True)
+class TemporalMaps:
+    """Per-pixel shadow change of frame t against frame t−1, at frame t's visible points.
+
+    Attributes
+    ----------
+    previous_lit : ndarray, shape (H, W), float32
+        S_{t−1}(X): frame t−1's lit fraction at frame t's point; NaN where X is not inside a
+        t−1 cascade or the pixel missed.
+    change : ndarray, shape (H, W), float64
+        S_t − S_{t−1} (minus R_t − R_{t−1} when the light moved); NaN where not counted.
+    flipped : ndarray, shape (H, W), bool
+        The lit/shadowed state changed (beyond the reference's change when the light moved).
+    counted : ndarray, shape (H, W), bool
+        Pixels that enter the means.
+    same_cascade : ndarray, shape (H, W), bool
+        Counted pixels whose cascade is the same in both frames, outside any blend band.
+    light_moved : bool
+        The light direction differs between the two frames.
+    """
+
+    previous_lit: np.ndarray
+    change: np.ndarray
+    flipped: np.ndarray
+    counted: np.ndarray
+    same_cascade: np.ndarray
+    light_moved: bool
+
+
+def temporal_maps(frame: Frame, previous: Frame, *, device: str = "cpu") -> TemporalMaps:
+    """Shadow change of ``frame`` (t) against ``previous`` (t−1) of the same method.
+
+    Parameters
+    ----------
+    frame, previous : Frame
+        Consecutive frames of one method over the same static scene, with the same image size.
+    device : str
+        Warp device for the lookup of frame t−1's maps.
+
+    Returns
+    -------
+    TemporalMaps
+
+    Raises
+    ------
+    ValueError
+        If the two frames' images differ in size.
+    """
+    g = frame.view.gbuffer
+    if previous.view.gbuffer.shape != g.shape:
+        raise ValueError(f"previous frame: expected an image of {g.shape} pixels, got {previous.view.gbuffer.shape}")
+    visible = g.valid
+    points = g.position[visible]
+    earlier = lookup_shadow(previous.maps, points=points, normals=g.normal[visible],
+                            view_depth=previous.view.pose.view_depth(points), settings=previous.settings,
+                            device=device)
+    previous_lit = np.full(g.shape, np.nan, dtype=np.float32)
+    previous_lit[visible] = earlier.lit
+    previous_cascade = np.full(g.shape, -1, dtype=np.int64)
+    previous_cascade[visible] = earlier.cascade
+    previous_blend = np.zeros(g.shape, dtype=bool)
+    previous_blend[visible] = earlier.blend
+
+    lit = frame.shadow.lit
+    counted = visible & (previous_cascade >= 0) & np.isfinite(previous_lit) & np.isfinite(lit)
+    change = lit.astype(np.float64) - previous_lit.astype(np.float64)
+    state_change = (lit > 0.5).astype(np.int8) - (previous_lit > 0.5).astype(np.int8)
+    flipped = state_change != 0
+    light_moved = not np.array_equal(frame.view.light_direction, previous.view.light_direction)
+    if light_moved:
+        reference = frame.view.reference
+        previous_reference = previous_reference_at(frame, previous)
+        counted &= np.isfinite(reference) & np.isfinite(previous_reference)
+        change -= reference.astype(np.float64) - previous_reference.astype(np.float64)
+        flipped = state_change != (reference > 0.5).astype(np.int8) - (previous_reference > 0.5).astype(np.int8)
+    change[~counted] = np.nan
+    same = counted & (previous_cascade == frame.shadow.cascade) & ~previous_blend & ~frame.shadow.blend
+    return TemporalMaps(previous_lit=previous_lit, change=change, flipped=flipped & counted, counted=counted,
+                        same_cascade=same, light_moved=light_moved)
+
+
+def _same_camera(a: CameraPose, b: CameraPose) -> bool:
+    return (np.array_equal(a.position, b.position) and np.array_equal(a.orientation, b.orientation)
+            and (a.fov_y_deg, a.aspect) == (b.fov_y_deg, b.aspect))
+
+
+def previous_reference_at(frame: Frame, previous: Frame) -> np.ndarray:
+    """Frame t−1's reference R_{t−1} at frame t's visible points, ``(H, W)`` float32, NaN where unknown.
+
+    Same camera: the same pixel sees the same point, so frame t−1's reference image is returned.
+    Otherwise each point is projected into frame t−1's image (pixel centres at ``col + 0.5``,
+    ``row + 0.5``, row 0 at the top) and the nearest pixel's reference is taken where that pixel
+    hit the same triangle.
+    """
+    g = frame.view.gbuffer
+    before = previous.view
+    if _same_camera(frame.view.pose, before.pose):
+        return np.where(g.valid, before.reference, np.nan).astype(np.float32)
+    height, width = g.shape
+    pose = before.pose
+    local = (g.position - pose.position) @ pose.rotation
+    depth = -local[..., 2]
+    tan_y = np.tan(np.radians(pose.fov_y_deg) / 2.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        col = np.floor((local[..., 0] / (depth * tan_y * pose.aspect) + 1.0) * 0.5 * width)
+        row = np.floor((1.0 - local[..., 1] / (depth * tan_y)) * 0.5 * height)
+    inside = g.valid & (depth > 0) & (col >= 0) & (col < width) & (row >= 0) & (row < height)
+    r = np.where(inside, row, 0).astype(np.int64)
+    c = np.where(inside, col, 0).astype(np.int64)
+    same_surface = inside & (before.gbuffer.triangle[r, c] == g.triangle)
+    return np.where(same_surface, before.reference[r, c], np.nan).astype(np.float32)
+
+
+def _mean(values: np.ndarray) -> float:
+    return float(np.mean(values, dtype=np.float64)) if values.size else float("nan")
+
+
+def temporal_summary(maps: TemporalMaps) -> dict[str, float]:
+    """Flicker and flip rate overall, same-cascade and cascade-changed.
+
+    Returns
+    -------
+    dict of str to float
+        ``flicker, flicker_same, flicker_changed, flip_rate, flip_same, flip_changed``: means over
+        the counted pixels of each subset, in float64; NaN for an empty subset (e.g. no pixel
+        changed cascade).
+    """
+    changed = maps.counted & ~maps.same_cascade
+    magnitude = np.abs(maps.change)
+    out = {}
+    for suffix, subset in (("", maps.counted), ("_same", maps.same_cascade), ("_changed", changed)):
+        out[f"flicker{suffix}"] = _mean(magnitude[subset])
+        out["flip_rate" if not suffix else f"flip{suffix}"] = _mean(maps.flipped[subset].astype(np.float64))
+    return {key: out[key] for key in ("flicker", "flicker_same", "flicker_changed", "flip_rate", "flip_same",
+                                      "flip_changed")}

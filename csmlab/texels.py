@@ -1,0 +1,153 @@
+"""World points to a cascade's texel grid: texel coordinates, fixed point, receiver lookups.
+
+Everything here is host float64 NumPy and feeds the Warp kernels (DESIGN.md, "Exact zero by
+construction"). A world point X has light-space coordinates ``(right·X, up·X)`` in metres; divided
+by a cascade's texel size they become *global* texel units, which depend on the light direction
+and the texel size only — never on where the box lies. Snapped to ``2**bits`` steps per texel they
+become int64 fixed point; subtracting the box origin (an integer number of texels for the exact
+and quantized stabilizations) gives the local coordinates a kernel sees. Moving a box by k whole
+texels then shifts every local coordinate by exactly ``k · 2**bits`` and changes no rounding.
+
+Units: texel coordinates are in texels of the cascade, texel ``(i, j)`` spanning ``[i, i + 1)`` ×
+``[j, j + 1)``, its centre at ``(i + ½, j + ½)``; fixed-point coordinates are in ``2**-bits``
+texels; depths are metres along the light direction, ``d·X − zref``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from csmlab.cascades import CascadeSet
+
+__all__ = ["fixed_point_coordinates", "fixed_point_origin", "light_depth", "receiver_lookup", "texel_coordinates"]
+
+# Global fixed-point values are clipped to ±2**50 so that, less a box origin, doubled and
+# differenced in the rasterizer (which takes ±2**52), they can neither overflow int64 nor lose
+# determinism; only geometry over 10**10 texels from the world origin reaches the clip.
+_FIXED_LIMIT = float(2**50)
+_MAX_TAN = 10.0
+
+
+def _global_texels(cascades: CascadeSet, index: int, points) -> np.ndarray:
+    if not 0 <= index < len(cascades):
+        raise ValueError(f"cascade index: expected 0..{len(cascades) - 1}, got {index}")
+    p = np.asarray(points, dtype=np.float64)
+    if p.shape[-1:] != (3,):
+        raise ValueError(f"points: expected world positions of shape (..., 3), got {p.shape}")
+    return (p @ cascades.basis[:2].T) / cascades.cascades[index].texel_size
+
+
+def _snapped(u: np.ndarray) -> np.ndarray:
+    """Global fixed-point values rounded to int64 (half to even); non-finite ones far outside."""
+    u = np.where(np.isfinite(u), u, -_FIXED_LIMIT)
+    return np.rint(np.clip(u, -_FIXED_LIMIT, _FIXED_LIMIT)).astype(np.int64)
+
+
+def fixed_point_origin(cascades: CascadeSet, index: int, *, bits: int) -> np.ndarray:
+    """Cascade ``index``'s box origin ``(2,)`` int64 in ``2**-bits`` texels.
+
+    Exact for the integer origins of the exact and quantized stabilizations; a fractional origin
+    (``none``) is rounded to the grid, which moves that box by at most half a grid step.
+    """
+    return np.rint(cascades.cascades[index].origin * float(2**bits)).astype(np.int64)
+
+
+def texel_coordinates(cascades: CascadeSet, index: int, points) -> np.ndarray:
+    """Texel coordinates ``(..., 2)`` float64 of world points in cascade ``index``.
+
+    Parameters
+    ----------
+    cascades : CascadeSet
+    index : int
+        The cascade.
+    points : array_like, shape (..., 3)
+        World positions in metres.
+
+    Returns
+    -------
+    ndarray, shape (..., 2), float64
+        Light-space x/y in texels relative to the box's minimum corner: texel ``(i, j)`` spans
+        ``[i, i + 1) × [j, j + 1)``. Not snapped to the fixed-point grid. For a fractional
+        origin (``none``) the rasterizer's grid sits up to half a fixed-point step from this one
+        (see :func:`fixed_point_origin`).
+    """
+    return _global_texels(cascades, index, points) - cascades.cascades[index].origin
+
+
+def fixed_point_coordinates(cascades: CascadeSet, index: int, points, *, bits: int) -> np.ndarray:
+    """Snapped local texel coordinates ``(..., 2)`` int64 of world points, in ``2**-bits`` texels.
+
+    ``round(u · 2**bits) − round(origin · 2**bits)`` with ``u`` the global texel coordinate
+    computed in float64: the same world point gets the same global value whatever the box, so a
+    box moved by whole texels shifts the result by an exact integer. Non-finite points give
+    ``-2**50`` less the origin (outside every box).
+    """
+    snapped = _snapped(_global_texels(cascades, index, points) * float(2**bits))
+    return snapped - fixed_point_origin(cascades, index, bits=bits)
+
+
+def light_depth(cascades: CascadeSet, points) -> np.ndarray:
+    """Stored light-space depth ``d·X − zref`` ``(...)`` float64 in metres of world points ``(..., 3)``."""
+    p = np.asarray(points, dtype=np.float64)
+    return p @ cascades.basis[2] - cascades.zref
+
+
+def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_offset: float, bias_constant: float,
+                    bias_slope: float) -> tuple[np.ndarray, np.ndarray]:
+    """Where receivers look every cascade up: fixed-point coordinates and biased depth.
+
+    In cascade c the receiver is moved ``normal_offset`` texels along its normal before the
+    fixed-point snap, then its depth is pulled toward the light by
+    ``bias_constant + bias_slope · texel · tan θ``, θ the angle between the normal and ``-d``
+    (tan clamped to 10). ``texel`` is the larger side of the cascade's texels, the one that sets
+    the depth error across a texel. Offset and bias are in texels of the cascade, so they do not
+    change when an exact box moves.
+
+    A receiver turned away from the light (``n·(−d) ≤ 0``) gets no direct light whatever the map
+    holds — as in the ray-traced reference — and no bias could be right for it: its depth is NaN,
+    which fails every depth test, so its S is 0.
+
+    Parameters
+    ----------
+    cascades : CascadeSet
+    points : array_like, shape (N, 3)
+        World positions in metres; rows with a NaN are no receivers.
+    normals : array_like, shape (N, 3)
+        Unit normals (facing the camera).
+    bits : int
+        Sub-texel bits of the fixed-point grid.
+    normal_offset, bias_constant, bias_slope : float
+        Texels, metres, texels (DESIGN.md ``[shadow]``).
+
+    Returns
+    -------
+    coordinates : ndarray, shape (C, N, 2), int64
+        As :func:`fixed_point_coordinates` of the moved points (far outside every box for no receiver).
+    depth : ndarray, shape (C, N), float32
+        Biased receiver depth ``d·X' − zref − bias`` in metres, rounded once to float32 so that it
+        compares with the float32 depth map exactly as stored; NaN where turned from the light.
+    """
+    p = np.asarray(points, dtype=np.float64)
+    n = np.asarray(normals, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 3 or n.shape != p.shape:
+        raise ValueError(f"points, normals: expected two (N, 3) arrays, got {p.shape} and {n.shape}")
+    # Light-space coordinates of points and normals once; the offset point of cascade c is then
+    # p + o_c·n in light space too (the same for every box of that texel size).
+    light_p = p @ cascades.basis.T
+    light_n = n @ cascades.basis.T
+    cos = -light_n[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tan = np.sqrt(np.maximum(1.0 - cos * cos, 0.0)) / cos
+    tan = np.where(cos > 0.0, np.minimum(tan, _MAX_TAN), np.nan)
+    count = len(cascades)
+    coordinates = np.empty((count, p.shape[0], 2), dtype=np.int64)
+    depth = np.empty((count, p.shape[0]), dtype=np.float32)
+    scale = float(2**bits)
+    for c, cascade in enumerate(cascades.cascades):
+        texel = float(np.max(cascade.texel_size))
+        offset = normal_offset * texel
+        u = (light_p[:, :2] + offset * light_n[:, :2]) / cascade.texel_size * scale
+        coordinates[c] = _snapped(u) - fixed_point_origin(cascades, c, bits=bits)
+        bias = bias_constant + bias_slope * texel * tan
+        depth[c] = light_p[:, 2] + offset * light_n[:, 2] - cascades.zref - bias
+    return coordinates, depth

@@ -1,0 +1,129 @@
+"""Perceptual change: shading, CIEDE2000 wiring, SSIM and ꟻLIP invariants, handling of uncompared pixels."""
+
+import numpy as np
+import pytest
+
+from csmlab.camera import CameraPose
+from csmlab.cascades import build_cascades
+from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
+from csmlab.geometry import rotation_looking_at
+from csmlab.metrics.perceptual import (JND_CIEDE2000, delta_e_2000, lab_from_linear_srgb, perceptual_maps,
+                                       perceptual_summary)
+from csmlab.metrics.shading import shaded_rgb
+from csmlab.settings import ShadowSettings
+
+LIGHT_DOWN = np.array([0.0, -1.0, 0.0])
+
+# Sharma, Wu, Dalal (2005), Table 1, pairs 1, 2, 3, 7, 17, 25: (Lab1, Lab2, ΔE00 to 4 decimals).
+SHARMA_PAIRS = [
+    ((50.0, 2.6772, -79.7751), (50.0, 0.0, -82.7485), 2.0425),
+    ((50.0, 3.1571, -77.2803), (50.0, 0.0, -82.7485), 2.8615),
+    ((50.0, 2.8361, -74.0200), (50.0, 0.0, -82.7485), 3.4412),
+    ((50.0, 0.0, 0.0), (50.0, -1.0, 2.0), 2.3669),
+    ((50.0, 2.5, 0.0), (73.0, 25.0, -18.0), 27.1492),
+    ((60.2574, -34.0099, 36.2677), (60.4626, -34.1751, 39.4387), 1.2644),
+]
+
+
+def _grey_frame(lit, *, grey=0.5):
+    """A frame of a grey floor facing straight up at a light straight down: cos = 1 everywhere."""
+    height, width = lit.shape
+    pose = CameraPose(position=[0.0, 10.0, 0.0], orientation=rotation_looking_at(LIGHT_DOWN), aspect=width / height)
+    settings = ShadowSettings(cascades=1, resolution=32)
+    cascades = build_cascades(pose=pose, light_direction=LIGHT_DOWN, scene_corners=np.zeros((1, 3)), settings=settings)
+    valid = np.isfinite(lit)
+    gbuffer = GBuffer(
+        position=np.zeros((height, width, 3)), normal=np.broadcast_to(np.float32([0, 1, 0]), (height, width, 3)),
+        triangle=np.where(valid, 0, -1).astype(np.int32), view_depth=np.full((height, width), 10.0, np.float32),
+        dpdx=np.zeros((height, width, 3), np.float32), dpdy=np.zeros((height, width, 3), np.float32),
+        albedo=np.full((height, width, 3), grey, np.float32),
+    )
+    view = View(index=1, pose=pose, light_direction=LIGHT_DOWN, gbuffer=gbuffer, reference=lit.astype(np.float32))
+    shadow = ShadowLookup(lit=lit.astype(np.float32), cascade=np.where(valid, 0, -1).astype(np.int8),
+                          blend=np.zeros(lit.shape, bool))
+    maps = ShadowMaps(cascades=cascades, depth=np.zeros((1, 32, 32), np.float32), texels_rasterized=0)
+    return Frame(view=view, settings=settings, maps=maps, shadow=shadow)
+
+
+def _lightness(y):
+    """CIE 1976 L* of relative luminance Y (white Y = 1), from its definition."""
+    f = np.where(y > (6 / 29) ** 3, np.cbrt(y), y / (3 * (6 / 29) ** 2) + 4 / 29)
+    return 116.0 * f - 16.0
+
+
+def _delta_e_2000_of_greys(l1, l2):
+    """CIEDE2000 of two neutral greys: only the lightness term survives, ΔL / S_L."""
+    mean = 0.5 * (l1 + l2)
+    s_l = 1.0 + 0.015 * (mean - 50.0) ** 2 / np.sqrt(20.0 + (mean - 50.0) ** 2)
+    return np.abs(l2 - l1) / s_l
+
+
+@pytest.mark.parametrize("lab1, lab2, expected", SHARMA_PAIRS)
+def test_delta_e_2000_matches_sharma_published_pairs(lab1, lab2, expected):
+    assert delta_e_2000(np.array(lab1), np.array(lab2)) == pytest.approx(expected, abs=1e-4)
+
+
+def test_lab_from_linear_srgb_of_greys_follows_cie_lightness():
+    y = np.array([0.0, 0.01, 0.18, 0.5, 1.0])
+    lab = lab_from_linear_srgb(np.repeat(y[:, None], 3, axis=1))
+    np.testing.assert_allclose(lab[:, 0], _lightness(y), atol=1e-3)
+    np.testing.assert_allclose(lab[:, 1:], 0.0, atol=0.02)
+
+
+def test_shaded_rgb_is_albedo_times_ambient_plus_lit_cosine():
+    albedo = np.float32([[[0.2, 0.4, 0.8]] * 3])
+    normal = np.array([[[0, 1, 0], [0, -1, 0], [0, np.sqrt(0.5), np.sqrt(0.5)]]])
+    lit = np.array([[1.0, 1.0, 0.5]])
+    rgb = shaded_rgb(albedo, normal, lit, light_direction=[0.0, -2.0, 0.0], ambient=0.25)
+    expected_irradiance = np.array([0.25 + 1.0, 0.25, 0.25 + 0.5 * np.sqrt(0.5)])
+    np.testing.assert_allclose(rgb[0], albedo[0] * expected_irradiance[:, None], rtol=1e-6)
+    with pytest.raises(ValueError, match="ambient: expected a non-negative"):
+        shaded_rgb(albedo, normal, lit, light_direction=LIGHT_DOWN, ambient=-0.1)
+
+
+def test_identical_evaluations_give_zero_delta_e_unit_ssim_and_zero_flip():
+    rng = np.random.default_rng(4)
+    lit = rng.random((48, 64)).astype(np.float32)
+    frame = _grey_frame(lit)
+    summary = perceptual_summary(perceptual_maps(frame, lit, ambient=0.25))
+    assert summary["de2000_mean"] == 0.0 and summary["de2000_p99"] == 0.0 and summary["de2000_frac_jnd"] == 0.0
+    assert summary["ssim"] == pytest.approx(1.0, abs=1e-12)
+    assert summary["flip"] == 0.0
+
+
+def test_shadowed_block_gives_the_grey_lightness_difference_on_its_pixels_only():
+    lit = np.ones((48, 64), np.float32)
+    previous = lit.copy()
+    previous[10:20, 30:50] = 0.0
+    maps = perceptual_maps(_grey_frame(lit, grey=0.5), previous, ambient=0.25)
+    summary = perceptual_summary(maps)
+    expected = _delta_e_2000_of_greys(_lightness(0.5 * 1.25), _lightness(0.5 * 0.25))
+    changed = previous == 0.0
+    np.testing.assert_allclose(maps.de2000[changed], expected, rtol=1e-3)
+    assert np.all(maps.de2000[~changed] == 0.0)
+    assert summary["de2000_frac_jnd"] == pytest.approx(changed.mean(), abs=1e-12)
+    assert expected > JND_CIEDE2000
+    assert summary["ssim"] < 0.9 and summary["flip"] > 0.0
+
+
+def test_uncompared_pixels_add_no_difference():
+    # Frame t−1 has no shadow value on the left third and frame t misses the top rows: identical
+    # elsewhere, so every measure must read "no change" however the gaps are filled.
+    rng = np.random.default_rng(9)
+    lit = rng.random((48, 64)).astype(np.float32)
+    lit[:5] = np.nan
+    previous = lit.copy()
+    previous[:, :20] = np.nan
+    maps = perceptual_maps(_grey_frame(lit), previous, ambient=0.25)
+    summary = perceptual_summary(maps)
+    assert maps.compared.sum() == 43 * 44
+    assert np.all(np.isnan(maps.de2000[~maps.compared]))
+    assert summary["de2000_mean"] == 0.0
+    assert summary["ssim"] == pytest.approx(1.0, abs=1e-12)
+    assert summary["flip"] == 0.0
+
+
+def test_nothing_compared_gives_nan_measures():
+    lit = np.ones((16, 16), np.float32)
+    summary = perceptual_summary(perceptual_maps(_grey_frame(lit), np.full((16, 16), np.nan), ambient=0.25))
+    assert all(np.isnan(v) for v in summary.values())

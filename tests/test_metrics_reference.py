@@ -1,0 +1,123 @@
+"""Error against the reference: state counts, boundary sets and the symmetric boundary distance."""
+
+import numpy as np
+import pytest
+
+from csmlab.camera import CameraPose
+from csmlab.cascades import build_cascades
+from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
+from csmlab.geometry import rotation_looking_at
+from csmlab.metrics.reference import boundary_pixels, mean_boundary_distance, reference_maps, reference_summary
+from csmlab.render import prepare_scene, render_shadow, render_view
+from csmlab.scene import make_scene
+from csmlab.settings import ShadowSettings
+
+LIGHT_DOWN = np.array([0.0, -1.0, 0.0])
+
+
+def _frame(lit, reference):
+    """A frame whose only content that matters here is S (``lit``), R and which pixels hit."""
+    height, width = lit.shape
+    pose = CameraPose(position=[0.0, 10.0, 0.0], orientation=rotation_looking_at(LIGHT_DOWN), aspect=width / height)
+    settings = ShadowSettings(cascades=1, resolution=32)
+    cascades = build_cascades(pose=pose, light_direction=LIGHT_DOWN, scene_corners=np.zeros((1, 3)), settings=settings)
+    valid = np.isfinite(reference)
+    zeros3 = np.zeros((height, width, 3), np.float32)
+    gbuffer = GBuffer(position=np.zeros((height, width, 3)), normal=zeros3,
+                      triangle=np.where(valid, 0, -1).astype(np.int32), view_depth=np.ones((height, width), np.float32),
+                      dpdx=zeros3, dpdy=zeros3, albedo=zeros3)
+    view = View(index=0, pose=pose, light_direction=LIGHT_DOWN, gbuffer=gbuffer, reference=reference.astype(np.float32))
+    shadow = ShadowLookup(lit=lit.astype(np.float32), cascade=np.where(np.isfinite(lit), 0, -1).astype(np.int8),
+                          blend=np.zeros(lit.shape, bool))
+    maps = ShadowMaps(cascades=cascades, depth=np.zeros((1, 32, 32), np.float32), texels_rasterized=0)
+    return Frame(view=view, settings=settings, maps=maps, shadow=shadow)
+
+
+def _brute_force_mean_distance(a, b):
+    """Mean over both boundary sets of the distance to the nearest pixel of the other, by all pairs."""
+    pa, pb = np.argwhere(a).astype(float), np.argwhere(b).astype(float)
+    d = np.linalg.norm(pa[:, None, :] - pb[None, :, :], axis=-1)
+    return np.concatenate([d.min(axis=1), d.min(axis=0)]).mean()
+
+
+def test_false_shadow_and_false_light_count_the_disagreeing_pixels():
+    reference = np.ones((40, 60))
+    reference[:, :30] = 0.0
+    lit = reference.copy()
+    lit[0:4, 40:50] = 0.2     # 40 pixels: shadow where R is lit
+    lit[10:13, 0:5] = 0.9     # 15 pixels: lit where R is shadowed
+    lit[20, 20] = np.nan      # no cascade: not compared
+    reference[39, 59] = np.nan  # a miss: not compared
+    maps = reference_maps(_frame(lit, reference))
+    summary = reference_summary(maps)
+    compared = 40 * 60 - 2
+    assert maps.compared.sum() == compared
+    assert summary["ref_false_shadow"] == pytest.approx(40 / compared, abs=1e-15)
+    assert summary["ref_false_light"] == pytest.approx(15 / compared, abs=1e-15)
+    assert np.count_nonzero(maps.diff == 1) == 40 and np.count_nonzero(maps.diff == -1) == 15
+
+
+def test_lit_fraction_exactly_one_half_counts_as_shadow():
+    reference = np.ones((8, 8))
+    maps = reference_maps(_frame(np.full((8, 8), 0.5), reference))
+    assert np.all(maps.diff == 1)
+
+
+def test_straight_edges_three_columns_apart_are_three_pixels_apart():
+    reference = np.ones((30, 50))
+    reference[:, :20] = 0.0
+    lit = np.ones((30, 50))
+    lit[:, :23] = 0.0
+    summary = reference_summary(reference_maps(_frame(lit, reference)))
+    assert summary["ref_boundary_px"] == 3.0
+    assert summary["ref_false_shadow"] == pytest.approx(3 / 50, abs=1e-15)
+
+
+def test_boundary_pixels_are_shadowed_pixels_with_a_lit_four_neighbour():
+    shadowed = np.zeros((5, 5), bool)
+    shadowed[1:4, 1:4] = True
+    compared = np.ones((5, 5), bool)
+    expected = shadowed.copy()
+    expected[2, 2] = False
+    np.testing.assert_array_equal(boundary_pixels(shadowed, compared), expected)
+    # A lit neighbour that is not compared (a miss) makes no boundary.
+    np.testing.assert_array_equal(boundary_pixels(shadowed, shadowed), np.zeros((5, 5), bool))
+
+
+def test_mean_boundary_distance_matches_all_pairs_brute_force():
+    rng = np.random.default_rng(12)
+    a = rng.random((40, 50)) < 0.03
+    b = rng.random((40, 50)) < 0.02
+    assert mean_boundary_distance(a, b) == pytest.approx(_brute_force_mean_distance(a, b), rel=1e-12)
+    assert mean_boundary_distance(a, b) == mean_boundary_distance(b, a)
+
+
+def test_mean_boundary_distance_of_empty_sets():
+    empty = np.zeros((6, 6), bool)
+    one = empty.copy()
+    one[2, 3] = True
+    assert mean_boundary_distance(empty, empty) == 0.0
+    assert np.isnan(mean_boundary_distance(one, empty))
+
+
+def test_identical_shadow_gives_zero_error():
+    rng = np.random.default_rng(2)
+    reference = (rng.random((32, 48)) < 0.5).astype(float)
+    summary = reference_summary(reference_maps(_frame(reference, reference)))
+    assert summary == {"ref_false_shadow": 0.0, "ref_false_light": 0.0, "ref_boundary_px": 0.0}
+
+
+def test_error_of_an_8192_cascade_on_plane_box_is_small_and_rises_as_resolution_falls():
+    dscene = prepare_scene(make_scene("plane_box", plane_size=40.0, box_size=2.0))
+    eye = np.array([4.0, 4.0, 4.0])
+    pose = CameraPose(position=eye, orientation=rotation_looking_at(np.array([1.5, 0.0, -1.5]) - eye),
+                      aspect=96 / 54, far=100.0)
+    view = render_view(dscene, pose, [0.7, -0.6, -0.4], width=96, height=54)
+    assert np.nanmean(view.reference < 0.5) > 0.05  # the box's shadow is in view
+    errors = []
+    for resolution in (8192, 2048, 512, 128):
+        frame = render_shadow(dscene, view, ShadowSettings(cascades=1, resolution=resolution, shadow_distance=20.0))
+        summary = reference_summary(reference_maps(frame))
+        errors.append(summary["ref_false_shadow"] + summary["ref_false_light"])
+    assert errors[0] < 0.005
+    assert np.all(np.diff(errors) > 0), errors

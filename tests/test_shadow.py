@@ -1,0 +1,187 @@
+"""Shadow lookup: cascade selection, filters against a NumPy reference, blend band, shift invariance."""
+
+import numpy as np
+import pytest
+
+from csmlab.cascades import Cascade, CascadeSet
+from csmlab.frame import ShadowMaps
+from csmlab.geometry import light_basis
+from csmlab.kernels.raster import rasterize_depth
+from csmlab.kernels.shadow import FILTER_METHODS, SELECTION_METHODS, shadow_lookup
+from csmlab.render import lookup_shadow
+from csmlab.settings import ShadowSettings
+from csmlab.texels import fixed_point_coordinates, light_depth, texel_coordinates
+
+BITS = 8
+UNIT = 2**BITS
+LIGHT = np.array([0.42, -0.71, -0.33])
+
+
+def lookup(depth, coords, receiver_depth, view_depth, *, splits, selection="interval", filter="none", filter_size=1,
+           margin=1, blend_band=0.0, texel_area=None):
+    count = depth.shape[0]
+    return shadow_lookup(depth, coords, receiver_depth, view_depth, splits=splits,
+                         texel_area=np.ones(count) if texel_area is None else texel_area, selection=selection,
+                         filter=filter, filter_size=filter_size, margin=margin, blend_band=blend_band, bits=BITS)
+
+
+def test_interval_selection_picks_cascade_i_exactly_on_its_split_interval():
+    splits = np.array([0.5, 3.0, 10.25, 40.0, 100.0])
+    depth = np.full((4, 16, 16), np.inf, dtype=np.float32)
+    below = np.nextafter(splits[1:], -np.inf)
+    below32 = np.nextafter(splits[1:].astype(np.float32), np.float32(-np.inf))
+    z = np.concatenate([splits[:-1], below, below32, [0.25, 100.0, 1e9, np.nan]])
+    expected = np.concatenate([np.arange(4), np.arange(4), np.arange(4), [-1, -1, -1, -1]])
+    n = z.shape[0]
+    coords = np.full((4, n, 2), 8 * UNIT, dtype=np.int64)
+    cascade = lookup(depth, coords, np.zeros((4, n), np.float32), z, splits=splits)[1]
+    np.testing.assert_array_equal(cascade, expected)
+
+
+def cascade_set(*, origins, texels, resolution, direction=LIGHT, zref=0.0, margin=2) -> CascadeSet:
+    cascades = tuple(
+        Cascade(split_near=0.1, split_far=50.0, slice_near=0.1, slice_far=50.0, texel_size=np.array([t, t]),
+                origin=np.asarray(o, dtype=np.float64), resolution=resolution, depth_near=-1e3, depth_far=1e3)
+        for o, t in zip(origins, texels)
+    )
+    return CascadeSet(basis=light_basis(direction), zref=zref, splits=np.linspace(0.1, 50.0, len(origins) + 1),
+                      cascades=cascades, margin_texels=margin)
+
+
+@pytest.mark.parametrize("selection", ["map", "best_resolution"])
+def test_box_selection_picks_only_boxes_that_contain_the_point(selection):
+    rng = np.random.default_rng(17)
+    resolution, margin = 32, 2
+    # Three overlapping boxes of texel areas 0.01, 0.09 and 0.04 m²: the first inside the second,
+    # the third reaching beyond the second.
+    cs = cascade_set(origins=[(-30, -10), (-20, -20), (-5, -25)], texels=[0.1, 0.3, 0.2], resolution=resolution,
+                     margin=margin)
+    light = rng.uniform(-8.0, 8.0, (3000, 2))
+    points = np.column_stack([light, rng.uniform(0, 5, 3000)]) @ cs.basis
+    normals = np.tile(-cs.direction.astype(np.float32), (3000, 1))
+    settings = ShadowSettings(cascades=3, resolution=resolution, selection=selection, filter="pcf", filter_size=3,
+                              normal_offset=0.0, bias_slope=0.0)
+    maps = ShadowMaps(cascades=cs, depth=np.full((3, resolution, resolution), np.inf, np.float32), texels_rasterized=0)
+    result = lookup_shadow(maps, points=points, normals=normals, view_depth=np.full(3000, 1.0), settings=settings)
+
+    tc = np.stack([texel_coordinates(cs, c, points) for c in range(3)])
+    contains = np.all((tc >= margin) & (tc < resolution - margin), axis=2)
+    clear = np.all(np.abs(tc - margin) > 1e-2, axis=2) & np.all(np.abs(tc - (resolution - margin)) > 1e-2, axis=2)
+    robust = np.all(clear, axis=0)
+    chosen = result.cascade.astype(int)
+    picked = chosen >= 0
+    assert np.all(contains[chosen[picked], np.flatnonzero(picked)] | ~robust[picked])
+    any_box = contains.any(axis=0)
+    np.testing.assert_array_equal(picked[robust], any_box[robust])
+    if selection == "map":
+        expected = np.where(any_box, np.argmax(contains, axis=0), -1)
+    else:
+        area = np.array([0.01, 0.09, 0.04])[:, None]
+        expected = np.where(any_box, np.argmin(np.where(contains, area, np.inf), axis=0), -1)
+    np.testing.assert_array_equal(chosen[robust], expected[robust])
+    assert np.all(np.isnan(result.lit[~picked])) and np.all(result.lit[picked] == 1.0)
+    assert len(set(expected[robust])) == 4
+
+
+def lit_reference(depth, coords, receiver, *, filter, size):
+    """Expected S from the texel-unit position p = coords / 2**bits, in float64."""
+    p = coords / UNIT
+    top = depth.shape[0] - 1
+    lit = lambda i, j: receiver <= depth[np.clip(j, 0, top), np.clip(i, 0, top)]  # noqa: E731
+    if filter == "pcf_bilinear":
+        q = p - 0.5
+        base = np.floor(q).astype(int)
+        f = q - base
+        i, j = base[:, 0], base[:, 1]
+        return ((1 - f[:, 0]) * (1 - f[:, 1]) * lit(i, j) + f[:, 0] * (1 - f[:, 1]) * lit(i + 1, j)
+                + (1 - f[:, 0]) * f[:, 1] * lit(i, j + 1) + f[:, 0] * f[:, 1] * lit(i + 1, j + 1))
+    i, j = np.floor(p[:, 0]).astype(int), np.floor(p[:, 1]).astype(int)
+    r = size // 2 if filter == "pcf" else 0
+    total = sum(lit(i + di, j + dj) for di in range(-r, r + 1) for dj in range(-r, r + 1))
+    return total / (2 * r + 1) ** 2
+
+
+@pytest.mark.parametrize("filter,size", [("none", 1), ("pcf", 3), ("pcf", 5), ("pcf_bilinear", 1)])
+def test_filters_match_a_numpy_reference_on_random_depth_maps(filter, size):
+    rng = np.random.default_rng(size + len(filter))
+    resolution = 24
+    depth = rng.uniform(0.0, 1.0, (1, resolution, resolution)).astype(np.float32)
+    depth[0, rng.integers(0, resolution, 40), rng.integers(0, resolution, 40)] = np.inf
+    n = 4000
+    coords = rng.integers(3 * UNIT, (resolution - 3) * UNIT, (1, n, 2))
+    receiver = rng.uniform(0.0, 1.0, (1, n)).astype(np.float32)
+    lit, cascade, blend = lookup(depth, coords, receiver, np.ones(n), splits=np.array([0.0, 2.0]), filter=filter,
+                                 filter_size=size)
+    assert np.all(cascade == 0) and not np.any(blend)
+    expected = lit_reference(depth[0], coords[0], receiver[0], filter=filter, size=size)
+    np.testing.assert_allclose(lit, expected, rtol=1e-6, atol=1e-7)
+    assert lit.min() >= 0.0 and lit.max() <= 1.0 and 0.0 < lit.mean() < 1.0
+
+
+def test_blend_band_moves_linearly_toward_the_next_cascade():
+    splits = np.array([1.0, 10.0, 20.0])
+    depth = np.stack([np.full((8, 8), -np.inf), np.full((8, 8), np.inf)]).astype(np.float32)
+    z = np.array([5.0, 8.2, 8.65, 9.1, 9.99, 10.0, 19.5])
+    coords = np.full((2, z.shape[0], 2), 4 * UNIT, dtype=np.int64)
+    lit, cascade, blend = lookup(depth, coords, np.zeros((2, z.shape[0]), np.float32), z, splits=splits,
+                                 blend_band=0.2)
+    weight = np.clip((z - 8.2) / 1.8, 0.0, 1.0)
+    np.testing.assert_allclose(lit[:5], weight[:5], rtol=1e-6)
+    np.testing.assert_array_equal(cascade, [0, 0, 0, 0, 0, 1, 1])
+    np.testing.assert_array_equal(blend, [False, True, True, True, True, False, False])
+    assert lit[5] == 1.0 and lit[6] == 1.0
+
+
+def test_unknown_names_list_the_valid_ones():
+    args = (np.zeros((1, 8, 8), np.float32), np.zeros((1, 1, 2), np.int64), np.zeros((1, 1), np.float32), np.ones(1))
+    with pytest.raises(ValueError, match=r"selection: expected one of \['best_resolution', 'interval', 'map'\]"):
+        lookup(*args, splits=np.array([0.0, 2.0]), selection="nearest")
+    with pytest.raises(ValueError, match=r"filter: expected one of \['none', 'pcf', 'pcf_bilinear'\]"):
+        lookup(*args, splits=np.array([0.0, 2.0]), filter="gaussian")
+    with pytest.raises(ValueError, match="filter_size: expected an odd positive integer"):
+        lookup(*args, splits=np.array([0.0, 2.0]), filter="pcf", filter_size=4)
+    assert sorted(SELECTION_METHODS) == ["best_resolution", "interval", "map"]
+    assert sorted(FILTER_METHODS) == ["none", "pcf", "pcf_bilinear"]
+
+
+@pytest.mark.parametrize("offset", [(0.0, 0.0, 0.0), (2e5, 0.0, -1e5)], ids=["origin", "far"])
+def test_moving_the_box_by_whole_texels_keeps_S_bit_identical_at_fixed_receivers(offset):
+    rng = np.random.default_rng(23)
+    resolution, texel = 1100, 0.0371
+    shifts = np.array([[0, 0], [1000, -1000], [-999, 7], [3, 1]])
+    basis = light_basis(LIGHT)
+    anchor = np.floor((basis @ np.asarray(offset))[:2] / texel)
+    cs = cascade_set(origins=[anchor + s for s in shifts], texels=[texel] * 4, resolution=resolution, margin=3)
+    # A soup of casters over every box, denser where the first box overlaps each moved one, stacked
+    # 0-30 m deep along the light.
+    lo = np.maximum(shifts[1:], 0)
+    hi = np.minimum(shifts[1:], 0) + resolution
+    overlap = rng.uniform(lo, hi, (1500, 3, 2)).reshape(-1, 1, 2)
+    spread = rng.uniform(-1000, resolution + 1000, (1500, 1, 2))
+    centre = (anchor + np.concatenate([overlap, spread])) * texel
+    corners = centre + rng.uniform(-1.5, 1.5, (6000, 3, 2))
+    depth = rng.uniform(0.0, 30.0, (6000, 1, 1)) + rng.uniform(-0.5, 0.5, (6000, 3, 1))
+    vertices = np.concatenate([corners, depth], axis=-1).reshape(-1, 3) @ basis
+    triangles = np.arange(18000).reshape(-1, 3)
+    points = np.stack([fixed_point_coordinates(cs, c, vertices, bits=BITS) for c in range(4)])
+    maps, _ = rasterize_depth(points, light_depth(cs, vertices), triangles, resolution=resolution, bits=BITS)
+    # Receivers on the casters (random barycentrics), with their normals.
+    w = rng.dirichlet(np.ones(3), 6000)
+    v = vertices[triangles]
+    receivers = np.einsum("tk,tkd->td", w, v)
+    normals = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    normals = (normals / np.linalg.norm(normals, axis=1, keepdims=True)).astype(np.float32)
+    for filter, size in (("none", 1), ("pcf", 3), ("pcf", 5), ("pcf_bilinear", 1)):
+        settings = ShadowSettings(cascades=1, resolution=resolution, selection="map", filter=filter, filter_size=size,
+                                  bias_constant=0.002, bias_slope=1.0, normal_offset=0.5)
+        results = []
+        for c in range(4):
+            one = CascadeSet(basis=cs.basis, zref=cs.zref, splits=cs.splits[:2], cascades=(cs.cascades[c],),
+                             margin_texels=3)
+            results.append(lookup_shadow(ShadowMaps(one, maps[c:c + 1], 0), points=receivers, normals=normals,
+                                         view_depth=np.ones(6000), settings=settings))
+        for c in range(1, 4):
+            both = (results[0].cascade == 0) & (results[c].cascade == 0)
+            assert both.sum() > 50
+            assert 0.0 < results[0].lit[both].mean() < 1.0
+            assert np.array_equal(results[0].lit[both], results[c].lit[both]), (filter, size, shifts[c])
