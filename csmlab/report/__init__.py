@@ -1,0 +1,258 @@
+"""The HTML report of a run, drawn from its results files alone.
+
+:func:`write_report` reads ``summary.json``, ``metrics.csv``, ``timings.csv``, ``regress.json``
+and the captures of :mod:`csmlab.report.capture` (``cascades.csv``, ``anim/``, ``snapshots/``)
+and writes ``index.html`` with its figures beside it::
+
+    index.html
+    figures/curves.png  figures/cost.png  figures/stabilization__<point>.png
+    figures/strip__<point>__f<frame>.png  figures/view3d__f<frame>.png
+    figures/sweep__<parameter>.png  figures/pareto.png
+    anim/<method>__<point>.gif
+
+The same results give the same ``index.html``, byte for byte, so ``csmlab report DIR``
+reproduces what ``csmlab run`` wrote.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from csmlab.report.animation import write_animation
+from csmlab.report.capture import ANIM_WIDTH, capture_stem, read_npz, safe_name
+from csmlab.report.figures import cost_figure, frame_curves_figure, pareto_figure, stabilization_figure, sweep_figure
+from csmlab.report.html import render_report_html
+from csmlab.report.images import snapshot_strip_figure
+from csmlab.report.summary_table import format_value, full_table, headline_table
+from csmlab.report.sweep import sweep_means, sweep_points
+from csmlab.report.tables import ResultFiles, read_results
+from csmlab.report.view3d import view3d_figure
+
+__all__ = ["write_report"]
+
+_GLANCE = {
+    "flicker_same": "Steadiest texels (same-cascade flicker)",
+    "flicker_changed": "Calmest cascade transitions (cascade-changed flicker)",
+    "rho_median": "Closest to one texel per pixel (median ρ)",
+    "utilization": "Least wasted shadow map (utilization)",
+    "ref_error": "Closest to the ray-traced shadow",
+}
+_SWEEP_METRICS = [
+    ("rho_median", "median ρ (texels / pixel)", 1.0),
+    ("flicker_same", "flicker, same cascade (mean |ΔS|)", 1.0),
+    ("flicker_changed", "flicker, cascade changed (mean |ΔS|)", 1.0),
+    ("flip_rate", "flip rate (% of pixels)", 100.0),
+    ("memory_mib", "memory (MiB)", 1.0),
+]
+
+
+def write_report(out_dir) -> Path:
+    """Write ``index.html`` and its figures into a results directory; return the page's path.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        A directory holding at least ``summary.json`` and ``metrics.csv``.
+
+    Returns
+    -------
+    Path
+        ``out_dir / "index.html"``.
+
+    Raises
+    ------
+    InputError
+        If a required results file is missing or malformed.
+    """
+    results = read_results(out_dir)
+    out = results.directory
+    (out / "figures").mkdir(exist_ok=True)
+    groups = results.metrics.groups()
+    points = list(dict.fromkeys(p for _, p in groups))
+    columns, rows = headline_table(results.metrics, results.timings)
+    full_names, full_rows = full_table(results.metrics)
+    frame_curves_figure(results.metrics, out / "figures" / "curves.png")
+    context = {
+        **_header(results),
+        "groups": groups,
+        "glance": _glance(columns, rows),
+        "headline_columns": columns,
+        "headline_rows": rows,
+        "full_names": full_names,
+        "full_rows": full_rows,
+        "has_cascades": results.cascades is not None,
+        "regress": _regress(results.regress),
+        "curves": "figures/curves.png",
+        "cost": _cost(results, groups),
+        "anim_width": ANIM_WIDTH,
+        "animations": _animations(results, groups),
+        "strips": _strips(results, groups, points),
+        "stabilization": _stabilization(results, groups, points),
+        "view3d": _view3d(results, groups, points[0]),
+        **_sweep(results, points),
+    }
+    page = out / "index.html"
+    tmp = out / ".index.html.tmp"
+    tmp.write_text(render_report_html(context), encoding="utf-8")
+    tmp.replace(page)
+    return page
+
+
+def _header(results: ResultFiles) -> dict:
+    summary = results.summary
+    config = summary.get("config", {})
+    return {
+        "name": summary.get("name", results.directory.name),
+        "version": summary.get("csmlab_version", "?"),
+        "config_hash": str(summary.get("config_hash", "?"))[:12],
+        "frames": len(np.unique(results.metrics["frame"])),
+        "scene": _describe(config.get("scene", {}), ("kind", "file", "seed")),
+        "camera": _describe(config.get("camera", {}), ("path", "file", "frames", "width", "height")),
+        "light": _describe(config.get("light", {}), ("elevation_deg", "azimuth_deg", "direction")),
+        "config_text": json.dumps(config, indent=2, sort_keys=True),
+    }
+
+
+def _describe(section: dict, keys: tuple[str, ...]) -> str:
+    parts = [f"{k}={section[k]}" for k in keys if k in section]
+    return ", ".join(parts) if parts else "?"
+
+
+def _glance(columns, rows) -> list[str]:
+    lines = []
+    for k, column in enumerate(columns):
+        if column.key in _GLANCE:
+            best = [r for r in rows if r.cells[k].best]
+            if best:
+                names = ", ".join(r.method if len({x.point for x in rows}) == 1 else f"{r.method} @ {r.point}"
+                                  for r in best)
+                lines.append(f"{_GLANCE[column.key]}: {names} ({best[0].cells[k].text} {column.unit})")
+    return lines
+
+
+def _regress(regress) -> dict | None:
+    if regress is None:
+        return None
+    rows = regress.get("rows", [])
+    status = regress.get("status", "?")
+    names = list(dict.fromkeys(k for row in rows for k in row))
+    return {"status": str(status), "columns": names,
+            "rows": [[_cell(row.get(k, "")) for k in names] for row in rows]}
+
+
+def _cell(value) -> str:
+    if value is None:
+        return "—"
+    return format_value(float(value)) if isinstance(value, (int, float)) and not isinstance(value, bool) else str(value)
+
+
+def _cost(results: ResultFiles, groups) -> str | None:
+    if results.timings is None or len(results.timings) == 0:
+        return None
+    cost_figure(results.timings, groups, results.directory / "figures" / "cost.png")
+    return "figures/cost.png"
+
+
+def _fps(results: ResultFiles) -> float:
+    fps = results.summary.get("config", {}).get("camera", {}).get("fps")
+    if fps:
+        return float(fps)
+    times = np.unique(results.metrics["time_s"]) if "time_s" in results.metrics else np.array([])
+    steps = np.diff(times[np.isfinite(times)])
+    return float(1.0 / np.median(steps)) if steps.size and np.median(steps) > 0 else 30.0
+
+
+def _animations(results: ResultFiles, groups) -> list[dict]:
+    out = results.directory
+    fps = _fps(results)
+    animations = []
+    for method, point in groups:
+        stem = capture_stem(method, point)
+        source = out / "anim" / f"{stem}.npz"
+        if source.is_file():
+            anim = read_npz(source)
+            write_animation(out / "anim" / f"{stem}.gif", shadow=anim["shadow"], dS=anim["dS"], fps=fps)
+            label = method if len({p for _, p in groups}) == 1 else f"{method} @ {point}"
+            animations.append({"label": label, "src": f"anim/{stem}.gif"})
+    return animations
+
+
+def _snapshots_of(results: ResultFiles, groups, point: str) -> dict[int, list[tuple[str, dict]]]:
+    """Snapshot frame → [(method, arrays)] at one point, methods in results order, frames present for all."""
+    by_frame: dict[int, list[tuple[str, dict]]] = {}
+    methods = [m for m, p in groups if p == point]
+    for method in methods:
+        for path in sorted((results.directory / "snapshots").glob(f"{capture_stem(method, point)}__f*.npz")):
+            snap = read_npz(path)
+            by_frame.setdefault(int(snap["frame"]), []).append((method, snap))
+    return {f: v for f, v in sorted(by_frame.items()) if len(v) == len(methods)}
+
+
+def _frame_title(frame: int, snaps: list[tuple[str, dict]]) -> str:
+    return f"frame {frame}, t = {float(snaps[0][1]['time_s']):.2f} s"
+
+
+def _strips(results: ResultFiles, groups, points) -> list[dict]:
+    """Every snapshot frame's strip; in a sweep only the middle snapshot frame of each point, to stay short."""
+    strips = []
+    for point in points:
+        snapshots = _snapshots_of(results, groups, point)
+        frames = list(snapshots) if len(points) == 1 else list(snapshots)[len(snapshots) // 2:][:1]
+        for frame in frames:
+            snaps = snapshots[frame]
+            name = f"figures/strip__{safe_name(point)}__f{frame}.png"
+            title = _frame_title(frame, snaps) + (f", point {point}" if len(points) > 1 else "")
+            snapshot_strip_figure([s for _, s in snaps], [m for m, _ in snaps], results.directory / name, title=title)
+            strips.append({"src": name, "title": title})
+    return strips
+
+
+def _stabilization(results: ResultFiles, groups, points) -> list[dict]:
+    if results.cascades is None or len(results.cascades) == 0:
+        return []
+    present = set(zip(results.cascades["method"].tolist(), results.cascades["point"].tolist()))
+    figures = []
+    for point in points:
+        methods = [m for m, p in groups if p == point and (m, p) in present]
+        if methods:
+            name = f"figures/stabilization__{safe_name(point)}.png"
+            stabilization_figure(results.cascades, point=point, methods=methods, path=results.directory / name)
+            figures.append({"point": point, "src": name})
+    return figures
+
+
+def _view3d(results: ResultFiles, groups, point: str) -> dict | None:
+    snapshots = _snapshots_of(results, groups, point)
+    if not snapshots:
+        return None
+    frames = list(snapshots)
+    frame = frames[len(frames) // 2]
+    snaps = snapshots[frame]
+    title = _frame_title(frame, snaps)
+    name = f"figures/view3d__f{frame}.png"
+    try:
+        view3d_figure([s for _, s in snaps], [m for m, _ in snaps], results.directory / name, title=title)
+    except (RuntimeError, OSError, ImportError) as error:
+        return {"src": None, "title": title, "error": f"{type(error).__name__}: {error}"}
+    return {"src": name, "title": title, "error": None}
+
+
+def _sweep(results: ResultFiles, points) -> dict:
+    if len(points) < 2:
+        return {"sweep": [], "pareto": None}
+    sweep = sweep_points(results.summary, points)
+    figures = []
+    for parameter in sweep.fields:
+        means = sweep_means(results.metrics, sweep, along=parameter)
+        name = f"figures/sweep__{safe_name(parameter)}.png"
+        sweep_figure(means, parameter, [m for m in _SWEEP_METRICS if m[0] in means], results.directory / name)
+        figures.append({"parameter": parameter, "src": name})
+    means = sweep_means(results.metrics, sweep, along=sweep.fields[0])
+    pareto = None
+    if all(k in means for k in ("memory_mib", "flicker", "rho_median")):
+        pareto_figure(means, results.directory / "figures" / "pareto.png")
+        pareto = "figures/pareto.png"
+    return {"sweep": figures, "pareto": pareto}

@@ -1,0 +1,313 @@
+"""What the report keeps of each rendered frame, and the files it is kept in.
+
+A run renders frames in worker processes and throws the frames away; :func:`capture_frame` keeps
+the little the report needs from each one as a small picklable record, and the parent process
+hands each method × sweep point's records, in frame order, to :func:`write_captures`.
+
+Files written under the results directory (all deterministic: same captures, same bytes;
+``<method>__<point>`` is :func:`capture_stem`, the names made file-safe, a sweep label's ``/``
+becoming ``_``):
+
+``cascades.csv``
+    One row per frame × method × point × cascade: ``frame, method, point, cascade, texel_x,
+    texel_y`` (metres per texel), ``origin_x, origin_y`` (box minimum corner in texels of that
+    frame's texel size; whole numbers once snapped), ``extent_x, extent_y`` (box size, metres),
+    ``split_near, split_far`` (the cascade's split interval, metres of view depth). Rows are
+    sorted by method, point, frame, cascade, so the file does not depend on the order in which
+    method × point pairs were written, and writing a pair again replaces its rows.
+``anim/<method>__<point>.npz``
+    The animation frames: ``frame`` (N,) int64, ``time_s`` (N,) float64, ``shadow`` and ``dS``
+    (N, h, w) uint8 — the lit fraction S and the per-pixel temporal change |ΔS|, block-reduced to
+    at most :data:`ANIM_WIDTH` pixels wide (mean of S, max of |ΔS| so that one flickering pixel
+    stays visible) and coded ``round(254 · v)``, with 255 where there is no value (no surface, or
+    frame 0 for |ΔS|); ``method``, ``point`` (0-d str).
+``snapshots/<method>__<point>__f<frame>.npz``
+    One snapshot frame at full resolution: ``frame``, ``time_s``, ``method``, ``point``;
+    ``valid`` (H, W) bool (the ray hit the scene); ``shaded`` (H, W, 3) float32 linear RGB
+    (NaN where no shadow is defined); ``cascade`` (H, W) int8 (-1 none); ``rho`` (H, W) float32
+    texels per pixel; ``dS`` (H, W) float32 (NaN undefined); ``ref_diff`` (H, W) int8 (+1 false
+    shadow, -1 false light);
+    and for the 3D view, in world metres: ``camera_position`` (3,), ``light_direction`` (3,),
+    ``frustum_corners`` (C, 8, 3) (each cascade's split slice, corner order of
+    :func:`csmlab.geometry.frustum_slice_corners`), ``box_corners`` (C, 8, 3) (each cascade's
+    light-space box: x, y, depth each low/high, x fastest), ``points`` (P, 3) float32 (visible
+    surface points, every :data:`POINT_STRIDE`-th pixel) and ``point_cascade`` (P,) int8.
+
+The 3D view draws the scene as the camera sees it — the visible surface points — so the
+results directory alone is enough to redraw it; no scene is rebuilt.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+import re
+import zipfile
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from csmlab.frame import Frame
+from csmlab.geometry import frustum_slice_corners
+
+if TYPE_CHECKING:
+    from csmlab.metrics import FrameMeasures
+
+__all__ = [
+    "ANIM_WIDTH",
+    "CASCADE_COLUMNS",
+    "POINT_STRIDE",
+    "capture_frame",
+    "capture_stem",
+    "decode_u8",
+    "default_snapshot_frames",
+    "read_npz",
+    "safe_name",
+    "write_captures",
+]
+
+ANIM_WIDTH = 320
+"""Largest width in pixels of an animation frame."""
+POINT_STRIDE = 4
+"""Pixel stride of the visible points kept for the 3D view (every 4th row and column)."""
+CASCADE_COLUMNS = ("texel_x", "texel_y", "origin_x", "origin_y", "extent_x", "extent_y", "split_near", "split_far")
+"""Per-cascade quantities of :func:`capture_frame`'s ``"cascades"`` array, in column order."""
+_NO_VALUE = 255
+_SNAPSHOT_COUNT = 3
+
+
+def default_snapshot_frames(n_frames: int) -> list[int]:
+    """Frames whose full-resolution images go into the report: three spread over the run.
+
+    Frame 0 has no temporal change, so the spread starts at frame 1 when there is one.
+
+    Parameters
+    ----------
+    n_frames : int
+        Frames in the run, at least 1.
+
+    Returns
+    -------
+    list of int
+        Sorted distinct frame indices in ``[0, n_frames)``.
+    """
+    if n_frames < 1:
+        raise ValueError(f"n_frames: expected at least 1 frame, got {n_frames}")
+    if n_frames == 1:
+        return [0]
+    return sorted({int(round(f)) for f in np.linspace(1, n_frames - 1, _SNAPSHOT_COUNT)})
+
+
+def capture_frame(frame: Frame, measures: "FrameMeasures", *, snapshot: bool) -> dict:
+    """The report's record of one frame of one method: small, picklable, plain NumPy.
+
+    Parameters
+    ----------
+    frame : Frame
+        The rendered frame.
+    measures : FrameMeasures
+        Its metrics; ``measures.pixels`` must hold ``"dS"`` (H, W) and, when ``snapshot``,
+        ``"rho"`` (H, W), ``"shaded"`` (H, W, 3) and ``"ref_diff"`` (H, W).
+    snapshot : bool
+        Also keep the full-resolution images and the 3D view's geometry.
+
+    Returns
+    -------
+    dict
+        ``frame`` (int), ``time_s`` (float), ``cascades`` ((C, 8) float64, columns
+        :data:`CASCADE_COLUMNS`), ``shadow`` and ``dS`` ((h, w) uint8, coded as in the module
+        docstring), and ``snapshot``: a dict of the snapshot file's arrays, or None.
+    """
+    pixels = measures.pixels
+    return {
+        "frame": int(frame.view.index),
+        "time_s": float(frame.view.pose.time_s),
+        "cascades": _cascade_rows(frame),
+        "shadow": _coded_u8(_block_mean(frame.shadow.lit)),
+        "dS": _coded_u8(_block_max(np.abs(pixels["dS"]))),
+        "snapshot": _snapshot(frame, pixels) if snapshot else None,
+    }
+
+
+def decode_u8(coded: np.ndarray) -> np.ndarray:
+    """Values in [0, 1] as float32 of an array coded by :func:`capture_frame`; NaN where 255."""
+    coded = np.asarray(coded)
+    return np.where(coded == _NO_VALUE, np.float32(np.nan), coded.astype(np.float32) / 254.0)
+
+
+def safe_name(name: str) -> str:
+    """``name`` fit for a file name: characters outside ``[A-Za-z0-9._=+-]`` made ``_`` (``/`` of sweep labels too)."""
+    return re.sub(r"[^A-Za-z0-9._=+-]", "_", str(name)) or "_"
+
+
+def capture_stem(method: str, point: str) -> str:
+    """File-name stem ``<method>__<point>`` of a method × sweep point's capture files."""
+    return f"{safe_name(method)}__{safe_name(point)}"
+
+
+def write_captures(out_dir, *, method: str, point: str, captures: list[dict]) -> None:
+    """Write one method × sweep point's captures, frames in order (files in the module docstring).
+
+    The pair's earlier files are replaced: its rows of ``cascades.csv``, its animation and every
+    snapshot of it, so that a run written over an older one keeps no stale frame.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        The results directory.
+    method, point : str
+        The method's name and the sweep point's label, as in ``metrics.csv``.
+    captures : list of dict
+        :func:`capture_frame` records of consecutive frames, in frame order.
+
+    Raises
+    ------
+    ValueError
+        If ``captures`` is empty, not in increasing frame order, or mixes image sizes.
+    """
+    out = Path(out_dir)
+    if not captures:
+        raise ValueError(f"captures of {method!r} at {point!r}: expected at least one frame, got none")
+    frames = np.array([c["frame"] for c in captures], dtype=np.int64)
+    if np.any(np.diff(frames) <= 0):
+        raise ValueError(f"captures of {method!r} at {point!r}: expected increasing frame numbers, "
+                         f"got {frames.tolist()}")
+    shapes = {c["shadow"].shape for c in captures}
+    if len(shapes) != 1:
+        raise ValueError(f"captures of {method!r} at {point!r}: expected one image size, got {sorted(shapes)}")
+    stem = capture_stem(method, point)
+    _merge_cascades_csv(out / "cascades.csv", method=method, point=point, captures=captures)
+    _write_npz(out / "anim" / f"{stem}.npz", {
+        "frame": frames,
+        "time_s": np.array([c["time_s"] for c in captures], dtype=np.float64),
+        "shadow": np.stack([c["shadow"] for c in captures]),
+        "dS": np.stack([c["dS"] for c in captures]),
+        "method": np.array(method),
+        "point": np.array(point),
+    })
+    for stale in sorted((out / "snapshots").glob(f"{stem}__f*.npz")):
+        stale.unlink()
+    for c in captures:
+        if c["snapshot"] is not None:
+            arrays = {"frame": np.int64(c["frame"]), "time_s": np.float64(c["time_s"]), "method": np.array(method),
+                      "point": np.array(point), **c["snapshot"]}
+            _write_npz(out / "snapshots" / f"{stem}__f{c['frame']}.npz", arrays)
+
+
+def read_npz(path) -> dict[str, np.ndarray]:
+    """Every array of an ``.npz`` capture file, loaded (0-d str arrays become ``str``)."""
+    with np.load(path, allow_pickle=False) as data:
+        return {k: (str(v) if v.dtype.kind == "U" and v.ndim == 0 else v) for k, v in data.items()}
+
+
+def _cascade_rows(frame: Frame) -> np.ndarray:
+    return np.array([[*c.texel_size, *c.origin, *c.extent, c.split_near, c.split_far]
+                     for c in frame.maps.cascades.cascades], dtype=np.float64)
+
+
+def _anim_factor(width: int) -> int:
+    return max(1, -(-width // ANIM_WIDTH))
+
+
+def _blocks(values: np.ndarray) -> np.ndarray:
+    """``(h, k, w, k)`` view of ``values`` (H, W) cut to whole ``k``×``k`` blocks."""
+    k = _anim_factor(values.shape[1])
+    h, w = values.shape[0] // k, values.shape[1] // k
+    return values[: h * k, : w * k].reshape(h, k, w, k)
+
+
+def _block_mean(values) -> np.ndarray:
+    blocks = _blocks(np.asarray(values, dtype=np.float64))
+    defined = np.isfinite(blocks)
+    count = defined.sum(axis=(1, 3))
+    total = np.where(defined, blocks, 0.0).sum(axis=(1, 3))
+    return np.where(count > 0, total / np.maximum(count, 1), np.nan)
+
+
+def _block_max(values) -> np.ndarray:
+    blocks = _blocks(np.asarray(values, dtype=np.float64))
+    largest = np.where(np.isfinite(blocks), blocks, -1.0).max(axis=(1, 3))
+    return np.where(largest >= 0.0, largest, np.nan)
+
+
+def _coded_u8(values: np.ndarray) -> np.ndarray:
+    coded = np.rint(np.clip(np.nan_to_num(values, nan=0.0), 0.0, 1.0) * 254.0).astype(np.uint8)
+    return np.where(np.isfinite(values), coded, np.uint8(_NO_VALUE))
+
+
+def _snapshot(frame: Frame, pixels: dict) -> dict:
+    view, cascades = frame.view, frame.maps.cascades
+    valid = view.gbuffer.valid
+    stride = (slice(None, None, POINT_STRIDE), slice(None, None, POINT_STRIDE))
+    keep = valid[stride]
+    return {
+        "valid": valid,
+        "shaded": np.asarray(pixels["shaded"], dtype=np.float32),
+        "cascade": np.asarray(frame.shadow.cascade, dtype=np.int8),
+        "rho": np.asarray(pixels["rho"], dtype=np.float32),
+        "dS": np.asarray(pixels["dS"], dtype=np.float32),
+        "ref_diff": np.asarray(pixels["ref_diff"], dtype=np.int8),
+        "camera_position": np.asarray(view.pose.position, dtype=np.float64),
+        "light_direction": np.asarray(view.light_direction, dtype=np.float64),
+        "frustum_corners": _frustum_corners(frame),
+        "box_corners": _box_corners(cascades),
+        "points": np.asarray(view.gbuffer.position[stride][keep], dtype=np.float32),
+        "point_cascade": np.asarray(frame.shadow.cascade[stride][keep], dtype=np.int8),
+    }
+
+
+def _frustum_corners(frame: Frame) -> np.ndarray:
+    pose = frame.view.pose
+    return np.stack([
+        frustum_slice_corners(position=pose.position, orientation=pose.orientation, fov_y_deg=pose.fov_y_deg,
+                              aspect=pose.aspect, z_near=c.split_near, z_far=c.split_far)
+        for c in frame.maps.cascades.cascades
+    ])
+
+
+def _box_corners(cascades) -> np.ndarray:
+    """World corners ``(C, 8, 3)`` of each cascade's box: light x, y, depth each low/high, x fastest."""
+    high = ((np.arange(8)[:, None] >> np.arange(3)) & 1).astype(bool)
+    boxes = [np.where(high, [*c.box_max, c.depth_far], [*c.box_min, c.depth_near]) for c in cascades.cascades]
+    return np.stack(boxes) @ cascades.basis
+
+
+def _merge_cascades_csv(path: Path, *, method: str, point: str, captures: list[dict]) -> None:
+    header = ["frame", "method", "point", "cascade", *CASCADE_COLUMNS]
+    rows = []
+    if path.exists():
+        with open(path, newline="") as f:
+            reader = csv.reader(f)
+            next(reader, None)
+            rows = [r for r in reader if (r[1], r[2]) != (method, point)]
+    for c in captures:
+        for i, values in enumerate(c["cascades"]):
+            rows.append([str(c["frame"]), method, point, str(i), *(repr(float(v)) for v in values)])
+    rows.sort(key=lambda r: (r[1], r[2], int(r[0]), int(r[3])))
+    text = io.StringIO()
+    writer = csv.writer(text, lineterminator="\n")
+    writer.writerow(header)
+    writer.writerows(rows)
+    _write_atomically(path, text.getvalue().encode())
+
+
+def _write_npz(path: Path, arrays: dict) -> None:
+    """An ``.npz`` whose bytes depend on the arrays only (numpy's own stamps the time)."""
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+        for name, value in arrays.items():
+            member = io.BytesIO()
+            np.lib.format.write_array(member, np.asarray(value), allow_pickle=False)
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED
+            archive.writestr(info, member.getvalue())
+    _write_atomically(path, buffer.getvalue())
+
+
+def _write_atomically(path: Path, data: bytes) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)

@@ -1,0 +1,275 @@
+"""Plots of numbers (matplotlib, Agg): per-frame curves, cascade motion, cost, sweeps and the Pareto plot.
+
+Every function draws one PNG from :class:`~csmlab.report.tables.Columns` and returns nothing.
+Methods keep one Okabe–Ito colour across every figure (``CATEGORY_COLOURS[i]`` for the i-th
+method in ``metrics.csv``), sweep points a line style, cascades the colours of the cascade
+overlay. Every axis names its quantity and unit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from matplotlib.cm import ScalarMappable
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+from csmlab.report.images import CATEGORY_COLOURS, RHO_CMAP, RHO_LOG2_LIMIT, rho_norm
+from csmlab.report.tables import Columns
+
+__all__ = [
+    "CURVES",
+    "FIELD_UNITS",
+    "Series",
+    "cost_figure",
+    "frame_curves_figure",
+    "pareto_figure",
+    "pareto_optimal",
+    "series_of",
+    "stabilization_figure",
+    "sweep_figure",
+]
+
+CURVES = (
+    ("flicker_same", "flicker, same cascade\n(mean |ΔS|, lit fraction)", 1.0),
+    ("flicker_changed", "flicker, cascade changed\n(mean |ΔS|, lit fraction)", 1.0),
+    ("flip_rate", "flip rate\n(% of pixels)", 100.0),
+    ("de2000_mean", "mean ΔE2000\n(ΔE units)", 1.0),
+    ("rho_median", "median ρ\n(texels / pixel)", 1.0),
+)
+"""Per-frame curves: metric column, axis label with unit, display factor."""
+_LINE_STYLES = ("-", "--", ":", "-.")
+FIELD_UNITS = {
+    "cascades": "count", "resolution": "texels per side", "lambda": "PSSM blend, 0 uniform … 1 log",
+    "shadow_distance": "m", "levels": "extent steps", "filter_size": "taps per side", "bias_constant": "m",
+    "bias_slope": "texels", "normal_offset": "texels", "blend_band": "fraction of cascade depth",
+    "subtexel_bits": "bits", "depth_bytes": "bytes per texel",
+}
+"""Units of the swept shadow fields, for axis labels; other fields are names (split, fit, filter…)."""
+_SAVE = {"metadata": {"Software": None}}
+
+
+@dataclass(frozen=True)
+class Series:
+    """How one method × sweep point is drawn: its label, colour and line style."""
+
+    method: str
+    point: str
+    label: str
+    colour: tuple
+    style: str
+
+
+def series_of(groups: list[tuple[str, str]]) -> list[Series]:
+    """A :class:`Series` per ``(method, point)``: colour by method, line style by point.
+
+    The label is the method's name, followed by ``@ point`` when the run has several points.
+    """
+    methods = list(dict.fromkeys(m for m, _ in groups))
+    points = list(dict.fromkeys(p for _, p in groups))
+    return [
+        Series(method=m, point=p, label=m if len(points) == 1 else f"{m} @ {p}",
+               colour=tuple(CATEGORY_COLOURS[methods.index(m) % len(CATEGORY_COLOURS)]),
+               style=_LINE_STYLES[points.index(p) % len(_LINE_STYLES)])
+        for m, p in groups
+    ]
+
+
+def frame_curves_figure(metrics: Columns, path) -> None:
+    """Write the per-frame curves of :data:`CURVES` against time, one line per method × point, shared x axis."""
+    curves = [c for c in CURVES if c[0] in metrics]
+    fig = Figure(figsize=(10, 1.9 * len(curves) + 0.8), dpi=100, layout="constrained")
+    axes = fig.subplots(len(curves), 1, sharex=True, squeeze=False)[:, 0]
+    series = series_of(metrics.groups())
+    for ax, (column, label, scale) in zip(axes, curves):
+        for s in series:
+            rows = metrics.of(s.method, s.point)
+            ax.plot(_time_axis(rows), rows[column] * scale, color=s.colour, linestyle=s.style, linewidth=1.3,
+                    label=s.label)
+        ax.set_ylabel(label, fontsize=9)
+        ax.grid(True, alpha=0.3)
+        if column == "rho_median":
+            ax.axhline(1.0, color="0.3", linestyle=":", linewidth=1.0, label="ρ = 1, the 1:1 ideal")
+    axes[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=9, frameon=False)
+    if curves[-1][0] == "rho_median":
+        axes[-1].legend(handles=axes[-1].get_lines()[-1:], loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=9,
+                        frameon=False)
+    axes[-1].set_xlabel("time (s)")
+    fig.savefig(path, **_SAVE)
+
+
+def _time_axis(rows: Columns) -> np.ndarray:
+    return rows["time_s"] if "time_s" in rows and np.all(np.isfinite(rows["time_s"])) else rows["frame"]
+
+
+def stabilization_figure(cascades: Columns, *, point: str, methods: list[str], path) -> None:
+    """Write how each cascade's box moved, a column per method at one sweep point.
+
+    ``cascades`` holds ``cascades.csv``'s columns; ``methods`` are drawn in the order given.
+
+    Rows: the box extent in metres (constant for exact, steps for quantized, drifting for none);
+    the origin's motion since the first frame, in texels; and its sub-texel phase
+    ``|origin - round(origin)|`` in texels — 0 when the box is snapped to the texel grid, which is
+    what keeps shadow texels fixed in the world. x solid, y dashed; cascades in overlay colours.
+    """
+    rows_of_point = cascades.where(cascades["point"] == point)
+    count = int(np.max(rows_of_point["cascade"])) + 1
+    fig = Figure(figsize=(3.6 * len(methods) + 1.6, 7.5), dpi=100, layout="constrained")
+    axes = fig.subplots(3, len(methods), sharex=True, sharey="row", squeeze=False)
+    for col, method in enumerate(methods):
+        rows = rows_of_point.where(rows_of_point["method"] == method)
+        for c in range(count):
+            one = rows.where(rows["cascade"] == c)
+            one = one.where(np.argsort(one["frame"], kind="stable"))
+            colour = CATEGORY_COLOURS[c % len(CATEGORY_COLOURS)]
+            for axis, style in (("x", "-"), ("y", "--")):
+                origin = one[f"origin_{axis}"]
+                axes[0, col].plot(one["frame"], one[f"extent_{axis}"], color=colour, linestyle=style, linewidth=1.2)
+                axes[1, col].plot(one["frame"], origin - origin[0], color=colour, linestyle=style, linewidth=1.2)
+                axes[2, col].plot(one["frame"], np.abs(origin - np.round(origin)), color=colour, linestyle=style,
+                                  linewidth=1.2)
+        axes[0, col].set_title(method)
+        axes[0, col].set_yscale("log")
+        axes[0, col].yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+        axes[0, col].yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        axes[0, col].yaxis.set_minor_formatter(NullFormatter())
+        axes[2, col].set_xlabel("frame number")
+    axes[0, 0].set_ylabel("box extent (m)")
+    axes[1, 0].set_ylabel("origin moved since\nfirst frame (texels)")
+    axes[2, 0].set_ylabel("sub-texel phase of\norigin (texels)")
+    axes[2, 0].set_ylim(-0.02, 0.52)
+    for ax in axes.ravel():
+        ax.grid(True, alpha=0.3)
+    handles = [Line2D([], [], color=CATEGORY_COLOURS[c % len(CATEGORY_COLOURS)], label=f"cascade {c}")
+               for c in range(count)]
+    handles += [Line2D([], [], color="0.3", linestyle="-", label="light-space x"),
+                Line2D([], [], color="0.3", linestyle="--", label="light-space y")]
+    axes[0, -1].legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8, frameon=False)
+    fig.savefig(path, **_SAVE)
+
+
+def cost_figure(timings: Columns, groups: list[tuple[str, str]], path) -> None:
+    """Write the mean wall-clock time per frame of each stage, stacked, one bar per method × point.
+
+    Stages timed with an empty method and point (the view, rendered once for all methods) get a
+    bar of their own.
+    """
+    stages = list(dict.fromkeys(timings["stage"].tolist()))
+    bars = [(s.label, s.method, s.point) for s in series_of(groups)]
+    if np.any(timings["method"] == ""):
+        bars.insert(0, ("view (shared)", "", ""))
+    fig = Figure(figsize=(9, 0.45 * len(bars) + 1.4), dpi=100, layout="constrained")
+    ax = fig.subplots()
+    left = np.zeros(len(bars))
+    for k, stage in enumerate(stages):
+        ms = np.array([_stage_ms(timings, method, point, stage) for _, method, point in bars])
+        ax.barh(np.arange(len(bars)), ms, left=left, color=CATEGORY_COLOURS[k % len(CATEGORY_COLOURS)],
+                label=stage)
+        left += ms
+    ax.set_yticks(np.arange(len(bars)), labels=[label for label, _, _ in bars])
+    ax.invert_yaxis()
+    ax.set_xlabel("wall-clock time per frame (ms)")
+    ax.set_ylabel("method")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False, title="stage")
+    ax.grid(True, axis="x", alpha=0.3)
+    fig.savefig(path, **_SAVE)
+
+
+def _stage_ms(timings: Columns, method: str, point: str, stage: str) -> float:
+    group = (timings["method"] == method) & (timings["point"] == point)
+    frames = len(np.unique(timings["frame"][group]))
+    seconds = timings["seconds"][group & (timings["stage"] == stage)]
+    return 1000.0 * float(np.sum(seconds)) / frames if frames else 0.0
+
+
+def sweep_figure(means: Columns, parameter: str, metrics: list[tuple[str, str, float]], path) -> None:
+    """Write metric-vs-parameter plots for one sweep parameter, a line per method (and other parameters).
+
+    Parameters
+    ----------
+    means : Columns
+        A row per method × point: ``method``, ``point``, ``parameter`` (numbers), ``others``
+        (text: the other swept fields of the point) and the metric columns (means over frames).
+    parameter : str
+        The swept field on the x axis.
+    metrics : list of (column, axis label with unit, display factor)
+    path : str or Path
+    """
+    fig = Figure(figsize=(3.4 * len(metrics) + 1.8, 3.4), dpi=100, layout="constrained")
+    axes = fig.subplots(1, len(metrics), squeeze=False)[0]
+    methods = list(dict.fromkeys(means["method"].tolist()))
+    lines = list(dict.fromkeys(zip(means["method"].tolist(), means["others"].tolist())))
+    others = list(dict.fromkeys(means["others"].tolist()))
+    for ax, (column, label, scale) in zip(axes, metrics):
+        for method, other in lines:
+            rows = means.where((means["method"] == method) & (means["others"] == other))
+            order = np.argsort(rows[parameter], kind="stable")
+            ax.plot(rows[parameter][order], rows[column][order] * scale, marker="o",
+                    color=CATEGORY_COLOURS[methods.index(method) % len(CATEGORY_COLOURS)],
+                    linestyle=_LINE_STYLES[others.index(other) % len(_LINE_STYLES)],
+                    label=method if len(others) == 1 else f"{method}, {other}")
+        ax.set_xlabel(f"{parameter} ({FIELD_UNITS.get(parameter, 'setting')})")
+        ax.set_ylabel(label, fontsize=9)
+        ax.grid(True, alpha=0.3)
+        if _spans_octaves(means[parameter]):
+            ax.set_xscale("log", base=2)
+    axes[-1].legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8, frameon=False)
+    fig.savefig(path, **_SAVE)
+
+
+def _spans_octaves(values: np.ndarray) -> bool:
+    """Positive numbers spanning a factor 8 or more (resolutions 512…4096) read best on a log2 axis."""
+    return values.dtype.kind in "iuf" and bool(np.all(values > 0)) and values.max() >= 8 * values.min()
+
+
+def pareto_optimal(objectives: np.ndarray) -> np.ndarray:
+    """``(N,)`` bool: rows of ``objectives`` ``(N, K)`` (all minimised) that no other row dominates.
+
+    A row dominates another when it is no worse in every objective and better in one. Rows with a
+    NaN objective are never optimal.
+    """
+    objectives = np.asarray(objectives, dtype=np.float64)
+    finite = np.all(np.isfinite(objectives), axis=1)
+    no_worse = np.all(objectives[:, None, :] <= objectives[None, :, :], axis=2)
+    better = np.any(objectives[:, None, :] < objectives[None, :, :], axis=2)
+    dominated = np.any(no_worse & better & finite[:, None], axis=0)
+    return finite & ~dominated
+
+
+def pareto_figure(means: Columns, path) -> None:
+    """Write the Pareto plot: memory against flicker, coloured by median ρ, optimal points ringed.
+
+    ``means`` holds a row per method × point with ``method``, ``point``, ``memory_mib``,
+    ``flicker`` and ``rho_median``. Optimal means no other point has less memory, less flicker and
+    a median ρ at least as close to 1 (on a log scale), with one of them strictly better.
+    """
+    rho = means["rho_median"]
+    optimal = pareto_optimal(np.column_stack([means["memory_mib"], means["flicker"], np.abs(np.log2(rho))]))
+    methods = list(dict.fromkeys(means["method"].tolist()))
+    markers = ("o", "s", "^", "D", "v", "P", "X", "*")
+    fig = Figure(figsize=(8.5, 5.2), dpi=100, layout="constrained")
+    ax = fig.subplots()
+    for k, method in enumerate(methods):
+        mine = means["method"] == method
+        ax.scatter(means["memory_mib"][mine], means["flicker"][mine], c=np.log2(rho[mine]), cmap=RHO_CMAP,
+                   norm=rho_norm(), marker=markers[k % len(markers)], s=70, edgecolors="0.4", linewidths=0.6)
+    ax.scatter(means["memory_mib"][optimal], means["flicker"][optimal], s=220, facecolors="none",
+               edgecolors="black", linewidths=1.4)
+    for p, x, y in zip(means["point"], means["memory_mib"], means["flicker"]):
+        ax.annotate(p, (x, y), textcoords="offset points", xytext=(6, 4), fontsize=7)
+    ax.set_xscale("log", base=2)
+    ax.set_xlabel("shadow-map memory (MiB, log scale)")
+    ax.set_ylabel("flicker (mean |ΔS| per frame, lit fraction)")
+    ax.grid(True, alpha=0.3)
+    handles = [Line2D([], [], linestyle="none", marker=markers[k % len(markers)], markersize=8, color="0.6",
+                      markeredgecolor="0.4", label=method) for k, method in enumerate(methods)]
+    handles.append(Line2D([], [], linestyle="none", marker="o", markersize=14, markerfacecolor="none",
+                          markeredgecolor="black", label="Pareto-optimal"))
+    ax.legend(handles=handles, fontsize=8, loc="best")
+    bar = fig.colorbar(ScalarMappable(norm=rho_norm(), cmap=RHO_CMAP), ax=ax)
+    ticks = np.arange(-RHO_LOG2_LIMIT, RHO_LOG2_LIMIT + 1, 2)
+    bar.set_ticks(ticks, labels=[f"{2.0 ** t:g}" for t in ticks])
+    bar.set_label("median ρ (texels / pixel, log scale)")
+    fig.savefig(path, **_SAVE)

@@ -1,0 +1,212 @@
+"""Per-pixel images: the colour coding of shaded views, cascades, ρ, |ΔS| and reference error.
+
+Every colour choice of the report's pictures lives here, so that the strips, the animations and
+the 3D view agree. Colour maps are perceptually uniform and colour-blind safe: viridis for
+|ΔS|, ColorBrewer's RdBu (diverging) for ρ on a log2 scale centred on the 1:1 ideal, and the
+Okabe–Ito palette for categories (cascades, methods, false shadow / false light).
+
+References
+----------
+M. Okabe and K. Ito, "Color Universal Design (CUD): how to make figures and presentations that
+are friendly to colorblind people", 2008.
+"""
+
+from __future__ import annotations
+
+import matplotlib
+import numpy as np
+from matplotlib.cm import ScalarMappable
+from matplotlib.colors import Normalize, PowerNorm
+from matplotlib.figure import Figure
+from matplotlib.patches import Patch
+
+__all__ = [
+    "CATEGORY_COLOURS",
+    "RHO_LOG2_LIMIT",
+    "cascade_overlay_image",
+    "change_image",
+    "change_norm",
+    "reference_diff_image",
+    "rho_image",
+    "rho_norm",
+    "shaded_image",
+    "snapshot_strip_figure",
+    "srgb_from_linear",
+]
+
+CATEGORY_COLOURS = np.array([
+    [0.000, 0.447, 0.698],  # blue
+    [0.902, 0.624, 0.000],  # orange
+    [0.000, 0.620, 0.451],  # bluish green
+    [0.800, 0.475, 0.655],  # reddish purple
+    [0.337, 0.706, 0.914],  # sky blue
+    [0.835, 0.369, 0.000],  # vermillion
+    [0.941, 0.894, 0.259],  # yellow
+    [0.000, 0.000, 0.000],  # black
+])
+"""Okabe–Ito colours ``(8, 3)`` in sRGB [0, 1]: cascade ``i`` and method ``i`` get row ``i % 8``."""
+RHO_LOG2_LIMIT = 4.0
+"""ρ maps are clipped to ``2^±4`` texels per pixel: 1/16 (blocky) to 16 (wasted)."""
+NO_SURFACE = np.array([0.78, 0.84, 0.92])
+"""sRGB colour of pixels with no value (no surface hit, or no temporal change defined)."""
+FALSE_SHADOW = CATEGORY_COLOURS[5]
+FALSE_LIGHT = CATEGORY_COLOURS[4]
+RHO_CMAP = matplotlib.colormaps["RdBu"]
+CHANGE_CMAP = matplotlib.colormaps["viridis"]
+CHANGE_GAMMA = 0.5
+"""|ΔS| is coloured on a square-root scale: a PCF step of 1/9 already shows, a full flip is yellow."""
+_OVERLAY_ALPHA = 0.45
+_DIFF_BACKGROUND = 0.35
+
+
+def srgb_from_linear(linear) -> np.ndarray:
+    """sRGB-encoded values in [0, 1] (float64, same shape) of linear values (clipped to [0, 1]), IEC 61966-2-1."""
+    x = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+
+
+def _u8(rgb: np.ndarray) -> np.ndarray:
+    return np.rint(np.clip(rgb, 0.0, 1.0) * 255.0).astype(np.uint8)
+
+
+def _with_background(rgb: np.ndarray, defined: np.ndarray) -> np.ndarray:
+    return _u8(np.where(defined[..., None], rgb, NO_SURFACE))
+
+
+def shaded_image(shaded, valid) -> np.ndarray:
+    """The shaded view: ``(H, W, 3)`` uint8 sRGB of linear RGB ``shaded`` (H, W, 3); NO_SURFACE where undefined."""
+    shaded = np.asarray(shaded, dtype=np.float64)
+    return _with_background(srgb_from_linear(np.nan_to_num(shaded)), _shaded_defined(shaded, valid))
+
+
+def _shaded_defined(shaded: np.ndarray, valid) -> np.ndarray:
+    """Pixels with a surface and a shading (beyond the shadow distance there is none)."""
+    return np.asarray(valid, dtype=bool) & np.all(np.isfinite(shaded), axis=-1)
+
+
+def cascade_overlay_image(shaded, cascade, valid) -> np.ndarray:
+    """The shaded view tinted by cascade index: ``(H, W, 3)`` uint8 sRGB; cascade ``i`` tinted ``CATEGORY_COLOURS[i]``.
+
+    Parameters
+    ----------
+    shaded : array_like, shape (H, W, 3)
+        Linear RGB.
+    cascade : array_like, shape (H, W), int
+        Selected cascade, -1 where none (left untinted).
+    valid : array_like, shape (H, W), bool
+    """
+    shaded = np.asarray(shaded, dtype=np.float64)
+    base = srgb_from_linear(np.nan_to_num(shaded))
+    cascade = np.asarray(cascade)
+    tint = CATEGORY_COLOURS[np.mod(cascade, len(CATEGORY_COLOURS))]
+    alpha = np.where(cascade >= 0, _OVERLAY_ALPHA, 0.0)[..., None]
+    return _with_background((1.0 - alpha) * base + alpha * tint, _shaded_defined(shaded, valid))
+
+
+def rho_image(rho) -> np.ndarray:
+    """ρ heat map ``(H, W, 3)`` uint8: RdBu over ``log2 ρ`` clipped to ``±RHO_LOG2_LIMIT``.
+
+    Red: under-sampled (blocky); blue: resolution wasted; white: the 1:1 ideal.
+    """
+    rho = np.asarray(rho, dtype=np.float64)
+    defined = np.isfinite(rho) & (rho > 0)
+    log2 = np.log2(np.where(defined, rho, 1.0))
+    rgb = RHO_CMAP(rho_norm()(log2))[..., :3]
+    return _with_background(rgb, defined)
+
+
+def rho_norm() -> Normalize:
+    """The normalisation of ``log2 ρ`` shared by :func:`rho_image` and its colour bar."""
+    return Normalize(vmin=-RHO_LOG2_LIMIT, vmax=RHO_LOG2_LIMIT, clip=True)
+
+
+def change_norm() -> PowerNorm:
+    """The square-root normalisation of |ΔS| in [0, 1] shared by :func:`change_image`, its colour bar and the GIFs."""
+    return PowerNorm(gamma=CHANGE_GAMMA, vmin=0.0, vmax=1.0, clip=True)
+
+
+def change_image(dS) -> np.ndarray:
+    """|ΔS| heat map ``(H, W, 3)`` uint8: viridis over [0, 1] (lit fraction, square-root scale); NaN NO_SURFACE."""
+    dS = np.abs(np.asarray(dS, dtype=np.float64))
+    rgb = CHANGE_CMAP(change_norm()(np.nan_to_num(dS)))[..., :3]
+    return _with_background(rgb, np.isfinite(dS))
+
+
+def reference_diff_image(shaded, ref_diff, valid) -> np.ndarray:
+    """Where the shadow disagrees with the ray-traced reference: ``(H, W, 3)`` uint8.
+
+    The shaded view, darkened, with false shadow (+1) in vermillion and false light (-1) in sky blue.
+    """
+    shaded = np.asarray(shaded, dtype=np.float64)
+    base = _DIFF_BACKGROUND * srgb_from_linear(np.nan_to_num(shaded))
+    ref_diff = np.asarray(ref_diff)[..., None]
+    rgb = np.where(ref_diff > 0, FALSE_SHADOW, np.where(ref_diff < 0, FALSE_LIGHT, base))
+    return _with_background(rgb, _shaded_defined(shaded, valid))
+
+
+def snapshot_strip_figure(snapshots: list[dict], labels: list[str], path, *, title: str) -> None:
+    """Write one PNG: a row per snapshot (method) of shaded, cascades, ρ, |ΔS| and reference error.
+
+    A last, short row holds each column's colour bar or legend.
+
+    Parameters
+    ----------
+    snapshots : list of dict
+        Snapshot arrays as :mod:`csmlab.report.capture` stores them, all of one image size.
+    labels : list of str
+        Row labels (method names), one per snapshot.
+    path : str or Path
+        The PNG to write.
+    title : str
+        Figure title (frame and time).
+    """
+    height, width = snapshots[0]["valid"].shape
+    rows = len(snapshots)
+    panel_w = float(np.clip(width / 100.0, 3.2, 4.8))
+    panel_h = panel_w * height / width
+    fig = Figure(figsize=(5 * panel_w + 0.5, rows * (panel_h + 0.3) + 1.5), dpi=100, layout="constrained")
+    grid = fig.add_gridspec(rows + 1, 5, height_ratios=[panel_h + 0.3] * rows + [0.55])
+    fig.suptitle(title)
+    columns = ("shaded view", "cascade index", "ρ (texels / pixel)", "|ΔS| (lit fraction)",
+               "vs. ray-traced reference")
+    for r, (snap, label) in enumerate(zip(snapshots, labels)):
+        images = (
+            shaded_image(snap["shaded"], snap["valid"]),
+            cascade_overlay_image(snap["shaded"], snap["cascade"], snap["valid"]),
+            rho_image(snap["rho"]),
+            change_image(snap["dS"]),
+            reference_diff_image(snap["shaded"], snap["ref_diff"], snap["valid"]),
+        )
+        for c, image in enumerate(images):
+            ax = fig.add_subplot(grid[r, c])
+            ax.imshow(image, interpolation="antialiased")
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if r == 0:
+                ax.set_title(columns[c], fontsize=10)
+            if c == 0:
+                ax.set_ylabel(label, fontsize=11)
+    keys = [fig.add_subplot(grid[rows, c]) for c in range(5)]
+    for ax in (keys[0], keys[1], keys[4]):
+        ax.axis("off")
+    cascades = int(max(s["cascade"].max() for s in snapshots)) + 1
+    keys[1].legend(handles=[Patch(color=CATEGORY_COLOURS[i % len(CATEGORY_COLOURS)], label=f"cascade {i}")
+                            for i in range(cascades)], loc="upper center", ncol=min(cascades, 4), fontsize=8,
+                   frameon=False)
+    keys[4].legend(handles=[Patch(color=FALSE_SHADOW, label="false shadow"),
+                            Patch(color=FALSE_LIGHT, label="false light")],
+                   loc="upper center", ncol=2, fontsize=8, frameon=False)
+    rho_bar = fig.colorbar(ScalarMappable(norm=rho_norm(), cmap=RHO_CMAP), cax=keys[2], orientation="horizontal")
+    ticks = np.arange(-RHO_LOG2_LIMIT, RHO_LOG2_LIMIT + 1, 2)
+    rho_bar.set_ticks(ticks, labels=[_power_of_two(t) for t in ticks])
+    rho_bar.set_label("ρ, texels / pixel (log scale)\n< 1 blocky, > 1 wasted", fontsize=8)
+    change_bar = fig.colorbar(ScalarMappable(norm=change_norm(), cmap=CHANGE_CMAP), cax=keys[3],
+                              orientation="horizontal")
+    change_bar.set_ticks([0, 0.05, 0.2, 0.5, 1.0])
+    change_bar.set_label("|ΔS| since the previous frame\n(lit fraction, square-root scale)", fontsize=8)
+    fig.savefig(path, metadata={"Software": None})
+
+
+def _power_of_two(exponent: float) -> str:
+    e = int(exponent)
+    return str(2 ** e) if e >= 0 else f"1/{2 ** -e}"

@@ -1,0 +1,82 @@
+"""Sweep points as numbers: each point's field values and each method × point's means over frames.
+
+``summary.json``'s ``config.sweep`` lists each swept field's values; :func:`csmlab.config.sweep_points`
+turns it into the labelled points that ``metrics.csv`` names, so every point's values are known
+as the config typed them (numbers stay numbers, for a numeric axis).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from csmlab.config import sweep_points as config_sweep_points
+from csmlab.errors import InputError
+from csmlab.report.tables import Columns, finite_mean
+
+__all__ = ["SweepPoints", "sweep_means", "sweep_points"]
+
+_MEAN_COLUMNS = ("rho_median", "flicker", "flicker_same", "flicker_changed", "flip_rate", "de2000_mean",
+                 "memory_bytes")
+
+
+@dataclass(frozen=True)
+class SweepPoints:
+    """The swept fields and each point's values.
+
+    Attributes
+    ----------
+    fields : tuple of str
+        Swept shadow fields, in the experiment's order.
+    values : dict of str to dict
+        Point label → field → value, typed as in the config.
+    """
+
+    fields: tuple[str, ...]
+    values: dict
+
+
+def sweep_points(summary: dict, points: list[str]) -> SweepPoints:
+    """Each point's field values, from ``summary["config"]["sweep"]``.
+
+    Raises
+    ------
+    InputError
+        If a point of ``metrics.csv`` is not a point of ``config.sweep``.
+    """
+    sweep = summary.get("config", {}).get("sweep", {})
+    known = dict(config_sweep_points(sweep))
+    missing = [p for p in points if p not in known]
+    if missing:
+        raise InputError(f"expected the sweep points of config.sweep ({', '.join(known)}), got {', '.join(missing)}",
+                         file="summary.json", field="config.sweep")
+    return SweepPoints(fields=tuple(sweep), values={p: known[p] for p in points})
+
+
+def sweep_means(metrics: Columns, sweep: SweepPoints, *, along: str) -> Columns:
+    """A row per method × point of means over frames, for plotting against the field ``along``.
+
+    Returns
+    -------
+    Columns
+        ``method``, ``point``, ``along`` (the field's value: float or str), ``others`` (the other
+        fields as ``field=value`` text), ``memory_mib`` and the means of the metric columns that
+        ``metrics`` has among ``rho_median, flicker, flicker_same, flicker_changed, flip_rate,
+        de2000_mean, memory_bytes``.
+    """
+    groups = metrics.groups()
+    present = [c for c in _MEAN_COLUMNS if c in metrics]
+    means = {c: np.array([finite_mean(metrics.of(m, p)[c]) for m, p in groups]) for c in present}
+    data = {
+        "method": np.array([m for m, _ in groups], dtype=str),
+        "point": np.array([p for _, p in groups], dtype=str),
+        along: np.array([sweep.values[p][along] for _, p in groups]),
+        "others": np.array([", ".join(f"{f}={sweep.values[p][f]}" for f in sweep.fields if f != along)
+                            for _, p in groups], dtype=str),
+        **means,
+    }
+    if "memory_bytes" in means:
+        data["memory_mib"] = means["memory_bytes"] / 2**20
+    return Columns(data)
+
