@@ -6,11 +6,15 @@ cd "$(dirname "$0")"
 python3 -m venv .venv
 .venv/bin/python -m pip install --quiet --upgrade pip
 .venv/bin/python -m pip install --quiet -e ".[test]"
-if ! command -v chromium >/dev/null 2>&1; then
+# Debian packages: chromium + chromedriver drive the browser test of the HTML report; EGL/Mesa let
+# VTK (PyVista) render the report's 3D view off-screen with no display.
+apt_packages="chromium chromium-driver libegl1 libegl-mesa0 libgl1-mesa-dri"
+if ! command -v chromium >/dev/null 2>&1 || ! command -v chromedriver >/dev/null 2>&1 \
+    || ! ldconfig -p | grep 'libEGL.so.1' >/dev/null; then
   if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
-    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver libegl1 libegl-mesa0 libgl1-mesa-dri >/dev/null
+    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $apt_packages >/dev/null
   else
-    echo "setup: chromium not found and not root: the browser test of the report will be skipped" >&2
+    echo "setup: not root, cannot install $apt_packages: the browser test of the report will be skipped" >&2
   fi
 fi
 .venv/bin/python -c "import warp; warp.init()" >/dev/null
