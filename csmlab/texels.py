@@ -28,19 +28,30 @@ _FIXED_LIMIT = float(2**50)
 _MAX_TAN = 10.0
 
 
+def _light_space(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """``points (..., 3)`` projected on each of ``rows (K, 3)``: ``(..., K)`` float64.
+
+    A plain loop (einsum) rather than a BLAS product: BLAS threads spin when the process pool
+    already keeps every core busy, which made this 40 times slower.
+    """
+    return np.einsum("...k,jk->...j", points, rows)
+
+
 def _global_texels(cascades: CascadeSet, index: int, points) -> np.ndarray:
     if not 0 <= index < len(cascades):
         raise ValueError(f"cascade index: expected 0..{len(cascades) - 1}, got {index}")
     p = np.asarray(points, dtype=np.float64)
     if p.shape[-1:] != (3,):
         raise ValueError(f"points: expected world positions of shape (..., 3), got {p.shape}")
-    return (p @ cascades.basis[:2].T) / cascades.cascades[index].texel_size
+    return _light_space(p, cascades.basis[:2]) / cascades.cascades[index].texel_size
 
 
 def _snapped(u: np.ndarray) -> np.ndarray:
-    """Global fixed-point values rounded to int64 (half to even); non-finite ones far outside."""
-    u = np.where(np.isfinite(u), u, -_FIXED_LIMIT)
-    return np.rint(np.clip(u, -_FIXED_LIMIT, _FIXED_LIMIT)).astype(np.int64)
+    """Global fixed-point values (overwritten) rounded to int64, half to even; NaN far outside."""
+    np.clip(u, -_FIXED_LIMIT, _FIXED_LIMIT, out=u)
+    np.rint(u, out=u)
+    u[np.isnan(u)] = -_FIXED_LIMIT
+    return u.astype(np.int64)
 
 
 def fixed_point_origin(cascades: CascadeSet, index: int, *, bits: int) -> np.ndarray:
@@ -89,7 +100,7 @@ def fixed_point_coordinates(cascades: CascadeSet, index: int, points, *, bits: i
 def light_depth(cascades: CascadeSet, points) -> np.ndarray:
     """Stored light-space depth ``d·X − zref`` ``(...)`` float64 in metres of world points ``(..., 3)``."""
     p = np.asarray(points, dtype=np.float64)
-    return p @ cascades.basis[2] - cascades.zref
+    return _light_space(p, cascades.basis[2:])[..., 0] - cascades.zref
 
 
 def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_offset: float, bias_constant: float,
@@ -133,8 +144,8 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
         raise ValueError(f"points, normals: expected two (N, 3) arrays, got {p.shape} and {n.shape}")
     # Light-space coordinates of points and normals once; the offset point of cascade c is then
     # p + o_c·n in light space too (the same for every box of that texel size).
-    light_p = p @ cascades.basis.T
-    light_n = n @ cascades.basis.T
+    light_p = _light_space(p, cascades.basis)
+    light_n = _light_space(n, cascades.basis)
     cos = -light_n[:, 2]
     with np.errstate(divide="ignore", invalid="ignore"):
         tan = np.sqrt(np.maximum(1.0 - cos * cos, 0.0)) / cos
@@ -146,7 +157,9 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
     for c, cascade in enumerate(cascades.cascades):
         texel = float(np.max(cascade.texel_size))
         offset = normal_offset * texel
-        u = (light_p[:, :2] + offset * light_n[:, :2]) / cascade.texel_size * scale
+        u = light_n[:, :2] * offset
+        u += light_p[:, :2]
+        u *= scale / cascade.texel_size
         coordinates[c] = _snapped(u) - fixed_point_origin(cascades, c, bits=bits)
         bias = bias_constant + bias_slope * texel * tan
         depth[c] = light_p[:, 2] + offset * light_n[:, 2] - cascades.zref - bias

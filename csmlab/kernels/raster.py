@@ -194,9 +194,9 @@ def rasterize_depth(points, vertex_depth, triangles, *, resolution: int, bits: i
         rasterize_depth_kernel,
         dim=(cascades, tri.shape[0]),
         inputs=(
-            wp.array(pts, dtype=wp.int64, device=device),
-            wp.array(z, dtype=wp.float64, device=device),
-            wp.array(tri, dtype=wp.int32, device=device),
+            wp.array(pts, dtype=wp.int64, device=device, copy=False),
+            wp.array(z, dtype=wp.float64, device=device, copy=False),
+            wp.array(tri, dtype=wp.int32, device=device, copy=False),
             wp.int64(2**bits),
         ),
         outputs=(depth, covered),

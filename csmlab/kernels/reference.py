@@ -72,14 +72,16 @@ def hard_shadow(bvh: MeshBVH, *, points, normals, light_direction) -> np.ndarray
     out = np.full(flat.shape[0], np.nan, dtype=np.float32)
     if np.any(valid):
         device = bvh.device
-        lit = wp.empty(int(valid.sum()), dtype=wp.float32, device=device)
+        start = np.ascontiguousarray(flat[valid] - bvh.anchor)
+        normal = np.ascontiguousarray(n.reshape(-1, 3)[valid])
+        lit = wp.empty(start.shape[0], dtype=wp.float32, device=device)
         wp.launch(
             hard_shadow_kernel,
-            dim=lit.shape[0],
+            dim=start.shape[0],
             inputs=(
                 bvh.mesh.id,
-                wp.array(np.ascontiguousarray(flat[valid] - bvh.anchor), dtype=wp.vec3d, device=device),
-                wp.array(np.ascontiguousarray(n.reshape(-1, 3)[valid]), dtype=wp.vec3, device=device),
+                wp.array(start, dtype=wp.vec3d, device=device, copy=False),
+                wp.array(normal, dtype=wp.vec3, device=device, copy=False),
                 wp.vec3d(*toward),
                 RAY_OFFSET * max(bvh.diagonal, 1e-9),
                 float(4.0 * max(bvh.diagonal, 1e-9)),
