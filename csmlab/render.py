@@ -134,7 +134,7 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
     receivers = np.flatnonzero(np.all(np.isfinite(p.reshape(-1, 3)), axis=1) & ~np.isnan(flat_z))
     cascades = maps.cascades
     bits = settings.subtexel_bits
-    coordinates, receiver_depth = receiver_lookup(
+    coordinates, receiver_depth, receiver_slope = receiver_lookup(
         cascades, p.reshape(-1, 3)[receivers], n.reshape(-1, 3)[receivers], bits=bits,
         normal_offset=settings.normal_offset, bias_constant=settings.bias_constant, bias_slope=settings.bias_slope,
     )
@@ -142,7 +142,8 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
         maps.depth, coordinates, receiver_depth, flat_z[receivers],
         splits=cascades.splits, texel_area=np.array([np.prod(c.texel_size) for c in cascades.cascades]),
         selection=settings.selection, filter=settings.filter, filter_size=settings.filter_size,
-        margin=cascades.margin_texels, blend_band=settings.blend_band, bits=bits, device=device,
+        margin=cascades.margin_texels, blend_band=settings.blend_band, bits=bits,
+        receiver_slope=receiver_slope if settings.receiver_plane_bias else None, device=device,
     )
     lit = np.full(flat_z.shape, np.nan, dtype=np.float32)
     cascade = np.full(flat_z.shape, -1, dtype=np.int8)

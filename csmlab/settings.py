@@ -48,6 +48,8 @@ class ShadowSettings:
     """Slope-scaled bias in texels: bias += bias_slope · texel · tan(angle(n, -d))."""
     normal_offset: float = 0.5
     """Receiver offset along its normal, in texels."""
+    receiver_plane_bias: bool = True
+    """Compare each filter tap against the receiver's tangent plane at that texel (derivative-based bias)."""
     blend_band: float = 0.0
     """Fraction of a cascade's depth range blended with the next cascade, in [0, 0.5]."""
     subtexel_bits: int = 8
@@ -73,6 +75,8 @@ class ShadowSettings:
         need(self.bias_constant >= 0, "bias_constant", "a non-negative distance in metres", self.bias_constant)
         need(self.bias_slope >= 0, "bias_slope", "a non-negative number of texels", self.bias_slope)
         need(self.normal_offset >= 0, "normal_offset", "a non-negative number of texels", self.normal_offset)
+        need(isinstance(self.receiver_plane_bias, bool), "receiver_plane_bias", "true or false",
+             self.receiver_plane_bias)
         need(0.0 <= self.blend_band <= 0.5, "blend_band", "a fraction in [0, 0.5]", self.blend_band)
         need(isinstance(self.subtexel_bits, int) and 0 <= self.subtexel_bits <= 16, "subtexel_bits",
              "an integer in 0..16", self.subtexel_bits)

@@ -104,8 +104,8 @@ def light_depth(cascades: CascadeSet, points) -> np.ndarray:
 
 
 def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_offset: float, bias_constant: float,
-                    bias_slope: float) -> tuple[np.ndarray, np.ndarray]:
-    """Where receivers look every cascade up: fixed-point coordinates and biased depth.
+                    bias_slope: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where receivers look every cascade up: fixed-point coordinates, biased depth, depth slope.
 
     In cascade c the receiver is moved ``normal_offset`` texels along its normal before the
     fixed-point snap, then its depth is pulled toward the light by
@@ -137,6 +137,12 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
     depth : ndarray, shape (C, N), float32
         Biased receiver depth ``d·X' − zref − bias`` in metres, rounded once to float32 so that it
         compares with the float32 depth map exactly as stored; NaN where turned from the light.
+    slope : ndarray, shape (C, N, 2), float64
+        Depth change of the receiver's tangent plane per texel along light x and y, metres
+        (``-n_x / n_z · texel_x``, ``-n_y / n_z · texel_y`` in light space, clamped like tan θ):
+        the receiver-plane depth bias that lets a filter tap one texel away compare against
+        the plane's depth there instead of the receiver's own (Isidoro, "Shadow Mapping: GPU-based
+        Tips and Techniques", GDC 2006; the derivative-based bias of seed 002). Box-independent.
     """
     p = np.asarray(points, dtype=np.float64)
     n = np.asarray(normals, dtype=np.float64)
@@ -153,6 +159,10 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
     count = len(cascades)
     coordinates = np.empty((count, p.shape[0], 2), dtype=np.int64)
     depth = np.empty((count, p.shape[0]), dtype=np.float32)
+    slope = np.empty((count, p.shape[0], 2), dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        plane_slope = np.where(cos[:, None] > 0.0, light_n[:, :2] / cos[:, None], 0.0)
+    plane_slope = np.clip(plane_slope, -_MAX_TAN, _MAX_TAN)
     scale = float(2**bits)
     for c, cascade in enumerate(cascades.cascades):
         texel = float(np.max(cascade.texel_size))
@@ -163,4 +173,5 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
         coordinates[c] = _snapped(u) - fixed_point_origin(cascades, c, bits=bits)
         bias = bias_constant + bias_slope * texel * tan
         depth[c] = light_p[:, 2] + offset * light_n[:, 2] - cascades.zref - bias
-    return coordinates, depth
+        slope[c] = plane_slope * cascade.texel_size
+    return coordinates, depth, slope

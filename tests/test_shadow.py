@@ -185,3 +185,30 @@ def test_moving_the_box_by_whole_texels_keeps_S_bit_identical_at_fixed_receivers
             assert both.sum() > 50
             assert 0.0 < results[0].lit[both].mean() < 1.0
             assert np.array_equal(results[0].lit[both], results[c].lit[both]), (filter, size, shifts[c])
+
+
+def _lit_ground_fraction_with_partial_shadow(*, receiver_plane_bias: bool) -> float:
+    """Fraction of ray-traced-lit ground pixels whose PCF result is not fully lit (shadow acne)."""
+    from csmlab.camera import CameraPose
+    from csmlab.geometry import rotation_looking_at
+    from csmlab.light import direction_from_angles
+    from csmlab.render import render_frame
+    from csmlab.scene import make_scene
+
+    scene = make_scene("plane_box", box_center=(40.0, 40.0))
+    pose = CameraPose(position=(0.0, 3.0, 0.0), orientation=rotation_looking_at((0.3, -0.5, -1.0)), aspect=2.0)
+    settings = ShadowSettings(cascades=2, resolution=256, filter="pcf", filter_size=5, bias_slope=0.25,
+                              normal_offset=0.0, shadow_distance=60.0, receiver_plane_bias=receiver_plane_bias)
+    frame = render_frame(scene, pose, direction_from_angles(elevation_deg=25.0, azimuth_deg=70.0), settings,
+                         width=96, height=48)
+    lit_ground = (frame.view.reference == 1.0) & (frame.shadow.cascade >= 0)
+    assert lit_ground.sum() > 1000
+    return float(np.mean(frame.shadow.lit[lit_ground] < 1.0))
+
+
+def test_receiver_plane_bias_leaves_a_lit_plane_fully_lit_under_a_wide_filter():
+    # Oracle: the ray-traced reference says the ground is lit; a planar receiver compared against its
+    # own tangent plane at every tap has nothing to self-shadow. Without the plane bias, the 5x5 taps
+    # two texels away fall behind the stored depth of a surface sloped to the light: acne.
+    assert _lit_ground_fraction_with_partial_shadow(receiver_plane_bias=True) == 0.0
+    assert _lit_ground_fraction_with_partial_shadow(receiver_plane_bias=False) > 0.05

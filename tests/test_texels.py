@@ -73,7 +73,7 @@ def test_receiver_lookup_offsets_along_the_normal_and_biases_by_the_slope():
     side /= np.linalg.norm(side)
     normal = np.cos(np.radians(30.0)) * toward + np.sin(np.radians(30.0)) * side
     point = world_from_light(cs, 1.0, 1.0, 2.0)
-    coords, depth = receiver_lookup(cs, point[None], normal[None], bits=16, normal_offset=0.5, bias_constant=0.01,
+    coords, depth, _ = receiver_lookup(cs, point[None], normal[None], bits=16, normal_offset=0.5, bias_constant=0.01,
                                     bias_slope=2.0)
     moved = point + normal * 0.5 * 0.05
     np.testing.assert_allclose(coords[0, 0] / 2**16, texel_coordinates(cs, 0, moved[None])[0], atol=1e-4)
@@ -88,7 +88,7 @@ def test_receiver_lookup_clamps_grazing_slopes_and_shadows_receivers_turned_from
     grazing = np.cos(np.radians(89.9)) * -cs.direction + np.sin(np.radians(89.9)) * cs.basis[0]
     away = np.cos(np.radians(90.1)) * -cs.direction + np.sin(np.radians(90.1)) * cs.basis[0]
     normals = np.stack([grazing, away, cs.direction])
-    _, depth = receiver_lookup(cs, np.stack([point] * 3), normals, bits=8, normal_offset=0.0, bias_constant=0.0,
+    _, depth, _ = receiver_lookup(cs, np.stack([point] * 3), normals, bits=8, normal_offset=0.0, bias_constant=0.0,
                                bias_slope=1.0)
     np.testing.assert_allclose(depth[0, 0], light_depth(cs, point[None])[0] - 10.0 * 0.05, rtol=1e-6)
     assert np.all(np.isnan(depth[0, 1:]))
@@ -96,7 +96,7 @@ def test_receiver_lookup_clamps_grazing_slopes_and_shadows_receivers_turned_from
 
 def test_non_finite_receivers_fall_outside_every_box():
     cs = cascade_set(origins=[(0.0, 0.0)])
-    coords, _ = receiver_lookup(cs, np.full((2, 3), np.nan), np.zeros((2, 3)), bits=8, normal_offset=0.5,
+    coords, _, _ = receiver_lookup(cs, np.full((2, 3), np.nan), np.zeros((2, 3)), bits=8, normal_offset=0.5,
                                 bias_constant=0.0, bias_slope=1.0)
     assert np.all(coords < 0)
 

@@ -64,12 +64,22 @@ def holds(coords: wp.array3d(dtype=wp.int64), c: int, k: int, inset: wp.int64, t
 
 
 @wp.func
-def tap(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int64, receiver: wp.float32) -> int:
-    """1 where the receiver is not behind the caster stored at texel (i, j), else 0 (also for a NaN receiver)."""
+def tap(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int64, receiver: wp.float32,
+        slope: wp.vec2d, x: wp.int64, y: wp.int64, unit: wp.int64) -> int:
+    """1 where the receiver plane is not behind the caster stored at texel (i, j), else 0 (also for a NaN receiver).
+
+    The receiver's depth is carried along its tangent plane (``slope``, metres per texel) from its
+    own fixed-point position ``(x, y)`` to the texel's centre; both offsets are exact fractions of
+    ``unit``, so the result does not depend on where the box lies.
+    """
     top = wp.int64(depth.shape[1] - 1)
     ii = int(wp.clamp(i, wp.int64(0), top))
     jj = int(wp.clamp(j, wp.int64(0), top))
-    if receiver <= depth[c, jj, ii]:
+    span = wp.float64(wp.int64(2) * unit)
+    di = wp.float64((wp.int64(2) * i + wp.int64(1)) * unit - wp.int64(2) * x) / span
+    dj = wp.float64((wp.int64(2) * j + wp.int64(1)) * unit - wp.int64(2) * y) / span
+    plane = wp.float32(wp.float64(receiver) + slope[0] * di + slope[1] * dj)
+    if plane <= depth[c, jj, ii]:
         return 1
     return 0
 
@@ -79,6 +89,7 @@ def lit_fraction(
     depth: wp.array3d(dtype=wp.float32),
     coords: wp.array3d(dtype=wp.int64),
     receiver_depth: wp.array2d(dtype=wp.float32),
+    receiver_slope: wp.array2d(dtype=wp.vec2d),
     c: int,
     k: int,
     unit: wp.int64,
@@ -89,6 +100,7 @@ def lit_fraction(
     x = coords[c, k, 0]
     y = coords[c, k, 1]
     receiver = receiver_depth[c, k]
+    slope = receiver_slope[c, k]
     if filter_code == 2:
         # Texel centres sit at (2i + 1)·unit in doubled units; i0 is the centre at or left of the point.
         x2 = wp.int64(2) * x - unit
@@ -99,10 +111,10 @@ def lit_fraction(
         wx = wp.float64(x2 - i0 * span) / wp.float64(span)
         wy = wp.float64(y2 - j0 * span) / wp.float64(span)
         one = wp.int64(1)
-        s00 = wp.float64(tap(depth, c, i0, j0, receiver))
-        s10 = wp.float64(tap(depth, c, i0 + one, j0, receiver))
-        s01 = wp.float64(tap(depth, c, i0, j0 + one, receiver))
-        s11 = wp.float64(tap(depth, c, i0 + one, j0 + one, receiver))
+        s00 = wp.float64(tap(depth, c, i0, j0, receiver, slope, x, y, unit))
+        s10 = wp.float64(tap(depth, c, i0 + one, j0, receiver, slope, x, y, unit))
+        s01 = wp.float64(tap(depth, c, i0, j0 + one, receiver, slope, x, y, unit))
+        s11 = wp.float64(tap(depth, c, i0 + one, j0 + one, receiver, slope, x, y, unit))
         w1 = wp.float64(1.0)
         return (w1 - wy) * ((w1 - wx) * s00 + wx * s10) + wy * ((w1 - wx) * s01 + wx * s11)
     # none (radius 0) and pcf: the (2r + 1)² texels centred on the one that contains the point.
@@ -111,7 +123,7 @@ def lit_fraction(
     count = int(0)
     for dj in range(-radius, radius + 1):
         for di in range(-radius, radius + 1):
-            count += tap(depth, c, i + wp.int64(di), j + wp.int64(dj), receiver)
+            count += tap(depth, c, i + wp.int64(di), j + wp.int64(dj), receiver, slope, x, y, unit)
     side = 2 * radius + 1
     return wp.float64(count) / wp.float64(side * side)
 
@@ -121,6 +133,7 @@ def shadow_lookup_kernel(
     depth: wp.array3d(dtype=wp.float32),
     coords: wp.array3d(dtype=wp.int64),
     receiver_depth: wp.array2d(dtype=wp.float32),
+    receiver_slope: wp.array2d(dtype=wp.vec2d),
     view_depth: wp.array(dtype=wp.float64),
     splits: wp.array(dtype=wp.float64),
     texel_area: wp.array(dtype=wp.float64),
@@ -166,7 +179,7 @@ def shadow_lookup_kernel(
     if chosen < 0:
         lit[k] = 0.0
         return
-    s = lit_fraction(depth, coords, receiver_depth, chosen, k, unit, filter_code, radius)
+    s = lit_fraction(depth, coords, receiver_depth, receiver_slope, chosen, k, unit, filter_code, radius)
     nxt = chosen + 1
     if blend_band > wp.float64(0.0) and nxt < count:
         z0 = splits[chosen]
@@ -174,15 +187,15 @@ def shadow_lookup_kernel(
         start = z1 - blend_band * (z1 - z0)
         if z >= start and z < z1 and holds(coords, nxt, k, tap_lo, tap_hi):
             w = (z - start) / (z1 - start)
-            s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, coords, receiver_depth, nxt, k, unit,
-                                                             filter_code, radius)
+            s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, coords, receiver_depth, receiver_slope, nxt, k,
+                                                             unit, filter_code, radius)
             blend[k] = 1
     lit[k] = wp.float32(s)
 
 
 def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_area, selection: str,
                   filter: str, filter_size: int, margin: int, blend_band: float, bits: int,
-                  device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                  receiver_slope=None, device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Lit fraction S and selected cascade at receiver points.
 
     Parameters
@@ -213,6 +226,10 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
         Fraction in [0, 0.5] of a split interval blended toward the next cascade.
     bits : int
         Sub-texel bits of ``coords``.
+    receiver_slope : array_like, shape (C, N, 2), float64, optional
+        Receiver-plane depth change per texel along x and y, metres
+        (:func:`csmlab.texels.receiver_lookup`); each tap compares the plane's depth at its texel
+        centre. None compares the receiver's own depth at every tap.
     device : str
         ``"cpu"`` or ``"cuda"``.
 
@@ -240,6 +257,8 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
     maps = np.ascontiguousarray(depth, dtype=np.float32)
     xy = np.ascontiguousarray(coords, dtype=np.int64)
     rd = np.ascontiguousarray(receiver_depth, dtype=np.float32)
+    slope = (np.zeros(rd.shape + (2,)) if receiver_slope is None
+             else np.ascontiguousarray(receiver_slope, dtype=np.float64))
     vd = np.ascontiguousarray(view_depth, dtype=np.float64)
     z = np.ascontiguousarray(splits, dtype=np.float64)
     area = np.ascontiguousarray(texel_area, dtype=np.float64)
@@ -247,9 +266,9 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
     if maps.ndim != 3 or maps.shape[1] != maps.shape[2] or count == 0:
         raise ValueError(f"depth: expected depth maps of shape (C, R, R), got {maps.shape}")
     n = vd.shape[0] if vd.ndim == 1 else -1
-    if xy.shape != (count, n, 2) or rd.shape != (count, n):
-        raise ValueError(f"coords, receiver_depth, view_depth: expected shapes ({count}, N, 2), ({count}, N), (N,); "
-                         f"got {xy.shape}, {rd.shape}, {vd.shape}")
+    if xy.shape != (count, n, 2) or rd.shape != (count, n) or slope.shape != (count, n, 2):
+        raise ValueError(f"coords, receiver_depth, receiver_slope, view_depth: expected shapes ({count}, N, 2), "
+                         f"({count}, N), ({count}, N, 2), (N,); got {xy.shape}, {rd.shape}, {slope.shape}, {vd.shape}")
     if z.shape != (count + 1,) or area.shape != (count,):
         raise ValueError(f"splits, texel_area: expected shapes ({count + 1},), ({count},), got {z.shape}, {area.shape}")
     if n == 0:
@@ -264,6 +283,7 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
             wp.array(maps, dtype=wp.float32, device=device, copy=False),
             wp.array(xy, dtype=wp.int64, device=device, copy=False),
             wp.array(rd, dtype=wp.float32, device=device, copy=False),
+            wp.array(slope, dtype=wp.vec2d, device=device),
             wp.array(vd, dtype=wp.float64, device=device, copy=False),
             wp.array(z, dtype=wp.float64, device=device, copy=False),
             wp.array(area, dtype=wp.float64, device=device, copy=False),
