@@ -1,0 +1,279 @@
+"""The ``csmlab`` command (DESIGN.md, "Interfaces").
+
+``run`` an experiment, re-render its ``report``, ``regress`` it against a ``baseline``, ``list`` what
+can be named in an experiment, ``show`` an experiment resolved. Exit codes: 0 success, 1 a
+regression found, 2 bad input — one line naming the file, the field and what was expected, never a
+traceback.
+"""
+
+from __future__ import annotations
+
+import re
+import sys
+import time
+from pathlib import Path
+from typing import Optional
+
+import typer
+from rich.console import Console
+from rich.markup import escape
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from rich.table import Table
+
+from csmlab.errors import InputError
+
+__all__ = ["app", "main"]
+
+app = typer.Typer(
+    name="csmlab",
+    help="A laboratory for cascaded shadow maps: measure perspective aliasing and shadow flicker.",
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+)
+
+HEADLINE = ("rho_median", "rho_frac_lt1", "flicker_same", "flicker", "flip_rate", "de2000_mean", "ref_false_shadow",
+            "memory_bytes")
+"""Metrics in the table ``csmlab run`` prints at the end."""
+
+
+def _out() -> Console:
+    console = Console(highlight=False)
+    if not console.is_terminal:
+        # Logs (CI) have no width; rich would squeeze tables into 80 columns.
+        console.width = 160
+    return console
+
+
+def _err() -> Console:
+    return Console(stderr=True, highlight=False, soft_wrap=True)
+
+
+def _bad_input(error: ValueError) -> typer.Exit:
+    """Print ``error`` as the one line of a bad input and return the exit to raise (code 2)."""
+    typer.echo(f"csmlab: error: {error}", err=True)
+    return typer.Exit(code=2)
+
+
+def _number(value) -> str:
+    if value is None:
+        return "—"
+    value = float(value)
+    if value.is_integer() and abs(value) >= 1000:
+        return f"{int(value):,}"
+    return f"{value:.4g}"
+
+
+def _summary_table(summary: dict) -> Table:
+    """Method × headline metrics; one row per method and sweep point when the experiment sweeps."""
+    table = Table(title=escape(f"{summary['name']}: mean over {summary['frames']} frames"), title_justify="left")
+    table.add_column("method")
+    swept = list(summary["points"]) != ["base"]
+    if swept:
+        table.add_column("point")
+    for metric in HEADLINE:
+        table.add_column(metric, justify="right")
+    rows = ([(m, p, v) for p, by_method in summary["points"].items() for m, v in by_method.items()] if swept
+            else [(m, None, v) for m, v in summary["methods"].items()])
+    for method, point, values in rows:
+        labels = (escape(method), escape(point)) if swept else (escape(method),)
+        table.add_row(*labels, *(_number(values.get(metric)) for metric in HEADLINE))
+    return table
+
+
+@app.command()
+def run(
+    experiment: Optional[str] = typer.Argument(None, help="Experiment file, or the name of a built-in one; "
+                                                          "default: the built-in default experiment."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Results directory; default reports/<name>/."),
+    frames: Optional[int] = typer.Option(None, "--frames", help="Cap on frames (overrides camera.frames)."),
+    jobs: Optional[int] = typer.Option(None, "--jobs", help="Local worker processes (with --scheduler local: "
+                                                            "Dask workers)."),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask: 'local' (a LocalCluster) or "
+                                                                      "tcp://HOST:PORT (a running scheduler)."),
+    device: str = typer.Option("cpu", "--device", help="Warp device: cpu or cuda."),
+    resume: bool = typer.Option(False, "--resume", help="Continue an interrupted run in the same directory."),
+) -> None:
+    """Run an experiment: every frame × method × sweep point → metrics.csv, summary.json, the report."""
+    from csmlab.config import find_experiment, load_experiment
+    from csmlab.executor import executor_for
+    from csmlab.experiment import run_experiment
+    from csmlab.report import write_report
+
+    try:
+        loaded = load_experiment(find_experiment(experiment), frames=frames)
+        method, workers, address = executor_for(jobs=jobs, scheduler=scheduler)
+    except ValueError as exc:
+        raise _bad_input(exc) from None
+    out_dir = out if out is not None else Path("reports") / loaded.name
+    bar = Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("frames"),
+                   TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), console=_err(), transient=True)
+    tasks = []
+
+    def progress(done: int, total: int) -> None:
+        # Started on the first report, after every input was read: a bad input prints its one line alone.
+        if not tasks:
+            bar.start()
+            tasks.append(bar.add_task(loaded.name, total=total))
+        bar.update(tasks[0], completed=done, total=total)
+
+    try:
+        result = run_experiment(loaded, out_dir=out_dir, jobs=workers, method=method, address=address, device=device,
+                                resume=resume, progress=progress)
+    except InputError as exc:
+        raise _bad_input(exc) from None
+    except KeyboardInterrupt:
+        bar.stop()
+        typer.echo(f"csmlab: interrupted; finished chunks are kept: add --resume to continue in {out_dir}", err=True)
+        raise typer.Exit(code=130) from None
+    finally:
+        bar.stop()
+    began = time.perf_counter()
+    index = write_report(out_dir)
+    report_seconds = time.perf_counter() - began
+    console = _out()
+    console.print(_summary_table(result.summary))
+    resumed = f", {result.chunks_resumed} chunk(s) resumed" if result.chunks_resumed else ""
+    where = f"dask at {address}" if method == "dask" and address != "local" else f"{method}, {workers} process(es)"
+    console.print(f"{result.frames} frames × {len(loaded.variants())} method/point(s) in {result.seconds:.1f} s "
+                  f"({where}, {device}{resumed}); report in {report_seconds:.1f} s")
+    console.print(f"results: {out_dir}/metrics.csv, {out_dir}/summary.json")
+    console.print(f"report:  {index}")
+
+
+@app.command()
+def report(results_dir: Path = typer.Argument(..., help="A results directory of csmlab run.")) -> None:
+    """Re-render the HTML report of a results directory from its files."""
+    from csmlab.report import write_report
+    from csmlab.results import read_summary
+
+    try:
+        read_summary(results_dir)
+    except ValueError as exc:
+        raise _bad_input(exc) from None
+    _out().print(f"report: {write_report(results_dir)}")
+
+
+def _regress_table(result) -> Table:
+    table = Table(title=escape(f"regress against {result.baseline} (per-cascade metrics shown when they fail)"),
+                  title_justify="left")
+    for name, justify in (("metric", "left"), ("method", "left"), ("point", "left"), ("baseline", "right"),
+                          ("now", "right"), ("delta", "right"), ("allowed", "right"), ("verdict", "left")):
+        table.add_column(name, justify=justify)
+    styles = {"regression": "bold red", "missing": "bold red", "invariant broken": "bold red", "better": "green",
+              "invariant": "green"}
+    shown = [c for c in result.checks if c.failed or not re.search(r"_c\d+$", c.metric)]
+    for c in sorted(shown, key=lambda c: not c.failed):
+        style = styles.get(c.verdict, "")
+        table.add_row(c.metric, escape(c.method), escape(c.point), _number(c.baseline), _number(c.now),
+                      "—" if c.delta is None else f"{c.delta:+.4g}", _number(c.allowed),
+                      f"[{style}]{c.verdict}[/]" if style else c.verdict)
+    return table
+
+
+@app.command()
+def regress(
+    results_dir: Path = typer.Argument(..., help="A results directory of csmlab run."),
+    baseline: Path = typer.Option(..., "--baseline", help="A baseline file (csmlab baseline writes one)."),
+    tolerances: Optional[Path] = typer.Option(None, "--tolerances", help="TOML of metric = { abs = …, rel = … } "
+                                                                         "overrides."),
+) -> None:
+    """Compare a run's summary with a baseline: exit 1 when a metric moved the wrong way beyond tolerance."""
+    from csmlab.config import load_tolerances
+    from csmlab.regress import regress as compare_with_baseline
+    from csmlab.report import write_report
+
+    try:
+        overrides = load_tolerances(tolerances) if tolerances is not None else None
+        result = compare_with_baseline(results_dir, baseline, tolerances=overrides)
+    except ValueError as exc:
+        raise _bad_input(exc) from None
+    console = _out()
+    console.print(_regress_table(result))
+    write_report(results_dir)
+    if result.passed:
+        console.print(f"regress: pass ({len(result.checks)} checks)")
+        return
+    names = dict.fromkeys(f"{c.metric} of {c.method}" + ("" if c.point == "*" else f" at {c.point}")
+                          for c in result.failures)
+    console.print(f"regress: FAIL — {len(names)} regression(s): {', '.join(names)}")
+    raise typer.Exit(code=1)
+
+
+@app.command()
+def baseline(
+    results_dir: Path = typer.Argument(..., help="A results directory of csmlab run."),
+    out: Path = typer.Option(..., "--out", help="The baseline file to write (JSON)."),
+) -> None:
+    """Write a baseline of a run deliberately, for csmlab regress."""
+    from csmlab.regress import write_baseline
+
+    try:
+        path = write_baseline(results_dir, out)
+    except ValueError as exc:
+        raise _bad_input(exc) from None
+    _out().print(f"baseline: {path}")
+
+
+def _names_table(title: str, rows) -> Table:
+    table = Table(title=escape(title), title_justify="left", show_header=False)
+    table.add_column("name", style="bold")
+    table.add_column("about")
+    for name, about in rows:
+        table.add_row(escape(name), escape(about))
+    return table
+
+
+def _about(obj) -> str:
+    """A registry entry's ``description``, else the first line of its docstring."""
+    doc = getattr(obj, "description", None) or getattr(obj, "__doc__", None) or ""
+    return doc.strip().splitlines()[0] if doc.strip() else ""
+
+
+@app.command("list")
+def list_names() -> None:
+    """List scenes, camera paths, file formats, conventions, methods, presets and experiments."""
+    from csmlab.cascades import FIT_METHODS, SPLIT_METHODS, STABILIZATION_METHODS
+    from csmlab.config import list_experiments, list_presets
+    from csmlab.kernels.shadow import FILTER_METHODS, SELECTION_METHODS
+    from csmlab.paths import CONVENTIONS, PATH_FORMATS, PATH_GENERATORS
+    from csmlab.scene import SCENE_KINDS
+
+    console = _out()
+    console.print(_names_table("scenes ([scene] kind)", [(k, _about(v)) for k, v in SCENE_KINDS.items()]))
+    console.print(_names_table("camera paths ([camera] path)",
+                               [(k, _about(v)) for k, v in PATH_GENERATORS.items()]))
+    console.print(_names_table("path file formats ([camera] format)",
+                               [(k, _about(v)) for k, v in PATH_FORMATS.items()]))
+    console.print(_names_table("camera conventions ([camera] convention)",
+                               [(k, _about(v)) for k, v in CONVENTIONS.items()]))
+    console.print(_names_table("shadow methods ([shadow] and [[methods]] fields)", [
+        (field, ", ".join(registry)) for field, registry in (
+            ("split", SPLIT_METHODS), ("fit", FIT_METHODS), ("stabilization", STABILIZATION_METHODS),
+            ("selection", SELECTION_METHODS), ("filter", FILTER_METHODS))]))
+    console.print(_names_table("presets (extends = [...])", list_presets().items()))
+    console.print(_names_table("experiments (csmlab run NAME)", list_experiments().items()))
+
+
+@app.command()
+def show(experiment: Optional[str] = typer.Argument(None, help="Experiment file or built-in name; default: the "
+                                                               "default experiment.")) -> None:
+    """Print an experiment resolved: presets merged, every field with its documentation, and its hashes."""
+    from csmlab.config import config_hash, experiment_toml, find_experiment, load_experiment
+
+    try:
+        loaded = load_experiment(find_experiment(experiment))
+        hash_ = config_hash(loaded)
+    except ValueError as exc:
+        raise _bad_input(exc) from None
+    typer.echo(experiment_toml(loaded))
+    typer.echo(f"# config hash {hash_}; {len(loaded.variants())} method/point(s)")
+
+
+def main() -> None:
+    """Entry point of the ``csmlab`` console script."""
+    app(prog_name="csmlab")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

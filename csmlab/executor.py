@@ -1,0 +1,150 @@
+"""Where units of work run: in this process, a local process pool, or a Dask cluster.
+
+An executor calls ``fn(shared, task)`` for every task and yields ``(task, result)`` as results come
+in, in whatever order they finish; callers that need an order sort the results themselves. ``shared``
+(the scene and everything else common to all tasks) reaches each worker once, not once per task:
+the pool hands it to each process's initializer, Dask scatters it to every worker.
+
+Warp's CPU backend runs one kernel launch on one thread, so parallelism comes from processes: the
+pool uses the ``spawn`` start method (a forked Warp or CUDA context is not safe) and Dask workers
+have one thread each. ``fn`` must be importable (a module-level function) and ``shared``, tasks and
+results picklable.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing
+import os
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+from csmlab.errors import InputError
+
+__all__ = ["EXECUTORS", "execute", "executor_for", "run_dask", "run_inprocess", "run_pool"]
+
+_SHARED = None
+
+
+def run_inprocess(fn: Callable, tasks: list, *, shared, jobs: int = 1, address: str | None = None) -> Iterator:
+    """Run the tasks one after another in this process."""
+    for task in tasks:
+        yield task, fn(shared, task)
+
+
+def _install_shared(shared) -> None:
+    global _SHARED
+    _SHARED = shared
+
+
+def _call_with_shared(fn: Callable, task):
+    return fn(_SHARED, task)
+
+
+def run_pool(fn: Callable, tasks: list, *, shared, jobs: int, address: str | None = None) -> Iterator:
+    """Run the tasks on ``jobs`` local processes (spawned), ``shared`` installed once per process.
+
+    Stopping the iteration early (an exception in the caller, Ctrl-C) cancels the tasks not yet
+    started and waits for the running ones.
+    """
+    if not tasks:
+        return
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=max(1, min(jobs, len(tasks))), mp_context=context,
+                             initializer=_install_shared, initargs=(shared,)) as pool:
+        pending = {pool.submit(_call_with_shared, fn, task): task for task in tasks}
+        try:
+            while pending:
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for future in done:
+                    yield pending.pop(future), future.result()
+        finally:
+            for future in pending:
+                future.cancel()
+
+
+def run_dask(fn: Callable, tasks: list, *, shared, jobs: int, address: str | None) -> Iterator:
+    """Run the tasks on a Dask cluster: ``address="local"`` starts a LocalCluster of ``jobs``
+    single-threaded worker processes, ``tcp://HOST:PORT`` connects to a running scheduler (its
+    workers must be able to import csmlab)."""
+    from dask.distributed import Client, LocalCluster, as_completed
+
+    if not tasks:
+        return
+    cluster = None
+    if address == "local":
+        cluster = LocalCluster(n_workers=max(1, min(jobs, len(tasks))), threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=logging.ERROR)
+        client = Client(cluster)
+    else:
+        try:
+            client = Client(address, timeout="10s")
+        except (OSError, ValueError, TimeoutError) as exc:
+            raise InputError(f"expected a reachable Dask scheduler, got {exc}", field="--scheduler") from None
+    try:
+        shared_future = client.scatter(shared, broadcast=True)
+        futures = {client.submit(fn, shared_future, task, pure=False): task for task in tasks}
+        try:
+            for future in as_completed(futures):
+                yield futures[future], future.result()
+        finally:
+            client.cancel(list(futures))
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+EXECUTORS: dict[str, Callable[..., Iterator]] = {
+    "inprocess": run_inprocess,
+    "pool": run_pool,
+    "dask": run_dask,
+}
+"""Executors by name: ``inprocess``, ``pool`` (``--jobs N``), ``dask`` (``--scheduler``)."""
+
+
+def execute(fn: Callable, tasks: Iterable, *, shared, method: str = "inprocess", jobs: int = 1,
+            address: str | None = None) -> Iterator:
+    """``(task, fn(shared, task))`` for every task, as they finish, on the executor named ``method``.
+
+    Parameters
+    ----------
+    fn : callable
+        A module-level function ``fn(shared, task) -> result``.
+    tasks : iterable
+        Picklable task descriptions.
+    shared : object
+        Picklable data every task needs, sent once per worker.
+    method : str
+        A key of :data:`EXECUTORS`.
+    jobs : int
+        Worker processes (pool, local Dask cluster).
+    address : str, optional
+        Dask: ``"local"`` or a scheduler address ``tcp://HOST:PORT``.
+    """
+    if method not in EXECUTORS:
+        raise ValueError(f"executor: expected one of {sorted(EXECUTORS)}, got {method!r}")
+    return EXECUTORS[method](fn, list(tasks), shared=shared, jobs=jobs, address=address)
+
+
+def executor_for(*, jobs: int | None, scheduler: str | None) -> tuple[str, int, str | None]:
+    """``(method, jobs, address)`` for the command line's ``--jobs`` and ``--scheduler``.
+
+    ``--scheduler`` picks Dask (a local cluster of ``--jobs`` workers, all cores when not given);
+    otherwise ``--jobs`` above 1 picks the process pool, and 1 or none runs in this process.
+
+    Raises
+    ------
+    InputError
+        On ``--jobs`` below 1 or a scheduler that is neither ``local`` nor ``tcp://HOST:PORT``.
+    """
+    if jobs is not None and jobs < 1:
+        raise InputError(f"expected at least 1 process, got {jobs}", field="--jobs")
+    if scheduler is not None:
+        if scheduler != "local" and not scheduler.startswith(("tcp://", "tls://", "ucx://", "inproc://")):
+            raise InputError(f"expected 'local' or a scheduler address like tcp://HOST:PORT, got {scheduler!r}",
+                             field="--scheduler")
+        return "dask", jobs or os.cpu_count() or 1, scheduler
+    if jobs is not None and jobs > 1:
+        return "pool", jobs, None
+    return "inprocess", 1, None

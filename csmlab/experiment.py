@@ -1,0 +1,386 @@
+"""Runs an experiment: frames × methods × sweep points → the results files.
+
+The unit of work is a chunk of consecutive frames of one workload (scene, camera path, light).
+Per frame the view (camera visibility and the ray-traced reference) is rendered once and shared by
+every method and sweep point; each of these variants then renders its shadow and is measured, the
+temporal metrics against the same variant's previous frame. A chunk starts one frame early and drops
+that frame's rows, so no number depends on where the path was cut, on how many processes ran it, or
+on whether the run was interrupted and resumed.
+
+The parent process builds the workload (and so checks every input file) before any work, hands it
+to the executor once per worker, keeps each finished chunk for ``--resume`` and writes the results
+files (:mod:`csmlab.results`) and the report's captures in a fixed order when all chunks are in.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from csmlab import results
+from csmlab.camera import CameraPath
+from csmlab.config import Experiment, Variant, config_hash, experiment_document, experiment_toml, workload_hash
+from csmlab.errors import InputError
+from csmlab.executor import execute
+from csmlab.geometry import normalized
+from csmlab.light import LightPath, direction_from_angles
+from csmlab.scene.core import Scene
+
+__all__ = ["ChunkResult", "Job", "RunResult", "Workload", "build_workload", "check_device", "chunk_ranges",
+           "run_chunk", "run_experiment"]
+
+
+@dataclass(frozen=True)
+class Workload:
+    """What every method of an experiment sees: the scene, the camera path, the light.
+
+    Attributes
+    ----------
+    scene : Scene
+    path : CameraPath
+        One pose per frame.
+    light : LightPath
+        One direction per frame.
+    width, height : int
+        Image size in pixels.
+    key : str
+        The workload hash (:func:`csmlab.config.workload_hash`).
+    """
+
+    scene: Scene
+    path: CameraPath
+    light: LightPath
+    width: int
+    height: int
+    key: str
+
+
+@dataclass(frozen=True)
+class Job:
+    """What a worker needs besides its chunk: sent once per worker process.
+
+    Attributes
+    ----------
+    workload : Workload
+    variants : tuple of Variant
+        Every method × sweep point, in results order.
+    snapshot_frames : frozenset of int
+        Frames whose full-resolution images the report keeps.
+    device : str
+        Warp device, ``cpu`` or ``cuda``.
+    """
+
+    workload: Workload
+    variants: tuple[Variant, ...]
+    snapshot_frames: frozenset
+    device: str
+
+
+@dataclass(frozen=True)
+class ChunkResult:
+    """The results of frames ``[start, stop)``.
+
+    Attributes
+    ----------
+    start, stop : int
+    rows : list of (frame, time_s, method, point, values)
+        One per frame × variant; ``values`` maps metric names to floats.
+    timings : list of (frame, method, point, stage, seconds)
+        Wall-clock seconds; the view's stages have empty method and point.
+    captures : dict of (method, point) to list of dict
+        The report's per-frame records (:func:`csmlab.report.capture.capture_frame`), in frame order.
+    """
+
+    start: int
+    stop: int
+    rows: list
+    timings: list
+    captures: dict
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """What :func:`run_experiment` did.
+
+    Attributes
+    ----------
+    out_dir : Path
+    frames : int
+        Frames in the workload.
+    chunks_run, chunks_resumed : int
+        Chunks computed now and chunks taken from an interrupted run.
+    seconds : float
+        Wall-clock time of the run.
+    summary : dict
+        The contents of ``summary.json``.
+    """
+
+    out_dir: Path
+    frames: int
+    chunks_run: int
+    chunks_resumed: int
+    seconds: float
+    summary: dict
+
+
+def _quiet_warp() -> None:
+    """Keep Warp's greeting and module-load lines out of a run's output (warnings still show)."""
+    import warp as wp
+
+    wp.config.log_level = max(wp.config.log_level, wp.LOG_WARNING)
+
+
+def check_device(device: str) -> str:
+    """``device`` if Warp can run on it here: ``cpu``, or ``cuda``/``cuda:N`` on a machine with that GPU.
+
+    Raises
+    ------
+    InputError
+        Naming ``--device`` and what was expected.
+    """
+    if device == "cpu":
+        return device
+    if device != "cuda" and not (device.startswith("cuda:") and device[5:].isdigit()):
+        raise InputError(f"expected cpu, cuda or cuda:N, got {device!r}", field="--device")
+    import warp as wp
+
+    _quiet_warp()
+    wp.init()
+    count = wp.get_cuda_device_count()
+    if count == 0 or (device != "cuda" and int(device[5:]) >= count):
+        raise InputError(f"expected a CUDA device, but this machine has {count} CUDA device(s) for {device!r}: "
+                         "run with --device cpu", field="--device")
+    return device
+
+
+def _located(error: ValueError, *, file, field: str) -> InputError:
+    return error if isinstance(error, InputError) else InputError(str(error), file=file, field=field)
+
+
+def _scene(experiment: Experiment) -> Scene:
+    from csmlab.scene import make_scene
+
+    config = experiment.scene
+    try:
+        if config.kind == "mesh":
+            return make_scene("mesh", file=config.file, scale=config.scale, up=config.up, ground=config.ground)
+        return make_scene(config.kind, seed=config.seed, **config.params)
+    except OSError as exc:
+        raise InputError(f"expected a readable mesh file, got {exc.strerror or exc}", file=config.file,
+                         field="scene.file") from None
+    except ValueError as exc:
+        file = config.file if config.kind == "mesh" else experiment.source
+        raise _located(exc, file=file, field="scene") from None
+
+
+def _first_light_direction(experiment: Experiment):
+    light = experiment.light
+    if light.direction is not None:
+        return normalized(light.direction, name="light.direction")
+    return direction_from_angles(elevation_deg=light.elevation_deg, azimuth_deg=light.azimuth_deg)
+
+
+def _camera_path(experiment: Experiment, light_direction) -> CameraPath:
+    from csmlab.paths import make_path, read_path
+
+    camera = experiment.camera
+    projection = {"fov_y_deg": camera.fov_y_deg, "aspect": camera.aspect, "near": camera.near, "far": camera.far}
+    if camera.path:
+        try:
+            return make_path(camera.path, frames=camera.frames, fps=camera.fps, seed=camera.seed,
+                             light_direction=light_direction, **projection, **camera.params)
+        except ValueError as exc:
+            raise _located(exc, file=experiment.source, field="camera") from None
+    try:
+        path = read_path(camera.file, format=camera.format or None, convention=camera.convention or None,
+                         scale=camera.scale, offset=camera.offset, time_offset=camera.time_offset, fps=camera.fps,
+                         times_file=camera.times_file or None, **projection)
+        if camera.start_s is not None or camera.end_s is not None:
+            start = path.times[0] if camera.start_s is None else camera.start_s
+            end = path.times[-1] if camera.end_s is None else camera.end_s
+            path = path.crop(start, end)
+        return path.head(camera.frames)
+    except ValueError as exc:
+        raise _located(exc, file=camera.file, field="camera.file") from None
+
+
+def _light_path(experiment: Experiment, frames: int) -> LightPath:
+    light = experiment.light
+    if light.direction is not None:
+        return LightPath.static(light.direction, frames)
+    if light.is_static:
+        return LightPath.static(direction_from_angles(elevation_deg=light.elevation_deg,
+                                                      azimuth_deg=light.azimuth_deg), frames)
+    return LightPath.sun(
+        elevation_deg=light.elevation_deg, azimuth_deg=light.azimuth_deg,
+        elevation_end_deg=light.elevation_deg if light.elevation_end_deg is None else light.elevation_end_deg,
+        azimuth_end_deg=light.azimuth_deg if light.azimuth_end_deg is None else light.azimuth_end_deg,
+        frames=frames)
+
+
+def build_workload(experiment: Experiment) -> Workload:
+    """The scene, camera path and light of ``experiment``, every input file read and checked.
+
+    Raises
+    ------
+    InputError
+        From a scene, mesh or camera-path file, naming the file and what was expected.
+    """
+    path = _camera_path(experiment, _first_light_direction(experiment))
+    return Workload(scene=_scene(experiment), path=path, light=_light_path(experiment, len(path)),
+                    width=experiment.camera.width, height=experiment.camera.height,
+                    key=workload_hash(experiment, frames=len(path)))
+
+
+def chunk_ranges(frames: int, chunk_frames: int) -> list[tuple[int, int]]:
+    """``[start, stop)`` ranges of at most ``chunk_frames`` frames covering ``range(frames)``."""
+    return [(start, min(start + chunk_frames, frames)) for start in range(0, frames, chunk_frames)]
+
+
+_PREPARED: dict = {}
+
+
+def _prepared_scene(job: Job):
+    """The scene on the job's device, built once per process and kept for the next chunks."""
+    from csmlab.render import prepare_scene
+
+    key = (job.workload.key, job.device)
+    if key not in _PREPARED:
+        _quiet_warp()
+        _PREPARED.clear()
+        _PREPARED[key] = prepare_scene(job.workload.scene, device=job.device)
+    return _PREPARED[key]
+
+
+def run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
+    """Render and measure frames ``[start, stop)`` of every variant (a worker's unit of work).
+
+    Frame ``start - 1`` is rendered too, as the previous frame of ``start``, and gives no rows.
+    """
+    from csmlab.metrics import measure_frame
+    from csmlab.render import render_shadow, render_view
+    from csmlab.report.capture import capture_frame
+
+    start, stop = chunk
+    workload = job.workload
+    scene = _prepared_scene(job)
+    rows, timings, captures, previous = [], [], {}, {}
+    for index in range(max(start - 1, 0), stop):
+        pose = workload.path.pose(index)
+        view = render_view(scene, pose, workload.light.direction(index), width=workload.width,
+                           height=workload.height, index=index)
+        counted = index >= start
+        if counted:
+            timings += [(index, "", "", stage, seconds) for stage, seconds in view.timings.items()]
+        for variant in job.variants:
+            key = (variant.method, variant.point)
+            frame = render_shadow(scene, view, variant.settings)
+            if counted:
+                began = time.perf_counter()
+                measures = measure_frame(frame, previous.get(key), device=job.device)
+                measured = time.perf_counter() - began
+                rows.append((index, float(pose.time_s), variant.method, variant.point, measures.values))
+                timings += [(index, *key, stage, seconds) for stage, seconds in frame.timings.items()]
+                timings.append((index, *key, "metrics", measured))
+                captures.setdefault(key, []).append(
+                    capture_frame(frame, measures, snapshot=index in job.snapshot_frames))
+            previous[key] = frame
+    return ChunkResult(start=start, stop=stop, rows=rows, timings=timings, captures=captures)
+
+
+def _snapshot_frames(experiment: Experiment, frames: int) -> frozenset:
+    from csmlab.report.capture import default_snapshot_frames
+
+    chosen = experiment.report.snapshot_frames
+    if chosen is None:
+        return frozenset(default_snapshot_frames(frames))
+    return frozenset(f for f in chosen if f < frames)
+
+
+def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, method: str = "inprocess",
+                   address: str | None = None, device: str = "cpu", resume: bool = False,
+                   progress: Callable[[int, int], None] | None = None) -> RunResult:
+    """Run every frame × method × sweep point of ``experiment`` and write its results files.
+
+    Parameters
+    ----------
+    experiment : Experiment
+    out_dir : str or Path
+        The results directory (created).
+    jobs : int
+        Worker processes of the pool or local Dask cluster.
+    method : str
+        Executor: a key of :data:`csmlab.executor.EXECUTORS`.
+    address : str, optional
+        Dask scheduler: ``"local"`` or ``tcp://HOST:PORT``.
+    device : str
+        ``cpu`` or ``cuda``.
+    resume : bool
+        Keep the chunks an interrupted run of the same config left in ``out_dir``.
+    progress : callable, optional
+        ``progress(frames_done, frames_total)``, called before the first chunk and after each.
+
+    Returns
+    -------
+    RunResult
+
+    Raises
+    ------
+    InputError
+        On a bad device or input file, before any work is done.
+    """
+    began = time.perf_counter()
+    check_device(device)
+    workload = build_workload(experiment)
+    frames = len(workload.path)
+    hash_ = config_hash(experiment)
+    # Chunks of another device differ in float rounding: they must not be mixed into this run.
+    chunk_key = f"{hash_}-{device}"
+    out = results.prepare_output(out_dir, resolved_toml=experiment_toml(experiment), run_key=chunk_key,
+                                 resume=resume)
+    variants = tuple(experiment.variants())
+    ranges = chunk_ranges(frames, experiment.chunk_frames)
+    done = results.load_chunks(out, run_key=chunk_key, ranges=ranges) if resume else {}
+    resumed = len(done)
+    todo = [r for r in ranges if r not in done]
+
+    def report_progress() -> None:
+        if progress is not None:
+            progress(sum(stop - start for start, stop in done), frames)
+
+    report_progress()
+    job = Job(workload=workload, variants=variants, snapshot_frames=_snapshot_frames(experiment, frames),
+              device=device)
+    for chunk, result in execute(run_chunk, todo, shared=job, method=method, jobs=jobs, address=address):
+        results.save_chunk(out, result, run_key=chunk_key)
+        done[chunk] = result
+        report_progress()
+    summary = _write_results(out, experiment, job, [done[r] for r in ranges], config_hash=hash_)
+    results.clear_chunks(out)
+    return RunResult(out_dir=out, frames=frames, chunks_run=len(todo), chunks_resumed=resumed,
+                     seconds=time.perf_counter() - began, summary=summary)
+
+
+def _write_results(out: Path, experiment: Experiment, job: Job, chunks: list[ChunkResult], *,
+                   config_hash: str) -> dict:
+    from csmlab.metrics import metric_columns
+    from csmlab.report.capture import write_captures
+
+    columns = metric_columns(max(v.settings.cascades for v in job.variants))
+    order = {(v.method, v.point): rank for rank, v in enumerate(job.variants)}
+    rows = [row for chunk in chunks for row in chunk.rows]
+    results.write_metrics(out / "metrics.csv", rows, columns=columns, order=order)
+    results.write_timings(out / "timings.csv", [t for chunk in chunks for t in chunk.timings], order=order)
+    for variant in job.variants:
+        key = (variant.method, variant.point)
+        write_captures(out, method=variant.method, point=variant.point,
+                       captures=[c for chunk in chunks for c in chunk.captures.get(key, [])])
+    methods, points = results.summarize(rows, columns=columns, methods=[m.name for m in experiment.methods],
+                                        points=[label for label, _ in experiment.points()])
+    summary = dict(name=experiment.name, config_hash=config_hash, workload_hash=job.workload.key, device=job.device,
+                   frames=len(job.workload.path), config=experiment_document(experiment), methods=methods,
+                   points=points)
+    results.write_summary(out / "summary.json", **summary)
+    return results.read_summary(out)

@@ -1,0 +1,365 @@
+"""Compare a run's summary with a baseline under per-metric tolerances: the stabilization gate.
+
+A baseline is a summary taken deliberately (``csmlab baseline DIR --out FILE``). It is tied to a
+*workload* — scene, camera path, light and frame count (:func:`csmlab.config.workload_hash`): a
+baseline of another workload is an input error, never a silent pass. Changed shadow settings and
+changed code are exactly what the gate judges.
+
+Each metric has a direction and a tolerance. A change is a regression when it goes the wrong way
+by more than ``max(abs, rel · |baseline|)``:
+
+=====================================================  ==========  ========  ======
+metrics                                                 may         abs       rel
+=====================================================  ==========  ========  ======
+flicker, flicker_same, flicker_changed                  fall        1e-6      0.05
+flip_rate, flip_same, flip_changed                      fall        1e-6      0.05
+de2000_mean, de2000_p99                                 fall        1e-3      0.05
+de2000_frac_jnd, flip                                   fall        1e-5      0.05
+ref_false_shadow, ref_false_light                       fall        1e-4      0.05
+ref_boundary_px                                         fall        1e-3      0.10
+rho_frac_lt1, rho_frac_lt05 (and per cascade)           fall        1e-3      0.02
+ssim                                                    rise        1e-4      0.01
+rho_median, rho_p05, sigma_min_p05 (and per cascade)    rise        1e-6      0.005
+utilization (and per cascade)                           rise        1e-4      0.01
+memory_bytes                                            fall        0         0
+texels_rasterized                                       fall        0         0.10
+rho_p95 (and per cascade)                               either      —         —
+=====================================================  ==========  ========  ======
+
+"fall" means lower is better (it may fall, not rise), "rise" the opposite, "either" is shown but
+not judged. Every metric is deterministic (same inputs, same bits), so tolerances only leave room for
+code changes that move numbers by rounding. Aliasing and utilization follow the box sizes smoothly
+and get tight tolerances: a quantized method whose levels drop from 64 to 4 loses about 2 % of its
+texels per pixel (measured on the gate), and the gate must see it. ``utilization_c2`` and ``rho_median_c2`` take the
+row of ``utilization`` and ``rho_median``. An experiment's ``[regress]`` table and
+``--tolerances FILE`` override ``abs`` and ``rel`` per metric, in that order.
+
+Two more rules make a verdict:
+
+- a metric with a baseline value and none now (or a method that vanished) is ``missing``: a failure;
+- **the invariant**: under a static light, a method named ``exact`` or stabilized ``exact`` must
+  keep same-cascade flicker at exactly 0 (tolerance 0), whatever the baseline says.
+
+Methods are compared on their aggregates (``summary["methods"]``) and, when the experiment has a
+sweep, at every sweep point (``summary["points"]``).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import csmlab
+from csmlab.config import LightConfig, sweep_points
+from csmlab.errors import InputError
+from csmlab.results import json_text, read_json, read_summary, write_atomic
+
+__all__ = ["DIRECTIONS", "TOLERANCES", "Check", "RegressResult", "Tolerance", "compare", "make_baseline",
+           "read_baseline", "regress", "tolerance_for", "write_baseline"]
+
+
+@dataclass(frozen=True)
+class Tolerance:
+    """How far a metric may move the wrong way: ``max(abs, rel · |baseline|)`` in its own units."""
+
+    direction: str
+    """A key of :data:`DIRECTIONS`."""
+    abs: float = 0.0
+    """Allowed change in the metric's units."""
+    rel: float = 0.0
+    """Allowed change as a fraction of the baseline value."""
+
+    def allowed(self, baseline: float) -> float:
+        """The allowed change from ``baseline``."""
+        return max(self.abs, self.rel * abs(baseline))
+
+
+def _worse_if_higher(baseline: float, now: float, allowed: float) -> bool:
+    return now > baseline + allowed
+
+
+def _worse_if_lower(baseline: float, now: float, allowed: float) -> bool:
+    return now < baseline - allowed
+
+
+def _never_worse(baseline: float, now: float, allowed: float) -> bool:
+    return False
+
+
+DIRECTIONS: dict[str, Callable[[float, float, float], bool]] = {
+    "fall": _worse_if_higher,
+    "rise": _worse_if_lower,
+    "either": _never_worse,
+}
+"""Directions by name: is ``now`` worse than ``baseline`` by more than ``allowed``?"""
+
+_LOWER_IS_BETTER = {
+    **dict.fromkeys(("flicker", "flicker_same", "flicker_changed", "flip_rate", "flip_same", "flip_changed"),
+                    (1e-6, 0.05)),
+    **dict.fromkeys(("de2000_mean", "de2000_p99"), (1e-3, 0.05)),
+    **dict.fromkeys(("de2000_frac_jnd", "flip"), (1e-5, 0.05)),
+    **dict.fromkeys(("ref_false_shadow", "ref_false_light"), (1e-4, 0.05)),
+    "ref_boundary_px": (1e-3, 0.10),
+    **dict.fromkeys(("rho_frac_lt1", "rho_frac_lt05"), (1e-3, 0.02)),
+    "memory_bytes": (0.0, 0.0),
+    "texels_rasterized": (0.0, 0.10),
+}
+_HIGHER_IS_BETTER = {
+    "ssim": (1e-4, 0.01),
+    **dict.fromkeys(("rho_median", "rho_p05", "sigma_min_p05"), (1e-6, 0.005)),
+    "utilization": (1e-4, 0.01),
+}
+TOLERANCES: dict[str, Tolerance] = {
+    **{m: Tolerance("fall", a, r) for m, (a, r) in _LOWER_IS_BETTER.items()},
+    **{m: Tolerance("rise", a, r) for m, (a, r) in _HIGHER_IS_BETTER.items()},
+    "rho_p95": Tolerance("either"),
+}
+"""Default direction and tolerance of each metric (the table in the module docstring)."""
+
+_FAILING = ("regression", "missing", "invariant broken")
+_INVARIANT_METRIC = "flicker_same"
+
+
+def tolerance_for(metric: str, overrides: dict | None = None) -> Tolerance:
+    """The tolerance of ``metric``: its row of :data:`TOLERANCES` (per-cascade columns take their
+    metric's row), with ``overrides[metric]`` (``{"abs": …, "rel": …}``) applied; unknown metrics are
+    shown, not judged."""
+    base_name = re.sub(r"_c\d+$", "", metric)
+    tolerance = TOLERANCES.get(metric) or TOLERANCES.get(base_name) or Tolerance("either")
+    override = (overrides or {}).get(metric) or (overrides or {}).get(base_name) or {}
+    return Tolerance(tolerance.direction, float(override.get("abs", tolerance.abs)),
+                     float(override.get("rel", tolerance.rel)))
+
+
+@dataclass(frozen=True)
+class Check:
+    """One metric of one method (at one sweep point) against the baseline.
+
+    ``verdict`` is ``ok``, ``better``, ``regression``, ``missing`` (a value in the baseline, none now),
+    ``new`` (no baseline value), ``shown`` (not judged), ``n/a`` (no value in either), or — for
+    the invariant — ``invariant`` / ``invariant broken``. ``delta`` is ``now − baseline``;
+    ``allowed`` the change the tolerance permits.
+    """
+
+    method: str
+    point: str
+    metric: str
+    baseline: float | None
+    now: float | None
+    delta: float | None
+    allowed: float | None
+    direction: str
+    verdict: str
+
+    @property
+    def failed(self) -> bool:
+        return self.verdict in _FAILING
+
+
+def _number(value) -> float | None:
+    return None if value is None or (isinstance(value, float) and math.isnan(value)) else float(value)
+
+
+def _judge(metric: str, baseline, now, tolerance: Tolerance) -> tuple[float | None, float | None, str]:
+    baseline, now = _number(baseline), _number(now)
+    if baseline is None:
+        return None, None, "n/a" if now is None else "new"
+    if now is None:
+        return None, tolerance.allowed(baseline), "missing"
+    delta, allowed = now - baseline, tolerance.allowed(baseline)
+    if tolerance.direction == "either":
+        return delta, None, "shown"
+    if DIRECTIONS[tolerance.direction](baseline, now, allowed):
+        return delta, allowed, "regression"
+    better = DIRECTIONS[tolerance.direction](now, baseline, 0.0)
+    return delta, allowed, "better" if better else "ok"
+
+
+def _compare_entries(method: str, point: str, baseline: dict, now: dict | None, overrides: dict) -> list[Check]:
+    checks = []
+    for metric, base_value in baseline.items():
+        if metric == "frames":
+            continue
+        tolerance = tolerance_for(metric, overrides)
+        now_value = None if now is None else now.get(metric)
+        delta, allowed, verdict = _judge(metric, base_value, now_value, tolerance)
+        checks.append(Check(method=method, point=point, metric=metric, baseline=_number(base_value),
+                            now=_number(now_value), delta=delta, allowed=allowed, direction=tolerance.direction,
+                            verdict=verdict))
+    return checks
+
+
+def _exact_under_static_light(config: dict) -> dict[tuple[str, str], bool]:
+    """``(method, point)`` → the invariant applies (static light; method named or stabilized ``exact``)."""
+    light = config.get("light", {})
+    static = LightConfig(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in light.items()}).is_static
+    base = config.get("shadow", {}).get("stabilization")
+    sweep = config.get("sweep", {})
+    points = sweep_points(sweep)
+    out = {}
+    for entry in config.get("methods", []):
+        name = entry["name"]
+        for label, fields in points:
+            stabilization = fields.get("stabilization", entry.get("stabilization", base))
+            out[(name, label)] = static and (name == "exact" or stabilization == "exact")
+        out[(name, "*")] = static and all(out[(name, label)] for label, _ in points)
+    return out
+
+
+def _invariant(method: str, point: str, now: dict | None) -> Check:
+    value = None if now is None else _number(now.get(_INVARIANT_METRIC))
+    verdict = "n/a" if value is None else ("invariant" if value == 0.0 else "invariant broken")
+    return Check(method=method, point=point, metric=_INVARIANT_METRIC, baseline=0.0, now=value,
+                 delta=value, allowed=0.0, direction="zero", verdict=verdict)
+
+
+def compare(summary: dict, baseline: dict, *, tolerances: dict | None = None) -> list[Check]:
+    """Every check of ``summary`` against ``baseline`` (both summary-shaped dicts).
+
+    Parameters
+    ----------
+    summary, baseline : dict
+        ``methods`` (and ``points``) aggregates as ``summary.json`` holds them.
+    tolerances : dict, optional
+        Per-metric ``{"abs", "rel"}`` overrides of :data:`TOLERANCES`.
+
+    Returns
+    -------
+    list of Check
+        Method aggregates first (point ``*``), then sweep points; the invariant's checks last.
+    """
+    checks = []
+    for method, entry in baseline["methods"].items():
+        checks += _compare_entries(method, "*", entry, summary["methods"].get(method), tolerances or {})
+    swept = set(baseline.get("points", {})) - {"base"}
+    for point in sorted(swept, key=list(baseline["points"]).index):
+        for method, entry in baseline["points"][point].items():
+            now = summary.get("points", {}).get(point, {}).get(method)
+            checks += _compare_entries(method, point, entry, now, tolerances or {})
+    applies = _exact_under_static_light(summary.get("config", {}))
+    for (method, point), yes in applies.items():
+        if yes and (point == "*" or point in swept):
+            entry = (summary["methods"].get(method) if point == "*"
+                     else summary.get("points", {}).get(point, {}).get(method))
+            checks.append(_invariant(method, point, entry))
+    return checks
+
+
+def make_baseline(results_dir) -> dict:
+    """A baseline of the run in ``results_dir``: its summary's aggregates, hashes and config."""
+    summary = read_summary(results_dir)
+    return {
+        "kind": "csmlab-baseline",
+        "name": summary["name"],
+        "workload_hash": summary["workload_hash"],
+        "config_hash": summary.get("config_hash"),
+        "csmlab_version": summary.get("csmlab_version"),
+        "frames": summary.get("frames"),
+        "config": summary["config"],
+        "methods": summary["methods"],
+        "points": summary["points"],
+    }
+
+
+def write_baseline(results_dir, out_file) -> Path:
+    """Write :func:`make_baseline` of ``results_dir`` to ``out_file`` (JSON)."""
+    return write_atomic(out_file, json_text(make_baseline(results_dir)))
+
+
+def read_baseline(file) -> dict:
+    """A baseline file written by :func:`write_baseline`.
+
+    Raises
+    ------
+    InputError
+        If the file is missing, not JSON or not a baseline.
+    """
+    if not Path(file).is_file():
+        raise InputError("expected a baseline file (csmlab baseline DIR --out FILE writes one), got no such file",
+                         file=file, field="--baseline")
+    baseline = read_json(file, required=("kind", "workload_hash", "methods"))
+    if baseline["kind"] != "csmlab-baseline":
+        raise InputError(f"expected kind 'csmlab-baseline', got {baseline['kind']!r}", file=file, field="kind")
+    if not isinstance(baseline["methods"], dict) or not all(isinstance(v, dict) for v in baseline["methods"].values()):
+        raise InputError("expected methods: {METHOD: {METRIC: value}}", file=file, field="methods")
+    return baseline
+
+
+@dataclass(frozen=True)
+class RegressResult:
+    """The outcome of :func:`regress`.
+
+    Attributes
+    ----------
+    passed : bool
+        No check failed.
+    checks : list of Check
+    baseline : str
+        The baseline file.
+    workload_hash : str
+    """
+
+    passed: bool
+    checks: list
+    baseline: str
+    workload_hash: str
+
+    @property
+    def failures(self) -> list:
+        return [c for c in self.checks if c.failed]
+
+
+def _row(check: Check) -> dict:
+    """One row of ``regress.json`` (and of the report's regression table): the verdict last."""
+    row = asdict(check)
+    row["verdict"] = row.pop("verdict")
+    return row
+
+
+def regress(results_dir, baseline_file, *, tolerances: dict | None = None) -> RegressResult:
+    """Compare the run in ``results_dir`` with ``baseline_file`` and write ``regress.json`` there.
+
+    Parameters
+    ----------
+    results_dir : str or Path
+        A finished run (its ``summary.json``).
+    baseline_file : str or Path
+    tolerances : dict, optional
+        ``--tolerances`` overrides, applied over the experiment's ``[regress]`` table.
+
+    Returns
+    -------
+    RegressResult
+
+    Raises
+    ------
+    InputError
+        If a file is missing or malformed, or the baseline is for another workload.
+    """
+    summary = read_summary(results_dir)
+    baseline = read_baseline(baseline_file)
+    if baseline["workload_hash"] != summary["workload_hash"]:
+        raise InputError(
+            f"baseline is for workload {baseline['workload_hash']} ({baseline.get('name')!r}, "
+            f"{baseline.get('frames')} frames), these results are for workload {summary['workload_hash']} "
+            f"({summary['name']!r}, {summary.get('frames')} frames): scene, camera path, light or frame count differ",
+            file=baseline_file, field="workload_hash")
+    merged = {**summary["config"].get("regress", {}), **(tolerances or {})}
+    checks = compare(summary, baseline, tolerances=merged)
+    result = RegressResult(passed=not any(c.failed for c in checks), checks=checks, baseline=str(baseline_file),
+                           workload_hash=summary["workload_hash"])
+    write_atomic(Path(results_dir) / "regress.json", json_text({
+        "baseline": str(baseline_file),
+        "baseline_config_hash": baseline.get("config_hash"),
+        "config_hash": summary.get("config_hash"),
+        "workload_hash": summary["workload_hash"],
+        "csmlab_version": csmlab.__version__,
+        "status": "pass" if result.passed else "fail",
+        "failures": len(result.failures),
+        "tolerances": {m: asdict(tolerance_for(m, merged)) for m in sorted({c.metric for c in checks})},
+        "rows": [_row(c) for c in sorted(checks, key=lambda c: not c.failed)],
+    }))
+    return result

@@ -1,0 +1,318 @@
+"""The results files of a run, written atomically, and their reading back.
+
+Files in a results directory (DESIGN.md, "Interfaces"):
+
+``config.resolved.toml``
+    The experiment with its presets merged, written before any work.
+``metrics.csv``
+    ``frame, time_s, method, point`` then the metric columns; one row per frame × method × sweep
+    point, sorted by method (config order), point (sweep order), frame. Floats are written as
+    Python's shortest round-trip ``repr``, whole numbers without a fraction, NaN as an empty cell:
+    the same numbers give the same bytes.
+``timings.csv``
+    ``frame, method, point, stage, seconds``: wall-clock times, kept apart so that the two files
+    above are byte-identical run after run. Stages shared by all methods (the view) have an empty
+    method and point.
+``summary.json``
+    ``name, config_hash, workload_hash, csmlab_version, environment, frames, config, methods, points``:
+    ``methods[M][metric]`` is the NaN-aware mean over M's rows (frames and sweep points),
+    ``points[P][M][metric]`` the mean over frames at sweep point P; each with ``frames``. A metric with
+    no value in any frame is ``null``. Written last: a directory without it holds no finished run.
+``.chunks/``
+    Finished chunks of a run in progress (pickles, each with the config hash and device it belongs
+    to), so that ``--resume`` redoes only what is missing. Removed when the run finishes.
+
+Every file is written to a temporary name and renamed into place (``os.replace``), so a reader never
+sees half a file.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import pickle
+import platform
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+import csmlab
+from csmlab.errors import InputError
+
+__all__ = [
+    "FINAL_FILES",
+    "KEY_COLUMNS",
+    "TIMING_COLUMNS",
+    "clear_chunks",
+    "environment",
+    "format_value",
+    "load_chunks",
+    "prepare_output",
+    "read_metrics",
+    "read_summary",
+    "save_chunk",
+    "summarize",
+    "write_atomic",
+    "write_metrics",
+    "write_summary",
+    "write_timings",
+]
+
+KEY_COLUMNS = ("frame", "time_s", "method", "point")
+"""The columns of ``metrics.csv`` before the metrics."""
+TIMING_COLUMNS = ("frame", "method", "point", "stage", "seconds")
+FINAL_FILES = ("summary.json", "metrics.csv", "timings.csv", "regress.json", "index.html")
+"""Files a finished run leaves (or the report adds); removed when a new run starts in the directory."""
+_CHUNKS = ".chunks"
+
+
+def write_atomic(path, data: str | bytes) -> Path:
+    """Write ``data`` to ``path`` through a temporary file in the same folder and ``os.replace``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    if isinstance(data, str):
+        data = data.encode("utf-8")
+    with open(tmp, "wb") as f:
+        f.write(data)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+    return path
+
+
+def format_value(value) -> str:
+    """One ``metrics.csv`` cell: empty for None/NaN, whole numbers without a fraction, else ``repr(float)``."""
+    if value is None:
+        return ""
+    if isinstance(value, str):
+        return value
+    number = float(value)
+    if math.isnan(number):
+        return ""
+    if number.is_integer() and abs(number) < 2.0 ** 53:
+        return str(int(number))
+    return repr(number)
+
+
+def _csv_text(header, rows) -> str:
+    text = io.StringIO()
+    writer = csv.writer(text, lineterminator="\n")
+    writer.writerow(header)
+    writer.writerows(rows)
+    return text.getvalue()
+
+
+def write_metrics(path, rows, *, columns, order: dict) -> Path:
+    """Write ``metrics.csv``.
+
+    Parameters
+    ----------
+    path : str or Path
+    rows : iterable of (frame, time_s, method, point, values)
+        ``values`` maps metric names to floats; a column it lacks is an empty cell.
+    columns : sequence of str
+        The metric columns, in order.
+    order : dict
+        ``(method, point)`` to its rank; rows are sorted by rank, then frame.
+    """
+    ordered = sorted(rows, key=lambda r: (order[(r[2], r[3])], r[0]))
+    body = [[str(frame), format_value(time_s), method, point, *(format_value(values.get(c)) for c in columns)]
+            for frame, time_s, method, point, values in ordered]
+    return write_atomic(path, _csv_text([*KEY_COLUMNS, *columns], body))
+
+
+def write_timings(path, rows, *, order: dict) -> Path:
+    """Write ``timings.csv`` from ``(frame, method, point, stage, seconds)`` rows, by frame then variant rank.
+
+    ``order`` maps ``(method, point)`` to its rank; the shared stages (``("", "")``) come first.
+    """
+    ordered = sorted(rows, key=lambda r: (r[0], order.get((r[1], r[2]), -1)))
+    body = [[str(frame), method, point, stage, repr(float(seconds))]
+            for frame, method, point, stage, seconds in ordered]
+    return write_atomic(path, _csv_text(TIMING_COLUMNS, body))
+
+
+def read_metrics(path) -> tuple[list[str], list[dict]]:
+    """The header and the rows (dicts of strings) of a ``metrics.csv``."""
+    with open(path, newline="") as f:
+        reader = csv.DictReader(f)
+        return list(reader.fieldnames or []), list(reader)
+
+
+def _mean(values) -> float | None:
+    array = np.asarray([np.nan if v is None else v for v in values], dtype=np.float64)
+    finite = array[~np.isnan(array)]
+    return float(finite.mean()) if finite.size else None
+
+
+def _aggregate(rows, columns) -> dict:
+    frames = sorted({r[0] for r in rows})
+    out = {c: _mean([r[4].get(c) for r in rows]) for c in columns}
+    out["frames"] = len(frames)
+    return out
+
+
+def summarize(rows, *, columns, methods, points) -> tuple[dict, dict]:
+    """The ``methods`` and ``points`` aggregates of ``summary.json``.
+
+    Parameters
+    ----------
+    rows : list of (frame, time_s, method, point, values)
+    columns : sequence of str
+        The metric columns.
+    methods, points : sequence of str
+        Method names and sweep-point labels in config order (the JSON keeps it).
+
+    Returns
+    -------
+    methods : dict
+        ``{method: {metric: NaN-aware mean over its rows or None, …, "frames": N}}``.
+    points : dict
+        ``{point: {method: {…}}}``.
+    """
+    by_variant: dict = {}
+    for row in sorted(rows, key=lambda r: r[0]):
+        by_variant.setdefault((row[2], row[3]), []).append(row)
+    method_summary = {m: _aggregate([r for p in points for r in by_variant.get((m, p), [])], columns)
+                      for m in methods}
+    point_summary = {p: {m: _aggregate(by_variant.get((m, p), []), columns) for m in methods} for p in points}
+    return method_summary, point_summary
+
+
+def environment(*, device: str) -> dict:
+    """Versions and machine the numbers came from (no time, no host name: two runs give the same)."""
+    import warp
+
+    return {
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "warp": warp.config.version,
+        "platform": platform.platform(),
+        "machine": platform.machine(),
+        "device": device,
+    }
+
+
+def _json_safe(value):
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    return value
+
+
+def json_text(document: dict) -> str:
+    """``document`` as indented JSON, NaN and infinities as ``null``, a final newline."""
+    return json.dumps(_json_safe(document), indent=2, allow_nan=False) + "\n"
+
+
+def write_summary(path, *, name: str, config_hash: str, workload_hash: str, device: str, frames: int,
+                  config: dict, methods: dict, points: dict) -> Path:
+    """Write ``summary.json`` (fields in the module docstring)."""
+    return write_atomic(path, json_text({
+        "name": name,
+        "config_hash": config_hash,
+        "workload_hash": workload_hash,
+        "csmlab_version": csmlab.__version__,
+        "environment": environment(device=device),
+        "frames": frames,
+        "config": config,
+        "methods": methods,
+        "points": points,
+    }))
+
+
+def read_summary(results_dir) -> dict:
+    """The ``summary.json`` of a results directory.
+
+    Raises
+    ------
+    InputError
+        If it is missing (the run did not finish) or not a csmlab summary.
+    """
+    path = Path(results_dir) / "summary.json"
+    if not path.is_file():
+        raise InputError("expected the summary.json of a finished run (csmlab run writes it last), got no such file",
+                         file=path)
+    return read_json(path, required=("name", "workload_hash", "methods", "points", "config"))
+
+
+def read_json(path, *, required=()) -> dict:
+    """A JSON object from ``path`` holding the ``required`` keys; InputError naming the file otherwise."""
+    try:
+        document = json.loads(Path(path).read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise InputError(f"expected a readable JSON file, got {exc.strerror or exc}", file=path) from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"expected JSON, got {exc}", file=path) from None
+    if not isinstance(document, dict):
+        raise InputError(f"expected a JSON object, got {type(document).__name__}", file=path)
+    for key in required:
+        if key not in document:
+            raise InputError(f"expected a field {key!r}, got none", file=path, field=key)
+    return document
+
+
+def prepare_output(out_dir, *, resolved_toml: str, run_key: str, resume: bool) -> Path:
+    """Make ``out_dir`` ready for a run: stale final files removed, the resolved config written.
+
+    ``run_key`` names what chunks belong to (the config hash and the device). Without ``resume``
+    the chunks of an earlier run are cleared; with it they are kept, provided they have this key.
+
+    Raises
+    ------
+    InputError
+        With ``resume`` when the chunks belong to another config or device.
+    """
+    out = Path(out_dir)
+    chunks = out / _CHUNKS
+    marker = chunks / "run_key"
+    if resume and marker.is_file() and marker.read_text().strip() != run_key:
+        raise InputError(f"expected chunks of this config and device ({run_key}) to resume, got chunks of "
+                         f"{marker.read_text().strip()}: run without --resume", file=chunks, field="--resume")
+    if not resume and chunks.exists():
+        shutil.rmtree(chunks)
+    for name in FINAL_FILES:
+        (out / name).unlink(missing_ok=True)
+    write_atomic(out / "config.resolved.toml", resolved_toml)
+    chunks.mkdir(parents=True, exist_ok=True)
+    write_atomic(marker, run_key + "\n")
+    return out
+
+
+def _chunk_path(out_dir, start: int, stop: int) -> Path:
+    return Path(out_dir) / _CHUNKS / f"chunk_{start:07d}_{stop:07d}.pkl"
+
+
+def save_chunk(out_dir, result, *, run_key: str) -> Path:
+    """Keep one finished chunk (an object with ``start`` and ``stop``) for ``--resume``."""
+    payload = pickle.dumps({"run_key": run_key, "result": result}, protocol=pickle.HIGHEST_PROTOCOL)
+    return write_atomic(_chunk_path(out_dir, result.start, result.stop), payload)
+
+
+def load_chunks(out_dir, *, run_key: str, ranges) -> dict:
+    """The kept chunks of ``run_key`` among ``ranges`` (``(start, stop)`` pairs), by range."""
+    found = {}
+    for start, stop in ranges:
+        path = _chunk_path(out_dir, start, stop)
+        if not path.is_file():
+            continue
+        try:
+            payload = pickle.loads(path.read_bytes())
+        except (pickle.UnpicklingError, EOFError, AttributeError, ImportError):
+            continue
+        if payload.get("run_key") == run_key:
+            found[(start, stop)] = payload["result"]
+    return found
+
+
+def clear_chunks(out_dir) -> None:
+    """Remove the kept chunks once the final files are written."""
+    shutil.rmtree(Path(out_dir) / _CHUNKS, ignore_errors=True)

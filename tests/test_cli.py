@@ -1,0 +1,126 @@
+"""The csmlab command: a run end to end, list and show, and one test per class of bad input (exit 2)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import tomllib
+
+import pytest
+from typer.testing import CliRunner
+
+from csmlab.cli import app
+
+TINY = """
+name = "tiny"
+extends = ["methods/exact", "methods/none"]
+
+[scene]
+kind = "plane_box"
+
+[camera]
+path = "walk"
+frames = 3
+width = 48
+height = 27
+
+[shadow]
+cascades = 2
+resolution = 64
+shadow_distance = 40.0
+"""
+
+PATH_FILE = "1.0 0 0 0 0 0 0 1\n1.1 0 0 0 0 0 0 1\n1.2 0 0 0 0 0 0 1\n"
+
+
+def invoke(*args):
+    return CliRunner().invoke(app, [str(a) for a in args])
+
+
+def test_run_writes_results_report_and_prints_the_summary_table(tmp_path):
+    (tmp_path / "tiny.toml").write_text(TINY)
+    outcome = invoke("run", tmp_path / "tiny.toml", "--out", tmp_path / "out")
+    assert outcome.exit_code == 0, outcome.output
+    out = tmp_path / "out"
+    assert {"metrics.csv", "summary.json", "timings.csv", "config.resolved.toml", "index.html"} <= {
+        p.name for p in out.iterdir()}
+    summary = json.loads((out / "summary.json").read_text())
+    assert list(summary["methods"]) == ["exact", "none"]
+    assert "flicker_same" in outcome.stdout and "exact" in outcome.stdout and "index.html" in outcome.stdout
+
+
+def test_list_names_scenes_paths_formats_methods_presets_and_experiments():
+    outcome = invoke("list")
+    assert outcome.exit_code == 0
+    for name in ("terrain", "walk", "tum", "mocap", "quantized", "pcf_bilinear", "methods/exact", "gate"):
+        assert name in outcome.stdout
+
+
+def test_show_prints_the_resolved_experiment_as_toml():
+    outcome = invoke("show", "gate")
+    assert outcome.exit_code == 0
+    document = tomllib.loads(outcome.stdout)
+    assert [m["name"] for m in document["methods"]] == ["exact", "quantized", "none"]
+    assert document["shadow"]["resolution"] == 256
+
+
+def bad(tmp_path, text: str, extra_files=None, args=()):
+    for name, content in (extra_files or {}).items():
+        (tmp_path / name).write_text(content)
+    path = tmp_path / "exp.toml"
+    path.write_text(text)
+    return path, invoke("run", path, "--out", tmp_path / "out", *args)
+
+
+BAD_INPUTS = {
+    "malformed TOML": ('[camera]\npath = "walk"\nframes = = 3\n', {}, "exp.toml:3", "valid TOML"),
+    "unknown field": (TINY.replace("frames = 3", "frame = 3"), {}, "camera.frame", "did you mean 'frames'"),
+    "wrong type": (TINY.replace("frames = 3", 'frames = "3"'), {}, "camera.frames", "an integer"),
+    "out of range": (TINY.replace("cascades = 2", "cascades = 9"), {}, "shadow.cascades", "1..8"),
+    "unknown scene": (TINY.replace('"plane_box"', '"plane_bx"'), {}, "scene.kind", "plane_box"),
+    "unknown path generator": (TINY.replace('"walk"', '"wlak"'), {}, "camera.path", "walk"),
+    "unknown method name": (TINY + '[[methods]]\nname = "x"\nstabilization = "exakt"\n', {},
+                            "methods.x.stabilization", "exact"),
+    "missing path file": (TINY.replace('path = "walk"', 'file = "gone.txt"\nformat = "tum"'), {}, "camera.file",
+                          "gone.txt"),
+    "NaN pose": (TINY.replace('path = "walk"', 'file = "nan.txt"\nformat = "tum"\nconvention = "tum"'),
+                 {"nan.txt": PATH_FILE.replace("1.1 0 0 0", "1.1 nan 0 0")}, "nan.txt:2", "tx"),
+    "unreadable mesh": (TINY.replace('kind = "plane_box"', 'kind = "mesh"\nfile = "junk.obj"'),
+                        {"junk.obj": "solid nonsense\n"}, "junk.obj", "file"),
+    "zero light direction": (TINY + "[light]\ndirection = [0.0, 0.0, 0.0]\n", {}, "light.direction", "non-zero"),
+    "missing experiment": (None, {}, "nowhere.toml", "EXPERIMENT"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_INPUTS))
+def test_bad_input_exits_2_with_one_line_naming_file_and_field(tmp_path, case):
+    text, files, where, words = BAD_INPUTS[case]
+    if text is None:
+        outcome = invoke("run", tmp_path / "nowhere.toml")
+    else:
+        _, outcome = bad(tmp_path, text, files)
+    assert outcome.exit_code == 2, outcome.output
+    message = outcome.stderr.strip()
+    assert len(message.splitlines()) == 1 and "Traceback" not in outcome.output
+    assert where in message and words in message
+    assert not (tmp_path / "out" / "metrics.csv").exists() and not (tmp_path / "out" / "summary.json").exists()
+
+
+def test_cuda_requested_without_a_gpu_exits_2(tmp_path):
+    import warp as wp
+
+    wp.init()
+    if wp.get_cuda_device_count() > 0:
+        pytest.skip("this machine has a CUDA device")
+    _, outcome = bad(tmp_path, TINY, args=("--device", "cuda"))
+    assert outcome.exit_code == 2 and "--device" in outcome.stderr
+
+
+def test_console_script_entry_point_reports_bad_input_without_traceback(tmp_path):
+    path = tmp_path / "exp.toml"
+    path.write_text("[camera]\npath = 3\n")
+    done = subprocess.run([sys.executable, "-m", "csmlab.cli", "show", str(path)], capture_output=True, text=True)
+    assert done.returncode == 2
+    assert done.stderr.strip().startswith("csmlab: error:") and "camera.path" in done.stderr
+    assert "Traceback" not in done.stderr

@@ -1,0 +1,82 @@
+"""Executors: a process pool and a Dask LocalCluster give the in-process run's metrics.csv byte for byte."""
+
+from __future__ import annotations
+
+import pytest
+
+from csmlab.config import load_experiment
+from csmlab.errors import InputError
+from csmlab.executor import EXECUTORS, execute, executor_for
+from csmlab.experiment import run_experiment
+
+TINY = """
+name = "tiny"
+extends = ["methods/exact", "methods/quantized", "methods/none"]
+chunk_frames = 2
+
+[scene]
+kind = "terrain"
+resolution = 24
+trees = 60
+ring_trees = 60
+
+[camera]
+path = "walk"
+frames = 6
+width = 64
+height = 36
+
+[shadow]
+cascades = 2
+resolution = 128
+shadow_distance = 40.0
+"""
+
+
+def run(tmp_path, name: str, **options):
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY)
+    return run_experiment(load_experiment(path), out_dir=tmp_path / name, **options)
+
+
+@pytest.fixture(scope="module")
+def inprocess(tmp_path_factory):
+    out = tmp_path_factory.mktemp("inprocess")
+    run(out, "out")
+    return out / "out" / "metrics.csv"
+
+
+def test_process_pool_gives_the_inprocess_csv(inprocess, tmp_path):
+    result = run(tmp_path, "pool", method="pool", jobs=2)
+    assert result.chunks_run == 3
+    assert (tmp_path / "pool" / "metrics.csv").read_bytes() == inprocess.read_bytes()
+
+
+def test_dask_local_cluster_gives_the_inprocess_csv(inprocess, tmp_path):
+    run(tmp_path, "dask", method="dask", jobs=2, address="local")
+    assert (tmp_path / "dask" / "metrics.csv").read_bytes() == inprocess.read_bytes()
+
+
+def _add(shared, task):
+    return shared + task
+
+
+def test_inprocess_executor_hands_shared_data_to_every_task():
+    assert sorted(execute(_add, [1, 2, 3], shared=10)) == [(1, 11), (2, 12), (3, 13)]
+
+
+def test_unknown_executor_lists_the_valid_ones():
+    with pytest.raises(ValueError, match=str(sorted(EXECUTORS))):
+        list(execute(_add, [1], shared=0, method="threads"))
+
+
+def test_command_line_options_pick_the_executor():
+    assert executor_for(jobs=None, scheduler=None) == ("inprocess", 1, None)
+    assert executor_for(jobs=1, scheduler=None) == ("inprocess", 1, None)
+    assert executor_for(jobs=3, scheduler=None) == ("pool", 3, None)
+    assert executor_for(jobs=2, scheduler="local") == ("dask", 2, "local")
+    assert executor_for(jobs=None, scheduler="tcp://10.0.0.1:8786")[::2] == ("dask", "tcp://10.0.0.1:8786")
+    with pytest.raises(InputError, match="--scheduler"):
+        executor_for(jobs=None, scheduler="10.0.0.1")
+    with pytest.raises(InputError, match="--jobs"):
+        executor_for(jobs=0, scheduler=None)

@@ -1,0 +1,160 @@
+"""The runner: one row per frame × variant, numbers independent of chunking, determinism, resume."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+
+from csmlab.config import load_experiment
+from csmlab.errors import InputError
+from csmlab.experiment import build_workload, check_device, chunk_ranges, run_experiment
+
+TINY = """
+name = "tiny"
+extends = ["methods/exact", "methods/none"]
+chunk_frames = 3
+
+[scene]
+kind = "terrain"
+resolution = 24
+trees = 60
+ring_trees = 60
+
+[camera]
+path = "walk"
+frames = 6
+width = 64
+height = 36
+
+[light]
+elevation_deg = 35.0
+azimuth_deg = 40.0
+
+[shadow]
+cascades = 2
+resolution = 128
+shadow_distance = 40.0
+"""
+
+
+def run_tiny(tmp_path, name: str, text: str = TINY, **options):
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text)
+    out = tmp_path / name
+    return run_experiment(load_experiment(path), out_dir=out, **options), out
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    return run_tiny(tmp_path_factory.mktemp("reference"), "reference")
+
+
+def rows_of(out):
+    with open(out / "metrics.csv", newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_one_row_per_frame_and_method_with_no_temporal_value_at_frame_0(reference):
+    _, out = reference
+    rows = rows_of(out)
+    assert [(r["method"], int(r["frame"])) for r in rows] == [(m, f) for m in ("exact", "none") for f in range(6)]
+    assert all(float(r["time_s"]) == pytest.approx(int(r["frame"]) / 30.0) for r in rows)
+    assert all((r["flicker"] == "") == (r["frame"] == "0") for r in rows)
+    assert (out / "timings.csv").is_file() and (out / "config.resolved.toml").is_file()
+    assert not (out / ".chunks").exists()
+
+
+def test_exact_keeps_same_cascade_flicker_at_zero_and_none_does_not(reference):
+    result, _ = reference
+    methods = result.summary["methods"]
+    assert methods["exact"]["flicker_same"] == 0.0
+    assert methods["none"]["flicker_same"] > 0.0
+
+
+def test_summary_holds_hashes_config_and_every_metric_column(reference):
+    result, out = reference
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary == result.summary
+    assert {"name", "config_hash", "workload_hash", "csmlab_version", "environment", "config", "methods",
+            "points"} <= set(summary)
+    columns = list(rows_of(out)[0])[4:]
+    assert set(summary["methods"]["exact"]) == set(columns) | {"frames"}
+    assert summary["points"]["base"] == summary["methods"]
+
+
+def test_two_runs_give_byte_identical_metrics_and_summary(reference, tmp_path):
+    _, first = reference
+    _, second = run_tiny(tmp_path, "again")
+    for name in ("metrics.csv", "summary.json"):
+        assert (second / name).read_bytes() == (first / name).read_bytes()
+
+
+def test_chunk_boundaries_do_not_change_a_number(reference, tmp_path):
+    _, chunked = reference
+    _, whole = run_tiny(tmp_path, "whole", TINY.replace("chunk_frames = 3", "chunk_frames = 6"))
+    assert (whole / "metrics.csv").read_bytes() == (chunked / "metrics.csv").read_bytes()
+
+
+class Interrupted(Exception):
+    pass
+
+
+def test_interrupted_run_resumed_equals_an_uninterrupted_one(reference, tmp_path):
+    _, uninterrupted = reference
+    calls = []
+
+    def stop_after_first_chunk(done, total):
+        calls.append(done)
+        if done > 0:
+            raise Interrupted
+
+    with pytest.raises(Interrupted):
+        run_tiny(tmp_path, "reference", progress=stop_after_first_chunk)
+    out = tmp_path / "reference"
+    assert calls == [0, 3]
+    assert not (out / "metrics.csv").exists() and not (out / "summary.json").exists()
+    assert len(list((out / ".chunks").glob("chunk_*.pkl"))) == 1
+    result, out = run_tiny(tmp_path, "reference", resume=True)
+    assert (result.chunks_resumed, result.chunks_run) == (1, 1)
+    for name in ("metrics.csv", "summary.json"):
+        assert (out / name).read_bytes() == (uninterrupted / name).read_bytes()
+
+
+def test_sweep_gives_rows_and_summaries_per_point(tmp_path):
+    text = TINY.replace("frames = 6", "frames = 2") + "[sweep]\nresolution = [64, 128]\n"
+    result, out = run_tiny(tmp_path, "sweep", text)
+    rows = rows_of(out)
+    assert [(r["method"], r["point"], r["frame"]) for r in rows] == [
+        (m, f"resolution={r}", str(f)) for m in ("exact", "none") for r in (64, 128) for f in range(2)]
+    points = result.summary["points"]
+    assert list(points) == ["resolution=64", "resolution=128"]
+    assert points["resolution=64"]["exact"]["memory_bytes"] * 4 == points["resolution=128"]["exact"]["memory_bytes"]
+
+
+def test_chunk_ranges_cover_every_frame_once():
+    assert chunk_ranges(7, 3) == [(0, 3), (3, 6), (6, 7)]
+    assert chunk_ranges(2, 10) == [(0, 2)]
+
+
+def test_mesh_that_cannot_be_read_is_a_located_input_error(tmp_path):
+    mesh = tmp_path / "broken.obj"
+    mesh.write_text("this is not an obj file\n")
+    path = tmp_path / "mesh.toml"
+    path.write_text(f'[scene]\nkind = "mesh"\nfile = "broken.obj"\n[camera]\npath = "walk"\nframes = 2\n')
+    with pytest.raises(InputError) as caught:
+        build_workload(load_experiment(path))
+    assert "broken.obj" in str(caught.value)
+
+
+def test_cuda_on_a_machine_without_it_is_bad_input():
+    import warp as wp
+
+    wp.init()
+    if wp.get_cuda_device_count() > 0:
+        pytest.skip("this machine has a CUDA device")
+    with pytest.raises(InputError, match="--device"):
+        check_device("cuda")
+    with pytest.raises(InputError, match="cpu, cuda"):
+        check_device("gpu")

@@ -1,0 +1,51 @@
+"""Smoke tests: every preset validates, every experiment file runs end to end at a tiny size.
+
+Tiny: 2 frames of 32×18 pixels, 64² maps, the first two values of a sweep, and the terrain's
+height field and tree count cut down (the full terrain is the scene tests' business and costs
+seconds per run here).
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from csmlab.config import CONFIGS_DIR, find_experiment, list_experiments, list_presets, load_experiment
+from csmlab.experiment import run_experiment
+
+TINY = """
+extends = ["{path}"]
+
+[camera]
+frames = 2
+width = 32
+height = 18
+
+[shadow]
+resolution = 64
+"""
+
+
+@pytest.mark.parametrize("preset", sorted(list_presets()))
+def test_preset_validates_inside_an_experiment(tmp_path, preset):
+    path = tmp_path / "exp.toml"
+    camera = "" if preset.startswith("paths/") else '[camera]\npath = "walk"\n'
+    path.write_text(f'extends = ["{preset}"]\n{camera}')
+    experiment = load_experiment(path)
+    assert (CONFIGS_DIR / f"{preset}.toml").is_file() and experiment.variants()
+
+
+@pytest.mark.parametrize("name", sorted(list_experiments()))
+def test_experiment_runs_at_tiny_size(tmp_path, name):
+    source = find_experiment(name)
+    full = load_experiment(source)
+    text = TINY.format(path=source.as_posix())
+    if full.scene.kind == "terrain":
+        text += "[scene]\nresolution = 24\ntrees = 60\nring_trees = 60\n"
+    if full.sweep:
+        text += "[sweep]\n" + "".join(f"{k} = {list(v[:2])}\n" for k, v in full.sweep).replace(
+            "resolution = [512, 1024]", "resolution = [32, 64]")
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text)
+    result = run_experiment(load_experiment(path), out_dir=tmp_path / "out")
+    assert list(result.summary["methods"]) == [m.name for m in full.methods]
+    assert result.frames == 2 and (tmp_path / "out" / "metrics.csv").is_file()
