@@ -87,7 +87,8 @@ def run(
                                                           "default: the built-in default experiment."),
     out: Optional[Path] = typer.Option(None, "--out", help="Results directory; default reports/<name>/."),
     frames: Optional[int] = typer.Option(None, "--frames", help="Cap on frames (overrides camera.frames)."),
-    jobs: Optional[int] = typer.Option(None, "--jobs", help="Local worker processes (with --scheduler local: "
+    jobs: Optional[int] = typer.Option(None, "--jobs", help="Local worker processes; default all cores "
+                                                            "(1 runs in this process; with --scheduler local: "
                                                             "Dask workers)."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask: 'local' (a LocalCluster) or "
                                                                       "tcp://HOST:PORT (a running scheduler)."),

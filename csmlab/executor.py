@@ -47,7 +47,9 @@ def run_pool(fn: Callable, tasks: list, *, shared, jobs: int, address: str | Non
     Stopping the iteration early (an exception in the caller, Ctrl-C) cancels the tasks not yet
     started and waits for the running ones.
     """
-    if not tasks:
+    if len(tasks) <= 1 or jobs <= 1:
+        # One task gains nothing from a process of its own, and spawning one costs seconds.
+        yield from run_inprocess(fn, tasks, shared=shared)
         return
     context = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=max(1, min(jobs, len(tasks))), mp_context=context,
@@ -131,7 +133,8 @@ def executor_for(*, jobs: int | None, scheduler: str | None) -> tuple[str, int, 
     """``(method, jobs, address)`` for the command line's ``--jobs`` and ``--scheduler``.
 
     ``--scheduler`` picks Dask (a local cluster of ``--jobs`` workers, all cores when not given);
-    otherwise ``--jobs`` above 1 picks the process pool, and 1 or none runs in this process.
+    otherwise the process pool with ``--jobs`` processes — all cores when not given, since Warp's
+    CPU backend runs each launch on one thread — and ``--jobs 1`` runs in this process.
 
     Raises
     ------
@@ -145,6 +148,7 @@ def executor_for(*, jobs: int | None, scheduler: str | None) -> tuple[str, int, 
             raise InputError(f"expected 'local' or a scheduler address like tcp://HOST:PORT, got {scheduler!r}",
                              field="--scheduler")
         return "dask", jobs or os.cpu_count() or 1, scheduler
-    if jobs is not None and jobs > 1:
+    jobs = (os.cpu_count() or 1) if jobs is None else jobs
+    if jobs > 1:
         return "pool", jobs, None
     return "inprocess", 1, None

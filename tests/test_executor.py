@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import pytest
 
 from csmlab.config import load_experiment
@@ -71,7 +73,8 @@ def test_unknown_executor_lists_the_valid_ones():
 
 
 def test_command_line_options_pick_the_executor():
-    assert executor_for(jobs=None, scheduler=None) == ("inprocess", 1, None)
+    cores = os.cpu_count() or 1
+    assert executor_for(jobs=None, scheduler=None) == (("pool", cores, None) if cores > 1 else ("inprocess", 1, None))
     assert executor_for(jobs=1, scheduler=None) == ("inprocess", 1, None)
     assert executor_for(jobs=3, scheduler=None) == ("pool", 3, None)
     assert executor_for(jobs=2, scheduler="local") == ("dask", 2, "local")
