@@ -121,11 +121,11 @@ class CameraConfig:
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     """file: world position in metres the path is moved by after scaling."""
     time_offset: float = 0.0
-    """file: seconds added to the file's time stamps."""
+    """file: the run's clock at the file's first pose, seconds (the clock starts there, not at the file's time stamps)."""
     start_s: float | None = None
-    """file: first time stamp kept (seconds, after ``time_offset``); unset keeps from the start."""
+    """file: first time kept, seconds on the run's clock (see ``time_offset``); unset keeps from the start."""
     end_s: float | None = None
-    """file: last time stamp kept (seconds, after ``time_offset``); unset keeps to the end."""
+    """file: last time kept, seconds on the run's clock (see ``time_offset``); unset keeps to the end."""
     times_file: str = ""
     """file: a separate time-stamp file (KITTI), relative to the file that names it."""
     seed: int = 1

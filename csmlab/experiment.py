@@ -196,7 +196,7 @@ def _camera_path(experiment: Experiment, light_direction) -> CameraPath:
     try:
         path = read_path(camera.file, format=camera.format or None, convention=camera.convention or None,
                          scale=camera.scale, offset=camera.offset, time_offset=camera.time_offset, fps=camera.fps,
-                         times_file=camera.times_file or None, **projection)
+                         times_file=camera.times_file or None, from_first_pose=True, **projection)
         if camera.start_s is not None or camera.end_s is not None:
             start = path.times[0] if camera.start_s is None else camera.start_s
             end = path.times[-1] if camera.end_s is None else camera.end_s

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import csv
 import json
+from pathlib import Path
 
+import numpy as np
 import pytest
 
 from csmlab.config import load_experiment
@@ -158,3 +160,14 @@ def test_cuda_on_a_machine_without_it_is_bad_input():
         check_device("cuda")
     with pytest.raises(InputError, match="cpu, cuda"):
         check_device("gpu")
+
+
+def test_recorded_path_runs_on_a_clock_from_its_first_pose(tmp_path):
+    # Oracle: the fixture's first time stamp is 1311868164.363181 s (Unix time); at 30 fps the run's
+    # frames fall at k/30 s, and start_s/end_s cut on that clock.
+    fixture = Path(__file__).parent / "data" / "paths" / "tum_fr2_desk_orbslam_head.txt"
+    path = tmp_path / "recorded.toml"
+    path.write_text(f'[scene]\nkind = "plane_box"\n[camera]\nfile = "{fixture}"\nfps = 30.0\nframes = 100\n'
+                    f'start_s = 0.1\nend_s = 0.5\n')
+    times = build_workload(load_experiment(path)).path.times
+    np.testing.assert_allclose(times, np.arange(3, 16) / 30.0, atol=1e-9)

@@ -126,8 +126,8 @@ def _times(recorded: RecordedPoses, *, times_file, fps) -> np.ndarray:
 
 def read_path(file, *, format: str | None = None, convention: str | None = None, scale: float = 1.0,
               offset=(0.0, 0.0, 0.0), time_offset: float = 0.0, fps: float | None = None, times_file=None,
-              fov_y_deg: float = 60.0, aspect: float = 16.0 / 9.0, near: float = 0.1,
-              far: float = 400.0) -> CameraPath:
+              from_first_pose: bool = False, fov_y_deg: float = 60.0, aspect: float = 16.0 / 9.0,
+              near: float = 0.1, far: float = 400.0) -> CameraPath:
     """Read a recorded camera path into csmlab's convention.
 
     Parameters
@@ -151,6 +151,9 @@ def read_path(file, *, format: str | None = None, convention: str | None = None,
         stamps ``i / fps`` instead.
     times_file : str or Path, optional
         KITTI only: one time in seconds per pose, one per line.
+    from_first_pose : bool
+        Measure time from the first pose (which then sits at ``time_offset``) instead of keeping
+        the recorded clock (often Unix time); resampling then lands on exact multiples of 1/fps.
     fov_y_deg, aspect, near, far : float
         Projection (degrees, width/height, metres, metres); a file's ``fov_y_deg`` column wins.
 
@@ -185,6 +188,8 @@ def read_path(file, *, format: str | None = None, convention: str | None = None,
                          f"'opengl', or give quaternions (qx qy qz qw) for convention {convention!r}",
                          file=file, line=recorded.angles_line, field="yaw")
     times = _times(recorded, times_file=times_file, fps=fps)
+    if from_first_pose:
+        times = times - times[0]
     positions, orientations = poses_to_opengl(recorded.positions, recorded.orientations, convention=convention)
     path = CameraPath(
         times=times + time_offset,
