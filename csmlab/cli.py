@@ -271,6 +271,52 @@ def show(experiment: Optional[str] = typer.Argument(None, help="Experiment file 
     typer.echo(f"# config hash {hash_}; {len(loaded.variants())} method/point(s)")
 
 
+@app.command()
+def tune(
+    experiment: str = typer.Argument(..., help="Experiment file or built-in name: the workload and the method."),
+    param: list[str] = typer.Option(..., "--param", help="A [shadow] field to search: FIELD=LO:HI (a range) or "
+                                                         "FIELD=A,B,C (choices); repeat for more fields."),
+    objective: list[str] = typer.Option(["flicker"], "--objective", help="A metrics.csv column to improve (mean "
+                                        "over frames; its direction is the regression table's); repeat for a "
+                                        "Pareto front."),
+    method: Optional[str] = typer.Option(None, "--method", help="The method to tune; default the first."),
+    trials: int = typer.Option(20, "--trials", help="Runs of the experiment."),
+    frames: Optional[int] = typer.Option(None, "--frames", help="Cap on frames (overrides camera.frames)."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Where tune.json and the trials go; default "
+                                                          "reports/<name>/tune/."),
+    jobs: Optional[int] = typer.Option(None, "--jobs", help="Local worker processes per trial; default all cores."),
+    seed: int = typer.Option(0, "--seed", help="Sampler seed (the same seed repeats the search)."),
+) -> None:
+    """Search one method's shadow settings with Optuna for the best (or Pareto-optimal) measured trade-off."""
+    from csmlab.config import find_experiment, load_experiment
+    from csmlab.executor import executor_for
+    from csmlab.tune import parse_space, tune as run_tuning
+
+    try:
+        loaded = load_experiment(find_experiment(experiment), frames=frames)
+        executor, workers, _ = executor_for(jobs=jobs, scheduler=None)
+        base = next((m.settings for m in loaded.methods if m.name == method), loaded.methods[0].settings)
+        space = parse_space(param, settings=base)
+        out_dir = out if out is not None else Path("reports") / loaded.name / "tune"
+        with _err().status(f"tuning {loaded.name}: {trials} trial(s)"):
+            result = run_tuning(loaded, space=space, objectives=objective, trials=trials, out_dir=out_dir,
+                                method=method, seed=seed, jobs=workers, executor=executor)
+    except ValueError as exc:
+        raise _bad_input(exc) from None
+    title = "Pareto front" if len(result.objectives) > 1 else "best trial"
+    table = Table(title=f"{loaded.name}: {result.method}, {title} of {len(result.trials)} trial(s)")
+    fields = list(space)
+    for name in ["trial", *fields, *(f"{m} ({d[:3]})" for m, d in result.objectives)]:
+        table.add_column(name, justify="right")
+    for trial in result.best:
+        table.add_row(str(trial.number), *(f"{trial.params[f]:.4g}" if isinstance(trial.params[f], float)
+                                           else str(trial.params[f]) for f in fields),
+                      *(f"{trial.values[m]:.4g}" if trial.values[m] is not None else "" for m, _ in result.objectives))
+    console = _out()
+    console.print(table)
+    console.print(f"all trials: {out_dir / 'tune.json'}")
+
+
 def main() -> None:
     """Entry point of the ``csmlab`` console script."""
     app(prog_name="csmlab")
