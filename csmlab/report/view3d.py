@@ -68,8 +68,9 @@ def view3d_figure(snapshots: list[dict], labels: list[str], path, *, title: str)
         for row, (camera, framed, caption) in enumerate(views):
             plotter.subplot(row, k)
             _add_scene(plotter, pv, snap)
-            heading = f"{label}: {caption}" + (f"   ({title})" if k == 0 and row == 0 else "")
-            plotter.add_text(heading, position="upper_edge", font_size=10, color="black")
+            plotter.add_text(f"{label}: {caption}", position="upper_edge", font_size=10, color="black")
+            if k == 0 and row == 0:
+                plotter.add_text(title, position="lower_left", font_size=9, color="black")
             plotter.camera_position = camera
             if row == 1:
                 plotter.enable_parallel_projection()
