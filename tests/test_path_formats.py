@@ -17,7 +17,7 @@ from csmlab.geometry import quat_to_matrix
 from csmlab.paths import PATH_FORMATS, guess_format, make_path, read_path, write_path
 
 DATA = Path(__file__).parent / "data" / "paths"
-SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "paths"
+REAL_DATA = Path(__file__).resolve().parents[1] / "data" / "paths"
 
 
 def _forward(path) -> np.ndarray:
@@ -257,8 +257,7 @@ def test_recording_excerpts_read_with_their_counts_and_durations(name, kwargs, u
     _check_recording(DATA, name, kwargs, unit)
 
 
-@pytest.mark.skipif(not SHARED.is_dir(), reason="the shared data folder is not next to this checkout")
 @pytest.mark.parametrize("name, kwargs, unit", REAL)
 def test_real_recordings_read_with_their_counts_and_durations(name, kwargs, unit):
-    path = _check_recording(SHARED, name, kwargs, unit)
+    path = _check_recording(REAL_DATA, name, kwargs, unit)
     assert 25.0 < path.times[-1] - path.times[0] < 100.0

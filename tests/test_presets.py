@@ -7,9 +7,11 @@ seconds per run here).
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
-from csmlab.config import CONFIGS_DIR, find_experiment, list_experiments, list_presets, load_experiment
+from csmlab.config import CONFIGS_DIR, PROJECT_DIR, find_experiment, list_experiments, list_presets, load_experiment
 from csmlab.experiment import run_experiment
 
 TINY = """
@@ -49,3 +51,13 @@ def test_experiment_runs_at_tiny_size(tmp_path, name):
     result = run_experiment(load_experiment(path), out_dir=tmp_path / "out")
     assert list(result.summary["methods"]) == [m.name for m in full.methods]
     assert result.frames == 2 and (tmp_path / "out" / "metrics.csv").is_file()
+
+
+@pytest.mark.parametrize("name", sorted(list_experiments()))
+def test_experiment_reads_only_files_inside_the_repository(name):
+    """A lone clone runs every shipped experiment: no file it names lies outside the repository."""
+    experiment = load_experiment(find_experiment(name))
+    named = [experiment.scene.file, experiment.camera.file, experiment.camera.times_file]
+    for file in filter(None, named):
+        resolved = Path(file).resolve()
+        assert resolved.is_file() and resolved.is_relative_to(PROJECT_DIR), file

@@ -10,7 +10,7 @@ from csmlab.errors import InputError
 from csmlab.scene import load_mesh, make_scene
 
 MESHES = Path(__file__).parent / "data" / "meshes"
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "meshes"
+REAL_DATA = Path(__file__).resolve().parents[1] / "data" / "meshes"
 
 
 def _signed_volume(scene) -> float:
@@ -64,11 +64,10 @@ def test_make_scene_mesh_reads_the_file_and_ignores_the_seed():
     np.testing.assert_allclose(a.bounds, [[0, 0, 0], [1, 0.75, 1.5]])
 
 
-@pytest.mark.skipif(not SHARED.is_dir(), reason="../shared/data/meshes not present")
 @pytest.mark.parametrize("name, scale, triangles", [("cornell_box.obj", 0.001, 36), ("teapot.obj", 1.0, 6320),
                                                     ("airplane.ply", 1.0, 2452)])
 def test_shared_real_meshes_load_with_their_published_triangle_counts(name, scale, triangles):
-    scene = load_mesh(SHARED / name, scale=scale)
+    scene = load_mesh(REAL_DATA / name, scale=scale)
     assert scene.triangle_count == triangles
     if name == "cornell_box.obj":
         # The measured box is 556.0 × 548.8 × 559.2 mm.
