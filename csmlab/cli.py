@@ -1,7 +1,7 @@
 """The ``csmlab`` command (DESIGN.md, "Interfaces").
 
-``run`` an experiment, re-render its ``report``, ``regress`` it against a ``baseline``, ``list`` what
-can be named in an experiment, ``show`` an experiment resolved. Exit codes: 0 success, 1 a
+``run`` an experiment, re-render its ``report``, ``regress`` it against a ``baseline``, ``compare`` two
+runs of one workload, ``list`` what can be named in an experiment, ``show`` an experiment resolved. Exit codes: 0 success, 1 a
 regression found, 2 bad input — one line naming the file, the field and what was expected, never a
 traceback.
 """
@@ -178,15 +178,24 @@ def regress(
     baseline: Path = typer.Option(..., "--baseline", help="A baseline file (csmlab baseline writes one)."),
     tolerances: Optional[Path] = typer.Option(None, "--tolerances", help="TOML of metric = { abs = …, rel = … } "
                                                                          "overrides."),
+    junit: Optional[Path] = typer.Option(None, "--junit", help="Also write the verdict as JUnit XML (one test case "
+                                                               "per method × metric check) for the CI's test report."),
+    markdown: Optional[Path] = typer.Option(None, "--markdown", help="Also write a Markdown summary (verdict, what "
+                                                                     "moved, worst frames) for a PR comment."),
 ) -> None:
     """Compare a run's summary with a baseline: exit 1 when a metric moved the wrong way beyond tolerance."""
     from csmlab.config import load_tolerances
     from csmlab.regress import regress as compare_with_baseline
     from csmlab.report import write_report
+    from csmlab.verdict import write_junit, write_markdown
 
     try:
         overrides = load_tolerances(tolerances) if tolerances is not None else None
         result = compare_with_baseline(results_dir, baseline, tolerances=overrides)
+        if junit is not None:
+            write_junit(result, results_dir, junit)
+        if markdown is not None:
+            write_markdown(result, results_dir, markdown)
     except ValueError as exc:
         raise _bad_input(exc) from None
     console = _out()
@@ -214,6 +223,24 @@ def baseline(
     except ValueError as exc:
         raise _bad_input(exc) from None
     _out().print(f"baseline: {path}")
+
+
+@app.command()
+def compare(
+    run_a: Path = typer.Argument(..., help="Results directory of run A (the reference)."),
+    run_b: Path = typer.Argument(..., help="Results directory of run B (the change), of the same workload."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Where the comparison report goes; default "
+                                                          "reports/compare/<A>-vs-<B>/."),
+) -> None:
+    """Compare two runs of one workload, A against B: metric deltas, per-frame curves, images, settings."""
+    from csmlab.report.comparison import write_comparison_report
+
+    out_dir = out if out is not None else Path("reports") / "compare" / f"{run_a.name}-vs-{run_b.name}"
+    try:
+        page = write_comparison_report(run_a, run_b, out_dir)
+    except ValueError as exc:
+        raise _bad_input(exc) from None
+    _out().print(f"comparison: {page}")
 
 
 def _names_table(title: str, rows) -> Table:

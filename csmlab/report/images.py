@@ -26,6 +26,10 @@ __all__ = [
     "cascade_overlay_image",
     "change_image",
     "change_norm",
+    "difference_image",
+    "difference_norm",
+    "rho_ratio_image",
+    "rho_ratio_norm",
     "reference_diff_image",
     "rho_image",
     "rho_norm",
@@ -210,3 +214,45 @@ def snapshot_strip_figure(snapshots: list[dict], labels: list[str], path, *, tit
 def _power_of_two(exponent: float) -> str:
     e = int(exponent)
     return str(2 ** e) if e >= 0 else f"1/{2 ** -e}"
+
+
+DIFFERENCE_CMAP = matplotlib.colormaps["PuOr"]
+"""Signed differences B − A (ColorBrewer PuOr, diverging, colour-blind safe): orange below 0, white 0, purple above."""
+RHO_RATIO_LOG2_LIMIT = 2.0
+"""ρ_B / ρ_A maps are clipped to ``2^±2``: a quarter to four times the texels per pixel."""
+
+
+def difference_norm(limit: float) -> Normalize:
+    """The symmetric normalisation ``[-limit, limit]`` of :func:`difference_image` and its colour bar."""
+    return Normalize(vmin=-limit, vmax=limit, clip=True)
+
+
+def difference_image(delta, *, limit: float) -> np.ndarray:
+    """A signed difference B − A as ``(H, W, 3)`` uint8: PuOr over ``[-limit, limit]``; NaN NO_SURFACE.
+
+    Parameters
+    ----------
+    delta : array_like, shape (H, W)
+        B − A in the quantity's units (NaN where either is undefined).
+    limit : float
+        The difference shown at full colour, in the same units (keyword-only).
+    """
+    delta = np.asarray(delta, dtype=np.float64)
+    rgb = DIFFERENCE_CMAP(difference_norm(limit)(np.nan_to_num(delta)))[..., :3]
+    return _with_background(rgb, np.isfinite(delta))
+
+
+def rho_ratio_norm() -> Normalize:
+    """The normalisation of ``log2(ρ_B / ρ_A)`` shared by :func:`rho_ratio_image` and its colour bar."""
+    return Normalize(vmin=-RHO_RATIO_LOG2_LIMIT, vmax=RHO_RATIO_LOG2_LIMIT, clip=True)
+
+
+def rho_ratio_image(rho_a, rho_b) -> np.ndarray:
+    """ρ_B / ρ_A as ``(H, W, 3)`` uint8: RdBu over its log2, as ρ maps are coloured.
+
+    Red: B has fewer texels per pixel than A (blockier); blue: more; white: the same.
+    """
+    rho_a, rho_b = np.asarray(rho_a, dtype=np.float64), np.asarray(rho_b, dtype=np.float64)
+    defined = np.isfinite(rho_a) & np.isfinite(rho_b) & (rho_a > 0) & (rho_b > 0)
+    log2 = np.log2(np.where(defined, rho_b, 1.0) / np.where(defined, rho_a, 1.0))
+    return _with_background(RHO_CMAP(rho_ratio_norm()(log2))[..., :3], defined)
