@@ -1,9 +1,9 @@
 """The ``csmlab`` command (DESIGN.md, "Interfaces").
 
 ``run`` an experiment, re-render its ``report``, ``regress`` it against a ``baseline``, ``compare`` two
-runs of one workload, ``list`` what can be named in an experiment, ``show`` an experiment resolved. Exit codes: 0 success, 1 a
-regression found, 2 bad input — one line naming the file, the field and what was expected, never a
-traceback.
+runs of one workload, ``list`` what can be named in an experiment, ``show`` an experiment resolved.
+Exit codes: 0 success, 1 a regression found, 2 bad input — one line naming the file, the field and
+what was expected, never a traceback.
 """
 
 from __future__ import annotations
