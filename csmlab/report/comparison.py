@@ -117,7 +117,7 @@ def _header(comparison: Comparison) -> dict:
     config = a.get("config", {})
     return {
         "name_a": a["name"], "name_b": b["name"], "dir_a": str(comparison.a), "dir_b": str(comparison.b),
-        "workload_hash": a["workload_hash"], "frames": a.get("frames"),
+        "workload_hash": a["workload_hash"], "frame_count": a.get("frames"),
         "scene": _describe(config.get("scene", {}), ("kind", "file", "seed")),
         "camera": _describe(config.get("camera", {}), ("path", "file", "width", "height")),
         "light": _describe(config.get("light", {}), ("elevation_deg", "azimuth_deg", "direction")),
@@ -247,8 +247,9 @@ def _colour(comparison: Comparison, method: str):
 
 def _curves_figure(comparison: Comparison, metrics_a: Columns, metrics_b: Columns, animated: dict,
                    chosen: list[int], labels: dict, path: Path) -> None:
-    """Per-frame curves: a panel per metric of :data:`CURVES` present in both runs, then |S_B − S_A|."""
-    curves = [c for c in CURVES if c[0] in metrics_a and c[0] in metrics_b]
+    """Per-frame curves: a panel per metric of :data:`CURVES` with a value in either run, then |S_B − S_A|."""
+    curves = [c for c in CURVES if c[0] in metrics_a and c[0] in metrics_b
+              and np.any(np.isfinite(np.concatenate([metrics_a[c[0]], metrics_b[c[0]]])))]
     panels = len(curves) + bool(animated)
     fig = Figure(figsize=(10, 1.9 * panels + 0.9), dpi=100, layout="constrained")
     axes = fig.subplots(panels, 1, sharex=True, squeeze=False)[:, 0]
