@@ -160,6 +160,7 @@ def test_browser_check_catches_a_missing_image(browser, tmp_path):
 
 def test_comparison_opens_in_headless_chromium_with_every_image(runs, browser, tmp_path):
     root, _ = runs
+    browser.get_log("browser")
     browser.get((root / "ab" / "index.html").resolve().as_uri())
     images = _images(browser)
     assert len(images) >= 2
