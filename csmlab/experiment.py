@@ -270,7 +270,8 @@ def run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
     for index in range(max(start - 1, 0), stop):
         pose = workload.path.pose(index)
         view = render_view(scene, pose, workload.light.direction(index), width=workload.width,
-                           height=workload.height, index=index)
+                           height=workload.height, index=index,
+                           previous_light_direction=workload.light.direction(index - 1) if index else None)
         counted = index >= start
         if counted:
             timings += [(index, "", "", stage, seconds) for stage, seconds in view.timings.items()]
