@@ -55,6 +55,8 @@ class RecordedPoses:
     angles_line : int or None
         Line of the ``yaw``/``pitch``/``roll`` field when orientations were given as angles,
         which are defined in csmlab's own axes only.
+    time_field : str
+        The format's name of the time column (for error messages).
     """
 
     file: str
@@ -64,6 +66,7 @@ class RecordedPoses:
     orientations: np.ndarray
     fov_y_deg: np.ndarray | None = None
     angles_line: int | None = None
+    time_field: str = "timestamp"
 
 
 def text_lines(file) -> list[str]:

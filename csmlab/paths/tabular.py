@@ -114,6 +114,7 @@ def _recorded(values: np.ndarray, lines: np.ndarray, fields: tuple[str, ...], *,
         orientations=orientations,
         fov_y_deg=None if fov is None else fov.copy(),
         angles_line=angles_line,
+        time_field="time",
     )
 
 

@@ -201,7 +201,7 @@ def resolve_duplicates(recorded: RecordedPoses, *, rule: str) -> tuple[RecordedP
         a, _ = repeated[0]
         raise InputError(f"expected time stamps that strictly increase, got {float(times[a + 1])!r} again "
                          f"(line {int(recorded.lines[a])}); duplicate_times = 'first', 'last' or 'mean' resolves "
-                         f"repeats", file=recorded.file, line=int(recorded.lines[a + 1]), field="timestamp")
+                         f"repeats", file=recorded.file, line=int(recorded.lines[a + 1]), field=recorded.time_field)
     duplicates = []
     positions = recorded.positions[starts].copy()
     orientations = recorded.orientations[starts].copy()
@@ -225,7 +225,7 @@ def resolve_duplicates(recorded: RecordedPoses, *, rule: str) -> tuple[RecordedP
                 fov[k] = recorded.fov_y_deg[a:b].mean()
     resolved = RecordedPoses(file=recorded.file, lines=recorded.lines[starts], times=times[starts],
                              positions=positions, orientations=orientations, fov_y_deg=fov,
-                             angles_line=recorded.angles_line)
+                             angles_line=recorded.angles_line, time_field=recorded.time_field)
     return resolved, tuple(duplicates)
 
 
