@@ -99,6 +99,7 @@ def run(
     from csmlab.config import find_experiment, load_experiment
     from csmlab.executor import executor_for
     from csmlab.experiment import run_experiment
+    from csmlab.paths.timing import timing_lines
     from csmlab.report import write_report
 
     try:
@@ -134,6 +135,8 @@ def run(
     report_seconds = time.perf_counter() - began
     console = _out()
     console.print(_summary_table(result.summary))
+    for line in timing_lines(result.summary.get("recording")):
+        console.print(line)
     resumed = f", {result.chunks_resumed} chunk(s) resumed" if result.chunks_resumed else ""
     where = f"dask at {address}" if method == "dask" and address != "local" else f"{method}, {workers} process(es)"
     console.print(f"{result.frames} frames × {len(loaded.variants())} method/point(s) in {result.seconds:.1f} s "

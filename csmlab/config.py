@@ -128,6 +128,14 @@ class CameraConfig:
     """file: last time kept, seconds on the run's clock (see ``time_offset``); unset keeps to the end."""
     times_file: str = ""
     """file: a separate time-stamp file (KITTI), relative to the file that names it."""
+    anchor: str = ""
+    """file: "first" puts the first pose at ``offset`` (georeferenced/UTM paths); empty keeps the file's positions."""
+    duplicate_times: str = "first"
+    """file: poses under a repeated time stamp: first (default, as pandas/NumPy keep), last, mean or error."""
+    max_gap: float | None = field(default=None, metadata=_expect(_positive, "a positive number of seconds"))
+    """file: a step between poses longer than this (seconds) is a tracking gap; unset: 10 × the median step."""
+    gaps: str = "interpolate"
+    """file: tracking gaps are bridged (interpolate), cut (no frame inside, temporal metrics restart) or an error."""
     seed: int = 1
     """Random seed of a generated path."""
     frames: int = field(default=120, metadata=_expect(lambda x: x >= 1, "at least 1 frame"))
@@ -687,6 +695,8 @@ def _scene(table, located: _Located) -> SceneConfig:
 
 def _camera(table, located: _Located) -> CameraConfig:
     from csmlab.paths import CONVENTIONS, PATH_FORMATS, PATH_GENERATORS
+    from csmlab.paths.formats import ANCHORS
+    from csmlab.paths.timing import DUPLICATE_RULES, GAP_RULES
 
     name = table.get("path") if isinstance(table, dict) else None
     if isinstance(name, str) and name:
@@ -699,7 +709,8 @@ def _camera(table, located: _Located) -> CameraConfig:
     camera = _record(CameraConfig, table, where="camera", located=located, extra=extra)
     if camera.far <= camera.near:
         raise located.error("camera.far", f"expected a distance greater than near ({camera.near}), got {camera.far}")
-    file_only = ("format", "convention", "scale", "offset", "time_offset", "start_s", "end_s", "times_file")
+    file_only = ("format", "convention", "scale", "offset", "time_offset", "start_s", "end_s", "times_file", "anchor",
+                 "duplicate_times", "max_gap", "gaps")
     if camera.path and camera.file:
         raise located.error("camera.file", f"expected either path (a generator) or file, got both: path = "
                                            f"{camera.path!r} (from {located.file_of('camera.path')}) and file")
@@ -720,6 +731,9 @@ def _camera(table, located: _Located) -> CameraConfig:
     if camera.convention:
         _registry_name(camera.convention, CONVENTIONS, where="camera.convention", located=located,
                        what="convention")
+    for key, choices in (("anchor", ANCHORS), ("duplicate_times", DUPLICATE_RULES), ("gaps", GAP_RULES)):
+        if getattr(camera, key) not in choices:
+            raise located.error(f"camera.{key}", f"expected one of {list(choices)}, got {getattr(camera, key)!r}")
     if camera.start_s is not None and camera.end_s is not None and camera.end_s < camera.start_s:
         raise located.error("camera.end_s",
                             f"expected a time not before start_s ({camera.start_s}), got {camera.end_s}")
@@ -954,7 +968,7 @@ def experiment_document(experiment: Experiment) -> dict:
             scene.pop(key)
     camera = _section_document(experiment.camera)
     drop = ("path",) if experiment.camera.file else ("file", "format", "convention", "scale", "offset", "time_offset",
-                                                     "times_file")
+                                                     "times_file", "anchor", "duplicate_times", "max_gap", "gaps")
     for key in drop:
         camera.pop(key, None)
     document = {

@@ -19,6 +19,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from csmlab import results
 from csmlab.camera import CameraPath
 from csmlab.config import Experiment, Variant, config_hash, experiment_document, experiment_toml, workload_hash
@@ -26,6 +28,7 @@ from csmlab.errors import InputError
 from csmlab.executor import execute
 from csmlab.geometry import normalized
 from csmlab.light import LightPath, direction_from_angles
+from csmlab.paths.timing import TimingReport
 from csmlab.scene.core import Scene
 
 __all__ = ["ChunkResult", "Job", "RunResult", "Workload", "build_workload", "check_device", "chunk_ranges",
@@ -47,6 +50,10 @@ class Workload:
         Image size in pixels.
     key : str
         The workload hash (:func:`csmlab.config.workload_hash`).
+    timing : TimingReport or None
+        A recorded path's repeated time stamps and tracking gaps; None for a generated path.
+    restarts : frozenset of int
+        Frames that follow a cut tracking gap: no temporal metrics (the camera jumped).
     """
 
     scene: Scene
@@ -55,6 +62,8 @@ class Workload:
     width: int
     height: int
     key: str
+    timing: TimingReport | None = None
+    restarts: frozenset = frozenset()
 
 
 @dataclass(frozen=True)
@@ -182,26 +191,33 @@ def _first_light_direction(experiment: Experiment):
     return direction_from_angles(elevation_deg=light.elevation_deg, azimuth_deg=light.azimuth_deg)
 
 
-def _camera_path(experiment: Experiment, light_direction) -> CameraPath:
-    from csmlab.paths import make_path, read_path
+def _camera_path(experiment: Experiment, light_direction) -> tuple[CameraPath, TimingReport | None, frozenset]:
+    """The camera path, a recorded file's timing report (else None) and the frames that restart after a cut."""
+    from csmlab.paths import make_path
+    from csmlab.paths.formats import read_recording
 
     camera = experiment.camera
     projection = {"fov_y_deg": camera.fov_y_deg, "aspect": camera.aspect, "near": camera.near, "far": camera.far}
     if camera.path:
         try:
             return make_path(camera.path, frames=camera.frames, fps=camera.fps, seed=camera.seed,
-                             light_direction=light_direction, **projection, **camera.params)
+                             light_direction=light_direction, **projection, **camera.params), None, frozenset()
         except ValueError as exc:
             raise _located(exc, file=experiment.source, field="camera") from None
     try:
-        path = read_path(camera.file, format=camera.format or None, convention=camera.convention or None,
-                         scale=camera.scale, offset=camera.offset, time_offset=camera.time_offset, fps=camera.fps,
-                         times_file=camera.times_file or None, from_first_pose=True, **projection)
+        recording = read_recording(
+            camera.file, format=camera.format or None, convention=camera.convention or None, scale=camera.scale,
+            offset=camera.offset, anchor=camera.anchor, time_offset=camera.time_offset, fps=camera.fps,
+            times_file=camera.times_file or None, from_first_pose=True, duplicate_times=camera.duplicate_times,
+            max_gap=camera.max_gap, gaps=camera.gaps, **projection)
+        path = recording.path
         if camera.start_s is not None or camera.end_s is not None:
             start = path.times[0] if camera.start_s is None else camera.start_s
             end = path.times[-1] if camera.end_s is None else camera.end_s
             path = path.crop(start, end)
-        return path.head(camera.frames)
+        path = path.head(camera.frames)
+        restarts = frozenset(int(i) for i in np.flatnonzero(np.isin(path.times, recording.restarts)))
+        return path, recording.timing, restarts
     except ValueError as exc:
         raise _located(exc, file=camera.file, field="camera.file") from None
 
@@ -228,10 +244,10 @@ def build_workload(experiment: Experiment) -> Workload:
     InputError
         From a scene, mesh or camera-path file, naming the file and what was expected.
     """
-    path = _camera_path(experiment, _first_light_direction(experiment))
+    path, timing, restarts = _camera_path(experiment, _first_light_direction(experiment))
     return Workload(scene=_scene(experiment), path=path, light=_light_path(experiment, len(path)),
                     width=experiment.camera.width, height=experiment.camera.height,
-                    key=workload_hash(experiment, frames=len(path)))
+                    key=workload_hash(experiment, frames=len(path)), timing=timing, restarts=restarts)
 
 
 def chunk_ranges(frames: int, chunk_frames: int) -> list[tuple[int, int]]:
@@ -270,8 +286,11 @@ def run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
     for index in range(max(start - 1, 0), stop):
         pose = workload.path.pose(index)
         view = render_view(scene, pose, workload.light.direction(index), width=workload.width,
-                           height=workload.height, index=index)
+                           height=workload.height, index=index,
+                           previous_light_direction=workload.light.direction(index - 1) if index else None)
         counted = index >= start
+        if index in workload.restarts:
+            previous = {}
         if counted:
             timings += [(index, "", "", stage, seconds) for stage, seconds in view.timings.items()]
         for variant in job.variants:
@@ -382,5 +401,7 @@ def _write_results(out: Path, experiment: Experiment, job: Job, chunks: list[Chu
     summary = dict(name=experiment.name, config_hash=config_hash, workload_hash=job.workload.key, device=job.device,
                    frames=len(job.workload.path), config=experiment_document(experiment), methods=methods,
                    points=points)
+    if job.workload.timing is not None:
+        summary["recording"] = job.workload.timing.as_dict()
     results.write_summary(out / "summary.json", **summary)
     return results.read_summary(out)

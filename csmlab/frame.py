@@ -72,7 +72,12 @@ class View:
     reference : ndarray, shape (H, W), float32
         Ray-traced hard shadow R: 1 lit, 0 shadowed, NaN on a miss.
     timings : dict of str to float
-        Seconds per stage (``visibility``, ``reference``).
+        Seconds per stage (``visibility``, ``reference``, ``reference_previous``).
+    previous_light_direction : ndarray, shape (3,), float64, or None
+        The previous frame's light direction when it differs from ``light_direction``.
+    previous_reference : ndarray, shape (H, W), float32, or None
+        R_{t−1} at this view's points: the ray-traced hard shadow under ``previous_light_direction``
+        (1 lit, 0 shadowed, NaN on a miss); None when the light did not move or was not given.
     """
 
     index: int
@@ -81,6 +86,8 @@ class View:
     gbuffer: GBuffer
     reference: np.ndarray
     timings: dict = field(default_factory=dict)
+    previous_light_direction: np.ndarray | None = None
+    previous_reference: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

@@ -54,7 +54,7 @@ def prepare_scene(scene: Scene, *, device: str = "cpu") -> DeviceScene:
 
 
 def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width: int, height: int,
-                index: int = 0) -> View:
+                index: int = 0, previous_light_direction=None) -> View:
     """The G-buffer and the ray-traced reference of one camera and light (shared by all methods).
 
     Parameters
@@ -67,11 +67,15 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
         Image size in pixels.
     index : int
         Frame number recorded in the view.
+    previous_light_direction : array_like, shape (3,), optional
+        The previous frame's light: where it differs from ``light_direction``, the reference is
+        also cast with it from this view's points (``View.previous_reference``, the temporal
+        metric's R_{t−1}).
 
     Returns
     -------
     View
-        ``timings`` holds ``visibility`` and ``reference`` in seconds.
+        ``timings`` holds ``visibility``, ``reference`` (and ``reference_previous``) in seconds.
     """
     d = normalized(light_direction, name="light direction")
     start = time.perf_counter()
@@ -84,8 +88,18 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
     visibility = time.perf_counter() - start
     start = time.perf_counter()
     reference = hard_shadow(dscene.bvh, points=gbuffer.position, normals=gbuffer.normal, light_direction=d)
-    return View(index=index, pose=pose, light_direction=d, gbuffer=gbuffer, reference=reference,
-                timings={"visibility": visibility, "reference": time.perf_counter() - start})
+    timings = {"visibility": visibility, "reference": time.perf_counter() - start}
+    before = previous = None
+    if previous_light_direction is not None:
+        before = normalized(previous_light_direction, name="previous light direction")
+    if before is not None and not np.array_equal(before, d):
+        start = time.perf_counter()
+        previous = hard_shadow(dscene.bvh, points=gbuffer.position, normals=gbuffer.normal, light_direction=before)
+        timings["reference_previous"] = time.perf_counter() - start
+    else:
+        before = None
+    return View(index=index, pose=pose, light_direction=d, gbuffer=gbuffer, reference=reference, timings=timings,
+                previous_light_direction=before, previous_reference=previous)
 
 
 def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings) -> ShadowMaps:

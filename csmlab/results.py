@@ -17,7 +17,10 @@ Files in a results directory (DESIGN.md, "Interfaces"):
     ``name, config_hash, workload_hash, csmlab_version, environment, frames, config, methods, points``:
     ``methods[M][metric]`` is the NaN-aware mean over M's rows (frames and sweep points),
     ``points[P][M][metric]`` the mean over frames at sweep point P; each with ``frames``. A metric with
-    no value in any frame is ``null``. Written last: a directory without it holds no finished run.
+    no value in any frame is ``null``. A recorded camera path adds ``recording``
+    (:meth:`csmlab.paths.timing.TimingReport.as_dict`: repeated time stamps and tracking gaps, how
+    many, where, how long, and the rules applied). Written last: a directory without it holds no
+    finished run.
 ``.chunks/``
     Finished chunks of a run in progress (pickles, each with the config hash and device it belongs
     to), so that ``--resume`` redoes only what is missing. Removed when the run finishes.
@@ -214,8 +217,9 @@ def json_text(document: dict) -> str:
 
 
 def write_summary(path, *, name: str, config_hash: str, workload_hash: str, device: str, frames: int,
-                  config: dict, methods: dict, points: dict) -> Path:
-    """Write ``summary.json`` (fields in the module docstring)."""
+                  config: dict, methods: dict, points: dict, recording: dict | None = None) -> Path:
+    """Write ``summary.json`` (fields in the module docstring; ``recording`` only for a recorded path)."""
+    extra = {} if recording is None else {"recording": recording}
     return write_atomic(path, json_text({
         "name": name,
         "config_hash": config_hash,
@@ -226,6 +230,7 @@ def write_summary(path, *, name: str, config_hash: str, workload_hash: str, devi
         "config": config,
         "methods": methods,
         "points": points,
+        **extra,
     }))
 
 

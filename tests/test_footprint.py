@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from csmlab.kernels.footprint import texel_footprint
+from csmlab.kernels.footprint import surface_differentials, texel_footprint
 
 CUDA = pytest.mark.skipif(not wp.is_cuda_available(), reason="no CUDA device")
 
@@ -69,3 +69,16 @@ def test_texel_footprint_cuda_matches_cpu():
     gpu = texel_footprint(dpdx, dpdy, cascade, texel_axes=axes, device="cuda")
     for a, b in zip(cpu, gpu):
         np.testing.assert_allclose(b, a, rtol=1e-5, atol=1e-6)
+
+
+@CUDA
+def test_surface_differentials_cuda_matches_cpu():
+    rng = np.random.default_rng(9)
+    position = rng.normal(size=(45, 80, 3)) + [0.0, 0.0, -20.0]
+    normal = rng.normal(size=(45, 80, 3))
+    normal = (normal / np.linalg.norm(normal, axis=-1, keepdims=True)).astype(np.float32)
+    camera = dict(eye=np.zeros(3), rotation=np.eye(3), fov_y_deg=50.0, aspect=80 / 45)
+    cpu = surface_differentials(position, normal, **camera)
+    gpu = surface_differentials(position, normal, **camera, device="cuda")
+    for a, b in zip(cpu, gpu):
+        np.testing.assert_allclose(b, a, rtol=1e-6, atol=1e-9)

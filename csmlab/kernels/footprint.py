@@ -1,8 +1,20 @@
 """Texel footprint of a screen pixel: the Jacobian from screen pixels to shadow-map texels.
 
-A pixel's ray differentials ``dX/du`` and ``dX/dv`` (metres per pixel, on the hit point's tangent
-plane, from :class:`csmlab.frame.GBuffer`) are mapped into the selected cascade's texel
-coordinates. Light space is an orthographic projection, so the map from world metres to texels is
+:func:`surface_differentials` gives a pixel's exact ray differentials ``dX/du`` and ``dX/dv``
+(metres per pixel): the derivatives of the hit point with respect to the pixel coordinates at the
+pixel centre, from the derivative of the ray direction transferred to the hit surface's tangent
+plane (Igehy 1999). With ``V = X − C`` the hit relative to the eye, ``t = V·f`` its view depth
+(the ray direction ``D = V/t`` has unit forward component), ``∂D/∂u`` the change of ``D`` per pixel
+and ``n`` the surface normal,
+
+    dX/du = t · (∂D/∂u − D (n·∂D/∂u) / (n·D)),
+
+exact for any surface, not a finite difference: differencing the hit points of neighbouring pixel
+centres (a one-pixel forward difference) under-estimates the footprint on a plane by the factor
+``D_n / (D_n + δ)`` per axis, where ``D_n`` is ``n·D`` and ``δ`` its change over one pixel — without
+bound toward the horizon, where perspective aliasing lives.
+
+:func:`texel_footprint` maps the differentials into the selected cascade's texel coordinates. Light space is an orthographic projection, so the map from world metres to texels is
 linear, ``T = diag(1/tx, 1/ty) · [right; up]``, and the Jacobian is exactly
 
     J = T · [dX/du, dX/dv]        (2 × 2, texels per pixel)
@@ -24,7 +36,7 @@ import warp as wp
 
 from csmlab.kernels import checked_device
 
-__all__ = ["texel_footprint"]
+__all__ = ["surface_differentials", "texel_footprint"]
 
 
 @wp.func
@@ -37,6 +49,108 @@ def smallest_singular_value(a: float, b: float, c: float, d: float) -> float:
     q = wp.sqrt(e * e + h * h)
     r = wp.sqrt(f * f + g * g)
     return wp.abs(q - r)
+
+
+@wp.func
+def transferred_differential(v: wp.vec3d, n: wp.vec3d, t: wp.float64, step: wp.vec3d) -> wp.vec3d:
+    """dX for a change ``step`` of the unit-forward ray direction, on the plane through the hit with normal ``n``.
+
+    ``t·step − V (n·t·step)/(n·V)``; a ray lying in the plane (``n·V = 0``, an edge-on hit of zero
+    measure) has no transfer, and keeps ``t·step``.
+    """
+    d = step * t
+    along = wp.dot(n, v)
+    if along == wp.float64(0.0):
+        return d
+    return d - v * (wp.dot(n, d) / along)
+
+
+@wp.kernel
+def surface_differentials_kernel(
+    relative: wp.array2d(dtype=wp.vec3d),
+    normal: wp.array2d(dtype=wp.vec3),
+    forward: wp.vec3d,
+    step_u: wp.vec3d,
+    step_v: wp.vec3d,
+    dpdu: wp.array2d(dtype=wp.vec3),
+    dpdv: wp.array2d(dtype=wp.vec3),
+):
+    i, j = wp.tid()
+    v = relative[i, j]
+    n = wp.vec3d(normal[i, j])
+    t = wp.dot(v, forward)
+    if not (t > wp.float64(0.0)) or wp.dot(n, n) == wp.float64(0.0):
+        dpdu[i, j] = wp.vec3(0.0)
+        dpdv[i, j] = wp.vec3(0.0)
+        return
+    dpdu[i, j] = wp.vec3(transferred_differential(v, n, t, step_u))
+    dpdv[i, j] = wp.vec3(transferred_differential(v, n, t, step_v))
+
+
+def surface_differentials(position, normal, *, eye, rotation, fov_y_deg: float, aspect: float,
+                          device: str = "cpu") -> tuple[np.ndarray, np.ndarray]:
+    """Exact ray differentials of every pixel: ∂X/∂u and ∂X/∂v of the hit point at the pixel centre.
+
+    Parameters
+    ----------
+    position : array_like, shape (H, W, 3), float64
+        Hit points, world metres; NaN where the ray missed.
+    normal : array_like, shape (H, W, 3), float32
+        Unit normals of the hit surface (either side); 0 where the ray missed.
+    eye : array_like, shape (3,), float64
+        Camera position, world metres.
+    rotation : array_like, shape (3, 3), float64
+        Camera-to-world rotation; columns are the camera's right, up and back axes.
+    fov_y_deg : float
+        Vertical field of view, degrees.
+    aspect : float
+        Width / height of the image plane.
+    device : str
+        Warp device, ``"cpu"`` or ``"cuda"``.
+
+    Returns
+    -------
+    dpdu, dpdv : ndarray, shape (H, W, 3), float32
+        Metres per pixel toward +u (right, column) and +v (down, row) on the tangent plane of the
+        hit; 0 where the ray missed or the point is not in front of the camera.
+
+    Raises
+    ------
+    ValueError
+        On mismatched shapes, a non-finite camera or an unusable device.
+    """
+    device = checked_device(device)
+    p = np.asarray(position, dtype=np.float64)
+    n = np.ascontiguousarray(normal, dtype=np.float32)
+    if p.ndim != 3 or p.shape[2] != 3 or n.shape != p.shape:
+        raise ValueError(f"position, normal: expected two (H, W, 3) arrays, got {p.shape} and {n.shape}")
+    c = np.asarray(eye, dtype=np.float64)
+    r = np.asarray(rotation, dtype=np.float64)
+    if c.shape != (3,) or r.shape != (3, 3) or not (np.all(np.isfinite(c)) and np.all(np.isfinite(r))):
+        raise ValueError("eye, rotation: expected a finite camera position (3,) and rotation (3, 3)")
+    if not 0.0 < fov_y_deg < 180.0 or not aspect > 0.0:
+        raise ValueError(f"fov_y_deg, aspect: expected (0, 180) degrees and > 0, got {fov_y_deg}, {aspect}")
+    height, width = p.shape[:2]
+    tan_y = np.tan(np.radians(fov_y_deg) / 2.0)
+    # The ray through image point (u, v) is f + r·(2u/W − 1)·tan_y·aspect + up·(1 − 2v/H)·tan_y.
+    step_u = r[:, 0] * (2.0 * tan_y * aspect / width)
+    step_v = -r[:, 1] * (2.0 * tan_y / height)
+    relative = np.where(np.isfinite(p), p - c, 0.0)
+    shape = (height, width)
+    dpdu = wp.empty(shape, dtype=wp.vec3, device=device)
+    dpdv = wp.empty(shape, dtype=wp.vec3, device=device)
+    wp.launch(
+        surface_differentials_kernel,
+        dim=shape,
+        inputs=(
+            wp.array(np.ascontiguousarray(relative), dtype=wp.vec3d, device=device),
+            wp.array(n, dtype=wp.vec3, device=device),
+            wp.vec3d(*(-r[:, 2])), wp.vec3d(*step_u), wp.vec3d(*step_v),
+        ),
+        outputs=(dpdu, dpdv),
+        device=device,
+    )
+    return dpdu.numpy(), dpdv.numpy()
 
 
 @wp.kernel
@@ -71,8 +185,8 @@ def texel_footprint(dpdx, dpdy, cascade, *, texel_axes, device: str = "cpu") -> 
     Parameters
     ----------
     dpdx, dpdy : array_like, shape (H, W, 3), float32
-        Ray differentials on the tangent plane toward the next pixel centre right (+x) and below
-        (+y), world metres.
+        Ray differentials on the tangent plane per pixel right (+x) and down (+y), world metres
+        (:func:`surface_differentials`).
     cascade : array_like, shape (H, W), integer
         Selected cascade per pixel; negative where there is none (miss or outside every cascade).
     texel_axes : array_like, shape (C, 2, 3), float64

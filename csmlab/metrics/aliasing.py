@@ -2,8 +2,9 @@
 
 Definitions (DESIGN.md, "Metrics", a contract):
 
-- ρ = sqrt|det J| with J the 2×2 Jacobian from screen pixels to the selected cascade's texels,
-  from the G-buffer's ray differentials on the hit point's tangent plane. ρ = 1 is one texel per
+- ρ = sqrt|det J| with J the 2×2 Jacobian from screen pixels to the selected cascade's texels at
+  the pixel centre, from exact ray differentials (the derivative of the hit point with respect to
+  the pixel coordinates, on the hit point's tangent plane; not a finite difference). ρ = 1 is one texel per
   pixel; ρ < 1 under-samples (blocky shadows); ρ ≫ 1 wastes resolution. σ_min(J) is the texel
   density along the worst screen direction.
 - Utilization of cascade c: the fraction of its R² texels that contain the surface point of at
@@ -25,7 +26,7 @@ import numpy as np
 
 from csmlab.cascades import CascadeSet
 from csmlab.frame import Frame
-from csmlab.kernels.footprint import texel_footprint
+from csmlab.kernels.footprint import surface_differentials, texel_footprint
 from csmlab.texels import texel_coordinates
 
 __all__ = ["AliasingMaps", "RHO_SUMMARIES", "aliasing_maps", "aliasing_summary", "texel_axes", "utilization"]
@@ -69,7 +70,7 @@ def aliasing_maps(frame: Frame, *, device: str = "cpu") -> AliasingMaps:
     Parameters
     ----------
     frame : Frame
-        Its G-buffer's ``dpdx``/``dpdy`` (metres) and its shadow's ``cascade`` are used.
+        Its G-buffer's ``position`` and ``normal``, its camera and its shadow's ``cascade`` are used.
     device : str
         Warp device of the footprint kernel.
 
@@ -79,7 +80,10 @@ def aliasing_maps(frame: Frame, *, device: str = "cpu") -> AliasingMaps:
     """
     g = frame.view.gbuffer
     cascade = np.where(g.valid, frame.shadow.cascade, -1).astype(np.int8)
-    rho, sigma_min = texel_footprint(g.dpdx, g.dpdy, cascade, texel_axes=texel_axes(frame.maps.cascades),
+    pose = frame.view.pose
+    dpdu, dpdv = surface_differentials(g.position, g.normal, eye=pose.position, rotation=pose.rotation,
+                                       fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, device=device)
+    rho, sigma_min = texel_footprint(dpdu, dpdv, cascade, texel_axes=texel_axes(frame.maps.cascades),
                                      device=device)
     return AliasingMaps(rho=rho, sigma_min=sigma_min, cascade=cascade)
 

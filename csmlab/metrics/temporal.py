@@ -14,12 +14,12 @@ in a blend band in either frame, where the blend weight follows the camera).
 
 When the light moved between t−1 and t (``view.light_direction`` differs), the reference's own
 change is subtracted: ``ΔS − ΔR`` with ``ΔR = R_t(X) − R_{t−1}(X)``, and a flip is a change of
-state that differs from the reference's change of state. R_{t−1}(X) is frame t−1's ray-traced
-reference at X. When the camera did not move, X is the same hit point in both frames and R_{t−1}
-at the same pixel is exact. When it did move, X is reprojected into frame t−1's image and the
-reference of the nearest pixel is taken if that pixel saw the same triangle (X was visible):
-exact except within a pixel of the reference's shadow boundary; points that fail the test are
-not counted.
+state that differs from the reference's change of state. R_{t−1}(X) is cast afresh: a shadow ray
+from frame t's point X toward frame t−1's light (``View.previous_reference``, from
+:func:`csmlab.render.render_view` given ``previous_light_direction``). When the camera did not move
+either, frame t−1's reference image is the same cast (the same pixel sees the same point) and is
+used as it is. No value is reprojected from frame t−1's image, so the subtraction is exact: where
+the shadow maps agree with the reference in both frames, the change is exactly 0.
 
 Exact stabilization must give exactly 0.0 same-cascade flicker under a static light.
 """
@@ -83,7 +83,8 @@ def temporal_maps(frame: Frame, previous: Frame, *, device: str = "cpu") -> Temp
     Raises
     ------
     ValueError
-        If the two frames' images differ in size.
+        If the two frames' images differ in size, or if camera and light both moved and frame t's
+        view holds no reference cast under frame t−1's light (:func:`previous_reference_at`).
     """
     g = frame.view.gbuffer
     if previous.view.gbuffer.shape != g.shape:
@@ -124,30 +125,28 @@ def _same_camera(a: CameraPose, b: CameraPose) -> bool:
 
 
 def previous_reference_at(frame: Frame, previous: Frame) -> np.ndarray:
-    """Frame t−1's reference R_{t−1} at frame t's visible points, ``(H, W)`` float32, NaN where unknown.
+    """Frame t−1's reference R_{t−1} at frame t's visible points, ``(H, W)`` float32, NaN on a miss.
 
-    Same camera: the same pixel sees the same point, so frame t−1's reference image is returned.
-    Otherwise each point is projected into frame t−1's image (pixel centres at ``col + 0.5``,
-    ``row + 0.5``, row 0 at the top) and the nearest pixel's reference is taken where that pixel
-    hit the same triangle.
+    The cast of frame t's view under frame t−1's light (``frame.view.previous_reference``) when
+    the view holds it for that light; else, for an unmoved camera (and an unmoved light), frame
+    t−1's own reference image, which is the same cast pixel for pixel.
+
+    Raises
+    ------
+    ValueError
+        When the camera moved and frame t's view holds no cast under frame t−1's light: render it
+        with ``render_view(..., previous_light_direction=...)``.
     """
     g = frame.view.gbuffer
-    before = previous.view
-    if _same_camera(frame.view.pose, before.pose):
+    view, before = frame.view, previous.view
+    cast = view.previous_reference
+    if cast is not None and np.array_equal(view.previous_light_direction, before.light_direction):
+        return np.where(g.valid, cast, np.nan).astype(np.float32)
+    if _same_camera(view.pose, before.pose):
         return np.where(g.valid, before.reference, np.nan).astype(np.float32)
-    height, width = g.shape
-    pose = before.pose
-    local = (g.position - pose.position) @ pose.rotation
-    depth = -local[..., 2]
-    tan_y = np.tan(np.radians(pose.fov_y_deg) / 2.0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        col = np.floor((local[..., 0] / (depth * tan_y * pose.aspect) + 1.0) * 0.5 * width)
-        row = np.floor((1.0 - local[..., 1] / (depth * tan_y)) * 0.5 * height)
-    inside = g.valid & (depth > 0) & (col >= 0) & (col < width) & (row >= 0) & (row < height)
-    r = np.where(inside, row, 0).astype(np.int64)
-    c = np.where(inside, col, 0).astype(np.int64)
-    same_surface = inside & (before.gbuffer.triangle[r, c] == g.triangle)
-    return np.where(same_surface, before.reference[r, c], np.nan).astype(np.float32)
+    raise ValueError(f"frame {view.index}: expected its view rendered with previous_light_direction = frame "
+                     f"{before.index}'s light (the reference R_(t-1) is cast, not reprojected), got "
+                     + ("none" if cast is None else f"a cast under another light, {view.previous_light_direction}"))
 
 
 def _mean(values: np.ndarray) -> float:

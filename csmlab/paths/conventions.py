@@ -23,7 +23,8 @@ with +Y up). The matrices of every convention are listed in the docstring of its
 
 References: TUM RGB-D benchmark file formats (Sturm et al. 2012); KITTI odometry devkit
 (Geiger et al. 2012); EuRoC MAV dataset (Burri et al. 2016), ``mav0/cam0/sensor.yaml``;
-Unreal Engine and Unity coordinate-system documentation.
+Unreal Engine and Unity coordinate-system documentation; ROS REP 103 "Standard Units of Measure
+and Coordinate Conventions".
 """
 
 from __future__ import annotations
@@ -105,6 +106,11 @@ CONVENTIONS: dict[str, Convention] = {
         description="EuRoC MAV ground truth: world z up; the body (IMU) frame used as the camera, "
                     "x up, y right, z forward (cam0's nominal mounting); metres",
     ),
+    "ros": Convention(
+        world=_Z_UP_TO_Y_UP, camera=[[0, 0, -1], [-1, 0, 0], [0, 1, 0]], metres_per_unit=1.0,
+        description="ROS REP 103 (GNSS/INS, robot logs): world x east/forward, y left, z up; body x forward, "
+                    "y left, z up, used as the camera (looks along body +x); metres",
+    ),
     "unreal": Convention(
         world=[[0, 1, 0], [0, 0, 1], [-1, 0, 0]], camera=[[0, 0, -1], [1, 0, 0], [0, 1, 0]], metres_per_unit=0.01,
         description="Unreal Engine: left-handed, x forward, y right, z up, centimetres; camera looks +x",
@@ -124,6 +130,7 @@ tum        diag(1, -1, -1)                      diag(1, -1, -1)                 
 kitti      diag(1, -1, -1)                      diag(1, -1, -1)                      1 m
 mocap      [[1,0,0], [0,0,1], [0,-1,0]]         diag(1, -1, -1)                      1 m
 euroc      [[1,0,0], [0,0,1], [0,-1,0]]         [[0,1,0], [1,0,0], [0,0,-1]]         1 m
+ros        [[1,0,0], [0,0,1], [0,-1,0]]         [[0,0,-1], [-1,0,0], [0,1,0]]        1 m
 unreal     [[0,1,0], [0,0,1], [-1,0,0]]         [[0,0,-1], [1,0,0], [0,1,0]]         1 cm
 unity      diag(1, 1, -1)                       diag(1, 1, -1)                       1 m
 =========  ===================================  ===================================  =====
@@ -138,6 +145,10 @@ unity      diag(1, 1, -1)                       diag(1, 1, -1)                  
   cam0's nominal axes: ``mav0/cam0/sensor.yaml`` T_BS puts cam0's x (right) along body +y, its
   y (down) along body -x and its z (forward) along body +z, each within 1.5°. So the camera
   looks along body +z with body +x up.
+- ``ros``: REP 103 axes, world (x east or forward, y north or left, z up) → csmlab (x, z, -y) as
+  ``mocap``; the body's x forward, y left, z up is the camera: it looks along body +x with body +z
+  up, so body +x = csmlab -Z, body -y = csmlab +X (right), body +z = csmlab +Y. UTM or local ENU
+  positions of a GNSS/INS log go in with ``anchor = "first"``.
 - ``unreal``: file (x forward, y right, z up) → csmlab (y, z, -x), centimetres; the camera looks
   along its +x with +z up. Quaternions are read as the rotation matrix they represent, which is
   how the engine stores an ``FQuat``.

@@ -46,10 +46,10 @@ def read_euroc(file) -> RecordedPoses:
     require_poses(rows, file=file, line_count=len(lines))
     values, numbers = numeric_table([(n, t[1:]) for n, t in rows], file=file, fields=FIELDS, extra_fields=True)
     ns = _nanoseconds(rows, file=file)
-    bad = np.diff(ns) <= 0
+    bad = np.diff(ns) < 0
     if np.any(bad):
         k = int(np.argmax(bad)) + 1
-        raise InputError(f"expected time stamps that strictly increase, got {ns[k]} ns after {ns[k - 1]} ns",
+        raise InputError(f"expected time stamps that never go back, got {ns[k]} ns after {ns[k - 1]} ns",
                          file=file, line=int(numbers[k]), field="timestamp")
     seconds, rest = np.divmod(ns, _NS)
     return RecordedPoses(

@@ -22,9 +22,15 @@ from csmlab.paths.euroc import read_euroc, write_euroc
 from csmlab.paths.kitti import read_kitti, read_kitti_times, write_kitti
 from csmlab.paths.recorded import RecordedPoses, data_rows, require_poses, text_lines
 from csmlab.paths.tabular import read_csv, read_json, write_csv, write_json
+from csmlab.paths.timing import GAP_RULES, TimingReport, find_gaps, frames_outside_gaps, resolve_duplicates
 from csmlab.paths.tum import read_tum, write_tum
 
-__all__ = ["PATH_FORMATS", "PathFormat", "guess_format", "read_path", "write_path"]
+__all__ = ["ANCHORS", "PATH_FORMATS", "PathFormat", "Recording", "guess_format", "read_path", "read_recording",
+           "write_path"]
+
+ANCHORS: tuple[str, ...] = ("", "first")
+"""``[camera] anchor``: ``""`` keeps the file's positions (then scale, then offset); ``"first"`` puts the
+first pose at ``offset`` (georeferenced paths: UTM eastings/northings of 10⁵–10⁶ m)."""
 
 
 @dataclass(frozen=True)
@@ -124,11 +130,31 @@ def _times(recorded: RecordedPoses, *, times_file, fps) -> np.ndarray:
                      file=recorded.file, field="times_file")
 
 
-def read_path(file, *, format: str | None = None, convention: str | None = None, scale: float = 1.0,
-              offset=(0.0, 0.0, 0.0), time_offset: float = 0.0, fps: float | None = None, times_file=None,
-              from_first_pose: bool = False, fov_y_deg: float = 60.0, aspect: float = 16.0 / 9.0,
-              near: float = 0.1, far: float = 400.0) -> CameraPath:
-    """Read a recorded camera path into csmlab's convention.
+@dataclass(frozen=True)
+class Recording:
+    """A recorded path as csmlab renders it, with what its time stamps held.
+
+    Attributes
+    ----------
+    path : CameraPath
+    timing : TimingReport
+        Repeated stamps and tracking gaps, and the rules applied.
+    restarts : ndarray, shape (K,), float64
+        Times (the path's clock) of frames that follow a cut gap: the camera jumped there, so
+        their temporal metrics are undefined. Empty unless ``gaps = "cut"``.
+    """
+
+    path: CameraPath
+    timing: TimingReport
+    restarts: np.ndarray
+
+
+def read_recording(file, *, format: str | None = None, convention: str | None = None, scale: float = 1.0,
+                   offset=(0.0, 0.0, 0.0), anchor: str = "", time_offset: float = 0.0, fps: float | None = None,
+                   times_file=None, from_first_pose: bool = False, duplicate_times: str = "first",
+                   max_gap: float | None = None, gaps: str = "interpolate", fov_y_deg: float = 60.0,
+                   aspect: float = 16.0 / 9.0, near: float = 0.1, far: float = 400.0) -> Recording:
+    """Read a recorded camera path into csmlab's convention, resolving repeated stamps and gaps.
 
     Parameters
     ----------
@@ -143,6 +169,10 @@ def read_path(file, *, format: str | None = None, convention: str | None = None,
         Factor on positions after conversion to metres (desk-scale recordings → a scene).
     offset : array_like, shape (3,)
         Metres added to every position after scaling, in csmlab's world.
+    anchor : str
+        ``""`` or ``"first"`` (:data:`ANCHORS`): with ``"first"`` the first pose's position is
+        subtracted in float64 in the file's own coordinates, before any conversion, so the path
+        starts at ``offset`` and large (UTM) coordinates keep their millimetres.
     time_offset : float
         Seconds added to every time stamp (``-t0`` starts a path at zero).
     fps : float, optional
@@ -154,20 +184,28 @@ def read_path(file, *, format: str | None = None, convention: str | None = None,
     from_first_pose : bool
         Measure time from the first pose (which then sits at ``time_offset``) instead of keeping
         the recorded clock (often Unix time); resampling then lands on exact multiples of 1/fps.
+    duplicate_times : str
+        Rule for poses under one time stamp (:data:`csmlab.paths.timing.DUPLICATE_RULES`).
+    max_gap : float, optional
+        Seconds between consecutive poses beyond which a step is a tracking gap; ``None``:
+        :data:`csmlab.paths.timing.GAP_FACTOR` × the median step.
+    gaps : str
+        What a gap does (:data:`csmlab.paths.timing.GAP_RULES`).
     fov_y_deg, aspect, near, far : float
         Projection (degrees, width/height, metres, metres); a file's ``fov_y_deg`` column wins.
 
     Returns
     -------
-    CameraPath
-        Named after the file.
+    Recording
+        Its path is named after the file.
 
     Raises
     ------
     InputError
-        On a broken file, located (file, line, field).
+        On a broken file, located (file, line, field); on a repeated stamp with
+        ``duplicate_times = "error"`` or a gap with ``gaps = "error"``.
     ValueError
-        On a bad argument (unknown format or convention, non-positive scale or fps, ...).
+        On a bad argument (unknown format, convention or rule, non-positive scale, fps or max_gap, ...).
     """
     spec = _format(format if format is not None else guess_format(file))
     convention = convention if convention is not None else spec.convention
@@ -177,12 +215,18 @@ def read_path(file, *, format: str | None = None, convention: str | None = None,
         raise ValueError(f"scale: expected a positive factor, got {scale}")
     if offset.shape != (3,) or not np.all(np.isfinite(offset)):
         raise ValueError(f"offset: expected 3 finite coordinates in metres, got {offset.tolist()}")
+    if anchor not in ANCHORS:
+        raise ValueError(f"anchor: expected one of {list(ANCHORS)}, got {anchor!r}")
     if not np.isfinite(time_offset):
         raise ValueError(f"time_offset: expected finite seconds, got {time_offset}")
     if fps is not None and (not np.isfinite(fps) or fps <= 0):
         raise ValueError(f"fps: expected a positive frame rate in Hz, got {fps}")
+    if max_gap is not None and (not np.isfinite(max_gap) or max_gap <= 0):
+        raise ValueError(f"max_gap: expected a positive number of seconds, got {max_gap}")
+    if gaps not in GAP_RULES:
+        raise ValueError(f"gaps: expected one of {list(GAP_RULES)}, got {gaps!r}")
 
-    recorded = spec.read(file)
+    recorded, duplicates = resolve_duplicates(spec.read(file), rule=duplicate_times)
     if recorded.angles_line is not None and convention != "opengl":
         raise InputError(f"yaw/pitch/roll are defined in csmlab's own axes: read this file with convention "
                          f"'opengl', or give quaternions (qx qy qz qw) for convention {convention!r}",
@@ -190,7 +234,8 @@ def read_path(file, *, format: str | None = None, convention: str | None = None,
     times = _times(recorded, times_file=times_file, fps=fps)
     if from_first_pose:
         times = times - times[0]
-    positions, orientations = poses_to_opengl(recorded.positions, recorded.orientations, convention=convention)
+    local = recorded.positions - recorded.positions[0] if anchor == "first" else recorded.positions
+    positions, orientations = poses_to_opengl(local, recorded.orientations, convention=convention)
     path = CameraPath(
         times=times + time_offset,
         positions=positions * scale + offset,
@@ -198,8 +243,31 @@ def read_path(file, *, format: str | None = None, convention: str | None = None,
         fov_y_deg=recorded.fov_y_deg if recorded.fov_y_deg is not None else fov_y_deg,
         aspect=aspect, near=near, far=far, name=Path(file).name,
     )
+    limit, found = find_gaps(path.times, path.positions, recorded.lines, max_gap=max_gap)
+    if found and gaps == "error":
+        gap = max(found, key=lambda g: g.duration_s)
+        raise InputError(f"expected no tracking gap over max_gap = {limit:.6g} s, found {len(found)}; the longest "
+                         f"{gap.duration_s:.6g} s after line {gap.lines[0]} (gaps = 'interpolate' or 'cut' "
+                         f"accepts them)", file=file, line=gap.lines[1], field="timestamp")
+    timing = TimingReport(file=Path(file).name, duplicate_times=duplicate_times, duplicates=duplicates,
+                          max_gap=limit, gaps_rule=gaps, gaps=found)
     resample = fps is not None and (recorded.times is not None or times_file is not None)
-    return path.resample(fps) if resample else path
+    if resample:
+        path = path.resample(fps)
+    restarts = np.empty(0)
+    if gaps == "cut" and found:
+        keep, restart = frames_outside_gaps(path.times, found)
+        kept = np.flatnonzero(keep)
+        path = CameraPath(times=path.times[kept], positions=path.positions[kept],
+                          orientations=path.orientations[kept], fov_y_deg=path.fov_y_deg[kept], aspect=aspect,
+                          near=near, far=far, name=path.name)
+        restarts = path.times[restart]
+    return Recording(path=path, timing=timing, restarts=restarts)
+
+
+def read_path(file, **options) -> CameraPath:
+    """The :class:`CameraPath` of :func:`read_recording` (same keyword options), without its report."""
+    return read_recording(file, **options).path
 
 
 def write_path(path: CameraPath, file, *, format: str, convention: str | None = None) -> None:

@@ -16,8 +16,8 @@ from csmlab.paths.recorded import (
     QUATERNION_TOLERANCE,
     RecordedPoses,
     data_rows,
-    increasing_times,
     numeric_table,
+    ordered_times,
     require_poses,
     text_lines,
     write_text_atomic,
@@ -72,7 +72,7 @@ def read_kitti_times(file, *, count: int) -> np.ndarray:
         where = numbers[count] if found > count else numbers[-1]
         raise InputError(f"expected one time per pose ({count}), found {found}", file=file, line=int(where),
                          field="time")
-    return increasing_times(values[:, 0], numbers, file=file, field="time")
+    return ordered_times(values[:, 0], numbers, file=file, field="time")
 
 
 def write_kitti(poses: RecordedPoses, file) -> None:

@@ -22,8 +22,8 @@ __all__ = [
     "QUATERNION_TOLERANCE",
     "RecordedPoses",
     "data_rows",
-    "increasing_times",
-    "numeric_table",
+    "ordered_times",
+        "numeric_table",
     "require_poses",
     "text_lines",
     "unit_quaternions",
@@ -45,7 +45,7 @@ class RecordedPoses:
     lines : ndarray, shape (N,), int64
         1-based line of each pose in ``file``.
     times : ndarray, shape (N,), float64, or None
-        Seconds, strictly increasing; ``None`` when the format has none (KITTI).
+        Seconds, never going back (a stamp may repeat); ``None`` when the format has none (KITTI).
     positions : ndarray, shape (N, 3), float64
         Positions in the file's world axes and length unit.
     orientations : ndarray, shape (N, 4), float64
@@ -55,6 +55,8 @@ class RecordedPoses:
     angles_line : int or None
         Line of the ``yaw``/``pitch``/``roll`` field when orientations were given as angles,
         which are defined in csmlab's own axes only.
+    time_field : str
+        The format's name of the time column (for error messages).
     """
 
     file: str
@@ -64,6 +66,7 @@ class RecordedPoses:
     orientations: np.ndarray
     fov_y_deg: np.ndarray | None = None
     angles_line: int | None = None
+    time_field: str = "timestamp"
 
 
 def text_lines(file) -> list[str]:
@@ -173,19 +176,22 @@ def unit_quaternions(q, lines: np.ndarray, *, file, field: str = "quaternion") -
     return q / length[:, None]
 
 
-def increasing_times(times, lines: np.ndarray, *, file, field: str = "timestamp") -> np.ndarray:
-    """Return ``times`` ``(N,)`` after checking that they strictly increase.
+def ordered_times(times, lines: np.ndarray, *, file, field: str = "timestamp") -> np.ndarray:
+    """Return ``times`` ``(N,)`` after checking that they never go back.
+
+    A repeated stamp is allowed here: :func:`csmlab.paths.timing.resolve_duplicates` resolves it
+    by the rule the user chose.
 
     Raises
     ------
     InputError
-        At the first line whose time is not after the previous one (going back or repeating).
+        At the first line whose time is before the previous one.
     """
     times = np.asarray(times, dtype=np.float64)
-    bad = np.diff(times) <= 0
+    bad = np.diff(times) < 0
     if np.any(bad):
         k = int(np.argmax(bad)) + 1
-        raise InputError(f"expected time stamps that strictly increase, got {float(times[k])!r} after "
+        raise InputError(f"expected time stamps that never go back, got {float(times[k])!r} after "
                          f"{float(times[k - 1])!r} (line {int(lines[k - 1])})", file=file, line=int(lines[k]),
                          field=field)
     return times

@@ -5,7 +5,7 @@ Fields of every pose (names exact, lower case):
 =============  ========  ==========================================================
 field          unit      meaning
 =============  ========  ==========================================================
-``time``       s         time stamp; strictly increasing
+``time``       s         time stamp; never going back (repeats resolved by a rule)
 ``x y z``      metres    camera position in the file's world axes
 ``qx qy qz qw``          camera-to-world unit quaternion, scalar last ...
 ``yaw pitch``  degrees   ... **or** csmlab's yaw/pitch/roll (``R = R_y(yaw) R_x(pitch)
@@ -47,8 +47,8 @@ from csmlab.paths.conventions import orientation_from_yaw_pitch_roll
 from csmlab.paths.recorded import (
     RecordedPoses,
     data_rows,
-    increasing_times,
     numeric_table,
+    ordered_times,
     require_poses,
     text_lines,
     unit_quaternions,
@@ -109,11 +109,12 @@ def _recorded(values: np.ndarray, lines: np.ndarray, fields: tuple[str, ...], *,
     return RecordedPoses(
         file=str(file),
         lines=lines,
-        times=increasing_times(column["time"], lines, file=file, field="time"),
+        times=ordered_times(column["time"], lines, file=file, field="time"),
         positions=np.column_stack([column["x"], column["y"], column["z"]]),
         orientations=orientations,
         fov_y_deg=None if fov is None else fov.copy(),
         angles_line=angles_line,
+        time_field="time",
     )
 
 

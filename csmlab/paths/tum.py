@@ -14,8 +14,8 @@ import numpy as np
 from csmlab.paths.recorded import (
     RecordedPoses,
     data_rows,
-    increasing_times,
     numeric_table,
+    ordered_times,
     require_poses,
     text_lines,
     unit_quaternions,
@@ -36,7 +36,7 @@ def read_tum(file) -> RecordedPoses:
     return RecordedPoses(
         file=str(file),
         lines=numbers,
-        times=increasing_times(values[:, 0], numbers, file=file, field="timestamp"),
+        times=ordered_times(values[:, 0], numbers, file=file, field="timestamp"),
         positions=values[:, 1:4],
         orientations=unit_quaternions(values[:, 4:8], numbers, file=file, field="qx qy qz qw"),
     )

@@ -113,6 +113,7 @@ def _header(results: ResultFiles) -> dict:
         "camera": _describe(config.get("camera", {}), ("path", "file", "frames", "width", "height")),
         "light": _describe(config.get("light", {}), ("elevation_deg", "azimuth_deg", "direction")),
         "config_text": json.dumps(config, indent=2, sort_keys=True),
+        "recording": summary.get("recording"),
     }
 
 
