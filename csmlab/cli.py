@@ -32,9 +32,6 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
-HEADLINE = ("rho_median", "rho_frac_lt1", "flicker_same", "flicker", "flip_rate", "de2000_mean", "ref_false_shadow",
-            "memory_bytes")
-"""Metrics in the table ``csmlab run`` prints at the end."""
 
 
 def _out() -> Console:
@@ -56,28 +53,32 @@ def _bad_input(error: ValueError) -> typer.Exit:
 
 
 def _number(value) -> str:
-    if value is None:
-        return "—"
-    value = float(value)
-    if value.is_integer() and abs(value) >= 1000:
-        return f"{int(value):,}"
-    return f"{value:.4g}"
+    from csmlab.metric_registry import format_number
+
+    return format_number(value)
+
+
+def _shown(value, scale: float) -> str:
+    return _number(None if value is None else float(value) * scale)
 
 
 def _summary_table(summary: dict) -> Table:
-    """Method × headline metrics; one row per method and sweep point when the experiment sweeps."""
+    """Method × the registry's headline metrics (name over unit); a row per method and sweep point when the
+    experiment sweeps."""
+    from csmlab.metric_registry import HEADLINE
+
     table = Table(title=escape(f"{summary['name']}: mean over {summary['frames']} frames"), title_justify="left")
     table.add_column("method")
     swept = list(summary["points"]) != ["base"]
     if swept:
         table.add_column("point")
     for metric in HEADLINE:
-        table.add_column(metric, justify="right")
+        table.add_column(f"{metric.name}\n{escape(metric.unit)}", justify="right")
     rows = ([(m, p, v) for p, by_method in summary["points"].items() for m, v in by_method.items()] if swept
             else [(m, None, v) for m, v in summary["methods"].items()])
     for method, point, values in rows:
         labels = (escape(method), escape(point)) if swept else (escape(method),)
-        table.add_row(*labels, *(_number(values.get(metric)) for metric in HEADLINE))
+        table.add_row(*labels, *(_shown(values.get(metric.name), metric.scale) for metric in HEADLINE))
     return table
 
 
