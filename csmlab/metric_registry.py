@@ -130,7 +130,7 @@ METRICS: dict[str, Metric] = {m.name: m for m in (
     Metric("rho_median", "median ρ", _RHO, "one", (1e-6, 0.005), cascades="tail", headline=True,
            plots=("frames", "sweep")),
     Metric("rho_p05", "ρ, 5th percentile", _RHO, "higher", (1e-6, 0.005), cascades="tail"),
-    Metric("rho_p95", "ρ, 95th percentile", _RHO, "either", cascades="tail"),
+    Metric("rho_p95", "ρ, 95th percentile", _RHO, "one", (1e-6, 0.005), cascades="tail"),
     Metric("rho_frac_lt1", "ρ < 1", _PIXELS, "lower", (1e-3, 0.02), cascades="tail", scale=100.0, headline=True),
     Metric("rho_frac_lt05", "ρ < 0.5", _PIXELS, "lower", (1e-3, 0.02), cascades="tail", scale=100.0),
     Metric("sigma_min_p05", "σ_min, 5th percentile", _RHO, "higher", (1e-6, 0.005)),

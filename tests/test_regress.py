@@ -54,6 +54,12 @@ def test_median_rho_may_not_move_away_from_one_and_memory_may_not_grow():
     assert across[("none", "rho_median", "one")] == "better"
 
 
+def test_rho_p95_is_judged_by_its_distance_from_one():
+    got = verdicts({"none": {"rho_p95": 3.5}, "exact": {"rho_p95": 1.5}},
+                   {"none": {"rho_p95": 3.0}, "exact": {"rho_p95": 2.0}})
+    assert got[("none", "rho_p95", "one")] == "regression" and got[("exact", "rho_p95", "one")] == "better"
+
+
 def test_closest_to_one_tolerance_is_a_relative_step_on_either_side():
     allowed = TOLERANCES["rho_median"].allowed(0.5)
     assert verdicts({"none": {"rho_median": 0.5 - 0.9 * allowed}}, {"none": {"rho_median": 0.5}})[

@@ -79,4 +79,5 @@ def test_full_table_marks_every_column_the_way_the_registry_says(tmp_path):
     assert marks["b"]["rho_median"] and not marks["a"]["rho_median"]
     assert marks["b"]["rho_median_c1"] and not marks["a"]["rho_median_c1"]
     assert marks["a"]["ssim"] and marks["b"]["flicker"]
+    assert marks["a"]["rho_p95"] and not marks["b"]["rho_p95"]     # 7 is closer to 1 than 9
     assert not any(marks[m]["unknown_column"] for m in "ab")
