@@ -104,7 +104,7 @@ def run(
 
     try:
         loaded = load_experiment(find_experiment(experiment), frames=frames)
-        method, workers, address = executor_for(jobs=jobs, scheduler=scheduler)
+        executor, workers, address = executor_for(jobs=jobs, scheduler=scheduler)
     except ValueError as exc:
         raise _bad_input(exc) from None
     out_dir = out if out is not None else Path("reports") / loaded.name
@@ -120,7 +120,7 @@ def run(
         bar.update(tasks[0], completed=done, total=total)
 
     try:
-        result = run_experiment(loaded, out_dir=out_dir, jobs=workers, method=method, address=address, device=device,
+        result = run_experiment(loaded, out_dir=out_dir, jobs=workers, executor=executor, address=address, device=device,
                                 resume=resume, progress=progress)
     except InputError as exc:
         raise _bad_input(exc) from None
@@ -136,7 +136,8 @@ def run(
     console = _out()
     console.print(_summary_table(result.summary))
     resumed = f", {result.chunks_resumed} chunk(s) resumed" if result.chunks_resumed else ""
-    where = f"dask at {address}" if method == "dask" and address != "local" else f"{method}, {workers} process(es)"
+    where = (f"dask at {address}" if executor == "dask" and address != "local"
+             else f"{executor}, {workers} process(es)")
     console.print(f"{result.frames} frames × {len(loaded.variants())} method/point(s) in {result.seconds:.1f} s "
                   f"({where}, {device}{resumed}); report in {report_seconds:.1f} s")
     console.print(f"results: {out_dir}/metrics.csv, {out_dir}/summary.json")
@@ -307,7 +308,7 @@ def tune(
     title = "Pareto front" if len(result.objectives) > 1 else "best trial"
     table = Table(title=f"{loaded.name}: {result.method}, {title} of {len(result.trials)} trial(s)")
     fields = list(space)
-    for name in ["trial", *fields, *(f"{m} ({d[:3]})" for m, d in result.objectives)]:
+    for name in ["trial", *fields, *(f"{m} ({d} is better)" for m, d in result.objectives)]:
         table.add_column(name, justify="right")
     for trial in result.best:
         table.add_row(str(trial.number), *(f"{trial.params[f]:.4g}" if isinstance(trial.params[f], float)

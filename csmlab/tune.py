@@ -167,7 +167,7 @@ def tune(experiment: Experiment, *, space: dict, objectives, trials: int, out_di
         variant = dataclasses.replace(experiment, methods=(Method(chosen, {**base.overrides, **params}, settings),),
                                       sweep=())
         summary = run_experiment(variant, out_dir=out_dir / "trials" / f"{trial.number:03d}", jobs=jobs,
-                                 method=executor).summary["methods"][chosen]
+                                 executor=executor).summary["methods"][chosen]
         values = {metric: _finite(summary[metric]) for metric, _ in goals}
         trial.set_user_attr("params", params)
         trial.set_user_attr("values", values)
