@@ -117,9 +117,25 @@ def test_scene_fit_captures_every_caster_in_the_box_depth_range():
             assert np.all(light[inside, 2] >= c.depth_near) and np.all(light[inside, 2] <= c.depth_far)
 
 
-def test_scene_fit_cascades_all_start_at_the_near_plane():
-    s = _cascades(_random_poses(6, 1)[0], fit="scene")
-    assert all(c.slice_near == 0.1 for c in s.cascades)
+def _covers_from_the_camera_near_plane(pose, s, c: int) -> bool:
+    """Cascade c's box holds the whole view frustum from the camera's near plane to its split's far end."""
+    corners = frustum_slice_corners(position=pose.position, orientation=pose.orientation, fov_y_deg=pose.fov_y_deg,
+                                    aspect=pose.aspect, z_near=pose.near, z_far=s.splits[c + 1]) @ s.basis.T
+    box = s.cascades[c]
+    return bool(np.all(corners[:, :2] >= box.box_min - 1e-9) and np.all(corners[:, :2] <= box.box_max + 1e-9))
+
+
+@pytest.mark.parametrize("fit, stabilization", [("scene", "none"), ("scene", "exact"), ("scene", "quantized"),
+                                                ("cascade", "none")])
+def test_only_scene_fit_boxes_hold_the_frustum_from_the_camera_near_plane(fit, stabilization):
+    # The oracle is the camera's frustum from its own near plane, not the slice the fit reports. A
+    # tight "cascade" fit box covers only its own slice and must miss that somewhere among the poses
+    # (exact's bounding sphere is wide enough to cover it by accident, so it proves nothing here).
+    covered = [_covers_from_the_camera_near_plane(pose, s, c)
+               for pose in _random_poses(6, 10)
+               for s in [_cascades(pose, fit=fit, stabilization=stabilization)]
+               for c in range(len(s.cascades))]
+    assert all(covered) == (fit == "scene")
 
 
 @pytest.mark.parametrize("direction", [(0, -1, 0), (0.0, -0.2, -1.0)])
