@@ -31,6 +31,7 @@ from csmlab.cascades import build_cascades
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import rotation_looking_at
 from csmlab.light import direction_from_angles
+from csmlab.metric_registry import metric_columns
 from csmlab.report import write_report
 from csmlab.report.capture import capture_frame, default_snapshot_frames, write_captures
 from csmlab.settings import ShadowSettings
@@ -93,9 +94,7 @@ def synthesize_results(out: Path, *, frames: int, methods: tuple[str, ...], widt
                        resolution: int) -> dict:
     """Write a results directory of the given size; return seconds spent in capture_frame and write_captures."""
     snapshots = set(default_snapshot_frames(frames))
-    columns = ["rho_median", "rho_p05", "rho_p95", "rho_frac_lt1", "utilization", "flicker", "flicker_same",
-               "flicker_changed", "flip_rate", "de2000_mean", "ssim", "flip", "ref_false_shadow", "ref_false_light",
-               "memory_bytes"]
+    columns = metric_columns(cascades)
     rng = np.random.default_rng(0)
     rows, timings, captures = [], [], {m: [] for m in methods}
     capture_seconds = {"frame": 0.0, "snapshot": 0.0}

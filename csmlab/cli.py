@@ -32,9 +32,6 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
-HEADLINE = ("rho_median", "rho_frac_lt1", "flicker_same", "flicker", "flip_rate", "de2000_mean", "ref_false_shadow",
-            "memory_bytes")
-"""Metrics in the table ``csmlab run`` prints at the end."""
 
 
 def _out() -> Console:
@@ -56,28 +53,32 @@ def _bad_input(error: ValueError) -> typer.Exit:
 
 
 def _number(value) -> str:
-    if value is None:
-        return "—"
-    value = float(value)
-    if value.is_integer() and abs(value) >= 1000:
-        return f"{int(value):,}"
-    return f"{value:.4g}"
+    from csmlab.metric_registry import format_number
+
+    return format_number(value)
+
+
+def _shown(value, scale: float) -> str:
+    return _number(None if value is None else float(value) * scale)
 
 
 def _summary_table(summary: dict) -> Table:
-    """Method × headline metrics; one row per method and sweep point when the experiment sweeps."""
+    """Method × the registry's headline metrics (name over unit); a row per method and sweep point when the
+    experiment sweeps."""
+    from csmlab.metric_registry import HEADLINE
+
     table = Table(title=escape(f"{summary['name']}: mean over {summary['frames']} frames"), title_justify="left")
     table.add_column("method")
     swept = list(summary["points"]) != ["base"]
     if swept:
         table.add_column("point")
     for metric in HEADLINE:
-        table.add_column(metric, justify="right")
+        table.add_column(f"{metric.name}\n{escape(metric.unit)}", justify="right")
     rows = ([(m, p, v) for p, by_method in summary["points"].items() for m, v in by_method.items()] if swept
             else [(m, None, v) for m, v in summary["methods"].items()])
     for method, point, values in rows:
         labels = (escape(method), escape(point)) if swept else (escape(method),)
-        table.add_row(*labels, *(_number(values.get(metric)) for metric in HEADLINE))
+        table.add_row(*labels, *(_shown(values.get(metric.name), metric.scale) for metric in HEADLINE))
     return table
 
 
@@ -104,7 +105,7 @@ def run(
 
     try:
         loaded = load_experiment(find_experiment(experiment), frames=frames)
-        method, workers, address = executor_for(jobs=jobs, scheduler=scheduler)
+        executor, workers, address = executor_for(jobs=jobs, scheduler=scheduler)
     except ValueError as exc:
         raise _bad_input(exc) from None
     out_dir = out if out is not None else Path("reports") / loaded.name
@@ -120,7 +121,7 @@ def run(
         bar.update(tasks[0], completed=done, total=total)
 
     try:
-        result = run_experiment(loaded, out_dir=out_dir, jobs=workers, method=method, address=address, device=device,
+        result = run_experiment(loaded, out_dir=out_dir, jobs=workers, executor=executor, address=address, device=device,
                                 resume=resume, progress=progress)
     except InputError as exc:
         raise _bad_input(exc) from None
@@ -138,7 +139,8 @@ def run(
     for line in timing_lines(result.summary.get("recording")):
         console.print(line)
     resumed = f", {result.chunks_resumed} chunk(s) resumed" if result.chunks_resumed else ""
-    where = f"dask at {address}" if method == "dask" and address != "local" else f"{method}, {workers} process(es)"
+    where = (f"dask at {address}" if executor == "dask" and address != "local"
+             else f"{executor}, {workers} process(es)")
     console.print(f"{result.frames} frames × {len(loaded.variants())} method/point(s) in {result.seconds:.1f} s "
                   f"({where}, {device}{resumed}); report in {report_seconds:.1f} s")
     console.print(f"results: {out_dir}/metrics.csv, {out_dir}/summary.json")
@@ -336,7 +338,7 @@ def tune(
     title = "Pareto front" if len(result.objectives) > 1 else "best trial"
     table = Table(title=f"{loaded.name}: {result.method}, {title} of {len(result.trials)} trial(s)")
     fields = list(space)
-    for name in ["trial", *fields, *(f"{m} ({d[:3]})" for m, d in result.objectives)]:
+    for name in ["trial", *fields, *(f"{m} ({d} is better)" for m, d in result.objectives)]:
         table.add_column(name, justify="right")
     for trial in result.best:
         table.add_row(str(trial.number), *(f"{trial.params[f]:.4g}" if isinstance(trial.params[f], float)

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from csmlab.errors import InputError
-from csmlab.regress import DIRECTIONS, tolerance_for
+from csmlab.regress import tolerance_for, worse
 from csmlab.results import read_summary
 
 __all__ = ["Comparison", "MetricDelta", "compare_runs", "flatten", "metric_direction", "workload_differences"]
@@ -30,7 +30,7 @@ _PER_CASCADE = re.compile(r"_c\d+$")
 
 
 def metric_direction(metric: str) -> str:
-    """``fall`` (lower is better), ``rise`` (higher is better) or ``either`` (no better side) of a metric.
+    """Which way a metric is better: a key of :data:`csmlab.metric_registry.BETTER`.
 
     The regression table's direction (:func:`csmlab.regress.tolerance_for`), so that compare and
     regress agree on what "better" means.
@@ -94,7 +94,7 @@ def _delta(metric: str, a, b) -> MetricDelta:
     elif direction == "either":
         verdict = "changed"
     else:
-        verdict = "worse" if DIRECTIONS[direction](a, b, 0.0) else "better"
+        verdict = "worse" if worse(direction, a, b, 0.0) else "better"
     return MetricDelta(metric, a, b, delta, direction, verdict, beyond)
 
 

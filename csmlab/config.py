@@ -833,15 +833,14 @@ def _sweep(table, methods: tuple[Method, ...], located: _Located) -> tuple[tuple
 
 
 def _regress(table, located: _Located) -> dict:
-    from csmlab.metrics import metric_columns
+    from csmlab.metric_registry import METRICS, is_metric_column
 
     if not isinstance(table, dict):
         raise located.error("regress", f"expected a table of metric tolerances, got {table!r}")
-    known = metric_columns(8)
     out = {}
     for metric, tolerance in table.items():
-        if metric not in known:
-            raise _unknown("regress", metric, known, located)
+        if not is_metric_column(metric):
+            raise _unknown("regress", metric, METRICS, located)
         if not isinstance(tolerance, dict):
             raise located.error(f"regress.{metric}", f"expected {{ abs = …, rel = … }}, got {tolerance!r}")
         entry = {}

@@ -105,9 +105,9 @@ EXECUTORS: dict[str, Callable[..., Iterator]] = {
 """Executors by name: ``inprocess``, ``pool`` (``--jobs N``), ``dask`` (``--scheduler``)."""
 
 
-def execute(fn: Callable, tasks: Iterable, *, shared, method: str = "inprocess", jobs: int = 1,
+def execute(fn: Callable, tasks: Iterable, *, shared, executor: str = "inprocess", jobs: int = 1,
             address: str | None = None) -> Iterator:
-    """``(task, fn(shared, task))`` for every task, as they finish, on the executor named ``method``.
+    """``(task, fn(shared, task))`` for every task, as they finish, on the executor named ``executor``.
 
     Parameters
     ----------
@@ -117,20 +117,20 @@ def execute(fn: Callable, tasks: Iterable, *, shared, method: str = "inprocess",
         Picklable task descriptions.
     shared : object
         Picklable data every task needs, sent once per worker.
-    method : str
+    executor : str
         A key of :data:`EXECUTORS`.
     jobs : int
         Worker processes (pool, local Dask cluster).
     address : str, optional
         Dask: ``"local"`` or a scheduler address ``tcp://HOST:PORT``.
     """
-    if method not in EXECUTORS:
-        raise ValueError(f"executor: expected one of {sorted(EXECUTORS)}, got {method!r}")
-    return EXECUTORS[method](fn, list(tasks), shared=shared, jobs=jobs, address=address)
+    if executor not in EXECUTORS:
+        raise ValueError(f"executor: expected one of {sorted(EXECUTORS)}, got {executor!r}")
+    return EXECUTORS[executor](fn, list(tasks), shared=shared, jobs=jobs, address=address)
 
 
 def executor_for(*, jobs: int | None, scheduler: str | None) -> tuple[str, int, str | None]:
-    """``(method, jobs, address)`` for the command line's ``--jobs`` and ``--scheduler``.
+    """``(executor, jobs, address)`` for the command line's ``--jobs`` and ``--scheduler``.
 
     ``--scheduler`` picks Dask (a local cluster of ``--jobs`` workers, all cores when not given);
     otherwise the process pool with ``--jobs`` processes — all cores when not given, since Warp's

@@ -318,7 +318,7 @@ def _snapshot_frames(experiment: Experiment, frames: int) -> frozenset:
     return frozenset(f for f in chosen if f < frames)
 
 
-def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, method: str = "inprocess",
+def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, executor: str = "inprocess",
                    address: str | None = None, device: str = "cpu", resume: bool = False,
                    progress: Callable[[int, int], None] | None = None) -> RunResult:
     """Run every frame × method × sweep point of ``experiment`` and write its results files.
@@ -330,8 +330,8 @@ def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, method: st
         The results directory (created).
     jobs : int
         Worker processes of the pool or local Dask cluster.
-    method : str
-        Executor: a key of :data:`csmlab.executor.EXECUTORS`.
+    executor : str
+        Where the chunks run: a key of :data:`csmlab.executor.EXECUTORS`.
     address : str, optional
         Dask scheduler: ``"local"`` or ``tcp://HOST:PORT``.
     device : str
@@ -372,7 +372,7 @@ def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, method: st
     report_progress()
     job = Job(workload=workload, variants=variants, snapshot_frames=_snapshot_frames(experiment, frames),
               device=device)
-    for chunk, result in execute(run_chunk, todo, shared=job, method=method, jobs=jobs, address=address):
+    for chunk, result in execute(run_chunk, todo, shared=job, executor=executor, jobs=jobs, address=address):
         results.save_chunk(out, result, run_key=chunk_key)
         done[chunk] = result
         report_progress()

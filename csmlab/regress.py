@@ -5,34 +5,23 @@ A baseline is a summary taken deliberately (``csmlab baseline DIR --out FILE``).
 baseline of another workload is an input error, never a silent pass. Changed shadow settings and
 changed code are exactly what the gate judges.
 
-Each metric has a direction and a tolerance. A change is a regression when it goes the wrong way
-by more than ``max(abs, rel · |baseline|)``:
+Each metric has a direction and a tolerance, declared once in :data:`csmlab.metric_registry.METRICS`
+(``better`` and ``tolerance``; per-cascade columns such as ``utilization_c2`` take their metric's).
+A change is a regression when it goes the wrong way by more than ``allowed = max(abs, rel · |baseline|)``:
 
-=====================================================  ==========  ========  ======
-metrics                                                 may         abs       rel
-=====================================================  ==========  ========  ======
-flicker, flicker_same, flicker_changed                  fall        1e-6      0.05
-flip_rate, flip_same, flip_changed                      fall        1e-6      0.05
-de2000_mean, de2000_p99                                 fall        1e-3      0.05
-de2000_frac_jnd, flip                                   fall        1e-5      0.05
-ref_false_shadow, ref_false_light                       fall        1e-4      0.05
-ref_boundary_px                                         fall        1e-3      0.10
-rho_frac_lt1, rho_frac_lt05 (and per cascade)           fall        1e-3      0.02
-ssim                                                    rise        1e-4      0.01
-rho_median, rho_p05, sigma_min_p05 (and per cascade)    rise        1e-6      0.005
-utilization (and per cascade)                           rise        1e-4      0.01
-memory_bytes                                            fall        0         0
-texels_rasterized                                       fall        0         0.10
-rho_p95 (and per cascade)                               either      —         —
-=====================================================  ==========  ========  ======
+- ``lower`` is better (flicker, errors, memory): a rise beyond ``allowed`` regresses;
+- ``higher`` is better (utilization, SSIM, ρ's 5th percentile): a fall beyond ``allowed`` regresses;
+- ``one``, closest to 1 is better (median ρ, texels per pixel): a move away from 1 regresses when
+  ``|ln now| − |ln baseline| > ln(1 + allowed / |baseline|)``, i.e. when ``now`` is farther from 1
+  than ``baseline`` by more than the factor ``allowed`` permits (on either side of 1: a median ρ of
+  0.9 falling to 0.8 or rising to 1.25 moves away from 1:1 about equally);
+- ``either``: shown, not judged.
 
-"fall" means lower is better (it may fall, not rise), "rise" the opposite, "either" is shown but
-not judged. Every metric is deterministic (same inputs, same bits), so tolerances only leave room for
+Every metric is deterministic (same inputs, same bits), so tolerances only leave room for
 code changes that move numbers by rounding. Aliasing and utilization follow the box sizes smoothly
 and get tight tolerances: a quantized method whose levels drop from 64 to 4 loses about 2 % of its
-texels per pixel (measured on the gate), and the gate must see it. ``utilization_c2`` and ``rho_median_c2`` take the
-row of ``utilization`` and ``rho_median``. An experiment's ``[regress]`` table and
-``--tolerances FILE`` override ``abs`` and ``rel`` per metric, in that order.
+texels per pixel (measured on the gate), and the gate must see it. An experiment's ``[regress]``
+table and ``--tolerances FILE`` override ``abs`` and ``rel`` per metric, in that order.
 
 Two more rules make a verdict:
 
@@ -47,18 +36,17 @@ sweep, at every sweep point (``summary["points"]``).
 from __future__ import annotations
 
 import math
-import re
-from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import csmlab
 from csmlab.config import LightConfig, sweep_points
 from csmlab.errors import InputError
+from csmlab.metric_registry import BETTER, METRICS, metric_of
 from csmlab.results import json_text, read_json, read_summary, write_atomic
 
-__all__ = ["DIRECTIONS", "TOLERANCES", "Check", "RegressResult", "Tolerance", "compare", "make_baseline",
-           "read_baseline", "regress", "tolerance_for", "write_baseline"]
+__all__ = ["TOLERANCES", "Check", "RegressResult", "Tolerance", "compare", "make_baseline", "read_baseline", "regress",
+           "tolerance_for", "worse", "write_baseline"]
 
 
 @dataclass(frozen=True)
@@ -66,7 +54,7 @@ class Tolerance:
     """How far a metric may move the wrong way: ``max(abs, rel · |baseline|)`` in its own units."""
 
     direction: str
-    """A key of :data:`DIRECTIONS`."""
+    """A key of :data:`csmlab.metric_registry.BETTER`: ``lower``, ``higher``, ``one`` (closest to 1) or ``either``."""
     abs: float = 0.0
     """Allowed change in the metric's units."""
     rel: float = 0.0
@@ -77,58 +65,34 @@ class Tolerance:
         return max(self.abs, self.rel * abs(baseline))
 
 
-def _worse_if_higher(baseline: float, now: float, allowed: float) -> bool:
-    return now > baseline + allowed
+def worse(direction: str, baseline: float, now: float, allowed: float) -> bool:
+    """Is ``now`` worse than ``baseline`` by more than ``allowed`` (in the metric's units)?
+
+    Worse is a higher score (:data:`csmlab.metric_registry.BETTER`: the value, its negative, or
+    ``|ln value|``); for ``one`` the allowed change becomes the factor ``ln(1 + allowed / baseline)``
+    on that log scale. ``either`` is never worse.
+    """
+    score = BETTER[direction]
+    if score is None:
+        return False
+    margin = math.log1p(allowed / baseline) if direction == "one" and baseline > 0 else allowed
+    return score(now) - score(baseline) > margin
 
 
-def _worse_if_lower(baseline: float, now: float, allowed: float) -> bool:
-    return now < baseline - allowed
-
-
-def _never_worse(baseline: float, now: float, allowed: float) -> bool:
-    return False
-
-
-DIRECTIONS: dict[str, Callable[[float, float, float], bool]] = {
-    "fall": _worse_if_higher,
-    "rise": _worse_if_lower,
-    "either": _never_worse,
-}
-"""Directions by name: is ``now`` worse than ``baseline`` by more than ``allowed``?"""
-
-_LOWER_IS_BETTER = {
-    **dict.fromkeys(("flicker", "flicker_same", "flicker_changed", "flip_rate", "flip_same", "flip_changed"),
-                    (1e-6, 0.05)),
-    **dict.fromkeys(("de2000_mean", "de2000_p99"), (1e-3, 0.05)),
-    **dict.fromkeys(("de2000_frac_jnd", "flip"), (1e-5, 0.05)),
-    **dict.fromkeys(("ref_false_shadow", "ref_false_light"), (1e-4, 0.05)),
-    "ref_boundary_px": (1e-3, 0.10),
-    **dict.fromkeys(("rho_frac_lt1", "rho_frac_lt05"), (1e-3, 0.02)),
-    "memory_bytes": (0.0, 0.0),
-    "texels_rasterized": (0.0, 0.10),
-}
-_HIGHER_IS_BETTER = {
-    "ssim": (1e-4, 0.01),
-    **dict.fromkeys(("rho_median", "rho_p05", "sigma_min_p05"), (1e-6, 0.005)),
-    "utilization": (1e-4, 0.01),
-}
-TOLERANCES: dict[str, Tolerance] = {
-    **{m: Tolerance("fall", a, r) for m, (a, r) in _LOWER_IS_BETTER.items()},
-    **{m: Tolerance("rise", a, r) for m, (a, r) in _HIGHER_IS_BETTER.items()},
-    "rho_p95": Tolerance("either"),
-}
-"""Default direction and tolerance of each metric (the table in the module docstring)."""
+TOLERANCES: dict[str, Tolerance] = {m.name: Tolerance(m.better, *m.tolerance) for m in METRICS.values()}
+"""Default direction and tolerance of each metric, from :data:`csmlab.metric_registry.METRICS`."""
 
 _FAILING = ("regression", "missing", "invariant broken")
 _INVARIANT_METRIC = "flicker_same"
 
 
 def tolerance_for(metric: str, overrides: dict | None = None) -> Tolerance:
-    """The tolerance of ``metric``: its row of :data:`TOLERANCES` (per-cascade columns take their
-    metric's row), with ``overrides[metric]`` (``{"abs": …, "rel": …}``) applied; unknown metrics are
+    """The tolerance of ``metric``: its entry of :data:`TOLERANCES` (per-cascade columns take their
+    metric's), with ``overrides[metric]`` (``{"abs": …, "rel": …}``) applied; unknown metrics are
     shown, not judged."""
-    base_name = re.sub(r"_c\d+$", "", metric)
-    tolerance = TOLERANCES.get(metric) or TOLERANCES.get(base_name) or Tolerance("either")
+    declared = metric_of(metric)
+    tolerance = TOLERANCES[declared.name] if declared is not None else Tolerance("either")
+    base_name = metric if declared is None else declared.name
     override = (overrides or {}).get(metric) or (overrides or {}).get(base_name) or {}
     return Tolerance(tolerance.direction, float(override.get("abs", tolerance.abs)),
                      float(override.get("rel", tolerance.rel)))
@@ -172,9 +136,9 @@ def _judge(metric: str, baseline, now, tolerance: Tolerance) -> tuple[float | No
     delta, allowed = now - baseline, tolerance.allowed(baseline)
     if tolerance.direction == "either":
         return delta, None, "shown"
-    if DIRECTIONS[tolerance.direction](baseline, now, allowed):
+    if worse(tolerance.direction, baseline, now, allowed):
         return delta, allowed, "regression"
-    better = DIRECTIONS[tolerance.direction](now, baseline, 0.0)
+    better = worse(tolerance.direction, now, baseline, 0.0)
     return delta, allowed, "better" if better else "ok"
 
 

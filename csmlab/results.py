@@ -15,7 +15,7 @@ Files in a results directory (DESIGN.md, "Interfaces"):
     method and point.
 ``summary.json``
     ``name, config_hash, workload_hash, csmlab_version, environment, frames, config, methods, points``:
-    ``methods[M][metric]`` is the NaN-aware mean over M's rows (frames and sweep points),
+    ``methods[M][metric]`` is the mean of M's rows' finite values (frames and sweep points),
     ``points[P][M][metric]`` the mean over frames at sweep point P; each with ``frames``. A metric with
     no value in any frame is ``null``. A recorded camera path adds ``recording``
     (:meth:`csmlab.paths.timing.TimingReport.as_dict`: repeated time stamps and tracking gaps, how
@@ -35,7 +35,6 @@ import csv
 import io
 import json
 import math
-import os
 import pickle
 import platform
 import shutil
@@ -45,6 +44,8 @@ import numpy as np
 
 import csmlab
 from csmlab.errors import InputError
+from csmlab.files import write_atomic
+from csmlab.metric_registry import finite_mean
 
 __all__ = [
     "FINAL_FILES",
@@ -71,21 +72,6 @@ TIMING_COLUMNS = ("frame", "method", "point", "stage", "seconds")
 FINAL_FILES = ("summary.json", "metrics.csv", "timings.csv", "regress.json", "index.html")
 """Files a finished run leaves (or the report adds); removed when a new run starts in the directory."""
 _CHUNKS = ".chunks"
-
-
-def write_atomic(path, data: str | bytes) -> Path:
-    """Write ``data`` to ``path`` through a temporary file in the same folder and ``os.replace``."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    if isinstance(data, str):
-        data = data.encode("utf-8")
-    with open(tmp, "wb") as f:
-        f.write(data)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
-    return path
 
 
 def format_value(value) -> str:
@@ -147,15 +133,13 @@ def read_metrics(path) -> tuple[list[str], list[dict]]:
         return list(reader.fieldnames or []), list(reader)
 
 
-def _mean(values) -> float | None:
-    array = np.asarray([np.nan if v is None else v for v in values], dtype=np.float64)
-    finite = array[~np.isnan(array)]
-    return float(finite.mean()) if finite.size else None
+def _value(mean: float) -> float | None:
+    return None if math.isnan(mean) else mean
 
 
 def _aggregate(rows, columns) -> dict:
     frames = sorted({r[0] for r in rows})
-    out = {c: _mean([r[4].get(c) for r in rows]) for c in columns}
+    out = {c: _value(finite_mean([r[4].get(c) for r in rows])) for c in columns}
     out["frames"] = len(frames)
     return out
 
@@ -174,7 +158,7 @@ def summarize(rows, *, columns, methods, points) -> tuple[dict, dict]:
     Returns
     -------
     methods : dict
-        ``{method: {metric: NaN-aware mean over its rows or None, …, "frames": N}}``.
+        ``{method: {metric: mean of its rows' finite values (None when none), …, "frames": N}}``.
     points : dict
         ``{point: {method: {…}}}``.
     """

@@ -1,12 +1,14 @@
 """Tuning: search one method's shadow settings for the best measured trade-off, with Optuna.
 
 Each trial runs the experiment with the chosen method alone, its ``[shadow]`` fields set from the
-search space, and reads the objectives from the run's summary (means over frames). An objective's
-direction comes from the regression table (:data:`csmlab.regress.TOLERANCES`): flicker and
-error fall, median ρ and SSIM rise. One objective uses the TPE sampler and reports the best trial;
-several use NSGA-II and report the Pareto front — e.g. flicker against median ρ against memory,
-the trade-off an engine team actually faces. Seeded samplers and deterministic runs make a tuning
-run repeatable.
+search space, and reads the objectives from the run's summary (means over frames). Which way an
+objective is better comes from the metric registry (:data:`csmlab.metric_registry.METRICS`):
+flicker and error lower, SSIM higher, median ρ closest to 1. Optuna minimises each objective's
+score (:meth:`csmlab.metric_registry.Metric.score`: the value, its negative, or ``|ln ρ|``, so that
+ρ = 0.5 and ρ = 2 are equally far from the 1:1 ideal); the trials keep the measured values. One
+objective uses the TPE sampler and reports the best trial; several use NSGA-II and report the
+Pareto front — e.g. flicker against median ρ against memory, the trade-off an engine team actually
+faces. Seeded samplers and deterministic runs make a tuning run repeatable.
 
 References
 ----------
@@ -24,14 +26,11 @@ from pathlib import Path
 from csmlab.config import Experiment, Method
 from csmlab.errors import InputError
 from csmlab.experiment import run_experiment
-from csmlab.regress import tolerance_for
+from csmlab.metric_registry import METRICS
 from csmlab.results import write_atomic
 from csmlab.settings import ShadowSettings
 
 __all__ = ["Trial", "TuneResult", "objective_direction", "parse_space", "tune"]
-
-_OPTUNA_DIRECTIONS = {"fall": "minimize", "rise": "maximize"}
-
 
 @dataclass(frozen=True)
 class Trial:
@@ -51,7 +50,7 @@ class TuneResult:
     method : str
         The method whose settings were searched.
     objectives : tuple of (str, str)
-        Metric name and ``minimize`` / ``maximize``.
+        Metric name and which way it is better: ``lower``, ``higher`` or ``one`` (closest to 1).
     trials : tuple of Trial
         Every completed trial, in order.
     best : tuple of Trial
@@ -65,18 +64,19 @@ class TuneResult:
 
 
 def objective_direction(metric: str) -> str:
-    """``minimize`` or ``maximize`` for a metrics.csv column, from the regression table.
+    """Which way a metrics.csv column is better (``lower``, ``higher`` or ``one``), from the registry.
 
     Raises
     ------
     InputError
-        For a metric with no better direction (``rho_p95``) or an unknown one.
+        For a metric with no better direction or an unknown one; the message lists the valid ones.
     """
-    direction = tolerance_for(metric).direction
-    if direction not in _OPTUNA_DIRECTIONS:
-        raise InputError(f"expected a metric that is better lower or higher (flicker, rho_median, memory_bytes, …), "
-                         f"got {metric!r}", field="--objective")
-    return _OPTUNA_DIRECTIONS[direction]
+    declared = METRICS.get(metric)
+    if declared is None or declared.better == "either":
+        valid = ", ".join(m.name for m in METRICS.values() if m.better != "either")
+        raise InputError(f"expected a metric that is better lower, higher or closest to 1 ({valid}), got {metric!r}",
+                         field="--objective")
+    return declared.better
 
 
 def parse_space(specs, *, settings: ShadowSettings) -> dict[str, tuple]:
@@ -134,7 +134,7 @@ def tune(experiment: Experiment, *, space: dict, objectives, trials: int, out_di
     space : dict
         From :func:`parse_space`.
     objectives : sequence of str
-        metrics.csv columns (means over frames), each minimized or maximized by its direction.
+        metrics.csv columns (means over frames), each improved the way :func:`objective_direction` says.
     trials : int
         Runs of the experiment.
     out_dir : path
@@ -167,16 +167,19 @@ def tune(experiment: Experiment, *, space: dict, objectives, trials: int, out_di
         variant = dataclasses.replace(experiment, methods=(Method(chosen, {**base.overrides, **params}, settings),),
                                       sweep=())
         summary = run_experiment(variant, out_dir=out_dir / "trials" / f"{trial.number:03d}", jobs=jobs,
-                                 method=executor).summary["methods"][chosen]
+                                 executor=executor).summary["methods"][chosen]
+        values = {metric: _finite(summary[metric]) for metric, _ in goals}
         trial.set_user_attr("params", params)
-        return tuple(float(summary[metric]) for metric, _ in goals)
+        trial.set_user_attr("values", values)
+        return tuple(math.nan if values[metric] is None else METRICS[metric].score(values[metric])
+                     for metric, _ in goals)
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     sampler = (optuna.samplers.TPESampler(seed=seed) if len(goals) == 1
                else optuna.samplers.NSGAIISampler(seed=seed))
-    study = optuna.create_study(directions=[d for _, d in goals], sampler=sampler)
+    study = optuna.create_study(directions=["minimize"] * len(goals), sampler=sampler)
     study.optimize(run_trial, n_trials=trials, catch=())
-    done = tuple(_trial_record(t, goals) for t in study.trials if t.state == optuna.trial.TrialState.COMPLETE)
+    done = tuple(_trial_record(t) for t in study.trials if t.state == optuna.trial.TrialState.COMPLETE)
     best_numbers = sorted(t.number for t in study.best_trials)
     result = TuneResult(method=chosen, objectives=goals, trials=done,
                         best=tuple(t for t in done if t.number in best_numbers))
@@ -193,9 +196,12 @@ def _suggest(trial, field: str, spec: tuple):
     return trial.suggest_float(field, lo, hi)
 
 
-def _trial_record(trial, goals) -> Trial:
-    values = {metric: (None if math.isnan(v) else v) for (metric, _), v in zip(goals, trial.values)}
-    return Trial(number=trial.number, params=dict(trial.user_attrs["params"]), values=values)
+def _finite(value) -> float | None:
+    return None if value is None or not math.isfinite(float(value)) else float(value)
+
+
+def _trial_record(trial) -> Trial:
+    return Trial(number=trial.number, params=dict(trial.user_attrs["params"]), values=dict(trial.user_attrs["values"]))
 
 
 def _document(result: TuneResult, space: dict, seed: int) -> dict:

@@ -29,18 +29,14 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from csmlab.errors import InputError
+from csmlab.metric_registry import BETTER, BETTER_TEXT
 from csmlab.regress import Check, RegressResult
 from csmlab.results import read_metrics, read_summary, write_atomic
 
 __all__ = ["DIRECTION_TEXT", "junit_xml", "markdown_summary", "worst_frames", "write_junit", "write_markdown"]
 
-DIRECTION_TEXT = {
-    "fall": "lower is better",
-    "rise": "higher is better",
-    "either": "not judged",
-    "zero": "must stay exactly 0",
-}
-"""How each :data:`csmlab.regress.DIRECTIONS` name (and the invariant's ``zero``) reads in a verdict."""
+DIRECTION_TEXT = {**BETTER_TEXT, "either": "not judged", "zero": "must stay exactly 0"}
+"""How each :data:`csmlab.metric_registry.BETTER` name (and the invariant's ``zero``) reads in a verdict."""
 _SKIPPED = {"n/a": "no value in the baseline or now", "shown": "shown, not judged (no better direction)",
             "new": "no baseline value to compare with"}
 _MOVED_ROWS = 8
@@ -86,8 +82,9 @@ def worst_frames(results_dir, checks, *, count: int = _WORST) -> dict[tuple[str,
     Returns
     -------
     dict
-        ``(method, point, metric)`` → ``[(frame label, value), …]``, worst first: highest values of a
-        ``fall`` metric or of the invariant, lowest of a ``rise`` metric; none for ``either``. A
+        ``(method, point, metric)`` → ``[(frame label, value), …]``, worst first: by the registry's score
+        (:data:`csmlab.metric_registry.BETTER`): highest of a ``lower`` metric or of the invariant,
+        lowest of a ``higher`` one, farthest from 1 of a ``one`` one; none for ``either``. A
         frame label is the frame number, followed by ``@point`` when a method aggregate (point
         ``*``) spans several sweep points.
     """
@@ -99,13 +96,14 @@ def worst_frames(results_dir, checks, *, count: int = _WORST) -> dict[tuple[str,
     out = {}
     for check in checks:
         key = (check.method, check.point, check.metric)
-        if check.metric not in header or check.direction not in ("fall", "rise", "zero") or key in out:
+        if check.metric not in header or BETTER.get(check.direction, max) is None or key in out:
             continue
         values = [(r["frame"] if len(points) == 1 or check.point != "*" else f"{r['frame']}@{r['point']}",
                    float(r[check.metric]))
                   for r in rows if r["method"] == check.method and check.point in ("*", r["point"])
                   and r[check.metric] != ""]
-        values.sort(key=lambda fv: fv[1], reverse=check.direction != "rise")
+        score = BETTER.get(check.direction, float)
+        values.sort(key=lambda fv: score(fv[1]), reverse=True)
         if check.direction == "zero":
             values = [fv for fv in values if fv[1] != 0.0]
         out[key] = values[:count]

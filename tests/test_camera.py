@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from csmlab.camera import CameraPath, CameraPose
-from csmlab.geometry import rotation_looking_at
+from csmlab.geometry import quat_to_matrix, rotation_looking_at
 
 
 @pytest.mark.parametrize("kwargs, match", [
@@ -34,6 +34,19 @@ def test_resample_keeps_endpoints_and_is_monotone():
     assert len(r) == 11 and np.all(np.diff(r.times) > 0)
     np.testing.assert_allclose(r.positions[[0, -1]], path.positions[[0, -1]], atol=1e-12)
     np.testing.assert_allclose(np.abs(np.sum(r.orientations[-1] * q[-1])), 1.0, atol=1e-12)
+
+
+
+def test_resample_interpolates_positions_linearly_and_turns_at_a_constant_rate():
+    # Yaw 0 → 0.5 → 1 rad about +Y at t = 0, 0.5, 1 s: the forward at time t points at yaw t.
+    q = np.stack([rotation_looking_at((np.sin(a), 0, -np.cos(a))) for a in (0, 0.5, 1.0)])
+    path = CameraPath(times=[0.0, 0.5, 1.0], positions=[[0, 0, 0], [1, 0, 0], [1, 1, 0]], orientations=q, fov_y_deg=60)
+    r = path.resample(10)
+    np.testing.assert_allclose(r.times, np.arange(11) / 10, atol=1e-12)
+    expected = [[min(2 * t, 1.0), max(2 * t - 1.0, 0.0), 0.0] for t in r.times]
+    np.testing.assert_allclose(r.positions, expected, atol=1e-12)
+    forward = np.stack([quat_to_matrix(o) @ [0.0, 0.0, -1.0] for o in r.orientations])
+    np.testing.assert_allclose(forward, np.stack([np.sin(r.times), 0 * r.times, -np.cos(r.times)], axis=1), atol=1e-9)
 
 
 def test_view_depth_is_distance_along_the_view_axis():

@@ -117,9 +117,25 @@ def test_scene_fit_captures_every_caster_in_the_box_depth_range():
             assert np.all(light[inside, 2] >= c.depth_near) and np.all(light[inside, 2] <= c.depth_far)
 
 
-def test_scene_fit_cascades_all_start_at_the_near_plane():
-    s = _cascades(_random_poses(6, 1)[0], fit="scene")
-    assert all(c.slice_near == 0.1 for c in s.cascades)
+def _covers_from_the_camera_near_plane(pose, s, c: int) -> bool:
+    """Cascade c's box holds the whole view frustum from the camera's near plane to its split's far end."""
+    corners = frustum_slice_corners(position=pose.position, orientation=pose.orientation, fov_y_deg=pose.fov_y_deg,
+                                    aspect=pose.aspect, z_near=pose.near, z_far=s.splits[c + 1]) @ s.basis.T
+    box = s.cascades[c]
+    return bool(np.all(corners[:, :2] >= box.box_min - 1e-9) and np.all(corners[:, :2] <= box.box_max + 1e-9))
+
+
+@pytest.mark.parametrize("fit, stabilization", [("scene", "none"), ("scene", "exact"), ("scene", "quantized"),
+                                                ("cascade", "none")])
+def test_only_scene_fit_boxes_hold_the_frustum_from_the_camera_near_plane(fit, stabilization):
+    # The oracle is the camera's frustum from its own near plane, not the slice the fit reports. A
+    # tight "cascade" fit box covers only its own slice and must miss that somewhere among the poses
+    # (exact's bounding sphere is wide enough to cover it by accident, so it proves nothing here).
+    covered = [_covers_from_the_camera_near_plane(pose, s, c)
+               for pose in _random_poses(6, 10)
+               for s in [_cascades(pose, fit=fit, stabilization=stabilization)]
+               for c in range(len(s.cascades))]
+    assert all(covered) == (fit == "scene")
 
 
 @pytest.mark.parametrize("direction", [(0, -1, 0), (0.0, -0.2, -1.0)])
@@ -164,3 +180,34 @@ def _cascades_with(direction):
 def test_unknown_method_names_list_the_valid_ones(field, value):
     with pytest.raises(ValueError, match=field):
         _cascades(_random_poses(7, 1)[0], **{field: value})
+
+
+def test_quantized_frustum_base_rounds_the_tight_extent_up_to_steps_of_the_whole_frustum():
+    from csmlab.cascades.stabilize import SliceFootprint, stabilize_quantized
+
+    # Hand-worked: the frustum's box is 100 × 80 m, 10 levels → steps of 10 × 8 m; the slice's tight
+    # box is 21.7 × 16 m → rounded up to 30 × 16 m; 64 texels less 2 × 2 margin less 1 for the snap.
+    def footprint(radius):
+        return SliceFootprint(lo=np.array([3.2, -5.0]), hi=np.array([24.9, 11.0]), centre=np.zeros(2),
+                              radius=radius, frustum_extent=np.array([100.0, 80.0]))
+
+    texel, origin = stabilize_quantized(footprint(40.0), resolution=64, margin=2, levels=10, quantized_base="frustum")
+    np.testing.assert_allclose(texel, np.array([30.0, 16.0]) / 59, rtol=1e-15)
+    np.testing.assert_array_equal(origin, np.floor(np.array([3.2, -5.0]) / texel) - 2)
+    # The frustum base ignores the bounding sphere; the sphere base (80 m → steps of 8 m) does not.
+    again, _ = stabilize_quantized(footprint(55.0), resolution=64, margin=2, levels=10, quantized_base="frustum")
+    np.testing.assert_array_equal(again, texel)
+    sphere, _ = stabilize_quantized(footprint(40.0), resolution=64, margin=2, levels=10, quantized_base="sphere")
+    np.testing.assert_allclose(sphere, np.array([24.0, 16.0]) / 59, rtol=1e-15)
+
+
+def test_quantized_frustum_base_in_a_cascade_set_steps_by_the_frustum_box():
+    poses = _dolly_with_turn(60)
+    for pose in poses[::10]:
+        s = _cascades(pose, stabilization="quantized", quantized_base="frustum", levels=16)
+        frustum = frustum_slice_corners(position=pose.position, orientation=pose.orientation, fov_y_deg=pose.fov_y_deg,
+                                        aspect=pose.aspect, z_near=pose.near, z_far=s.splits[-1]) @ s.basis.T
+        step = (frustum[:, :2].max(axis=0) - frustum[:, :2].min(axis=0)) / 16
+        for c in s.cascades:
+            box_extent = c.texel_size * (c.resolution - 2 * s.margin_texels - 1)
+            np.testing.assert_allclose(box_extent / step, np.round(box_extent / step), atol=1e-9)

@@ -49,13 +49,13 @@ def inprocess(tmp_path_factory):
 
 
 def test_process_pool_gives_the_inprocess_csv(inprocess, tmp_path):
-    result = run(tmp_path, "pool", method="pool", jobs=2)
+    result = run(tmp_path, "pool", executor="pool", jobs=2)
     assert result.chunks_run == 3
     assert (tmp_path / "pool" / "metrics.csv").read_bytes() == inprocess.read_bytes()
 
 
 def test_dask_local_cluster_gives_the_inprocess_csv(inprocess, tmp_path):
-    run(tmp_path, "dask", method="dask", jobs=2, address="local")
+    run(tmp_path, "dask", executor="dask", jobs=2, address="local")
     assert (tmp_path / "dask" / "metrics.csv").read_bytes() == inprocess.read_bytes()
 
 
@@ -69,7 +69,7 @@ def test_inprocess_executor_hands_shared_data_to_every_task():
 
 def test_unknown_executor_lists_the_valid_ones():
     with pytest.raises(ValueError, match=str(sorted(EXECUTORS))):
-        list(execute(_add, [1], shared=0, method="threads"))
+        list(execute(_add, [1], shared=0, executor="threads"))
 
 
 def test_command_line_options_pick_the_executor():

@@ -8,7 +8,6 @@ import pytest
 from csmlab.camera import CameraPose
 from csmlab.geometry import light_basis, rotation_looking_at
 from csmlab.light import direction_from_angles
-from csmlab.metrics import METRIC_COLUMNS, metric_columns
 from csmlab.kernels.footprint import surface_differentials, texel_footprint
 from csmlab.metrics.aliasing import AliasingMaps, aliasing_maps, aliasing_summary, texel_axes, utilization
 from csmlab.paths import make_path
@@ -180,13 +179,3 @@ def test_utilization_of_exact_is_below_none_on_the_default_scene():
     for share in shares.values():
         assert np.all((share > 0.0) & (share <= 1.0))
     assert shares["exact"].mean() < shares["none"].mean()
-
-
-def test_metric_columns_keep_the_design_order_with_per_cascade_columns():
-    columns = metric_columns(2)
-    assert [c for c in columns if c in METRIC_COLUMNS] == list(METRIC_COLUMNS)
-    at = columns.index("utilization")
-    assert columns[at + 1:at + 3] == ("utilization_c0", "utilization_c1")
-    rho_keys = ("rho_median", "rho_p05", "rho_p95", "rho_frac_lt1", "rho_frac_lt05")
-    assert columns[columns.index("texels_rasterized") + 1:] == tuple(f"{k}_c{c}" for c in range(2) for k in rho_keys)
-    assert len(set(columns)) == len(columns)

@@ -7,11 +7,13 @@ seconds per run here).
 
 from __future__ import annotations
 
+import tomllib
 from pathlib import Path
 
 import pytest
 
-from csmlab.config import CONFIGS_DIR, PROJECT_DIR, find_experiment, list_experiments, list_presets, load_experiment
+from csmlab.config import (CONFIGS_DIR, PROJECT_DIR, experiment_document, find_experiment, list_experiments, list_presets,
+                           load_experiment)
 from csmlab.experiment import run_experiment
 
 TINY = """
@@ -27,13 +29,37 @@ resolution = 64
 """
 
 
+def _plain(value):
+    return [_plain(v) for v in value] if isinstance(value, (list, tuple)) else value
+
+
 @pytest.mark.parametrize("preset", sorted(list_presets()))
-def test_preset_validates_inside_an_experiment(tmp_path, preset):
+def test_preset_resolves_to_the_values_it_sets(tmp_path, preset):
+    """Every value a preset file writes reaches the resolved experiment: its sections' fields, and its
+    [[methods]] entries' fields in that method's shadow settings (read from the file, not from csmlab)."""
     path = tmp_path / "exp.toml"
     camera = "" if preset.startswith("paths/") else '[camera]\npath = "walk"\n'
     path.write_text(f'extends = ["{preset}"]\n{camera}')
     experiment = load_experiment(path)
-    assert (CONFIGS_DIR / f"{preset}.toml").is_file() and experiment.variants()
+    written = tomllib.loads((CONFIGS_DIR / f"{preset}.toml").read_text())
+    document = experiment_document(experiment)
+    checked = 0
+    for section, table in written.items():
+        if section in ("description", "extends"):
+            continue
+        if section == "methods":
+            resolved = {m.name: m.settings for m in experiment.methods}
+            for entry in table:
+                settings = resolved[entry["name"]]
+                for key, value in entry.items():
+                    if key not in ("name", "description"):
+                        assert _plain(getattr(settings, "lambda_" if key == "lambda" else key)) == value, (entry, key)
+                        checked += 1
+            continue
+        for key, value in table.items():
+            assert _plain(document[section][key]) == value, (section, key)
+            checked += 1
+    assert checked > 0, f"{preset} sets nothing"
 
 
 @pytest.mark.parametrize("name", sorted(list_experiments()))

@@ -34,20 +34,43 @@ def verdicts(now: dict, base: dict, **kwargs) -> dict:
 def test_flicker_may_fall_but_not_rise_beyond_tolerance():
     base = {"none": {"flicker": 0.010}}
     allowed = TOLERANCES["flicker"].allowed(0.010)
-    assert verdicts({"none": {"flicker": 0.010 + 1.01 * allowed}}, base)[("none", "flicker", "fall")] == "regression"
-    assert verdicts({"none": {"flicker": 0.010 + 0.99 * allowed}}, base)[("none", "flicker", "fall")] == "ok"
-    assert verdicts({"none": {"flicker": 0.001}}, base)[("none", "flicker", "fall")] == "better"
+    assert verdicts({"none": {"flicker": 0.010 + 1.01 * allowed}}, base)[("none", "flicker", "lower")] == "regression"
+    assert verdicts({"none": {"flicker": 0.010 + 0.99 * allowed}}, base)[("none", "flicker", "lower")] == "ok"
+    assert verdicts({"none": {"flicker": 0.001}}, base)[("none", "flicker", "lower")] == "better"
 
 
-def test_median_rho_may_rise_but_not_fall_and_memory_may_not_grow():
-    base = {"none": {"rho_median": 1.0, "memory_bytes": 4096.0, "rho_median_c1": 2.0}}
-    now = {"none": {"rho_median": 0.99, "memory_bytes": 4097.0, "rho_median_c1": 2.5}}
+def test_median_rho_may_not_move_away_from_one_and_memory_may_not_grow():
+    base = {"none": {"rho_median": 1.0, "memory_bytes": 4096.0, "rho_median_c1": 2.0, "rho_median_c2": 0.5}}
+    now = {"none": {"rho_median": 0.99, "memory_bytes": 4097.0, "rho_median_c1": 2.5, "rho_median_c2": 0.6}}
     got = verdicts(now, base)
-    assert got[("none", "rho_median", "rise")] == "regression"
-    assert got[("none", "memory_bytes", "fall")] == "regression"
-    assert got[("none", "rho_median_c1", "rise")] == "better"
-    rise = verdicts({"none": {"rho_median": 1.5}}, {"none": {"rho_median": 1.0}})
-    assert rise[("none", "rho_median", "rise")] == "better"
+    assert got[("none", "rho_median", "one")] == "regression"
+    assert got[("none", "memory_bytes", "lower")] == "regression"
+    # Above 1 a rise is a move away from the 1:1 ideal (wasted resolution), below 1 a rise is a move toward it.
+    assert got[("none", "rho_median_c1", "one")] == "regression"
+    assert got[("none", "rho_median_c2", "one")] == "better"
+    toward = verdicts({"none": {"rho_median": 1.5}}, {"none": {"rho_median": 2.0}})
+    assert toward[("none", "rho_median", "one")] == "better"
+    across = verdicts({"none": {"rho_median": 1.1}}, {"none": {"rho_median": 0.9}})
+    assert across[("none", "rho_median", "one")] == "better"
+
+
+def test_rho_p95_is_judged_by_its_distance_from_one():
+    got = verdicts({"none": {"rho_p95": 3.5}, "exact": {"rho_p95": 1.5}},
+                   {"none": {"rho_p95": 3.0}, "exact": {"rho_p95": 2.0}})
+    assert got[("none", "rho_p95", "one")] == "regression" and got[("exact", "rho_p95", "one")] == "better"
+
+
+def test_closest_to_one_tolerance_is_a_relative_step_on_either_side():
+    allowed = TOLERANCES["rho_median"].allowed(0.5)
+    assert verdicts({"none": {"rho_median": 0.5 - 0.9 * allowed}}, {"none": {"rho_median": 0.5}})[
+        ("none", "rho_median", "one")] == "ok"
+    assert verdicts({"none": {"rho_median": 0.5 - 1.1 * allowed}}, {"none": {"rho_median": 0.5}})[
+        ("none", "rho_median", "one")] == "regression"
+    allowed = TOLERANCES["rho_median"].allowed(2.0)
+    assert verdicts({"none": {"rho_median": 2.0 + 0.9 * allowed}}, {"none": {"rho_median": 2.0}})[
+        ("none", "rho_median", "one")] == "ok"
+    assert verdicts({"none": {"rho_median": 2.0 + 1.1 * allowed}}, {"none": {"rho_median": 2.0}})[
+        ("none", "rho_median", "one")] == "regression"
 
 
 def test_per_cascade_columns_take_their_metric_row_and_overrides_apply():
@@ -55,21 +78,21 @@ def test_per_cascade_columns_take_their_metric_row_and_overrides_apply():
     assert tolerance_for("flicker", {"flicker": {"abs": 0.5}}).abs == 0.5
     assert tolerance_for("unheard_of").direction == "either"
     loose = verdicts({"none": {"flicker": 0.4}}, {"none": {"flicker": 0.1}}, tolerances={"flicker": {"abs": 0.5}})
-    assert loose[("none", "flicker", "fall")] == "ok"
+    assert loose[("none", "flicker", "lower")] == "ok"
 
 
 def test_a_vanished_metric_or_method_is_a_failure():
     got = verdicts({"none": {}}, {"none": {"flicker": 0.1}, "exact": {"flicker": 0.0}})
-    assert got[("none", "flicker", "fall")] == "missing"
-    assert got[("exact", "flicker", "fall")] == "missing"
-    assert verdicts({"none": {"flicker": None}}, {"none": {"flicker": None}})[("none", "flicker", "fall")] == "n/a"
+    assert got[("none", "flicker", "lower")] == "missing"
+    assert got[("exact", "flicker", "lower")] == "missing"
+    assert verdicts({"none": {"flicker": None}}, {"none": {"flicker": None}})[("none", "flicker", "lower")] == "n/a"
 
 
 def test_exact_keeps_zero_same_cascade_flicker_whatever_the_baseline_under_a_static_light():
     tiny = 1e-12
     got = verdicts({"exact": {"flicker_same": tiny}, "none": {"flicker_same": 0.2}},
                    {"exact": {"flicker_same": tiny}, "none": {"flicker_same": 0.2}})
-    assert got[("exact", "flicker_same", "fall")] == "ok"
+    assert got[("exact", "flicker_same", "lower")] == "ok"
     assert got[("exact", "flicker_same", "zero")] == "invariant broken"
     assert ("none", "flicker_same", "zero") not in got
     moving = {**STATIC_EXACT, "light": {"elevation_deg": 40.0, "azimuth_deg": 30.0, "elevation_end_deg": 20.0}}
@@ -111,7 +134,7 @@ def test_gate_passes_on_the_unchanged_config(gate_runs):
 
 
 @pytest.mark.parametrize("variant, method, metric", [
-    ("levels4", "quantized", "rho_median"),
+    ("levels4", "quantized", "rho_p05"),
     ("none", "exact", "flicker_same"),
 ])
 def test_gate_fails_with_exit_1_naming_metric_and_method(gate_runs, variant, method, metric):

@@ -7,7 +7,8 @@ import pytest
 
 from csmlab.errors import InputError
 from csmlab.report.figures import pareto_optimal
-from csmlab.report.summary_table import best_mask, format_value, headline_table
+from csmlab.metric_registry import format_number
+from csmlab.report.summary_table import full_table, headline_table
 from csmlab.report.tables import read_columns
 
 
@@ -34,24 +35,6 @@ def test_read_columns_names_a_missing_required_column(tmp_path):
         read_columns(_write(tmp_path / "m.csv", "frame,method\n0,a\n"), required=("frame", "method", "point"))
 
 
-def test_format_value_keeps_an_exact_zero_and_marks_undefined():
-    assert format_value(0.0) == "0"
-    assert format_value(float("nan")) == "—"
-    assert format_value(0.000123456) == "0.000123"
-    assert format_value(4321.5) == "4,322"
-
-
-@pytest.mark.parametrize("better, values, expected", [
-    ("lower", [0.3, 0.0, 0.0, np.nan], [False, True, True, False]),
-    ("higher", [0.3, 0.9, 0.1], [False, True, False]),
-    ("one", [0.5, 1.5, 3.0, 0.9], [False, False, False, True]),
-    ("one", [0.5, 2.0], [True, True]),
-    ("lower", [4.0, 4.0, np.nan], [False, False, False]),
-])
-def test_best_mask_marks_the_best_and_nothing_when_all_equal(better, values, expected):
-    assert best_mask(values, better=better).tolist() == expected
-
-
 def test_pareto_optimal_matches_brute_force_dominance():
     rng = np.random.default_rng(3)
     points = rng.integers(0, 4, size=(40, 3)).astype(float)
@@ -75,11 +58,26 @@ def test_headline_table_means_over_frames_and_time_per_frame_from_timings(tmp_pa
         + ["0,,,visibility,9.0"]) + "\n"))
     columns, rows = headline_table(metrics, timings)
     keys = [c.key for c in columns]
-    assert keys == ["rho_median", "flicker_same", "memory_mib", "time_ms"]
+    assert keys == ["rho_median", "flicker_same", "memory_bytes", "time_ms"]
     cells = {r.method: dict(zip(keys, r.cells)) for r in rows}
     assert cells["exact"]["flicker_same"].text == "0" and cells["exact"]["flicker_same"].best
-    assert cells["none"]["flicker_same"].text == format_value(np.mean([0.01, 0.02]))
+    assert cells["none"]["flicker_same"].text == format_number(np.mean([0.01, 0.02]))
     assert cells["none"]["rho_median"].best and not cells["exact"]["rho_median"].best
-    assert cells["exact"]["memory_mib"].text == "4" and not cells["exact"]["memory_mib"].best
+    assert cells["exact"]["memory_bytes"].text == "4" and not cells["exact"]["memory_bytes"].best
     assert cells["exact"]["time_ms"].text == "30" and cells["none"]["time_ms"].text == "5"
     assert cells["none"]["time_ms"].best
+
+
+def test_full_table_marks_every_column_the_way_the_registry_says(tmp_path):
+    metrics = read_columns(_write(tmp_path / "metrics.csv", "\n".join(
+        ["frame,time_s,method,point,rho_median,rho_median_c1,ssim,flicker,rho_p95,unknown_column"]
+        + ["0,0,a,base,0.5,3.0,0.9,0.2,7,1", "0,0,b,base,1.6,1.2,0.8,0.1,9,2"]) + "\n"))
+    names, rows = full_table(metrics)
+    assert names == ["rho_median", "rho_median_c1", "ssim", "flicker", "rho_p95", "unknown_column"]
+    marks = {r.method: dict(zip(names, (c.best for c in r.cells))) for r in rows}
+    # ρ: closest to 1 on a log scale (|ln 0.5| = 0.69 > |ln 1.6| = 0.47), per cascade too; SSIM higher; flicker lower.
+    assert marks["b"]["rho_median"] and not marks["a"]["rho_median"]
+    assert marks["b"]["rho_median_c1"] and not marks["a"]["rho_median_c1"]
+    assert marks["a"]["ssim"] and marks["b"]["flicker"]
+    assert marks["a"]["rho_p95"] and not marks["b"]["rho_p95"]     # 7 is closer to 1 than 9
+    assert not any(marks[m]["unknown_column"] for m in "ab")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import pytest
 
@@ -56,20 +57,34 @@ def test_single_objective_reports_the_best_measured_trial(experiment, tmp_path):
     assert [t["values"]["flicker"] for t in document["trials"]] == values
 
 
+def _badness(value, better):
+    """The oracle of "better", written out: lower, higher, or closer to 1 on a log scale."""
+    return {"lower": value, "higher": -value, "one": abs(math.log(value))}[better]
+
+
 def _dominates(a, b, goals) -> bool:
-    better = [(a[m] <= b[m]) if d == "minimize" else (a[m] >= b[m]) for m, d in goals]
-    strictly = [(a[m] < b[m]) if d == "minimize" else (a[m] > b[m]) for m, d in goals]
-    return all(better) and any(strictly)
+    worse = [_badness(a[m], d) - _badness(b[m], d) for m, d in goals]
+    return all(w <= 0 for w in worse) and any(w < 0 for w in worse)
 
 
 def test_several_objectives_give_an_undominated_front(experiment, tmp_path):
     result = tune(experiment, space=_space(), objectives=["flicker", "rho_median"], trials=5, out_dir=tmp_path)
     goals = result.objectives
-    assert goals == (("flicker", "minimize"), ("rho_median", "maximize"))
+    assert goals == (("flicker", "lower"), ("rho_median", "one"))
     front = {t.number for t in result.best}
     for t in result.trials:
         dominated = any(_dominates(o.values, t.values, goals) for o in result.trials)
         assert dominated == (t.number not in front)
+
+
+def test_median_rho_is_tuned_toward_one_not_upward(experiment, tmp_path):
+    # Resolutions from far too coarse to far too fine: the largest median ρ is not the best one.
+    space = parse_space(["resolution=16,128,4096"], settings=ShadowSettings())
+    result = tune(experiment, space=space, objectives=["rho_median"], trials=8, out_dir=tmp_path)
+    medians = {t.params["resolution"]: t.values["rho_median"] for t in result.trials}
+    assert len(medians) == 3 and max(medians.values()) > 1.0 > min(medians.values())
+    closest = min(medians.values(), key=lambda rho: abs(math.log(rho)))
+    assert result.best[0].values["rho_median"] == closest != max(medians.values())
 
 
 def test_the_same_seed_repeats_the_search(experiment, tmp_path):
@@ -87,9 +102,10 @@ def test_bad_search_space_names_the_option(spec, match):
 
 
 def test_objective_needs_a_better_direction():
-    assert objective_direction("flicker") == "minimize" and objective_direction("rho_median") == "maximize"
+    assert objective_direction("flicker") == "lower" and objective_direction("ssim") == "higher"
+    assert objective_direction("rho_median") == "one"
     with pytest.raises(InputError, match="--objective"):
-        objective_direction("rho_p95")
+        objective_direction("no_such_metric")
 
 
 def test_cli_tune_refuses_a_bad_space_with_exit_code_2():

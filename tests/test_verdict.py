@@ -47,12 +47,12 @@ def check(method, metric, baseline, now, allowed, direction, verdict, point="*")
 
 
 SYNTHETIC = RegressResult(passed=False, baseline="base.json", workload_hash="abc", checks=[
-    check("exact", "flicker_same", 0.0, 0.0, 1e-6, "fall", "ok"),
+    check("exact", "flicker_same", 0.0, 0.0, 1e-6, "lower", "ok"),
     check("exact", "rho_p95", 2.0, 2.1, None, "either", "shown"),
     check("exact", "flicker_same", 0.0, 1e-9, 0.0, "zero", "invariant broken"),
-    check("none", "flicker", 0.01, 0.02, 5e-4, "fall", "regression"),
-    check("none", "ssim", 0.9, 0.95, 0.009, "rise", "better"),
-    check("none", "flicker", 0.02, 0.02, 1e-3, "fall", "ok", point="resolution=512"),
+    check("none", "flicker", 0.01, 0.02, 5e-4, "lower", "regression"),
+    check("none", "ssim", 0.9, 0.95, 0.009, "higher", "better"),
+    check("none", "flicker", 0.02, 0.02, 1e-3, "lower", "ok", point="resolution=512"),
 ])
 
 
@@ -73,7 +73,7 @@ def test_junit_failure_carries_baseline_value_tolerance_and_direction():
     failure = root.find("testsuite[@name='gate.none']/testcase[@name='flicker']/failure")
     assert failure.get("message") == ("flicker of none: 0.02 vs baseline 0.01 (change +0.01, tolerance 0.0005, "
                                       "lower is better)")
-    assert "baseline: 0.01\nvalue: 0.02\ndelta: +0.01\ntolerance: 0.0005\ndirection: fall (lower is better)\n" \
+    assert "baseline: 0.01\nvalue: 0.02\ndelta: +0.01\ntolerance: 0.0005\ndirection: lower (lower is better)\n" \
            "worst frames: f7 (0.05)\n" == failure.text
 
 
@@ -101,20 +101,20 @@ def degraded_gate(tmp_path_factory):
     return root
 
 
-def test_degraded_gate_fails_in_junit_and_markdown_naming_quantized_rho_median(degraded_gate):
+def test_degraded_gate_fails_in_junit_and_markdown_naming_quantized_rho_p05(degraded_gate):
     root = degraded_gate
     outcome = CliRunner().invoke(app, ["regress", str(root / "levels4"), "--baseline", str(root / "baseline.json"),
                                        "--junit", str(root / "junit.xml"), "--markdown", str(root / "summary.md")])
     assert outcome.exit_code == 1, outcome.output
     junit = assert_valid_junit((root / "junit.xml").read_text(encoding="utf-8"))
-    failure = junit.find("testsuite[@name='levels4.quantized']/testcase[@name='rho_median']/failure")
+    failure = junit.find("testsuite[@name='levels4.quantized']/testcase[@name='rho_p05']/failure")
     assert failure is not None and failure.get("type") == "regression"
-    assert "rho_median of quantized" in failure.get("message") and "higher is better" in failure.get("message")
+    assert "rho_p05 of quantized" in failure.get("message") and "higher is better" in failure.get("message")
     assert junit.find("testsuite[@name='levels4.exact']/testcase[@name='flicker_same == 0 (invariant)']") is not None
     assert all(s.get("failures") == "0" for s in junit if s.get("name") != "levels4.quantized")
     summary = (root / "summary.md").read_text(encoding="utf-8")
     assert summary.startswith("### csmlab regress: ❌ FAIL — levels4")
-    row = next(line for line in summary.splitlines() if line.startswith("| ❌ regression | quantized | `rho_median`"))
+    row = next(line for line in summary.splitlines() if line.startswith("| ❌ regression | quantized | `rho_p05`"))
     assert row.rstrip(" |").split(" | ")[-1].startswith("f")
     assert not list(root.glob(".*.tmp")), "atomic writes leave no temporary file"
 

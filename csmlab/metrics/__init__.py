@@ -4,12 +4,10 @@ Each module is a pure function of :class:`csmlab.frame.Frame` records that retur
 and a summary dict; :func:`measure_frame` composes them into one row of ``metrics.csv``. The
 definitions are DESIGN.md's "Metrics" section (a contract).
 
-Columns (:func:`metric_columns`): DESIGN.md's metrics.csv columns after ``frame, time_s, method,
-point`` in their order (:data:`METRIC_COLUMNS`), with ``utilization_c0 … utilization_c{C-1}``
-placed right after ``utilization``, then the per-cascade ρ summaries ``rho_median_c{i}, rho_p05_c{i},
-rho_p95_c{i}, rho_frac_lt1_c{i}, rho_frac_lt05_c{i}`` for each cascade i at the end. Temporal and
-perceptual columns (``flicker`` … ``flip``) are NaN at the first frame; any mean over an empty set
-of pixels (no pixel changed cascade, no pixel selected cascade i) is NaN too.
+Columns: :func:`csmlab.metric_registry.metric_columns`, declared in
+:data:`csmlab.metric_registry.METRICS`. The columns measured between frames (``temporal``) are NaN
+at the first frame; any mean over an empty set of pixels (no pixel changed cascade, no pixel
+selected cascade i) is NaN too.
 """
 
 from __future__ import annotations
@@ -19,35 +17,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from csmlab.frame import Frame
-from csmlab.metrics.aliasing import RHO_SUMMARIES, aliasing_maps, aliasing_summary, utilization
+from csmlab.metric_registry import metric_columns, temporal_columns
+from csmlab.metrics.aliasing import aliasing_maps, aliasing_summary, utilization
 from csmlab.metrics.cost import cost_summary
 from csmlab.metrics.perceptual import perceptual_maps, perceptual_summary
 from csmlab.metrics.reference import reference_maps, reference_summary
 from csmlab.metrics.shading import shaded_rgb
 from csmlab.metrics.temporal import temporal_maps, temporal_summary
 
-__all__ = ["METRIC_COLUMNS", "FrameMeasures", "measure_frame", "metric_columns"]
-
-METRIC_COLUMNS: tuple[str, ...] = (
-    "rho_median", "rho_p05", "rho_p95", "rho_frac_lt1", "rho_frac_lt05", "sigma_min_p05", "utilization",
-    "flicker", "flicker_same", "flicker_changed", "flip_rate", "flip_same", "flip_changed",
-    "de2000_mean", "de2000_p99", "de2000_frac_jnd", "ssim", "flip",
-    "ref_false_shadow", "ref_false_light", "ref_boundary_px", "memory_bytes", "texels_rasterized",
-)
-"""DESIGN.md's metrics.csv columns after ``frame, time_s, method, point``, in order."""
-
-_BETWEEN_FRAMES = ("flicker", "flicker_same", "flicker_changed", "flip_rate", "flip_same", "flip_changed",
-                   "de2000_mean", "de2000_p99", "de2000_frac_jnd", "ssim", "flip")
-
-
-def metric_columns(cascades: int) -> tuple[str, ...]:
-    """Every metric column, in order, for ``cascades`` cascades (see the module docstring)."""
-    if not (isinstance(cascades, (int, np.integer)) and cascades >= 1):
-        raise ValueError(f"cascades: expected a positive integer, got {cascades!r}")
-    at = METRIC_COLUMNS.index("utilization") + 1
-    per_cascade = tuple(f"utilization_c{c}" for c in range(cascades))
-    rho = tuple(f"{key}_c{c}" for c in range(cascades) for key in RHO_SUMMARIES)
-    return METRIC_COLUMNS[:at] + per_cascade + METRIC_COLUMNS[at:] + rho
+__all__ = ["FrameMeasures", "measure_frame", "metric_columns"]
 
 
 @dataclass(frozen=True)
@@ -106,7 +84,7 @@ def measure_frame(frame: Frame, previous: Frame | None = None, *, ambient: float
               **reference_summary(errors), **cost_summary(frame)}
     g = frame.view.gbuffer
     if previous is None:
-        values.update(dict.fromkeys(_BETWEEN_FRAMES, float("nan")))
+        values.update(dict.fromkeys(temporal_columns(), float("nan")))
         lit = np.where(g.valid, frame.shadow.lit, np.nan)
         shaded = shaded_rgb(g.albedo, g.normal, lit, light_direction=frame.view.light_direction, ambient=ambient)
         change = np.full(g.shape, np.nan)

@@ -38,6 +38,7 @@ import numpy as np
 from skimage.metrics import structural_similarity
 
 from csmlab.frame import Frame
+from csmlab.metric_registry import finite_mean
 from csmlab.metrics.shading import shaded_rgb, srgb_encoded
 
 __all__ = ["JND_CIEDE2000", "PerceptualMaps", "delta_e_2000", "lab_from_linear_srgb", "perceptual_maps",
@@ -129,10 +130,6 @@ def _filled_pair(current: np.ndarray, previous: np.ndarray, compared: np.ndarray
     return a, np.where(mask, previous, a)
 
 
-def _mean(values: np.ndarray) -> float:
-    return float(np.mean(values, dtype=np.float64)) if values.size else float("nan")
-
-
 def perceptual_summary(maps: PerceptualMaps) -> dict[str, float]:
     """ΔE2000 statistics, SSIM of the shadow images and mean ꟻLIP of the shaded images.
 
@@ -147,15 +144,15 @@ def perceptual_summary(maps: PerceptualMaps) -> dict[str, float]:
         return dict.fromkeys(("de2000_mean", "de2000_p99", "de2000_frac_jnd", "ssim", "flip"), float("nan"))
     de = maps.de2000[compared]
     out = {
-        "de2000_mean": _mean(de),
+        "de2000_mean": finite_mean(de),
         "de2000_p99": float(np.percentile(de, 99.0)),
-        "de2000_frac_jnd": _mean((de > JND_CIEDE2000).astype(np.float64)),
+        "de2000_frac_jnd": finite_mean((de > JND_CIEDE2000).astype(np.float64)),
     }
     lit, previous_lit = _filled_pair(maps.lit.astype(np.float64), maps.previous_lit.astype(np.float64), compared)
     if min(lit.shape) >= _SSIM_MIN_SIDE:
         _, ssim_map = structural_similarity(previous_lit, lit, data_range=1.0, gaussian_weights=True,
                                             sigma=_SSIM_SIGMA, use_sample_covariance=False, full=True)
-        out["ssim"] = _mean(ssim_map[compared])
+        out["ssim"] = finite_mean(ssim_map[compared])
     else:
         out["ssim"] = float("nan")
     shaded, previous_shaded = _filled_pair(maps.shaded, maps.previous_shaded, compared)
@@ -164,5 +161,5 @@ def perceptual_summary(maps: PerceptualMaps) -> dict[str, float]:
         np.ascontiguousarray(srgb_encoded(shaded), dtype=np.float32),
         "LDR", applyMagma=False, computeMeanError=False,
     )
-    out["flip"] = _mean(np.asarray(error)[..., 0][compared])
+    out["flip"] = finite_mean(np.asarray(error)[..., 0][compared])
     return out

@@ -32,6 +32,7 @@ import numpy as np
 
 from csmlab.camera import CameraPose
 from csmlab.frame import Frame
+from csmlab.metric_registry import finite_mean
 from csmlab.render import lookup_shadow
 
 __all__ = ["TemporalMaps", "previous_reference_at", "temporal_maps", "temporal_summary"]
@@ -149,10 +150,6 @@ def previous_reference_at(frame: Frame, previous: Frame) -> np.ndarray:
                      + ("none" if cast is None else f"a cast under another light, {view.previous_light_direction}"))
 
 
-def _mean(values: np.ndarray) -> float:
-    return float(np.mean(values, dtype=np.float64)) if values.size else float("nan")
-
-
 def temporal_summary(maps: TemporalMaps) -> dict[str, float]:
     """Flicker and flip rate overall, same-cascade and cascade-changed.
 
@@ -167,7 +164,7 @@ def temporal_summary(maps: TemporalMaps) -> dict[str, float]:
     magnitude = np.abs(maps.change)
     out = {}
     for suffix, subset in (("", maps.counted), ("_same", maps.same_cascade), ("_changed", changed)):
-        out[f"flicker{suffix}"] = _mean(magnitude[subset])
-        out["flip_rate" if not suffix else f"flip{suffix}"] = _mean(maps.flipped[subset].astype(np.float64))
+        out[f"flicker{suffix}"] = finite_mean(magnitude[subset])
+        out["flip_rate" if not suffix else f"flip{suffix}"] = finite_mean(maps.flipped[subset].astype(np.float64))
     return {key: out[key] for key in ("flicker", "flicker_same", "flicker_changed", "flip_rate", "flip_same",
                                       "flip_changed")}

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from csmlab.errors import InputError
+from csmlab.files import write_atomic
 from csmlab.paths.recorded import (
     RecordedPoses,
     data_rows,
@@ -18,7 +19,6 @@ from csmlab.paths.recorded import (
     require_poses,
     text_lines,
     unit_quaternions,
-    write_text_atomic,
 )
 
 __all__ = ["read_euroc", "write_euroc"]
@@ -68,4 +68,4 @@ def write_euroc(poses: RecordedPoses, file) -> None:
     lines = [HEADER]
     for stamp, p, q in zip(ns.tolist(), poses.positions.tolist(), poses.orientations[:, [3, 0, 1, 2]].tolist()):
         lines.append(",".join([str(stamp), *map(repr, p), *map(repr, q)]))
-    write_text_atomic(file, "\n".join(lines) + "\n")
+    write_atomic(file, "\n".join(lines) + "\n")

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from csmlab.errors import InputError
+from csmlab.files import write_atomic
 from csmlab.geometry import quat_from_matrix, quat_to_matrix
 from csmlab.paths.recorded import (
     QUATERNION_TOLERANCE,
@@ -20,7 +21,6 @@ from csmlab.paths.recorded import (
     ordered_times,
     require_poses,
     text_lines,
-    write_text_atomic,
 )
 
 __all__ = ["read_kitti", "read_kitti_times", "write_kitti"]
@@ -79,4 +79,4 @@ def write_kitti(poses: RecordedPoses, file) -> None:
     """Write ``poses`` as a KITTI file (times are not part of it); shortest round-trip numbers."""
     matrices = np.concatenate([quat_to_matrix(poses.orientations), poses.positions[:, :, None]], axis=2)
     body = "".join(" ".join(map(repr, row)) + "\n" for row in matrices.reshape(-1, 12).tolist())
-    write_text_atomic(file, body)
+    write_atomic(file, body)

@@ -8,8 +8,6 @@ either returns every pose or raises.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
@@ -27,7 +25,6 @@ __all__ = [
     "require_poses",
     "text_lines",
     "unit_quaternions",
-    "write_text_atomic",
 ]
 
 QUATERNION_TOLERANCE = 1e-3
@@ -195,16 +192,3 @@ def ordered_times(times, lines: np.ndarray, *, file, field: str = "timestamp") -
                          f"{float(times[k - 1])!r} (line {int(lines[k - 1])})", file=file, line=int(lines[k]),
                          field=field)
     return times
-
-
-def write_text_atomic(file, text: str) -> None:
-    """Write ``text`` to ``file`` through a temporary file and a rename, so no half-written file is left."""
-    path = Path(file)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    try:
-        with os.fdopen(handle, "w", encoding="utf-8", newline="\n") as out:
-            out.write(text)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise

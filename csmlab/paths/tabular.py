@@ -43,6 +43,7 @@ from typing import Sequence
 import numpy as np
 
 from csmlab.errors import InputError
+from csmlab.files import write_atomic
 from csmlab.paths.conventions import orientation_from_yaw_pitch_roll
 from csmlab.paths.recorded import (
     RecordedPoses,
@@ -52,7 +53,6 @@ from csmlab.paths.recorded import (
     require_poses,
     text_lines,
     unit_quaternions,
-    write_text_atomic,
 )
 
 __all__ = ["read_csv", "read_json", "write_csv", "write_json"]
@@ -217,11 +217,11 @@ def write_csv(poses: RecordedPoses, file) -> None:
     """Write ``poses`` as a csmlab CSV file with quaternion columns (and ``fov_y_deg`` when known)."""
     fields, table = _table(poses)
     body = "".join(",".join(map(repr, row)) + "\n" for row in table)
-    write_text_atomic(file, ",".join(fields) + "\n" + body)
+    write_atomic(file, ",".join(fields) + "\n" + body)
 
 
 def write_json(poses: RecordedPoses, file) -> None:
     """Write ``poses`` as a csmlab JSON file, one pose per line, with quaternions."""
     fields, table = _table(poses)
     items = ",\n".join("  " + json.dumps(dict(zip(fields, row))) for row in table)
-    write_text_atomic(file, '{"poses": [\n' + items + "\n]}\n")
+    write_atomic(file, '{"poses": [\n' + items + "\n]}\n")

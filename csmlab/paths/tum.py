@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from csmlab.files import write_atomic
 from csmlab.paths.recorded import (
     RecordedPoses,
     data_rows,
@@ -19,7 +20,6 @@ from csmlab.paths.recorded import (
     require_poses,
     text_lines,
     unit_quaternions,
-    write_text_atomic,
 )
 
 __all__ = ["read_tum", "write_tum"]
@@ -46,4 +46,4 @@ def write_tum(poses: RecordedPoses, file) -> None:
     """Write ``poses`` (with times) as a TUM file; numbers in shortest round-trip form."""
     table = np.column_stack([poses.times, poses.positions, poses.orientations])
     body = "".join(" ".join(map(repr, row)) + "\n" for row in table.tolist())
-    write_text_atomic(file, "# " + " ".join(FIELDS) + "\n" + body)
+    write_atomic(file, "# " + " ".join(FIELDS) + "\n" + body)

@@ -23,10 +23,13 @@ import numpy as np
 
 from csmlab.report.animation import write_animation
 from csmlab.report.capture import ANIM_WIDTH, capture_stem, read_npz, safe_name
-from csmlab.report.figures import cost_figure, frame_curves_figure, pareto_figure, stabilization_figure, sweep_figure
+from csmlab.files import write_atomic
+from csmlab.metric_registry import format_number
+from csmlab.report.figures import (PARETO, cost_figure, frame_curves_figure, pareto_figure, stabilization_figure,
+                                   sweep_figure)
 from csmlab.report.html import render_report_html
 from csmlab.report.images import snapshot_strip_figure
-from csmlab.report.summary_table import format_value, full_table, headline_table
+from csmlab.report.summary_table import full_table, headline_table
 from csmlab.report.sweep import sweep_means, sweep_points
 from csmlab.report.tables import ResultFiles, read_results
 from csmlab.report.view3d import view3d_figure
@@ -40,13 +43,6 @@ _GLANCE = {
     "utilization": "Least wasted shadow map (utilization)",
     "ref_error": "Closest to the ray-traced shadow",
 }
-_SWEEP_METRICS = [
-    ("rho_median", "median ρ (texels / pixel)", 1.0),
-    ("flicker_same", "flicker, same cascade (mean |ΔS|)", 1.0),
-    ("flicker_changed", "flicker, cascade changed (mean |ΔS|)", 1.0),
-    ("flip_rate", "flip rate (% of pixels)", 100.0),
-    ("memory_mib", "memory (MiB)", 1.0),
-]
 
 
 def write_report(out_dir) -> Path:
@@ -94,11 +90,7 @@ def write_report(out_dir) -> Path:
         "view3d": _view3d(results, groups, points[0]),
         **_sweep(results, points),
     }
-    page = out / "index.html"
-    tmp = out / ".index.html.tmp"
-    tmp.write_text(render_report_html(context), encoding="utf-8")
-    tmp.replace(page)
-    return page
+    return write_atomic(out / "index.html", render_report_html(context))
 
 
 def _header(results: ResultFiles) -> dict:
@@ -147,7 +139,7 @@ def _regress(regress) -> dict | None:
 def _cell(value) -> str:
     if value is None:
         return "—"
-    return format_value(float(value)) if isinstance(value, (int, float)) and not isinstance(value, bool) else str(value)
+    return format_number(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else str(value)
 
 
 def _cost(results: ResultFiles, groups) -> str | None:
@@ -249,11 +241,11 @@ def _sweep(results: ResultFiles, points) -> dict:
     for parameter in sweep.fields:
         means = sweep_means(results.metrics, sweep, along=parameter)
         name = f"figures/sweep__{safe_name(parameter)}.png"
-        sweep_figure(means, parameter, [m for m in _SWEEP_METRICS if m[0] in means], results.directory / name)
+        sweep_figure(means, parameter, results.directory / name)
         figures.append({"parameter": parameter, "src": name})
     means = sweep_means(results.metrics, sweep, along=sweep.fields[0])
     pareto = None
-    if all(k in means for k in ("memory_mib", "flicker", "rho_median")):
+    if all(k in means for k in PARETO):
         pareto_figure(means, results.directory / "figures" / "pareto.png")
         pareto = "figures/pareto.png"
     return {"sweep": figures, "pareto": pareto}

@@ -41,7 +41,6 @@ from __future__ import annotations
 
 import csv
 import io
-import os
 import re
 import zipfile
 from pathlib import Path
@@ -49,6 +48,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from csmlab.files import write_atomic
 from csmlab.frame import Frame
 from csmlab.geometry import frustum_slice_corners
 
@@ -290,7 +290,7 @@ def _merge_cascades_csv(path: Path, *, method: str, point: str, captures: list[d
     writer = csv.writer(text, lineterminator="\n")
     writer.writerow(header)
     writer.writerows(rows)
-    _write_atomically(path, text.getvalue().encode())
+    write_atomic(path, text.getvalue().encode())
 
 
 def _write_npz(path: Path, arrays: dict) -> None:
@@ -303,11 +303,4 @@ def _write_npz(path: Path, arrays: dict) -> None:
             info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
             info.compress_type = zipfile.ZIP_DEFLATED
             archive.writestr(info, member.getvalue())
-    _write_atomically(path, buffer.getvalue())
-
-
-def _write_atomically(path: Path, data: bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
+    write_atomic(path, buffer.getvalue())

@@ -26,13 +26,13 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from csmlab.compare import Comparison, MetricDelta, compare_runs
+from csmlab.metric_registry import BETTER_TEXT, finite_mean, format_number
 from csmlab.report.capture import capture_stem, decode_u8, read_npz
 from csmlab.report.figures import CURVES
 from csmlab.report.images import (CATEGORY_COLOURS, CHANGE_CMAP, DIFFERENCE_CMAP, RHO_CMAP, change_image, change_norm,
                                   difference_image, difference_norm, rho_image, rho_norm, rho_ratio_image,
                                   rho_ratio_norm, shaded_image, srgb_from_linear)
-from csmlab.report.summary_table import format_value
-from csmlab.report.tables import Columns, finite_mean, read_columns
+from csmlab.report.tables import Columns, read_columns
 from csmlab.results import write_atomic
 
 __all__ = ["FRAMES_SHOWN", "write_comparison_report"]
@@ -144,7 +144,7 @@ def _method_row(comparison: Comparison, pair, labels) -> dict:
 
 
 def _signed(value: float) -> str:
-    return format_value(value) if value == 0 else ("+" if value > 0 else "−") + format_value(abs(value))
+    return format_number(value) if value == 0 else ("+" if value > 0 else "−") + format_number(abs(value))
 
 
 def _cell(delta: MetricDelta | None) -> dict:
@@ -153,11 +153,11 @@ def _cell(delta: MetricDelta | None) -> dict:
     change = "—" if delta.delta is None else _signed(delta.delta)
     if delta.relative is not None and delta.delta:
         change += f" ({'+' if delta.relative > 0 else '−'}{abs(delta.relative):.1%})"
-    title = {"fall": "lower is better", "rise": "higher is better", "either": "no better side"}[delta.direction]
+    title = BETTER_TEXT[delta.direction]
     if delta.beyond_tolerance:
         title += "; beyond the regression gate's tolerance"
-    return {"a": format_value(np.nan if delta.a is None else delta.a),
-            "b": format_value(np.nan if delta.b is None else delta.b), "change": change, "verdict": delta.verdict,
+    return {"a": format_number(np.nan if delta.a is None else delta.a),
+            "b": format_number(np.nan if delta.b is None else delta.b), "change": change, "verdict": delta.verdict,
             "beyond": delta.beyond_tolerance, "title": title}
 
 
@@ -248,19 +248,19 @@ def _colour(comparison: Comparison, method: str):
 def _curves_figure(comparison: Comparison, metrics_a: Columns, metrics_b: Columns, animated: dict,
                    chosen: list[int], labels: dict, path: Path) -> None:
     """Per-frame curves: a panel per metric of :data:`CURVES` with a value in either run, then |S_B − S_A|."""
-    curves = [c for c in CURVES if c[0] in metrics_a and c[0] in metrics_b
-              and np.any(np.isfinite(np.concatenate([metrics_a[c[0]], metrics_b[c[0]]])))]
+    curves = [m for m in CURVES if m.name in metrics_a and m.name in metrics_b
+              and np.any(np.isfinite(np.concatenate([metrics_a[m.name], metrics_b[m.name]])))]
     panels = len(curves) + bool(animated)
     fig = Figure(figsize=(10, 1.9 * panels + 0.9), dpi=100, layout="constrained")
     axes = fig.subplots(panels, 1, sharex=True, squeeze=False)[:, 0]
-    for ax, (column, label, scale) in zip(axes, curves):
+    for ax, metric in zip(axes, curves):
         for pair in comparison.matched:
             colour = _colour(comparison, pair[0])
             for rows, style in ((metrics_a.of(*pair), "-"), (metrics_b.of(*pair), "--")):
-                ax.plot(rows["frame"], rows[column] * scale, color=colour, linestyle=style, linewidth=1.3)
-        ax.set_ylabel(label, fontsize=9)
-        if column == "rho_median":
-            ax.axhline(1.0, color="0.3", linestyle=":", linewidth=1.0)
+                ax.plot(rows["frame"], rows[metric.name] * metric.scale, color=colour, linestyle=style, linewidth=1.3)
+        ax.set_ylabel(f"{metric.label}\n({metric.unit})", fontsize=9)
+        if metric.better == "one":
+            ax.axhline(metric.scale, color="0.3", linestyle=":", linewidth=1.0)
     if animated:
         ax = axes[-1]
         for pair, (frames, values) in animated.items():

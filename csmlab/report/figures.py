@@ -16,12 +16,15 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
+from csmlab.metric_registry import METRICS, Metric
 from csmlab.report.images import CATEGORY_COLOURS, RHO_CMAP, RHO_LOG2_LIMIT, rho_norm
 from csmlab.report.tables import Columns
 
 __all__ = [
     "CURVES",
     "FIELD_UNITS",
+    "PARETO",
+    "SWEPT",
     "Series",
     "cost_figure",
     "frame_curves_figure",
@@ -32,14 +35,12 @@ __all__ = [
     "sweep_figure",
 ]
 
-CURVES = (
-    ("flicker_same", "flicker, same cascade\n(mean |ΔS|, lit fraction)", 1.0),
-    ("flicker_changed", "flicker, cascade changed\n(mean |ΔS|, lit fraction)", 1.0),
-    ("flip_rate", "flip rate\n(% of pixels)", 100.0),
-    ("de2000_mean", "mean ΔE2000\n(ΔE units)", 1.0),
-    ("rho_median", "median ρ\n(texels / pixel)", 1.0),
-)
-"""Per-frame curves: metric column, axis label with unit, display factor."""
+CURVES: tuple[Metric, ...] = tuple(m for m in METRICS.values() if "frames" in m.plots)
+"""Per-frame curves, from the registry: metrics drawn in the ``frames`` plot, in column order."""
+SWEPT: tuple[Metric, ...] = tuple(m for m in METRICS.values() if "sweep" in m.plots)
+"""Metrics plotted against each swept field, from the registry."""
+PARETO = ("memory_bytes", "flicker", "rho_median")
+"""The Pareto plot's metrics: memory (x), flicker (y), median ρ (colour)."""
 _LINE_STYLES = ("-", "--", ":", "-.")
 FIELD_UNITS = {
     "cascades": "count", "resolution": "texels per side", "lambda": "PSSM blend, 0 uniform … 1 log",
@@ -78,24 +79,27 @@ def series_of(groups: list[tuple[str, str]]) -> list[Series]:
 
 
 def frame_curves_figure(metrics: Columns, path) -> None:
-    """Write the per-frame curves of :data:`CURVES` against time, one line per method × point, shared x axis."""
-    curves = [c for c in CURVES if c[0] in metrics]
+    """Write the per-frame curves of :data:`CURVES` against time, one line per method × point, shared x axis.
+
+    A metric that is best at 1 (median ρ) gets the line ρ = 1 for reference.
+    """
+    curves = [m for m in CURVES if m.name in metrics]
     fig = Figure(figsize=(10, 1.9 * len(curves) + 0.8), dpi=100, layout="constrained")
     axes = fig.subplots(len(curves), 1, sharex=True, squeeze=False)[:, 0]
     series = series_of(metrics.groups())
-    for ax, (column, label, scale) in zip(axes, curves):
+    for k, (ax, metric) in enumerate(zip(axes, curves)):
         for s in series:
             rows = metrics.of(s.method, s.point)
-            ax.plot(_time_axis(rows), rows[column] * scale, color=s.colour, linestyle=s.style, linewidth=1.3,
-                    label=s.label)
-        ax.set_ylabel(label, fontsize=9)
+            ax.plot(_time_axis(rows), rows[metric.name] * metric.scale, color=s.colour, linestyle=s.style,
+                    linewidth=1.3, label=s.label)
+        ax.set_ylabel(f"{metric.label}\n({metric.unit})", fontsize=9)
         ax.grid(True, alpha=0.3)
-        if column == "rho_median":
-            ax.axhline(1.0, color="0.3", linestyle=":", linewidth=1.0, label="ρ = 1, the 1:1 ideal")
+        if metric.better == "one":
+            ideal = ax.axhline(metric.scale, color="0.3", linestyle=":", linewidth=1.0,
+                               label=f"{metric.label} = 1, the 1:1 ideal")
+            if k > 0:
+                ax.legend(handles=[ideal], loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=9, frameon=False)
     axes[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=9, frameon=False)
-    if curves[-1][0] == "rho_median":
-        axes[-1].legend(handles=axes[-1].get_lines()[-1:], loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=9,
-                        frameon=False)
     axes[-1].set_xlabel("time (s)")
     fig.savefig(path, **_SAVE)
 
@@ -184,34 +188,35 @@ def _stage_ms(timings: Columns, method: str, point: str, stage: str) -> float:
     return 1000.0 * float(np.sum(seconds)) / frames if frames else 0.0
 
 
-def sweep_figure(means: Columns, parameter: str, metrics: list[tuple[str, str, float]], path) -> None:
+def sweep_figure(means: Columns, parameter: str, path) -> None:
     """Write metric-vs-parameter plots for one sweep parameter, a line per method (and other parameters).
 
     Parameters
     ----------
     means : Columns
         A row per method × point: ``method``, ``point``, ``parameter`` (numbers), ``others``
-        (text: the other swept fields of the point) and the metric columns (means over frames).
+        (text: the other swept fields of the point) and metric columns (means over frames); one
+        panel per metric of :data:`SWEPT` among them.
     parameter : str
         The swept field on the x axis.
-    metrics : list of (column, axis label with unit, display factor)
     path : str or Path
     """
+    metrics = [m for m in SWEPT if m.name in means]
     fig = Figure(figsize=(3.4 * len(metrics) + 1.8, 3.4), dpi=100, layout="constrained")
     axes = fig.subplots(1, len(metrics), squeeze=False)[0]
     methods = list(dict.fromkeys(means["method"].tolist()))
     lines = list(dict.fromkeys(zip(means["method"].tolist(), means["others"].tolist())))
     others = list(dict.fromkeys(means["others"].tolist()))
-    for ax, (column, label, scale) in zip(axes, metrics):
+    for ax, metric in zip(axes, metrics):
         for method, other in lines:
             rows = means.where((means["method"] == method) & (means["others"] == other))
             order = np.argsort(rows[parameter], kind="stable")
-            ax.plot(rows[parameter][order], rows[column][order] * scale, marker="o",
+            ax.plot(rows[parameter][order], rows[metric.name][order] * metric.scale, marker="o",
                     color=CATEGORY_COLOURS[methods.index(method) % len(CATEGORY_COLOURS)],
                     linestyle=_LINE_STYLES[others.index(other) % len(_LINE_STYLES)],
                     label=method if len(others) == 1 else f"{method}, {other}")
         ax.set_xlabel(f"{parameter} ({FIELD_UNITS.get(parameter, 'setting')})")
-        ax.set_ylabel(label, fontsize=9)
+        ax.set_ylabel(metric.title, fontsize=9)
         ax.grid(True, alpha=0.3)
         if _spans_octaves(means[parameter]):
             ax.set_xscale("log", base=2)
@@ -241,27 +246,31 @@ def pareto_optimal(objectives: np.ndarray) -> np.ndarray:
 def pareto_figure(means: Columns, path) -> None:
     """Write the Pareto plot: memory against flicker, coloured by median ρ, optimal points ringed.
 
-    ``means`` holds a row per method × point with ``method``, ``point``, ``memory_mib``,
-    ``flicker`` and ``rho_median``. Optimal means no other point has less memory, less flicker and
-    a median ρ at least as close to 1 (on a log scale), with one of them strictly better.
+    ``means`` holds a row per method × point with ``method``, ``point`` and the :data:`PARETO`
+    columns (means over frames). Optimal means no other point is at least as good in all three —
+    each judged the way the registry says (:meth:`csmlab.metric_registry.Metric.score`: less memory,
+    less flicker, median ρ closer to 1 on a log scale) — and strictly better in one.
     """
-    rho = means["rho_median"]
-    optimal = pareto_optimal(np.column_stack([means["memory_mib"], means["flicker"], np.abs(np.log2(rho))]))
+    memory_metric, flicker_metric, rho_metric = (METRICS[name] for name in PARETO)
+    memory = means[memory_metric.name] * memory_metric.scale
+    flicker = means[flicker_metric.name] * flicker_metric.scale
+    rho = means[rho_metric.name]
+    optimal = pareto_optimal(np.column_stack([[m.score(v) for v in means[m.name].tolist()]
+                                              for m in (memory_metric, flicker_metric, rho_metric)]))
     methods = list(dict.fromkeys(means["method"].tolist()))
     markers = ("o", "s", "^", "D", "v", "P", "X", "*")
     fig = Figure(figsize=(8.5, 5.2), dpi=100, layout="constrained")
     ax = fig.subplots()
     for k, method in enumerate(methods):
         mine = means["method"] == method
-        ax.scatter(means["memory_mib"][mine], means["flicker"][mine], c=np.log2(rho[mine]), cmap=RHO_CMAP,
-                   norm=rho_norm(), marker=markers[k % len(markers)], s=70, edgecolors="0.4", linewidths=0.6)
-    ax.scatter(means["memory_mib"][optimal], means["flicker"][optimal], s=220, facecolors="none",
-               edgecolors="black", linewidths=1.4)
-    for p, x, y in zip(means["point"], means["memory_mib"], means["flicker"]):
+        ax.scatter(memory[mine], flicker[mine], c=np.log2(rho[mine]), cmap=RHO_CMAP, norm=rho_norm(),
+                   marker=markers[k % len(markers)], s=70, edgecolors="0.4", linewidths=0.6)
+    ax.scatter(memory[optimal], flicker[optimal], s=220, facecolors="none", edgecolors="black", linewidths=1.4)
+    for p, x, y in zip(means["point"], memory, flicker):
         ax.annotate(p, (x, y), textcoords="offset points", xytext=(6, 4), fontsize=7)
     ax.set_xscale("log", base=2)
-    ax.set_xlabel("shadow-map memory (MiB, log scale)")
-    ax.set_ylabel("flicker (mean |ΔS| per frame, lit fraction)")
+    ax.set_xlabel(f"shadow-map {memory_metric.label} ({memory_metric.unit}, log scale)")
+    ax.set_ylabel(flicker_metric.title)
     ax.grid(True, alpha=0.3)
     handles = [Line2D([], [], linestyle="none", marker=markers[k % len(markers)], markersize=8, color="0.6",
                       markeredgecolor="0.4", label=method) for k, method in enumerate(methods)]
@@ -271,5 +280,5 @@ def pareto_figure(means: Columns, path) -> None:
     bar = fig.colorbar(ScalarMappable(norm=rho_norm(), cmap=RHO_CMAP), ax=ax)
     ticks = np.arange(-RHO_LOG2_LIMIT, RHO_LOG2_LIMIT + 1, 2)
     bar.set_ticks(ticks, labels=[f"{2.0 ** t:g}" for t in ticks])
-    bar.set_label("median ρ (texels / pixel, log scale)")
+    bar.set_label(f"{rho_metric.label} ({rho_metric.unit}, log scale)")
     fig.savefig(path, **_SAVE)

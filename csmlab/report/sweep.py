@@ -13,13 +13,10 @@ import numpy as np
 
 from csmlab.config import sweep_points as config_sweep_points
 from csmlab.errors import InputError
-from csmlab.report.tables import Columns, finite_mean
+from csmlab.metric_registry import finite_mean, is_metric_column
+from csmlab.report.tables import Columns
 
 __all__ = ["SweepPoints", "sweep_means", "sweep_points"]
-
-_MEAN_COLUMNS = ("rho_median", "flicker", "flicker_same", "flicker_changed", "flip_rate", "de2000_mean",
-                 "memory_bytes")
-
 
 @dataclass(frozen=True)
 class SweepPoints:
@@ -61,22 +58,17 @@ def sweep_means(metrics: Columns, sweep: SweepPoints, *, along: str) -> Columns:
     -------
     Columns
         ``method``, ``point``, ``along`` (the field's value: float or str), ``others`` (the other
-        fields as ``field=value`` text), ``memory_mib`` and the means of the metric columns that
-        ``metrics`` has among ``rho_median, flicker, flicker_same, flicker_changed, flip_rate,
-        de2000_mean, memory_bytes``.
+        fields as ``field=value`` text) and the mean of every metric column of ``metrics``.
     """
     groups = metrics.groups()
-    present = [c for c in _MEAN_COLUMNS if c in metrics]
-    means = {c: np.array([finite_mean(metrics.of(m, p)[c]) for m, p in groups]) for c in present}
-    data = {
+    present = [c for c in metrics.names if is_metric_column(c)]
+    rows = [metrics.of(m, p) for m, p in groups]
+    means = {c: np.array([finite_mean(r[c]) for r in rows]) for c in present}
+    return Columns({
         "method": np.array([m for m, _ in groups], dtype=str),
         "point": np.array([p for _, p in groups], dtype=str),
         along: np.array([sweep.values[p][along] for _, p in groups]),
         "others": np.array([", ".join(f"{f}={sweep.values[p][f]}" for f in sweep.fields if f != along)
                             for _, p in groups], dtype=str),
         **means,
-    }
-    if "memory_bytes" in means:
-        data["memory_mib"] = means["memory_bytes"] / 2**20
-    return Columns(data)
-
+    })

@@ -17,7 +17,7 @@ import numpy as np
 from csmlab.errors import InputError
 from csmlab.results import TIMING_COLUMNS
 
-__all__ = ["TEXT_COLUMNS", "Columns", "ResultFiles", "finite_mean", "read_columns", "read_results"]
+__all__ = ["TEXT_COLUMNS", "Columns", "ResultFiles", "read_columns", "read_results"]
 
 
 @dataclass(frozen=True)
@@ -63,13 +63,6 @@ class Columns:
 TEXT_COLUMNS = ("method", "point", "stage")
 CASCADE_KEYS = ("frame", "method", "point", "cascade")
 """Label columns, kept as text even when their cells look like numbers (a point named ``512``)."""
-
-
-def finite_mean(values) -> float:
-    """Mean of the finite entries of ``values`` in float64; NaN when there is none (e.g. frame 0's flicker)."""
-    values = np.asarray(values, dtype=np.float64)
-    finite = values[np.isfinite(values)]
-    return float(finite.mean()) if finite.size else np.nan
 
 
 def read_columns(path, *, required: tuple[str, ...] = ()) -> Columns:

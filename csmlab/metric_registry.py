@@ -1,0 +1,253 @@
+"""Every metric column of ``metrics.csv``, declared once: name, label, unit, which way is better, tolerance.
+
+:data:`METRICS` is the one place a metric's meaning lives. ``metrics.csv``'s column order
+(:func:`metric_columns`), the regression gate's directions and tolerances (:mod:`csmlab.regress`),
+the tuner's objectives (:mod:`csmlab.tune`), the report's tables, best-marks and plots
+(:mod:`csmlab.report`) and the headline of ``csmlab run`` all read it. Adding a column is one
+:class:`Metric` here plus the function that computes it (its key in the dict that function returns,
+merged by :func:`csmlab.metrics.measure_frame`).
+
+This module imports neither Warp nor the metrics' code, so that reading a TOML file or a results
+directory does not load the kernels.
+
+Which way is better (:data:`BETTER`):
+
+- ``lower``: flicker, errors, cost;
+- ``higher``: utilization, SSIM, the worst-pixel ρ (p05, σ_min);
+- ``one``: closest to 1 on a log scale, ``|ln ρ|`` smallest — ρ is texels per pixel, and ρ = 1 is
+  the 1:1 ideal: below it shadows are blocky, far above it resolution is wasted. ρ = 0.5 and ρ = 2
+  are equally far from it;
+- ``either``: no better direction; shown, never judged, marked or tuned.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["BETTER", "BETTER_TEXT", "CASCADE_PLACES", "HEADLINE", "METRICS", "PLOTS", "Metric", "best_mask", "finite_mean",
+           "format_number", "is_metric_column", "metric_columns", "metric_of", "temporal_columns"]
+
+
+def _distance_from_one(value: float) -> float:
+    if math.isnan(value):
+        return value
+    return abs(math.log(value)) if value > 0 else math.inf
+
+
+BETTER: dict[str, Callable[[float], float] | None] = {
+    "lower": lambda value: value,
+    "higher": lambda value: -value,
+    "one": _distance_from_one,
+    "either": None,
+}
+"""Which way is better, by name: the score to minimise of a value (None: no better direction)."""
+
+BETTER_TEXT = {
+    "lower": "lower is better",
+    "higher": "higher is better",
+    "one": "closest to 1 is better",
+    "either": "no better side",
+}
+"""How each :data:`BETTER` name reads in a table title, a verdict or a report."""
+
+CASCADE_PLACES = ("", "beside", "tail")
+"""Where a metric's per-cascade columns ``NAME_c{i}`` go: none; right after ``NAME``; or after every
+other column, cascade by cascade (``rho_median_c0, rho_p05_c0, …, rho_median_c1, …``)."""
+
+PLOTS = ("frames", "sweep")
+"""The report's plots a metric can be drawn in: per-frame curves, and against each swept field."""
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One metric column of ``metrics.csv``.
+
+    Attributes
+    ----------
+    name : str
+        The column name (a contract: DESIGN.md "Interfaces").
+    label : str
+        What a person reads in a table header or on a plot axis.
+    unit : str
+        The unit of the shown value, ``value * scale``.
+    better : str
+        A key of :data:`BETTER`.
+    tolerance : tuple of (float, float)
+        The regression gate's ``(abs, rel)``: the value may move the wrong way by at most
+        ``max(abs, rel · |baseline|)`` in its stored units (:mod:`csmlab.regress`).
+    temporal : bool
+        Measured between frames t−1 and t: empty at frame 0 (and NaN in a one-frame run).
+    cascades : str
+        A key of :data:`CASCADE_PLACES`: whether and where ``NAME_c{i}`` columns follow.
+    scale : float
+        Display factor from the stored value (100 shows a fraction as %).
+    headline : bool
+        Shown in the summary tables (``csmlab run``'s and the report's).
+    plots : tuple of str
+        Entries of :data:`PLOTS` it is drawn in.
+    """
+
+    name: str
+    label: str
+    unit: str
+    better: str
+    tolerance: tuple[float, float] = (0.0, 0.0)
+    temporal: bool = False
+    cascades: str = ""
+    scale: float = 1.0
+    headline: bool = False
+    plots: tuple[str, ...] = ()
+
+    def __post_init__(self):
+        if self.better not in BETTER:
+            raise ValueError(f"{self.name}: better: expected one of {list(BETTER)}, got {self.better!r}")
+        if self.cascades not in CASCADE_PLACES:
+            raise ValueError(f"{self.name}: cascades: expected one of {CASCADE_PLACES}, got {self.cascades!r}")
+        if not set(self.plots) <= set(PLOTS):
+            raise ValueError(f"{self.name}: plots: expected entries of {PLOTS}, got {self.plots!r}")
+
+    @property
+    def title(self) -> str:
+        """``label (unit)``, for a plot axis."""
+        return f"{self.label} ({self.unit})"
+
+    def score(self, value: float) -> float:
+        """The value's badness, to minimise: ``value``, ``-value`` or ``|ln value|`` by :attr:`better`.
+
+        Raises
+        ------
+        ValueError
+            For a metric with no better direction.
+        """
+        score = BETTER[self.better]
+        if score is None:
+            raise ValueError(f"{self.name} has no better direction")
+        return score(value)
+
+
+_RHO = "texels/pixel"
+_PIXELS = "% pixels"
+_DS = "mean |ΔS|"
+
+METRICS: dict[str, Metric] = {m.name: m for m in (
+    Metric("rho_median", "median ρ", _RHO, "one", (1e-6, 0.005), cascades="tail", headline=True,
+           plots=("frames", "sweep")),
+    Metric("rho_p05", "ρ, 5th percentile", _RHO, "higher", (1e-6, 0.005), cascades="tail"),
+    Metric("rho_p95", "ρ, 95th percentile", _RHO, "one", (1e-6, 0.005), cascades="tail"),
+    Metric("rho_frac_lt1", "ρ < 1", _PIXELS, "lower", (1e-3, 0.02), cascades="tail", scale=100.0, headline=True),
+    Metric("rho_frac_lt05", "ρ < 0.5", _PIXELS, "lower", (1e-3, 0.02), cascades="tail", scale=100.0),
+    Metric("sigma_min_p05", "σ_min, 5th percentile", _RHO, "higher", (1e-6, 0.005)),
+    Metric("utilization", "utilization", "% texels", "higher", (1e-4, 0.01), cascades="beside", scale=100.0,
+           headline=True),
+    Metric("flicker", "flicker", _DS, "lower", (1e-6, 0.05), temporal=True),
+    Metric("flicker_same", "flicker, same cascade", _DS, "lower", (1e-6, 0.05), temporal=True, headline=True,
+           plots=("frames", "sweep")),
+    Metric("flicker_changed", "flicker, cascade changed", _DS, "lower", (1e-6, 0.05), temporal=True, headline=True,
+           plots=("frames", "sweep")),
+    Metric("flip_rate", "flip rate", _PIXELS, "lower", (1e-6, 0.05), temporal=True, scale=100.0, headline=True,
+           plots=("frames", "sweep")),
+    Metric("flip_same", "flip rate, same cascade", _PIXELS, "lower", (1e-6, 0.05), temporal=True, scale=100.0),
+    Metric("flip_changed", "flip rate, cascade changed", _PIXELS, "lower", (1e-6, 0.05), temporal=True, scale=100.0),
+    Metric("de2000_mean", "mean ΔE2000", "ΔE", "lower", (1e-3, 0.05), temporal=True, headline=True,
+           plots=("frames",)),
+    Metric("de2000_p99", "ΔE2000, 99th percentile", "ΔE", "lower", (1e-3, 0.05), temporal=True),
+    Metric("de2000_frac_jnd", "ΔE2000 > 1 JND", _PIXELS, "lower", (1e-5, 0.05), temporal=True, scale=100.0),
+    Metric("ssim", "SSIM", "1 = same", "higher", (1e-4, 0.01), temporal=True, headline=True),
+    Metric("flip", "ꟻLIP", "mean", "lower", (1e-5, 0.05), temporal=True, headline=True),
+    Metric("ref_false_shadow", "false shadow", _PIXELS, "lower", (1e-4, 0.05), scale=100.0),
+    Metric("ref_false_light", "false light", _PIXELS, "lower", (1e-4, 0.05), scale=100.0),
+    Metric("ref_boundary_px", "shadow boundary distance", "pixels", "lower", (1e-3, 0.10)),
+    Metric("memory_bytes", "memory", "MiB", "lower", (0.0, 0.0), scale=2.0 ** -20, headline=True,
+           plots=("sweep",)),
+    Metric("texels_rasterized", "texels rasterized", "texels", "lower", (0.0, 0.10)),
+)}
+"""Every metric column, in ``metrics.csv`` order (DESIGN.md "Interfaces")."""
+
+HEADLINE: tuple[Metric, ...] = tuple(m for m in METRICS.values() if m.headline)
+"""The metrics a summary table leads with, in column order."""
+
+_PER_CASCADE = re.compile(r"^(?P<name>.+)_c(?P<cascade>\d+)$")
+
+
+def metric_columns(cascades: int) -> tuple[str, ...]:
+    """Every metric column of ``metrics.csv``, in order, for ``cascades`` cascades.
+
+    :data:`METRICS` in order, each ``beside`` metric followed by its ``NAME_c0 … NAME_c{C-1}``,
+    then, for each cascade i in turn, ``NAME_c{i}`` of every ``tail`` metric.
+    """
+    if not (isinstance(cascades, (int, np.integer)) and cascades >= 1):
+        raise ValueError(f"cascades: expected a positive integer, got {cascades!r}")
+    out = []
+    for m in METRICS.values():
+        out.append(m.name)
+        if m.cascades == "beside":
+            out += [f"{m.name}_c{c}" for c in range(cascades)]
+    tail = [m.name for m in METRICS.values() if m.cascades == "tail"]
+    out += [f"{name}_c{c}" for c in range(cascades) for name in tail]
+    return tuple(out)
+
+
+def metric_of(column: str) -> Metric | None:
+    """The :class:`Metric` a column measures (``utilization_c2`` → ``utilization``); None if unknown."""
+    if column in METRICS:
+        return METRICS[column]
+    match = _PER_CASCADE.match(column)
+    metric = METRICS.get(match["name"]) if match else None
+    return metric if metric is not None and metric.cascades else None
+
+
+def is_metric_column(column: str) -> bool:
+    """``column`` is a metric column of ``metrics.csv`` for some number of cascades."""
+    return metric_of(column) is not None
+
+
+def temporal_columns() -> tuple[str, ...]:
+    """The columns measured between frames (empty at frame 0)."""
+    return tuple(m.name for m in METRICS.values() if m.temporal)
+
+
+def finite_mean(values) -> float:
+    """Mean of the finite entries of ``values`` in float64; NaN when there is none.
+
+    ``values`` is array-like; None entries count as NaN (a missing value, e.g. frame 0's flicker).
+    Float32 entries are summed in float64.
+    """
+    values = np.asarray(values)
+    if values.dtype.kind != "f":
+        values = values.astype(np.float64)
+    finite = values[np.isfinite(values)]
+    return float(np.mean(finite, dtype=np.float64)) if finite.size else math.nan
+
+
+def format_number(value) -> str:
+    """A value for a person to read: three significant digits, whole numbers from 1000 up with
+    thousands separators; an exact zero stays ``0`` (exact's same-cascade flicker is zero, not
+    small, and a table must say so); None, NaN and infinities are ``—``.
+    """
+    if value is None or not math.isfinite(float(value)):
+        return "—"
+    value = float(value)
+    return f"{value:,.0f}" if abs(value) >= 1000 else f"{value:.3g}"
+
+
+def best_mask(values, *, better: str) -> np.ndarray:
+    """``(N,)`` bool: the rows holding the best finite value; none when fewer than two values differ.
+
+    Parameters
+    ----------
+    values : array_like, shape (N,)
+    better : str
+        A key of :data:`BETTER`; ``either`` marks nothing, ``one`` ignores values ≤ 0.
+    """
+    values = np.asarray(values, dtype=np.float64)
+    score = BETTER[better]
+    finite = np.isfinite(values) & ((values > 0) if better == "one" else True)
+    if score is None or len(np.unique(values[finite])) < 2:
+        return np.zeros(values.shape, dtype=bool)
+    scores = np.array([score(v) if ok else math.inf for v, ok in zip(values.tolist(), finite)])
+    return finite & (scores == scores.min())

@@ -1,0 +1,101 @@
+"""The metric registry: DESIGN.md's column order, one meaning of "better", and no Warp to read a result."""
+
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from csmlab.metric_registry import (METRICS, best_mask, finite_mean, format_number, is_metric_column, metric_columns,
+                                    metric_of, temporal_columns)
+
+DESIGN_COLUMNS = (
+    "rho_median, rho_p05, rho_p95, rho_frac_lt1, rho_frac_lt05, sigma_min_p05, utilization, flicker, flicker_same, "
+    "flicker_changed, flip_rate, flip_same, flip_changed, de2000_mean, de2000_p99, de2000_frac_jnd, ssim, flip, "
+    "ref_false_shadow, ref_false_light, ref_boundary_px, memory_bytes, texels_rasterized").split(", ")
+"""DESIGN.md "Interfaces", copied by hand: the contract the registry must keep."""
+
+
+def test_metric_columns_keep_the_design_order_with_per_cascade_columns():
+    columns = metric_columns(2)
+    assert [c for c in columns if c in DESIGN_COLUMNS] == DESIGN_COLUMNS
+    at = columns.index("utilization")
+    assert columns[at + 1:at + 3] == ("utilization_c0", "utilization_c1")
+    rho_keys = ("rho_median", "rho_p05", "rho_p95", "rho_frac_lt1", "rho_frac_lt05")
+    assert columns[columns.index("texels_rasterized") + 1:] == tuple(f"{k}_c{c}" for c in range(2) for k in rho_keys)
+    assert len(set(columns)) == len(columns) == len(DESIGN_COLUMNS) + 2 + 2 * len(rho_keys)
+    with pytest.raises(ValueError, match="positive integer"):
+        metric_columns(0)
+
+
+def test_temporal_columns_are_the_ones_measured_between_frames():
+    assert temporal_columns() == ("flicker", "flicker_same", "flicker_changed", "flip_rate", "flip_same",
+                                  "flip_changed", "de2000_mean", "de2000_p99", "de2000_frac_jnd", "ssim", "flip")
+
+
+def test_per_cascade_columns_resolve_to_their_metric_and_nothing_else_does():
+    assert metric_of("utilization_c11") is METRICS["utilization"]
+    assert metric_of("rho_frac_lt05_c0") is METRICS["rho_frac_lt05"]
+    assert metric_of("flicker_c0") is None          # flicker has no per-cascade columns
+    assert metric_of("frame") is None and not is_metric_column("time_s")
+    assert is_metric_column("memory_bytes")
+
+
+def test_closest_to_one_scores_reciprocals_alike_and_tells_sides_apart_from_distance():
+    rho = METRICS["rho_median"]
+    assert rho.better == "one"
+    assert rho.score(0.5) == pytest.approx(rho.score(2.0)) == pytest.approx(math.log(2.0))
+    assert rho.score(1.0) == 0.0 and rho.score(0.0) == math.inf
+    assert rho.score(0.9) > rho.score(1.1)         # 0.9 is farther from 1:1 than 1.1 on a log scale
+    assert METRICS["flicker"].score(0.2) > METRICS["flicker"].score(0.1)
+    assert METRICS["ssim"].score(0.8) > METRICS["ssim"].score(0.9)
+
+
+@pytest.mark.parametrize("better, values, expected", [
+    ("lower", [0.3, 0.0, 0.0, np.nan], [False, True, True, False]),
+    ("higher", [0.3, 0.9, 0.1], [False, True, False]),
+    ("one", [0.5, 1.5, 3.0, 0.9], [False, False, False, True]),
+    ("one", [0.5, 2.0], [True, True]),
+    ("one", [0.0, 4.0, -1.0], [False, False, False]),
+    ("lower", [4.0, 4.0, np.nan], [False, False, False]),
+    ("either", [1.0, 2.0], [False, False]),
+])
+def test_best_mask_marks_the_best_and_nothing_when_all_equal(better, values, expected):
+    assert best_mask(values, better=better).tolist() == expected
+
+
+def test_format_number_keeps_an_exact_zero_and_marks_undefined():
+    assert format_number(0.0) == "0"
+    assert format_number(float("nan")) == "—" and format_number(None) == "—" and format_number(math.inf) == "—"
+    assert format_number(0.000123456) == "0.000123"
+    assert format_number(4321.5) == "4,322"
+
+
+def test_finite_mean_leaves_out_missing_values_and_sums_in_float64():
+    assert finite_mean([None, 1.0, np.nan, 3.0, np.inf]) == 2.0
+    assert math.isnan(finite_mean([])) and math.isnan(finite_mean([None, np.nan]))
+    ones = np.full(2**20 + 1, 0.1, dtype=np.float32)
+    assert finite_mean(ones) == pytest.approx(float(np.float32(0.1)), rel=1e-12)
+    assert finite_mean(np.array([True, False, False, True])) == 0.5
+
+
+def test_a_declaration_with_an_unknown_direction_is_refused():
+    from csmlab.metric_registry import Metric
+
+    with pytest.raises(ValueError, match="better"):
+        Metric("x", "x", "-", "up")
+    with pytest.raises(ValueError, match="plots"):
+        Metric("x", "x", "-", "lower", plots=("everywhere",))
+
+
+def test_reading_tolerances_or_results_does_not_import_warp(tmp_path):
+    tolerances = tmp_path / "tolerances.toml"
+    tolerances.write_text("[regress]\nflicker_same = { abs = 0.0 }\nutilization_c5 = { rel = 0.1 }\n")
+    code = ("import sys\n"
+            "from csmlab.config import load_tolerances\n"
+            "import csmlab.regress, csmlab.tune, csmlab.report.summary_table, csmlab.report.sweep\n"
+            f"assert set(load_tolerances({str(tolerances)!r})) == {{'flicker_same', 'utilization_c5'}}\n"
+            "print('warp' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False", out.stderr
