@@ -16,11 +16,11 @@ import numpy as np
 
 from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet, build_cascades
+from csmlab.filters import filtered_shadow_lookup
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import normalized
 from csmlab.kernels.raster import rasterize_depth
 from csmlab.kernels.reference import hard_shadow
-from csmlab.kernels.shadow import shadow_lookup
 from csmlab.kernels.visibility import MeshBVH, camera_hits, mesh_bvh
 from csmlab.scene.core import Scene
 from csmlab.settings import ShadowSettings
@@ -99,7 +99,7 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
 
 
 def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: ShadowSettings,
-                  device: str = "cpu") -> ShadowLookup:
+                  pixels=None, device: str = "cpu") -> ShadowLookup:
     """One method's shadow at receiver points: cascade selection, biased depth test, filter, blend.
 
     Parameters
@@ -115,6 +115,9 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
         metric passes ``pose_{t-1}.view_depth(points)``); non-finite where no receiver.
     settings : ShadowSettings
         Selection, filter, bias, normal offset, blend band and sub-texel bits.
+    pixels : array_like, shape (N, 2) or (H, W, 2), optional
+        Each point's pixel (x, y) in the image being shaded, for filters rotated per pixel; None:
+        an ``(H, W, 3)`` image of points is at its own pixels.
     device : str
         ``"cpu"`` or ``"cuda"``.
 
@@ -138,12 +141,14 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
         cascades, p.reshape(-1, 3)[receivers], n.reshape(-1, 3)[receivers], bits=bits,
         normal_offset=settings.normal_offset, bias_constant=settings.bias_constant, bias_slope=settings.bias_slope,
     )
-    found = shadow_lookup(
-        maps.depth, coordinates, receiver_depth, flat_z[receivers],
-        splits=cascades.splits, texel_area=np.array([np.prod(c.texel_size) for c in cascades.cascades]),
-        selection=settings.selection, filter=settings.filter, filter_size=settings.filter_size,
-        margin=cascades.margin_texels, blend_band=settings.blend_band, bits=bits,
-        receiver_slope=receiver_slope if settings.receiver_plane_bias else None, device=device,
+    if pixels is None and p.ndim == 3:
+        rows, cols = np.indices(p.shape[:2])
+        pixels = np.stack([cols, rows], axis=-1)
+    found = filtered_shadow_lookup(
+        maps.depth, coordinates, receiver_depth, flat_z[receivers], cascades=cascades, settings=settings,
+        receiver_slope=receiver_slope if settings.receiver_plane_bias else None,
+        pixels=None if pixels is None else np.asarray(pixels, dtype=np.float64).reshape(-1, 2)[receivers],
+        device=device,
     )
     lit = np.full(flat_z.shape, np.nan, dtype=np.float32)
     cascade = np.full(flat_z.shape, -1, dtype=np.int8)

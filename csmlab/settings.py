@@ -39,7 +39,7 @@ class ShadowSettings:
     selection: str = "interval"
     """Cascade selection: interval | map | best_resolution."""
     filter: str = "pcf"
-    """Filter: none | pcf | pcf_bilinear."""
+    """Filter: none | pcf | pcf_bilinear | pcf_gaussian | pcf_tent | pcf_poisson | pcss (csmlab.filters)."""
     filter_size: int = 3
     """pcf: taps per side N (odd)."""
     bias_constant: float = 0.0
@@ -56,6 +56,18 @@ class ShadowSettings:
     """Fixed-point bits below a texel for vertices and receivers (DESIGN.md, "Exact zero")."""
     depth_bytes: int = 4
     """Bytes per stored depth texel (memory cost only)."""
+    filter_sigma: float = 1.0
+    """pcf_gaussian: standard deviation σ of the weights, texels."""
+    filter_width_m: float = 0.0
+    """pcf_gaussian, pcf_tent, pcf_poisson: filter width in metres, the same in every cascade (Unigine); 0: in texels from filter_size and filter_sigma."""
+    poisson_taps: int = 16
+    """pcf_poisson: taps of the fixed Poisson disk."""
+    poisson_seed: int = 1
+    """pcf_poisson: seed of the disk's (deterministic) construction."""
+    poisson_rotation: str = "none"
+    """pcf_poisson: none (one disk everywhere) | pixel (rotated per screen pixel by interleaved gradient noise)."""
+    light_size_deg: float = 0.53
+    """pcss: angular diameter of the light, degrees (the sun: 0.53)."""
 
     def validated(self) -> "ShadowSettings":
         """Return ``self`` after checking every field's range; raise ``ValueError`` naming the field."""
@@ -78,6 +90,14 @@ class ShadowSettings:
         need(isinstance(self.receiver_plane_bias, bool), "receiver_plane_bias", "true or false",
              self.receiver_plane_bias)
         need(0.0 <= self.blend_band <= 0.5, "blend_band", "a fraction in [0, 0.5]", self.blend_band)
+        need(self.filter_sigma > 0, "filter_sigma", "a positive number of texels", self.filter_sigma)
+        need(self.filter_width_m >= 0, "filter_width_m", "a non-negative width in metres", self.filter_width_m)
+        need(isinstance(self.poisson_taps, int) and 1 <= self.poisson_taps <= 256, "poisson_taps",
+             "an integer in 1..256", self.poisson_taps)
+        need(isinstance(self.poisson_seed, int) and self.poisson_seed >= 0, "poisson_seed", "a non-negative integer",
+             self.poisson_seed)
+        need(self.poisson_rotation in ("none", "pixel"), "poisson_rotation", "none or pixel", self.poisson_rotation)
+        need(0.0 < self.light_size_deg < 90.0, "light_size_deg", "an angle in (0, 90) degrees", self.light_size_deg)
         need(isinstance(self.subtexel_bits, int) and 0 <= self.subtexel_bits <= 16, "subtexel_bits",
              "an integer in 0..16", self.subtexel_bits)
         return self
@@ -85,8 +105,9 @@ class ShadowSettings:
     @property
     def margin_texels(self) -> int:
         """Texels kept free inside each box edge so that filter taps never clamp: filter radius + 1."""
-        radius = self.filter_size // 2 if self.filter == "pcf" else (1 if self.filter == "pcf_bilinear" else 0)
-        return radius + 1
+        from csmlab.filters import filter_radius
+
+        return filter_radius(self.filter, self.filter_size) + 1
 
     def replace(self, **changes) -> "ShadowSettings":
         """A copy with ``changes`` applied (TOML name ``lambda`` accepted for ``lambda_``)."""
