@@ -24,6 +24,7 @@ from csmlab.kernels.reference import hard_shadow
 from csmlab.kernels.visibility import MeshBVH, camera_hits, mesh_bvh
 from csmlab.scene.core import Scene
 from csmlab.settings import ShadowSettings
+from csmlab.storage import stored_depth
 from csmlab.texels import fixed_point_coordinates, light_depth, receiver_lookup
 
 __all__ = ["DeviceScene", "lookup_shadow", "prepare_scene", "render_frame", "render_shadow", "render_view",
@@ -89,12 +90,15 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
 
 
 def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings) -> ShadowMaps:
-    """Rasterize every cascade's depth map from the scene's vertices in fixed point."""
+    """Rasterize every cascade's depth map from the scene's vertices in fixed point, stored in ``settings.depth_format``."""
     bits = settings.subtexel_bits
     vertices = dscene.scene.vertices
     points = np.stack([fixed_point_coordinates(cascades, c, vertices, bits=bits) for c in range(len(cascades))])
     depth, texels = rasterize_depth(points, light_depth(cascades, vertices), dscene.scene.triangles,
                                     resolution=settings.resolution, bits=bits, device=dscene.device)
+    if settings.depth_format != "float32":
+        span = float(np.ptp(cascades.to_light(dscene.scene.corners())[:, 2]))
+        depth = stored_depth(depth, span=span, depth_format=settings.depth_format)
     return ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=texels)
 
 

@@ -54,8 +54,16 @@ class ShadowSettings:
     """Fraction of a cascade's depth range blended with the next cascade, in [0, 0.5]."""
     subtexel_bits: int = 8
     """Fixed-point bits below a texel for vertices and receivers (DESIGN.md, "Exact zero")."""
-    depth_bytes: int = 4
-    """Bytes per stored depth texel (memory cost only)."""
+    depth_bytes: int = 0
+    """Bytes per stored depth texel (memory cost only); 0: what depth_format allocates (2, 4, 4)."""
+    depth_format: str = "float32"
+    """Stored depth: float32 | unorm24 | unorm16, quantized over the scene's light-space depth range (csmlab.storage)."""
+    storage: str = "array"
+    """Texture the cascades live in: array (C slices) | atlas (one texture, atlas_layout)."""
+    atlas_layout: str = "2x2"
+    """atlas: 2x2 | 1x4 | unigine (2×2, split 1 below split 0), up to 4 cascades, empty tiles allocated."""
+    cascade_resolutions: tuple[int, ...] = ()
+    """Texels per side of each cascade, one per cascade; empty: resolution for every cascade."""
     filter_sigma: float = 1.0
     """pcf_gaussian: standard deviation σ of the weights, texels."""
     filter_width_m: float = 0.0
@@ -98,6 +106,17 @@ class ShadowSettings:
              self.poisson_seed)
         need(self.poisson_rotation in ("none", "pixel"), "poisson_rotation", "none or pixel", self.poisson_rotation)
         need(0.0 < self.light_size_deg < 90.0, "light_size_deg", "an angle in (0, 90) degrees", self.light_size_deg)
+        need(isinstance(self.depth_bytes, int) and 0 <= self.depth_bytes <= 16, "depth_bytes",
+             "an integer in 0..16 (0: from depth_format)", self.depth_bytes)
+        need(self.depth_format in ("float32", "unorm24", "unorm16"), "depth_format", "float32, unorm24 or unorm16",
+             self.depth_format)
+        need(self.storage in ("array", "atlas"), "storage", "array or atlas", self.storage)
+        need(self.atlas_layout in ("2x2", "1x4", "unigine"), "atlas_layout", "2x2, 1x4 or unigine", self.atlas_layout)
+        need(self.storage != "atlas" or self.cascades <= 4, "storage", "array for more than 4 cascades (an atlas "
+             "layout holds 4 tiles)", self.storage)
+        need(not self.cascade_resolutions or (len(self.cascade_resolutions) == self.cascades and all(
+            isinstance(r, int) and 16 <= r <= 16384 for r in self.cascade_resolutions)), "cascade_resolutions",
+             f"{self.cascades} integers in 16..16384 (one per cascade) or an empty list", self.cascade_resolutions)
         need(isinstance(self.subtexel_bits, int) and 0 <= self.subtexel_bits <= 16, "subtexel_bits",
              "an integer in 0..16", self.subtexel_bits)
         return self

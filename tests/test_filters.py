@@ -12,7 +12,8 @@ from csmlab.settings import ShadowSettings
 
 SUN = np.array([0.5, -0.7, 0.35])
 STEADY = {"pcf_gaussian": {}, "pcf_tent": {"filter_size": 5}, "pcf_poisson": {"filter_size": 5},
-          "pcss": {"filter_size": 5, "light_size_deg": 2.0}, "pcf_tent_world": {"filter_width_m": 1.5}}
+          "pcss": {"filter_size": 5, "light_size_deg": 2.0}, "pcf_tent_world": {"filter_width_m": 1.5},
+          "pcf_unorm16": {"depth_format": "unorm16"}}
 
 
 def _walk(variants, frames=10):
@@ -31,9 +32,9 @@ def _walk(variants, frames=10):
     return {name: {key: np.array([s[key] for s in rows]) for key in rows[0]} for name, rows in out.items()}
 
 
-def test_exact_keeps_zero_same_cascade_flicker_under_every_weighted_filter_and_pixel_rotation_breaks_it():
+def test_exact_keeps_zero_same_cascade_flicker_under_every_filter_and_unorm16_and_pixel_rotation_breaks_it():
     base = ShadowSettings(cascades=3, resolution=256, stabilization="exact", shadow_distance=60.0)
-    variants = {name: base.replace(filter=name.removesuffix("_world"), **params) for name, params in STEADY.items()}
+    variants = {name: base.replace(filter=name.removesuffix("_world").removesuffix("_unorm16"), **params) for name, params in STEADY.items()}
     variants["rotated"] = base.replace(filter="pcf_poisson", filter_size=5, poisson_rotation="pixel")
     variants["none_stabilized"] = base.replace(stabilization="none", filter="pcf_tent", filter_size=5)
     summary = _walk(variants)
