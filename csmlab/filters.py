@@ -132,6 +132,25 @@ def _holds(coords: np.ndarray, unit: int, inset: int, resolution: int) -> np.nda
     return np.all((coords >= inset * unit) & (coords < (resolution - inset) * unit), axis=2)
 
 
+def _outside_smaller_boxes(coords: np.ndarray, cascades: CascadeSet, *, unit: int, inset: int,
+                           resolution: int) -> np.ndarray:
+    """``coords`` with receivers outside a cascade smaller than the maps moved far outside it.
+
+    A cascade of ``R_c < R`` texels fills the corner ``[0, R_c)²`` of its ``R × R`` map; a receiver
+    less than ``inset`` texels inside that corner's edges gets ``-2**50`` there, so no selection
+    picks the cascade for it and no tap reads the empty rest of the map. Equal cascades: unchanged.
+    """
+    smaller = [c for c, cascade in enumerate(cascades.cascades) if cascade.resolution < resolution]
+    if not smaller:
+        return coords
+    out = coords.copy()
+    for c in smaller:
+        size = cascades.cascades[c].resolution
+        inside = np.all((out[c] >= inset * unit) & (out[c] < (size - inset) * unit), axis=1)
+        out[c][~inside] = -2**50
+    return out
+
+
 def filtered_shadow_lookup(depth, coords, receiver_depth, view_depth, *, cascades: CascadeSet,
                            settings: ShadowSettings, receiver_slope=None, pixels=None,
                            device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -170,6 +189,8 @@ def filtered_shadow_lookup(depth, coords, receiver_depth, view_depth, *, cascade
     bits = settings.subtexel_bits
     texel_area = np.array([np.prod(c.texel_size) for c in cascades.cascades])
     margin = max(cascades.margin_texels, radius)
+    coords = _outside_smaller_boxes(np.asarray(coords, dtype=np.int64), cascades, unit=2**bits, inset=margin,
+                                    resolution=np.shape(depth)[1])
     common = dict(splits=cascades.splits, texel_area=texel_area, selection=settings.selection,
                   blend_band=settings.blend_band, bits=bits, receiver_slope=receiver_slope, device=device)
     if filter not in PCF_KERNELS:
@@ -179,7 +200,7 @@ def filtered_shadow_lookup(depth, coords, receiver_depth, view_depth, *, cascade
     # shadow_lookup for this filter's radius, and the blend band toward a next cascade that holds them.
     _, chosen, _ = shadow_lookup(depth, coords, receiver_depth, view_depth, filter="none", filter_size=1,
                                  margin=margin, **common)
-    xy = np.asarray(coords, dtype=np.int64)
+    xy = coords
     unit = 2**bits
     count, resolution = depth.shape[0], depth.shape[1]
     holds = _holds(xy, unit, radius, resolution)

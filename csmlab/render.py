@@ -94,8 +94,21 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
     bits = settings.subtexel_bits
     vertices = dscene.scene.vertices
     points = np.stack([fixed_point_coordinates(cascades, c, vertices, bits=bits) for c in range(len(cascades))])
-    depth, texels = rasterize_depth(points, light_depth(cascades, vertices), dscene.scene.triangles,
-                                    resolution=settings.resolution, bits=bits, device=dscene.device)
+    vertex_depth = light_depth(cascades, vertices)
+    sizes = [c.resolution for c in cascades.cascades]
+    if len(set(sizes)) == 1:
+        depth, texels = rasterize_depth(points, vertex_depth, dscene.scene.triangles, resolution=sizes[0], bits=bits,
+                                        device=dscene.device)
+    else:
+        # Cascades of unequal size: each rasterized at its own size into the corner of a map of the
+        # largest, the rest left empty (the lookup never selects a box there, csmlab.filters).
+        depth = np.full((len(sizes), max(sizes), max(sizes)), np.inf, dtype=np.float32)
+        texels = 0
+        for c, size in enumerate(sizes):
+            own, count = rasterize_depth(points[c:c + 1], vertex_depth, dscene.scene.triangles, resolution=size,
+                                         bits=bits, device=dscene.device)
+            depth[c, :size, :size] = own[0]
+            texels += count
     if settings.depth_format != "float32":
         span = float(np.ptp(cascades.to_light(dscene.scene.corners())[:, 2]))
         depth = stored_depth(depth, span=span, depth_format=settings.depth_format)

@@ -66,3 +66,19 @@ def test_world_width_is_the_same_in_metres_in_every_cascade_up_to_the_tap_cap():
     width = filter_widths(cascades, settings)
     np.testing.assert_allclose(width, np.clip(0.4 / texel, 0.01, 3.5))
     assert width[0] > width[-1]
+
+
+@pytest.mark.parametrize("line, field", [
+    ('filter = "pcf_tentt"', "methods.m.filter"), ('poisson_rotation = "screen"', "methods.m.poisson_rotation"),
+    ("light_size_deg = 0.0", "methods.m.light_size_deg"), ("filter_width_m = -1.0", "methods.m.filter_width_m"),
+    ('depth_format = "d16"', "methods.m.depth_format"), ('atlas_layout = "3x3"', "methods.m.atlas_layout"),
+    ("cascade_resolutions = [512, 256]", "methods.m.cascade_resolutions"),
+])
+def test_a_bad_filter_or_storage_field_is_an_input_error_naming_it(tmp_path, line, field):
+    from csmlab.config import load_experiment
+    from csmlab.errors import InputError
+
+    file = tmp_path / "bad.toml"
+    file.write_text(f'[scene]\nkind = "plane_box"\n[camera]\npath = "orbit"\n[[methods]]\nname = "m"\n{line}\n')
+    with pytest.raises(InputError, match=field.replace(".", r"\.")):
+        load_experiment(file)

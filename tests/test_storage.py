@@ -100,3 +100,25 @@ def test_settings_reject_bad_storage_fields_naming_them(field, value, expected):
 def test_an_atlas_holds_at_most_four_cascades():
     with pytest.raises(ValueError, match="storage"):
         ShadowSettings(cascades=5, storage="atlas").validated()
+
+
+def test_unequal_cascades_render_each_at_its_own_size_and_shade_as_the_uniform_ones_do():
+    dscene = prepare_scene(make_scene("plane_box", plane_size=40.0, box_size=2.0))
+    position = np.array([6.0, 5.0, 9.0])
+    pose = CameraPose(position=position, orientation=rotation_looking_at(-position), fov_y_deg=60.0, aspect=4 / 3,
+                      near=0.1, far=100.0)
+    view = render_view(dscene, pose, [0.4, -0.8, 0.3], width=64, height=48)
+    base = ShadowSettings(cascades=2, shadow_distance=24.0, split="uniform", filter="pcf_tent", filter_size=3)
+    mixed = render_shadow(dscene, view, base.replace(cascade_resolutions=(512, 128)))
+    large = render_shadow(dscene, view, base.replace(resolution=512))
+    small = render_shadow(dscene, view, base.replace(resolution=128))
+    assert mixed.maps.depth.shape == (2, 512, 512)
+    assert [c.resolution for c in mixed.maps.cascades.cascades] == [512, 128]
+    np.testing.assert_array_equal(mixed.maps.depth[0], large.maps.depth[0])
+    np.testing.assert_array_equal(mixed.maps.depth[1, :128, :128], small.maps.depth[1])
+    assert np.all(np.isinf(mixed.maps.depth[1, 128:])) and np.all(np.isinf(mixed.maps.depth[1, :, 128:]))
+    assert mixed.maps.texels_rasterized < large.maps.texels_rasterized
+    for c, uniform in ((0, large), (1, small)):
+        same = (mixed.shadow.cascade == c) & (uniform.shadow.cascade == c)
+        assert same.sum() > 100
+        np.testing.assert_array_equal(mixed.shadow.lit[same], uniform.shadow.lit[same])
