@@ -21,11 +21,12 @@ import numpy as np
 
 from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet
+from csmlab.kernels.moments import MOMENT_METHODS, blur_moments, moment_lookup, moment_maps
 from csmlab.kernels.pcf import PCF_KERNELS, weighted_pcf
 from csmlab.kernels.shadow import shadow_lookup
 from csmlab.settings import ShadowSettings
 
-__all__ = ["FILTER_METHODS", "filter_radius", "filter_widths", "filtered_shadow_lookup", "interleaved_gradient_noise",
+__all__ = ["FILTER_METHODS", "filter_moments", "filter_radius", "filter_widths", "filtered_shadow_lookup", "interleaved_gradient_noise",
            "poisson_disk", "screen_pixels"]
 
 FILTER_METHODS: dict[str, str] = {
@@ -36,19 +37,26 @@ FILTER_METHODS: dict[str, str] = {
     "pcf_tent": "tent of half-width N/2 integrated over each texel (Unity's 3×3/5×5/7×7 tents)",
     "pcf_poisson": "poisson_taps taps of a fixed Poisson disk of radius N/2 (optionally rotated per pixel)",
     "pcss": "blocker search over N×N, penumbra from light_size_deg, then a tent (PCSS)",
+    "vsm": "variance shadow map: blurred (z, z²), Chebyshev bound (DirectX VarianceShadows11)",
+    "evsm2": "exponential VSM, positive warp (MJP, Filament)",
+    "evsm4": "exponential VSM, positive and negative warps (MJP, Filament)",
 }
 """Filters by name (the ``[shadow] filter`` values) and what each does."""
 
 
-def filter_radius(filter: str, filter_size: int) -> int:
+def filter_radius(filter: str, filter_size: int, *, moment_blur: int = 1) -> int:
     """Texels a filter reads beyond the one holding the point (``filter_size`` N, odd).
 
     ``none`` 0; ``pcf``, ``pcf_gaussian`` and ``pcss`` N // 2; ``pcf_bilinear`` 1; ``pcf_tent`` and
-    ``pcf_poisson`` N // 2 + 1 (a width of N/2 texels around a point anywhere in its texel).
+    ``pcf_poisson`` N // 2 + 1 (a width of N/2 texels around a point anywhere in its texel); the
+    moment filters ``moment_blur // 2 + 1`` (a bilinear lookup of blurred moments).
     """
     if filter not in FILTER_METHODS:
         raise ValueError(f"filter: expected one of {sorted(FILTER_METHODS)}, got {filter!r}")
     half = filter_size // 2
+    if filter in MOMENT_METHODS:
+        # The bilinear lookup reads one texel beyond the point, each blurred from moment_blur // 2 more.
+        return moment_blur // 2 + 1
     return {"none": 0, "pcf": half, "pcf_bilinear": 1, "pcf_gaussian": half, "pcss": half, "pcf_tent": half + 1,
             "pcf_poisson": half + 1}[filter]
 
@@ -112,6 +120,17 @@ def interleaved_gradient_noise(pixels) -> np.ndarray:
     return out - np.floor(out)
 
 
+def filter_moments(depth, *, span: float, settings: ShadowSettings, device: str = "cpu") -> np.ndarray | None:
+    """The blurred moment maps ``(C, R, R, 4)`` float32 a moment filter looks up; None for the other filters.
+
+    Taken in the cascade pass, once per frame, from the stored depth normalized over ``span`` metres.
+    """
+    if settings.filter not in MOMENT_METHODS:
+        return None
+    moments = moment_maps(depth, span=span, method=settings.filter, exponents=settings.evsm_exponents, device=device)
+    return blur_moments(moments, radius=settings.moment_blur // 2, device=device)
+
+
 def screen_pixels(pose: CameraPose, points, *, width: int, height: int) -> np.ndarray:
     """Pixel positions ``(..., 2)`` (x = column, y = row, row 0 at the top) of world points ``(..., 3)`` under ``pose``.
 
@@ -152,8 +171,8 @@ def _outside_smaller_boxes(coords: np.ndarray, cascades: CascadeSet, *, unit: in
 
 
 def filtered_shadow_lookup(depth, coords, receiver_depth, view_depth, *, cascades: CascadeSet,
-                           settings: ShadowSettings, receiver_slope=None, pixels=None,
-                           device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                           settings: ShadowSettings, receiver_slope=None, pixels=None, moments=None,
+                           span: float = 0.0, device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Lit fraction S, selected cascade and blend flag of receivers under ``settings.filter``.
 
     Parameters
@@ -169,6 +188,10 @@ def filtered_shadow_lookup(depth, coords, receiver_depth, view_depth, *, cascade
     pixels : array_like, shape (N, 2), optional
         Each receiver's pixel (x = column, y = row) in the image of the camera being shaded; needed
         by ``poisson_rotation = "pixel"`` only.
+    moments : array_like, shape (C, R, R, 4), float32, optional
+        The moment filters' maps (:func:`filter_moments`).
+    span : float
+        Depth range in metres the moments were taken over.
     device : str
         ``"cpu"`` or ``"cuda"``.
 
@@ -185,7 +208,7 @@ def filtered_shadow_lookup(depth, coords, receiver_depth, view_depth, *, cascade
         On an unknown filter, or a per-pixel rotation without ``pixels``.
     """
     filter = settings.filter
-    radius = filter_radius(filter, settings.filter_size)
+    radius = filter_radius(filter, settings.filter_size, moment_blur=settings.moment_blur)
     bits = settings.subtexel_bits
     texel_area = np.array([np.prod(c.texel_size) for c in cascades.cascades])
     margin = max(cascades.margin_texels, radius)
@@ -193,7 +216,7 @@ def filtered_shadow_lookup(depth, coords, receiver_depth, view_depth, *, cascade
                                     resolution=np.shape(depth)[1])
     common = dict(splits=cascades.splits, texel_area=texel_area, selection=settings.selection,
                   blend_band=settings.blend_band, bits=bits, receiver_slope=receiver_slope, device=device)
-    if filter not in PCF_KERNELS:
+    if filter not in PCF_KERNELS and filter not in MOMENT_METHODS:
         return shadow_lookup(depth, coords, receiver_depth, view_depth, filter=filter,
                              filter_size=settings.filter_size, margin=margin, **common)
     # Selection first (one tap), with the filter's radius as margin; then the taps-inside rule of
@@ -218,6 +241,13 @@ def filtered_shadow_lookup(depth, coords, receiver_depth, view_depth, *, cascade
         start = z1 - settings.blend_band * (z1 - splits[cascade])
         band = (chosen >= 0) & (cascade + 1 < count) & (z >= start) & (z < z1) & holds[nxt, index]
         weight[band] = (z[band] - start[band]) / (z1[band] - start[band])
+    if filter in MOMENT_METHODS:
+        if moments is None or not span > 0:
+            raise ValueError(f"moments, span: filter {filter!r} needs the moment maps and their depth span")
+        lit = moment_lookup(moments, xy, receiver_depth, cascade=chosen, method=filter, span=span, bits=bits,
+                            exponents=settings.evsm_exponents, min_variance=settings.vsm_min_variance,
+                            power=settings.vsm_power, bleed=settings.vsm_bleed, blend_weight=weight, device=device)
+        return lit, chosen.astype(np.int8), band
     angle = None
     if filter == "pcf_poisson" and settings.poisson_rotation == "pixel":
         if pixels is None:

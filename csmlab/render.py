@@ -16,7 +16,7 @@ import numpy as np
 
 from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet, build_cascades
-from csmlab.filters import filtered_shadow_lookup
+from csmlab.filters import filter_moments, filtered_shadow_lookup
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import normalized
 from csmlab.kernels.raster import rasterize_depth
@@ -109,10 +109,11 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
                                          bits=bits, device=dscene.device)
             depth[c, :size, :size] = own[0]
             texels += count
-    if settings.depth_format != "float32":
-        span = float(np.ptp(cascades.to_light(dscene.scene.corners())[:, 2]))
-        depth = stored_depth(depth, span=span, depth_format=settings.depth_format)
-    return ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=texels)
+    span = float(np.ptp(cascades.to_light(dscene.scene.corners())[:, 2]))
+    depth = stored_depth(depth, span=span, depth_format=settings.depth_format)
+    return ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=texels,
+                      moments=filter_moments(depth, span=span, settings=settings, device=dscene.device),
+                      depth_span=span)
 
 
 def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: ShadowSettings,
@@ -163,6 +164,7 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
         pixels = np.stack([cols, rows], axis=-1)
     found = filtered_shadow_lookup(
         maps.depth, coordinates, receiver_depth, flat_z[receivers], cascades=cascades, settings=settings,
+        moments=maps.moments, span=maps.depth_span,
         receiver_slope=receiver_slope if settings.receiver_plane_bias else None,
         pixels=None if pixels is None else np.asarray(pixels, dtype=np.float64).reshape(-1, 2)[receivers],
         device=device,

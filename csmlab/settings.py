@@ -39,7 +39,7 @@ class ShadowSettings:
     selection: str = "interval"
     """Cascade selection: interval | map | best_resolution."""
     filter: str = "pcf"
-    """Filter: none | pcf | pcf_bilinear | pcf_gaussian | pcf_tent | pcf_poisson | pcss (csmlab.filters)."""
+    """Filter: none | pcf | pcf_bilinear | pcf_gaussian | pcf_tent | pcf_poisson | pcss | vsm | evsm2 | evsm4 (csmlab.filters)."""
     filter_size: int = 3
     """pcf: taps per side N (odd)."""
     bias_constant: float = 0.0
@@ -76,6 +76,16 @@ class ShadowSettings:
     """pcf_poisson: none (one disk everywhere) | pixel (rotated per screen pixel by interleaved gradient noise)."""
     light_size_deg: float = 0.53
     """pcss: angular diameter of the light, degrees (the sun: 0.53)."""
+    moment_blur: int = 5
+    """vsm, evsm2, evsm4: taps per side of the separable box blur of the moments (odd; 1: none)."""
+    evsm_exponents: tuple[float, float] = (40.0, 5.0)
+    """evsm2, evsm4: exponents c+ and c- of the positive and negative warps."""
+    vsm_min_variance: float = 1e-5
+    """vsm, evsm: minimum variance in normalized depth squared (DirectX VarianceShadows11: 0.00001)."""
+    vsm_power: float = 1.0
+    """vsm, evsm: light-bleeding reduction p ← p^power (seed 002's MAGIC_NUMBER; 1: none)."""
+    vsm_bleed: float = 0.0
+    """vsm, evsm: light-bleeding reduction p ← linstep(amount, 1, p) (Lauritzen; 0: none), in [0, 1)."""
 
     def validated(self) -> "ShadowSettings":
         """Return ``self`` after checking every field's range; raise ``ValueError`` naming the field."""
@@ -106,6 +116,13 @@ class ShadowSettings:
              self.poisson_seed)
         need(self.poisson_rotation in ("none", "pixel"), "poisson_rotation", "none or pixel", self.poisson_rotation)
         need(0.0 < self.light_size_deg < 90.0, "light_size_deg", "an angle in (0, 90) degrees", self.light_size_deg)
+        need(isinstance(self.moment_blur, int) and self.moment_blur >= 1 and self.moment_blur % 2 == 1, "moment_blur",
+             "an odd positive integer", self.moment_blur)
+        need(len(self.evsm_exponents) == 2 and all(0 < c <= 44 for c in self.evsm_exponents), "evsm_exponents",
+             "two exponents in (0, 44] (e^(2c) must fit float32)", self.evsm_exponents)
+        need(self.vsm_min_variance >= 0, "vsm_min_variance", "a non-negative variance", self.vsm_min_variance)
+        need(self.vsm_power > 0, "vsm_power", "a positive exponent", self.vsm_power)
+        need(0.0 <= self.vsm_bleed < 1.0, "vsm_bleed", "an amount in [0, 1)", self.vsm_bleed)
         need(isinstance(self.depth_bytes, int) and 0 <= self.depth_bytes <= 16, "depth_bytes",
              "an integer in 0..16 (0: from depth_format)", self.depth_bytes)
         need(self.depth_format in ("float32", "unorm24", "unorm16"), "depth_format", "float32, unorm24 or unorm16",
@@ -126,7 +143,7 @@ class ShadowSettings:
         """Texels kept free inside each box edge so that filter taps never clamp: filter radius + 1."""
         from csmlab.filters import filter_radius
 
-        return filter_radius(self.filter, self.filter_size) + 1
+        return filter_radius(self.filter, self.filter_size, moment_blur=self.moment_blur) + 1
 
     def replace(self, **changes) -> "ShadowSettings":
         """A copy with ``changes`` applied (TOML name ``lambda`` accepted for ``lambda_``)."""

@@ -30,7 +30,7 @@ import numpy as np
 
 from csmlab.settings import ShadowSettings
 
-__all__ = ["ATLAS_LAYOUTS", "DEPTH_FORMATS", "depth_step", "memory_bytes", "stored_depth", "texel_bytes"]
+__all__ = ["ATLAS_LAYOUTS", "DEPTH_FORMATS", "MOMENT_BYTES", "depth_step", "memory_bytes", "stored_depth", "texel_bytes"]
 
 DEPTH_FORMATS: dict[str, tuple[int | None, int]] = {"float32": (None, 4), "unorm24": (24, 4), "unorm16": (16, 2)}
 """Depth formats by name: (bits of the unorm level or None for float, bytes per texel as allocated; D24 pads to 4)."""
@@ -83,9 +83,13 @@ def stored_depth(depth, *, span: float, depth_format: str) -> np.ndarray:
     return np.where(finite, levels * step, maps).astype(np.float32)
 
 
+MOMENT_BYTES: dict[str, int] = {"vsm": 8, "evsm2": 8, "evsm4": 16}
+"""Bytes per texel of the moment filters' float32 moment maps (RG32F, RG32F, RGBA32F), beside the depth."""
+
+
 def texel_bytes(settings: ShadowSettings) -> int:
-    """Bytes per stored texel: ``depth_bytes`` when set, else what ``depth_format`` allocates."""
-    return settings.depth_bytes or DEPTH_FORMATS[settings.depth_format][1]
+    """Bytes per texel: the depth (``depth_bytes`` when set, else what ``depth_format`` allocates) plus the moments."""
+    return (settings.depth_bytes or DEPTH_FORMATS[settings.depth_format][1]) + MOMENT_BYTES.get(settings.filter, 0)
 
 
 def memory_bytes(settings: ShadowSettings) -> int:

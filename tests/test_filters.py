@@ -13,7 +13,8 @@ from csmlab.settings import ShadowSettings
 SUN = np.array([0.5, -0.7, 0.35])
 STEADY = {"pcf_gaussian": {}, "pcf_tent": {"filter_size": 5}, "pcf_poisson": {"filter_size": 5},
           "pcss": {"filter_size": 5, "light_size_deg": 2.0}, "pcf_tent_world": {"filter_width_m": 1.5},
-          "pcf_unorm16": {"depth_format": "unorm16"}}
+          "pcf_unorm16": {"depth_format": "unorm16"}, "vsm": {"vsm_bleed": 0.2}, "evsm2": {},
+          "evsm4": {"moment_blur": 3, "depth_format": "unorm16"}}
 
 
 def _walk(variants, frames=10):
@@ -48,7 +49,7 @@ def test_exact_keeps_zero_same_cascade_flicker_under_every_filter_and_unorm16_an
 def test_every_filter_has_a_radius_and_the_margin_follows_it():
     for name in FILTER_METHODS:
         settings = ShadowSettings(filter=name, filter_size=5)
-        assert settings.margin_texels == filter_radius(name, 5) + 1
+        assert settings.margin_texels == filter_radius(name, 5, moment_blur=settings.moment_blur) + 1
     with pytest.raises(ValueError, match="pcf_poisson"):
         filter_radius("poisson", 3)
 
