@@ -268,7 +268,8 @@ def list_names() -> None:
     """List scenes, camera paths, file formats, conventions, methods, presets and experiments."""
     from csmlab.cascades import FIT_METHODS, SPLIT_METHODS, STABILIZATION_METHODS
     from csmlab.config import list_experiments, list_presets
-    from csmlab.kernels.shadow import FILTER_METHODS, SELECTION_METHODS
+    from csmlab.filters import FILTER_METHODS
+    from csmlab.kernels.shadow import SELECTION_METHODS
     from csmlab.paths import CONVENTIONS, PATH_FORMATS, PATH_GENERATORS
     from csmlab.scene import SCENE_KINDS
 

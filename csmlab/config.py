@@ -783,7 +783,8 @@ def _shadow_fields(table, *, where: str, located: _Located, allow=("name",)) -> 
 def _checked_settings(settings: ShadowSettings, *, where_of, located: _Located) -> ShadowSettings:
     """``settings`` after range and method-name checks; ``where_of(field)`` says where a field was set."""
     from csmlab.cascades import FIT_METHODS, SPLIT_METHODS, STABILIZATION_METHODS
-    from csmlab.kernels.shadow import FILTER_METHODS, SELECTION_METHODS
+    from csmlab.filters import FILTER_METHODS
+    from csmlab.kernels.shadow import SELECTION_METHODS
 
     try:
         settings.validated()

@@ -102,11 +102,17 @@ class ShadowMaps:
         empty. ``depth[c, j, i]`` is texel column ``i`` (light x), row ``j`` (light y) of cascade c.
     texels_rasterized : int
         Texel-centre coverage tests that passed (work done by the rasterizer).
+    moments : ndarray, shape (C, R, R, 4), float32, optional
+        Blurred moment maps of the moment filters (:mod:`csmlab.kernels.moments`); None otherwise.
+    depth_span : float
+        The scene's light-space depth range in metres that stored depth and moments are taken over.
     """
 
     cascades: CascadeSet
     depth: np.ndarray
     texels_rasterized: int
+    moments: np.ndarray | None = None
+    depth_span: float = 0.0
 
 
 @dataclass(frozen=True)

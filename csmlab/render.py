@@ -16,14 +16,15 @@ import numpy as np
 
 from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet, build_cascades
+from csmlab.filters import filter_moments, filtered_shadow_lookup
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import normalized
 from csmlab.kernels.raster import rasterize_depth
 from csmlab.kernels.reference import hard_shadow
-from csmlab.kernels.shadow import shadow_lookup
 from csmlab.kernels.visibility import MeshBVH, camera_hits, mesh_bvh
 from csmlab.scene.core import Scene
 from csmlab.settings import ShadowSettings
+from csmlab.storage import stored_depth
 from csmlab.texels import fixed_point_coordinates, light_depth, receiver_lookup
 
 __all__ = ["DeviceScene", "lookup_shadow", "prepare_scene", "render_frame", "render_shadow", "render_view",
@@ -103,17 +104,34 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
 
 
 def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings) -> ShadowMaps:
-    """Rasterize every cascade's depth map from the scene's vertices in fixed point."""
+    """Rasterize every cascade's depth map from the scene's vertices in fixed point, stored in ``settings.depth_format``."""
     bits = settings.subtexel_bits
     vertices = dscene.scene.vertices
     points = np.stack([fixed_point_coordinates(cascades, c, vertices, bits=bits) for c in range(len(cascades))])
-    depth, texels = rasterize_depth(points, light_depth(cascades, vertices), dscene.scene.triangles,
-                                    resolution=settings.resolution, bits=bits, device=dscene.device)
-    return ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=texels)
+    vertex_depth = light_depth(cascades, vertices)
+    sizes = [c.resolution for c in cascades.cascades]
+    if len(set(sizes)) == 1:
+        depth, texels = rasterize_depth(points, vertex_depth, dscene.scene.triangles, resolution=sizes[0], bits=bits,
+                                        device=dscene.device)
+    else:
+        # Cascades of unequal size: each rasterized at its own size into the corner of a map of the
+        # largest, the rest left empty (the lookup never selects a box there, csmlab.filters).
+        depth = np.full((len(sizes), max(sizes), max(sizes)), np.inf, dtype=np.float32)
+        texels = 0
+        for c, size in enumerate(sizes):
+            own, count = rasterize_depth(points[c:c + 1], vertex_depth, dscene.scene.triangles, resolution=size,
+                                         bits=bits, device=dscene.device)
+            depth[c, :size, :size] = own[0]
+            texels += count
+    span = float(np.ptp(cascades.to_light(dscene.scene.corners())[:, 2]))
+    depth = stored_depth(depth, span=span, depth_format=settings.depth_format)
+    return ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=texels,
+                      moments=filter_moments(depth, span=span, settings=settings, device=dscene.device),
+                      depth_span=span)
 
 
 def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: ShadowSettings,
-                  device: str = "cpu") -> ShadowLookup:
+                  pixels=None, device: str = "cpu") -> ShadowLookup:
     """One method's shadow at receiver points: cascade selection, biased depth test, filter, blend.
 
     Parameters
@@ -129,6 +147,9 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
         metric passes ``pose_{t-1}.view_depth(points)``); non-finite where no receiver.
     settings : ShadowSettings
         Selection, filter, bias, normal offset, blend band and sub-texel bits.
+    pixels : array_like, shape (N, 2) or (H, W, 2), optional
+        Each point's pixel (x, y) in the image being shaded, for filters rotated per pixel; None:
+        an ``(H, W, 3)`` image of points is at its own pixels.
     device : str
         ``"cpu"`` or ``"cuda"``.
 
@@ -152,12 +173,15 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
         cascades, p.reshape(-1, 3)[receivers], n.reshape(-1, 3)[receivers], bits=bits,
         normal_offset=settings.normal_offset, bias_constant=settings.bias_constant, bias_slope=settings.bias_slope,
     )
-    found = shadow_lookup(
-        maps.depth, coordinates, receiver_depth, flat_z[receivers],
-        splits=cascades.splits, texel_area=np.array([np.prod(c.texel_size) for c in cascades.cascades]),
-        selection=settings.selection, filter=settings.filter, filter_size=settings.filter_size,
-        margin=cascades.margin_texels, blend_band=settings.blend_band, bits=bits,
-        receiver_slope=receiver_slope if settings.receiver_plane_bias else None, device=device,
+    if pixels is None and p.ndim == 3:
+        rows, cols = np.indices(p.shape[:2])
+        pixels = np.stack([cols, rows], axis=-1)
+    found = filtered_shadow_lookup(
+        maps.depth, coordinates, receiver_depth, flat_z[receivers], cascades=cascades, settings=settings,
+        moments=maps.moments, span=maps.depth_span,
+        receiver_slope=receiver_slope if settings.receiver_plane_bias else None,
+        pixels=None if pixels is None else np.asarray(pixels, dtype=np.float64).reshape(-1, 2)[receivers],
+        device=device,
     )
     lit = np.full(flat_z.shape, np.nan, dtype=np.float32)
     cascade = np.full(flat_z.shape, -1, dtype=np.int8)

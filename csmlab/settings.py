@@ -39,7 +39,7 @@ class ShadowSettings:
     selection: str = "interval"
     """Cascade selection: interval | map | best_resolution."""
     filter: str = "pcf"
-    """Filter: none | pcf | pcf_bilinear."""
+    """Filter: none | pcf | pcf_bilinear | pcf_gaussian | pcf_tent | pcf_poisson | pcss | vsm | evsm2 | evsm4 (csmlab.filters)."""
     filter_size: int = 3
     """pcf: taps per side N (odd)."""
     bias_constant: float = 0.0
@@ -54,8 +54,38 @@ class ShadowSettings:
     """Fraction of a cascade's depth range blended with the next cascade, in [0, 0.5]."""
     subtexel_bits: int = 8
     """Fixed-point bits below a texel for vertices and receivers (DESIGN.md, "Exact zero")."""
-    depth_bytes: int = 4
-    """Bytes per stored depth texel (memory cost only)."""
+    depth_bytes: int = 0
+    """Bytes per stored depth texel (memory cost only); 0: what depth_format allocates (2, 4, 4)."""
+    depth_format: str = "float32"
+    """Stored depth: float32 | unorm24 | unorm16, quantized over the scene's light-space depth range (csmlab.storage)."""
+    storage: str = "array"
+    """Texture the cascades live in: array (C slices) | atlas (one texture, atlas_layout)."""
+    atlas_layout: str = "2x2"
+    """atlas: 2x2 | 1x4 | unigine (2×2, split 1 below split 0), up to 4 cascades, empty tiles allocated."""
+    cascade_resolutions: tuple[int, ...] = ()
+    """Texels per side of each cascade, one per cascade; empty: resolution for every cascade."""
+    filter_sigma: float = 1.0
+    """pcf_gaussian: standard deviation σ of the weights, texels."""
+    filter_width_m: float = 0.0
+    """pcf_gaussian, pcf_tent, pcf_poisson: filter width in metres, the same in every cascade (Unigine); 0: in texels from filter_size and filter_sigma."""
+    poisson_taps: int = 16
+    """pcf_poisson: taps of the fixed Poisson disk."""
+    poisson_seed: int = 1
+    """pcf_poisson: seed of the disk's (deterministic) construction."""
+    poisson_rotation: str = "none"
+    """pcf_poisson: none (one disk everywhere) | pixel (rotated per screen pixel by interleaved gradient noise)."""
+    light_size_deg: float = 0.53
+    """pcss: angular diameter of the light, degrees (the sun: 0.53)."""
+    moment_blur: int = 5
+    """vsm, evsm2, evsm4: taps per side of the separable box blur of the moments (odd; 1: none)."""
+    evsm_exponents: tuple[float, float] = (40.0, 5.0)
+    """evsm2, evsm4: exponents c+ and c- of the positive and negative warps."""
+    vsm_min_variance: float = 1e-5
+    """vsm, evsm: minimum variance in normalized depth squared (DirectX VarianceShadows11: 0.00001)."""
+    vsm_power: float = 1.0
+    """vsm, evsm: light-bleeding reduction p ← p^power (seed 002's MAGIC_NUMBER; 1: none)."""
+    vsm_bleed: float = 0.0
+    """vsm, evsm: light-bleeding reduction p ← linstep(amount, 1, p) (Lauritzen; 0: none), in [0, 1)."""
 
     def validated(self) -> "ShadowSettings":
         """Return ``self`` after checking every field's range; raise ``ValueError`` naming the field."""
@@ -78,6 +108,32 @@ class ShadowSettings:
         need(isinstance(self.receiver_plane_bias, bool), "receiver_plane_bias", "true or false",
              self.receiver_plane_bias)
         need(0.0 <= self.blend_band <= 0.5, "blend_band", "a fraction in [0, 0.5]", self.blend_band)
+        need(self.filter_sigma > 0, "filter_sigma", "a positive number of texels", self.filter_sigma)
+        need(self.filter_width_m >= 0, "filter_width_m", "a non-negative width in metres", self.filter_width_m)
+        need(isinstance(self.poisson_taps, int) and 1 <= self.poisson_taps <= 256, "poisson_taps",
+             "an integer in 1..256", self.poisson_taps)
+        need(isinstance(self.poisson_seed, int) and self.poisson_seed >= 0, "poisson_seed", "a non-negative integer",
+             self.poisson_seed)
+        need(self.poisson_rotation in ("none", "pixel"), "poisson_rotation", "none or pixel", self.poisson_rotation)
+        need(0.0 < self.light_size_deg < 90.0, "light_size_deg", "an angle in (0, 90) degrees", self.light_size_deg)
+        need(isinstance(self.moment_blur, int) and self.moment_blur >= 1 and self.moment_blur % 2 == 1, "moment_blur",
+             "an odd positive integer", self.moment_blur)
+        need(len(self.evsm_exponents) == 2 and all(0 < c <= 44 for c in self.evsm_exponents), "evsm_exponents",
+             "two exponents in (0, 44] (e^(2c) must fit float32)", self.evsm_exponents)
+        need(self.vsm_min_variance >= 0, "vsm_min_variance", "a non-negative variance", self.vsm_min_variance)
+        need(self.vsm_power > 0, "vsm_power", "a positive exponent", self.vsm_power)
+        need(0.0 <= self.vsm_bleed < 1.0, "vsm_bleed", "an amount in [0, 1)", self.vsm_bleed)
+        need(isinstance(self.depth_bytes, int) and 0 <= self.depth_bytes <= 16, "depth_bytes",
+             "an integer in 0..16 (0: from depth_format)", self.depth_bytes)
+        need(self.depth_format in ("float32", "unorm24", "unorm16"), "depth_format", "float32, unorm24 or unorm16",
+             self.depth_format)
+        need(self.storage in ("array", "atlas"), "storage", "array or atlas", self.storage)
+        need(self.atlas_layout in ("2x2", "1x4", "unigine"), "atlas_layout", "2x2, 1x4 or unigine", self.atlas_layout)
+        need(self.storage != "atlas" or self.cascades <= 4, "storage", "array for more than 4 cascades (an atlas "
+             "layout holds 4 tiles)", self.storage)
+        need(not self.cascade_resolutions or (len(self.cascade_resolutions) == self.cascades and all(
+            isinstance(r, int) and 16 <= r <= 16384 for r in self.cascade_resolutions)), "cascade_resolutions",
+             f"{self.cascades} integers in 16..16384 (one per cascade) or an empty list", self.cascade_resolutions)
         need(isinstance(self.subtexel_bits, int) and 0 <= self.subtexel_bits <= 16, "subtexel_bits",
              "an integer in 0..16", self.subtexel_bits)
         return self
@@ -85,8 +141,9 @@ class ShadowSettings:
     @property
     def margin_texels(self) -> int:
         """Texels kept free inside each box edge so that filter taps never clamp: filter radius + 1."""
-        radius = self.filter_size // 2 if self.filter == "pcf" else (1 if self.filter == "pcf_bilinear" else 0)
-        return radius + 1
+        from csmlab.filters import filter_radius
+
+        return filter_radius(self.filter, self.filter_size, moment_blur=self.moment_blur) + 1
 
     def replace(self, **changes) -> "ShadowSettings":
         """A copy with ``changes`` applied (TOML name ``lambda`` accepted for ``lambda_``)."""

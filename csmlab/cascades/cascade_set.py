@@ -147,7 +147,8 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
             lo=corners[:, :2].min(axis=0), hi=corners[:, :2].max(axis=0), centre=centre[:2],
             radius=radius_rounded_up(sphere.radius), frustum_extent=frustum_extent,
         )
-        texel, origin = stabilize(footprint, method=settings.stabilization, resolution=settings.resolution,
+        resolution = settings.cascade_resolutions[i] if settings.cascade_resolutions else settings.resolution
+        texel, origin = stabilize(footprint, method=settings.stabilization, resolution=resolution,
                                   margin=margin, levels=settings.levels, quantized_base=settings.quantized_base)
         # The near side is pushed toward the light to the scene's bounds ("pancaking"), so every
         # caster in the box's x/y range is captured whatever the slice's own depth range is.
@@ -155,7 +156,7 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
         depth_far = float(max(corners[:, 2].max(), scene_light[:, 2].max()))
         cascades.append(Cascade(
             split_near=float(splits[i]), split_far=float(splits[i + 1]), slice_near=float(z0), slice_far=float(z1),
-            texel_size=texel, origin=origin, resolution=settings.resolution, depth_near=depth_near,
+            texel_size=texel, origin=origin, resolution=resolution, depth_near=depth_near,
             depth_far=depth_far,
         ))
     return CascadeSet(basis=basis, zref=float(scene_light[:, 2].min()), splits=splits, cascades=tuple(cascades),

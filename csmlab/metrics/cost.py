@@ -8,13 +8,17 @@ from __future__ import annotations
 
 from csmlab.frame import Frame
 from csmlab.settings import ShadowSettings
+from csmlab.storage import memory_bytes
 
 __all__ = ["cost_summary", "shadow_memory_bytes", "stage_seconds"]
 
 
 def shadow_memory_bytes(settings: ShadowSettings) -> int:
-    """Texture memory of the depth maps in bytes: ``C · R² · depth_bytes``."""
-    return settings.cascades * settings.resolution * settings.resolution * settings.depth_bytes
+    """Texture memory of the depth maps in bytes as the engine allocates it (:func:`csmlab.storage.memory_bytes`).
+
+    A texture array of equal cascades: ``C · R² · bytes``.
+    """
+    return memory_bytes(settings)
 
 
 def cost_summary(frame: Frame) -> dict[str, float]:

@@ -1,0 +1,352 @@
+"""Weighted percentage-closer filters at an already selected cascade: Gaussian, tent, Poisson disk, PCSS.
+
+Every filter here is a weighted sum of depth tests ``S = Σ w_k · test(texel_k)`` over texels around
+the receiver, the test being the receiver-plane comparison of :func:`csmlab.kernels.shadow.tap`.
+Tap positions and weights come from the receiver's fixed-point position less its integer texel
+index — exact and the same wherever a box lies — so a box moved by whole texels changes no tap
+and no weight (DESIGN.md, "Exact zero by construction"); only a per-pixel rotation of the Poisson
+disk (screen-space noise) breaks that, on purpose.
+
+Filters (:data:`PCF_KERNELS`), ``width`` in texels of the cascade, ``radius`` the tap bound:
+
+- ``pcf_gaussian`` — the (2r + 1)² texels centred on the one holding the point, weighted by
+  ``exp(−(di² + dj²) / 2σ²)`` normalized to 1 (σ = ``width``): the weighted-kernel PCF of the
+  DirectX CascadedShadowMaps11 sample (seed 002, "PCF").
+- ``pcf_tent`` — each texel weighted by the integral over it of a tent (triangle) of half-width
+  ``width`` centred on the point, per axis, the 2-D weight the product: Unity's tent filters
+  (``SampleShadow_ComputeSamples_Tent_5x5`` is half-width 2.5 over 6 texels; Unity folds the same
+  weights into 9 bilinear comparison fetches).
+- ``pcf_poisson`` — ``len(disk)`` equally weighted taps at ``point + width · R(θ) · o_k``, ``o_k``
+  a fixed Poisson disk in the unit disk, each tap testing the texel its offset point falls in;
+  θ per receiver (0 unless rotated per pixel).
+- ``pcss`` — percentage-closer soft shadows (Fernando 2005) for a directional light: the blockers
+  among the (2r + 1)² texels give their mean depth ``d_b``; the penumbra width is
+  ``w = (d_r − d_b) · 2 tan(θ_L / 2) / texel`` texels for a light of angular diameter θ_L (``width``
+  carries ``2 tan(θ_L/2) / texel``); then a tent of half-width ``clamp(w / 2, ½, r)``. No blocker:
+  lit.
+
+References
+----------
+- Reeves, Salesin, Cook, "Rendering Antialiased Shadows with Depth Maps", SIGGRAPH 1987.
+- Fernando, "Percentage-Closer Soft Shadows", SIGGRAPH 2005 sketch.
+- Unity Technologies, ``ShadowSamplingTent.hlsl`` (Core RP library) — the tent weights.
+- Microsoft, "Cascaded Shadow Maps" (seed 002), "PCF": a Gaussian over an N × N grid.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from csmlab.kernels import checked_device
+from csmlab.kernels.shadow import tap
+
+__all__ = ["PCF_KERNELS", "pcss_width", "weighted_pcf"]
+
+PCF_KERNELS: dict[str, int] = {"pcf_gaussian": 0, "pcf_tent": 1, "pcf_poisson": 2, "pcss": 3}
+"""Weighted PCF filters by name, mapped to the kernel's code."""
+
+
+@wp.func
+def tent_cdf(x: wp.float64, h: wp.float64) -> wp.float64:
+    """Integral from −∞ to ``x`` of the tent ``max(0, 1 − |x|/h) / h`` (unit area)."""
+    if x <= -h:
+        return wp.float64(0.0)
+    if x >= h:
+        return wp.float64(1.0)
+    if x <= wp.float64(0.0):
+        return (x + h) * (x + h) / (wp.float64(2.0) * h * h)
+    return wp.float64(1.0) - (h - x) * (h - x) / (wp.float64(2.0) * h * h)
+
+
+@wp.func
+def tent_sum(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int64, tx: wp.float64, ty: wp.float64,
+             h: wp.float64, radius: int, receiver: wp.float32, slope: wp.vec2d, x: wp.int64, y: wp.int64,
+             unit: wp.int64) -> wp.float64:
+    """Tent-weighted tests of the (2r + 1)² texels around texel (i, j); ``tx, ty`` the point in texels from texel i, j."""
+    s = wp.float64(0.0)
+    for dj in range(-radius, radius + 1):
+        # The texel spans [dj, dj + 1) relative to texel j; the tent is centred at ty.
+        wy = tent_cdf(wp.float64(dj + 1) - ty, h) - tent_cdf(wp.float64(dj) - ty, h)
+        if wy > wp.float64(0.0):
+            for di in range(-radius, radius + 1):
+                wx = tent_cdf(wp.float64(di + 1) - tx, h) - tent_cdf(wp.float64(di) - tx, h)
+                if wx > wp.float64(0.0):
+                    t = tap(depth, c, i + wp.int64(di), j + wp.int64(dj), receiver, slope, x, y, unit)
+                    s += wx * wy * wp.float64(t)
+    return s
+
+
+@wp.func
+def blocker_depth(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int64, radius: int,
+                  receiver: wp.float32, slope: wp.vec2d, x: wp.int64, y: wp.int64, unit: wp.int64) -> wp.float64:
+    """Mean stored depth of the texels among the (2r + 1)² around (i, j) that shadow the receiver plane; +inf if none."""
+    total = wp.float64(0.0)
+    count = int(0)
+    top = wp.int64(depth.shape[1] - 1)
+    for dj in range(-radius, radius + 1):
+        for di in range(-radius, radius + 1):
+            ii = i + wp.int64(di)
+            jj = j + wp.int64(dj)
+            if tap(depth, c, ii, jj, receiver, slope, x, y, unit) == 0:
+                stored = depth[c, int(wp.clamp(jj, wp.int64(0), top)), int(wp.clamp(ii, wp.int64(0), top))]
+                if wp.isfinite(stored):
+                    total += wp.float64(stored)
+                    count += 1
+    if count == 0:
+        return wp.float64(wp.inf)
+    return total / wp.float64(count)
+
+
+@wp.func
+def weighted_lit(depth: wp.array3d(dtype=wp.float32), coords: wp.array3d(dtype=wp.int64),
+                 receiver_depth: wp.array2d(dtype=wp.float32), receiver_slope: wp.array2d(dtype=wp.vec2d),
+                 c: int, k: int, unit: wp.int64, code: int, radius: int, width: wp.float64,
+                 disk: wp.array(dtype=wp.vec2d), angle: wp.float64) -> wp.float64:
+    """S of receiver k in cascade c under the filter ``code`` (see :data:`PCF_KERNELS`)."""
+    x = coords[c, k, 0]
+    y = coords[c, k, 1]
+    receiver = receiver_depth[c, k]
+    slope = receiver_slope[c, k]
+    i = x // unit
+    j = y // unit
+    # The point's position inside its texel, in texels: an exact fraction of `unit`.
+    tx = wp.float64(x - i * unit) / wp.float64(unit)
+    ty = wp.float64(y - j * unit) / wp.float64(unit)
+    if code == 0:
+        s = wp.float64(0.0)
+        total = wp.float64(0.0)
+        for dj in range(-radius, radius + 1):
+            for di in range(-radius, radius + 1):
+                w = wp.exp(-wp.float64(di * di + dj * dj) / (wp.float64(2.0) * width * width))
+                s += w * wp.float64(tap(depth, c, i + wp.int64(di), j + wp.int64(dj), receiver, slope, x, y, unit))
+                total += w
+        return s / total
+    if code == 1:
+        return tent_sum(depth, c, i, j, tx, ty, width, radius, receiver, slope, x, y, unit)
+    if code == 2:
+        ca = wp.cos(angle)
+        sa = wp.sin(angle)
+        count = int(0)
+        for n in range(disk.shape[0]):
+            o = disk[n]
+            ox = wp.int64(wp.round(width * (ca * o[0] - sa * o[1]) * wp.float64(unit)))
+            oy = wp.int64(wp.round(width * (sa * o[0] + ca * o[1]) * wp.float64(unit)))
+            count += tap(depth, c, (x + ox) // unit, (y + oy) // unit, receiver, slope, x, y, unit)
+        return wp.float64(count) / wp.float64(disk.shape[0])
+    if wp.isnan(receiver):
+        return wp.float64(0.0)
+    blocker = blocker_depth(depth, c, i, j, radius, receiver, slope, x, y, unit)
+    if not wp.isfinite(blocker):
+        return wp.float64(1.0)
+    half = wp.clamp(wp.float64(0.5) * (wp.float64(receiver) - blocker) * width, wp.float64(0.5), wp.float64(radius))
+    return tent_sum(depth, c, i, j, tx, ty, half, radius, receiver, slope, x, y, unit)
+
+
+@wp.kernel
+def weighted_pcf_kernel(
+    depth: wp.array3d(dtype=wp.float32),
+    coords: wp.array3d(dtype=wp.int64),
+    receiver_depth: wp.array2d(dtype=wp.float32),
+    receiver_slope: wp.array2d(dtype=wp.vec2d),
+    cascade: wp.array(dtype=wp.int32),
+    blend_weight: wp.array(dtype=wp.float64),
+    width: wp.array(dtype=wp.float64),
+    angle: wp.array(dtype=wp.float64),
+    disk: wp.array(dtype=wp.vec2d),
+    unit: wp.int64,
+    code: int,
+    radius: int,
+    lit: wp.array(dtype=wp.float32),
+):
+    k = wp.tid()
+    c = cascade[k]
+    if c < 0:
+        lit[k] = wp.float32(wp.nan)
+        return
+    s = weighted_lit(depth, coords, receiver_depth, receiver_slope, c, k, unit, code, radius, width[c], disk,
+                     angle[k])
+    w = blend_weight[k]
+    if w > wp.float64(0.0):
+        s = (wp.float64(1.0) - w) * s + w * weighted_lit(depth, coords, receiver_depth, receiver_slope, c + 1, k,
+                                                         unit, code, radius, width[c + 1], disk, angle[k])
+    lit[k] = wp.float32(s)
+
+
+@wp.kernel
+def pcss_width_kernel(
+    depth: wp.array3d(dtype=wp.float32),
+    coords: wp.array3d(dtype=wp.int64),
+    receiver_depth: wp.array2d(dtype=wp.float32),
+    receiver_slope: wp.array2d(dtype=wp.vec2d),
+    cascade: wp.array(dtype=wp.int32),
+    width: wp.array(dtype=wp.float64),
+    unit: wp.int64,
+    radius: int,
+    penumbra: wp.array(dtype=wp.float64),
+):
+    k = wp.tid()
+    c = cascade[k]
+    x = coords[c, k, 0]
+    y = coords[c, k, 1]
+    receiver = receiver_depth[c, k]
+    blocker = blocker_depth(depth, c, x // unit, y // unit, radius, receiver, receiver_slope[c, k], x, y, unit)
+    penumbra[k] = (wp.float64(receiver) - blocker) * width[c]
+    if not wp.isfinite(blocker):
+        penumbra[k] = wp.float64(0.0)
+
+
+def _checked(depth, coords, receiver_depth, receiver_slope, cascade, width):
+    maps = np.ascontiguousarray(depth, dtype=np.float32)
+    if maps.ndim != 3 or maps.shape[1] != maps.shape[2] or maps.shape[0] == 0:
+        raise ValueError(f"depth: expected depth maps of shape (C, R, R), got {maps.shape}")
+    count = maps.shape[0]
+    xy = np.ascontiguousarray(coords, dtype=np.int64)
+    n = xy.shape[1] if xy.ndim == 3 else -1
+    rd = np.ascontiguousarray(receiver_depth, dtype=np.float32)
+    slope = (np.zeros((count, max(n, 0), 2)) if receiver_slope is None
+             else np.ascontiguousarray(receiver_slope, dtype=np.float64))
+    chosen = np.ascontiguousarray(cascade, dtype=np.int32)
+    w = np.ascontiguousarray(np.broadcast_to(np.asarray(width, dtype=np.float64), (count,)))
+    if xy.shape != (count, n, 2) or rd.shape != (count, n) or slope.shape != (count, n, 2) or chosen.shape != (n,):
+        raise ValueError(f"coords, receiver_depth, receiver_slope, cascade: expected shapes ({count}, N, 2), "
+                         f"({count}, N), ({count}, N, 2), (N,); got {xy.shape}, {rd.shape}, {slope.shape}, "
+                         f"{chosen.shape}")
+    if np.any(chosen >= count):
+        raise ValueError(f"cascade: expected indices below {count} (or −1 for none), got {chosen.max()}")
+    if not np.all(np.isfinite(w) & (w > 0)):
+        raise ValueError(f"width: expected positive texel widths per cascade, got {w}")
+    return maps, xy, rd, slope, chosen, w, n
+
+
+def weighted_pcf(depth, coords, receiver_depth, *, cascade, filter: str, width, radius: int, bits: int,
+                 receiver_slope=None, blend_weight=None, angle=None, disk=None, device: str = "cpu") -> np.ndarray:
+    """Lit fraction S of receivers at their selected cascade under a weighted PCF filter.
+
+    Parameters
+    ----------
+    depth : array_like, shape (C, R, R), float32
+        Depth maps, metres (``depth[c, j, i]``), +inf where empty.
+    coords : array_like, shape (C, N, 2), int64
+        Receivers in ``2**-bits`` texels of each cascade (:func:`csmlab.texels.receiver_lookup`).
+    receiver_depth : array_like, shape (C, N), float32
+        Biased receiver depth per cascade, metres; NaN is shadowed by every texel.
+    cascade : array_like, shape (N,), int
+        The selected cascade of each receiver, −1 for none (S is NaN there).
+    filter : str
+        A key of :data:`PCF_KERNELS`.
+    width : float or array_like, shape (C,)
+        Per cascade, in texels: σ (``pcf_gaussian``), tent half-width (``pcf_tent``), disk radius
+        (``pcf_poisson``); for ``pcss`` the penumbra per metre of blocker distance,
+        ``2 tan(θ_L / 2) / texel`` (1/m).
+    radius : int
+        Taps reach at most ``radius`` texels from the texel holding the point (the caller keeps
+        the taps inside the box, see :func:`csmlab.filters.filter_radius`).
+    bits : int
+        Sub-texel bits of ``coords``.
+    receiver_slope : array_like, shape (C, N, 2), float64, optional
+        Receiver-plane depth change per texel (metres); None compares the receiver's own depth.
+    blend_weight : array_like, shape (N,), float64, optional
+        Weight in [0, 1) of cascade ``cascade + 1`` mixed into S (blend band); None: no blend.
+    angle : array_like, shape (N,), float64, optional
+        ``pcf_poisson``: rotation of the disk per receiver, radians; None: unrotated.
+    disk : array_like, shape (K, 2), float64, optional
+        ``pcf_poisson``: tap offsets in the unit disk.
+    device : str
+        ``"cpu"`` or ``"cuda"``.
+
+    Returns
+    -------
+    ndarray, shape (N,), float32
+        S in [0, 1]; NaN where ``cascade`` is −1.
+
+    Raises
+    ------
+    ValueError
+        On an unknown filter (the message lists the valid names), shapes that do not match, a
+        non-positive width, a missing disk for ``pcf_poisson`` or a negative radius.
+    """
+    device = checked_device(device)
+    if filter not in PCF_KERNELS:
+        raise ValueError(f"filter: expected one of {sorted(PCF_KERNELS)}, got {filter!r}")
+    if not (isinstance(radius, (int, np.integer)) and radius >= 0):
+        raise ValueError(f"radius: expected a non-negative integer, got {radius!r}")
+    maps, xy, rd, slope, chosen, w, n = _checked(depth, coords, receiver_depth, receiver_slope, cascade, width)
+    taps = np.zeros((1, 2)) if disk is None else np.ascontiguousarray(disk, dtype=np.float64)
+    if filter == "pcf_poisson" and (disk is None or taps.ndim != 2 or taps.shape[1] != 2 or taps.shape[0] == 0):
+        raise ValueError(f"disk: expected tap offsets of shape (K, 2) for pcf_poisson, got {np.shape(disk)}")
+    blend = np.zeros(n) if blend_weight is None else np.ascontiguousarray(blend_weight, dtype=np.float64)
+    turn = np.zeros(n) if angle is None else np.ascontiguousarray(angle, dtype=np.float64)
+    if blend.shape != (n,) or turn.shape != (n,):
+        raise ValueError(f"blend_weight, angle: expected shape ({n},), got {blend.shape}, {turn.shape}")
+    if np.any((blend > 0) & (chosen + 1 >= maps.shape[0])):
+        raise ValueError("blend_weight: a receiver of the last cascade cannot blend with a next one")
+    if n == 0:
+        return np.zeros(0, np.float32)
+    lit = wp.empty(n, dtype=wp.float32, device=device)
+    wp.launch(
+        weighted_pcf_kernel,
+        dim=n,
+        inputs=(
+            wp.array(maps, dtype=wp.float32, device=device, copy=False),
+            wp.array(xy, dtype=wp.int64, device=device, copy=False),
+            wp.array(rd, dtype=wp.float32, device=device, copy=False),
+            wp.array(slope, dtype=wp.vec2d, device=device),
+            wp.array(chosen, dtype=wp.int32, device=device, copy=False),
+            wp.array(blend, dtype=wp.float64, device=device, copy=False),
+            wp.array(w, dtype=wp.float64, device=device, copy=False),
+            wp.array(turn, dtype=wp.float64, device=device, copy=False),
+            wp.array(taps, dtype=wp.vec2d, device=device),
+            wp.int64(2**bits),
+            PCF_KERNELS[filter],
+            int(radius),
+        ),
+        outputs=(lit,),
+        device=device,
+    )
+    return lit.numpy()
+
+
+def pcss_width(depth, coords, receiver_depth, *, cascade, penumbra_per_metre, radius: int, bits: int,
+               receiver_slope=None, device: str = "cpu") -> np.ndarray:
+    """PCSS penumbra width in texels at each receiver: blocker search, then ``(d_r − d_b) · penumbra_per_metre``.
+
+    Parameters
+    ----------
+    depth, coords, receiver_depth, cascade, receiver_slope, bits, device
+        As :func:`weighted_pcf`; every ``cascade`` must be ≥ 0.
+    penumbra_per_metre : float or array_like, shape (C,)
+        ``2 tan(θ_L / 2) / texel`` per cascade: penumbra texels per metre between blocker and receiver.
+    radius : int
+        The blocker search covers the (2r + 1)² texels centred on the one holding the point.
+
+    Returns
+    -------
+    ndarray, shape (N,), float64
+        The penumbra width in texels before the tent's clamp; 0 where no texel blocks.
+    """
+    device = checked_device(device)
+    maps, xy, rd, slope, chosen, w, n = _checked(depth, coords, receiver_depth, receiver_slope, cascade,
+                                                 penumbra_per_metre)
+    if np.any(chosen < 0):
+        raise ValueError("cascade: expected a selected cascade (≥ 0) for every receiver")
+    if n == 0:
+        return np.zeros(0)
+    out = wp.empty(n, dtype=wp.float64, device=device)
+    wp.launch(
+        pcss_width_kernel,
+        dim=n,
+        inputs=(
+            wp.array(maps, dtype=wp.float32, device=device, copy=False),
+            wp.array(xy, dtype=wp.int64, device=device, copy=False),
+            wp.array(rd, dtype=wp.float32, device=device, copy=False),
+            wp.array(slope, dtype=wp.vec2d, device=device),
+            wp.array(chosen, dtype=wp.int32, device=device, copy=False),
+            wp.array(w, dtype=wp.float64, device=device, copy=False),
+            wp.int64(2**bits),
+            int(radius),
+        ),
+        outputs=(out,),
+        device=device,
+    )
+    return out.numpy()

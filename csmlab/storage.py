@@ -1,0 +1,107 @@
+"""How the depth maps are stored: the depth format's precision and the bytes an engine allocates.
+
+Depth formats (:data:`DEPTH_FORMATS`): ``float32`` keeps the rasterized metres; ``unorm16`` and
+``unorm24`` store an integer level over the box's near/far, so a deep box loses precision (acne
+where the stored caster rounds up past the biased receiver, peter-panning where it rounds down).
+
+The near/far a box quantizes over is the light-space depth range of the scene's bounds,
+``[zref, zref + span]`` — the box's near side is pushed there anyway ("pancaking"), and every
+caster and receiver lies inside it. That range is fixed per light and scene and never moves with
+the camera, and the level step is rounded up to a power of two, ``step = 2^⌈log₂(span / (2^b − 1))⌉``
+metres, so each stored value ``round(z / step) · step`` is exact in float32 and a whole-texel box
+move changes no level: ``exact`` keeps its zero same-cascade flicker (DESIGN.md, "Exact zero").
+The power-of-two step costs up to one bit against a step of exactly ``span / (2^b − 1)``.
+
+Memory (:func:`memory_bytes`): a texture ``array`` holds C slices of the largest cascade's size;
+an ``atlas`` holds a grid of equal tiles of that size (:data:`ATLAS_LAYOUTS`), empty tiles included.
+
+References
+----------
+- Zhang, Zaprjagaev, Bentham, "Practical Cascaded Shadow Maps" (seed 003), "Storage strategy" and
+  Listing 4.1.3 (Unigine's 2×2 atlas, split 1 below split 0).
+- Microsoft, "Cascaded Shadow Maps" (seed 002): PCF on an atlas in Direct3D 10, arrays in 10.1.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from csmlab.settings import ShadowSettings
+
+__all__ = ["ATLAS_LAYOUTS", "DEPTH_FORMATS", "MOMENT_BYTES", "depth_step", "memory_bytes", "stored_depth", "texel_bytes"]
+
+DEPTH_FORMATS: dict[str, tuple[int | None, int]] = {"float32": (None, 4), "unorm24": (24, 4), "unorm16": (16, 2)}
+"""Depth formats by name: (bits of the unorm level or None for float, bytes per texel as allocated; D24 pads to 4)."""
+
+ATLAS_LAYOUTS: dict[str, tuple[tuple[int, int], ...]] = {
+    "2x2": ((0, 0), (1, 0), (0, 1), (1, 1)),
+    "1x4": ((0, 0), (1, 0), (2, 0), (3, 0)),
+    "unigine": ((0, 0), (0, 1), (1, 0), (1, 1)),
+}
+"""Atlas layouts by name: the (column, row) tile of each cascade; the atlas is the whole grid."""
+
+
+def depth_step(span: float, *, depth_format: str) -> float:
+    """Metres between stored levels for a near/far ``span`` metres deep: a power of two; 0 for ``float32``."""
+    if depth_format not in DEPTH_FORMATS:
+        raise ValueError(f"depth_format: expected one of {sorted(DEPTH_FORMATS)}, got {depth_format!r}")
+    bits = DEPTH_FORMATS[depth_format][0]
+    if bits is None:
+        return 0.0
+    if not (math.isfinite(span) and span > 0):
+        raise ValueError(f"span: expected a positive depth range in metres, got {span!r}")
+    return math.ldexp(1.0, math.ceil(math.log2(span / (2**bits - 1))))
+
+
+def stored_depth(depth, *, span: float, depth_format: str) -> np.ndarray:
+    """Depth maps as the format stores them, back in metres.
+
+    Parameters
+    ----------
+    depth : array_like, shape (C, R, R), float32
+        Rasterized depth ``d·X − zref``, metres; +inf where empty.
+    span : float
+        Depth of the near/far range in metres (the scene's light-space depth extent).
+    depth_format : str
+        A key of :data:`DEPTH_FORMATS`.
+
+    Returns
+    -------
+    ndarray, shape (C, R, R), float32
+        ``round(z / step) · step`` (half to even, as a float-to-unorm conversion rounds to
+        nearest), clamped to the format's levels; empty texels stay +inf. ``float32``: unchanged.
+    """
+    maps = np.asarray(depth, dtype=np.float32)
+    step = depth_step(span, depth_format=depth_format)
+    if step == 0.0:
+        return maps
+    top = float(2 ** DEPTH_FORMATS[depth_format][0] - 1)
+    finite = np.isfinite(maps)
+    levels = np.clip(np.rint(maps.astype(np.float64) / step), 0.0, top)
+    return np.where(finite, levels * step, maps).astype(np.float32)
+
+
+MOMENT_BYTES: dict[str, int] = {"vsm": 8, "evsm2": 8, "evsm4": 16}
+"""Bytes per texel of the moment filters' float32 moment maps (RG32F, RG32F, RGBA32F), beside the depth."""
+
+
+def texel_bytes(settings: ShadowSettings) -> int:
+    """Bytes per texel: the depth (``depth_bytes`` when set, else what ``depth_format`` allocates) plus the moments."""
+    return (settings.depth_bytes or DEPTH_FORMATS[settings.depth_format][1]) + MOMENT_BYTES.get(settings.filter, 0)
+
+
+def memory_bytes(settings: ShadowSettings) -> int:
+    """Texture memory the engine allocates for the depth maps, padding included.
+
+    ``array``: ``C · R_max² · bytes`` (every slice of an array has one size). ``atlas``: the whole
+    grid of :data:`ATLAS_LAYOUTS` ``[atlas_layout]`` in tiles of ``R_max``, empty tiles included.
+    """
+    size = max(settings.cascade_resolutions or (settings.resolution,))
+    if settings.storage == "array":
+        return settings.cascades * size * size * texel_bytes(settings)
+    tiles = ATLAS_LAYOUTS[settings.atlas_layout]
+    columns = 1 + max(col for col, _ in tiles)
+    rows = 1 + max(row for _, row in tiles)
+    return columns * rows * size * size * texel_bytes(settings)
