@@ -10,7 +10,7 @@ both. Each stage's wall-clock time goes into the records' ``timings``.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -18,13 +18,13 @@ from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet, build_cascades
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import normalized
-from csmlab.kernels.raster import rasterize_depth
+from csmlab.kernels.raster import cascade_candidates, rasterize_cascades, triangle_bounds
 from csmlab.kernels.reference import hard_shadow
 from csmlab.kernels.shadow import shadow_lookup
 from csmlab.kernels.visibility import MeshBVH, camera_hits, mesh_bvh
 from csmlab.scene.core import Scene
 from csmlab.settings import ShadowSettings
-from csmlab.texels import fixed_point_coordinates, light_depth, receiver_lookup
+from csmlab.texels import fixed_point_origin, light_depth, light_plane_coordinates, receiver_lookup
 
 __all__ = ["DeviceScene", "lookup_shadow", "prepare_scene", "render_frame", "render_shadow", "render_view",
            "shadow_maps"]
@@ -41,11 +41,16 @@ class DeviceScene:
     bvh : MeshBVH
         Its BVH and vertices on the device, relative to a float64 anchor.
     device : str
+    light_space : dict
+        The scene in the light space of the last light direction seen (what the cascade pass
+        needs of every vertex and triangle, which a static light leaves unchanged from frame to
+        frame), keyed by the light basis.
     """
 
     scene: Scene
     bvh: MeshBVH
     device: str
+    light_space: dict = field(default_factory=dict, compare=False, repr=False)
 
 
 def prepare_scene(scene: Scene, *, device: str = "cpu") -> DeviceScene:
@@ -88,13 +93,34 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
                 timings={"visibility": visibility, "reference": time.perf_counter() - start})
 
 
+def _scene_in_light_space(dscene: DeviceScene, cascades: CascadeSet) -> tuple:
+    """Vertices' light-space x/y and depth, triangles' light-space rectangles: computed once per light."""
+    key = (cascades.basis.tobytes(), cascades.zref)
+    if key not in dscene.light_space:
+        vertices = dscene.scene.vertices
+        xy = light_plane_coordinates(cascades, vertices)
+        dscene.light_space.clear()
+        dscene.light_space[key] = (xy, light_depth(cascades, vertices), *triangle_bounds(xy, dscene.scene.triangles))
+    return dscene.light_space[key]
+
+
 def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings) -> ShadowMaps:
-    """Rasterize every cascade's depth map from the scene's vertices in fixed point."""
+    """Rasterize every cascade's depth map from the scene's vertices in fixed point.
+
+    Only the triangles whose light-space rectangle meets a cascade's box go to that cascade's
+    rasterization (:func:`csmlab.kernels.raster.cascade_candidates`); the others cover none of
+    its texels.
+    """
     bits = settings.subtexel_bits
-    vertices = dscene.scene.vertices
-    points = np.stack([fixed_point_coordinates(cascades, c, vertices, bits=bits) for c in range(len(cascades))])
-    depth, texels = rasterize_depth(points, light_depth(cascades, vertices), dscene.scene.triangles,
-                                    resolution=settings.resolution, bits=bits, device=dscene.device)
+    xy, depth_of_vertex, lo, hi = _scene_in_light_space(dscene, cascades)
+    texel_size = np.stack([c.texel_size for c in cascades.cascades])
+    candidates = cascade_candidates(lo, hi, texel_size=texel_size,
+                                    origin=np.stack([c.origin for c in cascades.cascades]),
+                                    resolution=settings.resolution)
+    origin = np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))])
+    depth, texels = rasterize_cascades(xy, depth_of_vertex, dscene.scene.triangles, texel_size=texel_size,
+                                       origin=origin, resolution=settings.resolution, bits=bits,
+                                       candidates=candidates, device=dscene.device)
     return ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=texels)
 
 
