@@ -20,11 +20,11 @@ from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import normalized
 from csmlab.kernels.raster import cascade_candidates, rasterize_cascades, triangle_bounds
 from csmlab.kernels.reference import hard_shadow
-from csmlab.kernels.shadow import shadow_lookup
+from csmlab.kernels.shadow import receiver_coordinates, shadow_lookup
 from csmlab.kernels.visibility import MeshBVH, camera_hits, mesh_bvh
 from csmlab.scene.core import Scene
 from csmlab.settings import ShadowSettings
-from csmlab.texels import fixed_point_origin, light_depth, light_plane_coordinates, receiver_lookup
+from csmlab.texels import fixed_point_origin, light_depth, light_plane_coordinates, light_space
 
 __all__ = ["DeviceScene", "lookup_shadow", "prepare_scene", "render_frame", "render_shadow", "render_view",
            "shadow_maps"]
@@ -160,9 +160,14 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
     receivers = np.flatnonzero(np.all(np.isfinite(p.reshape(-1, 3)), axis=1) & ~np.isnan(flat_z))
     cascades = maps.cascades
     bits = settings.subtexel_bits
-    coordinates, receiver_depth, receiver_slope = receiver_lookup(
-        cascades, p.reshape(-1, 3)[receivers], n.reshape(-1, 3)[receivers], bits=bits,
-        normal_offset=settings.normal_offset, bias_constant=settings.bias_constant, bias_slope=settings.bias_slope,
+    # csmlab.texels.receiver_lookup, its per-cascade part in a kernel (the same bits).
+    coordinates, receiver_depth, receiver_slope = receiver_coordinates(
+        light_space(cascades, p.reshape(-1, 3)[receivers]),
+        light_space(cascades, n.reshape(-1, 3)[receivers].astype(np.float64)),
+        texel_size=np.stack([c.texel_size for c in cascades.cascades]),
+        origin=np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]),
+        zref=cascades.zref, bits=bits, normal_offset=settings.normal_offset, bias_constant=settings.bias_constant,
+        bias_slope=settings.bias_slope, device=device,
     )
     found = shadow_lookup(
         maps.depth, coordinates, receiver_depth, flat_z[receivers],
