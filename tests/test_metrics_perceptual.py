@@ -186,3 +186,10 @@ def test_changed_windows_cover_every_pixel_within_the_support_exactly_once():
         near[max(r - support, 0):r + support + 1, max(c - support, 0):c + support + 1] = True
     np.testing.assert_array_equal(covered, near.astype(int))
     assert changed_windows(np.zeros((5, 5), bool), support=2) == []
+
+
+def test_changes_everywhere_make_the_whole_image_one_window():
+    changed = np.zeros((40, 60), bool)
+    changed[::6, ::6] = True
+    ((rows, cols), keep), = changed_windows(changed, support=4)
+    assert (rows, cols) == (slice(0, 40), slice(0, 60)) and keep.all()

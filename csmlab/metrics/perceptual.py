@@ -161,7 +161,8 @@ def changed_windows(changed, *, support: int) -> list[tuple[tuple[slice, slice],
     ``support`` of it (its *reach*). Each 8-connected component of the reach is boxed and the box
     grown by ``support`` more pixels (clipped to the image), so that every reach pixel's whole
     support lies inside its window — or beyond the image's edge, exactly as in the full image.
-    Windows that overlap are merged when the union costs no more than the two apart.
+    Windows that overlap are merged when the union costs no more than the two apart, and when
+    the windows add up to the image's area the image itself is the one window.
 
     Parameters
     ----------
@@ -201,6 +202,9 @@ def changed_windows(changed, *, support: int) -> list[tuple[tuple[slice, slice],
                     break
             if merged:
                 break
+    if sum(_area(box) for box in boxes) >= height * width:
+        # Windows that add up to the image cost more than the image (changes everywhere: `none`).
+        return [((slice(0, height), slice(0, width)), reach)]
     windows = []
     for r0, r1, c0, c1, members in boxes:
         window = (slice(r0, r1), slice(c0, c1))
