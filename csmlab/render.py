@@ -10,7 +10,7 @@ both. Each stage's wall-clock time goes into the records' ``timings``.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -19,13 +19,14 @@ from csmlab.cascades import CascadeSet, build_cascades
 from csmlab.filters import filter_moments, filtered_shadow_lookup
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import normalized
-from csmlab.kernels.raster import rasterize_depth
+from csmlab.kernels.raster import cascade_candidates, rasterize_cascades, triangle_bounds
 from csmlab.kernels.reference import hard_shadow
+from csmlab.kernels.shadow import receiver_coordinates
 from csmlab.kernels.visibility import MeshBVH, camera_hits, mesh_bvh
 from csmlab.scene.core import Scene
 from csmlab.settings import ShadowSettings
 from csmlab.storage import stored_depth
-from csmlab.texels import fixed_point_coordinates, light_depth, receiver_lookup
+from csmlab.texels import fixed_point_origin, light_depth, light_plane_coordinates, light_space
 
 __all__ = ["DeviceScene", "lookup_shadow", "prepare_scene", "render_frame", "render_shadow", "render_view",
            "shadow_maps"]
@@ -42,11 +43,16 @@ class DeviceScene:
     bvh : MeshBVH
         Its BVH and vertices on the device, relative to a float64 anchor.
     device : str
+    light_space : dict
+        The scene in the light space of the last light direction seen (what the cascade pass
+        needs of every vertex and triangle, which a static light leaves unchanged from frame to
+        frame), keyed by the light basis.
     """
 
     scene: Scene
     bvh: MeshBVH
     device: str
+    light_space: dict = field(default_factory=dict, compare=False, repr=False)
 
 
 def prepare_scene(scene: Scene, *, device: str = "cpu") -> DeviceScene:
@@ -103,26 +109,46 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
                 previous_light_direction=before, previous_reference=previous)
 
 
+def _scene_in_light_space(dscene: DeviceScene, cascades: CascadeSet) -> tuple:
+    """Vertices' light-space x/y and depth, triangles' light-space rectangles: computed once per light."""
+    key = (cascades.basis.tobytes(), cascades.zref)
+    if key not in dscene.light_space:
+        vertices = dscene.scene.vertices
+        xy = light_plane_coordinates(cascades, vertices)
+        dscene.light_space.clear()
+        dscene.light_space[key] = (xy, light_depth(cascades, vertices), *triangle_bounds(xy, dscene.scene.triangles))
+    return dscene.light_space[key]
+
+
 def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings) -> ShadowMaps:
-    """Rasterize every cascade's depth map from the scene's vertices in fixed point, stored in ``settings.depth_format``."""
+    """Rasterize every cascade's depth map from the scene's vertices in fixed point, stored in ``settings.depth_format``.
+
+    Only the triangles whose light-space rectangle meets a cascade's box go to that cascade's
+    rasterization (:func:`csmlab.kernels.raster.cascade_candidates`); the others cover none of
+    its texels. Cascades of unequal size are each rasterized at their own size into the corner of
+    a map of the largest, the rest left empty (the lookup never selects a box there, csmlab.filters).
+    """
     bits = settings.subtexel_bits
-    vertices = dscene.scene.vertices
-    points = np.stack([fixed_point_coordinates(cascades, c, vertices, bits=bits) for c in range(len(cascades))])
-    vertex_depth = light_depth(cascades, vertices)
+    xy, depth_of_vertex, lo, hi = _scene_in_light_space(dscene, cascades)
+    texel_size = np.stack([c.texel_size for c in cascades.cascades])
+    box_origin = np.stack([c.origin for c in cascades.cascades])
+    origin = np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))])
     sizes = [c.resolution for c in cascades.cascades]
-    if len(set(sizes)) == 1:
-        depth, texels = rasterize_depth(points, vertex_depth, dscene.scene.triangles, resolution=sizes[0], bits=bits,
+    groups = [list(range(len(sizes)))] if len(set(sizes)) == 1 else [[c] for c in range(len(sizes))]
+    depth, texels = None, 0
+    for group in groups:
+        size = sizes[group[0]]
+        candidates = cascade_candidates(lo, hi, texel_size=texel_size[group], origin=box_origin[group], resolution=size)
+        own, count = rasterize_cascades(xy, depth_of_vertex, dscene.scene.triangles, texel_size=texel_size[group],
+                                        origin=origin[group], resolution=size, bits=bits, candidates=candidates,
                                         device=dscene.device)
-    else:
-        # Cascades of unequal size: each rasterized at its own size into the corner of a map of the
-        # largest, the rest left empty (the lookup never selects a box there, csmlab.filters).
-        depth = np.full((len(sizes), max(sizes), max(sizes)), np.inf, dtype=np.float32)
-        texels = 0
-        for c, size in enumerate(sizes):
-            own, count = rasterize_depth(points[c:c + 1], vertex_depth, dscene.scene.triangles, resolution=size,
-                                         bits=bits, device=dscene.device)
-            depth[c, :size, :size] = own[0]
-            texels += count
+        if len(groups) == 1:
+            depth = own
+        else:
+            if depth is None:
+                depth = np.full((len(sizes), max(sizes), max(sizes)), np.inf, dtype=np.float32)
+            depth[group, :size, :size] = own
+        texels += count
     span = float(np.ptp(cascades.to_light(dscene.scene.corners())[:, 2]))
     depth = stored_depth(depth, span=span, depth_format=settings.depth_format)
     return ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=texels,
@@ -169,9 +195,14 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
     receivers = np.flatnonzero(np.all(np.isfinite(p.reshape(-1, 3)), axis=1) & ~np.isnan(flat_z))
     cascades = maps.cascades
     bits = settings.subtexel_bits
-    coordinates, receiver_depth, receiver_slope = receiver_lookup(
-        cascades, p.reshape(-1, 3)[receivers], n.reshape(-1, 3)[receivers], bits=bits,
-        normal_offset=settings.normal_offset, bias_constant=settings.bias_constant, bias_slope=settings.bias_slope,
+    # csmlab.texels.receiver_lookup, its per-cascade part in a kernel (the same bits).
+    coordinates, receiver_depth, receiver_slope = receiver_coordinates(
+        light_space(cascades, p.reshape(-1, 3)[receivers]),
+        light_space(cascades, n.reshape(-1, 3)[receivers].astype(np.float64)),
+        texel_size=np.stack([c.texel_size for c in cascades.cascades]),
+        origin=np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]),
+        zref=cascades.zref, bits=bits, normal_offset=settings.normal_offset, bias_constant=settings.bias_constant,
+        bias_slope=settings.bias_slope, device=device,
     )
     if pixels is None and p.ndim == 3:
         rows, cols = np.indices(p.shape[:2])

@@ -19,7 +19,8 @@ import numpy as np
 
 from csmlab.cascades import CascadeSet
 
-__all__ = ["fixed_point_coordinates", "fixed_point_origin", "light_depth", "receiver_lookup", "texel_coordinates"]
+__all__ = ["fixed_point_coordinates", "fixed_point_origin", "light_depth", "light_plane_coordinates", "light_space",
+           "receiver_lookup", "texel_coordinates"]
 
 # Global fixed-point values are clipped to ±2**50 so that, less a box origin, doubled and
 # differenced in the rasterizer (which takes ±2**52), they can neither overflow int64 nor lose
@@ -35,6 +36,25 @@ def _light_space(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
     already keeps every core busy, which made this 40 times slower.
     """
     return np.einsum("...k,jk->...j", points, rows)
+
+
+def light_space(cascades: CascadeSet, points) -> np.ndarray:
+    """Light-space ``(..., 3)`` float64 of world points or directions ``(..., 3)``: x, y metres and ``d·X``.
+
+    The product :func:`receiver_lookup` starts from (the same operations in the same order), for
+    kernels that finish the lookup's conversion on the device.
+    """
+    return _light_space(np.asarray(points, dtype=np.float64), cascades.basis)
+
+
+def light_plane_coordinates(cascades: CascadeSet, points) -> np.ndarray:
+    """Light-space x/y ``(..., 2)`` float64 in metres of world points ``(..., 3)``.
+
+    Divided by a cascade's texel size this is exactly the global texel coordinate that
+    :func:`fixed_point_coordinates` snaps (the same operations in the same order), so a kernel
+    that finishes the conversion on the device gives the same fixed-point values.
+    """
+    return _light_space(np.asarray(points, dtype=np.float64), cascades.basis[:2])
 
 
 def _global_texels(cascades: CascadeSet, index: int, points) -> np.ndarray:

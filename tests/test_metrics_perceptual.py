@@ -7,8 +7,8 @@ from csmlab.camera import CameraPose
 from csmlab.cascades import build_cascades
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import rotation_looking_at
-from csmlab.metrics.perceptual import (JND_CIEDE2000, delta_e_2000, lab_from_linear_srgb, perceptual_maps,
-                                       perceptual_summary)
+from csmlab.metrics.perceptual import (JND_CIEDE2000, changed_windows, delta_e_2000, flip_map, lab_from_linear_srgb,
+                                       perceptual_maps, perceptual_summary, ssim_map)
 from csmlab.metrics.shading import shaded_rgb
 from csmlab.settings import ShadowSettings
 
@@ -127,3 +127,69 @@ def test_nothing_compared_gives_nan_measures():
     lit = np.ones((16, 16), np.float32)
     summary = perceptual_summary(perceptual_maps(_grey_frame(lit), np.full((16, 16), np.nan), ambient=0.25))
     assert all(np.isnan(v) for v in summary.values())
+
+
+def _sparse_pair(seed, *, shape=(90, 140), changes=12):
+    """Two random images that differ at a few random pixels (some near the edges, some clustered)."""
+    rng = np.random.default_rng(seed)
+    current = rng.random(shape)
+    previous = current.copy()
+    rows = np.concatenate([rng.integers(0, shape[0], changes), [0, shape[0] - 1]])
+    cols = np.concatenate([rng.integers(0, shape[1], changes), [shape[1] - 1, 0]])
+    rows, cols = np.concatenate([rows, rows[:3] + 1]) % shape[0], np.concatenate([cols, cols[:3]])
+    previous[rows, cols] = rng.random(rows.size)
+    return previous, current, previous != current
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_windowed_ssim_equals_the_whole_image_ssim_bit_for_bit(seed):
+    previous, current, changed = _sparse_pair(seed)
+    np.testing.assert_array_equal(ssim_map(previous, current, changed=changed), ssim_map(previous, current))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_windowed_flip_equals_the_whole_image_flip_bit_for_bit(seed):
+    previous, current, changed = _sparse_pair(seed)
+    rng = np.random.default_rng(100 + seed)
+    albedo = rng.random(current.shape + (3,))
+    reference, test = albedo * previous[..., None], albedo * current[..., None]
+    whole = flip_map(reference, test)
+    assert np.count_nonzero(whole) > changed.sum()  # the error spreads beyond the changed pixels
+    np.testing.assert_array_equal(flip_map(reference, test, changed=changed), whole)
+
+
+def test_windowed_delta_e_equals_the_whole_image_delta_e_bit_for_bit():
+    previous, current, changed = _sparse_pair(7)
+    frame = _grey_frame(current.astype(np.float32))
+    maps = perceptual_maps(frame, previous.astype(np.float32), ambient=0.25)
+    whole = delta_e_2000(lab_from_linear_srgb(maps.shaded.reshape(-1, 3)),
+                         lab_from_linear_srgb(maps.previous_shaded.reshape(-1, 3))).reshape(current.shape)
+    np.testing.assert_array_equal(maps.de2000, whole)
+    assert np.all(whole[~changed] == 0.0)
+
+
+def test_changed_windows_cover_every_pixel_within_the_support_exactly_once():
+    _, _, changed = _sparse_pair(3)
+    support = 4
+    windows = changed_windows(changed, support=support)
+    covered = np.zeros(changed.shape, int)
+    for (rows, cols), keep in windows:
+        covered[rows, cols] += keep
+        # A kept pixel's whole support lies in its window or beyond the image's edge.
+        r, c = np.nonzero(keep)
+        assert np.all((r >= support) | (rows.start == 0)) and np.all((c >= support) | (cols.start == 0))
+        assert np.all((r < keep.shape[0] - support) | (rows.stop == changed.shape[0]))
+        assert np.all((c < keep.shape[1] - support) | (cols.stop == changed.shape[1]))
+    rr, cc = np.nonzero(changed)
+    near = np.zeros(changed.shape, bool)
+    for r, c in zip(rr, cc):
+        near[max(r - support, 0):r + support + 1, max(c - support, 0):c + support + 1] = True
+    np.testing.assert_array_equal(covered, near.astype(int))
+    assert changed_windows(np.zeros((5, 5), bool), support=2) == []
+
+
+def test_changes_everywhere_make_the_whole_image_one_window():
+    changed = np.zeros((40, 60), bool)
+    changed[::6, ::6] = True
+    ((rows, cols), keep), = changed_windows(changed, support=4)
+    assert (rows, cols) == (slice(0, 40), slice(0, 60)) and keep[changed].all()

@@ -238,3 +238,44 @@ def test_cpu_and_cuda_rasterize_the_same_depth():
     assert cpu_texels == cuda_texels
     np.testing.assert_array_equal(np.isfinite(cpu), np.isfinite(cuda))
     np.testing.assert_allclose(cpu[np.isfinite(cpu)], cuda[np.isfinite(cuda)], rtol=1e-6)
+
+
+def test_device_fixed_point_and_culled_rasterization_equal_the_host_path_bit_for_bit():
+    """rasterize_cascades (fixed point in a kernel, culled pairs) gives rasterize_depth's maps exactly."""
+    from csmlab.kernels.raster import cascade_candidates, rasterize_cascades, triangle_bounds
+    from csmlab.texels import fixed_point_origin, light_plane_coordinates
+
+    rng = np.random.default_rng(11)
+    cs = cascade_set(direction=OBLIQUE, origins=[(1000.0, -37.0), (1040.0, -20.0), (990.0, -60.0)], texel=0.0371,
+                     resolution=48)
+    vertices, triangles = triangle_soup(rng, cs, count=400, lo=-40.0, hi=90.0, size=9.0)
+    expected, expected_count = rasterize(cs, vertices, triangles)
+    xy = light_plane_coordinates(cs, vertices)
+    lo, hi = triangle_bounds(xy, triangles)
+    texel_size = np.stack([c.texel_size for c in cs.cascades])
+    origin = np.stack([c.origin for c in cs.cascades])
+    candidates = cascade_candidates(lo, hi, texel_size=texel_size, origin=origin, resolution=48)
+    assert 0 < len(candidates) < 3 * len(triangles)  # culling removed some pairs, kept others
+    fixed_origin = np.stack([fixed_point_origin(cs, c, bits=BITS) for c in range(len(cs))])
+    for pairs in (candidates, None):
+        depth, count = rasterize_cascades(xy, light_depth(cs, vertices), triangles, texel_size=texel_size,
+                                          origin=fixed_origin, resolution=48, bits=BITS, candidates=pairs)
+        np.testing.assert_array_equal(depth, expected)
+        assert count == expected_count
+
+
+def test_culled_pairs_hold_every_triangle_that_covers_a_texel():
+    from csmlab.kernels.raster import cascade_candidates, triangle_bounds
+    from csmlab.texels import light_plane_coordinates
+
+    rng = np.random.default_rng(12)
+    cs = cascade_set(direction=DOWN, origins=[(0.0, 0.0), (30.0, 10.0)], texel=0.5, resolution=32)
+    vertices, triangles = triangle_soup(rng, cs, count=300, lo=-30.0, hi=70.0, size=4.0)
+    lo, hi = triangle_bounds(light_plane_coordinates(cs, vertices), triangles)
+    candidates = {tuple(p) for p in cascade_candidates(lo, hi, texel_size=[[0.5, 0.5]] * 2,
+                                                       origin=[c.origin for c in cs.cascades], resolution=32)}
+    for t in range(len(triangles)):
+        alone, covered = rasterize(cs, vertices, triangles[t:t + 1])
+        for c in range(len(cs)):
+            if np.isfinite(alone[c]).any():
+                assert (c, t) in candidates

@@ -212,3 +212,33 @@ def test_receiver_plane_bias_leaves_a_lit_plane_fully_lit_under_a_wide_filter():
     # two texels away fall behind the stored depth of a surface sloped to the light: acne.
     assert _lit_ground_fraction_with_partial_shadow(receiver_plane_bias=True) == 0.0
     assert _lit_ground_fraction_with_partial_shadow(receiver_plane_bias=False) > 0.05
+
+
+def test_receiver_coordinates_on_the_device_equal_the_host_receiver_lookup_bit_for_bit():
+    """The kernel finishing csmlab.texels.receiver_lookup gives its coordinates, depths and slopes exactly."""
+    from csmlab.cascades import Cascade, CascadeSet
+    from csmlab.geometry import light_basis
+    from csmlab.kernels.shadow import receiver_coordinates
+    from csmlab.texels import fixed_point_origin, light_space, receiver_lookup
+
+    rng = np.random.default_rng(5)
+    cascades = tuple(Cascade(split_near=0.1, split_far=50.0, slice_near=0.1, slice_far=50.0,
+                             texel_size=np.array([t, 1.3 * t]), origin=np.array(o), resolution=64, depth_near=-1e3,
+                             depth_far=1e3)
+                     for t, o in ((0.0371, (2.0e4, -17.0)), (0.3, (-250.0, 31.0)), (1.7, (3.0, 4.0))))
+    cs = CascadeSet(basis=light_basis([0.3, -0.8, 0.2]), zref=-3.25, splits=np.array([0.1, 5.0, 20.0, 50.0]),
+                    cascades=cascades, margin_texels=2)
+    points = rng.uniform(-1e3, 1e3, (5000, 3)) + np.array([7.5e5, 0.0, 0.0])
+    normals = rng.normal(size=(5000, 3)).astype(np.float32)
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)  # about half turned from the light
+    for bits, offset, constant, slope in ((8, 0.5, 0.0, 1.0), (12, 1.25, 0.013, 2.5)):
+        expected = receiver_lookup(cs, points, normals, bits=bits, normal_offset=offset, bias_constant=constant,
+                                   bias_slope=slope)
+        got = receiver_coordinates(
+            light_space(cs, points), light_space(cs, normals.astype(np.float64)),
+            texel_size=np.stack([c.texel_size for c in cs.cascades]),
+            origin=np.stack([fixed_point_origin(cs, c, bits=bits) for c in range(len(cs))]), zref=cs.zref, bits=bits,
+            normal_offset=offset, bias_constant=constant, bias_slope=slope)
+        assert np.isnan(expected[1]).any()
+        for e, g in zip(expected, got):
+            np.testing.assert_array_equal(g, e)

@@ -29,7 +29,7 @@ import warp as wp
 
 from csmlab.kernels import checked_device
 
-__all__ = ["rasterize_depth"]
+__all__ = ["cascade_candidates", "rasterize_cascades", "rasterize_depth", "triangle_bounds"]
 
 
 @wp.func
@@ -57,17 +57,17 @@ def last_centre(hi: wp.int64, unit: wp.int64, resolution: int) -> int:
     return int(wp.clamp(k, wp.int64(-1), wp.int64(resolution - 1)))
 
 
-@wp.kernel
-def rasterize_depth_kernel(
+@wp.func
+def rasterize_triangle(
     points: wp.array3d(dtype=wp.int64),
     vertex_depth: wp.array(dtype=wp.float64),
     triangles: wp.array2d(dtype=wp.int32),
     unit: wp.int64,
     depth: wp.array3d(dtype=wp.float32),
-    covered: wp.array2d(dtype=wp.int32),
-):
-    c, t = wp.tid()
-    covered[c, t] = 0
+    c: int,
+    t: int,
+) -> int:
+    """Rasterize triangle t into cascade c's map; the number of texel centres it covers."""
     resolution = depth.shape[1]
     ia = triangles[t, 0]
     ib = triangles[t, 1]
@@ -86,10 +86,10 @@ def rasterize_depth_kernel(
     j0 = first_centre(wp.min(wp.min(ay, by), cy), unit, resolution)
     j1 = last_centre(wp.max(wp.max(ay, by), cy), unit, resolution)
     if i0 > i1 or j0 > j1:
-        return
+        return 0
     area = wp.float64(bx - ax) * wp.float64(cy - ay) - wp.float64(by - ay) * wp.float64(cx - ax)
     if area == wp.float64(0.0):
-        return
+        return 0
     za = vertex_depth[ia]
     zb = vertex_depth[ib]
     zc = vertex_depth[ic]
@@ -123,7 +123,54 @@ def rasterize_depth_kernel(
                 z = (w_a * za + w_b * zb + w_c * zc) / area
                 wp.atomic_min(depth, c, j, i, wp.float32(z))
                 count += 1
-    covered[c, t] = count
+    return count
+
+
+@wp.kernel
+def rasterize_depth_kernel(
+    points: wp.array3d(dtype=wp.int64),
+    vertex_depth: wp.array(dtype=wp.float64),
+    triangles: wp.array2d(dtype=wp.int32),
+    unit: wp.int64,
+    depth: wp.array3d(dtype=wp.float32),
+    covered: wp.array2d(dtype=wp.int32),
+):
+    c, t = wp.tid()
+    covered[c, t] = rasterize_triangle(points, vertex_depth, triangles, unit, depth, c, t)
+
+
+@wp.kernel
+def rasterize_candidates_kernel(
+    points: wp.array3d(dtype=wp.int64),
+    vertex_depth: wp.array(dtype=wp.float64),
+    triangles: wp.array2d(dtype=wp.int32),
+    candidates: wp.array2d(dtype=wp.int32),
+    unit: wp.int64,
+    depth: wp.array3d(dtype=wp.float32),
+    covered: wp.array(dtype=wp.int32),
+):
+    k = wp.tid()
+    covered[k] = rasterize_triangle(points, vertex_depth, triangles, unit, depth, candidates[k, 0], candidates[k, 1])
+
+
+@wp.kernel
+def fixed_point_vertices_kernel(
+    light_xy: wp.array2d(dtype=wp.float64),
+    texel_size: wp.array2d(dtype=wp.float64),
+    origin: wp.array2d(dtype=wp.int64),
+    scale: wp.float64,
+    limit: wp.float64,
+    points: wp.array3d(dtype=wp.int64),
+):
+    c, v = wp.tid()
+    for axis in range(2):
+        # The operations of csmlab.texels.fixed_point_coordinates, in its order: no sum, so no
+        # fused multiply-add can change a rounding.
+        u = light_xy[v, axis] / texel_size[c, axis] * scale
+        u = wp.rint(wp.clamp(u, -limit, limit))
+        if wp.isnan(u):
+            u = -limit
+        points[c, v, axis] = wp.int64(u) - origin[c, axis]
 
 
 def rasterize_depth(points, vertex_depth, triangles, *, resolution: int, bits: int,
@@ -202,4 +249,118 @@ def rasterize_depth(points, vertex_depth, triangles, *, resolution: int, bits: i
         outputs=(depth, covered),
         device=device,
     )
+    return depth.numpy(), int(covered.numpy().sum(dtype=np.int64))
+
+
+def triangle_bounds(light_xy, triangles) -> tuple[np.ndarray, np.ndarray]:
+    """Light-space bounding rectangle of every triangle: ``lo, hi`` of shape (T, 2), metres.
+
+    Parameters
+    ----------
+    light_xy : array_like, shape (V, 2), float64
+        Vertices' light-space x/y in metres (:func:`csmlab.texels.light_plane_coordinates`).
+    triangles : array_like, shape (T, 3), integer
+    """
+    xy = np.asarray(light_xy, dtype=np.float64)[np.asarray(triangles)]
+    return xy.min(axis=1), xy.max(axis=1)
+
+
+def cascade_candidates(lo, hi, *, texel_size, origin, resolution: int) -> np.ndarray:
+    """(cascade, triangle) pairs whose light-space rectangle meets the cascade's box: ``(K, 2)`` int32.
+
+    Conservative: each box is widened by one texel on every side, far more than the fixed-point
+    snap (half a ``2**-bits`` texel) and float rounding can move a vertex, so a triangle left out
+    covers no texel centre of that cascade. Pairs are sorted by cascade, then triangle.
+
+    Parameters
+    ----------
+    lo, hi : array_like, shape (T, 2)
+        :func:`triangle_bounds`, metres.
+    texel_size : array_like, shape (C, 2)
+        Metres per texel of each cascade.
+    origin : array_like, shape (C, 2)
+        Box minimum corner in texels of each cascade.
+    resolution : int
+        Texels per side R.
+    """
+    lo = np.asarray(lo, dtype=np.float64)
+    hi = np.asarray(hi, dtype=np.float64)
+    pairs = []
+    for c, (size, corner) in enumerate(zip(np.asarray(texel_size, np.float64), np.asarray(origin, np.float64))):
+        box_lo = (corner - 1.0) * size
+        box_hi = (corner + resolution + 1.0) * size
+        inside = np.flatnonzero((hi[:, 0] >= box_lo[0]) & (lo[:, 0] <= box_hi[0]) & (hi[:, 1] >= box_lo[1])
+                                & (lo[:, 1] <= box_hi[1]))
+        pairs.append(np.stack([np.full(inside.size, c), inside], axis=1))
+    return np.concatenate(pairs).astype(np.int32) if pairs else np.zeros((0, 2), np.int32)
+
+
+def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin, resolution: int, bits: int,
+                       candidates=None, device: str = "cpu") -> tuple[np.ndarray, int]:
+    """Depth maps of every cascade from light-space vertices: fixed point and rasterization on the device.
+
+    The same maps as :func:`rasterize_depth` of
+    :func:`csmlab.texels.fixed_point_coordinates` — bit for bit — with the fixed-point conversion
+    of every vertex in a Warp kernel and, with ``candidates``, only the (cascade, triangle) pairs
+    that can cover a texel rasterized.
+
+    Parameters
+    ----------
+    light_xy : array_like, shape (V, 2), float64
+        Vertices' light-space x/y in metres (:func:`csmlab.texels.light_plane_coordinates`).
+    vertex_depth : array_like, shape (V,), float64
+        ``d·X − zref`` of each vertex in metres.
+    triangles : array_like, shape (T, 3), integer
+    texel_size : array_like, shape (C, 2), float64
+        Metres per texel of each cascade.
+    origin : array_like, shape (C, 2), int64
+        Each box origin in ``2**-bits`` texels (:func:`csmlab.texels.fixed_point_origin`).
+    resolution, bits : int
+        As :func:`rasterize_depth`.
+    candidates : array_like, shape (K, 2), int32, optional
+        (cascade, triangle) pairs to rasterize (:func:`cascade_candidates`); None: every pair.
+    device : str
+
+    Returns
+    -------
+    depth : ndarray, shape (C, R, R), float32
+    texels_rasterized : int
+    """
+    device = checked_device(device)
+    xy = np.ascontiguousarray(light_xy, dtype=np.float64)
+    size = np.ascontiguousarray(texel_size, dtype=np.float64)
+    corner = np.ascontiguousarray(origin, dtype=np.int64)
+    tri = np.ascontiguousarray(triangles, dtype=np.int32)
+    z = np.ascontiguousarray(vertex_depth, dtype=np.float64)
+    if xy.ndim != 2 or xy.shape[1] != 2 or size.ndim != 2 or size.shape[1] != 2 or corner.shape != size.shape:
+        raise ValueError(f"light_xy, texel_size, origin: expected shapes (V, 2), (C, 2), (C, 2); "
+                         f"got {xy.shape}, {size.shape}, {corner.shape}")
+    if z.shape != (xy.shape[0],) or not np.all(np.isfinite(z)) or not np.all(np.isfinite(xy)):
+        raise ValueError(f"light_xy, vertex_depth: expected {xy.shape[0]} finite vertices and depths")
+    if tri.ndim != 2 or tri.shape[1] != 3 or (tri.size and (tri.min() < 0 or tri.max() >= xy.shape[0])):
+        raise ValueError(f"triangles: expected indices of shape (T, 3) in [0, {xy.shape[0]})")
+    if not (isinstance(bits, (int, np.integer)) and 0 <= bits <= 16):
+        raise ValueError(f"bits: expected an integer in 0..16, got {bits!r}")
+    if not (isinstance(resolution, (int, np.integer)) and 1 <= resolution <= 16384):
+        raise ValueError(f"resolution: expected an integer in 1..16384, got {resolution!r}")
+    cascades = size.shape[0]
+    points = wp.empty((cascades, xy.shape[0], 2), dtype=wp.int64, device=device)
+    wp.launch(fixed_point_vertices_kernel, dim=(cascades, xy.shape[0]),
+              inputs=(wp.array(xy, dtype=wp.float64, device=device), wp.array(size, dtype=wp.float64, device=device),
+                      wp.array(corner, dtype=wp.int64, device=device), float(2**bits), float(2**50)),
+              outputs=(points,), device=device)
+    depth = wp.full((cascades, resolution, resolution), value=np.inf, dtype=wp.float32, device=device)
+    pairs = (np.stack(np.meshgrid(np.arange(cascades), np.arange(tri.shape[0]), indexing="ij"), -1).reshape(-1, 2)
+             if candidates is None else np.asarray(candidates)).astype(np.int32)
+    if pairs.ndim != 2 or pairs.shape[1] != 2 or (pairs.size and (pairs[:, 0].max() >= cascades
+                                                                   or pairs[:, 1].max() >= tri.shape[0])):
+        raise ValueError(f"candidates: expected (cascade, triangle) pairs of shape (K, 2), got {pairs.shape}")
+    if pairs.shape[0] == 0:
+        return depth.numpy(), 0
+    covered = wp.empty(pairs.shape[0], dtype=wp.int32, device=device)
+    wp.launch(rasterize_candidates_kernel, dim=pairs.shape[0],
+              inputs=(points, wp.array(z, dtype=wp.float64, device=device),
+                      wp.array(tri, dtype=wp.int32, device=device),
+                      wp.array(np.ascontiguousarray(pairs), dtype=wp.int32, device=device), wp.int64(2**bits)),
+              outputs=(depth, covered), device=device)
     return depth.numpy(), int(covered.numpy().sum(dtype=np.int64))

@@ -39,7 +39,7 @@ import warp as wp
 
 from csmlab.kernels import checked_device
 
-__all__ = ["FILTER_METHODS", "SELECTION_METHODS", "filter_radius", "shadow_lookup"]
+__all__ = ["FILTER_METHODS", "SELECTION_METHODS", "filter_radius", "receiver_coordinates", "shadow_lookup"]
 
 SELECTION_METHODS: dict[str, int] = {"interval": 0, "map": 1, "best_resolution": 2}
 """Cascade selection methods by name, mapped to the kernel's code."""
@@ -301,3 +301,96 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
     s = lit.numpy()
     s[cascade < 0] = np.nan
     return s, cascade.astype(np.int8), blended.numpy().astype(bool)
+
+
+@wp.kernel
+def receiver_coordinates_kernel(
+    light_p: wp.array2d(dtype=wp.float64),
+    light_n: wp.array2d(dtype=wp.float64),
+    texel_size: wp.array2d(dtype=wp.float64),
+    origin: wp.array2d(dtype=wp.int64),
+    zref: wp.float64,
+    scale: wp.float64,
+    limit: wp.float64,
+    normal_offset: wp.float64,
+    bias_constant: wp.float64,
+    bias_slope: wp.float64,
+    max_tan: wp.float64,
+    coords: wp.array3d(dtype=wp.int64),
+    depth: wp.array2d(dtype=wp.float32),
+    slope: wp.array3d(dtype=wp.float64),
+):
+    c, k = wp.tid()
+    # csmlab.texels.receiver_lookup's operations in its order, one at a time (Warp emits one
+    # statement per operation, so no multiply-add is fused): the same bits as the host.
+    zero = wp.float64(0.0)
+    cos = -light_n[k, 2]
+    tan = wp.float64(wp.nan)
+    if cos > zero:
+        tan = wp.min(wp.sqrt(wp.max(wp.float64(1.0) - cos * cos, zero)) / cos, max_tan)
+    texel = wp.max(texel_size[c, 0], texel_size[c, 1])
+    offset = normal_offset * texel
+    for axis in range(2):
+        u = light_n[k, axis] * offset
+        u = u + light_p[k, axis]
+        u = u * (scale / texel_size[c, axis])
+        u = wp.rint(wp.clamp(u, -limit, limit))
+        if wp.isnan(u):
+            u = -limit
+        coords[c, k, axis] = wp.int64(u) - origin[c, axis]
+        plane = zero
+        if cos > zero:
+            plane = light_n[k, axis] / cos
+        slope[c, k, axis] = wp.clamp(plane, -max_tan, max_tan) * texel_size[c, axis]
+    bias = bias_constant + bias_slope * texel * tan
+    depth[c, k] = wp.float32(light_p[k, 2] + offset * light_n[k, 2] - zref - bias)
+
+
+def receiver_coordinates(light_points, light_normals, *, texel_size, origin, zref: float, bits: int,
+                         normal_offset: float, bias_constant: float, bias_slope: float,
+                         device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`csmlab.texels.receiver_lookup` finished on the device, from light-space receivers.
+
+    Parameters
+    ----------
+    light_points, light_normals : array_like, shape (N, 3), float64
+        Receivers and their unit normals in light space (:func:`csmlab.texels.light_space`).
+    texel_size : array_like, shape (C, 2), float64
+        Metres per texel of each cascade.
+    origin : array_like, shape (C, 2), int64
+        Box origins in ``2**-bits`` texels (:func:`csmlab.texels.fixed_point_origin`).
+    zref : float
+        The cascades' depth offset, metres.
+    bits : int
+        Sub-texel bits.
+    normal_offset, bias_constant, bias_slope : float
+        Texels, metres, texels (DESIGN.md ``[shadow]``).
+    device : str
+
+    Returns
+    -------
+    coordinates, depth, slope
+        As :func:`csmlab.texels.receiver_lookup`, bit for bit: ``(C, N, 2)`` int64, ``(C, N)``
+        float32, ``(C, N, 2)`` float64.
+    """
+    device = checked_device(device)
+    p = np.ascontiguousarray(light_points, dtype=np.float64)
+    n = np.ascontiguousarray(light_normals, dtype=np.float64)
+    size = np.ascontiguousarray(texel_size, dtype=np.float64)
+    corner = np.ascontiguousarray(origin, dtype=np.int64)
+    if p.ndim != 2 or p.shape[1] != 3 or n.shape != p.shape or size.ndim != 2 or size.shape[1] != 2 \
+            or corner.shape != size.shape:
+        raise ValueError(f"light_points, light_normals, texel_size, origin: expected shapes (N, 3), (N, 3), (C, 2), "
+                         f"(C, 2); got {p.shape}, {n.shape}, {size.shape}, {corner.shape}")
+    shape = (size.shape[0], p.shape[0])
+    coords = wp.empty(shape + (2,), dtype=wp.int64, device=device)
+    depth = wp.empty(shape, dtype=wp.float32, device=device)
+    slope = wp.empty(shape + (2,), dtype=wp.float64, device=device)
+    if p.shape[0]:
+        wp.launch(receiver_coordinates_kernel, dim=shape,
+                  inputs=(wp.array(p, dtype=wp.float64, device=device), wp.array(n, dtype=wp.float64, device=device),
+                          wp.array(size, dtype=wp.float64, device=device),
+                          wp.array(corner, dtype=wp.int64, device=device), float(zref), float(2**bits), float(2**50),
+                          float(normal_offset), float(bias_constant), float(bias_slope), 10.0),
+                  outputs=(coords, depth, slope), device=device)
+    return coords.numpy(), depth.numpy(), slope.numpy()

@@ -17,6 +17,15 @@ and are left out of every mean.
   [0, 1]; frame t−1 is the reference, frame t the test), default viewing conditions (67 pixels per
   degree); the error map is averaged over the compared pixels.
 
+Only where the two evaluations differ. ΔE2000 is a per-pixel function that is exactly 0 between
+equal colours, and SSIM and ꟻLIP are local filters: a pixel whose whole filter support holds equal
+values in both images has SSIM exactly 1 and ꟻLIP exactly 0. So each is computed only on
+*windows* (:func:`changed_windows`) around the pixels whose S changed, each window grown by the
+filter's support so that every value inside is what the whole image gives, and the maps are filled
+with 0 or 1 elsewhere; the summaries are then taken over the full maps exactly as before. A frame
+of ``exact`` changes in a few dozen pixels, so its perceptual metrics cost a few windows instead of
+three full-image filters.
+
 References
 ----------
 - Luo, Cui, Rigg, "The development of the CIE 2000 colour-difference formula: CIEDE2000",
@@ -35,14 +44,15 @@ from dataclasses import dataclass
 import colour
 import flip_evaluator
 import numpy as np
+from scipy.ndimage import find_objects, label, maximum_filter
 from skimage.metrics import structural_similarity
 
 from csmlab.frame import Frame
 from csmlab.metric_registry import finite_mean
 from csmlab.metrics.shading import shaded_rgb, srgb_encoded
 
-__all__ = ["JND_CIEDE2000", "PerceptualMaps", "delta_e_2000", "lab_from_linear_srgb", "perceptual_maps",
-           "perceptual_summary"]
+__all__ = ["FLIP_SUPPORT", "JND_CIEDE2000", "PerceptualMaps", "SSIM_SUPPORT", "changed_windows", "delta_e_2000",
+           "flip_map", "lab_from_linear_srgb", "perceptual_maps", "perceptual_summary", "ssim_map"]
 
 JND_CIEDE2000: float = 1.0
 """ΔE2000 of one just-noticeable difference. CIEDE2000 was fitted to threshold and small-difference
@@ -53,6 +63,15 @@ data scaled so that one unit is about one JND under reference viewing conditions
 _SRGB = colour.RGB_COLOURSPACES["sRGB"]
 _SSIM_SIGMA = 1.5
 _SSIM_MIN_SIDE = 11
+
+SSIM_SUPPORT: int = int(3.5 * _SSIM_SIGMA + 0.5)
+"""Radius in pixels of scikit-image's Gaussian SSIM window (truncated at 3.5 σ: 11 × 11)."""
+
+FLIP_SUPPORT: int = 10
+"""Radius in pixels over which an LDR-ꟻLIP error value depends on its inputs at 67 pixels per degree:
+the colour pipeline's spatial filter reaches ``ceil(3·sqrt(0.04 / (2π²))·67) = 10`` pixels and the
+feature pipeline's edge and point detectors ``ceil(3 · 0.5 · 0.082 · 67) = 9`` (Andersson et al.
+2020, sections 4.1 and 4.2)."""
 
 
 @dataclass(frozen=True)
@@ -116,9 +135,11 @@ def perceptual_maps(frame: Frame, previous_lit, *, ambient: float) -> Perceptual
     shaded = shaded_rgb(g.albedo, g.normal, lit, **shade)
     previous_shaded = shaded_rgb(g.albedo, g.normal, previous_lit, **shade)
     compared = np.isfinite(lit) & np.isfinite(previous_lit)
-    de2000 = np.full(lit.shape, np.nan)
-    de2000[compared] = delta_e_2000(lab_from_linear_srgb(shaded[compared]),
-                                    lab_from_linear_srgb(previous_shaded[compared]))
+    de2000 = np.where(compared, 0.0, np.nan)
+    # Equal colours are 0 apart: the difference is computed only where S changed.
+    changed = compared & (lit != previous_lit)
+    de2000[changed] = delta_e_2000(lab_from_linear_srgb(shaded[changed]),
+                                   lab_from_linear_srgb(previous_shaded[changed]))
     return PerceptualMaps(lit=lit, previous_lit=previous_lit, shaded=shaded, previous_shaded=previous_shaded,
                           de2000=de2000, compared=compared)
 
@@ -128,6 +149,121 @@ def _filled_pair(current: np.ndarray, previous: np.ndarray, compared: np.ndarray
     mask = compared if current.ndim == compared.ndim else compared[..., None]
     a = np.nan_to_num(current, nan=0.0)
     return a, np.where(mask, previous, a)
+
+
+def changed_windows(changed, *, support: int) -> list[tuple[tuple[slice, slice], np.ndarray]]:
+    """Windows on which a local filter of radius ``support`` must be evaluated where ``changed``.
+
+    A pixel's value can differ from the no-change value only if a changed pixel lies within
+    ``support`` of it (its *reach*). Each 8-connected component of the reach is boxed and the box
+    grown by ``support`` more pixels (clipped to the image), so that every reach pixel's whole
+    support lies inside its window — or beyond the image's edge, exactly as in the full image.
+    Windows that overlap are merged when the union costs no more than the two apart, and when
+    the windows add up to the image's area the image itself is the one window.
+
+    Parameters
+    ----------
+    changed : array_like, shape (H, W), bool
+        Pixels where the two images differ.
+    support : int
+        Filter radius in pixels (≥ 0).
+
+    Returns
+    -------
+    list of ((slice, slice), ndarray)
+        Per window: its rows and columns in the image, and a bool mask of the window's shape
+        holding the reach pixels whose value the window gives exactly.
+    """
+    changed = np.asarray(changed, dtype=bool)
+    if not changed.any():
+        return []
+    height, width = changed.shape
+    reach = maximum_filter(changed.view(np.uint8), size=2 * support + 1, mode="constant").view(bool)
+    labels, count = label(reach, structure=np.ones((3, 3), dtype=bool))
+    boxes = []
+    for index, box in enumerate(find_objects(labels), start=1):
+        rows, cols = box
+        boxes.append([max(rows.start - support, 0), min(rows.stop + support, height),
+                      max(cols.start - support, 0), min(cols.stop + support, width), [index]])
+    merged = True
+    while merged:
+        merged = False
+        for i in range(len(boxes)):
+            for j in range(i + 1, len(boxes)):
+                a, b = boxes[i], boxes[j]
+                union = [min(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), max(a[3], b[3])]
+                if (union[1] - union[0]) * (union[3] - union[2]) <= _area(a) + _area(b):
+                    boxes[i] = union + [a[4] + b[4]]
+                    del boxes[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    if sum(_area(box) for box in boxes) >= height * width:
+        # Windows that add up to the image cost more than the image (changes everywhere: `none`).
+        return [((slice(0, height), slice(0, width)), reach)]
+    windows = []
+    for r0, r1, c0, c1, members in boxes:
+        window = (slice(r0, r1), slice(c0, c1))
+        windows.append((window, np.isin(labels[window], members)))
+    return windows
+
+
+def _area(box) -> int:
+    return (box[1] - box[0]) * (box[3] - box[2])
+
+
+def _windowed(evaluate, images: tuple, windows, *, shape: tuple[int, int], fill: float, dtype) -> np.ndarray:
+    """``(H, W)``: ``fill`` everywhere except the kept pixels of each window, from ``evaluate(*crops)``."""
+    out = np.full(shape, fill, dtype=dtype)
+    for window, keep in windows:
+        values = evaluate(*(image[window] for image in images))
+        out[window][keep] = values[keep]
+    return out
+
+
+def _ssim_full(previous: np.ndarray, current: np.ndarray) -> np.ndarray:
+    _, full = structural_similarity(previous, current, data_range=1.0, gaussian_weights=True, sigma=_SSIM_SIGMA,
+                                    use_sample_covariance=False, full=True)
+    return full
+
+
+def ssim_map(previous, current, *, changed=None) -> np.ndarray:
+    """SSIM map ``(H, W)`` float64 of two shadow images (scikit-image, the settings of the module docstring).
+
+    With ``changed`` (bool ``(H, W)``: where the two differ) it is computed on
+    :func:`changed_windows` only and is exactly 1 elsewhere — the same values as the whole image
+    gives. Both images need sides of at least 11 pixels.
+    """
+    previous = np.asarray(previous, dtype=np.float64)
+    current = np.asarray(current, dtype=np.float64)
+    if changed is None:
+        return _ssim_full(previous, current)
+    return _windowed(_ssim_full, (previous, current), changed_windows(changed, support=SSIM_SUPPORT),
+                     shape=current.shape, fill=1.0, dtype=np.float64)
+
+
+def _flip_full(reference: np.ndarray, test: np.ndarray) -> np.ndarray:
+    error, _, _ = flip_evaluator.evaluate(
+        np.ascontiguousarray(srgb_encoded(reference), dtype=np.float32),
+        np.ascontiguousarray(srgb_encoded(test), dtype=np.float32),
+        "LDR", applyMagma=False, computeMeanError=False,
+    )
+    return np.asarray(error)[..., 0]
+
+
+def flip_map(reference, test, *, changed=None) -> np.ndarray:
+    """LDR-ꟻLIP error map ``(H, W)`` float32 of two linear RGB images ``(H, W, 3)`` (sRGB-encoded, clipped, here).
+
+    With ``changed`` (bool ``(H, W)``) it is computed on :func:`changed_windows` only and is
+    exactly 0 elsewhere — the same values as the whole image gives.
+    """
+    reference = np.asarray(reference, dtype=np.float64)
+    test = np.asarray(test, dtype=np.float64)
+    if changed is None:
+        return _flip_full(reference, test)
+    return _windowed(_flip_full, (reference, test), changed_windows(changed, support=FLIP_SUPPORT),
+                     shape=test.shape[:2], fill=0.0, dtype=np.float32)
 
 
 def perceptual_summary(maps: PerceptualMaps) -> dict[str, float]:
@@ -149,17 +285,12 @@ def perceptual_summary(maps: PerceptualMaps) -> dict[str, float]:
         "de2000_frac_jnd": finite_mean((de > JND_CIEDE2000).astype(np.float64)),
     }
     lit, previous_lit = _filled_pair(maps.lit.astype(np.float64), maps.previous_lit.astype(np.float64), compared)
+    # The filled images differ exactly where a compared pixel's S changed.
+    changed = compared & (maps.lit != maps.previous_lit)
     if min(lit.shape) >= _SSIM_MIN_SIDE:
-        _, ssim_map = structural_similarity(previous_lit, lit, data_range=1.0, gaussian_weights=True,
-                                            sigma=_SSIM_SIGMA, use_sample_covariance=False, full=True)
-        out["ssim"] = finite_mean(ssim_map[compared])
+        out["ssim"] = finite_mean(ssim_map(previous_lit, lit, changed=changed)[compared])
     else:
         out["ssim"] = float("nan")
     shaded, previous_shaded = _filled_pair(maps.shaded, maps.previous_shaded, compared)
-    error, _, _ = flip_evaluator.evaluate(
-        np.ascontiguousarray(srgb_encoded(previous_shaded), dtype=np.float32),
-        np.ascontiguousarray(srgb_encoded(shaded), dtype=np.float32),
-        "LDR", applyMagma=False, computeMeanError=False,
-    )
-    out["flip"] = finite_mean(np.asarray(error)[..., 0][compared])
+    out["flip"] = finite_mean(flip_map(previous_shaded, shaded, changed=changed)[compared])
     return out

@@ -1,0 +1,289 @@
+"""csmlab's kernels beside Open3D's Embree ray caster on the same scene, cascades and rays.
+
+    .venv/bin/python benchmarks/bench_peers.py [--sizes 136k,1m] [--resolutions 1024,2048]
+        [--width 640 --height 360] [--repeats 5] [--json bench.json] [--experiment] [--dask]
+
+Per scene size (the ``terrain`` scene with its ground grid scaled to ~136k and ~1M triangles) and
+shadow-map resolution, at frame 60 of the default experiment's walk, it times:
+
+- ``gbuffer``: csmlab's camera G-buffer (first hit, position, normal, differentials) against
+  Open3D ``RaycastingScene.cast_rays`` on the same pixel-centre rays;
+- ``shadow rays``: csmlab's ray-traced reference against ``test_occlusions`` on the same rays
+  (visible points facing the light, toward the light);
+- ``depth maps``: csmlab's cascade pass (fixed-point conversion + rasterization of 4 cascades)
+  against ``cast_rays`` along the light through every texel centre of the same cascades;
+- ``lookup``: csmlab's shadow lookup at every visible pixel (no peer);
+- ``memcpy``: a copy of the depth maps (the memory-bandwidth floor the depth maps are compared to).
+
+Then, on the default scene (265k triangles), frame 60 of the walk against frame 59, the metrics of
+one frame × method for ``exact``, ``quantized`` and ``none`` (``metrics`` rows). Every time is the
+minimum of ``--repeats`` runs after a warm-up (the machine is shared: the minimum is the least
+disturbed). Open3D is optional (``pip install csmlab[bench]``); without it the peer columns print
+``n/a``. ``--experiment`` also runs the default experiment (``csmlab run``) and reports its wall
+time and the peak RSS of its largest process; ``--dask`` runs a 240-frame walk of ``exact`` on a
+local Dask cluster of 1 and of 2 workers and reports the speed-up.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import warp as wp
+
+# Run as a script, this file's folder comes first on sys.path: put the checkout it belongs to
+# before any installed csmlab.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from csmlab.cascades import build_cascades
+from csmlab.config import load_experiment
+from csmlab.experiment import build_workload
+from csmlab.kernels.reference import RAY_OFFSET, hard_shadow
+from csmlab.kernels.visibility import camera_hits
+from csmlab.metrics import measure_frame
+from csmlab.render import lookup_shadow, prepare_scene, render_shadow, render_view, shadow_maps
+from csmlab.scene import make_scene
+from csmlab.settings import ShadowSettings
+
+ROOT = Path(__file__).resolve().parents[1]
+SIZES = {"136k": 196, "265k": 320, "1m": 680}
+"""Scene sizes by label: the terrain's ground grid cells per side (2·n² ground triangles + ~60k of trees)."""
+FRAME = 60
+
+
+def best_of(fn, repeats: int) -> float:
+    """Minimum wall-clock seconds of ``fn()`` over ``repeats`` runs after one untimed warm-up."""
+    fn()
+    best = np.inf
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
+def open3d_scene(scene):
+    """An Open3D RaycastingScene of ``scene`` (float32 vertices relative to the bounds centre), or None."""
+    try:
+        import open3d as o3d
+    except ImportError:
+        return None, None
+    anchor = 0.5 * (scene.vertices.min(axis=0) + scene.vertices.max(axis=0))
+    rc = o3d.t.geometry.RaycastingScene()
+    rc.add_triangles(o3d.core.Tensor((scene.vertices - anchor).astype(np.float32)),
+                     o3d.core.Tensor(scene.triangles.astype(np.uint32)))
+    rc.cast_rays(o3d.core.Tensor(np.zeros((1, 6), np.float32)))  # builds the BVH
+    return rc, anchor
+
+
+def pixel_rays(pose, width: int, height: int, anchor) -> np.ndarray:
+    """``(H·W, 6)`` float32 rays through the pixel centres (origin relative to ``anchor``)."""
+    tan_y = np.tan(np.radians(pose.fov_y_deg) / 2.0)
+    sx = ((np.arange(width) + 0.5) / width * 2.0 - 1.0) * tan_y * pose.aspect
+    sy = (1.0 - (np.arange(height) + 0.5) / height * 2.0) * tan_y
+    r = pose.rotation
+    d = (-r[:, 2])[None, None] + sx[None, :, None] * r[:, 0] + sy[:, None, None] * r[:, 1]
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    o = np.broadcast_to(pose.position - anchor, d.shape)
+    return np.concatenate([o, d], axis=-1).reshape(-1, 6).astype(np.float32)
+
+
+def shadow_rays(view, anchor, diagonal: float) -> np.ndarray:
+    """``(N, 6)`` float32 rays of csmlab's reference: visible points facing the light, offset along n, toward it."""
+    g = view.gbuffer
+    toward = -view.light_direction
+    valid = g.valid & (g.normal.astype(np.float64) @ toward > 0.0)
+    start = g.position[valid] - anchor + g.normal[valid] * (RAY_OFFSET * diagonal)
+    return np.concatenate([start, np.broadcast_to(toward, start.shape)], axis=1).astype(np.float32)
+
+
+def texel_rays(cascades, anchor) -> np.ndarray:
+    """``(C·R², 6)`` float32 rays along the light through every texel centre of every cascade."""
+    basis = cascades.basis
+    rays = []
+    for c in cascades.cascades:
+        r = c.resolution
+        centres = (c.origin[:, None] + np.arange(r) + 0.5) * c.texel_size[:, None]
+        x, y = np.meshgrid(centres[0], centres[1])
+        start = (x[..., None] * basis[0] + y[..., None] * basis[1] + (c.depth_near - 1.0) * basis[2]).reshape(-1, 3)
+        rays.append(np.concatenate([start - anchor, np.broadcast_to(basis[2], start.shape)], axis=1))
+    return np.concatenate(rays).astype(np.float32)
+
+
+def peer_times(rc, rays: np.ndarray, repeats: int, *, occlusion: bool) -> tuple[float, float]:
+    """Open3D seconds with 2 threads and with 1 thread (NaN without Open3D)."""
+    if rc is None:
+        return float("nan"), float("nan")
+    import open3d as o3d
+
+    tensor = o3d.core.Tensor(rays)
+    call = rc.test_occlusions if occlusion else rc.cast_rays
+    return tuple(best_of(lambda: call(tensor, nthreads=n), repeats) for n in (2, 1))
+
+
+def bench_kernels(label: str, resolution: int, *, width: int, height: int, repeats: int, pose, light) -> list[dict]:
+    scene = make_scene("terrain", seed=1, resolution=SIZES[label])
+    dscene = prepare_scene(scene, device="cpu")
+    rc, anchor = open3d_scene(scene)
+    anchor = dscene.bvh.anchor if anchor is None else anchor
+    settings = ShadowSettings(cascades=4, resolution=resolution, filter="pcf", filter_size=3)
+    view = render_view(dscene, pose, light, width=width, height=height)
+    cascades = build_cascades(pose=pose, light_direction=light, scene_corners=scene.corners(), settings=settings)
+    g = view.gbuffer
+    maps = shadow_maps(dscene, cascades, settings)
+    depth_copy = np.empty_like(maps.depth)
+    texels = maps.depth.size
+    pixels = width * height
+    occluders = shadow_rays(view, anchor, dscene.bvh.diagonal)
+    b = dscene.bvh
+    rows = [
+        ("gbuffer", pixels, "Mrays/s",
+         lambda: camera_hits(b, position=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg,
+                             aspect=pose.aspect, far=pose.far, width=width, height=height),
+         lambda: peer_times(rc, pixel_rays(pose, width, height, anchor), repeats, occlusion=False)),
+        ("shadow rays", len(occluders), "Mrays/s",
+         lambda: hard_shadow(b, points=g.position, normals=g.normal, light_direction=light),
+         lambda: peer_times(rc, occluders, repeats, occlusion=True)),
+        ("depth maps", texels, "Mtexels/s", lambda: shadow_maps(dscene, cascades, settings),
+         lambda: peer_times(rc, texel_rays(cascades, anchor), max(1, repeats // 2), occlusion=False)),
+        ("lookup", pixels, "Mpix/s",
+         lambda: lookup_shadow(maps, points=g.position, normals=g.normal, view_depth=g.view_depth,
+                               settings=settings), None),
+    ]
+    floor = best_of(lambda: np.copyto(depth_copy, maps.depth), repeats)
+    out = []
+    for stage, count, unit, ours, peer in rows:
+        seconds = best_of(ours, repeats)
+        two, one = peer() if peer is not None else (float("nan"), float("nan"))
+        out.append(dict(scene=label, triangles=scene.triangle_count, resolution=resolution, stage=stage,
+                        count=count, unit=unit, csmlab_s=seconds, open3d_2t_s=two, open3d_1t_s=one,
+                        memcpy_s=floor if stage == "depth maps" else float("nan")))
+    out.append(dict(scene=label, triangles=scene.triangle_count, resolution=resolution, stage="memcpy",
+                    count=texels, unit="Mtexels/s", csmlab_s=floor, open3d_2t_s=float("nan"),
+                    open3d_1t_s=float("nan"), memcpy_s=floor))
+    return out
+
+
+def bench_metrics(*, repeats: int) -> list[dict]:
+    experiment = load_experiment(ROOT / "experiments" / "default.toml")
+    workload = build_workload(experiment)
+    dscene = prepare_scene(workload.scene, device="cpu")
+    views = [render_view(dscene, workload.path.pose(i), workload.light.direction(i), width=workload.width,
+                         height=workload.height, index=i) for i in (FRAME - 1, FRAME)]
+    out = []
+    for variant in experiment.variants():
+        before, now = (render_shadow(dscene, v, variant.settings) for v in views)
+        seconds = best_of(lambda: measure_frame(now, before), repeats)
+        out.append(dict(scene="265k", triangles=workload.scene.triangle_count, resolution=variant.settings.resolution,
+                        stage=f"metrics {variant.method}", count=workload.width * workload.height, unit="Mpix/s",
+                        csmlab_s=seconds, open3d_2t_s=float("nan"), open3d_1t_s=float("nan"),
+                        memcpy_s=float("nan")))
+    return out
+
+
+def run_command(args: list[str]) -> dict:
+    """Wall seconds of a command and the peak RSS (MiB) of its largest process."""
+    start = time.perf_counter()
+    subprocess.run(args, check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
+    wall = time.perf_counter() - start
+    return dict(wall_s=wall, peak_rss_mib=resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0)
+
+
+def bench_experiment() -> dict:
+    with tempfile.TemporaryDirectory() as out:
+        return run_command([sys.executable, "-m", "csmlab.cli", "run", "--out", out])
+
+
+def bench_dask() -> dict:
+    experiment = ROOT / "benchmarks" / "dask_walk.toml"
+    runs = {}
+    for jobs in (1, 2):
+        with tempfile.TemporaryDirectory() as out:
+            runs[jobs] = run_command([sys.executable, "-m", "csmlab.cli", "run", str(experiment), "--out", out,
+                                      "--scheduler", "local", "--jobs", str(jobs)])
+    speedup = runs[1]["wall_s"] / runs[2]["wall_s"]
+    return dict(one_worker_s=runs[1]["wall_s"], two_workers_s=runs[2]["wall_s"], speedup=speedup,
+                efficiency=speedup / 2.0, peak_rss_mib=max(r["peak_rss_mib"] for r in runs.values()))
+
+
+def _ms(seconds: float) -> str:
+    return "n/a" if not np.isfinite(seconds) else f"{seconds * 1e3:,.1f}"
+
+
+def _ratio(a: float, b: float) -> str:
+    return "n/a" if not (np.isfinite(a) and np.isfinite(b)) else f"{a / b:.2f}x"
+
+
+def print_table(rows: list[dict]) -> None:
+    print("| scene | tris | R | stage | csmlab ms | rate | Open3D 2T ms | Open3D 1T ms | csmlab/2T | csmlab/1T "
+          "| csmlab/memcpy |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    for r in rows:
+        rate = f"{r['count'] / r['csmlab_s'] / 1e6:,.1f} {r['unit']}"
+        print(f"| {r['scene']} | {r['triangles']:,} | {r['resolution']} | {r['stage']} | {_ms(r['csmlab_s'])} "
+              f"| {rate} | {_ms(r['open3d_2t_s'])} | {_ms(r['open3d_1t_s'])} "
+              f"| {_ratio(r['csmlab_s'], r['open3d_2t_s'])} | {_ratio(r['csmlab_s'], r['open3d_1t_s'])} "
+              f"| {_ratio(r['csmlab_s'], r['memcpy_s'])} |")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--sizes", default="136k,1m", help=f"scene sizes, comma-separated, of {sorted(SIZES)}")
+    parser.add_argument("--resolutions", default="1024,2048", help="texels per cascade side, comma-separated")
+    parser.add_argument("--width", type=int, default=640)
+    parser.add_argument("--height", type=int, default=360)
+    parser.add_argument("--repeats", type=int, default=5, help="timed runs per stage; the minimum is reported")
+    parser.add_argument("--json", type=Path, help="also write the results to this JSON file")
+    parser.add_argument("--no-metrics", action="store_true", help="skip the per-method metrics rows")
+    parser.add_argument("--experiment", action="store_true", help="also time the default experiment (csmlab run)")
+    parser.add_argument("--dask", action="store_true", help="also time 1 vs 2 local Dask workers on 240 frames")
+    args = parser.parse_args()
+    sizes = [s.strip() for s in args.sizes.split(",")]
+    if any(s not in SIZES for s in sizes):
+        parser.error(f"--sizes: expected labels of {sorted(SIZES)}, got {args.sizes!r}")
+    resolutions = [int(r) for r in args.resolutions.split(",")]
+
+    wp.config.quiet = True
+    wp.init()
+    experiment = load_experiment(ROOT / "experiments" / "default.toml")
+    workload = build_workload(experiment)
+    pose, light = workload.path.pose(FRAME), workload.light.direction(FRAME)
+    rows = []
+    for label in sizes:
+        for resolution in resolutions:
+            rows += bench_kernels(label, resolution, width=args.width, height=args.height, repeats=args.repeats,
+                                  pose=pose, light=light)
+    if not args.no_metrics:
+        rows += bench_metrics(repeats=args.repeats)
+    try:
+        import open3d  # noqa: F401
+        peer = "Open3D " + open3d.__version__
+    except ImportError:
+        peer = "Open3D absent (pip install csmlab[bench])"
+    print(f"csmlab on cpu ({os.cpu_count()} cores), view {args.width}x{args.height}, 4 cascades, frame {FRAME} of "
+          f"the default walk; min of {args.repeats} runs; peer: {peer}")
+    print_table(rows)
+    result = {"kernels": rows}
+    if args.experiment:
+        result["experiment"] = bench_experiment()
+        print(f"default experiment (csmlab run): {result['experiment']['wall_s']:.1f} s wall, "
+              f"peak RSS {result['experiment']['peak_rss_mib']:.0f} MiB")
+    if args.dask:
+        result["dask"] = bench_dask()
+        d = result["dask"]
+        print(f"dask 240 frames: 1 worker {d['one_worker_s']:.1f} s, 2 workers {d['two_workers_s']:.1f} s, "
+              f"speed-up {d['speedup']:.2f}x (efficiency {d['efficiency']:.0%}), peak RSS {d['peak_rss_mib']:.0f} MiB")
+    if args.json:
+        args.json.write_text(json.dumps(result, indent=1, default=float))
+
+
+if __name__ == "__main__":
+    main()
