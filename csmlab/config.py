@@ -62,6 +62,7 @@ __all__ = [
     "list_presets",
     "load_experiment",
     "load_tolerances",
+    "method_preset_toml",
     "parse_size",
     "sweep_points",
     "workload_hash",
@@ -1204,3 +1205,15 @@ def experiment_toml(experiment: Experiment, *, comments: bool = True) -> str:
         if key in document:
             lines += [f"[{key}]", *_toml_table(document[key], sections.get(key, {}), comments=comments), ""]
     return "\n".join(lines)
+
+
+def method_preset_toml(name: str, settings: ShadowSettings, *, description: str, header: str = "") -> str:
+    """A method preset (``configs/methods`` form) holding every field of ``settings``, each documented.
+
+    ``header`` becomes comment lines at the top; ``extends = ["that_file.toml"]`` then gives a method
+    named ``name`` with exactly these settings.
+    """
+    lines = [f"# {line}" for line in header.splitlines()]
+    lines += [f"description = {_toml_value(description)}", "", "[[methods]]", f"name = {_toml_value(name)}",
+              *_toml_table(_settings_document(settings), field_docs(ShadowSettings), comments=True)]
+    return "\n".join(lines) + "\n"
