@@ -418,8 +418,9 @@ def _holds(spec: tuple, value) -> bool:
     return value in spec[1] if spec[0] == "choice" else spec[1] <= value <= spec[2]
 
 
-def _infeasible_message(candidates, budgets: Budgets) -> tuple[str, str]:
-    """The budget no candidate met, and the candidate closest to meeting it."""
+def _infeasible_message(candidates, budgets: Budgets, goals) -> tuple[str, str]:
+    """The option to blame when no candidate can be recommended, and why: the budget no candidate met
+    with the candidate closest to meeting it, or an objective no run defined."""
     def mib(n):
         return f"{n / 2 ** 20:.4g} MiB"
 
@@ -429,12 +430,16 @@ def _infeasible_message(candidates, budgets: Budgets) -> tuple[str, str]:
                                    f"({budgets.memory_bytes} bytes): the cheapest seen is {cheapest.label} "
                                    f"({_describe(cheapest)}) at {mib(cheapest.memory_bytes)}")
     within = [c for c in candidates if c.violations.get("memory", 0) <= 0 and c.values is not None]
-    least = min(within, key=lambda c: _number(c.values.get(budgets.flicker_metric)) if c.values.get(
-        budgets.flicker_metric) is not None else math.inf, default=None)
-    seen = (f"the least flickering seen within the memory budget is {least.label} ({_describe(least)}) with "
-            f"{budgets.flicker_metric} = {least.values.get(budgets.flicker_metric)!r}") if least else "none was measured"
-    return ("--max-flicker", f"no candidate within the memory budget meets the flicker limit {budgets.flicker_metric} "
-                             f"≤ {budgets.max_flicker:.6g}: {seen}")
+    if budgets.max_flicker is not None and not any(c.violations["flicker"] <= 0 for c in within):
+        measured = [c for c in within if c.values.get(budgets.flicker_metric) is not None]
+        least = min(measured, key=lambda c: c.values[budgets.flicker_metric], default=None)
+        seen = (f"the least flickering seen is {least.label} ({_describe(least)}) with {budgets.flicker_metric} = "
+                f"{least.values[budgets.flicker_metric]:.6g}" if least else "no run measured it")
+        return ("--max-flicker", f"no candidate within the memory budget meets the flicker limit "
+                                 f"{budgets.flicker_metric} ≤ {budgets.max_flicker:.6g}: {seen}")
+    undefined = [m for m, _ in goals if all(c.values is None or c.values.get(m) is None for c in within)]
+    return ("--objective", f"expected objectives the runs define, got {undefined or [m for m, _ in goals]} undefined "
+                           f"for every candidate within the budgets (a 1-frame run has no temporal metrics)")
 
 
 def _describe(candidate: Candidate) -> str:
@@ -638,7 +643,7 @@ def tune(experiment: Experiment, *, out_dir, space: dict | None = None, objectiv
     write_atomic(out_dir / "tune.json", json_text(tune_document(result)))
     write_outputs(result, out_dir, near=experiment.camera.near, far=experiment.camera.far)
     if result.recommended is None:
-        option, message = _infeasible_message(trials_found, budgets)
+        option, message = _infeasible_message(trials_found, budgets, goals)
         raise InfeasibleBudget(message, field=option)
     return result
 
