@@ -297,11 +297,13 @@ def tune(
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask: 'local' or tcp://HOST:PORT."),
     device: str = typer.Option("cpu", "--device", help="Warp device: cpu or cuda."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Sampler seed (the same seed repeats the search)."),
+    presets: Optional[Path] = typer.Option(None, "--presets", help="A folder of method presets to compare with; "
+                                                                   "default configs/engines."),
 ) -> None:
     """Find the best shadow setting within memory and flicker budgets, against every engine preset."""
     from csmlab.config import find_experiment, load_experiment, parse_size
     from csmlab.executor import executor_for
-    from csmlab.tune import InfeasibleBudget, parse_space, tune as run_tuning
+    from csmlab.tune import InfeasibleBudget, engine_presets, parse_space, tune as run_tuning
 
     try:
         loaded = load_experiment(find_experiment(experiment), frames=frames)
@@ -319,6 +321,9 @@ def tune(
             raise InputError(f'expected a non-negative number or "best-preset", got {max_flicker!r}',
                              field="--max-flicker") from None
         out_dir = out if out is not None else Path("reports") / loaded.name / "tune"
+        if presets is not None and not presets.is_dir():
+            raise InputError("expected a folder of method presets (*.toml), got no such folder", file=presets,
+                             field="--presets")
     except ValueError as exc:
         raise _bad_input(exc) from None
     bar = Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("candidates"),
@@ -335,7 +340,7 @@ def tune(
         result = run_tuning(loaded, out_dir=out_dir, space=space, objectives=objective, trials=trials, method=method,
                             seed=seed, memory_budget=budget, max_flicker=limit, flicker_metric=flicker_metric,
                             batch=batch, jobs=workers, executor=executor, address=address, device=device,
-                            progress=progress)
+                            presets=None if presets is None else engine_presets(presets), progress=progress)
     except InfeasibleBudget as exc:
         bar.stop()
         typer.echo(f"csmlab: every trial is in the tune report {out_dir / 'index.html'}", err=True)
