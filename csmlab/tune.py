@@ -45,6 +45,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 import csmlab
 from csmlab import config
 from csmlab.config import CONFIGS_DIR, Experiment, Method, ReportConfig, load_experiment, workload_hash
@@ -375,7 +377,6 @@ def pareto_front(candidates, *, flicker_metric: str) -> list[str]:
     """Labels of the measured ``candidates`` that no other one dominates over memory (lower), aliasing
     (:data:`ALIASING_AXIS`, higher) and ``flicker_metric`` (lower); a candidate lacking one is left out."""
     from csmlab.report.figures import pareto_optimal
-    import numpy as np
 
     measured = [c for c in candidates if c.values is not None]
     rows = [[c.memory_bytes, -_number(c.values.get(ALIASING_AXIS)), _number(c.values.get(flicker_metric))]
