@@ -306,48 +306,107 @@ def show(experiment: Optional[str] = typer.Argument(None, help="Experiment file 
 
 @app.command()
 def tune(
-    experiment: str = typer.Argument(..., help="Experiment file or built-in name: the workload and the method."),
-    param: list[str] = typer.Option(..., "--param", help="A [shadow] field to search: FIELD=LO:HI (a range) or "
-                                                         "FIELD=A,B,C (choices); repeat for more fields."),
-    objective: list[str] = typer.Option(["flicker"], "--objective", help="A metrics.csv column to improve (mean "
-                                        "over frames; its direction is the regression table's); repeat for a "
-                                        "Pareto front."),
+    experiment: str = typer.Argument(..., help="Experiment file or built-in name: the workload, the method and "
+                                               "its [tune] table."),
+    param: Optional[list[str]] = typer.Option(None, "--param", help="A [shadow] field to search: FIELD=LO:HI (a "
+                                              "range) or FIELD=A,B,C (choices); repeat for more; adds to [tune]."),
+    objective: Optional[list[str]] = typer.Option(None, "--objective", help="A metrics.csv column to improve (mean "
+                                                  "over frames); repeat for several. Default: [tune] objectives, "
+                                                  "else rho_p05."),
+    memory_budget: Optional[str] = typer.Option(None, "--memory-budget", help="Shadow-map memory a recommended "
+                                                "setting may not exceed: 64MiB, 16MB or bytes."),
+    max_flicker: Optional[str] = typer.Option(None, "--max-flicker", help="Largest flicker (--flicker-metric) a "
+                                              "recommended setting may have: a number, or best-preset."),
+    flicker_metric: Optional[str] = typer.Option(None, "--flicker-metric", help="The flicker column the limit "
+                                                 "applies to; default flicker."),
     method: Optional[str] = typer.Option(None, "--method", help="The method to tune; default the first."),
-    trials: int = typer.Option(20, "--trials", help="Runs of the experiment."),
+    trials: Optional[int] = typer.Option(None, "--trials", help="Candidates to search; default [tune] trials, "
+                                                                "else 20."),
+    batch: int = typer.Option(4, "--batch", help="Candidates run together (they share each frame's view); a "
+                                                 "resumed tune must use the same."),
     frames: Optional[int] = typer.Option(None, "--frames", help="Cap on frames (overrides camera.frames)."),
-    out: Optional[Path] = typer.Option(None, "--out", help="Where tune.json and the trials go; default "
-                                                          "reports/<name>/tune/."),
-    jobs: Optional[int] = typer.Option(None, "--jobs", help="Local worker processes per trial; default all cores."),
-    seed: int = typer.Option(0, "--seed", help="Sampler seed (the same seed repeats the search)."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Where the tune goes; default reports/<name>/tune/."),
+    jobs: Optional[int] = typer.Option(None, "--jobs", help="Local worker processes per run; default all cores."),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask: 'local' or tcp://HOST:PORT."),
+    device: str = typer.Option("cpu", "--device", help="Warp device: cpu or cuda."),
+    seed: Optional[int] = typer.Option(None, "--seed", help="Sampler seed (the same seed repeats the search)."),
+    presets: Optional[Path] = typer.Option(None, "--presets", help="A folder of method presets to compare with; "
+                                                                   "default configs/engines."),
 ) -> None:
-    """Search one method's shadow settings with Optuna for the best (or Pareto-optimal) measured trade-off."""
-    from csmlab.config import find_experiment, load_experiment
+    """Find the best shadow setting within memory and flicker budgets, against every engine preset."""
+    from csmlab.config import find_experiment, load_experiment, parse_size
     from csmlab.executor import executor_for
-    from csmlab.tune import parse_space, tune as run_tuning
+    from csmlab.tune import InfeasibleBudget, engine_presets, parse_space, tune as run_tuning
 
     try:
         loaded = load_experiment(find_experiment(experiment), frames=frames)
-        executor, workers, _ = executor_for(jobs=jobs, scheduler=None)
+        executor, workers, address = executor_for(jobs=jobs, scheduler=scheduler)
         base = next((m.settings for m in loaded.methods if m.name == method), loaded.methods[0].settings)
-        space = parse_space(param, settings=base)
+        space = parse_space(param or [], settings=base)
+        try:
+            budget = None if memory_budget is None else parse_size(
+                int(memory_budget) if memory_budget.isdigit() else memory_budget)
+        except ValueError as exc:
+            raise InputError(str(exc), field="--memory-budget") from None
+        try:
+            limit = max_flicker if max_flicker in (None, "best-preset") else float(max_flicker)
+        except ValueError:
+            raise InputError(f'expected a non-negative number or "best-preset", got {max_flicker!r}',
+                             field="--max-flicker") from None
         out_dir = out if out is not None else Path("reports") / loaded.name / "tune"
-        with _err().status(f"tuning {loaded.name}: {trials} trial(s)"):
-            result = run_tuning(loaded, space=space, objectives=objective, trials=trials, out_dir=out_dir,
-                                method=method, seed=seed, jobs=workers, executor=executor)
+        if presets is not None and not presets.is_dir():
+            raise InputError("expected a folder of method presets (*.toml), got no such folder", file=presets,
+                             field="--presets")
     except ValueError as exc:
         raise _bad_input(exc) from None
-    title = "Pareto front" if len(result.objectives) > 1 else "best trial"
-    table = Table(title=f"{loaded.name}: {result.method}, {title} of {len(result.trials)} trial(s)")
-    fields = list(space)
-    for name in ["trial", *fields, *(f"{m} ({d} is better)" for m, d in result.objectives)]:
-        table.add_column(name, justify="right")
-    for trial in result.best:
-        table.add_row(str(trial.number), *(f"{trial.params[f]:.4g}" if isinstance(trial.params[f], float)
-                                           else str(trial.params[f]) for f in fields),
-                      *(f"{trial.values[m]:.4g}" if trial.values[m] is not None else "" for m, _ in result.objectives))
+    bar = Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("candidates"),
+                   TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), console=_err(), transient=True)
+    tasks = []
+
+    def progress(done: int, total: int, label: str) -> None:
+        if not tasks:
+            bar.start()
+            tasks.append(bar.add_task(f"tuning {loaded.name}", total=total))
+        bar.update(tasks[0], completed=done, total=total, description=f"tuning {loaded.name}: {label}")
+
+    try:
+        result = run_tuning(loaded, out_dir=out_dir, space=space, objectives=objective, trials=trials, method=method,
+                            seed=seed, memory_budget=budget, max_flicker=limit, flicker_metric=flicker_metric,
+                            batch=batch, jobs=workers, executor=executor, address=address, device=device,
+                            presets=None if presets is None else engine_presets(presets), progress=progress)
+    except InfeasibleBudget as exc:
+        bar.stop()
+        typer.echo(f"csmlab: every trial is in the tune report {out_dir / 'index.html'}", err=True)
+        raise _bad_input(exc) from None
+    except ValueError as exc:
+        raise _bad_input(exc) from None
+    finally:
+        bar.stop()
     console = _out()
-    console.print(table)
-    console.print(f"all trials: {out_dir / 'tune.json'}")
+    console.print(_tune_table(result))
+    console.print(f"{len(result.trials)} trial(s) ({result.sampler}), {result.runs_computed} run now, the rest cached")
+    console.print(f"recommended: {result.recommended.label} → {out_dir / 'recommended.toml'}; engine snippets in "
+                  f"{out_dir / 'exports'}")
+    console.print(f"report:  {out_dir / 'index.html'}")
+
+
+def _tune_table(result) -> Table:
+    """The recommended setting, the start and every engine preset: memory, ρ and flicker."""
+    flicker = result.budgets.flicker_metric
+    metrics = ["rho_p05", "rho_median", "flicker_same", *([flicker] if flicker != "flicker_same" else []), "flip_rate"]
+    table = Table(title=escape(f"{result.name}: {result.method} tuned over {result.frames} frames"),
+                  title_justify="left")
+    for name in ("setting", "changes", "memory (MiB)", *metrics, "budgets"):
+        table.add_column(name, justify="left" if name in ("setting", "changes", "budgets") else "right")
+    rows = [result.recommended, *result.references]
+    for c in rows:
+        changes = ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in c.params.items())
+        over = [name for name, v in c.violations.items() if v > 0]
+        label = f"[bold]{escape(c.label)} (recommended)[/]" if c is result.recommended else escape(c.label)
+        table.add_row(label, escape(changes or "—"), f"{c.memory_bytes / 2 ** 20:g}",
+                      *(_number(None if c.values is None else c.values.get(m)) for m in metrics),
+                      "over " + ", ".join(over) if over else "within")
+    return table
 
 
 def main() -> None:

@@ -51,6 +51,7 @@ __all__ = [
     "Method",
     "ReportConfig",
     "SceneConfig",
+    "TuneConfig",
     "Variant",
     "config_hash",
     "experiment_document",
@@ -61,6 +62,8 @@ __all__ = [
     "list_presets",
     "load_experiment",
     "load_tolerances",
+    "method_preset_toml",
+    "parse_size",
     "sweep_points",
     "workload_hash",
 ]
@@ -194,6 +197,54 @@ class ReportConfig:
     """Frames kept at full resolution (frames past the end are skipped); unset: three spread over the run."""
 
 
+_SIZE_UNITS = {"": 1, "b": 1, "kb": 10**3, "mb": 10**6, "gb": 10**9, "kib": 2**10, "mib": 2**20, "gib": 2**30}
+
+
+def parse_size(text) -> int:
+    """Bytes from ``64MiB``, ``16MB``, ``1.5GiB`` or a plain number of bytes (int or digits).
+
+    Raises
+    ------
+    ValueError
+        Saying what was expected.
+    """
+    if isinstance(text, int) and not isinstance(text, bool) and text > 0:
+        return text
+    match = re.fullmatch(r"\s*([0-9]+(?:\.[0-9]*)?)\s*([A-Za-z]*)\s*", text) if isinstance(text, str) else None
+    unit = match.group(2).lower() if match else None
+    if unit not in _SIZE_UNITS or float(match.group(1)) <= 0:
+        raise ValueError(f"expected a positive size such as 64MiB, 16MB or 16777216 (bytes), got {text!r}")
+    return int(round(float(match.group(1)) * _SIZE_UNITS[unit]))
+
+
+@dataclass(frozen=True)
+class TuneConfig:
+    """``[tune]``: what ``csmlab tune`` searches and under which budgets (command-line options win).
+
+    Every other key of ``[tune]`` is a ``[shadow]`` field to search: a list of choices
+    (``resolution = [512, 1024, 2048]``) or a range (``lambda = { min = 0.3, max = 0.95 }``, with
+    ``log = true`` for a log scale and ``step`` for a grid).
+    """
+
+    space: tuple = ()
+    """``(field, ("choice", values) | ("range", lo, hi, log, step))`` pairs, in file order."""
+    method: str = ""
+    """The method to tune; empty: the experiment's first."""
+    objectives: tuple[str, ...] = ()
+    """metrics.csv columns to improve (means over frames); empty: ``rho_p05``."""
+    trials: int | None = field(default=None, metadata=_expect(lambda x: x >= 1, "at least 1 trial"))
+    """Candidates to evaluate; unset: 20."""
+    seed: int | None = None
+    """Sampler seed; unset: 0."""
+    memory_budget: int | None = None
+    """Shadow-map memory in bytes no recommended setting may exceed (TOML: ``"64MiB"``, ``"16MB"`` or bytes)."""
+    max_flicker: float | str | None = None
+    """Largest ``flicker_metric`` a recommended setting may have: a number, or ``"best-preset"`` (the
+    lowest of the engine presets within the memory budget)."""
+    flicker_metric: str = "flicker"
+    """The flicker column the budget applies to (flicker, flicker_same, flip_rate, …)."""
+
+
 @dataclass(frozen=True)
 class Method:
     """One ``[[methods]]`` entry: a name and the ``[shadow]`` fields it changes.
@@ -250,6 +301,8 @@ class Experiment:
     report : ReportConfig
     chunk_frames : int
         Frames per unit of work.
+    tune : TuneConfig
+        What ``csmlab tune`` searches (the ``[tune]`` table).
     """
 
     name: str
@@ -265,6 +318,7 @@ class Experiment:
     regress: dict
     report: ReportConfig
     chunk_frames: int
+    tune: TuneConfig = TuneConfig()
 
     def points(self) -> list[tuple[str, dict]]:
         """Sweep points ``(label, {field: value})`` (:func:`sweep_points`)."""
@@ -284,7 +338,7 @@ class Experiment:
 
 
 _TOP_FIELDS = ("name", "description", "extends", "chunk_frames", "scene", "camera", "light", "shadow", "methods",
-               "sweep", "regress", "report")
+               "sweep", "regress", "report", "tune")
 _DOCS_TOP = {
     "name": "Names the results folder reports/<name>/; defaults to the file's stem.",
     "description": "One line on what the experiment shows.",
@@ -854,6 +908,80 @@ def _regress(table, located: _Located) -> dict:
     return out
 
 
+def _tune(table, methods: tuple[Method, ...], located: _Located) -> TuneConfig:
+    """``[tune]``: its options, and every other key a ``[shadow]`` field with choices or a range."""
+    from csmlab.metrics import metric_columns
+
+    if not isinstance(table, dict):
+        raise located.error("tune", f"expected a table of search ranges and options, got {table!r}")
+    options = {f.name: f for f in fields(TuneConfig) if f.name != "space"}
+    hints = typing.get_type_hints(TuneConfig)
+    types = _shadow_types()
+    space, values = [], {}
+    for key, value in table.items():
+        where = f"tune.{key}"
+        if key == "memory_budget":
+            try:
+                values[key] = parse_size(value)
+            except ValueError as exc:
+                raise located.error(where, str(exc)) from None
+        elif key == "max_flicker":
+            if isinstance(value, str) and value != "best-preset":
+                raise located.error(where, f'expected a non-negative number or "best-preset", got {value!r}')
+            values[key] = value if value == "best-preset" else _typed_value(
+                value, float, (lambda x: x >= 0, 'a non-negative number or "best-preset"'), where=where,
+                located=located)
+        elif key in options:
+            values[key] = _typed_value(value, hints[key], options[key].metadata.get("expect"), where=where,
+                                       located=located)
+        elif key in types:
+            space.append((key, _tune_spec(value, types[key], where=where, located=located)))
+        else:
+            raise _unknown("tune", key, [*options, *types], located)
+    known = metric_columns(8)
+    for key in ("objectives", "flicker_metric"):
+        for metric in (values.get(key) or ()) if key == "objectives" else [values.get(key, "flicker")]:
+            if metric not in known:
+                raise located.error(f"tune.{key}", f"expected metrics.csv columns {sorted(known)}, got {metric!r}")
+    names = [m.name for m in methods]
+    if values.get("method") and values["method"] not in names:
+        raise located.error("tune.method", f"expected one of the experiment's methods {names}, got "
+                                           f"{values['method']!r}")
+    tuned = next(m for m in methods if m.name == (values.get("method") or names[0]))
+    for key, spec in space:
+        for value in (spec[1] if spec[0] == "choice" else spec[1:3]):
+            _checked_settings(tuned.settings.replace(**{key: value}), located=located,
+                              where_of=lambda f, k=key: f"tune.{k}" if f == k else f"methods.{tuned.name}.{f}")
+    return TuneConfig(space=tuple(space), **values)
+
+
+def _tune_spec(value, kind, *, where: str, located: _Located) -> tuple:
+    """``("choice", values)`` from a list, ``("range", lo, hi, log, step)`` from ``{ min, max, log, step }``."""
+    if isinstance(value, list):
+        if not value:
+            raise located.error(where, "expected a non-empty list of choices")
+        choices = tuple(_typed_value(v, kind, None, where=where, located=located) for v in value)
+        if len(set(map(repr, choices))) != len(choices):
+            raise located.error(where, f"expected distinct choices, got {value!r}")
+        return ("choice", choices)
+    if not isinstance(value, dict) or kind not in (int, float):
+        what = "a list of choices or { min = …, max = … }" if kind in (int, float) else "a list of choices"
+        raise located.error(where, f"expected {what}, got {value!r}")
+    for key in value:
+        if key not in ("min", "max", "log", "step"):
+            raise _unknown(where, key, ("min", "max", "log", "step"), located)
+    if "min" not in value or "max" not in value:
+        raise located.error(where, f"expected both min and max, got {value!r}")
+    lo, hi = (_typed_value(value[k], kind, None, where=f"{where}.{k}", located=located) for k in ("min", "max"))
+    log = _typed_value(value.get("log", False), bool, None, where=f"{where}.log", located=located)
+    step = (_typed_value(value["step"], kind, (_positive, "a positive step"), where=f"{where}.step", located=located)
+            if "step" in value else None)
+    if not lo < hi or (log and lo <= 0):
+        raise located.error(where, f"expected min < max{' and min > 0 on a log scale' if log else ''}, got "
+                                   f"{lo}..{hi}")
+    return ("range", lo, hi, log, step)
+
+
 def load_tolerances(path) -> dict:
     """Regression tolerances from a TOML file: ``metric = { abs = …, rel = … }`` at the top level or
     under ``[regress]``.
@@ -926,6 +1054,7 @@ def load_experiment(path, *, frames: int | None = None) -> Experiment:
         regress=_regress(merged.get("regress", {}), located),
         report=_record(ReportConfig, merged.get("report", {}), where="report", located=located),
         chunk_frames=chunk_frames,
+        tune=_tune(merged.get("tune", {}), methods, located),
     )
     return experiment if frames is None else experiment.with_frames(frames)
 
@@ -1090,3 +1219,15 @@ def experiment_toml(experiment: Experiment, *, comments: bool = True) -> str:
         if key in document:
             lines += [f"[{key}]", *_toml_table(document[key], sections.get(key, {}), comments=comments), ""]
     return "\n".join(lines)
+
+
+def method_preset_toml(name: str, settings: ShadowSettings, *, description: str, header: str = "") -> str:
+    """A method preset (``configs/methods`` form) holding every field of ``settings``, each documented.
+
+    ``header`` becomes comment lines at the top; ``extends = ["that_file.toml"]`` then gives a method
+    named ``name`` with exactly these settings.
+    """
+    lines = [f"# {line}" for line in header.splitlines()]
+    lines += [f"description = {_toml_value(description)}", "", "[[methods]]", f"name = {_toml_value(name)}",
+              *_toml_table(_settings_document(settings), field_docs(ShadowSettings), comments=True)]
+    return "\n".join(lines) + "\n"

@@ -1,16 +1,21 @@
-"""Tuning: the best trial is the best measured, a Pareto front is undominated, the search repeats."""
+"""Tuning: seeded and repeatable, budgets never broken by a recommendation, the exhaustive front is the
+true Pareto set, an impossible budget exits 2, a resumed tune runs no candidate twice."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
 import pytest
 
-from csmlab.config import load_experiment
+import csmlab.tune as tune_module
+from csmlab.config import TuneConfig, load_experiment, parse_size
 from csmlab.errors import InputError
+from csmlab.experiment import run_experiment
+from csmlab.metrics.cost import shadow_memory_bytes
 from csmlab.settings import ShadowSettings
-from csmlab.tune import objective_direction, parse_space, tune
+from csmlab.tune import InfeasibleBudget, objective_direction, parse_space, tune
 
 TINY = """
 name = "tiny_tune"
@@ -34,63 +39,182 @@ resolution = 128
 shadow_distance = 40.0
 """
 
+METHODS = "/".join(["configs", "methods"])
+
 
 @pytest.fixture(scope="module")
-def experiment(tmp_path_factory):
+def experiment_file(tmp_path_factory):
     path = tmp_path_factory.mktemp("tune") / "tiny.toml"
-    path.write_text(TINY)
-    return load_experiment(path)
+    path.write_text(TINY + '\n[tune]\nresolution = [64, 128, 256]\nlambda = { min = 0.3, max = 0.9 }\n')
+    return path
 
 
-def _space():
-    return parse_space(["resolution=64,128,256", "lambda=0.3:0.9"], settings=ShadowSettings())
+@pytest.fixture(scope="module")
+def experiment(experiment_file):
+    return load_experiment(experiment_file)
 
 
-def test_single_objective_reports_the_best_measured_trial(experiment, tmp_path):
-    result = tune(experiment, space=_space(), objectives=["flicker"], trials=4, out_dir=tmp_path)
-    values = [t.values["flicker"] for t in result.trials]
-    assert len(values) == 4 and len(result.best) == 1
-    assert result.best[0].values["flicker"] == min(values)
-    for t in result.trials:
+@pytest.fixture(scope="module")
+def plain(experiment):
+    """The experiment without its [tune] table: a test's own space is then the whole space."""
+    return dataclasses.replace(experiment, tune=TuneConfig())
+
+
+@pytest.fixture
+def counted_runs(monkeypatch):
+    """Every setting run_experiment is asked to run, as cache keys of its settings."""
+    runs = []
+    real = tune_module.run_experiment
+
+    def spy(variant, **kwargs):
+        runs.extend(m.settings for m in variant.methods)
+        return real(variant, **kwargs)
+
+    monkeypatch.setattr(tune_module, "run_experiment", spy)
+    return runs
+
+
+def test_tune_table_gives_the_space_and_the_same_seed_repeats_the_search(experiment, tmp_path):
+    first = tune(experiment, out_dir=tmp_path / "a", trials=5, seed=3, presets=[])
+    second = tune(experiment, out_dir=tmp_path / "b", trials=5, seed=3, presets=[])
+    assert [(t.params, t.values) for t in first.trials] == [(t.params, t.values) for t in second.trials]
+    for t in first.trials:
         assert t.params["resolution"] in (64, 128, 256) and 0.3 <= t.params["lambda"] <= 0.9
-    document = json.loads((tmp_path / "tune.json").read_text())
-    assert [t["values"]["flicker"] for t in document["trials"]] == values
+    assert first.recommended.label == second.recommended.label
+    document = json.loads((tmp_path / "a" / "tune.json").read_text())
+    assert [t["values"]["rho_p05"] for t in document["trials"]] == [t.values["rho_p05"] for t in first.trials]
 
 
-def _badness(value, better):
-    """The oracle of "better", written out: lower, higher, or closer to 1 on a log scale."""
-    return {"lower": value, "higher": -value, "one": abs(math.log(value))}[better]
+def test_no_recommended_candidate_is_over_the_memory_budget(plain, tmp_path):
+    budget = shadow_memory_bytes(ShadowSettings(cascades=2, resolution=128))
+    result = tune(plain, out_dir=tmp_path, trials=8, seed=1, memory_budget=budget, presets=[],
+                  space={"resolution": ("choice", (64, 128, 256, 512))})
+    over = [t for t in result.trials if t.memory_bytes > budget]
+    assert over, "the search must have proposed a setting over the budget for this test to mean anything"
+    assert all(t.values is None and not t.feasible for t in over)  # known over from its settings: never run
+    assert result.recommended.memory_bytes <= budget
+    # Without the budget the sharpest trial is one of those over it: the budget changed the answer.
+    free = tune(plain, out_dir=tmp_path / "free", trials=8, seed=1, presets=[],
+                space={"resolution": ("choice", (64, 128, 256, 512))})
+    assert free.recommended.memory_bytes > budget
 
 
-def _dominates(a, b, goals) -> bool:
-    worse = [_badness(a[m], d) - _badness(b[m], d) for m, d in goals]
-    return all(w <= 0 for w in worse) and any(w < 0 for w in worse)
+def _dominates(a, b) -> bool:
+    no_worse = a[0] <= b[0] and a[1] >= b[1] and a[2] <= b[2]
+    return no_worse and (a[0] < b[0] or a[1] > b[1] or a[2] < b[2])
 
 
-def test_several_objectives_give_an_undominated_front(experiment, tmp_path):
-    result = tune(experiment, space=_space(), objectives=["flicker", "rho_median"], trials=5, out_dir=tmp_path)
-    goals = result.objectives
-    assert goals == (("flicker", "lower"), ("rho_median", "one"))
-    front = {t.number for t in result.best}
-    for t in result.trials:
-        dominated = any(_dominates(o.values, t.values, goals) for o in result.trials)
-        assert dominated == (t.number not in front)
+def test_exhaustive_search_of_a_tiny_space_returns_the_true_pareto_set(plain, tmp_path):
+    space = {"resolution": ("choice", (64, 128)), "lambda": ("choice", (0.3, 0.9)),
+             "stabilization": ("choice", ("none", "exact"))}
+    result = tune(plain, out_dir=tmp_path / "tune", trials=50, space=space, presets=[])
+    assert result.sampler == "grid" and len(result.trials) == 8
+    # Brute force, by another road: the same grid as a [sweep] of one plain run, front by pairwise comparison.
+    oracle = dataclasses.replace(plain, sweep=tuple((f, spec[1]) for f, spec in space.items()))
+    points = run_experiment(oracle, out_dir=tmp_path / "sweep").summary["points"]
+    measured = {label: (by["none"]["memory_bytes"], by["none"]["rho_p05"], by["none"]["flicker"])
+                for label, by in points.items()}
+    true_front = {label for label, v in measured.items()
+                  if not any(_dominates(w, v) for other, w in measured.items() if other != label)}
+    found = {"/".join(f"{f}={t.params[f]}" for f in space) for t in result.trials if t.label in result.front}
+    assert found == true_front and 0 < len(true_front) < 8
 
 
-def test_median_rho_is_tuned_toward_one_not_upward(experiment, tmp_path):
-    # Resolutions from far too coarse to far too fine: the largest median ρ is not the best one.
-    space = parse_space(["resolution=16,128,4096"], settings=ShadowSettings())
-    result = tune(experiment, space=space, objectives=["rho_median"], trials=8, out_dir=tmp_path)
-    medians = {t.params["resolution"]: t.values["rho_median"] for t in result.trials}
-    assert len(medians) == 3 and max(medians.values()) > 1.0 > min(medians.values())
-    closest = min(medians.values(), key=lambda rho: abs(math.log(rho)))
-    assert result.best[0].values["rho_median"] == closest != max(medians.values())
+def test_an_impossible_budget_exits_2_naming_the_budget_and_the_cheapest(experiment_file, tmp_path):
+    from typer.testing import CliRunner
+
+    from csmlab.cli import app
+
+    outcome = CliRunner().invoke(app, ["tune", str(experiment_file), "--memory-budget", "1KiB", "--trials", "3",
+                                       "--jobs", "1", "--out", str(tmp_path)])
+    assert outcome.exit_code == 2
+    assert "--memory-budget" in outcome.output and "cheapest seen is trial" in outcome.output
+    assert "Traceback" not in outcome.output
+    assert (tmp_path / "index.html").is_file() and not (tmp_path / "recommended.toml").exists()
 
 
-def test_the_same_seed_repeats_the_search(experiment, tmp_path):
-    first = tune(experiment, space=_space(), objectives=["flicker"], trials=2, out_dir=tmp_path / "a", seed=3)
-    second = tune(experiment, space=_space(), objectives=["flicker"], trials=2, out_dir=tmp_path / "b", seed=3)
-    assert first.trials == second.trials
+def test_a_resumed_tune_evaluates_no_candidate_twice(experiment, tmp_path, counted_runs):
+    first = tune(experiment, out_dir=tmp_path, trials=4, seed=5, batch=2, presets=[])
+    runs_first = len(counted_runs)
+    resumed = tune(experiment, out_dir=tmp_path, trials=8, seed=5, batch=2, presets=[])
+    assert [(t.params, t.values) for t in resumed.trials[:4]] == [(t.params, t.values) for t in first.trials]
+    assert len(counted_runs) > runs_first  # the longer tune did run new candidates …
+    assert len(set(counted_runs)) == len(counted_runs)  # … but never one it had run before
+    assert all(not t.computed for t in resumed.trials[:4])
+    repeated = tune(experiment, out_dir=tmp_path, trials=8, seed=5, batch=2, presets=[])
+    assert repeated.runs_computed == 0 and len(set(counted_runs)) == len(counted_runs)
+
+
+def test_a_null_metric_of_a_one_frame_run_does_not_crash_a_trial(experiment, tmp_path):
+    one = experiment.with_frames(1)
+    result = tune(one, out_dir=tmp_path, trials=2, presets=[])
+    assert all(t.values["flicker"] is None and t.values["rho_p05"] is not None for t in result.trials)
+    with pytest.raises(InputError, match="--objective.*1-frame"):
+        tune(one, out_dir=tmp_path / "flicker", trials=2, objectives=["flicker"], presets=[])
+    with pytest.raises(InputError, match="at least 2 frames"):
+        tune(one, out_dir=tmp_path / "limit", trials=2, max_flicker=0.1, presets=[])
+
+
+def test_engine_presets_are_measured_on_the_same_frames_and_fitted_to_the_budget(plain, tmp_path):
+    presets = [f"{METHODS}/exact.toml", f"{METHODS}/quantized.toml"]
+    budget = shadow_memory_bytes(ShadowSettings(cascades=2, resolution=64))
+    result = tune(plain, out_dir=tmp_path, trials=3, presets=presets, memory_budget=budget,
+                  max_flicker="best-preset", space={"stabilization": ("choice", ("none", "exact", "quantized")),
+                                                    "resolution": ("choice", (64,))})
+    labels = [c.label for c in result.references]
+    assert labels == ["start", "exact @ 64²", "quantized @ 64²"]
+    exact = result.references[1]
+    assert exact.settings.stabilization == "exact" and exact.memory_bytes <= budget
+    # best-preset: the limit is the lowest flicker of the presets within the budget.
+    assert result.budgets.max_flicker == min(c.values["flicker"] for c in result.references[1:])
+    assert result.recommended.values["flicker"] <= result.budgets.max_flicker
+    assert (tmp_path / "recommended.toml").is_file() and (tmp_path / "exports" / "ue5.ini").is_file()
+    recommended = load_experiment_with(tmp_path / "recommended.toml", tmp_path)
+    assert recommended.settings == result.recommended.settings
+
+
+def load_experiment_with(preset, folder):
+    """The method of a preset file, loaded as a user would: an experiment that extends it."""
+    path = folder / "uses_preset.toml"
+    path.write_text(f'extends = ["{preset.name}", "paths/walk"]\n')
+    return load_experiment(path).methods[0]
+
+
+def test_a_preset_must_name_its_method_after_its_file(experiment, tmp_path):
+    preset = tmp_path / "myengine.toml"
+    preset.write_text('[[methods]]\nname = "other"\nresolution = 64\n')
+    with pytest.raises(InputError, match="named 'myengine'"):
+        tune(experiment, out_dir=tmp_path / "out", trials=1, presets=[preset])
+
+
+@pytest.mark.parametrize("text, expected", [("64MiB", 64 * 2 ** 20), ("16MB", 16_000_000), ("1024", 1024),
+                                            ("1.5 KiB", 1536), (4096, 4096)])
+def test_parse_size_reads_binary_and_decimal_units(text, expected):
+    assert parse_size(text) == expected
+
+
+@pytest.mark.parametrize("text", ["64 parsecs", "-5MiB", "0", "", 2.5, True])
+def test_parse_size_refuses_what_is_not_a_size(text):
+    with pytest.raises(ValueError, match="64MiB"):
+        parse_size(text)
+
+
+@pytest.mark.parametrize("table, match", [
+    ('stabilization = ["exakt"]', "tune.stabilization: unknown stabilization 'exakt'"),
+    ("lambda = { min = 0.9, max = 0.3 }", "tune.lambda: expected min < max"),
+    ('split = { min = 1, max = 2 }', "tune.split: expected a list of choices"),
+    ('memory_budget = "lots"', "tune.memory_budget: expected a positive size"),
+    ('max_flicker = "little"', 'tune.max_flicker: expected a non-negative number or "best-preset"'),
+    ("trials = 0", "tune.trials: expected at least 1 trial"),
+    ('objectives = ["wobble"]', "tune.objectives: expected metrics.csv columns"),
+    ("resolutions = [64]", "tune.resolutions: unknown field 'resolutions': did you mean 'resolution'"),
+])
+def test_a_bad_tune_table_names_file_line_and_field(tmp_path, table, match):
+    path = tmp_path / "bad.toml"
+    path.write_text(TINY + "\n[tune]\n" + table + "\n")
+    with pytest.raises(InputError, match=match) as caught:
+        load_experiment(path)
+    assert str(path) in str(caught.value)
 
 
 @pytest.mark.parametrize("spec, match", [("resolution", "FIELD=LO:HI"), ("wobble=1:2", "shadow\\] field"),
@@ -102,17 +226,35 @@ def test_bad_search_space_names_the_option(spec, match):
 
 
 def test_objective_needs_a_better_direction():
-    assert objective_direction("flicker") == "lower" and objective_direction("ssim") == "higher"
+    assert objective_direction("flicker") == "lower" and objective_direction("rho_p05") == "higher"
     assert objective_direction("rho_median") == "one"
     with pytest.raises(InputError, match="--objective"):
         objective_direction("no_such_metric")
 
 
-def test_cli_tune_refuses_a_bad_space_with_exit_code_2():
+def test_median_rho_is_tuned_toward_one_not_upward(plain, tmp_path):
+    # Resolutions from far too coarse to far too fine: the largest median ρ is not the best one.
+    result = tune(plain, out_dir=tmp_path, trials=3, objectives=["rho_median"], presets=[],
+                  space={"resolution": ("choice", (16, 128, 4096))})
+    medians = {t.params["resolution"]: t.values["rho_median"] for t in result.trials}
+    assert len(medians) == 3 and max(medians.values()) > 1.0 > min(medians.values())
+    closest = min(medians.values(), key=lambda rho: abs(math.log(rho)))
+    assert result.recommended.values["rho_median"] == closest != max(medians.values())
+
+
+@pytest.mark.parametrize("args, option", [(["--param", "wobble=1:2"], "--param"),
+                                          (["--param", "resolution=64,128", "--memory-budget", "lots"],
+                                           "--memory-budget"),
+                                          (["--param", "resolution=64,128", "--max-flicker", "some"], "--max-flicker")])
+def test_cli_tune_refuses_bad_options_with_exit_code_2(args, option):
     from typer.testing import CliRunner
 
     from csmlab.cli import app
 
-    outcome = CliRunner().invoke(app, ["tune", "gate", "--param", "wobble=1:2"])
+    outcome = CliRunner().invoke(app, ["tune", "gate", *args])
     assert outcome.exit_code == 2
-    assert "--param" in outcome.output and "Traceback" not in outcome.output
+    assert option in outcome.output and "Traceback" not in outcome.output
+
+
+def test_infeasible_budget_is_an_input_error():
+    assert issubclass(InfeasibleBudget, InputError)

@@ -16,13 +16,15 @@ __all__ = ["render_report_html"]
 _TEMPLATES = Path(__file__).parent / "templates"
 
 
-def render_report_html(context: dict) -> str:
+def render_report_html(context: dict, *, template: str = "report.html") -> str:
     """The report page as HTML text.
 
     Parameters
     ----------
     context : dict
         The template's variables (see ``templates/report.html``); missing ones are an error.
+    template : str
+        A file of ``templates/`` (``tune.html`` is the tune report).
 
     Raises
     ------
@@ -37,4 +39,4 @@ def render_report_html(context: dict) -> str:
         lstrip_blocks=True,
         keep_trailing_newline=True,
     )
-    return environment.get_template("report.html").render(**context)
+    return environment.get_template(template).render(**context)

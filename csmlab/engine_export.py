@@ -1,0 +1,279 @@
+"""Shadow settings as engine configuration: snippets to paste, and the knobs each engine lacks.
+
+Each exporter turns a :class:`~csmlab.settings.ShadowSettings` into the settings of one engine —
+cascade count, per-cascade resolution, shadow distance, split distances, blending and filter — and
+names every csmlab knob the engine has no setting for, so that nobody believes a snippet reproduces
+more than it does. Exporters are registered by engine in :data:`EXPORT_METHODS`; :func:`export`
+dispatches on ``engine=``.
+
+Split distances are exported as the engine spells them: fractions of the shadow distance (Unity URP,
+Godot, three.js ``custom`` mode), metres (Bevy ``CascadeShadowConfig``), or — for Unreal, whose only
+split control is a distribution exponent — the exponent whose splits come closest, with the error.
+
+Sources of the engine names
+---------------------------
+- UE5: console variables ``r.Shadow.CSM.MaxCascades``, ``r.Shadow.MaxCSMResolution``; directional
+  light properties ``DynamicShadowCascades``, ``DynamicShadowDistanceMovableLight`` (cm),
+  ``CascadeDistributionExponent`` (split i at the geometric sum of exponent powers, ``ComputeAccumulatedScale``
+  in the renderer), ``CascadeTransitionFraction``.
+- Unity URP: ``UniversalRenderPipelineAsset.shadowDistance``, ``shadowCascadeCount``, ``cascade2Split``,
+  ``cascade3Split``, ``cascade4Split`` (fractions of the shadow distance), ``mainLightShadowmapResolution``
+  (the atlas: one cascade takes all of it, two to four a quarter tile each).
+- Godot 4: ``DirectionalLight3D.directional_shadow_mode`` (orthogonal, 2 or 4 splits),
+  ``directional_shadow_max_distance``, ``directional_shadow_split_1..3``, ``directional_shadow_blend_splits``;
+  project setting ``rendering/lights_and_shadows/directional_shadow/size`` (the atlas).
+- Bevy: ``CascadeShadowConfigBuilder { num_cascades, minimum_distance, maximum_distance,
+  first_cascade_far_bound, overlap_proportion }``, ``CascadeShadowConfig { bounds, … }``,
+  ``DirectionalLightShadowMap { size }``, ``ShadowFilteringMethod``.
+- three.js ``CSM`` (examples/jsm/csm): ``cascades``, ``maxFar``, ``mode`` (``practical`` mixes with
+  λ = 0.5), ``customSplitsCallback``, ``shadowMapSize``, ``fade``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from csmlab.cascades.splits import split_distances
+from csmlab.settings import ShadowSettings
+
+__all__ = ["EXPORT_METHODS", "Snippet", "export", "split_boundaries", "ue_split_fractions"]
+
+
+@dataclass(frozen=True)
+class Snippet:
+    """One engine's configuration for a setting.
+
+    Attributes
+    ----------
+    engine : str
+        A key of :data:`EXPORT_METHODS`.
+    title : str
+        Where it goes in the engine.
+    language : str
+        ``ini``, ``csharp``, ``gdscript``, ``rust`` or ``javascript`` (the file suffix).
+    text : str
+        The snippet.
+    lacking : tuple of str
+        csmlab knobs the engine has no setting for, each with the value this setting uses.
+    """
+
+    engine: str
+    title: str
+    language: str
+    text: str
+    lacking: tuple[str, ...]
+
+
+def split_boundaries(settings: ShadowSettings, *, near: float, far: float) -> np.ndarray:
+    """Cascade boundaries ``(C + 1,)`` in metres of view depth, as the cascades are built: from the camera's
+    ``near`` to ``min(shadow_distance, far)``."""
+    return split_distances(near=near, far=min(settings.shadow_distance, far), count=settings.cascades,
+                           method=settings.split, lambda_=settings.lambda_, splits=settings.splits)
+
+
+def ue_split_fractions(exponent: float, count: int) -> np.ndarray:
+    """Unreal's split fractions ``(count + 1,)`` of the shadow range: ``Σ_{k<i} e^k / Σ_{k<C} e^k``."""
+    powers = float(exponent) ** np.arange(count, dtype=np.float64)
+    return np.concatenate([[0.0], np.cumsum(powers) / powers.sum()])
+
+
+def _common_lacking(settings: ShadowSettings, *, stable: str) -> list[str]:
+    """Knobs no exporter maps: stabilization other than the engine's own, fit, selection, bias units."""
+    lacking = []
+    if settings.stabilization != stable:
+        lacking.append(f"stabilization = {settings.stabilization!r} (the engine always stabilizes its own way, "
+                       f"closest to csmlab's {stable!r})")
+    if settings.stabilization == "quantized":
+        lacking.append(f"levels = {settings.levels}")
+    if settings.fit != "cascade":
+        lacking.append(f"fit = {settings.fit!r}")
+    if settings.selection != "interval":
+        lacking.append(f"selection = {settings.selection!r}")
+    lacking.append(f"bias_constant = {settings.bias_constant}, bias_slope = {settings.bias_slope}, normal_offset = "
+                   f"{settings.normal_offset} (engine bias units differ: tune by eye)")
+    return lacking
+
+
+def _fractions(settings: ShadowSettings, near: float, far: float) -> list[float]:
+    z = split_boundaries(settings, near=near, far=far)
+    return [float(v / z[-1]) for v in z[1:-1]]
+
+
+def _g(value: float) -> str:
+    return f"{value:.4g}"
+
+
+def export_ue5(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
+    """UE5: cvars for an ini file, directional light properties as comments (distances in cm)."""
+    z = split_boundaries(settings, near=near, far=far)
+    wanted = (z - z[0]) / (z[-1] - z[0])
+    exponents = np.arange(1.0, 10.0001, 0.01)
+    errors = [np.abs(ue_split_fractions(e, settings.cascades) - wanted).max() for e in exponents]
+    best = int(np.argmin(errors))
+    error_m = errors[best] * (z[-1] - z[0])
+    lacking = _common_lacking(settings, stable="exact")
+    if error_m > 0.01:
+        lacking.append(f"split distances {[round(float(v), 2) for v in z[1:-1]]} m: Unreal's exponent spacing "
+                       f"misses them by up to {error_m:.2f} m")
+    if settings.filter != "pcf" or settings.filter_size != 3:
+        lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Unreal's PCF kernel "
+                       f"follows r.ShadowQuality)")
+    text = "\n".join([
+        "; DefaultEngine.ini (or ConsoleVariables.ini)",
+        "[SystemSettings]",
+        f"r.Shadow.CSM.MaxCascades={settings.cascades}",
+        f"r.Shadow.MaxCSMResolution={settings.resolution}",
+        "r.Shadow.FilterMethod=0",
+        "",
+        "; DirectionalLight > Cascaded Shadow Maps",
+        f";   DynamicShadowCascades={settings.cascades}",
+        f";   DynamicShadowDistanceMovableLight={_g(z[-1] * 100.0)}    ; cm",
+        f";   CascadeDistributionExponent={exponents[best]:.2f}",
+        f";   CascadeTransitionFraction={_g(settings.blend_band)}",
+    ])
+    return Snippet("ue5", "Unreal Engine 5: console variables and directional light", "ini", text + "\n",
+                   tuple(lacking))
+
+
+def export_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
+    """Unity URP: the pipeline asset's shadow fields, set from a script."""
+    lacking = _common_lacking(settings, stable="exact")
+    cascades = min(settings.cascades, 4)
+    if settings.cascades > 4:
+        lacking.append(f"cascades = {settings.cascades} (URP has at most 4)")
+    atlas = settings.resolution * (1 if cascades == 1 else 2)
+    if atlas > 8192:
+        lacking.append(f"resolution = {settings.resolution} per cascade (URP's atlas stops at 8192)")
+    if settings.blend_band > 0:
+        lacking.append(f"blend_band = {settings.blend_band} (URP blends no cascades; cascadeBorder fades the last)")
+    if settings.filter == "pcf" and settings.filter_size != 3:
+        lacking.append(f"filter_size = {settings.filter_size} (URP's soft shadows are a fixed tent filter)")
+    fractions = _fractions(settings.replace(cascades=cascades), near, far)
+    lines = ["// UniversalRenderPipelineAsset asset = …;",
+             f"asset.shadowDistance = {_g(min(settings.shadow_distance, far))}f;",
+             f"asset.shadowCascadeCount = {cascades};"]
+    if cascades == 2:
+        lines.append(f"asset.cascade2Split = {_g(fractions[0])}f;")
+    elif cascades == 3:
+        lines.append(f"asset.cascade3Split = new Vector2({', '.join(_g(f) + 'f' for f in fractions)});")
+    elif cascades == 4:
+        lines.append(f"asset.cascade4Split = new Vector3({', '.join(_g(f) + 'f' for f in fractions)});")
+    lines += [f"asset.mainLightShadowmapResolution = {atlas};  // atlas: {settings.resolution}² per cascade",
+              f"asset.supportsSoftShadows = {'false' if settings.filter == 'none' else 'true'};"]
+    return Snippet("unity_urp", "Unity URP: UniversalRenderPipelineAsset", "csharp", "\n".join(lines) + "\n",
+                   tuple(lacking))
+
+
+def export_godot4(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
+    """Godot 4: DirectionalLight3D properties and the directional shadow atlas size."""
+    lacking = _common_lacking(settings, stable="exact")
+    modes = {1: 0, 2: 1, 4: 2}
+    cascades = settings.cascades if settings.cascades in modes else (2 if settings.cascades < 4 else 4)
+    if cascades != settings.cascades:
+        lacking.append(f"cascades = {settings.cascades} (Godot has 1, 2 or 4 splits; {cascades} written)")
+    fractions = _fractions(settings.replace(cascades=cascades), near, far)
+    atlas = settings.resolution * (1 if cascades == 1 else 2)
+    lines = ["# DirectionalLight3D",
+             f"directional_shadow_mode = {modes[cascades]}",
+             f"directional_shadow_max_distance = {_g(min(settings.shadow_distance, far))}"]
+    lines += [f"directional_shadow_split_{i + 1} = {_g(f)}" for i, f in enumerate(fractions)]
+    lines += [f"directional_shadow_blend_splits = {'true' if settings.blend_band > 0 else 'false'}",
+              "# Project Settings",
+              f"rendering/lights_and_shadows/directional_shadow/size = {atlas}  "
+              f"# {settings.resolution}² per split (2 splits: half the atlas each)",
+              "rendering/lights_and_shadows/directional_shadow/soft_shadow_filter_quality = "
+              f"{0 if settings.filter == 'none' else 2}"]
+    if settings.blend_band > 0:
+        lacking.append(f"blend_band = {settings.blend_band} (Godot blends splits over a fixed band)")
+    if settings.filter != "none":
+        lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Godot filters with its "
+                       f"own soft-shadow kernel)")
+    return Snippet("godot4", "Godot 4: DirectionalLight3D and project settings", "gdscript", "\n".join(lines) + "\n",
+                   tuple(lacking))
+
+
+def export_bevy(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
+    """Bevy: the CascadeShadowConfigBuilder, and the exact bounds as a CascadeShadowConfig."""
+    z = split_boundaries(settings, near=near, far=far)
+    lacking = _common_lacking(settings, stable="exact")
+    filtering = {"none": None, "pcf_bilinear": "Hardware2x2", "pcf": "Gaussian"}[settings.filter]
+    if settings.filter == "none" or settings.filter == "pcf":
+        lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Bevy filters with "
+                       f"Hardware2x2, Gaussian or Temporal)")
+    bounds = ", ".join(f"{v:.3f}" for v in z[1:])
+    lines = ["// The builder spaces the cascades after the first geometrically:",
+             "let config: CascadeShadowConfig = CascadeShadowConfigBuilder {",
+             f"    num_cascades: {settings.cascades},",
+             f"    minimum_distance: {z[0]:.3f},",
+             f"    maximum_distance: {z[-1]:.3f},",
+             f"    first_cascade_far_bound: {z[1]:.3f},",
+             f"    overlap_proportion: {settings.blend_band:.3f},",
+             "}.build();",
+             "// csmlab's bounds exactly:",
+             f"let config = CascadeShadowConfig {{ bounds: vec![{bounds}], overlap_proportion: "
+             f"{settings.blend_band:.3f}, minimum_distance: {z[0]:.3f} }};",
+             f"app.insert_resource(DirectionalLightShadowMap {{ size: {settings.resolution} }});"]
+    if filtering:
+        lines.append(f"// on the camera: ShadowFilteringMethod::{filtering}")
+    return Snippet("bevy", "Bevy: CascadeShadowConfig and DirectionalLightShadowMap", "rust", "\n".join(lines) + "\n",
+                   tuple(lacking))
+
+
+def export_threejs_csm(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
+    """three.js CSM (examples/jsm/csm/CSM.js) options."""
+    lacking = _common_lacking(settings, stable="exact")
+    modes = {"uniform": "uniform", "log": "logarithmic"}
+    mode = modes.get(settings.split, "practical" if settings.split == "practical" and settings.lambda_ == 0.5
+                     else "custom")
+    lines = ["const csm = new CSM({",
+             f"  maxFar: {_g(min(settings.shadow_distance, far))},",
+             f"  cascades: {settings.cascades},",
+             f"  mode: '{mode}',"]
+    if mode == "custom":
+        fractions = ", ".join(_g(f) for f in _fractions(settings, near, far))
+        lines.append(f"  customSplitsCallback: (cascades, near, far, breaks) => breaks.push({fractions}, 1),")
+    lines += [f"  shadowMapSize: {settings.resolution},", "  camera, parent: scene, lightDirection,", "});",
+              f"csm.fade = {'true' if settings.blend_band > 0 else 'false'};",
+              "renderer.shadowMap.type = THREE." + ("BasicShadowMap" if settings.filter == "none" else "PCFShadowMap")
+              + ";"]
+    if settings.blend_band > 0:
+        lacking.append(f"blend_band = {settings.blend_band} (CSM's fade has a fixed width)")
+    if settings.filter != "none":
+        lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (three.js picks its PCF "
+                       f"kernel from shadowMap.type)")
+    return Snippet("threejs_csm", "three.js: CSM options", "javascript", "\n".join(lines) + "\n", tuple(lacking))
+
+
+EXPORT_METHODS: dict[str, Callable[..., Snippet]] = {
+    "ue5": export_ue5,
+    "unity_urp": export_unity_urp,
+    "godot4": export_godot4,
+    "bevy": export_bevy,
+    "threejs_csm": export_threejs_csm,
+}
+"""Exporters by engine name (the names of their presets in ``configs/engines``)."""
+
+
+def export(settings: ShadowSettings, *, near: float, far: float, engine: str) -> Snippet:
+    """``settings`` as ``engine``'s configuration.
+
+    Parameters
+    ----------
+    settings : ShadowSettings
+    near, far : float
+        The camera's near and far planes, metres (splits start at ``near`` and end at
+        ``min(shadow_distance, far)``).
+    engine : str
+        A key of :data:`EXPORT_METHODS`.
+
+    Raises
+    ------
+    ValueError
+        For an unknown engine (the known ones listed).
+    """
+    if engine not in EXPORT_METHODS:
+        raise ValueError(f"engine: expected one of {sorted(EXPORT_METHODS)}, got {engine!r}")
+    return EXPORT_METHODS[engine](settings, near=near, far=far)

@@ -1,0 +1,74 @@
+"""Engine snippets: the splits each engine is given reproduce csmlab's, and every missing knob is named."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from csmlab.cascades.splits import split_distances
+from csmlab.engine_export import EXPORT_METHODS, export, ue_split_fractions
+from csmlab.settings import ShadowSettings
+
+NEAR, FAR = 0.1, 400.0
+
+
+def _numbers(text: str, after: str) -> list[float]:
+    rest = next(line for line in text.splitlines() if after in line).split(after, 1)[1]
+    rest = rest.split("(", 1)[1] if "(" in rest else rest  # new Vector3(…): the arguments, not the 3
+    return [float(v) for v in re.findall(r"-?\d+\.?\d*(?:e-?\d+)?", rest)]
+
+
+def test_ue_fractions_are_unreals_geometric_sum():
+    # Exponent 1 spaces cascades evenly; exponent 2 over 3 cascades: 1/7, 3/7 (1, 2, 4 of 7).
+    assert np.allclose(ue_split_fractions(1.0, 4), [0, 0.25, 0.5, 0.75, 1])
+    assert np.allclose(ue_split_fractions(2.0, 3), [0, 1 / 7, 3 / 7, 1])
+
+
+def test_ue_exponent_reproduces_a_geometric_split():
+    # A uniform split is Unreal's exponent 1 exactly: nothing about splits is reported missing.
+    snippet = export(ShadowSettings(split="uniform"), near=NEAR, far=FAR, engine="ue5")
+    assert "CascadeDistributionExponent=1.00" in snippet.text
+    assert not any("split distances" in item for item in snippet.lacking)
+    practical = export(ShadowSettings(split="practical", lambda_=0.9), near=NEAR, far=FAR, engine="ue5")
+    assert any("split distances" in item for item in practical.lacking)
+
+
+@pytest.mark.parametrize("cascades", [2, 3, 4])
+def test_unity_urp_splits_are_fractions_of_the_shadow_distance(cascades):
+    settings = ShadowSettings(cascades=cascades, split="practical", lambda_=0.6, shadow_distance=150.0)
+    z = split_distances(near=NEAR, far=150.0, count=cascades, method="practical", lambda_=0.6)
+    text = export(settings, near=NEAR, far=FAR, engine="unity_urp").text
+    fractions = _numbers(text, f"cascade{cascades}Split =")
+    assert np.allclose(fractions, z[1:-1] / 150.0, atol=1e-4)
+    assert f"mainLightShadowmapResolution = {2 * settings.resolution};" in text
+
+
+def test_godot_and_bevy_and_threejs_carry_the_same_boundaries():
+    settings = ShadowSettings(cascades=4, split="log", shadow_distance=100.0)
+    z = split_distances(near=NEAR, far=100.0, count=4, method="log")
+    godot = export(settings, near=NEAR, far=FAR, engine="godot4").text
+    assert np.allclose([_numbers(godot, f"directional_shadow_split_{i} =")[0] for i in (1, 2, 3)], z[1:-1] / 100.0,
+                       atol=1e-4)
+    bevy = export(settings, near=NEAR, far=FAR, engine="bevy").text
+    assert np.allclose(_numbers(bevy, "bounds: vec!")[:4], z[1:], atol=1e-3)
+    three = export(settings, near=NEAR, far=FAR, engine="threejs_csm").text
+    assert "mode: 'logarithmic'" in three
+    half = export(ShadowSettings(split="practical", lambda_=0.5), near=NEAR, far=FAR, engine="threejs_csm").text
+    assert "mode: 'practical'" in half and "customSplitsCallback" not in half
+
+
+@pytest.mark.parametrize("engine", sorted(EXPORT_METHODS))
+def test_every_engine_names_the_knobs_it_lacks(engine):
+    settings = ShadowSettings(stabilization="quantized", levels=16, fit="scene", selection="map", cascades=6)
+    lacking = " ".join(export(settings, near=NEAR, far=FAR, engine=engine).lacking)
+    for knob in ("stabilization = 'quantized'", "levels = 16", "fit = 'scene'", "selection = 'map'"):
+        assert knob in lacking
+    plain = " ".join(export(ShadowSettings(filter="pcf_bilinear"), near=NEAR, far=FAR, engine=engine).lacking)
+    assert "stabilization" not in plain and "levels" not in plain
+
+
+def test_an_unknown_engine_lists_the_known_ones():
+    with pytest.raises(ValueError, match="expected one of \\['bevy'"):
+        export(ShadowSettings(), near=NEAR, far=FAR, engine="cryengine")
