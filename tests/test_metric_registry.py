@@ -94,7 +94,7 @@ def test_reading_tolerances_or_results_does_not_import_warp(tmp_path):
     tolerances.write_text("[regress]\nflicker_same = { abs = 0.0 }\nutilization_c5 = { rel = 0.1 }\n")
     code = ("import sys\n"
             "from csmlab.config import load_tolerances\n"
-            "import csmlab.regress, csmlab.tune, csmlab.report.summary_table, csmlab.report.sweep\n"
+            "import csmlab.regress, csmlab.compare, csmlab.verdict, csmlab.report.summary_table, csmlab.report.sweep\n"
             f"assert set(load_tolerances({str(tolerances)!r})) == {{'flicker_same', 'utilization_c5'}}\n"
             "print('warp' in sys.modules)\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
