@@ -24,9 +24,28 @@ then the light-bleeding reductions of the sources: ``p ← p^power`` (seed 002, 
 fPercentLit to a power") and ``p ← clamp((p − a) / (1 − a), 0, 1)`` (Lauritzen's linstep, MJP,
 Filament).
 
-Caveat (seed 002, "Filtering across splits"; seed 003): hardware would filter these maps
-trilinearly with a level of detail from screen-space derivatives of 2×2 pixel quads; here the
-lookup is bilinear at level 0, so the split-boundary seam of mipmapped lookups does not arise.
+Mipmapped lookup (``moment_mips``; seed 002, "Variance Shadow Maps" and "Gradients with CSMs";
+seed 003, "Filtering across splits"): :func:`moment_mip_chain` builds levels 1 … ``max_lod`` as 2×2
+boxes of the level below (the sample's ``GenerateMips`` after the blur), and
+:func:`moment_mip_lookup` samples them trilinearly — or anisotropically, several trilinear probes
+along the footprint's major axis — at a level of detail from the receiver's screen-space
+derivatives. The seeds' caveats, and what csmlab does about each:
+
+- Derivatives come from 2×2 pixel quads; when the pixels of a quad take different branches —
+  select different cascades — the derivatives of the texture coordinates are invalid, the level of
+  detail (and the anisotropic footprint) is wrong and a jagged seam runs along the cascade border
+  (seed 002, Figure 17; seed 003, Figure 4.1.12). :mod:`csmlab.quads` computes the derivatives as
+  hardware does (``lod = "quad"``) and offers both fixes: one split index over the quad (PSVSM,
+  ``quad_consistent``) and derivatives of the light-view-space position scaled by the selected
+  cascade's scale (``analytic``, the sample's ``SampleGrad``).
+- Filtering after the comparison (PCF) takes no derivative and has no such seam (seed 003).
+- A coarse level reads far beyond the point: the boxes keep that reach free inside their edges
+  (:func:`csmlab.filters.filter_radius`, the sample's "Padding for PCF Kernels" carried to the mip
+  footprint), so no lookup reads past a box — where no one rasterized.
+- A texture's chain starts its 2×2 blocks at the box's first texel, so a box snapped to whole
+  texels still changes every coarser level when it moves by an odd number of them; this chain is
+  anchored to the global texel grid instead, as world-locked as level 0, and ``exact`` keeps zero
+  same-cascade flicker with it.
 
 References
 ----------
