@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+import warp as wp
 
 from csmlab.kernels.moments import (MOMENT_METHODS, blur_moments, moment_lookup, moment_maps, moment_mip_chain,
                                     moment_mip_lookup)
@@ -233,3 +234,20 @@ def test_a_footprint_under_one_texel_is_the_bilinear_lookup_of_level_zero():
         moment_mip_lookup(chain, coords, receiver, origin=np.array([[3, 1], [-6, 9]]), ddx=small, ddy=small * 0.5,
                           **args),
         moment_lookup(moments, coords, receiver, **args))
+
+
+@pytest.mark.skipif(wp.get_cuda_device_count() == 0, reason="no CUDA device")
+def test_mip_chain_and_lookup_on_cuda_equal_the_cpu():
+    rng = np.random.default_rng(5)
+    moments = blur_moments(moment_maps(rng.uniform(0, 30, (2, 40, 40)).astype(np.float32), span=30.0, method="vsm"),
+                           radius=1)
+    origin = np.array([[3, -7], [10, 1]])
+    coords = rng.integers(14 * UNIT, 26 * UNIT, (2, 80, 2))
+    receiver = rng.uniform(0, 33, (2, 80)).astype(np.float32)
+    args = dict(origin=origin, cascade=rng.integers(0, 2, 80).astype(np.int32), ddx=rng.normal(0, 4, (80, 2)),
+                ddy=rng.normal(0, 1, (80, 2)), method="vsm", span=30.0, bits=BITS, anisotropy=4)
+    chains = {d: moment_mip_chain(moments, origin=origin, max_lod=3, device=d) for d in ("cpu", "cuda")}
+    for cpu, cuda in zip(chains["cpu"], chains["cuda"]):
+        np.testing.assert_allclose(cuda, cpu, rtol=1e-6)
+    np.testing.assert_allclose(moment_mip_lookup(chains["cuda"], coords, receiver, device="cuda", **args),
+                               moment_mip_lookup(chains["cpu"], coords, receiver, **args), atol=1e-5)
