@@ -21,12 +21,14 @@ import numpy as np
 
 from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet
-from csmlab.kernels.moments import MOMENT_METHODS, blur_moments, moment_lookup, moment_maps
+from csmlab.kernels.moments import (MOMENT_METHODS, blur_moments, moment_lookup, moment_maps, moment_mip_chain,
+                                    moment_mip_lookup)
 from csmlab.kernels.pcf import PCF_KERNELS, weighted_pcf
 from csmlab.kernels.shadow import shadow_lookup
+from csmlab.quads import quad_derivatives
 from csmlab.settings import ShadowSettings
 
-__all__ = ["FILTER_METHODS", "filter_moments", "filter_radius", "filter_widths", "filtered_shadow_lookup", "interleaved_gradient_noise",
+__all__ = ["FILTER_METHODS", "box_texel_origins", "filter_mips", "filter_moments", "filter_radius", "filter_widths", "filtered_shadow_lookup", "interleaved_gradient_noise",
            "poisson_disk", "screen_pixels"]
 
 FILTER_METHODS: dict[str, str] = {
@@ -44,16 +46,22 @@ FILTER_METHODS: dict[str, str] = {
 """Filters by name (the ``[shadow] filter`` values) and what each does."""
 
 
-def filter_radius(filter: str, filter_size: int, *, moment_blur: int = 1) -> int:
+def filter_radius(filter: str, filter_size: int, *, moment_blur: int = 1, mips: tuple[int, int] | None = None) -> int:
     """Texels a filter reads beyond the one holding the point (``filter_size`` N, odd).
 
     ``none`` 0; ``pcf``, ``pcf_gaussian`` and ``pcss`` N // 2; ``pcf_bilinear`` 1; ``pcf_tent`` and
     ``pcf_poisson`` N // 2 + 1 (a width of N/2 texels around a point anywhere in its texel); the
-    moment filters ``moment_blur // 2 + 1`` (a bilinear lookup of blurred moments).
+    moment filters ``moment_blur // 2 + 1`` (a bilinear lookup of blurred moments), and with
+    ``mips = (max_lod, anisotropy)`` ``⌈(anisotropy + 2) / 2 · 2^max_lod⌉ + moment_blur // 2``: a
+    bilinear lookup at level l reads within 1.5 · 2^l texels of its probe, and the probes spread
+    over at most ``(anisotropy − 1) / 2 · 2^max_lod`` texels on each side (csmlab.kernels.moments).
     """
     if filter not in FILTER_METHODS:
         raise ValueError(f"filter: expected one of {sorted(FILTER_METHODS)}, got {filter!r}")
     half = filter_size // 2
+    if filter in MOMENT_METHODS and mips is not None:
+        max_lod, anisotropy = mips
+        return -(-(anisotropy + 2) * 2**max_lod // 2) + moment_blur // 2
     if filter in MOMENT_METHODS:
         # The bilinear lookup reads one texel beyond the point, each blurred from moment_blur // 2 more.
         return moment_blur // 2 + 1
@@ -131,6 +139,21 @@ def filter_moments(depth, *, span: float, settings: ShadowSettings, device: str 
     return blur_moments(moments, radius=settings.moment_blur // 2, device=device)
 
 
+def box_texel_origins(cascades: CascadeSet, *, bits: int) -> np.ndarray:
+    """Each box's texel (0, 0) as a global texel index ``(C, 2)`` int64 (the grid a mip chain is anchored to)."""
+    from csmlab.texels import fixed_point_origin
+
+    return np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]) >> bits
+
+
+def filter_mips(moments, cascades: CascadeSet, *, settings: ShadowSettings, device: str = "cpu") -> list | None:
+    """The moments' mip chain (:func:`csmlab.kernels.moments.moment_mip_chain`) with ``moment_mips``; else None."""
+    if moments is None or not settings.moment_mips:
+        return None
+    return moment_mip_chain(moments, origin=box_texel_origins(cascades, bits=settings.subtexel_bits),
+                            max_lod=settings.max_lod, device=device)
+
+
 def screen_pixels(pose: CameraPose, points, *, width: int, height: int) -> np.ndarray:
     """Pixel positions ``(..., 2)`` (x = column, y = row, row 0 at the top) of world points ``(..., 3)`` under ``pose``.
 
@@ -172,7 +195,8 @@ def _outside_smaller_boxes(coords: np.ndarray, cascades: CascadeSet, *, unit: in
 
 def filtered_shadow_lookup(depth, coords, receiver_depth, view_depth, *, cascades: CascadeSet,
                            settings: ShadowSettings, receiver_slope=None, pixels=None, moments=None,
-                           span: float = 0.0, device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                           span: float = 0.0, mips=None, lanes=None,
+                           device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Lit fraction S, selected cascade and blend flag of receivers under ``settings.filter``.
 
     Parameters
@@ -192,6 +216,14 @@ def filtered_shadow_lookup(depth, coords, receiver_depth, view_depth, *, cascade
         The moment filters' maps (:func:`filter_moments`).
     span : float
         Depth range in metres the moments were taken over.
+    mips : list of ndarray, optional
+        ``moment_mips``: the moments' mip chain (:func:`filter_mips`).
+    lanes : tuple, optional
+        ``moment_mips``: each receiver's quad (:mod:`csmlab.quads`) as ``(coords, receiver_depth,
+        view_depth, slot)`` of shapes ``(C, N, 4, 2)`` int64, ``(C, N, 4)`` float32, ``(N, 4)`` and
+        ``(N,)``: the lanes' fixed-point coordinates and biased depths (as ``coords`` and
+        ``receiver_depth``), their view depths under the selecting camera, and which lane is the
+        receiver itself.
     device : str
         ``"cpu"`` or ``"cuda"``.
 
@@ -208,7 +240,7 @@ def filtered_shadow_lookup(depth, coords, receiver_depth, view_depth, *, cascade
         On an unknown filter, or a per-pixel rotation without ``pixels``.
     """
     filter = settings.filter
-    radius = filter_radius(filter, settings.filter_size, moment_blur=settings.moment_blur)
+    radius = settings.margin_texels - 1
     bits = settings.subtexel_bits
     texel_area = np.array([np.prod(c.texel_size) for c in cascades.cascades])
     margin = max(cascades.margin_texels, radius)
@@ -241,6 +273,29 @@ def filtered_shadow_lookup(depth, coords, receiver_depth, view_depth, *, cascade
         start = z1 - settings.blend_band * (z1 - splits[cascade])
         band = (chosen >= 0) & (cascade + 1 < count) & (z >= start) & (z < z1) & holds[nxt, index]
         weight[band] = (z[band] - start[band]) / (z1[band] - start[band])
+    if filter in MOMENT_METHODS and settings.moment_mips:
+        if mips is None or lanes is None or not span > 0:
+            raise ValueError("mips, lanes, span: moment_mips needs the mip chain, each receiver's quad and the span")
+        lane_coords, lane_depth, lane_view_depth, slot = lanes
+        lane_coords = np.asarray(lane_coords, dtype=np.int64)
+        flat = lane_coords.reshape(count, -1, 2)
+        _, lane_chosen, _ = shadow_lookup(depth, _outside_smaller_boxes(flat, cascades, unit=unit, inset=margin,
+                                                                        resolution=resolution),
+                                          np.asarray(lane_depth, dtype=np.float32).reshape(count, -1),
+                                          np.asarray(lane_view_depth, dtype=np.float64).reshape(-1), filter="none",
+                                          filter_size=1, margin=margin, **{**common, "receiver_slope": None})
+        lane_cascade = lane_chosen.astype(np.int64).reshape(n, 4)
+        lane_cascade[index, np.asarray(slot, dtype=np.int64)] = chosen
+        used, ddx, ddy = quad_derivatives(lane_coords, lane_cascade, chosen, method=settings.lod, bits=bits,
+                                          holds=holds)
+        band &= used == chosen
+        weight = np.where(band, weight, 0.0)
+        lit = moment_mip_lookup(mips, xy, receiver_depth, origin=box_texel_origins(cascades, bits=bits), cascade=used,
+                                ddx=ddx, ddy=ddy, method=filter, span=span, bits=bits, anisotropy=settings.anisotropy,
+                                exponents=settings.evsm_exponents, min_variance=settings.vsm_min_variance,
+                                power=settings.vsm_power, bleed=settings.vsm_bleed, blend_weight=weight,
+                                device=device)
+        return lit, used.astype(np.int8), band
     if filter in MOMENT_METHODS:
         if moments is None or not span > 0:
             raise ValueError(f"moments, span: filter {filter!r} needs the moment maps and their depth span")

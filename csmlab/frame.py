@@ -106,6 +106,9 @@ class ShadowMaps:
         Blurred moment maps of the moment filters (:mod:`csmlab.kernels.moments`); None otherwise.
     depth_span : float
         The scene's light-space depth range in metres that stored depth and moments are taken over.
+    mips : list of ndarray, optional
+        ``moment_mips``: the moments' mip chain, level l of shape ``(C, S_l, S_l, 4)`` float32
+        (:func:`csmlab.kernels.moments.moment_mip_chain`); None otherwise.
     """
 
     cascades: CascadeSet
@@ -113,6 +116,7 @@ class ShadowMaps:
     texels_rasterized: int
     moments: np.ndarray | None = None
     depth_span: float = 0.0
+    mips: list | None = None
 
 
 @dataclass(frozen=True)

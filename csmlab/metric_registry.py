@@ -162,6 +162,7 @@ METRICS: dict[str, Metric] = {m.name: m for m in (
     Metric("ref_false_shadow", "false shadow", _PIXELS, "lower", (1e-4, 0.05), scale=100.0),
     Metric("ref_false_light", "false light", _PIXELS, "lower", (1e-4, 0.05), scale=100.0),
     Metric("ref_boundary_px", "shadow boundary distance", "pixels", "lower", (1e-3, 0.10)),
+    Metric("ref_seam_error", "error at split boundaries", "mean |S − R|", "lower", (1e-4, 0.05)),
     Metric("memory_bytes", "memory", "MiB", "lower", (0.0, 0.0), scale=2.0 ** -20, headline=True,
            plots=("sweep",)),
     Metric("texels_rasterized", "texels rasterized", "texels", "lower", (0.0, 0.10)),

@@ -16,13 +16,14 @@ import numpy as np
 
 from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet, build_cascades
-from csmlab.filters import filter_moments, filtered_shadow_lookup
+from csmlab.filters import filter_mips, filter_moments, filtered_shadow_lookup
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import normalized
 from csmlab.kernels.raster import cascade_candidates, rasterize_cascades, triangle_bounds
 from csmlab.kernels.reference import hard_shadow
 from csmlab.kernels.shadow import receiver_coordinates
 from csmlab.kernels.visibility import MeshBVH, camera_hits, mesh_bvh
+from csmlab.quads import Quads, quad_lanes
 from csmlab.scene.core import Scene
 from csmlab.settings import ShadowSettings
 from csmlab.storage import stored_depth
@@ -151,13 +152,13 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
         texels += count
     span = float(np.ptp(cascades.to_light(dscene.scene.corners())[:, 2]))
     depth = stored_depth(depth, span=span, depth_format=settings.depth_format)
-    return ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=texels,
-                      moments=filter_moments(depth, span=span, settings=settings, device=dscene.device),
-                      depth_span=span)
+    moments = filter_moments(depth, span=span, settings=settings, device=dscene.device)
+    return ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=texels, moments=moments, depth_span=span,
+                      mips=filter_mips(moments, cascades, settings=settings, device=dscene.device))
 
 
 def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: ShadowSettings,
-                  pixels=None, device: str = "cpu") -> ShadowLookup:
+                  pixels=None, quads: Quads | None = None, quad_view_depth=None, device: str = "cpu") -> ShadowLookup:
     """One method's shadow at receiver points: cascade selection, biased depth test, filter, blend.
 
     Parameters
@@ -176,6 +177,11 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
     pixels : array_like, shape (N, 2) or (H, W, 2), optional
         Each point's pixel (x, y) in the image being shaded, for filters rotated per pixel; None:
         an ``(H, W, 3)`` image of points is at its own pixels.
+    quads : Quads, optional
+        ``moment_mips``: each point's 2×2 pixel quad (:func:`csmlab.quads.quad_lanes`), shaped like
+        ``view_depth`` plus ``(4, 3)``.
+    quad_view_depth : array_like, shape (..., 4), optional
+        The lanes' view depths under the camera whose cascade selection is wanted.
     device : str
         ``"cpu"`` or ``"cuda"``.
 
@@ -207,9 +213,26 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
     if pixels is None and p.ndim == 3:
         rows, cols = np.indices(p.shape[:2])
         pixels = np.stack([cols, rows], axis=-1)
+    lanes = None
+    if maps.mips is not None:
+        if quads is None or quad_view_depth is None:
+            raise ValueError("quads, quad_view_depth: moment_mips takes its level of detail from each point's pixel quad")
+        lane_points = quads.position.reshape(-1, 4, 3)[receivers].reshape(-1, 3)
+        lane_coords, lane_depth, _ = receiver_coordinates(
+            light_space(cascades, lane_points),
+            light_space(cascades, np.repeat(n.reshape(-1, 3)[receivers], 4, axis=0).astype(np.float64)),
+            texel_size=np.stack([c.texel_size for c in cascades.cascades]),
+            origin=np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]),
+            zref=cascades.zref, bits=bits, normal_offset=settings.normal_offset, bias_constant=settings.bias_constant,
+            bias_slope=settings.bias_slope, device=device,
+        )
+        count = len(cascades)
+        lanes = (lane_coords.reshape(count, -1, 4, 2), lane_depth.reshape(count, -1, 4),
+                 np.asarray(quad_view_depth, dtype=np.float64).reshape(-1, 4)[receivers],
+                 quads.slot.reshape(-1)[receivers])
     found = filtered_shadow_lookup(
         maps.depth, coordinates, receiver_depth, flat_z[receivers], cascades=cascades, settings=settings,
-        moments=maps.moments, span=maps.depth_span,
+        moments=maps.moments, span=maps.depth_span, mips=maps.mips, lanes=lanes,
         receiver_slope=receiver_slope if settings.receiver_plane_bias else None,
         pixels=None if pixels is None else np.asarray(pixels, dtype=np.float64).reshape(-1, 2)[receivers],
         device=device,
@@ -240,8 +263,12 @@ def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings) -> 
     timings["raster"] = time.perf_counter() - start
     start = time.perf_counter()
     g = view.gbuffer
+    quads = quad_view_depth = None
+    if maps.mips is not None:
+        quads = quad_lanes(view.pose, g.position, g.normal, width=g.shape[1], height=g.shape[0])
+        quad_view_depth = view.pose.view_depth(quads.position)
     shadow = lookup_shadow(maps, points=g.position, normals=g.normal, view_depth=g.view_depth, settings=settings,
-                           device=dscene.device)
+                           quads=quads, quad_view_depth=quad_view_depth, device=dscene.device)
     timings["shadow"] = time.perf_counter() - start
     return Frame(view=view, settings=settings, maps=maps, shadow=shadow, timings=timings)
 

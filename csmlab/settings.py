@@ -86,6 +86,14 @@ class ShadowSettings:
     """vsm, evsm: light-bleeding reduction p ← p^power (seed 002's MAGIC_NUMBER; 1: none)."""
     vsm_bleed: float = 0.0
     """vsm, evsm: light-bleeding reduction p ← linstep(amount, 1, p) (Lauritzen; 0: none), in [0, 1)."""
+    moment_mips: bool = False
+    """vsm, evsm: look the moments up in a mip chain, trilinear at a level of detail from screen-space derivatives (lod), not bilinear at level 0."""
+    lod: str = "quad"
+    """moment_mips: derivatives the level of detail comes from: quad (hardware, per 2×2 quad; a seam at splits) | quad_consistent (PSVSM) | analytic (csmlab.quads)."""
+    max_lod: int = 3
+    """moment_mips: coarsest mip level looked up (the sampler's MaxLOD), 0..8; the boxes keep its reach free inside their edges."""
+    anisotropy: int = 1
+    """moment_mips: most probes along the footprint's major axis, 1..16 (1: trilinear)."""
 
     def validated(self) -> "ShadowSettings":
         """Return ``self`` after checking every field's range; raise ``ValueError`` naming the field."""
@@ -123,6 +131,11 @@ class ShadowSettings:
         need(self.vsm_min_variance >= 0, "vsm_min_variance", "a non-negative variance", self.vsm_min_variance)
         need(self.vsm_power > 0, "vsm_power", "a positive exponent", self.vsm_power)
         need(0.0 <= self.vsm_bleed < 1.0, "vsm_bleed", "an amount in [0, 1)", self.vsm_bleed)
+        need(isinstance(self.moment_mips, bool), "moment_mips", "true or false", self.moment_mips)
+        need(self.lod in ("quad", "quad_consistent", "analytic"), "lod", "quad, quad_consistent or analytic", self.lod)
+        need(isinstance(self.max_lod, int) and 0 <= self.max_lod <= 8, "max_lod", "an integer in 0..8", self.max_lod)
+        need(isinstance(self.anisotropy, int) and 1 <= self.anisotropy <= 16, "anisotropy", "an integer in 1..16",
+             self.anisotropy)
         need(isinstance(self.depth_bytes, int) and 0 <= self.depth_bytes <= 16, "depth_bytes",
              "an integer in 0..16 (0: from depth_format)", self.depth_bytes)
         need(self.depth_format in ("float32", "unorm24", "unorm16"), "depth_format", "float32, unorm24 or unorm16",
@@ -143,7 +156,8 @@ class ShadowSettings:
         """Texels kept free inside each box edge so that filter taps never clamp: filter radius + 1."""
         from csmlab.filters import filter_radius
 
-        return filter_radius(self.filter, self.filter_size, moment_blur=self.moment_blur) + 1
+        return filter_radius(self.filter, self.filter_size, moment_blur=self.moment_blur,
+                             mips=(self.max_lod, self.anisotropy) if self.moment_mips else None) + 1
 
     def replace(self, **changes) -> "ShadowSettings":
         """A copy with ``changes`` applied (TOML name ``lambda`` accepted for ``lambda_``)."""

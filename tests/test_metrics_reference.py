@@ -121,3 +121,24 @@ def test_error_of_an_8192_cascade_on_plane_box_is_small_and_rises_as_resolution_
         errors.append(summary["ref_false_shadow"] + summary["ref_false_light"])
     assert errors[0] < 0.005
     assert np.all(np.diff(errors) > 0), errors
+
+
+def test_split_boundary_pixels_are_both_sides_of_a_cascade_change_and_the_seam_error_is_their_mean_error():
+    from types import SimpleNamespace
+
+    from csmlab.metrics.reference import seam_error, split_boundary_pixels
+
+    cascade = np.array([[0, 0, 0, 1, 1, 1],
+                        [0, 0, 0, 1, 1, -1],
+                        [-1, -1, -1, -1, -1, -1]])
+    expected = np.array([[0, 0, 1, 1, 0, 0],
+                         [0, 0, 1, 1, 0, 0],
+                         [0, 0, 0, 0, 0, 0]], dtype=bool)
+    np.testing.assert_array_equal(split_boundary_pixels(cascade), expected)
+    lit = np.array([[1.0, 1.0, 0.75, 0.5, 0.0, 0.0]] * 3, np.float32)
+    reference = np.ones((3, 6), np.float32)
+    frame = SimpleNamespace(shadow=SimpleNamespace(lit=lit, cascade=cascade),
+                            view=SimpleNamespace(reference=reference, gbuffer=SimpleNamespace(valid=np.ones((3, 6), bool))))
+    assert seam_error(frame) == {"ref_seam_error": (0.25 + 0.5) / 2}
+    frame.shadow.cascade = np.zeros((3, 6), int)
+    assert np.isnan(seam_error(frame)["ref_seam_error"])

@@ -2,8 +2,10 @@
 
 import numpy as np
 import pytest
+import warp as wp
 
-from csmlab.kernels.moments import MOMENT_METHODS, blur_moments, moment_lookup, moment_maps
+from csmlab.kernels.moments import (MOMENT_METHODS, blur_moments, moment_lookup, moment_maps, moment_mip_chain,
+                                    moment_mip_lookup)
 
 BITS = 8
 UNIT = 2**BITS
@@ -106,3 +108,146 @@ def test_blur_moves_with_the_map():
     b = blur_moments(moment_maps(np.roll(depth, (2, -3), axis=(1, 2)), span=30.0, method="evsm4",
                                  exponents=EXPONENTS), radius=3)
     np.testing.assert_array_equal(np.roll(a, (2, -3), axis=(1, 2))[:, 8:24, 8:24], b[:, 8:24, 8:24])
+
+
+def ref_chain(level0, origin, max_lod):
+    """Each level a 2×2 box of the one below on the global grid: pad by the parity in front, by the edge behind."""
+    chain = [level0]
+    s = np.asarray(origin, dtype=np.int64)
+    for _ in range(max_lod):
+        src = chain[-1].astype(np.float64)
+        parent = s // 2
+        b = s - 2 * parent
+        size = src.shape[1] // 2 + 1
+        out = np.zeros((src.shape[0], size, size, 4))
+        for c in range(src.shape[0]):
+            padded = np.pad(src[c], ((b[c, 1], 2 * size), (b[c, 0], 2 * size), (0, 0)), mode="edge")
+            out[c] = padded[:2 * size, :2 * size].reshape(size, 2, size, 2, 4).mean(axis=(1, 3))
+        chain.append(out.astype(np.float32))
+        s = parent
+    return chain
+
+
+@pytest.mark.parametrize("origin", [[[0, 0], [0, 0]], [[5, -3], [-8, 13]]])
+def test_mip_chain_equals_a_numpy_box_downsample_on_the_global_texel_grid(origin):
+    rng = np.random.default_rng(4)
+    moments = rng.uniform(0.0, 1.0, (2, 20, 20, 4)).astype(np.float32)
+    chain = moment_mip_chain(moments, origin=np.array(origin), max_lod=3)
+    expected = ref_chain(moments, origin, 3)
+    assert [level.shape for level in chain] == [(2, 20, 20, 4), (2, 11, 11, 4), (2, 6, 6, 4), (2, 4, 4, 4)]
+    for level, want in zip(chain, expected):
+        np.testing.assert_allclose(level, want, rtol=1e-6)
+    # Independently: a level-l texel whose global 2^l × 2^l block lies inside the map is that block's mean.
+    o = np.array(origin)
+    for lod in (1, 2, 3):
+        step = 2**lod
+        for c in range(2):
+            shift = o[c] % step  # level-0 texels of the box before its first whole global block
+            for j in range(chain[lod].shape[1]):
+                for i in range(chain[lod].shape[2]):
+                    x0, y0 = i * step - shift[0], j * step - shift[1]
+                    if min(x0, y0) >= 0 and max(x0, y0) + step <= 20:
+                        block = moments[c, y0:y0 + step, x0:x0 + step].astype(np.float64).mean(axis=(0, 1))
+                        np.testing.assert_allclose(chain[lod][c, j, i], block, rtol=1e-5)
+    if origin == [[0, 0], [0, 0]]:
+        plain = moments.astype(np.float64).reshape(2, 10, 2, 10, 2, 4).mean(axis=(2, 4))
+        np.testing.assert_allclose(chain[1][:, :10, :10], plain, rtol=1e-6)
+
+
+def ref_mip_lit(chain, origin, c, x, y, ddx, ddy, receiver, method, span, anisotropy):
+    """The trilinear/anisotropic lookup of moment_mip_lookup in float64 NumPy, then Chebyshev as ref_lit."""
+    max_lod = len(chain) - 1
+    px, py = np.linalg.norm(ddx), np.linalg.norm(ddy)
+    major, pmax, pmin = (ddy, py, px) if py > px else (ddx, px, py)
+    probes = 1
+    if anisotropy > 1 and pmax > 0:
+        probes = int(min(np.ceil(pmax / pmin), anisotropy)) if pmin > 0 else anisotropy
+    lod = float(np.clip(np.log2(pmax / probes), 0, max_lod)) if pmax > 0 else 0.0
+    base, frac = int(np.floor(lod)), lod - np.floor(lod)
+    reach = probes * 2.0**max_lod
+    major = np.asarray(major) * (reach / pmax if pmax > reach else 1.0)
+
+    def bilinear(level, xp, yp):
+        step = 2**level
+        shift = (np.asarray(origin[c]) % step) * UNIT
+        fx, fy = (xp + shift[0]) / (step * UNIT) - 0.5, (yp + shift[1]) / (step * UNIT) - 0.5
+        i0, j0 = int(np.floor(fx)), int(np.floor(fy))
+        wx, wy = fx - i0, fy - j0
+        m = chain[level][c]
+        r = m.shape[0] - 1
+        at = lambda i, j: m[min(max(j, 0), r), min(max(i, 0), r)].astype(np.float64)
+        return (1 - wy) * ((1 - wx) * at(i0, j0) + wx * at(i0 + 1, j0)) + wy * ((1 - wx) * at(i0, j0 + 1) + wx * at(i0 + 1, j0 + 1))
+
+    total = np.zeros(4)
+    for p in range(probes):
+        t = (p + 0.5) / probes - 0.5
+        xp, yp = x + int(np.rint(major[0] * t * UNIT)), y + int(np.rint(major[1] * t * UNIT))
+        m = bilinear(base, xp, yp)
+        if frac > 0:
+            m = (1 - frac) * m + frac * bilinear(base + 1, xp, yp)
+        total += m
+    mom = total / probes
+    t = float(receiver) / span
+    if method == "vsm":
+        return chebyshev(mom[0], np.clip(mom[1] - mom[0] ** 2 + 1e-4, 0, 1), t)
+    w = np.exp(EXPONENTS[0] * (2 * t - 1))
+    p = chebyshev(mom[0], max(mom[1] - mom[0] ** 2, 1e-4 * (EXPONENTS[0] * w) ** 2), w)
+    w = -np.exp(-EXPONENTS[1] * (2 * t - 1))
+    return min(p, chebyshev(mom[2], max(mom[3] - mom[2] ** 2, 1e-4 * (EXPONENTS[1] * w) ** 2), w))
+
+
+@pytest.mark.parametrize("method", ["vsm", "evsm4"])
+@pytest.mark.parametrize("anisotropy", [1, 4])
+def test_trilinear_and_anisotropic_lookup_equal_a_numpy_reference(method, anisotropy):
+    rng = np.random.default_rng(11)
+    span = 40.0
+    depth = rng.uniform(0.0, 40.0, (2, 48, 48)).astype(np.float32)
+    depth[:, 10:30, 12:26] = 9.0
+    origin = np.array([[7, -2], [-5, 4]])
+    chain = moment_mip_chain(blur_moments(moment_maps(depth, span=span, method=method, exponents=EXPONENTS), radius=1),
+                             origin=origin, max_lod=3)
+    n = 120
+    coords = rng.integers(16 * UNIT, 32 * UNIT, (2, n, 2))
+    receiver = rng.uniform(0.0, 44.0, (2, n)).astype(np.float32)
+    cascade = rng.integers(0, 2, n).astype(np.int32)
+    ddx = rng.normal(0.0, 3.0, (n, 2)) * rng.choice([0.1, 1.0, 10.0], (n, 1))
+    ddy = rng.normal(0.0, 1.0, (n, 2))
+    ddx[:4] = 0.0  # no footprint: level 0
+    lit = moment_mip_lookup(chain, coords, receiver, origin=origin, cascade=cascade, ddx=ddx, ddy=ddy, method=method,
+                            span=span, bits=BITS, anisotropy=anisotropy, exponents=EXPONENTS, min_variance=1e-4)
+    expected = [ref_mip_lit(chain, origin, c, *coords[c, k], ddx[k], ddy[k], receiver[c, k], method, span, anisotropy)
+                for k, c in enumerate(cascade)]
+    np.testing.assert_allclose(lit, expected, atol=1e-5)
+
+
+def test_a_footprint_under_one_texel_is_the_bilinear_lookup_of_level_zero():
+    rng = np.random.default_rng(3)
+    depth = rng.uniform(0.0, 30.0, (2, 32, 32)).astype(np.float32)
+    moments = blur_moments(moment_maps(depth, span=30.0, method="evsm2", exponents=EXPONENTS), radius=2)
+    chain = moment_mip_chain(moments, origin=np.array([[3, 1], [-6, 9]]), max_lod=2)
+    coords = rng.integers(8 * UNIT, 24 * UNIT, (2, 64, 2))
+    receiver = rng.uniform(0.0, 33.0, (2, 64)).astype(np.float32)
+    cascade = rng.integers(0, 2, 64).astype(np.int32)
+    small = rng.uniform(-0.6, 0.6, (64, 2))
+    args = dict(cascade=cascade, method="evsm2", span=30.0, bits=BITS, exponents=EXPONENTS)
+    np.testing.assert_array_equal(
+        moment_mip_lookup(chain, coords, receiver, origin=np.array([[3, 1], [-6, 9]]), ddx=small, ddy=small * 0.5,
+                          **args),
+        moment_lookup(moments, coords, receiver, **args))
+
+
+@pytest.mark.skipif(wp.get_cuda_device_count() == 0, reason="no CUDA device")
+def test_mip_chain_and_lookup_on_cuda_equal_the_cpu():
+    rng = np.random.default_rng(5)
+    moments = blur_moments(moment_maps(rng.uniform(0, 30, (2, 40, 40)).astype(np.float32), span=30.0, method="vsm"),
+                           radius=1)
+    origin = np.array([[3, -7], [10, 1]])
+    coords = rng.integers(14 * UNIT, 26 * UNIT, (2, 80, 2))
+    receiver = rng.uniform(0, 33, (2, 80)).astype(np.float32)
+    args = dict(origin=origin, cascade=rng.integers(0, 2, 80).astype(np.int32), ddx=rng.normal(0, 4, (80, 2)),
+                ddy=rng.normal(0, 1, (80, 2)), method="vsm", span=30.0, bits=BITS, anisotropy=4)
+    chains = {d: moment_mip_chain(moments, origin=origin, max_lod=3, device=d) for d in ("cpu", "cuda")}
+    for cpu, cuda in zip(chains["cpu"], chains["cuda"]):
+        np.testing.assert_allclose(cuda, cpu, rtol=1e-6)
+    np.testing.assert_allclose(moment_mip_lookup(chains["cuda"], coords, receiver, device="cuda", **args),
+                               moment_mip_lookup(chains["cpu"], coords, receiver, **args), atol=1e-5)

@@ -4,7 +4,8 @@
 - :mod:`csmlab.kernels.visibility` — the scene's BVH on a device and the camera G-buffer.
 - :mod:`csmlab.kernels.shadow` — cascade selection, receiver depth test, filtering, blend band.
 - :mod:`csmlab.kernels.pcf` — weighted PCF at a selected cascade: Gaussian, tent, Poisson disk, PCSS.
-- :mod:`csmlab.kernels.moments` — VSM/EVSM moments, their separable blur and the Chebyshev lookup.
+- :mod:`csmlab.kernels.moments` — VSM/EVSM moments, their separable blur, mip chain and the Chebyshev lookup
+  (bilinear, trilinear or anisotropic).
 - :mod:`csmlab.kernels.reference` — the ray-traced hard shadow (ground truth).
 - :mod:`csmlab.kernels.footprint` — texel footprint of a screen pixel (aliasing metric).
 

@@ -24,9 +24,28 @@ then the light-bleeding reductions of the sources: ``p ← p^power`` (seed 002, 
 fPercentLit to a power") and ``p ← clamp((p − a) / (1 − a), 0, 1)`` (Lauritzen's linstep, MJP,
 Filament).
 
-Caveat (seed 002, "Filtering across splits"; seed 003): hardware would filter these maps
-trilinearly with a level of detail from screen-space derivatives of 2×2 pixel quads; here the
-lookup is bilinear at level 0, so the split-boundary seam of mipmapped lookups does not arise.
+Mipmapped lookup (``moment_mips``; seed 002, "Variance Shadow Maps" and "Gradients with CSMs";
+seed 003, "Filtering across splits"): :func:`moment_mip_chain` builds levels 1 … ``max_lod`` as 2×2
+boxes of the level below (the sample's ``GenerateMips`` after the blur), and
+:func:`moment_mip_lookup` samples them trilinearly — or anisotropically, several trilinear probes
+along the footprint's major axis — at a level of detail from the receiver's screen-space
+derivatives. The seeds' caveats, and what csmlab does about each:
+
+- Derivatives come from 2×2 pixel quads; when the pixels of a quad take different branches —
+  select different cascades — the derivatives of the texture coordinates are invalid, the level of
+  detail (and the anisotropic footprint) is wrong and a jagged seam runs along the cascade border
+  (seed 002, Figure 17; seed 003, Figure 4.1.12). :mod:`csmlab.quads` computes the derivatives as
+  hardware does (``lod = "quad"``) and offers both fixes: one split index over the quad (PSVSM,
+  ``quad_consistent``) and derivatives of the light-view-space position scaled by the selected
+  cascade's scale (``analytic``, the sample's ``SampleGrad``).
+- Filtering after the comparison (PCF) takes no derivative and has no such seam (seed 003).
+- A coarse level reads far beyond the point: the boxes keep that reach free inside their edges
+  (:func:`csmlab.filters.filter_radius`, the sample's "Padding for PCF Kernels" carried to the mip
+  footprint), so no lookup reads past a box — where no one rasterized.
+- A texture's chain starts its 2×2 blocks at the box's first texel, so a box snapped to whole
+  texels still changes every coarser level when it moves by an odd number of them; this chain is
+  anchored to the global texel grid instead, as world-locked as level 0, and ``exact`` keeps zero
+  same-cascade flicker with it.
 
 References
 ----------
@@ -42,7 +61,7 @@ import warp as wp
 
 from csmlab.kernels import checked_device
 
-__all__ = ["MOMENT_METHODS", "blur_moments", "moment_lookup", "moment_maps"]
+__all__ = ["MOMENT_METHODS", "blur_moments", "moment_lookup", "moment_maps", "moment_mip_chain", "moment_mip_lookup"]
 
 MOMENT_METHODS: dict[str, int] = {"vsm": 0, "evsm2": 1, "evsm4": 2}
 """Moment filters by name, mapped to the kernels' code."""
@@ -106,15 +125,11 @@ def chebyshev(mean: wp.float64, variance: wp.float64, t: wp.float64) -> wp.float
 
 
 @wp.func
-def moment_lit(moments: wp.array3d(dtype=wp.vec4f), coords: wp.array3d(dtype=wp.int64),
-               receiver_depth: wp.array2d(dtype=wp.float32), c: int, k: int, unit: wp.int64, inv_span: wp.float64,
-               code: int, c_pos: wp.float64, c_neg: wp.float64, min_variance: wp.float64, power: wp.float64,
-               bleed: wp.float64) -> wp.float64:
-    receiver = receiver_depth[c, k]
-    if wp.isnan(receiver):
-        return wp.float64(0.0)
-    x2 = wp.int64(2) * coords[c, k, 0] - unit
-    y2 = wp.int64(2) * coords[c, k, 1] - unit
+def bilinear_moments(moments: wp.array3d(dtype=wp.vec4f), c: int, x: wp.int64, y: wp.int64,
+                     unit: wp.int64) -> wp.vec4d:
+    """The 2×2 texels around fixed-point ``(x, y)`` (``unit`` per texel), bilinear in its exact fraction."""
+    x2 = wp.int64(2) * x - unit
+    y2 = wp.int64(2) * y - unit
     span = wp.int64(2) * unit
     i0 = x2 // span
     j0 = y2 // span
@@ -122,8 +137,14 @@ def moment_lit(moments: wp.array3d(dtype=wp.vec4f), coords: wp.array3d(dtype=wp.
     wy = wp.float64(y2 - j0 * span) / wp.float64(span)
     one = wp.int64(1)
     w1 = wp.float64(1.0)
-    m = (w1 - wy) * ((w1 - wx) * fetch(moments, c, i0, j0) + wx * fetch(moments, c, i0 + one, j0)) + wy * (
+    return (w1 - wy) * ((w1 - wx) * fetch(moments, c, i0, j0) + wx * fetch(moments, c, i0 + one, j0)) + wy * (
         (w1 - wx) * fetch(moments, c, i0, j0 + one) + wx * fetch(moments, c, i0 + one, j0 + one))
+
+
+@wp.func
+def moment_bound(m: wp.vec4d, receiver: wp.float32, inv_span: wp.float64, code: int, c_pos: wp.float64,
+                 c_neg: wp.float64, min_variance: wp.float64, power: wp.float64, bleed: wp.float64) -> wp.float64:
+    """Chebyshev's bound of filtered moments ``m`` at the receiver's depth, then the light-bleeding reductions."""
     # The receiver's own depth is not clamped: one beyond the range is behind everything stored.
     t = wp.float64(receiver) * inv_span
     p = wp.float64(0.0)
@@ -144,6 +165,18 @@ def moment_lit(moments: wp.array3d(dtype=wp.vec4f), coords: wp.array3d(dtype=wp.
     if bleed > wp.float64(0.0):
         p = wp.clamp((p - bleed) / (wp.float64(1.0) - bleed), wp.float64(0.0), wp.float64(1.0))
     return p
+
+
+@wp.func
+def moment_lit(moments: wp.array3d(dtype=wp.vec4f), coords: wp.array3d(dtype=wp.int64),
+               receiver_depth: wp.array2d(dtype=wp.float32), c: int, k: int, unit: wp.int64, inv_span: wp.float64,
+               code: int, c_pos: wp.float64, c_neg: wp.float64, min_variance: wp.float64, power: wp.float64,
+               bleed: wp.float64) -> wp.float64:
+    receiver = receiver_depth[c, k]
+    if wp.isnan(receiver):
+        return wp.float64(0.0)
+    m = bilinear_moments(moments, c, coords[c, k, 0], coords[c, k, 1], unit)
+    return moment_bound(m, receiver, inv_span, code, c_pos, c_neg, min_variance, power, bleed)
 
 
 @wp.kernel
@@ -311,6 +344,309 @@ def moment_lookup(moments, coords, receiver_depth, *, cascade, method: str, span
                 wp.array(chosen, dtype=wp.int32, device=device, copy=False),
                 wp.array(blend, dtype=wp.float64, device=device, copy=False), wp.int64(2**bits), 1.0 / span, code,
                 float(exponents[0]), float(exponents[1]), float(min_variance), float(power), float(bleed)),
+        outputs=(lit,),
+        device=device,
+    )
+    return lit.numpy()
+
+
+@wp.kernel
+def downsample_kernel(src: wp.array3d(dtype=wp.vec4f), parity: wp.array2d(dtype=wp.int64),
+                      dst: wp.array3d(dtype=wp.vec4f)):
+    c, j, i = wp.tid()
+    top = wp.int64(src.shape[1] - 1)
+    # Children 2k − b and 2k − b + 1 on each axis: b = 1 where the box's first texel is the second
+    # child of a parent on the global grid (see moment_mip_chain).
+    x0 = wp.int64(2) * wp.int64(i) - parity[c, 0]
+    y0 = wp.int64(2) * wp.int64(j) - parity[c, 1]
+    total = wp.vec4d()
+    for dj in range(2):
+        for di in range(2):
+            ii = int(wp.clamp(x0 + wp.int64(di), wp.int64(0), top))
+            jj = int(wp.clamp(y0 + wp.int64(dj), wp.int64(0), top))
+            v = src[c, jj, ii]
+            total += wp.vec4d(wp.float64(v[0]), wp.float64(v[1]), wp.float64(v[2]), wp.float64(v[3]))
+    total = total * wp.float64(0.25)
+    dst[c, j, i] = wp.vec4f(wp.float32(total[0]), wp.float32(total[1]), wp.float32(total[2]), wp.float32(total[3]))
+
+
+@wp.func
+def fetch_level(levels: wp.array(dtype=wp.vec4f), offset: wp.array(dtype=wp.int64), size: wp.array(dtype=wp.int64),
+                level: int, c: int, i: wp.int64, j: wp.int64) -> wp.vec4d:
+    s = size[level]
+    top = s - wp.int64(1)
+    ii = wp.clamp(i, wp.int64(0), top)
+    jj = wp.clamp(j, wp.int64(0), top)
+    v = levels[int(offset[level] + (wp.int64(c) * s + jj) * s + ii)]
+    return wp.vec4d(wp.float64(v[0]), wp.float64(v[1]), wp.float64(v[2]), wp.float64(v[3]))
+
+
+@wp.func
+def bilinear_level(levels: wp.array(dtype=wp.vec4f), offset: wp.array(dtype=wp.int64),
+                   size: wp.array(dtype=wp.int64), shift: wp.array3d(dtype=wp.int64), level: int, c: int,
+                   x: wp.int64, y: wp.int64, unit: wp.int64) -> wp.vec4d:
+    """:func:`bilinear_moments` at ``level``: fixed-point level-0 ``(x, y)`` moved onto the level's global grid."""
+    lunit = unit * (wp.int64(1) << wp.int64(level))
+    x2 = wp.int64(2) * (x + shift[c, level, 0]) - lunit
+    y2 = wp.int64(2) * (y + shift[c, level, 1]) - lunit
+    span = wp.int64(2) * lunit
+    i0 = x2 // span
+    j0 = y2 // span
+    wx = wp.float64(x2 - i0 * span) / wp.float64(span)
+    wy = wp.float64(y2 - j0 * span) / wp.float64(span)
+    one = wp.int64(1)
+    w1 = wp.float64(1.0)
+    return (w1 - wy) * ((w1 - wx) * fetch_level(levels, offset, size, level, c, i0, j0)
+                        + wx * fetch_level(levels, offset, size, level, c, i0 + one, j0)) + wy * (
+        (w1 - wx) * fetch_level(levels, offset, size, level, c, i0, j0 + one)
+        + wx * fetch_level(levels, offset, size, level, c, i0 + one, j0 + one))
+
+
+@wp.func
+def filtered_moments(levels: wp.array(dtype=wp.vec4f), offset: wp.array(dtype=wp.int64),
+                     size: wp.array(dtype=wp.int64), shift: wp.array3d(dtype=wp.int64), c: int, x: wp.int64,
+                     y: wp.int64, ddx: wp.vec2d, ddy: wp.vec2d, unit: wp.int64, max_lod: int,
+                     max_aniso: int) -> wp.vec4d:
+    """Trilinear (``max_aniso`` 1) or anisotropic moments at fixed-point ``(x, y)`` for a footprint ``ddx, ddy`` (texels)."""
+    px = wp.length(ddx)
+    py = wp.length(ddy)
+    major = ddx
+    pmax = px
+    pmin = py
+    if py > px:
+        major = ddy
+        pmax = py
+        pmin = px
+    probes = int(1)
+    if max_aniso > 1 and pmax > wp.float64(0.0):
+        ratio = wp.float64(max_aniso)
+        if pmin > wp.float64(0.0):
+            ratio = wp.min(wp.ceil(pmax / pmin), wp.float64(max_aniso))
+        probes = int(ratio)
+    lod = wp.float64(0.0)
+    if pmax > wp.float64(0.0):
+        lod = wp.clamp(wp.log2(pmax / wp.float64(probes)), wp.float64(0.0), wp.float64(max_lod))
+    if not wp.isfinite(lod):
+        lod = wp.float64(max_lod)
+    base = int(wp.floor(lod))
+    frac = lod - wp.float64(base)
+    # The probes cover the major axis, at most probes · 2^max_lod texels long (the box's padding).
+    reach = wp.float64(probes) * wp.pow(wp.float64(2.0), wp.float64(max_lod))
+    if pmax > reach:
+        major = major * (reach / pmax)
+    total = wp.vec4d()
+    for p in range(probes):
+        t = (wp.float64(p) + wp.float64(0.5)) / wp.float64(probes) - wp.float64(0.5)
+        xp = x + wp.int64(wp.rint(major[0] * t * wp.float64(unit)))
+        yp = y + wp.int64(wp.rint(major[1] * t * wp.float64(unit)))
+        m = bilinear_level(levels, offset, size, shift, base, c, xp, yp, unit)
+        if frac > wp.float64(0.0):
+            m = (wp.float64(1.0) - frac) * m + frac * bilinear_level(levels, offset, size, shift, base + 1, c, xp, yp,
+                                                                     unit)
+        total += m
+    return total / wp.float64(probes)
+
+
+@wp.kernel
+def mip_lookup_kernel(
+    levels: wp.array(dtype=wp.vec4f),
+    offset: wp.array(dtype=wp.int64),
+    size: wp.array(dtype=wp.int64),
+    shift: wp.array3d(dtype=wp.int64),
+    coords: wp.array3d(dtype=wp.int64),
+    receiver_depth: wp.array2d(dtype=wp.float32),
+    cascade: wp.array(dtype=wp.int32),
+    ddx: wp.array2d(dtype=wp.vec2d),
+    ddy: wp.array2d(dtype=wp.vec2d),
+    blend_weight: wp.array(dtype=wp.float64),
+    unit: wp.int64,
+    max_lod: int,
+    max_aniso: int,
+    inv_span: wp.float64,
+    code: int,
+    c_pos: wp.float64,
+    c_neg: wp.float64,
+    min_variance: wp.float64,
+    power: wp.float64,
+    bleed: wp.float64,
+    lit: wp.array(dtype=wp.float32),
+):
+    k = wp.tid()
+    c = cascade[k]
+    if c < 0:
+        lit[k] = wp.float32(wp.nan)
+        return
+    s = wp.float64(0.0)
+    # Row 0 of ddx/ddy is the footprint in cascade c's texels, row 1 in cascade c + 1's (blend band).
+    for b in range(2):
+        w = blend_weight[k]
+        if b == 0:
+            w = wp.float64(1.0) - w
+        if w > wp.float64(0.0):
+            receiver = receiver_depth[c + b, k]
+            p = wp.float64(0.0)
+            if not wp.isnan(receiver):
+                m = filtered_moments(levels, offset, size, shift, c + b, coords[c + b, k, 0], coords[c + b, k, 1],
+                                     ddx[b, k], ddy[b, k], unit, max_lod, max_aniso)
+                p = moment_bound(m, receiver, inv_span, code, c_pos, c_neg, min_variance, power, bleed)
+            if b == 0 and w == wp.float64(1.0):
+                s = p
+            else:
+                s = s + w * p
+    lit[k] = wp.float32(s)
+
+
+def _mip_grid(origin, *, max_lod: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per cascade, level and axis: the children's parity ``b`` and the level's shift in level-0 texels."""
+    o = np.asarray(origin, dtype=np.int64)
+    s = np.stack([o // (1 << level) for level in range(max_lod + 2)], axis=1)  # (C, L + 1, 2) global index of texel 0
+    parity = s[:, :-1] - 2 * s[:, 1:]
+    shift = o[:, None, :] - s[:, :-1] * (1 << np.arange(max_lod + 1))[None, :, None]
+    return parity, shift
+
+
+def moment_mip_chain(moments, *, origin, max_lod: int, device: str = "cpu") -> list[np.ndarray]:
+    """Mip levels 0 … ``max_lod`` of (blurred) moment maps, each a 2×2 box of the level below on the global texel grid.
+
+    A texel of level l covers the 2^l × 2^l level-0 texels of a *global* block — one whose
+    global texel indices start at a multiple of 2^l — so the chain is as world-locked as level 0
+    (a box moved by whole texels shifts every level by whole texels of that level, or by none).
+    A hardware texture's chain starts its blocks at the box's own first texel instead, which
+    changes every coarser level when a box moves by an odd number of texels.
+
+    Parameters
+    ----------
+    moments : array_like, shape (C, R, R, 4), float32
+        Level 0 (:func:`blur_moments`).
+    origin : array_like, shape (C, 2), int
+        Global texel index of each box's texel (0, 0) (x, y).
+    max_lod : int
+        Coarsest level, ≥ 0.
+    device : str
+
+    Returns
+    -------
+    list of ndarray
+        Level l of shape ``(C, S_l, S_l, 4)`` float32 with ``S_0 = R`` and ``S_{l+1} = S_l // 2 + 1``
+        (one more texel than half, for a block that starts before the box). Children outside the
+        level below are clamped to its edge; texel k on an axis averages children ``2k − b`` and
+        ``2k − b + 1`` with ``b`` 1 where the box's first texel of that level is a second child.
+    """
+    device = checked_device(device)
+    m = np.ascontiguousarray(moments, dtype=np.float32)
+    if m.ndim != 4 or m.shape[3] != 4 or m.shape[1] != m.shape[2]:
+        raise ValueError(f"moments: expected shape (C, R, R, 4), got {m.shape}")
+    o = np.asarray(origin)
+    if o.shape != (m.shape[0], 2) or not np.issubdtype(o.dtype, np.integer):
+        raise ValueError(f"origin: expected integer texel indices of shape ({m.shape[0]}, 2), got {o.shape} {o.dtype}")
+    if not (isinstance(max_lod, (int, np.integer)) and max_lod >= 0):
+        raise ValueError(f"max_lod: expected a non-negative integer, got {max_lod!r}")
+    parity, _ = _mip_grid(o, max_lod=int(max_lod))
+    chain = [m]
+    src = wp.array(m, dtype=wp.vec4f, device=device)
+    for level in range(int(max_lod)):
+        size = src.shape[1] // 2 + 1
+        dst = wp.empty((m.shape[0], size, size), dtype=wp.vec4f, device=device)
+        wp.launch(downsample_kernel, dim=dst.shape,
+                  inputs=(src, wp.array(np.ascontiguousarray(parity[:, level]), dtype=wp.int64, device=device)),
+                  outputs=(dst,), device=device)
+        chain.append(dst.numpy())
+        src = dst
+    return chain
+
+
+def moment_mip_lookup(chain, coords, receiver_depth, *, origin, cascade, ddx, ddy, method: str, span: float,
+                      bits: int, anisotropy: int = 1, exponents: tuple[float, float] = (40.0, 5.0),
+                      min_variance: float = 1e-5, power: float = 1.0, bleed: float = 0.0, blend_weight=None,
+                      device: str = "cpu") -> np.ndarray:
+    """Lit fraction S from a moment mip chain, trilinear or anisotropic at a level of detail from a footprint.
+
+    The footprint is the pair of screen-space derivatives of the receiver's level-0 texel
+    coordinates, ``ddx`` and ``ddy`` (texels per pixel). With ``Pmax ≥ Pmin`` their lengths and
+    ``N = min(ceil(Pmax / Pmin), anisotropy)`` probes (1 when ``anisotropy`` is 1), the level of
+    detail is ``λ = clamp(log2(Pmax / N), 0, max_lod)`` (``max_lod = len(chain) − 1``); each probe
+    mixes the bilinear moments of levels ``⌊λ⌋`` and ``⌊λ⌋ + 1`` by ``λ − ⌊λ⌋``, and the N probes
+    sit at ``((p + ½) / N − ½)`` of the major axis (at most ``N · 2^max_lod`` texels long), their
+    offsets rounded to the fixed-point grid (EXT_texture_filter_anisotropic's footprint). The
+    moments are averaged, then bounded as :func:`moment_lookup` does. With a footprint under one
+    texel it equals :func:`moment_lookup` on level 0.
+
+    Parameters
+    ----------
+    chain : list of ndarray
+        :func:`moment_mip_chain` of the moments, built with the same ``origin``.
+    coords : array_like, shape (C, N, 2), int64
+        Receivers in ``2**-bits`` texels of each cascade.
+    receiver_depth : array_like, shape (C, N), float32
+        Biased receiver depth, metres; NaN is shadowed.
+    origin : array_like, shape (C, 2), int
+        Global texel index of each box's texel (0, 0).
+    cascade : array_like, shape (N,), int
+        Cascade looked up, −1 for none (S is NaN).
+    ddx, ddy : array_like, shape (N, 2) or (2, N, 2), float64
+        Footprint in the looked-up cascade's level-0 texels; with a leading 2, row 1 is the same
+        footprint in cascade ``cascade + 1``'s texels, for the blend band.
+    method : str
+        A key of :data:`MOMENT_METHODS`.
+    span : float
+        Depth range in metres the moments were normalized over.
+    bits : int
+        Sub-texel bits of ``coords``.
+    anisotropy : int
+        Largest number of probes, 1..16 (1: trilinear).
+    exponents, min_variance, power, bleed, blend_weight, device
+        As :func:`moment_lookup`.
+
+    Returns
+    -------
+    ndarray, shape (N,), float32
+    """
+    device = checked_device(device)
+    code = _code(method)
+    levels = [np.ascontiguousarray(level, dtype=np.float32) for level in chain]
+    if not levels or any(level.ndim != 4 or level.shape[3] != 4 or level.shape[1] != level.shape[2]
+                         or level.shape[0] != levels[0].shape[0] for level in levels):
+        raise ValueError(f"chain: expected levels of shape (C, S, S, 4), got {[np.shape(level) for level in levels]}")
+    count = levels[0].shape[0]
+    xy = np.ascontiguousarray(coords, dtype=np.int64)
+    rd = np.ascontiguousarray(receiver_depth, dtype=np.float32)
+    chosen = np.ascontiguousarray(cascade, dtype=np.int32)
+    n = chosen.shape[0] if chosen.ndim == 1 else -1
+    dx = np.asarray(ddx, dtype=np.float64)
+    dy = np.asarray(ddy, dtype=np.float64)
+    if dx.ndim == 2:
+        dx, dy = np.stack([dx, dx]), np.stack([dy, dy])
+    if xy.shape != (count, n, 2) or rd.shape != (count, n) or dx.shape != (2, n, 2) or dy.shape != dx.shape:
+        raise ValueError(f"coords, receiver_depth, cascade, ddx, ddy: expected shapes (C, N, 2), (C, N), (N,), (N, 2) "
+                         f"or (2, N, 2); got {xy.shape}, {rd.shape}, {chosen.shape}, {dx.shape}, {dy.shape}")
+    if not (isinstance(anisotropy, (int, np.integer)) and 1 <= anisotropy <= 16):
+        raise ValueError(f"anisotropy: expected an integer in 1..16, got {anisotropy!r}")
+    if not (0.0 <= bleed < 1.0 and power > 0 and min_variance >= 0):
+        raise ValueError(f"bleed, power, min_variance: expected [0, 1), > 0, ≥ 0; got {bleed}, {power}, {min_variance}")
+    blend = np.zeros(n) if blend_weight is None else np.ascontiguousarray(blend_weight, dtype=np.float64)
+    if n == 0:
+        return np.zeros(0, np.float32)
+    max_lod = len(levels) - 1
+    _, shift = _mip_grid(origin, max_lod=max_lod)
+    sizes = np.array([level.shape[1] for level in levels], dtype=np.int64)
+    offsets = np.concatenate([[0], np.cumsum([level.shape[0] * level.shape[1] ** 2 for level in levels])[:-1]])
+    flat = np.concatenate([level.reshape(-1, 4) for level in levels])
+    lit = wp.empty(n, dtype=wp.float32, device=device)
+    wp.launch(
+        mip_lookup_kernel,
+        dim=n,
+        inputs=(wp.array(flat, dtype=wp.vec4f, device=device), wp.array(offsets.astype(np.int64), dtype=wp.int64,
+                                                                         device=device),
+                wp.array(sizes, dtype=wp.int64, device=device),
+                wp.array(np.ascontiguousarray(shift * 2**bits), dtype=wp.int64, device=device),
+                wp.array(xy, dtype=wp.int64, device=device, copy=False),
+                wp.array(rd, dtype=wp.float32, device=device, copy=False),
+                wp.array(chosen, dtype=wp.int32, device=device, copy=False),
+                wp.array(np.ascontiguousarray(dx), dtype=wp.vec2d, device=device),
+                wp.array(np.ascontiguousarray(dy), dtype=wp.vec2d, device=device),
+                wp.array(blend, dtype=wp.float64, device=device, copy=False), wp.int64(2**bits), int(max_lod),
+                int(anisotropy), 1.0 / span, code, float(exponents[0]), float(exponents[1]), float(min_variance),
+                float(power), float(bleed)),
         outputs=(lit,),
         device=device,
     )

@@ -12,6 +12,11 @@ shadowed when ``S <= 0.5`` (the method) or ``R <= 0.5`` (the reference).
   (ASSD, as in image segmentation): the Euclidean distance in pixels from every boundary pixel of
   each image to the nearest boundary pixel of the other, averaged over both sets together. It is
   0 when neither image has a boundary and NaN when only one has.
+- seam error (``ref_seam_error``): the mean |S − R| over the compared pixels next to a split
+  boundary — those with a pixel of another selected cascade among their 8 neighbours — NaN where
+  the image holds no boundary. Both sides of a boundary count, so every pixel of a 2×2 quad that
+  straddles it does: the seam of a mipmapped lookup with hardware quad derivatives
+  (:mod:`csmlab.quads`; seed 003, "Filtering across splits") is this figure's to show.
 """
 
 from __future__ import annotations
@@ -23,7 +28,8 @@ from scipy.ndimage import distance_transform_edt
 
 from csmlab.frame import Frame
 
-__all__ = ["ReferenceMaps", "boundary_pixels", "mean_boundary_distance", "reference_maps", "reference_summary"]
+__all__ = ["ReferenceMaps", "boundary_pixels", "mean_boundary_distance", "reference_maps", "reference_summary",
+           "seam_error", "split_boundary_pixels"]
 
 
 @dataclass(frozen=True)
@@ -95,3 +101,28 @@ def reference_summary(maps: ReferenceMaps) -> dict[str, float]:
         "ref_boundary_px": mean_boundary_distance(boundary_pixels(maps.shadowed, maps.compared),
                                                   boundary_pixels(maps.reference_shadowed, maps.compared)),
     }
+
+
+def split_boundary_pixels(cascade) -> np.ndarray:
+    """``(H, W)`` bool: pixels with a cascade (≥ 0) that have another cascade (≥ 0) among their 8 neighbours."""
+    c = np.asarray(cascade, dtype=np.int64)
+    padded = np.pad(c, 1, constant_values=-1)
+    height, width = c.shape
+    out = np.zeros(c.shape, dtype=bool)
+    for dy in range(3):
+        for dx in range(3):
+            other = padded[dy:dy + height, dx:dx + width]
+            out |= (other >= 0) & (other != c)
+    return out & (c >= 0)
+
+
+def seam_error(frame: Frame) -> dict[str, float]:
+    """``ref_seam_error``: mean |S − R| in float64 over compared pixels next to a split boundary; NaN if none."""
+    lit = frame.shadow.lit
+    reference = frame.view.reference
+    compared = frame.view.gbuffer.valid & np.isfinite(lit) & np.isfinite(reference)
+    seam = compared & split_boundary_pixels(frame.shadow.cascade)
+    if not seam.any():
+        return {"ref_seam_error": float("nan")}
+    error = np.abs(lit[seam].astype(np.float64) - reference[seam].astype(np.float64))
+    return {"ref_seam_error": float(np.mean(error, dtype=np.float64))}

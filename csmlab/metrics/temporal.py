@@ -34,6 +34,7 @@ from csmlab.camera import CameraPose
 from csmlab.filters import screen_pixels
 from csmlab.frame import Frame
 from csmlab.metric_registry import finite_mean
+from csmlab.quads import quad_lanes
 from csmlab.render import lookup_shadow
 
 __all__ = ["TemporalMaps", "previous_reference_at", "temporal_maps", "temporal_summary"]
@@ -93,10 +94,15 @@ def temporal_maps(frame: Frame, previous: Frame, *, device: str = "cpu") -> Temp
         raise ValueError(f"previous frame: expected an image of {g.shape} pixels, got {previous.view.gbuffer.shape}")
     visible = g.valid
     points = g.position[visible]
+    quads = quad_view_depth = None
+    if previous.maps.mips is not None:
+        # Frame t's pixel quads, each lane selecting with frame t−1's camera (csmlab.quads).
+        quads = quad_lanes(frame.view.pose, g.position, g.normal, width=g.shape[1], height=g.shape[0])[visible]
+        quad_view_depth = previous.view.pose.view_depth(quads.position)
     earlier = lookup_shadow(previous.maps, points=points, normals=g.normal[visible],
                             view_depth=previous.view.pose.view_depth(points), settings=previous.settings,
                             pixels=screen_pixels(previous.view.pose, points, width=g.shape[1], height=g.shape[0]),
-                            device=device)
+                            quads=quads, quad_view_depth=quad_view_depth, device=device)
     previous_lit = np.full(g.shape, np.nan, dtype=np.float32)
     previous_lit[visible] = earlier.lit
     previous_cascade = np.full(g.shape, -1, dtype=np.int64)
