@@ -148,16 +148,16 @@
         cell.className = "vcell";
         cell.dataset.map = key;
         cell.dataset.stem = v.stem;
-        const img = document.createElement("img");
-        img.alt = `${v.label} ${key}`;
-        img.hidden = key === "rho" || key === "dS";
+        // The shaded view under the cascade tint and the reference overlay; ρ and |ΔS| are drawn alone.
+        const img = key === "rho" || key === "dS" ? null : document.createElement("img");
+        if (img) img.alt = `${v.label} ${key}`;
         const canvas = document.createElement("canvas");
         canvas.width = run.width;
         canvas.height = run.height;
         canvas.hidden = key === "shaded";
         const mark = document.createElement("div");
         mark.className = "vmark";
-        cell.append(img, canvas, mark);
+        cell.append(...(img ? [img] : []), canvas, mark);
         cell.addEventListener("mousemove", (e) => hover(e, cell));
         row.append(cell);
         cells.push({ stem: v.stem, key, cell, img, canvas, mark });
@@ -198,7 +198,7 @@
       const d = data[stem];
       if (!d) return;
       const p = d.planes;
-      if (key === "shaded" || key === "cascade" || key === "ref") img.src = d.img;
+      if (img) img.src = d.img;
       if (key === "cascade") {
         paint(canvas, (k, px, o) => {
           const c = p.cascade[k];
