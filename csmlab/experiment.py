@@ -278,10 +278,12 @@ def run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
     from csmlab.metrics import measure_frame
     from csmlab.render import render_shadow, render_view
     from csmlab.report.capture import capture_frame
+    from csmlab.report.pixels import world_grid
 
     start, stop = chunk
     workload = job.workload
     scene = _prepared_scene(job)
+    grid = world_grid(workload.path.positions, reach=max(v.settings.shadow_distance for v in job.variants))
     rows, timings, captures, previous = [], [], {}, {}
     for index in range(max(start - 1, 0), stop):
         pose = workload.path.pose(index)
@@ -304,7 +306,7 @@ def run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
                 timings += [(index, *key, stage, seconds) for stage, seconds in frame.timings.items()]
                 timings.append((index, *key, "metrics", measured))
                 captures.setdefault(key, []).append(
-                    capture_frame(frame, measures, snapshot=index in job.snapshot_frames))
+                    capture_frame(frame, measures, snapshot=index in job.snapshot_frames, grid=grid))
             previous[key] = frame
     return ChunkResult(start=start, stop=stop, rows=rows, timings=timings, captures=captures)
 
@@ -385,7 +387,7 @@ def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, executor: 
 def _write_results(out: Path, experiment: Experiment, job: Job, chunks: list[ChunkResult], *,
                    config_hash: str) -> dict:
     from csmlab.metrics import metric_columns
-    from csmlab.report.capture import write_captures
+    from csmlab.report.capture import write_captures, write_casters
 
     columns = metric_columns(max(v.settings.cascades for v in job.variants))
     order = {(v.method, v.point): rank for rank, v in enumerate(job.variants)}
@@ -396,6 +398,7 @@ def _write_results(out: Path, experiment: Experiment, job: Job, chunks: list[Chu
         key = (variant.method, variant.point)
         write_captures(out, method=variant.method, point=variant.point,
                        captures=[c for chunk in chunks for c in chunk.captures.get(key, [])])
+    write_casters(out, job.workload.scene.vertices, job.workload.scene.triangles)
     methods, points = results.summarize(rows, columns=columns, methods=[m.name for m in experiment.methods],
                                         points=[label for label, _ in experiment.points()])
     summary = dict(name=experiment.name, config_hash=config_hash, workload_hash=job.workload.key, device=job.device,

@@ -1,18 +1,15 @@
 """The HTML report end to end: a tiny real run through the runner, then the page in a real browser.
 
-The browser is Debian's headless ``chromium`` driven through ``chromedriver`` (package
-``chromium-driver``) with the W3C WebDriver protocol spoken over plain HTTP, so no client
-library is needed; the tests that need it skip, saying why, when either program is missing.
+The browser is Debian's headless ``chromium`` driven by Selenium through ``chromedriver``
+(packages ``chromium`` and ``chromium-driver``); the tests that need it skip, saying why, when
+either program or the ``selenium`` package is missing. The tiny run keeps one pixel in two of each
+row and column for the interactive page (``VIEW_WIDTH`` lowered for the test), so that the hover
+test also proves the mapping from a shown pixel to a pixel of the frame.
 """
 
-import base64
 import json
 import shutil
-import socket
-import subprocess
 import time
-import urllib.error
-import urllib.request
 from html.parser import HTMLParser
 from pathlib import Path
 
@@ -22,7 +19,9 @@ import pytest
 
 from csmlab import results
 from csmlab.config import load_experiment
-from csmlab.experiment import run_experiment
+from csmlab.errors import InputError
+from csmlab.experiment import build_workload, run_experiment
+from csmlab.report import pixels as report_pixels
 from csmlab.report import write_report
 
 TINY = """
@@ -39,16 +38,22 @@ cascades = 2
 resolution = 128
 shadow_distance = 40.0
 """
-RESULT_FILES = ("summary.json", "metrics.csv", "timings.csv", "cascades.csv", "config.resolved.toml")
+RESULT_FILES = ("summary.json", "metrics.csv", "timings.csv", "cascades.csv", "config.resolved.toml", "casters.npz")
+
+
+TINY_VIEW_WIDTH = 48
+"""Half the tiny run's width: its per-pixel records keep every 2nd pixel of each row and column."""
 
 
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):
-    """A 3-frame, 2-method run of the real runner, and its report."""
+    """A 3-frame, 2-method run of the real runner (in this process), and its report."""
     root = tmp_path_factory.mktemp("report")
     (root / "tiny.toml").write_text(TINY)
     out = root / "tiny"
-    run_experiment(load_experiment(root / "tiny.toml"), out_dir=out)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(report_pixels, "VIEW_WIDTH", TINY_VIEW_WIDTH)
+        run_experiment(load_experiment(root / "tiny.toml"), out_dir=out)
     return write_report(out)
 
 
@@ -76,6 +81,9 @@ def test_every_file_the_report_references_exists_and_none_is_remote(tiny_run):
     assert any(r.startswith("figures/strip__") for r in references)
     assert any(r.startswith("figures/stabilization__") for r in references)
     assert any(r.startswith("figures/view3d__") for r in references)
+    assert {"explore/plotly.min.js", "explore/data.js", "explore/kept.js", "explore/explore.js"} <= set(references)
+    assert sorted(p.name for p in (tiny_run.parent / "explore" / "frames").iterdir()) == [
+        "f00000.js", "f00001.js", "f00002.js"]
 
 
 def test_report_is_regenerated_byte_for_byte_from_the_results_files_alone(tiny_run, tmp_path):
@@ -84,7 +92,7 @@ def test_report_is_regenerated_byte_for_byte_from_the_results_files_alone(tiny_r
     copy.mkdir()
     for name in RESULT_FILES:
         shutil.copy(source / name, copy / name)
-    for folder in ("anim", "snapshots"):
+    for folder in ("anim", "snapshots", "pixels"):
         (copy / folder).mkdir()
         for npz in (source / folder).glob("*.npz"):
             shutil.copy(npz, copy / folder / npz.name)
@@ -93,101 +101,259 @@ def test_report_is_regenerated_byte_for_byte_from_the_results_files_alone(tiny_r
     made = sorted(p.relative_to(copy).as_posix() for p in copy.rglob("*") if p.is_file())
     assert made == sorted(p.relative_to(source).as_posix() for p in source.rglob("*") if p.is_file())
     for name in made:
-        if name.endswith((".png", ".gif")) and "view3d" not in name:
+        if name.endswith((".png", ".gif", ".js")) and "view3d" not in name:
             assert (copy / name).read_bytes() == (source / name).read_bytes(), name
 
 
-class _WebDriver:
-    """Just enough of the W3C WebDriver protocol to load a page, run a script, read the log, take a screenshot."""
+def _pixels_measured(toml: Path, *, frame: int, method: str):
+    """The oracle of the hover test: frame ``frame`` of ``method`` rendered and measured anew (not read back)."""
+    from csmlab.metrics import measure_frame
+    from csmlab.render import prepare_scene, render_shadow, render_view
 
-    def __init__(self):
-        with socket.socket() as s:
-            s.bind(("127.0.0.1", 0))
-            port = s.getsockname()[1]
-        self.base = f"http://127.0.0.1:{port}"
-        self.process = subprocess.Popen([shutil.which("chromedriver"), f"--port={port}"],
-                                        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        deadline = time.monotonic() + 30
-        while True:
-            try:
-                self._call("GET", "/status")
-                break
-            except (urllib.error.URLError, ConnectionError):
-                if time.monotonic() > deadline:
-                    raise
-                time.sleep(0.1)
-        options = {"binary": shutil.which("chromium"),
-                   "args": ["--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-                            "--window-size=1400,1800", "--allow-file-access-from-files"]}
-        session = self._call("POST", "/session", {"capabilities": {"alwaysMatch": {
-            "browserName": "chrome", "goog:chromeOptions": options, "goog:loggingPrefs": {"browser": "ALL"}}}})
-        self.session = f"/session/{session['sessionId']}"
-
-    def _call(self, method, path, body=None):
-        request = urllib.request.Request(self.base + path, method=method,
-                                         data=None if body is None else json.dumps(body).encode(),
-                                         headers={"Content-Type": "application/json"})
-        with urllib.request.urlopen(request, timeout=60) as response:
-            return json.loads(response.read())["value"]
-
-    def open(self, path: Path):
-        self._call("POST", f"{self.session}/url", {"url": path.resolve().as_uri()})
-
-    def images(self):
-        """``[src, complete, naturalWidth]`` of every ``<img>`` once the page has loaded."""
-        return self._call("POST", f"{self.session}/execute/sync", {"script": (
-            "return Array.from(document.images).map(i => [i.getAttribute('src'), i.complete, i.naturalWidth]);"),
-            "args": []})
-
-    def console(self):
-        """Browser log entries since the last call."""
-        return self._call("POST", f"{self.session}/se/log", {"type": "browser"})
-
-    def screenshot(self) -> bytes:
-        return base64.b64decode(self._call("GET", f"{self.session}/screenshot"))
-
-    def close(self):
-        try:
-            self._call("DELETE", self.session)
-        finally:
-            self.process.terminate()
-            self.process.wait(timeout=30)
+    experiment = load_experiment(toml)
+    workload = build_workload(experiment)
+    settings = next(v.settings for v in experiment.variants() if v.method == method)
+    scene = prepare_scene(workload.scene)
+    frames = []
+    for index in (frame - 1, frame):
+        view = render_view(scene, workload.path.pose(index), workload.light.direction(index), width=workload.width,
+                           height=workload.height, index=index)
+        frames.append(render_shadow(scene, view, settings))
+    return frames[1], measure_frame(frames[1], frames[0]).pixels
 
 
-@pytest.fixture(scope="module")
-def browser():
+def _browser():
+    """Headless Debian chromium under Selenium, logging the console and every network request."""
+    webdriver = pytest.importorskip("selenium.webdriver")
+    from selenium.webdriver.chrome.service import Service
+
     missing = [p for p in ("chromium", "chromedriver") if shutil.which(p) is None]
     if missing:
         pytest.skip(f"{' and '.join(missing)} not installed (Debian: apt-get install chromium chromium-driver; "
                     "setup.sh does it)")
-    driver = _WebDriver()
+    options = webdriver.ChromeOptions()
+    options.binary_location = shutil.which("chromium")
+    for argument in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                     "--window-size=1400,1800", "--enable-unsafe-swiftshader"):
+        options.add_argument(argument)
+    options.set_capability("goog:loggingPrefs", {"browser": "ALL", "performance": "ALL"})
+    return webdriver.Chrome(options=options, service=Service(shutil.which("chromedriver")))
+
+
+@pytest.fixture(scope="module")
+def browser():
+    driver = _browser()
     yield driver
-    driver.close()
+    driver.quit()
 
 
-def test_browser_check_catches_a_missing_image_and_a_console_error(browser, tmp_path):
-    """The check below must be able to fail: a page with a broken image and a script error."""
+def _open(browser, page: Path) -> None:
+    browser.get_log("browser")
+    browser.get_log("performance")
+    browser.get(page.resolve().as_uri())
+
+
+def _errors(browser) -> list[dict]:
+    """Console errors, and warnings from scripts (the GPU driver's performance notes are not the page's)."""
+    return [e for e in browser.get_log("browser")
+            if e["level"] == "SEVERE" or (e["level"] == "WARNING" and e.get("source") in ("console-api", "javascript"))]
+
+
+def _requests(browser) -> list[str]:
+    """The URL of every request the page made since it was opened (DevTools Network.requestWillBeSent)."""
+    urls = []
+    for entry in browser.get_log("performance"):
+        message = json.loads(entry["message"])["message"]
+        if message["method"] == "Network.requestWillBeSent":
+            urls.append(message["params"]["request"]["url"])
+    return urls
+
+
+def _remote(urls: list[str]) -> list[str]:
+    return [u for u in urls if not u.startswith(("file://", "data:", "blob:"))]
+
+
+def _wait(browser, condition, *, what: str, seconds: float = 30.0):
+    deadline = time.monotonic() + seconds
+    while True:
+        value = condition()
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.1)
+
+
+def _shown_frame(browser) -> str:
+    return browser.execute_script("return document.getElementById('explore-viewer').dataset.frame")
+
+
+def _move_slider(browser, index: int) -> None:
+    from selenium.webdriver.common.keys import Keys
+
+    slider = browser.find_element("id", "explore-slider")
+    slider.send_keys(Keys.HOME)
+    for _ in range(index):
+        slider.send_keys(Keys.ARROW_RIGHT)
+
+
+def test_browser_checks_catch_a_missing_image_a_console_error_and_a_remote_request(browser, tmp_path):
+    """The checks below must be able to fail: a broken image, a script error and a request off the machine."""
     page = tmp_path / "broken.html"
     page.write_text('<!DOCTYPE html><html><head><meta charset="utf-8"><link rel="icon" href="data:,"></head>'
-                    '<body><img src="nowhere.png"><script>console.error("boom")</script></body></html>')
-    browser.open(page)
-    assert [(src, width) for src, _, width in browser.images()] == [("nowhere.png", 0)]
-    assert any(e["level"] == "SEVERE" for e in browser.console())
+                    '<body><img src="nowhere.png"><img src="http://127.0.0.1:9/elsewhere.png">'
+                    '<script>console.error("boom")</script></body></html>')
+    _open(browser, page)
+    time.sleep(1.0)
+    widths = browser.execute_script("return Array.from(document.images).map(i => i.naturalWidth)")
+    assert widths == [0, 0]
+    assert any(e["level"] == "SEVERE" for e in _errors(browser))
+    assert _remote(_requests(browser)) == ["http://127.0.0.1:9/elsewhere.png"]
 
 
-def test_report_opens_in_headless_chromium_with_every_image_and_no_console_error(tiny_run, browser, tmp_path):
-    browser.console()
-    browser.open(tiny_run)
-    images = browser.images()
-    assert len(images) >= 8
+def test_report_opens_in_headless_chromium_with_every_image_no_console_error_and_no_remote_request(
+        tiny_run, browser, tmp_path):
+    _open(browser, tiny_run)
+    _wait(browser, lambda: _shown_frame(browser) == "0", what="the first frame of the viewer")
+    images = browser.execute_script(
+        "return Array.from(document.images).map(i => [i.getAttribute('src') || '', i.complete, i.naturalWidth])")
+    static = [i for i in images if not i[0].startswith("data:")]
+    assert len(static) >= 8
     assert [src for src, complete, width in images if not complete or width == 0] == []
-    assert [e for e in browser.console() if e["level"] in ("SEVERE", "WARNING")] == []
+    time.sleep(1.0)
+    assert _errors(browser) == []
+    requests = _requests(browser)
+    assert any(u.endswith("explore/frames/f00000.js") for u in requests)
+    assert _remote(requests) == []
     shot = tmp_path / "report.png"
-    shot.write_bytes(browser.screenshot())
+    browser.save_screenshot(str(shot))
     pixels = iio.imread(shot)
     assert pixels.shape[0] >= 1000 and pixels.shape[1] >= 1000
     assert np.std(pixels[..., :3]) > 20, "a blank screenshot"
 
+
+def test_moving_the_slider_changes_the_shown_frame(tiny_run, browser):
+    _open(browser, tiny_run)
+    _wait(browser, lambda: _shown_frame(browser) == "0", what="frame 0")
+    cell = "document.querySelector('.vcell[data-map=shaded][data-stem=none__base] img').src"
+    before = browser.execute_script(f"return {cell}")
+    _move_slider(browser, 2)
+    _wait(browser, lambda: _shown_frame(browser) == "2", what="frame 2 after moving the slider")
+    assert browser.execute_script(f"return {cell}") != before
+    assert "frame 2" in browser.find_element("id", "explore-frame").text
+    assert _errors(browser) == [] and _remote(_requests(browser)) == []
+
+
+def test_unticking_a_method_hides_it_from_the_viewer_and_the_read_out(tiny_run, browser):
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    _open(browser, tiny_run)
+    _wait(browser, lambda: _shown_frame(browser) == "0", what="frame 0")
+    row = browser.find_element("css selector", "#explore-viewer .vrow[data-stem=exact__base]")
+    assert row.is_displayed()
+    browser.find_element("css selector", "#explore-methods input[data-stem=exact__base]").click()
+    assert not row.is_displayed()
+    assert browser.find_element("css selector", "#explore-viewer .vrow[data-stem=none__base]").is_displayed()
+    ActionChains(browser).move_to_element(
+        browser.find_element("css selector", ".vcell[data-map=rho][data-stem=none__base]")).perform()
+    stems = [r.get_attribute("data-stem") for r in browser.find_elements("css selector", "#explore-readout tr[data-stem]")]
+    assert stems == ["none__base"]
+
+
+def _telling_pixels(rho, dS, lit, cascade, *, stride: int) -> list[tuple[int, int]]:
+    """Two pixels of the kept grid where every value is defined: the one that changed most, and the one
+    whose values differ most from its grid neighbours' (so that reading a neighbour instead would show)."""
+    grid = (slice(None, None, stride), slice(None, None, stride))
+    fields = [np.rint(16 * np.log2(rho[grid])), np.rint(254 * dS[grid]), np.rint(254 * lit[grid]),
+              cascade[grid].astype(np.float64)]
+    defined = np.all([np.isfinite(f) for f in fields], axis=0)
+    assert defined.any()
+    distinct = np.zeros(defined.shape)
+    for f in fields:
+        padded = np.pad(f, 1, constant_values=np.nan)
+        for dj, di in ((0, 1), (2, 1), (1, 0), (1, 2)):
+            neighbour = padded[dj:dj + f.shape[0], di:di + f.shape[1]]
+            distinct += np.where(np.isfinite(neighbour), neighbour != f, 0)
+    chosen = []
+    for score in (np.where(defined, dS[grid], -1.0), np.where(defined, distinct, -1.0)):
+        j, i = np.unravel_index(np.argmax(score), score.shape)
+        chosen.append((int(j), int(i)))
+    return chosen
+
+
+def test_hovering_a_pixel_reads_the_values_the_metrics_per_pixel_arrays_hold(tiny_run, browser):
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    frame_index, method, stride = 2, "none", 2
+    frame, measured = _pixels_measured(tiny_run.parent.parent / "tiny.toml", frame=frame_index, method=method)
+    rho, dS, lit = measured["rho"], measured["dS"], np.asarray(frame.shadow.lit, dtype=np.float64)
+    cascade = np.asarray(frame.shadow.cascade)
+    shown_h, shown_w = lit[::stride, ::stride].shape
+
+    _open(browser, tiny_run)
+    _wait(browser, lambda: _shown_frame(browser) == "0", what="frame 0")
+    _move_slider(browser, frame_index)
+    _wait(browser, lambda: _shown_frame(browser) == str(frame_index), what=f"frame {frame_index}")
+    cell = browser.find_element("css selector", f".vcell[data-map=dS][data-stem={method}__base]")
+    box = cell.rect
+
+    def read(key: str) -> str:
+        return browser.find_element("css selector", f"#explore-readout tr[data-stem={method}__base] td[data-key={key}]").text
+
+    for j, i in _telling_pixels(rho, dS, lit, cascade, stride=stride):
+        y, x = stride * j, stride * i
+        dx = (i + 0.5) * box["width"] / shown_w - box["width"] / 2
+        dy = (j + 0.5) * box["height"] / shown_h - box["height"] / 2
+        ActionChains(browser).move_to_element_with_offset(cell, int(round(dx)), int(round(dy))).perform()
+        assert f"pixel x = {x}, y = {y}" in browser.find_element("id", "explore-where").text
+        # The stored precision (ρ to 1/16 octave, S and |ΔS| to 1/254), then the page's 3 digits.
+        stored_rho = float(report_pixels.decode_rho(report_pixels.code_rho(rho[y, x])))
+        assert abs(stored_rho / float(rho[y, x]) - 1.0) <= 0.022
+        assert float(read("rho")) == pytest.approx(stored_rho, rel=5e-3)
+        assert float(read("dS")) == pytest.approx(round(round(254 * float(dS[y, x])) / 254, 3), abs=1e-9)
+        assert float(read("lit")) == pytest.approx(round(round(254 * float(lit[y, x])) / 254, 3), abs=1e-9)
+        assert read("cascade") == str(int(cascade[y, x]))
+        assert read("reference") == ("lit" if frame.view.reference[y, x] > 0.5 else "shadowed")
+    stems = {r.get_attribute("data-stem") for r in browser.find_elements("css selector", "#explore-readout tr[data-stem]")}
+    assert stems == {"exact__base", "none__base"}
+    assert _errors(browser) == []
+
+
+def test_clicking_a_point_of_a_curve_moves_the_slider_to_its_frame(tiny_run, browser):
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    _open(browser, tiny_run)
+    _wait(browser, lambda: _shown_frame(browser) == "0", what="frame 0")
+    plot = browser.find_element("id", "explore-curves")
+    # Where frame 1 of the first method's flicker curve is drawn, in pixels from the plot's top-left corner.
+    point = browser.execute_script("""
+        const gd = arguments[0], trace = gd._fullData[0], k = trace.x.indexOf(1);
+        const xa = gd._fullLayout[trace.xaxis.replace('x', 'xaxis')], ya = gd._fullLayout[trace.yaxis.replace('y', 'yaxis')];
+        return [xa._offset + xa.l2p(trace.x[k]), ya._offset + ya.l2p(trace.y[k])];""", plot)
+    box = plot.rect
+    ActionChains(browser).move_to_element_with_offset(
+        plot, int(round(point[0] - box["width"] / 2)), int(round(point[1] - box["height"] / 2))).click().perform()
+    _wait(browser, lambda: _shown_frame(browser) == "1", what="frame 1 after clicking its point")
+    assert browser.find_element("id", "explore-slider").get_attribute("value") == "1"
+    assert _errors(browser) == []
+
+
+def test_a_small_budget_thins_the_viewer_frames_and_the_page_says_so(tiny_run, tmp_path):
+    copy = tmp_path / "thin"
+    shutil.copytree(tiny_run.parent, copy)
+    page = write_report(copy, budget_bytes=1)
+    assert sorted(p.name for p in (copy / "explore" / "frames").iterdir()) == ["f00000.js"]
+    assert (copy / "explore" / "kept.js").read_text() == "window.csmlabKept = [0];\n"
+    text = page.read_text(encoding="utf-8")
+    assert "holds every 3rd frame (1 of 3)" in text
+
+
+def test_a_broken_pixel_record_is_reported_naming_the_file(tiny_run, tmp_path):
+    copy = tmp_path / "broken"
+    shutil.copytree(tiny_run.parent, copy)
+    (copy / "pixels" / "none__base.npz").write_bytes(b"not a zip")
+    with pytest.raises(InputError, match="none__base.npz.*pixel record"):
+        write_report(copy)
 
 def _fabricated_sweep(out: Path) -> None:
     """A sweep's results files without captures: 2 methods × 3 resolutions × 2 frames."""

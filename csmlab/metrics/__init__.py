@@ -41,7 +41,8 @@ class FrameMeasures:
         float64 |ΔS| (reference change subtracted when the light moved), NaN where not counted or
         at the first frame; ``shaded`` (H, W, 3) float64 linear RGB of frame t, NaN where S is
         undefined; ``ref_diff`` (H, W) int8, +1 false shadow, −1 false light, 0 otherwise;
-        ``de2000`` (H, W) float64, NaN where not compared or at the first frame.
+        ``de2000`` (H, W) float64, NaN where not compared or at the first frame; ``flipped`` (H, W)
+        bool, the lit/shadowed state changed (all False at the first frame).
     """
 
     values: dict[str, float]
@@ -89,11 +90,14 @@ def measure_frame(frame: Frame, previous: Frame | None = None, *, ambient: float
         shaded = shaded_rgb(g.albedo, g.normal, lit, light_direction=frame.view.light_direction, ambient=ambient)
         change = np.full(g.shape, np.nan)
         de2000 = np.full(g.shape, np.nan)
+        flipped = np.zeros(g.shape, dtype=bool)
     else:
         temporal = temporal_maps(frame, previous, device=device)
         perceptual = perceptual_maps(frame, temporal.previous_lit, ambient=ambient)
         values.update(temporal_summary(temporal))
         values.update(perceptual_summary(perceptual))
         shaded, change, de2000 = perceptual.shaded, np.abs(temporal.change), perceptual.de2000
-    pixels = {"rho": alias.rho, "dS": change, "shaded": shaded, "ref_diff": errors.diff, "de2000": de2000}
+        flipped = temporal.flipped
+    pixels = {"rho": alias.rho, "dS": change, "shaded": shaded, "ref_diff": errors.diff, "de2000": de2000,
+              "flipped": flipped}
     return FrameMeasures(values={key: values[key] for key in metric_columns(cascades)}, pixels=pixels)

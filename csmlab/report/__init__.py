@@ -1,7 +1,8 @@
 """The HTML report of a run, drawn from its results files alone.
 
 :func:`write_report` reads ``summary.json``, ``metrics.csv``, ``timings.csv``, ``regress.json``
-and the captures of :mod:`csmlab.report.capture` (``cascades.csv``, ``anim/``, ``snapshots/``)
+and the captures of :mod:`csmlab.report.capture` (``cascades.csv``, ``anim/``, ``snapshots/``,
+``pixels/``, ``casters.npz``)
 and writes ``index.html`` with its figures beside it::
 
     index.html
@@ -9,6 +10,7 @@ and writes ``index.html`` with its figures beside it::
     figures/strip__<point>__f<frame>.png  figures/view3d__f<frame>.png
     figures/sweep__<parameter>.png  figures/pareto.png
     anim/<method>__<point>.gif
+    explore/…   the interactive part (:mod:`csmlab.report.explore`), when the run kept per-pixel records
 
 The same results give the same ``index.html``, byte for byte, so ``csmlab report DIR``
 reproduces what ``csmlab run`` wrote.
@@ -21,10 +23,11 @@ from pathlib import Path
 
 import numpy as np
 
-from csmlab.report.animation import write_animation
-from csmlab.report.capture import ANIM_WIDTH, capture_stem, read_npz, safe_name
 from csmlab.files import write_atomic
 from csmlab.metric_registry import format_number
+from csmlab.report.animation import write_animation
+from csmlab.report.capture import ANIM_WIDTH, capture_stem, read_npz, safe_name
+from csmlab.report.explore import BUDGET_BYTES, write_explore
 from csmlab.report.figures import (PARETO, cost_figure, frame_curves_figure, pareto_figure, stabilization_figure,
                                    sweep_figure)
 from csmlab.report.html import render_report_html
@@ -45,13 +48,16 @@ _GLANCE = {
 }
 
 
-def write_report(out_dir) -> Path:
+def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES) -> Path:
     """Write ``index.html`` and its figures into a results directory; return the page's path.
 
     Parameters
     ----------
     out_dir : str or Path
         A directory holding at least ``summary.json`` and ``metrics.csv``.
+    budget_bytes : int, keyword-only
+        Size budget of the directory with its report: the interactive part thins its frames to stay
+        under it (:func:`csmlab.report.explore.write_explore`).
 
     Returns
     -------
@@ -90,7 +96,20 @@ def write_report(out_dir) -> Path:
         "view3d": _view3d(results, groups, points[0]),
         **_sweep(results, points),
     }
+    context["explore"] = _explore(results, groups, budget_bytes)
     return write_atomic(out / "index.html", render_report_html(context))
+
+
+def _explore(results: ResultFiles, groups, budget_bytes: int) -> dict | None:
+    """The interactive part, written last so that it knows the size of everything else."""
+    single = len({p for _, p in groups}) == 1
+    labels = [m if single else f"{m} @ {p}" for m, p in groups]
+    explore = write_explore(results.directory, groups=groups, labels=labels, metrics=results.metrics,
+                            budget_bytes=budget_bytes)
+    if explore is None:
+        return None
+    return {**explore, "cell": f"{explore['cell']:.2g}", "size_mib": f"{explore['size'] / 2 ** 20:.1f}",
+            "budget_mib": f"{explore['budget'] / 2 ** 20:.0f}"}
 
 
 def _header(results: ResultFiles) -> dict:

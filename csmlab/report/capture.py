@@ -33,6 +33,15 @@ becoming ``_``):
     light-space box: x, y, depth each low/high, x fastest), ``points`` (P, 3) float32 (visible
     surface points, every :data:`POINT_STRIDE`-th pixel) and ``point_cascade`` (P,) int8.
 
+``pixels/<method>__<point>.npz``
+    Every frame's per-pixel record for the interactive page, when the run kept one: the arrays
+    of :func:`csmlab.report.pixels.stack_pixels` (values sampled every ``stride``-th pixel,
+    per-frame cascade geometry, whole-run world-cell sums and ρ histograms) with ``frame`` (N,)
+    int64 and ``time_s`` (N,) float64.
+``casters.npz``
+    ``points`` (P, 3) float32: centroids of an even sample of the scene's triangles (world
+    metres), drawn as the casters of the interactive 3D view (:func:`write_casters`).
+
 The 3D view draws the scene as the camera sees it — the visible surface points — so the
 results directory alone is enough to redraw it; no scene is rebuilt.
 """
@@ -50,7 +59,7 @@ import numpy as np
 
 from csmlab.files import write_atomic
 from csmlab.frame import Frame
-from csmlab.geometry import frustum_slice_corners
+from csmlab.report.pixels import WorldGrid, box_corners, frame_pixels, frustum_corners, stack_pixels
 
 if TYPE_CHECKING:
     from csmlab.metrics import FrameMeasures
@@ -58,6 +67,7 @@ if TYPE_CHECKING:
 __all__ = [
     "ANIM_WIDTH",
     "CASCADE_COLUMNS",
+    "CASTER_POINTS",
     "POINT_STRIDE",
     "capture_frame",
     "capture_stem",
@@ -66,6 +76,7 @@ __all__ = [
     "read_npz",
     "safe_name",
     "write_captures",
+    "write_casters",
 ]
 
 ANIM_WIDTH = 320
@@ -74,6 +85,8 @@ POINT_STRIDE = 4
 """Pixel stride of the visible points kept for the 3D view (every 4th row and column)."""
 CASCADE_COLUMNS = ("texel_x", "texel_y", "origin_x", "origin_y", "extent_x", "extent_y", "split_near", "split_far")
 """Per-cascade quantities of :func:`capture_frame`'s ``"cascades"`` array, in column order."""
+CASTER_POINTS = 6000
+"""Most scene points kept for the interactive 3D view's casters."""
 _NO_VALUE = 255
 _SNAPSHOT_COUNT = 3
 
@@ -100,7 +113,8 @@ def default_snapshot_frames(n_frames: int) -> list[int]:
     return sorted({int(round(f)) for f in np.linspace(1, n_frames - 1, _SNAPSHOT_COUNT)})
 
 
-def capture_frame(frame: Frame, measures: "FrameMeasures", *, snapshot: bool) -> dict:
+def capture_frame(frame: Frame, measures: "FrameMeasures", *, snapshot: bool,
+                  grid: WorldGrid | None = None) -> dict:
     """The report's record of one frame of one method: small, picklable, plain NumPy.
 
     Parameters
@@ -112,13 +126,18 @@ def capture_frame(frame: Frame, measures: "FrameMeasures", *, snapshot: bool) ->
         ``"rho"`` (H, W), ``"shaded"`` (H, W, 3) and ``"ref_diff"`` (H, W).
     snapshot : bool
         Also keep the full-resolution images and the 3D view's geometry.
+    grid : WorldGrid, optional
+        The run's ground cells: also keep the interactive page's per-pixel record
+        (:func:`csmlab.report.pixels.frame_pixels`; ``measures.pixels`` must then hold
+        ``"flipped"`` and ``"shaded"``).
 
     Returns
     -------
     dict
         ``frame`` (int), ``time_s`` (float), ``cascades`` ((C, 8) float64, columns
         :data:`CASCADE_COLUMNS`), ``shadow`` and ``dS`` ((h, w) uint8, coded as in the module
-        docstring), and ``snapshot``: a dict of the snapshot file's arrays, or None.
+        docstring), ``snapshot``: a dict of the snapshot file's arrays, or None, and ``pixels``:
+        the per-pixel record, or None without ``grid``.
     """
     pixels = measures.pixels
     return {
@@ -128,6 +147,7 @@ def capture_frame(frame: Frame, measures: "FrameMeasures", *, snapshot: bool) ->
         "shadow": _coded_u8(_block_mean(frame.shadow.lit)),
         "dS": _coded_u8(_block_max(np.abs(pixels["dS"]))),
         "snapshot": _snapshot(frame, pixels) if snapshot else None,
+        "pixels": None if grid is None else frame_pixels(frame, pixels, grid=grid),
     }
 
 
@@ -165,7 +185,8 @@ def write_captures(out_dir, *, method: str, point: str, captures: list[dict]) ->
     Raises
     ------
     ValueError
-        If ``captures`` is empty, not in increasing frame order, or mixes image sizes.
+        If ``captures`` is empty, not in increasing frame order, mixes image sizes, or holds pixel
+        records for some frames only.
     """
     out = Path(out_dir)
     if not captures:
@@ -187,6 +208,14 @@ def write_captures(out_dir, *, method: str, point: str, captures: list[dict]) ->
         "method": np.array(method),
         "point": np.array(point),
     })
+    kept = [c["pixels"] for c in captures if c.get("pixels") is not None]
+    if kept and len(kept) != len(captures):
+        raise ValueError(f"captures of {method!r} at {point!r}: expected a pixel record for every frame or none, "
+                         f"got {len(kept)} of {len(captures)}")
+    (out / "pixels" / f"{stem}.npz").unlink(missing_ok=True)
+    if kept:
+        _write_npz(out / "pixels" / f"{stem}.npz", {"frame": frames, "time_s": np.array(
+            [c["time_s"] for c in captures], dtype=np.float64), **stack_pixels(kept)})
     for stale in sorted((out / "snapshots").glob(f"{stem}__f*.npz")):
         stale.unlink()
     for c in captures:
@@ -194,6 +223,26 @@ def write_captures(out_dir, *, method: str, point: str, captures: list[dict]) ->
             arrays = {"frame": np.int64(c["frame"]), "time_s": np.float64(c["time_s"]), "method": np.array(method),
                       "point": np.array(point), **c["snapshot"]}
             _write_npz(out / "snapshots" / f"{stem}__f{c['frame']}.npz", arrays)
+
+
+def write_casters(out_dir, vertices, triangles, *, count: int = CASTER_POINTS) -> None:
+    """Write ``casters.npz``: the centroids of every ``ceil(T / count)``-th triangle of the scene.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        The results directory.
+    vertices : array_like, shape (V, 3)
+        World positions, metres.
+    triangles : array_like, shape (T, 3), int
+        Vertex indices.
+    count : int, keyword-only
+        Most points kept.
+    """
+    triangles = np.asarray(triangles)
+    step = max(1, -(-len(triangles) // count))
+    centroids = np.asarray(vertices, dtype=np.float64)[triangles[::step]].mean(axis=1)
+    _write_npz(Path(out_dir) / "casters.npz", {"points": centroids.astype(np.float32)})
 
 
 def read_npz(path) -> dict[str, np.ndarray]:
@@ -251,27 +300,11 @@ def _snapshot(frame: Frame, pixels: dict) -> dict:
         "ref_diff": np.asarray(pixels["ref_diff"], dtype=np.int8),
         "camera_position": np.asarray(view.pose.position, dtype=np.float64),
         "light_direction": np.asarray(view.light_direction, dtype=np.float64),
-        "frustum_corners": _frustum_corners(frame),
-        "box_corners": _box_corners(cascades),
+        "frustum_corners": frustum_corners(frame),
+        "box_corners": box_corners(cascades),
         "points": np.asarray(view.gbuffer.position[stride][keep], dtype=np.float32),
         "point_cascade": np.asarray(frame.shadow.cascade[stride][keep], dtype=np.int8),
     }
-
-
-def _frustum_corners(frame: Frame) -> np.ndarray:
-    pose = frame.view.pose
-    return np.stack([
-        frustum_slice_corners(position=pose.position, orientation=pose.orientation, fov_y_deg=pose.fov_y_deg,
-                              aspect=pose.aspect, z_near=c.split_near, z_far=c.split_far)
-        for c in frame.maps.cascades.cascades
-    ])
-
-
-def _box_corners(cascades) -> np.ndarray:
-    """World corners ``(C, 8, 3)`` of each cascade's box: light x, y, depth each low/high, x fastest."""
-    high = ((np.arange(8)[:, None] >> np.arange(3)) & 1).astype(bool)
-    boxes = [np.where(high, [*c.box_max, c.depth_far], [*c.box_min, c.depth_near]) for c in cascades.cascades]
-    return np.stack(boxes) @ cascades.basis
 
 
 def _merge_cascades_csv(path: Path, *, method: str, point: str, captures: list[dict]) -> None:

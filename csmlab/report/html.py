@@ -1,8 +1,8 @@
 """The report page: ``templates/report.html`` rendered with Jinja2.
 
-The page is self-contained apart from the figures beside it (relative links, no network
-resource, inline CSS, no script) and depends on its context only, so the same results give
-byte-identical HTML.
+The page is self-contained apart from the files beside it (relative links, no network
+resource, inline CSS; the scripts of the interactive part are in ``explore/``) and depends on its
+context only, so the same results give byte-identical HTML.
 """
 
 from __future__ import annotations

@@ -1,0 +1,264 @@
+"""The interactive part of the report: every frame of every method, scrubbed and pointed at in a browser.
+
+:func:`write_explore` turns the per-pixel records of :mod:`csmlab.report.pixels`
+(``pixels/<method>__<point>.npz``) and ``casters.npz`` into a folder the page loads from
+``file://`` with no server and no network::
+
+    explore/plotly.min.js      Plotly's bundle, copied from the installed ``plotly`` package
+    explore/explore.js         the page's script (``templates/explore.js``)
+    explore/data.js            the run: variants, frames, per-frame curves, colour tables,
+                               world maps, ρ histograms, casters (``window.csmlabRun = …``)
+    explore/frames/f<frame>.js one per kept frame (``csmlabFrame(…)``): per variant the shaded
+                               view as a WebP data URI, the value planes, the cascade geometry
+
+A frame's value planes are the record's uint8 arrays ``lit, dS, cascade, rho, reference,
+ref_diff`` (each ``h × w``, row-major, int8 ones as their two's-complement bytes) concatenated,
+zlib-compressed and base64-encoded; the page inflates them with the browser's
+``DecompressionStream``. Scripts are loaded with ``<script>`` elements, which browsers allow
+from ``file://`` where ``fetch`` is refused.
+
+The folder is kept under a size budget: when the frame files would take the results directory
+past ``budget_bytes``, only every k-th frame gets one (the smallest k that fits) and the page says
+so; the per-frame curves keep every frame.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import math
+import shutil
+import zipfile
+import zlib
+from pathlib import Path
+
+import numpy as np
+
+from csmlab.errors import InputError
+from csmlab.report.capture import capture_stem, read_npz
+from csmlab.report.images import (CATEGORY_COLOURS, FALSE_LIGHT, FALSE_SHADOW, NO_SURFACE, change_image,
+                                  rho_image)
+from csmlab.report.pixels import NO_VALUE, RHO_STEPS, decode_rho
+from csmlab.report.view3d import BOX_EDGES, FRUSTUM_EDGES
+
+__all__ = ["BUDGET_BYTES", "CURVES", "PLANES", "write_explore"]
+
+BUDGET_BYTES = 60 * 2 ** 20
+"""Default size budget of a results directory with its report: 60 MiB."""
+PLANES = ("lit", "dS", "cascade", "rho", "reference", "ref_diff")
+"""The value planes of a frame file, in order."""
+CURVES = (
+    ("flicker", "flicker (mean |ΔS|)", 1.0),
+    ("flip_rate", "flip rate (%)", 100.0),
+    ("rho_median", "median ρ (texels / pixel)", 1.0),
+    ("ref_error", "vs. reference (% of pixels)", 100.0),
+)
+"""Per-frame curves of the page: metrics.csv column (``ref_error`` = false shadow + false light), label, scale."""
+_WEBP = {"format": "WEBP", "quality": 85, "method": 4}
+_INDEX_RESERVE = 256 * 2 ** 10
+_REQUIRED = ("frame", "time_s", "stride", *PLANES, "shaded", "valid", "camera_position", "frustum_corners",
+             "box_corners", "world_origin", "world_cell", "world_dS", "world_counted", "world_flips", "rho_edges",
+             "rho_hist")
+
+
+def write_explore(out_dir, *, groups: list[tuple[str, str]], labels: list[str], metrics,
+                  budget_bytes: int = BUDGET_BYTES) -> dict | None:
+    """Write the ``explore/`` folder of a results directory; return what the page's template needs.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        The results directory, its static report already written (its size counts against the budget).
+    groups : list of (method, point)
+        The variants in results order.
+    labels : list of str
+        Their display names.
+    metrics : Columns
+        ``metrics.csv``.
+    budget_bytes : int, keyword-only
+        Largest size of the results directory once the folder is written.
+
+    Returns
+    -------
+    dict or None
+        ``frames`` (frames in the run), ``kept`` (frames with a frame file), ``step``, ``stride`` (and as
+        an ordinal, ``stride_ordinal``), ``cell`` (world cell side, metres), ``size`` (bytes of the directory but ``index.html``) and ``budget``, ``note`` (the thinning, or None); None when the run kept
+        no per-pixel record (the folder is then removed).
+
+    Raises
+    ------
+    InputError
+        If a pixel record or ``casters.npz`` is unreadable or lacks an array.
+    """
+    out = Path(out_dir)
+    folder = out / "explore"
+    present = [(g, label) for g, label in zip(groups, labels) if (out / "pixels" / f"{capture_stem(*g)}.npz").is_file()]
+    if not present:
+        shutil.rmtree(folder, ignore_errors=True)
+        return None
+    records = [_read_record(out / "pixels" / f"{capture_stem(*g)}.npz") for g, _ in present]
+    frames = sorted(set.intersection(*(set(r["frame"].tolist()) for r in records)))
+    shutil.rmtree(folder, ignore_errors=True)
+    (folder / "frames").mkdir(parents=True)
+    _copy_assets(folder)
+    casters = _casters(out / "casters.npz")
+    run = _run_data(present, records, frames, metrics, casters)
+    payloads = {f: _frame_file(f, present, records) for f in frames}
+    (folder / "data.js").write_text(f"window.csmlabRun = {run};\n", encoding="utf-8")
+    fixed = _tree_size(out) + _INDEX_RESERVE
+    step = _thinning([len(payloads[f]) for f in frames], budget_bytes - fixed)
+    kept = frames[::step]
+    for f in kept:
+        (folder / "frames" / f"f{f:05d}.js").write_bytes(payloads[f])
+    (folder / "kept.js").write_text(f"window.csmlabKept = {json.dumps(kept)};\n", encoding="utf-8")
+    size = _tree_size(out)
+    note = None
+    if step > 1:
+        note = (f"To keep this report under its size budget of {budget_bytes / 2 ** 20:.0f} MiB, the frame viewer "
+                f"holds every {_ordinal(step)} frame ({len(kept)} of {len(frames)}); the curves keep every frame.")
+    stride = int(records[0]["stride"])
+    return {"frames": len(frames), "kept": len(kept), "step": step, "stride": stride, "stride_ordinal": _ordinal(stride),
+            "cell": float(records[0]["world_cell"]), "size": size, "budget": budget_bytes, "note": note}
+
+
+def _ordinal(n: int) -> str:
+    suffix = "th" if 10 <= n % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(n % 10, "th")
+    return f"{n}{suffix}"
+
+
+def _thinning(sizes: list[int], available: int) -> int:
+    """The smallest frame step whose frame files fit in ``available`` bytes (every frame but the first dropped at worst)."""
+    for step in range(1, len(sizes) + 1):
+        if sum(sizes[::step]) <= available:
+            return step
+    return max(len(sizes), 1)
+
+
+def _tree_size(folder: Path) -> int:
+    return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
+
+
+def _read_record(path: Path) -> dict:
+    try:
+        record = read_npz(path)
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as error:
+        raise InputError(f"expected a csmlab pixel record (.npz), got an unreadable file: {error}", file=path) from None
+    missing = [k for k in _REQUIRED if k not in record]
+    if missing:
+        raise InputError(f"expected arrays {', '.join(missing)} in the pixel record", file=path, field=missing[0])
+    return record
+
+
+def _casters(path: Path) -> np.ndarray:
+    if not path.is_file():
+        return np.zeros((0, 3), dtype=np.float32)
+    try:
+        return np.asarray(read_npz(path)["points"], dtype=np.float32).reshape(-1, 3)
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError) as error:
+        raise InputError(f"expected an .npz with an array 'points' (P, 3), got {error}", file=path,
+                         field="points") from None
+
+
+def _copy_assets(folder: Path) -> None:
+    from plotly.offline import get_plotlyjs
+
+    (folder / "plotly.min.js").write_text(get_plotlyjs(), encoding="utf-8")
+    shutil.copyfile(Path(__file__).parent / "templates" / "explore.js", folder / "explore.js")
+
+
+def _rounded(values, digits: int = 3):
+    """Nested lists of ``values`` rounded to ``digits`` decimals, None for NaN (JSON-safe, stable text)."""
+    array = np.asarray(values, dtype=np.float64)
+    return [_rounded(v, digits) for v in array] if array.ndim else (
+        None if not math.isfinite(float(array)) else round(float(array), digits))
+
+
+def _u8_colours(rgb) -> list:
+    return np.rint(np.clip(np.asarray(rgb, dtype=np.float64), 0, 1) * 255).astype(int).tolist()
+
+
+def _run_data(present, records, frames, metrics, casters) -> str:
+    codes = np.arange(255)
+    rho_lut = rho_image(decode_rho(codes)[None, :])[0]
+    dS_lut = change_image(codes[None, :] / 254.0)[0]
+    first = records[0]
+    variants = []
+    for ((method, point), label), record in zip(present, records):
+        rows = metrics.of(method, point)
+        by_frame = {int(f): k for k, f in enumerate(rows["frame"])}
+        curves = {}
+        for key, _, scale in CURVES:
+            if key == "ref_error" and "ref_false_shadow" in rows and "ref_false_light" in rows:
+                column = rows["ref_false_shadow"] + rows["ref_false_light"]
+            elif key in rows:
+                column = rows[key]
+            else:
+                continue
+            curves[key] = _rounded([column[by_frame[f]] * scale if f in by_frame else np.nan for f in frames], 6)
+        counted = record["world_counted"].astype(np.float64)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean_dS = np.where(counted > 0, record["world_dS"] / counted, np.nan)
+            flip_rate = np.where(counted > 0, 100.0 * record["world_flips"] / counted, np.nan)
+        index = {int(f): k for k, f in enumerate(record["frame"])}
+        variants.append({
+            "stem": capture_stem(method, point), "method": method, "point": point, "label": label,
+            "curves": curves,
+            "path": _rounded([record["camera_position"][index[f]][[0, 2]] for f in frames], 2),
+            "world": {"mean_dS": _rounded(mean_dS, 5), "flip_rate": _rounded(flip_rate, 3),
+                      "counted": counted.astype(np.int64).tolist()},
+            "rho_hist": record["rho_hist"].astype(np.int64).tolist(),
+        })
+    times = {int(f): float(t) for f, t in zip(first["frame"], first["time_s"])}
+    nz, nx = first["world_counted"].shape
+    cell = float(first["world_cell"])
+    origin = first["world_origin"]
+    run = {
+        "frames": frames,
+        "times": [round(times[f], 4) for f in frames],
+        "fps": _fps([times[f] for f in frames]),
+        "width": int(first["lit"].shape[2]), "height": int(first["lit"].shape[1]),
+        "stride": int(first["stride"]),
+        "cascades": int(first["box_corners"].shape[1]),
+        "planes": list(PLANES), "no_value": NO_VALUE, "rho_steps": RHO_STEPS,
+        "curves": [{"key": k, "label": label} for k, label, _ in CURVES],
+        "colours": {"rho": rho_lut.tolist(), "dS": dS_lut.tolist(), "categories": _u8_colours(CATEGORY_COLOURS),
+                    "false_shadow": _u8_colours(FALSE_SHADOW), "false_light": _u8_colours(FALSE_LIGHT),
+                    "no_surface": _u8_colours(NO_SURFACE)},
+        "world": {"x": _rounded(origin[0] + cell * (np.arange(nx) + 0.5), 2),
+                  "z": _rounded(origin[1] + cell * (np.arange(nz) + 0.5), 2), "cell": round(cell, 4)},
+        "rho_centres": _rounded(np.exp2(0.5 * (first["rho_edges"][:-1] + first["rho_edges"][1:])), 5),
+        "casters": _rounded(casters, 2),
+        "box_edges": BOX_EDGES.tolist(), "frustum_edges": FRUSTUM_EDGES.tolist(),
+        "variants": variants,
+    }
+    return json.dumps(run, separators=(",", ":"), allow_nan=False)
+
+
+def _fps(times: list[float]) -> float:
+    steps = np.diff(np.asarray(times, dtype=np.float64))
+    steps = steps[np.isfinite(steps) & (steps > 0)]
+    return round(float(1.0 / np.median(steps)), 3) if steps.size else 30.0
+
+
+def _frame_file(frame: int, present, records) -> bytes:
+    """The JavaScript of one frame file: ``csmlabFrame(frame, {stem: {img, planes, camera, frustum, boxes}})``."""
+    from PIL import Image
+
+    body = {}
+    for ((method, point), _), record in zip(present, records):
+        k = int(np.flatnonzero(record["frame"] == frame)[0])
+        lit = record["lit"][k]
+        defined = (lit != NO_VALUE)[..., None]
+        shaded = np.where(defined, record["shaded"][k], np.array(_u8_colours(NO_SURFACE), dtype=np.uint8))
+        buffer = io.BytesIO()
+        Image.fromarray(np.ascontiguousarray(shaded, dtype=np.uint8)).save(buffer, **_WEBP)
+        planes = b"".join(np.ascontiguousarray(record[name][k]).view(np.uint8).tobytes() for name in PLANES)
+        body[capture_stem(method, point)] = {
+            "img": "data:image/webp;base64," + base64.b64encode(buffer.getvalue()).decode("ascii"),
+            "planes": base64.b64encode(zlib.compress(planes, 9)).decode("ascii"),
+            "camera": _rounded(record["camera_position"][k], 3),
+            "frustum": _rounded(record["frustum_corners"][k], 3),
+            "boxes": _rounded(record["box_corners"][k], 3),
+        }
+    return f"csmlabFrame({frame},{json.dumps(body, separators=(',', ':'))});\n".encode("ascii")

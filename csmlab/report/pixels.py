@@ -1,0 +1,272 @@
+"""Every frame's per-pixel record for the interactive report, and the whole-run world maps.
+
+The interactive page lets one scrub through every frame of every method and read the values of
+the pixel under the cursor, so the run keeps, for each frame, the metrics' own per-pixel arrays
+sampled on a regular grid of pixels — every ``stride``-th row and column, ``stride`` =
+``ceil(W / VIEW_WIDTH)`` — not averaged: pixel ``(i, j)`` of the record *is* pixel
+``(stride·i, stride·j)`` of the frame, and its numbers are those of :func:`csmlab.metrics.measure_frame`
+there, quantized as stated in :func:`frame_pixels`.
+
+It also keeps what the page's 3D view needs per frame (camera, frustum slices, cascade boxes) and,
+at full resolution, what the whole-run maps add up: |ΔS| and lit/shadow flips per ground cell of a
+fixed top-down :class:`WorldGrid` (Y up: cells over world x and z), and a histogram of log2 ρ per
+cascade. Frames are summed in frame order in float64, so the totals do not depend on chunking.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from csmlab.frame import Frame
+from csmlab.geometry import frustum_slice_corners
+
+__all__ = [
+    "NO_VALUE",
+    "RHO_EDGES",
+    "RHO_STEPS",
+    "VIEW_WIDTH",
+    "WORLD_CELLS",
+    "WorldGrid",
+    "box_corners",
+    "code_rho",
+    "decode_rho",
+    "frame_pixels",
+    "frustum_corners",
+    "stack_pixels",
+    "world_grid",
+]
+
+VIEW_WIDTH = 320
+"""Largest width in pixels of a frame's per-pixel record."""
+WORLD_CELLS = 192
+"""Ground cells along the longer side of the world grid."""
+RHO_EDGES = np.linspace(-8.0, 8.0, 129)
+"""Bin edges of the ρ histograms, in log2 ρ (1/8 octave); values outside fall in the end bins."""
+NO_VALUE = 255
+"""The code of "no value" in the uint8 planes."""
+RHO_STEPS = 16
+"""Codes per octave of the stored ρ (:func:`code_rho`)."""
+
+
+@dataclass(frozen=True)
+class WorldGrid:
+    """A top-down grid of square ground cells over world x (columns) and z (rows).
+
+    Attributes
+    ----------
+    x0, z0 : float
+        World x and z of the grid's minimum corner, metres.
+    cell : float
+        Cell side, metres.
+    nx, nz : int
+        Cells along x and z.
+    """
+
+    x0: float
+    z0: float
+    cell: float
+    nx: int
+    nz: int
+
+    def index(self, positions) -> np.ndarray:
+        """Flat cell index ``row · nx + column`` of world ``positions`` (..., 3); -1 outside or NaN."""
+        p = np.asarray(positions, dtype=np.float64)
+        with np.errstate(invalid="ignore"):
+            col = np.floor((p[..., 0] - self.x0) / self.cell)
+            row = np.floor((p[..., 2] - self.z0) / self.cell)
+            inside = (col >= 0) & (col < self.nx) & (row >= 0) & (row < self.nz)
+        return np.where(inside, np.nan_to_num(row) * self.nx + np.nan_to_num(col), -1).astype(np.int64)
+
+
+def world_grid(camera_positions, *, reach: float, cells: int = WORLD_CELLS) -> WorldGrid:
+    """The ground cells the shadows of a run can fall in: the camera path's x–z bounds grown by ``reach``.
+
+    Parameters
+    ----------
+    camera_positions : array_like, shape (N, 3)
+        World positions of the camera over the run, metres.
+    reach : float, keyword-only
+        How far from the camera a shadow is drawn (the largest shadow distance), metres.
+    cells : int, keyword-only
+        Cells along the longer side.
+    """
+    p = np.asarray(camera_positions, dtype=np.float64).reshape(-1, 3)
+    low = p[:, [0, 2]].min(axis=0) - reach
+    high = p[:, [0, 2]].max(axis=0) + reach
+    cell = float(np.max(high - low)) / cells
+    nx, nz = (int(np.ceil((high - low)[k] / cell)) for k in (0, 1))
+    return WorldGrid(x0=float(low[0]), z0=float(low[1]), cell=cell, nx=max(nx, 1), nz=max(nz, 1))
+
+
+def _stride(width: int) -> int:
+    return max(1, -(-width // VIEW_WIDTH))
+
+
+def _coded(values) -> np.ndarray:
+    """Values in [0, 1] as ``round(254 · v)`` uint8, :data:`NO_VALUE` where NaN (precision ±1/508)."""
+    values = np.asarray(values, dtype=np.float64)
+    coded = np.rint(np.clip(np.nan_to_num(values), 0.0, 1.0) * 254.0).astype(np.uint8)
+    return np.where(np.isfinite(values), coded, np.uint8(NO_VALUE))
+
+
+def code_rho(rho) -> np.ndarray:
+    """ρ as uint8 ``round(RHO_STEPS · log2 ρ) + 127`` clipped to [0, 254], :data:`NO_VALUE` where undefined.
+
+    The code covers ρ from ``2^(-127/16)`` ≈ 0.0041 to ``2^(127/16)`` ≈ 245 texels per pixel (values
+    beyond are clipped to the ends) in steps of 1/16 octave: relative precision ±2.2 %.
+    """
+    rho = np.asarray(rho, dtype=np.float64)
+    defined = np.isfinite(rho) & (rho > 0)
+    steps = np.rint(RHO_STEPS * np.log2(np.where(defined, rho, 1.0))) + 127
+    return np.where(defined, np.clip(steps, 0, 254), NO_VALUE).astype(np.uint8)
+
+
+def decode_rho(coded) -> np.ndarray:
+    """float64 ρ of :func:`code_rho`'s codes; NaN where :data:`NO_VALUE`."""
+    coded = np.asarray(coded)
+    return np.where(coded == NO_VALUE, np.nan, np.exp2((coded.astype(np.float64) - 127) / RHO_STEPS))
+
+
+def frustum_corners(frame: Frame) -> np.ndarray:
+    """World corners ``(C, 8, 3)`` of each cascade's slice of the view frustum (order of
+    :func:`csmlab.geometry.frustum_slice_corners`), metres."""
+    pose = frame.view.pose
+    return np.stack([
+        frustum_slice_corners(position=pose.position, orientation=pose.orientation, fov_y_deg=pose.fov_y_deg,
+                              aspect=pose.aspect, z_near=c.split_near, z_far=c.split_far)
+        for c in frame.maps.cascades.cascades
+    ])
+
+
+def box_corners(cascades) -> np.ndarray:
+    """World corners ``(C, 8, 3)`` of each cascade's box: light x, y, depth each low/high, x fastest."""
+    high = ((np.arange(8)[:, None] >> np.arange(3)) & 1).astype(bool)
+    boxes = [np.where(high, [*c.box_max, c.depth_far], [*c.box_min, c.depth_near]) for c in cascades.cascades]
+    return np.stack(boxes) @ cascades.basis
+
+
+def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid) -> dict:
+    """The per-frame record of one method: sampled per-pixel values, 3D geometry, world-cell sums.
+
+    Parameters
+    ----------
+    frame : Frame
+        The rendered frame, ``(H, W)`` pixels.
+    pixels : dict
+        ``measures.pixels`` of :func:`csmlab.metrics.measure_frame`: ``rho``, ``dS``, ``shaded``,
+        ``ref_diff`` and ``flipped`` (H, W).
+    grid : WorldGrid, keyword-only
+        The run's ground cells.
+
+    Returns
+    -------
+    dict
+        Sampled at pixels ``(stride·i, stride·j)``, shape ``(h, w)`` = ``ceil((H, W) / stride)``:
+        ``lit`` and ``dS`` uint8 (``round(254 · v)``, precision ±1/508; 255 no value), ``cascade``
+        int8 (-1 none), ``rho`` uint8 (texels per pixel coded by :func:`code_rho`, ±2.2 %),
+        ``reference`` uint8 (the ray-traced shadow: 1 lit, 0 shadowed, 255 no surface),
+        ``ref_diff`` int8 (+1 false shadow, -1 false light), ``shaded`` (h, w, 3) uint8 sRGB
+        (0 where undefined), ``valid`` bool;
+        ``grid`` (the ``grid`` argument); ``stride`` int; ``camera_position`` (3,), ``light_direction`` (3,), ``frustum_corners``
+        and ``box_corners`` (C, 8, 3), world metres;
+        ``cells`` (K,) int64 flat indices of the ground cells that counted pixels fall in, with
+        ``cell_dS`` (K,) float64 sum of |ΔS|, ``cell_counted`` and ``cell_flips`` (K,) int64, at
+        full resolution; ``rho_hist`` (C, len(RHO_EDGES) - 1) int64: pixels per log2 ρ bin and
+        selected cascade.
+    """
+    from csmlab.report.images import srgb_from_linear
+
+    view = frame.view
+    g = view.gbuffer
+    k = _stride(g.shape[1])
+    take = (slice(None, None, k), slice(None, None, k))
+    valid = g.valid
+    lit = np.where(valid, frame.shadow.lit, np.nan)
+    shaded = np.asarray(pixels["shaded"], dtype=np.float64)[take]
+    defined = np.all(np.isfinite(shaded), axis=-1, keepdims=True)
+    srgb = np.where(defined, srgb_from_linear(np.nan_to_num(shaded)), 0.0)
+    reference = np.asarray(view.reference, dtype=np.float64)
+    dS = np.asarray(pixels["dS"], dtype=np.float64)
+    counted = np.isfinite(dS)
+    cells = grid.index(g.position)
+    keep = counted & (cells >= 0)
+    where = cells[keep]
+    size = grid.nx * grid.nz
+    dS_sum = np.bincount(where, weights=dS[keep], minlength=size)
+    counts = np.bincount(where, minlength=size)
+    flips = np.bincount(where, weights=np.asarray(pixels["flipped"], dtype=np.float64)[keep], minlength=size)
+    touched = np.flatnonzero(counts)
+    rho = np.asarray(pixels["rho"], dtype=np.float64)
+    cascade = np.asarray(frame.shadow.cascade)
+    C = len(frame.maps.cascades)
+    has = np.isfinite(rho) & (rho > 0) & (cascade >= 0)
+    bins = np.clip(np.searchsorted(RHO_EDGES, np.log2(rho[has]), side="right") - 1, 0, len(RHO_EDGES) - 2)
+    hist = np.zeros((C, len(RHO_EDGES) - 1), dtype=np.int64)
+    np.add.at(hist, (cascade[has].astype(np.int64), bins), 1)
+    return {
+        "grid": grid,
+        "stride": k,
+        "lit": _coded(lit[take]),
+        "dS": _coded(dS[take]),
+        "cascade": cascade[take].astype(np.int8),
+        "rho": code_rho(rho[take]),
+        "reference": np.where(np.isfinite(reference[take]), reference[take] > 0.5, NO_VALUE).astype(np.uint8),
+        "ref_diff": np.asarray(pixels["ref_diff"])[take].astype(np.int8),
+        "shaded": np.rint(srgb * 255.0).astype(np.uint8),
+        "valid": valid[take],
+        "camera_position": np.asarray(view.pose.position, dtype=np.float64),
+        "light_direction": np.asarray(view.light_direction, dtype=np.float64),
+        "frustum_corners": frustum_corners(frame),
+        "box_corners": box_corners(frame.maps.cascades),
+        "cells": touched.astype(np.int64),
+        "cell_dS": dS_sum[touched],
+        "cell_counted": counts[touched].astype(np.int64),
+        "cell_flips": np.rint(flips[touched]).astype(np.int64),
+        "rho_hist": hist,
+    }
+
+
+_PER_FRAME = ("lit", "dS", "cascade", "rho", "reference", "ref_diff", "shaded", "valid", "camera_position",
+              "light_direction", "frustum_corners", "box_corners")
+
+
+def stack_pixels(records: list[dict]) -> dict:
+    """The arrays of a ``pixels/<method>__<point>.npz`` file from consecutive :func:`frame_pixels` records.
+
+    Returns
+    -------
+    dict
+        Each per-frame array of :func:`frame_pixels` stacked along a new first axis (N, …);
+        ``stride``; the world grid ``world_origin`` (2,) (x, z metres), ``world_cell`` (metres),
+        ``world_dS`` (nz, nx) float64 summed |ΔS|, ``world_counted`` and ``world_flips`` (nz, nx)
+        int64 over every frame; ``rho_edges`` and ``rho_hist`` (C, bins) int64 summed.
+
+    Raises
+    ------
+    ValueError
+        If the records differ in world grid, stride, image size or cascade count.
+    """
+    shapes = {(r["grid"], r["stride"], r["lit"].shape, r["box_corners"].shape) for r in records}
+    if len(shapes) != 1:
+        raise ValueError(f"pixel records: expected one world grid, stride, image size and cascade count, "
+                         f"got {len(shapes)} different ones")
+    grid = records[0]["grid"]
+    size = grid.nx * grid.nz
+    dS, counted, flips = np.zeros(size), np.zeros(size, dtype=np.int64), np.zeros(size, dtype=np.int64)
+    for r in records:
+        dS[r["cells"]] += r["cell_dS"]
+        counted[r["cells"]] += r["cell_counted"]
+        flips[r["cells"]] += r["cell_flips"]
+    return {
+        **{name: np.stack([r[name] for r in records]) for name in _PER_FRAME},
+        "stride": np.int64(records[0]["stride"]),
+        "world_origin": np.array([grid.x0, grid.z0]),
+        "world_cell": np.float64(grid.cell),
+        "world_dS": dS.reshape(grid.nz, grid.nx),
+        "world_counted": counted.reshape(grid.nz, grid.nx),
+        "world_flips": flips.reshape(grid.nz, grid.nx),
+        "rho_edges": RHO_EDGES.copy(),
+        "rho_hist": np.sum([r["rho_hist"] for r in records], axis=0),
+    }

@@ -1,0 +1,107 @@
+"""Every frame's per-pixel record of the interactive report, checked against brute force."""
+
+import numpy as np
+import pytest
+from test_report_capture import _frame
+
+from csmlab.report.pixels import (
+    NO_VALUE,
+    RHO_EDGES,
+    code_rho,
+    decode_rho,
+    frame_pixels,
+    stack_pixels,
+    world_grid,
+)
+
+GRID = world_grid([[0.0, 0.0, 0.0], [5.0, 1.0, 3.0]], reach=30.0, cells=16)
+
+
+def _record(index, **kw):
+    frame, measures = _frame(index, **kw)
+    rng = np.random.default_rng(index)
+    pixels = {**measures.pixels, "flipped": np.isfinite(measures.pixels["dS"]) & (rng.random(frame.shadow.lit.shape) > 0.6)}
+    return frame, pixels, frame_pixels(frame, pixels, grid=GRID)
+
+
+def test_sampled_values_are_the_frames_own_pixels_on_a_stride_not_averages():
+    frame, pixels, record = _record(1)
+    k = record["stride"]
+    assert k == 3  # ceil((2 * 320 + 5) / 320)
+    h, w = record["lit"].shape
+    assert (h, w) == (-(-frame.shadow.lit.shape[0] // k), -(-frame.shadow.lit.shape[1] // k))
+    for j in range(h):
+        for i in range(w):
+            y, x = k * j, k * i
+            lit, dS, rho = frame.shadow.lit[y, x], pixels["dS"][y, x], pixels["rho"][y, x]
+            valid = frame.view.gbuffer.valid[y, x]
+            assert record["lit"][j, i] == (round(254 * float(lit)) if valid and np.isfinite(lit) else NO_VALUE)
+            assert record["dS"][j, i] == (round(254 * float(dS)) if np.isfinite(dS) else NO_VALUE)
+            assert record["rho"][j, i] == code_rho(rho)
+            assert record["cascade"][j, i] == frame.shadow.cascade[y, x]
+            assert record["ref_diff"][j, i] == pixels["ref_diff"][y, x]
+
+
+def test_rho_code_keeps_rho_to_a_sixteenth_of_an_octave_and_clips_the_ends():
+    rho = np.exp2(np.linspace(-7.9, 7.9, 2001))
+    back = decode_rho(code_rho(rho))
+    assert np.max(np.abs(np.log2(back / rho))) <= 1 / 32 + 1e-12
+    assert list(code_rho([1e-9, 1e9, np.nan, 0.0, -1.0])) == [0, 254, NO_VALUE, NO_VALUE, NO_VALUE]
+    assert decode_rho(code_rho(1.0)) == 1.0
+
+
+def test_world_cell_sums_match_a_pixel_by_pixel_count():
+    frame, pixels, record = _record(2)
+    position, dS = frame.view.gbuffer.position, pixels["dS"]
+    expected_dS, expected_counted, expected_flips = {}, {}, {}
+    for y in range(dS.shape[0]):
+        for x in range(dS.shape[1]):
+            if not np.isfinite(dS[y, x]):
+                continue
+            col = int(np.floor((position[y, x, 0] - GRID.x0) / GRID.cell))
+            row = int(np.floor((position[y, x, 2] - GRID.z0) / GRID.cell))
+            if not (0 <= col < GRID.nx and 0 <= row < GRID.nz):
+                continue
+            cell = row * GRID.nx + col
+            expected_dS[cell] = expected_dS.get(cell, 0.0) + dS[y, x]
+            expected_counted[cell] = expected_counted.get(cell, 0) + 1
+            expected_flips[cell] = expected_flips.get(cell, 0) + int(pixels["flipped"][y, x])
+    assert sorted(expected_counted) == record["cells"].tolist()
+    np.testing.assert_allclose(record["cell_dS"], [expected_dS[c] for c in sorted(expected_dS)], rtol=1e-12)
+    assert record["cell_counted"].tolist() == [expected_counted[c] for c in sorted(expected_counted)]
+    assert record["cell_flips"].tolist() == [expected_flips[c] for c in sorted(expected_flips)]
+
+
+def test_rho_histogram_counts_every_pixel_with_a_cascade_in_its_bin():
+    frame, pixels, record = _record(3)
+    rho, cascade = pixels["rho"].astype(np.float64), frame.shadow.cascade
+    for c in range(record["rho_hist"].shape[0]):
+        mine = (cascade == c) & np.isfinite(rho) & (rho > 0)
+        expected, _ = np.histogram(np.clip(np.log2(rho[mine]), RHO_EDGES[0], RHO_EDGES[-1] - 1e-9), bins=RHO_EDGES)
+        assert record["rho_hist"][c].tolist() == expected.tolist()
+
+
+def test_stacked_record_sums_the_world_cells_of_every_frame():
+    records = [_record(i)[2] for i in range(3)]
+    stacked = stack_pixels(records)
+    assert stacked["lit"].shape == (3, *records[0]["lit"].shape)
+    assert stacked["world_counted"].shape == (GRID.nz, GRID.nx)
+    assert stacked["world_counted"].sum() == sum(r["cell_counted"].sum() for r in records)
+    assert stacked["world_dS"].sum() == pytest.approx(sum(r["cell_dS"].sum() for r in records), rel=1e-12)
+    np.testing.assert_array_equal(stacked["rho_hist"], sum(r["rho_hist"] for r in records))
+
+
+def test_stacking_refuses_records_of_two_world_grids():
+    first = _record(0)[2]
+    frame, pixels, _ = _record(1)
+    other = frame_pixels(frame, pixels, grid=world_grid([[0.0, 0.0, 0.0]], reach=10.0, cells=8))
+    with pytest.raises(ValueError, match="world grid"):
+        stack_pixels([first, other])
+
+
+def test_world_grid_covers_the_path_grown_by_the_shadow_reach():
+    grid = world_grid([[-10.0, 3.0, 5.0], [20.0, 0.0, -5.0]], reach=50.0, cells=100)
+    assert (grid.x0, grid.z0) == (-60.0, -55.0)
+    assert grid.cell == pytest.approx(130.0 / 100)
+    assert grid.nx == 100 and grid.nx * grid.cell >= 130.0 and grid.nz * grid.cell >= 110.0
+    assert grid.index(np.array([[-60.0, 0, -55.0], [np.nan, 0, 0], [1e6, 0, 0]])).tolist() == [0, -1, -1]
