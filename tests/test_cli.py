@@ -77,7 +77,7 @@ BAD_INPUTS = {
     "malformed TOML": ('[camera]\npath = "walk"\nframes = = 3\n', {}, "exp.toml:3", "valid TOML"),
     "unknown field": (TINY.replace("frames = 3", "frame = 3"), {}, "camera.frame", "did you mean 'frames'"),
     "wrong type": (TINY.replace("frames = 3", 'frames = "3"'), {}, "camera.frames", "an integer"),
-    "out of range": (TINY.replace("cascades = 2", "cascades = 9"), {}, "shadow.cascades", "1..8"),
+    "out of range": (TINY.replace("cascades = 2", "cascades = 11"), {}, "shadow.cascades", "1..10"),
     "unknown scene": (TINY.replace('"plane_box"', '"plane_bx"'), {}, "scene.kind", "plane_box"),
     "unknown path generator": (TINY.replace('"walk"', '"wlak"'), {}, "camera.path", "walk"),
     "unknown method name": (TINY + '[[methods]]\nname = "x"\nstabilization = "exakt"\n', {},
