@@ -16,6 +16,7 @@ import numpy as np
 
 from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet, build_cascades
+from csmlab.cascades.bounds import visible_depth_range
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import normalized
 from csmlab.kernels.raster import rasterize_depth
@@ -26,8 +27,8 @@ from csmlab.scene.core import Scene
 from csmlab.settings import ShadowSettings
 from csmlab.texels import fixed_point_coordinates, light_depth, receiver_lookup
 
-__all__ = ["DeviceScene", "lookup_shadow", "prepare_scene", "render_frame", "render_shadow", "render_view",
-           "shadow_maps"]
+__all__ = ["DeviceScene", "faded", "lookup_shadow", "prepare_scene", "render_frame", "render_shadow", "render_view",
+           "shadow_maps", "slice_casters", "visible_depth"]
 
 
 @dataclass(frozen=True)
@@ -88,14 +89,48 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
                 timings={"visibility": visibility, "reference": time.perf_counter() - start})
 
 
+def visible_depth(dscene: DeviceScene, pose: CameraPose, *, width: int, height: int) -> tuple[float, float] | None:
+    """The view-depth range ``(z_min, z_max)`` in metres of the G-buffer :func:`render_view` would make (SDSM)."""
+    hits = camera_hits(dscene.bvh, position=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg,
+                       aspect=pose.aspect, far=pose.far, width=width, height=height)
+    return visible_depth_range(hits.view_depth)
+
+
 def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings) -> ShadowMaps:
     """Rasterize every cascade's depth map from the scene's vertices in fixed point."""
     bits = settings.subtexel_bits
     vertices = dscene.scene.vertices
-    points = np.stack([fixed_point_coordinates(cascades, c, vertices, bits=bits) for c in range(len(cascades))])
-    depth, texels = rasterize_depth(points, light_depth(cascades, vertices), dscene.scene.triangles,
-                                    resolution=settings.resolution, bits=bits, device=dscene.device)
-    return ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=texels)
+    points = np.stack([fixed_point_coordinates(cascades, c, vertices, bits=bits, precision=settings.engine_precision)
+                       for c in range(len(cascades))])
+    depth = light_depth(cascades, vertices)
+    if settings.depth_range == "scene":
+        depth, texels = rasterize_depth(points, depth, dscene.scene.triangles, resolution=settings.resolution,
+                                        bits=bits, device=dscene.device)
+        return ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=texels)
+    maps, texels = [], 0
+    for c, cascade in enumerate(cascades.cascades):
+        vertex_depth, triangles = slice_casters(depth, dscene.scene.triangles, near=cascade.depth_near - cascades.zref,
+                                                clamp=settings.depth_clamp)
+        if triangles.shape[0] == 0:
+            maps.append(np.full((settings.resolution, settings.resolution), np.inf, dtype=np.float32))
+            continue
+        one, count = rasterize_depth(points[c:c + 1], vertex_depth, triangles, resolution=settings.resolution, bits=bits,
+                                     device=dscene.device)
+        maps.append(one[0])
+        texels += count
+    return ShadowMaps(cascades=cascades, depth=np.stack(maps), texels_rasterized=texels)
+
+
+def slice_casters(depth: np.ndarray, triangles: np.ndarray, *, near: float, clamp: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Vertex depths ``(V,)`` and triangles ``(T', 3)`` a box whose near side lies at stored depth ``near`` keeps.
+
+    ``clamp`` (pancaking): vertices nearer than ``near`` are moved onto it, so their casters still
+    shadow everything in the box. Otherwise the triangles wholly nearer are clipped away; one that
+    crosses the near side is kept whole (a GPU would keep its part behind the plane).
+    """
+    if clamp:
+        return np.maximum(depth, near), triangles
+    return depth, triangles[depth[triangles].max(axis=1) >= near]
 
 
 def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: ShadowSettings,
@@ -137,6 +172,7 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
     coordinates, receiver_depth, receiver_slope = receiver_lookup(
         cascades, p.reshape(-1, 3)[receivers], n.reshape(-1, 3)[receivers], bits=bits,
         normal_offset=settings.normal_offset, bias_constant=settings.bias_constant, bias_slope=settings.bias_slope,
+        precision=settings.engine_precision,
     )
     found = shadow_lookup(
         maps.depth, coordinates, receiver_depth, flat_z[receivers],
@@ -149,12 +185,30 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
     cascade = np.full(flat_z.shape, -1, dtype=np.int8)
     blend = np.zeros(flat_z.shape, dtype=bool)
     lit[receivers], cascade[receivers], blend[receivers] = found
+    if settings.fade_out > 0.0:
+        lit[receivers] = faded(lit[receivers], flat_z[receivers], far=float(cascades.splits[-1]),
+                               fade_out=settings.fade_out)
     shape = z.shape
     return ShadowLookup(lit=lit.reshape(shape), cascade=cascade.reshape(shape), blend=blend.reshape(shape))
 
 
-def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings) -> Frame:
+def faded(lit: np.ndarray, view_depth: np.ndarray, *, far: float, fade_out: float) -> np.ndarray:
+    """``lit`` ``(N,)`` faded toward 1 over the last ``fade_out`` fraction of ``far`` in view depth (float32).
+
+    The weight rises linearly from 0 at ``far (1 - fade_out)`` to 1 at ``far`` (Unreal's
+    ``ShadowDistanceFadeoutFraction``, Godot's ``1 - directional_shadow_fade_start``).
+    """
+    start = far * (1.0 - fade_out)
+    weight = np.clip((np.asarray(view_depth, dtype=np.float64) - start) / max(far - start, 1e-12), 0.0, 1.0)
+    return (lit + (1.0 - lit) * weight).astype(np.float32)
+
+
+def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
+                  visible_depth: tuple[float, float] | None = None) -> Frame:
     """One shadow method on a shared view: cascades → depth maps → lookup at every pixel.
+
+    With ``bounds = "sdsm"`` the splits divide ``visible_depth`` when given (the held range of an
+    SDSM with hysteresis), else the view's own G-buffer depth range.
 
     Returns
     -------
@@ -163,8 +217,10 @@ def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings) -> 
     """
     settings = settings.validated()
     start = time.perf_counter()
+    if settings.bounds == "sdsm" and visible_depth is None:
+        visible_depth = visible_depth_range(view.gbuffer.view_depth)
     cascades = build_cascades(pose=view.pose, light_direction=view.light_direction,
-                              scene_corners=dscene.scene.corners(), settings=settings)
+                              scene_corners=dscene.scene.corners(), settings=settings, visible_depth=visible_depth)
     timings = {"cascades": time.perf_counter() - start}
     start = time.perf_counter()
     maps = shadow_maps(dscene, cascades, settings)

@@ -43,7 +43,7 @@ def test_manual_rejects_bad_lists(splits, match):
 def test_unknown_scheme_lists_the_valid_ones():
     with pytest.raises(ValueError, match="practical"):
         split_distances(near=0.1, far=100.0, count=3, method="pssm")
-    assert set(SPLIT_METHODS) == {"uniform", "log", "practical", "manual"}
+    assert set(SPLIT_METHODS) == {"uniform", "log", "practical", "manual", "exponent", "geometric"}
 
 
 @pytest.mark.parametrize("near, far", [(0.0, 100.0), (-1.0, 100.0), (5.0, 5.0), (5.0, 1.0)])
