@@ -186,21 +186,30 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
     blend = np.zeros(flat_z.shape, dtype=bool)
     lit[receivers], cascade[receivers], blend[receivers] = found
     if settings.fade_out > 0.0:
-        lit[receivers] = faded(lit[receivers], flat_z[receivers], far=float(cascades.splits[-1]),
-                               fade_out=settings.fade_out)
+        lit[receivers], fading = faded(lit[receivers], flat_z[receivers], far=float(cascades.splits[-1]),
+                                       fade_out=settings.fade_out)
+        # Like a blend band, the fade weight follows the camera: the temporal metric counts these
+        # points with the transitions, not with same-cascade swimming.
+        blend[receivers] |= fading
     shape = z.shape
     return ShadowLookup(lit=lit.reshape(shape), cascade=cascade.reshape(shape), blend=blend.reshape(shape))
 
 
-def faded(lit: np.ndarray, view_depth: np.ndarray, *, far: float, fade_out: float) -> np.ndarray:
-    """``lit`` ``(N,)`` faded toward 1 over the last ``fade_out`` fraction of ``far`` in view depth (float32).
+def faded(lit: np.ndarray, view_depth: np.ndarray, *, far: float, fade_out: float) -> tuple[np.ndarray, np.ndarray]:
+    """``lit`` ``(N,)`` faded toward 1 over the last ``fade_out`` fraction of ``far`` in view depth.
 
     The weight rises linearly from 0 at ``far (1 - fade_out)`` to 1 at ``far`` (Unreal's
     ``ShadowDistanceFadeoutFraction``, Godot's ``1 - directional_shadow_fade_start``).
+
+    Returns
+    -------
+    lit : ndarray, shape (N,), float32
+    fading : ndarray, shape (N,), bool
+        The weight is above 0.
     """
     start = far * (1.0 - fade_out)
     weight = np.clip((np.asarray(view_depth, dtype=np.float64) - start) / max(far - start, 1e-12), 0.0, 1.0)
-    return (lit + (1.0 - lit) * weight).astype(np.float32)
+    return (lit + (1.0 - lit) * weight).astype(np.float32), weight > 0.0
 
 
 def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
