@@ -24,14 +24,14 @@ __all__ = ["PRECISION_METHODS", "fixed_point_coordinates", "fixed_point_origin",
 
 PRECISION_METHODS: dict[str, str] = {
     "float64": "global texel coordinates in float64, less an integer origin: world-locked at any distance",
-    "float32": "an engine's float32 light matrix (origin folded into its translation) applied to float32 positions",
+    "float32": "an engine's float32 light view (eye at the box centre) and projection applied to float32 positions",
 }
 """How world points reach a cascade's texel grid (``[shadow] engine_precision``), with what each means.
 
-``float32`` emulates an engine that builds each cascade's world-to-texel matrix and applies it in
-float32, as a vertex shader does: the rounding then depends on where the box lies, so a box moved by
-whole texels re-rounds every vertex, and far from the origin (10⁶ m: a float32 step of 6 cm) the
-shadow swims even though the box is snapped.
+``float32`` emulates an engine that places each cascade's light eye at the box centre and applies
+its view and projection in float32, as a vertex shader does: the eye's rounding depends on where
+the box lies, so far from the origin (10⁶ m: a float32 step of 6 cm) a box moved by whole texels
+moves its texel grid by a fraction of a texel, and the shadow swims although the box is snapped.
 """
 
 # Global fixed-point values are clipped to ±2**50 so that, less a box origin, doubled and
@@ -99,12 +99,22 @@ def texel_coordinates(cascades: CascadeSet, index: int, points) -> np.ndarray:
 
 
 def _local_texels_float32(cascades: CascadeSet, index: int, points) -> np.ndarray:
-    """Local texel coordinates ``(..., 2)`` as float32 math gives them: ``float32(M) · float32(X)`` less ``float32(origin)``."""
+    """Local texel coordinates ``(..., 2)`` as an engine's float32 light view and projection give them.
+
+    The light's eye sits at the (snapped) box centre; the engine stores it as a float32 world
+    position, subtracts it from float32 world positions, rotates into light space and scales to
+    texels, all in float32. Far from the origin the eye's float32 rounding (6 cm at 10⁶ m) differs
+    from one snapped box position to the next, so the texel grid slides by fractions of a texel.
+    """
     cascade = cascades.cascades[index]
-    rows = (cascades.basis[:2] / cascade.texel_size[:, None]).astype(np.float32)
-    p = np.asarray(points, dtype=np.float64).astype(np.float32)
+    half = 0.5 * cascade.resolution
+    centre = np.array([*((cascade.origin + half) * cascade.texel_size), cascade.depth_near])
+    eye = (cascades.basis.T @ centre).astype(np.float32)
+    rows = cascades.basis[:2].astype(np.float32)
+    p = np.asarray(points, dtype=np.float64).astype(np.float32) - eye
     u = np.einsum("...k,jk->...j", p, rows, dtype=np.float32)
-    u -= cascade.origin.astype(np.float32)
+    u /= cascade.texel_size.astype(np.float32)
+    u += np.float32(half)
     return u.astype(np.float64)
 
 
