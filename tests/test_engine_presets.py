@@ -165,3 +165,12 @@ def test_fade_out_reaches_lit_at_the_shadow_distance():
     lit, fading = faded(np.zeros(4, dtype=np.float32), np.array([50.0, 80.0, 90.0, 100.0]), far=100.0, fade_out=0.2)
     np.testing.assert_allclose(lit, [0.0, 0.0, 0.5, 1.0])
     np.testing.assert_array_equal(fading, [False, False, True, True])
+
+
+def test_report_draws_methods_with_different_cascade_counts(tmp_path):
+    """Filament's one cascade beside Unreal's three and the base four: every figure is written."""
+    from csmlab.report import write_report
+
+    _run(tmp_path, extends=["engines/filament", "engines/ue5", "methods/exact"], frames=2)
+    index = write_report(tmp_path / "out")
+    assert index.is_file() and any((tmp_path / "out" / "figures").glob("*stabilization*"))
