@@ -27,8 +27,8 @@ from csmlab.scene.core import Scene
 from csmlab.settings import ShadowSettings
 from csmlab.texels import fixed_point_coordinates, light_depth, receiver_lookup
 
-__all__ = ["DeviceScene", "faded", "lookup_shadow", "prepare_scene", "render_frame", "render_shadow", "render_view",
-           "shadow_maps", "slice_casters", "visible_depth"]
+__all__ = ["DeviceScene", "clipped_casters", "faded", "lookup_shadow", "prepare_scene", "render_frame", "render_shadow", "render_view",
+           "shadow_maps", "visible_depth"]
 
 
 @dataclass(frozen=True)
@@ -103,34 +103,35 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
     points = np.stack([fixed_point_coordinates(cascades, c, vertices, bits=bits, precision=settings.engine_precision)
                        for c in range(len(cascades))])
     depth = light_depth(cascades, vertices)
-    if settings.depth_range == "scene":
-        depth, texels = rasterize_depth(points, depth, dscene.scene.triangles, resolution=settings.resolution,
-                                        bits=bits, device=dscene.device)
-        return ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=texels)
+    if settings.depth_range == "scene" or settings.depth_clamp:
+        maps, texels = rasterize_depth(points, depth, dscene.scene.triangles, resolution=settings.resolution,
+                                       bits=bits, device=dscene.device)
+        if settings.depth_range == "slice":
+            # Pancaking is a per-fragment clamp max(z, near); the stored minimum of clamped fragments
+            # is the clamped minimum, so clamping the map is exact.
+            near = np.array([c.depth_near - cascades.zref for c in cascades.cascades], dtype=np.float32)
+            maps = np.maximum(maps, near[:, None, None])
+        return ShadowMaps(cascades=cascades, depth=maps, texels_rasterized=texels)
     maps, texels = [], 0
     for c, cascade in enumerate(cascades.cascades):
-        vertex_depth, triangles = slice_casters(depth, dscene.scene.triangles, near=cascade.depth_near - cascades.zref,
-                                                clamp=settings.depth_clamp)
+        triangles = clipped_casters(depth, dscene.scene.triangles, near=cascade.depth_near - cascades.zref)
         if triangles.shape[0] == 0:
             maps.append(np.full((settings.resolution, settings.resolution), np.inf, dtype=np.float32))
             continue
-        one, count = rasterize_depth(points[c:c + 1], vertex_depth, triangles, resolution=settings.resolution, bits=bits,
+        one, count = rasterize_depth(points[c:c + 1], depth, triangles, resolution=settings.resolution, bits=bits,
                                      device=dscene.device)
         maps.append(one[0])
         texels += count
     return ShadowMaps(cascades=cascades, depth=np.stack(maps), texels_rasterized=texels)
 
 
-def slice_casters(depth: np.ndarray, triangles: np.ndarray, *, near: float, clamp: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Vertex depths ``(V,)`` and triangles ``(T', 3)`` a box whose near side lies at stored depth ``near`` keeps.
+def clipped_casters(depth: np.ndarray, triangles: np.ndarray, *, near: float) -> np.ndarray:
+    """Triangles ``(T', 3)`` a box whose near side lies at stored depth ``near`` keeps without pancaking.
 
-    ``clamp`` (pancaking): vertices nearer than ``near`` are moved onto it, so their casters still
-    shadow everything in the box. Otherwise the triangles wholly nearer are clipped away; one that
-    crosses the near side is kept whole (a GPU would keep its part behind the plane).
+    Those wholly nearer than ``near`` (every vertex depth below it) are clipped away; one that
+    crosses the near side is kept whole (a GPU would keep only its part behind the plane).
     """
-    if clamp:
-        return np.maximum(depth, near), triangles
-    return depth, triangles[depth[triangles].max(axis=1) >= near]
+    return triangles[depth[triangles].max(axis=1) >= near]
 
 
 def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: ShadowSettings,

@@ -14,7 +14,7 @@ import pytest
 
 from csmlab.config import CONFIGS_DIR, load_experiment
 from csmlab.experiment import run_experiment
-from csmlab.render import faded, slice_casters
+from csmlab.render import clipped_casters, faded
 
 ENGINES = sorted(p.stem for p in (CONFIGS_DIR / "engines").glob("*.toml"))
 SEEDS = sorted(p.stem for p in (CONFIGS_DIR / "seeds").glob("*.toml"))
@@ -149,15 +149,32 @@ engine_precision = "float32"
     assert summary["exact_float32"]["flicker_same"] > 0.0
 
 
-def test_slice_casters_clamp_or_clip_what_lies_in_front():
+def test_without_pancaking_casters_wholly_in_front_are_clipped():
     depth = np.array([-5.0, -4.0, -3.0, 1.0, 2.0, 3.0])
     triangles = np.array([[0, 1, 2], [2, 3, 4], [3, 4, 5]])
-    clamped, kept = slice_casters(depth, triangles, near=0.0, clamp=True)
-    np.testing.assert_array_equal(clamped, [0.0, 0.0, 0.0, 1.0, 2.0, 3.0])
-    np.testing.assert_array_equal(kept, triangles)
-    unclamped, kept = slice_casters(depth, triangles, near=0.0, clamp=False)
-    np.testing.assert_array_equal(unclamped, depth)
-    np.testing.assert_array_equal(kept, triangles[1:])
+    np.testing.assert_array_equal(clipped_casters(depth, triangles, near=0.0), triangles[1:])
+
+
+def test_pancaking_flattens_casters_in_front_onto_the_near_side():
+    """A slice box with clamping stores max(z, near): a caster far in front still shadows, at the near side."""
+    from csmlab.camera import CameraPose
+    from csmlab.geometry import rotation_looking_at
+    from csmlab.render import render_frame
+    from csmlab.scene import make_scene
+    from csmlab.settings import ShadowSettings
+
+    scene = make_scene("plane_box")
+    pose = CameraPose(position=np.array([0.0, 6.0, 8.0]), orientation=rotation_looking_at([0.0, -0.6, -1.0]),
+                      aspect=16 / 9)
+    light = np.array([0.2, -1.0, 0.1])
+    common = dict(cascades=2, resolution=64, shadow_distance=30.0, filter="none")
+    kw = dict(width=32, height=18)
+    scene_wide = render_frame(scene, pose, light, ShadowSettings(**common), **kw)
+    clamped = render_frame(scene, pose, light, ShadowSettings(depth_range="slice", depth_clamp=True, **common), **kw)
+    for c, cascade in enumerate(clamped.maps.cascades.cascades):
+        near = np.float32(cascade.depth_near - clamped.maps.cascades.zref)
+        assert np.all(clamped.maps.depth[c] >= near)
+        np.testing.assert_array_equal(clamped.maps.depth[c], np.maximum(scene_wide.maps.depth[c], near))
 
 
 def test_fade_out_reaches_lit_at_the_shadow_distance():
