@@ -103,6 +103,8 @@ class SceneConfig:
     """mesh: the file's up axis, y or z (a Z-up file is turned to Y-up)."""
     ground: bool = False
     """mesh: add a ground plane under the mesh to receive its shadow."""
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Metres the whole world (scene and camera path) is moved by: a world far from the origin (10⁶ m)."""
     params: dict = field(default_factory=dict)
     """Further keyword parameters of the procedural scene (its generator's signature lists them)."""
 
@@ -729,7 +731,7 @@ def _scene(table, located: _Located) -> SceneConfig:
         _registry_name(kind, SCENE_KINDS, where="scene.kind", located=located, what="scene kind")
     generator = SCENE_KINDS.get(kind) if isinstance(kind, str) and kind != "mesh" else None
     accepted = _generator_parameters(generator) if generator is not None else ()
-    common = {"kind", "seed", "file", "scale", "up", "ground"}
+    common = {"kind", "seed", "file", "scale", "up", "ground", "offset"}
     extra = [k for k in table if k not in common] if accepted is None else [p for p in accepted if p not in common]
     scene = _record(SceneConfig, table, where="scene", located=located, extra=extra)
     if scene.kind != "mesh":
@@ -836,9 +838,11 @@ def _shadow_fields(table, *, where: str, located: _Located, allow=("name",)) -> 
 
 def _checked_settings(settings: ShadowSettings, *, where_of, located: _Located) -> ShadowSettings:
     """``settings`` after range and method-name checks; ``where_of(field)`` says where a field was set."""
-    from csmlab.cascades import FIT_METHODS, SPLIT_METHODS, STABILIZATION_METHODS
+    from csmlab.cascades import (BOUNDS_METHODS, DEPTH_RANGE_METHODS, EXTENT_METHODS, FIT_METHODS, SNAP_METHODS,
+                                 SPLIT_METHODS, STABILIZATION_METHODS)
     from csmlab.filters import FILTER_METHODS
     from csmlab.kernels.shadow import SELECTION_METHODS
+    from csmlab.texels import PRECISION_METHODS
 
     try:
         settings.validated()
@@ -846,8 +850,13 @@ def _checked_settings(settings: ShadowSettings, *, where_of, located: _Located) 
         name, _, message = str(exc).partition(": ")
         raise located.error(where_of(name), message) from None
     for name, registry in (("split", SPLIT_METHODS), ("fit", FIT_METHODS), ("stabilization", STABILIZATION_METHODS),
-                           ("selection", SELECTION_METHODS), ("filter", FILTER_METHODS)):
+                           ("selection", SELECTION_METHODS), ("filter", FILTER_METHODS),
+                           ("extent", EXTENT_METHODS), ("snap", SNAP_METHODS), ("depth_range", DEPTH_RANGE_METHODS),
+                           ("bounds", BOUNDS_METHODS), ("engine_precision", PRECISION_METHODS)):
         _registry_name(getattr(settings, name), registry, where=where_of(name), located=located, what=name)
+    if settings.split == "geometric" and settings.cascades > 1 and settings.first_cascade_far >= settings.shadow_distance:
+        raise located.error(where_of("first_cascade_far"), f"expected a distance below shadow_distance "
+                                                           f"({settings.shadow_distance} m), got {settings.first_cascade_far}")
     if settings.split == "manual" and len(settings.splits) != settings.cascades:
         raise located.error(where_of("splits"), f"expected {settings.cascades} split distances (one per cascade) with "
                                                 f"split = \"manual\", got {len(settings.splits)}")
@@ -1095,6 +1104,8 @@ def experiment_document(experiment: Experiment) -> dict:
     if experiment.scene.kind != "mesh":
         for key in ("file", "scale", "up", "ground"):
             scene.pop(key)
+    if not any(experiment.scene.offset):
+        scene.pop("offset")
     camera = _section_document(experiment.camera)
     drop = ("path",) if experiment.camera.file else ("file", "format", "convention", "scale", "offset", "time_offset",
                                                      "times_file", "anchor", "duplicate_times", "max_gap", "gaps")

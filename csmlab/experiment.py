@@ -14,6 +14,7 @@ files (:mod:`csmlab.results`) and the report's captures in a fixed order when al
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -79,12 +80,16 @@ class Job:
         Frames whose full-resolution images the report keeps.
     device : str
         Warp device, ``cpu`` or ``cuda``.
+    held_depths : dict of (method, point) to ndarray, shape (N, 2)
+        SDSM with hysteresis: the held view-depth range of every frame (computed once over the whole
+        path, so that no chunk depends on where the path was cut).
     """
 
     workload: Workload
     variants: tuple[Variant, ...]
     snapshot_frames: frozenset
     device: str
+    held_depths: dict = dataclasses.field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -174,14 +179,31 @@ def _scene(experiment: Experiment) -> Scene:
     config = experiment.scene
     try:
         if config.kind == "mesh":
-            return make_scene("mesh", file=config.file, scale=config.scale, up=config.up, ground=config.ground)
-        return make_scene(config.kind, seed=config.seed, **config.params)
+            scene = make_scene("mesh", file=config.file, scale=config.scale, up=config.up, ground=config.ground)
+        else:
+            scene = make_scene(config.kind, seed=config.seed, **config.params)
+        return _moved_scene(scene, config.offset)
     except OSError as exc:
         raise InputError(f"expected a readable mesh file, got {exc.strerror or exc}", file=config.file,
                          field="scene.file") from None
     except ValueError as exc:
         file = config.file if config.kind == "mesh" else experiment.source
         raise _located(exc, file=file, field="scene") from None
+
+
+def _moved_scene(scene: Scene, offset) -> Scene:
+    """``scene`` moved by ``offset`` metres (``[scene] offset``); the same scene when it is zero."""
+    if not any(offset):
+        return scene
+    return Scene(scene.vertices + np.asarray(offset, dtype=np.float64), scene.triangles, scene.normals, scene.albedo,
+                 name=scene.name)
+
+
+def _moved_path(path: CameraPath, offset) -> CameraPath:
+    """``path`` moved with the world by ``offset`` metres (``[scene] offset``)."""
+    if not any(offset):
+        return path
+    return dataclasses.replace(path, positions=path.positions + np.asarray(offset, dtype=np.float64))
 
 
 def _first_light_direction(experiment: Experiment):
@@ -245,6 +267,7 @@ def build_workload(experiment: Experiment) -> Workload:
         From a scene, mesh or camera-path file, naming the file and what was expected.
     """
     path, timing, restarts = _camera_path(experiment, _first_light_direction(experiment))
+    path = _moved_path(path, experiment.scene.offset)
     return Workload(scene=_scene(experiment), path=path, light=_light_path(experiment, len(path)),
                     width=experiment.camera.width, height=experiment.camera.height,
                     key=workload_hash(experiment, frames=len(path)), timing=timing, restarts=restarts)
@@ -297,7 +320,9 @@ def run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
             timings += [(index, "", "", stage, seconds) for stage, seconds in view.timings.items()]
         for variant in job.variants:
             key = (variant.method, variant.point)
-            frame = render_shadow(scene, view, variant.settings)
+            held = job.held_depths.get(key)
+            frame = render_shadow(scene, view, variant.settings,
+                                  visible_depth=None if held is None else tuple(held[index]))
             if counted:
                 began = time.perf_counter()
                 measures = measure_frame(frame, previous.get(key), device=job.device)
@@ -309,6 +334,24 @@ def run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
                     capture_frame(frame, measures, snapshot=index in job.snapshot_frames, grid=grid))
             previous[key] = frame
     return ChunkResult(start=start, stop=stop, rows=rows, timings=timings, captures=captures)
+
+
+def _held_depths(workload: Workload, variants, *, device: str) -> dict:
+    """Per SDSM variant with hysteresis, its held view-depth range ``(N, 2)`` over the whole path.
+
+    The visible range of every frame is read from a G-buffer of the run's size once, here, before
+    the chunks run: hysteresis depends on every earlier frame, which a chunk does not render.
+    """
+    from csmlab.cascades.bounds import held_depth_ranges
+    from csmlab.render import visible_depth
+
+    wanted = [v for v in variants if v.settings.bounds == "sdsm" and v.settings.hysteresis > 0.0]
+    if not wanted:
+        return {}
+    scene = _prepared_scene(Job(workload=workload, variants=(), snapshot_frames=frozenset(), device=device))
+    ranges = np.array([visible_depth(scene, workload.path.pose(i), width=workload.width, height=workload.height)
+                       or (np.nan, np.nan) for i in range(len(workload.path))], dtype=np.float64)
+    return {(v.method, v.point): held_depth_ranges(ranges, hysteresis=v.settings.hysteresis) for v in wanted}
 
 
 def _snapshot_frames(experiment: Experiment, frames: int) -> frozenset:
@@ -373,7 +416,7 @@ def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, executor: 
 
     report_progress()
     job = Job(workload=workload, variants=variants, snapshot_frames=_snapshot_frames(experiment, frames),
-              device=device)
+              device=device, held_depths=_held_depths(workload, variants, device=device))
     for chunk, result in execute(run_chunk, todo, shared=job, executor=executor, jobs=jobs, address=address):
         results.save_chunk(out, result, run_key=chunk_key)
         done[chunk] = result

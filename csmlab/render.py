@@ -17,9 +17,10 @@ import numpy as np
 from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet, build_cascades
 from csmlab.filters import filter_mips, filter_moments, filtered_shadow_lookup
+from csmlab.cascades.bounds import visible_depth_range
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import normalized
-from csmlab.kernels.raster import cascade_candidates, rasterize_cascades, triangle_bounds
+from csmlab.kernels.raster import cascade_candidates, rasterize_cascades, rasterize_depth, triangle_bounds
 from csmlab.kernels.reference import hard_shadow
 from csmlab.kernels.shadow import receiver_coordinates
 from csmlab.kernels.visibility import MeshBVH, camera_hits, mesh_bvh
@@ -27,10 +28,11 @@ from csmlab.quads import Quads, quad_lanes
 from csmlab.scene.core import Scene
 from csmlab.settings import ShadowSettings
 from csmlab.storage import stored_depth
-from csmlab.texels import fixed_point_origin, light_depth, light_plane_coordinates, light_space
+from csmlab.texels import (fixed_point_coordinates, fixed_point_origin, light_depth, light_plane_coordinates, light_space,
+                           receiver_lookup)
 
-__all__ = ["DeviceScene", "lookup_shadow", "prepare_scene", "render_frame", "render_shadow", "render_view",
-           "shadow_maps"]
+__all__ = ["DeviceScene", "clipped_casters", "faded", "lookup_shadow", "prepare_scene", "render_frame", "render_shadow",
+           "render_view", "shadow_maps", "visible_depth"]
 
 
 @dataclass(frozen=True)
@@ -121,8 +123,37 @@ def _scene_in_light_space(dscene: DeviceScene, cascades: CascadeSet) -> tuple:
     return dscene.light_space[key]
 
 
+def visible_depth(dscene: DeviceScene, pose: CameraPose, *, width: int, height: int) -> tuple[float, float] | None:
+    """The view-depth range ``(z_min, z_max)`` in metres of the G-buffer :func:`render_view` would make (SDSM)."""
+    hits = camera_hits(dscene.bvh, position=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg,
+                       aspect=pose.aspect, far=pose.far, width=width, height=height)
+    return visible_depth_range(hits.view_depth)
+
+
 def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings) -> ShadowMaps:
     """Rasterize every cascade's depth map from the scene's vertices in fixed point, stored in ``settings.depth_format``.
+
+    Pancaked slice boxes (``depth_range = "slice"``) are clamped to their near side; the moments
+    and their mips follow when the filter needs them (:mod:`csmlab.filters`).
+    """
+    if settings.engine_precision == "float64" and not (settings.depth_range == "slice" and not settings.depth_clamp):
+        depth, texels = _culled_depth_maps(dscene, cascades, settings)
+    else:
+        depth, texels = _host_snapped_depth_maps(dscene, cascades, settings)
+    if settings.depth_range == "slice" and settings.depth_clamp:
+        # Pancaking is a per-fragment clamp max(z, near); the stored minimum of clamped fragments
+        # is the clamped minimum, so clamping the map is exact.
+        near = np.array([c.depth_near - cascades.zref for c in cascades.cascades], dtype=np.float32)
+        depth = np.maximum(depth, near[:, None, None])
+    span = float(np.ptp(cascades.to_light(dscene.scene.corners())[:, 2]))
+    depth = stored_depth(depth, span=span, depth_format=settings.depth_format)
+    moments = filter_moments(depth, span=span, settings=settings, device=dscene.device)
+    return ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=texels, moments=moments, depth_span=span,
+                      mips=filter_mips(moments, cascades, settings=settings, device=dscene.device))
+
+
+def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings) -> tuple[np.ndarray, int]:
+    """``(C, R, R)`` depth maps and texels rasterized, each cascade from the triangles that meet its box.
 
     Only the triangles whose light-space rectangle meets a cascade's box go to that cascade's
     rasterization (:func:`csmlab.kernels.raster.cascade_candidates`); the others cover none of
@@ -150,11 +181,44 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
                 depth = np.full((len(sizes), max(sizes), max(sizes)), np.inf, dtype=np.float32)
             depth[group, :size, :size] = own
         texels += count
-    span = float(np.ptp(cascades.to_light(dscene.scene.corners())[:, 2]))
-    depth = stored_depth(depth, span=span, depth_format=settings.depth_format)
-    moments = filter_moments(depth, span=span, settings=settings, device=dscene.device)
-    return ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=texels, moments=moments, depth_span=span,
-                      mips=filter_mips(moments, cascades, settings=settings, device=dscene.device))
+    return depth, texels
+
+
+def _host_snapped_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
+                             settings: ShadowSettings) -> tuple[np.ndarray, int]:
+    """``(C, R, R)`` depth maps and texels rasterized, vertices snapped on the host cascade by cascade.
+
+    The path for what the culled kernels do not model: an engine's float32 cascade math
+    (``engine_precision``, :mod:`csmlab.texels`) and casters clipped at a slice's near side
+    without pancaking (``depth_range = "slice"``, ``depth_clamp = false``).
+    """
+    bits = settings.subtexel_bits
+    vertices = dscene.scene.vertices
+    depth_of_vertex = light_depth(cascades, vertices)
+    sizes = [c.resolution for c in cascades.cascades]
+    maps = np.full((len(sizes), max(sizes), max(sizes)), np.inf, dtype=np.float32)
+    texels = 0
+    for c, cascade in enumerate(cascades.cascades):
+        triangles = dscene.scene.triangles
+        if settings.depth_range == "slice" and not settings.depth_clamp:
+            triangles = clipped_casters(depth_of_vertex, triangles, near=cascade.depth_near - cascades.zref)
+        if triangles.shape[0] == 0:
+            continue
+        points = fixed_point_coordinates(cascades, c, vertices, bits=bits, precision=settings.engine_precision)
+        one, count = rasterize_depth(points[None], depth_of_vertex, triangles, resolution=sizes[c], bits=bits,
+                                     device=dscene.device)
+        maps[c, :sizes[c], :sizes[c]] = one[0]
+        texels += count
+    return maps, texels
+
+
+def clipped_casters(depth: np.ndarray, triangles: np.ndarray, *, near: float) -> np.ndarray:
+    """Triangles ``(T', 3)`` a box whose near side lies at stored depth ``near`` keeps without pancaking.
+
+    Those wholly nearer than ``near`` (every vertex depth below it) are clipped away; one that
+    crosses the near side is kept whole (a GPU would keep only its part behind the plane).
+    """
+    return triangles[depth[triangles].max(axis=1) >= near]
 
 
 def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: ShadowSettings,
@@ -201,15 +265,22 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
     receivers = np.flatnonzero(np.all(np.isfinite(p.reshape(-1, 3)), axis=1) & ~np.isnan(flat_z))
     cascades = maps.cascades
     bits = settings.subtexel_bits
-    # csmlab.texels.receiver_lookup, its per-cascade part in a kernel (the same bits).
-    coordinates, receiver_depth, receiver_slope = receiver_coordinates(
-        light_space(cascades, p.reshape(-1, 3)[receivers]),
-        light_space(cascades, n.reshape(-1, 3)[receivers].astype(np.float64)),
-        texel_size=np.stack([c.texel_size for c in cascades.cascades]),
-        origin=np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]),
-        zref=cascades.zref, bits=bits, normal_offset=settings.normal_offset, bias_constant=settings.bias_constant,
-        bias_slope=settings.bias_slope, device=device,
-    )
+    if settings.engine_precision == "float64":
+        # csmlab.texels.receiver_lookup, its per-cascade part in a kernel (the same bits).
+        coordinates, receiver_depth, receiver_slope = receiver_coordinates(
+            light_space(cascades, p.reshape(-1, 3)[receivers]),
+            light_space(cascades, n.reshape(-1, 3)[receivers].astype(np.float64)),
+            texel_size=np.stack([c.texel_size for c in cascades.cascades]),
+            origin=np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]),
+            zref=cascades.zref, bits=bits, normal_offset=settings.normal_offset, bias_constant=settings.bias_constant,
+            bias_slope=settings.bias_slope, device=device,
+        )
+    else:
+        coordinates, receiver_depth, receiver_slope = receiver_lookup(
+            cascades, p.reshape(-1, 3)[receivers], n.reshape(-1, 3)[receivers], bits=bits,
+            normal_offset=settings.normal_offset, bias_constant=settings.bias_constant, bias_slope=settings.bias_slope,
+            precision=settings.engine_precision,
+        )
     if pixels is None and p.ndim == 3:
         rows, cols = np.indices(p.shape[:2])
         pixels = np.stack([cols, rows], axis=-1)
@@ -241,12 +312,39 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
     cascade = np.full(flat_z.shape, -1, dtype=np.int8)
     blend = np.zeros(flat_z.shape, dtype=bool)
     lit[receivers], cascade[receivers], blend[receivers] = found
+    if settings.fade_out > 0.0:
+        lit[receivers], fading = faded(lit[receivers], flat_z[receivers], far=float(cascades.splits[-1]),
+                                       fade_out=settings.fade_out)
+        # Like a blend band, the fade weight follows the camera: the temporal metric counts these
+        # points with the transitions, not with same-cascade swimming.
+        blend[receivers] |= fading
     shape = z.shape
     return ShadowLookup(lit=lit.reshape(shape), cascade=cascade.reshape(shape), blend=blend.reshape(shape))
 
 
-def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings) -> Frame:
+def faded(lit: np.ndarray, view_depth: np.ndarray, *, far: float, fade_out: float) -> tuple[np.ndarray, np.ndarray]:
+    """``lit`` ``(N,)`` faded toward 1 over the last ``fade_out`` fraction of ``far`` in view depth.
+
+    The weight rises linearly from 0 at ``far (1 - fade_out)`` to 1 at ``far`` (Unreal's
+    ``ShadowDistanceFadeoutFraction``, Godot's ``1 - directional_shadow_fade_start``).
+
+    Returns
+    -------
+    lit : ndarray, shape (N,), float32
+    fading : ndarray, shape (N,), bool
+        The weight is above 0.
+    """
+    start = far * (1.0 - fade_out)
+    weight = np.clip((np.asarray(view_depth, dtype=np.float64) - start) / max(far - start, 1e-12), 0.0, 1.0)
+    return (lit + (1.0 - lit) * weight).astype(np.float32), weight > 0.0
+
+
+def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
+                  visible_depth: tuple[float, float] | None = None) -> Frame:
     """One shadow method on a shared view: cascades → depth maps → lookup at every pixel.
+
+    With ``bounds = "sdsm"`` the splits divide ``visible_depth`` when given (the held range of an
+    SDSM with hysteresis), else the view's own G-buffer depth range.
 
     Returns
     -------
@@ -255,8 +353,10 @@ def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings) -> 
     """
     settings = settings.validated()
     start = time.perf_counter()
+    if settings.bounds == "sdsm" and visible_depth is None:
+        visible_depth = visible_depth_range(view.gbuffer.view_depth)
     cascades = build_cascades(pose=view.pose, light_direction=view.light_direction,
-                              scene_corners=dscene.scene.corners(), settings=settings)
+                              scene_corners=dscene.scene.corners(), settings=settings, visible_depth=visible_depth)
     timings = {"cascades": time.perf_counter() - start}
     start = time.perf_counter()
     maps = shadow_maps(dscene, cascades, settings)

@@ -94,6 +94,28 @@ class ShadowSettings:
     """moment_mips: coarsest mip level looked up (the sampler's MaxLOD), 0..8; the boxes keep its reach free inside their edges."""
     anisotropy: int = 1
     """moment_mips: most probes along the footprint's major axis, 1..16 (1: trilinear)."""
+    distribution_exponent: float = 3.0
+    """split = exponent: depth ratio of consecutive cascades (Unreal's CascadeDistributionExponent)."""
+    first_cascade_far: float = 10.0
+    """split = geometric: far end of the first cascade in metres, the rest geometric (Bevy's first_cascade_far_bound)."""
+    extent: str = "sphere"
+    """exact: the fixed box diameter, sphere (slice bounding sphere) | diagonal (ceil of the slice's largest diagonal, Bevy, three.js)."""
+    snap: str = "origin"
+    """exact: what is snapped to whole texels, origin (box corner: Valient, DirectX, Unreal) | centre (box centre: Bevy, three.js, Stride view snapping)."""
+    depth_range: str = "scene"
+    """Box depth: scene (near side pushed to the scene bounds) | slice (the slice's own range, less pancake)."""
+    pancake: float = 0.0
+    """depth_range = slice: metres the near side is pulled toward the light beyond the slice (Godot pancake_size)."""
+    depth_clamp: bool = True
+    """depth_range = slice: casters nearer than the near side are flattened onto it (pancaking) rather than clipped."""
+    fade_out: float = 0.0
+    """Fraction of the shadow distance at its end over which the shadow fades to lit (Unreal, Unity, Godot 1 - fade_start)."""
+    bounds: str = "frustum"
+    """Depth range the splits divide, frustum (near .. shadow_distance) | sdsm (the frame's visible depth range, from the G-buffer)."""
+    hysteresis: float = 0.0
+    """bounds = sdsm: the held range grows at once and shrinks only when the visible range is this fraction inside it."""
+    engine_precision: str = "float64"
+    """Cascade math (light matrices, snapping) as csmlab does it, float64 | float32 (an engine's, shimmering far from the origin)."""
 
     def validated(self) -> "ShadowSettings":
         """Return ``self`` after checking every field's range; raise ``ValueError`` naming the field."""
@@ -101,7 +123,7 @@ class ShadowSettings:
             if not ok:
                 raise ValueError(f"{name}: expected {expected}, got {value!r}")
 
-        need(isinstance(self.cascades, int) and 1 <= self.cascades <= 8, "cascades", "an integer in 1..8", self.cascades)
+        need(isinstance(self.cascades, int) and 1 <= self.cascades <= 10, "cascades", "an integer in 1..10", self.cascades)
         need(isinstance(self.resolution, int) and 16 <= self.resolution <= 16384, "resolution",
              "an integer in 16..16384", self.resolution)
         need(0.0 <= self.lambda_ <= 1.0, "lambda", "a value in [0, 1]", self.lambda_)
@@ -149,6 +171,13 @@ class ShadowSettings:
              f"{self.cascades} integers in 16..16384 (one per cascade) or an empty list", self.cascade_resolutions)
         need(isinstance(self.subtexel_bits, int) and 0 <= self.subtexel_bits <= 16, "subtexel_bits",
              "an integer in 0..16", self.subtexel_bits)
+        need(self.distribution_exponent >= 1.0, "distribution_exponent", "a ratio of at least 1",
+             self.distribution_exponent)
+        need(self.first_cascade_far > 0, "first_cascade_far", "a positive distance in metres", self.first_cascade_far)
+        need(self.pancake >= 0, "pancake", "a non-negative distance in metres", self.pancake)
+        need(isinstance(self.depth_clamp, bool), "depth_clamp", "true or false", self.depth_clamp)
+        need(0.0 <= self.fade_out <= 1.0, "fade_out", "a fraction in [0, 1]", self.fade_out)
+        need(0.0 <= self.hysteresis < 1.0, "hysteresis", "a fraction in [0, 1)", self.hysteresis)
         return self
 
     @property

@@ -19,8 +19,20 @@ import numpy as np
 
 from csmlab.cascades import CascadeSet
 
-__all__ = ["fixed_point_coordinates", "fixed_point_origin", "light_depth", "light_plane_coordinates", "light_space",
-           "receiver_lookup", "texel_coordinates"]
+__all__ = ["PRECISION_METHODS", "fixed_point_coordinates", "fixed_point_origin", "light_depth",
+           "light_plane_coordinates", "light_space", "receiver_lookup", "texel_coordinates"]
+
+PRECISION_METHODS: dict[str, str] = {
+    "float64": "global texel coordinates in float64, less an integer origin: world-locked at any distance",
+    "float32": "an engine's float32 light view (eye at the box centre) and projection applied to float32 positions",
+}
+"""How world points reach a cascade's texel grid (``[shadow] engine_precision``), with what each means.
+
+``float32`` emulates an engine that places each cascade's light eye at the box centre and applies
+its view and projection in float32, as a vertex shader does: the eye's rounding depends on where
+the box lies, so far from the origin (10⁶ m: a float32 step of 6 cm) a box moved by whole texels
+moves its texel grid by a fraction of a texel, and the shadow swims although the box is snapped.
+"""
 
 # Global fixed-point values are clipped to ±2**50 so that, less a box origin, doubled and
 # differenced in the rasterizer (which takes ±2**52), they can neither overflow int64 nor lose
@@ -105,14 +117,40 @@ def texel_coordinates(cascades: CascadeSet, index: int, points) -> np.ndarray:
     return _global_texels(cascades, index, points) - cascades.cascades[index].origin
 
 
-def fixed_point_coordinates(cascades: CascadeSet, index: int, points, *, bits: int) -> np.ndarray:
+def _local_texels_float32(cascades: CascadeSet, index: int, points) -> np.ndarray:
+    """Local texel coordinates ``(..., 2)`` as an engine's float32 light view and projection give them.
+
+    The light's eye sits at the (snapped) box centre; the engine stores it as a float32 world
+    position, subtracts it from float32 world positions, rotates into light space and scales to
+    texels, all in float32. Far from the origin the eye's float32 rounding (6 cm at 10⁶ m) differs
+    from one snapped box position to the next, so the texel grid slides by fractions of a texel.
+    """
+    cascade = cascades.cascades[index]
+    half = 0.5 * cascade.resolution
+    centre = np.array([*((cascade.origin + half) * cascade.texel_size), cascade.depth_near])
+    eye = (cascades.basis.T @ centre).astype(np.float32)
+    rows = cascades.basis[:2].astype(np.float32)
+    p = np.asarray(points, dtype=np.float64).astype(np.float32) - eye
+    u = np.einsum("...k,jk->...j", p, rows, dtype=np.float32)
+    u /= cascade.texel_size.astype(np.float32)
+    u += np.float32(half)
+    return u.astype(np.float64)
+
+
+def fixed_point_coordinates(cascades: CascadeSet, index: int, points, *, bits: int,
+                            precision: str = "float64") -> np.ndarray:
     """Snapped local texel coordinates ``(..., 2)`` int64 of world points, in ``2**-bits`` texels.
 
     ``round(u · 2**bits) − round(origin · 2**bits)`` with ``u`` the global texel coordinate
     computed in float64: the same world point gets the same global value whatever the box, so a
     box moved by whole texels shifts the result by an exact integer. Non-finite points give
-    ``-2**50`` less the origin (outside every box).
+    ``-2**50`` less the origin (outside every box). ``precision = "float32"`` rounds the local
+    coordinates of an engine's float32 matrix instead (:data:`PRECISION_METHODS`).
     """
+    if precision == "float32":
+        return _snapped(_local_texels_float32(cascades, index, points) * float(2**bits))
+    if precision != "float64":
+        raise ValueError(f"engine_precision: expected one of {sorted(PRECISION_METHODS)}, got {precision!r}")
     snapped = _snapped(_global_texels(cascades, index, points) * float(2**bits))
     return snapped - fixed_point_origin(cascades, index, bits=bits)
 
@@ -124,7 +162,7 @@ def light_depth(cascades: CascadeSet, points) -> np.ndarray:
 
 
 def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_offset: float, bias_constant: float,
-                    bias_slope: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                    bias_slope: float, precision: str = "float64") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Where receivers look every cascade up: fixed-point coordinates, biased depth, depth slope.
 
     In cascade c the receiver is moved ``normal_offset`` texels along its normal before the
@@ -149,6 +187,9 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
         Sub-texel bits of the fixed-point grid.
     normal_offset, bias_constant, bias_slope : float
         Texels, metres, texels (DESIGN.md ``[shadow]``).
+    precision : str
+        A key of :data:`PRECISION_METHODS`: float32 maps the moved points as an engine's float32
+        matrix does.
 
     Returns
     -------
@@ -187,10 +228,13 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
     for c, cascade in enumerate(cascades.cascades):
         texel = float(np.max(cascade.texel_size))
         offset = normal_offset * texel
-        u = light_n[:, :2] * offset
-        u += light_p[:, :2]
-        u *= scale / cascade.texel_size
-        coordinates[c] = _snapped(u) - fixed_point_origin(cascades, c, bits=bits)
+        if precision == "float32":
+            coordinates[c] = _snapped(_local_texels_float32(cascades, c, p + n * offset) * scale)
+        else:
+            u = light_n[:, :2] * offset
+            u += light_p[:, :2]
+            u *= scale / cascade.texel_size
+            coordinates[c] = _snapped(u) - fixed_point_origin(cascades, c, bits=bits)
         bias = bias_constant + bias_slope * texel * tan
         depth[c] = light_p[:, 2] + offset * light_n[:, 2] - cascades.zref - bias
         slope[c] = plane_slope * cascade.texel_size

@@ -77,7 +77,7 @@ BAD_INPUTS = {
     "malformed TOML": ('[camera]\npath = "walk"\nframes = = 3\n', {}, "exp.toml:3", "valid TOML"),
     "unknown field": (TINY.replace("frames = 3", "frame = 3"), {}, "camera.frame", "did you mean 'frames'"),
     "wrong type": (TINY.replace("frames = 3", 'frames = "3"'), {}, "camera.frames", "an integer"),
-    "out of range": (TINY.replace("cascades = 2", "cascades = 9"), {}, "shadow.cascades", "1..8"),
+    "out of range": (TINY.replace("cascades = 2", "cascades = 11"), {}, "shadow.cascades", "1..10"),
     "unknown scene": (TINY.replace('"plane_box"', '"plane_bx"'), {}, "scene.kind", "plane_box"),
     "unknown path generator": (TINY.replace('"walk"', '"wlak"'), {}, "camera.path", "walk"),
     "unknown method name": (TINY + '[[methods]]\nname = "x"\nstabilization = "exakt"\n', {},
@@ -124,3 +124,41 @@ def test_console_script_entry_point_reports_bad_input_without_traceback(tmp_path
     assert done.returncode == 2
     assert done.stderr.strip().startswith("csmlab: error:") and "camera.path" in done.stderr
     assert "Traceback" not in done.stderr
+
+
+NEW_FIELD_BAD_VALUES = {
+    "distribution_exponent": ("0.5", "a ratio of at least 1"),
+    "first_cascade_far": ("50.0", "below shadow_distance"),
+    "extent": ('"cube"', "sphere"),
+    "snap": ('"corner"', "centre"),
+    "depth_range": ('"light"', "slice"),
+    "pancake": ("-1.0", "non-negative"),
+    "depth_clamp": ('"yes"', "true or false"),
+    "fade_out": ("1.5", "[0, 1]"),
+    "bounds": ('"visible"', "sdsm"),
+    "hysteresis": ("1.0", "[0, 1)"),
+    "engine_precision": ('"float16"', "float32"),
+}
+
+
+@pytest.mark.parametrize("field", list(NEW_FIELD_BAD_VALUES))
+def test_bad_value_of_an_engine_field_exits_2_naming_it(tmp_path, field):
+    value, words = NEW_FIELD_BAD_VALUES[field]
+    split = 'split = "geometric"\n' if field == "first_cascade_far" else ""
+    _, outcome = bad(tmp_path, TINY + f'[[methods]]\nname = "x"\n{split}{field} = {value}\n')
+    assert outcome.exit_code == 2, outcome.output
+    message = outcome.stderr.strip()
+    assert len(message.splitlines()) == 1 and f"methods.x.{field}" in message and words in message, message
+
+
+def test_bad_scene_offset_exits_2_naming_it(tmp_path):
+    _, outcome = bad(tmp_path, TINY.replace('kind = "plane_box"', 'kind = "plane_box"\noffset = [1.0, 2.0]'))
+    assert outcome.exit_code == 2 and "scene.offset" in outcome.stderr and "3 numbers" in outcome.stderr
+
+
+def test_list_names_every_engine_choice():
+    outcome = invoke("list")
+    assert outcome.exit_code == 0
+    for name in ("exponent", "geometric", "diagonal", "centre", "sdsm", "float32", "engines/ue5", "seeds/ogldev49",
+                 "hard_far_origin"):
+        assert name in outcome.stdout, name

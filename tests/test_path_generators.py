@@ -155,7 +155,7 @@ def test_make_path_sets_the_projection():
 
 
 @pytest.mark.parametrize("name, kwargs, message", [
-    ("spiral", {}, r"path: expected one of \['dolly', 'dueling', 'flyover', 'jitter', 'orbit', 'pan', 'walk'\]"),
+    ("spiral", {}, r"path: expected one of \['dolly', 'dueling', 'flyover', 'jitter', 'orbit', 'pan', 'walk', 'zoom'\]"),
     ("walk", {"radus": 3.0}, r"walk: unknown parameter\(s\) \['radus'\]; expected some of .*'radius'"),
     ("walk", {"frames": 0}, "frames: expected a whole number ≥ 1"),
     ("pan", {"fps": 0.0}, "fps: expected a positive frame rate"),
@@ -167,3 +167,11 @@ def test_make_path_refuses_bad_arguments_naming_them(name, kwargs, message):
     kwargs = {"frames": 10, **kwargs}
     with pytest.raises(ValueError, match=message):
         make_path(name, **kwargs)
+
+
+def test_zoom_narrows_the_field_of_view_geometrically():
+    # Magnification zoom^s: at s = 1/2 with zoom 4, tan(fov/2) is halved; at the end quartered.
+    path = make_path("zoom", frames=3, fps=1.0, fov_y_deg=60.0, zoom=4.0)
+    t = np.tan(np.radians(path.fov_y_deg) / 2.0)
+    np.testing.assert_allclose(t / np.tan(np.radians(30.0)), [1.0, 0.5, 0.25], rtol=1e-12)
+    assert np.all(np.diff(path.positions[:, 2]) < 0)

@@ -43,10 +43,44 @@ def test_manual_rejects_bad_lists(splits, match):
 def test_unknown_scheme_lists_the_valid_ones():
     with pytest.raises(ValueError, match="practical"):
         split_distances(near=0.1, far=100.0, count=3, method="pssm")
-    assert set(SPLIT_METHODS) == {"uniform", "log", "practical", "manual"}
+    assert set(SPLIT_METHODS) == {"uniform", "log", "practical", "manual", "exponent", "geometric"}
 
 
 @pytest.mark.parametrize("near, far", [(0.0, 100.0), (-1.0, 100.0), (5.0, 5.0), (5.0, 1.0)])
 def test_bad_planes_name_the_field(near, far):
     with pytest.raises(ValueError, match="near|shadow_distance"):
         split_distances(near=near, far=far, count=4)
+
+
+def test_exponent_is_unreals_geometric_series():
+    """FDirectionalLightSceneProxy::GetSplitDistance: each cascade CascadeDistributionExponent times deeper.
+
+    Hand-worked: n = 1, f = 15, C = 3, e = 2 → (2^i − 1)/(2^3 − 1) = 0, 1/7, 3/7, 1 → 1, 3, 7, 15 m.
+    """
+    np.testing.assert_allclose(split_distances(near=1.0, far=15.0, count=3, method="exponent",
+                                               distribution_exponent=2.0), [1.0, 3.0, 7.0, 15.0], rtol=1e-12)
+    # Unreal's defaults (DirectionalLightComponent.h): DynamicShadowCascades = 3,
+    # CascadeDistributionExponent = 3.0, DynamicShadowDistanceMovableLight = 20000 cm; near 0.1 m.
+    z = split_distances(near=0.1, far=200.0, count=3, method="exponent", distribution_exponent=3.0)
+    np.testing.assert_allclose(z, [0.1, 0.1 + 199.9 / 13, 0.1 + 199.9 * 4 / 13, 200.0], rtol=1e-12)
+    np.testing.assert_allclose(split_distances(near=0.1, far=50.0, count=4, method="exponent", distribution_exponent=1.0),
+                               split_distances(near=0.1, far=50.0, count=4, method="uniform"), rtol=1e-12)
+
+
+def test_geometric_is_bevys_first_bound_then_geometric_spacing():
+    """bevy_light cascade.rs calculate_cascade_bounds: bound_i = b · ((max / b)^(1/(C−1)))^i.
+
+    CascadeShadowConfigBuilder::default(): num_cascades 4, minimum_distance 0.1, maximum_distance 150,
+    first_cascade_far_bound 10, overlap_proportion 0.2. Base = 15^(1/3).
+    """
+    base = 15.0 ** (1.0 / 3.0)
+    z = split_distances(near=0.1, far=150.0, count=4, method="geometric", first_cascade_far=10.0)
+    np.testing.assert_allclose(z, [0.1, 10.0, 10.0 * base, 10.0 * base * base, 150.0], rtol=1e-12)
+    np.testing.assert_allclose(split_distances(near=0.1, far=150.0, count=1, method="geometric"), [0.1, 150.0])
+    with pytest.raises(ValueError, match="first_cascade_far"):
+        split_distances(near=0.1, far=8.0, count=4, method="geometric", first_cascade_far=10.0)
+
+
+def test_ten_cascades_are_accepted():
+    z = split_distances(near=0.1, far=500.0, count=10, method="exponent", distribution_exponent=1.5)
+    assert z.shape == (11,) and np.all(np.diff(z) > 0)

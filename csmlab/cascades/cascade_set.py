@@ -11,10 +11,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from csmlab.camera import CameraPose
+from csmlab.cascades.bounds import DEPTH_RANGE_METHODS, split_range
+from csmlab.cascades.extent import EXTENT_METHODS, radius_rounded_up
 from csmlab.cascades.fit import slice_intervals
 from csmlab.cascades.splits import split_distances
 from csmlab.cascades.stabilize import SliceFootprint, stabilize
-from csmlab.geometry import frustum_slice_corners, light_basis, slice_bounding_sphere
+from csmlab.geometry import frustum_slice_corners, light_basis
 from csmlab.settings import ShadowSettings
 
 __all__ = ["Cascade", "CascadeSet", "build_cascades", "radius_rounded_up"]
@@ -103,13 +105,8 @@ class CascadeSet:
         return np.asarray(points, dtype=np.float64) @ self.basis.T
 
 
-def radius_rounded_up(radius: float, *, bits: int = 12) -> float:
-    """``radius`` rounded up to a multiple of ``2^(floor(log2 r) - bits)`` so float noise cannot change it."""
-    quantum = np.ldexp(1.0, int(np.floor(np.log2(radius))) - bits)
-    return float(np.ceil(radius / quantum) * quantum)
-
-
-def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings: ShadowSettings) -> CascadeSet:
+def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings: ShadowSettings,
+                   visible_depth: tuple[float, float] | None = None) -> CascadeSet:
     """The cascades of one frame, as an engine computes them on the CPU.
 
     Parameters
@@ -122,6 +119,9 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
         Points bounding every shadow caster (e.g. the eight corners of the scene's bounds), metres.
     settings : ShadowSettings
         Split scheme, fit, stabilization and resolution.
+    visible_depth : (float, float), optional
+        ``bounds = "sdsm"``: the view-depth range ``(z_min, z_max)`` in metres the splits divide (the
+        frame's G-buffer range, or the held range with hysteresis); ignored with ``bounds = "frustum"``.
 
     Returns
     -------
@@ -130,30 +130,39 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
     settings.validated()
     basis = light_basis(light_direction)
     scene_light = np.asarray(scene_corners, dtype=np.float64).reshape(-1, 3) @ basis.T
-    far = min(settings.shadow_distance, pose.far)
-    splits = split_distances(near=pose.near, far=far, count=settings.cascades, method=settings.split,
-                             lambda_=settings.lambda_, splits=settings.splits)
+    near, far = split_range(near=pose.near, far=min(settings.shadow_distance, pose.far), visible=visible_depth,
+                            method=settings.bounds)
+    splits = split_distances(near=near, far=far, count=settings.cascades, method=settings.split,
+                             lambda_=settings.lambda_, splits=settings.splits,
+                             distribution_exponent=settings.distribution_exponent,
+                             first_cascade_far=settings.first_cascade_far)
     intervals = slice_intervals(splits, method=settings.fit, blend_band=settings.blend_band)
-    frustum_light = _slice_light_corners(pose, basis, pose.near, far)
+    frustum_light = _slice_light_corners(pose, basis, near, far)
     frustum_extent = frustum_light[:, :2].max(axis=0) - frustum_light[:, :2].min(axis=0)
     margin = settings.margin_texels
+    if settings.extent not in EXTENT_METHODS:
+        raise ValueError(f"extent: expected one of {sorted(EXTENT_METHODS)}, got {settings.extent!r}")
+    if settings.depth_range not in DEPTH_RANGE_METHODS:
+        raise ValueError(f"depth_range: expected one of {sorted(DEPTH_RANGE_METHODS)}, got {settings.depth_range!r}")
 
     cascades = []
     for i, (z0, z1) in enumerate(intervals):
         corners = _slice_light_corners(pose, basis, z0, z1)
-        sphere = slice_bounding_sphere(fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, z_near=z0, z_far=z1)
-        centre = basis @ (pose.position + pose.forward * sphere.centre_depth)
-        footprint = SliceFootprint(
-            lo=corners[:, :2].min(axis=0), hi=corners[:, :2].max(axis=0), centre=centre[:2],
-            radius=radius_rounded_up(sphere.radius), frustum_extent=frustum_extent,
-        )
+        centre, radius = EXTENT_METHODS[settings.extent](pose=pose, basis=basis, z_near=z0, z_far=z1, corners=corners)
+        footprint = SliceFootprint(lo=corners[:, :2].min(axis=0), hi=corners[:, :2].max(axis=0), centre=centre,
+                                   radius=radius, frustum_extent=frustum_extent)
         resolution = settings.cascade_resolutions[i] if settings.cascade_resolutions else settings.resolution
         texel, origin = stabilize(footprint, method=settings.stabilization, resolution=resolution,
-                                  margin=margin, levels=settings.levels, quantized_base=settings.quantized_base)
-        # The near side is pushed toward the light to the scene's bounds ("pancaking"), so every
-        # caster in the box's x/y range is captured whatever the slice's own depth range is.
-        depth_near = float(min(corners[:, 2].min(), scene_light[:, 2].min()))
-        depth_far = float(max(corners[:, 2].max(), scene_light[:, 2].max()))
+                                  margin=margin, levels=settings.levels, quantized_base=settings.quantized_base,
+                                  snap=settings.snap)
+        if settings.depth_range == "scene":
+            # The near side is pushed toward the light to the scene's bounds, so every caster in the
+            # box's x/y range is captured whatever the slice's own depth range is.
+            depth_near = float(min(corners[:, 2].min(), scene_light[:, 2].min()))
+            depth_far = float(max(corners[:, 2].max(), scene_light[:, 2].max()))
+        else:
+            depth_near = float(corners[:, 2].min() - settings.pancake)
+            depth_far = float(corners[:, 2].max())
         cascades.append(Cascade(
             split_near=float(splits[i]), split_far=float(splits[i + 1]), slice_near=float(z0), slice_far=float(z1),
             texel_size=texel, origin=origin, resolution=resolution, depth_near=depth_near,

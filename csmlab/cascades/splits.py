@@ -1,7 +1,9 @@
 """Split schemes: where along the view depth each cascade ends.
 
 References: NVIDIA, "Cascaded Shadow Maps" (2007), seed 000 — the logarithmic and practical
-(PSSM) schemes; Zhang et al., "Practical Cascaded Shadow Maps", seed 003.
+(PSSM) schemes; Zhang et al., "Practical Cascaded Shadow Maps", seed 003; Unreal Engine
+``FDirectionalLightSceneProxy::GetSplitDistance`` (``CascadeDistributionExponent``); Bevy
+``bevy_light/src/cascade.rs`` ``calculate_cascade_bounds`` (``first_cascade_far_bound``).
 
 Every scheme returns the ``C + 1`` boundaries ``z_0 = n < z_1 < … < z_C = f`` in metres of
 view depth. Schemes are registered by name in :data:`SPLIT_METHODS`; :func:`split_distances`
@@ -14,7 +16,8 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["SPLIT_METHODS", "split_distances", "splits_log", "splits_manual", "splits_practical", "splits_uniform"]
+__all__ = ["SPLIT_METHODS", "split_distances", "splits_exponent", "splits_geometric", "splits_log", "splits_manual",
+           "splits_practical", "splits_uniform"]
 
 
 def splits_uniform(*, near: float, far: float, count: int, **_unused) -> np.ndarray:
@@ -55,17 +58,51 @@ def splits_manual(*, near: float, far: float, count: int, splits=(), **_unused) 
     return z
 
 
+def splits_exponent(*, near: float, far: float, count: int, distribution_exponent: float = 3.0,
+                    **_unused) -> np.ndarray:
+    """Unreal's distribution exponent: each cascade ``e`` times deeper than the one before.
+
+    ``z_i = n + (f - n) (e^i - 1) / (e^C - 1)``, the geometric series of
+    ``FDirectionalLightSceneProxy::GetSplitDistance`` (``CascadeDistributionExponent``, default
+    3); ``e = 1`` is the uniform scheme.
+    """
+    i = np.arange(count + 1, dtype=np.float64)
+    e = float(distribution_exponent)
+    if e == 1.0:
+        return splits_uniform(near=near, far=far, count=count)
+    return near + (far - near) * np.expm1(i * np.log(e)) / np.expm1(count * np.log(e))
+
+
+def splits_geometric(*, near: float, far: float, count: int, first_cascade_far: float = 10.0,
+                     **_unused) -> np.ndarray:
+    """Bevy's bounds: the first cascade ends at ``b``, the others spaced geometrically up to ``f``.
+
+    ``z_0 = n``, ``z_i = b (f / b)^((i - 1) / (C - 1))`` for ``i ≥ 1`` (``calculate_cascade_bounds``
+    of ``bevy_light``, ``first_cascade_far_bound``); one cascade spans ``[n, f]``.
+    """
+    if count == 1:
+        return np.array([near, far], dtype=np.float64)
+    b = float(first_cascade_far)
+    if not near < b < far:
+        raise ValueError(f"first_cascade_far: expected a distance between near ({near} m) and the shadow distance "
+                         f"({far} m), got {b}")
+    i = np.arange(count, dtype=np.float64)
+    return np.concatenate([[near], b * (far / b) ** (i / (count - 1))])
+
+
 SPLIT_METHODS: dict[str, Callable[..., np.ndarray]] = {
     "uniform": splits_uniform,
     "log": splits_log,
     "practical": splits_practical,
     "manual": splits_manual,
+    "exponent": splits_exponent,
+    "geometric": splits_geometric,
 }
 """Split schemes by name; add an entry to register a new one."""
 
 
 def split_distances(*, near: float, far: float, count: int, method: str = "practical", lambda_: float = 0.75,
-                    splits=()) -> np.ndarray:
+                    splits=(), distribution_exponent: float = 3.0, first_cascade_far: float = 10.0) -> np.ndarray:
     """Cascade boundaries ``(count + 1,)`` in metres of view depth from ``near`` to ``far``.
 
     Parameters
@@ -80,6 +117,10 @@ def split_distances(*, near: float, far: float, count: int, method: str = "pract
         practical: weight of the log scheme.
     splits : sequence of float
         manual: far ends (metres, or fractions of ``far``).
+    distribution_exponent : float
+        exponent: depth ratio of consecutive cascades (Unreal).
+    first_cascade_far : float
+        geometric: far end of the first cascade, metres (Bevy).
     """
     if method not in SPLIT_METHODS:
         raise ValueError(f"split: expected one of {sorted(SPLIT_METHODS)}, got {method!r}")
@@ -89,6 +130,7 @@ def split_distances(*, near: float, far: float, count: int, method: str = "pract
         raise ValueError(f"shadow_distance: expected a distance greater than near ({near} m), got {far}")
     if count < 1:
         raise ValueError(f"cascades: expected at least 1, got {count}")
-    z = SPLIT_METHODS[method](near=near, far=far, count=count, lambda_=lambda_, splits=splits)
+    z = SPLIT_METHODS[method](near=near, far=far, count=count, lambda_=lambda_, splits=splits,
+                              distribution_exponent=distribution_exponent, first_cascade_far=first_cascade_far)
     z[0], z[-1] = near, far
     return z

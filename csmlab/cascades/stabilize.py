@@ -19,7 +19,7 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["STABILIZATION_METHODS", "SliceFootprint", "stabilize", "stabilize_exact", "stabilize_none",
+__all__ = ["SNAP_METHODS", "STABILIZATION_METHODS", "SliceFootprint", "stabilize", "stabilize_exact", "stabilize_none",
            "stabilize_quantized"]
 
 
@@ -53,17 +53,47 @@ def stabilize_none(fp: SliceFootprint, *, resolution: int, margin: int, **_unuse
     return texel, fp.lo / texel - margin
 
 
-def stabilize_exact(fp: SliceFootprint, *, resolution: int, margin: int, **_unused) -> tuple[np.ndarray, np.ndarray]:
-    """Bounding-sphere box: fixed extent ``2r``, origin an integer texel index.
+def snap_origin(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[np.ndarray, np.ndarray]:
+    """The box's minimum corner floored to whole texels (Valient; DirectX CSM11; Unreal).
 
-    The texel size depends on the (quantum-rounded) radius only, so it is bit-identical from
-    frame to frame; flooring the origin to a whole texel makes the texel grid fixed in the world.
-    One extra texel leaves room for the snap.
+    ``t = 2r / (R - 2m - 1)``: one spare texel leaves room for the snap.
     """
     t = 2.0 * fp.radius / (resolution - 2 * margin - 1)
     texel = np.array([t, t])
-    origin = np.floor((fp.centre - fp.radius) / texel) - margin
-    return texel, origin
+    return texel, np.floor((fp.centre - fp.radius) / texel) - margin
+
+
+def snap_centre(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[np.ndarray, np.ndarray]:
+    """The box's centre floored to whole texels and the box laid around it (Bevy, three.js; Stride view snapping).
+
+    With ``h = floor(R / 2)`` the box spans ``[k - h, k - h + R)`` texels around the snapped centre
+    ``k = floor(c / t)``; ``t = 2r / (2 (h - m - 1))`` keeps the sphere and the margins inside on
+    both sides whatever ``c - k t ∈ [0, t)`` is.
+    """
+    half = resolution // 2
+    t = fp.radius / (half - margin - 1)
+    texel = np.array([t, t])
+    return texel, np.floor(fp.centre / texel) - half
+
+
+SNAP_METHODS: dict[str, Callable[..., tuple[np.ndarray, np.ndarray]]] = {
+    "origin": snap_origin,
+    "centre": snap_centre,
+}
+"""What exact snaps to whole texels, by name: ``f(footprint, *, resolution, margin) -> (texel, origin)``."""
+
+
+def stabilize_exact(fp: SliceFootprint, *, resolution: int, margin: int, snap: str = "origin",
+                    **_unused) -> tuple[np.ndarray, np.ndarray]:
+    """Fixed-extent box: diameter ``2r`` (sphere or diagonal), origin an integer texel index.
+
+    The texel size depends on the (bit-stable) radius only, so it is bit-identical from frame to
+    frame; snapping the origin (``snap = "origin"``) or the centre (``"centre"``) to whole texels
+    (:data:`SNAP_METHODS`) makes the texel grid fixed in the world.
+    """
+    if snap not in SNAP_METHODS:
+        raise ValueError(f"snap: expected one of {sorted(SNAP_METHODS)}, got {snap!r}")
+    return SNAP_METHODS[snap](fp, resolution=resolution, margin=margin)
 
 
 def stabilize_quantized(fp: SliceFootprint, *, resolution: int, margin: int, levels: int = 64,
@@ -92,11 +122,11 @@ STABILIZATION_METHODS: dict[str, Callable[..., tuple[np.ndarray, np.ndarray]]] =
     "exact": stabilize_exact,
     "quantized": stabilize_quantized,
 }
-"""Stabilization methods by name: ``f(footprint, *, resolution, margin, levels, quantized_base)``."""
+"""Stabilization methods by name: ``f(footprint, *, resolution, margin, levels, quantized_base, snap)``."""
 
 
 def stabilize(fp: SliceFootprint, *, method: str, resolution: int, margin: int, levels: int = 64,
-              quantized_base: str = "sphere") -> tuple[np.ndarray, np.ndarray]:
+              quantized_base: str = "sphere", snap: str = "origin") -> tuple[np.ndarray, np.ndarray]:
     """Texel size ``(2,)`` in metres and box origin ``(2,)`` in texels of one cascade.
 
     Raises
@@ -107,7 +137,7 @@ def stabilize(fp: SliceFootprint, *, method: str, resolution: int, margin: int, 
     """
     if method not in STABILIZATION_METHODS:
         raise ValueError(f"stabilization: expected one of {sorted(STABILIZATION_METHODS)}, got {method!r}")
-    if resolution - 2 * margin - 1 < 1:
-        raise ValueError(f"resolution: expected more than {2 * margin + 1} texels for a {margin}-texel margin, got {resolution}")
+    if resolution - 2 * margin - 3 < 1:
+        raise ValueError(f"resolution: expected more than {2 * margin + 3} texels for a {margin}-texel margin, got {resolution}")
     return STABILIZATION_METHODS[method](fp, resolution=resolution, margin=margin, levels=levels,
-                                         quantized_base=quantized_base)
+                                         quantized_base=quantized_base, snap=snap)

@@ -14,6 +14,7 @@ walk        walks the ring at eye height with head bob, sway and slow look-aroun
 flyover     crosses the scene 40 m up, looking down 35°
 jitter      stands on the ring; random sub-texel moves (~1 mm) and turns (~0.01°) each frame
 dueling     faces the light (the sun's horizontal direction) while drifting along the ring
+zoom        a slow dolly along the ring while the field of view narrows (a scope or cinematic zoom)
 ==========  ================================================================================
 
 Every generator takes ``frames`` (≥ 1) and ``fps`` (Hz) and returns frame ``i`` at time
@@ -45,6 +46,7 @@ __all__ = [
     "orbit_path",
     "pan_path",
     "walk_path",
+    "zoom_path",
 ]
 
 
@@ -331,6 +333,33 @@ def dueling_path(*, frames: int, fps: float = 30.0, light_direction=None, radius
     return _camera_path("dueling", t, positions, yaw_deg=yaw, pitch_deg=pitch_deg)
 
 
+def zoom_path(*, frames: int, fps: float = 30.0, fov_y_deg: float = 60.0, zoom: float = 4.0,
+              start=(19.0, 1.7, 6.0), heading_deg: float = 0.0, speed: float = 0.5,
+              pitch_deg: float = -5.0) -> CameraPath:
+    """A slow dolly whose field of view narrows: magnification 1 at the first frame, ``zoom`` at the last.
+
+    The magnification grows geometrically, ``m(s) = zoom^s`` for ``s`` from 0 to 1 over the run,
+    and ``fov(s) = 2 atan(tan(fov_y_deg / 2) / m(s))`` — every cascade's slice narrows with it, the
+    case that makes fixed-extent (sphere) methods waste the most and refitting ones swim.
+
+    Parameters
+    ----------
+    fov_y_deg : float
+        The camera's field of view at magnification 1, degrees (``[camera] fov_y_deg``).
+    zoom : float
+        Magnification at the last frame (> 0; below 1 zooms out).
+    start, heading_deg, speed, pitch_deg
+        As :func:`dolly_path`.
+    """
+    t = _frame_times(frames, fps)
+    _positive(zoom=zoom)
+    _finite(fov_y_deg=fov_y_deg, heading_deg=heading_deg, speed=speed, pitch_deg=pitch_deg)
+    path = dolly_path(frames=frames, fps=fps, start=start, heading_deg=heading_deg, speed=speed, pitch_deg=pitch_deg)
+    s = t / t[-1] if t[-1] > 0 else np.zeros_like(t)
+    fov = 2.0 * np.degrees(np.arctan(np.tan(np.radians(fov_y_deg) / 2.0) / zoom ** s))
+    return dataclasses.replace(path, fov_y_deg=fov, name="zoom")
+
+
 PATH_GENERATORS: dict[str, Callable[..., CameraPath]] = {
     "dolly": dolly_path,
     "pan": pan_path,
@@ -339,6 +368,7 @@ PATH_GENERATORS: dict[str, Callable[..., CameraPath]] = {
     "flyover": flyover_path,
     "jitter": jitter_path,
     "dueling": dueling_path,
+    "zoom": zoom_path,
 }
 """Path generators by name; add an entry to register a new one."""
 
@@ -376,7 +406,9 @@ def make_path(name: str, *, frames: int, fps: float = 30.0, seed: int = 1, fov_y
     unknown = sorted(set(params) - accepted)
     if unknown:
         raise ValueError(f"{name}: unknown parameter(s) {unknown}; expected some of {sorted(accepted)}")
-    shared = {"seed": seed, "light_direction": light_direction}
+    shared = {"seed": seed, "light_direction": light_direction, "fov_y_deg": fov_y_deg}
     params.update({key: value for key, value in shared.items() if key in accepted})
     path = generator(frames=frames, fps=fps, **params)
-    return dataclasses.replace(path, fov_y_deg=fov_y_deg, aspect=aspect, near=near, far=far)
+    # A generator that takes the field of view animates it (zoom); the others get it as it is.
+    fov = path.fov_y_deg if "fov_y_deg" in accepted else fov_y_deg
+    return dataclasses.replace(path, fov_y_deg=fov, aspect=aspect, near=near, far=far)

@@ -126,6 +126,8 @@ def stabilization_figure(cascades: Columns, *, point: str, methods: list[str], p
         rows = rows_of_point.where(rows_of_point["method"] == method)
         for c in range(count):
             one = rows.where(rows["cascade"] == c)
+            if len(one["frame"]) == 0:
+                continue  # this method has fewer cascades than the widest one
             one = one.where(np.argsort(one["frame"], kind="stable"))
             colour = CATEGORY_COLOURS[c % len(CATEGORY_COLOURS)]
             for axis, style in (("x", "-"), ("y", "--")):

@@ -1,0 +1,107 @@
+"""The ranges a frame's cascades divide and cover: view depth (SDSM, hysteresis) and light depth (pancaking).
+
+View depth, :data:`BOUNDS_METHODS` (``[shadow] bounds``):
+
+- ``frustum`` — the splits divide ``[near, shadow_distance]`` of the camera, every frame the same.
+- ``sdsm`` — sample distribution shadow maps (Lauritzen, Salvi, Lefohn, I3D 2011): the splits
+  divide the frame's *visible* depth range, the minimum and maximum view depth of the G-buffer
+  (clamped to ``[near, shadow_distance]``). Tight, but every change of that range moves every split
+  and every box: the "flashing" SDSM is known for. Stride's automatic depth range does the same
+  (``LightDirectionalShadowMapRenderer.ComputeCascadeSplits``, ``DepthRange.IsAutomatic``, default on).
+  With ``hysteresis = h`` the range is *held* (:func:`held_depth_ranges`): it grows at once and
+  shrinks only when the visible range lies a fraction ``h`` inside it.
+
+Light depth, :data:`DEPTH_RANGE_METHODS` (``[shadow] depth_range``), the box's extent along the light:
+
+- ``scene`` — the near side pushed toward the light to the scene's bounds (NVIDIA's z-range
+  extension, seed 000; DirectX CSM11's near/far from the scene AABB, seed 002): every caster is in.
+- ``slice`` — the slice's own depth range, its near side pulled ``pancake`` metres toward the light
+  (Godot ``directional_shadow_pancake_size``, default 20; ogldev tutorial 49, seed 001, uses 0).
+  Casters nearer than that are flattened onto it (``depth_clamp``: pancaking, Godot, Unreal, Bevy's
+  unclipped depth) or clipped away (their shadows lost).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["BOUNDS_METHODS", "DEPTH_RANGE_METHODS", "held_depth_ranges", "split_range", "visible_depth_range"]
+
+BOUNDS_METHODS: dict[str, str] = {
+    "frustum": "the splits divide [near, shadow_distance] of the camera",
+    "sdsm": "the splits divide the frame's visible depth range from the G-buffer (sample distribution shadow maps)",
+}
+"""View-depth ranges the splits divide, by name, with what each means."""
+
+DEPTH_RANGE_METHODS: dict[str, str] = {
+    "scene": "box near side pushed toward the light to the scene bounds (every caster captured)",
+    "slice": "box depth from the slice only, near side pulled `pancake` metres toward the light",
+}
+"""Light-depth ranges of a cascade's box, by name, with what each means."""
+
+
+def visible_depth_range(view_depth) -> tuple[float, float] | None:
+    """Minimum and maximum finite view depth ``(z_min, z_max)`` in metres of a G-buffer; None if nothing is visible.
+
+    Parameters
+    ----------
+    view_depth : array_like, shape (H, W)
+        ``-z_view`` of every pixel's hit, metres; +inf (or NaN) where the ray missed.
+    """
+    z = np.asarray(view_depth, dtype=np.float64)
+    z = z[np.isfinite(z)]
+    if z.size == 0:
+        return None
+    return float(z.min()), float(z.max())
+
+
+def held_depth_ranges(ranges, *, hysteresis: float) -> np.ndarray:
+    """The range an SDSM with hysteresis uses in each frame, from the visible range of every frame so far.
+
+    Frame 0 holds its own visible range. Later, the held far end grows at once to a farther visible
+    far end and falls to it only when it lies below ``(1 - h)`` of the held one; the held near end
+    falls at once and grows to the visible near end only when that lies beyond ``held / (1 - h)``.
+    ``h = 0`` gives the visible ranges themselves.
+
+    Parameters
+    ----------
+    ranges : array_like, shape (N, 2)
+        Visible ``(z_min, z_max)`` per frame in metres; NaN rows (nothing visible) keep the held range.
+    hysteresis : float
+        ``h`` in ``[0, 1)``.
+
+    Returns
+    -------
+    ndarray, shape (N, 2), float64
+    """
+    r = np.asarray(ranges, dtype=np.float64).reshape(-1, 2)
+    if not 0.0 <= hysteresis < 1.0:
+        raise ValueError(f"hysteresis: expected a fraction in [0, 1), got {hysteresis}")
+    keep = 1.0 - hysteresis
+    out = r.copy()
+    for i in range(1, r.shape[0]):
+        lo, hi = out[i - 1]
+        z0, z1 = r[i]
+        if np.isnan(z0) or np.isnan(lo):
+            out[i] = out[i - 1] if np.isnan(z0) else r[i]
+            continue
+        out[i, 1] = z1 if (z1 > hi or z1 < keep * hi) else hi
+        out[i, 0] = z0 if (z0 < lo or keep * z0 > lo) else lo
+    return out
+
+
+def split_range(*, near: float, far: float, visible: tuple[float, float] | None, method: str) -> tuple[float, float]:
+    """The view-depth interval ``(n, f)`` in metres that the splits divide.
+
+    ``frustum`` gives ``(near, far)``; ``sdsm`` the visible range clamped into it (the whole of it
+    when nothing is visible, and at least a millimetre deep).
+    """
+    if method not in BOUNDS_METHODS:
+        raise ValueError(f"bounds: expected one of {sorted(BOUNDS_METHODS)}, got {method!r}")
+    if method == "frustum" or visible is None or not np.all(np.isfinite(visible)):
+        return near, far
+    lo = float(np.clip(visible[0], near, far))
+    hi = float(np.clip(visible[1], near, far))
+    if hi - lo < 1e-3:
+        return (lo, lo + 1e-3) if lo + 1e-3 <= far else (far - 1e-3, far)
+    return lo, hi

@@ -1,0 +1,66 @@
+"""The fixed box diameter of a world-locked cascade, and the light-space point it is centred on.
+
+A stabilized cascade keeps one extent for as long as its slice does not change, so that its texel
+size is bit-identical from frame to frame. Engines take it from different shapes of the slice
+(registered in :data:`EXTENT_METHODS`, chosen by ``[shadow] extent``):
+
+- ``sphere`` — the slice's smallest bounding sphere (Valient, ShaderX6; seed 003 listing 4.1.1;
+  Unreal, Unity, Godot): diameter ``2r``, centred on the sphere's centre.
+- ``diagonal`` — the larger of the slice's body diagonal (near corner to opposite far corner) and
+  far-plane diagonal, rounded up to whole metres, centred on the slice's light-space AABB (Bevy
+  ``bevy_light/src/cascade.rs`` ``calculate_cascade``; three.js ``examples/jsm/csm/CSM.js``
+  ``updateShadowBounds``, which skips the rounding).
+
+Both depend on the projection and the slice's depths only, never on the camera's position or
+orientation.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from csmlab.camera import CameraPose
+from csmlab.geometry import slice_bounding_sphere
+
+__all__ = ["EXTENT_METHODS", "extent_diagonal", "extent_sphere", "radius_rounded_up"]
+
+
+def radius_rounded_up(radius: float, *, bits: int = 12) -> float:
+    """``radius`` rounded up to a multiple of ``2^(floor(log2 r) - bits)`` so float noise cannot change it."""
+    quantum = np.ldexp(1.0, int(np.floor(np.log2(radius))) - bits)
+    return float(np.ceil(radius / quantum) * quantum)
+
+
+def extent_sphere(*, pose: CameraPose, basis: np.ndarray, z_near: float, z_far: float,
+                  corners: np.ndarray) -> tuple[np.ndarray, float]:
+    """Centre x/y ``(2,)`` in light-space metres and radius (metres, rounded up to a 2^-12 quantum) of the bounding sphere."""
+    sphere = slice_bounding_sphere(fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, z_near=z_near, z_far=z_far)
+    centre = basis @ (pose.position + pose.forward * sphere.centre_depth)
+    return centre[:2], radius_rounded_up(sphere.radius)
+
+
+def extent_diagonal(*, pose: CameraPose, basis: np.ndarray, z_near: float, z_far: float,
+                    corners: np.ndarray) -> tuple[np.ndarray, float]:
+    """Centre x/y ``(2,)`` of the slice's light-space AABB and half of ``ceil(max(body, far diagonal))`` metres.
+
+    With half-extents ``(x, y) = z (tan(fov_x/2), tan(fov_y/2))`` at view depth ``z``, the body
+    diagonal is ``sqrt((x_n + x_f)² + (y_n + y_f)² + (z_f - z_n)²)`` and the far-plane diagonal
+    ``2 sqrt(x_f² + y_f²)``.
+    """
+    ty = np.tan(np.radians(pose.fov_y_deg) / 2.0)
+    tx = ty * pose.aspect
+    xn, yn, xf, yf = z_near * tx, z_near * ty, z_far * tx, z_far * ty
+    body = np.sqrt((xn + xf) ** 2 + (yn + yf) ** 2 + (z_far - z_near) ** 2)
+    far_plane = 2.0 * np.hypot(xf, yf)
+    diameter = float(np.ceil(max(body, far_plane)))
+    lo, hi = corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)
+    return 0.5 * (lo + hi), 0.5 * diameter
+
+
+EXTENT_METHODS: dict[str, Callable[..., tuple[np.ndarray, float]]] = {
+    "sphere": extent_sphere,
+    "diagonal": extent_diagonal,
+}
+"""Fixed-extent shapes by name: ``f(*, pose, basis, z_near, z_far, corners) -> (centre_xy, radius)``."""
