@@ -83,6 +83,8 @@ class Job:
     held_depths : dict of (method, point) to ndarray, shape (N, 2)
         SDSM with hysteresis: the held view-depth range of every frame (computed once over the whole
         path, so that no chunk depends on where the path was cut).
+    held_extents : dict of (method, point) to ndarray, shape (N, C, 2)
+        Extent hysteresis: each tight box's held size in every frame (computed once, likewise).
     """
 
     workload: Workload
@@ -90,6 +92,7 @@ class Job:
     snapshot_frames: frozenset
     device: str
     held_depths: dict = dataclasses.field(default_factory=dict)
+    held_extents: dict = dataclasses.field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -321,8 +324,10 @@ def run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
         for variant in job.variants:
             key = (variant.method, variant.point)
             held = job.held_depths.get(key)
+            extents = job.held_extents.get(key)
             frame = render_shadow(scene, view, variant.settings,
-                                  visible_depth=None if held is None else tuple(held[index]))
+                                  visible_depth=None if held is None else tuple(held[index]),
+                                  held_extents=None if extents is None else extents[index])
             if counted:
                 began = time.perf_counter()
                 measures = measure_frame(frame, previous.get(key), device=job.device)
@@ -352,6 +357,36 @@ def _held_depths(workload: Workload, variants, *, device: str) -> dict:
     ranges = np.array([visible_depth(scene, workload.path.pose(i), width=workload.width, height=workload.height)
                        or (np.nan, np.nan) for i in range(len(workload.path))], dtype=np.float64)
     return {(v.method, v.point): held_depth_ranges(ranges, hysteresis=v.settings.hysteresis) for v in wanted}
+
+
+def _held_extents(workload: Workload, variants, held_depths: dict, *, device: str) -> dict:
+    """Per variant with extent hysteresis, its tight boxes' held sizes ``(N, C, 2)`` over the whole path.
+
+    Like :func:`_held_depths`, computed before the chunks run from every frame's tight extents (host
+    math; an SDSM variant's split range read from its held range or the frame's G-buffer).
+    """
+    from csmlab.cascades import tight_extents
+    from csmlab.cascades.stabilize import held_extents
+    from csmlab.render import visible_depth
+
+    wanted = [v for v in variants if v.settings.extent_hysteresis > 0.0]
+    if not wanted:
+        return {}
+    ranges = None
+    out = {}
+    for v in wanted:
+        depths = held_depths.get((v.method, v.point))
+        if v.settings.bounds == "sdsm" and depths is None:
+            if ranges is None:
+                scene = _prepared_scene(Job(workload=workload, variants=(), snapshot_frames=frozenset(), device=device))
+                ranges = [visible_depth(scene, workload.path.pose(i), width=workload.width, height=workload.height)
+                          for i in range(len(workload.path))]
+            depths = ranges
+        extents = [tight_extents(pose=workload.path.pose(i), light_direction=workload.light.direction(i),
+                                 settings=v.settings, visible_depth=None if depths is None else depths[i])
+                   for i in range(len(workload.path))]
+        out[(v.method, v.point)] = held_extents(extents, hysteresis=v.settings.extent_hysteresis)
+    return out
 
 
 def _snapshot_frames(experiment: Experiment, frames: int) -> frozenset:
@@ -415,8 +450,10 @@ def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, executor: 
             progress(sum(stop - start for start, stop in done), frames)
 
     report_progress()
+    held_depths = _held_depths(workload, variants, device=device)
     job = Job(workload=workload, variants=variants, snapshot_frames=_snapshot_frames(experiment, frames),
-              device=device, held_depths=_held_depths(workload, variants, device=device))
+              device=device, held_depths=held_depths,
+              held_extents=_held_extents(workload, variants, held_depths, device=device))
     for chunk, result in execute(run_chunk, todo, shared=job, executor=executor, jobs=jobs, address=address):
         results.save_chunk(out, result, run_key=chunk_key)
         done[chunk] = result

@@ -340,11 +340,12 @@ def faded(lit: np.ndarray, view_depth: np.ndarray, *, far: float, fade_out: floa
 
 
 def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
-                  visible_depth: tuple[float, float] | None = None) -> Frame:
+                  visible_depth: tuple[float, float] | None = None, held_extents=None) -> Frame:
     """One shadow method on a shared view: cascades → depth maps → lookup at every pixel.
 
     With ``bounds = "sdsm"`` the splits divide ``visible_depth`` when given (the held range of an
-    SDSM with hysteresis), else the view's own G-buffer depth range.
+    SDSM with hysteresis), else the view's own G-buffer depth range. ``held_extents`` ``(C, 2)``:
+    the tight boxes' sizes held by extent hysteresis this frame (``stabilization = "none"``).
 
     Returns
     -------
@@ -356,7 +357,8 @@ def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
     if settings.bounds == "sdsm" and visible_depth is None:
         visible_depth = visible_depth_range(view.gbuffer.view_depth)
     cascades = build_cascades(pose=view.pose, light_direction=view.light_direction,
-                              scene_corners=dscene.scene.corners(), settings=settings, visible_depth=visible_depth)
+                              scene_corners=dscene.scene.corners(), settings=settings, visible_depth=visible_depth,
+                              held_extents=held_extents)
     timings = {"cascades": time.perf_counter() - start}
     start = time.perf_counter()
     maps = shadow_maps(dscene, cascades, settings)

@@ -101,7 +101,7 @@ class ShadowSettings:
     extent: str = "sphere"
     """exact: the fixed box diameter, sphere (slice bounding sphere) | diagonal (ceil of the slice's largest diagonal, Bevy, three.js)."""
     snap: str = "origin"
-    """exact: what is snapped to whole texels, origin (box corner: Valient, DirectX, Unreal) | centre (box centre: Bevy, three.js, Stride view snapping)."""
+    """exact: what is snapped to whole texels, origin (box corner: Valient, DirectX, Unreal) | centre (box centre: Bevy, three.js, Stride projection snapping) | view (centre in 4-texel steps: Stride view snapping)."""
     depth_range: str = "scene"
     """Box depth: scene (near side pushed to the scene bounds) | slice (the slice's own range, less pancake)."""
     pancake: float = 0.0
@@ -114,6 +114,8 @@ class ShadowSettings:
     """Depth range the splits divide, frustum (near .. shadow_distance) | sdsm (the frame's visible depth range, from the G-buffer)."""
     hysteresis: float = 0.0
     """bounds = sdsm: the held range grows at once and shrinks only when the visible range is this fraction inside it."""
+    extent_hysteresis: float = 0.0
+    """stabilization = none: the tight box's extent grows at once and shrinks only when the tight extent is this fraction below it (csmlab.cascades.stabilize.held_extents)."""
     engine_precision: str = "float64"
     """Cascade math (light matrices, snapping) as csmlab does it, float64 | float32 (an engine's, shimmering far from the origin)."""
 
@@ -178,6 +180,9 @@ class ShadowSettings:
         need(isinstance(self.depth_clamp, bool), "depth_clamp", "true or false", self.depth_clamp)
         need(0.0 <= self.fade_out <= 1.0, "fade_out", "a fraction in [0, 1]", self.fade_out)
         need(0.0 <= self.hysteresis < 1.0, "hysteresis", "a fraction in [0, 1)", self.hysteresis)
+        need(0.0 <= self.extent_hysteresis < 1.0, "extent_hysteresis", "a fraction in [0, 1)", self.extent_hysteresis)
+        need(self.extent_hysteresis == 0.0 or self.stabilization == "none", "extent_hysteresis",
+             "0 unless stabilization = \"none\" (a stabilized box already has a fixed extent)", self.extent_hysteresis)
         return self
 
     @property

@@ -58,7 +58,7 @@ def _run(tmp_path, *, extends=(), methods="", scene="", frames=4) -> dict:
 def test_every_engine_and_seed_of_the_issue_has_a_preset():
     assert set(ENGINES) == {"ue5", "unity_builtin_stable", "unity_builtin_close", "unity_urp", "godot4", "filament",
                             "bevy", "threejs_csm", "stride", "mjp"}
-    assert set(SEEDS) == {"nvidia_sdk", "ogldev49", "dx_csm11_cascade", "dx_csm11_scene", "unigine_exact",
+    assert set(SEEDS) == {"nvidia_sdk", "ogldev49", "dx_csm11_cascade", "dx_csm11_scene", "dx_vsm11", "unigine_exact",
                           "unigine_quantized", "unigine_best_resolution"}
 
 
@@ -68,34 +68,58 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     ("engines/ue5", dict(cascades=3, split="exponent", distribution_exponent=3.0, blend_band=0.1, fade_out=0.1,
                          shadow_distance=200.0, stabilization="exact")),
     # Unity QualitySettings: shadowCascade4Split (0.067, 0.2, 0.467), shadowDistance 150.
+    # Built-in: Internal-ScreenSpaceShadows frag_pcf5x5 -> UnitySampleShadowmap_PCF5x5Tent; one 2×2 shadowmap.
     ("engines/unity_builtin_stable", dict(cascades=4, splits=(0.067, 0.2, 0.467, 1.0), shadow_distance=150.0,
-                                          stabilization="exact", selection="map")),
-    ("engines/unity_builtin_close", dict(cascades=4, splits=(0.067, 0.2, 0.467, 1.0), stabilization="none")),
-    # UniversalRenderPipelineAsset: m_ShadowDistance 50, m_Cascade4Split (0.067, 0.2, 0.467), m_CascadeBorder 0.2.
-    ("engines/unity_urp", dict(shadow_distance=50.0, splits=(0.067, 0.2, 0.467, 1.0), fade_out=0.2)),
-    # DirectionalLight3D: splits 0.1/0.2/0.5, max distance 100, fade_start 0.8, pancake_size 20, blend off.
+                                          stabilization="exact", selection="map", filter="pcf_tent", filter_size=5,
+                                          storage="atlas", atlas_layout="2x2")),
+    ("engines/unity_builtin_close", dict(cascades=4, splits=(0.067, 0.2, 0.467, 1.0), stabilization="none",
+                                         filter="pcf_tent", filter_size=5, storage="atlas")),
+    # UniversalRenderPipelineAsset: m_ShadowDistance 50, m_Cascade4Split (0.067, 0.2, 0.467), m_CascadeBorder 0.2;
+    # m_SoftShadowQuality Medium = SampleShadow_ComputeSamples_Tent_5x5; 2×2 atlas; k_ShadowmapBufferBits = 16.
+    ("engines/unity_urp", dict(shadow_distance=50.0, splits=(0.067, 0.2, 0.467, 1.0), fade_out=0.2, filter="pcf_tent",
+                               filter_size=5, storage="atlas", atlas_layout="2x2", depth_format="unorm16")),
+    # DirectionalLight3D: splits 0.1/0.2/0.5, max distance 100, fade_start 0.8, pancake_size 20, blend off;
+    # soft_shadow_filter_quality 2 (SOFT_LOW): directional_soft_shadow_samples = 4, quality radius 2.0, a
+    # Vogel disk rotated per pixel; directional_shadow/16_bits = true; 4 splits as quadrants of one atlas.
     ("engines/godot4", dict(splits=(0.1, 0.2, 0.5, 1.0), shadow_distance=100.0, fade_out=0.2, pancake=20.0,
-                            depth_range="slice", depth_clamp=True, blend_band=0.0)),
-    # ShadowOptions: shadowCascades 1, practical splits lambda 0.5, stable false.
-    ("engines/filament", dict(cascades=1, split="practical", lambda_=0.5, stabilization="none")),
-    # CascadeShadowConfigBuilder::default(): 4, 0.1, 150, first bound 10, overlap 0.2.
+                            depth_range="slice", depth_clamp=True, blend_band=0.0, filter="pcf_poisson",
+                            poisson_taps=4, filter_size=5, poisson_rotation="pixel", storage="atlas",
+                            depth_format="unorm16")),
+    # ShadowOptions: shadowCascades 1, practical splits lambda 0.5, stable false; ShadowType::PCF =
+    # ShadowSample_PCF_Low, "hardware assisted PCF + 3x3 gaussian filter" (Castaño 2013).
+    ("engines/filament", dict(cascades=1, split="practical", lambda_=0.5, stabilization="none", filter="pcf_tent",
+                              filter_size=3)),
+    # CascadeShadowConfigBuilder::default(): 4, 0.1, 150, first bound 10, overlap 0.2;
+    # ShadowFilteringMethod::Gaussian = sample_shadow_map_castano_thirteen, weights (4 - 3s, 7, 1 + 3s) over 5 texels.
     ("engines/bevy", dict(cascades=4, split="geometric", first_cascade_far=10.0, shadow_distance=150.0,
-                          blend_band=0.2, extent="diagonal", snap="centre")),
-    # CSM.js: cascades 3, mode 'practical', lightMargin 200, fade false.
+                          blend_band=0.2, extent="diagonal", snap="centre", filter="pcf_tent", filter_size=5)),
+    # CSM.js: cascades 3, mode 'practical', lightMargin 200, fade false; renderer default PCFShadowMap.
     ("engines/threejs_csm", dict(cascades=3, split="practical", lambda_=0.5, pancake=200.0, fade_out=0.0,
-                                 extent="diagonal")),
-    # LightDirectionalShadowMap: FourCascades, PSSMFactor 0.5, DepthRange.IsAutomatic true.
-    ("engines/stride", dict(cascades=4, lambda_=0.5, bounds="sdsm", stabilization="none")),
-    ("engines/mjp", dict(cascades=4, splits=(0.05, 0.15, 0.5, 1.0), stabilization="exact")),
+                                 extent="diagonal", filter="pcf", filter_size=3)),
+    # LightDirectionalShadowMap: FourCascades, PSSMFactor 0.5, StabilizationMode ProjectionSnapping,
+    # DepthRange.IsAutomatic true (held: DepthIncreaseThreshold 1.1, DepthDecreaseThreshold 2.0),
+    # IsBlendingCascades true (overlap 0.2); PCF 5×5 in the shadow atlas.
+    ("engines/stride", dict(cascades=4, lambda_=0.5, bounds="sdsm", hysteresis=0.5, stabilization="exact",
+                            extent="sphere", snap="centre", blend_band=0.2, filter="pcf", filter_size=5,
+                            storage="atlas")),
+    # TheRealMJP/Shadows AppSettings.cs: SplitDistance0..3 0.05/0.15/0.5/1.0, StabilizeCascades = false,
+    # ShadowMode FixedSizePCF with FixedFilterSize Filter2x2, DepthBufferFormat DB32Float.
+    ("engines/mjp", dict(cascades=4, splits=(0.05, 0.15, 0.5, 1.0), stabilization="none", filter="pcf_bilinear",
+                         depth_format="float32")),
     # Seed 001: m_cascadeEnd = {zNear, 25.0, 90.0, zFar}; slice AABB, its own depth only.
     ("seeds/ogldev49", dict(cascades=3, splits=(25.0, 90.0, 200.0), stabilization="none", depth_range="slice",
                             depth_clamp=False)),
     ("seeds/nvidia_sdk", dict(split="practical", lambda_=0.75, stabilization="none")),
-    ("seeds/dx_csm11_cascade", dict(fit="cascade", selection="interval", extent="diagonal")),
-    ("seeds/dx_csm11_scene", dict(fit="scene", selection="map", blend_band=0.1)),
-    # Seed 003, 4.1.2: 64 levels.
-    ("seeds/unigine_quantized", dict(stabilization="quantized", levels=64)),
-    ("seeds/unigine_best_resolution", dict(selection="best_resolution")),
+    # Seed 002/004: "create a kernel (such as a Gaussian) for an N × N grid ... The CascadedShadowMaps11 sample
+    # uses this approach"; VarianceShadows11 "use[s] texture arrays instead of a texture atlas" (CSM11: an atlas).
+    ("seeds/dx_csm11_cascade", dict(fit="cascade", selection="interval", extent="diagonal", filter="pcf_gaussian",
+                                    storage="atlas", atlas_layout="1x4")),
+    ("seeds/dx_csm11_scene", dict(fit="scene", selection="map", blend_band=0.1, filter="pcf_gaussian",
+                                  storage="atlas")),
+    # Seed 003, 4.1.2: 64 levels; 4.1.1: "Packing CSMs into an atlas texture ... our project uses this strategy".
+    ("seeds/unigine_quantized", dict(stabilization="quantized", levels=64, storage="atlas", atlas_layout="unigine")),
+    ("seeds/unigine_exact", dict(stabilization="exact", storage="atlas", atlas_layout="unigine")),
+    ("seeds/unigine_best_resolution", dict(selection="best_resolution", storage="atlas")),
 ])
 def test_preset_holds_its_sources_defaults(tmp_path, preset, defaults):
     path = tmp_path / "exp.toml"
@@ -108,12 +132,21 @@ def test_preset_holds_its_sources_defaults(tmp_path, preset, defaults):
 
 @pytest.mark.parametrize("preset", PRESETS)
 def test_snapping_presets_are_flicker_free_and_refitting_ones_are_not(tmp_path, preset):
-    """A translating camera (dolly) under a static light: same-cascade flicker 0.0 exactly iff the box is snapped."""
+    """A translating camera (dolly) under a static light: same-cascade flicker 0.0 exactly iff the box is snapped.
+
+    A filter rotated per screen pixel (Godot's disk) moves with the screen, not the world: that preset
+    flickers through its filter alone, and without the rotation it is flicker-free like the others.
+    """
     summary = _run(tmp_path, extends=[preset])
     (values,) = summary.values()
     (method,) = load_experiment(tmp_path / "exp.toml").methods
     if method.settings.stabilization == "none":
         assert values["flicker_same"] > 0.0
+    elif method.settings.filter == "pcf_poisson" and method.settings.poisson_rotation == "pixel":
+        assert values["flicker_same"] > 0.0
+        unrotated = _run(tmp_path, extends=[preset], methods=f'[[methods]]\nname = "{method.name}"\n'
+                                                             'poisson_rotation = "none"\n')
+        assert unrotated[method.name]["flicker_same"] == 0.0
     else:
         assert values["flicker_same"] == 0.0
 

@@ -19,7 +19,7 @@ from csmlab.cascades.stabilize import SliceFootprint, stabilize
 from csmlab.geometry import frustum_slice_corners, light_basis
 from csmlab.settings import ShadowSettings
 
-__all__ = ["Cascade", "CascadeSet", "build_cascades", "radius_rounded_up"]
+__all__ = ["Cascade", "CascadeSet", "build_cascades", "radius_rounded_up", "tight_extents"]
 
 
 @dataclass(frozen=True)
@@ -105,8 +105,34 @@ class CascadeSet:
         return np.asarray(points, dtype=np.float64) @ self.basis.T
 
 
+def _slices(pose: CameraPose, settings: ShadowSettings, visible_depth) -> tuple:
+    """``(near, far, splits, intervals)`` of one frame: the range the splits divide, the splits, the fitted slices."""
+    near, far = split_range(near=pose.near, far=min(settings.shadow_distance, pose.far), visible=visible_depth,
+                            method=settings.bounds)
+    splits = split_distances(near=near, far=far, count=settings.cascades, method=settings.split,
+                             lambda_=settings.lambda_, splits=settings.splits,
+                             distribution_exponent=settings.distribution_exponent,
+                             first_cascade_far=settings.first_cascade_far)
+    return near, far, splits, slice_intervals(splits, method=settings.fit, blend_band=settings.blend_band)
+
+
+def tight_extents(*, pose: CameraPose, light_direction, settings: ShadowSettings,
+                  visible_depth: tuple[float, float] | None = None) -> np.ndarray:
+    """Light-space x/y extent ``(C, 2)`` in metres of each cascade's slice: the size of a tight (``none``) box.
+
+    What :func:`csmlab.cascades.stabilize.held_extents` holds over a path for extent hysteresis.
+    """
+    basis = light_basis(light_direction)
+    _, _, _, intervals = _slices(pose, settings, visible_depth)
+    out = []
+    for z0, z1 in intervals:
+        corners = _slice_light_corners(pose, basis, z0, z1)
+        out.append(corners[:, :2].max(axis=0) - corners[:, :2].min(axis=0))
+    return np.array(out, dtype=np.float64)
+
+
 def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings: ShadowSettings,
-                   visible_depth: tuple[float, float] | None = None) -> CascadeSet:
+                   visible_depth: tuple[float, float] | None = None, held_extents=None) -> CascadeSet:
     """The cascades of one frame, as an engine computes them on the CPU.
 
     Parameters
@@ -122,6 +148,9 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
     visible_depth : (float, float), optional
         ``bounds = "sdsm"``: the view-depth range ``(z_min, z_max)`` in metres the splits divide (the
         frame's G-buffer range, or the held range with hysteresis); ignored with ``bounds = "frustum"``.
+    held_extents : array_like, shape (C, 2), optional
+        ``extent_hysteresis``: each tight box's held light-space x/y size in metres this frame
+        (:func:`csmlab.cascades.stabilize.held_extents`); ignored unless ``stabilization = "none"``.
 
     Returns
     -------
@@ -130,13 +159,7 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
     settings.validated()
     basis = light_basis(light_direction)
     scene_light = np.asarray(scene_corners, dtype=np.float64).reshape(-1, 3) @ basis.T
-    near, far = split_range(near=pose.near, far=min(settings.shadow_distance, pose.far), visible=visible_depth,
-                            method=settings.bounds)
-    splits = split_distances(near=near, far=far, count=settings.cascades, method=settings.split,
-                             lambda_=settings.lambda_, splits=settings.splits,
-                             distribution_exponent=settings.distribution_exponent,
-                             first_cascade_far=settings.first_cascade_far)
-    intervals = slice_intervals(splits, method=settings.fit, blend_band=settings.blend_band)
+    near, far, splits, intervals = _slices(pose, settings, visible_depth)
     frustum_light = _slice_light_corners(pose, basis, near, far)
     frustum_extent = frustum_light[:, :2].max(axis=0) - frustum_light[:, :2].min(axis=0)
     margin = settings.margin_texels
@@ -154,7 +177,7 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
         resolution = settings.cascade_resolutions[i] if settings.cascade_resolutions else settings.resolution
         texel, origin = stabilize(footprint, method=settings.stabilization, resolution=resolution,
                                   margin=margin, levels=settings.levels, quantized_base=settings.quantized_base,
-                                  snap=settings.snap)
+                                  snap=settings.snap, held_extent=None if held_extents is None else held_extents[i])
         if settings.depth_range == "scene":
             # The near side is pushed toward the light to the scene's bounds, so every caster in the
             # box's x/y range is captured whatever the slice's own depth range is.

@@ -10,6 +10,10 @@ References
 - Valient, "Stable Rendering of Cascaded Shadow Maps", ShaderX6 — bounding sphere, texel snap.
 - Zhang, Zaprjagaev, Bentham, "Practical Cascaded Shadow Maps", ShaderX7 (seed 003), listing
   4.1.1 (exact) and 4.1.2 (quantized scale, 64 levels, snapped offset).
+
+Extent hysteresis (``[shadow] extent_hysteresis``, ``none`` only): the tight box's size is *held*
+over frames — it grows at once and shrinks only when the tight size falls a fraction below it
+(:func:`held_extents`) — so that its texel size does not change with every small turn of the camera.
 """
 
 from __future__ import annotations
@@ -19,8 +23,8 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["SNAP_METHODS", "STABILIZATION_METHODS", "SliceFootprint", "stabilize", "stabilize_exact", "stabilize_none",
-           "stabilize_quantized"]
+__all__ = ["SNAP_METHODS", "STABILIZATION_METHODS", "SliceFootprint", "held_extents", "stabilize", "stabilize_exact",
+           "stabilize_none", "stabilize_quantized"]
 
 
 @dataclass(frozen=True)
@@ -46,11 +50,50 @@ class SliceFootprint:
     frustum_extent: np.ndarray
 
 
-def stabilize_none(fp: SliceFootprint, *, resolution: int, margin: int, **_unused) -> tuple[np.ndarray, np.ndarray]:
-    """Tight box around the slice every frame: texel size and origin follow the camera continuously."""
-    extent = np.maximum(fp.hi - fp.lo, 1e-9)
+def stabilize_none(fp: SliceFootprint, *, resolution: int, margin: int, held_extent=None,
+                   **_unused) -> tuple[np.ndarray, np.ndarray]:
+    """Tight box around the slice every frame: texel size and origin follow the camera continuously.
+
+    With ``held_extent`` ``(2,)`` metres (extent hysteresis, :func:`held_extents`), the box has that
+    size instead of the tight one, centred on the tight box: the texel size holds while the extent
+    is held, the origin still follows the camera.
+    """
+    tight = np.maximum(fp.hi - fp.lo, 1e-9)
+    if held_extent is None:
+        texel = tight / (resolution - 2 * margin)
+        return texel, fp.lo / texel - margin
+    extent = np.maximum(np.asarray(held_extent, dtype=np.float64), tight)
     texel = extent / (resolution - 2 * margin)
-    return texel, fp.lo / texel - margin
+    return texel, (0.5 * (fp.lo + fp.hi) - 0.5 * extent) / texel - margin
+
+
+def held_extents(extents, *, hysteresis: float) -> np.ndarray:
+    """The box extent a tight (``none``) cascade with extent hysteresis uses in each frame.
+
+    Frame 0 holds its own tight extent. Later, on each axis of each cascade, the held extent grows at
+    once to a larger tight extent and falls to the tight one only when that lies below ``(1 - h)``
+    of the held one. ``h = 0`` gives the tight extents themselves.
+
+    Parameters
+    ----------
+    extents : array_like, shape (N, C, 2)
+        Tight light-space x/y extent in metres of every cascade in every frame.
+    hysteresis : float
+        ``h`` in ``[0, 1)``.
+
+    Returns
+    -------
+    ndarray, shape (N, C, 2), float64
+    """
+    e = np.asarray(extents, dtype=np.float64)
+    if not 0.0 <= hysteresis < 1.0:
+        raise ValueError(f"extent_hysteresis: expected a fraction in [0, 1), got {hysteresis}")
+    keep = 1.0 - hysteresis
+    out = e.copy()
+    for i in range(1, e.shape[0]):
+        held = out[i - 1]
+        out[i] = np.where((e[i] > held) | (e[i] < keep * held), e[i], held)
+    return out
 
 
 def snap_origin(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[np.ndarray, np.ndarray]:
@@ -76,9 +119,28 @@ def snap_centre(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[np
     return texel, np.floor(fp.centre / texel) - half
 
 
+def snap_view(fp: SliceFootprint, *, resolution: int, margin: int, step: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    """The box's centre rounded *up* to a multiple of ``step`` texels (Stride's ``ViewSnapping``).
+
+    Stride (``LightDirectionalShadowMapRenderer.Collect``, ``LightShadowMapStabilizationMode.
+    ViewSnapping``) moves the shadow camera's target, the slice's bounding-sphere centre, to
+    ``ceil(c · f) / f`` along the light's up and side axes with ``f = R / 2 · 0.25 / r`` — "0.25f to
+    stabilize the 4x4 dithered shadow pattern" —, i.e. to whole multiples of ``4 t`` with ``t = 2r / R``,
+    and lays the box ``[-r, r]`` around it. Here ``k = ceil(c / (step · t)) · step`` texels and the box
+    spans ``[k - h, k - h + R)`` with ``h = floor(R / 2)``; ``t = r / (h - m - step)`` keeps the sphere and
+    the margins inside on both sides whatever ``k t - c ∈ [0, step · t)`` is. The grid stays world-locked
+    (the box moves by whole texels), only in coarser steps than :func:`snap_centre`.
+    """
+    half = resolution // 2
+    t = fp.radius / (half - margin - step)
+    texel = np.array([t, t])
+    return texel, np.ceil(fp.centre / (step * texel)) * step - half
+
+
 SNAP_METHODS: dict[str, Callable[..., tuple[np.ndarray, np.ndarray]]] = {
     "origin": snap_origin,
     "centre": snap_centre,
+    "view": snap_view,
 }
 """What exact snaps to whole texels, by name: ``f(footprint, *, resolution, margin) -> (texel, origin)``."""
 
@@ -126,8 +188,10 @@ STABILIZATION_METHODS: dict[str, Callable[..., tuple[np.ndarray, np.ndarray]]] =
 
 
 def stabilize(fp: SliceFootprint, *, method: str, resolution: int, margin: int, levels: int = 64,
-              quantized_base: str = "sphere", snap: str = "origin") -> tuple[np.ndarray, np.ndarray]:
+              quantized_base: str = "sphere", snap: str = "origin", held_extent=None) -> tuple[np.ndarray, np.ndarray]:
     """Texel size ``(2,)`` in metres and box origin ``(2,)`` in texels of one cascade.
+
+    ``held_extent`` ``(2,)`` metres: ``none``'s box size under extent hysteresis (ignored otherwise).
 
     Raises
     ------
@@ -139,5 +203,8 @@ def stabilize(fp: SliceFootprint, *, method: str, resolution: int, margin: int, 
         raise ValueError(f"stabilization: expected one of {sorted(STABILIZATION_METHODS)}, got {method!r}")
     if resolution - 2 * margin - 3 < 1:
         raise ValueError(f"resolution: expected more than {2 * margin + 3} texels for a {margin}-texel margin, got {resolution}")
+    if method == "exact" and snap == "view" and resolution // 2 - margin - 4 < 1:
+        raise ValueError(f"resolution: expected more than {2 * margin + 9} texels for snap = \"view\" with a "
+                         f"{margin}-texel margin, got {resolution}")
     return STABILIZATION_METHODS[method](fp, resolution=resolution, margin=margin, levels=levels,
-                                         quantized_base=quantized_base, snap=snap)
+                                         quantized_base=quantized_base, snap=snap, held_extent=held_extent)
