@@ -7,7 +7,7 @@ from csmlab.camera import CameraPose
 from csmlab.cascades import build_cascades
 from csmlab.cascades.bounds import held_depth_ranges, split_range, visible_depth_range
 from csmlab.cascades.extent import extent_diagonal
-from csmlab.cascades.stabilize import SliceFootprint, snap_centre, snap_origin
+from csmlab.cascades.stabilize import SliceFootprint, held_extents, snap_centre, snap_origin, snap_view, stabilize_none
 from csmlab.geometry import frustum_slice_corners, light_basis, rotation_looking_at
 from csmlab.settings import ShadowSettings
 
@@ -53,7 +53,7 @@ def test_diagonal_extent_is_bevys_ceiled_largest_diagonal():
     np.testing.assert_allclose(centre, 0.5 * (corners[:, :2].min(axis=0) + corners[:, :2].max(axis=0)))
 
 
-@pytest.mark.parametrize("snap", [snap_origin, snap_centre])
+@pytest.mark.parametrize("snap", [snap_origin, snap_centre, snap_view])
 @pytest.mark.parametrize("resolution", [64, 65])
 def test_snapped_boxes_hold_the_sphere_inside_their_margins(snap, resolution):
     rng = np.random.default_rng(3)
@@ -73,6 +73,40 @@ def test_snap_centre_hand_worked():
     texel, origin = snap_centre(fp, resolution=64, margin=2)
     np.testing.assert_array_equal(texel, [1.0, 1.0])
     np.testing.assert_array_equal(origin, [10 - 32, -4 - 32])
+
+
+def test_snap_view_hand_worked():
+    # Stride ViewSnapping: centre to ceil(c / 4t) · 4t. R = 64, margin 2: h = 32, t = r / (h - m - 4) = 26 / 26
+    # = 1 m; centre (10.4, -3.2) → k = (ceil(2.6) · 4, ceil(-0.8) · 4) = (12, 0) texels.
+    fp = SliceFootprint(lo=np.zeros(2), hi=np.zeros(2), centre=np.array([10.4, -3.2]), radius=26.0,
+                        frustum_extent=np.zeros(2))
+    texel, origin = snap_view(fp, resolution=64, margin=2)
+    np.testing.assert_array_equal(texel, [1.0, 1.0])
+    np.testing.assert_array_equal(origin, [12 - 32, 0 - 32])
+
+
+def test_held_extent_grows_at_once_and_shrinks_only_past_the_threshold():
+    # h = 0.2 (shrink below 0.8 × held): 10 → 12 grows; 11 and 10.5 ≥ 9.6 hold 12; 8 < 9.6 falls to 8; 9 grows.
+    tight = np.array([10.0, 12.0, 11.0, 10.5, 8.0, 9.0]).reshape(-1, 1, 1) * np.ones((1, 2, 2))
+    held = held_extents(tight, hysteresis=0.2)
+    np.testing.assert_array_equal(held[:, 0, 0], [10.0, 12.0, 12.0, 12.0, 8.0, 9.0])
+    np.testing.assert_array_equal(held_extents(tight, hysteresis=0.0), tight)
+    # Each axis and cascade on its own: y shrinking past the threshold does not release x.
+    axes = np.array([[[10.0, 10.0]], [[9.0, 7.0]]])
+    np.testing.assert_array_equal(held_extents(axes, hysteresis=0.2)[1, 0], [10.0, 7.0])
+
+
+def test_tight_box_with_a_held_extent_keeps_the_slice_centred_at_the_held_texel_size():
+    # Slice x ∈ [2, 6], y ∈ [0, 10]; held (8, 10) m; R = 20, margin 1 → t = (8/18, 10/18), box centred on (4, 5).
+    fp = SliceFootprint(lo=np.array([2.0, 0.0]), hi=np.array([6.0, 10.0]), centre=np.zeros(2), radius=1.0,
+                        frustum_extent=np.zeros(2))
+    texel, origin = stabilize_none(fp, resolution=20, margin=1, held_extent=np.array([8.0, 10.0]))
+    np.testing.assert_allclose(texel, [8.0 / 18, 10.0 / 18])
+    np.testing.assert_allclose((origin + 1) * texel, [0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose((origin + 19) * texel, [8.0, 10.0])
+    tight_texel, tight_origin = stabilize_none(fp, resolution=20, margin=1)
+    np.testing.assert_allclose(tight_texel, [4.0 / 18, 10.0 / 18])
+    np.testing.assert_allclose((tight_origin + 1) * tight_texel, [2.0, 0.0])
 
 
 def test_slice_depth_range_takes_the_slice_less_the_pancake():

@@ -12,7 +12,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from csmlab.cascades import tight_extents
 from csmlab.config import CONFIGS_DIR, load_experiment
+from csmlab.errors import InputError
 from csmlab.experiment import run_experiment
 from csmlab.render import clipped_casters, faded
 
@@ -164,6 +166,47 @@ hysteresis = 0.3
 """
     summary = _run(tmp_path, methods=methods, frames=8)
     assert summary["sdsm"]["flicker_same"] > summary["sdsm_hysteresis"]["flicker_same"]
+
+
+def test_extent_hysteresis_holds_the_tight_boxes_texel_size_on_a_turning_camera(tmp_path):
+    """``none`` with and without extent hysteresis on an orbit: the held boxes change size on fewer frames.
+
+    Both still swim (the origin follows the camera), so both flicker; the figures are in the run's summary.
+    """
+    methods = """
+[[methods]]
+name = "none"
+stabilization = "none"
+
+[[methods]]
+name = "none_held"
+stabilization = "none"
+extent_hysteresis = 0.5
+"""
+    path = tmp_path / "exp.toml"
+    orbit = TINY.format(extends="", methods=methods, scene="", frames=6)
+    path.write_text(orbit.replace('path = "dolly"\nspeed = 6.0', 'path = "orbit"\nangular_speed_deg = 30.0'))
+    experiment = load_experiment(path)
+    summary = run_experiment(experiment, out_dir=tmp_path / "out").summary["methods"]
+    assert summary["none"]["flicker_same"] > 0.0 and summary["none_held"]["flicker_same"] > 0.0
+
+    from csmlab.experiment import _held_extents, build_workload
+
+    workload = build_workload(experiment)
+    variants = tuple(experiment.variants())
+    held = _held_extents(workload, variants, {}, device="cpu")[("none_held", variants[1].point)]
+    tight = np.array([tight_extents(pose=workload.path.pose(i), light_direction=workload.light.direction(i),
+                                    settings=variants[1].settings) for i in range(len(workload.path))])
+    assert np.all(held >= tight)
+    changes = lambda e: int(np.count_nonzero(np.any(np.diff(e, axis=0) != 0.0, axis=2)))  # noqa: E731
+    assert changes(held) < changes(tight)
+
+
+def test_extent_hysteresis_on_a_snapped_box_exits_2_naming_the_field(tmp_path):
+    path = tmp_path / "exp.toml"
+    path.write_text('[[methods]]\nname = "held"\nstabilization = "exact"\nextent_hysteresis = 0.3\n')
+    with pytest.raises(InputError, match="extent_hysteresis"):
+        load_experiment(path)
 
 
 def test_float32_engine_math_swims_far_from_the_origin_and_float64_does_not(tmp_path):
