@@ -42,6 +42,8 @@ SWEPT: tuple[Metric, ...] = tuple(m for m in METRICS.values() if "sweep" in m.pl
 PARETO = ("memory_bytes", "flicker", "rho_median")
 """The Pareto plot's metrics: memory (x), flicker (y), median ρ (colour)."""
 _LINE_STYLES = ("-", "--", ":", "-.")
+_PANEL_COLUMNS = 6
+"""Most methods side by side in the cascade-motion figure before it wraps."""
 FIELD_UNITS = {
     "cascades": "count", "resolution": "texels per side", "lambda": "PSSM blend, 0 uniform … 1 log",
     "shadow_distance": "m", "levels": "extent steps", "filter_size": "taps per side", "bias_constant": "m",
@@ -66,14 +68,17 @@ class Series:
 def series_of(groups: list[tuple[str, str]]) -> list[Series]:
     """A :class:`Series` per ``(method, point)``: colour by method, line style by point.
 
-    The label is the method's name, followed by ``@ point`` when the run has several points.
+    The label is the method's name, followed by ``@ point`` when the run has several points. With
+    more methods than colours (the engine and source-system runs draw 11–17), each further round of
+    the colours takes the next line style, so that no two methods of one point draw alike for up to
+    32 methods.
     """
     methods = list(dict.fromkeys(m for m, _ in groups))
     points = list(dict.fromkeys(p for _, p in groups))
     return [
         Series(method=m, point=p, label=m if len(points) == 1 else f"{m} @ {p}",
                colour=tuple(CATEGORY_COLOURS[methods.index(m) % len(CATEGORY_COLOURS)]),
-               style=_LINE_STYLES[points.index(p) % len(_LINE_STYLES)])
+               style=_LINE_STYLES[(points.index(p) + methods.index(m) // len(CATEGORY_COLOURS)) % len(_LINE_STYLES)])
         for m, p in groups
     ]
 
@@ -84,9 +89,10 @@ def frame_curves_figure(metrics: Columns, path) -> None:
     A metric that is best at 1 (median ρ) gets the line ρ = 1 for reference.
     """
     curves = [m for m in CURVES if m.name in metrics]
-    fig = Figure(figsize=(10, 1.9 * len(curves) + 0.8), dpi=100, layout="constrained")
-    axes = fig.subplots(len(curves), 1, sharex=True, squeeze=False)[:, 0]
     series = series_of(metrics.groups())
+    # Tall enough for the legend of every series beside the plots (about 0.19 inch per entry).
+    fig = Figure(figsize=(10, max(1.9 * len(curves) + 0.8, 0.19 * len(series) + 1.0)), dpi=100, layout="constrained")
+    axes = fig.subplots(len(curves), 1, sharex=True, squeeze=False)[:, 0]
     for k, (ax, metric) in enumerate(zip(axes, curves)):
         for s in series:
             rows = metrics.of(s.method, s.point)
@@ -99,7 +105,9 @@ def frame_curves_figure(metrics: Columns, path) -> None:
                                label=f"{metric.label} = 1, the 1:1 ideal")
             if k > 0:
                 ax.legend(handles=[ideal], loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=9, frameon=False)
-    axes[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=9, frameon=False)
+    # One legend for the whole figure, outside the axes, so a long list of methods does not squeeze a plot.
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside right upper", fontsize=9, frameon=False)
     axes[-1].set_xlabel("time (s)")
     fig.savefig(path, **_SAVE)
 
@@ -120,8 +128,17 @@ def stabilization_figure(cascades: Columns, *, point: str, methods: list[str], p
     """
     rows_of_point = cascades.where(cascades["point"] == point)
     count = int(np.max(rows_of_point["cascade"])) + 1
-    fig = Figure(figsize=(3.6 * len(methods) + 1.6, 7.5), dpi=100, layout="constrained")
-    axes = fig.subplots(3, len(methods), sharex=True, sharey="row", squeeze=False)
+    # At most _PANEL_COLUMNS methods side by side; more wrap into further bands of three rows.
+    columns = min(len(methods), _PANEL_COLUMNS)
+    bands = -(-len(methods) // columns)
+    fig = Figure(figsize=(3.6 * columns + 1.6, 7.5 * bands), dpi=100, layout="constrained")
+    grid = fig.subplots(3 * bands, columns, sharex=True, squeeze=False)
+    axes = np.concatenate([grid[3 * b:3 * b + 3] for b in range(bands)], axis=1)
+    for ax in axes[:, len(methods):].ravel():
+        ax.set_visible(False)
+    for row in range(3):
+        for ax in axes[row, 1:len(methods)]:
+            ax.sharey(axes[row, 0])
     for col, method in enumerate(methods):
         rows = rows_of_point.where(rows_of_point["method"] == method)
         for c in range(count):
@@ -142,9 +159,10 @@ def stabilization_figure(cascades: Columns, *, point: str, methods: list[str], p
         axes[0, col].yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
         axes[0, col].yaxis.set_minor_formatter(NullFormatter())
         axes[2, col].set_xlabel("frame number")
-    axes[0, 0].set_ylabel("box extent (m)")
-    axes[1, 0].set_ylabel("origin moved since\nfirst frame (texels)")
-    axes[2, 0].set_ylabel("sub-texel phase of\norigin (texels)")
+    for first in range(0, bands * columns, columns):
+        axes[0, first].set_ylabel("box extent (m)")
+        axes[1, first].set_ylabel("origin moved since\nfirst frame (texels)")
+        axes[2, first].set_ylabel("sub-texel phase of\norigin (texels)")
     axes[2, 0].set_ylim(-0.02, 0.52)
     for ax in axes.ravel():
         ax.grid(True, alpha=0.3)
@@ -152,7 +170,8 @@ def stabilization_figure(cascades: Columns, *, point: str, methods: list[str], p
                for c in range(count)]
     handles += [Line2D([], [], color="0.3", linestyle="-", label="light-space x"),
                 Line2D([], [], color="0.3", linestyle="--", label="light-space y")]
-    axes[0, -1].legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8, frameon=False)
+    axes[0, columns - 1].legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8,
+                                frameon=False)
     fig.savefig(path, **_SAVE)
 
 
