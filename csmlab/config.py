@@ -35,6 +35,7 @@ from pathlib import Path
 
 import csmlab
 from csmlab.errors import InputError
+from csmlab.registry import parameters, unknown_name_message
 from csmlab.settings import ShadowSettings
 
 if sys.version_info >= (3, 11):
@@ -692,22 +693,9 @@ def _record(cls, table, *, where: str, located: _Located, extra=()):
     return cls(**values)
 
 
-def _generator_parameters(function) -> tuple[str, ...] | None:
-    """Keyword parameters a generator accepts beyond the common ones; None if it takes ``**kwargs``."""
-    try:
-        parameters = inspect.signature(function).parameters.values()
-    except (TypeError, ValueError):
-        return None
-    if any(p.kind is p.VAR_KEYWORD for p in parameters):
-        return None
-    return tuple(p.name for p in parameters if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD))
-
-
-def _registry_name(value: str, registry, *, where: str, located: _Located, what: str) -> None:
+def _registry_name(value: str, registry, *, where: str, located: _Located) -> None:
     if value not in registry:
-        close = difflib.get_close_matches(value, list(registry), n=1)
-        hint = f"did you mean {close[0]!r}? " if close else ""
-        raise located.error(where, f"unknown {what} {value!r}: {hint}expected one of {sorted(registry)}")
+        raise located.error(where, unknown_name_message(value, registry))
 
 
 def _existing_file(value: str, *, where: str, located: _Located) -> str:
@@ -728,11 +716,11 @@ def _scene(table, located: _Located) -> SceneConfig:
 
     kind = table.get("kind", SceneConfig.kind) if isinstance(table, dict) else None
     if isinstance(kind, str):
-        _registry_name(kind, SCENE_KINDS, where="scene.kind", located=located, what="scene kind")
+        _registry_name(kind, SCENE_KINDS, where="scene.kind", located=located)
     generator = SCENE_KINDS.get(kind) if isinstance(kind, str) and kind != "mesh" else None
-    accepted = _generator_parameters(generator) if generator is not None else ()
+    accepted = parameters(generator) if generator is not None else ()
     common = {"kind", "seed", "file", "scale", "up", "ground", "offset"}
-    extra = [k for k in table if k not in common] if accepted is None else [p for p in accepted if p not in common]
+    extra = [p for p in accepted if p not in common]
     scene = _record(SceneConfig, table, where="scene", located=located, extra=extra)
     if scene.kind != "mesh":
         for key in ("file", "scale", "up", "ground"):
@@ -744,7 +732,7 @@ def _scene(table, located: _Located) -> SceneConfig:
         raise located.error("scene.file", "expected a mesh file with kind = \"mesh\", got none")
     from csmlab.scene.mesh import UP_AXES
 
-    _registry_name(scene.up, UP_AXES, where="scene.up", located=located, what="up axis")
+    _registry_name(scene.up, UP_AXES, where="scene.up", located=located)
     return SceneConfig(**{**_record_fields(scene), "file": _existing_file(scene.file, where="scene.file",
                                                                           located=located)})
 
@@ -756,12 +744,11 @@ def _camera(table, located: _Located) -> CameraConfig:
 
     name = table.get("path") if isinstance(table, dict) else None
     if isinstance(name, str) and name:
-        _registry_name(name, PATH_GENERATORS, where="camera.path", located=located, what="path generator")
+        _registry_name(name, PATH_GENERATORS, where="camera.path", located=located)
     generator = PATH_GENERATORS.get(name) if isinstance(name, str) else None
-    accepted = _generator_parameters(generator) if generator is not None else ()
+    accepted = parameters(generator) if generator is not None else ()
     common = {f.name for f in fields(CameraConfig)} | {"aspect", "light_direction", "name"}
-    extra = ([k for k in table if k not in common] if accepted is None
-             else [p for p in accepted if p not in common])
+    extra = [p for p in accepted if p not in common]
     camera = _record(CameraConfig, table, where="camera", located=located, extra=extra)
     if camera.far <= camera.near:
         raise located.error("camera.far", f"expected a distance greater than near ({camera.near}), got {camera.far}")
@@ -783,13 +770,11 @@ def _camera(table, located: _Located) -> CameraConfig:
         key = next(iter(camera.params))
         raise _unknown("camera", key, [f.name for f in fields(CameraConfig) if f.name != "params"], located)
     if camera.format:
-        _registry_name(camera.format, PATH_FORMATS, where="camera.format", located=located, what="path format")
+        _registry_name(camera.format, PATH_FORMATS, where="camera.format", located=located)
     if camera.convention:
-        _registry_name(camera.convention, CONVENTIONS, where="camera.convention", located=located,
-                       what="convention")
+        _registry_name(camera.convention, CONVENTIONS, where="camera.convention", located=located)
     for key, choices in (("anchor", ANCHORS), ("duplicate_times", DUPLICATE_RULES), ("gaps", GAP_RULES)):
-        if getattr(camera, key) not in choices:
-            raise located.error(f"camera.{key}", f"expected one of {list(choices)}, got {getattr(camera, key)!r}")
+        _registry_name(getattr(camera, key), choices, where=f"camera.{key}", located=located)
     if camera.start_s is not None and camera.end_s is not None and camera.end_s < camera.start_s:
         raise located.error("camera.end_s",
                             f"expected a time not before start_s ({camera.start_s}), got {camera.end_s}")
@@ -840,8 +825,7 @@ def _checked_settings(settings: ShadowSettings, *, where_of, located: _Located) 
     """``settings`` after range and method-name checks; ``where_of(field)`` says where a field was set."""
     from csmlab.cascades import (BOUNDS_METHODS, DEPTH_RANGE_METHODS, EXTENT_METHODS, FIT_METHODS, SNAP_METHODS,
                                  SPLIT_METHODS, STABILIZATION_METHODS)
-    from csmlab.filters import FILTER_METHODS
-    from csmlab.kernels.shadow import SELECTION_METHODS
+    from csmlab.lookup_choices import FILTER_METHODS, SELECTION_METHODS
     from csmlab.texels import PRECISION_METHODS
 
     try:
@@ -853,7 +837,7 @@ def _checked_settings(settings: ShadowSettings, *, where_of, located: _Located) 
                            ("selection", SELECTION_METHODS), ("filter", FILTER_METHODS),
                            ("extent", EXTENT_METHODS), ("snap", SNAP_METHODS), ("depth_range", DEPTH_RANGE_METHODS),
                            ("bounds", BOUNDS_METHODS), ("engine_precision", PRECISION_METHODS)):
-        _registry_name(getattr(settings, name), registry, where=where_of(name), located=located, what=name)
+        _registry_name(getattr(settings, name), registry, where=where_of(name), located=located)
     if settings.split == "geometric" and settings.cascades > 1 and settings.first_cascade_far >= settings.shadow_distance:
         raise located.error(where_of("first_cascade_far"), f"expected a distance below shadow_distance "
                                                            f"({settings.shadow_distance} m), got {settings.first_cascade_far}")
@@ -919,7 +903,7 @@ def _regress(table, located: _Located) -> dict:
 
 def _tune(table, methods: tuple[Method, ...], located: _Located) -> TuneConfig:
     """``[tune]``: its options, and every other key a ``[shadow]`` field with choices or a range."""
-    from csmlab.metrics import metric_columns
+    from csmlab.metric_registry import metric_columns
 
     if not isinstance(table, dict):
         raise located.error("tune", f"expected a table of search ranges and options, got {table!r}")

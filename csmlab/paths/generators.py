@@ -27,7 +27,6 @@ all frames at once. :func:`make_path` dispatches on the name and sets the projec
 from __future__ import annotations
 
 import dataclasses
-import inspect
 from typing import Callable
 
 import numpy as np
@@ -35,6 +34,7 @@ import numpy as np
 from csmlab.camera import CameraPath
 from csmlab.geometry import normalized
 from csmlab.paths.conventions import orientation_from_yaw_pitch_roll
+from csmlab.registry import dispatch, parameters
 
 __all__ = [
     "PATH_GENERATORS",
@@ -399,16 +399,8 @@ def make_path(name: str, *, frames: int, fps: float = 30.0, seed: int = 1, fov_y
     ValueError
         On an unknown name or parameter (listing the valid ones) or a bad value.
     """
-    if name not in PATH_GENERATORS:
-        raise ValueError(f"path: expected one of {sorted(PATH_GENERATORS)}, got {name!r}")
-    generator = PATH_GENERATORS[name]
-    accepted = set(inspect.signature(generator).parameters) - {"frames", "fps"}
-    unknown = sorted(set(params) - accepted)
-    if unknown:
-        raise ValueError(f"{name}: unknown parameter(s) {unknown}; expected some of {sorted(accepted)}")
-    shared = {"seed": seed, "light_direction": light_direction, "fov_y_deg": fov_y_deg}
-    params.update({key: value for key, value in shared.items() if key in accepted})
-    path = generator(frames=frames, fps=fps, **params)
+    path = dispatch(PATH_GENERATORS, name, field="path", frames=frames, fps=fps,
+                    offered={"seed": seed, "light_direction": light_direction, "fov_y_deg": fov_y_deg}, **params)
     # A generator that takes the field of view animates it (zoom); the others get it as it is.
-    fov = path.fov_y_deg if "fov_y_deg" in accepted else fov_y_deg
+    fov = path.fov_y_deg if "fov_y_deg" in parameters(PATH_GENERATORS[name]) else fov_y_deg
     return dataclasses.replace(path, fov_y_deg=fov, aspect=aspect, near=near, far=far)
