@@ -16,7 +16,7 @@ from csmlab.settings import ShadowSettings
 
 
 def _expect(predicate, text: str) -> dict:
-    """Field metadata: a range check and the words that say what was expected."""
+    """Field metadata: a range check and the words that say what was expected (:meth:`_Checked.validated`)."""
     return {"expect": (predicate, text)}
 
 
@@ -24,8 +24,28 @@ def _positive(x) -> bool:
     return x > 0 and math.isfinite(x)
 
 
+class _Checked:
+    """A record whose fields declare their range checks in ``metadata`` (:func:`_expect`).
+
+    :meth:`validated` is the same contract as :meth:`csmlab.settings.ShadowSettings.validated`:
+    ``ValueError("<field>: expected …, got …")``, which the loader locates in its file.
+    """
+
+    def validated(self):
+        """Return ``self`` after checking every field that declares a range; raise ``ValueError`` naming the field."""
+        for f in fields(self):
+            check, value = f.metadata.get("expect"), getattr(self, f.name)
+            if check is None or value is None:
+                continue
+            predicate, text = check
+            if not all(predicate(v) for v in (value if isinstance(value, tuple) else (value,))):
+                shown = list(value) if isinstance(value, tuple) else value
+                raise ValueError(f"{f.name}: expected {text}, got {shown!r}")
+        return self
+
+
 @dataclass(frozen=True)
-class SceneConfig:
+class SceneConfig(_Checked):
     """``[scene]``: what the camera sees and the light shines on."""
 
     kind: str = "terrain"
@@ -47,7 +67,7 @@ class SceneConfig:
 
 
 @dataclass(frozen=True)
-class CameraConfig:
+class CameraConfig(_Checked):
     """``[camera]``: the camera path (a generator or a recorded file) and the image."""
 
     path: str = ""
@@ -104,7 +124,7 @@ class CameraConfig:
 
 
 @dataclass(frozen=True)
-class LightConfig:
+class LightConfig(_Checked):
     """``[light]``: the directional light, as a vector or as a sun's elevation and azimuth."""
 
     direction: tuple[float, float, float] | None = None
@@ -128,7 +148,7 @@ class LightConfig:
 
 
 @dataclass(frozen=True)
-class ReportConfig:
+class ReportConfig(_Checked):
     """``[report]``: what the HTML report keeps."""
 
     snapshot_frames: tuple[int, ...] | None = field(default=None, metadata=_expect(lambda x: x >= 0,
@@ -137,7 +157,7 @@ class ReportConfig:
 
 
 @dataclass(frozen=True)
-class TuneConfig:
+class TuneConfig(_Checked):
     """``[tune]``: what ``csmlab tune`` searches and under which budgets (command-line options win).
 
     Every other key of ``[tune]`` is a ``[shadow]`` field to search: a list of choices

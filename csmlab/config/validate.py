@@ -131,15 +131,27 @@ def _record(cls, table, *, where: str, located: _Located, extra=()):
     values, params = {}, {}
     for key, value in table.items():
         if key in own:
-            values[key] = _typed_value(value, hints[key], own[key].metadata.get("expect"),
-                                       where=f"{where}.{key}", located=located)
+            values[key] = _typed_value(value, hints[key], None, where=f"{where}.{key}", located=located)
         elif key in extra:
             params[key] = value
         else:
             raise _unknown(where, key, [*own, *extra], located)
     if params:
         values["params"] = params
-    return cls(**values)
+    return _validated(cls(**values), where_of=lambda name: f"{where}.{name}", located=located)
+
+
+def _validated(record, *, where_of, located: _Located):
+    """``record.validated()``, its ``ValueError("<field>: …")`` raised as an :class:`InputError` at ``where_of(field)``.
+
+    The one range check of every record: config records declare theirs in field metadata,
+    :class:`~csmlab.settings.ShadowSettings` in its own ``validated``.
+    """
+    try:
+        return record.validated()
+    except ValueError as exc:
+        name, _, message = str(exc).partition(": ")
+        raise located.error(where_of(name), message) from None
 
 
 def _registry_name(value: str, registry, *, where: str, located: _Located) -> None:
@@ -277,11 +289,7 @@ def _checked_settings(settings: ShadowSettings, *, where_of, located: _Located) 
     from csmlab.lookup_choices import FILTER_METHODS, SELECTION_METHODS
     from csmlab.texels import PRECISION_METHODS
 
-    try:
-        settings.validated()
-    except ValueError as exc:
-        name, _, message = str(exc).partition(": ")
-        raise located.error(where_of(name), message) from None
+    _validated(settings, where_of=where_of, located=located)
     for name, registry in (("split", SPLIT_METHODS), ("fit", FIT_METHODS), ("stabilization", STABILIZATION_METHODS),
                            ("selection", SELECTION_METHODS), ("filter", FILTER_METHODS),
                            ("extent", EXTENT_METHODS), ("snap", SNAP_METHODS), ("depth_range", DEPTH_RANGE_METHODS),
@@ -374,8 +382,7 @@ def _tune(table, methods: tuple[Method, ...], located: _Located) -> TuneConfig:
                 value, float, (lambda x: x >= 0, 'a non-negative number or "best-preset"'), where=where,
                 located=located)
         elif key in options:
-            values[key] = _typed_value(value, hints[key], options[key].metadata.get("expect"), where=where,
-                                       located=located)
+            values[key] = _typed_value(value, hints[key], None, where=where, located=located)
         elif key in types:
             space.append((key, _tune_spec(value, types[key], where=where, located=located)))
         else:
@@ -394,7 +401,7 @@ def _tune(table, methods: tuple[Method, ...], located: _Located) -> TuneConfig:
         for value in (spec[1] if spec[0] == "choice" else spec[1:3]):
             _checked_settings(tuned.settings.replace(**{key: value}), located=located,
                               where_of=lambda f, k=key: f"tune.{k}" if f == k else f"methods.{tuned.name}.{f}")
-    return TuneConfig(space=tuple(space), **values)
+    return _validated(TuneConfig(space=tuple(space), **values), where_of=lambda name: f"tune.{name}", located=located)
 
 
 def _tune_spec(value, kind, *, where: str, located: _Located) -> tuple:
