@@ -7,8 +7,9 @@ import tomllib
 
 import pytest
 
-from csmlab.config import (CONFIGS_DIR, CameraConfig, LightConfig, ReportConfig, config_hash, experiment_toml, find_experiment, list_experiments,
-                           list_presets, load_experiment, load_tolerances, sweep_points, workload_hash)
+from csmlab.config import (CONFIGS_DIR, CameraConfig, LightConfig, ReportConfig, config_hash, experiment_toml,
+                           find_experiment, list_experiments, list_presets, load_experiment, load_tolerances,
+                           sweep_points, workload_hash)
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
 
