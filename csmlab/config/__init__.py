@@ -24,7 +24,7 @@ from csmlab.config.presets import (CONFIGS_DIR, EXPERIMENTS_DIR, PROJECT_DIR, fi
 from csmlab.config.records import (CameraConfig, Experiment, LightConfig, Method, ReportConfig, SceneConfig,
                                    TuneConfig, Variant, sweep_points)
 from csmlab.config.toml_writer import experiment_toml, field_docs, method_preset_toml
-from csmlab.config.validate import load_experiment, load_tolerances, parse_size
+from csmlab.config.validate import load_experiment, load_tolerances, parse_size, shadow_method_registries
 
 __all__ = [
     "CONFIGS_DIR",
@@ -49,6 +49,7 @@ __all__ = [
     "load_tolerances",
     "method_preset_toml",
     "parse_size",
+    "shadow_method_registries",
     "sweep_points",
     "workload_hash",
 ]

@@ -282,18 +282,22 @@ def _shadow_fields(table, *, where: str, located: _Located, allow=("name",)) -> 
     return out
 
 
-def _checked_settings(settings: ShadowSettings, *, where_of, located: _Located) -> ShadowSettings:
-    """``settings`` after range and method-name checks; ``where_of(field)`` says where a field was set."""
+def shadow_method_registries() -> dict:
+    """The registry of every ``[shadow]`` field that names a method, by field (``csmlab list`` prints them)."""
     from csmlab.cascades import (BOUNDS_METHODS, DEPTH_RANGE_METHODS, EXTENT_METHODS, FIT_METHODS, SNAP_METHODS,
                                  SPLIT_METHODS, STABILIZATION_METHODS)
     from csmlab.lookup_choices import FILTER_METHODS, SELECTION_METHODS
     from csmlab.texels import PRECISION_METHODS
 
+    return {"split": SPLIT_METHODS, "fit": FIT_METHODS, "stabilization": STABILIZATION_METHODS,
+            "selection": SELECTION_METHODS, "filter": FILTER_METHODS, "extent": EXTENT_METHODS, "snap": SNAP_METHODS,
+            "depth_range": DEPTH_RANGE_METHODS, "bounds": BOUNDS_METHODS, "engine_precision": PRECISION_METHODS}
+
+
+def _checked_settings(settings: ShadowSettings, *, where_of, located: _Located) -> ShadowSettings:
+    """``settings`` after range and method-name checks; ``where_of(field)`` says where a field was set."""
     _validated(settings, where_of=where_of, located=located)
-    for name, registry in (("split", SPLIT_METHODS), ("fit", FIT_METHODS), ("stabilization", STABILIZATION_METHODS),
-                           ("selection", SELECTION_METHODS), ("filter", FILTER_METHODS),
-                           ("extent", EXTENT_METHODS), ("snap", SNAP_METHODS), ("depth_range", DEPTH_RANGE_METHODS),
-                           ("bounds", BOUNDS_METHODS), ("engine_precision", PRECISION_METHODS)):
+    for name, registry in shadow_method_registries().items():
         _registry_name(getattr(settings, name), registry, where=where_of(name), located=located)
     if settings.split == "geometric" and settings.cascades > 1 and settings.first_cascade_far >= settings.shadow_distance:
         raise located.error(where_of("first_cascade_far"), f"expected a distance below shadow_distance "

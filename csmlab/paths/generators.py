@@ -110,6 +110,17 @@ def _camera_path(name: str, times, positions, *, yaw_deg, pitch_deg, roll_deg=0.
                       fov_y_deg=60.0, name=name)
 
 
+def _straight_path(name: str, *, frames: int, fps: float, start, heading_deg: float, speed: float,
+                   pitch_deg: float) -> CameraPath:
+    """A straight move at constant speed along the heading, the view yawed with it and pitched."""
+    t = _frame_times(frames, fps)
+    _finite(heading_deg=heading_deg, speed=speed, pitch_deg=pitch_deg)
+    if speed < 0:
+        raise ValueError(f"speed: expected metres per second ≥ 0, got {speed}")
+    positions = _point(start, name="start") + (speed * t)[:, None] * _heading(heading_deg)
+    return _camera_path(name, t, positions, yaw_deg=heading_deg, pitch_deg=pitch_deg)
+
+
 def dolly_path(*, frames: int, fps: float = 30.0, start=(19.0, 1.7, 6.0), heading_deg: float = 0.0,
                speed: float = 1.5, pitch_deg: float = 0.0) -> CameraPath:
     """A straight move at constant speed, looking where it goes.
@@ -129,12 +140,8 @@ def dolly_path(*, frames: int, fps: float = 30.0, start=(19.0, 1.7, 6.0), headin
     pitch_deg : float
         View pitch, degrees (negative looks down); the motion stays horizontal.
     """
-    t = _frame_times(frames, fps)
-    _finite(heading_deg=heading_deg, speed=speed, pitch_deg=pitch_deg)
-    if speed < 0:
-        raise ValueError(f"speed: expected metres per second ≥ 0, got {speed}")
-    positions = _point(start, name="start") + (speed * t)[:, None] * _heading(heading_deg)
-    return _camera_path("dolly", t, positions, yaw_deg=heading_deg, pitch_deg=pitch_deg)
+    return _straight_path("dolly", frames=frames, fps=fps, start=start, heading_deg=heading_deg, speed=speed,
+                          pitch_deg=pitch_deg)
 
 
 def pan_path(*, frames: int, fps: float = 30.0, position=(0.0, 1.7, 0.0), start_yaw_deg: float = 0.0,
@@ -254,12 +261,8 @@ def flyover_path(*, frames: int, fps: float = 30.0, start=(-50.0, 40.0, 0.0), he
     pitch_deg : float
         Degrees; -35 looks down 35° below the horizon.
     """
-    t = _frame_times(frames, fps)
-    _finite(heading_deg=heading_deg, speed=speed, pitch_deg=pitch_deg)
-    if speed < 0:
-        raise ValueError(f"speed: expected metres per second ≥ 0, got {speed}")
-    positions = _point(start, name="start") + (speed * t)[:, None] * _heading(heading_deg)
-    return _camera_path("flyover", t, positions, yaw_deg=heading_deg, pitch_deg=pitch_deg)
+    return _straight_path("flyover", frames=frames, fps=fps, start=start, heading_deg=heading_deg, speed=speed,
+                          pitch_deg=pitch_deg)
 
 
 def jitter_path(*, frames: int, fps: float = 30.0, seed: int = 1, position=(20.0, 1.7, 0.0), yaw_deg: float = 0.0,
