@@ -73,14 +73,6 @@ class CameraPose:
         """Unit view direction ``(3,)`` in world space (the camera's -Z axis)."""
         return -self.rotation[:, 2]
 
-    def view_matrix(self) -> np.ndarray:
-        """World-to-view matrix ``(4, 4)``."""
-        r = self.rotation
-        m = np.eye(4)
-        m[:3, :3] = r.T
-        m[:3, 3] = -r.T @ self.position
-        return m
-
     def view_depth(self, points) -> np.ndarray:
         """View depth ``-z_view`` in metres of world points ``(..., 3)``; shape ``(...)``."""
         return (np.asarray(points, dtype=np.float64) - self.position) @ self.forward

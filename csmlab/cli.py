@@ -266,12 +266,7 @@ def _about(obj) -> str:
 @app.command("list")
 def list_names() -> None:
     """List scenes, camera paths, file formats, conventions, methods, presets and experiments."""
-    from csmlab.cascades import (BOUNDS_METHODS, DEPTH_RANGE_METHODS, EXTENT_METHODS, FIT_METHODS, SNAP_METHODS,
-                                 SPLIT_METHODS, STABILIZATION_METHODS)
-    from csmlab.config import list_experiments, list_presets
-    from csmlab.filters import FILTER_METHODS
-    from csmlab.kernels.shadow import SELECTION_METHODS
-    from csmlab.texels import PRECISION_METHODS
+    from csmlab.config import list_experiments, list_presets, shadow_method_registries
     from csmlab.paths import CONVENTIONS, PATH_FORMATS, PATH_GENERATORS
     from csmlab.scene import SCENE_KINDS
 
@@ -284,11 +279,7 @@ def list_names() -> None:
     console.print(_names_table("camera conventions ([camera] convention)",
                                [(k, _about(v)) for k, v in CONVENTIONS.items()]))
     console.print(_names_table("shadow methods ([shadow] and [[methods]] fields)", [
-        (field, ", ".join(registry)) for field, registry in (
-            ("split", SPLIT_METHODS), ("fit", FIT_METHODS), ("stabilization", STABILIZATION_METHODS),
-            ("selection", SELECTION_METHODS), ("filter", FILTER_METHODS), ("extent", EXTENT_METHODS),
-            ("snap", SNAP_METHODS), ("depth_range", DEPTH_RANGE_METHODS), ("bounds", BOUNDS_METHODS),
-            ("engine_precision", PRECISION_METHODS))]))
+        (field, ", ".join(registry)) for field, registry in shadow_method_registries().items()]))
     console.print(_names_table("presets (extends = [...])", list_presets().items()))
     console.print(_names_table("experiments (csmlab run NAME)", list_experiments().items()))
 

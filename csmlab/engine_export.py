@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from csmlab.cascades.splits import split_distances
+from csmlab.registry import dispatch
 from csmlab.settings import ShadowSettings
 
 __all__ = ["EXPORT_METHODS", "Snippet", "export", "split_boundaries", "ue_split_fractions"]
@@ -274,6 +275,4 @@ def export(settings: ShadowSettings, *, near: float, far: float, engine: str) ->
     ValueError
         For an unknown engine (the known ones listed).
     """
-    if engine not in EXPORT_METHODS:
-        raise ValueError(f"engine: expected one of {sorted(EXPORT_METHODS)}, got {engine!r}")
-    return EXPORT_METHODS[engine](settings, near=near, far=far)
+    return dispatch(EXPORT_METHODS, engine, settings, field="engine", near=near, far=far)

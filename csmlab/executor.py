@@ -20,6 +20,7 @@ from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 from csmlab.errors import InputError
+from csmlab.registry import dispatch
 
 __all__ = ["EXECUTORS", "execute", "executor_for", "run_dask", "run_inprocess", "run_pool"]
 
@@ -124,9 +125,8 @@ def execute(fn: Callable, tasks: Iterable, *, shared, executor: str = "inprocess
     address : str, optional
         Dask: ``"local"`` or a scheduler address ``tcp://HOST:PORT``.
     """
-    if executor not in EXECUTORS:
-        raise ValueError(f"executor: expected one of {sorted(EXECUTORS)}, got {executor!r}")
-    return EXECUTORS[executor](fn, list(tasks), shared=shared, jobs=jobs, address=address)
+    return dispatch(EXECUTORS, executor, fn, list(tasks), field="executor", shared=shared,
+                    offered={"jobs": jobs, "address": address})
 
 
 def executor_for(*, jobs: int | None, scheduler: str | None) -> tuple[str, int, str | None]:

@@ -1,6 +1,6 @@
 """Every shadow filter by name, the texels each reads, and the lookup that dispatches to its kernel.
 
-:data:`FILTER_METHODS` maps a ``[shadow] filter`` name to what it is. The box filters ``none``,
+:data:`FILTER_METHODS` (:mod:`csmlab.lookup_choices`) maps a ``[shadow] filter`` name to what it is. The box filters ``none``,
 ``pcf`` and ``pcf_bilinear`` run inside :func:`csmlab.kernels.shadow.shadow_lookup` with the
 cascade selection; the weighted PCF filters (:mod:`csmlab.kernels.pcf`) run after it: the
 selection is made with the filter's tap radius (so no tap is ever clamped, DESIGN.md "Exact
@@ -21,53 +21,15 @@ import numpy as np
 
 from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet
-from csmlab.kernels.moments import (MOMENT_METHODS, blur_moments, moment_lookup, moment_maps, moment_mip_chain,
-                                    moment_mip_lookup)
-from csmlab.kernels.pcf import PCF_KERNELS, weighted_pcf
+from csmlab.kernels.moments import blur_moments, moment_lookup, moment_maps, moment_mip_chain, moment_mip_lookup
+from csmlab.kernels.pcf import weighted_pcf
 from csmlab.kernels.shadow import shadow_lookup
+from csmlab.lookup_choices import FILTER_METHODS, MOMENT_METHODS, PCF_KERNELS, filter_radius
 from csmlab.quads import quad_derivatives
 from csmlab.settings import ShadowSettings
 
 __all__ = ["FILTER_METHODS", "box_texel_origins", "filter_mips", "filter_moments", "filter_radius", "filter_widths", "filtered_shadow_lookup", "interleaved_gradient_noise",
            "poisson_disk", "screen_pixels"]
-
-FILTER_METHODS: dict[str, str] = {
-    "none": "the one texel holding the point",
-    "pcf": "N×N texels, equal weights",
-    "pcf_bilinear": "2×2 texels, bilinear weights (hardware comparison sampler)",
-    "pcf_gaussian": "N×N texels, Gaussian weights of σ = filter_sigma (DirectX CascadedShadowMaps11)",
-    "pcf_tent": "tent of half-width N/2 integrated over each texel (Unity's 3×3/5×5/7×7 tents)",
-    "pcf_poisson": "poisson_taps taps of a fixed Poisson disk of radius N/2 (optionally rotated per pixel)",
-    "pcss": "blocker search over N×N, penumbra from light_size_deg, then a tent (PCSS)",
-    "vsm": "variance shadow map: blurred (z, z²), Chebyshev bound (DirectX VarianceShadows11)",
-    "evsm2": "exponential VSM, positive warp (MJP, Filament)",
-    "evsm4": "exponential VSM, positive and negative warps (MJP, Filament)",
-}
-"""Filters by name (the ``[shadow] filter`` values) and what each does."""
-
-
-def filter_radius(filter: str, filter_size: int, *, moment_blur: int = 1, mips: tuple[int, int] | None = None) -> int:
-    """Texels a filter reads beyond the one holding the point (``filter_size`` N, odd).
-
-    ``none`` 0; ``pcf``, ``pcf_gaussian`` and ``pcss`` N // 2; ``pcf_bilinear`` 1; ``pcf_tent`` and
-    ``pcf_poisson`` N // 2 + 1 (a width of N/2 texels around a point anywhere in its texel); the
-    moment filters ``moment_blur // 2 + 1`` (a bilinear lookup of blurred moments), and with
-    ``mips = (max_lod, anisotropy)`` ``⌈(anisotropy + 2) / 2 · 2^max_lod⌉ + moment_blur // 2``: a
-    bilinear lookup at level l reads within 1.5 · 2^l texels of its probe, and the probes spread
-    over at most ``(anisotropy − 1) / 2 · 2^max_lod`` texels on each side (csmlab.kernels.moments).
-    """
-    if filter not in FILTER_METHODS:
-        raise ValueError(f"filter: expected one of {sorted(FILTER_METHODS)}, got {filter!r}")
-    half = filter_size // 2
-    if filter in MOMENT_METHODS and mips is not None:
-        max_lod, anisotropy = mips
-        return -(-(anisotropy + 2) * 2**max_lod // 2) + moment_blur // 2
-    if filter in MOMENT_METHODS:
-        # The bilinear lookup reads one texel beyond the point, each blurred from moment_blur // 2 more.
-        return moment_blur // 2 + 1
-    return {"none": 0, "pcf": half, "pcf_bilinear": 1, "pcf_gaussian": half, "pcss": half, "pcf_tent": half + 1,
-            "pcf_poisson": half + 1}[filter]
-
 
 def filter_widths(cascades: CascadeSet, settings: ShadowSettings) -> np.ndarray:
     """The ``width`` of :func:`csmlab.kernels.pcf.weighted_pcf` per cascade ``(C,)`` float64.

@@ -17,7 +17,6 @@ __all__ = [
     "BoundingSphere",
     "frustum_slice_corners",
     "light_basis",
-    "look_at",
     "normalized",
     "orthographic",
     "perspective",
@@ -171,16 +170,6 @@ def rotation_looking_at(forward, up=(0.0, 1.0, 0.0)) -> np.ndarray:
     right /= np.linalg.norm(right)
     true_up = np.cross(right, f)
     return quat_from_matrix(np.stack([right, true_up, -f], axis=1))
-
-
-def look_at(eye, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
-    """World-to-view matrix ``(4, 4)`` of a camera at ``eye`` looking at ``target`` (OpenGL convention)."""
-    eye = np.asarray(eye, dtype=np.float64)
-    r = quat_to_matrix(rotation_looking_at(np.asarray(target, dtype=np.float64) - eye, up))
-    view = np.eye(4)
-    view[:3, :3] = r.T
-    view[:3, 3] = -r.T @ eye
-    return view
 
 
 def perspective(*, fov_y_deg: float, aspect: float, near: float, far: float) -> np.ndarray:

@@ -48,6 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from csmlab.camera import CameraPose
+from csmlab.registry import check_name
 
 __all__ = ["LOD_METHODS", "Quads", "quad_derivatives", "quad_lanes"]
 
@@ -150,8 +151,7 @@ def quad_derivatives(lane_coords, lane_cascade, own, *, method: str, bits: int,
         ``method`` takes them, row 1 the lanes' differences in cascade ``cascade + 1``'s (the
         last cascade's where there is none), for a blend band.
     """
-    if method not in LOD_METHODS:
-        raise ValueError(f"lod: expected one of {list(LOD_METHODS)}, got {method!r}")
+    check_name(method, LOD_METHODS, field="lod")
     xy = np.asarray(lane_coords, dtype=np.int64)
     lanes = np.asarray(lane_cascade, dtype=np.int64)
     own = np.asarray(own, dtype=np.int64)

@@ -1,6 +1,6 @@
 """The shadow settings of one method: every knob of DESIGN.md's ``[shadow]`` section.
 
-A plain record shared by the host cascades and the Warp shadow lookup. ``config.py`` builds it
+A plain record shared by the host cascades and the Warp shadow lookup. :mod:`csmlab.config` builds it
 from TOML and validates it at the edge; :meth:`ShadowSettings.validated` repeats the range
 checks so that a settings object made in Python is held to the same contract.
 """

@@ -28,6 +28,7 @@ import math
 
 import numpy as np
 
+from csmlab.registry import check_name
 from csmlab.settings import ShadowSettings
 
 __all__ = ["ATLAS_LAYOUTS", "DEPTH_FORMATS", "MOMENT_BYTES", "depth_step", "memory_bytes", "stored_depth", "texel_bytes"]
@@ -45,8 +46,7 @@ ATLAS_LAYOUTS: dict[str, tuple[tuple[int, int], ...]] = {
 
 def depth_step(span: float, *, depth_format: str) -> float:
     """Metres between stored levels for a near/far ``span`` metres deep: a power of two; 0 for ``float32``."""
-    if depth_format not in DEPTH_FORMATS:
-        raise ValueError(f"depth_format: expected one of {sorted(DEPTH_FORMATS)}, got {depth_format!r}")
+    check_name(depth_format, DEPTH_FORMATS, field="depth_format")
     bits = DEPTH_FORMATS[depth_format][0]
     if bits is None:
         return 0.0

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from csmlab.cascades import CascadeSet
+from csmlab.registry import check_name
 
 __all__ = ["PRECISION_METHODS", "fixed_point_coordinates", "fixed_point_origin", "light_depth",
            "light_plane_coordinates", "light_space", "receiver_lookup", "texel_coordinates"]
@@ -147,10 +148,8 @@ def fixed_point_coordinates(cascades: CascadeSet, index: int, points, *, bits: i
     ``-2**50`` less the origin (outside every box). ``precision = "float32"`` rounds the local
     coordinates of an engine's float32 matrix instead (:data:`PRECISION_METHODS`).
     """
-    if precision == "float32":
+    if check_name(precision, PRECISION_METHODS, field="engine_precision") == "float32":
         return _snapped(_local_texels_float32(cascades, index, points) * float(2**bits))
-    if precision != "float64":
-        raise ValueError(f"engine_precision: expected one of {sorted(PRECISION_METHODS)}, got {precision!r}")
     snapped = _snapped(_global_texels(cascades, index, points) * float(2**bits))
     return snapped - fixed_point_origin(cascades, index, bits=bits)
 

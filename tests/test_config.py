@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import re
 import tomllib
 
 import pytest
 
-from csmlab.config import (CONFIGS_DIR, config_hash, experiment_toml, find_experiment, list_experiments,
-                           list_presets, load_experiment, load_tolerances, sweep_points, workload_hash)
+from csmlab.config import (CONFIGS_DIR, CameraConfig, LightConfig, ReportConfig, config_hash, experiment_toml,
+                           find_experiment, list_experiments, list_presets, load_experiment, load_tolerances,
+                           sweep_points, workload_hash)
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
 
@@ -189,3 +191,14 @@ def test_tolerances_file_is_validated(tmp_path):
     assert load_tolerances(good) == {"flicker_same": {"abs": 0.0, "rel": 0.0}}
     with pytest.raises(InputError, match="non-negative"):
         load_tolerances(write(tmp_path, "rho_median = { rel = -1 }\n", name="bad.toml"))
+
+
+@pytest.mark.parametrize("record, field, message", [
+    (CameraConfig(frames=0), "frames", "expected at least 1 frame, got 0"),
+    (LightConfig(elevation_deg=95.0), "elevation_deg", "expected an angle in [-90, 90] degrees, got 95.0"),
+    (ReportConfig(snapshot_frames=(3, -1)), "snapshot_frames", "expected frame numbers >= 0, got [3, -1]"),
+])
+def test_a_record_made_in_python_is_held_to_the_checks_its_table_is(record, field, message):
+    with pytest.raises(ValueError, match=re.escape(f"{field}: {message}")):
+        record.validated()
+    assert CameraConfig().validated() == CameraConfig()

@@ -6,7 +6,7 @@ from csmlab.camera import CameraPose
 from csmlab.cascades import build_cascades
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import rotation_looking_at
-from csmlab.metrics.cost import cost_summary, shadow_memory_bytes, stage_seconds
+from csmlab.metrics.cost import cost_summary, shadow_memory_bytes
 from csmlab.settings import ShadowSettings
 
 
@@ -15,7 +15,7 @@ def test_shadow_memory_is_cascades_times_resolution_squared_times_depth_bytes():
     assert shadow_memory_bytes(ShadowSettings(cascades=3, resolution=2048, depth_bytes=2)) == 3 * 2048 * 2048 * 2
 
 
-def test_cost_summary_and_stage_seconds_of_a_frame():
+def test_cost_summary_of_a_frame():
     pose = CameraPose(position=[0.0, 10.0, 0.0], orientation=rotation_looking_at([0.0, -1.0, 0.0]))
     settings = ShadowSettings(cascades=2, resolution=64)
     cascades = build_cascades(pose=pose, light_direction=[0.0, -1.0, 0.0], scene_corners=np.zeros((1, 3)),
@@ -31,5 +31,3 @@ def test_cost_summary_and_stage_seconds_of_a_frame():
                                       blend=np.zeros((2, 2), bool)),
                   timings={"cascades": 0.125, "raster": 2.0, "shadow": 1.0})
     assert cost_summary(frame) == {"memory_bytes": 2 * 64 * 64 * 4.0, "texels_rasterized": 1234.0}
-    assert stage_seconds(frame) == {"visibility": 0.5, "reference": 0.25, "cascades": 0.125, "raster": 2.0,
-                                    "shadow": 1.0}

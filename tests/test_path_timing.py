@@ -242,8 +242,8 @@ resolution = 32
 POSES = "0.0 0 1 5 0 0 0 1\n0.1 0 1 5 0 0 0 1\n0.1 0 1 5.01 0 0 0 1\n0.2 0 1 5 0 0 0 1\n3.0 0 1 5 0 0 0 1\n"
 
 BAD_FIELDS = {
-    "duplicate_times": ('duplicate_times = "sometimes"', "camera.duplicate_times", "'first', 'last', 'mean', 'error'"),
-    "gaps": ('gaps = "skip"', "camera.gaps", "'interpolate', 'cut', 'error'"),
+    "duplicate_times": ('duplicate_times = "sometimes"', "camera.duplicate_times", "['error', 'first', 'last', 'mean']"),
+    "gaps": ('gaps = "skip"', "camera.gaps", "['cut', 'error', 'interpolate']"),
     "max_gap": ("max_gap = -0.5", "camera.max_gap", "a positive number of seconds"),
     "max_gap type": ('max_gap = "long"', "camera.max_gap", "number"),
     "anchor": ('anchor = "start"', "camera.anchor", "'first'"),

@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from csmlab.registry import check_name
+
 __all__ = ["BOUNDS_METHODS", "DEPTH_RANGE_METHODS", "held_depth_ranges", "split_range", "visible_depth_range"]
 
 BOUNDS_METHODS: dict[str, str] = {
@@ -96,8 +98,7 @@ def split_range(*, near: float, far: float, visible: tuple[float, float] | None,
     ``frustum`` gives ``(near, far)``; ``sdsm`` the visible range clamped into it (the whole of it
     when nothing is visible, and at least a millimetre deep).
     """
-    if method not in BOUNDS_METHODS:
-        raise ValueError(f"bounds: expected one of {sorted(BOUNDS_METHODS)}, got {method!r}")
+    check_name(method, BOUNDS_METHODS, field="bounds")
     if method == "frustum" or visible is None or not np.all(np.isfinite(visible)):
         return near, far
     lo = float(np.clip(visible[0], near, far))

@@ -17,6 +17,7 @@ from csmlab.cascades.fit import slice_intervals
 from csmlab.cascades.splits import split_distances
 from csmlab.cascades.stabilize import SliceFootprint, stabilize
 from csmlab.geometry import frustum_slice_corners, light_basis
+from csmlab.registry import check_name, dispatch
 from csmlab.settings import ShadowSettings
 
 __all__ = ["Cascade", "CascadeSet", "build_cascades", "radius_rounded_up", "tight_extents"]
@@ -163,15 +164,14 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
     frustum_light = _slice_light_corners(pose, basis, near, far)
     frustum_extent = frustum_light[:, :2].max(axis=0) - frustum_light[:, :2].min(axis=0)
     margin = settings.margin_texels
-    if settings.extent not in EXTENT_METHODS:
-        raise ValueError(f"extent: expected one of {sorted(EXTENT_METHODS)}, got {settings.extent!r}")
-    if settings.depth_range not in DEPTH_RANGE_METHODS:
-        raise ValueError(f"depth_range: expected one of {sorted(DEPTH_RANGE_METHODS)}, got {settings.depth_range!r}")
+    check_name(settings.extent, EXTENT_METHODS, field="extent")
+    check_name(settings.depth_range, DEPTH_RANGE_METHODS, field="depth_range")
 
     cascades = []
     for i, (z0, z1) in enumerate(intervals):
         corners = _slice_light_corners(pose, basis, z0, z1)
-        centre, radius = EXTENT_METHODS[settings.extent](pose=pose, basis=basis, z_near=z0, z_far=z1, corners=corners)
+        centre, radius = dispatch(EXTENT_METHODS, settings.extent, field="extent", pose=pose, basis=basis, z_near=z0,
+                                  z_far=z1, corners=corners)
         footprint = SliceFootprint(lo=corners[:, :2].min(axis=0), hi=corners[:, :2].max(axis=0), centre=centre,
                                    radius=radius, frustum_extent=frustum_extent)
         resolution = settings.cascade_resolutions[i] if settings.cascade_resolutions else settings.resolution

@@ -11,6 +11,8 @@ from typing import Callable
 
 import numpy as np
 
+from csmlab.registry import check_name
+
 __all__ = ["FIT_METHODS", "fit_cascade", "fit_scene", "slice_intervals"]
 
 
@@ -37,8 +39,7 @@ def slice_intervals(splits: np.ndarray, *, method: str, blend_band: float = 0.0)
     With a blend band ``b`` the slice of cascade ``i > 0`` starts ``b · (z_i - z_{i-1})`` earlier,
     so that the band at the end of cascade ``i - 1``, where the two are blended, lies in both.
     """
-    if method not in FIT_METHODS:
-        raise ValueError(f"fit: expected one of {sorted(FIT_METHODS)}, got {method!r}")
+    check_name(method, FIT_METHODS, field="fit")
     count = len(splits) - 1
     out = np.array([FIT_METHODS[method](splits, i) for i in range(count)], dtype=np.float64)
     for i in range(1, count):

@@ -16,30 +16,32 @@ from typing import Callable
 
 import numpy as np
 
+from csmlab.registry import check_name, dispatch
+
 __all__ = ["SPLIT_METHODS", "split_distances", "splits_exponent", "splits_geometric", "splits_log", "splits_manual",
            "splits_practical", "splits_uniform"]
 
 
-def splits_uniform(*, near: float, far: float, count: int, **_unused) -> np.ndarray:
+def splits_uniform(*, near: float, far: float, count: int) -> np.ndarray:
     """``z_i = n + (f - n) i / C``."""
     i = np.arange(count + 1, dtype=np.float64)
     return near + (far - near) * i / count
 
 
-def splits_log(*, near: float, far: float, count: int, **_unused) -> np.ndarray:
+def splits_log(*, near: float, far: float, count: int) -> np.ndarray:
     """``z_i = n (f / n)^(i / C)`` — the scheme that gives each cascade the same texel-to-pixel ratio."""
     i = np.arange(count + 1, dtype=np.float64)
     return near * (far / near) ** (i / count)
 
 
-def splits_practical(*, near: float, far: float, count: int, lambda_: float, **_unused) -> np.ndarray:
+def splits_practical(*, near: float, far: float, count: int, lambda_: float) -> np.ndarray:
     """``z_i = λ · log_i + (1 - λ) · uniform_i`` (PSSM, seed 000)."""
     return lambda_ * splits_log(near=near, far=far, count=count) + (1.0 - lambda_) * splits_uniform(
         near=near, far=far, count=count
     )
 
 
-def splits_manual(*, near: float, far: float, count: int, splits=(), **_unused) -> np.ndarray:
+def splits_manual(*, near: float, far: float, count: int, splits=()) -> np.ndarray:
     """User-given far end of each cascade: ``count`` increasing values ending at ``far``.
 
     Values that are all ≤ 1 are fractions of ``far`` (the shadow distance); otherwise metres.
@@ -58,8 +60,7 @@ def splits_manual(*, near: float, far: float, count: int, splits=(), **_unused) 
     return z
 
 
-def splits_exponent(*, near: float, far: float, count: int, distribution_exponent: float = 3.0,
-                    **_unused) -> np.ndarray:
+def splits_exponent(*, near: float, far: float, count: int, distribution_exponent: float = 3.0) -> np.ndarray:
     """Unreal's distribution exponent: each cascade ``e`` times deeper than the one before.
 
     ``z_i = n + (f - n) (e^i - 1) / (e^C - 1)``, the geometric series of
@@ -73,8 +74,7 @@ def splits_exponent(*, near: float, far: float, count: int, distribution_exponen
     return near + (far - near) * np.expm1(i * np.log(e)) / np.expm1(count * np.log(e))
 
 
-def splits_geometric(*, near: float, far: float, count: int, first_cascade_far: float = 10.0,
-                     **_unused) -> np.ndarray:
+def splits_geometric(*, near: float, far: float, count: int, first_cascade_far: float = 10.0) -> np.ndarray:
     """Bevy's bounds: the first cascade ends at ``b``, the others spaced geometrically up to ``f``.
 
     ``z_0 = n``, ``z_i = b (f / b)^((i - 1) / (C - 1))`` for ``i ≥ 1`` (``calculate_cascade_bounds``
@@ -122,15 +122,15 @@ def split_distances(*, near: float, far: float, count: int, method: str = "pract
     first_cascade_far : float
         geometric: far end of the first cascade, metres (Bevy).
     """
-    if method not in SPLIT_METHODS:
-        raise ValueError(f"split: expected one of {sorted(SPLIT_METHODS)}, got {method!r}")
+    check_name(method, SPLIT_METHODS, field="split")
     if not (np.isfinite(near) and near > 0):
         raise ValueError(f"near: expected a positive distance in metres, got {near}")
     if not (np.isfinite(far) and far > near):
         raise ValueError(f"shadow_distance: expected a distance greater than near ({near} m), got {far}")
     if count < 1:
         raise ValueError(f"cascades: expected at least 1, got {count}")
-    z = SPLIT_METHODS[method](near=near, far=far, count=count, lambda_=lambda_, splits=splits,
-                              distribution_exponent=distribution_exponent, first_cascade_far=first_cascade_far)
+    z = dispatch(SPLIT_METHODS, method, field="split", near=near, far=far, count=count,
+                 offered={"lambda_": lambda_, "splits": splits, "distribution_exponent": distribution_exponent,
+                          "first_cascade_far": first_cascade_far})
     z[0], z[-1] = near, far
     return z

@@ -23,8 +23,10 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["SNAP_METHODS", "STABILIZATION_METHODS", "SliceFootprint", "held_extents", "stabilize", "stabilize_exact",
-           "stabilize_none", "stabilize_quantized"]
+from csmlab.registry import check_name, dispatch
+
+__all__ = ["QUANTIZED_BASES", "SNAP_METHODS", "STABILIZATION_METHODS", "SliceFootprint", "held_extents", "stabilize",
+           "stabilize_exact", "stabilize_none", "stabilize_quantized"]
 
 
 @dataclass(frozen=True)
@@ -50,8 +52,8 @@ class SliceFootprint:
     frustum_extent: np.ndarray
 
 
-def stabilize_none(fp: SliceFootprint, *, resolution: int, margin: int, held_extent=None,
-                   **_unused) -> tuple[np.ndarray, np.ndarray]:
+def stabilize_none(fp: SliceFootprint, *, resolution: int, margin: int,
+                   held_extent=None) -> tuple[np.ndarray, np.ndarray]:
     """Tight box around the slice every frame: texel size and origin follow the camera continuously.
 
     With ``held_extent`` ``(2,)`` metres (extent hysteresis, :func:`held_extents`), the box has that
@@ -145,33 +147,37 @@ SNAP_METHODS: dict[str, Callable[..., tuple[np.ndarray, np.ndarray]]] = {
 """What exact snaps to whole texels, by name: ``f(footprint, *, resolution, margin) -> (texel, origin)``."""
 
 
-def stabilize_exact(fp: SliceFootprint, *, resolution: int, margin: int, snap: str = "origin",
-                    **_unused) -> tuple[np.ndarray, np.ndarray]:
+def stabilize_exact(fp: SliceFootprint, *, resolution: int, margin: int,
+                    snap: str = "origin") -> tuple[np.ndarray, np.ndarray]:
     """Fixed-extent box: diameter ``2r`` (sphere or diagonal), origin an integer texel index.
 
     The texel size depends on the (bit-stable) radius only, so it is bit-identical from frame to
     frame; snapping the origin (``snap = "origin"``) or the centre (``"centre"``) to whole texels
     (:data:`SNAP_METHODS`) makes the texel grid fixed in the world.
     """
-    if snap not in SNAP_METHODS:
-        raise ValueError(f"snap: expected one of {sorted(SNAP_METHODS)}, got {snap!r}")
-    return SNAP_METHODS[snap](fp, resolution=resolution, margin=margin)
+    return dispatch(SNAP_METHODS, snap, fp, field="snap", resolution=resolution, margin=margin)
+
+
+QUANTIZED_BASES: dict[str, str] = {
+    "sphere": "the slice's bounding-sphere diameter (fixed per cascade)",
+    "frustum": "the whole frustum's light-space box (seed 003)",
+}
+"""Base extents of quantized stabilization, by name, with what each is."""
 
 
 def stabilize_quantized(fp: SliceFootprint, *, resolution: int, margin: int, levels: int = 64,
-                        quantized_base: str = "sphere", **_unused) -> tuple[np.ndarray, np.ndarray]:
+                        quantized_base: str = "sphere") -> tuple[np.ndarray, np.ndarray]:
     """Tight extent rounded *up* to one of ``levels`` steps of a base extent, origin snapped.
 
     ``quantized_base = "sphere"`` takes the slice's bounding-sphere diameter (fixed per cascade,
     so the steps never move); ``"frustum"`` takes the whole frustum's light-space box, as seed 003's
     listing does in the light's post-projective space.
     """
+    check_name(quantized_base, QUANTIZED_BASES, field="quantized_base")
     if quantized_base == "sphere":
         base = np.array([2.0 * fp.radius, 2.0 * fp.radius])
-    elif quantized_base == "frustum":
-        base = np.asarray(fp.frustum_extent, dtype=np.float64)
     else:
-        raise ValueError(f"quantized_base: expected 'sphere' or 'frustum', got {quantized_base!r}")
+        base = np.asarray(fp.frustum_extent, dtype=np.float64)
     step = base / levels
     extent = np.maximum(np.ceil((fp.hi - fp.lo) / step), 1.0) * step
     texel = extent / (resolution - 2 * margin - 1)
@@ -199,12 +205,12 @@ def stabilize(fp: SliceFootprint, *, method: str, resolution: int, margin: int, 
         If ``method`` is not a key of :data:`STABILIZATION_METHODS`, or the resolution leaves no
         texel inside the margins.
     """
-    if method not in STABILIZATION_METHODS:
-        raise ValueError(f"stabilization: expected one of {sorted(STABILIZATION_METHODS)}, got {method!r}")
+    check_name(method, STABILIZATION_METHODS, field="stabilization")
     if resolution - 2 * margin - 3 < 1:
         raise ValueError(f"resolution: expected more than {2 * margin + 3} texels for a {margin}-texel margin, got {resolution}")
     if method == "exact" and snap == "view" and resolution // 2 - margin - 4 < 1:
         raise ValueError(f"resolution: expected more than {2 * margin + 9} texels for snap = \"view\" with a "
                          f"{margin}-texel margin, got {resolution}")
-    return STABILIZATION_METHODS[method](fp, resolution=resolution, margin=margin, levels=levels,
-                                         quantized_base=quantized_base, snap=snap, held_extent=held_extent)
+    return dispatch(STABILIZATION_METHODS, method, fp, field="stabilization", resolution=resolution, margin=margin,
+                    offered={"levels": levels, "quantized_base": quantized_base, "snap": snap,
+                             "held_extent": held_extent})

@@ -60,11 +60,11 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device
+from csmlab.lookup_choices import MOMENT_EVSM4, MOMENT_METHODS, MOMENT_VSM
+from csmlab.registry import check_name
 
 __all__ = ["MOMENT_METHODS", "blur_moments", "moment_lookup", "moment_maps", "moment_mip_chain", "moment_mip_lookup"]
 
-MOMENT_METHODS: dict[str, int] = {"vsm": 0, "evsm2": 1, "evsm4": 2}
-"""Moment filters by name, mapped to the kernels' code."""
 
 
 @wp.func
@@ -80,13 +80,13 @@ def moments_kernel(depth: wp.array3d(dtype=wp.float32), inv_span: wp.float64, co
                    c_neg: wp.float64, out: wp.array3d(dtype=wp.vec4f)):
     c, j, i = wp.tid()
     z = normalized_depth(depth[c, j, i], inv_span)
-    if code == 0:
+    if code == MOMENT_VSM:
         out[c, j, i] = wp.vec4f(wp.float32(z), wp.float32(z * z), wp.float32(0.0), wp.float32(0.0))
         return
     zw = wp.float64(2.0) * z - wp.float64(1.0)
     p = wp.exp(c_pos * zw)
     n = wp.float64(0.0)
-    if code == 2:
+    if code == MOMENT_EVSM4:
         n = -wp.exp(-c_neg * zw)
     out[c, j, i] = wp.vec4f(wp.float32(p), wp.float32(p * p), wp.float32(n), wp.float32(n * n))
 
@@ -148,7 +148,7 @@ def moment_bound(m: wp.vec4d, receiver: wp.float32, inv_span: wp.float64, code: 
     # The receiver's own depth is not clamped: one beyond the range is behind everything stored.
     t = wp.float64(receiver) * inv_span
     p = wp.float64(0.0)
-    if code == 0:
+    if code == MOMENT_VSM:
         variance = wp.clamp(m[1] - m[0] * m[0] + min_variance, wp.float64(0.0), wp.float64(1.0))
         p = chebyshev(m[0], variance, t)
     else:
@@ -156,7 +156,7 @@ def moment_bound(m: wp.vec4d, receiver: wp.float32, inv_span: wp.float64, code: 
         wpos = wp.exp(c_pos * tw)
         floor_pos = min_variance * (c_pos * wpos) * (c_pos * wpos)
         p = chebyshev(m[0], wp.max(m[1] - m[0] * m[0], floor_pos), wpos)
-        if code == 2:
+        if code == MOMENT_EVSM4:
             wneg = -wp.exp(-c_neg * tw)
             floor_neg = min_variance * (c_neg * wneg) * (c_neg * wneg)
             p = wp.min(p, chebyshev(m[2], wp.max(m[3] - m[2] * m[2], floor_neg), wneg))
@@ -211,9 +211,7 @@ def moment_lookup_kernel(
 
 
 def _code(method: str) -> int:
-    if method not in MOMENT_METHODS:
-        raise ValueError(f"method: expected one of {sorted(MOMENT_METHODS)}, got {method!r}")
-    return MOMENT_METHODS[method]
+    return MOMENT_METHODS[check_name(method, MOMENT_METHODS, field="method")]
 
 
 def moment_maps(depth, *, span: float, method: str, exponents: tuple[float, float] = (40.0, 5.0),

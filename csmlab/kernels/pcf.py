@@ -40,11 +40,11 @@ import warp as wp
 
 from csmlab.kernels import checked_device
 from csmlab.kernels.shadow import tap
+from csmlab.lookup_choices import PCF_GAUSSIAN, PCF_KERNELS, PCF_POISSON, PCF_TENT
+from csmlab.registry import check_name
 
 __all__ = ["PCF_KERNELS", "pcss_width", "weighted_pcf"]
 
-PCF_KERNELS: dict[str, int] = {"pcf_gaussian": 0, "pcf_tent": 1, "pcf_poisson": 2, "pcss": 3}
-"""Weighted PCF filters by name, mapped to the kernel's code."""
 
 
 @wp.func
@@ -113,7 +113,7 @@ def weighted_lit(depth: wp.array3d(dtype=wp.float32), coords: wp.array3d(dtype=w
     # The point's position inside its texel, in texels: an exact fraction of `unit`.
     tx = wp.float64(x - i * unit) / wp.float64(unit)
     ty = wp.float64(y - j * unit) / wp.float64(unit)
-    if code == 0:
+    if code == PCF_GAUSSIAN:
         s = wp.float64(0.0)
         total = wp.float64(0.0)
         for dj in range(-radius, radius + 1):
@@ -122,9 +122,9 @@ def weighted_lit(depth: wp.array3d(dtype=wp.float32), coords: wp.array3d(dtype=w
                 s += w * wp.float64(tap(depth, c, i + wp.int64(di), j + wp.int64(dj), receiver, slope, x, y, unit))
                 total += w
         return s / total
-    if code == 1:
+    if code == PCF_TENT:
         return tent_sum(depth, c, i, j, tx, ty, width, radius, receiver, slope, x, y, unit)
-    if code == 2:
+    if code == PCF_POISSON:
         ca = wp.cos(angle)
         sa = wp.sin(angle)
         count = int(0)
@@ -267,8 +267,7 @@ def weighted_pcf(depth, coords, receiver_depth, *, cascade, filter: str, width, 
         non-positive width, a missing disk for ``pcf_poisson`` or a negative radius.
     """
     device = checked_device(device)
-    if filter not in PCF_KERNELS:
-        raise ValueError(f"filter: expected one of {sorted(PCF_KERNELS)}, got {filter!r}")
+    check_name(filter, PCF_KERNELS, field="filter")
     if not (isinstance(radius, (int, np.integer)) and radius >= 0):
         raise ValueError(f"radius: expected a non-negative integer, got {radius!r}")
     maps, xy, rd, slope, chosen, w, n = _checked(depth, coords, receiver_depth, receiver_slope, cascade, width)

@@ -38,21 +38,21 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device
+from csmlab.lookup_choices import (BOX_BILINEAR, BOX_FILTERS, SELECT_BEST_RESOLUTION, SELECT_INTERVAL, SELECT_MAP,
+                                   SELECTION_METHODS)
+from csmlab.lookup_choices import filter_radius as lookup_filter_radius
+from csmlab.registry import check_name
 
 __all__ = ["FILTER_METHODS", "SELECTION_METHODS", "filter_radius", "receiver_coordinates", "shadow_lookup"]
 
-SELECTION_METHODS: dict[str, int] = {"interval": 0, "map": 1, "best_resolution": 2}
-"""Cascade selection methods by name, mapped to the kernel's code."""
-
-FILTER_METHODS: dict[str, int] = {"none": 0, "pcf": 1, "pcf_bilinear": 2}
-"""Filters by name, mapped to the kernel's code."""
+FILTER_METHODS = BOX_FILTERS
+"""The filters this lookup runs itself (:data:`csmlab.lookup_choices.BOX_FILTERS`), mapped to the kernel's code."""
 
 
 def filter_radius(filter: str, filter_size: int) -> int:
-    """Texels a filter reads beyond the texel that contains the point (0, N // 2, or 1)."""
-    if filter not in FILTER_METHODS:
-        raise ValueError(f"filter: expected one of {sorted(FILTER_METHODS)}, got {filter!r}")
-    return {"none": 0, "pcf": filter_size // 2, "pcf_bilinear": 1}[filter]
+    """Texels a box filter reads beyond the texel that contains the point (0, N // 2, or 1)."""
+    check_name(filter, FILTER_METHODS, field="filter")
+    return lookup_filter_radius(filter, filter_size)
 
 
 @wp.func
@@ -101,7 +101,7 @@ def lit_fraction(
     y = coords[c, k, 1]
     receiver = receiver_depth[c, k]
     slope = receiver_slope[c, k]
-    if filter_code == 2:
+    if filter_code == BOX_BILINEAR:
         # Texel centres sit at (2i + 1)·unit in doubled units; i0 is the centre at or left of the point.
         x2 = wp.int64(2) * x - unit
         y2 = wp.int64(2) * y - unit
@@ -158,7 +158,7 @@ def shadow_lookup_kernel(
     select_hi = (size - wp.int64(margin)) * unit
     z = view_depth[k]
     chosen = int(-1)
-    if selection == 0:
+    if selection == SELECT_INTERVAL:
         for c in range(count):
             if z >= splits[c] and z < splits[c + 1]:
                 chosen = c
@@ -169,9 +169,9 @@ def shadow_lookup_kernel(
         best = wp.float64(wp.inf)
         for c in range(count):
             if holds(coords, c, k, select_lo, select_hi):
-                if selection == 1 and chosen < 0:
+                if selection == SELECT_MAP and chosen < 0:
                     chosen = c
-                if selection == 2 and texel_area[c] < best:
+                if selection == SELECT_BEST_RESOLUTION and texel_area[c] < best:
                     best = texel_area[c]
                     chosen = c
     cascade[k] = chosen
@@ -249,8 +249,7 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
         non-positive ``filter_size``, or shapes that do not match.
     """
     device = checked_device(device)
-    if selection not in SELECTION_METHODS:
-        raise ValueError(f"selection: expected one of {sorted(SELECTION_METHODS)}, got {selection!r}")
+    check_name(selection, SELECTION_METHODS, field="selection")
     radius = filter_radius(filter, filter_size)
     if not (isinstance(filter_size, (int, np.integer)) and filter_size >= 1 and filter_size % 2 == 1):
         raise ValueError(f"filter_size: expected an odd positive integer, got {filter_size!r}")

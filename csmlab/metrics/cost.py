@@ -10,7 +10,7 @@ from csmlab.frame import Frame
 from csmlab.settings import ShadowSettings
 from csmlab.storage import memory_bytes
 
-__all__ = ["cost_summary", "shadow_memory_bytes", "stage_seconds"]
+__all__ = ["cost_summary", "shadow_memory_bytes"]
 
 
 def shadow_memory_bytes(settings: ShadowSettings) -> int:
@@ -27,8 +27,3 @@ def cost_summary(frame: Frame) -> dict[str, float]:
         "memory_bytes": float(shadow_memory_bytes(frame.settings)),
         "texels_rasterized": float(frame.maps.texels_rasterized),
     }
-
-
-def stage_seconds(frame: Frame) -> dict[str, float]:
-    """Seconds per stage: the view's (shared by all methods) then the method's, by stage name."""
-    return {**{k: float(v) for k, v in frame.view.timings.items()}, **{k: float(v) for k, v in frame.timings.items()}}

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from csmlab.geometry import quat_from_matrix, quat_multiply
+from csmlab.registry import check_name
 
 __all__ = [
     "CONVENTIONS",
@@ -158,8 +159,7 @@ unity      diag(1, 1, -1)                       diag(1, 1, -1)                  
 
 def convention_named(name: str) -> Convention:
     """The :class:`Convention` called ``name``; a ``ValueError`` listing the valid names otherwise."""
-    if name not in CONVENTIONS:
-        raise ValueError(f"convention: expected one of {sorted(CONVENTIONS)}, got {name!r}")
+    check_name(name, CONVENTIONS, field="convention")
     return CONVENTIONS[name]
 
 

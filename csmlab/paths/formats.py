@@ -24,6 +24,7 @@ from csmlab.paths.recorded import RecordedPoses, data_rows, require_poses, text_
 from csmlab.paths.tabular import read_csv, read_json, write_csv, write_json
 from csmlab.paths.timing import GAP_RULES, TimingReport, find_gaps, frames_outside_gaps, resolve_duplicates
 from csmlab.paths.tum import read_tum, write_tum
+from csmlab.registry import check_name
 
 __all__ = ["ANCHORS", "PATH_FORMATS", "PathFormat", "Recording", "guess_format", "read_path", "read_recording",
            "write_path"]
@@ -111,8 +112,7 @@ def guess_format(file) -> str:
 
 
 def _format(name: str) -> PathFormat:
-    if name not in PATH_FORMATS:
-        raise ValueError(f"format: expected one of {sorted(PATH_FORMATS)}, got {name!r}")
+    check_name(name, PATH_FORMATS, field="format")
     return PATH_FORMATS[name]
 
 
@@ -215,16 +215,14 @@ def read_recording(file, *, format: str | None = None, convention: str | None = 
         raise ValueError(f"scale: expected a positive factor, got {scale}")
     if offset.shape != (3,) or not np.all(np.isfinite(offset)):
         raise ValueError(f"offset: expected 3 finite coordinates in metres, got {offset.tolist()}")
-    if anchor not in ANCHORS:
-        raise ValueError(f"anchor: expected one of {list(ANCHORS)}, got {anchor!r}")
+    check_name(anchor, ANCHORS, field="anchor")
     if not np.isfinite(time_offset):
         raise ValueError(f"time_offset: expected finite seconds, got {time_offset}")
     if fps is not None and (not np.isfinite(fps) or fps <= 0):
         raise ValueError(f"fps: expected a positive frame rate in Hz, got {fps}")
     if max_gap is not None and (not np.isfinite(max_gap) or max_gap <= 0):
         raise ValueError(f"max_gap: expected a positive number of seconds, got {max_gap}")
-    if gaps not in GAP_RULES:
-        raise ValueError(f"gaps: expected one of {list(GAP_RULES)}, got {gaps!r}")
+    check_name(gaps, GAP_RULES, field="gaps")
 
     recorded, duplicates = resolve_duplicates(spec.read(file), rule=duplicate_times)
     if recorded.angles_line is not None and convention != "opengl":

@@ -27,7 +27,6 @@ all frames at once. :func:`make_path` dispatches on the name and sets the projec
 from __future__ import annotations
 
 import dataclasses
-import inspect
 from typing import Callable
 
 import numpy as np
@@ -35,6 +34,7 @@ import numpy as np
 from csmlab.camera import CameraPath
 from csmlab.geometry import normalized
 from csmlab.paths.conventions import orientation_from_yaw_pitch_roll
+from csmlab.registry import dispatch, parameters
 
 __all__ = [
     "PATH_GENERATORS",
@@ -110,6 +110,17 @@ def _camera_path(name: str, times, positions, *, yaw_deg, pitch_deg, roll_deg=0.
                       fov_y_deg=60.0, name=name)
 
 
+def _straight_path(name: str, *, frames: int, fps: float, start, heading_deg: float, speed: float,
+                   pitch_deg: float) -> CameraPath:
+    """A straight move at constant speed along the heading, the view yawed with it and pitched."""
+    t = _frame_times(frames, fps)
+    _finite(heading_deg=heading_deg, speed=speed, pitch_deg=pitch_deg)
+    if speed < 0:
+        raise ValueError(f"speed: expected metres per second ≥ 0, got {speed}")
+    positions = _point(start, name="start") + (speed * t)[:, None] * _heading(heading_deg)
+    return _camera_path(name, t, positions, yaw_deg=heading_deg, pitch_deg=pitch_deg)
+
+
 def dolly_path(*, frames: int, fps: float = 30.0, start=(19.0, 1.7, 6.0), heading_deg: float = 0.0,
                speed: float = 1.5, pitch_deg: float = 0.0) -> CameraPath:
     """A straight move at constant speed, looking where it goes.
@@ -129,12 +140,8 @@ def dolly_path(*, frames: int, fps: float = 30.0, start=(19.0, 1.7, 6.0), headin
     pitch_deg : float
         View pitch, degrees (negative looks down); the motion stays horizontal.
     """
-    t = _frame_times(frames, fps)
-    _finite(heading_deg=heading_deg, speed=speed, pitch_deg=pitch_deg)
-    if speed < 0:
-        raise ValueError(f"speed: expected metres per second ≥ 0, got {speed}")
-    positions = _point(start, name="start") + (speed * t)[:, None] * _heading(heading_deg)
-    return _camera_path("dolly", t, positions, yaw_deg=heading_deg, pitch_deg=pitch_deg)
+    return _straight_path("dolly", frames=frames, fps=fps, start=start, heading_deg=heading_deg, speed=speed,
+                          pitch_deg=pitch_deg)
 
 
 def pan_path(*, frames: int, fps: float = 30.0, position=(0.0, 1.7, 0.0), start_yaw_deg: float = 0.0,
@@ -254,12 +261,8 @@ def flyover_path(*, frames: int, fps: float = 30.0, start=(-50.0, 40.0, 0.0), he
     pitch_deg : float
         Degrees; -35 looks down 35° below the horizon.
     """
-    t = _frame_times(frames, fps)
-    _finite(heading_deg=heading_deg, speed=speed, pitch_deg=pitch_deg)
-    if speed < 0:
-        raise ValueError(f"speed: expected metres per second ≥ 0, got {speed}")
-    positions = _point(start, name="start") + (speed * t)[:, None] * _heading(heading_deg)
-    return _camera_path("flyover", t, positions, yaw_deg=heading_deg, pitch_deg=pitch_deg)
+    return _straight_path("flyover", frames=frames, fps=fps, start=start, heading_deg=heading_deg, speed=speed,
+                          pitch_deg=pitch_deg)
 
 
 def jitter_path(*, frames: int, fps: float = 30.0, seed: int = 1, position=(20.0, 1.7, 0.0), yaw_deg: float = 0.0,
@@ -399,16 +402,8 @@ def make_path(name: str, *, frames: int, fps: float = 30.0, seed: int = 1, fov_y
     ValueError
         On an unknown name or parameter (listing the valid ones) or a bad value.
     """
-    if name not in PATH_GENERATORS:
-        raise ValueError(f"path: expected one of {sorted(PATH_GENERATORS)}, got {name!r}")
-    generator = PATH_GENERATORS[name]
-    accepted = set(inspect.signature(generator).parameters) - {"frames", "fps"}
-    unknown = sorted(set(params) - accepted)
-    if unknown:
-        raise ValueError(f"{name}: unknown parameter(s) {unknown}; expected some of {sorted(accepted)}")
-    shared = {"seed": seed, "light_direction": light_direction, "fov_y_deg": fov_y_deg}
-    params.update({key: value for key, value in shared.items() if key in accepted})
-    path = generator(frames=frames, fps=fps, **params)
+    path = dispatch(PATH_GENERATORS, name, field="path", frames=frames, fps=fps,
+                    offered={"seed": seed, "light_direction": light_direction, "fov_y_deg": fov_y_deg}, **params)
     # A generator that takes the field of view animates it (zoom); the others get it as it is.
-    fov = path.fov_y_deg if "fov_y_deg" in accepted else fov_y_deg
+    fov = path.fov_y_deg if "fov_y_deg" in parameters(PATH_GENERATORS[name]) else fov_y_deg
     return dataclasses.replace(path, fov_y_deg=fov, aspect=aspect, near=near, far=far)

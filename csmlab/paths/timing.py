@@ -28,6 +28,7 @@ import numpy as np
 
 from csmlab.errors import InputError
 from csmlab.paths.recorded import RecordedPoses
+from csmlab.registry import check_name
 
 __all__ = [
     "DUPLICATE_RULES",
@@ -189,8 +190,7 @@ def resolve_duplicates(recorded: RecordedPoses, *, rule: str) -> tuple[RecordedP
     ValueError
         On an unknown rule.
     """
-    if rule not in DUPLICATE_RULES:
-        raise ValueError(f"duplicate_times: expected one of {list(DUPLICATE_RULES)}, got {rule!r}")
+    check_name(rule, DUPLICATE_RULES, field="duplicate_times")
     times = recorded.times
     if times is None or times.shape[0] < 2 or np.all(np.diff(times) > 0):
         return recorded, ()

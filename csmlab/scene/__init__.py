@@ -11,6 +11,7 @@ from __future__ import annotations
 import inspect
 from typing import Callable
 
+from csmlab.registry import check_name, dispatch
 from csmlab.scene.city import city
 from csmlab.scene.core import Scene
 from csmlab.scene.fence import fence
@@ -56,19 +57,9 @@ def make_scene(kind: str, *, seed: int = 1, **params) -> Scene:
     InputError
         ``mesh`` only: a missing or broken mesh file (see :func:`load_mesh`).
     """
-    if kind not in SCENE_KINDS:
-        raise ValueError(f"scene kind: expected one of {', '.join(SCENE_KINDS)}, got {kind!r}")
-    generator = SCENE_KINDS[kind]
-    signature = inspect.signature(generator)
-    accepted = [name for name in signature.parameters if name != "seed"]
-    unknown = sorted(set(params) - set(accepted))
-    if unknown:
-        raise ValueError(f"scene {kind!r}: unknown parameter(s) {', '.join(unknown)}; expected some of "
-                         f"{', '.join(accepted)}")
+    signature = inspect.signature(SCENE_KINDS[check_name(kind, SCENE_KINDS, field="scene")])
     missing = [name for name, p in signature.parameters.items()
                if p.default is inspect.Parameter.empty and name not in params and name != "seed"]
     if missing:
         raise ValueError(f"scene {kind!r}: expected parameter(s) {', '.join(missing)}")
-    if "seed" in signature.parameters:
-        params["seed"] = seed
-    return generator(**params)
+    return dispatch(SCENE_KINDS, kind, field="scene", offered={"seed": seed}, **params)

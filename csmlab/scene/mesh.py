@@ -24,6 +24,7 @@ import numpy as np
 import pyvista as pv
 
 from csmlab.errors import InputError
+from csmlab.registry import check_name
 from csmlab.scene.core import Scene
 from csmlab.scene.shapes import height_field, scene_from_parts
 
@@ -199,8 +200,7 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
     scale_value = float(scale) if isinstance(scale, (int, float)) and not isinstance(scale, bool) else float("nan")
     if not np.isfinite(scale_value) or scale_value <= 0.0:
         raise ValueError(f"scale: expected a finite number > 0 (metres per file unit), got {scale!r}")
-    if up not in UP_AXES:
-        raise ValueError(f"up: expected one of {', '.join(repr(k) for k in UP_AXES)}, got {up!r}")
+    check_name(up, UP_AXES, field="up")
     colour = np.asarray(albedo, dtype=np.float64)
     if colour.shape != (3,) or not np.all((colour >= 0.0) & (colour <= 1.0)):
         raise ValueError(f"albedo: expected three linear RGB values in [0, 1], got {albedo!r}")

@@ -1,0 +1,512 @@
+"""Reading the merged document into records: types, ranges, names, files — every check, before any work.
+
+Everything a user can get wrong is checked here and reported as one
+:class:`~csmlab.errors.InputError` naming the file the value came from (preset or experiment), the
+line where it is written when it can be found, the field, and what was expected.
+"""
+
+from __future__ import annotations
+
+import difflib
+import functools
+import itertools
+import math
+import os
+import re
+import typing
+from dataclasses import fields
+from pathlib import Path
+
+from csmlab.config.locate import _Located
+from csmlab.config.presets import _METHOD_NAME, _merged, _read_toml
+from csmlab.config.records import (_TOP_FIELDS, CameraConfig, Experiment, LightConfig, Method, ReportConfig,
+                                   SceneConfig, TuneConfig, _positive, _record_fields)
+from csmlab.errors import InputError
+from csmlab.registry import parameters, unknown_name_message
+from csmlab.settings import ShadowSettings
+
+
+_SIZE_UNITS = {"": 1, "b": 1, "kb": 10**3, "mb": 10**6, "gb": 10**9, "kib": 2**10, "mib": 2**20, "gib": 2**30}
+
+
+def parse_size(text) -> int:
+    """Bytes from ``64MiB``, ``16MB``, ``1.5GiB`` or a plain number of bytes (int or digits).
+
+    Raises
+    ------
+    ValueError
+        Saying what was expected.
+    """
+    if isinstance(text, int) and not isinstance(text, bool) and text > 0:
+        return text
+    match = re.fullmatch(r"\s*([0-9]+(?:\.[0-9]*)?)\s*([A-Za-z]*)\s*", text) if isinstance(text, str) else None
+    unit = match.group(2).lower() if match else None
+    if unit not in _SIZE_UNITS or float(match.group(1)) <= 0:
+        raise ValueError(f"expected a positive size such as 64MiB, 16MB or 16777216 (bytes), got {text!r}")
+    return int(round(float(match.group(1)) * _SIZE_UNITS[unit]))
+
+
+# --- typed fields ---------------------------------------------------------------------------------
+
+
+def _type_name(kind) -> str:
+    if kind is bool:
+        return "true or false"
+    if kind is int:
+        return "an integer"
+    if kind is float:
+        return "a number"
+    if kind is str:
+        return "a string"
+    if kind is dict:
+        return "a table"
+    origin = typing.get_origin(kind)
+    args = typing.get_args(kind)
+    if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
+        return f"a list of {_type_name(args[0]).removeprefix('a ').removeprefix('an ')}s"
+    if origin is tuple:
+        return f"a list of {len(args)} numbers"
+    if type(None) in args:
+        return _type_name(next(a for a in args if a is not type(None)))
+    return str(kind)
+
+
+def _coerce(value, kind):
+    """``value`` as ``kind`` (int, float, str, bool, dict, tuples, ``X | None``); raise TypeError if it is not."""
+    args = typing.get_args(kind)
+    origin = typing.get_origin(kind)
+    if type(None) in args:
+        return _coerce(value, next(a for a in args if a is not type(None)))
+    if kind is bool:
+        ok = isinstance(value, bool)
+    elif kind is int:
+        ok = isinstance(value, int) and not isinstance(value, bool)
+    elif kind is float:
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        value = float(value) if ok else value
+    elif kind in (str, dict):
+        ok = isinstance(value, kind)
+    elif origin is tuple:
+        items = args[:1] * len(value) if len(args) == 2 and args[1] is Ellipsis and isinstance(value, list) else args
+        ok = isinstance(value, list) and len(value) == len(items)
+        if ok:
+            return tuple(_coerce(v, k) for v, k in zip(value, items))
+    else:
+        raise TypeError(kind)
+    if not ok:
+        raise TypeError(kind)
+    return value
+
+
+def _typed_value(value, kind, check, *, where: str, located: _Located):
+    try:
+        out = _coerce(value, kind)
+    except TypeError:
+        raise located.error(where, f"expected {_type_name(kind)}, got {value!r}") from None
+    if check is not None and out is not None:
+        predicate, text = check
+        values = out if isinstance(out, tuple) else (out,)
+        if isinstance(out, float) and not math.isfinite(out) or not all(predicate(v) for v in values):
+            raise located.error(where, f"expected {text}, got {value!r}")
+    if isinstance(out, tuple) and any(isinstance(v, float) and not math.isfinite(v) for v in out):
+        raise located.error(where, f"expected finite numbers, got {value!r}")
+    if isinstance(out, float) and not math.isfinite(out):
+        raise located.error(where, f"expected a finite number, got {value!r}")
+    return out
+
+
+def _unknown(where: str, key: str, known, located: _Located) -> InputError:
+    close = difflib.get_close_matches(key, list(known), n=1)
+    hint = f"did you mean {close[0]!r}? " if close else ""
+    return located.error(f"{where}.{key}" if where else key,
+                         f"unknown field {key!r}: {hint}expected one of {sorted(known)}")
+
+
+def _record(cls, table, *, where: str, located: _Located, extra=()):
+    """An instance of the dataclass ``cls`` from a TOML table; keys in ``extra`` go to its ``params``."""
+    if not isinstance(table, dict):
+        raise located.error(where, f"expected a table [{where}], got {table!r}")
+    hints = typing.get_type_hints(cls)
+    own = {f.name: f for f in fields(cls) if f.name != "params"}
+    values, params = {}, {}
+    for key, value in table.items():
+        if key in own:
+            values[key] = _typed_value(value, hints[key], None, where=f"{where}.{key}", located=located)
+        elif key in extra:
+            params[key] = value
+        else:
+            raise _unknown(where, key, [*own, *extra], located)
+    if params:
+        values["params"] = params
+    return _validated(cls(**values), where_of=lambda name: f"{where}.{name}", located=located)
+
+
+def _validated(record, *, where_of, located: _Located):
+    """``record.validated()``, its ``ValueError("<field>: …")`` raised as an :class:`InputError` at ``where_of(field)``.
+
+    The one range check of every record: config records declare theirs in field metadata,
+    :class:`~csmlab.settings.ShadowSettings` in its own ``validated``.
+    """
+    try:
+        return record.validated()
+    except ValueError as exc:
+        name, _, message = str(exc).partition(": ")
+        raise located.error(where_of(name), message) from None
+
+
+def _registry_name(value: str, registry, *, where: str, located: _Located) -> None:
+    if value not in registry:
+        raise located.error(where, unknown_name_message(value, registry))
+
+
+def _existing_file(value: str, *, where: str, located: _Located) -> str:
+    base = located.file_of(where).parent
+    path = (base / value).resolve()
+    if not path.is_file():
+        raise located.error(where, f"expected an existing file, got {value!r} (looked for {path})")
+    if not os.access(path, os.R_OK):
+        raise located.error(where, f"expected a readable file, got {value!r} (permission denied: {path})")
+    return str(path)
+
+
+# --- sections ----------------------------------------------------------------------------------------
+
+
+def _scene(table, located: _Located) -> SceneConfig:
+    from csmlab.scene import SCENE_KINDS
+
+    kind = table.get("kind", SceneConfig.kind) if isinstance(table, dict) else None
+    if isinstance(kind, str):
+        _registry_name(kind, SCENE_KINDS, where="scene.kind", located=located)
+    generator = SCENE_KINDS.get(kind) if isinstance(kind, str) and kind != "mesh" else None
+    accepted = parameters(generator) if generator is not None else ()
+    common = {"kind", "seed", "file", "scale", "up", "ground", "offset"}
+    extra = [p for p in accepted if p not in common]
+    scene = _record(SceneConfig, table, where="scene", located=located, extra=extra)
+    if scene.kind != "mesh":
+        for key in ("file", "scale", "up", "ground"):
+            if key in table:
+                raise located.error(f"scene.{key}",
+                                    f"expected {key} only with kind = \"mesh\", got kind = {scene.kind!r}")
+        return scene
+    if not scene.file:
+        raise located.error("scene.file", "expected a mesh file with kind = \"mesh\", got none")
+    from csmlab.scene.mesh import UP_AXES
+
+    _registry_name(scene.up, UP_AXES, where="scene.up", located=located)
+    return SceneConfig(**{**_record_fields(scene), "file": _existing_file(scene.file, where="scene.file",
+                                                                          located=located)})
+
+
+def _camera(table, located: _Located) -> CameraConfig:
+    from csmlab.paths import CONVENTIONS, PATH_FORMATS, PATH_GENERATORS
+    from csmlab.paths.formats import ANCHORS
+    from csmlab.paths.timing import DUPLICATE_RULES, GAP_RULES
+
+    name = table.get("path") if isinstance(table, dict) else None
+    if isinstance(name, str) and name:
+        _registry_name(name, PATH_GENERATORS, where="camera.path", located=located)
+    generator = PATH_GENERATORS.get(name) if isinstance(name, str) else None
+    accepted = parameters(generator) if generator is not None else ()
+    common = {f.name for f in fields(CameraConfig)} | {"aspect", "light_direction", "name"}
+    extra = [p for p in accepted if p not in common]
+    camera = _record(CameraConfig, table, where="camera", located=located, extra=extra)
+    if camera.far <= camera.near:
+        raise located.error("camera.far", f"expected a distance greater than near ({camera.near}), got {camera.far}")
+    file_only = ("format", "convention", "scale", "offset", "time_offset", "start_s", "end_s", "times_file", "anchor",
+                 "duplicate_times", "max_gap", "gaps")
+    if camera.path and camera.file:
+        raise located.error("camera.file", f"expected either path (a generator) or file, got both: path = "
+                                           f"{camera.path!r} (from {located.file_of('camera.path')}) and file")
+    if not camera.path and not camera.file:
+        raise located.error("camera.path",
+                            f"expected a path generator {sorted(PATH_GENERATORS)} or a file, got neither")
+    if camera.path:
+        for key in file_only:
+            if key in table:
+                raise located.error(f"camera.{key}", f"expected {key} only with a recorded file, got path = "
+                                                     f"{camera.path!r}")
+        return camera
+    if camera.params:
+        key = next(iter(camera.params))
+        raise _unknown("camera", key, [f.name for f in fields(CameraConfig) if f.name != "params"], located)
+    if camera.format:
+        _registry_name(camera.format, PATH_FORMATS, where="camera.format", located=located)
+    if camera.convention:
+        _registry_name(camera.convention, CONVENTIONS, where="camera.convention", located=located)
+    for key, choices in (("anchor", ANCHORS), ("duplicate_times", DUPLICATE_RULES), ("gaps", GAP_RULES)):
+        _registry_name(getattr(camera, key), choices, where=f"camera.{key}", located=located)
+    if camera.start_s is not None and camera.end_s is not None and camera.end_s < camera.start_s:
+        raise located.error("camera.end_s",
+                            f"expected a time not before start_s ({camera.start_s}), got {camera.end_s}")
+    files = {"file": _existing_file(camera.file, where="camera.file", located=located)}
+    if camera.times_file:
+        files["times_file"] = _existing_file(camera.times_file, where="camera.times_file", located=located)
+    return CameraConfig(**{**_record_fields(camera), **files})
+
+
+def _light(table, located: _Located) -> LightConfig:
+    light = _record(LightConfig, table, where="light", located=located)
+    angles = [k for k in ("elevation_deg", "azimuth_deg", "elevation_end_deg", "azimuth_end_deg") if k in table]
+    if light.direction is not None:
+        if angles:
+            raise located.error(f"light.{angles[0]}", "expected either direction or elevation/azimuth angles, got both")
+        if math.hypot(*light.direction) < 1e-12:
+            raise located.error("light.direction", f"expected a non-zero vector from the light toward the scene, "
+                                                   f"got {list(light.direction)}")
+        return light
+    elevation = 40.0 if light.elevation_deg is None else light.elevation_deg
+    azimuth = 30.0 if light.azimuth_deg is None else light.azimuth_deg
+    return LightConfig(elevation_deg=elevation, azimuth_deg=azimuth, elevation_end_deg=light.elevation_end_deg,
+                       azimuth_end_deg=light.azimuth_end_deg)
+
+
+@functools.cache
+def _shadow_types() -> dict:
+    """Type of every ShadowSettings field by its TOML name."""
+    return {("lambda" if k == "lambda_" else k): v for k, v in typing.get_type_hints(ShadowSettings).items()}
+
+
+def _shadow_fields(table, *, where: str, located: _Located, allow=("name",)) -> dict:
+    """``[shadow]``-field overrides of a table, typed; keys in ``allow`` are skipped."""
+    if not isinstance(table, dict):
+        raise located.error(where, f"expected a table, got {table!r}")
+    types = _shadow_types()
+    out = {}
+    for key, value in table.items():
+        if key in allow:
+            continue
+        if key not in types:
+            raise _unknown(where, key, [*types, *allow], located)
+        out[key] = _typed_value(value, types[key], None, where=f"{where}.{key}", located=located)
+    return out
+
+
+def shadow_method_registries() -> dict:
+    """The registry of every ``[shadow]`` field that names a method, by field (``csmlab list`` prints them)."""
+    from csmlab.cascades import (BOUNDS_METHODS, DEPTH_RANGE_METHODS, EXTENT_METHODS, FIT_METHODS, SNAP_METHODS,
+                                 SPLIT_METHODS, STABILIZATION_METHODS)
+    from csmlab.lookup_choices import FILTER_METHODS, SELECTION_METHODS
+    from csmlab.texels import PRECISION_METHODS
+
+    return {"split": SPLIT_METHODS, "fit": FIT_METHODS, "stabilization": STABILIZATION_METHODS,
+            "selection": SELECTION_METHODS, "filter": FILTER_METHODS, "extent": EXTENT_METHODS, "snap": SNAP_METHODS,
+            "depth_range": DEPTH_RANGE_METHODS, "bounds": BOUNDS_METHODS, "engine_precision": PRECISION_METHODS}
+
+
+def _checked_settings(settings: ShadowSettings, *, where_of, located: _Located) -> ShadowSettings:
+    """``settings`` after range and method-name checks; ``where_of(field)`` says where a field was set."""
+    _validated(settings, where_of=where_of, located=located)
+    for name, registry in shadow_method_registries().items():
+        _registry_name(getattr(settings, name), registry, where=where_of(name), located=located)
+    if settings.split == "geometric" and settings.cascades > 1 and settings.first_cascade_far >= settings.shadow_distance:
+        raise located.error(where_of("first_cascade_far"), f"expected a distance below shadow_distance "
+                                                           f"({settings.shadow_distance} m), got {settings.first_cascade_far}")
+    if settings.split == "manual" and len(settings.splits) != settings.cascades:
+        raise located.error(where_of("splits"), f"expected {settings.cascades} split distances (one per cascade) with "
+                                                f"split = \"manual\", got {len(settings.splits)}")
+    return settings
+
+
+def _methods(entries: list, base: ShadowSettings, located: _Located) -> tuple[Method, ...]:
+    if not entries:
+        return (Method(name="base", overrides={}, settings=base),)
+    out = []
+    for entry in entries:
+        name = entry["name"]
+        overrides = _shadow_fields(entry, where=f"methods.{name}", located=located)
+        settings = _checked_settings(
+            base.replace(**overrides), located=located,
+            where_of=lambda f, o=overrides, n=name: f"methods.{n}.{f}" if f in o else f"shadow.{f}")
+        out.append(Method(name=name, overrides=overrides, settings=settings))
+    return tuple(out)
+
+
+def _sweep(table, methods: tuple[Method, ...], located: _Located) -> tuple[tuple[str, tuple], ...]:
+    if not isinstance(table, dict):
+        raise located.error("sweep", f"expected a table of shadow fields and their values, got {table!r}")
+    out = []
+    for key, values in table.items():
+        if not isinstance(values, list) or not values:
+            raise located.error(f"sweep.{key}", f"expected a non-empty list of values, got {values!r}")
+        typed = [_shadow_fields({key: v}, where="sweep", located=located, allow=())[key] for v in values]
+        if len(set(map(repr, typed))) != len(typed):
+            raise located.error(f"sweep.{key}", f"expected distinct values, got {values!r}")
+        out.append((key, tuple(typed)))
+    for m in methods:
+        for values in itertools.product(*(v for _, v in out)):
+            point = dict(zip((k for k, _ in out), values))
+            _checked_settings(m.settings.replace(**point), located=located,
+                              where_of=lambda f, p=point, n=m.name: f"sweep.{f}" if f in p else f"methods.{n}.{f}")
+    return tuple(out)
+
+
+def _regress(table, located: _Located) -> dict:
+    from csmlab.metric_registry import METRICS, is_metric_column
+
+    if not isinstance(table, dict):
+        raise located.error("regress", f"expected a table of metric tolerances, got {table!r}")
+    out = {}
+    for metric, tolerance in table.items():
+        if not is_metric_column(metric):
+            raise _unknown("regress", metric, METRICS, located)
+        if not isinstance(tolerance, dict):
+            raise located.error(f"regress.{metric}", f"expected {{ abs = …, rel = … }}, got {tolerance!r}")
+        entry = {}
+        for key, value in tolerance.items():
+            if key not in ("abs", "rel"):
+                raise _unknown(f"regress.{metric}", key, ("abs", "rel"), located)
+            entry[key] = _typed_value(value, float, (lambda x: x >= 0, "a non-negative tolerance"),
+                                      where=f"regress.{metric}.{key}", located=located)
+        out[metric] = entry
+    return out
+
+
+def _tune(table, methods: tuple[Method, ...], located: _Located) -> TuneConfig:
+    """``[tune]``: its options, and every other key a ``[shadow]`` field with choices or a range."""
+    from csmlab.metric_registry import metric_columns
+
+    if not isinstance(table, dict):
+        raise located.error("tune", f"expected a table of search ranges and options, got {table!r}")
+    options = {f.name: f for f in fields(TuneConfig) if f.name != "space"}
+    hints = typing.get_type_hints(TuneConfig)
+    types = _shadow_types()
+    space, values = [], {}
+    for key, value in table.items():
+        where = f"tune.{key}"
+        if key == "memory_budget":
+            try:
+                values[key] = parse_size(value)
+            except ValueError as exc:
+                raise located.error(where, str(exc)) from None
+        elif key == "max_flicker":
+            if isinstance(value, str) and value != "best-preset":
+                raise located.error(where, f'expected a non-negative number or "best-preset", got {value!r}')
+            values[key] = value if value == "best-preset" else _typed_value(
+                value, float, (lambda x: x >= 0, 'a non-negative number or "best-preset"'), where=where,
+                located=located)
+        elif key in options:
+            values[key] = _typed_value(value, hints[key], None, where=where, located=located)
+        elif key in types:
+            space.append((key, _tune_spec(value, types[key], where=where, located=located)))
+        else:
+            raise _unknown("tune", key, [*options, *types], located)
+    known = metric_columns(8)
+    for key in ("objectives", "flicker_metric"):
+        for metric in (values.get(key) or ()) if key == "objectives" else [values.get(key, "flicker")]:
+            if metric not in known:
+                raise located.error(f"tune.{key}", f"expected metrics.csv columns {sorted(known)}, got {metric!r}")
+    names = [m.name for m in methods]
+    if values.get("method") and values["method"] not in names:
+        raise located.error("tune.method", f"expected one of the experiment's methods {names}, got "
+                                           f"{values['method']!r}")
+    tuned = next(m for m in methods if m.name == (values.get("method") or names[0]))
+    for key, spec in space:
+        for value in (spec[1] if spec[0] == "choice" else spec[1:3]):
+            _checked_settings(tuned.settings.replace(**{key: value}), located=located,
+                              where_of=lambda f, k=key: f"tune.{k}" if f == k else f"methods.{tuned.name}.{f}")
+    return _validated(TuneConfig(space=tuple(space), **values), where_of=lambda name: f"tune.{name}", located=located)
+
+
+def _tune_spec(value, kind, *, where: str, located: _Located) -> tuple:
+    """``("choice", values)`` from a list, ``("range", lo, hi, log, step)`` from ``{ min, max, log, step }``."""
+    if isinstance(value, list):
+        if not value:
+            raise located.error(where, "expected a non-empty list of choices")
+        choices = tuple(_typed_value(v, kind, None, where=where, located=located) for v in value)
+        if len(set(map(repr, choices))) != len(choices):
+            raise located.error(where, f"expected distinct choices, got {value!r}")
+        return ("choice", choices)
+    if not isinstance(value, dict) or kind not in (int, float):
+        what = "a list of choices or { min = …, max = … }" if kind in (int, float) else "a list of choices"
+        raise located.error(where, f"expected {what}, got {value!r}")
+    for key in value:
+        if key not in ("min", "max", "log", "step"):
+            raise _unknown(where, key, ("min", "max", "log", "step"), located)
+    if "min" not in value or "max" not in value:
+        raise located.error(where, f"expected both min and max, got {value!r}")
+    lo, hi = (_typed_value(value[k], kind, None, where=f"{where}.{k}", located=located) for k in ("min", "max"))
+    log = _typed_value(value.get("log", False), bool, None, where=f"{where}.log", located=located)
+    step = (_typed_value(value["step"], kind, (_positive, "a positive step"), where=f"{where}.step", located=located)
+            if "step" in value else None)
+    if not lo < hi or (log and lo <= 0):
+        raise located.error(where, f"expected min < max{' and min > 0 on a log scale' if log else ''}, got "
+                                   f"{lo}..{hi}")
+    return ("range", lo, hi, log, step)
+
+
+def load_tolerances(path) -> dict:
+    """Regression tolerances from a TOML file: ``metric = { abs = …, rel = … }`` at the top level or
+    under ``[regress]``.
+
+    Raises
+    ------
+    InputError
+        Naming the file, the field and what was expected.
+    """
+    path = Path(path).resolve()
+    document = _read_toml(path)
+    table = document.get("regress", document) if set(document) <= {"regress"} else document
+    origins = {f"regress.{key}": path for key in table}
+    return _regress(table, _Located(origins, path))
+
+
+def load_experiment(path, *, frames: int | None = None) -> Experiment:
+    """Read, merge and validate an experiment file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The experiment TOML file.
+    frames : int, optional
+        Overrides ``camera.frames`` (the ``--frames`` option).
+
+    Returns
+    -------
+    Experiment
+
+    Raises
+    ------
+    InputError
+        Malformed TOML, an unknown field (with the closest known name), a wrong type or range, an
+        unknown scene, path, format or method name, a missing or unreadable file, a zero-length light
+        direction: the message names the file, the line where found, the field and what was expected.
+    """
+    path = Path(path).resolve()
+    merged, origins = _merged(path)
+    located = _Located(origins, path)
+    for key in merged:
+        if key not in _TOP_FIELDS:
+            raise _unknown("", key, _TOP_FIELDS, located)
+    name = merged.get("name", path.stem)
+    if not isinstance(name, str) or not _METHOD_NAME.match(name):
+        raise located.error("name", f"expected a name of letters, digits and _.+-, got {name!r}")
+    description = merged.get("description", "")
+    if not isinstance(description, str):
+        raise located.error("description", f"expected a string, got {description!r}")
+    chunk_frames = _typed_value(merged.get("chunk_frames", 10), int, (lambda x: x >= 1, "at least 1 frame"),
+                                where="chunk_frames", located=located)
+    scene = _scene(merged.get("scene", {}), located)
+    camera = _camera(merged.get("camera", {}), located)
+    light = _light(merged.get("light", {}), located)
+    base = ShadowSettings().replace(**_shadow_fields(merged.get("shadow", {}), where="shadow", located=located,
+                                                     allow=()))
+    base = _checked_settings(base, where_of=lambda f: f"shadow.{f}", located=located)
+    methods = _methods(merged["methods"], base, located)
+    experiment = Experiment(
+        name=name,
+        description=description,
+        source=str(path),
+        extends=tuple(merged.get("extends", ())),
+        scene=scene,
+        camera=camera,
+        light=light,
+        shadow=base,
+        methods=methods,
+        sweep=_sweep(merged.get("sweep", {}), methods, located),
+        regress=_regress(merged.get("regress", {}), located),
+        report=_record(ReportConfig, merged.get("report", {}), where="report", located=located),
+        chunk_frames=chunk_frames,
+        tune=_tune(merged.get("tune", {}), methods, located),
+    )
+    return experiment if frames is None else experiment.with_frames(frames)
