@@ -15,7 +15,7 @@ Sources of the engine names
 - UE5: console variables ``r.Shadow.CSM.MaxCascades``, ``r.Shadow.MaxCSMResolution``; directional
   light properties ``DynamicShadowCascades``, ``DynamicShadowDistanceMovableLight`` (cm),
   ``CascadeDistributionExponent`` (split i at the geometric sum of exponent powers, ``ComputeAccumulatedScale``
-  in the renderer), ``CascadeTransitionFraction``.
+  in the renderer), ``CascadeTransitionFraction``, ``ShadowDistanceFadeoutFraction``.
 - Unity URP: ``UniversalRenderPipelineAsset.shadowDistance``, ``shadowCascadeCount``, ``cascade2Split``,
   ``cascade3Split``, ``cascade4Split`` (fractions of the shadow distance), ``mainLightShadowmapResolution``
   (the atlas: one cascade takes all of it, two to four a quarter tile each).
@@ -72,7 +72,9 @@ def split_boundaries(settings: ShadowSettings, *, near: float, far: float) -> np
     """Cascade boundaries ``(C + 1,)`` in metres of view depth, as the cascades are built: from the camera's
     ``near`` to ``min(shadow_distance, far)``."""
     return split_distances(near=near, far=min(settings.shadow_distance, far), count=settings.cascades,
-                           method=settings.split, lambda_=settings.lambda_, splits=settings.splits)
+                           method=settings.split, lambda_=settings.lambda_, splits=settings.splits,
+                           distribution_exponent=settings.distribution_exponent,
+                           first_cascade_far=settings.first_cascade_far)
 
 
 def ue_split_fractions(exponent: float, count: int) -> np.ndarray:
@@ -82,7 +84,8 @@ def ue_split_fractions(exponent: float, count: int) -> np.ndarray:
 
 
 def _common_lacking(settings: ShadowSettings, *, stable: str) -> list[str]:
-    """Knobs no exporter maps: stabilization other than the engine's own, fit, selection, bias units."""
+    """Knobs no exporter maps: stabilization other than the engine's own, fit, selection, per-cascade
+    resolution, splits over the visible depth range, depth format, bias units."""
     lacking = []
     if settings.stabilization != stable:
         lacking.append(f"stabilization = {settings.stabilization!r} (the engine always stabilizes its own way, "
@@ -93,6 +96,15 @@ def _common_lacking(settings: ShadowSettings, *, stable: str) -> list[str]:
         lacking.append(f"fit = {settings.fit!r}")
     if settings.selection != "interval":
         lacking.append(f"selection = {settings.selection!r}")
+    if settings.cascade_resolutions:
+        # The engines below give every cascade one size; the largest keeps the nearest cascades as sharp.
+        lacking.append(f"cascade_resolutions = {list(settings.cascade_resolutions)} (one size for every cascade: "
+                       f"{max(settings.cascade_resolutions)} written)")
+    if settings.bounds != "frustum":
+        lacking.append(f"bounds = {settings.bounds!r} (splits over the visible depth range need the engine's "
+                       f"depth readback)")
+    if settings.depth_format != "float32":
+        lacking.append(f"depth_format = {settings.depth_format!r} (set the shadow map's depth format in the engine)")
     lacking.append(f"bias_constant = {settings.bias_constant}, bias_slope = {settings.bias_slope}, normal_offset = "
                    f"{settings.normal_offset} (engine bias units differ: tune by eye)")
     return lacking
@@ -101,6 +113,11 @@ def _common_lacking(settings: ShadowSettings, *, stable: str) -> list[str]:
 def _fractions(settings: ShadowSettings, near: float, far: float) -> list[float]:
     z = split_boundaries(settings, near=near, far=far)
     return [float(v / z[-1]) for v in z[1:-1]]
+
+
+def _size(settings: ShadowSettings) -> int:
+    """Texels per side each engine gets: the largest cascade's (engines give every cascade one size)."""
+    return max(settings.cascade_resolutions or (settings.resolution,))
 
 
 def _g(value: float) -> str:
@@ -126,14 +143,15 @@ def export_ue5(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
         "; DefaultEngine.ini (or ConsoleVariables.ini)",
         "[SystemSettings]",
         f"r.Shadow.CSM.MaxCascades={settings.cascades}",
-        f"r.Shadow.MaxCSMResolution={settings.resolution}",
+        f"r.Shadow.MaxCSMResolution={_size(settings)}",
         "r.Shadow.FilterMethod=0",
         "",
         "; DirectionalLight > Cascaded Shadow Maps",
         f";   DynamicShadowCascades={settings.cascades}",
-        f";   DynamicShadowDistanceMovableLight={_g(z[-1] * 100.0)}    ; cm",
+        f";   DynamicShadowDistanceMovableLight={z[-1] * 100.0:.0f}    ; cm",
         f";   CascadeDistributionExponent={exponents[best]:.2f}",
         f";   CascadeTransitionFraction={_g(settings.blend_band)}",
+        f";   ShadowDistanceFadeoutFraction={_g(settings.fade_out)}",
     ])
     return Snippet("ue5", "Unreal Engine 5: console variables and directional light", "ini", text + "\n",
                    tuple(lacking))
@@ -145,9 +163,12 @@ def export_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> Sn
     cascades = min(settings.cascades, 4)
     if settings.cascades > 4:
         lacking.append(f"cascades = {settings.cascades} (URP has at most 4)")
-    atlas = settings.resolution * (1 if cascades == 1 else 2)
-    if atlas > 8192:
-        lacking.append(f"resolution = {settings.resolution} per cascade (URP's atlas stops at 8192)")
+    wanted = _size(settings) * (1 if cascades == 1 else 2)
+    # The asset's resolution is one of 256 … 8192 (powers of two): the largest that is not bigger.
+    atlas = 1 << max(8, min(13, wanted.bit_length() - 1))
+    if atlas != wanted:
+        lacking.append(f"resolution = {_size(settings)} per cascade (URP's atlas is a power of two in 256..8192: "
+                       f"{atlas} written for {wanted})")
     if settings.blend_band > 0:
         lacking.append(f"blend_band = {settings.blend_band} (URP blends no cascades; cascadeBorder fades the last)")
     if settings.filter == "pcf" and settings.filter_size != 3:
@@ -162,7 +183,8 @@ def export_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> Sn
         lines.append(f"asset.cascade3Split = new Vector2({', '.join(_g(f) + 'f' for f in fractions)});")
     elif cascades == 4:
         lines.append(f"asset.cascade4Split = new Vector3({', '.join(_g(f) + 'f' for f in fractions)});")
-    lines += [f"asset.mainLightShadowmapResolution = {atlas};  // atlas: {settings.resolution}² per cascade",
+    lines += [f"asset.mainLightShadowmapResolution = {atlas};  // atlas: {atlas // (1 if cascades == 1 else 2)}² "
+              f"per cascade",
               f"asset.supportsSoftShadows = {'false' if settings.filter == 'none' else 'true'};"]
     return Snippet("unity_urp", "Unity URP: UniversalRenderPipelineAsset", "csharp", "\n".join(lines) + "\n",
                    tuple(lacking))
@@ -176,7 +198,7 @@ def export_godot4(settings: ShadowSettings, *, near: float, far: float) -> Snipp
     if cascades != settings.cascades:
         lacking.append(f"cascades = {settings.cascades} (Godot has 1, 2 or 4 splits; {cascades} written)")
     fractions = _fractions(settings.replace(cascades=cascades), near, far)
-    atlas = settings.resolution * (1 if cascades == 1 else 2)
+    atlas = _size(settings) * (1 if cascades == 1 else 2)
     lines = ["# DirectionalLight3D",
              f"directional_shadow_mode = {modes[cascades]}",
              f"directional_shadow_max_distance = {_g(min(settings.shadow_distance, far))}"]
@@ -184,7 +206,7 @@ def export_godot4(settings: ShadowSettings, *, near: float, far: float) -> Snipp
     lines += [f"directional_shadow_blend_splits = {'true' if settings.blend_band > 0 else 'false'}",
               "# Project Settings",
               f"rendering/lights_and_shadows/directional_shadow/size = {atlas}  "
-              f"# {settings.resolution}² per split (2 splits: half the atlas each)",
+              f"# {_size(settings)}² per split (2 splits: half the atlas each)",
               "rendering/lights_and_shadows/directional_shadow/soft_shadow_filter_quality = "
               f"{0 if settings.filter == 'none' else 2}"]
     if settings.blend_band > 0:
@@ -216,7 +238,7 @@ def export_bevy(settings: ShadowSettings, *, near: float, far: float) -> Snippet
              "// csmlab's bounds exactly:",
              f"let config = CascadeShadowConfig {{ bounds: vec![{bounds}], overlap_proportion: "
              f"{settings.blend_band:.3f}, minimum_distance: {z[0]:.3f} }};",
-             f"app.insert_resource(DirectionalLightShadowMap {{ size: {settings.resolution} }});"]
+             f"app.insert_resource(DirectionalLightShadowMap {{ size: {_size(settings)} }});"]
     if filtering:
         lines.append(f"// on the camera: ShadowFilteringMethod::{filtering}")
     return Snippet("bevy", "Bevy: CascadeShadowConfig and DirectionalLightShadowMap", "rust", "\n".join(lines) + "\n",
@@ -236,7 +258,7 @@ def export_threejs_csm(settings: ShadowSettings, *, near: float, far: float) -> 
     if mode == "custom":
         fractions = ", ".join(_g(f) for f in _fractions(settings, near, far))
         lines.append(f"  customSplitsCallback: (cascades, near, far, breaks) => breaks.push({fractions}, 1),")
-    lines += [f"  shadowMapSize: {settings.resolution},", "  camera, parent: scene, lightDirection,", "});",
+    lines += [f"  shadowMapSize: {_size(settings)},", "  camera, parent: scene, lightDirection,", "});",
               f"csm.fade = {'true' if settings.blend_band > 0 else 'false'};",
               "renderer.shadowMap.type = THREE." + ("BasicShadowMap" if settings.filter == "none" else "PCFShadowMap")
               + ";"]

@@ -72,3 +72,46 @@ def test_every_engine_names_the_knobs_it_lacks(engine):
 def test_an_unknown_engine_lists_the_known_ones():
     with pytest.raises(ValueError, match="expected one of \\['bevy'"):
         export(ShadowSettings(), near=NEAR, far=FAR, engine="cryengine")
+
+
+def _engine_preset(name: str, folder) -> ShadowSettings:
+    """The settings of ``configs/engines/<name>.toml`` as an experiment that extends it resolves them."""
+    from csmlab.config import load_experiment
+
+    path = folder / "uses_engine.toml"
+    path.write_text(f'extends = ["engines/{name}"]\n[camera]\npath = "walk"\n')
+    return load_experiment(path).methods[0].settings
+
+
+def test_unreal_preset_exports_its_own_distribution_exponent(tmp_path):
+    # Unreal's geometric sum (ue_split_fractions) is one road, csmlab's exponent split the other: the
+    # ue5 preset must come back as exponent 3 with no split error reported.
+    settings = _engine_preset("ue5", tmp_path)
+    snippet = export(settings, near=NEAR, far=FAR, engine="ue5")
+    assert f"CascadeDistributionExponent={settings.distribution_exponent:.2f}" in snippet.text
+    assert not any("split distances" in item for item in snippet.lacking)
+    assert f"DynamicShadowDistanceMovableLight={settings.shadow_distance * 100:.0f} " in snippet.text
+    assert f"ShadowDistanceFadeoutFraction={settings.fade_out:g}" in snippet.text
+    tuned = export(settings.replace(distribution_exponent=2.2), near=NEAR, far=FAR, engine="ue5")
+    assert "CascadeDistributionExponent=2.20" in tuned.text and not any("split distances" in i for i in tuned.lacking)
+
+
+def test_bevy_preset_exports_its_first_cascade_bound(tmp_path):
+    settings = _engine_preset("bevy", tmp_path)
+    text = export(settings, near=NEAR, far=FAR, engine="bevy").text
+    assert _numbers(text, "first_cascade_far_bound:")[0] == pytest.approx(settings.first_cascade_far)
+    bounds = _numbers(text, "bounds: vec!")[:settings.cascades]
+    ratios = np.diff(np.log(bounds))  # geometric after the first bound: equal ratios
+    assert bounds[-1] == pytest.approx(settings.shadow_distance) and np.allclose(ratios, ratios[0], atol=1e-3)
+    nearer = export(settings.replace(first_cascade_far=6.0), near=NEAR, far=FAR, engine="bevy").text
+    assert _numbers(nearer, "bounds: vec!")[0] == pytest.approx(6.0)
+
+
+def test_per_cascade_resolution_and_a_non_power_of_two_atlas_are_named():
+    settings = ShadowSettings(cascades=3, resolution=1182, cascade_resolutions=(1182, 1024, 512))
+    for engine in sorted(EXPORT_METHODS):
+        lacking = " ".join(export(settings, near=NEAR, far=FAR, engine=engine).lacking)
+        assert "cascade_resolutions = [1182, 1024, 512]" in lacking
+    urp = export(settings, near=NEAR, far=FAR, engine="unity_urp")
+    assert "mainLightShadowmapResolution = 2048;" in urp.text  # 2 × 1182 = 2364 → the power of two below
+    assert any("2048 written for 2364" in item for item in urp.lacking)
