@@ -43,6 +43,9 @@ class DeviceScene:
     bvh : MeshBVH
         Its BVH and vertices on the device, relative to a float64 anchor.
     device : str
+    corners : ndarray, shape (8, 3), float64
+        The scene's bounding-box corners, metres (:meth:`Scene.corners`, a pass over every
+        vertex: taken once here, not twice per frame and method).
     light_space : dict
         The scene in the light space of the last light direction seen (what the cascade pass
         needs of every vertex and triangle, which a static light leaves unchanged from frame to
@@ -52,12 +55,14 @@ class DeviceScene:
     scene: Scene
     bvh: MeshBVH
     device: str
+    corners: np.ndarray = field(compare=False, repr=False)
     light_space: dict = field(default_factory=dict, compare=False, repr=False)
 
 
 def prepare_scene(scene: Scene, *, device: str = "cpu") -> DeviceScene:
     """Upload ``scene`` to ``device`` (``"cpu"`` or ``"cuda"``) and build its BVH."""
-    return DeviceScene(scene=scene, bvh=mesh_bvh(scene.vertices, scene.triangles, device=device), device=device)
+    return DeviceScene(scene=scene, bvh=mesh_bvh(scene.vertices, scene.triangles, device=device), device=device,
+                       corners=scene.corners())
 
 
 def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width: int, height: int,
@@ -149,7 +154,7 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
                 depth = np.full((len(sizes), max(sizes), max(sizes)), np.inf, dtype=np.float32)
             depth[group, :size, :size] = own
         texels += count
-    span = float(np.ptp(cascades.to_light(dscene.scene.corners())[:, 2]))
+    span = float(np.ptp(cascades.to_light(dscene.corners)[:, 2]))
     depth = stored_depth(depth, span=span, depth_format=settings.depth_format)
     return ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=texels,
                       moments=filter_moments(depth, span=span, settings=settings, device=dscene.device),
@@ -233,7 +238,7 @@ def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings) -> 
     settings = settings.validated()
     start = time.perf_counter()
     cascades = build_cascades(pose=view.pose, light_direction=view.light_direction,
-                              scene_corners=dscene.scene.corners(), settings=settings)
+                              scene_corners=dscene.corners, settings=settings)
     timings = {"cascades": time.perf_counter() - start}
     start = time.perf_counter()
     maps = shadow_maps(dscene, cascades, settings)

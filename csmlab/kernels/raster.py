@@ -365,8 +365,9 @@ def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin,
     cascades = size.shape[0]
     points = wp.empty((cascades, xy.shape[0], 2), dtype=wp.int64, device=device)
     wp.launch(fixed_point_vertices_kernel, dim=(cascades, xy.shape[0]),
-              inputs=(wp.array(xy, dtype=wp.float64, device=device), wp.array(size, dtype=wp.float64, device=device),
-                      wp.array(corner, dtype=wp.int64, device=device), float(2**bits), float(2**50)),
+              inputs=(wp.array(xy, dtype=wp.float64, device=device, copy=False),
+                      wp.array(size, dtype=wp.float64, device=device, copy=False),
+                      wp.array(corner, dtype=wp.int64, device=device, copy=False), float(2**bits), float(2**50)),
               outputs=(points,), device=device)
     depth = wp.full((cascades, resolution, resolution), value=np.inf, dtype=wp.float32, device=device)
     pairs = (np.stack(np.meshgrid(np.arange(cascades), np.arange(tri.shape[0]), indexing="ij"), -1).reshape(-1, 2)
@@ -378,8 +379,9 @@ def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin,
         return depth.numpy(), 0
     covered = wp.empty(pairs.shape[0], dtype=wp.int32, device=device)
     wp.launch(rasterize_candidates_kernel, dim=pairs.shape[0],
-              inputs=(points, wp.array(z, dtype=wp.float64, device=device),
-                      wp.array(tri, dtype=wp.int32, device=device),
-                      wp.array(np.ascontiguousarray(pairs), dtype=wp.int32, device=device), wp.int64(2**bits)),
+              inputs=(points, wp.array(z, dtype=wp.float64, device=device, copy=False),
+                      wp.array(tri, dtype=wp.int32, device=device, copy=False),
+                      wp.array(np.ascontiguousarray(pairs), dtype=wp.int32, device=device, copy=False),
+                      wp.int64(2**bits)),
               outputs=(depth, covered), device=device)
     return depth.numpy(), int(covered.numpy().sum(dtype=np.int64))

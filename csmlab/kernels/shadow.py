@@ -283,7 +283,7 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
             wp.array(maps, dtype=wp.float32, device=device, copy=False),
             wp.array(xy, dtype=wp.int64, device=device, copy=False),
             wp.array(rd, dtype=wp.float32, device=device, copy=False),
-            wp.array(slope, dtype=wp.vec2d, device=device),
+            wp.array(slope, dtype=wp.vec2d, device=device, copy=False),
             wp.array(vd, dtype=wp.float64, device=device, copy=False),
             wp.array(z, dtype=wp.float64, device=device, copy=False),
             wp.array(area, dtype=wp.float64, device=device, copy=False),
@@ -390,9 +390,10 @@ def receiver_coordinates(light_points, light_normals, *, texel_size, origin, zre
     slope = wp.empty(shape + (2,), dtype=wp.float64, device=device)
     if p.shape[0]:
         wp.launch(receiver_coordinates_kernel, dim=p.shape[0],
-                  inputs=(wp.array(p, dtype=wp.float64, device=device), wp.array(n, dtype=wp.float64, device=device),
-                          wp.array(size, dtype=wp.float64, device=device),
-                          wp.array(corner, dtype=wp.int64, device=device), float(zref), float(2**bits), float(2**50),
+                  inputs=(wp.array(p, dtype=wp.float64, device=device, copy=False),
+                          wp.array(n, dtype=wp.float64, device=device, copy=False),
+                          wp.array(size, dtype=wp.float64, device=device, copy=False),
+                          wp.array(corner, dtype=wp.int64, device=device, copy=False), float(zref), float(2**bits), float(2**50),
                           float(normal_offset), float(bias_constant), float(bias_slope), 10.0),
                   outputs=(coords, depth, slope), device=device)
     return coords.numpy(), depth.numpy(), slope.numpy()
