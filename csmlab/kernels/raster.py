@@ -129,6 +129,7 @@ def rasterize_triangle(
         w_c = row_ab - wp.float64(by - ay) * wp.float64(px - ax)
         w_a = row_bc - wp.float64(cy - by) * wp.float64(px - bx)
         w_b = row_ca - wp.float64(ay - cy) * wp.float64(px - cx)
+        entered = bool(False)
         for i in range(i0, i1 + 1):
             if not stepped:
                 px = (two * wp.int64(i) + wp.int64(1)) * unit
@@ -139,6 +140,11 @@ def rasterize_triangle(
                 z = (w_a * za + w_b * zb + w_c * zc) / area
                 wp.atomic_min(depth, c, j, i, wp.float32(z))
                 count += 1
+                entered = True
+            elif entered and stepped:
+                # Exact edge functions are linear along the row, so the centres inside form one
+                # run: past its end no centre of this row is covered.
+                break
             w_c = w_c - step_c
             w_a = w_a - step_a
             w_b = w_b - step_b
