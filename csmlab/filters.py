@@ -27,7 +27,7 @@ from csmlab.kernels.shadow import shadow_lookup
 from csmlab.settings import ShadowSettings
 
 __all__ = ["FILTER_METHODS", "filter_moments", "filter_radius", "filter_widths", "filtered_shadow_lookup", "interleaved_gradient_noise",
-           "poisson_disk", "screen_pixels"]
+           "poisson_disk", "screen_pixels", "uses_pixels"]
 
 FILTER_METHODS: dict[str, str] = {
     "none": "the one texel holding the point",
@@ -129,6 +129,11 @@ def filter_moments(depth, *, span: float, settings: ShadowSettings, device: str 
         return None
     moments = moment_maps(depth, span=span, method=settings.filter, exponents=settings.evsm_exponents, device=device)
     return blur_moments(moments, radius=settings.moment_blur // 2, device=device)
+
+
+def uses_pixels(settings: ShadowSettings) -> bool:
+    """Whether :func:`filtered_shadow_lookup` under ``settings`` reads each receiver's pixel (a per-pixel rotation)."""
+    return settings.filter == "pcf_poisson" and settings.poisson_rotation == "pixel"
 
 
 def screen_pixels(pose: CameraPose, points, *, width: int, height: int) -> np.ndarray:
@@ -249,7 +254,7 @@ def filtered_shadow_lookup(depth, coords, receiver_depth, view_depth, *, cascade
                             power=settings.vsm_power, bleed=settings.vsm_bleed, blend_weight=weight, device=device)
         return lit, chosen.astype(np.int8), band
     angle = None
-    if filter == "pcf_poisson" and settings.poisson_rotation == "pixel":
+    if uses_pixels(settings):
         if pixels is None:
             raise ValueError("pixels: poisson_rotation = 'pixel' needs each receiver's pixel")
         angle = 2.0 * np.pi * interleaved_gradient_noise(pixels)

@@ -16,7 +16,7 @@ import numpy as np
 
 from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet, build_cascades
-from csmlab.filters import filter_moments, filtered_shadow_lookup
+from csmlab.filters import filter_moments, filtered_shadow_lookup, uses_pixels
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import normalized
 from csmlab.kernels.raster import cascade_candidates, rasterize_cascades, triangle_bounds
@@ -209,7 +209,7 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
         zref=cascades.zref, bits=bits, normal_offset=settings.normal_offset, bias_constant=settings.bias_constant,
         bias_slope=settings.bias_slope, device=device,
     )
-    if pixels is None and p.ndim == 3:
+    if pixels is None and p.ndim == 3 and uses_pixels(settings):
         rows, cols = np.indices(p.shape[:2])
         pixels = np.stack([cols, rows], axis=-1)
     found = filtered_shadow_lookup(
