@@ -38,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 import warp as wp
+from threadpoolctl import threadpool_limits
 
 # Run as a script, this file's folder comes first on sys.path: put the checkout it belongs to
 # before any installed csmlab.
@@ -181,7 +182,9 @@ def bench_metrics(*, repeats: int) -> list[dict]:
     out = []
     for variant in experiment.variants():
         before, now = (render_shadow(dscene, v, variant.settings) for v in views)
-        seconds = best_of(lambda: measure_frame(now, before), repeats)
+        # As in a run's worker (csmlab.experiment.run_chunk): one thread per library pool.
+        with threadpool_limits(limits=1):
+            seconds = best_of(lambda: measure_frame(now, before), repeats)
         out.append(dict(scene="265k", triangles=workload.scene.triangle_count, resolution=variant.settings.resolution,
                         stage=f"metrics {variant.method}", count=workload.width * workload.height, unit="Mpix/s",
                         csmlab_s=seconds, open3d_2t_s=float("nan"), open3d_1t_s=float("nan"),

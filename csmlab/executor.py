@@ -89,7 +89,11 @@ def run_dask(fn: Callable, tasks: list, *, shared, jobs: int, address: str | Non
         futures = {client.submit(fn, shared_future, task, pure=False): task for task in tasks}
         try:
             for future in as_completed(futures):
-                yield futures[future], future.result()
+                result = future.result()
+                # Released as soon as it is here: a worker keeps no finished chunk, so its memory
+                # stays at one chunk's state however long the path.
+                future.release()
+                yield futures.pop(future), result
         finally:
             client.cancel(list(futures))
     finally:

@@ -301,6 +301,18 @@ def run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
 
     Frame ``start - 1`` is rendered too, as the previous frame of ``start``, and gives no rows.
     """
+    from threadpoolctl import threadpool_limits
+
+    import csmlab.metrics  # noqa: F401  (loads ꟻLIP's OpenMP library, so that the limit below reaches it)
+
+    # One thread per process for every library's pool (ꟻLIP's OpenMP, OpenBLAS): the executor
+    # runs one process per core, and a second pool per process only oversubscribes the cores —
+    # ꟻLIP's busy-waiting OpenMP threads made each call 3× slower and stalled OpenBLAS (issue 14).
+    with threadpool_limits(limits=1):
+        return _run_chunk(job, chunk)
+
+
+def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
     from csmlab.metrics import measure_frame
     from csmlab.render import render_shadow, render_view
     from csmlab.report.capture import capture_frame

@@ -28,8 +28,8 @@ from csmlab.lookup_choices import FILTER_METHODS, MOMENT_METHODS, PCF_KERNELS, f
 from csmlab.quads import quad_derivatives
 from csmlab.settings import ShadowSettings
 
-__all__ = ["FILTER_METHODS", "box_texel_origins", "filter_mips", "filter_moments", "filter_radius", "filter_widths", "filtered_shadow_lookup", "interleaved_gradient_noise",
-           "poisson_disk", "screen_pixels"]
+__all__ = ["FILTER_METHODS", "box_texel_origins", "filter_mips", "filter_moments", "filter_radius", "filter_widths",
+           "filtered_shadow_lookup", "interleaved_gradient_noise", "poisson_disk", "screen_pixels", "uses_pixels"]
 
 def filter_widths(cascades: CascadeSet, settings: ShadowSettings) -> np.ndarray:
     """The ``width`` of :func:`csmlab.kernels.pcf.weighted_pcf` per cascade ``(C,)`` float64.
@@ -114,6 +114,11 @@ def filter_mips(moments, cascades: CascadeSet, *, settings: ShadowSettings, devi
         return None
     return moment_mip_chain(moments, origin=box_texel_origins(cascades, bits=settings.subtexel_bits),
                             max_lod=settings.max_lod, device=device)
+
+
+def uses_pixels(settings: ShadowSettings) -> bool:
+    """Whether :func:`filtered_shadow_lookup` under ``settings`` reads each receiver's pixel (a per-pixel rotation)."""
+    return settings.filter == "pcf_poisson" and settings.poisson_rotation == "pixel"
 
 
 def screen_pixels(pose: CameraPose, points, *, width: int, height: int) -> np.ndarray:
@@ -266,7 +271,7 @@ def filtered_shadow_lookup(depth, coords, receiver_depth, view_depth, *, cascade
                             power=settings.vsm_power, bleed=settings.vsm_bleed, blend_weight=weight, device=device)
         return lit, chosen.astype(np.int8), band
     angle = None
-    if filter == "pcf_poisson" and settings.poisson_rotation == "pixel":
+    if uses_pixels(settings):
         if pixels is None:
             raise ValueError("pixels: poisson_rotation = 'pixel' needs each receiver's pixel")
         angle = 2.0 * np.pi * interleaved_gradient_noise(pixels)

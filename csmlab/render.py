@@ -16,8 +16,8 @@ import numpy as np
 
 from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet, build_cascades
-from csmlab.filters import filter_mips, filter_moments, filtered_shadow_lookup
 from csmlab.cascades.bounds import visible_depth_range
+from csmlab.filters import filter_mips, filter_moments, filtered_shadow_lookup, uses_pixels
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import normalized
 from csmlab.kernels.raster import cascade_candidates, rasterize_cascades, rasterize_depth, triangle_bounds
@@ -46,6 +46,9 @@ class DeviceScene:
     bvh : MeshBVH
         Its BVH and vertices on the device, relative to a float64 anchor.
     device : str
+    corners : ndarray, shape (8, 3), float64
+        The scene's bounding-box corners, metres (:meth:`Scene.corners`, a pass over every
+        vertex: taken once here, not twice per frame and method).
     light_space : dict
         The scene in the light space of the last light direction seen (what the cascade pass
         needs of every vertex and triangle, which a static light leaves unchanged from frame to
@@ -55,12 +58,14 @@ class DeviceScene:
     scene: Scene
     bvh: MeshBVH
     device: str
+    corners: np.ndarray = field(compare=False, repr=False)
     light_space: dict = field(default_factory=dict, compare=False, repr=False)
 
 
 def prepare_scene(scene: Scene, *, device: str = "cpu") -> DeviceScene:
     """Upload ``scene`` to ``device`` (``"cpu"`` or ``"cuda"``) and build its BVH."""
-    return DeviceScene(scene=scene, bvh=mesh_bvh(scene.vertices, scene.triangles, device=device), device=device)
+    return DeviceScene(scene=scene, bvh=mesh_bvh(scene.vertices, scene.triangles, device=device), device=device,
+                       corners=scene.corners())
 
 
 def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width: int, height: int,
@@ -145,7 +150,7 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
         # is the clamped minimum, so clamping the map is exact.
         near = np.array([c.depth_near - cascades.zref for c in cascades.cascades], dtype=np.float32)
         depth = np.maximum(depth, near[:, None, None])
-    span = float(np.ptp(cascades.to_light(dscene.scene.corners())[:, 2]))
+    span = float(np.ptp(cascades.to_light(dscene.corners)[:, 2]))
     depth = stored_depth(depth, span=span, depth_format=settings.depth_format)
     moments = filter_moments(depth, span=span, settings=settings, device=dscene.device)
     return ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=texels, moments=moments, depth_span=span,
@@ -281,7 +286,7 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
             normal_offset=settings.normal_offset, bias_constant=settings.bias_constant, bias_slope=settings.bias_slope,
             precision=settings.engine_precision,
         )
-    if pixels is None and p.ndim == 3:
+    if pixels is None and p.ndim == 3 and uses_pixels(settings):
         rows, cols = np.indices(p.shape[:2])
         pixels = np.stack([cols, rows], axis=-1)
     lanes = None
@@ -357,7 +362,7 @@ def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
     if settings.bounds == "sdsm" and visible_depth is None:
         visible_depth = visible_depth_range(view.gbuffer.view_depth)
     cascades = build_cascades(pose=view.pose, light_direction=view.light_direction,
-                              scene_corners=dscene.scene.corners(), settings=settings, visible_depth=visible_depth,
+                              scene_corners=dscene.corners, settings=settings, visible_depth=visible_depth,
                               held_extents=held_extents)
     timings = {"cascades": time.perf_counter() - start}
     start = time.perf_counter()

@@ -171,3 +171,21 @@ def test_recorded_path_runs_on_a_clock_from_its_first_pose(tmp_path):
                     f'start_s = 0.1\nend_s = 0.5\n')
     times = build_workload(load_experiment(path)).path.times
     np.testing.assert_allclose(times, np.arange(3, 16) / 30.0, atol=1e-9)
+
+
+def test_a_chunk_runs_with_one_thread_in_every_library_pool(monkeypatch):
+    # Workers are one process per core: ꟻLIP's OpenMP and OpenBLAS must not start pools of their own.
+    from threadpoolctl import threadpool_info
+
+    import csmlab.experiment as experiment
+    import csmlab.metrics  # noqa: F401  (ꟻLIP's OpenMP library loaded, as in a worker)
+
+    def threads():
+        return {pool["filepath"]: pool["num_threads"] for pool in threadpool_info()}
+
+    outside = threads()
+    monkeypatch.setattr(experiment, "_run_chunk", lambda job, chunk: threadpool_info())
+    pools = experiment.run_chunk(None, (0, 1))
+    assert {"openmp", "blas"} <= {pool["user_api"] for pool in pools}
+    assert all(pool["num_threads"] == 1 for pool in pools)
+    assert threads() == outside  # the caller's own settings come back afterwards

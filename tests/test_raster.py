@@ -155,6 +155,23 @@ def test_two_triangles_sharing_an_edge_cover_each_texel_centre_once():
         assert maps[0].sum() > 100 and maps[1].sum() > 100
 
 
+@pytest.mark.parametrize("span", [2**14, 2**17 - 64, 2**17, 2**19], ids=["stepped", "stepped-limit", "afresh",
+                                                                          "afresh-far"])
+def test_large_triangles_cover_exactly_the_centres_inside_them(span):
+    # A triangle spanning about `span` texels: below 2**17 texels (2**26 doubled fixed-point units
+    # at 8 bits) the rasterizer steps its edge functions texel to texel, from there on it evaluates
+    # them afresh. Either way the covered centres are those strictly inside, in exact integers.
+    resolution = 160
+    # Two edges cross the map at odd slopes, so that many centres lie a fraction of a texel from them.
+    tri = np.array([[-span + 0.375, -0.8125 * span + 3.25], [157.5, 150.0625], [0.625 * span, -span + 1.5]])
+    (ux, uy), (vx, vy) = tri[1] - tri[0], tri[2] - tri[0]
+    corners = tri if ux * vy - uy * vx > 0 else tri[::-1]
+    covered = coverage([tri], resolution)[0]
+    inside = strictly_inside(corners, resolution)
+    assert 0 < inside.sum() < resolution**2
+    assert np.array_equal(covered, inside)
+
+
 def test_a_fan_around_a_texel_centre_covers_it_once():
     centre = np.array([16.5, 16.5])
     # Every spoke runs through further texel centres (its texel offsets share a factor of 2).

@@ -282,7 +282,7 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
             wp.array(maps, dtype=wp.float32, device=device, copy=False),
             wp.array(xy, dtype=wp.int64, device=device, copy=False),
             wp.array(rd, dtype=wp.float32, device=device, copy=False),
-            wp.array(slope, dtype=wp.vec2d, device=device),
+            wp.array(slope, dtype=wp.vec2d, device=device, copy=False),
             wp.array(vd, dtype=wp.float64, device=device, copy=False),
             wp.array(z, dtype=wp.float64, device=device, copy=False),
             wp.array(area, dtype=wp.float64, device=device, copy=False),
@@ -319,30 +319,32 @@ def receiver_coordinates_kernel(
     depth: wp.array2d(dtype=wp.float32),
     slope: wp.array3d(dtype=wp.float64),
 ):
-    c, k = wp.tid()
+    k = wp.tid()
     # csmlab.texels.receiver_lookup's operations in its order, one at a time (Warp emits one
-    # statement per operation, so no multiply-add is fused): the same bits as the host.
+    # statement per operation, so no multiply-add is fused): the same bits as the host. One
+    # thread per receiver: what does not depend on the cascade is computed once for all of them.
     zero = wp.float64(0.0)
     cos = -light_n[k, 2]
     tan = wp.float64(wp.nan)
     if cos > zero:
         tan = wp.min(wp.sqrt(wp.max(wp.float64(1.0) - cos * cos, zero)) / cos, max_tan)
-    texel = wp.max(texel_size[c, 0], texel_size[c, 1])
-    offset = normal_offset * texel
-    for axis in range(2):
-        u = light_n[k, axis] * offset
-        u = u + light_p[k, axis]
-        u = u * (scale / texel_size[c, axis])
-        u = wp.rint(wp.clamp(u, -limit, limit))
-        if wp.isnan(u):
-            u = -limit
-        coords[c, k, axis] = wp.int64(u) - origin[c, axis]
-        plane = zero
-        if cos > zero:
-            plane = light_n[k, axis] / cos
-        slope[c, k, axis] = wp.clamp(plane, -max_tan, max_tan) * texel_size[c, axis]
-    bias = bias_constant + bias_slope * texel * tan
-    depth[c, k] = wp.float32(light_p[k, 2] + offset * light_n[k, 2] - zref - bias)
+    for c in range(texel_size.shape[0]):
+        texel = wp.max(texel_size[c, 0], texel_size[c, 1])
+        offset = normal_offset * texel
+        for axis in range(2):
+            u = light_n[k, axis] * offset
+            u = u + light_p[k, axis]
+            u = u * (scale / texel_size[c, axis])
+            u = wp.rint(wp.clamp(u, -limit, limit))
+            if wp.isnan(u):
+                u = -limit
+            coords[c, k, axis] = wp.int64(u) - origin[c, axis]
+            plane = zero
+            if cos > zero:
+                plane = light_n[k, axis] / cos
+            slope[c, k, axis] = wp.clamp(plane, -max_tan, max_tan) * texel_size[c, axis]
+        bias = bias_constant + bias_slope * texel * tan
+        depth[c, k] = wp.float32(light_p[k, 2] + offset * light_n[k, 2] - zref - bias)
 
 
 def receiver_coordinates(light_points, light_normals, *, texel_size, origin, zref: float, bits: int,
@@ -386,10 +388,11 @@ def receiver_coordinates(light_points, light_normals, *, texel_size, origin, zre
     depth = wp.empty(shape, dtype=wp.float32, device=device)
     slope = wp.empty(shape + (2,), dtype=wp.float64, device=device)
     if p.shape[0]:
-        wp.launch(receiver_coordinates_kernel, dim=shape,
-                  inputs=(wp.array(p, dtype=wp.float64, device=device), wp.array(n, dtype=wp.float64, device=device),
-                          wp.array(size, dtype=wp.float64, device=device),
-                          wp.array(corner, dtype=wp.int64, device=device), float(zref), float(2**bits), float(2**50),
+        wp.launch(receiver_coordinates_kernel, dim=p.shape[0],
+                  inputs=(wp.array(p, dtype=wp.float64, device=device, copy=False),
+                          wp.array(n, dtype=wp.float64, device=device, copy=False),
+                          wp.array(size, dtype=wp.float64, device=device, copy=False),
+                          wp.array(corner, dtype=wp.int64, device=device, copy=False), float(zref), float(2**bits), float(2**50),
                           float(normal_offset), float(bias_constant), float(bias_slope), 10.0),
                   outputs=(coords, depth, slope), device=device)
     return coords.numpy(), depth.numpy(), slope.numpy()

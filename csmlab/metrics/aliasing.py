@@ -148,6 +148,8 @@ def utilization(frame: Frame) -> np.ndarray:
         texel = np.floor(texel_coordinates(cascades, c, points)).astype(np.int64)
         r = cascade.resolution
         inside = np.all((texel >= 0) & (texel < r), axis=1)
-        flat = texel[inside, 1] * r + texel[inside, 0]
-        out[c] = np.unique(flat).size / float(r * r)
+        # Distinct texels counted on a bitmap of the map: linear time, where np.unique sorts.
+        looked_up = np.zeros(r * r, dtype=bool)
+        looked_up[texel[inside, 1] * r + texel[inside, 0]] = True
+        out[c] = np.count_nonzero(looked_up) / float(r * r)
     return out

@@ -44,7 +44,7 @@ from dataclasses import dataclass
 import colour
 import flip_evaluator
 import numpy as np
-from scipy.ndimage import find_objects, label, maximum_filter
+from scipy.ndimage import maximum_filter
 from skimage.metrics import structural_similarity
 
 from csmlab.frame import Frame
@@ -155,11 +155,14 @@ def changed_windows(changed, *, support: int) -> list[tuple[tuple[slice, slice],
     """Windows on which a local filter of radius ``support`` must be evaluated where ``changed``.
 
     A pixel's value can differ from the no-change value only if a changed pixel lies within
-    ``support`` of it (its *reach*). Each 8-connected component of the reach is boxed and the box
-    grown by ``support`` more pixels (clipped to the image), so that every reach pixel's whole
-    support lies inside its window — or beyond the image's edge, exactly as in the full image.
-    Windows that overlap are merged when the union costs no more than the two apart, and when
-    the windows add up to the image's area the image itself is the one window.
+    ``support`` of it (its *reach*). The reach is cut into bands of ``4·support`` rows; in each
+    band, runs of columns holding reach pixels (split where more than ``2·support`` columns hold
+    none) are boxed and each box grown by ``support`` more pixels (clipped to the image), so that
+    every reach pixel's whole support lies inside its window — or beyond the image's edge, exactly
+    as in the full image. Bands follow the shape of the changes, where one bounding box of a
+    winding shadow edge would hold mostly unchanged pixels. Windows are merged when their union
+    costs no more than the two apart, and when the windows add up to the image's area the image
+    itself is the one window.
 
     Parameters
     ----------
@@ -172,19 +175,28 @@ def changed_windows(changed, *, support: int) -> list[tuple[tuple[slice, slice],
     -------
     list of ((slice, slice), ndarray)
         Per window: its rows and columns in the image, and a bool mask of the window's shape
-        holding the reach pixels whose value the window gives exactly.
+        holding the reach pixels whose value the window gives exactly (each reach pixel in
+        exactly one window).
     """
     changed = np.asarray(changed, dtype=bool)
     if not changed.any():
         return []
     height, width = changed.shape
     reach = maximum_filter(changed.view(np.uint8), size=2 * support + 1, mode="constant").view(bool)
-    labels, count = label(reach, structure=np.ones((3, 3), dtype=bool))
+    band = max(4 * support, 1)
+    # Boxes of reach pixels: [row0, row1, col0, col1) and the core they keep, [row0, row1, col0, col1).
     boxes = []
-    for index, box in enumerate(find_objects(labels), start=1):
-        rows, cols = box
-        boxes.append([max(rows.start - support, 0), min(rows.stop + support, height),
-                      max(cols.start - support, 0), min(cols.stop + support, width), [index]])
+    for r0 in range(0, height, band):
+        r1 = min(r0 + band, height)
+        columns = np.flatnonzero(reach[r0:r1].any(axis=0))
+        if columns.size == 0:
+            continue
+        rows = np.flatnonzero(reach[r0:r1, columns[0]:columns[-1] + 1].any(axis=1)) + r0
+        breaks = np.flatnonzero(np.diff(columns) > 2 * support + 1)
+        for first, last in zip(np.r_[0, breaks + 1], np.r_[breaks, columns.size - 1]):
+            core = (int(rows[0]), int(rows[-1]) + 1, int(columns[first]), int(columns[last]) + 1)
+            boxes.append([max(core[0] - support, 0), min(core[1] + support, height),
+                          max(core[2] - support, 0), min(core[3] + support, width), [core]])
     merged = True
     while merged:
         merged = False
@@ -203,9 +215,11 @@ def changed_windows(changed, *, support: int) -> list[tuple[tuple[slice, slice],
         # Windows that add up to the image cost more than the image (changes everywhere: `none`).
         return [((slice(0, height), slice(0, width)), reach)]
     windows = []
-    for r0, r1, c0, c1, members in boxes:
-        window = (slice(r0, r1), slice(c0, c1))
-        windows.append((window, np.isin(labels[window], members)))
+    for r0, r1, c0, c1, cores in boxes:
+        keep = np.zeros((r1 - r0, c1 - c0), dtype=bool)
+        for k0, k1, j0, j1 in cores:
+            keep[k0 - r0:k1 - r0, j0 - c0:j1 - c0] = reach[k0:k1, j0:j1]
+        windows.append(((slice(r0, r1), slice(c0, c1)), keep))
     return windows
 
 
