@@ -9,6 +9,7 @@ import pytest
 from csmlab.camera import CameraPose
 from csmlab.cascades import build_cascades
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
+from csmlab.kernels.visibility import CameraHits
 from csmlab.geometry import rotation_looking_at
 from csmlab.light import direction_from_angles
 from csmlab.report.capture import (
@@ -42,10 +43,11 @@ def _frame(index, *, height=6, width=2 * ANIM_WIDTH + 5, seed=0, position=(3.0, 
     cascades = build_cascades(pose=pose, light_direction=LIGHT, scene_corners=SCENE_CORNERS, settings=settings)
     valid = rng.random((height, width)) > 0.2
     position = np.where(valid[..., None], rng.normal(size=(height, width, 3)) * 10, np.nan)
-    gbuffer = GBuffer(position=position, normal=np.zeros((height, width, 3), np.float32),
-                      triangle=np.where(valid, 1, -1).astype(np.int32),
-                      view_depth=np.where(valid, 5.0, np.inf).astype(np.float32),
-                      dpdx=np.zeros((height, width, 3), np.float32), dpdy=np.zeros((height, width, 3), np.float32),
+    gbuffer = GBuffer(hits=CameraHits(position=position, normal=np.zeros((height, width, 3), np.float32),
+                                      triangle=np.where(valid, 1, -1).astype(np.int32),
+                                      view_depth=np.where(valid, 5.0, np.inf).astype(np.float32),
+                                      dpdx=np.zeros((height, width, 3), np.float32),
+                                      dpdy=np.zeros((height, width, 3), np.float32)),
                       albedo=np.full((height, width, 3), 0.5, np.float32))
     lit = np.where(valid, rng.random((height, width)), np.nan).astype(np.float32)
     cascade = np.where(valid, rng.integers(0, 3, (height, width)), -1).astype(np.int8)
