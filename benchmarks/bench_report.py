@@ -109,8 +109,8 @@ def synthesize_results(out: Path, *, frames: int, methods: tuple[str, ...], widt
             capture_seconds["snapshot" if index in snapshots else "frame"] += time.perf_counter() - began
             values = {c: float(rng.random()) for c in columns}
             values["memory_bytes"] = 4.0 * cascades * resolution ** 2
-            rows.append((index, index / 30, method, "base", values))
-            timings += [(index, method, "base", stage, float(rng.random()) * 0.1) for stage in ("raster", "shadow")]
+            rows.append(results.MetricRow(index, index / 30, method, "base", values))
+            timings += [results.TimingRow(index, method, "base", stage, float(rng.random()) * 0.1) for stage in ("raster", "shadow")]
     order = {(m, "base"): k for k, m in enumerate(methods)}
     out.mkdir(parents=True, exist_ok=True)
     results.write_metrics(out / "metrics.csv", rows, columns=columns, order=order)
