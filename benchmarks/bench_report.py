@@ -29,6 +29,7 @@ from csmlab import results
 from csmlab.camera import CameraPose
 from csmlab.cascades import build_cascades
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
+from csmlab.kernels.visibility import CameraHits
 from csmlab.geometry import rotation_looking_at
 from csmlab.light import direction_from_angles
 from csmlab.metric_registry import metric_columns
@@ -73,9 +74,10 @@ def synthetic_frame(index: int, method: str, *, width: int, height: int, cascade
     depth = np.where(valid, pose.view_depth(np.nan_to_num(position)), np.inf)
     lit = np.where(valid, (np.sin(position[..., 0]) + np.sin(position[..., 2]) > 0).astype(np.float32), np.nan)
     cascade = np.where(valid, np.searchsorted(cascade_set.splits, depth) - 1, -1).clip(-1, cascades - 1)
-    gbuffer = GBuffer(position=position, normal=np.zeros((height, width, 3), np.float32),
-                      triangle=np.where(valid, 0, -1).astype(np.int32), view_depth=depth.astype(np.float32),
-                      dpdx=np.zeros((height, width, 3), np.float32), dpdy=np.zeros((height, width, 3), np.float32),
+    gbuffer = GBuffer(hits=CameraHits(position=position, normal=np.zeros((height, width, 3), np.float32),
+                                      triangle=np.where(valid, 0, -1).astype(np.int32),
+                                      view_depth=depth.astype(np.float32), dpdx=np.zeros((height, width, 3), np.float32),
+                                      dpdy=np.zeros((height, width, 3), np.float32)),
                       albedo=np.full((height, width, 3), 0.4, np.float32))
     view = View(index=index, pose=pose, light_direction=LIGHT, gbuffer=gbuffer, reference=lit)
     frame = Frame(view=view, settings=settings,
@@ -107,8 +109,8 @@ def synthesize_results(out: Path, *, frames: int, methods: tuple[str, ...], widt
             capture_seconds["snapshot" if index in snapshots else "frame"] += time.perf_counter() - began
             values = {c: float(rng.random()) for c in columns}
             values["memory_bytes"] = 4.0 * cascades * resolution ** 2
-            rows.append((index, index / 30, method, "base", values))
-            timings += [(index, method, "base", stage, float(rng.random()) * 0.1) for stage in ("raster", "shadow")]
+            rows.append(results.MetricRow(index, index / 30, method, "base", values))
+            timings += [results.TimingRow(index, method, "base", stage, float(rng.random()) * 0.1) for stage in ("raster", "shadow")]
     order = {(m, "base"): k for k, m in enumerate(methods)}
     out.mkdir(parents=True, exist_ok=True)
     results.write_metrics(out / "metrics.csv", rows, columns=columns, order=order)

@@ -102,11 +102,11 @@ class ChunkResult:
     Attributes
     ----------
     start, stop : int
-    rows : list of (frame, time_s, method, point, values)
-        One per frame × variant; ``values`` maps metric names to floats.
-    timings : list of (frame, method, point, stage, seconds)
+    rows : list of MetricRow
+        One per frame × variant.
+    timings : list of TimingRow
         Wall-clock seconds; the view's stages have empty method and point.
-    captures : dict of (method, point) to list of dict
+    captures : dict of (method, point) to list of Capture
         The report's per-frame records (:func:`csmlab.report.capture.capture_frame`), in frame order.
     """
 
@@ -332,7 +332,7 @@ def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
         if index in workload.restarts:
             previous = {}
         if counted:
-            timings += [(index, "", "", stage, seconds) for stage, seconds in view.timings.items()]
+            timings += [results.TimingRow(index, "", "", stage, seconds) for stage, seconds in view.timings.items()]
         for variant in job.variants:
             key = (variant.method, variant.point)
             held = job.held_depths.get(key)
@@ -344,9 +344,10 @@ def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
                 began = time.perf_counter()
                 measures = measure_frame(frame, previous.get(key), device=job.device)
                 measured = time.perf_counter() - began
-                rows.append((index, float(pose.time_s), variant.method, variant.point, measures.values))
-                timings += [(index, *key, stage, seconds) for stage, seconds in frame.timings.items()]
-                timings.append((index, *key, "metrics", measured))
+                rows.append(results.MetricRow(index, float(pose.time_s), variant.method, variant.point,
+                                              measures.values))
+                timings += [results.TimingRow(index, *key, stage, seconds) for stage, seconds in frame.timings.items()]
+                timings.append(results.TimingRow(index, *key, "metrics", measured))
                 captures.setdefault(key, []).append(
                     capture_frame(frame, measures, snapshot=index in job.snapshot_frames, grid=grid))
             previous[key] = frame
@@ -494,8 +495,11 @@ def _write_results(out: Path, experiment: Experiment, job: Job, chunks: list[Chu
     methods, points = results.summarize(rows, columns=columns, methods=[m.name for m in experiment.methods],
                                         points=[label for label, _ in experiment.points()])
     summary = dict(name=experiment.name, config_hash=config_hash, workload_hash=job.workload.key, device=job.device,
-                   frames=len(job.workload.path), config=experiment_document(experiment), methods=methods,
-                   points=points)
+                   frames=len(job.workload.path), config=experiment_document(experiment),
+                   light_moves=not experiment.light.is_static, point_fields=dict(experiment.points()),
+                   stabilization={m.name: {v.point: v.settings.stabilization for v in job.variants if v.method == m.name}
+                                  for m in experiment.methods},
+                   methods=methods, points=points)
     if job.workload.timing is not None:
         summary["recording"] = job.workload.timing.as_dict()
     results.write_summary(out / "summary.json", **summary)

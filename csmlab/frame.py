@@ -8,6 +8,7 @@ the top of the image; pixel ``(row, col)`` has its centre at ``(col + 0.5, row +
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -15,46 +16,74 @@ from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet
 from csmlab.settings import ShadowSettings
 
+if TYPE_CHECKING:
+    # Only for the annotation: the record lives beside the kernel that fills it, and loading
+    # csmlab.frame does not load Warp.
+    from csmlab.kernels.visibility import CameraHits
+
 __all__ = ["Frame", "GBuffer", "ShadowLookup", "ShadowMaps", "View"]
 
 
 @dataclass(frozen=True)
 class GBuffer:
-    """Per-pixel first hit of the camera rays.
+    """Per-pixel first hit of the camera rays: the hits record of the visibility kernel and the albedo.
+
+    The arrays are the ones :func:`csmlab.kernels.visibility.camera_hits` returned, held, not
+    copied; the properties below read them.
 
     Attributes
     ----------
-    position : ndarray, shape (H, W, 3), float64
-        World position of the hit, metres; NaN where the ray missed.
-    normal : ndarray, shape (H, W, 3), float32
-        Unit geometric normal of the hit triangle, turned to face the camera; 0 on a miss.
-    triangle : ndarray, shape (H, W), int32
-        Index of the hit triangle; -1 on a miss.
-    view_depth : ndarray, shape (H, W), float32
-        ``-z_view`` of the hit in metres; +inf on a miss.
-    dpdx, dpdy : ndarray, shape (H, W, 3), float32
-        Ray differentials: where the rays through the next pixel centre to the right (+x) and
-        below (+y) meet the hit point's tangent plane, minus the hit point; metres. 0 on a miss.
+    hits : CameraHits
+        ``position`` (H, W, 3) float64 world metres, NaN on a miss; ``normal`` (H, W, 3) float32
+        unit geometric normal facing the camera, 0 on a miss; ``triangle`` (H, W) int32, -1 on a
+        miss; ``view_depth`` (H, W) float32 ``-z_view`` in metres, +inf on a miss; ``dpdx``,
+        ``dpdy`` (H, W, 3) float32 ray differentials toward the next pixel centre right (+x) and
+        below (+y), metres, 0 on a miss (:class:`csmlab.kernels.visibility.CameraHits`).
     albedo : ndarray, shape (H, W, 3), float32
         Linear RGB reflectance of the hit triangle; 0 on a miss.
     """
 
-    position: np.ndarray
-    normal: np.ndarray
-    triangle: np.ndarray
-    view_depth: np.ndarray
-    dpdx: np.ndarray
-    dpdy: np.ndarray
+    hits: CameraHits
     albedo: np.ndarray
+
+    @property
+    def position(self) -> np.ndarray:
+        """``(H, W, 3)`` float64: world position of the hit, metres; NaN on a miss."""
+        return self.hits.position
+
+    @property
+    def normal(self) -> np.ndarray:
+        """``(H, W, 3)`` float32: unit normal of the hit triangle, facing the camera; 0 on a miss."""
+        return self.hits.normal
+
+    @property
+    def triangle(self) -> np.ndarray:
+        """``(H, W)`` int32: index of the hit triangle; -1 on a miss."""
+        return self.hits.triangle
+
+    @property
+    def view_depth(self) -> np.ndarray:
+        """``(H, W)`` float32: ``-z_view`` of the hit in metres; +inf on a miss."""
+        return self.hits.view_depth
+
+    @property
+    def dpdx(self) -> np.ndarray:
+        """``(H, W, 3)`` float32: ray differential toward the next pixel centre right, metres."""
+        return self.hits.dpdx
+
+    @property
+    def dpdy(self) -> np.ndarray:
+        """``(H, W, 3)`` float32: ray differential toward the next pixel centre below, metres."""
+        return self.hits.dpdy
 
     @property
     def valid(self) -> np.ndarray:
         """``(H, W)`` bool: the ray hit the scene."""
-        return self.triangle >= 0
+        return self.hits.triangle >= 0
 
     @property
     def shape(self) -> tuple[int, int]:
-        return self.triangle.shape
+        return self.hits.triangle.shape
 
 
 @dataclass(frozen=True)

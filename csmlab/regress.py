@@ -40,7 +40,6 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import csmlab
-from csmlab.config import LightConfig, sweep_points
 from csmlab.errors import InputError
 from csmlab.metric_registry import BETTER, METRICS, metric_of
 from csmlab.results import json_text, read_json, read_summary, write_atomic
@@ -156,20 +155,17 @@ def _compare_entries(method: str, point: str, baseline: dict, now: dict | None, 
     return checks
 
 
-def _exact_under_static_light(config: dict) -> dict[tuple[str, str], bool]:
-    """``(method, point)`` → the invariant applies (static light; method named or stabilized ``exact``)."""
-    light = config.get("light", {})
-    static = LightConfig(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in light.items()}).is_static
-    base = config.get("shadow", {}).get("stabilization")
-    sweep = config.get("sweep", {})
-    points = sweep_points(sweep)
+def _exact_under_static_light(summary: dict) -> dict[tuple[str, str], bool]:
+    """``(method, point)`` → the invariant applies (static light; method named or stabilized ``exact``).
+
+    Read from the summary's ``light_moves`` and ``stabilization`` (:func:`csmlab.results.write_summary`).
+    """
+    static = not summary["light_moves"]
     out = {}
-    for entry in config.get("methods", []):
-        name = entry["name"]
-        for label, fields in points:
-            stabilization = fields.get("stabilization", entry.get("stabilization", base))
+    for name, by_point in summary["stabilization"].items():
+        for label, stabilization in by_point.items():
             out[(name, label)] = static and (name == "exact" or stabilization == "exact")
-        out[(name, "*")] = static and all(out[(name, label)] for label, _ in points)
+        out[(name, "*")] = static and all(out[(name, label)] for label in by_point)
     return out
 
 
@@ -203,7 +199,7 @@ def compare(summary: dict, baseline: dict, *, tolerances: dict | None = None) ->
         for method, entry in baseline["points"][point].items():
             now = summary.get("points", {}).get(point, {}).get(method)
             checks += _compare_entries(method, point, entry, now, tolerances or {})
-    applies = _exact_under_static_light(summary.get("config", {}))
+    applies = _exact_under_static_light(summary)
     for (method, point), yes in applies.items():
         if yes and (point == "*" or point in swept):
             entry = (summary["methods"].get(method) if point == "*"

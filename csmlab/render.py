@@ -98,8 +98,7 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
                        aspect=pose.aspect, far=pose.far, width=width, height=height)
     valid = hits.triangle >= 0
     albedo = np.where(valid[..., None], dscene.scene.albedo[np.maximum(hits.triangle, 0)], np.float32(0.0))
-    gbuffer = GBuffer(position=hits.position, normal=hits.normal, triangle=hits.triangle,
-                      view_depth=hits.view_depth, dpdx=hits.dpdx, dpdy=hits.dpdy, albedo=albedo.astype(np.float32))
+    gbuffer = GBuffer(hits=hits, albedo=albedo.astype(np.float32))
     visibility = time.perf_counter() - start
     start = time.perf_counter()
     reference = hard_shadow(dscene.bvh, points=gbuffer.position, normals=gbuffer.normal, light_direction=d)

@@ -14,7 +14,11 @@ Files in a results directory (DESIGN.md, "Interfaces"):
     above are byte-identical run after run. Stages shared by all methods (the view) have an empty
     method and point.
 ``summary.json``
-    ``name, config_hash, workload_hash, csmlab_version, environment, frames, config, methods, points``:
+    ``name, config_hash, workload_hash, csmlab_version, environment, frames, config, light_moves,
+    point_fields, stabilization, methods, points``: ``light_moves`` whether the light's direction
+    changes over the run, ``point_fields[P]`` the shadow fields sweep point P sets (typed as in the
+    config), ``stabilization[M][P]`` the stabilization method M uses at P — written once, so that no
+    reader rebuilds them from ``config``;
     ``methods[M][metric]`` is the mean of M's rows' finite values (frames and sweep points),
     ``points[P][M][metric]`` the mean over frames at sweep point P; each with ``frames``. A metric with
     no value in any frame is ``null``. A recorded camera path adds ``recording``
@@ -39,6 +43,7 @@ import pickle
 import platform
 import shutil
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -50,7 +55,9 @@ from csmlab.metric_registry import finite_mean
 __all__ = [
     "FINAL_FILES",
     "KEY_COLUMNS",
+    "MetricRow",
     "TIMING_COLUMNS",
+    "TimingRow",
     "clear_chunks",
     "environment",
     "format_value",
@@ -72,6 +79,40 @@ TIMING_COLUMNS = ("frame", "method", "point", "stage", "seconds")
 FINAL_FILES = ("summary.json", "metrics.csv", "timings.csv", "regress.json", "index.html")
 """Files a finished run leaves (or the report adds); removed when a new run starts in the directory."""
 _CHUNKS = ".chunks"
+
+
+class MetricRow(NamedTuple):
+    """One row of ``metrics.csv``: one frame of one method at one sweep point.
+
+    Attributes
+    ----------
+    frame : int
+    time_s : float
+        The camera pose's time stamp, seconds.
+    method, point : str
+        Method name and sweep-point label.
+    values : dict of str to float
+        Metric name → value; a column it lacks is an empty cell.
+    """
+
+    frame: int
+    time_s: float
+    method: str
+    point: str
+    values: dict
+
+
+class TimingRow(NamedTuple):
+    """One row of ``timings.csv``: wall-clock seconds of one stage of one frame.
+
+    ``method`` and ``point`` are empty for the view's stages, shared by every method.
+    """
+
+    frame: int
+    method: str
+    point: str
+    stage: str
+    seconds: float
 
 
 def format_value(value) -> str:
@@ -102,27 +143,25 @@ def write_metrics(path, rows, *, columns, order: dict) -> Path:
     Parameters
     ----------
     path : str or Path
-    rows : iterable of (frame, time_s, method, point, values)
-        ``values`` maps metric names to floats; a column it lacks is an empty cell.
+    rows : iterable of MetricRow
     columns : sequence of str
         The metric columns, in order.
     order : dict
         ``(method, point)`` to its rank; rows are sorted by rank, then frame.
     """
-    ordered = sorted(rows, key=lambda r: (order[(r[2], r[3])], r[0]))
-    body = [[str(frame), format_value(time_s), method, point, *(format_value(values.get(c)) for c in columns)]
-            for frame, time_s, method, point, values in ordered]
+    ordered = sorted(rows, key=lambda r: (order[(r.method, r.point)], r.frame))
+    body = [[str(r.frame), format_value(r.time_s), r.method, r.point, *(format_value(r.values.get(c)) for c in columns)]
+            for r in ordered]
     return write_atomic(path, _csv_text([*KEY_COLUMNS, *columns], body))
 
 
 def write_timings(path, rows, *, order: dict) -> Path:
-    """Write ``timings.csv`` from ``(frame, method, point, stage, seconds)`` rows, by frame then variant rank.
+    """Write ``timings.csv`` from :class:`TimingRow` rows, by frame then variant rank.
 
     ``order`` maps ``(method, point)`` to its rank; the shared stages (``("", "")``) come first.
     """
-    ordered = sorted(rows, key=lambda r: (r[0], order.get((r[1], r[2]), -1)))
-    body = [[str(frame), method, point, stage, repr(float(seconds))]
-            for frame, method, point, stage, seconds in ordered]
+    ordered = sorted(rows, key=lambda r: (r.frame, order.get((r.method, r.point), -1)))
+    body = [[str(r.frame), r.method, r.point, r.stage, repr(float(r.seconds))] for r in ordered]
     return write_atomic(path, _csv_text(TIMING_COLUMNS, body))
 
 
@@ -138,8 +177,8 @@ def _value(mean: float) -> float | None:
 
 
 def _aggregate(rows, columns) -> dict:
-    frames = sorted({r[0] for r in rows})
-    out = {c: _value(finite_mean([r[4].get(c) for r in rows])) for c in columns}
+    frames = sorted({r.frame for r in rows})
+    out = {c: _value(finite_mean([r.values.get(c) for r in rows])) for c in columns}
     out["frames"] = len(frames)
     return out
 
@@ -149,7 +188,7 @@ def summarize(rows, *, columns, methods, points) -> tuple[dict, dict]:
 
     Parameters
     ----------
-    rows : list of (frame, time_s, method, point, values)
+    rows : list of MetricRow
     columns : sequence of str
         The metric columns.
     methods, points : sequence of str
@@ -163,8 +202,8 @@ def summarize(rows, *, columns, methods, points) -> tuple[dict, dict]:
         ``{point: {method: {…}}}``.
     """
     by_variant: dict = {}
-    for row in sorted(rows, key=lambda r: r[0]):
-        by_variant.setdefault((row[2], row[3]), []).append(row)
+    for row in sorted(rows, key=lambda r: r.frame):
+        by_variant.setdefault((row.method, row.point), []).append(row)
     method_summary = {m: _aggregate([r for p in points for r in by_variant.get((m, p), [])], columns)
                       for m in methods}
     point_summary = {p: {m: _aggregate(by_variant.get((m, p), []), columns) for m in methods} for p in points}
@@ -201,7 +240,8 @@ def json_text(document: dict) -> str:
 
 
 def write_summary(path, *, name: str, config_hash: str, workload_hash: str, device: str, frames: int,
-                  config: dict, methods: dict, points: dict, recording: dict | None = None) -> Path:
+                  config: dict, light_moves: bool, point_fields: dict, stabilization: dict, methods: dict, points: dict,
+                  recording: dict | None = None) -> Path:
     """Write ``summary.json`` (fields in the module docstring; ``recording`` only for a recorded path)."""
     extra = {} if recording is None else {"recording": recording}
     return write_atomic(path, json_text({
@@ -212,6 +252,9 @@ def write_summary(path, *, name: str, config_hash: str, workload_hash: str, devi
         "environment": environment(device=device),
         "frames": frames,
         "config": config,
+        "light_moves": light_moves,
+        "point_fields": point_fields,
+        "stabilization": stabilization,
         "methods": methods,
         "points": points,
         **extra,

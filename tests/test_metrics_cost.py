@@ -5,6 +5,7 @@ import numpy as np
 from csmlab.camera import CameraPose
 from csmlab.cascades import build_cascades
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
+from csmlab.kernels.visibility import CameraHits
 from csmlab.geometry import rotation_looking_at
 from csmlab.metrics.cost import cost_summary, shadow_memory_bytes
 from csmlab.settings import ShadowSettings
@@ -21,8 +22,9 @@ def test_cost_summary_of_a_frame():
     cascades = build_cascades(pose=pose, light_direction=[0.0, -1.0, 0.0], scene_corners=np.zeros((1, 3)),
                               settings=settings)
     zeros3 = np.zeros((2, 2, 3), np.float32)
-    gbuffer = GBuffer(position=np.zeros((2, 2, 3)), normal=zeros3, triangle=np.zeros((2, 2), np.int32),
-                      view_depth=np.ones((2, 2), np.float32), dpdx=zeros3, dpdy=zeros3, albedo=zeros3)
+    gbuffer = GBuffer(hits=CameraHits(position=np.zeros((2, 2, 3)), normal=zeros3, triangle=np.zeros((2, 2), np.int32),
+                                      view_depth=np.ones((2, 2), np.float32), dpdx=zeros3, dpdy=zeros3),
+                      albedo=zeros3)
     view = View(index=0, pose=pose, light_direction=np.array([0.0, -1.0, 0.0]), gbuffer=gbuffer,
                 reference=np.ones((2, 2), np.float32), timings={"visibility": 0.5, "reference": 0.25})
     frame = Frame(view=view, settings=settings,

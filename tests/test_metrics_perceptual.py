@@ -6,6 +6,7 @@ import pytest
 from csmlab.camera import CameraPose
 from csmlab.cascades import build_cascades
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
+from csmlab.kernels.visibility import CameraHits
 from csmlab.geometry import rotation_looking_at
 from csmlab.metrics.perceptual import (JND_CIEDE2000, changed_windows, delta_e_2000, flip_map, lab_from_linear_srgb,
                                        perceptual_maps, perceptual_summary, ssim_map)
@@ -32,10 +33,10 @@ def _grey_frame(lit, *, grey=0.5):
     settings = ShadowSettings(cascades=1, resolution=32)
     cascades = build_cascades(pose=pose, light_direction=LIGHT_DOWN, scene_corners=np.zeros((1, 3)), settings=settings)
     valid = np.isfinite(lit)
-    gbuffer = GBuffer(
+    gbuffer = GBuffer(hits=CameraHits(
         position=np.zeros((height, width, 3)), normal=np.broadcast_to(np.float32([0, 1, 0]), (height, width, 3)),
         triangle=np.where(valid, 0, -1).astype(np.int32), view_depth=np.full((height, width), 10.0, np.float32),
-        dpdx=np.zeros((height, width, 3), np.float32), dpdy=np.zeros((height, width, 3), np.float32),
+        dpdx=np.zeros((height, width, 3), np.float32), dpdy=np.zeros((height, width, 3), np.float32)),
         albedo=np.full((height, width, 3), grey, np.float32),
     )
     view = View(index=1, pose=pose, light_direction=LIGHT_DOWN, gbuffer=gbuffer, reference=lit.astype(np.float32))

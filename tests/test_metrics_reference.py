@@ -6,6 +6,7 @@ import pytest
 from csmlab.camera import CameraPose
 from csmlab.cascades import build_cascades
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
+from csmlab.kernels.visibility import CameraHits
 from csmlab.geometry import rotation_looking_at
 from csmlab.metrics.reference import boundary_pixels, mean_boundary_distance, reference_maps, reference_summary
 from csmlab.render import prepare_scene, render_shadow, render_view
@@ -23,9 +24,10 @@ def _frame(lit, reference):
     cascades = build_cascades(pose=pose, light_direction=LIGHT_DOWN, scene_corners=np.zeros((1, 3)), settings=settings)
     valid = np.isfinite(reference)
     zeros3 = np.zeros((height, width, 3), np.float32)
-    gbuffer = GBuffer(position=np.zeros((height, width, 3)), normal=zeros3,
-                      triangle=np.where(valid, 0, -1).astype(np.int32), view_depth=np.ones((height, width), np.float32),
-                      dpdx=zeros3, dpdy=zeros3, albedo=zeros3)
+    gbuffer = GBuffer(hits=CameraHits(position=np.zeros((height, width, 3)), normal=zeros3,
+                                      triangle=np.where(valid, 0, -1).astype(np.int32),
+                                      view_depth=np.ones((height, width), np.float32), dpdx=zeros3, dpdy=zeros3),
+                      albedo=zeros3)
     view = View(index=0, pose=pose, light_direction=LIGHT_DOWN, gbuffer=gbuffer, reference=reference.astype(np.float32))
     shadow = ShadowLookup(lit=lit.astype(np.float32), cascade=np.where(np.isfinite(lit), 0, -1).astype(np.int8),
                           blend=np.zeros(lit.shape, bool))

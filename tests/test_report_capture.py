@@ -9,6 +9,7 @@ import pytest
 from csmlab.camera import CameraPose
 from csmlab.cascades import build_cascades
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
+from csmlab.kernels.visibility import CameraHits
 from csmlab.geometry import rotation_looking_at
 from csmlab.light import direction_from_angles
 from csmlab.report.capture import (
@@ -42,10 +43,11 @@ def _frame(index, *, height=6, width=2 * ANIM_WIDTH + 5, seed=0, position=(3.0, 
     cascades = build_cascades(pose=pose, light_direction=LIGHT, scene_corners=SCENE_CORNERS, settings=settings)
     valid = rng.random((height, width)) > 0.2
     position = np.where(valid[..., None], rng.normal(size=(height, width, 3)) * 10, np.nan)
-    gbuffer = GBuffer(position=position, normal=np.zeros((height, width, 3), np.float32),
-                      triangle=np.where(valid, 1, -1).astype(np.int32),
-                      view_depth=np.where(valid, 5.0, np.inf).astype(np.float32),
-                      dpdx=np.zeros((height, width, 3), np.float32), dpdy=np.zeros((height, width, 3), np.float32),
+    gbuffer = GBuffer(hits=CameraHits(position=position, normal=np.zeros((height, width, 3), np.float32),
+                                      triangle=np.where(valid, 1, -1).astype(np.int32),
+                                      view_depth=np.where(valid, 5.0, np.inf).astype(np.float32),
+                                      dpdx=np.zeros((height, width, 3), np.float32),
+                                      dpdy=np.zeros((height, width, 3), np.float32)),
                       albedo=np.full((height, width, 3), 0.5, np.float32))
     lit = np.where(valid, rng.random((height, width)), np.nan).astype(np.float32)
     cascade = np.where(valid, rng.integers(0, 3, (height, width)), -1).astype(np.int8)
@@ -83,12 +85,12 @@ def test_animation_frames_are_block_mean_of_lit_and_block_max_of_change():
     lit = frame.shadow.lit.astype(np.float64)
     dS = measures.pixels["dS"]
     h, w = lit.shape[0] // k, lit.shape[1] // k
-    assert record["shadow"].shape == record["dS"].shape == (h, w)
+    assert record.shadow.shape == record.dS.shape == (h, w)
     for i in range(h):
         for j in range(w):
             block = lit[i * k:(i + 1) * k, j * k:(j + 1) * k]
             change = dS[i * k:(i + 1) * k, j * k:(j + 1) * k]
-            got_lit, got_change = decode_u8(record["shadow"][i, j]), decode_u8(record["dS"][i, j])
+            got_lit, got_change = decode_u8(record.shadow[i, j]), decode_u8(record.dS[i, j])
             if np.all(np.isnan(block)):
                 assert np.isnan(got_lit)
             else:
@@ -101,7 +103,7 @@ def test_animation_frames_are_block_mean_of_lit_and_block_max_of_change():
 
 def test_cascade_rows_hold_each_cascades_texel_origin_extent_and_split():
     frame, measures = _frame(2)
-    rows = capture_frame(frame, measures, snapshot=False)["cascades"]
+    rows = capture_frame(frame, measures, snapshot=False).cascades
     assert rows.shape == (3, len(CASCADE_COLUMNS))
     for row, c in zip(rows, frame.maps.cascades.cascades):
         named = dict(zip(CASCADE_COLUMNS, row))
@@ -113,7 +115,7 @@ def test_cascade_rows_hold_each_cascades_texel_origin_extent_and_split():
 
 def test_snapshot_box_corners_are_the_cascade_boxes_in_light_space():
     frame, measures = _frame(1)
-    snap = capture_frame(frame, measures, snapshot=True)["snapshot"]
+    snap = capture_frame(frame, measures, snapshot=True).snapshot
     cascades = frame.maps.cascades
     for corners, c in zip(snap["box_corners"], cascades.cascades):
         light = cascades.to_light(corners)
@@ -126,7 +128,7 @@ def test_snapshot_box_corners_are_the_cascade_boxes_in_light_space():
 
 def test_snapshot_frustum_corners_lie_at_the_split_depths():
     frame, measures = _frame(1)
-    snap = capture_frame(frame, measures, snapshot=True)["snapshot"]
+    snap = capture_frame(frame, measures, snapshot=True).snapshot
     for corners, c in zip(snap["frustum_corners"], frame.maps.cascades.cascades):
         depth = frame.view.pose.view_depth(corners)
         np.testing.assert_allclose(depth[:4], c.split_near, rtol=1e-12)
@@ -135,7 +137,7 @@ def test_snapshot_frustum_corners_lie_at_the_split_depths():
 
 def test_snapshot_points_are_the_visible_pixels_on_a_stride():
     frame, measures = _frame(1)
-    snap = capture_frame(frame, measures, snapshot=True)["snapshot"]
+    snap = capture_frame(frame, measures, snapshot=True).snapshot
     valid = frame.view.gbuffer.valid[::4, ::4]
     assert snap["points"].shape == (int(valid.sum()), 3)
     np.testing.assert_array_equal(snap["points"], frame.view.gbuffer.position[::4, ::4][valid].astype(np.float32))
@@ -172,7 +174,7 @@ def test_write_captures_replaces_a_pairs_rows_and_stale_snapshots(tmp_path):
     exact = [r for r in rows if r["method"] == "exact"]
     assert sorted({int(r["frame"]) for r in exact}) == [0, 1]
     assert len([r for r in rows if r["method"] == "none"]) == 4 * 3
-    assert [float(r["origin_x"]) for r in exact if r["cascade"] == "0"] == [c["cascades"][0, 2] for c in again]
+    assert [float(r["origin_x"]) for r in exact if r["cascade"] == "0"] == [c.cascades[0, 2] for c in again]
     assert sorted(p.name for p in (tmp_path / "snapshots").iterdir()) == ["exact__resolution=512__f1.npz"]
 
 
@@ -182,8 +184,8 @@ def test_anim_file_holds_the_frames_in_order_and_round_trips(tmp_path):
     anim = read_npz(tmp_path / "anim" / "m_1__base.npz")
     assert anim["method"] == "m/1" and anim["point"] == "base"
     np.testing.assert_array_equal(anim["frame"], [2, 3, 5])
-    np.testing.assert_array_equal(anim["shadow"], np.stack([c["shadow"] for c in captures]))
-    np.testing.assert_array_equal(anim["dS"], np.stack([c["dS"] for c in captures]))
+    np.testing.assert_array_equal(anim["shadow"], np.stack([c.shadow for c in captures]))
+    np.testing.assert_array_equal(anim["dS"], np.stack([c.dS for c in captures]))
 
 
 def test_write_captures_refuses_frames_out_of_order(tmp_path):

@@ -363,7 +363,7 @@ def _fabricated_sweep(out: Path) -> None:
     for method in ("exact", "none"):
         for label, resolution in points:
             for frame in range(2):
-                rows.append((frame, frame / 30, method, label, {
+                rows.append(results.MetricRow(frame, frame / 30, method, label, {
                     "rho_median": resolution / 512, "flicker": np.nan if frame == 0 else rng.random() / resolution,
                     "flicker_same": 0.0 if method == "exact" else 1.0 / resolution, "flicker_changed": 0.001,
                     "flip_rate": 0.01, "memory_bytes": 4 * 4 * resolution ** 2}))
@@ -373,7 +373,8 @@ def _fabricated_sweep(out: Path) -> None:
     results.write_metrics(out / "metrics.csv", rows, columns=columns, order=order)
     (out / "summary.json").write_text(json.dumps({
         "name": "sweep", "config_hash": "0" * 16, "csmlab_version": "0",
-        "config": {"camera": {"fps": 30}, "sweep": {"resolution": [p for _, p in points]}}}))
+        "config": {"camera": {"fps": 30}, "sweep": {"resolution": [p for _, p in points]}},
+        "point_fields": {label: {"resolution": r} for label, r in points}}))
     (out / "regress.json").write_text(json.dumps({"status": "fail", "rows": [
         {"method": "none", "point": "resolution=256", "metric": "flicker_same", "baseline": 0.001, "now": 0.004,
          "delta": 0.003, "verdict": "regression"}]}))

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from csmlab.errors import InputError
-from csmlab.results import (clear_chunks, format_value, load_chunks, prepare_output, read_metrics, read_summary,
-                            save_chunk, summarize, write_atomic, write_metrics)
+from csmlab.results import (MetricRow, clear_chunks, format_value, load_chunks, prepare_output, read_metrics,
+                            read_summary, save_chunk, summarize, write_atomic, write_metrics)
 
 
 def test_cells_round_trip_every_float_exactly():
@@ -22,7 +22,7 @@ def test_cells_round_trip_every_float_exactly():
 
 def test_metrics_csv_is_sorted_by_variant_rank_then_frame_with_empty_nan(tmp_path):
     order = {("b", "base"): 0, ("a", "base"): 1}
-    rows = [(f, f / 30, m, "base", {"x": float(f), "y": math.nan}) for f in (2, 0, 1) for m in ("a", "b")]
+    rows = [MetricRow(f, f / 30, m, "base", {"x": float(f), "y": math.nan}) for f in (2, 0, 1) for m in ("a", "b")]
     write_metrics(tmp_path / "metrics.csv", rows, columns=("x", "y"), order=order)
     header, read = read_metrics(tmp_path / "metrics.csv")
     assert header == ["frame", "time_s", "method", "point", "x", "y"]
@@ -37,8 +37,8 @@ def test_summary_means_ignore_nan_and_match_numpy():
     rng = np.random.default_rng(3)
     values = rng.uniform(size=(6, 2))
     values[0, 0] = np.nan
-    rows = [(f, 0.0, m, p, {"x": values[f, 0], "y": np.nan}) for f in range(6) for m, p in [("m", "p1")]]
-    rows += [(f, 0.0, "m", "p2", {"x": values[f, 1], "y": np.nan}) for f in range(6)]
+    rows = [MetricRow(f, 0.0, m, p, {"x": values[f, 0], "y": np.nan}) for f in range(6) for m, p in [("m", "p1")]]
+    rows += [MetricRow(f, 0.0, "m", "p2", {"x": values[f, 1], "y": np.nan}) for f in range(6)]
     methods, points = summarize(rows, columns=("x", "y"), methods=["m"], points=["p1", "p2"])
     assert points["p1"]["m"]["x"] == pytest.approx(np.nanmean(values[:, 0]), rel=1e-15)
     assert methods["m"]["x"] == pytest.approx(np.nanmean(values), rel=1e-15)

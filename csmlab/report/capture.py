@@ -52,6 +52,7 @@ import csv
 import io
 import re
 import zipfile
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -68,6 +69,7 @@ __all__ = [
     "ANIM_WIDTH",
     "CASCADE_COLUMNS",
     "CASTER_POINTS",
+    "Capture",
     "POINT_STRIDE",
     "capture_frame",
     "capture_stem",
@@ -89,6 +91,35 @@ CASTER_POINTS = 6000
 """Most scene points kept for the interactive 3D view's casters."""
 _NO_VALUE = 255
 _SNAPSHOT_COUNT = 3
+
+
+@dataclass(frozen=True)
+class Capture:
+    """The report's record of one frame of one method (:func:`capture_frame`): small, picklable, plain NumPy.
+
+    Attributes
+    ----------
+    frame : int
+    time_s : float
+        The camera pose's time stamp, seconds.
+    cascades : ndarray, shape (C, 8), float64
+        Per cascade, the columns :data:`CASCADE_COLUMNS`.
+    shadow, dS : ndarray, shape (h, w), uint8
+        Block-reduced lit fraction S and temporal change |ΔS|, coded as in the module docstring.
+    snapshot : dict of str to ndarray or None
+        The snapshot file's arrays; None when the frame is not a snapshot frame.
+    pixels : dict or None
+        The interactive page's per-pixel record (:func:`csmlab.report.pixels.frame_pixels`); None
+        when the run keeps none.
+    """
+
+    frame: int
+    time_s: float
+    cascades: np.ndarray
+    shadow: np.ndarray
+    dS: np.ndarray
+    snapshot: dict | None
+    pixels: dict | None
 
 
 def default_snapshot_frames(n_frames: int) -> list[int]:
@@ -114,8 +145,8 @@ def default_snapshot_frames(n_frames: int) -> list[int]:
 
 
 def capture_frame(frame: Frame, measures: "FrameMeasures", *, snapshot: bool,
-                  grid: WorldGrid | None = None) -> dict:
-    """The report's record of one frame of one method: small, picklable, plain NumPy.
+                  grid: WorldGrid | None = None) -> Capture:
+    """The report's record of one frame of one method.
 
     Parameters
     ----------
@@ -133,22 +164,19 @@ def capture_frame(frame: Frame, measures: "FrameMeasures", *, snapshot: bool,
 
     Returns
     -------
-    dict
-        ``frame`` (int), ``time_s`` (float), ``cascades`` ((C, 8) float64, columns
-        :data:`CASCADE_COLUMNS`), ``shadow`` and ``dS`` ((h, w) uint8, coded as in the module
-        docstring), ``snapshot``: a dict of the snapshot file's arrays, or None, and ``pixels``:
-        the per-pixel record, or None without ``grid``.
+    Capture
+        ``pixels`` is None without ``grid``, ``snapshot`` None without ``snapshot``.
     """
     pixels = measures.pixels
-    return {
-        "frame": int(frame.view.index),
-        "time_s": float(frame.view.pose.time_s),
-        "cascades": _cascade_rows(frame),
-        "shadow": _coded_u8(_block_mean(frame.shadow.lit)),
-        "dS": _coded_u8(_block_max(np.abs(pixels["dS"]))),
-        "snapshot": _snapshot(frame, pixels) if snapshot else None,
-        "pixels": None if grid is None else frame_pixels(frame, pixels, grid=grid),
-    }
+    return Capture(
+        frame=int(frame.view.index),
+        time_s=float(frame.view.pose.time_s),
+        cascades=_cascade_rows(frame),
+        shadow=_coded_u8(_block_mean(frame.shadow.lit)),
+        dS=_coded_u8(_block_max(np.abs(pixels["dS"]))),
+        snapshot=_snapshot(frame, pixels) if snapshot else None,
+        pixels=None if grid is None else frame_pixels(frame, pixels, grid=grid),
+    )
 
 
 def decode_u8(coded: np.ndarray) -> np.ndarray:
@@ -167,7 +195,7 @@ def capture_stem(method: str, point: str) -> str:
     return f"{safe_name(method)}__{safe_name(point)}"
 
 
-def write_captures(out_dir, *, method: str, point: str, captures: list[dict]) -> None:
+def write_captures(out_dir, *, method: str, point: str, captures: list[Capture]) -> None:
     """Write one method × sweep point's captures, frames in order (files in the module docstring).
 
     The pair's earlier files are replaced: its rows of ``cascades.csv``, its animation and every
@@ -179,7 +207,7 @@ def write_captures(out_dir, *, method: str, point: str, captures: list[dict]) ->
         The results directory.
     method, point : str
         The method's name and the sweep point's label, as in ``metrics.csv``.
-    captures : list of dict
+    captures : list of Capture
         :func:`capture_frame` records of consecutive frames, in frame order.
 
     Raises
@@ -191,38 +219,38 @@ def write_captures(out_dir, *, method: str, point: str, captures: list[dict]) ->
     out = Path(out_dir)
     if not captures:
         raise ValueError(f"captures of {method!r} at {point!r}: expected at least one frame, got none")
-    frames = np.array([c["frame"] for c in captures], dtype=np.int64)
+    frames = np.array([c.frame for c in captures], dtype=np.int64)
     if np.any(np.diff(frames) <= 0):
         raise ValueError(f"captures of {method!r} at {point!r}: expected increasing frame numbers, "
                          f"got {frames.tolist()}")
-    shapes = {c["shadow"].shape for c in captures}
+    shapes = {c.shadow.shape for c in captures}
     if len(shapes) != 1:
         raise ValueError(f"captures of {method!r} at {point!r}: expected one image size, got {sorted(shapes)}")
     stem = capture_stem(method, point)
     _merge_cascades_csv(out / "cascades.csv", method=method, point=point, captures=captures)
     _write_npz(out / "anim" / f"{stem}.npz", {
         "frame": frames,
-        "time_s": np.array([c["time_s"] for c in captures], dtype=np.float64),
-        "shadow": np.stack([c["shadow"] for c in captures]),
-        "dS": np.stack([c["dS"] for c in captures]),
+        "time_s": np.array([c.time_s for c in captures], dtype=np.float64),
+        "shadow": np.stack([c.shadow for c in captures]),
+        "dS": np.stack([c.dS for c in captures]),
         "method": np.array(method),
         "point": np.array(point),
     })
-    kept = [c["pixels"] for c in captures if c.get("pixels") is not None]
+    kept = [c.pixels for c in captures if c.pixels is not None]
     if kept and len(kept) != len(captures):
         raise ValueError(f"captures of {method!r} at {point!r}: expected a pixel record for every frame or none, "
                          f"got {len(kept)} of {len(captures)}")
     (out / "pixels" / f"{stem}.npz").unlink(missing_ok=True)
     if kept:
         _write_npz(out / "pixels" / f"{stem}.npz", {"frame": frames, "time_s": np.array(
-            [c["time_s"] for c in captures], dtype=np.float64), **stack_pixels(kept)})
+            [c.time_s for c in captures], dtype=np.float64), **stack_pixels(kept)})
     for stale in sorted((out / "snapshots").glob(f"{stem}__f*.npz")):
         stale.unlink()
     for c in captures:
-        if c["snapshot"] is not None:
-            arrays = {"frame": np.int64(c["frame"]), "time_s": np.float64(c["time_s"]), "method": np.array(method),
-                      "point": np.array(point), **c["snapshot"]}
-            _write_npz(out / "snapshots" / f"{stem}__f{c['frame']}.npz", arrays)
+        if c.snapshot is not None:
+            arrays = {"frame": np.int64(c.frame), "time_s": np.float64(c.time_s), "method": np.array(method),
+                      "point": np.array(point), **c.snapshot}
+            _write_npz(out / "snapshots" / f"{stem}__f{c.frame}.npz", arrays)
 
 
 def write_casters(out_dir, vertices, triangles, *, count: int = CASTER_POINTS) -> None:
@@ -307,7 +335,7 @@ def _snapshot(frame: Frame, pixels: dict) -> dict:
     }
 
 
-def _merge_cascades_csv(path: Path, *, method: str, point: str, captures: list[dict]) -> None:
+def _merge_cascades_csv(path: Path, *, method: str, point: str, captures: list[Capture]) -> None:
     header = ["frame", "method", "point", "cascade", *CASCADE_COLUMNS]
     rows = []
     if path.exists():
@@ -316,8 +344,8 @@ def _merge_cascades_csv(path: Path, *, method: str, point: str, captures: list[d
             next(reader, None)
             rows = [r for r in reader if (r[1], r[2]) != (method, point)]
     for c in captures:
-        for i, values in enumerate(c["cascades"]):
-            rows.append([str(c["frame"]), method, point, str(i), *(repr(float(v)) for v in values)])
+        for i, values in enumerate(c.cascades):
+            rows.append([str(c.frame), method, point, str(i), *(repr(float(v)) for v in values)])
     rows.sort(key=lambda r: (r[1], r[2], int(r[0]), int(r[3])))
     text = io.StringIO()
     writer = csv.writer(text, lineterminator="\n")

@@ -1,8 +1,7 @@
 """Sweep points as numbers: each point's field values and each method × point's means over frames.
 
-``summary.json``'s ``config.sweep`` lists each swept field's values; :func:`csmlab.config.sweep_points`
-turns it into the labelled points that ``metrics.csv`` names, so every point's values are known
-as the config typed them (numbers stay numbers, for a numeric axis).
+``summary.json``'s ``point_fields`` holds the fields each labelled point of ``metrics.csv`` sets, as
+the config typed them (numbers stay numbers, for a numeric axis).
 """
 
 from __future__ import annotations
@@ -11,7 +10,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from csmlab.config import sweep_points as config_sweep_points
 from csmlab.errors import InputError
 from csmlab.metric_registry import finite_mean, is_metric_column
 from csmlab.report.tables import Columns
@@ -35,20 +33,20 @@ class SweepPoints:
 
 
 def sweep_points(summary: dict, points: list[str]) -> SweepPoints:
-    """Each point's field values, from ``summary["config"]["sweep"]``.
+    """Each point's field values, from ``summary["point_fields"]``.
 
     Raises
     ------
     InputError
-        If a point of ``metrics.csv`` is not a point of ``config.sweep``.
+        If a point of ``metrics.csv`` is not a point of ``point_fields``.
     """
-    sweep = summary.get("config", {}).get("sweep", {})
-    known = dict(config_sweep_points(sweep))
+    known = summary.get("point_fields", {})
     missing = [p for p in points if p not in known]
     if missing:
-        raise InputError(f"expected the sweep points of config.sweep ({', '.join(known)}), got {', '.join(missing)}",
-                         file="summary.json", field="config.sweep")
-    return SweepPoints(fields=tuple(sweep), values={p: known[p] for p in points})
+        raise InputError(f"expected the sweep points of point_fields ({', '.join(known)}), got {', '.join(missing)}",
+                         file="summary.json", field="point_fields")
+    fields = tuple(dict.fromkeys(f for p in points for f in known[p]))
+    return SweepPoints(fields=fields, values={p: known[p] for p in points})
 
 
 def sweep_means(metrics: Columns, sweep: SweepPoints, *, along: str) -> Columns:
