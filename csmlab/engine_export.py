@@ -222,11 +222,11 @@ def export_bevy(settings: ShadowSettings, *, near: float, far: float) -> Snippet
     """Bevy: the CascadeShadowConfigBuilder, and the exact bounds as a CascadeShadowConfig."""
     z = split_boundaries(settings, near=near, far=far)
     lacking = _common_lacking(settings, stable="exact")
-    # Bevy's "Gaussian" method is a tent over the 2×2 comparison sampler (Castaño 2013); csmlab's
-    # tent is the filter it matches, a box or Gaussian PCF the nearest it offers.
-    filtering = {"pcf_bilinear": "Hardware2x2", "pcf_tent": "Gaussian", "pcf_gaussian": "Gaussian",
-                 "pcf": "Gaussian"}.get(settings.filter)
-    if settings.filter not in ("pcf_bilinear", "pcf_tent"):
+    # Bevy's Gaussian is Castaño's 5×5 tent (configs/engines/bevy.toml); other kernels get the nearest
+    # method Bevy has, or none, and are named as lacking.
+    filtering = {"pcf_bilinear": "Hardware2x2", "pcf": "Gaussian", "pcf_gaussian": "Gaussian",
+                 "pcf_tent": "Gaussian"}.get(settings.filter)
+    if settings.filter != "pcf_bilinear" and (settings.filter, settings.filter_size) != ("pcf_tent", 5):
         lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Bevy filters with "
                        f"Hardware2x2, Gaussian or Temporal)")
     bounds = ", ".join(f"{v:.3f}" for v in z[1:])

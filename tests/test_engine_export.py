@@ -115,3 +115,16 @@ def test_per_cascade_resolution_and_a_non_power_of_two_atlas_are_named():
     urp = export(settings, near=NEAR, far=FAR, engine="unity_urp")
     assert "mainLightShadowmapResolution = 2048;" in urp.text  # 2 × 1182 = 2364 → the power of two below
     assert any("2048 written for 2364" in item for item in urp.lacking)
+
+
+def test_every_filter_exports_to_every_engine_and_bevy_names_the_kernels_it_lacks():
+    from csmlab.lookup_choices import FILTER_METHODS
+
+    for name in sorted(FILTER_METHODS):
+        settings = ShadowSettings(filter=name, filter_size=5)
+        for engine in sorted(EXPORT_METHODS):
+            export(settings, near=NEAR, far=FAR, engine=engine)
+        lacking = " ".join(export(settings, near=NEAR, far=FAR, engine="bevy").lacking)
+        assert (f"filter = {name!r}" in lacking) == (name not in ("pcf_tent", "pcf_bilinear")), name
+    tent = export(ShadowSettings(filter="pcf_tent", filter_size=5), near=NEAR, far=FAR, engine="bevy").text
+    assert "ShadowFilteringMethod::Gaussian" in tent

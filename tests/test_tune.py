@@ -261,24 +261,23 @@ def test_infeasible_budget_is_an_input_error():
 
 
 def test_real_engine_presets_are_measured_on_the_same_frames_fitted_and_labelled(plain, tmp_path):
-    """Two presets of configs/engines under a budget of 2 float32 cascades at the experiment's resolution R:
-    godot4 (4 cascades of 16-bit depth in a 2×2 atlas, 8 R² bytes) fits as it is, ue5 (3 float32
-    cascades, 12 R²) is halved; both ran in one run on the same frames."""
+    """Two presets of configs/engines (ue5: 3 float32 cascades, bevy: 4) under a budget of 3 float32 cascades
+    at the experiment's resolution: ue5 fits as it is, bevy is halved; both ran in one run on the same frames."""
     import csv
     import tomllib
 
-    presets = [tune_module.ENGINES_DIR / "ue5.toml", tune_module.ENGINES_DIR / "godot4.toml"]
-    budget = shadow_memory_bytes(ShadowSettings(cascades=2, resolution=plain.shadow.resolution))
+    presets = [tune_module.ENGINES_DIR / "ue5.toml", tune_module.ENGINES_DIR / "bevy.toml"]
+    budget = shadow_memory_bytes(ShadowSettings(cascades=3, resolution=plain.shadow.resolution))
     result = tune(plain, out_dir=tmp_path, trials=2, presets=presets, memory_budget=budget, max_flicker="best-preset",
                   flicker_metric="flicker_same", space={"stabilization": ("choice", ("exact",)),
                                                         "cascades": ("choice", (2, 3))})
     half = plain.shadow.resolution // 2
-    assert [c.label for c in result.references] == ["start", f"ue5 @ {half}²", "godot4"]
-    _, ue5, godot = result.references
-    assert ue5.settings.resolution == half and godot.settings.resolution == plain.shadow.resolution
+    assert [c.label for c in result.references] == ["start", "ue5", f"bevy @ {half}²"]
+    _, ue5, bevy = result.references
+    assert ue5.settings.resolution == plain.shadow.resolution and bevy.settings.resolution == half
     assert all(c.memory_bytes <= budget and c.values is not None for c in result.references)
     # Every field the preset file sets reaches the measured settings (read from the file, not from csmlab).
-    for preset, measured in ((presets[0], ue5), (presets[1], godot)):
+    for preset, measured in ((presets[0], ue5), (presets[1], bevy)):
         entry = tomllib.loads(preset.read_text())["methods"][0]
         for key, value in entry.items():
             if key != "name":
@@ -294,5 +293,5 @@ def test_real_engine_presets_are_measured_on_the_same_frames_fitted_and_labelled
     keys = {f"k{c.key}" for c in result.references}
     assert keys <= set(frames) and len({frozenset(frames[k]) for k in keys}) == 1
     assert frames[f"k{ue5.key}"] == set(range(plain.camera.frames))
-    assert result.budgets.max_flicker == min(ue5.values["flicker_same"], godot.values["flicker_same"])
+    assert result.budgets.max_flicker == min(ue5.values["flicker_same"], bevy.values["flicker_same"])
     assert result.recommended.values["flicker_same"] <= result.budgets.max_flicker
