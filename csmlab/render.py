@@ -225,6 +225,27 @@ def clipped_casters(depth: np.ndarray, triangles: np.ndarray, *, near: float) ->
     return triangles[depth[triangles].max(axis=1) >= near]
 
 
+def _receiver_coordinates(cascades: CascadeSet, points: np.ndarray, normals: np.ndarray, *, settings: ShadowSettings,
+                          device: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Receivers' fixed-point coordinates ``(C, N, 2)``, biased depths ``(C, N)`` and slopes ``(C, N, 2)``.
+
+    :func:`csmlab.texels.receiver_lookup`; in float64 its per-cascade part runs in a kernel (the same
+    bits), an engine's float32 cascade math (``engine_precision``) runs on the host.
+    """
+    bits = settings.subtexel_bits
+    if settings.engine_precision != "float64":
+        return receiver_lookup(cascades, points, normals, bits=bits, normal_offset=settings.normal_offset,
+                               bias_constant=settings.bias_constant, bias_slope=settings.bias_slope,
+                               precision=settings.engine_precision)
+    return receiver_coordinates(
+        light_space(cascades, points), light_space(cascades, normals.astype(np.float64)),
+        texel_size=np.stack([c.texel_size for c in cascades.cascades]),
+        origin=np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]),
+        zref=cascades.zref, bits=bits, normal_offset=settings.normal_offset, bias_constant=settings.bias_constant,
+        bias_slope=settings.bias_slope, device=device,
+    )
+
+
 def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: ShadowSettings,
                   pixels=None, quads: Quads | None = None, quad_view_depth=None, device: str = "cpu") -> ShadowLookup:
     """One method's shadow at receiver points: cascade selection, biased depth test, filter, blend.
@@ -268,23 +289,8 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
     flat_z = z.reshape(-1)
     receivers = np.flatnonzero(np.all(np.isfinite(p.reshape(-1, 3)), axis=1) & ~np.isnan(flat_z))
     cascades = maps.cascades
-    bits = settings.subtexel_bits
-    if settings.engine_precision == "float64":
-        # csmlab.texels.receiver_lookup, its per-cascade part in a kernel (the same bits).
-        coordinates, receiver_depth, receiver_slope = receiver_coordinates(
-            light_space(cascades, p.reshape(-1, 3)[receivers]),
-            light_space(cascades, n.reshape(-1, 3)[receivers].astype(np.float64)),
-            texel_size=np.stack([c.texel_size for c in cascades.cascades]),
-            origin=np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]),
-            zref=cascades.zref, bits=bits, normal_offset=settings.normal_offset, bias_constant=settings.bias_constant,
-            bias_slope=settings.bias_slope, device=device,
-        )
-    else:
-        coordinates, receiver_depth, receiver_slope = receiver_lookup(
-            cascades, p.reshape(-1, 3)[receivers], n.reshape(-1, 3)[receivers], bits=bits,
-            normal_offset=settings.normal_offset, bias_constant=settings.bias_constant, bias_slope=settings.bias_slope,
-            precision=settings.engine_precision,
-        )
+    coordinates, receiver_depth, receiver_slope = _receiver_coordinates(
+        cascades, p.reshape(-1, 3)[receivers], n.reshape(-1, 3)[receivers], settings=settings, device=device)
     if pixels is None and p.ndim == 3 and uses_pixels(settings):
         rows, cols = np.indices(p.shape[:2])
         pixels = np.stack([cols, rows], axis=-1)
@@ -293,14 +299,10 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
         if quads is None or quad_view_depth is None:
             raise ValueError("quads, quad_view_depth: moment_mips takes its level of detail from each point's pixel quad")
         lane_points = quads.position.reshape(-1, 4, 3)[receivers].reshape(-1, 3)
-        lane_coords, lane_depth, _ = receiver_coordinates(
-            light_space(cascades, lane_points),
-            light_space(cascades, np.repeat(n.reshape(-1, 3)[receivers], 4, axis=0).astype(np.float64)),
-            texel_size=np.stack([c.texel_size for c in cascades.cascades]),
-            origin=np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]),
-            zref=cascades.zref, bits=bits, normal_offset=settings.normal_offset, bias_constant=settings.bias_constant,
-            bias_slope=settings.bias_slope, device=device,
-        )
+        # The lanes go through the same coordinates as their centre (same precision, same grid), so
+        # their differences are the quad's derivatives.
+        lane_coords, lane_depth, _ = _receiver_coordinates(
+            cascades, lane_points, np.repeat(n.reshape(-1, 3)[receivers], 4, axis=0), settings=settings, device=device)
         count = len(cascades)
         lanes = (lane_coords.reshape(count, -1, 4, 2), lane_depth.reshape(count, -1, 4),
                  np.asarray(quad_view_depth, dtype=np.float64).reshape(-1, 4)[receivers],

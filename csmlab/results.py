@@ -273,7 +273,8 @@ def read_summary(results_dir) -> dict:
     if not path.is_file():
         raise InputError("expected the summary.json of a finished run (csmlab run writes it last), got no such file",
                          file=path)
-    return read_json(path, required=("name", "workload_hash", "methods", "points", "config"))
+    return read_json(path, required=("name", "workload_hash", "methods", "points", "config", "light_moves",
+                                      "point_fields", "stabilization"))
 
 
 def read_json(path, *, required=()) -> dict:

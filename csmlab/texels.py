@@ -204,6 +204,7 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
         the plane's depth there instead of the receiver's own (Isidoro, "Shadow Mapping: GPU-based
         Tips and Techniques", GDC 2006; the derivative-based bias of seed 002). Box-independent.
     """
+    check_name(precision, PRECISION_METHODS, field="engine_precision")
     p = np.asarray(points, dtype=np.float64)
     n = np.asarray(normals, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != 3 or n.shape != p.shape:
