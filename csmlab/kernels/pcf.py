@@ -62,7 +62,7 @@ def tent_cdf(x: wp.float64, h: wp.float64) -> wp.float64:
 @wp.func
 def tent_sum(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int64, tx: wp.float64, ty: wp.float64,
              h: wp.float64, radius: int, receiver: wp.float32, slope: wp.vec2d, x: wp.int64, y: wp.int64,
-             unit: wp.int64) -> wp.float64:
+             unit: wp.int64, inverse_span: wp.float64) -> wp.float64:
     """Tent-weighted tests of the (2r + 1)² texels around texel (i, j); ``tx, ty`` the point in texels from texel i, j."""
     s = wp.float64(0.0)
     for dj in range(-radius, radius + 1):
@@ -72,14 +72,15 @@ def tent_sum(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int
             for di in range(-radius, radius + 1):
                 wx = tent_cdf(wp.float64(di + 1) - tx, h) - tent_cdf(wp.float64(di) - tx, h)
                 if wx > wp.float64(0.0):
-                    t = tap(depth, c, i + wp.int64(di), j + wp.int64(dj), receiver, slope, x, y, unit)
+                    t = tap(depth, c, i + wp.int64(di), j + wp.int64(dj), receiver, slope, x, y, unit, inverse_span)
                     s += wx * wy * wp.float64(t)
     return s
 
 
 @wp.func
 def blocker_depth(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int64, radius: int,
-                  receiver: wp.float32, slope: wp.vec2d, x: wp.int64, y: wp.int64, unit: wp.int64) -> wp.float64:
+                  receiver: wp.float32, slope: wp.vec2d, x: wp.int64, y: wp.int64, unit: wp.int64,
+                  inverse_span: wp.float64) -> wp.float64:
     """Mean stored depth of the texels among the (2r + 1)² around (i, j) that shadow the receiver plane; +inf if none."""
     total = wp.float64(0.0)
     count = int(0)
@@ -88,7 +89,7 @@ def blocker_depth(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: w
         for di in range(-radius, radius + 1):
             ii = i + wp.int64(di)
             jj = j + wp.int64(dj)
-            if tap(depth, c, ii, jj, receiver, slope, x, y, unit) == 0:
+            if tap(depth, c, ii, jj, receiver, slope, x, y, unit, inverse_span) == 0:
                 stored = depth[c, int(wp.clamp(jj, wp.int64(0), top)), int(wp.clamp(ii, wp.int64(0), top))]
                 if wp.isfinite(stored):
                     total += wp.float64(stored)
@@ -108,6 +109,7 @@ def weighted_lit(depth: wp.array3d(dtype=wp.float32), coords: wp.array3d(dtype=w
     y = coords[c, k, 1]
     receiver = receiver_depth[c, k]
     slope = receiver_slope[c, k]
+    inverse_span = wp.float64(1.0) / wp.float64(wp.int64(2) * unit)
     i = x // unit
     j = y // unit
     # The point's position inside its texel, in texels: an exact fraction of `unit`.
@@ -119,11 +121,12 @@ def weighted_lit(depth: wp.array3d(dtype=wp.float32), coords: wp.array3d(dtype=w
         for dj in range(-radius, radius + 1):
             for di in range(-radius, radius + 1):
                 w = wp.exp(-wp.float64(di * di + dj * dj) / (wp.float64(2.0) * width * width))
-                s += w * wp.float64(tap(depth, c, i + wp.int64(di), j + wp.int64(dj), receiver, slope, x, y, unit))
+                t = tap(depth, c, i + wp.int64(di), j + wp.int64(dj), receiver, slope, x, y, unit, inverse_span)
+                s += w * wp.float64(t)
                 total += w
         return s / total
     if code == PCF_TENT:
-        return tent_sum(depth, c, i, j, tx, ty, width, radius, receiver, slope, x, y, unit)
+        return tent_sum(depth, c, i, j, tx, ty, width, radius, receiver, slope, x, y, unit, inverse_span)
     if code == PCF_POISSON:
         ca = wp.cos(angle)
         sa = wp.sin(angle)
@@ -132,15 +135,15 @@ def weighted_lit(depth: wp.array3d(dtype=wp.float32), coords: wp.array3d(dtype=w
             o = disk[n]
             ox = wp.int64(wp.round(width * (ca * o[0] - sa * o[1]) * wp.float64(unit)))
             oy = wp.int64(wp.round(width * (sa * o[0] + ca * o[1]) * wp.float64(unit)))
-            count += tap(depth, c, (x + ox) // unit, (y + oy) // unit, receiver, slope, x, y, unit)
+            count += tap(depth, c, (x + ox) // unit, (y + oy) // unit, receiver, slope, x, y, unit, inverse_span)
         return wp.float64(count) / wp.float64(disk.shape[0])
     if wp.isnan(receiver):
         return wp.float64(0.0)
-    blocker = blocker_depth(depth, c, i, j, radius, receiver, slope, x, y, unit)
+    blocker = blocker_depth(depth, c, i, j, radius, receiver, slope, x, y, unit, inverse_span)
     if not wp.isfinite(blocker):
         return wp.float64(1.0)
     half = wp.clamp(wp.float64(0.5) * (wp.float64(receiver) - blocker) * width, wp.float64(0.5), wp.float64(radius))
-    return tent_sum(depth, c, i, j, tx, ty, half, radius, receiver, slope, x, y, unit)
+    return tent_sum(depth, c, i, j, tx, ty, half, radius, receiver, slope, x, y, unit, inverse_span)
 
 
 @wp.kernel
@@ -190,7 +193,8 @@ def pcss_width_kernel(
     x = coords[c, k, 0]
     y = coords[c, k, 1]
     receiver = receiver_depth[c, k]
-    blocker = blocker_depth(depth, c, x // unit, y // unit, radius, receiver, receiver_slope[c, k], x, y, unit)
+    blocker = blocker_depth(depth, c, x // unit, y // unit, radius, receiver, receiver_slope[c, k], x, y, unit,
+                            wp.float64(1.0) / wp.float64(wp.int64(2) * unit))
     penumbra[k] = (wp.float64(receiver) - blocker) * width[c]
     if not wp.isfinite(blocker):
         penumbra[k] = wp.float64(0.0)

@@ -44,16 +44,19 @@ def edge_inside(e: wp.float64, owns: bool) -> bool:
 
 
 @wp.func
-def first_centre(lo: wp.int64, unit: wp.int64, resolution: int) -> int:
-    """First texel whose centre, ``(2k + 1)·unit`` in doubled units, is at or above ``lo`` (clamped to the map)."""
-    k = -((unit - lo) // (wp.int64(2) * unit))
+def first_centre(lo: wp.int64, unit: wp.int64, bits: wp.int64, resolution: int) -> int:
+    """First texel whose centre, ``(2k + 1)·unit`` in doubled units, is at or above ``lo`` (clamped to the map).
+
+    ``unit = 2**bits``: the floor division by ``2·unit`` is an arithmetic shift by ``bits + 1``.
+    """
+    k = -((unit - lo) >> (bits + wp.int64(1)))
     return int(wp.clamp(k, wp.int64(0), wp.int64(resolution)))
 
 
 @wp.func
-def last_centre(hi: wp.int64, unit: wp.int64, resolution: int) -> int:
+def last_centre(hi: wp.int64, unit: wp.int64, bits: wp.int64, resolution: int) -> int:
     """Last texel whose centre is at or below ``hi`` (clamped to the map)."""
-    k = (hi - unit) // (wp.int64(2) * unit)
+    k = (hi - unit) >> (bits + wp.int64(1))
     return int(wp.clamp(k, wp.int64(-1), wp.int64(resolution - 1)))
 
 
@@ -63,6 +66,7 @@ def rasterize_triangle(
     vertex_depth: wp.array(dtype=wp.float64),
     triangles: wp.array2d(dtype=wp.int32),
     unit: wp.int64,
+    bits: wp.int64,
     depth: wp.array3d(dtype=wp.float32),
     c: int,
     t: int,
@@ -81,10 +85,10 @@ def rasterize_triangle(
     cy = two * points[c, ic, 1]
     # Cull before any per-texel work: triangles whose bounding box holds no texel centre of the
     # map, and triangles of zero area.
-    i0 = first_centre(wp.min(wp.min(ax, bx), cx), unit, resolution)
-    i1 = last_centre(wp.max(wp.max(ax, bx), cx), unit, resolution)
-    j0 = first_centre(wp.min(wp.min(ay, by), cy), unit, resolution)
-    j1 = last_centre(wp.max(wp.max(ay, by), cy), unit, resolution)
+    i0 = first_centre(wp.min(wp.min(ax, bx), cx), unit, bits, resolution)
+    i1 = last_centre(wp.max(wp.max(ax, bx), cx), unit, bits, resolution)
+    j0 = first_centre(wp.min(wp.min(ay, by), cy), unit, bits, resolution)
+    j1 = last_centre(wp.max(wp.max(ay, by), cy), unit, bits, resolution)
     if i0 > i1 or j0 > j1:
         return 0
     area = wp.float64(bx - ax) * wp.float64(cy - ay) - wp.float64(by - ay) * wp.float64(cx - ax)
@@ -157,11 +161,12 @@ def rasterize_depth_kernel(
     vertex_depth: wp.array(dtype=wp.float64),
     triangles: wp.array2d(dtype=wp.int32),
     unit: wp.int64,
+    bits: wp.int64,
     depth: wp.array3d(dtype=wp.float32),
     covered: wp.array2d(dtype=wp.int32),
 ):
     c, t = wp.tid()
-    covered[c, t] = rasterize_triangle(points, vertex_depth, triangles, unit, depth, c, t)
+    covered[c, t] = rasterize_triangle(points, vertex_depth, triangles, unit, bits, depth, c, t)
 
 
 @wp.kernel
@@ -171,11 +176,12 @@ def rasterize_candidates_kernel(
     triangles: wp.array2d(dtype=wp.int32),
     candidates: wp.array2d(dtype=wp.int32),
     unit: wp.int64,
+    bits: wp.int64,
     depth: wp.array3d(dtype=wp.float32),
     covered: wp.array(dtype=wp.int32),
 ):
     k = wp.tid()
-    covered[k] = rasterize_triangle(points, vertex_depth, triangles, unit, depth, candidates[k, 0], candidates[k, 1])
+    covered[k] = rasterize_triangle(points, vertex_depth, triangles, unit, bits, depth, candidates[k, 0], candidates[k, 1])
 
 
 @wp.kernel
@@ -270,6 +276,7 @@ def rasterize_depth(points, vertex_depth, triangles, *, resolution: int, bits: i
             wp.array(z, dtype=wp.float64, device=device, copy=False),
             wp.array(tri, dtype=wp.int32, device=device, copy=False),
             wp.int64(2**bits),
+            wp.int64(bits),
         ),
         outputs=(depth, covered),
         device=device,
@@ -388,6 +395,6 @@ def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin,
               inputs=(points, wp.array(z, dtype=wp.float64, device=device, copy=False),
                       wp.array(tri, dtype=wp.int32, device=device, copy=False),
                       wp.array(np.ascontiguousarray(pairs), dtype=wp.int32, device=device, copy=False),
-                      wp.int64(2**bits)),
+                      wp.int64(2**bits), wp.int64(bits)),
               outputs=(depth, covered), device=device)
     return depth.numpy(), int(covered.numpy().sum(dtype=np.int64))

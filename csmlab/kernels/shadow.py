@@ -65,20 +65,22 @@ def holds(coords: wp.array3d(dtype=wp.int64), c: int, k: int, inset: wp.int64, t
 
 @wp.func
 def tap(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int64, receiver: wp.float32,
-        slope: wp.vec2d, x: wp.int64, y: wp.int64, unit: wp.int64) -> int:
+        slope: wp.vec2d, x: wp.int64, y: wp.int64, unit: wp.int64, inverse_span: wp.float64) -> int:
     """1 where the receiver plane is not behind the caster stored at texel (i, j), else 0 (also for a NaN receiver).
 
     The receiver's depth is carried along its tangent plane (``slope``, metres per texel) from its
     own fixed-point position ``(x, y)`` to the texel's centre; both offsets are exact fractions of
-    ``unit``, so the result does not depend on where the box lies.
+    ``unit``, so the result does not depend on where the box lies. ``inverse_span`` is
+    ``1 / (2·unit)``, a power of two, so multiplying by it is the exact division.
     """
     top = wp.int64(depth.shape[1] - 1)
     ii = int(wp.clamp(i, wp.int64(0), top))
     jj = int(wp.clamp(j, wp.int64(0), top))
-    span = wp.float64(wp.int64(2) * unit)
-    di = wp.float64((wp.int64(2) * i + wp.int64(1)) * unit - wp.int64(2) * x) / span
-    dj = wp.float64((wp.int64(2) * j + wp.int64(1)) * unit - wp.int64(2) * y) / span
-    plane = wp.float32(wp.float64(receiver) + slope[0] * di + slope[1] * dj)
+    plane = receiver
+    if slope[0] != wp.float64(0.0) or slope[1] != wp.float64(0.0):
+        di = wp.float64((wp.int64(2) * i + wp.int64(1)) * unit - wp.int64(2) * x) * inverse_span
+        dj = wp.float64((wp.int64(2) * j + wp.int64(1)) * unit - wp.int64(2) * y) * inverse_span
+        plane = wp.float32(wp.float64(receiver) + slope[0] * di + slope[1] * dj)
     if plane <= depth[c, jj, ii]:
         return 1
     return 0
@@ -101,6 +103,7 @@ def lit_fraction(
     y = coords[c, k, 1]
     receiver = receiver_depth[c, k]
     slope = receiver_slope[c, k]
+    inverse_span = wp.float64(1.0) / wp.float64(wp.int64(2) * unit)
     if filter_code == BOX_BILINEAR:
         # Texel centres sit at (2i + 1)·unit in doubled units; i0 is the centre at or left of the point.
         x2 = wp.int64(2) * x - unit
@@ -111,10 +114,10 @@ def lit_fraction(
         wx = wp.float64(x2 - i0 * span) / wp.float64(span)
         wy = wp.float64(y2 - j0 * span) / wp.float64(span)
         one = wp.int64(1)
-        s00 = wp.float64(tap(depth, c, i0, j0, receiver, slope, x, y, unit))
-        s10 = wp.float64(tap(depth, c, i0 + one, j0, receiver, slope, x, y, unit))
-        s01 = wp.float64(tap(depth, c, i0, j0 + one, receiver, slope, x, y, unit))
-        s11 = wp.float64(tap(depth, c, i0 + one, j0 + one, receiver, slope, x, y, unit))
+        s00 = wp.float64(tap(depth, c, i0, j0, receiver, slope, x, y, unit, inverse_span))
+        s10 = wp.float64(tap(depth, c, i0 + one, j0, receiver, slope, x, y, unit, inverse_span))
+        s01 = wp.float64(tap(depth, c, i0, j0 + one, receiver, slope, x, y, unit, inverse_span))
+        s11 = wp.float64(tap(depth, c, i0 + one, j0 + one, receiver, slope, x, y, unit, inverse_span))
         w1 = wp.float64(1.0)
         return (w1 - wy) * ((w1 - wx) * s00 + wx * s10) + wy * ((w1 - wx) * s01 + wx * s11)
     # none (radius 0) and pcf: the (2r + 1)² texels centred on the one that contains the point.
@@ -123,7 +126,7 @@ def lit_fraction(
     count = int(0)
     for dj in range(-radius, radius + 1):
         for di in range(-radius, radius + 1):
-            count += tap(depth, c, i + wp.int64(di), j + wp.int64(dj), receiver, slope, x, y, unit)
+            count += tap(depth, c, i + wp.int64(di), j + wp.int64(dj), receiver, slope, x, y, unit, inverse_span)
     side = 2 * radius + 1
     return wp.float64(count) / wp.float64(side * side)
 
@@ -302,18 +305,27 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
     return s, cascade.astype(np.int8), blended.numpy().astype(bool)
 
 
+@wp.func
+def fixed_point(u: wp.float64, to_fixed: wp.float64, limit: wp.float64) -> wp.int64:
+    """``u`` metres in ``2**-bits`` texels, rounded half to even; NaN maps to ``-limit`` (far outside every box)."""
+    v = wp.rint(wp.clamp(u * to_fixed, -limit, limit))
+    if wp.isnan(v):
+        v = -limit
+    return wp.int64(v)
+
+
 @wp.kernel
 def receiver_coordinates_kernel(
     light_p: wp.array2d(dtype=wp.float64),
     light_n: wp.array2d(dtype=wp.float64),
     texel_size: wp.array2d(dtype=wp.float64),
+    to_fixed: wp.array2d(dtype=wp.float64),
+    offset: wp.array(dtype=wp.float64),
+    slope_bias: wp.array(dtype=wp.float64),
     origin: wp.array2d(dtype=wp.int64),
     zref: wp.float64,
-    scale: wp.float64,
     limit: wp.float64,
-    normal_offset: wp.float64,
     bias_constant: wp.float64,
-    bias_slope: wp.float64,
     max_tan: wp.float64,
     coords: wp.array3d(dtype=wp.int64),
     depth: wp.array2d(dtype=wp.float32),
@@ -322,29 +334,34 @@ def receiver_coordinates_kernel(
     k = wp.tid()
     # csmlab.texels.receiver_lookup's operations in its order, one at a time (Warp emits one
     # statement per operation, so no multiply-add is fused): the same bits as the host. One
-    # thread per receiver: what does not depend on the cascade is computed once for all of them.
+    # thread per receiver: what does not depend on the cascade is computed once for all of them,
+    # what depends on the cascade only (``to_fixed = 2**bits / texel_size``, the offset and slope
+    # bias in metres) once for all receivers, by the wrapper.
     zero = wp.float64(0.0)
-    cos = -light_n[k, 2]
+    px = light_p[k, 0]
+    py = light_p[k, 1]
+    pz = light_p[k, 2]
+    nx = light_n[k, 0]
+    ny = light_n[k, 1]
+    nz = light_n[k, 2]
+    cos = -nz
     tan = wp.float64(wp.nan)
+    plane_x = zero
+    plane_y = zero
     if cos > zero:
         tan = wp.min(wp.sqrt(wp.max(wp.float64(1.0) - cos * cos, zero)) / cos, max_tan)
+        plane_x = nx / cos
+        plane_y = ny / cos
+    plane_x = wp.clamp(plane_x, -max_tan, max_tan)
+    plane_y = wp.clamp(plane_y, -max_tan, max_tan)
     for c in range(texel_size.shape[0]):
-        texel = wp.max(texel_size[c, 0], texel_size[c, 1])
-        offset = normal_offset * texel
-        for axis in range(2):
-            u = light_n[k, axis] * offset
-            u = u + light_p[k, axis]
-            u = u * (scale / texel_size[c, axis])
-            u = wp.rint(wp.clamp(u, -limit, limit))
-            if wp.isnan(u):
-                u = -limit
-            coords[c, k, axis] = wp.int64(u) - origin[c, axis]
-            plane = zero
-            if cos > zero:
-                plane = light_n[k, axis] / cos
-            slope[c, k, axis] = wp.clamp(plane, -max_tan, max_tan) * texel_size[c, axis]
-        bias = bias_constant + bias_slope * texel * tan
-        depth[c, k] = wp.float32(light_p[k, 2] + offset * light_n[k, 2] - zref - bias)
+        moved = offset[c]
+        coords[c, k, 0] = fixed_point(nx * moved + px, to_fixed[c, 0], limit) - origin[c, 0]
+        coords[c, k, 1] = fixed_point(ny * moved + py, to_fixed[c, 1], limit) - origin[c, 1]
+        slope[c, k, 0] = plane_x * texel_size[c, 0]
+        slope[c, k, 1] = plane_y * texel_size[c, 1]
+        bias = bias_constant + slope_bias[c] * tan
+        depth[c, k] = wp.float32(pz + moved * nz - zref - bias)
 
 
 def receiver_coordinates(light_points, light_normals, *, texel_size, origin, zref: float, bits: int,
@@ -383,6 +400,8 @@ def receiver_coordinates(light_points, light_normals, *, texel_size, origin, zre
             or corner.shape != size.shape:
         raise ValueError(f"light_points, light_normals, texel_size, origin: expected shapes (N, 3), (N, 3), (C, 2), "
                          f"(C, 2); got {p.shape}, {n.shape}, {size.shape}, {corner.shape}")
+    texel = size.max(axis=1)
+    moved = normal_offset * texel
     shape = (size.shape[0], p.shape[0])
     coords = wp.empty(shape + (2,), dtype=wp.int64, device=device)
     depth = wp.empty(shape, dtype=wp.float32, device=device)
@@ -391,8 +410,11 @@ def receiver_coordinates(light_points, light_normals, *, texel_size, origin, zre
         wp.launch(receiver_coordinates_kernel, dim=p.shape[0],
                   inputs=(wp.array(p, dtype=wp.float64, device=device, copy=False),
                           wp.array(n, dtype=wp.float64, device=device, copy=False),
-                          wp.array(size, dtype=wp.float64, device=device, copy=False),
-                          wp.array(corner, dtype=wp.int64, device=device, copy=False), float(zref), float(2**bits), float(2**50),
-                          float(normal_offset), float(bias_constant), float(bias_slope), 10.0),
+                          wp.array(size, dtype=wp.float64, device=device),
+                          wp.array(float(2**bits) / size, dtype=wp.float64, device=device),
+                          wp.array(moved, dtype=wp.float64, device=device),
+                          wp.array(bias_slope * texel, dtype=wp.float64, device=device),
+                          wp.array(corner, dtype=wp.int64, device=device, copy=False), float(zref), float(2**50),
+                          float(bias_constant), 10.0),
                   outputs=(coords, depth, slope), device=device)
     return coords.numpy(), depth.numpy(), slope.numpy()

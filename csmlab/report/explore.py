@@ -256,7 +256,7 @@ def _frame_file(frame: int, present, records) -> bytes:
         planes = b"".join(np.ascontiguousarray(record[name][k]).view(np.uint8).tobytes() for name in PLANES)
         body[capture_stem(method, point)] = {
             "img": "data:image/webp;base64," + base64.b64encode(buffer.getvalue()).decode("ascii"),
-            "planes": base64.b64encode(zlib.compress(planes, 9)).decode("ascii"),
+            "planes": base64.b64encode(zlib.compress(planes, 6)).decode("ascii"),
             "camera": _rounded(record["camera_position"][k], 3),
             "frustum": _rounded(record["frustum_corners"][k], 3),
             "boxes": _rounded(record["box_corners"][k], 3),
