@@ -36,9 +36,8 @@ class GBuffer:
     hits : CameraHits
         ``position`` (H, W, 3) float64 world metres, NaN on a miss; ``normal`` (H, W, 3) float32
         unit geometric normal facing the camera, 0 on a miss; ``triangle`` (H, W) int32, -1 on a
-        miss; ``view_depth`` (H, W) float32 ``-z_view`` in metres, +inf on a miss; ``dpdx``,
-        ``dpdy`` (H, W, 3) float32 ray differentials toward the next pixel centre right (+x) and
-        below (+y), metres, 0 on a miss (:class:`csmlab.kernels.visibility.CameraHits`).
+        miss; ``view_depth`` (H, W) float32 ``-z_view`` in metres, +inf on a miss
+        (:class:`csmlab.kernels.visibility.CameraHits`).
     albedo : ndarray, shape (H, W, 3), float32
         Linear RGB reflectance of the hit triangle; 0 on a miss.
     """
@@ -65,16 +64,6 @@ class GBuffer:
     def view_depth(self) -> np.ndarray:
         """``(H, W)`` float32: ``-z_view`` of the hit in metres; +inf on a miss."""
         return self.hits.view_depth
-
-    @property
-    def dpdx(self) -> np.ndarray:
-        """``(H, W, 3)`` float32: ray differential toward the next pixel centre right, metres."""
-        return self.hits.dpdx
-
-    @property
-    def dpdy(self) -> np.ndarray:
-        """``(H, W, 3)`` float32: ray differential toward the next pixel centre below, metres."""
-        return self.hits.dpdy
 
     @property
     def valid(self) -> np.ndarray:

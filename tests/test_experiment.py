@@ -144,7 +144,7 @@ def test_mesh_that_cannot_be_read_is_a_located_input_error(tmp_path):
     mesh = tmp_path / "broken.obj"
     mesh.write_text("this is not an obj file\n")
     path = tmp_path / "mesh.toml"
-    path.write_text(f'[scene]\nkind = "mesh"\nfile = "broken.obj"\n[camera]\npath = "walk"\nframes = 2\n')
+    path.write_text('[scene]\nkind = "mesh"\nfile = "broken.obj"\n[camera]\npath = "walk"\nframes = 2\n')
     with pytest.raises(InputError) as caught:
         build_workload(load_experiment(path))
     assert "broken.obj" in str(caught.value)

@@ -7,7 +7,7 @@ from csmlab.camera import CameraPose
 from csmlab.geometry import rotation_looking_at
 from csmlab.metrics import measure_frame, metric_columns
 from csmlab.light import direction_from_angles
-from csmlab.metrics.temporal import TemporalMaps, temporal_maps, temporal_summary
+from csmlab.metrics.temporal import temporal_maps, temporal_summary
 from csmlab.paths import make_path
 from csmlab.render import prepare_scene, render_shadow, render_view
 from csmlab.scene import make_scene

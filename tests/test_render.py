@@ -189,7 +189,7 @@ def test_the_view_is_shared_across_methods_and_every_stage_is_timed_and_repeatab
                          height=32)
     for x, y in ((again.maps.depth, a.maps.depth), (again.shadow.lit, a.shadow.lit),
                  (again.view.gbuffer.position, g.position), (again.view.reference, view.reference),
-                 (again.view.gbuffer.dpdx, g.dpdx)):
+                 (again.view.gbuffer.normal, g.normal)):
         assert np.array_equal(x, y, equal_nan=True)
 
 

@@ -6,13 +6,8 @@ origin keeps float32 precision, and the same vertices in float64 for refinement.
 
 :func:`camera_hits` casts one ray per pixel centre (row 0 at the top). The BVH finds the hit
 triangle in float32; the hit point is then recomputed in float64 as the ray's intersection with
-that triangle's plane, so positions and view depths are as exact as the float64 geometry. Ray
-differentials intersect the rays through the next pixel centre right and below with the same
-plane (Igehy 1999).
-
-References
-----------
-- Igehy, "Tracing Ray Differentials", SIGGRAPH 1999.
+that triangle's plane, so positions and view depths are as exact as the float64 geometry. (The
+footprint of a pixel on that plane is :mod:`csmlab.kernels.footprint`'s.)
 """
 
 from __future__ import annotations
@@ -68,16 +63,12 @@ class CameraHits:
         Hit triangle; -1 on a miss.
     view_depth : ndarray, shape (H, W), float32
         ``(X - C)·forward`` in metres; +inf on a miss.
-    dpdx, dpdy : ndarray, shape (H, W, 3), float32
-        Ray differentials toward the next pixel centre right and below, metres; 0 on a miss.
     """
 
     position: np.ndarray
     normal: np.ndarray
     triangle: np.ndarray
     view_depth: np.ndarray
-    dpdx: np.ndarray
-    dpdy: np.ndarray
 
 
 def mesh_bvh(vertices, triangles, *, device: str = "cpu") -> MeshBVH:
@@ -155,8 +146,6 @@ def camera_hits_kernel(
     normal: wp.array2d(dtype=wp.vec3),
     triangle: wp.array2d(dtype=wp.int32),
     view_depth: wp.array2d(dtype=wp.float32),
-    dpdx: wp.array2d(dtype=wp.vec3),
-    dpdy: wp.array2d(dtype=wp.vec3),
 ):
     row, col = wp.tid()
     height = position.shape[0]
@@ -174,8 +163,6 @@ def camera_hits_kernel(
         normal[row, col] = wp.vec3(0.0)
         triangle[row, col] = -1
         view_depth[row, col] = wp.inf
-        dpdx[row, col] = wp.vec3(0.0)
-        dpdy[row, col] = wp.vec3(0.0)
         return
     face = query.face
     a = vertices[triangles[face, 0]]
@@ -194,10 +181,6 @@ def camera_hits_kernel(
     normal[row, col] = wp.vec3(n)
     triangle[row, col] = face
     view_depth[row, col] = wp.float32(wp.dot(hit - origin, forward))
-    beside = direction + right * step_x
-    below = direction - up * step_y
-    dpdx[row, col] = wp.vec3(origin + beside * plane_distance(n, hit, origin, beside, far) - hit)
-    dpdy[row, col] = wp.vec3(origin + below * plane_distance(n, hit, origin, below, far) - hit)
 
 
 def camera_hits(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspect: float, far: float, width: int,
@@ -249,8 +232,6 @@ def camera_hits(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspect: f
     out_normal = wp.empty(shape, dtype=wp.vec3, device=device)
     out_triangle = wp.empty(shape, dtype=wp.int32, device=device)
     out_depth = wp.empty(shape, dtype=wp.float32, device=device)
-    out_dpdx = wp.empty(shape, dtype=wp.vec3, device=device)
-    out_dpdy = wp.empty(shape, dtype=wp.vec3, device=device)
     wp.launch(
         camera_hits_kernel,
         dim=shape,
@@ -258,7 +239,7 @@ def camera_hits(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspect: f
             bvh.mesh.id, bvh.vertices, bvh.triangles, wp.vec3d(*eye), wp.vec3d(*r[:, 0]), wp.vec3d(*r[:, 1]),
             wp.vec3d(*(-r[:, 2])), float(2.0 * tan_y * aspect / width), float(2.0 * tan_y / height), float(far),
         ),
-        outputs=(out_position, out_normal, out_triangle, out_depth, out_dpdx, out_dpdy),
+        outputs=(out_position, out_normal, out_triangle, out_depth),
         device=device,
     )
     return CameraHits(
@@ -266,6 +247,4 @@ def camera_hits(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspect: f
         normal=out_normal.numpy(),
         triangle=out_triangle.numpy(),
         view_depth=out_depth.numpy(),
-        dpdx=out_dpdx.numpy(),
-        dpdy=out_dpdy.numpy(),
     )
