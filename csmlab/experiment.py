@@ -8,13 +8,15 @@ that frame's rows, so no number depends on where the path was cut, on how many p
 on whether the run was interrupted and resumed.
 
 The parent process builds the workload (and so checks every input file) before any work, hands it
-to the executor once per worker, keeps each finished chunk for ``--resume`` and writes the results
-files (:mod:`csmlab.results`) and the report's captures in a fixed order when all chunks are in.
+to the executor once per worker, stores each finished chunk on disk (for ``--resume``, and so that
+its memory does not grow with the path) and, when all chunks are in, reads them back one at a time
+to write the results files (:mod:`csmlab.results`) and the report's captures in a fixed order.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import pickle
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -32,8 +34,8 @@ from csmlab.light import LightPath, direction_from_angles
 from csmlab.paths.timing import TimingReport
 from csmlab.scene.core import Scene
 
-__all__ = ["ChunkResult", "Job", "RunResult", "Workload", "build_workload", "check_device", "chunk_ranges",
-           "run_chunk", "run_experiment"]
+__all__ = ["IMAGE_FRAMES", "ChunkResult", "Job", "RunResult", "Workload", "build_workload", "check_device",
+           "chunk_captures", "chunk_ranges", "image_frames", "run_chunk", "run_experiment"]
 
 
 @dataclass(frozen=True)
@@ -78,6 +80,8 @@ class Job:
         Every method × sweep point, in results order.
     snapshot_frames : frozenset of int
         Frames whose full-resolution images the report keeps.
+    image_frames : frozenset of int
+        Frames whose animation frame and per-pixel record the report keeps (:func:`image_frames`).
     device : str
         Warp device, ``cpu`` or ``cuda``.
     held_depths : dict of (method, point) to ndarray, shape (N, 2)
@@ -91,6 +95,7 @@ class Job:
     variants: tuple[Variant, ...]
     snapshot_frames: frozenset
     device: str
+    image_frames: frozenset = frozenset()
     held_depths: dict = dataclasses.field(default_factory=dict)
     held_extents: dict = dataclasses.field(default_factory=dict)
 
@@ -106,8 +111,10 @@ class ChunkResult:
         One per frame × variant.
     timings : list of TimingRow
         Wall-clock seconds; the view's stages have empty method and point.
-    captures : dict of (method, point) to list of Capture
-        The report's per-frame records (:func:`csmlab.report.capture.capture_frame`), in frame order.
+    captures : dict of (method, point) to bytes
+        The report's per-frame records (:func:`csmlab.report.capture.capture_frame`), in frame order,
+        one pickled list per variant: the parent stores them as they are and unpickles one variant's
+        at a time (:func:`chunk_captures`).
     """
 
     start: int
@@ -349,9 +356,17 @@ def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
                 timings += [results.TimingRow(index, *key, stage, seconds) for stage, seconds in frame.timings.items()]
                 timings.append(results.TimingRow(index, *key, "metrics", measured))
                 captures.setdefault(key, []).append(
-                    capture_frame(frame, measures, snapshot=index in job.snapshot_frames, grid=grid))
+                    capture_frame(frame, measures, snapshot=index in job.snapshot_frames, grid=grid,
+                                  images=index in job.image_frames))
             previous[key] = frame
-    return ChunkResult(start=start, stop=stop, rows=rows, timings=timings, captures=captures)
+    packed = {key: pickle.dumps(kept, protocol=pickle.HIGHEST_PROTOCOL) for key, kept in captures.items()}
+    return ChunkResult(start=start, stop=stop, rows=rows, timings=timings, captures=packed)
+
+
+def chunk_captures(result: ChunkResult, key: tuple[str, str]) -> list:
+    """The report's records of variant ``key`` (method, point) in a finished chunk, in frame order."""
+    packed = result.captures.get(key)
+    return [] if packed is None else pickle.loads(packed)
 
 
 def _held_depths(workload: Workload, variants, *, device: str) -> dict:
@@ -400,6 +415,20 @@ def _held_extents(workload: Workload, variants, held_depths: dict, *, device: st
                    for i in range(len(workload.path))]
         out[(v.method, v.point)] = held_extents(extents, hysteresis=v.settings.extent_hysteresis)
     return out
+
+
+IMAGE_FRAMES = 240
+"""Most frames a run keeps images of for the report (the animation and the interactive page's
+per-pixel records, ~0.7 MB per frame and variant): a longer path keeps an even sample of this many,
+so that the memory and the report of a 10,000-frame path stay those of a short one. The metrics,
+``cascades.csv`` and the snapshots keep every frame they name."""
+
+
+def image_frames(frames: int) -> frozenset:
+    """The frames of a ``frames``-frame run that keep images: all of them, or :data:`IMAGE_FRAMES` evenly spread."""
+    if frames <= IMAGE_FRAMES:
+        return frozenset(range(frames))
+    return frozenset(int(f) for f in np.round(np.linspace(0, frames - 1, IMAGE_FRAMES)))
 
 
 def _snapshot_frames(experiment: Experiment, frames: int) -> frozenset:
@@ -454,7 +483,8 @@ def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, executor: 
                                  resume=resume)
     variants = tuple(experiment.variants())
     ranges = chunk_ranges(frames, experiment.chunk_frames)
-    done = results.load_chunks(out, run_key=chunk_key, ranges=ranges) if resume else {}
+    # Finished chunks live on disk, not here: the parent's memory does not grow with the path.
+    done = {r for r in ranges if resume and results.load_chunk(out, *r, run_key=chunk_key) is not None}
     resumed = len(done)
     todo = [r for r in ranges if r not in done]
 
@@ -465,32 +495,40 @@ def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, executor: 
     report_progress()
     held_depths = _held_depths(workload, variants, device=device)
     job = Job(workload=workload, variants=variants, snapshot_frames=_snapshot_frames(experiment, frames),
-              device=device, held_depths=held_depths,
+              device=device, image_frames=image_frames(frames), held_depths=held_depths,
               held_extents=_held_extents(workload, variants, held_depths, device=device))
     for chunk, result in execute(run_chunk, todo, shared=job, executor=executor, jobs=jobs, address=address):
         results.save_chunk(out, result, run_key=chunk_key)
-        done[chunk] = result
+        done.add(chunk)
         report_progress()
-    summary = _write_results(out, experiment, job, [done[r] for r in ranges], config_hash=hash_)
+    summary = _write_results(out, experiment, job, ranges, run_key=chunk_key, config_hash=hash_)
     results.clear_chunks(out)
     return RunResult(out_dir=out, frames=frames, chunks_run=len(todo), chunks_resumed=resumed,
                      seconds=time.perf_counter() - began, summary=summary)
 
 
-def _write_results(out: Path, experiment: Experiment, job: Job, chunks: list[ChunkResult], *,
+def _write_results(out: Path, experiment: Experiment, job: Job, ranges: list[tuple[int, int]], *, run_key: str,
                    config_hash: str) -> dict:
     from csmlab.metrics import metric_columns
     from csmlab.report.capture import write_captures, write_casters
 
     columns = metric_columns(max(v.settings.cascades for v in job.variants))
     order = {(v.method, v.point): rank for rank, v in enumerate(job.variants)}
-    rows = [row for chunk in chunks for row in chunk.rows]
+
+    def chunks():
+        for start, stop in ranges:
+            yield results.load_chunk(out, start, stop, run_key=run_key)
+
+    rows, timings = [], []
+    for chunk in chunks():
+        rows += chunk.rows
+        timings += chunk.timings
     results.write_metrics(out / "metrics.csv", rows, columns=columns, order=order)
-    results.write_timings(out / "timings.csv", [t for chunk in chunks for t in chunk.timings], order=order)
+    results.write_timings(out / "timings.csv", timings, order=order)
     for variant in job.variants:
         key = (variant.method, variant.point)
         write_captures(out, method=variant.method, point=variant.point,
-                       captures=[c for chunk in chunks for c in chunk.captures.get(key, [])])
+                       captures=[c for chunk in chunks() for c in chunk_captures(chunk, key)])
     write_casters(out, job.workload.scene.vertices, job.workload.scene.triangles)
     methods, points = results.summarize(rows, columns=columns, methods=[m.name for m in experiment.methods],
                                         points=[label for label, _ in experiment.points()])

@@ -61,7 +61,7 @@ __all__ = [
     "clear_chunks",
     "environment",
     "format_value",
-    "load_chunks",
+    "load_chunk",
     "prepare_output",
     "read_metrics",
     "read_summary",
@@ -330,20 +330,20 @@ def save_chunk(out_dir, result, *, run_key: str) -> Path:
     return write_atomic(_chunk_path(out_dir, result.start, result.stop), payload)
 
 
-def load_chunks(out_dir, *, run_key: str, ranges) -> dict:
-    """The kept chunks of ``run_key`` among ``ranges`` (``(start, stop)`` pairs), by range."""
-    found = {}
-    for start, stop in ranges:
-        path = _chunk_path(out_dir, start, stop)
-        if not path.is_file():
-            continue
-        try:
-            payload = pickle.loads(path.read_bytes())
-        except (pickle.UnpicklingError, EOFError, AttributeError, ImportError):
-            continue
-        if payload.get("run_key") == run_key:
-            found[(start, stop)] = payload["result"]
-    return found
+def load_chunk(out_dir, start: int, stop: int, *, run_key: str):
+    """The kept chunk ``[start, stop)`` of ``run_key``; None when there is none, it is unreadable or of another run.
+
+    One chunk at a time: a run keeps its finished chunks here rather than in memory, so that a long
+    path's results are streamed to disk and read back chunk by chunk.
+    """
+    path = _chunk_path(out_dir, start, stop)
+    if not path.is_file():
+        return None
+    try:
+        payload = pickle.loads(path.read_bytes())
+    except (pickle.UnpicklingError, EOFError, AttributeError, ImportError):
+        return None
+    return payload["result"] if payload.get("run_key") == run_key else None
 
 
 def clear_chunks(out_dir) -> None:

@@ -189,3 +189,26 @@ def test_a_chunk_runs_with_one_thread_in_every_library_pool(monkeypatch):
     assert {"openmp", "blas"} <= {pool["user_api"] for pool in pools}
     assert all(pool["num_threads"] == 1 for pool in pools)
     assert threads() == outside  # the caller's own settings come back afterwards
+
+
+def test_image_frames_are_every_frame_of_a_short_path_and_an_even_sample_of_a_long_one():
+    from csmlab.experiment import IMAGE_FRAMES, image_frames
+
+    assert image_frames(5) == frozenset(range(5)) and image_frames(IMAGE_FRAMES) == frozenset(range(IMAGE_FRAMES))
+    kept = sorted(image_frames(10_000))
+    assert len(kept) == IMAGE_FRAMES and kept[0] == 0 and kept[-1] == 9_999
+    assert np.ptp(np.diff(kept)) <= 1
+
+
+def test_a_long_path_keeps_metrics_of_every_frame_and_images_of_the_sample(tmp_path, monkeypatch):
+    import csmlab.experiment
+    from csmlab.report import write_report
+    from csmlab.report.capture import read_npz
+
+    monkeypatch.setattr(csmlab.experiment, "IMAGE_FRAMES", 3)
+    run, out = run_tiny(tmp_path, "long")
+    assert sorted({int(r["frame"]) for r in rows_of(out)}) == list(range(6))
+    for method in ("exact", "none"):
+        assert read_npz(out / "anim" / f"{method}__base.npz")["frame"].tolist() == [0, 2, 5]
+    write_report(out)
+    assert (out / "index.html").is_file()

@@ -23,7 +23,7 @@ def test_cost_summary_of_a_frame():
                               settings=settings)
     zeros3 = np.zeros((2, 2, 3), np.float32)
     gbuffer = GBuffer(hits=CameraHits(position=np.zeros((2, 2, 3)), normal=zeros3, triangle=np.zeros((2, 2), np.int32),
-                                      view_depth=np.ones((2, 2), np.float32), dpdx=zeros3, dpdy=zeros3),
+                                      view_depth=np.ones((2, 2), np.float32)),
                       albedo=zeros3)
     view = View(index=0, pose=pose, light_direction=np.array([0.0, -1.0, 0.0]), gbuffer=gbuffer,
                 reference=np.ones((2, 2), np.float32), timings={"visibility": 0.5, "reference": 0.25})

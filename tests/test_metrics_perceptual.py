@@ -35,8 +35,7 @@ def _grey_frame(lit, *, grey=0.5):
     valid = np.isfinite(lit)
     gbuffer = GBuffer(hits=CameraHits(
         position=np.zeros((height, width, 3)), normal=np.broadcast_to(np.float32([0, 1, 0]), (height, width, 3)),
-        triangle=np.where(valid, 0, -1).astype(np.int32), view_depth=np.full((height, width), 10.0, np.float32),
-        dpdx=np.zeros((height, width, 3), np.float32), dpdy=np.zeros((height, width, 3), np.float32)),
+        triangle=np.where(valid, 0, -1).astype(np.int32), view_depth=np.full((height, width), 10.0, np.float32)),
         albedo=np.full((height, width, 3), grey, np.float32),
     )
     view = View(index=1, pose=pose, light_direction=LIGHT_DOWN, gbuffer=gbuffer, reference=lit.astype(np.float32))

@@ -26,7 +26,7 @@ def _frame(lit, reference):
     zeros3 = np.zeros((height, width, 3), np.float32)
     gbuffer = GBuffer(hits=CameraHits(position=np.zeros((height, width, 3)), normal=zeros3,
                                       triangle=np.where(valid, 0, -1).astype(np.int32),
-                                      view_depth=np.ones((height, width), np.float32), dpdx=zeros3, dpdy=zeros3),
+                                      view_depth=np.ones((height, width), np.float32)),
                       albedo=zeros3)
     view = View(index=0, pose=pose, light_direction=LIGHT_DOWN, gbuffer=gbuffer, reference=reference.astype(np.float32))
     shadow = ShadowLookup(lit=lit.astype(np.float32), cascade=np.where(np.isfinite(lit), 0, -1).astype(np.int8),

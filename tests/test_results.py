@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from csmlab.errors import InputError
-from csmlab.results import (MetricRow, clear_chunks, format_value, load_chunks, prepare_output, read_metrics,
+from csmlab.results import (MetricRow, clear_chunks, format_value, load_chunk, prepare_output, read_metrics,
                             read_summary, save_chunk, summarize, write_atomic, write_metrics)
 
 
@@ -64,10 +64,10 @@ def test_chunks_are_kept_per_config_and_cleared(tmp_path):
     prepare_output(tmp_path, resolved_toml="x", run_key="aaa", resume=False)
     save_chunk(tmp_path, _Chunk(0, 3, "first"), run_key="aaa")
     save_chunk(tmp_path, _Chunk(3, 6, "second"), run_key="bbb")
-    found = load_chunks(tmp_path, run_key="aaa", ranges=[(0, 3), (3, 6), (6, 9)])
-    assert list(found) == [(0, 3)] and found[(0, 3)].payload == "first"
+    assert load_chunk(tmp_path, 0, 3, run_key="aaa").payload == "first"
+    assert load_chunk(tmp_path, 3, 6, run_key="aaa") is None and load_chunk(tmp_path, 6, 9, run_key="aaa") is None
     clear_chunks(tmp_path)
-    assert load_chunks(tmp_path, run_key="aaa", ranges=[(0, 3)]) == {}
+    assert load_chunk(tmp_path, 0, 3, run_key="aaa") is None
 
 
 def test_a_new_run_removes_finished_files_and_stale_chunks(tmp_path):
@@ -77,7 +77,7 @@ def test_a_new_run_removes_finished_files_and_stale_chunks(tmp_path):
         (tmp_path / name).write_text("old")
     prepare_output(tmp_path, resolved_toml="y", run_key="aaa", resume=False)
     assert not any((tmp_path / n).exists() for n in ("summary.json", "metrics.csv", "index.html"))
-    assert load_chunks(tmp_path, run_key="aaa", ranges=[(0, 3)]) == {}
+    assert load_chunk(tmp_path, 0, 3, run_key="aaa") is None
     assert (tmp_path / "config.resolved.toml").read_text() == "y"
 
 

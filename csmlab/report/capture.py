@@ -16,7 +16,8 @@ becoming ``_``):
     sorted by method, point, frame, cascade, so the file does not depend on the order in which
     method × point pairs were written, and writing a pair again replaces its rows.
 ``anim/<method>__<point>.npz``
-    The animation frames: ``frame`` (N,) int64, ``time_s`` (N,) float64, ``shadow`` and ``dS``
+    The animation frames (every frame of the run, or the even sample a long path keeps images of,
+    :data:`csmlab.experiment.IMAGE_FRAMES`): ``frame`` (N,) int64, ``time_s`` (N,) float64, ``shadow`` and ``dS``
     (N, h, w) uint8 — the lit fraction S and the per-pixel temporal change |ΔS|, block-reduced to
     at most :data:`ANIM_WIDTH` pixels wide (mean of S, max of |ΔS| so that one flickering pixel
     stays visible) and coded ``round(254 · v)``, with 255 where there is no value (no surface, or
@@ -104,8 +105,9 @@ class Capture:
         The camera pose's time stamp, seconds.
     cascades : ndarray, shape (C, 8), float64
         Per cascade, the columns :data:`CASCADE_COLUMNS`.
-    shadow, dS : ndarray, shape (h, w), uint8
-        Block-reduced lit fraction S and temporal change |ΔS|, coded as in the module docstring.
+    shadow, dS : ndarray, shape (h, w), uint8, or None
+        Block-reduced lit fraction S and temporal change |ΔS|, coded as in the module docstring;
+        None when the run keeps no images of this frame (a long path keeps an even sample).
     snapshot : dict of str to ndarray or None
         The snapshot file's arrays; None when the frame is not a snapshot frame.
     pixels : dict or None
@@ -116,8 +118,8 @@ class Capture:
     frame: int
     time_s: float
     cascades: np.ndarray
-    shadow: np.ndarray
-    dS: np.ndarray
+    shadow: np.ndarray | None
+    dS: np.ndarray | None
     snapshot: dict | None
     pixels: dict | None
 
@@ -145,7 +147,7 @@ def default_snapshot_frames(n_frames: int) -> list[int]:
 
 
 def capture_frame(frame: Frame, measures: "FrameMeasures", *, snapshot: bool,
-                  grid: WorldGrid | None = None) -> Capture:
+                  grid: WorldGrid | None = None, images: bool = True) -> Capture:
     """The report's record of one frame of one method.
 
     Parameters
@@ -161,21 +163,25 @@ def capture_frame(frame: Frame, measures: "FrameMeasures", *, snapshot: bool,
         The run's ground cells: also keep the interactive page's per-pixel record
         (:func:`csmlab.report.pixels.frame_pixels`; ``measures.pixels`` must then hold
         ``"flipped"`` and ``"shaded"``).
+    images : bool
+        Keep the animation frame and the per-pixel record; False keeps the cascade rows (and the
+        snapshot, when asked) only.
 
     Returns
     -------
     Capture
-        ``pixels`` is None without ``grid``, ``snapshot`` None without ``snapshot``.
+        ``pixels`` is None without ``grid`` or ``images``, ``shadow`` and ``dS`` None without
+        ``images``, ``snapshot`` None without ``snapshot``.
     """
     pixels = measures.pixels
     return Capture(
         frame=int(frame.view.index),
         time_s=float(frame.view.pose.time_s),
         cascades=_cascade_rows(frame),
-        shadow=_coded_u8(_block_mean(frame.shadow.lit)),
-        dS=_coded_u8(_block_max(np.abs(pixels["dS"]))),
+        shadow=_coded_u8(_block_mean(frame.shadow.lit)) if images else None,
+        dS=_coded_u8(_block_max(np.abs(pixels["dS"]))) if images else None,
         snapshot=_snapshot(frame, pixels) if snapshot else None,
-        pixels=None if grid is None else frame_pixels(frame, pixels, grid=grid),
+        pixels=frame_pixels(frame, pixels, grid=grid) if images and grid is not None else None,
     )
 
 
@@ -208,13 +214,14 @@ def write_captures(out_dir, *, method: str, point: str, captures: list[Capture])
     method, point : str
         The method's name and the sweep point's label, as in ``metrics.csv``.
     captures : list of Capture
-        :func:`capture_frame` records of consecutive frames, in frame order.
+        :func:`capture_frame` records of consecutive frames, in frame order; the animation and the
+        pixel record hold the frames that kept images.
 
     Raises
     ------
     ValueError
         If ``captures`` is empty, not in increasing frame order, mixes image sizes, or holds pixel
-        records for some frames only.
+        records for some of the frames that kept images only.
     """
     out = Path(out_dir)
     if not captures:
@@ -223,27 +230,31 @@ def write_captures(out_dir, *, method: str, point: str, captures: list[Capture])
     if np.any(np.diff(frames) <= 0):
         raise ValueError(f"captures of {method!r} at {point!r}: expected increasing frame numbers, "
                          f"got {frames.tolist()}")
-    shapes = {c.shadow.shape for c in captures}
-    if len(shapes) != 1:
+    imaged = [c for c in captures if c.shadow is not None]
+    shapes = {c.shadow.shape for c in imaged}
+    if len(shapes) > 1:
         raise ValueError(f"captures of {method!r} at {point!r}: expected one image size, got {sorted(shapes)}")
     stem = capture_stem(method, point)
     _merge_cascades_csv(out / "cascades.csv", method=method, point=point, captures=captures)
-    _write_npz(out / "anim" / f"{stem}.npz", {
-        "frame": frames,
-        "time_s": np.array([c.time_s for c in captures], dtype=np.float64),
-        "shadow": np.stack([c.shadow for c in captures]),
-        "dS": np.stack([c.dS for c in captures]),
-        "method": np.array(method),
-        "point": np.array(point),
-    })
-    kept = [c.pixels for c in captures if c.pixels is not None]
-    if kept and len(kept) != len(captures):
-        raise ValueError(f"captures of {method!r} at {point!r}: expected a pixel record for every frame or none, "
-                         f"got {len(kept)} of {len(captures)}")
+    (out / "anim" / f"{stem}.npz").unlink(missing_ok=True)
+    if imaged:
+        _write_npz(out / "anim" / f"{stem}.npz", {
+            "frame": np.array([c.frame for c in imaged], dtype=np.int64),
+            "time_s": np.array([c.time_s for c in imaged], dtype=np.float64),
+            "shadow": np.stack([c.shadow for c in imaged]),
+            "dS": np.stack([c.dS for c in imaged]),
+            "method": np.array(method),
+            "point": np.array(point),
+        })
+    kept = [c.pixels for c in imaged if c.pixels is not None]
+    if kept and len(kept) != len(imaged):
+        raise ValueError(f"captures of {method!r} at {point!r}: expected a pixel record for every frame with images "
+                         f"or none, got {len(kept)} of {len(imaged)}")
     (out / "pixels" / f"{stem}.npz").unlink(missing_ok=True)
     if kept:
-        _write_npz(out / "pixels" / f"{stem}.npz", {"frame": frames, "time_s": np.array(
-            [c.time_s for c in captures], dtype=np.float64), **stack_pixels(kept)})
+        _write_npz(out / "pixels" / f"{stem}.npz", {
+            "frame": np.array([c.frame for c in imaged], dtype=np.int64),
+            "time_s": np.array([c.time_s for c in imaged], dtype=np.float64), **stack_pixels(kept)})
     for stale in sorted((out / "snapshots").glob(f"{stem}__f*.npz")):
         stale.unlink()
     for c in captures:
