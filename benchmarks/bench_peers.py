@@ -1,7 +1,7 @@
 """csmlab's kernels beside Open3D's Embree ray caster on the same scene, cascades and rays.
 
     .venv/bin/python benchmarks/bench_peers.py [--sizes 136k,1m] [--resolutions 1024,2048]
-        [--width 640 --height 360] [--repeats 5] [--json bench.json] [--experiment] [--dask]
+        [--width 640 --height 360] [--repeats 5] [--json bench.json] [--experiment] [--dask] [--long]
 
 Per scene size (the ``terrain`` scene with its ground grid scaled to ~136k and ~1M triangles) and
 shadow-map resolution, at frame 60 of the default experiment's walk, it times:
@@ -21,7 +21,9 @@ minimum of ``--repeats`` runs after a warm-up (the machine is shared: the minimu
 disturbed). Open3D is optional (``pip install csmlab[bench]``); without it the peer columns print
 ``n/a``. ``--experiment`` also runs the default experiment (``csmlab run``) and reports its wall
 time and the peak RSS of its largest process; ``--dask`` runs a 240-frame walk of ``exact`` on a
-local Dask cluster of 1 and of 2 workers and reports the speed-up.
+local Dask cluster of 1 and of 2 workers and reports the speed-up; ``--long`` runs
+``benchmarks/long_walk.toml`` (two methods, a 64×36 view) for 1,000 and 10,000 frames and reports the
+peak RSS of each: a flat peak means nothing grows with the path.
 """
 
 from __future__ import annotations
@@ -29,7 +31,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import resource
 import subprocess
 import sys
 import tempfile
@@ -192,12 +193,19 @@ def bench_metrics(*, repeats: int) -> list[dict]:
     return out
 
 
+_MEASURED = ("import resource, subprocess, sys; subprocess.run(sys.argv[1:], check=True, stdout=subprocess.DEVNULL); "
+             "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)")
+"""Runs a command in a fresh process and prints the peak RSS (KiB) of its largest process, workers included:
+each command's peak is its own, not the largest of every command this benchmark ran."""
+
+
 def run_command(args: list[str]) -> dict:
     """Wall seconds of a command and the peak RSS (MiB) of its largest process."""
     start = time.perf_counter()
-    subprocess.run(args, check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
+    done = subprocess.run([sys.executable, "-c", _MEASURED, *args], check=True, cwd=ROOT, capture_output=True,
+                          text=True)
     wall = time.perf_counter() - start
-    return dict(wall_s=wall, peak_rss_mib=resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0)
+    return dict(wall_s=wall, peak_rss_mib=int(done.stdout.split()[-1]) / 1024.0)
 
 
 def bench_experiment() -> dict:
@@ -215,6 +223,18 @@ def bench_dask() -> dict:
     speedup = runs[1]["wall_s"] / runs[2]["wall_s"]
     return dict(one_worker_s=runs[1]["wall_s"], two_workers_s=runs[2]["wall_s"], speedup=speedup,
                 efficiency=speedup / 2.0, peak_rss_mib=max(r["peak_rss_mib"] for r in runs.values()))
+
+
+def bench_long(frames: tuple[int, ...] = (1000, 10000)) -> list[dict]:
+    """Peak RSS and wall time of ``benchmarks/long_walk.toml`` (a small view) at each path length."""
+    experiment = ROOT / "benchmarks" / "long_walk.toml"
+    runs = []
+    for count in frames:
+        with tempfile.TemporaryDirectory() as out:
+            run = run_command([sys.executable, "-m", "csmlab.cli", "run", str(experiment), "--out", out,
+                               "--frames", str(count)])
+        runs.append(dict(frames=count, **run))
+    return runs
 
 
 def _ms(seconds: float) -> str:
@@ -248,6 +268,8 @@ def main() -> None:
     parser.add_argument("--no-metrics", action="store_true", help="skip the per-method metrics rows")
     parser.add_argument("--experiment", action="store_true", help="also time the default experiment (csmlab run)")
     parser.add_argument("--dask", action="store_true", help="also time 1 vs 2 local Dask workers on 240 frames")
+    parser.add_argument("--long", action="store_true",
+                        help="also measure the peak RSS of a 1,000- and a 10,000-frame walk (small view; ~6 min)")
     args = parser.parse_args()
     sizes = [s.strip() for s in args.sizes.split(",")]
     if any(s not in SIZES for s in sizes):
@@ -284,6 +306,11 @@ def main() -> None:
         d = result["dask"]
         print(f"dask 240 frames: 1 worker {d['one_worker_s']:.1f} s, 2 workers {d['two_workers_s']:.1f} s, "
               f"speed-up {d['speedup']:.2f}x (efficiency {d['efficiency']:.0%}), peak RSS {d['peak_rss_mib']:.0f} MiB")
+    if args.long:
+        result["long"] = bench_long()
+        for run in result["long"]:
+            print(f"long walk {run['frames']:,} frames: {run['wall_s']:.1f} s wall, "
+                  f"peak RSS {run['peak_rss_mib']:.0f} MiB")
     if args.json:
         args.json.write_text(json.dumps(result, indent=1, default=float))
 
