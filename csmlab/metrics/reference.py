@@ -24,7 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import distance_transform_edt
+from scipy.spatial import cKDTree
 
 from csmlab.frame import Frame
 
@@ -83,7 +83,11 @@ def mean_boundary_distance(a, b) -> float:
         return 0.0
     if not a.any() or not b.any():
         return float("nan")
-    distances = np.concatenate([distance_transform_edt(~b)[a], distance_transform_edt(~a)[b]])
+    # Nearest-neighbour queries between the two pixel sets (a k-d tree of each), not a distance
+    # transform of the whole image per set: the same exact distances, √(integer), from the
+    # boundaries' few thousand pixels instead of every pixel of the image.
+    pa, pb = np.argwhere(a), np.argwhere(b)
+    distances = np.concatenate([cKDTree(pb).query(pa)[0], cKDTree(pa).query(pb)[0]])
     return float(np.mean(distances, dtype=np.float64))
 
 
