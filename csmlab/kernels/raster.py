@@ -44,6 +44,35 @@ def edge_inside(e: wp.float64, owns: bool) -> bool:
 
 
 @wp.func
+def owned_bias(owns: bool) -> wp.float64:
+    """The bound an exact integer edge function must exceed: −½ (≥ 0) for an owning edge, else 0."""
+    if owns:
+        return wp.float64(-0.5)
+    return wp.float64(0.0)
+
+
+@wp.func
+def run_bounds(w: wp.float64, step: wp.float64, bias: wp.float64, start: wp.float64, lo: wp.float64,
+               hi: wp.float64):
+    """``[lo, hi]`` (texel columns, whole numbers in float64) narrowed to where ``w − step·(i − start) > bias`` may hold.
+
+    ``w`` is the edge function at column ``start``. The bound comes from one correctly rounded
+    division, ``⌊(w − bias) / step⌋``, which can only err outward, and is widened by a column on
+    the upper side against the rounding of ``w − bias`` itself.
+    """
+    if step == wp.float64(0.0):
+        if not (w > bias):
+            hi = lo - wp.float64(1.0)
+        return lo, hi
+    q = wp.floor((w - bias) / step)
+    if step > wp.float64(0.0):
+        hi = wp.min(hi, start + q + wp.float64(1.0))
+    else:
+        lo = wp.max(lo, start + q)
+    return lo, hi
+
+
+@wp.func
 def first_centre(lo: wp.int64, unit: wp.int64, bits: wp.int64, resolution: int) -> int:
     """First texel whose centre, ``(2k + 1)·unit`` in doubled units, is at or above ``lo`` (clamped to the map).
 
@@ -124,6 +153,11 @@ def rasterize_triangle(
     step_a = wp.float64(cy - by) * wp.float64(step)
     step_b = wp.float64(ay - cy) * wp.float64(step)
     count = int(0)
+    # With exact integer edge functions, "inside or owned" is one comparison against a bias:
+    # e > 0, or e ≥ 0 (e > −½) where the edge owns its centres.
+    bias_ab = owned_bias(own_ab)
+    bias_bc = owned_bias(own_bc)
+    bias_ca = owned_bias(own_ca)
     for j in range(j0, j1 + 1):
         py = (two * wp.int64(j) + wp.int64(1)) * unit
         row_ab = wp.float64(bx - ax) * wp.float64(py - ay)
@@ -133,25 +167,41 @@ def rasterize_triangle(
         w_c = row_ab - wp.float64(by - ay) * wp.float64(px - ax)
         w_a = row_bc - wp.float64(cy - by) * wp.float64(px - bx)
         w_b = row_ca - wp.float64(ay - cy) * wp.float64(px - cx)
-        entered = bool(False)
-        for i in range(i0, i1 + 1):
-            if not stepped:
+        if stepped:
+            # Each edge function falls by its step per texel, so the centres inside form one run;
+            # its ends, solved from the three edges (widened by a texel against rounding), bound
+            # the walk, and the exact test below decides every centre in it.
+            start = wp.float64(i0)
+            lo = start
+            hi = wp.float64(i1)
+            lo, hi = run_bounds(w_c, step_c, bias_ab, start, lo, hi)
+            lo, hi = run_bounds(w_a, step_a, bias_bc, start, lo, hi)
+            lo, hi = run_bounds(w_b, step_b, bias_ca, start, lo, hi)
+            if lo <= hi:
+                first = int(lo)
+                last = int(hi)
+                skip = lo - start
+                w_c = w_c - step_c * skip
+                w_a = w_a - step_a * skip
+                w_b = w_b - step_b * skip
+                for i in range(first, last + 1):
+                    if w_c > bias_ab and w_a > bias_bc and w_b > bias_ca:
+                        z = (w_a * za + w_b * zb + w_c * zc) / area
+                        wp.atomic_min(depth, c, j, i, wp.float32(z))
+                        count += 1
+                    w_c = w_c - step_c
+                    w_a = w_a - step_a
+                    w_b = w_b - step_b
+        else:
+            for i in range(i0, i1 + 1):
                 px = (two * wp.int64(i) + wp.int64(1)) * unit
                 w_c = row_ab - wp.float64(by - ay) * wp.float64(px - ax)
                 w_a = row_bc - wp.float64(cy - by) * wp.float64(px - bx)
                 w_b = row_ca - wp.float64(ay - cy) * wp.float64(px - cx)
-            if edge_inside(w_c, own_ab) and edge_inside(w_a, own_bc) and edge_inside(w_b, own_ca):
-                z = (w_a * za + w_b * zb + w_c * zc) / area
-                wp.atomic_min(depth, c, j, i, wp.float32(z))
-                count += 1
-                entered = True
-            elif entered and stepped:
-                # Exact edge functions are linear along the row, so the centres inside form one
-                # run: past its end no centre of this row is covered.
-                break
-            w_c = w_c - step_c
-            w_a = w_a - step_a
-            w_b = w_b - step_b
+                if edge_inside(w_c, own_ab) and edge_inside(w_a, own_bc) and edge_inside(w_b, own_ca):
+                    z = (w_a * za + w_b * zb + w_c * zc) / area
+                    wp.atomic_min(depth, c, j, i, wp.float32(z))
+                    count += 1
     return count
 
 
