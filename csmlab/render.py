@@ -28,7 +28,7 @@ from csmlab.quads import Quads, quad_lanes
 from csmlab.scene.core import Scene
 from csmlab.settings import ShadowSettings
 from csmlab.storage import stored_depth
-from csmlab.texels import (fixed_point_coordinates, fixed_point_origin, light_depth, light_plane_coordinates, light_space,
+from csmlab.texels import (fixed_point_coordinates, fixed_point_origin, light_depth, light_plane_coordinates,
                            receiver_lookup)
 
 __all__ = ["DeviceScene", "clipped_casters", "faded", "lookup_shadow", "prepare_scene", "render_frame", "render_shadow",
@@ -225,20 +225,20 @@ def clipped_casters(depth: np.ndarray, triangles: np.ndarray, *, near: float) ->
     return triangles[depth[triangles].max(axis=1) >= near]
 
 
-def _receiver_coordinates(cascades: CascadeSet, points: np.ndarray, normals: np.ndarray, *, settings: ShadowSettings,
-                          device: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Receivers' fixed-point coordinates ``(C, N, 2)``, biased depths ``(C, N)`` and slopes ``(C, N, 2)``.
+def _receiver_coordinates(cascades: CascadeSet, points: np.ndarray, normals: np.ndarray, receivers: np.ndarray, *,
+                          settings: ShadowSettings, device: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Fixed-point coordinates ``(C, N, 2)``, biased depths ``(C, N)`` and slopes ``(C, N, 2)`` of ``points[receivers]``.
 
-    :func:`csmlab.texels.receiver_lookup`; in float64 its per-cascade part runs in a kernel (the same
-    bits), an engine's float32 cascade math (``engine_precision``) runs on the host.
+    :func:`csmlab.texels.receiver_lookup`; in float64 it runs in a kernel (the same bits), an
+    engine's float32 cascade math (``engine_precision``) runs on the host.
     """
     bits = settings.subtexel_bits
     if settings.engine_precision != "float64":
-        return receiver_lookup(cascades, points, normals, bits=bits, normal_offset=settings.normal_offset,
-                               bias_constant=settings.bias_constant, bias_slope=settings.bias_slope,
-                               precision=settings.engine_precision)
+        return receiver_lookup(cascades, points[receivers], normals[receivers], bits=bits,
+                               normal_offset=settings.normal_offset, bias_constant=settings.bias_constant,
+                               bias_slope=settings.bias_slope, precision=settings.engine_precision)
     return receiver_coordinates(
-        light_space(cascades, points), light_space(cascades, normals.astype(np.float64)),
+        points, normals, basis=cascades.basis, receivers=receivers,
         texel_size=np.stack([c.texel_size for c in cascades.cascades]),
         origin=np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]),
         zref=cascades.zref, bits=bits, normal_offset=settings.normal_offset, bias_constant=settings.bias_constant,
@@ -290,7 +290,7 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
     receivers = np.flatnonzero(np.all(np.isfinite(p.reshape(-1, 3)), axis=1) & ~np.isnan(flat_z))
     cascades = maps.cascades
     coordinates, receiver_depth, receiver_slope = _receiver_coordinates(
-        cascades, p.reshape(-1, 3)[receivers], n.reshape(-1, 3)[receivers], settings=settings, device=device)
+        cascades, p.reshape(-1, 3), n.reshape(-1, 3), receivers, settings=settings, device=device)
     if pixels is None and p.ndim == 3 and uses_pixels(settings):
         rows, cols = np.indices(p.shape[:2])
         pixels = np.stack([cols, rows], axis=-1)
@@ -302,7 +302,8 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
         # The lanes go through the same coordinates as their centre (same precision, same grid), so
         # their differences are the quad's derivatives.
         lane_coords, lane_depth, _ = _receiver_coordinates(
-            cascades, lane_points, np.repeat(n.reshape(-1, 3)[receivers], 4, axis=0), settings=settings, device=device)
+            cascades, lane_points, np.repeat(n.reshape(-1, 3)[receivers], 4, axis=0), np.arange(len(lane_points)),
+            settings=settings, device=device)
         count = len(cascades)
         lanes = (lane_coords.reshape(count, -1, 4, 2), lane_depth.reshape(count, -1, 4),
                  np.asarray(quad_view_depth, dtype=np.float64).reshape(-1, 4)[receivers],

@@ -21,7 +21,7 @@ from csmlab.cascades import CascadeSet
 from csmlab.registry import check_name
 
 __all__ = ["PRECISION_METHODS", "fixed_point_coordinates", "fixed_point_origin", "light_depth",
-           "light_plane_coordinates", "light_space", "receiver_lookup", "texel_coordinates"]
+           "light_plane_coordinates", "receiver_lookup", "texel_coordinates"]
 
 PRECISION_METHODS: dict[str, str] = {
     "float64": "global texel coordinates in float64, less an integer origin: world-locked at any distance",
@@ -45,19 +45,14 @@ _MAX_TAN = 10.0
 def _light_space(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """``points (..., 3)`` projected on each of ``rows (K, 3)``: ``(..., K)`` float64.
 
-    A plain loop (einsum) rather than a BLAS product: BLAS threads spin when the process pool
-    already keeps every core busy, which made this 40 times slower.
+    Summed as ``(x·r_x + z·r_z) + y·r_y``, one rounding per operation, stated so that the receiver
+    kernel (:func:`csmlab.kernels.shadow.receiver_coordinates`) can repeat it bit for bit (it is
+    also the order NumPy's einsum used here before). Elementwise rather than a BLAS product: BLAS
+    threads spin when the process pool already keeps every core busy, and fused multiply-adds
+    would change the bits.
     """
-    return np.einsum("...k,jk->...j", points, rows)
-
-
-def light_space(cascades: CascadeSet, points) -> np.ndarray:
-    """Light-space ``(..., 3)`` float64 of world points or directions ``(..., 3)``: x, y metres and ``d·X``.
-
-    The product :func:`receiver_lookup` starts from (the same operations in the same order), for
-    kernels that finish the lookup's conversion on the device.
-    """
-    return _light_space(np.asarray(points, dtype=np.float64), cascades.basis)
+    x, y, z = points[..., 0, None], points[..., 1, None], points[..., 2, None]
+    return (x * rows[:, 0] + z * rows[:, 2]) + y * rows[:, 1]
 
 
 def light_plane_coordinates(cascades: CascadeSet, points) -> np.ndarray:

@@ -219,7 +219,7 @@ def test_receiver_coordinates_on_the_device_equal_the_host_receiver_lookup_bit_f
     from csmlab.cascades import Cascade, CascadeSet
     from csmlab.geometry import light_basis
     from csmlab.kernels.shadow import receiver_coordinates
-    from csmlab.texels import fixed_point_origin, light_space, receiver_lookup
+    from csmlab.texels import fixed_point_origin, receiver_lookup
 
     rng = np.random.default_rng(5)
     cascades = tuple(Cascade(split_near=0.1, split_far=50.0, slice_near=0.1, slice_far=50.0,
@@ -235,10 +235,15 @@ def test_receiver_coordinates_on_the_device_equal_the_host_receiver_lookup_bit_f
         expected = receiver_lookup(cs, points, normals, bits=bits, normal_offset=offset, bias_constant=constant,
                                    bias_slope=slope)
         got = receiver_coordinates(
-            light_space(cs, points), light_space(cs, normals.astype(np.float64)),
-            texel_size=np.stack([c.texel_size for c in cs.cascades]),
+            points, normals, basis=cs.basis, texel_size=np.stack([c.texel_size for c in cs.cascades]),
             origin=np.stack([fixed_point_origin(cs, c, bits=bits) for c in range(len(cs))]), zref=cs.zref, bits=bits,
             normal_offset=offset, bias_constant=constant, bias_slope=slope)
         assert np.isnan(expected[1]).any()
         for e, g in zip(expected, got):
             np.testing.assert_array_equal(g, e)
+        picked = np.array([4999, 3, 3, 1200])
+        for e, g in zip(expected, receiver_coordinates(
+                points, normals, basis=cs.basis, texel_size=np.stack([c.texel_size for c in cs.cascades]),
+                origin=np.stack([fixed_point_origin(cs, c, bits=bits) for c in range(len(cs))]), zref=cs.zref,
+                bits=bits, normal_offset=offset, bias_constant=constant, bias_slope=slope, receivers=picked)):
+            np.testing.assert_array_equal(g, e[:, picked])

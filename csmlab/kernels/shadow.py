@@ -314,10 +314,18 @@ def fixed_point(u: wp.float64, to_fixed: wp.float64, limit: wp.float64) -> wp.in
     return wp.int64(v)
 
 
+@wp.func
+def light_space(v: wp.vec3d, basis: wp.mat33d, row: int) -> wp.float64:
+    """Component ``row`` of ``v`` in the light basis, summed as :func:`csmlab.texels.light_space` does."""
+    return (v[0] * basis[row, 0] + v[2] * basis[row, 2]) + v[1] * basis[row, 1]
+
+
 @wp.kernel
 def receiver_coordinates_kernel(
-    light_p: wp.array2d(dtype=wp.float64),
-    light_n: wp.array2d(dtype=wp.float64),
+    points: wp.array(dtype=wp.vec3d),
+    normals: wp.array(dtype=wp.vec3),
+    receivers: wp.array(dtype=wp.int32),
+    basis: wp.mat33d,
     texel_size: wp.array2d(dtype=wp.float64),
     to_fixed: wp.array2d(dtype=wp.float64),
     offset: wp.array(dtype=wp.float64),
@@ -338,12 +346,14 @@ def receiver_coordinates_kernel(
     # what depends on the cascade only (``to_fixed = 2**bits / texel_size``, the offset and slope
     # bias in metres) once for all receivers, by the wrapper.
     zero = wp.float64(0.0)
-    px = light_p[k, 0]
-    py = light_p[k, 1]
-    pz = light_p[k, 2]
-    nx = light_n[k, 0]
-    ny = light_n[k, 1]
-    nz = light_n[k, 2]
+    point = points[receivers[k]]
+    normal = wp.vec3d(normals[receivers[k]])
+    px = light_space(point, basis, 0)
+    py = light_space(point, basis, 1)
+    pz = light_space(point, basis, 2)
+    nx = light_space(normal, basis, 0)
+    ny = light_space(normal, basis, 1)
+    nz = light_space(normal, basis, 2)
     cos = -nz
     tan = wp.float64(wp.nan)
     plane_x = zero
@@ -364,15 +374,19 @@ def receiver_coordinates_kernel(
         depth[c, k] = wp.float32(pz + moved * nz - zref - bias)
 
 
-def receiver_coordinates(light_points, light_normals, *, texel_size, origin, zref: float, bits: int,
-                         normal_offset: float, bias_constant: float, bias_slope: float,
+def receiver_coordinates(points, normals, *, basis, texel_size, origin, zref: float, bits: int, normal_offset: float,
+                         bias_constant: float, bias_slope: float, receivers=None,
                          device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`csmlab.texels.receiver_lookup` finished on the device, from light-space receivers.
+    """:func:`csmlab.texels.receiver_lookup` on the device, from world receivers.
 
     Parameters
     ----------
-    light_points, light_normals : array_like, shape (N, 3), float64
-        Receivers and their unit normals in light space (:func:`csmlab.texels.light_space`).
+    points : array_like, shape (M, 3), float64
+        World positions in metres.
+    normals : array_like, shape (M, 3), float32
+        Their unit normals.
+    basis : array_like, shape (3, 3), float64
+        The light basis (:attr:`csmlab.cascades.CascadeSet.basis`): rows x, y and the light direction.
     texel_size : array_like, shape (C, 2), float64
         Metres per texel of each cascade.
     origin : array_like, shape (C, 2), int64
@@ -383,33 +397,41 @@ def receiver_coordinates(light_points, light_normals, *, texel_size, origin, zre
         Sub-texel bits.
     normal_offset, bias_constant, bias_slope : float
         Texels, metres, texels (DESIGN.md ``[shadow]``).
+    receivers : array_like, shape (N,), integer, optional
+        The rows of ``points`` and ``normals`` that are receivers, in output order; None: all.
     device : str
 
     Returns
     -------
     coordinates, depth, slope
-        As :func:`csmlab.texels.receiver_lookup`, bit for bit: ``(C, N, 2)`` int64, ``(C, N)``
-        float32, ``(C, N, 2)`` float64.
+        As :func:`csmlab.texels.receiver_lookup` of the receivers, bit for bit: ``(C, N, 2)`` int64,
+        ``(C, N)`` float32, ``(C, N, 2)`` float64.
     """
     device = checked_device(device)
-    p = np.ascontiguousarray(light_points, dtype=np.float64)
-    n = np.ascontiguousarray(light_normals, dtype=np.float64)
+    p = np.ascontiguousarray(points, dtype=np.float64)
+    n = np.ascontiguousarray(normals, dtype=np.float32)
+    rows = np.ascontiguousarray(basis, dtype=np.float64)
     size = np.ascontiguousarray(texel_size, dtype=np.float64)
     corner = np.ascontiguousarray(origin, dtype=np.int64)
-    if p.ndim != 2 or p.shape[1] != 3 or n.shape != p.shape or size.ndim != 2 or size.shape[1] != 2 \
-            or corner.shape != size.shape:
-        raise ValueError(f"light_points, light_normals, texel_size, origin: expected shapes (N, 3), (N, 3), (C, 2), "
-                         f"(C, 2); got {p.shape}, {n.shape}, {size.shape}, {corner.shape}")
+    if p.ndim != 2 or p.shape[1] != 3 or n.shape != p.shape or rows.shape != (3, 3) or size.ndim != 2 \
+            or size.shape[1] != 2 or corner.shape != size.shape:
+        raise ValueError(f"points, normals, basis, texel_size, origin: expected shapes (M, 3), (M, 3), (3, 3), (C, 2), "
+                         f"(C, 2); got {p.shape}, {n.shape}, {rows.shape}, {size.shape}, {corner.shape}")
+    index = np.arange(p.shape[0], dtype=np.int32) if receivers is None else np.ascontiguousarray(receivers, np.int32)
+    if index.ndim != 1 or (index.size and (index.min() < 0 or index.max() >= p.shape[0])):
+        raise ValueError(f"receivers: expected row indices in [0, {p.shape[0]}), got shape {index.shape}")
     texel = size.max(axis=1)
     moved = normal_offset * texel
-    shape = (size.shape[0], p.shape[0])
+    shape = (size.shape[0], index.shape[0])
     coords = wp.empty(shape + (2,), dtype=wp.int64, device=device)
     depth = wp.empty(shape, dtype=wp.float32, device=device)
     slope = wp.empty(shape + (2,), dtype=wp.float64, device=device)
-    if p.shape[0]:
-        wp.launch(receiver_coordinates_kernel, dim=p.shape[0],
-                  inputs=(wp.array(p, dtype=wp.float64, device=device, copy=False),
-                          wp.array(n, dtype=wp.float64, device=device, copy=False),
+    if index.shape[0]:
+        wp.launch(receiver_coordinates_kernel, dim=index.shape[0],
+                  inputs=(wp.array(p, dtype=wp.vec3d, device=device, copy=False),
+                          wp.array(n, dtype=wp.vec3, device=device, copy=False),
+                          wp.array(index, dtype=wp.int32, device=device, copy=False),
+                          wp.mat33d(*rows.reshape(-1)),
                           wp.array(size, dtype=wp.float64, device=device),
                           wp.array(float(2**bits) / size, dtype=wp.float64, device=device),
                           wp.array(moved, dtype=wp.float64, device=device),
