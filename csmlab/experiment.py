@@ -519,18 +519,25 @@ def _write_results(out: Path, experiment: Experiment, job: Job, ranges: list[tup
         for start, stop in ranges:
             yield results.load_chunk(out, start, stop, run_key=run_key)
 
-    rows, timings = [], []
-    for chunk in chunks():
-        rows += chunk.rows
-        timings += chunk.timings
-    results.write_metrics(out / "metrics.csv", rows, columns=columns, order=order)
-    results.write_timings(out / "timings.csv", timings, order=order)
+    # One variant at a time, read back from the chunks on disk: its rows (written, then kept as
+    # arrays for the summary) and its captures, so that nothing of a long path is whole in memory.
+    arrays = {}
+
+    def variant_rows():
+        for variant in job.variants:
+            key = (variant.method, variant.point)
+            rows = [row for chunk in chunks() for row in chunk.rows if (row.method, row.point) == key]
+            arrays[key] = results.metric_arrays(rows, columns=columns)
+            yield rows
+
+    results.write_metrics(out / "metrics.csv", variant_rows(), columns=columns)
+    results.write_timings(out / "timings.csv", (chunk.timings for chunk in chunks()), order=order)
     for variant in job.variants:
         key = (variant.method, variant.point)
         write_captures(out, method=variant.method, point=variant.point,
                        captures=[c for chunk in chunks() for c in chunk_captures(chunk, key)])
     write_casters(out, job.workload.scene.vertices, job.workload.scene.triangles)
-    methods, points = results.summarize(rows, columns=columns, methods=[m.name for m in experiment.methods],
+    methods, points = results.summarize(arrays, columns=columns, methods=[m.name for m in experiment.methods],
                                         points=[label for label, _ in experiment.points()])
     summary = dict(name=experiment.name, config_hash=config_hash, workload_hash=job.workload.key, device=job.device,
                    frames=len(job.workload.path), config=experiment_document(experiment),

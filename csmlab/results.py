@@ -62,6 +62,7 @@ __all__ = [
     "environment",
     "format_value",
     "load_chunk",
+    "metric_arrays",
     "prepare_output",
     "read_metrics",
     "read_summary",
@@ -132,37 +133,50 @@ def format_value(value) -> str:
 def _csv_text(header, rows) -> str:
     text = io.StringIO()
     writer = csv.writer(text, lineterminator="\n")
-    writer.writerow(header)
+    if header is not None:
+        writer.writerow(header)
     writer.writerows(rows)
     return text.getvalue()
 
 
-def write_metrics(path, rows, *, columns, order: dict) -> Path:
-    """Write ``metrics.csv``.
+def write_metrics(path, blocks, *, columns) -> Path:
+    """Write ``metrics.csv`` from blocks of rows in file order, streamed.
 
     Parameters
     ----------
     path : str or Path
-    rows : iterable of MetricRow
+    blocks : iterable of lists of MetricRow
+        The rows in the order of the file — each variant's rows by frame, the variants in results
+        order — cut into blocks (a variant each, as :func:`csmlab.experiment.run_experiment` reads
+        them back from its chunks): each block is written before the next is asked for, so a long
+        path's rows are never all in memory.
     columns : sequence of str
         The metric columns, in order.
-    order : dict
-        ``(method, point)`` to its rank; rows are sorted by rank, then frame.
     """
-    ordered = sorted(rows, key=lambda r: (order[(r.method, r.point)], r.frame))
-    body = [[str(r.frame), format_value(r.time_s), r.method, r.point, *(format_value(r.values.get(c)) for c in columns)]
-            for r in ordered]
-    return write_atomic(path, _csv_text([*KEY_COLUMNS, *columns], body))
+    def pieces():
+        yield _csv_text([*KEY_COLUMNS, *columns], [])
+        for block in blocks:
+            yield _csv_text(None, [[str(r.frame), format_value(r.time_s), r.method, r.point,
+                                    *(format_value(r.values.get(c)) for c in columns)] for r in block])
+
+    return write_atomic(path, pieces())
 
 
-def write_timings(path, rows, *, order: dict) -> Path:
-    """Write ``timings.csv`` from :class:`TimingRow` rows, by frame then variant rank.
+def write_timings(path, blocks, *, order: dict) -> Path:
+    """Write ``timings.csv`` from blocks of :class:`TimingRow` (a chunk's each, in frame order), streamed.
 
-    ``order`` maps ``(method, point)`` to its rank; the shared stages (``("", "")``) come first.
+    Rows are sorted by frame then variant rank within each block — the file's order, as long as the
+    blocks cover increasing frame ranges. ``order`` maps ``(method, point)`` to its rank; the shared
+    stages (``("", "")``) come first.
     """
-    ordered = sorted(rows, key=lambda r: (r.frame, order.get((r.method, r.point), -1)))
-    body = [[str(r.frame), r.method, r.point, r.stage, repr(float(r.seconds))] for r in ordered]
-    return write_atomic(path, _csv_text(TIMING_COLUMNS, body))
+    def pieces():
+        yield _csv_text(TIMING_COLUMNS, [])
+        for block in blocks:
+            ordered = sorted(block, key=lambda r: (r.frame, order.get((r.method, r.point), -1)))
+            yield _csv_text(None, [[str(r.frame), r.method, r.point, r.stage, repr(float(r.seconds))]
+                                   for r in ordered])
+
+    return write_atomic(path, pieces())
 
 
 def read_metrics(path) -> tuple[list[str], list[dict]]:
@@ -176,19 +190,28 @@ def _value(mean: float) -> float | None:
     return None if math.isnan(mean) else mean
 
 
-def _aggregate(rows, columns) -> dict:
-    frames = sorted({r.frame for r in rows})
-    out = {c: _value(finite_mean([r.values.get(c) for r in rows])) for c in columns}
-    out["frames"] = len(frames)
+def metric_arrays(rows, *, columns) -> dict[str, np.ndarray]:
+    """One variant's rows as arrays: ``frame`` (N,) int64 and each metric column (N,) float64, NaN where empty."""
+    nan = float("nan")
+    values = np.array([[nan if r.values.get(c) is None else r.values[c] for c in columns] for r in rows],
+                      dtype=np.float64).reshape(len(rows), len(columns))
+    return {"frame": np.array([r.frame for r in rows], dtype=np.int64),
+            **{c: values[:, k] for k, c in enumerate(columns)}}
+
+
+def _aggregate(arrays: list[dict], columns) -> dict:
+    out = {c: _value(finite_mean(np.concatenate([a[c] for a in arrays]) if arrays else [])) for c in columns}
+    out["frames"] = len(np.unique(np.concatenate([a["frame"] for a in arrays]))) if arrays else 0
     return out
 
 
-def summarize(rows, *, columns, methods, points) -> tuple[dict, dict]:
+def summarize(variants: dict, *, columns, methods, points) -> tuple[dict, dict]:
     """The ``methods`` and ``points`` aggregates of ``summary.json``.
 
     Parameters
     ----------
-    rows : list of MetricRow
+    variants : dict of (method, point) to dict of str to ndarray
+        Each variant's :func:`metric_arrays`, frames in order.
     columns : sequence of str
         The metric columns.
     methods, points : sequence of str
@@ -201,12 +224,10 @@ def summarize(rows, *, columns, methods, points) -> tuple[dict, dict]:
     points : dict
         ``{point: {method: {…}}}``.
     """
-    by_variant: dict = {}
-    for row in sorted(rows, key=lambda r: r.frame):
-        by_variant.setdefault((row.method, row.point), []).append(row)
-    method_summary = {m: _aggregate([r for p in points for r in by_variant.get((m, p), [])], columns)
+    method_summary = {m: _aggregate([variants[(m, p)] for p in points if (m, p) in variants], columns)
                       for m in methods}
-    point_summary = {p: {m: _aggregate(by_variant.get((m, p), []), columns) for m in methods} for p in points}
+    point_summary = {p: {m: _aggregate([variants[(m, p)]] if (m, p) in variants else [], columns) for m in methods}
+                     for p in points}
     return method_summary, point_summary
 
 

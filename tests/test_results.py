@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from csmlab.errors import InputError
-from csmlab.results import (MetricRow, clear_chunks, format_value, load_chunk, prepare_output, read_metrics,
+from csmlab.results import (MetricRow, clear_chunks, format_value, load_chunk, metric_arrays, prepare_output, read_metrics,
                             read_summary, save_chunk, summarize, write_atomic, write_metrics)
 
 
@@ -20,16 +20,15 @@ def test_cells_round_trip_every_float_exactly():
                                                                                            "4194304"]
 
 
-def test_metrics_csv_is_sorted_by_variant_rank_then_frame_with_empty_nan(tmp_path):
-    order = {("b", "base"): 0, ("a", "base"): 1}
-    rows = [MetricRow(f, f / 30, m, "base", {"x": float(f), "y": math.nan}) for f in (2, 0, 1) for m in ("a", "b")]
-    write_metrics(tmp_path / "metrics.csv", rows, columns=("x", "y"), order=order)
+def test_metrics_csv_keeps_the_blocks_order_with_empty_nan_however_they_are_cut(tmp_path):
+    rows = {m: [MetricRow(f, f / 30, m, "base", {"x": float(f), "y": math.nan}) for f in range(3)] for m in "ab"}
+    write_metrics(tmp_path / "metrics.csv", (rows[m] for m in "ba"), columns=("x", "y"))
     header, read = read_metrics(tmp_path / "metrics.csv")
     assert header == ["frame", "time_s", "method", "point", "x", "y"]
     assert [(r["method"], r["frame"]) for r in read] == [(m, str(f)) for m in "ba" for f in range(3)]
-    assert all(r["y"] == "" for r in read)
-    shuffled = list(reversed(rows))
-    write_metrics(tmp_path / "again.csv", shuffled, columns=("x", "y"), order=order)
+    assert all(r["y"] == "" for r in read) and [float(r["x"]) for r in read] == [0.0, 1.0, 2.0] * 2
+    cut = [rows["b"][:1], rows["b"][1:], [], rows["a"]]
+    write_metrics(tmp_path / "again.csv", iter(cut), columns=("x", "y"))
     assert (tmp_path / "again.csv").read_bytes() == (tmp_path / "metrics.csv").read_bytes()
 
 
@@ -37,9 +36,9 @@ def test_summary_means_ignore_nan_and_match_numpy():
     rng = np.random.default_rng(3)
     values = rng.uniform(size=(6, 2))
     values[0, 0] = np.nan
-    rows = [MetricRow(f, 0.0, m, p, {"x": values[f, 0], "y": np.nan}) for f in range(6) for m, p in [("m", "p1")]]
-    rows += [MetricRow(f, 0.0, "m", "p2", {"x": values[f, 1], "y": np.nan}) for f in range(6)]
-    methods, points = summarize(rows, columns=("x", "y"), methods=["m"], points=["p1", "p2"])
+    variants = {("m", p): metric_arrays([MetricRow(f, 0.0, "m", p, {"x": values[f, k], "y": np.nan}) for f in range(6)],
+                                        columns=("x", "y")) for k, p in enumerate(("p1", "p2"))}
+    methods, points = summarize(variants, columns=("x", "y"), methods=["m"], points=["p1", "p2"])
     assert points["p1"]["m"]["x"] == pytest.approx(np.nanmean(values[:, 0]), rel=1e-15)
     assert methods["m"]["x"] == pytest.approx(np.nanmean(values), rel=1e-15)
     assert methods["m"]["y"] is None and methods["m"]["frames"] == 6
