@@ -43,6 +43,9 @@ NEAR_FRACTION = 1e-9
 """The raster's near plane as a fraction of ``far``: hits nearer to the eye (in view depth) are not
 rasterized — triangles crossing the camera plane are clipped there to bound the pixels they cover."""
 
+MARGIN = wp.constant(wp.float64(1e-3))
+"""Pixels by which the raster grows a triangle's projected bounding box against rounding."""
+
 NO_TRIANGLE = wp.constant(2**31 - 1)
 """A pixel's nearest triangle before any covers it (larger than every index, for the atomic minimum)."""
 
@@ -368,16 +371,17 @@ def raster_view_kernel(
     box = clipped_bounds(a, b, near, box)
     box = clipped_bounds(b, c, near, box)
     box = clipped_bounds(c, a, near, box)
-    # Columns and rows whose centre may lie in the box, one pixel wider on each side than the
-    # projection's rounding could need; the exact test below decides.
+    # Columns and rows whose centre lies in the box grown by a thousandth of a pixel, far more
+    # than the projection's rounding: a triangle between centres (the distant terrain's, mostly)
+    # returns here. The exact test below decides for the others.
     half = wp.float64(0.5)
     w = wp.float64(width)
     h = wp.float64(height)
     limit = wp.float64(2.0) + wp.max(w, h)
-    col0 = wp.max(int(wp.floor(wp.clamp(box[0] / step_x + half * w - half, -limit, limit))), 0)
-    col1 = wp.min(int(wp.ceil(wp.clamp(box[1] / step_x + half * w - half, -limit, limit))), width - 1)
-    row0 = wp.max(int(wp.floor(wp.clamp(half * h - half - box[3] / step_y, -limit, limit))), 0)
-    row1 = wp.min(int(wp.ceil(wp.clamp(half * h - half - box[2] / step_y, -limit, limit))), height - 1)
+    col0 = wp.max(int(wp.ceil(wp.clamp(box[0] / step_x + half * w - half - MARGIN, -limit, limit))), 0)
+    col1 = wp.min(int(wp.floor(wp.clamp(box[1] / step_x + half * w - half + MARGIN, -limit, limit))), width - 1)
+    row0 = wp.max(int(wp.ceil(wp.clamp(half * h - half - box[3] / step_y - MARGIN, -limit, limit))), 0)
+    row1 = wp.min(int(wp.floor(wp.clamp(half * h - half - box[2] / step_y + MARGIN, -limit, limit))), height - 1)
     if col0 > col1 or row0 > row1:
         return
     # The ray through a centre meets the triangle when it lies on the inner side of the three
