@@ -6,7 +6,8 @@
 Per scene size (the ``terrain`` scene with its ground grid scaled to ~136k and ~1M triangles) and
 shadow-map resolution, at frame 60 of the default experiment's walk, it times:
 
-- ``gbuffer``: csmlab's camera G-buffer (first hit, position, normal, differentials) against
+- ``gbuffer raster`` and ``gbuffer ray``: csmlab's camera G-buffer (first hit, position, normal) by
+  each of :data:`csmlab.kernels.visibility.VISIBILITY_METHODS`, both against one measurement of
   Open3D ``RaycastingScene.cast_rays`` on the same pixel-centre rays;
 - ``shadow rays``: csmlab's ray-traced reference against ``test_occlusions`` on the same rays
   (visible points facing the light, toward the light);
@@ -49,7 +50,7 @@ from csmlab.cascades import build_cascades
 from csmlab.config import load_experiment
 from csmlab.experiment import build_workload
 from csmlab.kernels.reference import RAY_OFFSET, hard_shadow
-from csmlab.kernels.visibility import camera_hits
+from csmlab.kernels.visibility import VISIBILITY_METHODS, camera_hits
 from csmlab.metrics import measure_frame
 from csmlab.render import lookup_shadow, prepare_scene, render_shadow, render_view, shadow_maps
 from csmlab.scene import make_scene
@@ -146,11 +147,14 @@ def bench_kernels(label: str, resolution: int, *, width: int, height: int, repea
     pixels = width * height
     occluders = shadow_rays(view, anchor, dscene.bvh.diagonal)
     b = dscene.bvh
+    camera_peer = peer_times(rc, pixel_rays(pose, width, height, anchor), repeats, occlusion=False)
     rows = [
-        ("gbuffer", pixels, "Mrays/s",
-         lambda: camera_hits(b, position=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg,
-                             aspect=pose.aspect, far=pose.far, width=width, height=height),
-         lambda: peer_times(rc, pixel_rays(pose, width, height, anchor), repeats, occlusion=False)),
+        (f"gbuffer {method}", pixels, "Mrays/s",
+         lambda method=method: camera_hits(b, position=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg,
+                                           aspect=pose.aspect, far=pose.far, width=width, height=height, method=method),
+         lambda: camera_peer)
+        for method in VISIBILITY_METHODS
+    ] + [
         ("shadow rays", len(occluders), "Mrays/s",
          lambda: hard_shadow(b, points=g.position, normals=g.normal, light_direction=light),
          lambda: peer_times(rc, occluders, repeats, occlusion=True)),

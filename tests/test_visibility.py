@@ -1,4 +1,5 @@
-"""Camera G-buffer against analytic ray casts on ``plane_box`` (a plane and an axis-aligned box)."""
+"""Camera G-buffer of both methods against analytic ray casts on ``plane_box`` (a plane and an axis-aligned
+box) and NumPy brute force, and the raster against the ray cast (its independent float32 oracle)."""
 
 import numpy as np
 import pytest
@@ -6,8 +7,8 @@ import warp as wp
 
 from csmlab.camera import CameraPose
 from csmlab.geometry import rotation_looking_at
-from csmlab.kernels.visibility import camera_hits, mesh_bvh
-from csmlab.scene import Scene
+from csmlab.kernels.visibility import VISIBILITY_METHODS, camera_hits, camera_hits_raster, mesh_bvh
+from csmlab.scene import Scene, make_scene
 from csmlab.scene.plane_box import plane_box
 
 PLANE_HALF = 20.0
@@ -15,8 +16,11 @@ BOX_LO = np.array([-1.0, 0.0, -1.0])
 BOX_HI = np.array([1.0, 2.0, 1.0])
 
 
-def shifted_plane_box(offset) -> Scene:
-    s = plane_box(plane_size=2 * PLANE_HALF, box_size=2.0, box_height=2.0)
+METHODS = sorted(VISIBILITY_METHODS)
+
+
+def shifted_plane_box(offset, divisions: int = 1) -> Scene:
+    s = plane_box(plane_size=2 * PLANE_HALF, plane_divisions=divisions, box_size=2.0, box_height=2.0)
     return Scene(s.vertices + np.asarray(offset), s.triangles, s.normals, s.albedo, name=s.name)
 
 
@@ -54,15 +58,22 @@ def analytic_hits(origin, directions, offset):
     return t, surface, normal
 
 
-@pytest.mark.parametrize("offset", [(0.0, 0.0, 0.0), (1e5, 30.0, -2e5)], ids=["origin", "far"])
-def test_view_depth_equals_analytic_ray_plane_intersection(offset):
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("offset, eye, look, divisions", [
+    ((0.0, 0.0, 0.0), (6.0, 4.0, 9.0), (-6.0, -3.5, -9.0), 1),
+    ((1e5, 30.0, -2e5), (6.0, 4.0, 9.0), (-6.0, -3.5, -9.0), 1),
+    # Standing on a divided plane and looking ahead: the 10 m triangles under the eye cross the
+    # camera plane and fill the bottom of the image.
+    ((0.0, 0.0, 0.0), (0.3, 1.7, 4.7), (-0.1, -0.15, -1.0), 4),
+], ids=["origin", "far", "standing"])
+def test_view_depth_equals_analytic_ray_plane_intersection(method, offset, eye, look, divisions):
     width, height = 64, 40
-    eye = np.array([6.0, 4.0, 9.0]) + offset
-    pose = CameraPose(position=eye, orientation=rotation_looking_at(np.array([-6.0, -3.5, -9.0])),
-                      aspect=width / height, far=100.0)
-    bvh = mesh_bvh(shifted_plane_box(offset).vertices, shifted_plane_box(offset).triangles)
-    hits = camera_hits(bvh, position=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg,
-                       aspect=pose.aspect, far=pose.far, width=width, height=height)
+    eye = np.array(eye) + offset
+    pose = CameraPose(position=eye, orientation=rotation_looking_at(np.array(look)), aspect=width / height, far=100.0)
+    scene = shifted_plane_box(offset, divisions)
+    hits = camera_hits(mesh_bvh(scene.vertices, scene.triangles), position=pose.position, rotation=pose.rotation,
+                       fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, far=pose.far, width=width, height=height,
+                       method=method)
     directions = pixel_rays(pose, width, height)
     t, surface, normal = analytic_hits(eye, directions, offset)
     # Pixels whose ray passes within a thousandth of a pixel of a silhouette are not compared.
@@ -83,38 +94,210 @@ def test_view_depth_equals_analytic_ray_plane_intersection(offset):
     missed = robust & ~hit
     assert np.all(np.isnan(hits.position[missed])) and np.all(hits.view_depth[missed] == np.inf)
     assert np.all(hits.normal[missed] == 0) and np.all(hits.triangle[missed] == -1)
+    if divisions > 1:
+        depth = (scene.vertices - eye) @ pose.forward
+        crossing = np.flatnonzero((depth[scene.triangles].min(axis=1) < 0) & (depth[scene.triangles].max(axis=1) > 0))
+        assert np.isin(crossing, hits.triangle).sum() >= 3
 
 
-def test_normals_face_the_camera_whatever_the_winding():
+@pytest.mark.parametrize("method", METHODS)
+def test_normals_face_the_camera_whatever_the_winding(method):
     scene = shifted_plane_box((0.0, 0.0, 0.0))
     flipped = Scene(scene.vertices, scene.triangles[:, ::-1].copy(), -scene.normals, scene.albedo)
     eye = np.array([4.0, 3.0, 5.0])
     pose = CameraPose(position=eye, orientation=rotation_looking_at(-eye), far=100.0)
     for s in (scene, flipped):
         hits = camera_hits(mesh_bvh(s.vertices, s.triangles), position=eye, rotation=pose.rotation,
-                           fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, far=pose.far, width=32, height=18)
+                           fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, far=pose.far, width=32, height=18,
+                           method=method)
         valid = hits.triangle >= 0
         assert np.all(np.sum(hits.normal[valid] * (eye - hits.position[valid]), axis=-1) > 0)
 
 
-def test_nothing_beyond_the_far_plane_is_hit():
+@pytest.mark.parametrize("method", METHODS)
+def test_nothing_beyond_the_far_plane_is_hit(method):
     scene = shifted_plane_box((0.0, 0.0, 0.0))
     eye = np.array([0.0, 10.0, 0.0])
     pose = CameraPose(position=eye, orientation=rotation_looking_at([0.0, -1.0, 0.0]), near=0.1, far=9.0)
     hits = camera_hits(mesh_bvh(scene.vertices, scene.triangles), position=eye, rotation=pose.rotation,
-                       fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, far=pose.far, width=16, height=16)
+                       fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, far=pose.far, width=16, height=16, method=method)
     assert np.all(hits.triangle[hits.view_depth > 9.0] < 0)
     assert np.any(hits.triangle >= 0) and np.any(hits.triangle < 0)
 
 
 @pytest.mark.skipif(wp.get_cuda_device_count() == 0, reason="no CUDA device")
-def test_cpu_and_cuda_see_the_same_hits():
+@pytest.mark.parametrize("method", METHODS)
+def test_cpu_and_cuda_see_the_same_hits(method):
     scene = shifted_plane_box((0.0, 0.0, 0.0))
     eye = np.array([6.0, 4.0, 9.0])
     pose = CameraPose(position=eye, orientation=rotation_looking_at(-eye), far=100.0)
     out = [camera_hits(mesh_bvh(scene.vertices, scene.triangles, device=device), position=eye, rotation=pose.rotation,
-                       fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, far=pose.far, width=64, height=36)
+                       fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, far=pose.far, width=64, height=36,
+                       method=method)
            for device in ("cpu", "cuda")]
     same = out[0].triangle == out[1].triangle
     assert same.mean() > 0.99
     np.testing.assert_allclose(out[0].view_depth[same], out[1].view_depth[same], rtol=1e-6)
+
+
+def camera_frame(pose: CameraPose):
+    """World → camera-space rows ``(right, up, forward)`` of the kernels' pixel rays ``(x, y, 1)``."""
+    return np.stack([pose.rotation[:, 0], pose.rotation[:, 1], -pose.rotation[:, 2]])
+
+
+def edge_distance_px(points, pose: CameraPose, width: int, height: int):
+    """Pixels from every pixel centre to the image-plane line of every edge: ``(H, W, T, 3)``.
+
+    ``points`` are the triangles' vertices in camera space, shape (T, 3, 3).
+    """
+    tan_y = np.tan(np.radians(pose.fov_y_deg) / 2)
+    step = 2 * tan_y / height
+    row, col = np.mgrid[0:height, 0:width].astype(np.float64)
+    rays = np.stack([(col + 0.5 - width / 2) * 2 * tan_y * pose.aspect / width, (height / 2 - row - 0.5) * step,
+                     np.ones_like(col)], axis=-1)
+    planes = np.cross(points, np.roll(points, -1, axis=1))
+    return np.abs(rays @ planes.reshape(-1, 3).T).reshape(height, width, -1, 3) / (
+        np.hypot(planes[..., 0], planes[..., 1]) * step)
+
+
+def brute_force_hits(points, pose: CameraPose, width: int, height: int, far: float):
+    """Nearest triangle of each pixel ray by Möller–Trumbore over every triangle (camera space): (H, W) index, depth."""
+    tan_y = np.tan(np.radians(pose.fov_y_deg) / 2)
+    row, col = np.mgrid[0:height, 0:width].astype(np.float64)
+    d = np.stack([(col + 0.5 - width / 2) * 2 * tan_y * pose.aspect / width, (height / 2 - row - 0.5) * 2 * tan_y
+                  / height, np.ones_like(col)], axis=-1)[:, :, None]
+    a, e1, e2 = points[:, 0], points[:, 1] - points[:, 0], points[:, 2] - points[:, 0]
+    p = np.cross(d, e2)
+    det = np.sum(e1 * p, axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.sum(-a * p, axis=-1) / det
+        q = np.cross(-a, e1)
+        v = np.sum(d * q, axis=-1) / det
+        t = np.sum(e2 * q, axis=-1) / det
+    hit = (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & (t <= far)
+    t = np.where(hit, t, np.inf)
+    return np.where(np.isfinite(t.min(axis=-1)), t.argmin(axis=-1), -1), t.min(axis=-1)
+
+
+def test_raster_equals_brute_force_rays_with_triangles_crossing_the_camera_plane():
+    rng = np.random.default_rng(5)
+    width, height = 48, 32
+    pose = CameraPose(position=np.array([3.0, -2.0, 7.0]), orientation=rotation_looking_at([0.3, 0.2, -1.0]),
+                      aspect=width / height, far=30.0)
+    # Large triangles around the eye, many reaching behind it: the camera plane cuts them.
+    camera_space = rng.uniform(-6.0, 6.0, (40, 3, 3)) + np.array([0.0, 0.0, 3.0])
+    vertices = pose.position + camera_space.reshape(-1, 3) @ camera_frame(pose)
+    triangles = np.arange(vertices.shape[0]).reshape(-1, 3)
+    hits = camera_hits(mesh_bvh(vertices, triangles), position=pose.position, rotation=pose.rotation,
+                       fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, far=pose.far, width=width, height=height,
+                       method="raster")
+    expected, depth = brute_force_hits(camera_space, pose, width, height, pose.far)
+    robust = edge_distance_px(camera_space, pose, width, height).min(axis=(-1, -2)) > 1e-6
+    assert robust.mean() > 0.95
+    np.testing.assert_array_equal(hits.triangle[robust], expected[robust])
+    hit = robust & (expected >= 0)
+    np.testing.assert_allclose(hits.view_depth[hit], depth[hit], rtol=1e-6)
+    crossing = np.flatnonzero((camera_space[..., 2].min(axis=1) < 0) & (camera_space[..., 2].max(axis=1) > 0))
+    assert np.isin(crossing, hits.triangle).sum() >= 3
+
+
+def dyadic_grid(cells: int, rng):
+    """A triangulated grid whose vertices lie on pixel-centre rays two pixels apart, every coordinate dyadic.
+
+    Camera at the origin looking down −z with ``tan(fov/2) = 0.75``, a square image of
+    ``2·cells + 2`` pixels: every centre inside the grid lies on an edge or a vertex, and every
+    camera-space product of the raster is exact. Vertices sit at random depths 1–3 m along their
+    rays (a bumpy surface projecting to the same grid); diagonals and windings alternate.
+    """
+    size = 2 * cells + 2
+    step = 1.5 / size
+    k = np.arange(cells + 1) * 2
+    sx, sy = np.meshgrid((k + 0.5 - size / 2) * step, (size / 2 - k - 0.5) * step)
+    depth = rng.choice([1.0, 1.5, 2.0, 3.0], sx.shape)
+    vertices = np.stack([sx * depth, sy * depth, -depth], axis=-1).reshape(-1, 3)
+    triangles = []
+    for j in range(cells):
+        for i in range(cells):
+            a, b, c, d = j * (cells + 1) + i, j * (cells + 1) + i + 1, (j + 1) * (cells + 1) + i, (j + 1) * (cells + 1) + i + 1
+            pair = [(a, b, d), (a, d, c)] if (i + j) % 2 else [(a, b, c), (b, d, c)]
+            triangles += [t[::-1] if (i * 3 + j) % 2 else t for t in pair]
+    fov = 73.73979529168804
+    assert np.tan(np.radians(fov) / 2) == 0.75
+    return vertices, np.array(triangles), size, fov
+
+
+def test_each_centre_on_a_shared_edge_or_vertex_is_covered_exactly_once():
+    vertices, triangles, size, fov = dyadic_grid(5, np.random.default_rng(2))
+    kwargs = dict(position=np.zeros(3), rotation=np.eye(3), fov_y_deg=fov, aspect=1.0, far=10.0, width=size,
+                  height=size, method="raster")
+    # One mesh per triangle, the vertex array (and so the indices) unchanged: how many cover each centre.
+    count = sum(camera_hits(mesh_bvh(vertices, triangles[k:k + 1]), **kwargs).triangle >= 0
+                for k in range(len(triangles)))
+    np.testing.assert_array_equal(count[1:-2, 1:-2], 1)
+    assert count.max() == 1
+    assert np.all(camera_hits(mesh_bvh(vertices, triangles), **kwargs).triangle[1:-2, 1:-2] >= 0)
+
+
+@pytest.mark.parametrize("atomic", [False, True], ids=["serial", "atomic"])
+def test_equal_depths_go_to_the_lower_triangle_index(atomic):
+    scene = shifted_plane_box((0.0, 0.0, 0.0), divisions=4)
+    count = len(scene.triangles)
+    # Every triangle twice: a copy (in reversed order) under indices 0..T−1, the original under T..2T−1.
+    doubled = np.concatenate([scene.triangles[::-1], scene.triangles])
+    eye = np.array([4.0, 3.0, 5.0])
+    pose = CameraPose(position=eye, orientation=rotation_looking_at(-eye), far=100.0)
+    once, twice = (camera_hits_raster(mesh_bvh(scene.vertices, t), position=eye, rotation=pose.rotation,
+                                      fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, far=pose.far, width=40, height=24,
+                                      atomic=atomic) for t in (scene.triangles, doubled))
+    valid = once.triangle >= 0
+    assert valid.mean() > 0.5
+    np.testing.assert_array_equal(twice.triangle >= 0, valid)
+    np.testing.assert_array_equal(count - 1 - twice.triangle[valid], once.triangle[valid])
+
+
+def walk_scene_and_pose(width: int, height: int):
+    scene = make_scene("terrain", seed=1, resolution=24, trees=300, ring_trees=40)
+    eye = np.array([20.0, 1.7, -1.0])
+    pose = CameraPose(position=eye, orientation=rotation_looking_at([-0.35, -0.09, -1.0]), aspect=width / height,
+                      far=400.0)
+    return scene, pose
+
+
+def test_atomic_resolve_gives_the_pixels_of_the_serial_one():
+    scene, pose = walk_scene_and_pose(96, 54)
+    bvh = mesh_bvh(scene.vertices, scene.triangles)
+    out = [camera_hits_raster(bvh, position=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg,
+                              aspect=pose.aspect, far=pose.far, width=96, height=54, atomic=atomic)
+           for atomic in (False, True)]
+    for a, b in zip(vars(out[0]).values(), vars(out[1]).values()):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_raster_matches_the_ray_cast_on_a_walk_through_trees():
+    width, height = 96, 54
+    scene, pose = walk_scene_and_pose(width, height)
+    bvh = mesh_bvh(scene.vertices, scene.triangles)
+    ray, raster = (camera_hits(bvh, position=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg,
+                               aspect=pose.aspect, far=pose.far, width=width, height=height, method=m)
+                   for m in ("ray", "raster"))
+    assert 0.3 < (raster.triangle >= 0).mean() < 1.0 and len(np.unique(raster.triangle)) > 100
+    differ = ray.triangle != raster.triangle
+    # The ray cast tests coverage in float32: it may pick a neighbour (or fall through a crack)
+    # only within its rounding of an edge of the raster's triangle, a small fraction of a pixel.
+    rows, cols = np.nonzero(differ & (raster.triangle >= 0))
+    points = (scene.vertices[scene.triangles[raster.triangle[rows, cols]]] - pose.position) @ camera_frame(pose).T
+    near_edge = [edge_distance_px(p[None], pose, width, height)[r, c].min() < 1e-3
+                 for p, r, c in zip(points, rows, cols)]
+    assert all(near_edge)
+    assert differ.mean() < 1e-3 and not np.any(differ & (raster.triangle < 0) & (ray.triangle >= 0))
+    same = ~differ & (ray.triangle >= 0)
+    np.testing.assert_allclose(raster.position[same], ray.position[same], rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(raster.view_depth[~differ], ray.view_depth[~differ])
+    np.testing.assert_array_equal(raster.normal[~differ], ray.normal[~differ])
+
+
+def test_unknown_method_is_refused_with_the_valid_names():
+    scene = shifted_plane_box((0.0, 0.0, 0.0))
+    with pytest.raises(ValueError, match=r"method: expected one of \['raster', 'ray'\], got 'rays' \(did you mean"):
+        camera_hits(mesh_bvh(scene.vertices, scene.triangles), position=np.ones(3), rotation=np.eye(3),
+                    fov_y_deg=60.0, aspect=1.0, far=10.0, width=4, height=4, method="rays")

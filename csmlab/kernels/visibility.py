@@ -1,13 +1,29 @@
-"""The scene's BVH on a device, and what the camera sees through it (DESIGN.md, CSM model step 5).
+"""The scene's BVH on a device, and what the camera sees (DESIGN.md, CSM model step 5).
 
 :func:`mesh_bvh` uploads a triangle mesh once: a float32 ``wp.Mesh`` for the BVH traversal, with
 vertices taken relative to a float64 anchor (the bounds centre) so that a scene far from the world
-origin keeps float32 precision, and the same vertices in float64 for refinement.
+origin keeps float32 precision, and the same vertices in float64 for the exact work.
 
-:func:`camera_hits` casts one ray per pixel centre (row 0 at the top). The BVH finds the hit
-triangle in float32; the hit point is then recomputed in float64 as the ray's intersection with
-that triangle's plane, so positions and view depths are as exact as the float64 geometry. (The
-footprint of a pixel on that plane is :mod:`csmlab.kernels.footprint`'s.)
+:func:`camera_hits` finds the first triangle met by the ray through every pixel centre (row 0 at
+the top) by one of :data:`VISIBILITY_METHODS`:
+
+- ``raster`` — perspective rasterization, one thread per triangle (:func:`camera_hits_raster`):
+  the coverage of a pixel centre is the exact float64 ray–triangle test, organised by triangle
+  over its screen bounding box (Olano and Greer's homogeneous edge functions), nearest depth wins;
+- ``ray`` — one ray per pixel through the BVH (:func:`camera_hits_ray`), the hit triangle found in
+  float32 by ``wp.mesh_query_ray``.
+
+Both then take the hit point in float64 as the ray's intersection with the hit triangle's plane,
+with the same operations, so positions and view depths are as exact as the float64 geometry and
+equal bit for bit wherever the two methods pick the same triangle — everywhere but within float32
+rounding of an edge, where the ray cast's float32 test and the raster's float64 one may pick
+different neighbours. (The footprint of a pixel on that plane is :mod:`csmlab.kernels.footprint`'s.)
+
+References
+----------
+- Olano and Greer, "Triangle Scan Conversion using 2D Homogeneous Coordinates", Graphics Hardware
+  1997 — edge functions of a triangle as planes through the eye, no clipping for coverage.
+- Microsoft, Direct3D 11 rasterization rules — the top-left rule for centres on an edge.
 """
 
 from __future__ import annotations
@@ -18,8 +34,20 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device
+from csmlab.registry import check_name
 
-__all__ = ["CameraHits", "MeshBVH", "camera_hits", "mesh_bvh"]
+__all__ = ["CameraHits", "MeshBVH", "NEAR_FRACTION", "VISIBILITY_METHODS", "camera_hits", "camera_hits_raster",
+           "camera_hits_ray", "mesh_bvh"]
+
+NEAR_FRACTION = 1e-9
+"""The raster's near plane as a fraction of ``far``: hits nearer to the eye (in view depth) are not
+rasterized — triangles crossing the camera plane are clipped there to bound the pixels they cover."""
+
+MARGIN = wp.constant(wp.float64(1e-3))
+"""Pixels by which the raster grows a triangle's projected bounding box against rounding."""
+
+NO_TRIANGLE = wp.constant(2**31 - 1)
+"""A pixel's nearest triangle before any covers it (larger than every index, for the atomic minimum)."""
 
 
 @dataclass(frozen=True)
@@ -130,6 +158,66 @@ def plane_distance(n: wp.vec3d, point: wp.vec3d, origin: wp.vec3d, direction: wp
     return t
 
 
+
+@wp.func
+def pixel_x(col: int, width: int, step_x: wp.float64) -> wp.float64:
+    """Image-plane x of the centre of column ``col``: ``(col + ½ − W/2)·step_x`` (unit view depth)."""
+    half = wp.float64(0.5)
+    return (wp.float64(col) + half - half * wp.float64(width)) * step_x
+
+
+@wp.func
+def pixel_y(row: int, height: int, step_y: wp.float64) -> wp.float64:
+    """Image-plane y of the centre of row ``row`` (row 0 at the top): ``(H/2 − row − ½)·step_y``."""
+    half = wp.float64(0.5)
+    return (half * wp.float64(height) - wp.float64(row) - half) * step_y
+
+
+@wp.func
+def store_hit(
+    vertices: wp.array(dtype=wp.vec3d),
+    triangles: wp.array2d(dtype=wp.int32),
+    face: int,
+    origin: wp.vec3d,
+    direction: wp.vec3d,
+    forward: wp.vec3d,
+    far: wp.float64,
+    edge_on: wp.float64,
+    row: int,
+    col: int,
+    position: wp.array2d(dtype=wp.vec3d),
+    normal: wp.array2d(dtype=wp.vec3),
+    triangle: wp.array2d(dtype=wp.int32),
+    view_depth: wp.array2d(dtype=wp.float32),
+):
+    """Write the hit of ray ``origin + t·direction`` on triangle ``face``, or a miss when ``face < 0``.
+
+    The hit is the ray's float64 intersection with the triangle's plane; a ray the plane does not
+    meet in (0, far) — the triangle seen edge-on — is taken at ``edge_on`` instead.
+    """
+    if face < 0:
+        position[row, col] = wp.vec3d(wp.float64(wp.nan), wp.float64(wp.nan), wp.float64(wp.nan))
+        normal[row, col] = wp.vec3(0.0)
+        triangle[row, col] = -1
+        view_depth[row, col] = wp.inf
+        return
+    a = vertices[triangles[face, 0]]
+    b = vertices[triangles[face, 1]]
+    c = vertices[triangles[face, 2]]
+    n = wp.cross(b - a, c - a)
+    t = plane_distance(n, a, origin, direction, far)
+    if t == far:
+        t = edge_on
+    hit = origin + direction * t
+    n = wp.normalize(n)
+    if wp.dot(n, direction) > wp.float64(0.0):
+        n = -n
+    position[row, col] = hit
+    normal[row, col] = wp.vec3(n)
+    triangle[row, col] = face
+    view_depth[row, col] = wp.float32(wp.dot(hit - origin, forward))
+
+
 @wp.kernel
 def camera_hits_kernel(
     mesh: wp.uint64,
@@ -148,43 +236,330 @@ def camera_hits_kernel(
     view_depth: wp.array2d(dtype=wp.float32),
 ):
     row, col = wp.tid()
-    height = position.shape[0]
-    width = position.shape[1]
-    half = wp.float64(0.5)
     # Camera-space ray through the pixel centre with unit forward component, so that its ray
-    # parameter is the view depth: x = (col + ½ − W/2)·step_x, y = (H/2 − row − ½)·step_y.
-    sx = (wp.float64(col) + half - half * wp.float64(width)) * step_x
-    sy = (half * wp.float64(height) - wp.float64(row) - half) * step_y
-    direction = forward + right * sx + up * sy
+    # parameter is the view depth.
+    direction = forward + right * pixel_x(col, position.shape[1], step_x) + up * pixel_y(row, position.shape[0], step_y)
     length = wp.length(direction)
     query = wp.mesh_query_ray(mesh, wp.vec3(origin), wp.vec3(direction / length), wp.float32(far * length))
-    if not query.result:
-        position[row, col] = wp.vec3d(wp.float64(wp.nan), wp.float64(wp.nan), wp.float64(wp.nan))
-        normal[row, col] = wp.vec3(0.0)
-        triangle[row, col] = -1
-        view_depth[row, col] = wp.inf
+    face = int(-1)
+    edge_on = wp.float64(0.0)
+    if query.result:
+        face = query.face
+        # An edge-on hit keeps the BVH's float32 distance.
+        edge_on = wp.float64(query.t) / length
+    store_hit(vertices, triangles, face, origin, direction, forward, far, edge_on, row, col, position, normal, triangle,
+              view_depth)
+
+
+@wp.kernel
+def camera_space_kernel(
+    vertices: wp.array(dtype=wp.vec3d),
+    origin: wp.vec3d,
+    right: wp.vec3d,
+    up: wp.vec3d,
+    forward: wp.vec3d,
+    frustum: wp.vec4d,
+    near: wp.float64,
+    far: wp.float64,
+    camera: wp.array(dtype=wp.vec3d),
+    outcode: wp.array(dtype=wp.int32),
+):
+    v = wp.tid()
+    p = vertices[v] - origin
+    x = wp.dot(p, right)
+    y = wp.dot(p, up)
+    z = wp.dot(p, forward)
+    camera[v] = wp.vec3d(x, y, z)
+    # One bit per half-space through the eye (and the near and far planes) the vertex lies
+    # outside; a triangle whose three vertices share a bit lies wholly outside that half-space,
+    # and so does every hit on it.
+    code = int(0)
+    if z < near:
+        code = code | 1
+    if z > far:
+        code = code | 2
+    if x < frustum[0] * z:
+        code = code | 4
+    if x > frustum[1] * z:
+        code = code | 8
+    if y < frustum[2] * z:
+        code = code | 16
+    if y > frustum[3] * z:
+        code = code | 32
+    outcode[v] = code
+
+
+@wp.func
+def grown(box: wp.vec4d, x: wp.float64, y: wp.float64) -> wp.vec4d:
+    """``box`` (x lo, x hi, y lo, y hi) grown to hold the point ``(x, y)``."""
+    return wp.vec4d(wp.min(box[0], x), wp.max(box[1], x), wp.min(box[2], y), wp.max(box[3], y))
+
+
+@wp.func
+def clipped_bounds(p: wp.vec3d, q: wp.vec3d, near: wp.float64, box: wp.vec4d) -> wp.vec4d:
+    """``box`` grown by the image-plane projection of ``p`` if it lies beyond the near plane, and of
+    the point where edge ``pq`` crosses the near plane if it does (Sutherland–Hodgman, one plane)."""
+    out = box
+    if p[2] >= near:
+        out = grown(out, p[0] / p[2], p[1] / p[2])
+    if (p[2] < near) != (q[2] < near):
+        s = (near - p[2]) / (q[2] - p[2])
+        out = grown(out, (p[0] + (q[0] - p[0]) * s) / near, (p[1] + (q[1] - p[1]) * s) / near)
+    return out
+
+
+@wp.func
+def inward_edge(i: int, j: int, p: wp.vec3d, q: wp.vec3d, orientation: wp.float64) -> wp.vec3d:
+    """Normal of the plane through the eye and edge ``ij`` (vertices ``p``, ``q``), pointing into the triangle.
+
+    The cross product is always taken from the lower vertex index to the higher, so that the two
+    triangles sharing an edge get the same vector, exactly negated: a pixel centre's edge function
+    is then ``+e`` in one and ``−e`` in the other, bit for bit, and the tie rule gives it to one.
+    """
+    e = wp.cross(q, p)
+    if i < j:
+        e = wp.cross(p, q)
+    if (i < j) != (orientation > wp.float64(0.0)):
+        e = -e
+    return e
+
+
+@wp.func
+def edge_owns_centre(g: wp.vec3d) -> bool:
+    """Top-left rule: a centre exactly on the edge belongs to the triangle it would enter nudged toward
+    +x, or slightly −y when the edge is parallel to x (as in :mod:`csmlab.kernels.raster`)."""
+    return g[0] > wp.float64(0.0) or (g[0] == wp.float64(0.0) and g[1] < wp.float64(0.0))
+
+
+@wp.func
+def edge_inside(e: wp.float64, owns: bool) -> bool:
+    return e > wp.float64(0.0) or (e == wp.float64(0.0) and owns)
+
+
+@wp.kernel
+def raster_view_kernel(
+    camera: wp.array(dtype=wp.vec3d),
+    outcode: wp.array(dtype=wp.int32),
+    triangles: wp.array2d(dtype=wp.int32),
+    step_x: wp.float64,
+    step_y: wp.float64,
+    near: wp.float64,
+    far: wp.float64,
+    resolve: int,
+    depth: wp.array2d(dtype=wp.float64),
+    nearest: wp.array2d(dtype=wp.int32),
+):
+    face = wp.tid()
+    ia = triangles[face, 0]
+    ib = triangles[face, 1]
+    ic = triangles[face, 2]
+    if (outcode[ia] & outcode[ib] & outcode[ic]) != 0:
         return
-    face = query.face
-    a = vertices[triangles[face, 0]]
-    b = vertices[triangles[face, 1]]
-    c = vertices[triangles[face, 2]]
+    a = camera[ia]
+    b = camera[ib]
+    c = camera[ic]
+    # Plane of the triangle: n·X = n·A. The ray t·(x, y, 1) meets it at depth t = n·A / n·(x, y, 1);
+    # n·A = 0 is a plane through the eye, the triangle seen edge-on, which covers no centre.
     n = wp.cross(b - a, c - a)
-    t = plane_distance(n, a, origin, direction, far)
-    if t == far:
-        # Edge-on hit: the plane is parallel to the ray; keep the BVH's float32 distance.
-        t = wp.float64(query.t) / length
-    hit = origin + direction * t
-    n = wp.normalize(n)
-    if wp.dot(n, direction) > wp.float64(0.0):
-        n = -n
-    position[row, col] = hit
-    normal[row, col] = wp.vec3(n)
-    triangle[row, col] = face
-    view_depth[row, col] = wp.float32(wp.dot(hit - origin, forward))
+    plane = wp.dot(n, a)
+    if plane == wp.float64(0.0):
+        return
+    height = depth.shape[0]
+    width = depth.shape[1]
+    inf = wp.float64(wp.inf)
+    box = wp.vec4d(inf, -inf, inf, -inf)
+    box = clipped_bounds(a, b, near, box)
+    box = clipped_bounds(b, c, near, box)
+    box = clipped_bounds(c, a, near, box)
+    # Columns and rows whose centre lies in the box grown by a thousandth of a pixel, far more
+    # than the projection's rounding: a triangle between centres (the distant terrain's, mostly)
+    # returns here. The exact test below decides for the others.
+    half = wp.float64(0.5)
+    w = wp.float64(width)
+    h = wp.float64(height)
+    limit = wp.float64(2.0) + wp.max(w, h)
+    col0 = wp.max(int(wp.ceil(wp.clamp(box[0] / step_x + half * w - half - MARGIN, -limit, limit))), 0)
+    col1 = wp.min(int(wp.floor(wp.clamp(box[1] / step_x + half * w - half + MARGIN, -limit, limit))), width - 1)
+    row0 = wp.max(int(wp.ceil(wp.clamp(half * h - half - box[3] / step_y - MARGIN, -limit, limit))), 0)
+    row1 = wp.min(int(wp.floor(wp.clamp(half * h - half - box[2] / step_y + MARGIN, -limit, limit))), height - 1)
+    if col0 > col1 or row0 > row1:
+        return
+    # The ray through a centre meets the triangle when it lies on the inner side of the three
+    # planes through the eye and an edge: g·(x, y, 1) ≥ 0 for each inward normal g. The sign of
+    # n·A (the determinant |A B C|) tells which side is inner, also for a triangle crossing the
+    # camera plane, so no clipping enters the coverage test.
+    g_ab = inward_edge(ia, ib, a, b, plane)
+    g_bc = inward_edge(ib, ic, b, c, plane)
+    g_ca = inward_edge(ic, ia, c, a, plane)
+    own_ab = edge_owns_centre(g_ab)
+    own_bc = edge_owns_centre(g_bc)
+    own_ca = edge_owns_centre(g_ca)
+    for row in range(row0, row1 + 1):
+        y = pixel_y(row, height, step_y)
+        k_ab = g_ab[1] * y + g_ab[2]
+        k_bc = g_bc[1] * y + g_bc[2]
+        k_ca = g_ca[1] * y + g_ca[2]
+        k_n = n[1] * y + n[2]
+        entered = bool(False)
+        for col in range(col0, col1 + 1):
+            x = pixel_x(col, width, step_x)
+            if (edge_inside(g_ab[0] * x + k_ab, own_ab) and edge_inside(g_bc[0] * x + k_bc, own_bc)
+                    and edge_inside(g_ca[0] * x + k_ca, own_ca)):
+                entered = True
+                t = plane / (n[0] * x + k_n)
+                if t >= near and t <= far:
+                    if resolve == 0:
+                        # One thread (Warp's CPU launch): compare and write, nearest then lowest index.
+                        best = depth[row, col]
+                        if t < best or (t == best and face < nearest[row, col]):
+                            depth[row, col] = t
+                            nearest[row, col] = face
+                    elif resolve == 1:
+                        wp.atomic_min(depth, row, col, t)
+                    elif t == depth[row, col]:
+                        wp.atomic_min(nearest, row, col, face)
+            elif entered:
+                # Each edge function, rounded, is monotone along the row (a product by the
+                # increasing x plus a row constant), so the covered centres form one run.
+                break
+
+
+@wp.kernel
+def raster_hits_kernel(
+    vertices: wp.array(dtype=wp.vec3d),
+    triangles: wp.array2d(dtype=wp.int32),
+    nearest: wp.array2d(dtype=wp.int32),
+    depth: wp.array2d(dtype=wp.float64),
+    origin: wp.vec3d,
+    right: wp.vec3d,
+    up: wp.vec3d,
+    forward: wp.vec3d,
+    step_x: wp.float64,
+    step_y: wp.float64,
+    far: wp.float64,
+    position: wp.array2d(dtype=wp.vec3d),
+    normal: wp.array2d(dtype=wp.vec3),
+    triangle: wp.array2d(dtype=wp.int32),
+    view_depth: wp.array2d(dtype=wp.float32),
+):
+    row, col = wp.tid()
+    direction = forward + right * pixel_x(col, position.shape[1], step_x) + up * pixel_y(row, position.shape[0], step_y)
+    face = nearest[row, col]
+    if face == NO_TRIANGLE:
+        face = -1
+    # An edge-on hit keeps the raster's camera-space depth.
+    store_hit(vertices, triangles, face, origin, direction, forward, far, depth[row, col], row, col, position, normal,
+              triangle, view_depth)
+
+
+def _pinhole(bvh: MeshBVH, position, rotation, fov_y_deg: float, aspect: float, far: float, width: int,
+             height: int) -> tuple:
+    """Checked camera: eye relative to the anchor, right, up, forward (vec3d) and the image-plane pixel steps."""
+    if not (isinstance(width, (int, np.integer)) and isinstance(height, (int, np.integer)) and width > 0
+            and height > 0):
+        raise ValueError(f"width, height: expected positive pixel counts, got {width!r} x {height!r}")
+    if not 0.0 < fov_y_deg < 180.0 or not aspect > 0.0 or not far > 0.0:
+        raise ValueError(f"camera: expected fov_y_deg in (0, 180), aspect > 0 and far > 0, "
+                         f"got {fov_y_deg}, {aspect}, {far}")
+    r = np.asarray(rotation, dtype=np.float64)
+    eye = np.asarray(position, dtype=np.float64) - bvh.anchor
+    if r.shape != (3, 3) or eye.shape != (3,) or not (np.all(np.isfinite(r)) and np.all(np.isfinite(eye))):
+        raise ValueError("camera: expected a finite position (3,) and rotation (3, 3)")
+    tan_y = np.tan(np.radians(fov_y_deg) / 2.0)
+    return (wp.vec3d(*eye), wp.vec3d(*r[:, 0]), wp.vec3d(*r[:, 1]), wp.vec3d(*(-r[:, 2])),
+            float(2.0 * tan_y * aspect / width), float(2.0 * tan_y / height))
+
+
+def _hits_record(bvh: MeshBVH, shape: tuple[int, int], launch) -> CameraHits:
+    """Allocate the output arrays, run ``launch(outputs)`` and return them as host arrays."""
+    outputs = (wp.empty(shape, dtype=wp.vec3d, device=bvh.device), wp.empty(shape, dtype=wp.vec3, device=bvh.device),
+               wp.empty(shape, dtype=wp.int32, device=bvh.device), wp.empty(shape, dtype=wp.float32, device=bvh.device))
+    launch(outputs)
+    position, normal, triangle, view_depth = outputs
+    return CameraHits(position=position.numpy() + bvh.anchor, normal=normal.numpy(), triangle=triangle.numpy(),
+                      view_depth=view_depth.numpy())
+
+
+def camera_hits_ray(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspect: float, far: float, width: int,
+                    height: int) -> CameraHits:
+    """:func:`camera_hits` by one BVH ray per pixel centre: the hit triangle found in float32.
+
+    ``max_t = far·|d|``: hits beyond view depth ``far`` (to float32 rounding) are not found. This is
+    the raster's independent oracle in the tests.
+    """
+    eye, right, up, forward, step_x, step_y = _pinhole(bvh, position, rotation, fov_y_deg, aspect, far, width, height)
+    shape = (height, width)
+    return _hits_record(bvh, shape, lambda outputs: wp.launch(
+        camera_hits_kernel, dim=shape,
+        inputs=(bvh.mesh.id, bvh.vertices, bvh.triangles, eye, right, up, forward, step_x, step_y, float(far)),
+        outputs=outputs, device=bvh.device))
+
+
+def camera_hits_raster(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspect: float, far: float, width: int,
+                       height: int, atomic: bool | None = None) -> CameraHits:
+    """:func:`camera_hits` by perspective rasterization of every triangle: coverage and depth in float64.
+
+    Parameters
+    ----------
+    atomic : bool, optional
+        How concurrent writes to a pixel are resolved: None picks by device — one compare-and-write
+        pass on ``"cpu"`` (a Warp CPU launch runs its threads one after another), two atomic passes
+        on CUDA. Both give the same pixels; ``True`` on the CPU tests the CUDA path.
+    (the others as :func:`camera_hits`)
+
+    Notes
+    -----
+    Three launches, or four with atomics:
+
+    1. every vertex to camera space, ``(x, y, z)`` along right, up and forward relative to the eye,
+       with an out-code: which of the six half-spaces (``z ≥ near``, ``z ≤ far`` and the four
+       through the eye and the image's sides, padded by a pixel) it lies outside, where
+       ``near = NEAR_FRACTION·far``;
+    2. one thread per triangle: a triangle with all three vertices outside one half-space returns
+       (behind the camera, beyond ``far`` or off-screen); the others walk the pixels of their
+       image-plane bounding box — of the triangle clipped to ``z ≥ near``, so that triangles crossing
+       the camera plane (underfoot, beside a walking camera) bound their pixels too — and test each
+       centre with the exact ray test: the centre ``(x, y)`` is covered when ``g·(x, y, 1) ≥ 0``
+       for the three inward normals ``g`` of the planes through the eye and an edge (the top-left
+       rule on ties, so each centre on an edge shared by two triangles goes to one). Its depth is
+       ``t = n·A / n·(x, y, 1)``, kept for ``near ≤ t ≤ far``. A pixel keeps the smallest
+       ``(t, triangle)``: in place on one CPU thread; on CUDA an ``atomic_min`` of ``t`` in a first
+       pass, then of the triangle index among those whose ``t`` equals the minimum in a second —
+       either way the result does not depend on the order of the threads;
+    3. per pixel, the hit on the chosen triangle as the ray method computes it.
+    """
+    eye, right, up, forward, step_x, step_y = _pinhole(bvh, position, rotation, fov_y_deg, aspect, far, width, height)
+    device = bvh.device
+    atomic = device != "cpu" if atomic is None else bool(atomic)
+    shape = (height, width)
+    near = float(NEAR_FRACTION * far)
+    # The image's extent on the plane at unit depth, padded by a pixel against rounding.
+    frustum = wp.vec4d(-(0.5 * width + 1.0) * step_x, (0.5 * width + 1.0) * step_x,
+                       -(0.5 * height + 1.0) * step_y, (0.5 * height + 1.0) * step_y)
+    vertex_count = bvh.vertices.shape[0]
+    camera = wp.empty(vertex_count, dtype=wp.vec3d, device=device)
+    outcode = wp.empty(vertex_count, dtype=wp.int32, device=device)
+    wp.launch(camera_space_kernel, dim=vertex_count,
+              inputs=(bvh.vertices, eye, right, up, forward, frustum, near, float(far)), outputs=(camera, outcode),
+              device=device)
+    depth = wp.full(shape, value=np.inf, dtype=wp.float64, device=device)
+    nearest = wp.full(shape, value=int(NO_TRIANGLE), dtype=wp.int32, device=device)
+    for resolve in ((1, 2) if atomic else (0,)):
+        wp.launch(raster_view_kernel, dim=bvh.triangles.shape[0],
+                  inputs=(camera, outcode, bvh.triangles, step_x, step_y, near, float(far), resolve),
+                  outputs=(depth, nearest), device=device)
+    return _hits_record(bvh, shape, lambda outputs: wp.launch(
+        raster_hits_kernel, dim=shape,
+        inputs=(bvh.vertices, bvh.triangles, nearest, depth, eye, right, up, forward, step_x, step_y, float(far)),
+        outputs=outputs, device=device))
+
+
+VISIBILITY_METHODS = {"raster": camera_hits_raster, "ray": camera_hits_ray}
+"""How :func:`camera_hits` finds the first hit of each pixel's ray, by name."""
 
 
 def camera_hits(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspect: float, far: float, width: int,
-                height: int) -> CameraHits:
+                height: int, method: str = "raster") -> CameraHits:
     """First hit of the ray through every pixel centre of a pinhole camera.
 
     Parameters
@@ -203,6 +578,9 @@ def camera_hits(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspect: f
         Far plane distance, metres of view depth; nothing beyond it is hit.
     width, height : int
         Image size in pixels.
+    method : str
+        A key of :data:`VISIBILITY_METHODS`: ``"raster"`` (exact coverage, the faster on the
+        default scene) or ``"ray"`` (BVH rays, float32 coverage).
 
     Returns
     -------
@@ -213,38 +591,9 @@ def camera_hits(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspect: f
     Raises
     ------
     ValueError
-        On a non-positive image size, field of view outside (0, 180) or non-finite camera.
+        On an unknown method, a non-positive image size, field of view outside (0, 180) or
+        non-finite camera.
     """
-    if not (isinstance(width, (int, np.integer)) and isinstance(height, (int, np.integer)) and width > 0
-            and height > 0):
-        raise ValueError(f"width, height: expected positive pixel counts, got {width!r} x {height!r}")
-    if not 0.0 < fov_y_deg < 180.0 or not aspect > 0.0 or not far > 0.0:
-        raise ValueError(f"camera: expected fov_y_deg in (0, 180), aspect > 0 and far > 0, "
-                         f"got {fov_y_deg}, {aspect}, {far}")
-    r = np.asarray(rotation, dtype=np.float64)
-    eye = np.asarray(position, dtype=np.float64) - bvh.anchor
-    if r.shape != (3, 3) or eye.shape != (3,) or not (np.all(np.isfinite(r)) and np.all(np.isfinite(eye))):
-        raise ValueError("camera: expected a finite position (3,) and rotation (3, 3)")
-    tan_y = np.tan(np.radians(fov_y_deg) / 2.0)
-    device = bvh.device
-    shape = (height, width)
-    out_position = wp.empty(shape, dtype=wp.vec3d, device=device)
-    out_normal = wp.empty(shape, dtype=wp.vec3, device=device)
-    out_triangle = wp.empty(shape, dtype=wp.int32, device=device)
-    out_depth = wp.empty(shape, dtype=wp.float32, device=device)
-    wp.launch(
-        camera_hits_kernel,
-        dim=shape,
-        inputs=(
-            bvh.mesh.id, bvh.vertices, bvh.triangles, wp.vec3d(*eye), wp.vec3d(*r[:, 0]), wp.vec3d(*r[:, 1]),
-            wp.vec3d(*(-r[:, 2])), float(2.0 * tan_y * aspect / width), float(2.0 * tan_y / height), float(far),
-        ),
-        outputs=(out_position, out_normal, out_triangle, out_depth),
-        device=device,
-    )
-    return CameraHits(
-        position=out_position.numpy() + bvh.anchor,
-        normal=out_normal.numpy(),
-        triangle=out_triangle.numpy(),
-        view_depth=out_depth.numpy(),
-    )
+    return VISIBILITY_METHODS[check_name(method, VISIBILITY_METHODS, field="method")](
+        bvh, position=position, rotation=rotation, fov_y_deg=fov_y_deg, aspect=aspect, far=far, width=width,
+        height=height)
