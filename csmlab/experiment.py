@@ -332,10 +332,12 @@ def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
     rows, timings, captures, previous = [], [], {}, {}
     for index in range(max(start - 1, 0), stop):
         pose = workload.path.pose(index)
-        view = render_view(scene, pose, workload.light.direction(index), width=workload.width,
-                           height=workload.height, index=index,
-                           previous_light_direction=workload.light.direction(index - 1) if index else None)
         counted = index >= start
+        # Frame start − 1 is only the previous frame of frame start: of it the temporal metrics
+        # read the cascades and depth maps, not its reference or shadow.
+        view = render_view(scene, pose, workload.light.direction(index), width=workload.width,
+                           height=workload.height, index=index, reference=counted,
+                           previous_light_direction=workload.light.direction(index - 1) if index else None)
         if index in workload.restarts:
             previous = {}
         if counted:
@@ -346,7 +348,7 @@ def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
             extents = job.held_extents.get(key)
             frame = render_shadow(scene, view, variant.settings,
                                   visible_depth=None if held is None else tuple(held[index]),
-                                  held_extents=None if extents is None else extents[index])
+                                  held_extents=None if extents is None else extents[index], lookup=counted)
             if counted:
                 began = time.perf_counter()
                 measures = measure_frame(frame, previous.get(key), device=job.device)

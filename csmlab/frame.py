@@ -87,8 +87,9 @@ class View:
     light_direction : ndarray, shape (3,), float64
         Unit direction from the light toward the scene.
     gbuffer : GBuffer
-    reference : ndarray, shape (H, W), float32
-        Ray-traced hard shadow R: 1 lit, 0 shadowed, NaN on a miss.
+    reference : ndarray, shape (H, W), float32, or None
+        Ray-traced hard shadow R: 1 lit, 0 shadowed, NaN on a miss; None when not cast
+        (:func:`csmlab.render.render_view` ``reference=False``).
     timings : dict of str to float
         Seconds per stage (``visibility``, ``reference``, ``reference_previous``).
     previous_light_direction : ndarray, shape (3,), float64, or None
@@ -102,7 +103,7 @@ class View:
     pose: CameraPose
     light_direction: np.ndarray
     gbuffer: GBuffer
-    reference: np.ndarray
+    reference: np.ndarray | None
     timings: dict = field(default_factory=dict)
     previous_light_direction: np.ndarray | None = None
     previous_reference: np.ndarray | None = None
@@ -165,8 +166,9 @@ class Frame:
     view : View
     settings : ShadowSettings
     maps : ShadowMaps
-    shadow : ShadowLookup
-        Lookup at every pixel of ``view.gbuffer`` (shape (H, W)).
+    shadow : ShadowLookup or None
+        Lookup at every pixel of ``view.gbuffer`` (shape (H, W)); None when not looked up
+        (:func:`csmlab.render.render_shadow` ``lookup=False``).
     timings : dict of str to float
         Seconds per method stage (``cascades``, ``raster``, ``shadow``).
     """
@@ -174,5 +176,5 @@ class Frame:
     view: View
     settings: ShadowSettings
     maps: ShadowMaps
-    shadow: ShadowLookup
+    shadow: ShadowLookup | None
     timings: dict = field(default_factory=dict)

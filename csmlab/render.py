@@ -69,7 +69,7 @@ def prepare_scene(scene: Scene, *, device: str = "cpu") -> DeviceScene:
 
 
 def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width: int, height: int,
-                index: int = 0, previous_light_direction=None) -> View:
+                index: int = 0, previous_light_direction=None, reference: bool = True) -> View:
     """The G-buffer and the ray-traced reference of one camera and light (shared by all methods).
 
     Parameters
@@ -86,6 +86,10 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
         The previous frame's light: where it differs from ``light_direction``, the reference is
         also cast with it from this view's points (``View.previous_reference``, the temporal
         metric's R_{t−1}).
+    reference : bool
+        Cast the reference. False leaves ``View.reference`` None: a frame rendered only as the
+        previous frame of the temporal metrics (a chunk's first, :mod:`csmlab.experiment`) needs
+        its cascades, not its reference.
 
     Returns
     -------
@@ -99,12 +103,13 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
     valid = hits.triangle >= 0
     albedo = np.where(valid[..., None], dscene.scene.albedo[np.maximum(hits.triangle, 0)], np.float32(0.0))
     gbuffer = GBuffer(hits=hits, albedo=albedo.astype(np.float32))
-    visibility = time.perf_counter() - start
-    start = time.perf_counter()
-    reference = hard_shadow(dscene.bvh, points=gbuffer.position, normals=gbuffer.normal, light_direction=d)
-    timings = {"visibility": visibility, "reference": time.perf_counter() - start}
-    before = previous = None
-    if previous_light_direction is not None:
+    timings = {"visibility": time.perf_counter() - start}
+    before = previous = cast = None
+    if reference:
+        start = time.perf_counter()
+        cast = hard_shadow(dscene.bvh, points=gbuffer.position, normals=gbuffer.normal, light_direction=d)
+        timings["reference"] = time.perf_counter() - start
+    if reference and previous_light_direction is not None:
         before = normalized(previous_light_direction, name="previous light direction")
     if before is not None and not np.array_equal(before, d):
         start = time.perf_counter()
@@ -112,7 +117,7 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
         timings["reference_previous"] = time.perf_counter() - start
     else:
         before = None
-    return View(index=index, pose=pose, light_direction=d, gbuffer=gbuffer, reference=reference, timings=timings,
+    return View(index=index, pose=pose, light_direction=d, gbuffer=gbuffer, reference=cast, timings=timings,
                 previous_light_direction=before, previous_reference=previous)
 
 
@@ -347,17 +352,19 @@ def faded(lit: np.ndarray, view_depth: np.ndarray, *, far: float, fade_out: floa
 
 
 def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
-                  visible_depth: tuple[float, float] | None = None, held_extents=None) -> Frame:
+                  visible_depth: tuple[float, float] | None = None, held_extents=None, lookup: bool = True) -> Frame:
     """One shadow method on a shared view: cascades → depth maps → lookup at every pixel.
 
     With ``bounds = "sdsm"`` the splits divide ``visible_depth`` when given (the held range of an
     SDSM with hysteresis), else the view's own G-buffer depth range. ``held_extents`` ``(C, 2)``:
     the tight boxes' sizes held by extent hysteresis this frame (``stabilization = "none"``).
+    ``lookup = False`` stops after the depth maps (``Frame.shadow`` None): all the temporal
+    metrics read of a previous frame.
 
     Returns
     -------
     Frame
-        ``timings`` holds ``cascades``, ``raster`` and ``shadow`` in seconds.
+        ``timings`` holds ``cascades``, ``raster`` (and ``shadow``) in seconds.
     """
     settings = settings.validated()
     start = time.perf_counter()
@@ -370,6 +377,8 @@ def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
     start = time.perf_counter()
     maps = shadow_maps(dscene, cascades, settings)
     timings["raster"] = time.perf_counter() - start
+    if not lookup:
+        return Frame(view=view, settings=settings, maps=maps, shadow=None, timings=timings)
     start = time.perf_counter()
     g = view.gbuffer
     quads = quad_view_depth = None

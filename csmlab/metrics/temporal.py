@@ -152,7 +152,7 @@ def previous_reference_at(frame: Frame, previous: Frame) -> np.ndarray:
     cast = view.previous_reference
     if cast is not None and np.array_equal(view.previous_light_direction, before.light_direction):
         return np.where(g.valid, cast, np.nan).astype(np.float32)
-    if _same_camera(view.pose, before.pose):
+    if _same_camera(view.pose, before.pose) and before.reference is not None:
         return np.where(g.valid, before.reference, np.nan).astype(np.float32)
     raise ValueError(f"frame {view.index}: expected its view rendered with previous_light_direction = frame "
                      f"{before.index}'s light (the reference R_(t-1) is cast, not reprojected), got "
