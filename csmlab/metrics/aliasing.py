@@ -147,7 +147,7 @@ def utilization(frame: Frame) -> np.ndarray:
             continue
         texel = np.floor(texel_coordinates(cascades, c, points)).astype(np.int64)
         r = cascade.resolution
-        inside = np.all((texel >= 0) & (texel < r), axis=1)
+        inside = (texel[:, 0] >= 0) & (texel[:, 0] < r) & (texel[:, 1] >= 0) & (texel[:, 1] < r)
         # Distinct texels counted on a bitmap of the map: linear time, where np.unique sorts.
         looked_up = np.zeros(r * r, dtype=bool)
         looked_up[texel[inside, 1] * r + texel[inside, 0]] = True
