@@ -1,22 +1,58 @@
 """The ray-traced hard shadow, ground truth of every shadow map (DESIGN.md, CSM model step 7).
 
 From each visible point, moved a small epsilon along its normal (relative to the scene's size, far
-above the float32 error of the BVH's anchored vertices), a ray toward the light (``−d``) asks the
-BVH whether anything lies in the way. A point whose normal faces away from the light
-(``n·(−d) ≤ 0``) receives no direct light and is shadowed without a ray.
+above the float32 error of the BVH's anchored vertices), a ray toward the light (``−d``) of length
+``4·diagonal`` asks whether anything lies in the way. A point whose normal faces away from the light
+(``n·(−d) ≤ 0``) receives no direct light and is shadowed without a ray. Two methods answer the same
+question, registered in :data:`REFERENCE_METHODS`:
+
+- ``irregular`` — an irregular z-buffer (the default): every ray is parallel to the light, so in
+  light space (orthographic along ``d``, :func:`csmlab.geometry.light_basis`) a ray from ``S`` is
+  blocked exactly when a triangle's projection contains ``S.xy`` and the triangle's depth there is
+  nearer the light than ``S`` by more than 0 and less than the ray's length. The ray starts are
+  binned into a uniform light-space grid (a counting sort), then one thread per triangle walks the
+  cells its bounding box covers and tests the starts in them — closed point-in-triangle and depth,
+  both in float64 from float64 vertices (:func:`hard_shadow_irregular`);
+- ``ray`` — one any-hit ray per point through the BVH in float32, ``wp.mesh_query_ray_anyhit``
+  (:func:`hard_shadow_ray`), the independent oracle of the tests.
+
+They agree everywhere but within float32 rounding of a triangle's edge or of the ray's start plane,
+where the float32 ray cast may decide either way.
+
+References
+----------
+- Aila and Laine, "Alias-Free Shadow Maps", EGSR 2004 — shadow rays from the eye's samples,
+  organised by occluding triangle in light space.
+- Johnson, Hux, Lin, Chen and Mark, "The irregular Z-buffer: Hardware acceleration for irregular
+  data structures", ACM TOG 24(4), 2005 — the light-space grid of samples, each triangle testing
+  the samples of the cells it covers.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import warp as wp
 
+from csmlab.geometry import light_basis
 from csmlab.kernels.visibility import MeshBVH
+from csmlab.registry import check_name
 
-__all__ = ["RAY_OFFSET", "hard_shadow"]
+__all__ = ["RAYS_PER_CELL", "RAY_OFFSET", "REFERENCE_METHODS", "hard_shadow", "hard_shadow_irregular",
+           "hard_shadow_ray"]
 
 RAY_OFFSET = 1e-5
 """Ray start offset along the normal, as a fraction of the scene's bounding-box diagonal."""
+
+RAY_LENGTH = 4.0
+"""Length of a shadow ray, as a multiple of the scene's bounding-box diagonal (beyond every occluder)."""
+
+RAYS_PER_CELL = 2.0
+"""Mean ray starts per cell of the irregular z-buffer's light-space grid (``benchmarks/bench_peers.py``)."""
+
+_CACHED_LIGHTS = 2
+"""Light directions whose light-space vertices a MeshBVH keeps: a frame's and its predecessor's."""
 
 
 @wp.kernel
@@ -41,24 +77,184 @@ def hard_shadow_kernel(
         lit[k] = 1.0
 
 
-def hard_shadow(bvh: MeshBVH, *, points, normals, light_direction) -> np.ndarray:
-    """Ray-traced hard shadow R at receiver points: 1 lit, 0 shadowed, NaN where no point.
+@wp.kernel
+def light_space_kernel(
+    vertices: wp.array(dtype=wp.vec3d),
+    right: wp.vec3d,
+    up: wp.vec3d,
+    d: wp.vec3d,
+    light: wp.array(dtype=wp.vec3d),
+):
+    """Vertices (relative to the anchor) in light space: ``(x·right, x·up, x·d)``."""
+    k = wp.tid()
+    v = vertices[k]
+    light[k] = wp.vec3d(wp.dot(v, right), wp.dot(v, up), wp.dot(v, d))
 
-    Parameters
-    ----------
-    bvh : MeshBVH
-        The scene, on the device the kernel runs on.
-    points : array_like, shape (...,  3), float64
-        World positions in metres; rows with a NaN are not receivers.
-    normals : array_like, shape (..., 3), float32
-        Unit normals of the receivers (facing the camera).
-    light_direction : array_like, shape (3,)
-        From the light toward the scene; normalised here.
 
-    Returns
-    -------
-    ndarray, shape (...), float32
+@wp.kernel
+def ray_start_kernel(
+    position: wp.array(dtype=wp.vec3d),
+    normal: wp.array(dtype=wp.vec3),
+    anchor: wp.vec3d,
+    right: wp.vec3d,
+    up: wp.vec3d,
+    d: wp.vec3d,
+    offset: wp.float64,
+    start: wp.array(dtype=wp.vec3d),
+    lit: wp.array(dtype=wp.float32),
+    bounds: wp.array(dtype=wp.float64),
+):
+    """Light-space start of each receiver's ray; NaN (no point), 0 (turned away) or 1 (a ray) in ``lit``.
+
+    ``bounds`` gathers the starts' ``(min x, min y, max x, max y, max z)``.
     """
+    k = wp.tid()
+    p = position[k]
+    if not (wp.isfinite(p[0]) and wp.isfinite(p[1]) and wp.isfinite(p[2])):
+        lit[k] = wp.nan
+        return
+    n = wp.vec3d(normal[k])
+    # The ray cast's test, n·(−d) ≤ 0, with the same operations.
+    if wp.dot(n, -d) <= wp.float64(0.0):
+        lit[k] = 0.0
+        return
+    q = p - anchor + n * offset
+    s = wp.vec3d(wp.dot(q, right), wp.dot(q, up), wp.dot(q, d))
+    start[k] = s
+    lit[k] = 1.0
+    wp.atomic_min(bounds, 0, s[0])
+    wp.atomic_min(bounds, 1, s[1])
+    wp.atomic_max(bounds, 2, s[0])
+    wp.atomic_max(bounds, 3, s[1])
+    wp.atomic_max(bounds, 4, s[2])
+
+
+@wp.func
+def grid_cell(x: wp.float64, origin: wp.float64, inv_cell: wp.float64, count: int) -> int:
+    """Grid column (or row) of coordinate ``x``, clamped to ``[0, count)``: monotone in ``x``."""
+    return wp.clamp(int(wp.floor((x - origin) * inv_cell)), 0, count - 1)
+
+
+@wp.kernel
+def bin_kernel(
+    start: wp.array(dtype=wp.vec3d),
+    lit: wp.array(dtype=wp.float32),
+    origin: wp.vec2d,
+    inv_cell: wp.float64,
+    nx: int,
+    ny: int,
+    cell: wp.array(dtype=wp.int32),
+    slot: wp.array(dtype=wp.int32),
+    count: wp.array(dtype=wp.int32),
+):
+    """Each ray's grid cell and its slot among the cell's rays (counting sort, first pass)."""
+    k = wp.tid()
+    if lit[k] != 1.0:
+        return
+    s = start[k]
+    c = grid_cell(s[1], origin[1], inv_cell, ny) * nx + grid_cell(s[0], origin[0], inv_cell, nx)
+    cell[k] = c
+    slot[k] = wp.atomic_add(count, c, 1)
+
+
+@wp.kernel
+def scatter_kernel(
+    start: wp.array(dtype=wp.vec3d),
+    lit: wp.array(dtype=wp.float32),
+    cell: wp.array(dtype=wp.int32),
+    slot: wp.array(dtype=wp.int32),
+    first: wp.array(dtype=wp.int32),
+    sorted_start: wp.array(dtype=wp.vec3d),
+    sorted_ray: wp.array(dtype=wp.int32),
+):
+    """Rays in cell order (counting sort, second pass)."""
+    k = wp.tid()
+    if lit[k] != 1.0:
+        return
+    j = first[cell[k]] + slot[k]
+    sorted_start[j] = start[k]
+    sorted_ray[j] = k
+
+
+@wp.func
+def edge(a: wp.vec3d, b: wp.vec3d, p: wp.vec3d) -> wp.float64:
+    """Twice the signed area of the light-space triangle (a, b, p), xy only: > 0 when p is left of a→b."""
+    return (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])
+
+
+@wp.kernel
+def block_kernel(
+    light: wp.array(dtype=wp.vec3d),
+    triangles: wp.array2d(dtype=wp.int32),
+    sorted_start: wp.array(dtype=wp.vec3d),
+    first: wp.array(dtype=wp.int32),
+    origin: wp.vec2d,
+    inv_cell: wp.float64,
+    nx: int,
+    ny: int,
+    bounds: wp.array(dtype=wp.float64),
+    max_t: wp.float64,
+    blocked: wp.array(dtype=wp.uint8),
+):
+    """One triangle: mark every ray whose start it covers in light space, nearer the light within ``max_t``.
+
+    Every writer of ``blocked[j]`` writes 1, so concurrent triangles need no atomics.
+    """
+    t = wp.tid()
+    a = light[triangles[t, 0]]
+    b = light[triangles[t, 1]]
+    c = light[triangles[t, 2]]
+    # Nothing at or behind every start can block a ray toward the light.
+    if wp.min(a[2], wp.min(b[2], c[2])) >= bounds[4]:
+        return
+    x_lo = wp.min(a[0], wp.min(b[0], c[0]))
+    x_hi = wp.max(a[0], wp.max(b[0], c[0]))
+    y_lo = wp.min(a[1], wp.min(b[1], c[1]))
+    y_hi = wp.max(a[1], wp.max(b[1], c[1]))
+    if x_hi < bounds[0] or x_lo > bounds[2] or y_hi < bounds[1] or y_lo > bounds[3]:
+        return
+    area = edge(a, b, c)
+    # Seen edge-on, a triangle covers no area of light space.
+    if area == wp.float64(0.0):
+        return
+    sign = wp.float64(1.0)
+    if area < wp.float64(0.0):
+        sign = wp.float64(-1.0)
+    col_lo = grid_cell(x_lo, origin[0], inv_cell, nx)
+    col_hi = grid_cell(x_hi, origin[0], inv_cell, nx)
+    row_lo = grid_cell(y_lo, origin[1], inv_cell, ny)
+    row_hi = grid_cell(y_hi, origin[1], inv_cell, ny)
+    for row in range(row_lo, row_hi + 1):
+        for col in range(col_lo, col_hi + 1):
+            c_id = row * nx + col
+            for j in range(first[c_id], first[c_id + 1]):
+                if blocked[j] != wp.uint8(0):
+                    continue
+                s = sorted_start[j]
+                # Closed test: a start on an edge or a vertex is covered.
+                w_a = sign * edge(b, c, s)
+                w_b = sign * edge(c, a, s)
+                w_c = sign * edge(a, b, s)
+                if w_a >= wp.float64(0.0) and w_b >= wp.float64(0.0) and w_c >= wp.float64(0.0):
+                    depth = (w_a * a[2] + w_b * b[2] + w_c * c[2]) / (sign * area)
+                    along = s[2] - depth
+                    if along > wp.float64(0.0) and along < max_t:
+                        blocked[j] = wp.uint8(1)
+
+
+@wp.kernel
+def shade_kernel(
+    blocked: wp.array(dtype=wp.uint8),
+    sorted_ray: wp.array(dtype=wp.int32),
+    lit: wp.array(dtype=wp.float32),
+):
+    j = wp.tid()
+    if blocked[j] != wp.uint8(0):
+        lit[sorted_ray[j]] = 0.0
+
+
+def _receivers(points, normals, light_direction) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``points`` (float64) and ``normals`` (float32) as contiguous ``(N, 3)`` arrays, and the light basis."""
     p = np.asarray(points, dtype=np.float64)
     n = np.asarray(normals, dtype=np.float32)
     if p.shape[-1:] != (3,) or n.shape != p.shape:
@@ -66,14 +262,19 @@ def hard_shadow(bvh: MeshBVH, *, points, normals, light_direction) -> np.ndarray
     d = np.asarray(light_direction, dtype=np.float64)
     if d.shape != (3,) or not np.all(np.isfinite(d)) or np.linalg.norm(d) == 0.0:
         raise ValueError(f"light_direction: expected a finite non-zero vector (3,), got {light_direction!r}")
-    toward = -d / np.linalg.norm(d)
-    flat = p.reshape(-1, 3)
-    valid = np.all(np.isfinite(flat), axis=1)
-    out = np.full(flat.shape[0], np.nan, dtype=np.float32)
+    return np.ascontiguousarray(p.reshape(-1, 3)), np.ascontiguousarray(n.reshape(-1, 3)), light_basis(d)
+
+
+def hard_shadow_ray(bvh: MeshBVH, *, points, normals, light_direction) -> np.ndarray:
+    """The hard shadow by one float32 any-hit ray per point through the BVH (arguments of :func:`hard_shadow`)."""
+    p, n, basis = _receivers(points, normals, light_direction)
+    shape = np.shape(points)[:-1]
+    valid = np.all(np.isfinite(p), axis=1)
+    out = np.full(p.shape[0], np.nan, dtype=np.float32)
     if np.any(valid):
         device = bvh.device
-        start = np.ascontiguousarray(flat[valid] - bvh.anchor)
-        normal = np.ascontiguousarray(n.reshape(-1, 3)[valid])
+        start = np.ascontiguousarray(p[valid] - bvh.anchor)
+        normal = np.ascontiguousarray(n[valid])
         lit = wp.empty(start.shape[0], dtype=wp.float32, device=device)
         wp.launch(
             hard_shadow_kernel,
@@ -82,12 +283,112 @@ def hard_shadow(bvh: MeshBVH, *, points, normals, light_direction) -> np.ndarray
                 bvh.mesh.id,
                 wp.array(start, dtype=wp.vec3d, device=device, copy=False),
                 wp.array(normal, dtype=wp.vec3, device=device, copy=False),
-                wp.vec3d(*toward),
+                wp.vec3d(*-basis[2]),
                 RAY_OFFSET * max(bvh.diagonal, 1e-9),
-                float(4.0 * max(bvh.diagonal, 1e-9)),
+                float(RAY_LENGTH * max(bvh.diagonal, 1e-9)),
             ),
             outputs=(lit,),
             device=device,
         )
         out[valid] = lit.numpy()
-    return out.reshape(p.shape[:-1])
+    return out.reshape(shape)
+
+
+def _light_space_vertices(bvh: MeshBVH, basis: np.ndarray) -> wp.array:
+    """``bvh``'s vertices in the light space of ``basis`` (relative to the anchor), kept per direction."""
+    key = basis.tobytes()
+    if key not in bvh.light_space:
+        light = wp.empty(bvh.vertices.shape[0], dtype=wp.vec3d, device=bvh.device)
+        wp.launch(light_space_kernel, dim=light.shape[0], inputs=(bvh.vertices, *(wp.vec3d(*row) for row in basis)),
+                  outputs=(light,), device=bvh.device)
+        while len(bvh.light_space) >= _CACHED_LIGHTS:
+            bvh.light_space.pop(next(iter(bvh.light_space)))
+        bvh.light_space[key] = light
+    return bvh.light_space[key]
+
+
+def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction) -> np.ndarray:
+    """The hard shadow by an irregular z-buffer: rays binned in light space, tested by triangle in float64.
+
+    Arguments of :func:`hard_shadow`. The grid spans the ray starts' light-space rectangle with
+    square cells of :data:`RAYS_PER_CELL` starts on average.
+    """
+    p, n, basis = _receivers(points, normals, light_direction)
+    shape = np.shape(points)[:-1]
+    device = bvh.device
+    count = p.shape[0]
+    lit = wp.empty(count, dtype=wp.float32, device=device)
+    if count == 0:
+        return lit.numpy().reshape(shape)
+    diagonal = max(bvh.diagonal, 1e-9)
+    light = _light_space_vertices(bvh, basis)
+    axes = tuple(wp.vec3d(*row) for row in basis)
+    start = wp.empty(count, dtype=wp.vec3d, device=device)
+    bounds = wp.array([np.inf, np.inf, -np.inf, -np.inf, -np.inf], dtype=wp.float64, device=device)
+    wp.launch(ray_start_kernel, dim=count,
+              inputs=(wp.array(p, dtype=wp.vec3d, device=device), wp.array(n, dtype=wp.vec3, device=device),
+                      wp.vec3d(*bvh.anchor), *axes, RAY_OFFSET * diagonal),
+              outputs=(start, lit, bounds), device=device)
+    x0, y0, x1, y1, _ = bounds.numpy()
+    if not x0 <= x1:
+        return lit.numpy().reshape(shape)
+    # Square cells, RAYS_PER_CELL starts each were the starts spread evenly over their rectangle;
+    # no more cells along a side than there are rays (a thin rectangle).
+    width, height = max(x1 - x0, 1e-12 * diagonal), max(y1 - y0, 1e-12 * diagonal)
+    side = max(math.sqrt(width * height * RAYS_PER_CELL / count), max(width, height) / count)
+    nx, ny = math.ceil(width / side), math.ceil(height / side)
+    inv_cell = 1.0 / side
+    origin = wp.vec2d(x0, y0)
+    ray_cell = wp.empty(count, dtype=wp.int32, device=device)
+    slot = wp.empty(count, dtype=wp.int32, device=device)
+    per_cell = wp.zeros(nx * ny + 1, dtype=wp.int32, device=device)
+    wp.launch(bin_kernel, dim=count, inputs=(start, lit, origin, inv_cell, nx, ny), outputs=(ray_cell, slot, per_cell),
+              device=device)
+    first = wp.empty_like(per_cell)
+    wp.utils.array_scan(per_cell, first, inclusive=False)
+    rays = int(first.numpy()[-1])
+    sorted_start = wp.empty(rays, dtype=wp.vec3d, device=device)
+    sorted_ray = wp.empty(rays, dtype=wp.int32, device=device)
+    wp.launch(scatter_kernel, dim=count, inputs=(start, lit, ray_cell, slot, first),
+              outputs=(sorted_start, sorted_ray), device=device)
+    blocked = wp.zeros(rays, dtype=wp.uint8, device=device)
+    wp.launch(block_kernel, dim=bvh.triangles.shape[0],
+              inputs=(light, bvh.triangles, sorted_start, first, origin, inv_cell, nx, ny, bounds,
+                      RAY_LENGTH * diagonal),
+              outputs=(blocked,), device=device)
+    wp.launch(shade_kernel, dim=rays, inputs=(blocked, sorted_ray), outputs=(lit,), device=device)
+    return lit.numpy().reshape(shape)
+
+
+REFERENCE_METHODS = {"irregular": hard_shadow_irregular, "ray": hard_shadow_ray}
+"""Methods of the hard shadow by name: the irregular z-buffer (float64, the default) and the BVH ray cast (float32)."""
+
+
+def hard_shadow(bvh: MeshBVH, *, points, normals, light_direction, method: str = "irregular") -> np.ndarray:
+    """Ray-traced hard shadow R at receiver points: 1 lit, 0 shadowed, NaN where no point.
+
+    Parameters
+    ----------
+    bvh : MeshBVH
+        The scene, on the device the kernels run on.
+    points : array_like, shape (..., 3), float64
+        World positions in metres; rows with a NaN are not receivers.
+    normals : array_like, shape (..., 3), float32
+        Unit normals of the receivers (facing the camera).
+    light_direction : array_like, shape (3,)
+        From the light toward the scene; normalised here.
+    method : str
+        A key of :data:`REFERENCE_METHODS`: ``"irregular"`` (float64, the faster) or ``"ray"``
+        (BVH rays in float32).
+
+    Returns
+    -------
+    ndarray, shape (...), float32
+
+    Raises
+    ------
+    ValueError
+        On an unknown method, mis-shaped points or normals, or a zero or non-finite light direction.
+    """
+    return REFERENCE_METHODS[check_name(method, REFERENCE_METHODS, field="method")](
+        bvh, points=points, normals=normals, light_direction=light_direction)
