@@ -39,7 +39,7 @@ from csmlab.geometry import light_basis
 from csmlab.kernels.visibility import MeshBVH
 from csmlab.registry import check_name
 
-__all__ = ["RAYS_PER_CELL", "RAY_OFFSET", "REFERENCE_METHODS", "hard_shadow", "hard_shadow_irregular",
+__all__ = ["COARSE_RAYS_PER_CELL", "RAYS_PER_CELL", "RAY_OFFSET", "REFERENCE_METHODS", "hard_shadow", "hard_shadow_irregular",
            "hard_shadow_ray"]
 
 RAY_OFFSET = 1e-5
@@ -48,8 +48,11 @@ RAY_OFFSET = 1e-5
 RAY_LENGTH = 4.0
 """Length of a shadow ray, as a multiple of the scene's bounding-box diagonal (beyond every occluder)."""
 
+COARSE_RAYS_PER_CELL = 32.0
+"""Mean ray starts per coarse cell of the irregular z-buffer's light-space grid."""
+
 RAYS_PER_CELL = 2.0
-"""Mean ray starts per cell of the irregular z-buffer's light-space grid (``benchmarks/bench_peers.py``)."""
+"""Ray starts per sub-cell the coarse cells are split for (``benchmarks/bench_peers.py`` measures them)."""
 
 _CACHED_LIGHTS = 2
 """Light directions whose light-space vertices a MeshBVH keeps: a frame's and its predecessor's."""
@@ -130,56 +133,99 @@ def ray_start_kernel(
 
 
 @wp.func
-def grid_cell(x: wp.float64, origin: wp.float64, inv_cell: wp.float64, count: int) -> int:
-    """Grid column (or row) of coordinate ``x``, clamped to ``[0, count)``: monotone in ``x``."""
-    return wp.clamp(int(wp.floor((x - origin) * inv_cell)), 0, count - 1)
+def grid_cell(u: wp.float64, count: int) -> int:
+    """Coarse cell of grid coordinate ``u`` (in cells from the origin), clamped to ``[0, count)``: monotone in ``u``."""
+    return wp.clamp(int(wp.floor(u)), 0, count - 1)
+
+
+@wp.func
+def sub_cell(u: wp.float64, cell: int, sub: int) -> int:
+    """Sub-cell of grid coordinate ``u`` within coarse cell ``cell`` split ``sub`` ways, clamped: monotone in ``u``."""
+    return wp.clamp(int(wp.floor((u - wp.float64(cell)) * wp.float64(sub))), 0, sub - 1)
 
 
 @wp.kernel
-def bin_kernel(
+def coarse_bin_kernel(
     start: wp.array(dtype=wp.vec3d),
     lit: wp.array(dtype=wp.float32),
     origin: wp.vec2d,
-    inv_cell: wp.float64,
+    inv_side: wp.float64,
     nx: int,
     ny: int,
     cell: wp.array(dtype=wp.int32),
-    slot: wp.array(dtype=wp.int32),
     count: wp.array(dtype=wp.int32),
 ):
-    """Each ray's grid cell and its slot among the cell's rays (counting sort, first pass)."""
+    """Each ray's coarse cell, and the rays per coarse cell."""
     k = wp.tid()
     if lit[k] != 1.0:
         return
     s = start[k]
-    c = grid_cell(s[1], origin[1], inv_cell, ny) * nx + grid_cell(s[0], origin[0], inv_cell, nx)
+    c = grid_cell((s[1] - origin[1]) * inv_side, ny) * nx + grid_cell((s[0] - origin[0]) * inv_side, nx)
     cell[k] = c
-    slot[k] = wp.atomic_add(count, c, 1)
+    wp.atomic_add(count, c, 1)
+
+
+@wp.kernel
+def sub_grid_kernel(
+    count: wp.array(dtype=wp.int32),
+    rays_per_cell: wp.float64,
+    sub: wp.array(dtype=wp.int32),
+    cells: wp.array(dtype=wp.int32),
+):
+    """Each coarse cell split ``sub × sub`` ways, ``rays_per_cell`` rays per sub-cell were they spread evenly."""
+    c = wp.tid()
+    n = count[c]
+    s = 0
+    if n > 0:
+        s = int(wp.ceil(wp.sqrt(wp.float64(n) / rays_per_cell)))
+    sub[c] = s
+    cells[c] = s * s
+
+
+@wp.kernel
+def fine_bin_kernel(
+    start: wp.array(dtype=wp.vec3d),
+    lit: wp.array(dtype=wp.float32),
+    origin: wp.vec2d,
+    inv_side: wp.float64,
+    nx: int,
+    cell: wp.array(dtype=wp.int32),
+    sub: wp.array(dtype=wp.int32),
+    offset: wp.array(dtype=wp.int32),
+    fine: wp.array(dtype=wp.int32),
+    slot: wp.array(dtype=wp.int32),
+    count: wp.array(dtype=wp.int32),
+):
+    """Each ray's sub-cell (row-major within its coarse cell) and its slot there (counting sort, first pass)."""
+    k = wp.tid()
+    if lit[k] != 1.0:
+        return
+    s = start[k]
+    c = cell[k]
+    n = sub[c]
+    f = offset[c] + sub_cell((s[1] - origin[1]) * inv_side, c / nx, n) * n + sub_cell(
+        (s[0] - origin[0]) * inv_side, c % nx, n)
+    fine[k] = f
+    slot[k] = wp.atomic_add(count, f, 1)
 
 
 @wp.kernel
 def scatter_kernel(
     start: wp.array(dtype=wp.vec3d),
     lit: wp.array(dtype=wp.float32),
-    cell: wp.array(dtype=wp.int32),
+    fine: wp.array(dtype=wp.int32),
     slot: wp.array(dtype=wp.int32),
     first: wp.array(dtype=wp.int32),
     sorted_start: wp.array(dtype=wp.vec3d),
     sorted_ray: wp.array(dtype=wp.int32),
 ):
-    """Rays in cell order (counting sort, second pass)."""
+    """Rays in sub-cell order (counting sort, second pass)."""
     k = wp.tid()
     if lit[k] != 1.0:
         return
-    j = first[cell[k]] + slot[k]
+    j = first[fine[k]] + slot[k]
     sorted_start[j] = start[k]
     sorted_ray[j] = k
-
-
-@wp.func
-def edge(a: wp.vec3d, b: wp.vec3d, p: wp.vec3d) -> wp.float64:
-    """Twice the signed area of the light-space triangle (a, b, p), xy only: > 0 when p is left of a→b."""
-    return (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])
 
 
 @wp.kernel
@@ -187,11 +233,13 @@ def block_kernel(
     light: wp.array(dtype=wp.vec3d),
     triangles: wp.array2d(dtype=wp.int32),
     sorted_start: wp.array(dtype=wp.vec3d),
-    first: wp.array(dtype=wp.int32),
     origin: wp.vec2d,
-    inv_cell: wp.float64,
+    inv_side: wp.float64,
     nx: int,
     ny: int,
+    sub: wp.array(dtype=wp.int32),
+    offset: wp.array(dtype=wp.int32),
+    first: wp.array(dtype=wp.int32),
     bounds: wp.array(dtype=wp.float64),
     max_t: wp.float64,
     blocked: wp.array(dtype=wp.uint8),
@@ -213,33 +261,52 @@ def block_kernel(
     y_hi = wp.max(a[1], wp.max(b[1], c[1]))
     if x_hi < bounds[0] or x_lo > bounds[2] or y_hi < bounds[1] or y_lo > bounds[3]:
         return
-    area = edge(a, b, c)
+    # Light-space edges from vertex a, oriented counter-clockwise, and the plane's depth gradient.
+    e_b = b - a
+    e_c = c - a
+    area = e_b[0] * e_c[1] - e_c[0] * e_b[1]
     # Seen edge-on, a triangle covers no area of light space.
     if area == wp.float64(0.0):
         return
-    sign = wp.float64(1.0)
     if area < wp.float64(0.0):
-        sign = wp.float64(-1.0)
-    col_lo = grid_cell(x_lo, origin[0], inv_cell, nx)
-    col_hi = grid_cell(x_hi, origin[0], inv_cell, nx)
-    row_lo = grid_cell(y_lo, origin[1], inv_cell, ny)
-    row_hi = grid_cell(y_hi, origin[1], inv_cell, ny)
-    for row in range(row_lo, row_hi + 1):
-        for col in range(col_lo, col_hi + 1):
-            c_id = row * nx + col
-            for j in range(first[c_id], first[c_id + 1]):
-                if blocked[j] != wp.uint8(0):
-                    continue
-                s = sorted_start[j]
-                # Closed test: a start on an edge or a vertex is covered.
-                w_a = sign * edge(b, c, s)
-                w_b = sign * edge(c, a, s)
-                w_c = sign * edge(a, b, s)
-                if w_a >= wp.float64(0.0) and w_b >= wp.float64(0.0) and w_c >= wp.float64(0.0):
-                    depth = (w_a * a[2] + w_b * b[2] + w_c * c[2]) / (sign * area)
-                    along = s[2] - depth
-                    if along > wp.float64(0.0) and along < max_t:
-                        blocked[j] = wp.uint8(1)
+        e_b, e_c = e_c, e_b
+        area = -area
+    slope_x = (e_b[2] * e_c[1] - e_c[2] * e_b[1]) / area
+    slope_y = (e_c[2] * e_b[0] - e_b[2] * e_c[0]) / area
+    # The bounding box in grid coordinates, mapped to cells as the starts were (monotone: every
+    # start inside the box falls in a cell of its range).
+    u_lo = (x_lo - origin[0]) * inv_side
+    u_hi = (x_hi - origin[0]) * inv_side
+    v_lo = (y_lo - origin[1]) * inv_side
+    v_hi = (y_hi - origin[1]) * inv_side
+    for row in range(grid_cell(v_lo, ny), grid_cell(v_hi, ny) + 1):
+        for col in range(grid_cell(u_lo, nx), grid_cell(u_hi, nx) + 1):
+            cell = row * nx + col
+            n = sub[cell]
+            if n == 0:
+                continue
+            i_lo = sub_cell(u_lo, col, n)
+            i_hi = sub_cell(u_hi, col, n)
+            for j in range(sub_cell(v_lo, row, n), sub_cell(v_hi, row, n) + 1):
+                # The sub-cells i_lo..i_hi of a sub-row hold consecutive rays.
+                f = offset[cell] + j * n
+                for r in range(first[f + i_lo], first[f + i_hi + 1]):
+                    if blocked[r] != wp.uint8(0):
+                        continue
+                    s = sorted_start[r]
+                    dx = s[0] - a[0]
+                    dy = s[1] - a[1]
+                    # Depth first (the cheaper test, failed by the receiver's own triangle):
+                    # the plane lies nearer the light than the start, within the ray.
+                    along = s[2] - (a[2] + slope_x * dx + slope_y * dy)
+                    if along <= wp.float64(0.0) or along >= max_t:
+                        continue
+                    # Closed point-in-triangle: the barycentric weights of c, of b and of a
+                    # (twice the signed areas of the sub-triangles), none negative.
+                    w_c = e_b[0] * dy - e_b[1] * dx
+                    w_b = e_c[1] * dx - e_c[0] * dy
+                    if w_c >= wp.float64(0.0) and w_b >= wp.float64(0.0) and area - w_b - w_c >= wp.float64(0.0):
+                        blocked[r] = wp.uint8(1)
 
 
 @wp.kernel
@@ -332,28 +399,38 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction) -> 
     x0, y0, x1, y1, _ = bounds.numpy()
     if not x0 <= x1:
         return lit.numpy().reshape(shape)
-    # Square cells, RAYS_PER_CELL starts each were the starts spread evenly over their rectangle;
-    # no more cells along a side than there are rays (a thin rectangle).
+    # Square coarse cells, COARSE_RAYS_PER_CELL starts each were the starts spread evenly over
+    # their rectangle (no more along a side than there are rays: a thin rectangle); each then split
+    # for RAYS_PER_CELL starts per sub-cell, wherever the starts crowd.
     width, height = max(x1 - x0, 1e-12 * diagonal), max(y1 - y0, 1e-12 * diagonal)
-    side = max(math.sqrt(width * height * RAYS_PER_CELL / count), max(width, height) / count)
+    side = max(math.sqrt(width * height * COARSE_RAYS_PER_CELL / count), max(width, height) / count)
     nx, ny = math.ceil(width / side), math.ceil(height / side)
-    inv_cell = 1.0 / side
-    origin = wp.vec2d(x0, y0)
-    ray_cell = wp.empty(count, dtype=wp.int32, device=device)
-    slot = wp.empty(count, dtype=wp.int32, device=device)
-    per_cell = wp.zeros(nx * ny + 1, dtype=wp.int32, device=device)
-    wp.launch(bin_kernel, dim=count, inputs=(start, lit, origin, inv_cell, nx, ny), outputs=(ray_cell, slot, per_cell),
+    grid = (wp.vec2d(x0, y0), 1.0 / side, nx)
+    coarse = wp.empty(count, dtype=wp.int32, device=device)
+    per_coarse = wp.zeros(nx * ny, dtype=wp.int32, device=device)
+    wp.launch(coarse_bin_kernel, dim=count, inputs=(start, lit, *grid, ny), outputs=(coarse, per_coarse),
               device=device)
-    first = wp.empty_like(per_cell)
-    wp.utils.array_scan(per_cell, first, inclusive=False)
+    sub = wp.empty(nx * ny, dtype=wp.int32, device=device)
+    cells = wp.zeros(nx * ny + 1, dtype=wp.int32, device=device)
+    wp.launch(sub_grid_kernel, dim=nx * ny, inputs=(per_coarse, RAYS_PER_CELL), outputs=(sub, cells), device=device)
+    offset = wp.empty_like(cells)
+    wp.utils.array_scan(cells, offset, inclusive=False)
+    fine_cells = int(offset.numpy()[-1])
+    fine = wp.empty(count, dtype=wp.int32, device=device)
+    slot = wp.empty(count, dtype=wp.int32, device=device)
+    per_fine = wp.zeros(fine_cells + 1, dtype=wp.int32, device=device)
+    wp.launch(fine_bin_kernel, dim=count, inputs=(start, lit, *grid, coarse, sub, offset),
+              outputs=(fine, slot, per_fine), device=device)
+    first = wp.empty_like(per_fine)
+    wp.utils.array_scan(per_fine, first, inclusive=False)
     rays = int(first.numpy()[-1])
     sorted_start = wp.empty(rays, dtype=wp.vec3d, device=device)
     sorted_ray = wp.empty(rays, dtype=wp.int32, device=device)
-    wp.launch(scatter_kernel, dim=count, inputs=(start, lit, ray_cell, slot, first),
+    wp.launch(scatter_kernel, dim=count, inputs=(start, lit, fine, slot, first),
               outputs=(sorted_start, sorted_ray), device=device)
     blocked = wp.zeros(rays, dtype=wp.uint8, device=device)
     wp.launch(block_kernel, dim=bvh.triangles.shape[0],
-              inputs=(light, bvh.triangles, sorted_start, first, origin, inv_cell, nx, ny, bounds,
+              inputs=(light, bvh.triangles, sorted_start, *grid, ny, sub, offset, first, bounds,
                       RAY_LENGTH * diagonal),
               outputs=(blocked,), device=device)
     wp.launch(shade_kernel, dim=rays, inputs=(blocked, sorted_ray), outputs=(lit,), device=device)
