@@ -48,11 +48,17 @@ RAY_OFFSET = 1e-5
 RAY_LENGTH = 4.0
 """Length of a shadow ray, as a multiple of the scene's bounding-box diagonal (beyond every occluder)."""
 
-COARSE_RAYS_PER_CELL = 32.0
+COARSE_RAYS_PER_CELL = 64.0
 """Mean ray starts per coarse cell of the irregular z-buffer's light-space grid."""
 
-RAYS_PER_CELL = 2.0
+RAYS_PER_CELL = 4.0
 """Ray starts per sub-cell the coarse cells are split for (``benchmarks/bench_peers.py`` measures them)."""
+
+MARGIN = wp.constant(wp.float64(1e-6))
+"""Grid cells by which a triangle's reach is widened against rounding (which is below 1e-9 of a cell)."""
+
+SLOPE = wp.constant(wp.float64(1e-3))
+"""Below this |dv/du| in grid coordinates, an edge's slice of a sub-row is taken as the whole edge."""
 
 _CACHED_LIGHTS = 2
 """Light directions whose light-space vertices a MeshBVH keeps: a frame's and its predecessor's."""
@@ -152,16 +158,14 @@ def coarse_bin_kernel(
     inv_side: wp.float64,
     nx: int,
     ny: int,
-    cell: wp.array(dtype=wp.int32),
     count: wp.array(dtype=wp.int32),
 ):
-    """Each ray's coarse cell, and the rays per coarse cell."""
+    """The rays per coarse cell."""
     k = wp.tid()
     if lit[k] != 1.0:
         return
     s = start[k]
     c = grid_cell((s[1] - origin[1]) * inv_side, ny) * nx + grid_cell((s[0] - origin[0]) * inv_side, nx)
-    cell[k] = c
     wp.atomic_add(count, c, 1)
 
 
@@ -189,7 +193,7 @@ def fine_bin_kernel(
     origin: wp.vec2d,
     inv_side: wp.float64,
     nx: int,
-    cell: wp.array(dtype=wp.int32),
+    ny: int,
     sub: wp.array(dtype=wp.int32),
     offset: wp.array(dtype=wp.int32),
     fine: wp.array(dtype=wp.int32),
@@ -201,10 +205,13 @@ def fine_bin_kernel(
     if lit[k] != 1.0:
         return
     s = start[k]
-    c = cell[k]
+    u = (s[0] - origin[0]) * inv_side
+    v = (s[1] - origin[1]) * inv_side
+    col = grid_cell(u, nx)
+    row = grid_cell(v, ny)
+    c = row * nx + col
     n = sub[c]
-    f = offset[c] + sub_cell((s[1] - origin[1]) * inv_side, c / nx, n) * n + sub_cell(
-        (s[0] - origin[0]) * inv_side, c % nx, n)
+    f = offset[c] + sub_cell(v, row, n) * n + sub_cell(u, col, n)
     fine[k] = f
     slot[k] = wp.atomic_add(count, f, 1)
 
@@ -226,6 +233,35 @@ def scatter_kernel(
     j = first[fine[k]] + slot[k]
     sorted_start[j] = start[k]
     sorted_ray[j] = k
+
+
+@wp.func
+def inverse_slope(p: wp.vec2d, q: wp.vec2d) -> wp.float64:
+    """``du/dv`` of segment ``p``–``q`` in grid coordinates; NaN within ``SLOPE`` of horizontal (ill-conditioned)."""
+    du = q[0] - p[0]
+    dv = q[1] - p[1]
+    if wp.abs(dv) > SLOPE * wp.abs(du):
+        return du / dv
+    return wp.float64(wp.nan)
+
+
+@wp.func
+def strip_extent(p: wp.vec2d, q: wp.vec2d, du_dv: wp.float64, v_lo: wp.float64, v_hi: wp.float64,
+                 extent: wp.vec2d) -> wp.vec2d:
+    """``extent`` (least and greatest ``u``) grown by the part of segment ``p``–``q`` with ``v_lo ≤ v ≤ v_hi``.
+
+    A segment of NaN ``du_dv`` (nearly horizontal) counts whole.
+    """
+    low = wp.min(p[1], q[1])
+    high = wp.max(p[1], q[1])
+    if high < v_lo or low > v_hi:
+        return extent
+    u_p = p[0]
+    u_q = q[0]
+    if not wp.isnan(du_dv):
+        u_p = p[0] + (wp.clamp(v_lo, low, high) - p[1]) * du_dv
+        u_q = p[0] + (wp.clamp(v_hi, low, high) - p[1]) * du_dv
+    return wp.vec2d(wp.min(extent[0], wp.min(u_p, u_q)), wp.max(extent[1], wp.max(u_p, u_q)))
 
 
 @wp.kernel
@@ -255,11 +291,9 @@ def block_kernel(
     # Nothing at or behind every start can block a ray toward the light.
     if wp.min(a[2], wp.min(b[2], c[2])) >= bounds[4]:
         return
-    x_lo = wp.min(a[0], wp.min(b[0], c[0]))
-    x_hi = wp.max(a[0], wp.max(b[0], c[0]))
-    y_lo = wp.min(a[1], wp.min(b[1], c[1]))
-    y_hi = wp.max(a[1], wp.max(b[1], c[1]))
-    if x_hi < bounds[0] or x_lo > bounds[2] or y_hi < bounds[1] or y_lo > bounds[3]:
+    if wp.max(a[0], wp.max(b[0], c[0])) < bounds[0] or wp.min(a[0], wp.min(b[0], c[0])) > bounds[2]:
+        return
+    if wp.max(a[1], wp.max(b[1], c[1])) < bounds[1] or wp.min(a[1], wp.min(b[1], c[1])) > bounds[3]:
         return
     # Light-space edges from vertex a, oriented counter-clockwise, and the plane's depth gradient.
     e_b = b - a
@@ -273,26 +307,40 @@ def block_kernel(
         area = -area
     slope_x = (e_b[2] * e_c[1] - e_c[2] * e_b[1]) / area
     slope_y = (e_c[2] * e_b[0] - e_b[2] * e_c[0]) / area
-    # The bounding box in grid coordinates, mapped to cells as the starts were (monotone: every
-    # start inside the box falls in a cell of its range).
-    u_lo = (x_lo - origin[0]) * inv_side
-    u_hi = (x_hi - origin[0]) * inv_side
-    v_lo = (y_lo - origin[1]) * inv_side
-    v_hi = (y_hi - origin[1]) * inv_side
+    # The vertices in grid coordinates (cells from the origin), mapped as the starts were: a start
+    # inside the triangle lies inside it there too, within rounding far below MARGIN.
+    g_a = wp.vec2d((a[0] - origin[0]) * inv_side, (a[1] - origin[1]) * inv_side)
+    g_b = wp.vec2d((b[0] - origin[0]) * inv_side, (b[1] - origin[1]) * inv_side)
+    g_c = wp.vec2d((c[0] - origin[0]) * inv_side, (c[1] - origin[1]) * inv_side)
+    u_lo = wp.min(g_a[0], wp.min(g_b[0], g_c[0])) - MARGIN
+    u_hi = wp.max(g_a[0], wp.max(g_b[0], g_c[0])) + MARGIN
+    v_lo = wp.min(g_a[1], wp.min(g_b[1], g_c[1])) - MARGIN
+    v_hi = wp.max(g_a[1], wp.max(g_b[1], g_c[1])) + MARGIN
+    slope_ab = inverse_slope(g_a, g_b)
+    slope_bc = inverse_slope(g_b, g_c)
+    slope_ca = inverse_slope(g_c, g_a)
     for row in range(grid_cell(v_lo, ny), grid_cell(v_hi, ny) + 1):
         for col in range(grid_cell(u_lo, nx), grid_cell(u_hi, nx) + 1):
             cell = row * nx + col
             n = sub[cell]
             if n == 0:
                 continue
-            i_lo = sub_cell(u_lo, col, n)
-            i_hi = sub_cell(u_hi, col, n)
+            height = wp.float64(1.0) / wp.float64(n)
             for j in range(sub_cell(v_lo, row, n), sub_cell(v_hi, row, n) + 1):
+                # Only the sub-cells of this sub-row that the triangle's slice of it reaches.
+                strip_lo = wp.float64(row) + wp.float64(j) * height - MARGIN
+                strip_hi = strip_lo + height + MARGIN + MARGIN
+                extent = wp.vec2d(wp.float64(wp.inf), wp.float64(-wp.inf))
+                extent = strip_extent(g_a, g_b, slope_ab, strip_lo, strip_hi, extent)
+                extent = strip_extent(g_b, g_c, slope_bc, strip_lo, strip_hi, extent)
+                extent = strip_extent(g_c, g_a, slope_ca, strip_lo, strip_hi, extent)
+                if extent[0] > extent[1]:
+                    continue
+                i_lo = sub_cell(extent[0] - MARGIN, col, n)
+                i_hi = sub_cell(extent[1] + MARGIN, col, n)
                 # The sub-cells i_lo..i_hi of a sub-row hold consecutive rays.
                 f = offset[cell] + j * n
                 for r in range(first[f + i_lo], first[f + i_hi + 1]):
-                    if blocked[r] != wp.uint8(0):
-                        continue
                     s = sorted_start[r]
                     dx = s[0] - a[0]
                     dy = s[1] - a[1]
@@ -305,7 +353,7 @@ def block_kernel(
                     # (twice the signed areas of the sub-triangles), none negative.
                     w_c = e_b[0] * dy - e_b[1] * dx
                     w_b = e_c[1] * dx - e_c[0] * dy
-                    if w_c >= wp.float64(0.0) and w_b >= wp.float64(0.0) and area - w_b - w_c >= wp.float64(0.0):
+                    if wp.min(wp.min(w_c, w_b), area - w_b - w_c) >= wp.float64(0.0):
                         blocked[r] = wp.uint8(1)
 
 
@@ -392,8 +440,11 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction) -> 
     axes = tuple(wp.vec3d(*row) for row in basis)
     start = wp.empty(count, dtype=wp.vec3d, device=device)
     bounds = wp.array([np.inf, np.inf, -np.inf, -np.inf, -np.inf], dtype=wp.float64, device=device)
+    # On the CPU the kernel reads the NumPy arrays in place.
+    copy = not wp.get_device(device).is_cpu
     wp.launch(ray_start_kernel, dim=count,
-              inputs=(wp.array(p, dtype=wp.vec3d, device=device), wp.array(n, dtype=wp.vec3, device=device),
+              inputs=(wp.array(p, dtype=wp.vec3d, device=device, copy=copy),
+                      wp.array(n, dtype=wp.vec3, device=device, copy=copy),
                       wp.vec3d(*bvh.anchor), *axes, RAY_OFFSET * diagonal),
               outputs=(start, lit, bounds), device=device)
     x0, y0, x1, y1, _ = bounds.numpy()
@@ -406,10 +457,8 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction) -> 
     side = max(math.sqrt(width * height * COARSE_RAYS_PER_CELL / count), max(width, height) / count)
     nx, ny = math.ceil(width / side), math.ceil(height / side)
     grid = (wp.vec2d(x0, y0), 1.0 / side, nx)
-    coarse = wp.empty(count, dtype=wp.int32, device=device)
     per_coarse = wp.zeros(nx * ny, dtype=wp.int32, device=device)
-    wp.launch(coarse_bin_kernel, dim=count, inputs=(start, lit, *grid, ny), outputs=(coarse, per_coarse),
-              device=device)
+    wp.launch(coarse_bin_kernel, dim=count, inputs=(start, lit, *grid, ny), outputs=(per_coarse,), device=device)
     sub = wp.empty(nx * ny, dtype=wp.int32, device=device)
     cells = wp.zeros(nx * ny + 1, dtype=wp.int32, device=device)
     wp.launch(sub_grid_kernel, dim=nx * ny, inputs=(per_coarse, RAYS_PER_CELL), outputs=(sub, cells), device=device)
@@ -419,7 +468,7 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction) -> 
     fine = wp.empty(count, dtype=wp.int32, device=device)
     slot = wp.empty(count, dtype=wp.int32, device=device)
     per_fine = wp.zeros(fine_cells + 1, dtype=wp.int32, device=device)
-    wp.launch(fine_bin_kernel, dim=count, inputs=(start, lit, *grid, coarse, sub, offset),
+    wp.launch(fine_bin_kernel, dim=count, inputs=(start, lit, *grid, ny, sub, offset),
               outputs=(fine, slot, per_fine), device=device)
     first = wp.empty_like(per_fine)
     wp.utils.array_scan(per_fine, first, inclusive=False)
