@@ -101,6 +101,21 @@ def light_space_kernel(
 
 
 @wp.kernel
+def triangle_box_kernel(
+    light: wp.array(dtype=wp.vec3d),
+    triangles: wp.array2d(dtype=wp.int32),
+    box: wp.array(dtype=wp.vec4),
+):
+    """Each triangle's light-space bounding rectangle ``(x_lo, y_lo, x_hi, y_hi)``, rounded to float32."""
+    t = wp.tid()
+    a = light[triangles[t, 0]]
+    b = light[triangles[t, 1]]
+    c = light[triangles[t, 2]]
+    box[t] = wp.vec4(wp.float32(wp.min(a[0], wp.min(b[0], c[0]))), wp.float32(wp.min(a[1], wp.min(b[1], c[1]))),
+                     wp.float32(wp.max(a[0], wp.max(b[0], c[0]))), wp.float32(wp.max(a[1], wp.max(b[1], c[1]))))
+
+
+@wp.kernel
 def ray_start_kernel(
     position: wp.array(dtype=wp.vec3d),
     normal: wp.array(dtype=wp.vec3),
@@ -268,6 +283,8 @@ def strip_extent(p: wp.vec2d, q: wp.vec2d, du_dv: wp.float64, v_lo: wp.float64, 
 def block_kernel(
     light: wp.array(dtype=wp.vec3d),
     triangles: wp.array2d(dtype=wp.int32),
+    box: wp.array(dtype=wp.vec4),
+    slack: wp.float64,
     sorted_start: wp.array(dtype=wp.vec3d),
     origin: wp.vec2d,
     inv_side: wp.float64,
@@ -285,17 +302,20 @@ def block_kernel(
     Every writer of ``blocked[j]`` writes 1, so concurrent triangles need no atomics.
     """
     t = wp.tid()
+    # Most triangles lie beside every start: their float32 rectangle (read in sequence, widened by
+    # ``slack`` beyond its rounding) says so before any vertex is gathered.
+    rect = box[t]
+    if wp.float64(rect[2]) + slack < bounds[0] or wp.float64(rect[0]) - slack > bounds[2]:
+        return
+    if wp.float64(rect[3]) + slack < bounds[1] or wp.float64(rect[1]) - slack > bounds[3]:
+        return
     a = light[triangles[t, 0]]
     b = light[triangles[t, 1]]
     c = light[triangles[t, 2]]
     # Nothing at or behind every start can block a ray toward the light.
     if wp.min(a[2], wp.min(b[2], c[2])) >= bounds[4]:
         return
-    if wp.max(a[0], wp.max(b[0], c[0])) < bounds[0] or wp.min(a[0], wp.min(b[0], c[0])) > bounds[2]:
-        return
-    if wp.max(a[1], wp.max(b[1], c[1])) < bounds[1] or wp.min(a[1], wp.min(b[1], c[1])) > bounds[3]:
-        return
-    # Light-space edges from vertex a, oriented counter-clockwise, and the plane's depth gradient.
+    # Light-space edges from vertex a, oriented counter-clockwise.
     e_b = b - a
     e_c = c - a
     area = e_b[0] * e_c[1] - e_c[0] * e_b[1]
@@ -305,8 +325,6 @@ def block_kernel(
     if area < wp.float64(0.0):
         e_b, e_c = e_c, e_b
         area = -area
-    slope_x = (e_b[2] * e_c[1] - e_c[2] * e_b[1]) / area
-    slope_y = (e_c[2] * e_b[0] - e_b[2] * e_c[0]) / area
     # The vertices in grid coordinates (cells from the origin), mapped as the starts were: a start
     # inside the triangle lies inside it there too, within rounding far below MARGIN.
     g_a = wp.vec2d((a[0] - origin[0]) * inv_side, (a[1] - origin[1]) * inv_side)
@@ -316,9 +334,14 @@ def block_kernel(
     u_hi = wp.max(g_a[0], wp.max(g_b[0], g_c[0])) + MARGIN
     v_lo = wp.min(g_a[1], wp.min(g_b[1], g_c[1])) - MARGIN
     v_hi = wp.max(g_a[1], wp.max(g_b[1], g_c[1])) + MARGIN
-    slope_ab = inverse_slope(g_a, g_b)
-    slope_bc = inverse_slope(g_b, g_c)
-    slope_ca = inverse_slope(g_c, g_a)
+    # The divisions of the slopes wait for the first sub-row with rays in the box's reach: most
+    # triangles that reach the starts' rectangle have none.
+    ready = int(0)
+    slope_x = wp.float64(0.0)
+    slope_y = wp.float64(0.0)
+    slope_ab = wp.float64(0.0)
+    slope_bc = wp.float64(0.0)
+    slope_ca = wp.float64(0.0)
     for row in range(grid_cell(v_lo, ny), grid_cell(v_hi, ny) + 1):
         for col in range(grid_cell(u_lo, nx), grid_cell(u_hi, nx) + 1):
             cell = row * nx + col
@@ -326,7 +349,19 @@ def block_kernel(
             if n == 0:
                 continue
             height = wp.float64(1.0) / wp.float64(n)
+            box_lo = sub_cell(u_lo, col, n)
+            box_hi = sub_cell(u_hi, col, n)
             for j in range(sub_cell(v_lo, row, n), sub_cell(v_hi, row, n) + 1):
+                f = offset[cell] + j * n
+                if first[f + box_lo] == first[f + box_hi + 1]:
+                    continue
+                if ready == 0:
+                    slope_x = (e_b[2] * e_c[1] - e_c[2] * e_b[1]) / area
+                    slope_y = (e_c[2] * e_b[0] - e_b[2] * e_c[0]) / area
+                    slope_ab = inverse_slope(g_a, g_b)
+                    slope_bc = inverse_slope(g_b, g_c)
+                    slope_ca = inverse_slope(g_c, g_a)
+                    ready = 1
                 # Only the sub-cells of this sub-row that the triangle's slice of it reaches.
                 strip_lo = wp.float64(row) + wp.float64(j) * height - MARGIN
                 strip_hi = strip_lo + height + MARGIN + MARGIN
@@ -339,7 +374,6 @@ def block_kernel(
                 i_lo = sub_cell(extent[0] - MARGIN, col, n)
                 i_hi = sub_cell(extent[1] + MARGIN, col, n)
                 # The sub-cells i_lo..i_hi of a sub-row hold consecutive rays.
-                f = offset[cell] + j * n
                 for r in range(first[f + i_lo], first[f + i_hi + 1]):
                     s = sorted_start[r]
                     dx = s[0] - a[0]
@@ -409,16 +443,20 @@ def hard_shadow_ray(bvh: MeshBVH, *, points, normals, light_direction) -> np.nda
     return out.reshape(shape)
 
 
-def _light_space_vertices(bvh: MeshBVH, basis: np.ndarray) -> wp.array:
-    """``bvh``'s vertices in the light space of ``basis`` (relative to the anchor), kept per direction."""
+def _scene_in_light_space(bvh: MeshBVH, basis: np.ndarray) -> tuple[wp.array, wp.array]:
+    """``bvh``'s vertices in the light space of ``basis`` (relative to the anchor) and its triangles'
+    float32 rectangles there, kept per direction."""
     key = basis.tobytes()
     if key not in bvh.light_space:
-        light = wp.empty(bvh.vertices.shape[0], dtype=wp.vec3d, device=bvh.device)
+        device = bvh.device
+        light = wp.empty(bvh.vertices.shape[0], dtype=wp.vec3d, device=device)
         wp.launch(light_space_kernel, dim=light.shape[0], inputs=(bvh.vertices, *(wp.vec3d(*row) for row in basis)),
-                  outputs=(light,), device=bvh.device)
+                  outputs=(light,), device=device)
+        box = wp.empty(bvh.triangles.shape[0], dtype=wp.vec4, device=device)
+        wp.launch(triangle_box_kernel, dim=box.shape[0], inputs=(light, bvh.triangles), outputs=(box,), device=device)
         while len(bvh.light_space) >= _CACHED_LIGHTS:
             bvh.light_space.pop(next(iter(bvh.light_space)))
-        bvh.light_space[key] = light
+        bvh.light_space[key] = (light, box)
     return bvh.light_space[key]
 
 
@@ -436,7 +474,7 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction) -> 
     if count == 0:
         return lit.numpy().reshape(shape)
     diagonal = max(bvh.diagonal, 1e-9)
-    light = _light_space_vertices(bvh, basis)
+    light, box = _scene_in_light_space(bvh, basis)
     axes = tuple(wp.vec3d(*row) for row in basis)
     start = wp.empty(count, dtype=wp.vec3d, device=device)
     bounds = wp.array([np.inf, np.inf, -np.inf, -np.inf, -np.inf], dtype=wp.float64, device=device)
@@ -479,7 +517,7 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction) -> 
               outputs=(sorted_start, sorted_ray), device=device)
     blocked = wp.zeros(rays, dtype=wp.uint8, device=device)
     wp.launch(block_kernel, dim=bvh.triangles.shape[0],
-              inputs=(light, bvh.triangles, sorted_start, *grid, ny, sub, offset, first, bounds,
+              inputs=(light, bvh.triangles, box, diagonal * 2.0**-23, sorted_start, *grid, ny, sub, offset, first, bounds,
                       RAY_LENGTH * diagonal),
               outputs=(blocked,), device=device)
     wp.launch(shade_kernel, dim=rays, inputs=(blocked, sorted_ray), outputs=(lit,), device=device)
