@@ -9,8 +9,11 @@ shadow-map resolution, at frame 60 of the default experiment's walk, it times:
 - ``gbuffer raster`` and ``gbuffer ray``: csmlab's camera G-buffer (first hit, position, normal) by
   each of :data:`csmlab.kernels.visibility.VISIBILITY_METHODS`, both against one measurement of
   Open3D ``RaycastingScene.cast_rays`` on the same pixel-centre rays;
-- ``shadow rays``: csmlab's ray-traced reference against ``test_occlusions`` on the same rays
-  (visible points facing the light, toward the light);
+- ``shadow irregular`` and ``shadow ray``: csmlab's ray-traced reference by each of
+  :data:`csmlab.kernels.reference.REFERENCE_METHODS`, both against one measurement of Open3D
+  ``test_occlusions`` on the same rays (visible points facing the light, toward the light);
+  ``shadow irregular, new light`` is the first with the scene's light-space vertices transformed
+  anew each time, as for a light that moves every frame (a static light transforms them once);
 - ``depth maps``: csmlab's cascade pass (fixed-point conversion + rasterization of 4 cascades)
   against ``cast_rays`` along the light through every texel centre of the same cascades;
 - ``lookup``: csmlab's shadow lookup at every visible pixel (no peer);
@@ -49,7 +52,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from csmlab.cascades import build_cascades
 from csmlab.config import load_experiment
 from csmlab.experiment import build_workload
-from csmlab.kernels.reference import RAY_OFFSET, hard_shadow
+from csmlab.kernels.reference import RAY_OFFSET, REFERENCE_METHODS, hard_shadow
 from csmlab.kernels.visibility import VISIBILITY_METHODS, camera_hits
 from csmlab.metrics import measure_frame
 from csmlab.render import lookup_shadow, prepare_scene, render_shadow, render_view, shadow_maps
@@ -148,6 +151,7 @@ def bench_kernels(label: str, resolution: int, *, width: int, height: int, repea
     occluders = shadow_rays(view, anchor, dscene.bvh.diagonal)
     b = dscene.bvh
     camera_peer = peer_times(rc, pixel_rays(pose, width, height, anchor), repeats, occlusion=False)
+    shadow_peer = peer_times(rc, occluders, repeats, occlusion=True)
     rows = [
         (f"gbuffer {method}", pixels, "Mrays/s",
          lambda method=method: camera_hits(b, position=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg,
@@ -155,9 +159,15 @@ def bench_kernels(label: str, resolution: int, *, width: int, height: int, repea
          lambda: camera_peer)
         for method in VISIBILITY_METHODS
     ] + [
-        ("shadow rays", len(occluders), "Mrays/s",
-         lambda: hard_shadow(b, points=g.position, normals=g.normal, light_direction=light),
-         lambda: peer_times(rc, occluders, repeats, occlusion=True)),
+        (f"shadow {method}", len(occluders), "Mrays/s",
+         lambda method=method: hard_shadow(b, points=g.position, normals=g.normal, light_direction=light,
+                                           method=method),
+         lambda: shadow_peer)
+        for method in REFERENCE_METHODS
+    ] + [
+        ("shadow irregular, new light", len(occluders), "Mrays/s",
+         lambda: (b.light_space.clear(), hard_shadow(b, points=g.position, normals=g.normal, light_direction=light)),
+         lambda: shadow_peer),
         ("depth maps", texels, "Mtexels/s", lambda: shadow_maps(dscene, cascades, settings),
          lambda: peer_times(rc, texel_rays(cascades, anchor), max(1, repeats // 2), occlusion=False)),
         ("lookup", pixels, "Mpix/s",

@@ -1,22 +1,67 @@
 """The ray-traced hard shadow, ground truth of every shadow map (DESIGN.md, CSM model step 7).
 
 From each visible point, moved a small epsilon along its normal (relative to the scene's size, far
-above the float32 error of the BVH's anchored vertices), a ray toward the light (``−d``) asks the
-BVH whether anything lies in the way. A point whose normal faces away from the light
-(``n·(−d) ≤ 0``) receives no direct light and is shadowed without a ray.
+above the float32 error of the BVH's anchored vertices), a ray toward the light (``−d``) of length
+``4·diagonal`` asks whether anything lies in the way. A point whose normal faces away from the light
+(``n·(−d) ≤ 0``) receives no direct light and is shadowed without a ray. Two methods answer the same
+question, registered in :data:`REFERENCE_METHODS`:
+
+- ``irregular`` — an irregular z-buffer (the default): every ray is parallel to the light, so in
+  light space (orthographic along ``d``, :func:`csmlab.geometry.light_basis`) a ray from ``S`` is
+  blocked exactly when a triangle's projection contains ``S.xy`` and the triangle's depth there is
+  nearer the light than ``S`` by more than 0 and less than the ray's length. The ray starts are
+  binned into a uniform light-space grid (a counting sort), then one thread per triangle walks the
+  cells its bounding box covers and tests the starts in them — closed point-in-triangle and depth,
+  both in float64 from float64 vertices (:func:`hard_shadow_irregular`);
+- ``ray`` — one any-hit ray per point through the BVH in float32, ``wp.mesh_query_ray_anyhit``
+  (:func:`hard_shadow_ray`), the independent oracle of the tests.
+
+They agree everywhere but within float32 rounding of a triangle's edge or of the ray's start plane,
+where the float32 ray cast may decide either way.
+
+References
+----------
+- Aila and Laine, "Alias-Free Shadow Maps", EGSR 2004 — shadow rays from the eye's samples,
+  organised by occluding triangle in light space.
+- Johnson, Hux, Lin, Chen and Mark, "The irregular Z-buffer: Hardware acceleration for irregular
+  data structures", ACM TOG 24(4), 2005 — the light-space grid of samples, each triangle testing
+  the samples of the cells it covers.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import warp as wp
 
+from csmlab.geometry import light_basis
 from csmlab.kernels.visibility import MeshBVH
+from csmlab.registry import check_name
 
-__all__ = ["RAY_OFFSET", "hard_shadow"]
+__all__ = ["COARSE_RAYS_PER_CELL", "RAYS_PER_CELL", "RAY_OFFSET", "REFERENCE_METHODS", "hard_shadow", "hard_shadow_irregular",
+           "hard_shadow_ray"]
 
 RAY_OFFSET = 1e-5
 """Ray start offset along the normal, as a fraction of the scene's bounding-box diagonal."""
+
+RAY_LENGTH = 4.0
+"""Length of a shadow ray, as a multiple of the scene's bounding-box diagonal (beyond every occluder)."""
+
+COARSE_RAYS_PER_CELL = 64.0
+"""Mean ray starts per coarse cell of the irregular z-buffer's light-space grid."""
+
+RAYS_PER_CELL = 4.0
+"""Ray starts per sub-cell the coarse cells are split for (``benchmarks/bench_peers.py`` measures them)."""
+
+MARGIN = wp.constant(wp.float64(1e-6))
+"""Grid cells by which a triangle's reach is widened against rounding (which is below 1e-9 of a cell)."""
+
+SLOPE = wp.constant(wp.float64(1e-3))
+"""Below this |dv/du| in grid coordinates, an edge's slice of a sub-row is taken as the whole edge."""
+
+_CACHED_LIGHTS = 2
+"""Light directions whose light-space vertices a MeshBVH keeps: a frame's and its predecessor's."""
 
 
 @wp.kernel
@@ -41,24 +86,324 @@ def hard_shadow_kernel(
         lit[k] = 1.0
 
 
-def hard_shadow(bvh: MeshBVH, *, points, normals, light_direction) -> np.ndarray:
-    """Ray-traced hard shadow R at receiver points: 1 lit, 0 shadowed, NaN where no point.
+@wp.kernel
+def light_space_kernel(
+    vertices: wp.array(dtype=wp.vec3d),
+    right: wp.vec3d,
+    up: wp.vec3d,
+    d: wp.vec3d,
+    light: wp.array(dtype=wp.vec3d),
+):
+    """Vertices (relative to the anchor) in light space: ``(x·right, x·up, x·d)``."""
+    k = wp.tid()
+    v = vertices[k]
+    light[k] = wp.vec3d(wp.dot(v, right), wp.dot(v, up), wp.dot(v, d))
 
-    Parameters
-    ----------
-    bvh : MeshBVH
-        The scene, on the device the kernel runs on.
-    points : array_like, shape (...,  3), float64
-        World positions in metres; rows with a NaN are not receivers.
-    normals : array_like, shape (..., 3), float32
-        Unit normals of the receivers (facing the camera).
-    light_direction : array_like, shape (3,)
-        From the light toward the scene; normalised here.
 
-    Returns
-    -------
-    ndarray, shape (...), float32
+@wp.kernel
+def triangle_box_kernel(
+    light: wp.array(dtype=wp.vec3d),
+    triangles: wp.array2d(dtype=wp.int32),
+    box: wp.array(dtype=wp.vec4),
+):
+    """Each triangle's light-space bounding rectangle ``(x_lo, y_lo, x_hi, y_hi)``, rounded to float32."""
+    t = wp.tid()
+    a = light[triangles[t, 0]]
+    b = light[triangles[t, 1]]
+    c = light[triangles[t, 2]]
+    box[t] = wp.vec4(wp.float32(wp.min(a[0], wp.min(b[0], c[0]))), wp.float32(wp.min(a[1], wp.min(b[1], c[1]))),
+                     wp.float32(wp.max(a[0], wp.max(b[0], c[0]))), wp.float32(wp.max(a[1], wp.max(b[1], c[1]))))
+
+
+@wp.kernel
+def ray_start_kernel(
+    position: wp.array(dtype=wp.vec3d),
+    normal: wp.array(dtype=wp.vec3),
+    anchor: wp.vec3d,
+    right: wp.vec3d,
+    up: wp.vec3d,
+    d: wp.vec3d,
+    offset: wp.float64,
+    start: wp.array(dtype=wp.vec3d),
+    lit: wp.array(dtype=wp.float32),
+    bounds: wp.array(dtype=wp.float64),
+):
+    """Light-space start of each receiver's ray; NaN (no point), 0 (turned away) or 1 (a ray) in ``lit``.
+
+    ``bounds`` gathers the starts' ``(min x, min y, max x, max y, max z)``.
     """
+    k = wp.tid()
+    p = position[k]
+    if not (wp.isfinite(p[0]) and wp.isfinite(p[1]) and wp.isfinite(p[2])):
+        lit[k] = wp.nan
+        return
+    n = wp.vec3d(normal[k])
+    # The ray cast's test, n·(−d) ≤ 0, with the same operations.
+    if wp.dot(n, -d) <= wp.float64(0.0):
+        lit[k] = 0.0
+        return
+    q = p - anchor + n * offset
+    s = wp.vec3d(wp.dot(q, right), wp.dot(q, up), wp.dot(q, d))
+    start[k] = s
+    lit[k] = 1.0
+    wp.atomic_min(bounds, 0, s[0])
+    wp.atomic_min(bounds, 1, s[1])
+    wp.atomic_max(bounds, 2, s[0])
+    wp.atomic_max(bounds, 3, s[1])
+    wp.atomic_max(bounds, 4, s[2])
+
+
+@wp.func
+def grid_cell(u: wp.float64, count: int) -> int:
+    """Coarse cell of grid coordinate ``u`` (in cells from the origin), clamped to ``[0, count)``: monotone in ``u``."""
+    return wp.clamp(int(wp.floor(u)), 0, count - 1)
+
+
+@wp.func
+def sub_cell(u: wp.float64, cell: int, sub: int) -> int:
+    """Sub-cell of grid coordinate ``u`` within coarse cell ``cell`` split ``sub`` ways, clamped: monotone in ``u``."""
+    return wp.clamp(int(wp.floor((u - wp.float64(cell)) * wp.float64(sub))), 0, sub - 1)
+
+
+@wp.kernel
+def coarse_bin_kernel(
+    start: wp.array(dtype=wp.vec3d),
+    lit: wp.array(dtype=wp.float32),
+    origin: wp.vec2d,
+    inv_side: wp.float64,
+    nx: int,
+    ny: int,
+    count: wp.array(dtype=wp.int32),
+):
+    """The rays per coarse cell."""
+    k = wp.tid()
+    if lit[k] != 1.0:
+        return
+    s = start[k]
+    c = grid_cell((s[1] - origin[1]) * inv_side, ny) * nx + grid_cell((s[0] - origin[0]) * inv_side, nx)
+    wp.atomic_add(count, c, 1)
+
+
+@wp.kernel
+def sub_grid_kernel(
+    count: wp.array(dtype=wp.int32),
+    rays_per_cell: wp.float64,
+    sub: wp.array(dtype=wp.int32),
+    cells: wp.array(dtype=wp.int32),
+):
+    """Each coarse cell split ``sub × sub`` ways, ``rays_per_cell`` rays per sub-cell were they spread evenly."""
+    c = wp.tid()
+    n = count[c]
+    s = 0
+    if n > 0:
+        s = int(wp.ceil(wp.sqrt(wp.float64(n) / rays_per_cell)))
+    sub[c] = s
+    cells[c] = s * s
+
+
+@wp.kernel
+def fine_bin_kernel(
+    start: wp.array(dtype=wp.vec3d),
+    lit: wp.array(dtype=wp.float32),
+    origin: wp.vec2d,
+    inv_side: wp.float64,
+    nx: int,
+    ny: int,
+    sub: wp.array(dtype=wp.int32),
+    offset: wp.array(dtype=wp.int32),
+    fine: wp.array(dtype=wp.int32),
+    slot: wp.array(dtype=wp.int32),
+    count: wp.array(dtype=wp.int32),
+):
+    """Each ray's sub-cell (row-major within its coarse cell) and its slot there (counting sort, first pass)."""
+    k = wp.tid()
+    if lit[k] != 1.0:
+        return
+    s = start[k]
+    u = (s[0] - origin[0]) * inv_side
+    v = (s[1] - origin[1]) * inv_side
+    col = grid_cell(u, nx)
+    row = grid_cell(v, ny)
+    c = row * nx + col
+    n = sub[c]
+    f = offset[c] + sub_cell(v, row, n) * n + sub_cell(u, col, n)
+    fine[k] = f
+    slot[k] = wp.atomic_add(count, f, 1)
+
+
+@wp.kernel
+def scatter_kernel(
+    start: wp.array(dtype=wp.vec3d),
+    lit: wp.array(dtype=wp.float32),
+    fine: wp.array(dtype=wp.int32),
+    slot: wp.array(dtype=wp.int32),
+    first: wp.array(dtype=wp.int32),
+    sorted_start: wp.array(dtype=wp.vec3d),
+    sorted_ray: wp.array(dtype=wp.int32),
+):
+    """Rays in sub-cell order (counting sort, second pass)."""
+    k = wp.tid()
+    if lit[k] != 1.0:
+        return
+    j = first[fine[k]] + slot[k]
+    sorted_start[j] = start[k]
+    sorted_ray[j] = k
+
+
+@wp.func
+def inverse_slope(p: wp.vec2d, q: wp.vec2d) -> wp.float64:
+    """``du/dv`` of segment ``p``–``q`` in grid coordinates; NaN within ``SLOPE`` of horizontal (ill-conditioned)."""
+    du = q[0] - p[0]
+    dv = q[1] - p[1]
+    if wp.abs(dv) > SLOPE * wp.abs(du):
+        return du / dv
+    return wp.float64(wp.nan)
+
+
+@wp.func
+def strip_extent(p: wp.vec2d, q: wp.vec2d, du_dv: wp.float64, v_lo: wp.float64, v_hi: wp.float64,
+                 extent: wp.vec2d) -> wp.vec2d:
+    """``extent`` (least and greatest ``u``) grown by the part of segment ``p``–``q`` with ``v_lo ≤ v ≤ v_hi``.
+
+    A segment of NaN ``du_dv`` (nearly horizontal) counts whole.
+    """
+    low = wp.min(p[1], q[1])
+    high = wp.max(p[1], q[1])
+    if high < v_lo or low > v_hi:
+        return extent
+    u_p = p[0]
+    u_q = q[0]
+    if not wp.isnan(du_dv):
+        u_p = p[0] + (wp.clamp(v_lo, low, high) - p[1]) * du_dv
+        u_q = p[0] + (wp.clamp(v_hi, low, high) - p[1]) * du_dv
+    return wp.vec2d(wp.min(extent[0], wp.min(u_p, u_q)), wp.max(extent[1], wp.max(u_p, u_q)))
+
+
+@wp.kernel
+def block_kernel(
+    light: wp.array(dtype=wp.vec3d),
+    triangles: wp.array2d(dtype=wp.int32),
+    box: wp.array(dtype=wp.vec4),
+    slack: wp.float64,
+    sorted_start: wp.array(dtype=wp.vec3d),
+    origin: wp.vec2d,
+    inv_side: wp.float64,
+    nx: int,
+    ny: int,
+    sub: wp.array(dtype=wp.int32),
+    offset: wp.array(dtype=wp.int32),
+    first: wp.array(dtype=wp.int32),
+    bounds: wp.array(dtype=wp.float64),
+    max_t: wp.float64,
+    blocked: wp.array(dtype=wp.uint8),
+):
+    """One triangle: mark every ray whose start it covers in light space, nearer the light within ``max_t``.
+
+    Every writer of ``blocked[j]`` writes 1, so concurrent triangles need no atomics.
+    """
+    t = wp.tid()
+    # Most triangles lie beside every start: their float32 rectangle (read in sequence, widened by
+    # ``slack`` beyond its rounding) says so before any vertex is gathered.
+    rect = box[t]
+    if wp.float64(rect[2]) + slack < bounds[0] or wp.float64(rect[0]) - slack > bounds[2]:
+        return
+    if wp.float64(rect[3]) + slack < bounds[1] or wp.float64(rect[1]) - slack > bounds[3]:
+        return
+    a = light[triangles[t, 0]]
+    b = light[triangles[t, 1]]
+    c = light[triangles[t, 2]]
+    # Nothing at or behind every start can block a ray toward the light.
+    if wp.min(a[2], wp.min(b[2], c[2])) >= bounds[4]:
+        return
+    # Light-space edges from vertex a, oriented counter-clockwise.
+    e_b = b - a
+    e_c = c - a
+    area = e_b[0] * e_c[1] - e_c[0] * e_b[1]
+    # Seen edge-on, a triangle covers no area of light space.
+    if area == wp.float64(0.0):
+        return
+    if area < wp.float64(0.0):
+        e_b, e_c = e_c, e_b
+        area = -area
+    # The vertices in grid coordinates (cells from the origin), mapped as the starts were: a start
+    # inside the triangle lies inside it there too, within rounding far below MARGIN.
+    g_a = wp.vec2d((a[0] - origin[0]) * inv_side, (a[1] - origin[1]) * inv_side)
+    g_b = wp.vec2d((b[0] - origin[0]) * inv_side, (b[1] - origin[1]) * inv_side)
+    g_c = wp.vec2d((c[0] - origin[0]) * inv_side, (c[1] - origin[1]) * inv_side)
+    u_lo = wp.min(g_a[0], wp.min(g_b[0], g_c[0])) - MARGIN
+    u_hi = wp.max(g_a[0], wp.max(g_b[0], g_c[0])) + MARGIN
+    v_lo = wp.min(g_a[1], wp.min(g_b[1], g_c[1])) - MARGIN
+    v_hi = wp.max(g_a[1], wp.max(g_b[1], g_c[1])) + MARGIN
+    # The divisions of the slopes wait for the first sub-row with rays in the box's reach: most
+    # triangles that reach the starts' rectangle have none.
+    ready = int(0)
+    slope_x = wp.float64(0.0)
+    slope_y = wp.float64(0.0)
+    slope_ab = wp.float64(0.0)
+    slope_bc = wp.float64(0.0)
+    slope_ca = wp.float64(0.0)
+    for row in range(grid_cell(v_lo, ny), grid_cell(v_hi, ny) + 1):
+        for col in range(grid_cell(u_lo, nx), grid_cell(u_hi, nx) + 1):
+            cell = row * nx + col
+            n = sub[cell]
+            if n == 0:
+                continue
+            height = wp.float64(1.0) / wp.float64(n)
+            box_lo = sub_cell(u_lo, col, n)
+            box_hi = sub_cell(u_hi, col, n)
+            for j in range(sub_cell(v_lo, row, n), sub_cell(v_hi, row, n) + 1):
+                f = offset[cell] + j * n
+                if first[f + box_lo] == first[f + box_hi + 1]:
+                    continue
+                if ready == 0:
+                    slope_x = (e_b[2] * e_c[1] - e_c[2] * e_b[1]) / area
+                    slope_y = (e_c[2] * e_b[0] - e_b[2] * e_c[0]) / area
+                    slope_ab = inverse_slope(g_a, g_b)
+                    slope_bc = inverse_slope(g_b, g_c)
+                    slope_ca = inverse_slope(g_c, g_a)
+                    ready = 1
+                # Only the sub-cells of this sub-row that the triangle's slice of it reaches.
+                strip_lo = wp.float64(row) + wp.float64(j) * height - MARGIN
+                strip_hi = strip_lo + height + MARGIN + MARGIN
+                extent = wp.vec2d(wp.float64(wp.inf), wp.float64(-wp.inf))
+                extent = strip_extent(g_a, g_b, slope_ab, strip_lo, strip_hi, extent)
+                extent = strip_extent(g_b, g_c, slope_bc, strip_lo, strip_hi, extent)
+                extent = strip_extent(g_c, g_a, slope_ca, strip_lo, strip_hi, extent)
+                if extent[0] > extent[1]:
+                    continue
+                i_lo = sub_cell(extent[0] - MARGIN, col, n)
+                i_hi = sub_cell(extent[1] + MARGIN, col, n)
+                # The sub-cells i_lo..i_hi of a sub-row hold consecutive rays.
+                for r in range(first[f + i_lo], first[f + i_hi + 1]):
+                    s = sorted_start[r]
+                    dx = s[0] - a[0]
+                    dy = s[1] - a[1]
+                    # Depth first (the cheaper test, failed by the receiver's own triangle):
+                    # the plane lies nearer the light than the start, within the ray.
+                    along = s[2] - (a[2] + slope_x * dx + slope_y * dy)
+                    if along <= wp.float64(0.0) or along >= max_t:
+                        continue
+                    # Closed point-in-triangle: the barycentric weights of c, of b and of a
+                    # (twice the signed areas of the sub-triangles), none negative.
+                    w_c = e_b[0] * dy - e_b[1] * dx
+                    w_b = e_c[1] * dx - e_c[0] * dy
+                    if wp.min(wp.min(w_c, w_b), area - w_b - w_c) >= wp.float64(0.0):
+                        blocked[r] = wp.uint8(1)
+
+
+@wp.kernel
+def shade_kernel(
+    blocked: wp.array(dtype=wp.uint8),
+    sorted_ray: wp.array(dtype=wp.int32),
+    lit: wp.array(dtype=wp.float32),
+):
+    j = wp.tid()
+    if blocked[j] != wp.uint8(0):
+        lit[sorted_ray[j]] = 0.0
+
+
+def _receivers(points, normals, light_direction) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``points`` (float64) and ``normals`` (float32) as contiguous ``(N, 3)`` arrays, and the light basis."""
     p = np.asarray(points, dtype=np.float64)
     n = np.asarray(normals, dtype=np.float32)
     if p.shape[-1:] != (3,) or n.shape != p.shape:
@@ -66,14 +411,19 @@ def hard_shadow(bvh: MeshBVH, *, points, normals, light_direction) -> np.ndarray
     d = np.asarray(light_direction, dtype=np.float64)
     if d.shape != (3,) or not np.all(np.isfinite(d)) or np.linalg.norm(d) == 0.0:
         raise ValueError(f"light_direction: expected a finite non-zero vector (3,), got {light_direction!r}")
-    toward = -d / np.linalg.norm(d)
-    flat = p.reshape(-1, 3)
-    valid = np.all(np.isfinite(flat), axis=1)
-    out = np.full(flat.shape[0], np.nan, dtype=np.float32)
+    return np.ascontiguousarray(p.reshape(-1, 3)), np.ascontiguousarray(n.reshape(-1, 3)), light_basis(d)
+
+
+def hard_shadow_ray(bvh: MeshBVH, *, points, normals, light_direction) -> np.ndarray:
+    """The hard shadow by one float32 any-hit ray per point through the BVH (arguments of :func:`hard_shadow`)."""
+    p, n, basis = _receivers(points, normals, light_direction)
+    shape = np.shape(points)[:-1]
+    valid = np.all(np.isfinite(p), axis=1)
+    out = np.full(p.shape[0], np.nan, dtype=np.float32)
     if np.any(valid):
         device = bvh.device
-        start = np.ascontiguousarray(flat[valid] - bvh.anchor)
-        normal = np.ascontiguousarray(n.reshape(-1, 3)[valid])
+        start = np.ascontiguousarray(p[valid] - bvh.anchor)
+        normal = np.ascontiguousarray(n[valid])
         lit = wp.empty(start.shape[0], dtype=wp.float32, device=device)
         wp.launch(
             hard_shadow_kernel,
@@ -82,12 +432,127 @@ def hard_shadow(bvh: MeshBVH, *, points, normals, light_direction) -> np.ndarray
                 bvh.mesh.id,
                 wp.array(start, dtype=wp.vec3d, device=device, copy=False),
                 wp.array(normal, dtype=wp.vec3, device=device, copy=False),
-                wp.vec3d(*toward),
+                wp.vec3d(*-basis[2]),
                 RAY_OFFSET * max(bvh.diagonal, 1e-9),
-                float(4.0 * max(bvh.diagonal, 1e-9)),
+                float(RAY_LENGTH * max(bvh.diagonal, 1e-9)),
             ),
             outputs=(lit,),
             device=device,
         )
         out[valid] = lit.numpy()
-    return out.reshape(p.shape[:-1])
+    return out.reshape(shape)
+
+
+def _scene_in_light_space(bvh: MeshBVH, basis: np.ndarray) -> tuple[wp.array, wp.array]:
+    """``bvh``'s vertices in the light space of ``basis`` (relative to the anchor) and its triangles'
+    float32 rectangles there, kept per direction."""
+    key = basis.tobytes()
+    if key not in bvh.light_space:
+        device = bvh.device
+        light = wp.empty(bvh.vertices.shape[0], dtype=wp.vec3d, device=device)
+        wp.launch(light_space_kernel, dim=light.shape[0], inputs=(bvh.vertices, *(wp.vec3d(*row) for row in basis)),
+                  outputs=(light,), device=device)
+        box = wp.empty(bvh.triangles.shape[0], dtype=wp.vec4, device=device)
+        wp.launch(triangle_box_kernel, dim=box.shape[0], inputs=(light, bvh.triangles), outputs=(box,), device=device)
+        while len(bvh.light_space) >= _CACHED_LIGHTS:
+            bvh.light_space.pop(next(iter(bvh.light_space)))
+        bvh.light_space[key] = (light, box)
+    return bvh.light_space[key]
+
+
+def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction) -> np.ndarray:
+    """The hard shadow by an irregular z-buffer: rays binned in light space, tested by triangle in float64.
+
+    Arguments of :func:`hard_shadow`. The grid spans the ray starts' light-space rectangle with
+    square cells of :data:`RAYS_PER_CELL` starts on average.
+    """
+    p, n, basis = _receivers(points, normals, light_direction)
+    shape = np.shape(points)[:-1]
+    device = bvh.device
+    count = p.shape[0]
+    lit = wp.empty(count, dtype=wp.float32, device=device)
+    if count == 0:
+        return lit.numpy().reshape(shape)
+    diagonal = max(bvh.diagonal, 1e-9)
+    light, box = _scene_in_light_space(bvh, basis)
+    axes = tuple(wp.vec3d(*row) for row in basis)
+    start = wp.empty(count, dtype=wp.vec3d, device=device)
+    bounds = wp.array([np.inf, np.inf, -np.inf, -np.inf, -np.inf], dtype=wp.float64, device=device)
+    # On the CPU the kernel reads the NumPy arrays in place.
+    copy = not wp.get_device(device).is_cpu
+    wp.launch(ray_start_kernel, dim=count,
+              inputs=(wp.array(p, dtype=wp.vec3d, device=device, copy=copy),
+                      wp.array(n, dtype=wp.vec3, device=device, copy=copy),
+                      wp.vec3d(*bvh.anchor), *axes, RAY_OFFSET * diagonal),
+              outputs=(start, lit, bounds), device=device)
+    x0, y0, x1, y1, _ = bounds.numpy()
+    if not x0 <= x1:
+        return lit.numpy().reshape(shape)
+    # Square coarse cells, COARSE_RAYS_PER_CELL starts each were the starts spread evenly over
+    # their rectangle (no more along a side than there are rays: a thin rectangle); each then split
+    # for RAYS_PER_CELL starts per sub-cell, wherever the starts crowd.
+    width, height = max(x1 - x0, 1e-12 * diagonal), max(y1 - y0, 1e-12 * diagonal)
+    side = max(math.sqrt(width * height * COARSE_RAYS_PER_CELL / count), max(width, height) / count)
+    nx, ny = math.ceil(width / side), math.ceil(height / side)
+    grid = (wp.vec2d(x0, y0), 1.0 / side, nx)
+    per_coarse = wp.zeros(nx * ny, dtype=wp.int32, device=device)
+    wp.launch(coarse_bin_kernel, dim=count, inputs=(start, lit, *grid, ny), outputs=(per_coarse,), device=device)
+    sub = wp.empty(nx * ny, dtype=wp.int32, device=device)
+    cells = wp.zeros(nx * ny + 1, dtype=wp.int32, device=device)
+    wp.launch(sub_grid_kernel, dim=nx * ny, inputs=(per_coarse, RAYS_PER_CELL), outputs=(sub, cells), device=device)
+    offset = wp.empty_like(cells)
+    wp.utils.array_scan(cells, offset, inclusive=False)
+    fine_cells = int(offset.numpy()[-1])
+    fine = wp.empty(count, dtype=wp.int32, device=device)
+    slot = wp.empty(count, dtype=wp.int32, device=device)
+    per_fine = wp.zeros(fine_cells + 1, dtype=wp.int32, device=device)
+    wp.launch(fine_bin_kernel, dim=count, inputs=(start, lit, *grid, ny, sub, offset),
+              outputs=(fine, slot, per_fine), device=device)
+    first = wp.empty_like(per_fine)
+    wp.utils.array_scan(per_fine, first, inclusive=False)
+    rays = int(first.numpy()[-1])
+    sorted_start = wp.empty(rays, dtype=wp.vec3d, device=device)
+    sorted_ray = wp.empty(rays, dtype=wp.int32, device=device)
+    wp.launch(scatter_kernel, dim=count, inputs=(start, lit, fine, slot, first),
+              outputs=(sorted_start, sorted_ray), device=device)
+    blocked = wp.zeros(rays, dtype=wp.uint8, device=device)
+    wp.launch(block_kernel, dim=bvh.triangles.shape[0],
+              inputs=(light, bvh.triangles, box, diagonal * 2.0**-23, sorted_start, *grid, ny, sub, offset, first, bounds,
+                      RAY_LENGTH * diagonal),
+              outputs=(blocked,), device=device)
+    wp.launch(shade_kernel, dim=rays, inputs=(blocked, sorted_ray), outputs=(lit,), device=device)
+    return lit.numpy().reshape(shape)
+
+
+REFERENCE_METHODS = {"irregular": hard_shadow_irregular, "ray": hard_shadow_ray}
+"""Methods of the hard shadow by name: the irregular z-buffer (float64, the default) and the BVH ray cast (float32)."""
+
+
+def hard_shadow(bvh: MeshBVH, *, points, normals, light_direction, method: str = "irregular") -> np.ndarray:
+    """Ray-traced hard shadow R at receiver points: 1 lit, 0 shadowed, NaN where no point.
+
+    Parameters
+    ----------
+    bvh : MeshBVH
+        The scene, on the device the kernels run on.
+    points : array_like, shape (..., 3), float64
+        World positions in metres; rows with a NaN are not receivers.
+    normals : array_like, shape (..., 3), float32
+        Unit normals of the receivers (facing the camera).
+    light_direction : array_like, shape (3,)
+        From the light toward the scene; normalised here.
+    method : str
+        A key of :data:`REFERENCE_METHODS`: ``"irregular"`` (float64, the faster) or ``"ray"``
+        (BVH rays in float32).
+
+    Returns
+    -------
+    ndarray, shape (...), float32
+
+    Raises
+    ------
+    ValueError
+        On an unknown method, mis-shaped points or normals, or a zero or non-finite light direction.
+    """
+    return REFERENCE_METHODS[check_name(method, REFERENCE_METHODS, field="method")](
+        bvh, points=points, normals=normals, light_direction=light_direction)

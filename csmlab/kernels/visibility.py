@@ -28,7 +28,7 @@ References
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import warp as wp
@@ -67,6 +67,9 @@ class MeshBVH:
     diagonal : float
         Length in metres of the bounds' diagonal (the scene scale).
     device : str
+    light_space : dict
+        What :mod:`csmlab.kernels.reference` derives from the vertices per light direction (their
+        light-space coordinates), keyed by the direction: a static light transforms them once.
     """
 
     mesh: wp.Mesh
@@ -75,6 +78,7 @@ class MeshBVH:
     anchor: np.ndarray
     diagonal: float
     device: str
+    light_space: dict = field(default_factory=dict, compare=False, repr=False)
 
 
 @dataclass(frozen=True)
