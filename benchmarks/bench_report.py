@@ -112,8 +112,8 @@ def synthesize_results(out: Path, *, frames: int, methods: tuple[str, ...], widt
             timings += [results.TimingRow(index, method, "base", stage, float(rng.random()) * 0.1) for stage in ("raster", "shadow")]
     order = {(m, "base"): k for k, m in enumerate(methods)}
     out.mkdir(parents=True, exist_ok=True)
-    results.write_metrics(out / "metrics.csv", rows, columns=columns, order=order)
-    results.write_timings(out / "timings.csv", timings, order=order)
+    results.write_metrics(out / "metrics.csv", ([r for r in rows if r.method == m] for m in methods), columns=columns)
+    results.write_timings(out / "timings.csv", [timings], order=order)
     (out / "summary.json").write_text(json.dumps({
         "name": "bench", "config_hash": "0" * 16, "csmlab_version": "bench",
         "config": {"scene": {"kind": "plane"}, "camera": {"fps": 30, "frames": frames, "width": width,

@@ -511,7 +511,7 @@ def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, executor: 
 
 def _write_results(out: Path, experiment: Experiment, job: Job, ranges: list[tuple[int, int]], *, run_key: str,
                    config_hash: str) -> dict:
-    from csmlab.metrics import metric_columns
+    from csmlab.metric_registry import metric_columns
     from csmlab.report.capture import write_captures, write_casters
 
     columns = metric_columns(max(v.settings.cascades for v in job.variants))
