@@ -76,8 +76,7 @@ def synthetic_frame(index: int, method: str, *, width: int, height: int, cascade
     cascade = np.where(valid, np.searchsorted(cascade_set.splits, depth) - 1, -1).clip(-1, cascades - 1)
     gbuffer = GBuffer(hits=CameraHits(position=position, normal=np.zeros((height, width, 3), np.float32),
                                       triangle=np.where(valid, 0, -1).astype(np.int32),
-                                      view_depth=depth.astype(np.float32), dpdx=np.zeros((height, width, 3), np.float32),
-                                      dpdy=np.zeros((height, width, 3), np.float32)),
+                                      view_depth=depth.astype(np.float32)),
                       albedo=np.full((height, width, 3), 0.4, np.float32))
     view = View(index=index, pose=pose, light_direction=LIGHT, gbuffer=gbuffer, reference=lit)
     frame = Frame(view=view, settings=settings,

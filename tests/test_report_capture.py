@@ -45,9 +45,7 @@ def _frame(index, *, height=6, width=2 * ANIM_WIDTH + 5, seed=0, position=(3.0, 
     position = np.where(valid[..., None], rng.normal(size=(height, width, 3)) * 10, np.nan)
     gbuffer = GBuffer(hits=CameraHits(position=position, normal=np.zeros((height, width, 3), np.float32),
                                       triangle=np.where(valid, 1, -1).astype(np.int32),
-                                      view_depth=np.where(valid, 5.0, np.inf).astype(np.float32),
-                                      dpdx=np.zeros((height, width, 3), np.float32),
-                                      dpdy=np.zeros((height, width, 3), np.float32)),
+                                      view_depth=np.where(valid, 5.0, np.inf).astype(np.float32)),
                       albedo=np.full((height, width, 3), 0.5, np.float32))
     lit = np.where(valid, rng.random((height, width)), np.nan).astype(np.float32)
     cascade = np.where(valid, rng.integers(0, 3, (height, width)), -1).astype(np.int8)

@@ -20,6 +20,8 @@ from matplotlib.colors import Normalize, PowerNorm
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
+from csmlab.report.png import save_figure
+
 __all__ = [
     "CATEGORY_COLOURS",
     "RHO_LOG2_LIMIT",
@@ -208,7 +210,7 @@ def snapshot_strip_figure(snapshots: list[dict], labels: list[str], path, *, tit
                               orientation="horizontal")
     change_bar.set_ticks([0, 0.05, 0.2, 0.5, 1.0])
     change_bar.set_label("|ΔS| since the previous frame\n(lit fraction, square-root scale)", fontsize=8)
-    fig.savefig(path, metadata={"Software": None})
+    save_figure(fig, path)
 
 
 def _power_of_two(exponent: float) -> str:
