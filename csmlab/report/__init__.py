@@ -88,33 +88,38 @@ def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES, worker: bool | No
     if worker is None:
         worker = _cores() > 1 and _strip_pixels(snapshots, strip_frames) >= _WORKER_PIXELS
     with PicturePool(worker=worker) as pool:
-        # The 3D view first: the worker starts on it (and alone imports PyVista) while this process goes on.
+        # Every picture is queued before this process makes the interactive part's files: the worker takes
+        # pictures from the front (the 3D view first, so that it alone imports PyVista), this process from the back.
         view3d = _view3d(out, snapshots[points[0]], pool)
         strips = _strips(out, snapshots, strip_frames, pool)
+        stabilization = _stabilization(results, groups, points, pool)
+        pool.submit(frame_curves_figure, results.metrics, out / "figures" / "curves.png")
+        cost = _cost(results, groups, pool)
+        sweep = _sweep(results, points, pool)
+        animations = _animations(results, groups, pool)
         single = len(points) == 1
         explore = explore_files(out, groups=groups, labels=[m if single else f"{m} @ {p}" for m, p in groups],
                                 metrics=results.metrics)
-        frame_curves_figure(results.metrics, out / "figures" / "curves.png")
-        context = {
-            **_header(results),
-            "groups": groups,
-            "glance": _glance(columns, rows),
-            "headline_columns": columns,
-            "headline_rows": rows,
-            "full_names": full_names,
-            "full_rows": full_rows,
-            "has_cascades": results.cascades is not None,
-            "regress": _regress(results.regress),
-            "curves": "figures/curves.png",
-            "cost": _cost(results, groups),
-            "anim_width": ANIM_WIDTH,
-            "animations": _animations(results, groups),
-            "stabilization": _stabilization(results, groups, points),
-            **_sweep(results, points),
-        }
         pool.finish()
-    context["strips"] = [{"src": src, "title": title} for src, title, _ in strips]
-    context["view3d"] = _view3d_shown(view3d)
+    context = {
+        **_header(results),
+        "groups": groups,
+        "glance": _glance(columns, rows),
+        "headline_columns": columns,
+        "headline_rows": rows,
+        "full_names": full_names,
+        "full_rows": full_rows,
+        "has_cascades": results.cascades is not None,
+        "regress": _regress(results.regress),
+        "curves": "figures/curves.png",
+        "cost": cost,
+        "anim_width": ANIM_WIDTH,
+        "animations": animations,
+        "strips": [{"src": src, "title": title} for src, title, _ in strips],
+        "stabilization": stabilization,
+        "view3d": _view3d_shown(view3d),
+        **sweep,
+    }
     # The interactive part last, so that it knows the size of everything else.
     context["explore"] = _explore(write_explore(out, explore, budget_bytes=budget_bytes))
     return write_atomic(out / "index.html", render_report_html(context))
@@ -188,10 +193,10 @@ def _cell(value) -> str:
     return format_number(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else str(value)
 
 
-def _cost(results: ResultFiles, groups) -> str | None:
+def _cost(results: ResultFiles, groups, pool: PicturePool) -> str | None:
     if results.timings is None or len(results.timings) == 0:
         return None
-    cost_figure(results.timings, groups, results.directory / "figures" / "cost.png")
+    pool.submit(cost_figure, results.timings, groups, results.directory / "figures" / "cost.png")
     return "figures/cost.png"
 
 
@@ -204,7 +209,7 @@ def _fps(results: ResultFiles) -> float:
     return float(1.0 / np.median(steps)) if steps.size and np.median(steps) > 0 else 30.0
 
 
-def _animations(results: ResultFiles, groups) -> list[dict]:
+def _animations(results: ResultFiles, groups, pool: PicturePool) -> list[dict]:
     out = results.directory
     fps = _fps(results)
     animations = []
@@ -212,11 +217,15 @@ def _animations(results: ResultFiles, groups) -> list[dict]:
         stem = capture_stem(method, point)
         source = out / "anim" / f"{stem}.npz"
         if source.is_file():
-            anim = read_npz(source)
-            write_animation(out / "anim" / f"{stem}.gif", shadow=anim["shadow"], dS=anim["dS"], fps=fps)
+            pool.submit(_draw_animation, source, out / "anim" / f"{stem}.gif", fps=fps)
             label = method if len({p for _, p in groups}) == 1 else f"{method} @ {point}"
             animations.append({"label": label, "src": f"anim/{stem}.gif"})
     return animations
+
+
+def _draw_animation(source: Path, path: Path, *, fps: float) -> None:
+    anim = read_npz(source)
+    write_animation(path, shadow=anim["shadow"], dS=anim["dS"], fps=fps)
 
 
 @dataclass(frozen=True)
@@ -270,7 +279,7 @@ def _draw_strip(paths: list[Path], labels: list[str], path: Path, *, title: str)
     snapshot_strip_figure([read_npz(p) for p in paths], labels, path, title=title)
 
 
-def _stabilization(results: ResultFiles, groups, points) -> list[dict]:
+def _stabilization(results: ResultFiles, groups, points, pool: PicturePool) -> list[dict]:
     if results.cascades is None or len(results.cascades) == 0:
         return []
     present = set(zip(results.cascades["method"].tolist(), results.cascades["point"].tolist()))
@@ -279,7 +288,8 @@ def _stabilization(results: ResultFiles, groups, points) -> list[dict]:
         methods = [m for m, p in groups if p == point and (m, p) in present]
         if methods:
             name = f"figures/stabilization__{safe_name(point)}.png"
-            stabilization_figure(results.cascades, point=point, methods=methods, path=results.directory / name)
+            pool.submit(stabilization_figure, results.cascades.where(results.cascades["point"] == point), point=point,
+                        methods=methods, path=results.directory / name)
             figures.append({"point": point, "src": name})
     return figures
 
@@ -314,7 +324,7 @@ def _view3d_shown(view3d: dict | None) -> dict | None:
     return {"src": None if error else view3d["src"], "title": view3d["title"], "error": error}
 
 
-def _sweep(results: ResultFiles, points) -> dict:
+def _sweep(results: ResultFiles, points, pool: PicturePool) -> dict:
     if len(points) < 2:
         return {"sweep": [], "pareto": None}
     sweep = sweep_points(results.summary, points)
@@ -322,11 +332,11 @@ def _sweep(results: ResultFiles, points) -> dict:
     for parameter in sweep.fields:
         means = sweep_means(results.metrics, sweep, along=parameter)
         name = f"figures/sweep__{safe_name(parameter)}.png"
-        sweep_figure(means, parameter, results.directory / name)
+        pool.submit(sweep_figure, means, parameter, results.directory / name)
         figures.append({"parameter": parameter, "src": name})
     means = sweep_means(results.metrics, sweep, along=sweep.fields[0])
     pareto = None
     if all(k in means for k in PARETO):
-        pareto_figure(means, results.directory / "figures" / "pareto.png")
+        pool.submit(pareto_figure, means, results.directory / "figures" / "pareto.png")
         pareto = "figures/pareto.png"
     return {"sweep": figures, "pareto": pareto}
