@@ -33,7 +33,7 @@ from csmlab.report.explore import BUDGET_BYTES, explore_files, write_explore
 from csmlab.report.figures import (PARETO, cost_figure, frame_curves_figure, pareto_figure, stabilization_figure,
                                    sweep_figure)
 from csmlab.report.html import render_report_html
-from csmlab.report.images import snapshot_strip_figure
+from csmlab.report.images import snapshot_strip_figures
 from csmlab.report.picture_pool import PicturePool
 from csmlab.report.summary_table import full_table, headline_table
 from csmlab.report.sweep import sweep_means, sweep_points
@@ -115,7 +115,7 @@ def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES, worker: bool | No
         "cost": cost,
         "anim_width": ANIM_WIDTH,
         "animations": animations,
-        "strips": [{"src": src, "title": title} for src, title, _ in strips],
+        "strips": strips,
         "stabilization": stabilization,
         "view3d": _view3d_shown(view3d),
         **sweep,
@@ -261,22 +261,24 @@ def _strip_frames(frames: list[int], points: int) -> list[int]:
     return frames if points == 1 else frames[len(frames) // 2:][:1]
 
 
-def _strips(directory: Path, snapshots: dict, strip_frames: dict, pool: PicturePool) -> list[tuple]:
-    """Submit each strip to ``pool``; return ``(src, title, picture)`` per strip."""
+def _strips(directory: Path, snapshots: dict, strip_frames: dict, pool: PicturePool) -> list[dict]:
+    """Submit the strips of each point to ``pool`` (one picture a point: they share a figure); return src and title."""
     strips = []
     for point, frames in strip_frames.items():
+        drawn = []
         for frame in frames:
             snaps = snapshots[point][frame]
             name = f"figures/strip__{safe_name(point)}__f{frame}.png"
             title = _frame_title(frame, snaps) + (f", point {point}" if len(strip_frames) > 1 else "")
-            picture = pool.submit(_draw_strip, [s.path for s in snaps], [s.method for s in snaps], directory / name,
-                                  title=title)
-            strips.append((name, title, picture))
+            drawn.append(([s.path for s in snaps], directory / name, title))
+            strips.append({"src": name, "title": title})
+        if drawn:
+            pool.submit(_draw_strips, drawn, [s.method for s in snapshots[point][frames[0]]])
     return strips
 
 
-def _draw_strip(paths: list[Path], labels: list[str], path: Path, *, title: str) -> None:
-    snapshot_strip_figure([read_npz(p) for p in paths], labels, path, title=title)
+def _draw_strips(strips: list[tuple[list[Path], Path, str]], labels: list[str]) -> None:
+    snapshot_strip_figures([([read_npz(p) for p in paths], path, title) for paths, path, title in strips], labels)
 
 
 def _stabilization(results: ResultFiles, groups, points, pool: PicturePool) -> list[dict]:
