@@ -12,9 +12,10 @@ and a ``metrics.csv`` / ``timings.csv`` / ``summary.json`` of that size. It prin
 :func:`write_captures` for all methods and of :func:`write_report` — the last two are what the
 report adds to a run's wall time. With ``--results DIR`` it works on copies of a real run's
 results directory (``DIR`` is left as it is): the CPU and wall time of each part of the report
-drawn one after the other in this process, then the wall time of ``write_report`` with every
-picture drawn here and with the pictures in a worker process (best of ``--repeat``, each on a
-fresh copy), and the directory's size before and after.
+drawn one after the other in this process; then, each in a fresh interpreter on a fresh copy
+(best of ``--repeat``), the wall time of ``write_report`` with every picture drawn in its own
+process, with the pictures in a worker process and as it chooses, and of the whole
+``csmlab report DIR`` command; and the directory's size before and after.
 """
 
 from __future__ import annotations
@@ -22,6 +23,8 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
+import subprocess
+import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -174,26 +177,50 @@ def report_parts(out: Path) -> list[tuple[str, float, float]]:
     return [read, *pool.parts, made, written]
 
 
+_FRESH = """
+import sys, time
+from csmlab.report import write_report
+began = time.perf_counter()
+write_report(sys.argv[1], worker={worker})
+print(time.perf_counter() - began)
+"""
+
+
+def _fresh_report(copy: Path, *, worker: bool | None) -> float:
+    """Seconds of ``write_report`` in a fresh interpreter that has imported csmlab.report, as ``csmlab run`` has."""
+    done = subprocess.run([sys.executable, "-c", _FRESH.format(worker=worker), str(copy)], check=True,
+                          capture_output=True, text=True)
+    return float(done.stdout.split()[-1])
+
+
+def _fresh_command(copy: Path) -> float:
+    """Wall seconds of ``csmlab report DIR``, interpreter start and imports included."""
+    began = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "csmlab.cli", "report", str(copy)], check=True, capture_output=True)
+    return time.perf_counter() - began
+
+
 def time_results(source: Path, *, repeat: int) -> None:
-    """Print the parts of ``source``'s report and ``write_report``'s wall time, pictures here and in a worker."""
+    """Print the parts of ``source``'s report, then ``write_report`` and ``csmlab report`` each in a fresh process."""
     with tempfile.TemporaryDirectory() as tmp:
         copy = Path(tmp) / "results"
         shutil.copytree(source, copy)
         before = _size(copy)
         (copy / "figures").mkdir(exist_ok=True)
-        print(f"{'part':26s} {'CPU s':>6s} {'wall s':>7s}")
+        print(f"{'part (one after the other)':26s} {'CPU s':>6s} {'wall s':>7s}")
         for name, cpu, wall in report_parts(copy):
             print(f"{name:26s} {cpu:6.2f} {wall:7.2f}")
-        for worker in (False, True):
+        runs = (("write_report, pictures here", lambda: _fresh_report(copy, worker=False)),
+                ("write_report, pictures in a worker", lambda: _fresh_report(copy, worker=True)),
+                ("write_report (its own choice)", lambda: _fresh_report(copy, worker=None)),
+                ("csmlab report DIR (command)", lambda: _fresh_command(copy)))
+        for name, run in runs:
             walls = []
             for _ in range(repeat):
                 shutil.rmtree(copy)
                 shutil.copytree(source, copy)
-                began = time.perf_counter()
-                write_report(copy, worker=worker)
-                walls.append(time.perf_counter() - began)
-            where = "a worker process" if worker else "this process"
-            print(f"write_report, pictures in {where + ':':17s} {min(walls):.2f} s (best of {repeat})")
+                walls.append(run())
+            print(f"{name + ':':36s} {min(walls):5.2f} s wall (best of {repeat})")
         print(f"results directory: {before / 2**20:.1f} MiB as given, {_size(copy) / 2**20:.1f} MiB with this report")
 
 

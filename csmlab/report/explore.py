@@ -33,6 +33,7 @@ import math
 import shutil
 import zipfile
 import zlib
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -60,6 +61,7 @@ CURVES = (
 """Per-frame curves of the page: metrics.csv column (``ref_error`` = false shadow + false light), label, scale."""
 _WEBP = {"format": "WEBP", "quality": 86, "method": 2}
 _INDEX_RESERVE = 256 * 2 ** 10
+_ENCODING_THREADS = 2
 _REQUIRED = ("frame", "time_s", "stride", *PLANES, "shaded", "valid", "camera_position", "frustum_corners",
              "box_corners", "world_origin", "world_cell", "world_dS", "world_counted", "world_flips", "rho_edges",
              "rho_hist")
@@ -121,8 +123,11 @@ def explore_files(out_dir, *, groups: list[tuple[str, str]], labels: list[str], 
     records = [_read_record(out / "pixels" / f"{capture_stem(*g)}.npz") for g, _ in present]
     frames = sorted(set.intersection(*(set(r["frame"].tolist()) for r in records)))
     run = _run_data(present, records, frames, metrics, _casters(out / "casters.npz"))
-    return ExploreFiles(frames=frames, run=run, payloads=[_frame_file(f, present, records) for f in frames],
-                        stride=int(records[0]["stride"]), cell=float(records[0]["world_cell"]))
+    # WebP and zlib let go of the GIL while they encode: two threads keep a second core busy with them.
+    with ThreadPoolExecutor(max_workers=_ENCODING_THREADS) as threads:
+        payloads = list(threads.map(lambda f: _frame_file(f, present, records), frames))
+    return ExploreFiles(frames=frames, run=run, payloads=payloads, stride=int(records[0]["stride"]),
+                        cell=float(records[0]["world_cell"]))
 
 
 def write_explore(out_dir, files: ExploreFiles | None, *, budget_bytes: int = BUDGET_BYTES) -> dict | None:
