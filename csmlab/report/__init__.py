@@ -62,7 +62,8 @@ def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES, worker: bool | No
         Size budget of the directory with its report: the interactive part thins its frames to stay
         under it (:func:`csmlab.report.explore.write_explore`).
     worker : bool or None, keyword-only
-        Draw the snapshot strips and the 3D view in a second process while this one makes the rest
+        Draw the pictures (strips, 3D view, plots, animations) in a second process while this one
+        makes the interactive part's files, and here those the worker has not started by then
         (:class:`~csmlab.report.picture_pool.PicturePool`); None decides by the strips' size and
         the cores available. The files are the same either way.
 
