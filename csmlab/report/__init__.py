@@ -89,15 +89,16 @@ def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES, worker: bool | No
     if worker is None:
         worker = _cores() > 1 and _strip_pixels(snapshots, strip_frames) >= _WORKER_PIXELS
     with PicturePool(worker=worker) as pool:
-        # Every picture is queued before this process makes the interactive part's files: the worker takes
-        # pictures from the front (the 3D view first, so that it alone imports PyVista), this process from the back.
+        # Every picture is queued before this process makes the interactive part's files. The worker takes
+        # pictures from the front: the 3D view first, so that it alone imports PyVista. This process takes them
+        # from the back once its files are made: the strips, the largest that are left, last.
         view3d = _view3d(out, snapshots[points[0]], pool)
-        strips = _strips(out, snapshots, strip_frames, pool)
         stabilization = _stabilization(results, groups, points, pool)
         pool.submit(frame_curves_figure, results.metrics, out / "figures" / "curves.png")
         cost = _cost(results, groups, pool)
         sweep = _sweep(results, points, pool)
         animations = _animations(results, groups, pool)
+        strips = _strips(out, snapshots, strip_frames, pool)
         single = len(points) == 1
         explore = explore_files(out, groups=groups, labels=[m if single else f"{m} @ {p}" for m, p in groups],
                                 metrics=results.metrics)

@@ -60,7 +60,7 @@ class PicturePool:
 
     :meth:`submit` each picture (a module-level function and picklable arguments), do this
     process's own work, then :meth:`finish`: it draws here, latest first, every picture the worker
-    has not started, and waits for the others. Leaving the ``with`` block stops the worker.
+    has not started, and waits for the others. Leaving the ``with`` block lets the worker go.
 
     Parameters
     ----------
@@ -80,7 +80,10 @@ class PicturePool:
 
     def __exit__(self, *exc) -> None:
         if self._executor is not None:
-            self._executor.shutdown(wait=True, cancel_futures=True)
+            # Not waiting: a worker takes a third of a second to exit (VTK lets go of its EGL display), and by
+            # now every picture is drawn, or the caller is on its way out with an error. The interpreter joins
+            # the worker when it exits.
+            self._executor.shutdown(wait=False, cancel_futures=True)
             self._executor = None
 
     def submit(self, function: Callable, /, *args, **kwargs) -> Picture:
