@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/bench_report.py [--frames 120] [--methods 3] [--width 640 --height 360]
         [--cascades 4] [--resolution 1024]
-    .venv/bin/python benchmarks/bench_report.py --results reports/default
+    .venv/bin/python benchmarks/bench_report.py --results reports/default [--repeat 2]
 
 Without ``--results`` it builds a results directory the size of the default run (120 frames ×
 3 methods, 640×360, 4 cascades) in a temporary folder: real cascades (``build_cascades``) along
@@ -10,14 +10,21 @@ a walking camera over a ground plane, synthetic per-pixel maps of the right shap
 and a ``metrics.csv`` / ``timings.csv`` / ``summary.json`` of that size. It prints the time of
 :func:`capture_frame` per frame (done in the workers, in parallel with rendering), of
 :func:`write_captures` for all methods and of :func:`write_report` — the last two are what the
-report adds to a run's wall time. With ``--results DIR`` it times ``write_report(DIR)`` on a real
-run (regenerating its report in place).
+report adds to a run's wall time. With ``--results DIR`` it works on copies of a real run's
+results directory (``DIR`` is left as it is): the CPU and wall time of each part of the report
+drawn one after the other in this process; then, each in a fresh interpreter on a fresh copy
+(best of ``--repeat``), the wall time of ``write_report`` with every picture drawn in its own
+process, with the pictures in a worker process and as it chooses, and of the whole
+``csmlab report DIR`` command; and the directory's size before and after.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import shutil
+import subprocess
+import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -25,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+import csmlab.report as report
 from csmlab import results
 from csmlab.camera import CameraPose
 from csmlab.cascades import build_cascades
@@ -35,6 +43,8 @@ from csmlab.light import direction_from_angles
 from csmlab.metric_registry import metric_columns
 from csmlab.report import write_report
 from csmlab.report.capture import capture_frame, default_snapshot_frames, write_captures
+from csmlab.report.figures import frame_curves_figure
+from csmlab.report.tables import read_results
 from csmlab.settings import ShadowSettings
 
 LIGHT = direction_from_angles(elevation_deg=40.0, azimuth_deg=30.0)
@@ -126,9 +136,98 @@ def synthesize_results(out: Path, *, frames: int, methods: tuple[str, ...], widt
             "write_captures_s": time.perf_counter() - began}
 
 
+class _TimedPool:
+    """Stands in for :class:`csmlab.report.picture_pool.PicturePool`: draws each picture at once, timing it."""
+
+    def __init__(self):
+        self.parts: list[tuple[str, float, float]] = []
+
+    def submit(self, function, /, *args, **kwargs):
+        self.parts.append(_timed(function.__name__, function, *args, **kwargs)[1])
+
+
+def _timed(name: str, function, *args, **kwargs):
+    cpu, wall = time.process_time(), time.perf_counter()
+    value = function(*args, **kwargs)
+    return value, (name, time.process_time() - cpu, time.perf_counter() - wall)
+
+
+def _size(folder: Path) -> int:
+    return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
+
+
+def report_parts(out: Path) -> list[tuple[str, float, float]]:
+    """``(part, CPU s, wall s)`` of each part of :func:`write_report`, drawn one after the other here."""
+    loaded, read = _timed("read results", read_results, out)
+    groups = loaded.metrics.groups()
+    points = list(dict.fromkeys(p for _, p in groups))
+    snapshots = {point: report._snapshots_of(loaded, groups, point) for point in points}
+    strip_frames = {point: report._strip_frames(list(snapshots[point]), len(points)) for point in points}
+    pool = _TimedPool()
+    report._view3d(out, snapshots[points[0]], pool)
+    report._strips(out, snapshots, strip_frames, pool)
+    report._stabilization(loaded, groups, points, pool)
+    pool.submit(frame_curves_figure, loaded.metrics, out / "figures" / "curves.png")
+    report._cost(loaded, groups, pool)
+    report._animations(loaded, groups, pool)
+    labels = [m if len(points) == 1 else f"{m} @ {p}" for m, p in groups]
+    files, made = _timed("explore_files", report.explore_files, out, groups=groups, labels=labels,
+                         metrics=loaded.metrics)
+    _, written = _timed("write_explore", report.write_explore, out, files)
+    return [read, *pool.parts, made, written]
+
+
+_FRESH = """
+import sys, time
+from csmlab.report import write_report
+began = time.perf_counter()
+write_report(sys.argv[1], worker={worker})
+print(time.perf_counter() - began)
+"""
+
+
+def _fresh_report(copy: Path, *, worker: bool | None) -> float:
+    """Seconds of ``write_report`` in a fresh interpreter that has imported csmlab.report, as ``csmlab run`` has."""
+    done = subprocess.run([sys.executable, "-c", _FRESH.format(worker=worker), str(copy)], check=True,
+                          capture_output=True, text=True)
+    return float(done.stdout.split()[-1])
+
+
+def _fresh_command(copy: Path) -> float:
+    """Wall seconds of ``csmlab report DIR``, interpreter start and imports included."""
+    began = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "csmlab.cli", "report", str(copy)], check=True, capture_output=True)
+    return time.perf_counter() - began
+
+
+def time_results(source: Path, *, repeat: int) -> None:
+    """Print the parts of ``source``'s report, then ``write_report`` and ``csmlab report`` each in a fresh process."""
+    with tempfile.TemporaryDirectory() as tmp:
+        copy = Path(tmp) / "results"
+        shutil.copytree(source, copy)
+        before = _size(copy)
+        (copy / "figures").mkdir(exist_ok=True)
+        print(f"{'part (one after the other)':26s} {'CPU s':>6s} {'wall s':>7s}")
+        for name, cpu, wall in report_parts(copy):
+            print(f"{name:26s} {cpu:6.2f} {wall:7.2f}")
+        runs = (("write_report, pictures here", lambda: _fresh_report(copy, worker=False)),
+                ("write_report, pictures in a worker", lambda: _fresh_report(copy, worker=True)),
+                ("write_report (its own choice)", lambda: _fresh_report(copy, worker=None)),
+                ("csmlab report DIR (command)", lambda: _fresh_command(copy)))
+        for name, run in runs:
+            walls = []
+            for _ in range(repeat):
+                shutil.rmtree(copy)
+                shutil.copytree(source, copy)
+                walls.append(run())
+            print(f"{name + ':':36s} {min(walls):5.2f} s wall (best of {repeat})")
+        print(f"results directory: {before / 2**20:.1f} MiB as given, {_size(copy) / 2**20:.1f} MiB with this report")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--results", type=Path, help="time write_report on this results directory instead")
+    parser.add_argument("--results", type=Path, help="time the report of this results directory (on copies) instead")
+    parser.add_argument("--repeat", type=int, default=2, help="with --results: runs of write_report, best kept")
     parser.add_argument("--frames", type=int, default=120)
     parser.add_argument("--methods", type=int, default=3, choices=range(1, len(METHODS) + 1))
     parser.add_argument("--width", type=int, default=640)
@@ -137,9 +236,7 @@ def main() -> None:
     parser.add_argument("--resolution", type=int, default=1024)
     args = parser.parse_args()
     if args.results is not None:
-        began = time.perf_counter()
-        write_report(args.results)
-        print(f"write_report({args.results}): {time.perf_counter() - began:.2f} s")
+        time_results(args.results, repeat=args.repeat)
         return
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "bench"
@@ -148,7 +245,7 @@ def main() -> None:
         began = time.perf_counter()
         write_report(out)
         report_s = time.perf_counter() - began
-        size = sum(p.stat().st_size for p in out.rglob("*") if p.is_file()) / 2**20
+        size = _size(out) / 2**20
     print(f"{args.frames} frames × {args.methods} methods, {args.width}×{args.height}, {args.cascades} cascades")
     print(f"capture_frame (in the workers): {stats['capture_frame_ms']:.1f} ms a frame, "
           f"{stats['capture_snapshot_ms']:.1f} ms a snapshot frame")

@@ -1,5 +1,7 @@
 """The flicker animations: a fixed palette, frames in order, the colour coding as documented."""
 
+import math
+
 import imageio.v3 as iio
 import matplotlib
 import numpy as np
@@ -54,3 +56,16 @@ def test_same_frames_give_the_same_gif_bytes(tmp_path):
     write_animation(tmp_path / "a.gif", shadow=shadow, dS=dS, fps=24)
     write_animation(tmp_path / "b.gif", shadow=shadow, dS=dS, fps=24)
     assert (tmp_path / "a.gif").read_bytes() == (tmp_path / "b.gif").read_bytes()
+
+
+def test_every_code_pair_maps_to_the_documented_palette_index():
+    """Grey ``round(127 · S)``, viridis ``128 + round(126 · sqrt(|ΔS|))`` with v = code / 254; 255 no value."""
+    from csmlab.report.animation import animation_indices
+
+    codes = np.arange(256, dtype=np.uint8)
+    indices = animation_indices(codes[None, None, :], codes[None, None, :])[0, 0]
+    grey = [255 if c == 255 else round(127 * c / 254) for c in range(256)]
+    change = [255 if c == 255 else 128 + round(126 * math.sqrt(c / 254)) for c in range(256)]
+    assert indices[:256].tolist() == grey
+    assert indices[256:260].tolist() == [255] * 4
+    assert indices[260:].tolist() == change

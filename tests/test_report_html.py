@@ -86,9 +86,8 @@ def test_every_file_the_report_references_exists_and_none_is_remote(tiny_run):
         "f00000.js", "f00001.js", "f00002.js"]
 
 
-def test_report_is_regenerated_byte_for_byte_from_the_results_files_alone(tiny_run, tmp_path):
-    source = tiny_run.parent
-    copy = tmp_path / "copy"
+def _results_copy(source: Path, copy: Path) -> Path:
+    """The results files of a run without its report."""
     copy.mkdir()
     for name in RESULT_FILES:
         shutil.copy(source / name, copy / name)
@@ -96,7 +95,14 @@ def test_report_is_regenerated_byte_for_byte_from_the_results_files_alone(tiny_r
         (copy / folder).mkdir()
         for npz in (source / folder).glob("*.npz"):
             shutil.copy(npz, copy / folder / npz.name)
-    page = write_report(copy)
+    return copy
+
+
+@pytest.mark.parametrize("worker", [None, True], ids=["pictures-here", "pictures-in-a-worker-process"])
+def test_report_is_regenerated_byte_for_byte_from_the_results_files_alone(tiny_run, tmp_path, worker):
+    source = tiny_run.parent
+    copy = _results_copy(source, tmp_path / "copy")
+    page = write_report(copy, worker=worker)
     assert page.read_bytes() == tiny_run.read_bytes()
     made = sorted(p.relative_to(copy).as_posix() for p in copy.rglob("*") if p.is_file())
     assert made == sorted(p.relative_to(source).as_posix() for p in source.rglob("*") if p.is_file())

@@ -19,6 +19,8 @@ reproduces what ``csmlab run`` wrote.
 from __future__ import annotations
 
 import json
+import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -27,11 +29,12 @@ from csmlab.files import write_atomic
 from csmlab.metric_registry import format_number
 from csmlab.report.animation import write_animation
 from csmlab.report.capture import ANIM_WIDTH, capture_stem, read_npz, safe_name
-from csmlab.report.explore import BUDGET_BYTES, write_explore
+from csmlab.report.explore import BUDGET_BYTES, explore_files, write_explore
 from csmlab.report.figures import (PARETO, cost_figure, frame_curves_figure, pareto_figure, stabilization_figure,
                                    sweep_figure)
 from csmlab.report.html import render_report_html
-from csmlab.report.images import snapshot_strip_figure
+from csmlab.report.images import snapshot_strip_figures
+from csmlab.report.picture_pool import PicturePool
 from csmlab.report.summary_table import full_table, headline_table
 from csmlab.report.sweep import sweep_means, sweep_points
 from csmlab.report.tables import ResultFiles, read_results
@@ -48,7 +51,7 @@ _GLANCE = {
 }
 
 
-def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES) -> Path:
+def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES, worker: bool | None = None) -> Path:
     """Write ``index.html`` and its figures into a results directory; return the page's path.
 
     Parameters
@@ -58,6 +61,11 @@ def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES) -> Path:
     budget_bytes : int, keyword-only
         Size budget of the directory with its report: the interactive part thins its frames to stay
         under it (:func:`csmlab.report.explore.write_explore`).
+    worker : bool or None, keyword-only
+        Draw the pictures (strips, 3D view, plots, animations) in a second process while this one
+        makes the interactive part's files, and here those the worker has not started by then
+        (:class:`~csmlab.report.picture_pool.PicturePool`); None decides by the strips' size and
+        the cores available. The files are the same either way.
 
     Returns
     -------
@@ -76,7 +84,25 @@ def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES) -> Path:
     points = list(dict.fromkeys(p for _, p in groups))
     columns, rows = headline_table(results.metrics, results.timings)
     full_names, full_rows = full_table(results.metrics)
-    frame_curves_figure(results.metrics, out / "figures" / "curves.png")
+    snapshots = {point: _snapshots_of(results, groups, point) for point in points}
+    strip_frames = {point: _strip_frames(list(snapshots[point]), len(points)) for point in points}
+    if worker is None:
+        worker = _cores() > 1 and _strip_pixels(snapshots, strip_frames) >= _WORKER_PIXELS
+    with PicturePool(worker=worker) as pool:
+        # Every picture is queued before this process makes the interactive part's files. The worker takes
+        # pictures from the front: the 3D view first, so that it alone imports PyVista. This process takes them
+        # from the back once its files are made: the strips, the largest that are left, last.
+        view3d = _view3d(out, snapshots[points[0]], pool)
+        stabilization = _stabilization(results, groups, points, pool)
+        pool.submit(frame_curves_figure, results.metrics, out / "figures" / "curves.png")
+        cost = _cost(results, groups, pool)
+        sweep = _sweep(results, points, pool)
+        animations = _animations(results, groups, pool)
+        strips = _strips(out, snapshots, strip_frames, pool)
+        single = len(points) == 1
+        explore = explore_files(out, groups=groups, labels=[m if single else f"{m} @ {p}" for m, p in groups],
+                                metrics=results.metrics)
+        pool.finish()
     context = {
         **_header(results),
         "groups": groups,
@@ -88,24 +114,32 @@ def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES) -> Path:
         "has_cascades": results.cascades is not None,
         "regress": _regress(results.regress),
         "curves": "figures/curves.png",
-        "cost": _cost(results, groups),
+        "cost": cost,
         "anim_width": ANIM_WIDTH,
-        "animations": _animations(results, groups),
-        "strips": _strips(results, groups, points),
-        "stabilization": _stabilization(results, groups, points),
-        "view3d": _view3d(results, groups, points[0]),
-        **_sweep(results, points),
+        "animations": animations,
+        "strips": strips,
+        "stabilization": stabilization,
+        "view3d": _view3d_shown(view3d),
+        **sweep,
     }
-    context["explore"] = _explore(results, groups, budget_bytes)
+    # The interactive part last, so that it knows the size of everything else.
+    context["explore"] = _explore(write_explore(out, explore, budget_bytes=budget_bytes))
     return write_atomic(out / "index.html", render_report_html(context))
 
 
-def _explore(results: ResultFiles, groups, budget_bytes: int) -> dict | None:
-    """The interactive part, written last so that it knows the size of everything else."""
-    single = len({p for _, p in groups}) == 1
-    labels = [m if single else f"{m} @ {p}" for m, p in groups]
-    explore = write_explore(results.directory, groups=groups, labels=labels, metrics=results.metrics,
-                            budget_bytes=budget_bytes)
+_WORKER_PIXELS = 1_000_000
+"""Snapshot pixels in the strips (Σ methods × H × W) from which a second process pays for its start (about 1 s)."""
+
+
+def _cores() -> int:
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def _strip_pixels(snapshots: dict, strip_frames: dict) -> int:
+    return sum(s.height * s.width for point, frames in strip_frames.items() for f in frames for s in snapshots[point][f])
+
+
+def _explore(explore: dict | None) -> dict | None:
     if explore is None:
         return None
     return {**explore, "cell": f"{explore['cell']:.2g}", "size_mib": f"{explore['size'] / 2 ** 20:.1f}",
@@ -161,10 +195,10 @@ def _cell(value) -> str:
     return format_number(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else str(value)
 
 
-def _cost(results: ResultFiles, groups) -> str | None:
+def _cost(results: ResultFiles, groups, pool: PicturePool) -> str | None:
     if results.timings is None or len(results.timings) == 0:
         return None
-    cost_figure(results.timings, groups, results.directory / "figures" / "cost.png")
+    pool.submit(cost_figure, results.timings, groups, results.directory / "figures" / "cost.png")
     return "figures/cost.png"
 
 
@@ -177,7 +211,7 @@ def _fps(results: ResultFiles) -> float:
     return float(1.0 / np.median(steps)) if steps.size and np.median(steps) > 0 else 30.0
 
 
-def _animations(results: ResultFiles, groups) -> list[dict]:
+def _animations(results: ResultFiles, groups, pool: PicturePool) -> list[dict]:
     out = results.directory
     fps = _fps(results)
     animations = []
@@ -185,44 +219,71 @@ def _animations(results: ResultFiles, groups) -> list[dict]:
         stem = capture_stem(method, point)
         source = out / "anim" / f"{stem}.npz"
         if source.is_file():
-            anim = read_npz(source)
-            write_animation(out / "anim" / f"{stem}.gif", shadow=anim["shadow"], dS=anim["dS"], fps=fps)
+            pool.submit(_draw_animation, source, out / "anim" / f"{stem}.gif", fps=fps)
             label = method if len({p for _, p in groups}) == 1 else f"{method} @ {point}"
             animations.append({"label": label, "src": f"anim/{stem}.gif"})
     return animations
 
 
-def _snapshots_of(results: ResultFiles, groups, point: str) -> dict[int, list[tuple[str, dict]]]:
-    """Snapshot frame → [(method, arrays)] at one point, methods in results order, frames present for all."""
-    by_frame: dict[int, list[tuple[str, dict]]] = {}
+def _draw_animation(source: Path, path: Path, *, fps: float) -> None:
+    anim = read_npz(source)
+    write_animation(path, shadow=anim["shadow"], dS=anim["dS"], fps=fps)
+
+
+@dataclass(frozen=True)
+class _Snapshot:
+    """A snapshot file of one method, with what the page's text needs of it (the arrays stay on disk)."""
+
+    method: str
+    path: Path
+    time_s: float
+    height: int
+    width: int
+
+
+def _snapshots_of(results: ResultFiles, groups, point: str) -> dict[int, list[_Snapshot]]:
+    """Snapshot frame → its snapshots at one point, methods in results order, frames present for all."""
+    by_frame: dict[int, list[_Snapshot]] = {}
     methods = [m for m, p in groups if p == point]
     for method in methods:
         for path in sorted((results.directory / "snapshots").glob(f"{capture_stem(method, point)}__f*.npz")):
-            snap = read_npz(path)
-            by_frame.setdefault(int(snap["frame"]), []).append((method, snap))
+            # An .npz loads its arrays one by one, when asked: the pictures read the rest where they are drawn.
+            with np.load(path, allow_pickle=False) as snap:
+                frame, time_s, shape = int(snap["frame"]), float(snap["time_s"]), snap["valid"].shape
+            by_frame.setdefault(frame, []).append(_Snapshot(method, path, time_s, *shape))
     return {f: v for f, v in sorted(by_frame.items()) if len(v) == len(methods)}
 
 
-def _frame_title(frame: int, snaps: list[tuple[str, dict]]) -> str:
-    return f"frame {frame}, t = {float(snaps[0][1]['time_s']):.2f} s"
+def _frame_title(frame: int, snaps: list[_Snapshot]) -> str:
+    return f"frame {frame}, t = {snaps[0].time_s:.2f} s"
 
 
-def _strips(results: ResultFiles, groups, points) -> list[dict]:
+def _strip_frames(frames: list[int], points: int) -> list[int]:
     """Every snapshot frame's strip; in a sweep only the middle snapshot frame of each point, to stay short."""
+    return frames if points == 1 else frames[len(frames) // 2:][:1]
+
+
+def _strips(directory: Path, snapshots: dict, strip_frames: dict, pool: PicturePool) -> list[dict]:
+    """Submit the strips of each point to ``pool`` (one picture a point: they share a figure); return src and title."""
     strips = []
-    for point in points:
-        snapshots = _snapshots_of(results, groups, point)
-        frames = list(snapshots) if len(points) == 1 else list(snapshots)[len(snapshots) // 2:][:1]
+    for point, frames in strip_frames.items():
+        drawn = []
         for frame in frames:
-            snaps = snapshots[frame]
+            snaps = snapshots[point][frame]
             name = f"figures/strip__{safe_name(point)}__f{frame}.png"
-            title = _frame_title(frame, snaps) + (f", point {point}" if len(points) > 1 else "")
-            snapshot_strip_figure([s for _, s in snaps], [m for m, _ in snaps], results.directory / name, title=title)
+            title = _frame_title(frame, snaps) + (f", point {point}" if len(strip_frames) > 1 else "")
+            drawn.append(([s.path for s in snaps], directory / name, title))
             strips.append({"src": name, "title": title})
+        if drawn:
+            pool.submit(_draw_strips, drawn, [s.method for s in snapshots[point][frames[0]]])
     return strips
 
 
-def _stabilization(results: ResultFiles, groups, points) -> list[dict]:
+def _draw_strips(strips: list[tuple[list[Path], Path, str]], labels: list[str]) -> None:
+    snapshot_strip_figures([([read_npz(p) for p in paths], path, title) for paths, path, title in strips], labels)
+
+
+def _stabilization(results: ResultFiles, groups, points, pool: PicturePool) -> list[dict]:
     if results.cascades is None or len(results.cascades) == 0:
         return []
     present = set(zip(results.cascades["method"].tolist(), results.cascades["point"].tolist()))
@@ -231,13 +292,14 @@ def _stabilization(results: ResultFiles, groups, points) -> list[dict]:
         methods = [m for m, p in groups if p == point and (m, p) in present]
         if methods:
             name = f"figures/stabilization__{safe_name(point)}.png"
-            stabilization_figure(results.cascades, point=point, methods=methods, path=results.directory / name)
+            pool.submit(stabilization_figure, results.cascades.where(results.cascades["point"] == point), point=point,
+                        methods=methods, path=results.directory / name)
             figures.append({"point": point, "src": name})
     return figures
 
 
-def _view3d(results: ResultFiles, groups, point: str) -> dict | None:
-    snapshots = _snapshots_of(results, groups, point)
+def _view3d(directory: Path, snapshots: dict[int, list[_Snapshot]], pool: PicturePool) -> dict | None:
+    """Submit the 3D view of the middle snapshot frame to ``pool``; ``picture`` gives None or why it failed."""
     if not snapshots:
         return None
     frames = list(snapshots)
@@ -245,14 +307,28 @@ def _view3d(results: ResultFiles, groups, point: str) -> dict | None:
     snaps = snapshots[frame]
     title = _frame_title(frame, snaps)
     name = f"figures/view3d__f{frame}.png"
+    picture = pool.submit(_draw_view3d, [s.path for s in snaps], [s.method for s in snaps], directory / name,
+                          title=title)
+    return {"src": name, "title": title, "picture": picture}
+
+
+def _draw_view3d(paths: list[Path], labels: list[str], path: Path, *, title: str) -> str | None:
+    """Render the 3D view; return None, or why it could not be rendered (no OpenGL, no PyVista)."""
     try:
-        view3d_figure([s for _, s in snaps], [m for m, _ in snaps], results.directory / name, title=title)
+        view3d_figure([read_npz(p) for p in paths], labels, path, title=title)
     except (RuntimeError, OSError, ImportError) as error:
-        return {"src": None, "title": title, "error": f"{type(error).__name__}: {error}"}
-    return {"src": name, "title": title, "error": None}
+        return f"{type(error).__name__}: {error}"
+    return None
 
 
-def _sweep(results: ResultFiles, points) -> dict:
+def _view3d_shown(view3d: dict | None) -> dict | None:
+    if view3d is None:
+        return None
+    error = view3d["picture"].result()
+    return {"src": None if error else view3d["src"], "title": view3d["title"], "error": error}
+
+
+def _sweep(results: ResultFiles, points, pool: PicturePool) -> dict:
     if len(points) < 2:
         return {"sweep": [], "pareto": None}
     sweep = sweep_points(results.summary, points)
@@ -260,11 +336,11 @@ def _sweep(results: ResultFiles, points) -> dict:
     for parameter in sweep.fields:
         means = sweep_means(results.metrics, sweep, along=parameter)
         name = f"figures/sweep__{safe_name(parameter)}.png"
-        sweep_figure(means, parameter, results.directory / name)
+        pool.submit(sweep_figure, means, parameter, results.directory / name)
         figures.append({"parameter": parameter, "src": name})
     means = sweep_means(results.metrics, sweep, along=sweep.fields[0])
     pareto = None
     if all(k in means for k in PARETO):
-        pareto_figure(means, results.directory / "figures" / "pareto.png")
+        pool.submit(pareto_figure, means, results.directory / "figures" / "pareto.png")
         pareto = "figures/pareto.png"
     return {"sweep": figures, "pareto": pareto}

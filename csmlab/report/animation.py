@@ -40,13 +40,25 @@ def animation_indices(shadow: np.ndarray, dS: np.ndarray) -> np.ndarray:
     shadow, dS : ndarray, shape (N, h, w), uint8
         Coded as in :mod:`csmlab.report.capture`: ``round(254 · v)``, 255 for no value.
     """
-    shadow = np.asarray(shadow)
-    dS = np.asarray(dS)
-    grey = np.where(shadow == 255, _NO_VALUE_INDEX, np.rint(shadow * ((_GREYS - 1) / 254.0)))
-    scaled = np.asarray(change_norm()(dS / 254.0))
-    change = np.where(dS == 255, _NO_VALUE_INDEX, _GREYS + np.rint(scaled * (_CHANGES - 1)))
-    gap = np.full(shadow.shape[:2] + (_GAP,), 255, dtype=np.float64)
-    return np.concatenate([grey, gap, change], axis=2).astype(np.uint8)
+    shadow = np.asarray(shadow, dtype=np.uint8)
+    dS = np.asarray(dS, dtype=np.uint8)
+    frames = np.full(shadow.shape[:2] + (2 * shadow.shape[2] + _GAP,), _NO_VALUE_INDEX, dtype=np.uint8)
+    # A code has 256 values: look each pixel's index up in a table of them rather than colour-map every pixel.
+    frames[..., :shadow.shape[2]] = _GREY_INDEX[shadow]
+    frames[..., shadow.shape[2] + _GAP:] = _CHANGE_INDEX[dS]
+    return frames
+
+
+def _index_tables() -> tuple[np.ndarray, np.ndarray]:
+    """Palette index ``(256,)`` uint8 of each shadow code and of each |ΔS| code (255: no value)."""
+    codes = np.arange(256)
+    grey = np.where(codes == 255, _NO_VALUE_INDEX, np.rint(codes * ((_GREYS - 1) / 254.0)))
+    scaled = np.asarray(change_norm()(codes / 254.0))
+    change = np.where(codes == 255, _NO_VALUE_INDEX, _GREYS + np.rint(scaled * (_CHANGES - 1)))
+    return grey.astype(np.uint8), change.astype(np.uint8)
+
+
+_GREY_INDEX, _CHANGE_INDEX = _index_tables()
 
 
 def write_animation(path, *, shadow: np.ndarray, dS: np.ndarray, fps: float) -> None:

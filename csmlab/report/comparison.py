@@ -32,6 +32,7 @@ from csmlab.report.figures import CURVES
 from csmlab.report.images import (CATEGORY_COLOURS, CHANGE_CMAP, DIFFERENCE_CMAP, RHO_CMAP, change_image, change_norm,
                                   difference_image, difference_norm, rho_image, rho_norm, rho_ratio_image,
                                   rho_ratio_norm, shaded_image, srgb_from_linear)
+from csmlab.report.png import save_figure
 from csmlab.report.tables import Columns, read_columns
 from csmlab.results import write_atomic
 
@@ -44,7 +45,6 @@ SHADED_LIMIT = 0.5
 CHANGE_LIMIT = 0.5
 """|ΔS| difference (lit fraction) shown at full colour."""
 _TEMPLATES = Path(__file__).parent / "templates"
-_SAVE = {"metadata": {"Software": None}}
 
 
 def write_comparison_report(run_a, run_b, out_dir) -> Path:
@@ -277,7 +277,7 @@ def _curves_figure(comparison: Comparison, metrics_a: Columns, metrics_b: Column
         handles.append(Line2D([], [], color="0.45", linestyle=":", label="frames shown below"))
     axes[0].legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=9, frameon=False)
     axes[-1].set_xlabel("frame number")
-    fig.savefig(path, **_SAVE)
+    save_figure(fig, path)
 
 
 def _frame_figure(comparison: Comparison, frame: int, labels: dict, path: Path) -> str:
@@ -324,5 +324,5 @@ def _frame_figure(comparison: Comparison, frame: int, labels: dict, path: Path) 
                            orientation="horizontal")
         bar.set_label(text, fontsize=8)
         bar.ax.tick_params(labelsize=7)
-    fig.savefig(path, **_SAVE)
+    save_figure(fig, path)
     return title

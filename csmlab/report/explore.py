@@ -1,8 +1,10 @@
 """The interactive part of the report: every frame of every method, scrubbed and pointed at in a browser.
 
-:func:`write_explore` turns the per-pixel records of :mod:`csmlab.report.pixels`
-(``pixels/<method>__<point>.npz``) and ``casters.npz`` into a folder the page loads from
-``file://`` with no server and no network::
+:func:`explore_files` turns the per-pixel records of :mod:`csmlab.report.pixels`
+(``pixels/<method>__<point>.npz``) and ``casters.npz`` into the files of a folder the page loads
+from ``file://`` with no server and no network, and :func:`write_explore` writes them once the
+rest of the report is on disk (the two are apart so that the files can be made while the
+report's pictures are drawn)::
 
     explore/plotly.min.js      Plotly's bundle, copied from the installed ``plotly`` package
     explore/explore.js         the page's script (``templates/explore.js``)
@@ -31,6 +33,8 @@ import math
 import shutil
 import zipfile
 import zlib
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -42,7 +46,7 @@ from csmlab.report.images import (CATEGORY_COLOURS, FALSE_LIGHT, FALSE_SHADOW, N
 from csmlab.report.pixels import NO_VALUE, RHO_STEPS, decode_rho
 from csmlab.report.view3d import BOX_EDGES, FRUSTUM_EDGES
 
-__all__ = ["BUDGET_BYTES", "CURVES", "PLANES", "write_explore"]
+__all__ = ["BUDGET_BYTES", "CURVES", "PLANES", "ExploreFiles", "explore_files", "write_explore"]
 
 BUDGET_BYTES = 60 * 2 ** 20
 """Default size budget of a results directory with its report: 60 MiB."""
@@ -55,36 +59,57 @@ CURVES = (
     ("ref_error", "vs. reference (% of pixels)", 100.0),
 )
 """Per-frame curves of the page: metrics.csv column (``ref_error`` = false shadow + false light), label, scale."""
-_WEBP = {"format": "WEBP", "quality": 85, "method": 4}
+_WEBP = {"format": "WEBP", "quality": 86, "method": 2}
 _INDEX_RESERVE = 256 * 2 ** 10
+_ENCODING_THREADS = 2
 _REQUIRED = ("frame", "time_s", "stride", *PLANES, "shaded", "valid", "camera_position", "frustum_corners",
              "box_corners", "world_origin", "world_cell", "world_dS", "world_counted", "world_flips", "rho_edges",
              "rho_hist")
 
 
-def write_explore(out_dir, *, groups: list[tuple[str, str]], labels: list[str], metrics,
-                  budget_bytes: int = BUDGET_BYTES) -> dict | None:
-    """Write the ``explore/`` folder of a results directory; return what the page's template needs.
+@dataclass(frozen=True)
+class ExploreFiles:
+    """The interactive part of a run, made in memory: written by :func:`write_explore` once the rest is on disk.
+
+    Attributes
+    ----------
+    frames : list of int
+        Frames every variant recorded, increasing.
+    run : str
+        The JSON of ``data.js`` (``window.csmlabRun``).
+    payloads : list of bytes
+        The frame file of each of ``frames`` (``csmlabFrame(…)``).
+    stride : int
+        Frame pixels per record pixel along a row or column.
+    cell : float
+        World cell side, metres.
+    """
+
+    frames: list[int]
+    run: str
+    payloads: list[bytes]
+    stride: int
+    cell: float
+
+
+def explore_files(out_dir, *, groups: list[tuple[str, str]], labels: list[str], metrics) -> ExploreFiles | None:
+    """Make the ``explore/`` folder's per-run and per-frame files of a results directory in memory.
 
     Parameters
     ----------
     out_dir : str or Path
-        The results directory, its static report already written (its size counts against the budget).
+        The results directory.
     groups : list of (method, point)
         The variants in results order.
     labels : list of str
         Their display names.
     metrics : Columns
         ``metrics.csv``.
-    budget_bytes : int, keyword-only
-        Largest size of the results directory once the folder is written.
 
     Returns
     -------
-    dict or None
-        ``frames`` (frames in the run), ``kept`` (frames with a frame file), ``step``, ``stride`` (and as
-        an ordinal, ``stride_ordinal``), ``cell`` (world cell side, metres), ``size`` (bytes of the directory but ``index.html``) and ``budget``, ``note`` (the thinning, or None); None when the run kept
-        no per-pixel record (the folder is then removed).
+    ExploreFiles or None
+        None when the run kept no per-pixel record.
 
     Raises
     ------
@@ -92,34 +117,60 @@ def write_explore(out_dir, *, groups: list[tuple[str, str]], labels: list[str], 
         If a pixel record or ``casters.npz`` is unreadable or lacks an array.
     """
     out = Path(out_dir)
-    folder = out / "explore"
     present = [(g, label) for g, label in zip(groups, labels) if (out / "pixels" / f"{capture_stem(*g)}.npz").is_file()]
     if not present:
-        shutil.rmtree(folder, ignore_errors=True)
         return None
     records = [_read_record(out / "pixels" / f"{capture_stem(*g)}.npz") for g, _ in present]
     frames = sorted(set.intersection(*(set(r["frame"].tolist()) for r in records)))
+    run = _run_data(present, records, frames, metrics, _casters(out / "casters.npz"))
+    # WebP and zlib let go of the GIL while they encode: two threads keep a second core busy with them.
+    with ThreadPoolExecutor(max_workers=_ENCODING_THREADS) as threads:
+        payloads = list(threads.map(lambda f: _frame_file(f, present, records), frames))
+    return ExploreFiles(frames=frames, run=run, payloads=payloads, stride=int(records[0]["stride"]),
+                        cell=float(records[0]["world_cell"]))
+
+
+def write_explore(out_dir, files: ExploreFiles | None, *, budget_bytes: int = BUDGET_BYTES) -> dict | None:
+    """Write the ``explore/`` folder of a results directory; return what the page's template needs.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        The results directory, its static report already written (its size counts against the budget).
+    files : ExploreFiles or None
+        :func:`explore_files` of the directory; None removes the folder.
+    budget_bytes : int, keyword-only
+        Largest size of the results directory once the folder is written.
+
+    Returns
+    -------
+    dict or None
+        ``frames`` (frames in the run), ``kept`` (frames with a frame file), ``step``, ``stride`` (and as
+        an ordinal, ``stride_ordinal``), ``cell`` (world cell side, metres), ``size`` (bytes of the directory but ``index.html``) and ``budget``, ``note`` (the thinning, or None); None when ``files`` is None.
+    """
+    out = Path(out_dir)
+    folder = out / "explore"
     shutil.rmtree(folder, ignore_errors=True)
+    if files is None:
+        return None
     (folder / "frames").mkdir(parents=True)
     _copy_assets(folder)
-    casters = _casters(out / "casters.npz")
-    run = _run_data(present, records, frames, metrics, casters)
-    payloads = {f: _frame_file(f, present, records) for f in frames}
-    (folder / "data.js").write_text(f"window.csmlabRun = {run};\n", encoding="utf-8")
+    (folder / "data.js").write_text(f"window.csmlabRun = {files.run};\n", encoding="utf-8")
     fixed = _tree_size(out) + _INDEX_RESERVE
-    step = _thinning([len(payloads[f]) for f in frames], budget_bytes - fixed)
-    kept = frames[::step]
-    for f in kept:
-        (folder / "frames" / f"f{f:05d}.js").write_bytes(payloads[f])
+    step = _thinning([len(p) for p in files.payloads], budget_bytes - fixed)
+    kept = files.frames[::step]
+    for f, payload in zip(kept, files.payloads[::step]):
+        (folder / "frames" / f"f{f:05d}.js").write_bytes(payload)
     (folder / "kept.js").write_text(f"window.csmlabKept = {json.dumps(kept)};\n", encoding="utf-8")
     size = _tree_size(out)
+    frames = len(files.frames)
     note = None
     if step > 1:
         note = (f"To keep this report under its size budget of {budget_bytes / 2 ** 20:.0f} MiB, the frame viewer "
-                f"holds every {_ordinal(step)} frame ({len(kept)} of {len(frames)}); the curves keep every frame.")
-    stride = int(records[0]["stride"])
-    return {"frames": len(frames), "kept": len(kept), "step": step, "stride": stride, "stride_ordinal": _ordinal(stride),
-            "cell": float(records[0]["world_cell"]), "size": size, "budget": budget_bytes, "note": note}
+                f"holds every {_ordinal(step)} frame ({len(kept)} of {frames}); the curves keep every frame.")
+    return {"frames": frames, "kept": len(kept), "step": step, "stride": files.stride,
+            "stride_ordinal": _ordinal(files.stride), "cell": files.cell, "size": size, "budget": budget_bytes,
+            "note": note}
 
 
 def _ordinal(n: int) -> str:
@@ -170,8 +221,13 @@ def _copy_assets(folder: Path) -> None:
 def _rounded(values, digits: int = 3):
     """Nested lists of ``values`` rounded to ``digits`` decimals, None for NaN (JSON-safe, stable text)."""
     array = np.asarray(values, dtype=np.float64)
-    return [_rounded(v, digits) for v in array] if array.ndim else (
-        None if not math.isfinite(float(array)) else round(float(array), digits))
+    if array.size == 0:
+        return array.tolist()
+    # Python's round on a flat list, nested afterwards: the world maps hold tens of thousands of values.
+    nested = [None if not math.isfinite(v) else round(v, digits) for v in array.ravel().tolist()]
+    for n in reversed(array.shape[1:]):
+        nested = [nested[i:i + n] for i in range(0, len(nested), n)]
+    return nested if array.ndim else nested[0]
 
 
 def _u8_colours(rgb) -> list:

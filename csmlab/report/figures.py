@@ -18,6 +18,7 @@ from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
 from csmlab.metric_registry import METRICS, Metric
 from csmlab.report.images import CATEGORY_COLOURS, RHO_CMAP, RHO_LOG2_LIMIT, rho_norm
+from csmlab.report.png import save_figure
 from csmlab.report.tables import Columns
 
 __all__ = [
@@ -51,7 +52,6 @@ FIELD_UNITS = {
     "subtexel_bits": "bits", "depth_bytes": "bytes per texel",
 }
 """Units of the swept shadow fields, for axis labels; other fields are names (split, fit, filter…)."""
-_SAVE = {"metadata": {"Software": None}}
 
 
 @dataclass(frozen=True)
@@ -109,7 +109,7 @@ def frame_curves_figure(metrics: Columns, path) -> None:
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside right upper", fontsize=9, frameon=False)
     axes[-1].set_xlabel("time (s)")
-    fig.savefig(path, **_SAVE)
+    save_figure(fig, path)
 
 
 def _time_axis(rows: Columns) -> np.ndarray:
@@ -172,7 +172,7 @@ def stabilization_figure(cascades: Columns, *, point: str, methods: list[str], p
                 Line2D([], [], color="0.3", linestyle="--", label="light-space y")]
     axes[0, columns - 1].legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8,
                                 frameon=False)
-    fig.savefig(path, **_SAVE)
+    save_figure(fig, path)
 
 
 def cost_figure(timings: Columns, groups: list[tuple[str, str]], path) -> None:
@@ -199,7 +199,7 @@ def cost_figure(timings: Columns, groups: list[tuple[str, str]], path) -> None:
     ax.set_ylabel("method")
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False, title="stage")
     ax.grid(True, axis="x", alpha=0.3)
-    fig.savefig(path, **_SAVE)
+    save_figure(fig, path)
 
 
 def _stage_ms(timings: Columns, method: str, point: str, stage: str) -> float:
@@ -242,7 +242,7 @@ def sweep_figure(means: Columns, parameter: str, path) -> None:
         if _spans_octaves(means[parameter]):
             ax.set_xscale("log", base=2)
     axes[-1].legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8, frameon=False)
-    fig.savefig(path, **_SAVE)
+    save_figure(fig, path)
 
 
 def _spans_octaves(values: np.ndarray) -> bool:
@@ -302,4 +302,4 @@ def pareto_figure(means: Columns, path) -> None:
     ticks = np.arange(-RHO_LOG2_LIMIT, RHO_LOG2_LIMIT + 1, 2)
     bar.set_ticks(ticks, labels=[f"{2.0 ** t:g}" for t in ticks])
     bar.set_label(f"{rho_metric.label} ({rho_metric.unit}, log scale)")
-    fig.savefig(path, **_SAVE)
+    save_figure(fig, path)

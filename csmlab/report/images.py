@@ -20,6 +20,8 @@ from matplotlib.colors import Normalize, PowerNorm
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
+from csmlab.report.png import save_figure
+
 __all__ = [
     "CATEGORY_COLOURS",
     "RHO_LOG2_LIMIT",
@@ -34,7 +36,7 @@ __all__ = [
     "rho_image",
     "rho_norm",
     "shaded_image",
-    "snapshot_strip_figure",
+    "snapshot_strip_figures",
     "srgb_from_linear",
 ]
 
@@ -101,10 +103,15 @@ def cascade_overlay_image(shaded, cascade, valid) -> np.ndarray:
     """
     shaded = np.asarray(shaded, dtype=np.float64)
     base = srgb_from_linear(np.nan_to_num(shaded))
+    return _with_background(_cascade_tint(base, cascade), _shaded_defined(shaded, valid))
+
+
+def _cascade_tint(base: np.ndarray, cascade) -> np.ndarray:
+    """sRGB ``base`` (H, W, 3) blended with each pixel's cascade colour."""
     cascade = np.asarray(cascade)
     tint = CATEGORY_COLOURS[np.mod(cascade, len(CATEGORY_COLOURS))]
     alpha = np.where(cascade >= 0, _OVERLAY_ALPHA, 0.0)[..., None]
-    return _with_background((1.0 - alpha) * base + alpha * tint, _shaded_defined(shaded, valid))
+    return (1.0 - alpha) * base + alpha * tint
 
 
 def rho_image(rho) -> np.ndarray:
@@ -142,58 +149,98 @@ def reference_diff_image(shaded, ref_diff, valid) -> np.ndarray:
     The shaded view, darkened, with false shadow (+1) in vermillion and false light (-1) in sky blue.
     """
     shaded = np.asarray(shaded, dtype=np.float64)
-    base = _DIFF_BACKGROUND * srgb_from_linear(np.nan_to_num(shaded))
+    base = srgb_from_linear(np.nan_to_num(shaded))
+    return _with_background(_reference_diff(base, ref_diff), _shaded_defined(shaded, valid))
+
+
+def _reference_diff(base: np.ndarray, ref_diff) -> np.ndarray:
+    """sRGB ``base`` (H, W, 3) darkened, false shadow and false light painted over."""
     ref_diff = np.asarray(ref_diff)[..., None]
-    rgb = np.where(ref_diff > 0, FALSE_SHADOW, np.where(ref_diff < 0, FALSE_LIGHT, base))
-    return _with_background(rgb, _shaded_defined(shaded, valid))
+    return np.where(ref_diff > 0, FALSE_SHADOW, np.where(ref_diff < 0, FALSE_LIGHT, _DIFF_BACKGROUND * base))
 
 
-def snapshot_strip_figure(snapshots: list[dict], labels: list[str], path, *, title: str) -> None:
-    """Write one PNG: a row per snapshot (method) of shaded, cascades, ρ, |ΔS| and reference error.
+def snapshot_strip_figures(strips: list[tuple[list[dict], object, str]], labels: list[str]) -> None:
+    """Write a PNG per snapshot frame: a row per snapshot (method) of shaded, cascades, ρ, |ΔS| and reference error.
 
-    A last, short row holds each column's colour bar or legend.
+    A last, short row holds each column's colour bar or legend; the cascade legend runs to the
+    highest cascade any of the frames selects. The frames share one figure, built and laid out for the
+    first; each further frame swaps in its images and title — the axes, colour bars and labels cost
+    more to build and lay out than the images to paint.
 
     Parameters
     ----------
-    snapshots : list of dict
-        Snapshot arrays as :mod:`csmlab.report.capture` stores them, all of one image size.
+    strips : list of (snapshots, path, title)
+        Per frame: snapshot arrays as :mod:`csmlab.report.capture` stores them, one per method, all of
+        one image size; the PNG to write; the figure title (frame and time).
     labels : list of str
-        Row labels (method names), one per snapshot.
-    path : str or Path
-        The PNG to write.
-    title : str
-        Figure title (frame and time).
+        Row labels (method names), one per snapshot of a frame.
+
+    Raises
+    ------
+    ValueError
+        If the frames differ in image size or number of snapshots.
     """
-    height, width = snapshots[0]["valid"].shape
-    rows = len(snapshots)
+    shapes = {(len(snapshots), *snapshots[0]["valid"].shape) for snapshots, _, _ in strips}
+    if len(shapes) != 1:
+        raise ValueError(f"snapshot strips: expected one image size and method count, got {sorted(shapes)}")
+    rows, height, width = shapes.pop()
     panel_w = float(np.clip(width / 100.0, 3.2, 4.8))
     panel_h = panel_w * height / width
     fig = Figure(figsize=(5 * panel_w + 0.5, rows * (panel_h + 0.3) + 1.5), dpi=100, layout="constrained")
     grid = fig.add_gridspec(rows + 1, 5, height_ratios=[panel_h + 0.3] * rows + [0.55])
-    fig.suptitle(title)
+    cascades = int(max(s["cascade"].max() for snapshots, _, _ in strips for s in snapshots)) + 1
+    heading = fig.suptitle(strips[0][2])
+    panels = None
+    for snapshots, path, title in strips:
+        # set_text keeps the title where the first layout put it (suptitle() would move it back).
+        heading.set_text(title)
+        images = [_strip_images(snap) for snap in snapshots]
+        if panels is None:
+            panels = _strip_panels(fig, grid, images, labels)
+            _strip_keys(fig, grid, rows, cascades=cascades)
+        else:
+            for row, row_images in zip(panels, images):
+                for panel, image in zip(row, row_images):
+                    panel.set_data(image)
+        save_figure(fig, path)
+        # Laid out once: the frames differ only in pixels and title text, which move no margin.
+        fig.set_layout_engine("none")
+
+
+def _strip_panels(fig: Figure, grid, images: list[tuple[np.ndarray, ...]], labels: list[str]) -> list[list]:
+    """The image axes of a strip, a row per method; return their images (``AxesImage``) by row."""
     columns = ("shaded view", "cascade index", "ρ (texels / pixel)", "|ΔS| (lit fraction)",
                "vs. ray-traced reference")
-    for r, (snap, label) in enumerate(zip(snapshots, labels)):
-        images = (
-            shaded_image(snap["shaded"], snap["valid"]),
-            cascade_overlay_image(snap["shaded"], snap["cascade"], snap["valid"]),
-            rho_image(snap["rho"]),
-            change_image(snap["dS"]),
-            reference_diff_image(snap["shaded"], snap["ref_diff"], snap["valid"]),
-        )
-        for c, image in enumerate(images):
+    panels = []
+    for r, (row_images, label) in enumerate(zip(images, labels)):
+        panels.append([])
+        for c, image in enumerate(row_images):
             ax = fig.add_subplot(grid[r, c])
-            ax.imshow(image, interpolation="antialiased")
+            panels[-1].append(ax.imshow(image, interpolation="antialiased"))
             ax.set_xticks([])
             ax.set_yticks([])
             if r == 0:
                 ax.set_title(columns[c], fontsize=10)
             if c == 0:
                 ax.set_ylabel(label, fontsize=11)
+    return panels
+
+
+def _strip_images(snap: dict) -> tuple[np.ndarray, ...]:
+    """The five panels of a snapshot's row, ``(H, W, 3)`` uint8 each."""
+    shaded = np.asarray(snap["shaded"], dtype=np.float64)
+    base = srgb_from_linear(np.nan_to_num(shaded))
+    defined = _shaded_defined(shaded, snap["valid"])
+    return (_with_background(base, defined), _with_background(_cascade_tint(base, snap["cascade"]), defined),
+            rho_image(snap["rho"]), change_image(snap["dS"]),
+            _with_background(_reference_diff(base, snap["ref_diff"]), defined))
+
+
+def _strip_keys(fig: Figure, grid, rows: int, *, cascades: int) -> None:
+    """The strip's last row: no key for shaded, the legend of ``cascades`` cascades, ρ and |ΔS| bars, error legend."""
     keys = [fig.add_subplot(grid[rows, c]) for c in range(5)]
     for ax in (keys[0], keys[1], keys[4]):
         ax.axis("off")
-    cascades = int(max(s["cascade"].max() for s in snapshots)) + 1
     keys[1].legend(handles=[Patch(color=CATEGORY_COLOURS[i % len(CATEGORY_COLOURS)], label=f"cascade {i}")
                             for i in range(cascades)], loc="upper center", ncol=min(cascades, 4), fontsize=8,
                    frameon=False)
@@ -208,7 +255,6 @@ def snapshot_strip_figure(snapshots: list[dict], labels: list[str], path, *, tit
                               orientation="horizontal")
     change_bar.set_ticks([0, 0.05, 0.2, 0.5, 1.0])
     change_bar.set_label("|ΔS| since the previous frame\n(lit fraction, square-root scale)", fontsize=8)
-    fig.savefig(path, metadata={"Software": None})
 
 
 def _power_of_two(exponent: float) -> str:

@@ -15,6 +15,7 @@ from matplotlib.figure import Figure
 import csmlab
 from csmlab.report.html import render_report_html
 from csmlab.report.images import CATEGORY_COLOURS
+from csmlab.report.png import save_figure
 from csmlab.results import write_atomic
 
 __all__ = ["TABLE_COLUMNS", "tune_figure", "write_tune_report"]
@@ -24,7 +25,6 @@ TABLE_COLUMNS = (("memory_bytes", "memory", "MiB", 2.0 ** -20), ("rho_p05", "ρ 
                  ("flicker_same", "flicker, same cascade", "mean |ΔS|", 1.0),
                  ("flicker", "flicker", "mean |ΔS|", 1.0), ("flip_rate", "flip rate", "% of pixels", 100.0))
 """Columns of the tables: metric, label, unit, display factor."""
-_SAVE = {"metadata": {"Software": None}}
 
 
 def _value(candidate, metric: str):
@@ -78,7 +78,7 @@ def tune_figure(result, path) -> None:
     axes[0].set_ylabel("ρ p05 (texels / pixel, higher is sharper)")
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside right center", fontsize=8)
-    fig.savefig(path, **_SAVE)
+    save_figure(fig, path)
 
 
 def _row(candidate, *, mark: str = "") -> dict:
