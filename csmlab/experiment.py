@@ -19,6 +19,7 @@ import dataclasses
 import pickle
 import time
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,7 +36,7 @@ from csmlab.paths.timing import TimingReport
 from csmlab.scene.core import Scene
 
 __all__ = ["IMAGE_FRAMES", "ChunkResult", "Job", "RunResult", "Workload", "build_workload", "check_device",
-           "chunk_captures", "chunk_ranges", "image_frames", "run_chunk", "run_experiment"]
+           "chunk_ranges", "image_frames", "run_chunk", "run_experiment"]
 
 
 @dataclass(frozen=True)
@@ -113,8 +114,8 @@ class ChunkResult:
         Wall-clock seconds; the view's stages have empty method and point.
     captures : dict of (method, point) to bytes
         The report's per-frame records (:func:`csmlab.report.capture.capture_frame`), in frame order,
-        one pickled list per variant: the parent stores them as they are and unpickles one variant's
-        at a time (:func:`chunk_captures`).
+        one pickled list per variant: the parent stores each as a part of the chunk's file
+        (:func:`csmlab.results.save_chunk`) and reads back one variant's at a time.
     """
 
     start: int
@@ -365,12 +366,6 @@ def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
     return ChunkResult(start=start, stop=stop, rows=rows, timings=timings, captures=packed)
 
 
-def chunk_captures(result: ChunkResult, key: tuple[str, str]) -> list:
-    """The report's records of variant ``key`` (method, point) in a finished chunk, in frame order."""
-    packed = result.captures.get(key)
-    return [] if packed is None else pickle.loads(packed)
-
-
 def _held_depths(workload: Workload, variants, *, device: str) -> dict:
     """Per SDSM variant with hysteresis, its held view-depth range ``(N, 2)`` over the whole path.
 
@@ -499,14 +494,22 @@ def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, executor: 
     job = Job(workload=workload, variants=variants, snapshot_frames=_snapshot_frames(experiment, frames),
               device=device, image_frames=image_frames(frames), held_depths=held_depths,
               held_extents=_held_extents(workload, variants, held_depths, device=device))
+    order = [(v.method, v.point) for v in variants]
     for chunk, result in execute(run_chunk, todo, shared=job, executor=executor, jobs=jobs, address=address):
-        results.save_chunk(out, result, run_key=chunk_key)
+        parts = {_captures_part(rank): result.captures[key] for rank, key in enumerate(order)
+                 if key in result.captures}
+        results.save_chunk(out, dataclasses.replace(result, captures={}), run_key=chunk_key, parts=parts)
         done.add(chunk)
         report_progress()
     summary = _write_results(out, experiment, job, ranges, run_key=chunk_key, config_hash=hash_)
     results.clear_chunks(out)
     return RunResult(out_dir=out, frames=frames, chunks_run=len(todo), chunks_resumed=resumed,
                      seconds=time.perf_counter() - began, summary=summary)
+
+
+def _captures_part(rank: int) -> str:
+    """Name of the chunk part holding the captures of the variant of results rank ``rank``."""
+    return f"captures{rank}"
 
 
 def _write_results(out: Path, experiment: Experiment, job: Job, ranges: list[tuple[int, int]], *, run_key: str,
@@ -534,10 +537,19 @@ def _write_results(out: Path, experiment: Experiment, job: Job, ranges: list[tup
 
     results.write_metrics(out / "metrics.csv", variant_rows(), columns=columns)
     results.write_timings(out / "timings.csv", (chunk.timings for chunk in chunks()), order=order)
-    for variant in job.variants:
-        key = (variant.method, variant.point)
-        write_captures(out, method=variant.method, point=variant.point,
-                       captures=[c for chunk in chunks() for c in chunk_captures(chunk, key)])
+
+    def write_variant(rank: int) -> None:
+        variant = job.variants[rank]
+        captures = []
+        for start, stop in ranges:
+            packed = results.load_chunk_part(out, start, stop, _captures_part(rank))
+            captures += [] if packed is None else pickle.loads(packed)
+        write_captures(out, method=variant.method, point=variant.point, captures=captures)
+
+    # Two variants at a time: their files' compression (zlib) releases the GIL, and the workers
+    # have finished, so both cores are free.
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        list(pool.map(write_variant, range(len(job.variants))))
     write_casters(out, job.workload.scene.vertices, job.workload.scene.triangles)
     methods, points = results.summarize(arrays, columns=columns, methods=[m.name for m in experiment.methods],
                                         points=[label for label, _ in experiment.points()])

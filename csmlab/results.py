@@ -62,6 +62,7 @@ __all__ = [
     "environment",
     "format_value",
     "load_chunk",
+    "load_chunk_part",
     "metric_arrays",
     "prepare_output",
     "read_metrics",
@@ -341,14 +342,28 @@ def prepare_output(out_dir, *, resolved_toml: str, run_key: str, resume: bool) -
     return out
 
 
-def _chunk_path(out_dir, start: int, stop: int) -> Path:
-    return Path(out_dir) / _CHUNKS / f"chunk_{start:07d}_{stop:07d}.pkl"
+def _chunk_path(out_dir, start: int, stop: int, part: str = "") -> Path:
+    suffix = f".{part}.bin" if part else ".pkl"
+    return Path(out_dir) / _CHUNKS / f"chunk_{start:07d}_{stop:07d}{suffix}"
 
 
-def save_chunk(out_dir, result, *, run_key: str) -> Path:
-    """Keep one finished chunk (an object with ``start`` and ``stop``) for ``--resume``."""
+def save_chunk(out_dir, result, *, run_key: str, parts: dict[str, bytes] | None = None) -> Path:
+    """Keep one finished chunk (an object with ``start`` and ``stop``) for ``--resume``.
+
+    ``parts`` (name to bytes) are kept beside it, each in a file of its own, so that a reader who
+    needs one of them (:func:`load_chunk_part`) does not read the others; they are written first,
+    so a chunk that :func:`load_chunk` finds has all of its parts.
+    """
+    for name, data in (parts or {}).items():
+        write_atomic(_chunk_path(out_dir, result.start, result.stop, name), data)
     payload = pickle.dumps({"run_key": run_key, "result": result}, protocol=pickle.HIGHEST_PROTOCOL)
     return write_atomic(_chunk_path(out_dir, result.start, result.stop), payload)
+
+
+def load_chunk_part(out_dir, start: int, stop: int, name: str) -> bytes | None:
+    """The part ``name`` kept with chunk ``[start, stop)`` (:func:`save_chunk`); None when there is none."""
+    path = _chunk_path(out_dir, start, stop, name)
+    return path.read_bytes() if path.is_file() else None
 
 
 def load_chunk(out_dir, start: int, stop: int, *, run_key: str):

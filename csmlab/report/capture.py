@@ -52,6 +52,7 @@ from __future__ import annotations
 import csv
 import io
 import re
+import threading
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -91,6 +92,9 @@ CASCADE_COLUMNS = ("texel_x", "texel_y", "origin_x", "origin_y", "extent_x", "ex
 CASTER_POINTS = 6000
 """Most scene points kept for the interactive 3D view's casters."""
 _NO_VALUE = 255
+_CASCADES_CSV = threading.Lock()
+"""Held while ``cascades.csv`` is read, merged and written: variants' captures may be written on
+several threads (:func:`csmlab.experiment.run_experiment`), and they share that one file."""
 _SNAPSHOT_COUNT = 3
 
 
@@ -235,7 +239,8 @@ def write_captures(out_dir, *, method: str, point: str, captures: list[Capture])
     if len(shapes) > 1:
         raise ValueError(f"captures of {method!r} at {point!r}: expected one image size, got {sorted(shapes)}")
     stem = capture_stem(method, point)
-    _merge_cascades_csv(out / "cascades.csv", method=method, point=point, captures=captures)
+    with _CASCADES_CSV:
+        _merge_cascades_csv(out / "cascades.csv", method=method, point=point, captures=captures)
     (out / "anim" / f"{stem}.npz").unlink(missing_ok=True)
     if imaged:
         _write_npz(out / "anim" / f"{stem}.npz", {
