@@ -52,23 +52,32 @@ def owned_bias(owns: bool) -> wp.float64:
 
 
 @wp.func
-def run_bounds(w: wp.float64, step: wp.float64, bias: wp.float64, start: wp.float64, lo: wp.float64,
-               hi: wp.float64):
+def reciprocal(x: wp.float64) -> wp.float64:
+    """``1 / x``, 0 for 0 (an edge parallel to the rows, which :func:`run_bounds` handles apart)."""
+    if x == wp.float64(0.0):
+        return wp.float64(0.0)
+    return wp.float64(1.0) / x
+
+
+@wp.func
+def run_bounds(w: wp.float64, step: wp.float64, inverse_step: wp.float64, bias: wp.float64, start: wp.float64,
+               lo: wp.float64, hi: wp.float64):
     """``[lo, hi]`` (texel columns, whole numbers in float64) narrowed to where ``w − step·(i − start) > bias`` may hold.
 
-    ``w`` is the edge function at column ``start``. The bound comes from one correctly rounded
-    division, ``⌊(w − bias) / step⌋``, which can only err outward, and is widened by a column on
-    the upper side against the rounding of ``w − bias`` itself.
+    ``w`` is the edge function at column ``start``. The bound ``⌊(w − bias)·(1 / step)⌋`` is off by
+    far less than a column (|w| < 2**53, a few roundings); the upper bound is widened by one
+    column, and the lower one is ``⌊·⌋`` of a quantity whose true value exceeds it by more than
+    the error, so the run is never cut: the exact test decides every column in it.
     """
     if step == wp.float64(0.0):
         if not (w > bias):
             hi = lo - wp.float64(1.0)
         return lo, hi
-    q = wp.floor((w - bias) / step)
+    q = wp.floor((w - bias) * inverse_step)
     if step > wp.float64(0.0):
         hi = wp.min(hi, start + q + wp.float64(1.0))
     else:
-        lo = wp.max(lo, start + q)
+        lo = wp.max(lo, start + q - wp.float64(1.0))
     return lo, hi
 
 
@@ -158,6 +167,9 @@ def rasterize_triangle(
     bias_ab = owned_bias(own_ab)
     bias_bc = owned_bias(own_bc)
     bias_ca = owned_bias(own_ca)
+    inverse_c = reciprocal(step_c)
+    inverse_a = reciprocal(step_a)
+    inverse_b = reciprocal(step_b)
     for j in range(j0, j1 + 1):
         py = (two * wp.int64(j) + wp.int64(1)) * unit
         row_ab = wp.float64(bx - ax) * wp.float64(py - ay)
@@ -174,9 +186,9 @@ def rasterize_triangle(
             start = wp.float64(i0)
             lo = start
             hi = wp.float64(i1)
-            lo, hi = run_bounds(w_c, step_c, bias_ab, start, lo, hi)
-            lo, hi = run_bounds(w_a, step_a, bias_bc, start, lo, hi)
-            lo, hi = run_bounds(w_b, step_b, bias_ca, start, lo, hi)
+            lo, hi = run_bounds(w_c, step_c, inverse_c, bias_ab, start, lo, hi)
+            lo, hi = run_bounds(w_a, step_a, inverse_a, bias_bc, start, lo, hi)
+            lo, hi = run_bounds(w_b, step_b, inverse_b, bias_ca, start, lo, hi)
             if lo <= hi:
                 first = int(lo)
                 last = int(hi)
