@@ -78,7 +78,7 @@ def measure_frame(frame: Frame, previous: Frame | None = None, *, ambient: float
                          f"got settings that differ from frame {frame.view.index}'s")
     cascades = len(frame.maps.cascades)
     alias = aliasing_maps(frame, device=device)
-    share = utilization(frame)
+    share = utilization(frame, device=device)
     errors = reference_maps(frame)
     values = {**aliasing_summary(alias, cascades=cascades), "utilization": float(np.mean(share)),
               **{f"utilization_c{c}": float(u) for c, u in enumerate(share)},

@@ -27,7 +27,7 @@ import numpy as np
 from csmlab.cascades import CascadeSet
 from csmlab.frame import Frame
 from csmlab.kernels.footprint import surface_differentials, texel_footprint
-from csmlab.texels import texel_coordinates
+from csmlab.kernels.usage import looked_up_texels
 
 __all__ = ["AliasingMaps", "RHO_SUMMARIES", "aliasing_maps", "aliasing_summary", "texel_axes", "utilization"]
 
@@ -129,27 +129,19 @@ def aliasing_summary(maps: AliasingMaps, *, cascades: int) -> dict[str, float]:
     return out
 
 
-def utilization(frame: Frame) -> np.ndarray:
+def utilization(frame: Frame, *, device: str = "cpu") -> np.ndarray:
     """Fraction of each cascade's texels that some visible pixel selecting it looks up, ``(C,)`` float64.
 
     A pixel looks up the texel that contains its surface point (``floor`` of its texel
     coordinates from :func:`csmlab.texels.texel_coordinates`); the count of distinct such texels
-    is divided by R². Points outside the R×R grid (impossible for a correct selection) are not
-    counted.
+    (:func:`csmlab.kernels.usage.looked_up_texels`) is divided by R². Points outside the R×R grid
+    (impossible for a correct selection) are not counted.
     """
     g = frame.view.gbuffer
     cascades = frame.maps.cascades
-    selected = np.where(g.valid, frame.shadow.cascade, -1)
-    out = np.zeros(len(cascades), dtype=np.float64)
-    for c, cascade in enumerate(cascades.cascades):
-        points = g.position[selected == c]
-        if points.shape[0] == 0:
-            continue
-        texel = np.floor(texel_coordinates(cascades, c, points)).astype(np.int64)
-        r = cascade.resolution
-        inside = (texel[:, 0] >= 0) & (texel[:, 0] < r) & (texel[:, 1] >= 0) & (texel[:, 1] < r)
-        # Distinct texels counted on a bitmap of the map: linear time, where np.unique sorts.
-        looked_up = np.zeros(r * r, dtype=bool)
-        looked_up[texel[inside, 1] * r + texel[inside, 0]] = True
-        out[c] = np.count_nonzero(looked_up) / float(r * r)
-    return out
+    selected = np.where(g.valid, frame.shadow.cascade, -1).reshape(-1)
+    sides = np.array([c.resolution for c in cascades.cascades])
+    counts = looked_up_texels(g.position.reshape(-1, 3), selected, basis=cascades.basis,
+                              texel_size=np.stack([c.texel_size for c in cascades.cascades]),
+                              origin=np.stack([c.origin for c in cascades.cascades]), resolution=sides, device=device)
+    return counts / (sides.astype(np.float64) ** 2)

@@ -1,0 +1,96 @@
+"""Which texels of each cascade the visible pixels look up (the ``utilization`` metric's count).
+
+A pixel looks up the texel that contains its surface point: ``floor`` of the point's texel
+coordinates in its selected cascade, ``(light x/y) / texel size − box origin``
+(:func:`csmlab.texels.texel_coordinates`, whose operations the kernel repeats in the same order, so
+the floors are the same). One thread per pixel marks its texel in a per-cascade bitmap — a plain
+store of 1, the same value from every writer, so no race on any device — and the marks are
+counted once.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from csmlab.kernels import checked_device
+
+__all__ = ["looked_up_texels"]
+
+
+@wp.kernel
+def mark_texels_kernel(
+    points: wp.array(dtype=wp.vec3d),
+    cascade: wp.array(dtype=wp.int32),
+    rows: wp.mat22d,
+    rows_z: wp.vec2d,
+    texel_size: wp.array2d(dtype=wp.float64),
+    origin: wp.array2d(dtype=wp.float64),
+    resolution: wp.array(dtype=wp.int32),
+    marked: wp.array3d(dtype=wp.uint8),
+):
+    k = wp.tid()
+    c = cascade[k]
+    if c < 0:
+        return
+    p = points[k]
+    # (x·r_x + z·r_z) + y·r_y per light axis, as csmlab.texels._light_space sums it.
+    u = (p[0] * rows[0, 0] + p[2] * rows_z[0]) + p[1] * rows[0, 1]
+    v = (p[0] * rows[1, 0] + p[2] * rows_z[1]) + p[1] * rows[1, 1]
+    i = wp.floor(u / texel_size[c, 0] - origin[c, 0])
+    j = wp.floor(v / texel_size[c, 1] - origin[c, 1])
+    size = wp.float64(resolution[c])
+    if i >= wp.float64(0.0) and i < size and j >= wp.float64(0.0) and j < size:
+        marked[c, int(j), int(i)] = wp.uint8(1)
+
+
+def looked_up_texels(points, cascade, *, basis, texel_size, origin, resolution, device: str = "cpu") -> np.ndarray:
+    """Distinct texels of each cascade that the points look up, ``(C,)`` int64.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3), float64
+        World positions in metres.
+    cascade : array_like, shape (N,), integer
+        Each point's selected cascade; −1 for none (not counted).
+    basis : array_like, shape (3, 3), float64
+        The light basis (rows x, y, light direction; :attr:`csmlab.cascades.CascadeSet.basis`).
+    texel_size : array_like, shape (C, 2), float64
+        Metres per texel.
+    origin : array_like, shape (C, 2), float64
+        Box minimum corners in texels.
+    resolution : array_like, shape (C,), integer
+        Texels per side of each cascade; a point outside ``[0, R)²`` is not counted.
+    device : str
+
+    Returns
+    -------
+    ndarray, shape (C,), int64
+    """
+    device = checked_device(device)
+    p = np.ascontiguousarray(points, dtype=np.float64)
+    selected = np.ascontiguousarray(cascade, dtype=np.int32)
+    rows = np.asarray(basis, dtype=np.float64)
+    size = np.ascontiguousarray(texel_size, dtype=np.float64)
+    corner = np.ascontiguousarray(origin, dtype=np.float64)
+    sides = np.ascontiguousarray(resolution, dtype=np.int32)
+    count = size.shape[0] if size.ndim == 2 else 0
+    if p.ndim != 2 or p.shape[1] != 3 or selected.shape != (p.shape[0],) or rows.shape != (3, 3) \
+            or size.shape != (count, 2) or corner.shape != (count, 2) or sides.shape != (count,) or count == 0:
+        raise ValueError(f"points, cascade, basis, texel_size, origin, resolution: expected shapes (N, 3), (N,), (3, 3), "
+                         f"(C, 2), (C, 2), (C,); got {p.shape}, {selected.shape}, {rows.shape}, {size.shape}, "
+                         f"{corner.shape}, {sides.shape}")
+    if selected.size and selected.max() >= count:
+        raise ValueError(f"cascade: expected indices below {count}, got {selected.max()}")
+    largest = int(sides.max())
+    marked = wp.zeros((count, largest, largest), dtype=wp.uint8, device=device)
+    if p.shape[0]:
+        wp.launch(mark_texels_kernel, dim=p.shape[0],
+                  inputs=(wp.array(p, dtype=wp.vec3d, device=device, copy=False),
+                          wp.array(selected, dtype=wp.int32, device=device, copy=False),
+                          wp.mat22d(rows[0, 0], rows[0, 1], rows[1, 0], rows[1, 1]), wp.vec2d(rows[0, 2], rows[1, 2]),
+                          wp.array(size, dtype=wp.float64, device=device),
+                          wp.array(corner, dtype=wp.float64, device=device),
+                          wp.array(sides, dtype=wp.int32, device=device)),
+                  outputs=(marked,), device=device)
+    return np.count_nonzero(marked.numpy().reshape(count, -1), axis=1).astype(np.int64)
