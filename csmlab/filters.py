@@ -23,13 +23,15 @@ from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet
 from csmlab.kernels.moments import blur_moments, moment_lookup, moment_maps, moment_mip_chain, moment_mip_lookup
 from csmlab.kernels.pcf import weighted_pcf
-from csmlab.kernels.shadow import shadow_lookup
+from csmlab.kernels.shadow import shadow_lookup, shadow_lookup_world
 from csmlab.lookup_choices import FILTER_METHODS, MOMENT_METHODS, PCF_KERNELS, filter_radius
 from csmlab.quads import quad_derivatives
 from csmlab.settings import ShadowSettings
+from csmlab.texels import fixed_point_origin
 
 __all__ = ["FILTER_METHODS", "box_texel_origins", "filter_mips", "filter_moments", "filter_radius", "filter_widths",
-           "filtered_shadow_lookup", "interleaved_gradient_noise", "poisson_disk", "screen_pixels", "uses_pixels"]
+           "filtered_shadow_lookup", "interleaved_gradient_noise", "looks_up_world_receivers", "poisson_disk",
+           "screen_pixels", "uses_pixels", "world_shadow_lookup"]
 
 def filter_widths(cascades: CascadeSet, settings: ShadowSettings) -> np.ndarray:
     """The ``width`` of :func:`csmlab.kernels.pcf.weighted_pcf` per cascade ``(C,)`` float64.
@@ -160,6 +162,59 @@ def _outside_smaller_boxes(coords: np.ndarray, cascades: CascadeSet, *, unit: in
     return out
 
 
+def _selection_parameters(cascades: CascadeSet, settings: ShadowSettings) -> dict:
+    """The cascade-selection arguments of :func:`csmlab.kernels.shadow.shadow_lookup` for ``settings``."""
+    return dict(splits=cascades.splits, texel_area=np.array([np.prod(c.texel_size) for c in cascades.cascades]),
+                selection=settings.selection, blend_band=settings.blend_band, bits=settings.subtexel_bits)
+
+
+def looks_up_world_receivers(cascades: CascadeSet, settings: ShadowSettings, *, resolution: int) -> bool:
+    """Whether :func:`world_shadow_lookup` serves ``settings``: a box filter over equal cascades in float64 math.
+
+    The other filters read every receiver in its selected cascade again after the selection, an
+    engine's float32 math converts receivers on the host, and a cascade smaller than the maps
+    needs its receivers moved out of the empty rest of its map: those take the converted
+    receivers of :func:`filtered_shadow_lookup`.
+    """
+    return (settings.filter not in PCF_KERNELS and settings.filter not in MOMENT_METHODS
+            and settings.engine_precision == "float64"
+            and all(c.resolution == resolution for c in cascades.cascades))
+
+
+def world_shadow_lookup(depth, points, normals, view_depth, *, receivers, cascades: CascadeSet,
+                        settings: ShadowSettings, device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`filtered_shadow_lookup` of world receivers, where :func:`looks_up_world_receivers` holds.
+
+    Parameters
+    ----------
+    depth : array_like, shape (C, R, R), float32
+    points, normals : array_like, shape (M, 3)
+        World positions (float64, metres) and unit normals (float32).
+    view_depth : array_like, shape (N,)
+        View depth of each receiver under the selecting camera.
+    receivers : array_like, shape (N,), int
+        The rows of ``points`` that are receivers.
+    cascades : CascadeSet
+    settings : ShadowSettings
+    device : str
+
+    Returns
+    -------
+    lit, cascade, blend
+        As :func:`filtered_shadow_lookup`, the same bits.
+    """
+    bits = settings.subtexel_bits
+    return shadow_lookup_world(
+        depth, points, normals, view_depth, receivers=receivers, basis=cascades.basis,
+        texel_size=np.stack([c.texel_size for c in cascades.cascades]),
+        origin=np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]),
+        zref=cascades.zref, normal_offset=settings.normal_offset, bias_constant=settings.bias_constant,
+        bias_slope=settings.bias_slope, receiver_plane_bias=settings.receiver_plane_bias,
+        filter=settings.filter, filter_size=settings.filter_size,
+        margin=max(cascades.margin_texels, settings.margin_texels - 1), **_selection_parameters(cascades, settings),
+        device=device)
+
+
 def filtered_shadow_lookup(depth, coords, receiver_depth, view_depth, *, cascades: CascadeSet,
                            settings: ShadowSettings, receiver_slope=None, pixels=None, moments=None,
                            span: float = 0.0, mips=None, lanes=None,
@@ -209,12 +264,10 @@ def filtered_shadow_lookup(depth, coords, receiver_depth, view_depth, *, cascade
     filter = settings.filter
     radius = settings.margin_texels - 1
     bits = settings.subtexel_bits
-    texel_area = np.array([np.prod(c.texel_size) for c in cascades.cascades])
     margin = max(cascades.margin_texels, radius)
     coords = _outside_smaller_boxes(np.asarray(coords, dtype=np.int64), cascades, unit=2**bits, inset=margin,
                                     resolution=np.shape(depth)[1])
-    common = dict(splits=cascades.splits, texel_area=texel_area, selection=settings.selection,
-                  blend_band=settings.blend_band, bits=bits, receiver_slope=receiver_slope, device=device)
+    common = dict(**_selection_parameters(cascades, settings), receiver_slope=receiver_slope, device=device)
     if filter not in PCF_KERNELS and filter not in MOMENT_METHODS:
         return shadow_lookup(depth, coords, receiver_depth, view_depth, filter=filter,
                              filter_size=settings.filter_size, margin=margin, **common)

@@ -17,7 +17,8 @@ import numpy as np
 from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet, build_cascades
 from csmlab.cascades.bounds import visible_depth_range
-from csmlab.filters import filter_mips, filter_moments, filtered_shadow_lookup, uses_pixels
+from csmlab.filters import (filter_mips, filter_moments, filtered_shadow_lookup, looks_up_world_receivers,
+                            uses_pixels, world_shadow_lookup)
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import normalized
 from csmlab.kernels.raster import cascade_candidates, rasterize_cascades, rasterize_depth, triangle_bounds
@@ -292,13 +293,19 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
                          f"got {p.shape}, {n.shape}, {z.shape}")
     # Only receivers go to the kernels: points with a NaN (misses) keep S = NaN and cascade -1.
     flat_z = z.reshape(-1)
-    rows = p.reshape(-1, 3)
+    flat_points = p.reshape(-1, 3)
     # Component by component: np.all over a length-3 axis is ten times slower than three columns.
-    finite = np.isfinite(rows[:, 0]) & np.isfinite(rows[:, 1]) & np.isfinite(rows[:, 2])
+    finite = np.isfinite(flat_points[:, 0]) & np.isfinite(flat_points[:, 1]) & np.isfinite(flat_points[:, 2])
     receivers = np.flatnonzero(finite & ~np.isnan(flat_z))
     cascades = maps.cascades
+    if maps.mips is None and looks_up_world_receivers(cascades, settings, resolution=maps.depth.shape[1]):
+        # Each receiver converted where the lookup reads it: no (C, N) arrays of every receiver in
+        # every cascade (the same bits as the converted path below).
+        found = world_shadow_lookup(maps.depth, flat_points, n.reshape(-1, 3), flat_z[receivers], receivers=receivers,
+                                    cascades=cascades, settings=settings, device=device)
+        return _shadow_lookup_record(found, receivers, z, settings=settings, far=float(cascades.splits[-1]))
     coordinates, receiver_depth, receiver_slope = _receiver_coordinates(
-        cascades, p.reshape(-1, 3), n.reshape(-1, 3), receivers, settings=settings, device=device)
+        cascades, flat_points, n.reshape(-1, 3), receivers, settings=settings, device=device)
     if pixels is None and p.ndim == 3 and uses_pixels(settings):
         rows, cols = np.indices(p.shape[:2])
         pixels = np.stack([cols, rows], axis=-1)
@@ -323,17 +330,26 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
         pixels=None if pixels is None else np.asarray(pixels, dtype=np.float64).reshape(-1, 2)[receivers],
         device=device,
     )
+    return _shadow_lookup_record(found, receivers, z, settings=settings, far=float(cascades.splits[-1]))
+
+
+def _shadow_lookup_record(found: tuple, receivers: np.ndarray, view_depth: np.ndarray, *, settings: ShadowSettings,
+                          far: float) -> ShadowLookup:
+    """The :class:`ShadowLookup` of every point (shaped like ``view_depth``) from the receivers' ``(lit, cascade, blend)``.
+
+    The fade-out toward ``far`` (``settings.fade_out``) is applied here, after any lookup.
+    """
+    shape = view_depth.shape
+    flat_z = view_depth.reshape(-1)
     lit = np.full(flat_z.shape, np.nan, dtype=np.float32)
     cascade = np.full(flat_z.shape, -1, dtype=np.int8)
     blend = np.zeros(flat_z.shape, dtype=bool)
     lit[receivers], cascade[receivers], blend[receivers] = found
     if settings.fade_out > 0.0:
-        lit[receivers], fading = faded(lit[receivers], flat_z[receivers], far=float(cascades.splits[-1]),
-                                       fade_out=settings.fade_out)
+        lit[receivers], fading = faded(lit[receivers], flat_z[receivers], far=far, fade_out=settings.fade_out)
         # Like a blend band, the fade weight follows the camera: the temporal metric counts these
         # points with the transitions, not with same-cascade swimming.
         blend[receivers] |= fading
-    shape = z.shape
     return ShadowLookup(lit=lit.reshape(shape), cascade=cascade.reshape(shape), blend=blend.reshape(shape))
 
 

@@ -247,3 +247,50 @@ def test_receiver_coordinates_on_the_device_equal_the_host_receiver_lookup_bit_f
                 origin=np.stack([fixed_point_origin(cs, c, bits=bits) for c in range(len(cs))]), zref=cs.zref,
                 bits=bits, normal_offset=offset, bias_constant=constant, bias_slope=slope, receivers=picked)):
             np.testing.assert_array_equal(g, e[:, picked])
+
+
+@pytest.mark.parametrize("selection", sorted(SELECTION_METHODS))
+def test_world_receivers_look_up_the_same_bits_as_converted_ones(selection):
+    """shadow_lookup_world converts each receiver where it reads it; receiver_coordinates + shadow_lookup gives the same."""
+    from csmlab.kernels.shadow import receiver_coordinates, shadow_lookup_world
+
+    rng = np.random.default_rng(11)
+    size, count = 32, 3
+    texel = np.array([[0.05, 0.06], [0.2, 0.2], [0.9, 0.8]])
+    # Nested boxes about one light-space centre, as a camera's cascades are.
+    centre = np.array([1500.0, -800.0])
+    origin = np.rint((centre / texel - size / 2) * UNIT).astype(np.int64)
+    basis = light_basis([0.3, -0.8, 0.2])
+    # Receivers about the centre, each box's share spread over it (some outside every box), normals
+    # of every kind; each one's view depth in its box's split interval, many in its blend band.
+    splits = np.array([0.1, 4.0, 15.0, 60.0])
+    light = np.concatenate([np.column_stack([centre + rng.normal(scale=size * t.max() * 0.3, size=(400, 2)),
+                                             rng.normal(size=400)]) for t in texel])
+    depths = np.concatenate([rng.uniform(splits[c] + 0.4 * (splits[c + 1] - splits[c]), splits[c + 1], 400)
+                             for c in range(count)])
+    points = light @ basis
+    normals = rng.normal(size=points.shape).astype(np.float32)
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    receivers = rng.permutation(points.shape[0])[:900]
+    view_depth = depths[receivers]
+    conversion = dict(basis=basis, texel_size=texel, origin=origin, zref=-2.0, bits=BITS, normal_offset=0.75,
+                      bias_constant=0.01, bias_slope=1.5)
+    coords, receiver_depth, slope = receiver_coordinates(points, normals, receivers=receivers, **conversion)
+    finite = receiver_depth[np.isfinite(receiver_depth)]
+    maps = rng.uniform(finite.min(), finite.max(), (count, size, size)).astype(np.float32)
+    maps[:, ::5, ::3] = np.inf
+    for filter, filter_size, blend_band, plane in (("none", 1, 0.0, True), ("pcf", 3, 0.3, True),
+                                                   ("pcf", 5, 0.0, False), ("pcf_bilinear", 1, 0.2, True)):
+        common = dict(splits=splits, texel_area=np.prod(texel, axis=1), selection=selection, filter=filter,
+                      filter_size=filter_size, margin=2, blend_band=blend_band, bits=BITS)
+        converted = shadow_lookup(maps, coords, receiver_depth, view_depth, receiver_slope=slope if plane else None,
+                                  **common)
+        world = shadow_lookup_world(maps, points, normals, view_depth, receivers=receivers,
+                                    receiver_plane_bias=plane, **{k: v for k, v in conversion.items() if k != "bits"},
+                                    **common)
+        for a, b in zip(converted, world):
+            np.testing.assert_array_equal(a, b)
+        lit, chosen, blended = world
+        assert np.isfinite(lit).sum() > 100 and 0 < np.mean(lit[np.isfinite(lit)]) < 1
+        assert len(set(chosen.tolist()) - {-1}) >= 2
+        assert blended.any() == (blend_band > 0.0)

@@ -34,6 +34,8 @@ References
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import warp as wp
 
@@ -43,7 +45,8 @@ from csmlab.lookup_choices import (BOX_BILINEAR, BOX_FILTERS, SELECT_BEST_RESOLU
 from csmlab.lookup_choices import filter_radius as lookup_filter_radius
 from csmlab.registry import check_name
 
-__all__ = ["FILTER_METHODS", "SELECTION_METHODS", "filter_radius", "receiver_coordinates", "shadow_lookup"]
+__all__ = ["FILTER_METHODS", "SELECTION_METHODS", "filter_radius", "receiver_coordinates", "shadow_lookup",
+           "shadow_lookup_world", "world_receivers"]
 
 FILTER_METHODS = BOX_FILTERS
 """The filters this lookup runs itself (:data:`csmlab.lookup_choices.BOX_FILTERS`), mapped to the kernel's code."""
@@ -53,14 +56,6 @@ def filter_radius(filter: str, filter_size: int) -> int:
     """Texels a box filter reads beyond the texel that contains the point (0, N // 2, or 1)."""
     check_name(filter, FILTER_METHODS, field="filter")
     return lookup_filter_radius(filter, filter_size)
-
-
-@wp.func
-def holds(coords: wp.array3d(dtype=wp.int64), c: int, k: int, inset: wp.int64, top: wp.int64) -> bool:
-    """The point lies in ``[inset, top)`` on both axes (fixed point)."""
-    x = coords[c, k, 0]
-    y = coords[c, k, 1]
-    return x >= inset and x < top and y >= inset and y < top
 
 
 @wp.func
@@ -87,22 +82,9 @@ def tap(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int64, r
 
 
 @wp.func
-def lit_fraction(
-    depth: wp.array3d(dtype=wp.float32),
-    coords: wp.array3d(dtype=wp.int64),
-    receiver_depth: wp.array2d(dtype=wp.float32),
-    receiver_slope: wp.array2d(dtype=wp.vec2d),
-    c: int,
-    k: int,
-    unit: wp.int64,
-    filter_code: int,
-    radius: int,
-) -> wp.float64:
-    """S of receiver k in cascade c with the filter of ``filter_code`` (2: bilinear, else box of ``radius``)."""
-    x = coords[c, k, 0]
-    y = coords[c, k, 1]
-    receiver = receiver_depth[c, k]
-    slope = receiver_slope[c, k]
+def lit_fraction(depth: wp.array3d(dtype=wp.float32), c: int, x: wp.int64, y: wp.int64, receiver: wp.float32,
+                 slope: wp.vec2d, unit: wp.int64, filter_code: int, radius: int) -> wp.float64:
+    """S of a receiver at fixed point ``(x, y)`` in cascade c with the filter of ``filter_code`` (2: bilinear, else box of ``radius``)."""
     inverse_span = wp.float64(1.0) / wp.float64(wp.int64(2) * unit)
     if filter_code == BOX_BILINEAR:
         # Texel centres sit at (2i + 1)·unit in doubled units; i0 is the centre at or left of the point.
@@ -131,12 +113,91 @@ def lit_fraction(
     return wp.float64(count) / wp.float64(side * side)
 
 
+@wp.func
+def holds(x: wp.int64, y: wp.int64, inset: wp.int64, top: wp.int64) -> bool:
+    """The point lies in ``[inset, top)`` on both axes (fixed point)."""
+    return x >= inset and x < top and y >= inset and y < top
+
+
+@wp.struct
+class FixedReceivers:
+    """Receivers already in every cascade's fixed point (:func:`receiver_coordinates`, or the host's float32 engine math)."""
+
+    coords: wp.array3d(dtype=wp.int64)
+    depth: wp.array2d(dtype=wp.float32)
+    slope: wp.array2d(dtype=wp.vec2d)
+
+
+@wp.struct
+class WorldReceivers:
+    """Receivers as world points, taken into a cascade's fixed point where a kernel reads them.
+
+    ``to_fixed = 2**bits / texel_size``, ``offset`` (the normal offset in metres) and ``slope_bias``
+    (``bias_slope · texel``) are per cascade; ``planar`` 0 gives every receiver a flat plane (no
+    receiver-plane bias).
+    """
+
+    points: wp.array(dtype=wp.vec3d)
+    normals: wp.array(dtype=wp.vec3)
+    index: wp.array(dtype=wp.int32)
+    basis: wp.mat33d
+    texel_size: wp.array2d(dtype=wp.float64)
+    to_fixed: wp.array2d(dtype=wp.float64)
+    offset: wp.array(dtype=wp.float64)
+    slope_bias: wp.array(dtype=wp.float64)
+    origin: wp.array2d(dtype=wp.int64)
+    zref: wp.float64
+    limit: wp.float64
+    bias_constant: wp.float64
+    max_tan: wp.float64
+    planar: int
+
+
+@wp.func
+def receiver_at(r: FixedReceivers, c: int, k: int):
+    """Receiver k in cascade c: fixed-point ``x, y``, biased depth and receiver-plane slope."""
+    return r.coords[c, k, 0], r.coords[c, k, 1], r.depth[c, k], r.slope[c, k]
+
+
+@wp.func
+def receiver_at(r: WorldReceivers, c: int, k: int):  # noqa: F811  (a Warp overload, by receiver type)
+    """Receiver k in cascade c: fixed-point ``x, y``, biased depth and receiver-plane slope.
+
+    csmlab.texels.receiver_lookup's operations in its order, one at a time (Warp emits one
+    statement per operation, so no multiply-add is fused): the same bits as the host.
+    """
+    zero = wp.float64(0.0)
+    point = r.points[r.index[k]]
+    normal = wp.vec3d(r.normals[r.index[k]])
+    px = light_space(point, r.basis, 0)
+    py = light_space(point, r.basis, 1)
+    pz = light_space(point, r.basis, 2)
+    nx = light_space(normal, r.basis, 0)
+    ny = light_space(normal, r.basis, 1)
+    nz = light_space(normal, r.basis, 2)
+    cos = -nz
+    tan = wp.float64(wp.nan)
+    plane_x = zero
+    plane_y = zero
+    if cos > zero:
+        tan = wp.min(wp.sqrt(wp.max(wp.float64(1.0) - cos * cos, zero)) / cos, r.max_tan)
+        plane_x = nx / cos
+        plane_y = ny / cos
+    slope = wp.vec2d(zero, zero)
+    if r.planar != 0:
+        slope = wp.vec2d(wp.clamp(plane_x, -r.max_tan, r.max_tan) * r.texel_size[c, 0],
+                         wp.clamp(plane_y, -r.max_tan, r.max_tan) * r.texel_size[c, 1])
+    moved = r.offset[c]
+    x = fixed_point(nx * moved + px, r.to_fixed[c, 0], r.limit) - r.origin[c, 0]
+    y = fixed_point(ny * moved + py, r.to_fixed[c, 1], r.limit) - r.origin[c, 1]
+    bias = r.bias_constant + r.slope_bias[c] * tan
+    return x, y, wp.float32(pz + moved * nz - r.zref - bias), slope
+
+
 @wp.kernel
 def shadow_lookup_kernel(
     depth: wp.array3d(dtype=wp.float32),
-    coords: wp.array3d(dtype=wp.int64),
-    receiver_depth: wp.array2d(dtype=wp.float32),
-    receiver_slope: wp.array2d(dtype=wp.vec2d),
+    receivers: Any,
     view_depth: wp.array(dtype=wp.float64),
     splits: wp.array(dtype=wp.float64),
     texel_area: wp.array(dtype=wp.float64),
@@ -161,39 +222,54 @@ def shadow_lookup_kernel(
     select_hi = (size - wp.int64(margin)) * unit
     z = view_depth[k]
     chosen = int(-1)
+    x = wp.int64(0)
+    y = wp.int64(0)
+    receiver = wp.float32(0.0)
+    slope = wp.vec2d()
     if selection == SELECT_INTERVAL:
         for c in range(count):
             if z >= splits[c] and z < splits[c + 1]:
                 chosen = c
         if chosen >= 0:
-            if not holds(coords, chosen, k, tap_lo, tap_hi):
+            x, y, receiver, slope = receiver_at(receivers, chosen, k)
+            if not holds(x, y, tap_lo, tap_hi):
                 chosen = -1
     else:
         best = wp.float64(wp.inf)
         for c in range(count):
-            if holds(coords, c, k, select_lo, select_hi):
-                if selection == SELECT_MAP and chosen < 0:
-                    chosen = c
-                if selection == SELECT_BEST_RESOLUTION and texel_area[c] < best:
+            xc, yc, rc, sc = receiver_at(receivers, c, k)
+            if holds(xc, yc, select_lo, select_hi):
+                if (selection == SELECT_MAP and chosen < 0) or (selection == SELECT_BEST_RESOLUTION
+                                                                 and texel_area[c] < best):
                     best = texel_area[c]
                     chosen = c
+                    x = xc
+                    y = yc
+                    receiver = rc
+                    slope = sc
     cascade[k] = chosen
     blend[k] = 0
     if chosen < 0:
         lit[k] = 0.0
         return
-    s = lit_fraction(depth, coords, receiver_depth, receiver_slope, chosen, k, unit, filter_code, radius)
+    s = lit_fraction(depth, chosen, x, y, receiver, slope, unit, filter_code, radius)
     nxt = chosen + 1
     if blend_band > wp.float64(0.0) and nxt < count:
         z0 = splits[chosen]
         z1 = splits[nxt]
         start = z1 - blend_band * (z1 - z0)
-        if z >= start and z < z1 and holds(coords, nxt, k, tap_lo, tap_hi):
-            w = (z - start) / (z1 - start)
-            s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, coords, receiver_depth, receiver_slope, nxt, k,
-                                                             unit, filter_code, radius)
-            blend[k] = 1
+        if z >= start and z < z1:
+            xn, yn, rn, sn = receiver_at(receivers, nxt, k)
+            if holds(xn, yn, tap_lo, tap_hi):
+                w = (z - start) / (z1 - start)
+                s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, nxt, xn, yn, rn, sn, unit, filter_code,
+                                                                 radius)
+                blend[k] = 1
     lit[k] = wp.float32(s)
+
+
+wp.overload(shadow_lookup_kernel, {"receivers": FixedReceivers})
+wp.overload(shadow_lookup_kernel, {"receivers": WorldReceivers})
 
 
 def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_area, selection: str,
@@ -252,27 +328,78 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
         non-positive ``filter_size``, or shapes that do not match.
     """
     device = checked_device(device)
+    xy = np.ascontiguousarray(coords, dtype=np.int64)
+    rd = np.ascontiguousarray(receiver_depth, dtype=np.float32)
+    slope = (np.zeros(rd.shape + (2,)) if receiver_slope is None
+             else np.ascontiguousarray(receiver_slope, dtype=np.float64))
+    count = np.shape(depth)[0] if np.ndim(depth) == 3 else 0
+    n = np.shape(view_depth)[0] if np.ndim(view_depth) == 1 else -1
+    if xy.shape != (count, n, 2) or rd.shape != (count, n) or slope.shape != (count, n, 2):
+        raise ValueError(f"coords, receiver_depth, receiver_slope, view_depth: expected shapes ({count}, N, 2), "
+                         f"({count}, N), ({count}, N, 2), (N,); got {xy.shape}, {rd.shape}, {slope.shape}, "
+                         f"{np.shape(view_depth)}")
+    receivers = FixedReceivers()
+    receivers.coords = wp.array(xy, dtype=wp.int64, device=device, copy=False)
+    receivers.depth = wp.array(rd, dtype=wp.float32, device=device, copy=False)
+    receivers.slope = wp.array(slope, dtype=wp.vec2d, device=device, copy=False)
+    return _lookup(depth, receivers, view_depth, splits=splits, texel_area=texel_area, selection=selection,
+                   filter=filter, filter_size=filter_size, margin=margin, blend_band=blend_band, bits=bits,
+                   device=device)
+
+
+def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis, texel_size, origin, zref: float,
+                        normal_offset: float, bias_constant: float, bias_slope: float, receiver_plane_bias: bool,
+                        splits, texel_area, selection: str, filter: str, filter_size: int, margin: int,
+                        blend_band: float, bits: int, device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`shadow_lookup` of world receivers, each taken into a cascade's fixed point where the lookup reads it.
+
+    The same results, bit for bit, as :func:`receiver_coordinates` followed by :func:`shadow_lookup`
+    (one conversion, :func:`receiver_at`, serves both) without the ``(C, N)`` arrays of every
+    receiver in every cascade: a receiver is converted into the cascades its selection tests only.
+
+    Parameters
+    ----------
+    depth, view_depth, splits, texel_area, selection, filter, filter_size, margin, blend_band, bits, device
+        As :func:`shadow_lookup`; ``view_depth`` ``(N,)`` one per receiver.
+    points, normals, receivers, basis, texel_size, origin, zref, normal_offset, bias_constant, bias_slope
+        As :func:`receiver_coordinates`.
+    receiver_plane_bias : bool
+        Compare each tap with the receiver's tangent plane (else with its own depth).
+
+    Returns
+    -------
+    lit, cascade, blend
+        As :func:`shadow_lookup`.
+    """
+    device = checked_device(device)
+    world = world_receivers(points, normals, receivers=receivers, basis=basis, texel_size=texel_size, origin=origin,
+                            zref=zref, bits=bits, normal_offset=normal_offset, bias_constant=bias_constant,
+                            bias_slope=bias_slope, planar=receiver_plane_bias, device=device)
+    if world.index.shape[0] != np.shape(view_depth)[0] or np.ndim(view_depth) != 1:
+        raise ValueError(f"view_depth: expected one view depth per receiver ({world.index.shape[0]},), "
+                         f"got shape {np.shape(view_depth)}")
+    return _lookup(depth, world, view_depth, splits=splits, texel_area=texel_area, selection=selection,
+                   filter=filter, filter_size=filter_size, margin=margin, blend_band=blend_band, bits=bits,
+                   device=device)
+
+
+def _lookup(depth, receivers, view_depth, *, splits, texel_area, selection: str, filter: str, filter_size: int,
+            margin: int, blend_band: float, bits: int, device: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Launch :func:`shadow_lookup_kernel` over ``receivers`` (a :class:`FixedReceivers` or :class:`WorldReceivers`)."""
     check_name(selection, SELECTION_METHODS, field="selection")
     radius = filter_radius(filter, filter_size)
     if not (isinstance(filter_size, (int, np.integer)) and filter_size >= 1 and filter_size % 2 == 1):
         raise ValueError(f"filter_size: expected an odd positive integer, got {filter_size!r}")
     maps = np.ascontiguousarray(depth, dtype=np.float32)
-    xy = np.ascontiguousarray(coords, dtype=np.int64)
-    rd = np.ascontiguousarray(receiver_depth, dtype=np.float32)
-    slope = (np.zeros(rd.shape + (2,)) if receiver_slope is None
-             else np.ascontiguousarray(receiver_slope, dtype=np.float64))
     vd = np.ascontiguousarray(view_depth, dtype=np.float64)
     z = np.ascontiguousarray(splits, dtype=np.float64)
     area = np.ascontiguousarray(texel_area, dtype=np.float64)
     count = maps.shape[0] if maps.ndim == 3 else 0
     if maps.ndim != 3 or maps.shape[1] != maps.shape[2] or count == 0:
         raise ValueError(f"depth: expected depth maps of shape (C, R, R), got {maps.shape}")
-    n = vd.shape[0] if vd.ndim == 1 else -1
-    if xy.shape != (count, n, 2) or rd.shape != (count, n) or slope.shape != (count, n, 2):
-        raise ValueError(f"coords, receiver_depth, receiver_slope, view_depth: expected shapes ({count}, N, 2), "
-                         f"({count}, N), ({count}, N, 2), (N,); got {xy.shape}, {rd.shape}, {slope.shape}, {vd.shape}")
     if z.shape != (count + 1,) or area.shape != (count,):
         raise ValueError(f"splits, texel_area: expected shapes ({count + 1},), ({count},), got {z.shape}, {area.shape}")
+    n = vd.shape[0]
     if n == 0:
         return np.zeros(0, np.float32), np.zeros(0, np.int8), np.zeros(0, bool)
     lit = wp.empty(n, dtype=wp.float32, device=device)
@@ -283,9 +410,7 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
         dim=n,
         inputs=(
             wp.array(maps, dtype=wp.float32, device=device, copy=False),
-            wp.array(xy, dtype=wp.int64, device=device, copy=False),
-            wp.array(rd, dtype=wp.float32, device=device, copy=False),
-            wp.array(slope, dtype=wp.vec2d, device=device, copy=False),
+            receivers,
             wp.array(vd, dtype=wp.float64, device=device, copy=False),
             wp.array(z, dtype=wp.float64, device=device, copy=False),
             wp.array(area, dtype=wp.float64, device=device, copy=False),
@@ -294,7 +419,7 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
             FILTER_METHODS[filter],
             radius,
             max(int(margin), radius),
-            float(blend_band),
+            wp.float64(blend_band),
         ),
         outputs=(lit, chosen, blended),
         device=device,
@@ -322,56 +447,19 @@ def light_space(v: wp.vec3d, basis: wp.mat33d, row: int) -> wp.float64:
 
 @wp.kernel
 def receiver_coordinates_kernel(
-    points: wp.array(dtype=wp.vec3d),
-    normals: wp.array(dtype=wp.vec3),
-    receivers: wp.array(dtype=wp.int32),
-    basis: wp.mat33d,
-    texel_size: wp.array2d(dtype=wp.float64),
-    to_fixed: wp.array2d(dtype=wp.float64),
-    offset: wp.array(dtype=wp.float64),
-    slope_bias: wp.array(dtype=wp.float64),
-    origin: wp.array2d(dtype=wp.int64),
-    zref: wp.float64,
-    limit: wp.float64,
-    bias_constant: wp.float64,
-    max_tan: wp.float64,
+    receivers: WorldReceivers,
     coords: wp.array3d(dtype=wp.int64),
     depth: wp.array2d(dtype=wp.float32),
     slope: wp.array3d(dtype=wp.float64),
 ):
     k = wp.tid()
-    # csmlab.texels.receiver_lookup's operations in its order, one at a time (Warp emits one
-    # statement per operation, so no multiply-add is fused): the same bits as the host. One
-    # thread per receiver: what does not depend on the cascade is computed once for all of them,
-    # what depends on the cascade only (``to_fixed = 2**bits / texel_size``, the offset and slope
-    # bias in metres) once for all receivers, by the wrapper.
-    zero = wp.float64(0.0)
-    point = points[receivers[k]]
-    normal = wp.vec3d(normals[receivers[k]])
-    px = light_space(point, basis, 0)
-    py = light_space(point, basis, 1)
-    pz = light_space(point, basis, 2)
-    nx = light_space(normal, basis, 0)
-    ny = light_space(normal, basis, 1)
-    nz = light_space(normal, basis, 2)
-    cos = -nz
-    tan = wp.float64(wp.nan)
-    plane_x = zero
-    plane_y = zero
-    if cos > zero:
-        tan = wp.min(wp.sqrt(wp.max(wp.float64(1.0) - cos * cos, zero)) / cos, max_tan)
-        plane_x = nx / cos
-        plane_y = ny / cos
-    plane_x = wp.clamp(plane_x, -max_tan, max_tan)
-    plane_y = wp.clamp(plane_y, -max_tan, max_tan)
-    for c in range(texel_size.shape[0]):
-        moved = offset[c]
-        coords[c, k, 0] = fixed_point(nx * moved + px, to_fixed[c, 0], limit) - origin[c, 0]
-        coords[c, k, 1] = fixed_point(ny * moved + py, to_fixed[c, 1], limit) - origin[c, 1]
-        slope[c, k, 0] = plane_x * texel_size[c, 0]
-        slope[c, k, 1] = plane_y * texel_size[c, 1]
-        bias = bias_constant + slope_bias[c] * tan
-        depth[c, k] = wp.float32(pz + moved * nz - zref - bias)
+    for c in range(coords.shape[0]):
+        x, y, d, s = receiver_at(receivers, c, k)
+        coords[c, k, 0] = x
+        coords[c, k, 1] = y
+        depth[c, k] = d
+        slope[c, k, 0] = s[0]
+        slope[c, k, 1] = s[1]
 
 
 def receiver_coordinates(points, normals, *, basis, texel_size, origin, zref: float, bits: int, normal_offset: float,
@@ -408,6 +496,23 @@ def receiver_coordinates(points, normals, *, basis, texel_size, origin, zref: fl
         ``(C, N)`` float32, ``(C, N, 2)`` float64.
     """
     device = checked_device(device)
+    world = world_receivers(points, normals, receivers=receivers, basis=basis, texel_size=texel_size, origin=origin,
+                            zref=zref, bits=bits, normal_offset=normal_offset, bias_constant=bias_constant,
+                            bias_slope=bias_slope, planar=True, device=device)
+    shape = (world.texel_size.shape[0], world.index.shape[0])
+    coords = wp.empty(shape + (2,), dtype=wp.int64, device=device)
+    depth = wp.empty(shape, dtype=wp.float32, device=device)
+    slope = wp.empty(shape + (2,), dtype=wp.float64, device=device)
+    if shape[1]:
+        wp.launch(receiver_coordinates_kernel, dim=shape[1], inputs=(world,), outputs=(coords, depth, slope),
+                  device=device)
+    return coords.numpy(), depth.numpy(), slope.numpy()
+
+
+def world_receivers(points, normals, *, receivers, basis, texel_size, origin, zref: float, bits: int,
+                    normal_offset: float, bias_constant: float, bias_slope: float, planar: bool,
+                    device: str) -> WorldReceivers:
+    """The :class:`WorldReceivers` of :func:`receiver_coordinates`'s arguments, checked (``planar``: receiver-plane slopes)."""
     p = np.ascontiguousarray(points, dtype=np.float64)
     n = np.ascontiguousarray(normals, dtype=np.float32)
     rows = np.ascontiguousarray(basis, dtype=np.float64)
@@ -421,22 +526,19 @@ def receiver_coordinates(points, normals, *, basis, texel_size, origin, zref: fl
     if index.ndim != 1 or (index.size and (index.min() < 0 or index.max() >= p.shape[0])):
         raise ValueError(f"receivers: expected row indices in [0, {p.shape[0]}), got shape {index.shape}")
     texel = size.max(axis=1)
-    moved = normal_offset * texel
-    shape = (size.shape[0], index.shape[0])
-    coords = wp.empty(shape + (2,), dtype=wp.int64, device=device)
-    depth = wp.empty(shape, dtype=wp.float32, device=device)
-    slope = wp.empty(shape + (2,), dtype=wp.float64, device=device)
-    if index.shape[0]:
-        wp.launch(receiver_coordinates_kernel, dim=index.shape[0],
-                  inputs=(wp.array(p, dtype=wp.vec3d, device=device, copy=False),
-                          wp.array(n, dtype=wp.vec3, device=device, copy=False),
-                          wp.array(index, dtype=wp.int32, device=device, copy=False),
-                          wp.mat33d(*rows.reshape(-1)),
-                          wp.array(size, dtype=wp.float64, device=device),
-                          wp.array(float(2**bits) / size, dtype=wp.float64, device=device),
-                          wp.array(moved, dtype=wp.float64, device=device),
-                          wp.array(bias_slope * texel, dtype=wp.float64, device=device),
-                          wp.array(corner, dtype=wp.int64, device=device, copy=False), float(zref), float(2**50),
-                          float(bias_constant), 10.0),
-                  outputs=(coords, depth, slope), device=device)
-    return coords.numpy(), depth.numpy(), slope.numpy()
+    world = WorldReceivers()
+    world.points = wp.array(p, dtype=wp.vec3d, device=device, copy=False)
+    world.normals = wp.array(n, dtype=wp.vec3, device=device, copy=False)
+    world.index = wp.array(index, dtype=wp.int32, device=device, copy=False)
+    world.basis = wp.mat33d(*rows.reshape(-1))
+    world.texel_size = wp.array(size, dtype=wp.float64, device=device)
+    world.to_fixed = wp.array(float(2**bits) / size, dtype=wp.float64, device=device)
+    world.offset = wp.array(normal_offset * texel, dtype=wp.float64, device=device)
+    world.slope_bias = wp.array(bias_slope * texel, dtype=wp.float64, device=device)
+    world.origin = wp.array(corner, dtype=wp.int64, device=device)
+    world.zref = float(zref)
+    world.limit = float(2**50)
+    world.bias_constant = float(bias_constant)
+    world.max_tan = 10.0
+    world.planar = int(bool(planar))
+    return world
