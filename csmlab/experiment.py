@@ -524,16 +524,20 @@ def _write_results(out: Path, experiment: Experiment, job: Job, ranges: list[tup
         for start, stop in ranges:
             yield results.load_chunk(out, start, stop, run_key=run_key)
 
-    # One variant at a time, read back from the chunks on disk: its rows (written, then kept as
-    # arrays for the summary) and its captures, so that nothing of a long path is whole in memory.
+    # One variant at a time, read back from the chunks on disk chunk by chunk: its rows (written,
+    # then kept as arrays for the summary) and its captures, so that nothing of a long path is
+    # whole in memory.
     arrays = {}
 
     def variant_rows():
         for variant in job.variants:
             key = (variant.method, variant.point)
-            rows = [row for chunk in chunks() for row in chunk.rows if (row.method, row.point) == key]
-            arrays[key] = results.metric_arrays(rows, columns=columns)
-            yield rows
+            parts = []
+            for chunk in chunks():
+                rows = [row for row in chunk.rows if (row.method, row.point) == key]
+                parts.append(results.metric_arrays(rows, columns=columns))
+                yield rows
+            arrays[key] = {name: np.concatenate([part[name] for part in parts]) for name in parts[0]}
 
     results.write_metrics(out / "metrics.csv", variant_rows(), columns=columns)
     results.write_timings(out / "timings.csv", (chunk.timings for chunk in chunks()), order=order)
