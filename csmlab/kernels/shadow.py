@@ -1,8 +1,10 @@
 """Shadow lookup: cascade selection, receiver depth test, filtering, blend band (CSM model step 6).
 
-Receivers arrive as int64 fixed-point coordinates in ``2**-bits`` texels of each cascade (already
-moved along their normal) and a biased float32 depth per cascade
-(:func:`csmlab.texels.receiver_lookup`). Filter taps come from the integer texel index and the
+Receivers arrive either converted — int64 fixed-point coordinates in ``2**-bits`` texels of each
+cascade (already moved along their normal), a biased float32 depth and a receiver-plane slope per
+cascade (:func:`csmlab.texels.receiver_lookup`, :func:`receiver_coordinates`) — or as world points
+and normals (:func:`shadow_lookup_world`) that the lookup converts itself, with the same function
+(:func:`receiver_at`), into the cascades it reads only. Filter taps come from the integer texel index and the
 fixed-point remainder — exactly representable — never from float texel centres, so a box moved by
 whole texels gives bit-identical results at fixed receivers.
 
@@ -441,7 +443,7 @@ def fixed_point(u: wp.float64, to_fixed: wp.float64, limit: wp.float64) -> wp.in
 
 @wp.func
 def light_space(v: wp.vec3d, basis: wp.mat33d, row: int) -> wp.float64:
-    """Component ``row`` of ``v`` in the light basis, summed as :func:`csmlab.texels.light_space` does."""
+    """Component ``row`` of ``v`` in the light basis, summed in the order of the host's ``csmlab.texels._light_space``."""
     return (v[0] * basis[row, 0] + v[2] * basis[row, 2]) + v[1] * basis[row, 1]
 
 
