@@ -31,7 +31,7 @@ from csmlab.texels import fixed_point_origin
 
 __all__ = ["FILTER_METHODS", "box_texel_origins", "filter_mips", "filter_moments", "filter_radius", "filter_widths",
            "filtered_shadow_lookup", "interleaved_gradient_noise", "looks_up_world_receivers", "poisson_disk",
-           "screen_pixels", "uses_pixels", "world_shadow_lookup"]
+           "receiver_conversion", "screen_pixels", "uses_pixels", "world_shadow_lookup"]
 
 def filter_widths(cascades: CascadeSet, settings: ShadowSettings) -> np.ndarray:
     """The ``width`` of :func:`csmlab.kernels.pcf.weighted_pcf` per cascade ``(C,)`` float64.
@@ -105,8 +105,6 @@ def filter_moments(depth, *, span: float, settings: ShadowSettings, device: str 
 
 def box_texel_origins(cascades: CascadeSet, *, bits: int) -> np.ndarray:
     """Each box's texel (0, 0) as a global texel index ``(C, 2)`` int64 (the grid a mip chain is anchored to)."""
-    from csmlab.texels import fixed_point_origin
-
     return np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]) >> bits
 
 
@@ -163,9 +161,14 @@ def _outside_smaller_boxes(coords: np.ndarray, cascades: CascadeSet, *, unit: in
 
 
 def _selection_parameters(cascades: CascadeSet, settings: ShadowSettings) -> dict:
-    """The cascade-selection arguments of :func:`csmlab.kernels.shadow.shadow_lookup` for ``settings``."""
+    """The cascade-selection arguments of :func:`csmlab.kernels.shadow.shadow_lookup` for ``settings``.
+
+    ``margin`` is the cascades' selection margin, widened to the filter's tap radius
+    (``margin_texels - 1``) so that a selected box holds every tap.
+    """
     return dict(splits=cascades.splits, texel_area=np.array([np.prod(c.texel_size) for c in cascades.cascades]),
-                selection=settings.selection, blend_band=settings.blend_band, bits=settings.subtexel_bits)
+                selection=settings.selection, blend_band=settings.blend_band, bits=settings.subtexel_bits,
+                margin=max(cascades.margin_texels, settings.margin_texels - 1))
 
 
 def looks_up_world_receivers(cascades: CascadeSet, settings: ShadowSettings, *, resolution: int) -> bool:
@@ -203,16 +206,24 @@ def world_shadow_lookup(depth, points, normals, view_depth, *, receivers, cascad
     lit, cascade, blend
         As :func:`filtered_shadow_lookup`, the same bits.
     """
-    bits = settings.subtexel_bits
     return shadow_lookup_world(
-        depth, points, normals, view_depth, receivers=receivers, basis=cascades.basis,
-        texel_size=np.stack([c.texel_size for c in cascades.cascades]),
-        origin=np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]),
-        zref=cascades.zref, normal_offset=settings.normal_offset, bias_constant=settings.bias_constant,
-        bias_slope=settings.bias_slope, receiver_plane_bias=settings.receiver_plane_bias,
-        filter=settings.filter, filter_size=settings.filter_size,
-        margin=max(cascades.margin_texels, settings.margin_texels - 1), **_selection_parameters(cascades, settings),
-        device=device)
+        depth, points, normals, view_depth, receivers=receivers, **receiver_conversion(cascades, settings),
+        receiver_plane_bias=settings.receiver_plane_bias, filter=settings.filter, filter_size=settings.filter_size,
+        **_selection_parameters(cascades, settings), device=device)
+
+
+def receiver_conversion(cascades: CascadeSet, settings: ShadowSettings) -> dict:
+    """What takes world receivers into the cascades' fixed point, sub-texel bits apart.
+
+    The keyword arguments ``basis, texel_size, origin, zref, normal_offset, bias_constant,
+    bias_slope`` of :func:`csmlab.kernels.shadow.receiver_coordinates` and
+    :func:`csmlab.kernels.shadow.shadow_lookup_world`.
+    """
+    bits = settings.subtexel_bits
+    return dict(basis=cascades.basis, texel_size=np.stack([c.texel_size for c in cascades.cascades]),
+                origin=np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]),
+                zref=cascades.zref, normal_offset=settings.normal_offset, bias_constant=settings.bias_constant,
+                bias_slope=settings.bias_slope)
 
 
 def filtered_shadow_lookup(depth, coords, receiver_depth, view_depth, *, cascades: CascadeSet,
@@ -264,17 +275,16 @@ def filtered_shadow_lookup(depth, coords, receiver_depth, view_depth, *, cascade
     filter = settings.filter
     radius = settings.margin_texels - 1
     bits = settings.subtexel_bits
-    margin = max(cascades.margin_texels, radius)
+    common = dict(**_selection_parameters(cascades, settings), receiver_slope=receiver_slope, device=device)
+    margin = common["margin"]
     coords = _outside_smaller_boxes(np.asarray(coords, dtype=np.int64), cascades, unit=2**bits, inset=margin,
                                     resolution=np.shape(depth)[1])
-    common = dict(**_selection_parameters(cascades, settings), receiver_slope=receiver_slope, device=device)
     if filter not in PCF_KERNELS and filter not in MOMENT_METHODS:
         return shadow_lookup(depth, coords, receiver_depth, view_depth, filter=filter,
-                             filter_size=settings.filter_size, margin=margin, **common)
+                             filter_size=settings.filter_size, **common)
     # Selection first (one tap), with the filter's radius as margin; then the taps-inside rule of
     # shadow_lookup for this filter's radius, and the blend band toward a next cascade that holds them.
-    _, chosen, _ = shadow_lookup(depth, coords, receiver_depth, view_depth, filter="none", filter_size=1,
-                                 margin=margin, **common)
+    _, chosen, _ = shadow_lookup(depth, coords, receiver_depth, view_depth, filter="none", filter_size=1, **common)
     xy = coords
     unit = 2**bits
     count, resolution = depth.shape[0], depth.shape[1]
@@ -303,7 +313,7 @@ def filtered_shadow_lookup(depth, coords, receiver_depth, view_depth, *, cascade
                                                                         resolution=resolution),
                                           np.asarray(lane_depth, dtype=np.float32).reshape(count, -1),
                                           np.asarray(lane_view_depth, dtype=np.float64).reshape(-1), filter="none",
-                                          filter_size=1, margin=margin, **{**common, "receiver_slope": None})
+                                          filter_size=1, **{**common, "receiver_slope": None})
         lane_cascade = lane_chosen.astype(np.int64).reshape(n, 4)
         lane_cascade[index, np.asarray(slot, dtype=np.int64)] = chosen
         used, ddx, ddy = quad_derivatives(lane_coords, lane_cascade, chosen, method=settings.lod, bits=bits,

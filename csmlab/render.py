@@ -18,7 +18,7 @@ from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet, build_cascades
 from csmlab.cascades.bounds import visible_depth_range
 from csmlab.filters import (filter_mips, filter_moments, filtered_shadow_lookup, looks_up_world_receivers,
-                            uses_pixels, world_shadow_lookup)
+                            receiver_conversion, uses_pixels, world_shadow_lookup)
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import normalized
 from csmlab.kernels.raster import cascade_candidates, rasterize_cascades, rasterize_depth, triangle_bounds
@@ -243,13 +243,8 @@ def _receiver_coordinates(cascades: CascadeSet, points: np.ndarray, normals: np.
         return receiver_lookup(cascades, points[receivers], normals[receivers], bits=bits,
                                normal_offset=settings.normal_offset, bias_constant=settings.bias_constant,
                                bias_slope=settings.bias_slope, precision=settings.engine_precision)
-    return receiver_coordinates(
-        points, normals, basis=cascades.basis, receivers=receivers,
-        texel_size=np.stack([c.texel_size for c in cascades.cascades]),
-        origin=np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]),
-        zref=cascades.zref, bits=bits, normal_offset=settings.normal_offset, bias_constant=settings.bias_constant,
-        bias_slope=settings.bias_slope, device=device,
-    )
+    return receiver_coordinates(points, normals, receivers=receivers, bits=bits,
+                                **receiver_conversion(cascades, settings), device=device)
 
 
 def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: ShadowSettings,
@@ -298,7 +293,7 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
     finite = np.isfinite(flat_points[:, 0]) & np.isfinite(flat_points[:, 1]) & np.isfinite(flat_points[:, 2])
     receivers = np.flatnonzero(finite & ~np.isnan(flat_z))
     cascades = maps.cascades
-    if maps.mips is None and looks_up_world_receivers(cascades, settings, resolution=maps.depth.shape[1]):
+    if looks_up_world_receivers(cascades, settings, resolution=maps.depth.shape[1]):
         # Each receiver converted where the lookup reads it: no (C, N) arrays of every receiver in
         # every cascade (the same bits as the converted path below).
         found = world_shadow_lookup(maps.depth, flat_points, n.reshape(-1, 3), flat_z[receivers], receivers=receivers,

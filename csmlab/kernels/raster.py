@@ -99,6 +99,21 @@ def last_centre(hi: wp.int64, unit: wp.int64, bits: wp.int64, resolution: int) -
 
 
 @wp.func
+def edge_values(px: wp.int64, ax: wp.int64, ay: wp.int64, bx: wp.int64, by: wp.int64, cx: wp.int64, cy: wp.int64,
+                row_ab: wp.float64, row_bc: wp.float64, row_ca: wp.float64):
+    """The three edge functions at the centre of column ``px`` (doubled units) of a row, from the row's terms."""
+    return (row_ab - wp.float64(by - ay) * wp.float64(px - ax), row_bc - wp.float64(cy - by) * wp.float64(px - bx),
+            row_ca - wp.float64(ay - cy) * wp.float64(px - cx))
+
+
+@wp.func
+def store_depth(depth: wp.array3d(dtype=wp.float32), c: int, j: int, i: int, w_a: wp.float64, w_b: wp.float64,
+                w_c: wp.float64, za: wp.float64, zb: wp.float64, zc: wp.float64, area: wp.float64):
+    """Keep the nearer of texel (i, j)'s depth and the triangle's, interpolated with its edge functions."""
+    wp.atomic_min(depth, c, j, i, wp.float32((w_a * za + w_b * zb + w_c * zc) / area))
+
+
+@wp.func
 def rasterize_triangle(
     points: wp.array3d(dtype=wp.int64),
     vertex_depth: wp.array(dtype=wp.float64),
@@ -175,10 +190,8 @@ def rasterize_triangle(
         row_ab = wp.float64(bx - ax) * wp.float64(py - ay)
         row_bc = wp.float64(cx - bx) * wp.float64(py - by)
         row_ca = wp.float64(ax - cx) * wp.float64(py - cy)
-        px = (two * wp.int64(i0) + wp.int64(1)) * unit
-        w_c = row_ab - wp.float64(by - ay) * wp.float64(px - ax)
-        w_a = row_bc - wp.float64(cy - by) * wp.float64(px - bx)
-        w_b = row_ca - wp.float64(ay - cy) * wp.float64(px - cx)
+        w_c, w_a, w_b = edge_values((two * wp.int64(i0) + wp.int64(1)) * unit, ax, ay, bx, by, cx, cy, row_ab,
+                                    row_bc, row_ca)
         if stepped:
             # Each edge function falls by its step per texel, so the centres inside form one run;
             # its ends, solved from the three edges (widened by a texel against rounding), bound
@@ -198,21 +211,17 @@ def rasterize_triangle(
                 w_b = w_b - step_b * skip
                 for i in range(first, last + 1):
                     if w_c > bias_ab and w_a > bias_bc and w_b > bias_ca:
-                        z = (w_a * za + w_b * zb + w_c * zc) / area
-                        wp.atomic_min(depth, c, j, i, wp.float32(z))
+                        store_depth(depth, c, j, i, w_a, w_b, w_c, za, zb, zc, area)
                         count += 1
                     w_c = w_c - step_c
                     w_a = w_a - step_a
                     w_b = w_b - step_b
         else:
             for i in range(i0, i1 + 1):
-                px = (two * wp.int64(i) + wp.int64(1)) * unit
-                w_c = row_ab - wp.float64(by - ay) * wp.float64(px - ax)
-                w_a = row_bc - wp.float64(cy - by) * wp.float64(px - bx)
-                w_b = row_ca - wp.float64(ay - cy) * wp.float64(px - cx)
+                w_c, w_a, w_b = edge_values((two * wp.int64(i) + wp.int64(1)) * unit, ax, ay, bx, by, cx, cy, row_ab,
+                                            row_bc, row_ca)
                 if edge_inside(w_c, own_ab) and edge_inside(w_a, own_bc) and edge_inside(w_b, own_ca):
-                    z = (w_a * za + w_b * zb + w_c * zc) / area
-                    wp.atomic_min(depth, c, j, i, wp.float32(z))
+                    store_depth(depth, c, j, i, w_a, w_b, w_c, za, zb, zc, area)
                     count += 1
     return count
 
