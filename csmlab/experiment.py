@@ -349,7 +349,8 @@ def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
             extents = job.held_extents.get(key)
             frame = render_shadow(scene, view, variant.settings,
                                   visible_depth=None if held is None else tuple(held[index]),
-                                  held_extents=None if extents is None else extents[index], lookup=counted)
+                                  held_extents=None if extents is None else extents[index], lookup=counted,
+                                  scroll_from=previous[key].maps if key in previous else None)
             if counted:
                 began = time.perf_counter()
                 measures = measure_frame(frame, previous.get(key), device=job.device)

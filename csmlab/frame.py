@@ -20,6 +20,7 @@ if TYPE_CHECKING:
     # Only for the annotation: the record lives beside the kernel that fills it, and loading
     # csmlab.frame does not load Warp.
     from csmlab.kernels.visibility import CameraHits
+    from csmlab.scrolling import RasterizedMaps
 
 __all__ = ["Frame", "GBuffer", "ShadowLookup", "ShadowMaps", "View"]
 
@@ -128,6 +129,9 @@ class ShadowMaps:
     mips : list of ndarray, optional
         ``moment_mips``: the moments' mip chain, level l of shape ``(C, S_l, S_l, 4)`` float32
         (:func:`csmlab.kernels.moments.moment_mip_chain`); None otherwise.
+    raster : RasterizedMaps, optional
+        The raw maps and their coverage counts, which the next frame of boxes on whole texels
+        scrolls from (:mod:`csmlab.scrolling`); None for other boxes.
     """
 
     cascades: CascadeSet
@@ -136,6 +140,7 @@ class ShadowMaps:
     moments: np.ndarray | None = None
     depth_span: float = 0.0
     mips: list | None = None
+    raster: RasterizedMaps | None = None
 
 
 @dataclass(frozen=True)

@@ -21,12 +21,14 @@ from csmlab.filters import (filter_mips, filter_moments, filtered_shadow_lookup,
                             receiver_conversion, uses_pixels, world_shadow_lookup)
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import normalized
-from csmlab.kernels.raster import cascade_candidates, rasterize_cascades, rasterize_depth, triangle_bounds
+from csmlab.kernels.raster import (rasterize_cascades, rasterize_depth, region_candidates, triangle_bounds,
+                                  whole_map_regions)
 from csmlab.kernels.reference import hard_shadow
 from csmlab.kernels.shadow import receiver_coordinates
 from csmlab.kernels.visibility import MeshBVH, camera_hits, mesh_bvh
 from csmlab.quads import Quads, quad_lanes
 from csmlab.scene.core import Scene
+from csmlab.scrolling import RasterizedMaps, scroll_plan
 from csmlab.settings import ShadowSettings
 from csmlab.storage import stored_depth
 from csmlab.texels import (fixed_point_coordinates, fixed_point_origin, light_depth, light_plane_coordinates,
@@ -129,7 +131,7 @@ def _scene_in_light_space(dscene: DeviceScene, cascades: CascadeSet) -> tuple:
         vertices = dscene.scene.vertices
         xy = light_plane_coordinates(cascades, vertices)
         dscene.light_space.clear()
-        dscene.light_space[key] = (xy, light_depth(cascades, vertices), *triangle_bounds(xy, dscene.scene.triangles))
+        dscene.light_space[key] = (xy, light_depth(cascades, vertices), triangle_bounds(xy, dscene.scene.triangles))
     return dscene.light_space[key]
 
 
@@ -140,14 +142,19 @@ def visible_depth(dscene: DeviceScene, pose: CameraPose, *, width: int, height: 
     return visible_depth_range(hits.view_depth)
 
 
-def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings) -> ShadowMaps:
+def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings, *,
+                scroll_from: ShadowMaps | None = None) -> ShadowMaps:
     """Rasterize every cascade's depth map from the scene's vertices in fixed point, stored in ``settings.depth_format``.
 
     Pancaked slice boxes (``depth_range = "slice"``) are clamped to their near side; the moments
-    and their mips follow when the filter needs them (:mod:`csmlab.filters`).
+    and their mips follow when the filter needs them (:mod:`csmlab.filters`). ``scroll_from``, the
+    same method's previous maps, lends the texels its boxes already covered (:mod:`csmlab.scrolling`):
+    the same maps, less rasterization.
     """
+    raster = None
     if settings.engine_precision == "float64" and not (settings.depth_range == "slice" and not settings.depth_clamp):
-        depth, texels = _culled_depth_maps(dscene, cascades, settings)
+        depth, texels, raster = _culled_depth_maps(dscene, cascades, settings,
+                                                   previous=None if scroll_from is None else scroll_from.raster)
     else:
         depth, texels = _host_snapped_depth_maps(dscene, cascades, settings)
     if settings.depth_range == "slice" and settings.depth_clamp:
@@ -159,39 +166,50 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
     depth = stored_depth(depth, span=span, depth_format=settings.depth_format)
     moments = filter_moments(depth, span=span, settings=settings, device=dscene.device)
     return ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=texels, moments=moments, depth_span=span,
-                      mips=filter_mips(moments, cascades, settings=settings, device=dscene.device))
+                      mips=filter_mips(moments, cascades, settings=settings, device=dscene.device), raster=raster)
 
 
-def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings) -> tuple[np.ndarray, int]:
-    """``(C, R, R)`` depth maps and texels rasterized, each cascade from the triangles that meet its box.
+def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings, *,
+                       previous: RasterizedMaps | None) -> tuple[np.ndarray, int, RasterizedMaps | None]:
+    """``(C, R, R)`` depth maps, texels rasterized and, for boxes on whole texels, what the next frame scrolls from.
 
-    Only the triangles whose light-space rectangle meets a cascade's box go to that cascade's
-    rasterization (:func:`csmlab.kernels.raster.cascade_candidates`); the others cover none of
-    its texels. Cascades of unequal size are each rasterized at their own size into the corner of
-    a map of the largest, the rest left empty (the lookup never selects a box there, csmlab.filters).
+    Only the triangles whose light-space rectangle meets a region go to that region's
+    rasterization (:func:`csmlab.kernels.raster.region_candidates`); the others cover none of its
+    texels. Cascades of unequal size are each rasterized at their own size into the corner of a
+    map of the largest, the rest left empty (the lookup never selects a box there, csmlab.filters).
+    Boxes whose origins lie on whole texels (exact, quantized) scroll from ``previous``, rasterizing
+    only the texels they newly cover and counting those they left (:mod:`csmlab.scrolling`); the
+    others are rasterized whole.
     """
     bits = settings.subtexel_bits
-    xy, depth_of_vertex, lo, hi = _scene_in_light_space(dscene, cascades)
+    xy, depth_of_vertex, bounds = _scene_in_light_space(dscene, cascades)
     texel_size = np.stack([c.texel_size for c in cascades.cascades])
-    box_origin = np.stack([c.origin for c in cascades.cascades])
     origin = np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))])
     sizes = [c.resolution for c in cascades.cascades]
-    groups = [list(range(len(sizes)))] if len(set(sizes)) == 1 else [[c] for c in range(len(sizes))]
-    depth, texels = None, 0
-    for group in groups:
-        size = sizes[group[0]]
-        candidates = cascade_candidates(lo, hi, texel_size=texel_size[group], origin=box_origin[group], resolution=size)
-        own, count = rasterize_cascades(xy, depth_of_vertex, dscene.scene.triangles, texel_size=texel_size[group],
-                                        origin=origin[group], resolution=size, bits=bits, candidates=candidates,
-                                        device=dscene.device)
-        if len(groups) == 1:
-            depth = own
-        else:
-            if depth is None:
-                depth = np.full((len(sizes), max(sizes), max(sizes)), np.inf, dtype=np.float32)
-            depth[group, :size, :size] = own
-        texels += count
-    return depth, texels
+
+    def rasterized(corner, fixed_origin, regions, **how):
+        candidates = region_candidates(bounds, texel_size=texel_size, origin=corner, regions=regions)
+        return rasterize_cascades(xy, depth_of_vertex, dscene.scene.triangles, texel_size=texel_size,
+                                  origin=fixed_origin, resolution=max(sizes), bits=bits, regions=regions,
+                                  candidates=candidates, device=dscene.device, **how)
+
+    corner = np.stack([c.origin for c in cascades.cascades])
+    if np.any(origin % (1 << bits)):
+        depth, texels = rasterized(corner, origin, whole_map_regions(sizes))
+        return depth, int(texels.sum()), None
+    plan = scroll_plan(previous, basis=cascades.basis, zref=cascades.zref, bits=bits, texel_size=texel_size,
+                       origin=origin, resolution=sizes)
+    depth, texels = rasterized(corner, origin, plan.regions, depth=plan.depth)
+    per_cascade = plan.kept_texels.copy()
+    np.add.at(per_cascade, plan.regions[:, 0], texels)
+    if len(plan.left):
+        # Counted where the previous boxes lay (scroll_plan keeps only boxes of this texel size).
+        _, left = rasterized(previous.origin / float(1 << bits), previous.origin, plan.left, count_only=True)
+        np.subtract.at(per_cascade, plan.left[:, 0], left)
+    depth.flags.writeable = False
+    raster = RasterizedMaps(basis=cascades.basis, zref=cascades.zref, bits=bits, texel_size=texel_size, origin=origin,
+                            resolution=np.array(sizes), depth=depth, texels=per_cascade)
+    return depth, int(per_cascade.sum()), raster
 
 
 def _host_snapped_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
@@ -366,14 +384,16 @@ def faded(lit: np.ndarray, view_depth: np.ndarray, *, far: float, fade_out: floa
 
 
 def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
-                  visible_depth: tuple[float, float] | None = None, held_extents=None, lookup: bool = True) -> Frame:
+                  visible_depth: tuple[float, float] | None = None, held_extents=None, lookup: bool = True,
+                  scroll_from: ShadowMaps | None = None) -> Frame:
     """One shadow method on a shared view: cascades → depth maps → lookup at every pixel.
 
     With ``bounds = "sdsm"`` the splits divide ``visible_depth`` when given (the held range of an
     SDSM with hysteresis), else the view's own G-buffer depth range. ``held_extents`` ``(C, 2)``:
     the tight boxes' sizes held by extent hysteresis this frame (``stabilization = "none"``).
     ``lookup = False`` stops after the depth maps (``Frame.shadow`` None): all the temporal
-    metrics read of a previous frame.
+    metrics read of a previous frame. ``scroll_from``: the same method's previous maps, whose texels
+    the boxes still cover are copied instead of rasterized (:mod:`csmlab.scrolling`; the same maps).
 
     Returns
     -------
@@ -389,7 +409,7 @@ def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
                               held_extents=held_extents)
     timings = {"cascades": time.perf_counter() - start}
     start = time.perf_counter()
-    maps = shadow_maps(dscene, cascades, settings)
+    maps = shadow_maps(dscene, cascades, settings, scroll_from=scroll_from)
     timings["raster"] = time.perf_counter() - start
     if not lookup:
         return Frame(view=view, settings=settings, maps=maps, shadow=None, timings=timings)

@@ -24,12 +24,16 @@ References
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from functools import cached_property
+
 import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device
 
-__all__ = ["cascade_candidates", "rasterize_cascades", "rasterize_depth", "triangle_bounds"]
+__all__ = ["TriangleBounds", "rasterize_cascades", "rasterize_depth", "region_candidates", "triangle_bounds",
+           "whole_map_regions"]
 
 
 @wp.func
@@ -82,20 +86,20 @@ def run_bounds(w: wp.float64, step: wp.float64, inverse_step: wp.float64, bias: 
 
 
 @wp.func
-def first_centre(lo: wp.int64, unit: wp.int64, bits: wp.int64, resolution: int) -> int:
-    """First texel whose centre, ``(2k + 1)·unit`` in doubled units, is at or above ``lo`` (clamped to the map).
+def first_centre(lo: wp.int64, unit: wp.int64, bits: wp.int64, begin: int, end: int) -> int:
+    """First texel whose centre, ``(2k + 1)·unit`` in doubled units, is at or above ``lo``, clamped to ``[begin, end]``.
 
     ``unit = 2**bits``: the floor division by ``2·unit`` is an arithmetic shift by ``bits + 1``.
     """
     k = -((unit - lo) >> (bits + wp.int64(1)))
-    return int(wp.clamp(k, wp.int64(0), wp.int64(resolution)))
+    return int(wp.clamp(k, wp.int64(begin), wp.int64(end)))
 
 
 @wp.func
-def last_centre(hi: wp.int64, unit: wp.int64, bits: wp.int64, resolution: int) -> int:
-    """Last texel whose centre is at or below ``hi`` (clamped to the map)."""
+def last_centre(hi: wp.int64, unit: wp.int64, bits: wp.int64, begin: int, end: int) -> int:
+    """Last texel whose centre is at or below ``hi``, clamped to ``[begin − 1, end − 1]``."""
     k = (hi - unit) >> (bits + wp.int64(1))
-    return int(wp.clamp(k, wp.int64(-1), wp.int64(resolution - 1)))
+    return int(wp.clamp(k, wp.int64(begin - 1), wp.int64(end - 1)))
 
 
 @wp.func
@@ -109,47 +113,48 @@ def edge_values(px: wp.int64, ax: wp.int64, ay: wp.int64, bx: wp.int64, by: wp.i
 @wp.func
 def store_depth(depth: wp.array3d(dtype=wp.float32), c: int, j: int, i: int, w_a: wp.float64, w_b: wp.float64,
                 w_c: wp.float64, za: wp.float64, zb: wp.float64, zc: wp.float64, area: wp.float64):
-    """Keep the nearer of texel (i, j)'s depth and the triangle's, interpolated with its edge functions."""
-    wp.atomic_min(depth, c, j, i, wp.float32((w_a * za + w_b * zb + w_c * zc) / area))
+    """Keep the nearer of texel (i, j)'s depth and the triangle's, interpolated with its edge functions.
+
+    An empty ``depth`` (a counting pass, :func:`rasterize_cascades` with ``count_only``) stores nothing.
+    """
+    if depth.shape[0] > 0:
+        wp.atomic_min(depth, c, j, i, wp.float32((w_a * za + w_b * zb + w_c * zc) / area))
 
 
 @wp.func
 def rasterize_triangle(
-    points: wp.array3d(dtype=wp.int64),
-    vertex_depth: wp.array(dtype=wp.float64),
-    triangles: wp.array2d(dtype=wp.int32),
+    ax: wp.int64,
+    ay: wp.int64,
+    bx: wp.int64,
+    by: wp.int64,
+    cx: wp.int64,
+    cy: wp.int64,
+    za: wp.float64,
+    zb: wp.float64,
+    zc: wp.float64,
     unit: wp.int64,
     bits: wp.int64,
     depth: wp.array3d(dtype=wp.float32),
     c: int,
-    t: int,
+    window: wp.vec4i,
 ) -> int:
-    """Rasterize triangle t into cascade c's map; the number of texel centres it covers."""
-    resolution = depth.shape[1]
-    ia = triangles[t, 0]
-    ib = triangles[t, 1]
-    ic = triangles[t, 2]
-    two = wp.int64(2)
-    ax = two * points[c, ia, 0]
-    ay = two * points[c, ia, 1]
-    bx = two * points[c, ib, 0]
-    by = two * points[c, ib, 1]
-    cx = two * points[c, ic, 0]
-    cy = two * points[c, ic, 1]
+    """Rasterize one triangle into texels ``[i0, i1) × [j0, j1)`` (``window``) of cascade c's map.
+
+    The vertices are fixed-point coordinates already doubled (texel centres at odd multiples of
+    ``unit = 2**bits``), with depths ``za, zb, zc``. Returns the number of texel centres covered.
+    """
     # Cull before any per-texel work: triangles whose bounding box holds no texel centre of the
-    # map, and triangles of zero area.
-    i0 = first_centre(wp.min(wp.min(ax, bx), cx), unit, bits, resolution)
-    i1 = last_centre(wp.max(wp.max(ax, bx), cx), unit, bits, resolution)
-    j0 = first_centre(wp.min(wp.min(ay, by), cy), unit, bits, resolution)
-    j1 = last_centre(wp.max(wp.max(ay, by), cy), unit, bits, resolution)
+    # window, and triangles of zero area.
+    two = wp.int64(2)
+    i0 = first_centre(wp.min(wp.min(ax, bx), cx), unit, bits, window[0], window[1])
+    i1 = last_centre(wp.max(wp.max(ax, bx), cx), unit, bits, window[0], window[1])
+    j0 = first_centre(wp.min(wp.min(ay, by), cy), unit, bits, window[2], window[3])
+    j1 = last_centre(wp.max(wp.max(ay, by), cy), unit, bits, window[2], window[3])
     if i0 > i1 or j0 > j1:
         return 0
     area = wp.float64(bx - ax) * wp.float64(cy - ay) - wp.float64(by - ay) * wp.float64(cx - ax)
     if area == wp.float64(0.0):
         return 0
-    za = vertex_depth[ia]
-    zb = vertex_depth[ib]
-    zc = vertex_depth[ic]
     if area < wp.float64(0.0):
         # Turn the triangle counter-clockwise so that one top-left rule serves both windings.
         sx = bx
@@ -237,42 +242,75 @@ def rasterize_depth_kernel(
     covered: wp.array2d(dtype=wp.int32),
 ):
     c, t = wp.tid()
-    covered[c, t] = rasterize_triangle(points, vertex_depth, triangles, unit, bits, depth, c, t)
+    ia = triangles[t, 0]
+    ib = triangles[t, 1]
+    ic = triangles[t, 2]
+    two = wp.int64(2)
+    covered[c, t] = rasterize_triangle(
+        two * points[c, ia, 0], two * points[c, ia, 1], two * points[c, ib, 0], two * points[c, ib, 1],
+        two * points[c, ic, 0], two * points[c, ic, 1], vertex_depth[ia], vertex_depth[ib], vertex_depth[ic], unit,
+        bits, depth, c, wp.vec4i(0, depth.shape[2], 0, depth.shape[1]))
+
+
+@wp.func
+def doubled_fixed_point(u: wp.float64, texel_size: wp.float64, scale: wp.float64, limit: wp.float64,
+                        origin: wp.int64) -> wp.int64:
+    """Twice a light-space coordinate ``u`` (metres) in local ``2**-bits`` texels.
+
+    The operations of :func:`csmlab.texels.fixed_point_coordinates`, in its order (no sum, so no
+    fused multiply-add can change a rounding): ``rint(u / texel · 2**bits) − origin``, doubled.
+    """
+    v = wp.rint(wp.clamp(u / texel_size * scale, -limit, limit))
+    if wp.isnan(v):
+        v = -limit
+    return wp.int64(2) * (wp.int64(v) - origin)
 
 
 @wp.kernel
-def rasterize_candidates_kernel(
-    points: wp.array3d(dtype=wp.int64),
+def rasterize_regions_kernel(
+    light_xy: wp.array2d(dtype=wp.float64),
     vertex_depth: wp.array(dtype=wp.float64),
     triangles: wp.array2d(dtype=wp.int32),
+    texel_size: wp.array2d(dtype=wp.float64),
+    origin: wp.array2d(dtype=wp.int64),
+    regions: wp.array2d(dtype=wp.int32),
     candidates: wp.array2d(dtype=wp.int32),
+    scale: wp.float64,
+    limit: wp.float64,
     unit: wp.int64,
     bits: wp.int64,
     depth: wp.array3d(dtype=wp.float32),
     covered: wp.array(dtype=wp.int32),
 ):
     k = wp.tid()
-    covered[k] = rasterize_triangle(points, vertex_depth, triangles, unit, bits, depth, candidates[k, 0], candidates[k, 1])
+    g = candidates[k, 0]
+    t = candidates[k, 1]
+    c = regions[g, 0]
+    ia = triangles[t, 0]
+    ib = triangles[t, 1]
+    ic = triangles[t, 2]
+    sx = texel_size[c, 0]
+    sy = texel_size[c, 1]
+    ox = origin[c, 0]
+    oy = origin[c, 1]
+    covered[k] = rasterize_triangle(
+        doubled_fixed_point(light_xy[ia, 0], sx, scale, limit, ox), doubled_fixed_point(light_xy[ia, 1], sy, scale, limit, oy),
+        doubled_fixed_point(light_xy[ib, 0], sx, scale, limit, ox), doubled_fixed_point(light_xy[ib, 1], sy, scale, limit, oy),
+        doubled_fixed_point(light_xy[ic, 0], sx, scale, limit, ox), doubled_fixed_point(light_xy[ic, 1], sy, scale, limit, oy),
+        vertex_depth[ia], vertex_depth[ib], vertex_depth[ic], unit, bits, depth, c,
+        wp.vec4i(regions[g, 1], regions[g, 2], regions[g, 3], regions[g, 4]))
 
 
-@wp.kernel
-def fixed_point_vertices_kernel(
-    light_xy: wp.array2d(dtype=wp.float64),
-    texel_size: wp.array2d(dtype=wp.float64),
-    origin: wp.array2d(dtype=wp.int64),
-    scale: wp.float64,
-    limit: wp.float64,
-    points: wp.array3d(dtype=wp.int64),
-):
-    c, v = wp.tid()
-    for axis in range(2):
-        # The operations of csmlab.texels.fixed_point_coordinates, in its order: no sum, so no
-        # fused multiply-add can change a rounding.
-        u = light_xy[v, axis] / texel_size[c, axis] * scale
-        u = wp.rint(wp.clamp(u, -limit, limit))
-        if wp.isnan(u):
-            u = -limit
-        points[c, v, axis] = wp.int64(u) - origin[c, axis]
+def _checked_bits(bits) -> int:
+    if not (isinstance(bits, (int, np.integer)) and 0 <= bits <= 16):
+        raise ValueError(f"bits: expected an integer in 0..16, got {bits!r}")
+    return int(bits)
+
+
+def _checked_resolution(resolution) -> int:
+    if not (isinstance(resolution, (int, np.integer)) and 1 <= resolution <= 16384):
+        raise ValueError(f"resolution: expected an integer in 1..16384, got {resolution!r}")
+    return int(resolution)
 
 
 def rasterize_depth(points, vertex_depth, triangles, *, resolution: int, bits: int,
@@ -330,10 +368,8 @@ def rasterize_depth(points, vertex_depth, triangles, *, resolution: int, bits: i
         raise ValueError(f"triangles: expected vertex indices of shape (T, 3), got {tri.shape}")
     if tri.size and (tri.min() < 0 or tri.max() >= pts.shape[1]):
         raise ValueError(f"triangles: expected indices in [0, {pts.shape[1]}), got [{tri.min()}, {tri.max()}]")
-    if not (isinstance(resolution, (int, np.integer)) and 1 <= resolution <= 16384):
-        raise ValueError(f"resolution: expected an integer in 1..16384, got {resolution!r}")
-    if not (isinstance(bits, (int, np.integer)) and 0 <= bits <= 16):
-        raise ValueError(f"bits: expected an integer in 0..16, got {bits!r}")
+    resolution = _checked_resolution(resolution)
+    bits = _checked_bits(bits)
     cascades = pts.shape[0]
     depth = wp.full((cascades, resolution, resolution), value=np.inf, dtype=wp.float32, device=device)
     if tri.shape[0] == 0:
@@ -355,8 +391,31 @@ def rasterize_depth(points, vertex_depth, triangles, *, resolution: int, bits: i
     return depth.numpy(), int(covered.numpy().sum(dtype=np.int64))
 
 
-def triangle_bounds(light_xy, triangles) -> tuple[np.ndarray, np.ndarray]:
-    """Light-space bounding rectangle of every triangle: ``lo, hi`` of shape (T, 2), metres.
+@dataclass
+class TriangleBounds:
+    """Light-space bounding rectangles of a mesh's triangles, sorted for rectangle queries on first use.
+
+    Attributes
+    ----------
+    lo, hi : ndarray, shape (T, 2), float64
+        Each triangle's rectangle, metres.
+    """
+
+    lo: np.ndarray
+    hi: np.ndarray
+
+    @cached_property
+    def sorted_axes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``order (2, T)``: triangles sorted by ``lo`` along x (row 0) and y (row 1); ``sorted_lo (2, T)``:
+        ``lo`` in those orders; ``reach (2,)``: the widest rectangle along x and y, metres (a triangle
+        meets ``[a, b]`` along an axis only if its ``lo`` lies in ``[a − reach, b]``)."""
+        order = np.argsort(self.lo.T, axis=1, kind="stable")
+        reach = (self.hi - self.lo).max(axis=0) if len(self.lo) else np.zeros(2)
+        return order, np.take_along_axis(self.lo.T, order, axis=1), reach
+
+
+def triangle_bounds(light_xy, triangles) -> TriangleBounds:
+    """Light-space bounding rectangle of every triangle (:func:`region_candidates` queries them).
 
     Parameters
     ----------
@@ -365,47 +424,78 @@ def triangle_bounds(light_xy, triangles) -> tuple[np.ndarray, np.ndarray]:
     triangles : array_like, shape (T, 3), integer
     """
     xy = np.asarray(light_xy, dtype=np.float64)[np.asarray(triangles)]
-    return xy.min(axis=1), xy.max(axis=1)
+    return TriangleBounds(lo=xy.min(axis=1), hi=xy.max(axis=1))
 
 
-def cascade_candidates(lo, hi, *, texel_size, origin, resolution: int) -> np.ndarray:
-    """(cascade, triangle) pairs whose light-space rectangle meets the cascade's box: ``(K, 2)`` int32.
+def _near_triangles(bounds: TriangleBounds, box_lo, box_hi) -> np.ndarray | None:
+    """Sorted indices of the triangles whose ``lo`` lies within reach of the box along its narrow side.
 
-    Conservative: each box is widened by one texel on every side, far more than the fixed-point
+    None when those are half the triangles or more: testing all of them in order is then cheaper.
+    """
+    order, sorted_lo, reach = bounds.sorted_axes
+    axis = int(np.argmin(np.asarray(box_hi) - np.asarray(box_lo)))
+    first = np.searchsorted(sorted_lo[axis], box_lo[axis] - reach[axis], side="left")
+    last = np.searchsorted(sorted_lo[axis], box_hi[axis], side="right")
+    return np.sort(order[axis, first:last]) if 2 * (last - first) < len(bounds.lo) else None
+
+
+def whole_map_regions(resolutions) -> np.ndarray:
+    """One region per cascade covering its whole map: ``(C, 5)`` int32 rows ``(c, 0, R_c, 0, R_c)``."""
+    sizes = np.asarray(resolutions, dtype=np.int32).reshape(-1)
+    return np.stack([np.arange(sizes.size, dtype=np.int32), np.zeros_like(sizes), sizes, np.zeros_like(sizes), sizes],
+                    axis=1)
+
+
+def region_candidates(bounds: TriangleBounds, *, texel_size, origin, regions) -> np.ndarray:
+    """(region, triangle) pairs whose light-space rectangle meets the region: ``(K, 2)`` int32.
+
+    Conservative: each region is widened by one texel on every side, far more than the fixed-point
     snap (half a ``2**-bits`` texel) and float rounding can move a vertex, so a triangle left out
-    covers no texel centre of that cascade. Pairs are sorted by cascade, then triangle.
+    covers no texel centre of that region. Pairs are sorted by region, then triangle. A narrow
+    region (a strip a scrolled box newly covers) tests only the triangles whose ``lo`` lies within
+    reach of it along its narrow side.
 
     Parameters
     ----------
-    lo, hi : array_like, shape (T, 2)
-        :func:`triangle_bounds`, metres.
+    bounds : TriangleBounds
+        :func:`triangle_bounds`.
     texel_size : array_like, shape (C, 2)
         Metres per texel of each cascade.
     origin : array_like, shape (C, 2)
         Box minimum corner in texels of each cascade.
-    resolution : int
-        Texels per side R.
+    regions : array_like, shape (G, 5), integer
+        Rows ``(c, i0, i1, j0, j1)``: texel columns ``[i0, i1)`` and rows ``[j0, j1)`` of cascade c
+        (:func:`whole_map_regions` for whole maps).
     """
-    lo = np.asarray(lo, dtype=np.float64)
-    hi = np.asarray(hi, dtype=np.float64)
-    pairs = []
-    for c, (size, corner) in enumerate(zip(np.asarray(texel_size, np.float64), np.asarray(origin, np.float64))):
-        box_lo = (corner - 1.0) * size
-        box_hi = (corner + resolution + 1.0) * size
-        inside = np.flatnonzero((hi[:, 0] >= box_lo[0]) & (lo[:, 0] <= box_hi[0]) & (hi[:, 1] >= box_lo[1])
-                                & (lo[:, 1] <= box_hi[1]))
-        pairs.append(np.stack([np.full(inside.size, c), inside], axis=1))
-    return np.concatenate(pairs).astype(np.int32) if pairs else np.zeros((0, 2), np.int32)
+    lo, hi = bounds.lo, bounds.hi
+    size = np.asarray(texel_size, dtype=np.float64)
+    corner = np.asarray(origin, dtype=np.float64)
+    pairs = [np.zeros((0, 2), np.int32)]
+    for g, (c, i0, i1, j0, j1) in enumerate(np.asarray(regions, dtype=np.int64)):
+        box_lo = (corner[c] + [i0 - 1.0, j0 - 1.0]) * size[c]
+        box_hi = (corner[c] + [i1 + 1.0, j1 + 1.0]) * size[c]
+        tested = _near_triangles(bounds, box_lo, box_hi) if min(i1 - i0, j1 - j0) * 4 < max(i1 - i0, j1 - j0) else None
+        if tested is None:
+            tested = np.arange(len(lo))
+        meets = ((hi[tested, 0] >= box_lo[0]) & (lo[tested, 0] <= box_hi[0]) & (hi[tested, 1] >= box_lo[1])
+                 & (lo[tested, 1] <= box_hi[1]))
+        inside = tested[meets]
+        pairs.append(np.stack([np.full(inside.size, g), inside], axis=1))
+    return np.concatenate(pairs).astype(np.int32)
 
 
 def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin, resolution: int, bits: int,
-                       candidates=None, device: str = "cpu") -> tuple[np.ndarray, int]:
+                       regions=None, candidates=None, depth=None, count_only: bool = False,
+                       device: str = "cpu") -> tuple[np.ndarray | None, np.ndarray]:
     """Depth maps of every cascade from light-space vertices: fixed point and rasterization on the device.
 
     The same maps as :func:`rasterize_depth` of
     :func:`csmlab.texels.fixed_point_coordinates` — bit for bit — with the fixed-point conversion
-    of every vertex in a Warp kernel and, with ``candidates``, only the (cascade, triangle) pairs
-    that can cover a texel rasterized.
+    of each vertex inside the kernel and, with ``candidates``, only the (region, triangle) pairs
+    that can cover a texel rasterized. With ``regions``, only those texels are rasterized and every
+    other texel of ``depth`` keeps its value: a texel's depth and coverage depend only on the
+    triangles and on the fixed-point differences, not on the region it is rasterized in
+    (:mod:`csmlab.scrolling` copies the rest from the previous frame).
 
     Parameters
     ----------
@@ -418,16 +508,29 @@ def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin,
         Metres per texel of each cascade.
     origin : array_like, shape (C, 2), int64
         Each box origin in ``2**-bits`` texels (:func:`csmlab.texels.fixed_point_origin`).
-    resolution, bits : int
-        As :func:`rasterize_depth`.
+    resolution : int
+        Texels per side R of the maps (the largest cascade's: a smaller cascade's regions lie in
+        the corner ``[0, R_c)²`` of its map).
+    bits : int
+        Sub-texel bits (0..16).
+    regions : array_like, shape (G, 5), integer, optional
+        Rows ``(c, i0, i1, j0, j1)``: texel columns ``[i0, i1)`` and rows ``[j0, j1)`` of cascade c
+        to rasterize, disjoint; None: every cascade's whole map (:func:`whole_map_regions`).
     candidates : array_like, shape (K, 2), int32, optional
-        (cascade, triangle) pairs to rasterize (:func:`cascade_candidates`); None: every pair.
+        (region, triangle) pairs to rasterize (:func:`region_candidates`); None: every pair.
+    depth : ndarray, shape (C, R, R), float32, optional
+        The maps to rasterize into (default +inf everywhere): texels outside the regions keep their
+        values. Consumed: on the CPU it is filled in place and returned.
+    count_only : bool
+        Count the coverage tests that pass and store no depth (``depth`` is ignored and None returned).
     device : str
 
     Returns
     -------
-    depth : ndarray, shape (C, R, R), float32
-    texels_rasterized : int
+    depth : ndarray, shape (C, R, R), float32, or None
+        None with ``count_only``.
+    texels_rasterized : ndarray, shape (G,), int64
+        Coverage tests that passed in each region.
     """
     device = checked_device(device)
     xy = np.ascontiguousarray(light_xy, dtype=np.float64)
@@ -442,30 +545,40 @@ def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin,
         raise ValueError(f"light_xy, vertex_depth: expected {xy.shape[0]} finite vertices and depths")
     if tri.ndim != 2 or tri.shape[1] != 3 or (tri.size and (tri.min() < 0 or tri.max() >= xy.shape[0])):
         raise ValueError(f"triangles: expected indices of shape (T, 3) in [0, {xy.shape[0]})")
-    if not (isinstance(bits, (int, np.integer)) and 0 <= bits <= 16):
-        raise ValueError(f"bits: expected an integer in 0..16, got {bits!r}")
-    if not (isinstance(resolution, (int, np.integer)) and 1 <= resolution <= 16384):
-        raise ValueError(f"resolution: expected an integer in 1..16384, got {resolution!r}")
-    cascades = size.shape[0]
-    points = wp.empty((cascades, xy.shape[0], 2), dtype=wp.int64, device=device)
-    wp.launch(fixed_point_vertices_kernel, dim=(cascades, xy.shape[0]),
-              inputs=(wp.array(xy, dtype=wp.float64, device=device, copy=False),
-                      wp.array(size, dtype=wp.float64, device=device, copy=False),
-                      wp.array(corner, dtype=wp.int64, device=device, copy=False), float(2**bits), float(2**50)),
-              outputs=(points,), device=device)
-    depth = wp.full((cascades, resolution, resolution), value=np.inf, dtype=wp.float32, device=device)
-    pairs = (np.stack(np.meshgrid(np.arange(cascades), np.arange(tri.shape[0]), indexing="ij"), -1).reshape(-1, 2)
+    bits = _checked_bits(bits)
+    resolution = _checked_resolution(resolution)
+    shape = (size.shape[0], resolution, resolution)
+    areas = np.ascontiguousarray(whole_map_regions([resolution] * shape[0]) if regions is None else regions,
+                                 dtype=np.int32)
+    if (areas.ndim != 2 or areas.shape[1] != 5 or np.any(areas[:, 0] < 0) or np.any(areas[:, 0] >= shape[0])
+            or np.any(areas[:, 1:] < 0) or np.any(areas[:, 1:] > resolution)):
+        raise ValueError(f"regions: expected rows (c, i0, i1, j0, j1) within {shape}, got shape {areas.shape}")
+    pairs = (np.stack(np.meshgrid(np.arange(areas.shape[0]), np.arange(tri.shape[0]), indexing="ij"), -1).reshape(-1, 2)
              if candidates is None else np.asarray(candidates)).astype(np.int32)
-    if pairs.ndim != 2 or pairs.shape[1] != 2 or (pairs.size and (pairs[:, 0].max() >= cascades
+    if pairs.ndim != 2 or pairs.shape[1] != 2 or (pairs.size and (pairs[:, 0].max() >= areas.shape[0]
                                                                    or pairs[:, 1].max() >= tri.shape[0])):
-        raise ValueError(f"candidates: expected (cascade, triangle) pairs of shape (K, 2), got {pairs.shape}")
+        raise ValueError(f"candidates: expected (region, triangle) pairs of shape (K, 2), got {pairs.shape}")
+    if count_only:
+        maps = np.zeros((0, 0, 0), dtype=np.float32)
+    elif depth is None:
+        maps = np.full(shape, np.inf, dtype=np.float32)
+    elif depth.shape != shape or depth.dtype != np.float32:
+        raise ValueError(f"depth: expected float32 maps of shape {shape}, got {depth.dtype} {depth.shape}")
+    else:
+        maps = depth
     if pairs.shape[0] == 0:
-        return depth.numpy(), 0
+        return None if count_only else maps, np.zeros(areas.shape[0], dtype=np.int64)
+    maps_on = wp.array(maps, dtype=wp.float32, device=device, copy=False)
     covered = wp.empty(pairs.shape[0], dtype=wp.int32, device=device)
-    wp.launch(rasterize_candidates_kernel, dim=pairs.shape[0],
-              inputs=(points, wp.array(z, dtype=wp.float64, device=device, copy=False),
+    wp.launch(rasterize_regions_kernel, dim=pairs.shape[0],
+              inputs=(wp.array(xy, dtype=wp.float64, device=device, copy=False),
+                      wp.array(z, dtype=wp.float64, device=device, copy=False),
                       wp.array(tri, dtype=wp.int32, device=device, copy=False),
+                      wp.array(size, dtype=wp.float64, device=device, copy=False),
+                      wp.array(corner, dtype=wp.int64, device=device, copy=False),
+                      wp.array(areas, dtype=wp.int32, device=device, copy=False),
                       wp.array(np.ascontiguousarray(pairs), dtype=wp.int32, device=device, copy=False),
-                      wp.int64(2**bits), wp.int64(bits)),
-              outputs=(depth, covered), device=device)
-    return depth.numpy(), int(covered.numpy().sum(dtype=np.int64))
+                      float(2**bits), float(2**50), wp.int64(2**bits), wp.int64(bits)),
+              outputs=(maps_on, covered), device=device)
+    texels = np.bincount(pairs[:, 0], weights=covered.numpy(), minlength=areas.shape[0]).astype(np.int64)
+    return None if count_only else maps_on.numpy(), texels

@@ -1,0 +1,149 @@
+"""Scrolled depth maps equal maps rasterized whole, bit for bit, and count the same coverage tests."""
+
+import numpy as np
+import pytest
+
+from csmlab.light import direction_from_angles
+from csmlab.render import prepare_scene, render_shadow, render_view
+from csmlab.scrolling import RasterizedMaps, scroll_plan
+from csmlab.settings import ShadowSettings
+from tests.test_render import camera, scattered_boxes, scene_of
+
+# Eyes along a walk: small steps (whole-texel moves of the near boxes), a repeated pose (no box
+# moves), a turn, and a jump farther than the near boxes are wide (rasterized whole).
+EYES = [(-3.0, 6.0, 14.0), (-2.9, 6.0, 13.9), (-2.9, 6.0, 13.9), (-2.5, 6.1, 13.4), (-1.2, 6.2, 12.0),
+        (14.0, 6.0, -9.0), (14.3, 6.1, -9.4)]
+TARGETS = [(2.0, 0.0, -4.0)] * 4 + [(3.0, 0.0, -5.0), (3.0, 0.0, -5.0), (2.5, 0.0, -5.5)]
+
+
+def walk_frames(dscene, settings, *, lights):
+    """Per pose: the frame rasterized whole, and the frame scrolled from the previous scrolled one."""
+    previous = None
+    for eye, target, light in zip(EYES, TARGETS, lights):
+        view = render_view(dscene, camera(48, 32, eye=eye, target=target), light, width=48, height=32, reference=False)
+        whole = render_shadow(dscene, view, settings, lookup=False)
+        scrolled = render_shadow(dscene, view, settings, lookup=False,
+                                 scroll_from=None if previous is None else previous.maps)
+        yield whole, scrolled, previous
+        previous = scrolled
+
+
+@pytest.fixture(scope="module")
+def dscene():
+    return prepare_scene(scene_of(scattered_boxes(3), plane_half=60.0))
+
+
+@pytest.mark.parametrize("stabilization, sizes", [("exact", ()), ("quantized", ()), ("exact", (128, 96, 64))])
+def test_scrolled_maps_equal_the_maps_rasterized_whole_along_a_walk(dscene, stabilization, sizes):
+    settings = ShadowSettings(cascades=3, resolution=128, cascade_resolutions=sizes, shadow_distance=50.0,
+                              stabilization=stabilization, filter="pcf", filter_size=3)
+    light = direction_from_angles(elevation_deg=35.0, azimuth_deg=120.0)
+    moved = kept = 0
+    for whole, scrolled, previous in walk_frames(dscene, settings, lights=[light] * len(EYES)):
+        np.testing.assert_array_equal(scrolled.maps.depth, whole.maps.depth)
+        assert scrolled.maps.texels_rasterized == whole.maps.texels_rasterized > 0
+        assert scrolled.maps.raster is not None
+        if previous is not None:
+            shifts = scrolled.maps.raster.origin - previous.maps.raster.origin
+            moved += int(np.any(shifts != 0))
+            kept += int(not np.any(shifts))
+    assert moved >= 3 and kept >= 1  # the walk scrolled some boxes and kept others still
+
+
+def test_a_frame_whose_boxes_did_not_move_keeps_the_previous_maps_themselves(dscene):
+    settings = ShadowSettings(cascades=3, resolution=64, shadow_distance=50.0, stabilization="exact")
+    light = direction_from_angles(elevation_deg=35.0, azimuth_deg=120.0)
+    frames = list(walk_frames(dscene, settings, lights=[light] * len(EYES)))
+    _, scrolled, previous = frames[2]  # the repeated pose
+    assert scrolled.maps.depth is previous.maps.depth
+    assert not scrolled.maps.depth.flags.writeable
+
+
+def test_a_light_that_moves_rasterizes_whole_and_equals_the_whole_maps(dscene):
+    settings = ShadowSettings(cascades=2, resolution=64, shadow_distance=50.0, stabilization="exact")
+    lights = [direction_from_angles(elevation_deg=35.0 + 2.0 * k, azimuth_deg=120.0) for k in range(len(EYES))]
+    for whole, scrolled, _ in walk_frames(dscene, settings, lights=lights):
+        np.testing.assert_array_equal(scrolled.maps.depth, whole.maps.depth)
+        assert scrolled.maps.texels_rasterized == whole.maps.texels_rasterized
+
+
+def test_boxes_off_whole_texels_keep_nothing_to_scroll_from(dscene):
+    settings = ShadowSettings(cascades=2, resolution=64, shadow_distance=50.0, stabilization="none")
+    light = direction_from_angles(elevation_deg=35.0, azimuth_deg=120.0)
+    for whole, scrolled, _ in walk_frames(dscene, settings, lights=[light] * 3):
+        assert scrolled.maps.raster is None
+        np.testing.assert_array_equal(scrolled.maps.depth, whole.maps.depth)
+
+
+def kept_maps(rng, *, sizes, bits=8) -> RasterizedMaps:
+    side = max(sizes)
+    return RasterizedMaps(basis=np.eye(3), zref=-3.0, bits=bits, texel_size=np.full((len(sizes), 2), 0.25),
+                          origin=rng.integers(-50, 50, (len(sizes), 2)) << bits, resolution=np.array(sizes),
+                          depth=rng.random((len(sizes), side, side)).astype(np.float32),
+                          texels=rng.integers(0, 1000, len(sizes)))
+
+
+def covered_once(regions, shape) -> np.ndarray:
+    hits = np.zeros(shape, dtype=int)
+    for c, i0, i1, j0, j1 in regions:
+        hits[c, j0:j1, i0:i1] += 1
+    return hits
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_kept_texels_and_regions_tile_each_map_and_left_regions_tile_what_the_box_left(seed):
+    rng = np.random.default_rng(seed)
+    sizes = [32, 24, 16]
+    previous = kept_maps(rng, sizes=sizes)
+    shift = rng.integers(-20, 21, (3, 2))
+    shift[1] = 0
+    origin = previous.origin + (shift << 8)
+    plan = scroll_plan(previous, basis=np.eye(3), zref=-3.0, bits=8, texel_size=previous.texel_size, origin=origin,
+                       resolution=sizes)
+    rasterize = covered_once(plan.regions, previous.depth.shape)
+    left = covered_once(plan.left, previous.depth.shape)
+    for c, size in enumerate(sizes):
+        dx, dy = shift[c]
+        if max(abs(dx), abs(dy)) >= size:
+            assert rasterize[c, :size, :size].min() == 1 and plan.kept_texels[c] == 0
+            continue
+        j, i = np.mgrid[0:size, 0:size]
+        inside = (i + dx >= 0) & (i + dx < size) & (j + dy >= 0) & (j + dy < size)
+        # Every texel is either kept from the previous map, at its shifted place, or rasterized.
+        np.testing.assert_array_equal(rasterize[c, :size, :size], ~inside)
+        np.testing.assert_array_equal(plan.depth[c, :size, :size][inside],
+                                      previous.depth[c, :size, :size][(j + dy)[inside], (i + dx)[inside]])
+        assert np.all(np.isinf(plan.depth[c, :size, :size][~inside]))
+        # The previous texels no new texel maps to are exactly the left regions.
+        seen = np.zeros((size, size), dtype=bool)
+        seen[(j + dy)[inside], (i + dx)[inside]] = True
+        np.testing.assert_array_equal(left[c, :size, :size], ~seen)
+        assert plan.kept_texels[c] == previous.texels[c]
+        assert np.all(np.isinf(plan.depth[c, size:, :])) and np.all(np.isinf(plan.depth[c, :, size:]))
+    assert rasterize.max() <= 1 and left.max() <= 1
+
+
+@pytest.mark.parametrize("change", ["basis", "zref", "bits", "texel_size", "fraction", "resolution"])
+def test_any_change_but_a_whole_texel_move_rasterizes_the_cascade_whole(change):
+    rng = np.random.default_rng(1)
+    sizes = [32, 32]
+    previous = kept_maps(rng, sizes=sizes)
+    box = dict(basis=np.eye(3), zref=-3.0, bits=8, texel_size=previous.texel_size.copy(),
+               origin=previous.origin + (1 << 8), resolution=sizes)
+    if change == "basis":
+        box["basis"] = np.eye(3)[[1, 0, 2]]
+    elif change == "zref":
+        box["zref"] = -2.5
+    elif change == "bits":
+        box["bits"] = 4
+    elif change == "texel_size":
+        box["texel_size"][0, 0] = 0.5
+    elif change == "fraction":
+        box["origin"] = previous.origin + 3
+    else:
+        box["resolution"] = [32, 16]
+    plan = scroll_plan(previous, **box)
+    c = 1 if change == "resolution" else 0
+    size = box["resolution"][c]
+    assert (c, 0, size, 0, size) in [tuple(r) for r in plan.regions]
+    assert plan.kept_texels[c] == 0 and np.all(np.isinf(plan.depth[c]))
