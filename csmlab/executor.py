@@ -16,6 +16,7 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import os
+import pickle
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
@@ -33,9 +34,9 @@ def run_inprocess(fn: Callable, tasks: list, *, shared, jobs: int = 1, address: 
         yield task, fn(shared, task)
 
 
-def _install_shared(shared) -> None:
+def _install_shared(packed: bytes) -> None:
     global _SHARED
-    _SHARED = shared
+    _SHARED = pickle.loads(packed)
 
 
 def _call_with_shared(fn: Callable, task):
@@ -53,8 +54,12 @@ def run_pool(fn: Callable, tasks: list, *, shared, jobs: int, address: str | Non
         yield from run_inprocess(fn, tasks, shared=shared)
         return
     context = multiprocessing.get_context("spawn")
+    # Pickled here, unpickled by the initializer: a spawned process reads its start-up arguments
+    # while this process writes them, and unpickling the shared objects in that stream imports
+    # their modules (seconds) with this process blocked on the pipe — one process after another.
+    packed = pickle.dumps(shared, protocol=pickle.HIGHEST_PROTOCOL)
     with ProcessPoolExecutor(max_workers=max(1, min(jobs, len(tasks))), mp_context=context,
-                             initializer=_install_shared, initargs=(shared,)) as pool:
+                             initializer=_install_shared, initargs=(packed,)) as pool:
         pending = {pool.submit(_call_with_shared, fn, task): task for task in tasks}
         try:
             while pending:

@@ -373,12 +373,12 @@ def _held_depths(workload: Workload, variants, *, device: str) -> dict:
     The visible range of every frame is read from a G-buffer of the run's size once, here, before
     the chunks run: hysteresis depends on every earlier frame, which a chunk does not render.
     """
-    from csmlab.cascades.bounds import held_depth_ranges
-    from csmlab.render import visible_depth
-
     wanted = [v for v in variants if v.settings.bounds == "sdsm" and v.settings.hysteresis > 0.0]
     if not wanted:
         return {}
+    from csmlab.cascades.bounds import held_depth_ranges
+    from csmlab.render import visible_depth
+
     scene = _prepared_scene(Job(workload=workload, variants=(), snapshot_frames=frozenset(), device=device))
     ranges = np.array([visible_depth(scene, workload.path.pose(i), width=workload.width, height=workload.height)
                        or (np.nan, np.nan) for i in range(len(workload.path))], dtype=np.float64)
@@ -391,13 +391,13 @@ def _held_extents(workload: Workload, variants, held_depths: dict, *, device: st
     Like :func:`_held_depths`, computed before the chunks run from every frame's tight extents (host
     math; an SDSM variant's split range read from its held range or the frame's G-buffer).
     """
+    wanted = [v for v in variants if v.settings.extent_hysteresis > 0.0]
+    if not wanted:
+        return {}
     from csmlab.cascades import tight_extents
     from csmlab.cascades.stabilize import held_extents
     from csmlab.render import visible_depth
 
-    wanted = [v for v in variants if v.settings.extent_hysteresis > 0.0]
-    if not wanted:
-        return {}
     ranges = None
     out = {}
     for v in wanted:
