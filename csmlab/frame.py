@@ -7,8 +7,9 @@ the top of the image; pixel ``(row, col)`` has its centre at ``(col + 0.5, row +
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -98,6 +99,9 @@ class View:
     previous_reference : ndarray, shape (H, W), float32, or None
         R_{t−1} at this view's points: the ray-traced hard shadow under ``previous_light_direction``
         (1 lit, 0 shadowed, NaN on a miss); None when the light did not move or was not given.
+    derived : dict
+        Quantities of this view alone computed for the metrics, by :meth:`shared`; not part of
+        the view's identity.
     """
 
     index: int
@@ -108,6 +112,15 @@ class View:
     timings: dict = field(default_factory=dict)
     previous_light_direction: np.ndarray | None = None
     previous_reference: np.ndarray | None = None
+    derived: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def shared(self, key: tuple, compute: Callable[[], Any]) -> Any:
+        """``compute()``, kept in :attr:`derived` under ``key``: what every method measures of this view
+        alone (its surface differentials, its points seen from the previous camera) is computed
+        by the first method that needs it and read by the others."""
+        if key not in self.derived:
+            self.derived[key] = compute()
+        return self.derived[key]
 
 
 @dataclass(frozen=True)

@@ -133,6 +133,21 @@ def test_rho_doubles_exactly_when_the_cascade_resolution_doubles():
     np.testing.assert_array_equal(rho_finer, 2.0 * rho)
 
 
+def test_methods_sharing_a_view_get_the_differentials_computed_once_and_equal_to_their_own():
+    pose = CameraPose(position=[2.0, 6.0, 9.0], orientation=rotation_looking_at([-2.0, -6.0, -9.0]),
+                      aspect=WIDTH / HEIGHT)
+    dscene = prepare_scene(_plane([0.0, 1.0, 0.2]))
+    view = render_view(dscene, pose, [0.3, -0.8, -0.5], width=WIDTH, height=HEIGHT)
+    coarse, fine = (render_shadow(dscene, view, ShadowSettings(cascades=2, resolution=r, shadow_distance=40.0))
+                    for r in (64, 128))
+    shared = [aliasing_maps(coarse).rho, aliasing_maps(fine).rho]
+    assert [key[0] for key in view.derived] == ["surface_differentials"]
+    alone = render_shadow(dscene, render_view(dscene, pose, [0.3, -0.8, -0.5], width=WIDTH, height=HEIGHT),
+                          ShadowSettings(cascades=2, resolution=128, shadow_distance=40.0))
+    np.testing.assert_array_equal(shared[1], aliasing_maps(alone).rho)
+    assert not np.array_equal(shared[0], shared[1], equal_nan=True)
+
+
 def test_aliasing_summary_is_numpy_percentiles_overall_and_per_cascade():
     rng = np.random.default_rng(8)
     rho = rng.lognormal(0.0, 0.7, size=(30, 40)).astype(np.float32)

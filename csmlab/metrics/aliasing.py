@@ -81,8 +81,9 @@ def aliasing_maps(frame: Frame, *, device: str = "cpu") -> AliasingMaps:
     g = frame.view.gbuffer
     cascade = np.where(g.valid, frame.shadow.cascade, -1).astype(np.int8)
     pose = frame.view.pose
-    dpdu, dpdv = surface_differentials(g.position, g.normal, eye=pose.position, rotation=pose.rotation,
-                                       fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, device=device)
+    dpdu, dpdv = frame.view.shared(("surface_differentials", device), lambda: surface_differentials(
+        g.position, g.normal, eye=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg,
+        aspect=pose.aspect, device=device))
     rho, sigma_min = texel_footprint(dpdu, dpdv, cascade, texel_axes=texel_axes(frame.maps.cascades),
                                      device=device)
     return AliasingMaps(rho=rho, sigma_min=sigma_min, cascade=cascade)

@@ -92,15 +92,18 @@ def temporal_maps(frame: Frame, previous: Frame, *, device: str = "cpu") -> Temp
     g = frame.view.gbuffer
     if previous.view.gbuffer.shape != g.shape:
         raise ValueError(f"previous frame: expected an image of {g.shape} pixels, got {previous.view.gbuffer.shape}")
-    visible = g.valid
-    points = g.position[visible]
+    # The visible points, their normals and their depth from frame t−1's camera: the same for every
+    # method. The entry holds frame t−1's view, so no other view can take its id while it is kept.
+    _, visible, points, normals, earlier_depth = frame.view.shared(("seen_from", id(previous.view)), lambda: (
+        previous.view, g.valid, g.position[g.valid], g.normal[g.valid],
+        previous.view.pose.view_depth(g.position[g.valid])))
     quads = quad_view_depth = None
     if previous.maps.mips is not None:
         # Frame t's pixel quads, each lane selecting with frame t−1's camera (csmlab.quads).
         quads = quad_lanes(frame.view.pose, g.position, g.normal, width=g.shape[1], height=g.shape[0])[visible]
         quad_view_depth = previous.view.pose.view_depth(quads.position)
-    earlier = lookup_shadow(previous.maps, points=points, normals=g.normal[visible],
-                            view_depth=previous.view.pose.view_depth(points), settings=previous.settings,
+    earlier = lookup_shadow(previous.maps, points=points, normals=normals, view_depth=earlier_depth,
+                            settings=previous.settings,
                             pixels=(screen_pixels(previous.view.pose, points, width=g.shape[1], height=g.shape[0])
                                     if uses_pixels(previous.settings) else None),
                             quads=quads, quad_view_depth=quad_view_depth, device=device)
