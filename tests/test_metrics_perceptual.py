@@ -10,7 +10,7 @@ from csmlab.kernels.visibility import CameraHits
 from csmlab.geometry import rotation_looking_at
 from csmlab.metrics.perceptual import (JND_CIEDE2000, changed_windows, delta_e_2000, flip_map, lab_from_linear_srgb,
                                        perceptual_maps, perceptual_summary, ssim_map)
-from csmlab.metrics.shading import shaded_rgb
+from csmlab.metrics.shading import shaded_rgb, shading_terms
 from csmlab.settings import ShadowSettings
 
 LIGHT_DOWN = np.array([0.0, -1.0, 0.0])
@@ -193,3 +193,16 @@ def test_changes_everywhere_make_the_whole_image_one_window():
     changed[::6, ::6] = True
     ((rows, cols), keep), = changed_windows(changed, support=4)
     assert (rows, cols) == (slice(0, 40), slice(0, 60)) and keep[changed].all()
+
+
+def test_shading_with_the_views_shared_terms_equals_shading_from_scratch():
+    rng = np.random.default_rng(4)
+    albedo = rng.random((6, 7, 3)).astype(np.float32)
+    normal = rng.normal(size=(6, 7, 3)).astype(np.float32)
+    normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+    lit = rng.random((6, 7)).astype(np.float32)
+    lit[0, 0] = np.nan
+    terms = shading_terms(albedo, normal, light_direction=[0.3, -1.0, 0.2])
+    np.testing.assert_array_equal(
+        shaded_rgb(albedo, normal, lit, light_direction=[0.3, -1.0, 0.2], ambient=0.25, terms=terms),
+        shaded_rgb(albedo, normal, lit, light_direction=[0.3, -1.0, 0.2], ambient=0.25))

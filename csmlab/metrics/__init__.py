@@ -22,7 +22,7 @@ from csmlab.metrics.aliasing import aliasing_maps, aliasing_summary, utilization
 from csmlab.metrics.cost import cost_summary
 from csmlab.metrics.perceptual import perceptual_maps, perceptual_summary
 from csmlab.metrics.reference import reference_maps, reference_summary, seam_error
-from csmlab.metrics.shading import shaded_rgb
+from csmlab.metrics.shading import shaded_rgb, view_shading_terms
 from csmlab.metrics.temporal import temporal_maps, temporal_summary
 
 __all__ = ["FrameMeasures", "measure_frame", "metric_columns"]
@@ -87,7 +87,8 @@ def measure_frame(frame: Frame, previous: Frame | None = None, *, ambient: float
     if previous is None:
         values.update(dict.fromkeys(temporal_columns(), float("nan")))
         lit = np.where(g.valid, frame.shadow.lit, np.nan)
-        shaded = shaded_rgb(g.albedo, g.normal, lit, light_direction=frame.view.light_direction, ambient=ambient)
+        shaded = shaded_rgb(g.albedo, g.normal, lit, light_direction=frame.view.light_direction, ambient=ambient,
+                            terms=view_shading_terms(frame.view))
         change = np.full(g.shape, np.nan)
         de2000 = np.full(g.shape, np.nan)
         flipped = np.zeros(g.shape, dtype=bool)

@@ -49,7 +49,7 @@ from skimage.metrics import structural_similarity
 
 from csmlab.frame import Frame
 from csmlab.metric_registry import finite_mean
-from csmlab.metrics.shading import shaded_rgb, srgb_encoded
+from csmlab.metrics.shading import shaded_rgb, srgb_encoded, view_shading_terms
 
 __all__ = ["FLIP_SUPPORT", "JND_CIEDE2000", "PerceptualMaps", "SSIM_SUPPORT", "changed_windows", "delta_e_2000",
            "flip_map", "lab_from_linear_srgb", "perceptual_maps", "perceptual_summary", "ssim_map"]
@@ -131,7 +131,7 @@ def perceptual_maps(frame: Frame, previous_lit, *, ambient: float) -> Perceptual
     previous_lit = np.asarray(previous_lit, dtype=np.float32)
     if previous_lit.shape != lit.shape:
         raise ValueError(f"previous_lit: expected shape {lit.shape}, got {previous_lit.shape}")
-    shade = dict(light_direction=frame.view.light_direction, ambient=ambient)
+    shade = dict(light_direction=frame.view.light_direction, ambient=ambient, terms=view_shading_terms(frame.view))
     shaded = shaded_rgb(g.albedo, g.normal, lit, **shade)
     previous_shaded = shaded_rgb(g.albedo, g.normal, previous_lit, **shade)
     compared = np.isfinite(lit) & np.isfinite(previous_lit)

@@ -6,15 +6,40 @@ light (DESIGN.md, "Metrics"), and its sRGB encoding for display and for ꟻLIP.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import colour
 import numpy as np
 
 from csmlab.geometry import normalized
 
-__all__ = ["shaded_rgb", "srgb_encoded"]
+__all__ = ["ShadingTerms", "shaded_rgb", "shading_terms", "srgb_encoded", "view_shading_terms"]
 
 
-def shaded_rgb(albedo, normal, lit, *, light_direction, ambient: float) -> np.ndarray:
+@dataclass(frozen=True)
+class ShadingTerms:
+    """What the shading of a view takes from the view alone, whatever the shadow.
+
+    Attributes
+    ----------
+    albedo : ndarray, shape (H, W, 3), float64
+        Linear RGB reflectance.
+    cosine : ndarray, shape (H, W), float64
+        ``max(0, n · l)``.
+    """
+
+    albedo: np.ndarray
+    cosine: np.ndarray
+
+
+def shading_terms(albedo, normal, *, light_direction) -> ShadingTerms:
+    """The shadow-independent terms of :func:`shaded_rgb` (shapes and units as there)."""
+    towards_light = -normalized(light_direction, name="light_direction")
+    return ShadingTerms(albedo=np.asarray(albedo, dtype=np.float64),
+                        cosine=np.maximum(np.asarray(normal, dtype=np.float64) @ towards_light, 0.0))
+
+
+def shaded_rgb(albedo, normal, lit, *, light_direction, ambient: float, terms: ShadingTerms | None = None) -> np.ndarray:
     """Linear RGB of each pixel lit by a directional light through the shadow ``lit``.
 
     Parameters
@@ -29,6 +54,9 @@ def shaded_rgb(albedo, normal, lit, *, light_direction, ambient: float) -> np.nd
         From the light toward the scene, world space; normalized here.
     ambient : float
         Ambient term in units of the direct light's irradiance, ≥ 0.
+    terms : ShadingTerms, optional
+        :func:`shading_terms` of ``albedo``, ``normal`` and ``light_direction``, when already
+        computed (they are the same for every shadow of a view); the result is the same.
 
     Returns
     -------
@@ -42,10 +70,17 @@ def shaded_rgb(albedo, normal, lit, *, light_direction, ambient: float) -> np.nd
     """
     if not (np.isfinite(ambient) and ambient >= 0):
         raise ValueError(f"ambient: expected a non-negative fraction of the direct light, got {ambient}")
-    towards_light = -normalized(light_direction, name="light_direction")
-    cosine = np.maximum(np.asarray(normal, dtype=np.float64) @ towards_light, 0.0)
-    irradiance = ambient + np.asarray(lit, dtype=np.float64) * cosine
-    return np.asarray(albedo, dtype=np.float64) * irradiance[..., None]
+    if terms is None:
+        terms = shading_terms(albedo, normal, light_direction=light_direction)
+    irradiance = ambient + np.asarray(lit, dtype=np.float64) * terms.cosine
+    return terms.albedo * irradiance[..., None]
+
+
+def view_shading_terms(view) -> ShadingTerms:
+    """:func:`shading_terms` of a :class:`csmlab.frame.View`'s G-buffer and light, computed once per view."""
+    g = view.gbuffer
+    return view.shared(("shading_terms",), lambda: shading_terms(g.albedo, g.normal,
+                                                                  light_direction=view.light_direction))
 
 
 def srgb_encoded(rgb) -> np.ndarray:
