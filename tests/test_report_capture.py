@@ -50,7 +50,7 @@ def _frame(index, *, height=6, width=2 * ANIM_WIDTH + 5, seed=0, position=(3.0, 
     lit = np.where(valid, rng.random((height, width)), np.nan).astype(np.float32)
     cascade = np.where(valid, rng.integers(0, 3, (height, width)), -1).astype(np.int8)
     view = View(index=index, pose=pose, light_direction=LIGHT, gbuffer=gbuffer,
-                reference=np.where(valid, 1.0, np.nan).astype(np.float32))
+                reference=np.where(valid, lit > 0.5, np.nan).astype(np.float32))
     frame = Frame(view=view, settings=settings,
                   maps=ShadowMaps(cascades=cascades, depth=np.zeros((3, 64, 64), np.float32), texels_rasterized=0),
                   shadow=ShadowLookup(lit=lit, cascade=cascade, blend=np.zeros((height, width), bool)))
