@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from csmlab.frame import Frame
+from csmlab.frame import Frame, View
 from csmlab.geometry import frustum_slice_corners
 
 __all__ = [
@@ -179,7 +179,7 @@ class ViewPixels:
     reference: np.ndarray
 
 
-def view_pixels(view, *, grid: WorldGrid) -> ViewPixels:
+def view_pixels(view: View, *, grid: WorldGrid) -> ViewPixels:
     """The view-only part of :func:`frame_pixels`, computed once per view and shared by its methods.
 
     Parameters
@@ -241,9 +241,8 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid, per_view: ViewP
     if per_view is None:
         per_view = view_pixels(view, grid=grid)
     elif per_view.index != view.index or per_view.grid != grid or per_view.cells.shape != view.gbuffer.shape:
-        raise ValueError(f"per_view: expected the view pixels of frame {view.index} on the run's grid, "
-                         f"{view.gbuffer.shape[0]}×{view.gbuffer.shape[1]} pixels, got frame {per_view.index}'s, "
-                         f"{per_view.cells.shape[0]}×{per_view.cells.shape[1]} pixels")
+        raise ValueError(f"per_view: expected the view pixels of frame {view.index} ({view.gbuffer.shape} pixels) "
+                         f"on {grid}, got frame {per_view.index}'s ({per_view.cells.shape} pixels) on {per_view.grid}")
     k = per_view.stride
     take = (slice(None, None, k), slice(None, None, k))
     lit = np.where(per_view.valid, frame.shadow.lit[take], np.nan)
