@@ -50,7 +50,7 @@ def _frame(index, *, height=6, width=2 * ANIM_WIDTH + 5, seed=0, position=(3.0, 
     lit = np.where(valid, rng.random((height, width)), np.nan).astype(np.float32)
     cascade = np.where(valid, rng.integers(0, 3, (height, width)), -1).astype(np.int8)
     view = View(index=index, pose=pose, light_direction=LIGHT, gbuffer=gbuffer,
-                reference=np.where(valid, 1.0, np.nan).astype(np.float32))
+                reference=np.where(valid, lit > 0.5, np.nan).astype(np.float32))
     frame = Frame(view=view, settings=settings,
                   maps=ShadowMaps(cascades=cascades, depth=np.zeros((3, 64, 64), np.float32), texels_rasterized=0),
                   shadow=ShadowLookup(lit=lit, cascade=cascade, blend=np.zeros((height, width), bool)))
@@ -189,3 +189,46 @@ def test_anim_file_holds_the_frames_in_order_and_round_trips(tmp_path):
 def test_write_captures_refuses_frames_out_of_order(tmp_path):
     with pytest.raises(ValueError, match="increasing frame numbers"):
         write_captures(tmp_path, method="exact", point="base", captures=_captures(0, [1, 0]))
+
+
+def _blocky_image(height, width, seed):
+    """Values in [0, 1] with NaN, ±inf and a whole undefined block in the top-left corner."""
+    rng = np.random.default_rng(seed)
+    values = rng.random((height, width)) ** 3
+    values[rng.random((height, width)) < 0.3] = np.nan
+    values[rng.random((height, width)) < 0.02] = np.inf
+    values[rng.random((height, width)) < 0.02] = -np.inf
+    values[:10, :10] = np.nan
+    return values
+
+
+@pytest.mark.parametrize("width", [ANIM_WIDTH, 2 * ANIM_WIDTH + 5, 7 * ANIM_WIDTH + 1, 8 * ANIM_WIDTH + 1])
+def test_block_mean_and_max_equal_a_block_by_block_loop_over_the_defined_values(width):
+    from csmlab.report.capture import _block_max, _block_mean
+
+    values = _blocky_image(23, width, seed=width)
+    k = -(-width // ANIM_WIDTH)
+    mean, largest = _block_mean(values), _block_max(np.abs(values))
+    assert mean.shape == largest.shape == (23 // k, width // k)
+    for i in range(mean.shape[0]):
+        for j in range(mean.shape[1]):
+            block = values[i * k:(i + 1) * k, j * k:(j + 1) * k]
+            defined = [float(v) for v in block.ravel() if np.isfinite(v)]
+            if not defined:
+                assert np.isnan(mean[i, j]) and np.isnan(largest[i, j])
+                continue
+            assert mean[i, j] == pytest.approx(sum(defined) / len(defined), rel=1e-14)
+            assert largest[i, j] == max(abs(v) for v in defined)
+
+
+@pytest.mark.parametrize("width", [2 * ANIM_WIDTH, 3 * ANIM_WIDTH, 8 * ANIM_WIDTH, 10 * ANIM_WIDTH + 3])
+def test_block_mean_keeps_the_bits_of_a_numpy_reduction_over_the_blocks_axes(width):
+    from csmlab.report.capture import _block_mean
+
+    values = _blocky_image(17, width, seed=width)
+    k = -(-width // ANIM_WIDTH)
+    blocks = values[: 17 // k * k, : width // k * k].reshape(17 // k, k, width // k, k)
+    defined = np.isfinite(blocks)
+    count = defined.sum(axis=(1, 3))
+    expected = np.where(count > 0, np.where(defined, blocks, 0.0).sum(axis=(1, 3)) / np.maximum(count, 1), np.nan)
+    np.testing.assert_array_equal(_block_mean(values).view(np.int64), expected.view(np.int64))

@@ -1,9 +1,12 @@
 """Every frame's per-pixel record of the interactive report, checked against brute force."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from test_report_capture import _frame
 
+from csmlab.report.capture import capture_frame
 from csmlab.report.pixels import (
     NO_VALUE,
     RHO_EDGES,
@@ -11,6 +14,7 @@ from csmlab.report.pixels import (
     decode_rho,
     frame_pixels,
     stack_pixels,
+    view_pixels,
     world_grid,
 )
 
@@ -40,6 +44,9 @@ def test_sampled_values_are_the_frames_own_pixels_on_a_stride_not_averages():
             assert record["rho"][j, i] == code_rho(rho)
             assert record["cascade"][j, i] == frame.shadow.cascade[y, x]
             assert record["ref_diff"][j, i] == pixels["ref_diff"][y, x]
+            assert record["valid"][j, i] == valid
+            reference = frame.view.reference[y, x]
+            assert record["reference"][j, i] == (int(reference > 0.5) if np.isfinite(reference) else NO_VALUE)
 
 
 def test_rho_code_keeps_rho_to_a_sixteenth_of_an_octave_and_clips_the_ends():
@@ -105,3 +112,56 @@ def test_world_grid_covers_the_path_grown_by_the_shadow_reach():
     assert grid.cell == pytest.approx(130.0 / 100)
     assert grid.nx == 100 and grid.nx * grid.cell >= 130.0 and grid.nz * grid.cell >= 110.0
     assert grid.index(np.array([[-60.0, 0, -55.0], [np.nan, 0, 0], [1e6, 0, 0]])).tolist() == [0, -1, -1]
+
+
+def _assert_same_record(got, expected):
+    assert got.keys() == expected.keys()
+    for name, value in expected.items():
+        if isinstance(value, np.ndarray):
+            assert value.dtype == got[name].dtype, name
+            np.testing.assert_array_equal(got[name], value, err_msg=name)
+        else:
+            assert got[name] == value, name
+
+
+def test_view_pixels_computed_once_give_each_method_the_record_computed_inside():
+    view = _frame(4)[0].view
+    per_view = view_pixels(view, grid=GRID)
+    for seed in (0, 7):
+        frame, pixels, _ = _record(4, seed=seed)
+        frame = dataclasses.replace(frame, view=view)
+        _assert_same_record(frame_pixels(frame, pixels, grid=GRID, per_view=per_view),
+                            frame_pixels(frame, pixels, grid=GRID))
+
+
+def test_capture_with_view_pixels_given_is_the_capture_without():
+    frame, measures = _frame(5)
+    measures.pixels["flipped"] = np.isfinite(measures.pixels["dS"])
+    given = capture_frame(frame, measures, snapshot=False, grid=GRID,
+                          per_view=view_pixels(frame.view, grid=GRID)).pixels
+    _assert_same_record(given, capture_frame(frame, measures, snapshot=False, grid=GRID).pixels)
+
+
+def test_view_pixels_of_another_frame_or_grid_are_refused():
+    frame, pixels, _ = _record(6)
+    other_frame = _record(7)[0]
+    other_grid = world_grid([[0.0, 0.0, 0.0]], reach=10.0, cells=8)
+    for per_view in (view_pixels(other_frame.view, grid=GRID), view_pixels(frame.view, grid=other_grid)):
+        with pytest.raises(ValueError, match="per_view"):
+            frame_pixels(frame, pixels, grid=GRID, per_view=per_view)
+
+
+def test_rho_histogram_bins_values_on_and_one_ulp_beside_every_edge_as_a_search_among_the_edges():
+    frame, pixels, _ = _record(8)
+    shape = frame.shadow.lit.shape
+    # 2^edge, exact at whole octaves, and its neighbours: around ρ = 1, log2 ρ is ±1e-16, which
+    # a bin computed as floor(8 log2 ρ + 64) would round into the upper bin.
+    on = np.exp2(RHO_EDGES)
+    rho = np.resize(np.concatenate([on, np.nextafter(on, 0.0), np.nextafter(on, np.inf), [2.0 ** -40, 2.0 ** 40]]),
+                    shape)
+    record = frame_pixels(frame, {**pixels, "rho": rho}, grid=GRID)
+    cascade = frame.shadow.cascade
+    for c in range(record["rho_hist"].shape[0]):
+        mine = np.log2(rho[cascade == c])
+        bins = np.clip(np.searchsorted(RHO_EDGES, mine, side="right") - 1, 0, len(RHO_EDGES) - 2)
+        assert record["rho_hist"][c].tolist() == np.bincount(bins, minlength=len(RHO_EDGES) - 1).tolist()

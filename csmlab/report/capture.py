@@ -62,7 +62,7 @@ import numpy as np
 
 from csmlab.files import write_atomic
 from csmlab.frame import Frame
-from csmlab.report.pixels import WorldGrid, box_corners, frame_pixels, frustum_corners, stack_pixels
+from csmlab.report.pixels import ViewPixels, WorldGrid, box_corners, frame_pixels, frustum_corners, stack_pixels
 
 if TYPE_CHECKING:
     from csmlab.metrics import FrameMeasures
@@ -151,7 +151,7 @@ def default_snapshot_frames(n_frames: int) -> list[int]:
 
 
 def capture_frame(frame: Frame, measures: "FrameMeasures", *, snapshot: bool,
-                  grid: WorldGrid | None = None, images: bool = True) -> Capture:
+                  grid: WorldGrid | None = None, images: bool = True, per_view: ViewPixels | None = None) -> Capture:
     """The report's record of one frame of one method.
 
     Parameters
@@ -170,6 +170,9 @@ def capture_frame(frame: Frame, measures: "FrameMeasures", *, snapshot: bool,
     images : bool
         Keep the animation frame and the per-pixel record; False keeps the cascade rows (and the
         snapshot, when asked) only.
+    per_view : ViewPixels, optional
+        :func:`csmlab.report.pixels.view_pixels` of ``frame.view`` and ``grid``, computed once per
+        view by a caller that captures several methods of it; computed here when needed and not given.
 
     Returns
     -------
@@ -185,7 +188,7 @@ def capture_frame(frame: Frame, measures: "FrameMeasures", *, snapshot: bool,
         shadow=_coded_u8(_block_mean(frame.shadow.lit)) if images else None,
         dS=_coded_u8(_block_max(np.abs(pixels["dS"]))) if images else None,
         snapshot=_snapshot(frame, pixels) if snapshot else None,
-        pixels=frame_pixels(frame, pixels, grid=grid) if images and grid is not None else None,
+        pixels=frame_pixels(frame, pixels, grid=grid, per_view=per_view) if images and grid is not None else None,
     )
 
 
@@ -304,30 +307,48 @@ def _anim_factor(width: int) -> int:
     return max(1, -(-width // ANIM_WIDTH))
 
 
-def _blocks(values: np.ndarray) -> np.ndarray:
-    """``(h, k, w, k)`` view of ``values`` (H, W) cut to whole ``k``×``k`` blocks."""
+def _block_reduce(values: np.ndarray, ufunc: np.ufunc, dtype) -> np.ndarray:
+    """``ufunc`` over each whole ``k``×``k`` block of ``values`` (H, W): ``(H // k, W // k)`` of ``dtype``.
+
+    Each block's rows are reduced first, then the row results top to bottom: for a sum, the order
+    of NumPy's own ``sum(axis=(1, 3))`` over the ``(h, k, w, k)`` blocks, so means keep their bits,
+    but as strided whole-image operations instead of a reduction over non-adjacent axes (slow in
+    NumPy). A row of fewer than 8 values NumPy sums left to right, as the loop over ``k`` does;
+    longer ones it sums pairwise, so those rows are left to its own reduction.
+    """
     k = _anim_factor(values.shape[1])
     h, w = values.shape[0] // k, values.shape[1] // k
-    return values[: h * k, : w * k].reshape(h, k, w, k)
+    cut = values[: h * k, : w * k]
+    if k >= 8:
+        rows = ufunc.reduce(cut.reshape(h * k, w, k), axis=-1, dtype=dtype)
+    else:
+        rows = cut[:, 0::k].astype(dtype)
+        for b in range(1, k):
+            ufunc(rows, cut[:, b::k], out=rows)
+    total = rows[0::k].copy()
+    for a in range(1, k):
+        ufunc(total, rows[a::k], out=total)
+    return total
 
 
 def _block_mean(values) -> np.ndarray:
-    blocks = _blocks(np.asarray(values, dtype=np.float64))
-    defined = np.isfinite(blocks)
-    count = defined.sum(axis=(1, 3))
-    total = np.where(defined, blocks, 0.0).sum(axis=(1, 3))
+    values = np.asarray(values, dtype=np.float64)
+    defined = np.isfinite(values)
+    count = _block_reduce(defined, np.add, np.int64)
+    total = _block_reduce(np.where(defined, values, 0.0), np.add, np.float64)
     return np.where(count > 0, total / np.maximum(count, 1), np.nan)
 
 
 def _block_max(values) -> np.ndarray:
-    blocks = _blocks(np.asarray(values, dtype=np.float64))
-    largest = np.where(np.isfinite(blocks), blocks, -1.0).max(axis=(1, 3))
+    values = np.asarray(values, dtype=np.float64)
+    largest = _block_reduce(np.where(np.isfinite(values), values, -1.0), np.maximum, np.float64)
     return np.where(largest >= 0.0, largest, np.nan)
 
 
 def _coded_u8(values: np.ndarray) -> np.ndarray:
-    coded = np.rint(np.clip(np.nan_to_num(values, nan=0.0), 0.0, 1.0) * 254.0).astype(np.uint8)
-    return np.where(np.isfinite(values), coded, np.uint8(_NO_VALUE))
+    finite = np.isfinite(values)
+    coded = np.rint(np.clip(np.where(finite, values, 0.0), 0.0, 1.0) * 254.0).astype(np.uint8)
+    return np.where(finite, coded, np.uint8(_NO_VALUE))
 
 
 def _snapshot(frame: Frame, pixels: dict) -> dict:

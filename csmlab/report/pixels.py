@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from csmlab.frame import Frame
+from csmlab.frame import Frame, View
 from csmlab.geometry import frustum_slice_corners
 
 __all__ = [
@@ -27,6 +27,7 @@ __all__ = [
     "RHO_EDGES",
     "RHO_STEPS",
     "VIEW_WIDTH",
+    "ViewPixels",
     "WORLD_CELLS",
     "WorldGrid",
     "box_corners",
@@ -35,6 +36,7 @@ __all__ = [
     "frame_pixels",
     "frustum_corners",
     "stack_pixels",
+    "view_pixels",
     "world_grid",
 ]
 
@@ -107,8 +109,9 @@ def _stride(width: int) -> int:
 def _coded(values) -> np.ndarray:
     """Values in [0, 1] as ``round(254 · v)`` uint8, :data:`NO_VALUE` where NaN (precision ±1/508)."""
     values = np.asarray(values, dtype=np.float64)
-    coded = np.rint(np.clip(np.nan_to_num(values), 0.0, 1.0) * 254.0).astype(np.uint8)
-    return np.where(np.isfinite(values), coded, np.uint8(NO_VALUE))
+    finite = np.isfinite(values)
+    coded = np.rint(np.clip(np.where(finite, values, 0.0), 0.0, 1.0) * 254.0).astype(np.uint8)
+    return np.where(finite, coded, np.uint8(NO_VALUE))
 
 
 def code_rho(rho) -> np.ndarray:
@@ -147,7 +150,55 @@ def box_corners(cascades) -> np.ndarray:
     return np.stack(boxes) @ cascades.basis
 
 
-def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid) -> dict:
+@dataclass(frozen=True)
+class ViewPixels:
+    """What :func:`frame_pixels` keeps of a view alone, the same for every method (:func:`view_pixels`).
+
+    Attributes
+    ----------
+    index : int
+        Frame number of the view.
+    grid : WorldGrid
+        The ground cells ``cells`` index.
+    stride : int
+        Pixel stride of the sampled planes.
+    cells : ndarray, shape (H, W), int64
+        Flat ground cell (:meth:`WorldGrid.index`) of each pixel's G-buffer position; -1 outside
+        the grid or on a miss.
+    valid : ndarray, shape (h, w), bool
+        The ray hit the scene, at the sampled pixels.
+    reference : ndarray, shape (h, w), uint8
+        The ray-traced shadow at the sampled pixels: 1 lit, 0 shadowed, :data:`NO_VALUE` no surface.
+    """
+
+    index: int
+    grid: WorldGrid
+    stride: int
+    cells: np.ndarray
+    valid: np.ndarray
+    reference: np.ndarray
+
+
+def view_pixels(view: View, *, grid: WorldGrid) -> ViewPixels:
+    """The view-only part of :func:`frame_pixels`, computed once per view and shared by its methods.
+
+    Parameters
+    ----------
+    view : View
+        The rendered view, ``(H, W)`` pixels, with its ray-traced ``reference``.
+    grid : WorldGrid, keyword-only
+        The run's ground cells.
+    """
+    g = view.gbuffer
+    k = _stride(g.shape[1])
+    take = (slice(None, None, k), slice(None, None, k))
+    reference = np.asarray(view.reference, dtype=np.float64)[take]
+    return ViewPixels(index=int(view.index), grid=grid, stride=k, cells=grid.index(g.position),
+                      valid=g.valid[take],
+                      reference=np.where(np.isfinite(reference), reference > 0.5, NO_VALUE).astype(np.uint8))
+
+
+def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid, per_view: ViewPixels | None = None) -> dict:
     """The per-frame record of one method: sampled per-pixel values, 3D geometry, world-cell sums.
 
     Parameters
@@ -159,6 +210,9 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid) -> dict:
         ``ref_diff`` and ``flipped`` (H, W).
     grid : WorldGrid, keyword-only
         The run's ground cells.
+    per_view : ViewPixels, optional, keyword-only
+        :func:`view_pixels` of ``frame.view`` and ``grid``, when the caller shares it among the
+        view's methods; computed here when not given.
 
     Returns
     -------
@@ -175,47 +229,61 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid) -> dict:
         ``cell_dS`` (K,) float64 sum of |ΔS|, ``cell_counted`` and ``cell_flips`` (K,) int64, at
         full resolution; ``rho_hist`` (C, len(RHO_EDGES) - 1) int64: pixels per log2 ρ bin and
         selected cascade.
+
+    Raises
+    ------
+    ValueError
+        If ``per_view`` is of another view, grid or image size.
     """
     from csmlab.report.images import srgb_from_linear
 
     view = frame.view
-    g = view.gbuffer
-    k = _stride(g.shape[1])
+    if per_view is None:
+        per_view = view_pixels(view, grid=grid)
+    elif per_view.index != view.index or per_view.grid != grid or per_view.cells.shape != view.gbuffer.shape:
+        raise ValueError(f"per_view: expected the view pixels of frame {view.index} ({view.gbuffer.shape} pixels) "
+                         f"on {grid}, got frame {per_view.index}'s ({per_view.cells.shape} pixels) on {per_view.grid}")
+    k = per_view.stride
     take = (slice(None, None, k), slice(None, None, k))
-    valid = g.valid
-    lit = np.where(valid, frame.shadow.lit, np.nan)
+    lit = np.where(per_view.valid, frame.shadow.lit[take], np.nan)
     shaded = np.asarray(pixels["shaded"], dtype=np.float64)[take]
-    defined = np.all(np.isfinite(shaded), axis=-1, keepdims=True)
-    srgb = np.where(defined, srgb_from_linear(np.nan_to_num(shaded)), 0.0)
-    reference = np.asarray(view.reference, dtype=np.float64)
+    finite = np.isfinite(shaded)
+    # Three column tests: np.all over a length-3 last axis is several times slower.
+    defined = (finite[..., 0] & finite[..., 1] & finite[..., 2])[..., None]
+    srgb = srgb_from_linear(np.where(defined, shaded, 0.0))  # 0 where undefined: sRGB(0) = 0
     dS = np.asarray(pixels["dS"], dtype=np.float64)
-    counted = np.isfinite(dS)
-    cells = grid.index(g.position)
-    keep = counted & (cells >= 0)
+    cells = per_view.cells
+    keep = np.isfinite(dS) & (cells >= 0)
     where = cells[keep]
     size = grid.nx * grid.nz
     dS_sum = np.bincount(where, weights=dS[keep], minlength=size)
     counts = np.bincount(where, minlength=size)
-    flips = np.bincount(where, weights=np.asarray(pixels["flipped"], dtype=np.float64)[keep], minlength=size)
+    flips = np.bincount(where[np.asarray(pixels["flipped"], dtype=bool)[keep]], minlength=size)
     touched = np.flatnonzero(counts)
     rho = np.asarray(pixels["rho"], dtype=np.float64)
     cascade = np.asarray(frame.shadow.cascade)
     C = len(frame.maps.cascades)
     has = np.isfinite(rho) & (rho > 0) & (cascade >= 0)
-    bins = np.clip(np.searchsorted(RHO_EDGES, np.log2(rho[has]), side="right") - 1, 0, len(RHO_EDGES) - 2)
-    hist = np.zeros((C, len(RHO_EDGES) - 1), dtype=np.int64)
-    np.add.at(hist, (cascade[has].astype(np.int64), bins), 1)
+    # The bin of log2 ρ among RHO_EDGES, whose edges are whole multiples of a power-of-two step
+    # (1/8 octave): floor(log2 ρ / step) is exact, as a search among the edges is, where shifting
+    # by the first edge before the floor could round up into the next bin. Counted with one
+    # bincount of a flat cascade × bin index.
+    bins = len(RHO_EDGES) - 1
+    per_step = bins / (RHO_EDGES[-1] - RHO_EDGES[0])
+    steps = np.floor(np.log2(rho[has]) * per_step) - RHO_EDGES[0] * per_step
+    flat = cascade[has].astype(np.int64) * bins + np.clip(steps, 0, bins - 1).astype(np.int64)
+    hist = np.bincount(flat, minlength=C * bins).reshape(C, bins)
     return {
         "grid": grid,
         "stride": k,
-        "lit": _coded(lit[take]),
+        "lit": _coded(lit),
         "dS": _coded(dS[take]),
         "cascade": cascade[take].astype(np.int8),
         "rho": code_rho(rho[take]),
-        "reference": np.where(np.isfinite(reference[take]), reference[take] > 0.5, NO_VALUE).astype(np.uint8),
+        "reference": per_view.reference,
         "ref_diff": np.asarray(pixels["ref_diff"])[take].astype(np.int8),
         "shaded": np.rint(srgb * 255.0).astype(np.uint8),
-        "valid": valid[take],
+        "valid": per_view.valid,
         "camera_position": np.asarray(view.pose.position, dtype=np.float64),
         "light_direction": np.asarray(view.light_direction, dtype=np.float64),
         "frustum_corners": frustum_corners(frame),
@@ -223,7 +291,7 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid) -> dict:
         "cells": touched.astype(np.int64),
         "cell_dS": dS_sum[touched],
         "cell_counted": counts[touched].astype(np.int64),
-        "cell_flips": np.rint(flips[touched]).astype(np.int64),
+        "cell_flips": flips[touched].astype(np.int64),
         "rho_hist": hist,
     }
 
