@@ -324,7 +324,7 @@ def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
     from csmlab.metrics import measure_frame
     from csmlab.render import render_shadow, render_view
     from csmlab.report.capture import capture_frame
-    from csmlab.report.pixels import view_pixels, world_grid
+    from csmlab.report.pixels import world_grid
 
     start, stop = chunk
     workload = job.workload
@@ -343,8 +343,6 @@ def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
             previous = {}
         if counted:
             timings += [results.TimingRow(index, "", "", stage, seconds) for stage, seconds in view.timings.items()]
-        # The view's part of the per-pixel record, shared by every variant's capture of this frame.
-        per_view = view_pixels(view, grid=grid) if counted and index in job.image_frames else None
         for variant in job.variants:
             key = (variant.method, variant.point)
             held = job.held_depths.get(key)
@@ -363,7 +361,7 @@ def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
                 timings.append(results.TimingRow(index, *key, "metrics", measured))
                 captures.setdefault(key, []).append(
                     capture_frame(frame, measures, snapshot=index in job.snapshot_frames, grid=grid,
-                                  images=index in job.image_frames, per_view=per_view))
+                                  images=index in job.image_frames))
             previous[key] = frame
     packed = {key: pickle.dumps(kept, protocol=pickle.HIGHEST_PROTOCOL) for key, kept in captures.items()}
     return ChunkResult(start=start, stop=stop, rows=rows, timings=timings, captures=packed)

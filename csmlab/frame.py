@@ -112,7 +112,7 @@ class View:
     timings: dict = field(default_factory=dict)
     previous_light_direction: np.ndarray | None = None
     previous_reference: np.ndarray | None = None
-    derived: dict = field(default_factory=dict, compare=False, repr=False)
+    derived: dict = field(default_factory=dict, init=False, compare=False, repr=False)
 
     def shared(self, key: tuple, compute: Callable[[], Any]) -> Any:
         """``compute()``, kept in :attr:`derived` under ``key``: what every method measures of this view

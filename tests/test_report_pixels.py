@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 from test_report_capture import _frame
 
-from csmlab.report.capture import capture_frame
 from csmlab.report.pixels import (
     NO_VALUE,
     RHO_EDGES,
@@ -14,7 +13,6 @@ from csmlab.report.pixels import (
     decode_rho,
     frame_pixels,
     stack_pixels,
-    view_pixels,
     world_grid,
 )
 
@@ -124,31 +122,17 @@ def _assert_same_record(got, expected):
             assert got[name] == value, name
 
 
-def test_view_pixels_computed_once_give_each_method_the_record_computed_inside():
+def test_methods_sharing_a_view_compute_its_view_pixels_once_and_get_the_records_of_views_of_their_own():
     view = _frame(4)[0].view
-    per_view = view_pixels(view, grid=GRID)
     for seed in (0, 7):
         frame, pixels, _ = _record(4, seed=seed)
-        frame = dataclasses.replace(frame, view=view)
-        _assert_same_record(frame_pixels(frame, pixels, grid=GRID, per_view=per_view),
-                            frame_pixels(frame, pixels, grid=GRID))
-
-
-def test_capture_with_view_pixels_given_is_the_capture_without():
-    frame, measures = _frame(5)
-    measures.pixels["flipped"] = np.isfinite(measures.pixels["dS"])
-    given = capture_frame(frame, measures, snapshot=False, grid=GRID,
-                          per_view=view_pixels(frame.view, grid=GRID)).pixels
-    _assert_same_record(given, capture_frame(frame, measures, snapshot=False, grid=GRID).pixels)
-
-
-def test_view_pixels_of_another_frame_or_grid_are_refused():
-    frame, pixels, _ = _record(6)
-    other_frame = _record(7)[0]
+        # A copy of the view holds none of what the shared one keeps (``derived`` is not copied).
+        alone = frame_pixels(dataclasses.replace(frame, view=dataclasses.replace(view)), pixels, grid=GRID)
+        _assert_same_record(frame_pixels(dataclasses.replace(frame, view=view), pixels, grid=GRID), alone)
+    assert [key[0] for key in view.derived] == ["view_pixels"]
     other_grid = world_grid([[0.0, 0.0, 0.0]], reach=10.0, cells=8)
-    for per_view in (view_pixels(other_frame.view, grid=GRID), view_pixels(frame.view, grid=other_grid)):
-        with pytest.raises(ValueError, match="per_view"):
-            frame_pixels(frame, pixels, grid=GRID, per_view=per_view)
+    frame_pixels(dataclasses.replace(frame, view=view), pixels, grid=other_grid)
+    assert len(view.derived) == 2
 
 
 def test_rho_histogram_bins_values_on_and_one_ulp_beside_every_edge_as_a_search_among_the_edges():

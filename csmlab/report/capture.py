@@ -62,7 +62,7 @@ import numpy as np
 
 from csmlab.files import write_atomic
 from csmlab.frame import Frame
-from csmlab.report.pixels import ViewPixels, WorldGrid, box_corners, frame_pixels, frustum_corners, stack_pixels
+from csmlab.report.pixels import WorldGrid, box_corners, frame_pixels, frustum_corners, stack_pixels
 
 if TYPE_CHECKING:
     from csmlab.metrics import FrameMeasures
@@ -151,7 +151,7 @@ def default_snapshot_frames(n_frames: int) -> list[int]:
 
 
 def capture_frame(frame: Frame, measures: "FrameMeasures", *, snapshot: bool,
-                  grid: WorldGrid | None = None, images: bool = True, per_view: ViewPixels | None = None) -> Capture:
+                  grid: WorldGrid | None = None, images: bool = True) -> Capture:
     """The report's record of one frame of one method.
 
     Parameters
@@ -170,9 +170,6 @@ def capture_frame(frame: Frame, measures: "FrameMeasures", *, snapshot: bool,
     images : bool
         Keep the animation frame and the per-pixel record; False keeps the cascade rows (and the
         snapshot, when asked) only.
-    per_view : ViewPixels, optional
-        :func:`csmlab.report.pixels.view_pixels` of ``frame.view`` and ``grid``, computed once per
-        view by a caller that captures several methods of it; computed here when needed and not given.
 
     Returns
     -------
@@ -188,7 +185,7 @@ def capture_frame(frame: Frame, measures: "FrameMeasures", *, snapshot: bool,
         shadow=_coded_u8(_block_mean(frame.shadow.lit)) if images else None,
         dS=_coded_u8(_block_max(np.abs(pixels["dS"]))) if images else None,
         snapshot=_snapshot(frame, pixels) if snapshot else None,
-        pixels=frame_pixels(frame, pixels, grid=grid, per_view=per_view) if images and grid is not None else None,
+        pixels=frame_pixels(frame, pixels, grid=grid) if images and grid is not None else None,
     )
 
 

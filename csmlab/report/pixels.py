@@ -156,10 +156,6 @@ class ViewPixels:
 
     Attributes
     ----------
-    index : int
-        Frame number of the view.
-    grid : WorldGrid
-        The ground cells ``cells`` index.
     stride : int
         Pixel stride of the sampled planes.
     cells : ndarray, shape (H, W), int64
@@ -171,8 +167,6 @@ class ViewPixels:
         The ray-traced shadow at the sampled pixels: 1 lit, 0 shadowed, :data:`NO_VALUE` no surface.
     """
 
-    index: int
-    grid: WorldGrid
     stride: int
     cells: np.ndarray
     valid: np.ndarray
@@ -180,7 +174,7 @@ class ViewPixels:
 
 
 def view_pixels(view: View, *, grid: WorldGrid) -> ViewPixels:
-    """The view-only part of :func:`frame_pixels`, computed once per view and shared by its methods.
+    """The view-only part of :func:`frame_pixels`, which keeps it in :meth:`csmlab.frame.View.shared` for the view's methods.
 
     Parameters
     ----------
@@ -193,12 +187,12 @@ def view_pixels(view: View, *, grid: WorldGrid) -> ViewPixels:
     k = _stride(g.shape[1])
     take = (slice(None, None, k), slice(None, None, k))
     reference = np.asarray(view.reference, dtype=np.float64)[take]
-    return ViewPixels(index=int(view.index), grid=grid, stride=k, cells=grid.index(g.position),
+    return ViewPixels(stride=k, cells=grid.index(g.position),
                       valid=g.valid[take],
                       reference=np.where(np.isfinite(reference), reference > 0.5, NO_VALUE).astype(np.uint8))
 
 
-def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid, per_view: ViewPixels | None = None) -> dict:
+def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid) -> dict:
     """The per-frame record of one method: sampled per-pixel values, 3D geometry, world-cell sums.
 
     Parameters
@@ -210,9 +204,6 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid, per_view: ViewP
         ``ref_diff`` and ``flipped`` (H, W).
     grid : WorldGrid, keyword-only
         The run's ground cells.
-    per_view : ViewPixels, optional, keyword-only
-        :func:`view_pixels` of ``frame.view`` and ``grid``, when the caller shares it among the
-        view's methods; computed here when not given.
 
     Returns
     -------
@@ -228,21 +219,13 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid, per_view: ViewP
         ``cells`` (K,) int64 flat indices of the ground cells that counted pixels fall in, with
         ``cell_dS`` (K,) float64 sum of |ΔS|, ``cell_counted`` and ``cell_flips`` (K,) int64, at
         full resolution; ``rho_hist`` (C, len(RHO_EDGES) - 1) int64: pixels per log2 ρ bin and
-        selected cascade.
-
-    Raises
-    ------
-    ValueError
-        If ``per_view`` is of another view, grid or image size.
+        selected cascade. The view-only part (:func:`view_pixels`) is computed once per view and
+        grid, by the first method of the view.
     """
     from csmlab.report.images import srgb_from_linear
 
     view = frame.view
-    if per_view is None:
-        per_view = view_pixels(view, grid=grid)
-    elif per_view.index != view.index or per_view.grid != grid or per_view.cells.shape != view.gbuffer.shape:
-        raise ValueError(f"per_view: expected the view pixels of frame {view.index} ({view.gbuffer.shape} pixels) "
-                         f"on {grid}, got frame {per_view.index}'s ({per_view.cells.shape} pixels) on {per_view.grid}")
+    per_view = view.shared(("view_pixels", grid), lambda: view_pixels(view, grid=grid))
     k = per_view.stride
     take = (slice(None, None, k), slice(None, None, k))
     lit = np.where(per_view.valid, frame.shadow.lit[take], np.nan)
