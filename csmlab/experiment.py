@@ -16,6 +16,7 @@ to write the results files (:mod:`csmlab.results`) and the report's captures in 
 from __future__ import annotations
 
 import dataclasses
+import os
 import pickle
 import time
 from collections.abc import Callable
@@ -90,6 +91,9 @@ class Job:
         path, so that no chunk depends on where the path was cut).
     held_extents : dict of (method, point) to ndarray, shape (N, C, 2)
         Extent hysteresis: each tight box's held size in every frame (computed once, likewise).
+    threads : int
+        CPU threads each worker's kernels may use at once (:class:`csmlab.render.DeviceScene`): the
+        cores the processes leave over.
     """
 
     workload: Workload
@@ -99,6 +103,7 @@ class Job:
     image_frames: frozenset = frozenset()
     held_depths: dict = dataclasses.field(default_factory=dict)
     held_extents: dict = dataclasses.field(default_factory=dict)
+    threads: int = 1
 
 
 @dataclass(frozen=True)
@@ -296,11 +301,11 @@ def _prepared_scene(job: Job):
     """The scene on the job's device, built once per process and kept for the next chunks."""
     from csmlab.render import prepare_scene
 
-    key = (job.workload.key, job.device)
+    key = (job.workload.key, job.device, job.threads)
     if key not in _PREPARED:
         _quiet_warp()
         _PREPARED.clear()
-        _PREPARED[key] = prepare_scene(job.workload.scene, device=job.device)
+        _PREPARED[key] = prepare_scene(job.workload.scene, device=job.device, threads=job.threads)
     return _PREPARED[key]
 
 
@@ -492,9 +497,12 @@ def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, executor: 
 
     report_progress()
     held_depths = _held_depths(workload, variants, device=device)
+    # Processes share out the cores first (a Dask worker has one thread); a core no process has is a thread's.
+    processes = jobs if executor == "dask" else max(1, min(jobs, len(todo)))
+    threads = 1 if executor == "dask" else max(1, (os.cpu_count() or 1) // processes)
     job = Job(workload=workload, variants=variants, snapshot_frames=_snapshot_frames(experiment, frames),
               device=device, image_frames=image_frames(frames), held_depths=held_depths,
-              held_extents=_held_extents(workload, variants, held_depths, device=device))
+              held_extents=_held_extents(workload, variants, held_depths, device=device), threads=threads)
     order = [(v.method, v.point) for v in variants]
     for chunk, result in execute(run_chunk, todo, shared=job, executor=executor, jobs=jobs, address=address):
         parts = {_captures_part(rank): result.captures[key] for rank, key in enumerate(order)

@@ -21,8 +21,8 @@ from csmlab.filters import (filter_mips, filter_moments, filtered_shadow_lookup,
                             receiver_conversion, uses_pixels, world_shadow_lookup)
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import normalized
-from csmlab.kernels.raster import (rasterize_cascades, rasterize_depth, region_candidates, triangle_bounds,
-                                  whole_map_regions)
+from csmlab.kernels.raster import (banded_regions, rasterize_cascades, rasterize_depth, region_candidates,
+                                  triangle_bounds, whole_map_regions)
 from csmlab.kernels.reference import hard_shadow
 from csmlab.kernels.shadow import receiver_coordinates
 from csmlab.kernels.visibility import MeshBVH, camera_hits, mesh_bvh
@@ -56,6 +56,9 @@ class DeviceScene:
         The scene in the light space of the last light direction seen (what the cascade pass
         needs of every vertex and triangle, which a static light leaves unchanged from frame to
         frame), keyed by the light basis.
+    threads : int
+        CPU threads a frame's kernels may use at once (one Warp CPU launch runs on one thread):
+        1 where processes already share out the cores (:mod:`csmlab.executor`).
     """
 
     scene: Scene
@@ -63,12 +66,15 @@ class DeviceScene:
     device: str
     corners: np.ndarray = field(compare=False, repr=False)
     light_space: dict = field(default_factory=dict, compare=False, repr=False)
+    threads: int = 1
 
 
-def prepare_scene(scene: Scene, *, device: str = "cpu") -> DeviceScene:
-    """Upload ``scene`` to ``device`` (``"cpu"`` or ``"cuda"``) and build its BVH."""
+def prepare_scene(scene: Scene, *, device: str = "cpu", threads: int = 1) -> DeviceScene:
+    """Upload ``scene`` to ``device`` (``"cpu"`` or ``"cuda"``) and build its BVH; ``threads`` as :class:`DeviceScene`."""
+    if not isinstance(threads, (int, np.integer)) or threads < 1:
+        raise ValueError(f"threads: expected an integer ≥ 1, got {threads!r}")
     return DeviceScene(scene=scene, bvh=mesh_bvh(scene.vertices, scene.triangles, device=device), device=device,
-                       corners=scene.corners())
+                       corners=scene.corners(), threads=int(threads))
 
 
 def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width: int, height: int,
@@ -188,10 +194,14 @@ def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
     sizes = [c.resolution for c in cascades.cascades]
 
     def rasterized(corner, fixed_origin, regions, **how):
+        # With several threads each region is cut in bands, one per thread, each band's triangles culled apart.
+        regions = banded_regions(regions, parts=dscene.threads) if dscene.threads > 1 else regions
         candidates = region_candidates(bounds, texel_size=texel_size, origin=corner, regions=regions)
-        return rasterize_cascades(xy, depth_of_vertex, dscene.scene.triangles, texel_size=texel_size,
-                                  origin=fixed_origin, resolution=max(sizes), bits=bits, regions=regions,
-                                  candidates=candidates, device=dscene.device, **how)
+        depth, texels = rasterize_cascades(xy, depth_of_vertex, dscene.scene.triangles, texel_size=texel_size,
+                                           origin=fixed_origin, resolution=max(sizes), bits=bits, regions=regions,
+                                           candidates=candidates, threads=dscene.threads, device=dscene.device,
+                                           **how)
+        return depth, np.bincount(regions[:, 0], weights=texels, minlength=len(sizes)).astype(np.int64)
 
     corner = np.stack([c.origin for c in cascades.cascades])
     if np.any(origin % (1 << bits)):
@@ -200,12 +210,10 @@ def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
     plan = scroll_plan(previous, basis=cascades.basis, zref=cascades.zref, bits=bits, texel_size=texel_size,
                        origin=origin, resolution=sizes)
     depth, texels = rasterized(corner, origin, plan.regions, depth=plan.depth)
-    per_cascade = plan.kept_texels.copy()
-    np.add.at(per_cascade, plan.regions[:, 0], texels)
+    per_cascade = plan.kept_texels + texels
     if len(plan.left):
         # Counted where the previous boxes lay (scroll_plan keeps only boxes of this texel size).
-        _, left = rasterized(previous.origin / float(1 << bits), previous.origin, plan.left, count_only=True)
-        np.subtract.at(per_cascade, plan.left[:, 0], left)
+        per_cascade -= rasterized(previous.origin / float(1 << bits), previous.origin, plan.left, count_only=True)[1]
     depth.flags.writeable = False
     raster = RasterizedMaps(basis=cascades.basis, zref=cascades.zref, bits=bits, texel_size=texel_size, origin=origin,
                             resolution=np.array(sizes), depth=depth, texels=per_cascade)

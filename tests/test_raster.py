@@ -328,3 +328,46 @@ def test_a_map_rasterized_region_by_region_is_the_whole_map_and_counting_alone_c
     np.testing.assert_array_equal(counted, counts)
     full = region_candidates(bounds, texel_size=box["texel_size"], origin=corner, regions=whole_map_regions([40, 40]))
     assert len(candidates) < 3 * len(full)
+
+
+@pytest.mark.parametrize("parts", [1, 2, 3, 5])
+def test_bands_tile_each_region_exactly(parts):
+    from csmlab.kernels.raster import banded_regions
+
+    regions = np.array([(0, 0, 40, 0, 40), (1, 0, 40, 0, 3), (1, 0, 2, 3, 40), (2, 5, 6, 7, 8)], np.int32)
+    bands = banded_regions(regions, parts=parts)
+    assert np.all(bands[:, 2] > bands[:, 1]) and np.all(bands[:, 4] > bands[:, 3])
+    for c in range(3):
+        hits, expected = np.zeros((40, 40), int), np.zeros((40, 40), int)
+        for _, a0, a1, b0, b1 in bands[bands[:, 0] == c]:
+            hits[b0:b1, a0:a1] += 1
+        for _, a0, a1, b0, b1 in regions[regions[:, 0] == c]:
+            expected[b0:b1, a0:a1] += 1
+        np.testing.assert_array_equal(hits, expected)
+    assert len(bands[(bands[:, 0] == 0)]) == parts
+    assert len(bands[(bands[:, 0] == 2)]) == 1
+
+
+@pytest.mark.parametrize("threads", [2, 3])
+def test_threads_rasterize_the_same_maps_and_counts_as_one(threads):
+    from csmlab.kernels.raster import banded_regions, rasterize_cascades, region_candidates, triangle_bounds
+    from csmlab.kernels.raster import whole_map_regions
+    from csmlab.texels import fixed_point_origin, light_plane_coordinates
+
+    rng = np.random.default_rng(17)
+    cs = cascade_set(direction=OBLIQUE, origins=[(7.0, -3.0), (20.0, 11.0)], texel=0.0411, resolution=40)
+    vertices, triangles = triangle_soup(rng, cs, count=300, lo=-10.0, hi=60.0, size=7.0)
+    xy = light_plane_coordinates(cs, vertices)
+    bounds = triangle_bounds(xy, triangles)
+    box = dict(texel_size=np.stack([c.texel_size for c in cs.cascades]),
+               origin=np.stack([fixed_point_origin(cs, c, bits=BITS) for c in range(len(cs))]), resolution=40, bits=BITS)
+    corner = np.stack([c.origin for c in cs.cascades])
+    one, one_count = rasterize_cascades(xy, light_depth(cs, vertices), triangles, **box)
+    regions = banded_regions(whole_map_regions([40, 40]), parts=threads)
+    candidates = region_candidates(bounds, texel_size=box["texel_size"], origin=corner, regions=regions)
+    many, counts = rasterize_cascades(xy, light_depth(cs, vertices), triangles, regions=regions,
+                                      candidates=candidates, threads=threads, **box)
+    np.testing.assert_array_equal(many, one)
+    np.testing.assert_array_equal(np.bincount(regions[:, 0], weights=counts), one_count)
+    with pytest.raises(ValueError, match="threads"):
+        rasterize_cascades(xy, light_depth(cs, vertices), triangles, threads=0, **box)

@@ -33,6 +33,16 @@ def dscene():
     return prepare_scene(scene_of(scattered_boxes(3), plane_half=60.0))
 
 
+def test_two_threads_scroll_the_same_maps_as_one(dscene):
+    threaded = prepare_scene(dscene.scene, threads=2)
+    settings = ShadowSettings(cascades=3, resolution=96, shadow_distance=50.0, stabilization="exact")
+    light = direction_from_angles(elevation_deg=35.0, azimuth_deg=120.0)
+    for (whole, _, _), (_, scrolled, _) in zip(walk_frames(dscene, settings, lights=[light] * len(EYES)),
+                                               walk_frames(threaded, settings, lights=[light] * len(EYES))):
+        np.testing.assert_array_equal(scrolled.maps.depth, whole.maps.depth)
+        assert scrolled.maps.texels_rasterized == whole.maps.texels_rasterized
+
+
 @pytest.mark.parametrize("stabilization, sizes", [("exact", ()), ("quantized", ()), ("exact", (128, 96, 64))])
 def test_scrolled_maps_equal_the_maps_rasterized_whole_along_a_walk(dscene, stabilization, sizes):
     settings = ShadowSettings(cascades=3, resolution=128, cascade_resolutions=sizes, shadow_distance=50.0,

@@ -24,6 +24,7 @@ References
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -32,7 +33,7 @@ import warp as wp
 
 from csmlab.kernels import checked_device
 
-__all__ = ["TriangleBounds", "rasterize_cascades", "rasterize_depth", "region_candidates", "triangle_bounds",
+__all__ = ["TriangleBounds", "banded_regions", "rasterize_cascades", "rasterize_depth", "region_candidates", "triangle_bounds",
            "whole_map_regions"]
 
 
@@ -293,12 +294,15 @@ def rasterize_regions_kernel(
     sy = texel_size[c, 1]
     ox = origin[c, 0]
     oy = origin[c, 1]
-    covered[k] = rasterize_triangle(
-        doubled_fixed_point(light_xy[ia, 0], sx, scale, limit, ox), doubled_fixed_point(light_xy[ia, 1], sy, scale, limit, oy),
-        doubled_fixed_point(light_xy[ib, 0], sx, scale, limit, ox), doubled_fixed_point(light_xy[ib, 1], sy, scale, limit, oy),
-        doubled_fixed_point(light_xy[ic, 0], sx, scale, limit, ox), doubled_fixed_point(light_xy[ic, 1], sy, scale, limit, oy),
-        vertex_depth[ia], vertex_depth[ib], vertex_depth[ic], unit, bits, depth, c,
-        wp.vec4i(regions[g, 1], regions[g, 2], regions[g, 3], regions[g, 4]))
+    ax = doubled_fixed_point(light_xy[ia, 0], sx, scale, limit, ox)
+    ay = doubled_fixed_point(light_xy[ia, 1], sy, scale, limit, oy)
+    bx = doubled_fixed_point(light_xy[ib, 0], sx, scale, limit, ox)
+    by = doubled_fixed_point(light_xy[ib, 1], sy, scale, limit, oy)
+    cx = doubled_fixed_point(light_xy[ic, 0], sx, scale, limit, ox)
+    cy = doubled_fixed_point(light_xy[ic, 1], sy, scale, limit, oy)
+    covered[k] = rasterize_triangle(ax, ay, bx, by, cx, cy, vertex_depth[ia], vertex_depth[ib], vertex_depth[ic], unit,
+                                    bits, depth, c,
+                                    wp.vec4i(regions[g, 1], regions[g, 2], regions[g, 3], regions[g, 4]))
 
 
 def _checked_bits(bits) -> int:
@@ -446,6 +450,23 @@ def whole_map_regions(resolutions) -> np.ndarray:
                     axis=1)
 
 
+def banded_regions(regions, *, parts: int) -> np.ndarray:
+    """``regions`` ``(G, 5)`` each cut across its longer side into ``parts`` bands as equal as whole texels allow.
+
+    Rows ``(c, i0, i1, j0, j1)`` as :func:`region_candidates`; a region narrower than ``parts``
+    texels gives as many bands as it is wide. The bands of a region follow one another, so that
+    :func:`rasterize_cascades` deals them to its threads in turn.
+    """
+    out = []
+    for c, i0, i1, j0, j1 in np.asarray(regions, dtype=np.int64).reshape(-1, 5):
+        rows = j1 - j0 >= i1 - i0
+        lo, hi = (j0, j1) if rows else (i0, i1)
+        cuts = np.unique(np.linspace(lo, hi, min(parts, hi - lo) + 1).round().astype(np.int64))
+        for a, b in zip(cuts[:-1], cuts[1:]):
+            out.append((c, i0, i1, a, b) if rows else (c, a, b, j0, j1))
+    return np.array(out, dtype=np.int32).reshape(-1, 5)
+
+
 def region_candidates(bounds: TriangleBounds, *, texel_size, origin, regions) -> np.ndarray:
     """(region, triangle) pairs whose light-space rectangle meets the region: ``(K, 2)`` int32.
 
@@ -485,7 +506,7 @@ def region_candidates(bounds: TriangleBounds, *, texel_size, origin, regions) ->
 
 
 def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin, resolution: int, bits: int,
-                       regions=None, candidates=None, depth=None, count_only: bool = False,
+                       regions=None, candidates=None, depth=None, count_only: bool = False, threads: int = 1,
                        device: str = "cpu") -> tuple[np.ndarray | None, np.ndarray]:
     """Depth maps of every cascade from light-space vertices: fixed point and rasterization on the device.
 
@@ -523,6 +544,11 @@ def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin,
         values. Consumed: on the CPU it is filled in place and returned.
     count_only : bool
         Count the coverage tests that pass and store no depth (``depth`` is ignored and None returned).
+    threads : int
+        CPU launches run at once (one Warp CPU launch runs on one thread). The regions, which are
+        disjoint, are dealt to them in turn, so no two launches write one texel; cut large regions
+        into bands first (:func:`banded_regions`) so that each thread gets a share of each. Ignored
+        on CUDA.
     device : str
 
     Returns
@@ -569,16 +595,30 @@ def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin,
     if pairs.shape[0] == 0:
         return None if count_only else maps, np.zeros(areas.shape[0], dtype=np.int64)
     maps_on = wp.array(maps, dtype=wp.float32, device=device, copy=False)
-    covered = wp.empty(pairs.shape[0], dtype=wp.int32, device=device)
-    wp.launch(rasterize_regions_kernel, dim=pairs.shape[0],
-              inputs=(wp.array(xy, dtype=wp.float64, device=device, copy=False),
-                      wp.array(z, dtype=wp.float64, device=device, copy=False),
-                      wp.array(tri, dtype=wp.int32, device=device, copy=False),
-                      wp.array(size, dtype=wp.float64, device=device, copy=False),
-                      wp.array(corner, dtype=wp.int64, device=device, copy=False),
-                      wp.array(areas, dtype=wp.int32, device=device, copy=False),
-                      wp.array(np.ascontiguousarray(pairs), dtype=wp.int32, device=device, copy=False),
-                      float(2**bits), float(2**50), wp.int64(2**bits), wp.int64(bits)),
-              outputs=(maps_on, covered), device=device)
-    texels = np.bincount(pairs[:, 0], weights=covered.numpy(), minlength=areas.shape[0]).astype(np.int64)
-    return None if count_only else maps_on.numpy(), texels
+    inputs = (wp.array(xy, dtype=wp.float64, device=device, copy=False),
+              wp.array(z, dtype=wp.float64, device=device, copy=False),
+              wp.array(tri, dtype=wp.int32, device=device, copy=False),
+              wp.array(size, dtype=wp.float64, device=device, copy=False),
+              wp.array(corner, dtype=wp.int64, device=device, copy=False),
+              wp.array(areas, dtype=wp.int32, device=device, copy=False))
+    fixed = (float(2**bits), float(2**50), wp.int64(2**bits), wp.int64(bits))
+
+    def launch(subset: np.ndarray) -> np.ndarray:
+        covered = wp.empty(subset.shape[0], dtype=wp.int32, device=device)
+        wp.launch(rasterize_regions_kernel, dim=subset.shape[0],
+                  inputs=(*inputs, wp.array(subset, dtype=wp.int32, device=device), *fixed),
+                  outputs=(maps_on, covered), device=device)
+        return np.bincount(subset[:, 0], weights=covered.numpy(), minlength=areas.shape[0])
+
+    if not isinstance(threads, (int, np.integer)) or threads < 1:
+        raise ValueError(f"threads: expected an integer ≥ 1, got {threads!r}")
+    parts = min(int(threads), areas.shape[0]) if wp.get_device(device).is_cpu else 1
+    if parts == 1:
+        texels = launch(np.ascontiguousarray(pairs))
+    else:
+        # Region g goes to thread g mod parts: disjoint regions, so no texel is written by two launches.
+        wp.load_module(rasterize_regions_kernel.module, device=device)
+        with ThreadPoolExecutor(max_workers=parts) as pool:
+            shares = pool.map(launch, [np.ascontiguousarray(pairs[pairs[:, 0] % parts == k]) for k in range(parts)])
+            texels = np.sum(list(shares), axis=0)
+    return None if count_only else maps_on.numpy(), texels.astype(np.int64)

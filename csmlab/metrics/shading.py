@@ -39,7 +39,8 @@ def shading_terms(albedo, normal, *, light_direction) -> ShadingTerms:
                         cosine=np.maximum(np.asarray(normal, dtype=np.float64) @ towards_light, 0.0))
 
 
-def shaded_rgb(albedo, normal, lit, *, light_direction, ambient: float, terms: ShadingTerms | None = None) -> np.ndarray:
+def shaded_rgb(albedo, normal, lit, *, light_direction, ambient: float,
+               terms: ShadingTerms | None = None) -> np.ndarray:
     """Linear RGB of each pixel lit by a directional light through the shadow ``lit``.
 
     Parameters
