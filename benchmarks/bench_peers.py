@@ -15,7 +15,10 @@ shadow-map resolution, at frame 60 of the default experiment's walk, it times:
   ``shadow irregular, new light`` is the first with the scene's light-space vertices transformed
   anew each time, as for a light that moves every frame (a static light transforms them once);
 - ``depth maps``: csmlab's cascade pass (fixed-point conversion + rasterization of 4 cascades)
-  against ``cast_rays`` along the light through every texel centre of the same cascades;
+  against ``cast_rays`` along the light through every texel centre of the same cascades; ``depth
+  maps, 2 threads`` the same pass on both cores (:attr:`csmlab.render.DeviceScene.threads`), and
+  ``depth maps, scrolled`` the pass of an exact box scrolled from frame 59's maps, as a run does
+  (:mod:`csmlab.scrolling`);
 - ``lookup``: csmlab's shadow lookup at every visible pixel (no peer);
 - ``memcpy``: a copy of the depth maps (the memory-bandwidth floor the depth maps are compared to).
 
@@ -135,9 +138,11 @@ def peer_times(rc, rays: np.ndarray, repeats: int, *, occlusion: bool) -> tuple[
     return tuple(best_of(lambda: call(tensor, nthreads=n), repeats) for n in (2, 1))
 
 
-def bench_kernels(label: str, resolution: int, *, width: int, height: int, repeats: int, pose, light) -> list[dict]:
+def bench_kernels(label: str, resolution: int, *, width: int, height: int, repeats: int, pose, light,
+                  previous_pose) -> list[dict]:
     scene = make_scene("terrain", seed=1, resolution=SIZES[label])
     dscene = prepare_scene(scene, device="cpu")
+    both_cores = prepare_scene(scene, device="cpu", threads=2)
     rc, anchor = open3d_scene(scene)
     anchor = dscene.bvh.anchor if anchor is None else anchor
     settings = ShadowSettings(cascades=4, resolution=resolution, filter="pcf", filter_size=3)
@@ -145,6 +150,9 @@ def bench_kernels(label: str, resolution: int, *, width: int, height: int, repea
     cascades = build_cascades(pose=pose, light_direction=light, scene_corners=scene.corners(), settings=settings)
     g = view.gbuffer
     maps = shadow_maps(dscene, cascades, settings)
+    # The same method one frame earlier, what an exact box scrolls from (csmlab.scrolling).
+    earlier = shadow_maps(dscene, build_cascades(pose=previous_pose, light_direction=light,
+                                                 scene_corners=scene.corners(), settings=settings), settings)
     depth_copy = np.empty_like(maps.depth)
     texels = maps.depth.size
     pixels = width * height
@@ -152,6 +160,7 @@ def bench_kernels(label: str, resolution: int, *, width: int, height: int, repea
     b = dscene.bvh
     camera_peer = peer_times(rc, pixel_rays(pose, width, height, anchor), repeats, occlusion=False)
     shadow_peer = peer_times(rc, occluders, repeats, occlusion=True)
+    texel_peer = peer_times(rc, texel_rays(cascades, anchor), max(1, repeats // 2), occlusion=False)
     rows = [
         (f"gbuffer {method}", pixels, "Mrays/s",
          lambda method=method: camera_hits(b, position=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg,
@@ -169,7 +178,11 @@ def bench_kernels(label: str, resolution: int, *, width: int, height: int, repea
          lambda: (b.light_space.clear(), hard_shadow(b, points=g.position, normals=g.normal, light_direction=light)),
          lambda: shadow_peer),
         ("depth maps", texels, "Mtexels/s", lambda: shadow_maps(dscene, cascades, settings),
-         lambda: peer_times(rc, texel_rays(cascades, anchor), max(1, repeats // 2), occlusion=False)),
+         lambda: texel_peer),
+        ("depth maps, 2 threads", texels, "Mtexels/s", lambda: shadow_maps(both_cores, cascades, settings),
+         lambda: texel_peer),
+        ("depth maps, scrolled", texels, "Mtexels/s",
+         lambda: shadow_maps(dscene, cascades, settings, scroll_from=earlier), lambda: texel_peer),
         ("lookup", pixels, "Mpix/s",
          lambda: lookup_shadow(maps, points=g.position, normals=g.normal, view_depth=g.view_depth,
                                settings=settings), None),
@@ -181,7 +194,7 @@ def bench_kernels(label: str, resolution: int, *, width: int, height: int, repea
         two, one = peer() if peer is not None else (float("nan"), float("nan"))
         out.append(dict(scene=label, triangles=scene.triangle_count, resolution=resolution, stage=stage,
                         count=count, unit=unit, csmlab_s=seconds, open3d_2t_s=two, open3d_1t_s=one,
-                        memcpy_s=floor if stage == "depth maps" else float("nan")))
+                        memcpy_s=floor if stage.startswith("depth maps") else float("nan")))
     out.append(dict(scene=label, triangles=scene.triangle_count, resolution=resolution, stage="memcpy",
                     count=texels, unit="Mtexels/s", csmlab_s=floor, open3d_2t_s=float("nan"),
                     open3d_1t_s=float("nan"), memcpy_s=floor))
@@ -295,11 +308,12 @@ def main() -> None:
     experiment = load_experiment(ROOT / "experiments" / "default.toml")
     workload = build_workload(experiment)
     pose, light = workload.path.pose(FRAME), workload.light.direction(FRAME)
+    previous_pose = workload.path.pose(FRAME - 1)
     rows = []
     for label in sizes:
         for resolution in resolutions:
             rows += bench_kernels(label, resolution, width=args.width, height=args.height, repeats=args.repeats,
-                                  pose=pose, light=light)
+                                  pose=pose, light=light, previous_pose=previous_pose)
     if not args.no_metrics:
         rows += bench_metrics(repeats=args.repeats)
     try:
