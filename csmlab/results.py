@@ -36,6 +36,7 @@ sees half a file.
 from __future__ import annotations
 
 import csv
+import importlib.metadata
 import io
 import json
 import math
@@ -234,12 +235,11 @@ def summarize(variants: dict, *, columns, methods, points) -> tuple[dict, dict]:
 
 def environment(*, device: str) -> dict:
     """Versions and machine the numbers came from (no time, no host name: two runs give the same)."""
-    import warp
-
     return {
         "python": platform.python_version(),
         "numpy": np.__version__,
-        "warp": warp.config.version,
+        # The installed distribution's version: importing Warp for it would cost the parent a second.
+        "warp": importlib.metadata.version("warp-lang"),
         "platform": platform.platform(),
         "machine": platform.machine(),
         "device": device,
