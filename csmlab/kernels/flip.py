@@ -43,7 +43,7 @@ from csmlab.kernels import checked_device
 __all__ = ["FLIP_DEFAULT_PPD", "flip_error_map", "flip_filter_radii"]
 
 # The C++ multiplies and adds separately; an FMA would round differently.
-wp.set_module_options({"fuse_fp": False})
+wp.set_module_options({"fuse_fp": False, "optimization_level": 3})
 
 _F = np.float32
 _PI = _F(3.14159265358979)
@@ -252,131 +252,124 @@ def filter_weights_kernel(
     cmax[0] = wp.pow(hyab(green, blue), QC)
 
 
+@wp.func
+def redistributed(d: float, cmax: float) -> float:
+    """The colour difference ``HyAB^qc`` mapped to [0, 1]: [0, pc·cmax) onto [0, pt), the rest onto [pt, 1]."""
+    pccmax = PC * cmax
+    if d < pccmax:
+        return d * (PT / pccmax)
+    return PT + ((d - pccmax) / (cmax - pccmax)) * (1.0 - PT)
+
+
+@wp.func
+def filtered_lab(y: float, cx: float, cz: float) -> wp.vec3:
+    """Hunt-adjusted CIELAB of a filtered YCxCz colour, clamped to the linear RGB cube first."""
+    linear = clamp01(apply3(XYZ_TO_RGB, xyz_from_ycxcz(wp.vec3(y, cx, cz))))
+    return hunt_adjusted(lab_from_xyz(apply3(RGB_TO_XYZ, linear)))
+
+
+@wp.func
+def edge_and_point(d: wp.vec4) -> wp.vec2:
+    """Edge and point strengths of (d/dx, d²/dx², d/dy, d²/dy²): the gradient's and the second derivatives' norms."""
+    return wp.vec2(wp.sqrt(d[0] * d[0] + d[2] * d[2]), wp.sqrt(d[1] * d[1] + d[3] * d[3]))
+
+
+@wp.func
+def flip_error(color_difference: float, reference_features: wp.vec2, test_features: wp.vec2) -> float:
+    """``color_difference^(1 − feature difference)``, the feature difference ``(max(|Δedge|, |Δpoint|)/√2)^qf``."""
+    edge = wp.abs(reference_features[0] - test_features[0])
+    point = wp.abs(reference_features[1] - test_features[1])
+    feature = wp.pow(INV_SQRT2 * wp.max(edge, point), QF)
+    return wp.pow(color_difference, 1.0 - feature)
+
+
 @wp.kernel
-def ycxcz_kernel(srgb: wp.array3d(dtype=wp.vec3), ycxcz: wp.array3d(dtype=wp.vec3)):
+def ycxcz_kernel(srgb: wp.array3d(dtype=wp.vec3), ycxcz: wp.array3d(dtype=wp.vec3),
+                 luma: wp.array3d(dtype=float)):
     k, i, j = wp.tid()
     c = srgb[k, i, j]
     linear = clamp01(wp.vec3(linear_from_srgb(c[0]), linear_from_srgb(c[1]), linear_from_srgb(c[2])))
-    ycxcz[k, i, j] = ycxcz_from_xyz(apply3(RGB_TO_XYZ, linear))
+    v = ycxcz_from_xyz(apply3(RGB_TO_XYZ, linear))
+    ycxcz[k, i, j] = v
+    # The feature filters' input: the achromatic channel normalised to [0, 1].
+    luma[k, i, j] = v[0] * ONE_OVER_116 + SIXTEEN_OVER_116
 
 
 @wp.kernel
-def spatial_rows_kernel(
+def rows_kernel(
     ycxcz: wp.array3d(dtype=wp.vec3),
-    weights: wp.array(dtype=wp.vec4),
-    radius: int,
-    rows: wp.array3d(dtype=wp.vec4),
+    luma: wp.array3d(dtype=float),
+    spatial: wp.array(dtype=wp.vec4),
+    spatial_radius: int,
+    feature: wp.array(dtype=wp.vec3),
+    feature_radius: int,
+    spatial_rows: wp.array3d(dtype=wp.vec4),
+    feature_rows: wp.array3d(dtype=wp.vec3),
 ):
-    k, i, j = wp.tid()
-    last = ycxcz.shape[2] - 1
-    y = float(0.0)
-    cx = float(0.0)
-    cz1 = float(0.0)
-    cz2 = float(0.0)
-    for t in range(-radius, radius + 1):
-        c = ycxcz[k, i, wp.min(wp.max(0, j + t), last)]
-        w = weights[t + radius]
-        y += w[0] * c[0]
-        cx += w[1] * c[1]
-        cz1 += w[2] * c[2]
-        cz2 += w[3] * c[2]
-    rows[k, i, j] = wp.vec4(y, cx, cz1, cz2)
-
-
-@wp.kernel
-def spatial_columns_kernel(
-    rows: wp.array3d(dtype=wp.vec4),
-    weights: wp.array(dtype=wp.vec4),
-    radius: int,
-    lab: wp.array3d(dtype=wp.vec3),
-):
-    k, i, j = wp.tid()
-    last = rows.shape[1] - 1
-    y = float(0.0)
-    cx = float(0.0)
-    cz1 = float(0.0)
-    cz2 = float(0.0)
-    for t in range(-radius, radius + 1):
-        r = rows[k, wp.min(wp.max(0, i + t), last), j]
-        w = weights[t + radius]
-        y += w[0] * r[0]
-        cx += w[1] * r[1]
-        cz1 += w[2] * r[2]
-        cz2 += w[3] * r[3]
-    linear = clamp01(apply3(XYZ_TO_RGB, xyz_from_ycxcz(wp.vec3(y, cx, cz1 + cz2))))
-    lab[k, i, j] = hunt_adjusted(lab_from_xyz(apply3(RGB_TO_XYZ, linear)))
-
-
-@wp.kernel
-def color_difference_kernel(lab: wp.array3d(dtype=wp.vec3), cmax: wp.array(dtype=float),
-                            difference: wp.array2d(dtype=float)):
+    # Both images in one thread: the clamped taps and the weights are read once for the two.
     i, j = wp.tid()
-    c = cmax[0]
-    pccmax = PC * c
-    d = wp.pow(hyab(lab[0, i, j], lab[1, i, j]), QC)
-    # Differences below pc·cmax fill [0, pt]; the rest (pt, 1].
-    if d < pccmax:
-        d = d * (PT / pccmax)
-    else:
-        d = PT + ((d - pccmax) / (c - pccmax)) * (1.0 - PT)
-    difference[i, j] = d
-
-
-@wp.kernel
-def feature_rows_kernel(
-    ycxcz: wp.array3d(dtype=wp.vec3),
-    weights: wp.array(dtype=wp.vec3),
-    radius: int,
-    rows: wp.array3d(dtype=wp.vec3),
-):
-    k, i, j = wp.tid()
     last = ycxcz.shape[2] - 1
-    dx = float(0.0)
-    ddx = float(0.0)
-    g = float(0.0)
-    for t in range(-radius, radius + 1):
-        # The achromatic channel normalised to [0, 1].
-        y = ycxcz[k, i, wp.min(wp.max(0, j + t), last)][0] * ONE_OVER_116 + SIXTEEN_OVER_116
-        w = weights[t + radius]
-        dx += w[1] * y
-        ddx += w[2] * y
-        g += w[0] * y
-    rows[k, i, j] = wp.vec3(dx, ddx, g)
+    reference = wp.vec4(0.0)
+    test = wp.vec4(0.0)
+    for t in range(-spatial_radius, spatial_radius + 1):
+        jj = wp.min(wp.max(0, j + t), last)
+        w = spatial[t + spatial_radius]
+        a = ycxcz[0, i, jj]
+        b = ycxcz[1, i, jj]
+        # (Y, Cx, Cz, Cz) weighted by (Y, Cx, first Cz, second Cz) weights.
+        reference += wp.cw_mul(w, wp.vec4(a[0], a[1], a[2], a[2]))
+        test += wp.cw_mul(w, wp.vec4(b[0], b[1], b[2], b[2]))
+    spatial_rows[0, i, j] = reference
+    spatial_rows[1, i, j] = test
+    # (d/dx, d²/dx², Gaussian) of the luma.
+    reference_features = wp.vec3(0.0)
+    test_features = wp.vec3(0.0)
+    for t in range(-feature_radius, feature_radius + 1):
+        jj = wp.min(wp.max(0, j + t), last)
+        g = feature[t + feature_radius]
+        reference_features += wp.vec3(g[1], g[2], g[0]) * luma[0, i, jj]
+        test_features += wp.vec3(g[1], g[2], g[0]) * luma[1, i, jj]
+    feature_rows[0, i, j] = reference_features
+    feature_rows[1, i, j] = test_features
 
 
 @wp.kernel
-def feature_columns_kernel(
-    rows: wp.array3d(dtype=wp.vec3),
-    weights: wp.array(dtype=wp.vec3),
-    radius: int,
-    features: wp.array3d(dtype=wp.vec2),
+def columns_kernel(
+    spatial_rows: wp.array3d(dtype=wp.vec4),
+    feature_rows: wp.array3d(dtype=wp.vec3),
+    spatial: wp.array(dtype=wp.vec4),
+    spatial_radius: int,
+    feature: wp.array(dtype=wp.vec3),
+    feature_radius: int,
+    cmax: wp.array(dtype=float),
+    error: wp.array2d(dtype=float),
 ):
-    k, i, j = wp.tid()
-    last = rows.shape[1] - 1
-    dx = float(0.0)
-    ddx = float(0.0)
-    dy = float(0.0)
-    ddy = float(0.0)
-    for t in range(-radius, radius + 1):
-        r = rows[k, wp.min(wp.max(0, i + t), last), j]
-        w = weights[t + radius]
-        dx += w[0] * r[0]
-        ddx += w[0] * r[1]
-        dy += w[1] * r[2]
-        ddy += w[2] * r[2]
-    features[k, i, j] = wp.vec2(wp.sqrt(dx * dx + dy * dy), wp.sqrt(ddx * ddx + ddy * ddy))
-
-
-@wp.kernel
-def flip_error_kernel(features: wp.array3d(dtype=wp.vec2), difference: wp.array2d(dtype=float),
-                      error: wp.array2d(dtype=float)):
     i, j = wp.tid()
-    reference = features[0, i, j]
-    test = features[1, i, j]
-    edge = wp.abs(reference[0] - test[0])
-    point = wp.abs(reference[1] - test[1])
-    feature = wp.pow(INV_SQRT2 * wp.max(edge, point), QF)
-    error[i, j] = wp.pow(difference[i, j], 1.0 - feature)
+    last = spatial_rows.shape[1] - 1
+    reference = wp.vec4(0.0)
+    test = wp.vec4(0.0)
+    for t in range(-spatial_radius, spatial_radius + 1):
+        ii = wp.min(wp.max(0, i + t), last)
+        w = spatial[t + spatial_radius]
+        reference += wp.cw_mul(w, spatial_rows[0, ii, j])
+        test += wp.cw_mul(w, spatial_rows[1, ii, j])
+    # The two Cz parts add (the Cz filter is a sum of two Gaussians).
+    reference_lab = filtered_lab(reference[0], reference[1], reference[2] + reference[3])
+    test_lab = filtered_lab(test[0], test[1], test[2] + test[3])
+    color_difference = redistributed(wp.pow(hyab(reference_lab, test_lab), QC), cmax[0])
+
+    # x-derivatives smoothed in y by the Gaussian, the x-smoothed luma differentiated in y.
+    reference_features = wp.vec4(0.0)
+    test_features = wp.vec4(0.0)
+    for t in range(-feature_radius, feature_radius + 1):
+        ii = wp.min(wp.max(0, i + t), last)
+        g = feature[t + feature_radius]
+        weights = wp.vec4(g[0], g[0], g[1], g[2])
+        a = feature_rows[0, ii, j]
+        b = feature_rows[1, ii, j]
+        reference_features += wp.cw_mul(weights, wp.vec4(a[0], a[1], a[2], a[2]))
+        test_features += wp.cw_mul(weights, wp.vec4(b[0], b[1], b[2], b[2]))
+    error[i, j] = flip_error(color_difference, edge_and_point(reference_features), edge_and_point(test_features))
 
 
 @functools.lru_cache(maxsize=8)
@@ -442,23 +435,14 @@ def flip_error_map(reference, test, *, pixels_per_degree: float = FLIP_DEFAULT_P
     pair = (2, height, width)
     srgb = wp.array(np.stack((reference, test)), dtype=wp.vec3, device=device)
     ycxcz = wp.empty(pair, dtype=wp.vec3, device=device)
-    wp.launch(ycxcz_kernel, dim=pair, inputs=(srgb,), outputs=(ycxcz,), device=device)
-
+    luma = wp.empty(pair, dtype=float, device=device)
+    wp.launch(ycxcz_kernel, dim=pair, inputs=(srgb,), outputs=(ycxcz, luma), device=device)
     spatial_rows = wp.empty(pair, dtype=wp.vec4, device=device)
-    lab = wp.empty(pair, dtype=wp.vec3, device=device)
-    difference = wp.empty((height, width), dtype=float, device=device)
-    wp.launch(spatial_rows_kernel, dim=pair, inputs=(ycxcz, spatial, spatial_radius), outputs=(spatial_rows,),
-              device=device)
-    wp.launch(spatial_columns_kernel, dim=pair, inputs=(spatial_rows, spatial, spatial_radius), outputs=(lab,),
-              device=device)
-    wp.launch(color_difference_kernel, dim=(height, width), inputs=(lab, cmax), outputs=(difference,), device=device)
-
     feature_rows = wp.empty(pair, dtype=wp.vec3, device=device)
-    features = wp.empty(pair, dtype=wp.vec2, device=device)
+    wp.launch(rows_kernel, dim=(height, width), inputs=(ycxcz, luma, spatial, spatial_radius, feature, feature_radius),
+              outputs=(spatial_rows, feature_rows), device=device)
     error = wp.empty((height, width), dtype=float, device=device)
-    wp.launch(feature_rows_kernel, dim=pair, inputs=(ycxcz, feature, feature_radius), outputs=(feature_rows,),
-              device=device)
-    wp.launch(feature_columns_kernel, dim=pair, inputs=(feature_rows, feature, feature_radius),
-              outputs=(features,), device=device)
-    wp.launch(flip_error_kernel, dim=(height, width), inputs=(features, difference), outputs=(error,), device=device)
+    wp.launch(columns_kernel, dim=(height, width),
+              inputs=(spatial_rows, feature_rows, spatial, spatial_radius, feature, feature_radius, cmax),
+              outputs=(error,), device=device)
     return error.numpy()
