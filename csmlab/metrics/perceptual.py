@@ -309,8 +309,10 @@ def flip_map(reference, test, *, changed=None, method: str = "warp", device: str
     return _windowed(evaluate, (reference, test), windows, shape=(height, width), fill=0.0, dtype=np.float32)
 
 
-def perceptual_summary(maps: PerceptualMaps) -> dict[str, float]:
+def perceptual_summary(maps: PerceptualMaps, *, device: str = "cpu") -> dict[str, float]:
     """ΔE2000 statistics, SSIM of the shadow images and mean ꟻLIP of the shaded images.
+
+    ꟻLIP by the default of :data:`FLIP_METHODS` (``warp``) on the Warp ``device``.
 
     Returns
     -------
@@ -335,5 +337,5 @@ def perceptual_summary(maps: PerceptualMaps) -> dict[str, float]:
     else:
         out["ssim"] = float("nan")
     shaded, previous_shaded = _filled_pair(maps.shaded, maps.previous_shaded, compared)
-    out["flip"] = finite_mean(flip_map(previous_shaded, shaded, changed=changed)[compared])
+    out["flip"] = finite_mean(flip_map(previous_shaded, shaded, changed=changed, device=device)[compared])
     return out
