@@ -8,8 +8,9 @@ from csmlab.cascades import build_cascades
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.kernels.visibility import CameraHits
 from csmlab.geometry import rotation_looking_at
-from csmlab.metrics.perceptual import (JND_CIEDE2000, changed_windows, delta_e_2000, flip_map, lab_from_linear_srgb,
-                                       perceptual_maps, perceptual_summary, ssim_map)
+from csmlab.metrics.perceptual import (FLIP_METHODS, FLIP_WHOLE_IMAGE_FRACTION, JND_CIEDE2000, changed_windows,
+                                       delta_e_2000, flip_map, lab_from_linear_srgb, perceptual_maps,
+                                       perceptual_summary, ssim_map)
 from csmlab.metrics.shading import shaded_rgb, shading_terms
 from csmlab.settings import ShadowSettings
 
@@ -147,15 +148,38 @@ def test_windowed_ssim_equals_the_whole_image_ssim_bit_for_bit(seed):
     np.testing.assert_array_equal(ssim_map(previous, current, changed=changed), ssim_map(previous, current))
 
 
+@pytest.mark.parametrize("method", sorted(FLIP_METHODS))
 @pytest.mark.parametrize("seed", range(4))
-def test_windowed_flip_equals_the_whole_image_flip_bit_for_bit(seed):
+def test_windowed_flip_equals_the_whole_image_flip_bit_for_bit(seed, method):
     previous, current, changed = _sparse_pair(seed)
     rng = np.random.default_rng(100 + seed)
     albedo = rng.random(current.shape + (3,))
     reference, test = albedo * previous[..., None], albedo * current[..., None]
-    whole = flip_map(reference, test)
+    whole = flip_map(reference, test, method=method)
     assert np.count_nonzero(whole) > changed.sum()  # the error spreads beyond the changed pixels
-    np.testing.assert_array_equal(flip_map(reference, test, changed=changed), whole)
+    np.testing.assert_array_equal(flip_map(reference, test, changed=changed, method=method), whole)
+
+
+def test_flip_of_changes_over_most_of_the_image_equals_flip_evaluators_windows():
+    # Changes every 12 pixels: windows cover the image, so the Warp method takes the whole image
+    # at once; flip_evaluator still takes its windows.
+    previous, current, _ = _sparse_pair(5)
+    previous[::12, ::12] = 1.0 - current[::12, ::12]
+    changed = previous != current
+    covered = sum((r.stop - r.start) * (c.stop - c.start) for (r, c), _ in changed_windows(changed, support=10))
+    assert covered > FLIP_WHOLE_IMAGE_FRACTION * changed.size
+    albedo = np.random.default_rng(6).random(current.shape + (3,))
+    reference, test = albedo * previous[..., None], albedo * current[..., None]
+    warp = flip_map(reference, test, changed=changed)
+    oracle = flip_map(reference, test, changed=changed, method="flip-evaluator")
+    assert np.abs(warp - oracle).max() <= 1e-5
+    assert abs(warp.mean(dtype=np.float64) - oracle.mean(dtype=np.float64)) <= 1e-6 * oracle.mean()
+
+
+def test_unknown_flip_method_is_refused_with_the_names():
+    image = np.zeros((4, 4, 3))
+    with pytest.raises(ValueError, match="flip method: expected one of \\['flip-evaluator', 'warp'\\]"):
+        flip_map(image, image, method="wrap")
 
 
 def test_windowed_delta_e_equals_the_whole_image_delta_e_bit_for_bit():

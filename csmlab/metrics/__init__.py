@@ -96,7 +96,7 @@ def measure_frame(frame: Frame, previous: Frame | None = None, *, ambient: float
         temporal = temporal_maps(frame, previous, device=device)
         perceptual = perceptual_maps(frame, temporal.previous_lit, ambient=ambient)
         values.update(temporal_summary(temporal))
-        values.update(perceptual_summary(perceptual))
+        values.update(perceptual_summary(perceptual, device=device))
         shaded, change, de2000 = perceptual.shaded, np.abs(temporal.change), perceptual.de2000
         flipped = temporal.flipped
     pixels = {"rho": alias.rho, "dS": change, "shaded": shaded, "ref_diff": errors.diff, "de2000": de2000,

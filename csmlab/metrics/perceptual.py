@@ -13,9 +13,12 @@ and are left out of every mean.
   images: the shadow is what the method controls), ``data_range=1`` since S ∈ [0, 1], with the
   Gaussian window (σ = 1.5, 11×11) and population covariances of Wang et al.; the SSIM map is
   averaged over the compared pixels.
-- ꟻLIP: NVIDIA's ``flip_evaluator`` in LDR mode on the sRGB-encoded shaded images (clipped to
-  [0, 1]; frame t−1 is the reference, frame t the test), default viewing conditions (67 pixels per
-  degree); the error map is averaged over the compared pixels.
+- ꟻLIP: LDR-ꟻLIP on the sRGB-encoded shaded images (clipped to [0, 1]; frame t−1 is the
+  reference, frame t the test), default viewing conditions (67.02 pixels per degree); the error map
+  is averaged over the compared pixels. By one of :data:`FLIP_METHODS`: ``warp``
+  (:func:`csmlab.kernels.flip.flip_error_map`, NVIDIA's C++ step for step in Warp kernels, the
+  default) or ``flip-evaluator`` (NVIDIA's own ``flip_evaluator`` package, the oracle it is tested
+  against); the two agree to float32 rounding of ``powf``.
 
 Only where the two evaluations differ. ΔE2000 is a per-pixel function that is exactly 0 between
 equal colours, and SSIM and ꟻLIP are local filters: a pixel whose whole filter support holds equal
@@ -48,10 +51,12 @@ from scipy.ndimage import maximum_filter
 from skimage.metrics import structural_similarity
 
 from csmlab.frame import Frame
+from csmlab.kernels.flip import flip_error_map, flip_filter_radii
 from csmlab.metric_registry import finite_mean
 from csmlab.metrics.shading import shaded_rgb, srgb_encoded, view_shading_terms
+from csmlab.registry import dispatch
 
-__all__ = ["FLIP_SUPPORT", "JND_CIEDE2000", "PerceptualMaps", "SSIM_SUPPORT", "changed_windows", "delta_e_2000",
+__all__ = ["FLIP_METHODS", "FLIP_SUPPORT", "JND_CIEDE2000", "PerceptualMaps", "SSIM_SUPPORT", "changed_windows", "delta_e_2000",
            "flip_map", "lab_from_linear_srgb", "perceptual_maps", "perceptual_summary", "ssim_map"]
 
 JND_CIEDE2000: float = 1.0
@@ -67,11 +72,16 @@ _SSIM_MIN_SIDE = 11
 SSIM_SUPPORT: int = int(3.5 * _SSIM_SIGMA + 0.5)
 """Radius in pixels of scikit-image's Gaussian SSIM window (truncated at 3.5 σ: 11 × 11)."""
 
-FLIP_SUPPORT: int = 10
-"""Radius in pixels over which an LDR-ꟻLIP error value depends on its inputs at 67 pixels per degree:
-the colour pipeline's spatial filter reaches ``ceil(3·sqrt(0.04 / (2π²))·67) = 10`` pixels and the
-feature pipeline's edge and point detectors ``ceil(3 · 0.5 · 0.082 · 67) = 9`` (Andersson et al.
-2020, sections 4.1 and 4.2)."""
+FLIP_SUPPORT: int = max(flip_filter_radii())
+"""Radius in pixels over which an LDR-ꟻLIP error value depends on its inputs at 67.02 pixels per
+degree: the colour pipeline's spatial filter reaches ``ceil(3·sqrt(0.04 / (2π²))·67.02) = 10`` pixels
+and the feature pipeline's edge and point detectors ``ceil(3 · 0.5 · 0.082 · 67.02) = 9`` (Andersson
+et al. 2020, sections 4.1 and 4.2)."""
+
+FLIP_WHOLE_IMAGE_FRACTION: float = 0.5
+"""With ``method="warp"``, windows covering more than this fraction of the image are evaluated as
+one whole image instead: the Warp pipeline costs about the same per pixel at any size, and one
+launch sequence spares the crops and the windows' overlapping borders."""
 
 
 @dataclass(frozen=True)
@@ -257,31 +267,52 @@ def ssim_map(previous, current, *, changed=None) -> np.ndarray:
                      shape=current.shape, fill=1.0, dtype=np.float64)
 
 
-def _flip_full(reference: np.ndarray, test: np.ndarray) -> np.ndarray:
-    error, _, _ = flip_evaluator.evaluate(
-        np.ascontiguousarray(srgb_encoded(reference), dtype=np.float32),
-        np.ascontiguousarray(srgb_encoded(test), dtype=np.float32),
-        "LDR", applyMagma=False, computeMeanError=False,
-    )
+def _flip_evaluator(reference: np.ndarray, test: np.ndarray) -> np.ndarray:
+    """NVIDIA's ``flip_evaluator`` (C++, one call per image pair)."""
+    error, _, _ = flip_evaluator.evaluate(reference, test, "LDR", applyMagma=False, computeMeanError=False)
     return np.asarray(error)[..., 0]
 
 
-def flip_map(reference, test, *, changed=None) -> np.ndarray:
+def _flip_warp(reference: np.ndarray, test: np.ndarray, *, device: str = "cpu") -> np.ndarray:
+    """:func:`csmlab.kernels.flip.flip_error_map` on a Warp device."""
+    return flip_error_map(reference, test, device=device)
+
+
+FLIP_METHODS = {"warp": _flip_warp, "flip-evaluator": _flip_evaluator}
+"""LDR-ꟻLIP implementations by name: each maps two sRGB float32 images ``(H, W, 3)`` in [0, 1]
+(reference, test) to the error map ``(H, W)`` float32 at ꟻLIP's default 67.02 pixels per degree."""
+
+
+def flip_map(reference, test, *, changed=None, method: str = "warp", device: str = "cpu") -> np.ndarray:
     """LDR-ꟻLIP error map ``(H, W)`` float32 of two linear RGB images ``(H, W, 3)`` (sRGB-encoded, clipped, here).
 
     With ``changed`` (bool ``(H, W)``) it is computed on :func:`changed_windows` only and is
-    exactly 0 elsewhere — the same values as the whole image gives.
+    exactly 0 elsewhere — the same values as the whole image gives. ``method`` names one of
+    :data:`FLIP_METHODS`; ``device`` is the Warp device of ``warp``. With ``warp``, windows that
+    cover more than :data:`FLIP_WHOLE_IMAGE_FRACTION` of the image are replaced by the whole image.
     """
+    def evaluate(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return dispatch(FLIP_METHODS, method, np.ascontiguousarray(srgb_encoded(a), dtype=np.float32),
+                        np.ascontiguousarray(srgb_encoded(b), dtype=np.float32), field="flip method",
+                        offered={"device": device})
+
     reference = np.asarray(reference, dtype=np.float64)
     test = np.asarray(test, dtype=np.float64)
     if changed is None:
-        return _flip_full(reference, test)
-    return _windowed(_flip_full, (reference, test), changed_windows(changed, support=FLIP_SUPPORT),
-                     shape=test.shape[:2], fill=0.0, dtype=np.float32)
+        return evaluate(reference, test)
+    windows = changed_windows(changed, support=FLIP_SUPPORT)
+    height, width = test.shape[:2]
+    covered = sum((rows.stop - rows.start) * (cols.stop - cols.start) for (rows, cols), _ in windows)
+    if method == "warp" and covered > FLIP_WHOLE_IMAGE_FRACTION * height * width:
+        # Out of every changed pixel's reach the whole image's error is exactly 0 too.
+        return evaluate(reference, test)
+    return _windowed(evaluate, (reference, test), windows, shape=(height, width), fill=0.0, dtype=np.float32)
 
 
-def perceptual_summary(maps: PerceptualMaps) -> dict[str, float]:
+def perceptual_summary(maps: PerceptualMaps, *, device: str = "cpu") -> dict[str, float]:
     """ΔE2000 statistics, SSIM of the shadow images and mean ꟻLIP of the shaded images.
+
+    ꟻLIP by the default of :data:`FLIP_METHODS` (``warp``) on the Warp ``device``.
 
     Returns
     -------
@@ -306,5 +337,5 @@ def perceptual_summary(maps: PerceptualMaps) -> dict[str, float]:
     else:
         out["ssim"] = float("nan")
     shaded, previous_shaded = _filled_pair(maps.shaded, maps.previous_shaded, compared)
-    out["flip"] = finite_mean(flip_map(previous_shaded, shaded, changed=changed)[compared])
+    out["flip"] = finite_mean(flip_map(previous_shaded, shaded, changed=changed, device=device)[compared])
     return out

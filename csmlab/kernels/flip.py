@@ -1,0 +1,448 @@
+"""LDR-ꟻLIP error map of two sRGB images, operation for operation as NVIDIA's C++ ``FLIP.h``.
+
+:func:`flip_error_map` follows ``FLIP::evaluate`` of the ``flip_evaluator`` package (version 1.7,
+``src/cpp/FLIP.h`` and ``src/nanobindFLIP.cpp`` of github.com/NVlabs/flip) in LDR mode with sRGB
+inputs, each step a small kernel over both images at once (index 0 the reference, 1 the test):
+
+1. ``ycxcz_kernel`` — sRGB → linear RGB (``nanobindFLIP.cpp``), clamp to [0, 1], → XYZ (D65) →
+   YCxCz (``LinearRGBToYCxCz``).
+2. ``spatial_rows_kernel``, ``spatial_columns_kernel`` — the contrast sensitivity filters of the
+   three opponent channels, separated (``setSpatialFilters``: Y and Cx one Gaussian each, Cz the
+   sum of two Gaussians split into two separable parts whose results add); then YCxCz → XYZ →
+   linear RGB clamped to [0, 1] → CIELAB → Hunt-adjusted a*, b* (``computeColorDifference``).
+3. ``color_difference_kernel`` — HyAB distance, raised to ``qc = 0.7`` and redistributed so that
+   ``pc · cmax`` maps to ``pt = 0.95`` (``cmax`` the distance between green and blue).
+4. ``feature_rows_kernel``, ``feature_columns_kernel`` — first and second derivatives of a
+   Gaussian of σ = 0.5 · 0.082 · ppd pixels on the normalised achromatic channel: edge and point
+   strengths (``setFeatureFilter``, ``computeFeatureDifferenceAndFinalError``).
+5. ``flip_error_kernel`` — feature difference ``(max(|Δedge|, |Δpoint|) / √2)^qf``, ``qf = 0.5``,
+   and the error ``colour difference^(1 − feature difference)``.
+
+Every convolution clamps its taps to the image's edge and sums them in the C++ order (taps from
+−r to r, rows first), all in float32 with the C++ constants rounded as the compiler rounds them and
+floating-point contraction off (``fuse_fp``), so the result differs from the C++ only where the
+two libms' ``powf``/``expf`` do (a few float32 ulps). The filter weights and ``cmax`` are computed
+once per (ppd, device) by ``filter_weights_kernel`` with the same functions.
+
+References
+----------
+- Andersson, Nilsson, Akenine-Möller, Oskarsson, Åström, Fairchild, "ꟻLIP: A Difference Evaluator
+  for Alternating Images", Proc. ACM Comput. Graph. Interact. Tech. 3(2) (HPG 2020).
+- NVlabs/flip, ``misc/separatedConvolutions.pdf`` — the separated spatial and feature filters.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import warp as wp
+
+from csmlab.kernels import checked_device
+
+__all__ = ["FLIP_DEFAULT_PPD", "flip_error_map", "flip_filter_radii"]
+
+# The C++ multiplies and adds separately; an FMA would round differently.
+wp.set_module_options({"fuse_fp": False, "optimization_level": 3})
+
+_F = np.float32
+_PI = _F(3.14159265358979)
+
+FLIP_DEFAULT_PPD: float = float(_F(0.7) * (_F(3840.0) / _F(0.7)) * (_PI / _F(180.0)))
+"""ꟻLIP's default pixels per degree, 67.02…: a 0.7 m wide 3840-pixel monitor seen from 0.7 m,
+computed in float32 as ``FLIP::calculatePPD`` does (the value ``flip_evaluator`` uses by default)."""
+
+
+def _constant(value) -> wp.constant:
+    return wp.constant(wp.float32(float(_F(value))))
+
+
+# FLIPConstants and the colour-space constants, each rounded to float32 as its C++ literal is.
+QC = _constant(0.7)
+PC = _constant(0.4)
+PT = _constant(0.95)
+QF = _constant(0.5)
+_DELTA = _F(6.0) / _F(29.0)
+LAB_DELTA_CUBE = _constant(_DELTA * (_DELTA * _DELTA))
+LAB_FACTOR = _constant(_F(1.0) / (_F(3.0) * (_DELTA * _DELTA)))
+LAB_TERM = _constant(_F(4.0) / _F(29.0))
+ONE_THIRD = _constant(_F(1.0) / _F(3.0))
+INV_WHITE = wp.constant(wp.vec3(1.052156925, 1.000000000, 0.918357670))
+WHITE = wp.constant(wp.vec3(0.950428545, 1.000000000, 1.088900371))
+RGB_TO_XYZ = wp.constant(wp.mat33(
+    float(_F(10135552.0) / _F(24577794.0)), float(_F(8788810.0) / _F(24577794.0)),
+    float(_F(4435075.0) / _F(24577794.0)),
+    float(_F(2613072.0) / _F(12288897.0)), float(_F(8788810.0) / _F(12288897.0)),
+    float(_F(887015.0) / _F(12288897.0)),
+    float(_F(1425312.0) / _F(73733382.0)), float(_F(8788810.0) / _F(73733382.0)),
+    float(_F(70074185.0) / _F(73733382.0)),
+))
+XYZ_TO_RGB = wp.constant(wp.mat33(
+    3.241003275, -1.537398934, -0.498615861,
+    -0.969224334, 1.875930071, 0.041554224,
+    0.055639423, -0.204011202, 1.057148933,
+))
+ONE_OVER_116 = _constant(_F(1.0) / _F(116.0))
+SIXTEEN_OVER_116 = _constant(_F(16.0) / _F(116.0))
+INV_SQRT2 = _constant(_F(1.0) / np.sqrt(_F(2.0)))
+PI = _constant(_PI)
+PI_SQ = _constant(_PI * _PI)
+# GaussianConstants: a1, b1 for Y, Cx and the first Cz Gaussian; a2, b2 for the second Cz Gaussian.
+A1 = wp.constant(wp.vec3(1.0, 1.0, 34.1))
+B1 = wp.constant(wp.vec3(0.0047, 0.0053, 0.04))
+A2_Z = _constant(13.5)
+B2_Z = _constant(0.025)
+_B_MAX = max(_F(v) for v in (0.0047, 0.0053, 0.04, 1.0e-5, 1.0e-5, 0.025))
+_FEATURE_WIDTH = _F(0.082)
+
+
+def flip_filter_radii(*, pixels_per_degree: float = FLIP_DEFAULT_PPD) -> tuple[int, int]:
+    """Radii in pixels of ꟻLIP's spatial (CSF) filter and of its feature (edge/point) filters.
+
+    ``ceil(3 · sqrt(max b / (2π²)) · ppd)`` and ``ceil(3 · 0.5 · 0.082 · ppd)`` in float32, as
+    ``calculateSpatialFilterRadius`` and ``LDR_FLIP`` compute them: (10, 9) at the default ppd.
+    """
+    ppd = _F(pixels_per_degree)
+    spatial = int(np.ceil(_F(3.0) * np.sqrt(_B_MAX / (_F(2.0) * (_PI * _PI))) * ppd))
+    feature = int(np.ceil(_F(3.0) * (_F(0.5) * _FEATURE_WIDTH * ppd)))
+    return spatial, feature
+
+
+@wp.func
+def linear_from_srgb(c: float) -> float:
+    """``color3::sRGBToLinearRGB`` of one channel."""
+    if c <= 0.04045:
+        return c / 12.92
+    return wp.pow((c + 0.055) / 1.055, 2.4)
+
+
+@wp.func
+def clamp01(c: wp.vec3) -> wp.vec3:
+    """``color3::clamp``: ``Min(Max(c, 0), 1)`` per channel."""
+    return wp.vec3(wp.min(wp.max(c[0], 0.0), 1.0), wp.min(wp.max(c[1], 0.0), 1.0), wp.min(wp.max(c[2], 0.0), 1.0))
+
+
+@wp.func
+def apply3(m: wp.mat33, c: wp.vec3) -> wp.vec3:
+    """``m · c`` with each row summed left to right, as the C++ writes it."""
+    return wp.vec3(m[0, 0] * c[0] + m[0, 1] * c[1] + m[0, 2] * c[2],
+                   m[1, 0] * c[0] + m[1, 1] * c[1] + m[1, 2] * c[2],
+                   m[2, 0] * c[0] + m[2, 1] * c[1] + m[2, 2] * c[2])
+
+
+@wp.func
+def ycxcz_from_xyz(xyz: wp.vec3) -> wp.vec3:
+    """``color3::XYZToYCxCz`` (D65)."""
+    v = wp.cw_mul(xyz, INV_WHITE)
+    return wp.vec3(116.0 * v[1] - 16.0, 500.0 * (v[0] - v[1]), 200.0 * (v[1] - v[2]))
+
+
+@wp.func
+def xyz_from_ycxcz(c: wp.vec3) -> wp.vec3:
+    """``color3::YCxCzToXYZ`` (D65)."""
+    y = (c[0] + 16.0) / 116.0
+    cx = c[1] / 500.0
+    cz = c[2] / 200.0
+    return wp.cw_mul(wp.vec3(y + cx, y, y - cz), WHITE)
+
+
+@wp.func
+def lab_f(t: float) -> float:
+    if t > LAB_DELTA_CUBE:
+        return wp.pow(t, ONE_THIRD)
+    return LAB_FACTOR * t + LAB_TERM
+
+
+@wp.func
+def lab_from_xyz(xyz: wp.vec3) -> wp.vec3:
+    """``color3::XYZToCIELab`` (D65)."""
+    v = wp.cw_mul(xyz, INV_WHITE)
+    fx = lab_f(v[0])
+    fy = lab_f(v[1])
+    fz = lab_f(v[2])
+    return wp.vec3(116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz))
+
+
+@wp.func
+def hunt_adjusted(lab: wp.vec3) -> wp.vec3:
+    """``color3::Hunt`` on a* and b*: ``0.01 · L* · c``."""
+    return wp.vec3(lab[0], 0.01 * lab[0] * lab[1], 0.01 * lab[0] * lab[2])
+
+
+@wp.func
+def hyab(a: wp.vec3, b: wp.vec3) -> float:
+    """``color3::HyAB``: city-block in L*, Euclidean in (a*, b*)."""
+    return wp.abs(a[0] - b[0]) + wp.sqrt((a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]))
+
+
+@wp.func
+def gaussian(x2: float, a: float, b: float) -> float:
+    """The CSF Gaussian ``a · sqrt(π / b) · exp(−π² x² / b)``."""
+    return a * wp.sqrt(PI / b) * wp.exp(-PI_SQ * x2 / b)
+
+
+@wp.func
+def gaussian_sqrt(x2: float, a: float, b: float) -> float:
+    """``GaussianSqrt``: one separable factor of a Cz Gaussian, ``sqrt(a · sqrt(π / b)) · exp(−π² x² / b)``."""
+    return wp.sqrt(a * wp.sqrt(PI / b)) * wp.exp(-PI_SQ * x2 / b)
+
+
+@wp.kernel
+def filter_weights_kernel(
+    pixels_per_degree: float,
+    spatial_radius: int,
+    feature_radius: int,
+    spatial: wp.array(dtype=wp.vec4),
+    feature: wp.array(dtype=wp.vec3),
+    cmax: wp.array(dtype=float),
+):
+    # One thread: the weights are normalised by sums taken in tap order.
+    delta_x = 1.0 / pixels_per_degree
+    sum_ycx = wp.vec2(0.0)
+    sum_cz = wp.vec2(0.0)
+    for x in range(2 * spatial_radius + 1):
+        ix = float(x - spatial_radius) * delta_x
+        ix2 = ix * ix
+        w = wp.vec4(gaussian(ix2, A1[0], B1[0]), gaussian(ix2, A1[1], B1[1]),
+                    gaussian_sqrt(ix2, A1[2], B1[2]), gaussian_sqrt(ix2, A2_Z, B2_Z))
+        spatial[x] = w
+        sum_ycx = wp.vec2(sum_ycx[0] + w[0], sum_ycx[1] + w[1])
+        sum_cz = wp.vec2(sum_cz[0] + w[2], sum_cz[1] + w[3])
+    norm_y = 1.0 / sum_ycx[0]
+    norm_cx = 1.0 / sum_ycx[1]
+    norm_cz = 1.0 / wp.sqrt(sum_cz[0] * sum_cz[0] + sum_cz[1] * sum_cz[1])
+    for x in range(2 * spatial_radius + 1):
+        w = spatial[x]
+        spatial[x] = wp.vec4(w[0] * norm_y, w[1] * norm_cx, w[2] * norm_cz, w[3] * norm_cz)
+
+    std_dev = 0.5 * 0.082 * pixels_per_degree
+    g_sum = float(0.0)
+    dg_negative = float(0.0)
+    dg_positive = float(0.0)
+    ddg_negative = float(0.0)
+    ddg_positive = float(0.0)
+    for x in range(2 * feature_radius + 1):
+        xx = float(x - feature_radius)
+        g = wp.exp(-(xx * xx) / (2.0 * std_dev * std_dev))
+        g_sum += g
+        dg = -xx * g
+        if dg > 0.0:
+            dg_positive += dg
+        else:
+            dg_negative -= dg
+        ddg = (xx * xx / (std_dev * std_dev) - 1.0) * g
+        if ddg > 0.0:
+            ddg_positive += ddg
+        else:
+            ddg_negative -= ddg
+        feature[x] = wp.vec3(g, dg, ddg)
+    for x in range(2 * feature_radius + 1):
+        p = feature[x]
+        dg_sum = dg_negative
+        if p[1] > 0.0:
+            dg_sum = dg_positive
+        ddg_sum = ddg_negative
+        if p[2] > 0.0:
+            ddg_sum = ddg_positive
+        feature[x] = wp.vec3(p[0] / g_sum, p[1] / dg_sum, p[2] / ddg_sum)
+
+    # computeMaxDistance: HyAB between Hunt-adjusted green and blue, raised to qc.
+    green = hunt_adjusted(lab_from_xyz(apply3(RGB_TO_XYZ, wp.vec3(0.0, 1.0, 0.0))))
+    blue = hunt_adjusted(lab_from_xyz(apply3(RGB_TO_XYZ, wp.vec3(0.0, 0.0, 1.0))))
+    cmax[0] = wp.pow(hyab(green, blue), QC)
+
+
+@wp.func
+def redistributed(d: float, cmax: float) -> float:
+    """The colour difference ``HyAB^qc`` mapped to [0, 1]: [0, pc·cmax) onto [0, pt), the rest onto [pt, 1]."""
+    pccmax = PC * cmax
+    if d < pccmax:
+        return d * (PT / pccmax)
+    return PT + ((d - pccmax) / (cmax - pccmax)) * (1.0 - PT)
+
+
+@wp.func
+def filtered_lab(y: float, cx: float, cz: float) -> wp.vec3:
+    """Hunt-adjusted CIELAB of a filtered YCxCz colour, clamped to the linear RGB cube first."""
+    linear = clamp01(apply3(XYZ_TO_RGB, xyz_from_ycxcz(wp.vec3(y, cx, cz))))
+    return hunt_adjusted(lab_from_xyz(apply3(RGB_TO_XYZ, linear)))
+
+
+@wp.func
+def edge_and_point(d: wp.vec4) -> wp.vec2:
+    """Edge and point strengths of (d/dx, d²/dx², d/dy, d²/dy²): the gradient's and the second derivatives' norms."""
+    return wp.vec2(wp.sqrt(d[0] * d[0] + d[2] * d[2]), wp.sqrt(d[1] * d[1] + d[3] * d[3]))
+
+
+@wp.func
+def flip_error(color_difference: float, reference_features: wp.vec2, test_features: wp.vec2) -> float:
+    """``color_difference^(1 − feature difference)``, the feature difference ``(max(|Δedge|, |Δpoint|)/√2)^qf``."""
+    edge = wp.abs(reference_features[0] - test_features[0])
+    point = wp.abs(reference_features[1] - test_features[1])
+    feature = wp.pow(INV_SQRT2 * wp.max(edge, point), QF)
+    return wp.pow(color_difference, 1.0 - feature)
+
+
+@wp.kernel
+def ycxcz_kernel(srgb: wp.array3d(dtype=wp.vec3), ycxcz: wp.array3d(dtype=wp.vec3),
+                 luma: wp.array3d(dtype=float)):
+    k, i, j = wp.tid()
+    c = srgb[k, i, j]
+    linear = clamp01(wp.vec3(linear_from_srgb(c[0]), linear_from_srgb(c[1]), linear_from_srgb(c[2])))
+    v = ycxcz_from_xyz(apply3(RGB_TO_XYZ, linear))
+    ycxcz[k, i, j] = v
+    # The feature filters' input: the achromatic channel normalised to [0, 1].
+    luma[k, i, j] = v[0] * ONE_OVER_116 + SIXTEEN_OVER_116
+
+
+@wp.kernel
+def rows_kernel(
+    ycxcz: wp.array3d(dtype=wp.vec3),
+    luma: wp.array3d(dtype=float),
+    spatial: wp.array(dtype=wp.vec4),
+    spatial_radius: int,
+    feature: wp.array(dtype=wp.vec3),
+    feature_radius: int,
+    spatial_rows: wp.array3d(dtype=wp.vec4),
+    feature_rows: wp.array3d(dtype=wp.vec3),
+):
+    # Both images in one thread: the clamped taps and the weights are read once for the two.
+    i, j = wp.tid()
+    last = ycxcz.shape[2] - 1
+    reference = wp.vec4(0.0)
+    test = wp.vec4(0.0)
+    for t in range(-spatial_radius, spatial_radius + 1):
+        jj = wp.min(wp.max(0, j + t), last)
+        w = spatial[t + spatial_radius]
+        a = ycxcz[0, i, jj]
+        b = ycxcz[1, i, jj]
+        # (Y, Cx, Cz, Cz) weighted by (Y, Cx, first Cz, second Cz) weights.
+        reference += wp.cw_mul(w, wp.vec4(a[0], a[1], a[2], a[2]))
+        test += wp.cw_mul(w, wp.vec4(b[0], b[1], b[2], b[2]))
+    spatial_rows[0, i, j] = reference
+    spatial_rows[1, i, j] = test
+    # (d/dx, d²/dx², Gaussian) of the luma.
+    reference_features = wp.vec3(0.0)
+    test_features = wp.vec3(0.0)
+    for t in range(-feature_radius, feature_radius + 1):
+        jj = wp.min(wp.max(0, j + t), last)
+        g = feature[t + feature_radius]
+        reference_features += wp.vec3(g[1], g[2], g[0]) * luma[0, i, jj]
+        test_features += wp.vec3(g[1], g[2], g[0]) * luma[1, i, jj]
+    feature_rows[0, i, j] = reference_features
+    feature_rows[1, i, j] = test_features
+
+
+@wp.kernel
+def columns_kernel(
+    spatial_rows: wp.array3d(dtype=wp.vec4),
+    feature_rows: wp.array3d(dtype=wp.vec3),
+    spatial: wp.array(dtype=wp.vec4),
+    spatial_radius: int,
+    feature: wp.array(dtype=wp.vec3),
+    feature_radius: int,
+    cmax: wp.array(dtype=float),
+    error: wp.array2d(dtype=float),
+):
+    i, j = wp.tid()
+    last = spatial_rows.shape[1] - 1
+    reference = wp.vec4(0.0)
+    test = wp.vec4(0.0)
+    for t in range(-spatial_radius, spatial_radius + 1):
+        ii = wp.min(wp.max(0, i + t), last)
+        w = spatial[t + spatial_radius]
+        reference += wp.cw_mul(w, spatial_rows[0, ii, j])
+        test += wp.cw_mul(w, spatial_rows[1, ii, j])
+    # The two Cz parts add (the Cz filter is a sum of two Gaussians).
+    reference_lab = filtered_lab(reference[0], reference[1], reference[2] + reference[3])
+    test_lab = filtered_lab(test[0], test[1], test[2] + test[3])
+    color_difference = redistributed(wp.pow(hyab(reference_lab, test_lab), QC), cmax[0])
+
+    # x-derivatives smoothed in y by the Gaussian, the x-smoothed luma differentiated in y.
+    reference_features = wp.vec4(0.0)
+    test_features = wp.vec4(0.0)
+    for t in range(-feature_radius, feature_radius + 1):
+        ii = wp.min(wp.max(0, i + t), last)
+        g = feature[t + feature_radius]
+        weights = wp.vec4(g[0], g[0], g[1], g[2])
+        a = feature_rows[0, ii, j]
+        b = feature_rows[1, ii, j]
+        reference_features += wp.cw_mul(weights, wp.vec4(a[0], a[1], a[2], a[2]))
+        test_features += wp.cw_mul(weights, wp.vec4(b[0], b[1], b[2], b[2]))
+    error[i, j] = flip_error(color_difference, edge_and_point(reference_features), edge_and_point(test_features))
+
+
+@functools.lru_cache(maxsize=8)
+def _filters(pixels_per_degree: float, device: str) -> tuple[int, int, wp.array, wp.array, wp.array]:
+    """Spatial and feature radii, their weights and cmax on ``device`` (computed once per ppd)."""
+    spatial_radius, feature_radius = flip_filter_radii(pixels_per_degree=pixels_per_degree)
+    spatial = wp.empty(2 * spatial_radius + 1, dtype=wp.vec4, device=device)
+    feature = wp.empty(2 * feature_radius + 1, dtype=wp.vec3, device=device)
+    cmax = wp.empty(1, dtype=float, device=device)
+    wp.launch(filter_weights_kernel, dim=1, inputs=(pixels_per_degree, spatial_radius, feature_radius),
+              outputs=(spatial, feature, cmax), device=device)
+    return spatial_radius, feature_radius, spatial, feature, cmax
+
+
+def _checked_image(name: str, image) -> np.ndarray:
+    array = np.asarray(image)
+    if array.ndim != 3 or array.shape[2] != 3 or array.shape[0] < 1 or array.shape[1] < 1:
+        raise ValueError(f"{name}: expected an (H, W, 3) sRGB image, got shape {array.shape}")
+    array = array.astype(np.float32)
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name}: expected finite values, got NaN or infinity")
+    if array.min() < 0.0 or array.max() > 1.0:
+        raise ValueError(f"{name}: expected sRGB values in [0, 1], got [{array.min()}, {array.max()}]")
+    return array
+
+
+def flip_error_map(reference, test, *, pixels_per_degree: float = FLIP_DEFAULT_PPD,
+                   device: str = "cpu") -> np.ndarray:
+    """LDR-ꟻLIP error of ``test`` against ``reference``, per pixel, as ``flip_evaluator`` computes it.
+
+    Parameters
+    ----------
+    reference, test : array_like, shape (H, W, 3)
+        sRGB-encoded display values in [0, 1] (converted to float32).
+    pixels_per_degree : float
+        Viewing condition: image pixels per degree of visual angle (> 0). The default is
+        ꟻLIP's own, :data:`FLIP_DEFAULT_PPD` ≈ 67.02.
+    device : str
+        Warp device, ``"cpu"`` or ``"cuda"``.
+
+    Returns
+    -------
+    ndarray, shape (H, W), float32
+        The error in [0, 1]; exactly 0 where the two images agree over the filters' support
+        (:func:`flip_filter_radii`). Near the edges the filters clamp to the edge pixel.
+
+    Raises
+    ------
+    ValueError
+        On a shape other than (H, W, 3), differing shapes, values outside [0, 1] or not finite,
+        a non-positive ``pixels_per_degree``, or an unusable device.
+    """
+    device = checked_device(device)
+    reference = _checked_image("reference", reference)
+    test = _checked_image("test", test)
+    if test.shape != reference.shape:
+        raise ValueError(f"test: expected the reference's shape {reference.shape}, got {test.shape}")
+    ppd = float(_F(pixels_per_degree))
+    if not (np.isfinite(ppd) and ppd > 0.0):
+        raise ValueError(f"pixels_per_degree: expected a finite value > 0, got {pixels_per_degree!r}")
+    spatial_radius, feature_radius, spatial, feature, cmax = _filters(ppd, device)
+    height, width = reference.shape[:2]
+    pair = (2, height, width)
+    srgb = wp.array(np.stack((reference, test)), dtype=wp.vec3, device=device)
+    ycxcz = wp.empty(pair, dtype=wp.vec3, device=device)
+    luma = wp.empty(pair, dtype=float, device=device)
+    wp.launch(ycxcz_kernel, dim=pair, inputs=(srgb,), outputs=(ycxcz, luma), device=device)
+    spatial_rows = wp.empty(pair, dtype=wp.vec4, device=device)
+    feature_rows = wp.empty(pair, dtype=wp.vec3, device=device)
+    wp.launch(rows_kernel, dim=(height, width), inputs=(ycxcz, luma, spatial, spatial_radius, feature, feature_radius),
+              outputs=(spatial_rows, feature_rows), device=device)
+    error = wp.empty((height, width), dtype=float, device=device)
+    wp.launch(columns_kernel, dim=(height, width),
+              inputs=(spatial_rows, feature_rows, spatial, spatial_radius, feature, feature_radius, cmax),
+              outputs=(error,), device=device)
+    return error.numpy()

@@ -1,0 +1,159 @@
+"""The Warp LDR-ꟻLIP against NVIDIA's ``flip_evaluator`` (the C++ it follows) on random, flat, edged,
+rendered and tiny images; identical images give exactly 0; bad input is refused."""
+
+import flip_evaluator
+import numpy as np
+import pytest
+import warp as wp
+
+from csmlab.camera import CameraPose
+from csmlab.geometry import rotation_looking_at
+from csmlab.kernels.flip import FLIP_DEFAULT_PPD, flip_error_map, flip_filter_radii
+from csmlab.metrics.shading import shaded_rgb, srgb_encoded
+from csmlab.render import render_frame
+from csmlab.scene import make_scene
+from csmlab.settings import ShadowSettings
+
+CUDA = pytest.mark.skipif(not wp.is_cuda_available(), reason="no CUDA device")
+
+# The brief's bounds: per pixel, and of the mean error relative to the oracle's mean. Measured: the
+# two differ in at most a few pixels by one float32 ulp (different libm powf/expf).
+MAX_ABS = 1e-5
+MEAN_REL = 1e-6
+
+
+def _oracle(reference, test, **parameters):
+    error, _, _ = flip_evaluator.evaluate(np.ascontiguousarray(reference, np.float32),
+                                          np.ascontiguousarray(test, np.float32), "LDR", applyMagma=False,
+                                          computeMeanError=False, parameters=parameters)
+    return np.asarray(error)[..., 0]
+
+
+def _assert_matches_oracle(reference, test, expected=None, **kw):
+    expected = _oracle(reference, test) if expected is None else expected
+    error = flip_error_map(reference, test, **kw)
+    assert error.shape == reference.shape[:2] and error.dtype == np.float32
+    difference = np.abs(error.astype(np.float64) - expected)
+    assert difference.max() <= MAX_ABS
+    assert abs(error.mean(dtype=np.float64) - expected.mean(dtype=np.float64)) <= MEAN_REL * expected.mean()
+    return error, expected
+
+
+def _noisy_pair(seed, shape, *, sigma=0.05):
+    rng = np.random.default_rng(seed)
+    reference = rng.random(shape + (3,)).astype(np.float32)
+    test = np.clip(reference + rng.normal(0.0, sigma, reference.shape), 0.0, 1.0).astype(np.float32)
+    return reference, test
+
+
+@pytest.mark.parametrize("seed, shape", [(0, (24, 40)), (1, (40, 24)), (2, (33, 57))])
+def test_random_images_match_flip_evaluator(seed, shape):
+    _assert_matches_oracle(*_noisy_pair(seed, shape))
+
+
+def test_unrelated_random_images_match_flip_evaluator():
+    rng = np.random.default_rng(5)
+    reference, test = rng.random((2, 30, 30, 3)).astype(np.float32)
+    _assert_matches_oracle(reference, test)
+
+
+def test_flat_regions_and_hard_edges_match_flip_evaluator():
+    # Flat blocks of saturated and grey colours, a one-pixel line and a checkerboard corner; the
+    # test image moves the block edges by a pixel and recolours one block: large colour and
+    # feature differences, and exact zeros where both images stay flat far from any change.
+    reference = np.zeros((48, 64, 3), np.float32)
+    reference[:, 32:] = (0.0, 1.0, 0.0)
+    reference[10:30, 5:20] = (0.0, 0.0, 1.0)
+    reference[40, :] = 1.0
+    reference[36:, 48:] = (np.indices((12, 16)).sum(axis=0) % 2)[..., None]
+    test = reference.copy()
+    test[10:30, 6:21] = (0.0, 0.0, 1.0)
+    test[10:30, 5] = 0.0
+    test[:, 31] = (0.0, 1.0, 0.0)
+    test[0:8, 0:8] = 0.5
+    error, expected = _assert_matches_oracle(reference, test)
+    assert expected.max() > 0.9 and np.any(expected == 0.0)
+    np.testing.assert_array_equal(error == 0.0, expected == 0.0)
+
+
+def test_rendered_frames_whose_shadow_moved_match_flip_evaluator():
+    # Two csmlab frames of a box on a plane under a light that turned slightly: the shaded images
+    # the perceptual metric compares.
+    scene = make_scene("plane_box", plane_size=40.0, box_size=3.0)
+    pose = CameraPose(position=[6.0, 7.0, 9.0], orientation=rotation_looking_at([-6.0, -7.0, -9.0]), aspect=80 / 56)
+    settings = ShadowSettings(cascades=2, resolution=256, shadow_distance=40.0)
+    images = []
+    for light in ([0.3, -0.8, -0.5], [0.33, -0.8, -0.47]):
+        frame = render_frame(scene, pose, light, settings, width=80, height=56)
+        g = frame.view.gbuffer
+        lit = np.where(g.valid, frame.shadow.lit, 0.0)
+        images.append(srgb_encoded(shaded_rgb(g.albedo, g.normal, lit, light_direction=light, ambient=0.25))
+                      .astype(np.float32))
+    error, expected = _assert_matches_oracle(*images)
+    assert np.count_nonzero(expected) > 100
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 25), (25, 1), (3, 4), (9, 21)])
+def test_images_smaller_than_the_filters_match_flip_evaluator(shape):
+    # Every tap beyond the edge clamps to the edge pixel, many times over.
+    assert min(shape) < 2 * max(flip_filter_radii()) + 1
+    _assert_matches_oracle(*_noisy_pair(11, shape, sigma=0.2))
+
+
+def test_another_viewing_distance_matches_flip_evaluator():
+    reference, test = _noisy_pair(3, (30, 36))
+    assert flip_filter_radii(pixels_per_degree=30.0) == (5, 4)
+    _assert_matches_oracle(reference, test, expected=_oracle(reference, test, ppd=30.0), pixels_per_degree=30.0)
+
+
+def test_default_viewing_distance_is_flip_evaluators():
+    _, _, parameters = flip_evaluator.evaluate(np.zeros((2, 2, 3), np.float32), np.zeros((2, 2, 3), np.float32),
+                                               "LDR", applyMagma=False, computeMeanError=False)
+    assert np.float32(parameters["ppd"]) == np.float32(FLIP_DEFAULT_PPD)
+    assert flip_filter_radii() == (10, 9)
+
+
+def test_filter_radii_bound_where_one_changed_pixel_reaches_in_flip_evaluator():
+    # One changed pixel alters the oracle's error exactly out to the larger radius (the spatial
+    # filter's), so windows grown by it give the whole image's values.
+    reference = np.full((41, 41, 3), 0.5, np.float32)
+    test = reference.copy()
+    test[20, 20] = (0.9, 0.2, 0.1)
+    rows, cols = np.nonzero(_oracle(reference, test))
+    reach = max(flip_filter_radii())
+    assert max(np.abs(rows - 20).max(), np.abs(cols - 20).max()) == reach
+
+
+def test_identical_images_give_exactly_zero_everywhere():
+    rng = np.random.default_rng(8)
+    image = rng.random((37, 29, 3)).astype(np.float32)
+    image[:10] = 0.0
+    image[-5:] = 1.0
+    assert np.all(flip_error_map(image, image) == 0.0)
+
+
+@pytest.mark.parametrize("reference, test, match", [
+    (np.zeros((4, 4)), np.zeros((4, 4)), "reference: expected an \\(H, W, 3\\)"),
+    (np.zeros((4, 4, 3)), np.zeros((4, 4, 4)), "test: expected an \\(H, W, 3\\)"),
+    (np.zeros((4, 4, 3)), np.zeros((4, 5, 3)), "test: expected the reference's shape"),
+    (np.full((4, 4, 3), np.nan), np.zeros((4, 4, 3)), "reference: expected finite"),
+    (np.zeros((4, 4, 3)), np.full((4, 4, 3), 1.5), "test: expected sRGB values in \\[0, 1\\]"),
+    (np.zeros((0, 4, 3)), np.zeros((0, 4, 3)), "reference: expected an \\(H, W, 3\\)"),
+])
+def test_bad_images_are_refused_naming_the_argument(reference, test, match):
+    with pytest.raises(ValueError, match=match):
+        flip_error_map(reference, test)
+
+
+def test_bad_viewing_distance_and_device_are_refused():
+    image = np.zeros((4, 4, 3), np.float32)
+    with pytest.raises(ValueError, match="pixels_per_degree: expected a finite value > 0"):
+        flip_error_map(image, image, pixels_per_degree=0.0)
+    with pytest.raises(ValueError, match="device"):
+        flip_error_map(image, image, device="tpu")
+
+
+@CUDA
+def test_cuda_matches_flip_evaluator():
+    reference, test = _noisy_pair(4, (64, 96))
+    _assert_matches_oracle(reference, test, device="cuda")
