@@ -230,3 +230,25 @@ def test_shading_with_the_views_shared_terms_equals_shading_from_scratch():
     np.testing.assert_array_equal(
         shaded_rgb(albedo, normal, lit, light_direction=[0.3, -1.0, 0.2], ambient=0.25, terms=terms),
         shaded_rgb(albedo, normal, lit, light_direction=[0.3, -1.0, 0.2], ambient=0.25))
+
+
+def test_filling_uncompared_pixels_window_by_window_equals_filling_the_whole_images():
+    from csmlab.metrics.perceptual import _filled_pair
+
+    rng = np.random.default_rng(9)
+    previous = rng.random((40, 56)).round(1)
+    current = previous.copy()
+    current[10:14, 20:30] = rng.random((4, 10))
+    current[30, 5] = np.nan
+    compared = np.isfinite(current) & (rng.random((40, 56)) < 0.95)
+    changed = compared & (current != previous)
+    whole_current, whole_previous = _filled_pair(current, previous, compared)
+    np.testing.assert_array_equal(ssim_map(previous, current, changed=changed, compared=compared),
+                                  ssim_map(whole_previous, whole_current, changed=changed))
+    shaded = np.repeat(current[..., None], 3, axis=-1) * [0.9, 0.8, 0.7]
+    previous_shaded = np.repeat(previous[..., None], 3, axis=-1) * [0.9, 0.8, 0.7]
+    whole_shaded, whole_previous_shaded = _filled_pair(shaded, previous_shaded, compared)
+    for method in FLIP_METHODS:
+        np.testing.assert_array_equal(
+            flip_map(previous_shaded, shaded, changed=changed, compared=compared, method=method),
+            flip_map(whole_previous_shaded, whole_shaded, changed=changed, method=method))

@@ -252,19 +252,35 @@ def _ssim_full(previous: np.ndarray, current: np.ndarray) -> np.ndarray:
     return full
 
 
-def ssim_map(previous, current, *, changed=None) -> np.ndarray:
+def ssim_map(previous, current, *, changed=None, compared=None) -> np.ndarray:
     """SSIM map ``(H, W)`` float64 of two shadow images (scikit-image, the settings of the module docstring).
 
     With ``changed`` (bool ``(H, W)``: where the two differ) it is computed on
     :func:`changed_windows` only and is exactly 1 elsewhere — the same values as the whole image
-    gives. Both images need sides of at least 11 pixels.
+    gives. With ``compared`` (bool ``(H, W)``) every other pixel is first set to the same value in
+    both images (``current``'s, else 0), window by window. Both images need sides of at least 11 pixels.
     """
     previous = np.asarray(previous, dtype=np.float64)
     current = np.asarray(current, dtype=np.float64)
+    images, evaluate = _with_compared((previous, current), compared, _ssim_full)
     if changed is None:
-        return _ssim_full(previous, current)
-    return _windowed(_ssim_full, (previous, current), changed_windows(changed, support=SSIM_SUPPORT),
+        return evaluate(*images)
+    return _windowed(evaluate, images, changed_windows(changed, support=SSIM_SUPPORT),
                      shape=current.shape, fill=1.0, dtype=np.float64)
+
+
+def _with_compared(images: tuple, compared, evaluate):
+    """``images`` and ``evaluate(previous, current)``, or, with ``compared``, the mask as a third image
+    and an ``evaluate`` that first fills the pair (:func:`_filled_pair`): crops of all three then
+    give the crops of the filled pair, so only the windows are filled."""
+    if compared is None:
+        return images, evaluate
+
+    def filled(previous, current, mask):
+        current, previous = _filled_pair(current, previous, mask)
+        return evaluate(previous, current)
+
+    return (*images, np.asarray(compared, dtype=bool)), filled
 
 
 def _flip_evaluator(reference: np.ndarray, test: np.ndarray) -> np.ndarray:
@@ -283,30 +299,32 @@ FLIP_METHODS = {"warp": _flip_warp, "flip-evaluator": _flip_evaluator}
 (reference, test) to the error map ``(H, W)`` float32 at ꟻLIP's default 67.02 pixels per degree."""
 
 
-def flip_map(reference, test, *, changed=None, method: str = "warp", device: str = "cpu") -> np.ndarray:
+def flip_map(reference, test, *, changed=None, compared=None, method: str = "warp", device: str = "cpu") -> np.ndarray:
     """LDR-ꟻLIP error map ``(H, W)`` float32 of two linear RGB images ``(H, W, 3)`` (sRGB-encoded, clipped, here).
 
     With ``changed`` (bool ``(H, W)``) it is computed on :func:`changed_windows` only and is
-    exactly 0 elsewhere — the same values as the whole image gives. ``method`` names one of
-    :data:`FLIP_METHODS`; ``device`` is the Warp device of ``warp``. With ``warp``, windows that
-    cover more than :data:`FLIP_WHOLE_IMAGE_FRACTION` of the image are replaced by the whole image.
+    exactly 0 elsewhere — the same values as the whole image gives. With ``compared`` (bool
+    ``(H, W)``) every other pixel is first set to the same value in both images (``test``'s, else
+    0), window by window. ``method`` names one of :data:`FLIP_METHODS`; ``device`` is the Warp
+    device of ``warp``. With ``warp``, windows that cover more than
+    :data:`FLIP_WHOLE_IMAGE_FRACTION` of the image are replaced by the whole image.
     """
-    def evaluate(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    def encoded(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return dispatch(FLIP_METHODS, method, np.ascontiguousarray(srgb_encoded(a), dtype=np.float32),
                         np.ascontiguousarray(srgb_encoded(b), dtype=np.float32), field="flip method",
                         offered={"device": device})
 
-    reference = np.asarray(reference, dtype=np.float64)
-    test = np.asarray(test, dtype=np.float64)
+    images, evaluate = _with_compared((np.asarray(reference, dtype=np.float64), np.asarray(test, dtype=np.float64)),
+                                      compared, encoded)
     if changed is None:
-        return evaluate(reference, test)
+        return evaluate(*images)
     windows = changed_windows(changed, support=FLIP_SUPPORT)
-    height, width = test.shape[:2]
+    height, width = images[1].shape[:2]
     covered = sum((rows.stop - rows.start) * (cols.stop - cols.start) for (rows, cols), _ in windows)
     if method == "warp" and covered > FLIP_WHOLE_IMAGE_FRACTION * height * width:
         # Out of every changed pixel's reach the whole image's error is exactly 0 too.
-        return evaluate(reference, test)
-    return _windowed(evaluate, (reference, test), windows, shape=(height, width), fill=0.0, dtype=np.float32)
+        return evaluate(*images)
+    return _windowed(evaluate, images, windows, shape=(height, width), fill=0.0, dtype=np.float32)
 
 
 def perceptual_summary(maps: PerceptualMaps, *, device: str = "cpu") -> dict[str, float]:
@@ -329,13 +347,12 @@ def perceptual_summary(maps: PerceptualMaps, *, device: str = "cpu") -> dict[str
         "de2000_p99": float(np.percentile(de, 99.0)),
         "de2000_frac_jnd": finite_mean((de > JND_CIEDE2000).astype(np.float64)),
     }
-    lit, previous_lit = _filled_pair(maps.lit.astype(np.float64), maps.previous_lit.astype(np.float64), compared)
-    # The filled images differ exactly where a compared pixel's S changed.
+    # Filled (uncompared pixels equal in both), the images differ exactly where a compared pixel's S changed.
     changed = compared & (maps.lit != maps.previous_lit)
-    if min(lit.shape) >= _SSIM_MIN_SIDE:
-        out["ssim"] = finite_mean(ssim_map(previous_lit, lit, changed=changed)[compared])
+    if min(maps.lit.shape) >= _SSIM_MIN_SIDE:
+        out["ssim"] = finite_mean(ssim_map(maps.previous_lit, maps.lit, changed=changed, compared=compared)[compared])
     else:
         out["ssim"] = float("nan")
-    shaded, previous_shaded = _filled_pair(maps.shaded, maps.previous_shaded, compared)
-    out["flip"] = finite_mean(flip_map(previous_shaded, shaded, changed=changed, device=device)[compared])
+    out["flip"] = finite_mean(flip_map(maps.previous_shaded, maps.shaded, changed=changed, compared=compared,
+                                       device=device)[compared])
     return out
