@@ -258,6 +258,30 @@ def scatter_kernel(
     sorted_ray[j] = base + k
 
 
+@wp.kernel
+def cell_total_kernel(
+    count: wp.array2d(dtype=wp.int32),
+    total: wp.array(dtype=wp.int32),
+):
+    """The rays of fine cell ``f`` over every range of receivers: ``Σ_k count[k, f]``."""
+    f = wp.tid()
+    n = int(0)
+    for k in range(count.shape[0]):
+        n += count[k, f]
+    total[f] = n
+
+
+@wp.kernel
+def range_first_kernel(
+    count: wp.array2d(dtype=wp.int32),
+    first: wp.array2d(dtype=wp.int32),
+):
+    """``first[k, f] = first[k − 1, f] + count[k − 1, f]`` for the ranges ``k ≥ 1`` (row 0 given)."""
+    f = wp.tid()
+    for k in range(1, count.shape[0]):
+        first[k, f] = first[k - 1, f] + count[k - 1, f]
+
+
 @wp.func
 def inverse_slope(p: wp.vec2d, q: wp.vec2d) -> wp.float64:
     """``du/dv`` of segment ``p``–``q`` in grid coordinates; NaN within ``SLOPE`` of horizontal (ill-conditioned)."""
@@ -487,9 +511,9 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
     -----
     Split over ``threads`` concurrent CPU launches (:mod:`csmlab.kernels.threads`), each writing
     its own outputs: the ray starts, their coarse and fine bins and their scatter by ranges of
-    receivers, each range with its own bounds and per-cell counters (the counts of a cell are laid
-    out range after range, so one exclusive scan gives each range its slots and the sorted rays
-    keep the receivers' order, as one launch sorts them); the triangles interleaved (launch ``k``
+    receivers, each range with its own bounds and per-cell counters (a cell's rays are placed
+    range after range, so the sorted rays keep the receivers' order, as one launch sorts them); the
+    triangles interleaved (launch ``k``
     takes ``k, k + threads, …``), each launch marking the rays it blocks in its own flags; the
     shading by ranges of sorted rays, a ray shadowed when any launch blocked it. Every ``threads``
     gives the same flags, bit for bit.
@@ -551,26 +575,32 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
         fine_cells = int(offset.numpy()[-1])
         fine = wp.empty(count, dtype=wp.int32, device=device)
         slot = wp.empty(count, dtype=wp.int32, device=device)
-        # Rays per (fine cell, range of receivers), cell-major: the exclusive scan gives each range
-        # the first slot of its rays in each cell, after the earlier ranges' rays of that cell.
-        per_fine = wp.zeros((fine_cells + 1) * parts, dtype=wp.int32, device=device)
+        # Rays per range of receivers and fine cell, a contiguous row per range (a kernel reading a
+        # strided column runs several times slower).
+        per_fine = wp.zeros((parts, fine_cells + 1), dtype=wp.int32, device=device)
         pool.run([functools.partial(wp.launch, fine_bin_kernel, dim=hi - lo,
                                     inputs=(start[lo:hi], lit[lo:hi], *grid, ny, sub, offset),
-                                    outputs=(fine[lo:hi], slot[lo:hi], per_fine.reshape((-1, parts))[:, k]),
-                                    device=device)
+                                    outputs=(fine[lo:hi], slot[lo:hi], per_fine[k]), device=device)
                   for k, (lo, hi) in enumerate(receivers)])
+        # first_each[k, f]: where range k's rays of fine cell f go — after every ray of the earlier
+        # cells (the exclusive scan of the cells' totals, row 0) and the earlier ranges' rays of f.
         first_each = wp.empty_like(per_fine)
-        wp.utils.array_scan(per_fine, first_each, inclusive=False)
-        rays = int(first_each.numpy()[-1])
-        first_each = first_each.reshape((-1, parts))
+        total = per_fine[0]
+        if parts > 1:
+            total = wp.empty(fine_cells + 1, dtype=wp.int32, device=device)
+            wp.launch(cell_total_kernel, dim=fine_cells + 1, inputs=(per_fine,), outputs=(total,), device=device)
+        wp.utils.array_scan(total, first_each[0], inclusive=False)
+        if parts > 1:
+            wp.launch(range_first_kernel, dim=fine_cells + 1, inputs=(per_fine,), outputs=(first_each,), device=device)
+        rays = int(first_each.numpy()[0, -1])
         sorted_start = wp.empty(rays, dtype=wp.vec3d, device=device)
         sorted_ray = wp.empty(rays, dtype=wp.int32, device=device)
         pool.run([functools.partial(wp.launch, scatter_kernel, dim=hi - lo,
-                                    inputs=(start[lo:hi], lit[lo:hi], fine[lo:hi], slot[lo:hi], first_each[:, k], lo),
+                                    inputs=(start[lo:hi], lit[lo:hi], fine[lo:hi], slot[lo:hi], first_each[k], lo),
                                     outputs=(sorted_start, sorted_ray), device=device)
                   for k, (lo, hi) in enumerate(receivers)])
         # The first ray of each fine cell (and the total after the last).
-        first = first_each[:, 0]
+        first = first_each[0]
         triangle_count = bvh.triangles.shape[0]
         launches = len(split_range(triangle_count, threads))
         blocked = wp.empty((launches, rays), dtype=wp.uint8, device=device)
