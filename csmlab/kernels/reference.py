@@ -19,6 +19,9 @@ question, registered in :data:`REFERENCE_METHODS`:
 They agree everywhere but within float32 rounding of a triangle's edge or of the ray's start plane,
 where the float32 ray cast may decide either way.
 
+Both take ``threads``: on the CPU, that many concurrent Warp launches share the work, each writing
+its own part of the outputs (:mod:`csmlab.kernels.threads`), with the same shadow for every value.
+
 References
 ----------
 - Aila and Laine, "Alias-Free Shadow Maps", EGSR 2004 — shadow rays from the eye's samples,
@@ -513,10 +516,9 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
     its own outputs: the ray starts, their coarse and fine bins and their scatter by ranges of
     receivers, each range with its own bounds and per-cell counters (a cell's rays are placed
     range after range, so the sorted rays keep the receivers' order, as one launch sorts them); the
-    triangles interleaved (launch ``k``
-    takes ``k, k + threads, …``), each launch marking the rays it blocks in its own flags; the
-    shading by ranges of sorted rays, a ray shadowed when any launch blocked it. Every ``threads``
-    gives the same flags, bit for bit.
+    triangles interleaved (launch ``k`` takes ``k, k + threads, …``), each launch marking the rays
+    it blocks in its own flags; the shading by ranges of sorted rays, a ray shadowed when any launch
+    blocked it. Every ``threads`` gives the same flags, bit for bit.
     """
     p, n, basis = _receivers(points, normals, light_direction)
     shape = np.shape(points)[:-1]
@@ -575,8 +577,8 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
         fine_cells = int(offset.numpy()[-1])
         fine = wp.empty(count, dtype=wp.int32, device=device)
         slot = wp.empty(count, dtype=wp.int32, device=device)
-        # Rays per range of receivers and fine cell, a contiguous row per range (a kernel reading a
-        # strided column runs several times slower).
+        # Rays per range of receivers and fine cell, a contiguous row per range (kernels indexing a
+        # strided column of a cell-major table ran several times slower).
         per_fine = wp.zeros((parts, fine_cells + 1), dtype=wp.int32, device=device)
         pool.run([functools.partial(wp.launch, fine_bin_kernel, dim=hi - lo,
                                     inputs=(start[lo:hi], lit[lo:hi], *grid, ny, sub, offset),
