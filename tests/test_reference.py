@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+import warp as wp
 
 from csmlab.camera import CameraPose
 from csmlab.geometry import light_basis, rotation_looking_at
@@ -209,3 +210,72 @@ def test_unknown_method_is_refused_with_the_valid_names():
     with pytest.raises(ValueError, match=r"method: expected one of \['irregular', 'ray'\], got 'rays'"):
         hard_shadow(mesh_bvh(s.vertices, s.triangles), points=np.zeros((1, 3)), normals=np.zeros((1, 3), np.float32),
                     light_direction=[0, -1, 0], method="rays")
+
+
+def terrain_receivers(width: int = 96, height: int = 54):
+    """The terrain-with-trees scene and the G-buffer points and normals of a walking camera (misses NaN)."""
+    scene = make_scene("terrain", seed=1, resolution=24, trees=300, ring_trees=40)
+    pose = CameraPose(position=np.array([20.0, 1.7, -1.0]), orientation=rotation_looking_at([-0.35, -0.09, -1.0]),
+                      aspect=width / height, far=400.0)
+    hits = camera_hits(mesh_bvh(scene.vertices, scene.triangles), position=pose.position, rotation=pose.rotation,
+                       fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, far=pose.far, width=width, height=height)
+    return scene, hits.position, hits.normal
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("elevation, azimuth", [(40.0, 30.0), (8.0, 200.0)])
+def test_every_thread_count_gives_the_shadow_of_one_thread(method, elevation, azimuth):
+    scene, points, normals = terrain_receivers()
+    assert 0.0 < np.isnan(points[..., 0]).mean() < 0.5
+    d = direction_from_angles(elevation_deg=elevation, azimuth_deg=azimuth)
+    one = hard_shadow(mesh_bvh(scene.vertices, scene.triangles), points=points, normals=normals, light_direction=d,
+                      method=method)
+    assert 0.05 < np.nanmean(one == 0) < 0.95
+    for threads in (2, 3, 7):
+        # A new MeshBVH each time: its light-space vertices are transformed by the split too.
+        lit = hard_shadow(mesh_bvh(scene.vertices, scene.triangles), points=points, normals=normals,
+                          light_direction=d, method=method, threads=threads)
+        np.testing.assert_array_equal(lit, one)
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("receivers", [0, 1, 2])
+def test_fewer_receivers_than_threads_get_the_shadow_of_one_thread(method, receivers):
+    bvh = plane_and_quad(8.0, [[-1.0, 2.0, -1.0], [1.0, 2.0, -1.0], [1.0, 2.0, 1.0], [-1.0, 2.0, 1.0]])
+    # Under the quad (shadowed), beside it (lit), then a point that is not a receiver.
+    points = np.array([[0.0, 0.0, 0.0], [4.0, 0.0, 0.0], [np.nan] * 3])[:receivers]
+    normals = np.tile(UP, (receivers, 1))
+    for threads in (1, 2, 3):
+        lit = hard_shadow(bvh, points=points, normals=normals, light_direction=[0.0, -1.0, 0.0], method=method,
+                          threads=threads)
+        np.testing.assert_array_equal(lit, np.array([0.0, 1.0, np.nan], np.float32)[:receivers])
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_receivers_all_turned_from_the_light_are_dark_for_every_thread_count(method):
+    s = plane_box(plane_size=40.0)
+    points = np.column_stack([np.linspace(-5.0, 5.0, 9), np.zeros(9), np.zeros(9)])
+    for threads in (1, 2, 3):
+        lit = hard_shadow(mesh_bvh(s.vertices, s.triangles), points=points, normals=np.tile(-UP, (9, 1)),
+                          light_direction=[0.2, -1.0, 0.0], method=method, threads=threads)
+        np.testing.assert_array_equal(lit, np.zeros(9, np.float32))
+
+
+@pytest.mark.parametrize("threads", [0, -1, 2.0, True, "3", None])
+def test_threads_must_be_a_positive_integer(threads):
+    s = plane_box(plane_size=40.0)
+    for method in METHODS:
+        with pytest.raises(ValueError, match=r"threads: expected an integer >= 1"):
+            hard_shadow(mesh_bvh(s.vertices, s.triangles), points=np.zeros((4, 3)),
+                        normals=np.tile(UP, (4, 1)), light_direction=[0, -1, 0], method=method, threads=threads)
+
+
+@pytest.mark.skipif(wp.get_cuda_device_count() == 0, reason="no CUDA device")
+@pytest.mark.parametrize("method", METHODS)
+def test_threads_leave_a_cuda_launch_unchanged(method):
+    scene, points, normals = terrain_receivers()
+    bvh = mesh_bvh(scene.vertices, scene.triangles, device="cuda")
+    d = direction_from_angles(elevation_deg=40.0, azimuth_deg=30.0)
+    np.testing.assert_array_equal(
+        hard_shadow(bvh, points=points, normals=normals, light_direction=d, method=method, threads=3),
+        hard_shadow(bvh, points=points, normals=normals, light_direction=d, method=method))

@@ -7,6 +7,7 @@ import warp as wp
 
 from csmlab.camera import CameraPose
 from csmlab.geometry import rotation_looking_at
+from csmlab.kernels.threads import split_range
 from csmlab.kernels.visibility import VISIBILITY_METHODS, camera_hits, camera_hits_raster, mesh_bvh
 from csmlab.scene import Scene, make_scene
 from csmlab.scene.plane_box import plane_box
@@ -301,3 +302,121 @@ def test_unknown_method_is_refused_with_the_valid_names():
     with pytest.raises(ValueError, match=r"method: expected one of \['raster', 'ray'\], got 'rays' \(did you mean"):
         camera_hits(mesh_bvh(scene.vertices, scene.triangles), position=np.ones(3), rotation=np.eye(3),
                     fov_y_deg=60.0, aspect=1.0, far=10.0, width=4, height=4, method="rays")
+
+
+def assert_same_hits(a, b):
+    for name in ("position", "normal", "triangle", "view_depth"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+
+
+def threaded_scenes():
+    """Scenes and views for the thread-count tests: name → (vertices, triangles, camera keywords)."""
+    scenes = {}
+    # Centres on shared edges and vertices everywhere (exact arithmetic): the top-left rule decides.
+    vertices, triangles, size, fov = dyadic_grid(5, np.random.default_rng(2))
+    scenes["shared edges"] = (vertices, triangles, dict(position=np.zeros(3), rotation=np.eye(3), fov_y_deg=fov,
+                                                        aspect=1.0, far=10.0, width=size, height=size))
+    # Large triangles around the eye, many reaching behind it: the camera plane cuts them.
+    pose = CameraPose(position=np.array([3.0, -2.0, 7.0]), orientation=rotation_looking_at([0.3, 0.2, -1.0]),
+                      aspect=48 / 31, far=30.0)
+    camera_space = np.random.default_rng(5).uniform(-6.0, 6.0, (40, 3, 3)) + np.array([0.0, 0.0, 3.0])
+    scenes["camera plane"] = (pose.position + camera_space.reshape(-1, 3) @ camera_frame(pose),
+                              np.arange(120).reshape(-1, 3),
+                              dict(position=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg,
+                                   aspect=pose.aspect, far=pose.far, width=48, height=31))
+    # Standing on a plane of 10 m triangles: each spans many rows, those underfoot cross the camera plane.
+    scene = shifted_plane_box((0.0, 0.0, 0.0), divisions=4)
+    pose = CameraPose(position=np.array([0.3, 1.7, 4.7]), orientation=rotation_looking_at([-0.1, -0.15, -1.0]),
+                      aspect=64 / 41, far=100.0)
+    scenes["standing"] = (scene.vertices, scene.triangles, dict(
+        position=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, far=pose.far,
+        width=64, height=41))
+    scene, pose = walk_scene_and_pose(96, 54)
+    scenes["walk through trees"] = (scene.vertices, scene.triangles, dict(
+        position=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, far=pose.far,
+        width=96, height=54))
+    return scenes
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("scene", ["shared edges", "camera plane", "standing", "walk through trees"])
+def test_every_thread_count_gives_the_hits_of_one_thread(method, scene):
+    vertices, triangles, camera = threaded_scenes()[scene]
+    bvh = mesh_bvh(vertices, triangles)
+    one = camera_hits(bvh, **camera, method=method)
+    assert (one.triangle >= 0).mean() > 0.3 and len(np.unique(one.triangle)) >= 4
+    threads = (2, 3, 7)
+    # Some triangle covers pixels on both sides of a boundary between the bands of rows of a split.
+    first_rows = {lo for t in threads for lo, _ in split_range(camera["height"], t)} - {0}
+    assert any(np.isin(np.setdiff1d(one.triangle[r], [-1]), one.triangle[r - 1]).any() for r in first_rows)
+    for t in threads:
+        assert_same_hits(camera_hits(bvh, **camera, method=method, threads=t), one)
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("width, height", [(5, 2), (3, 1), (1, 1)])
+def test_images_with_fewer_rows_than_threads_get_the_hits_of_one_thread(method, width, height):
+    scene = shifted_plane_box((0.0, 0.0, 0.0), divisions=2)
+    eye = np.array([0.5, 2.0, 1.5])
+    pose = CameraPose(position=eye, orientation=rotation_looking_at([0.0, -1.0, -0.4]), aspect=width / height,
+                      far=100.0)
+    kwargs = dict(position=eye, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, far=pose.far,
+                  width=width, height=height, method=method)
+    bvh = mesh_bvh(scene.vertices, scene.triangles)
+    one = camera_hits(bvh, **kwargs)
+    assert np.all(one.triangle >= 0)
+    for threads in (2, 3):
+        assert_same_hits(camera_hits(bvh, **kwargs, threads=threads), one)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_a_view_of_nothing_is_all_misses_for_every_thread_count(method):
+    scene = shifted_plane_box((0.0, 0.0, 0.0))
+    # Looking up from above everything.
+    pose = CameraPose(position=np.array([0.0, 5.0, 0.0]), orientation=rotation_looking_at([0.2, 1.0, 0.1]),
+                      aspect=1.5, far=100.0)
+    for threads in (1, 2, 3):
+        hits = camera_hits(mesh_bvh(scene.vertices, scene.triangles), position=pose.position, rotation=pose.rotation,
+                           fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, far=pose.far, width=12, height=8,
+                           method=method, threads=threads)
+        assert np.all(hits.triangle == -1) and np.all(np.isnan(hits.position)) and np.all(hits.view_depth == np.inf)
+
+
+@pytest.mark.parametrize("atomic", [False, True], ids=["serial", "atomic"])
+@pytest.mark.parametrize("threads", [2, 3])
+def test_equal_depths_go_to_the_lower_triangle_index_across_threads(atomic, threads):
+    # Each triangle and its copy: with an odd count the two fall to different launches' buffers.
+    scene = shifted_plane_box((0.0, 0.0, 0.0), divisions=4)
+    triangles = scene.triangles[:-1]
+    count = len(triangles)
+    assert count % 2 == 1 and count % 3 != 0
+    doubled = np.concatenate([triangles[::-1], triangles])
+    eye = np.array([4.0, 3.0, 5.0])
+    pose = CameraPose(position=eye, orientation=rotation_looking_at(-eye), far=100.0)
+    kwargs = dict(position=eye, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, far=pose.far,
+                  width=40, height=24, atomic=atomic)
+    once = camera_hits_raster(mesh_bvh(scene.vertices, triangles), **kwargs)
+    twice = camera_hits_raster(mesh_bvh(scene.vertices, doubled), **kwargs, threads=threads)
+    valid = once.triangle >= 0
+    assert valid.mean() > 0.5
+    np.testing.assert_array_equal(twice.triangle >= 0, valid)
+    np.testing.assert_array_equal(count - 1 - twice.triangle[valid], once.triangle[valid])
+
+
+@pytest.mark.parametrize("threads", [0, -2, 1.5, True, "2", None])
+def test_threads_must_be_a_positive_integer(threads):
+    scene = shifted_plane_box((0.0, 0.0, 0.0))
+    for method in METHODS:
+        with pytest.raises(ValueError, match=r"threads: expected an integer >= 1"):
+            camera_hits(mesh_bvh(scene.vertices, scene.triangles), position=np.ones(3), rotation=np.eye(3),
+                        fov_y_deg=60.0, aspect=1.0, far=10.0, width=4, height=4, method=method, threads=threads)
+
+
+@pytest.mark.skipif(wp.get_cuda_device_count() == 0, reason="no CUDA device")
+@pytest.mark.parametrize("method", METHODS)
+def test_threads_leave_a_cuda_launch_unchanged(method):
+    scene, pose = walk_scene_and_pose(96, 54)
+    bvh = mesh_bvh(scene.vertices, scene.triangles, device="cuda")
+    kwargs = dict(position=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg, aspect=pose.aspect,
+                  far=pose.far, width=96, height=54, method=method)
+    assert_same_hits(camera_hits(bvh, **kwargs, threads=4), camera_hits(bvh, **kwargs))

@@ -8,6 +8,7 @@
   (bilinear, trilinear or anisotropic).
 - :mod:`csmlab.kernels.reference` — the ray-traced hard shadow (ground truth).
 - :mod:`csmlab.kernels.footprint` — texel footprint of a screen pixel (aliasing metric).
+- :mod:`csmlab.kernels.threads` — CPU launches split over threads, each writing its own outputs.
 
 Every wrapper takes ``device=`` (``"cpu"`` by default, ``"cuda"`` when asked) and checks it with
 :func:`checked_device` before any upload.

@@ -19,6 +19,9 @@ question, registered in :data:`REFERENCE_METHODS`:
 They agree everywhere but within float32 rounding of a triangle's edge or of the ray's start plane,
 where the float32 ray cast may decide either way.
 
+Both take ``threads``: on the CPU, that many concurrent Warp launches share the work, each writing
+its own part of the outputs (:mod:`csmlab.kernels.threads`), with the same shadow for every value.
+
 References
 ----------
 - Aila and Laine, "Alias-Free Shadow Maps", EGSR 2004 — shadow rays from the eye's samples,
@@ -30,12 +33,14 @@ References
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 import warp as wp
 
 from csmlab.geometry import light_basis
+from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 from csmlab.kernels.visibility import MeshBVH
 from csmlab.registry import check_name
 
@@ -186,14 +191,19 @@ def coarse_bin_kernel(
 
 @wp.kernel
 def sub_grid_kernel(
-    count: wp.array(dtype=wp.int32),
+    count: wp.array2d(dtype=wp.int32),
     rays_per_cell: wp.float64,
     sub: wp.array(dtype=wp.int32),
     cells: wp.array(dtype=wp.int32),
 ):
-    """Each coarse cell split ``sub × sub`` ways, ``rays_per_cell`` rays per sub-cell were they spread evenly."""
+    """Each coarse cell split ``sub × sub`` ways, ``rays_per_cell`` rays per sub-cell were they spread evenly.
+
+    ``count[k, c]``: the rays of coarse cell ``c`` that the ``k``-th range of receivers binned.
+    """
     c = wp.tid()
-    n = count[c]
+    n = int(0)
+    for k in range(count.shape[0]):
+        n += count[k, c]
     s = 0
     if n > 0:
         s = int(wp.ceil(wp.sqrt(wp.float64(n) / rays_per_cell)))
@@ -238,16 +248,41 @@ def scatter_kernel(
     fine: wp.array(dtype=wp.int32),
     slot: wp.array(dtype=wp.int32),
     first: wp.array(dtype=wp.int32),
+    base: int,
     sorted_start: wp.array(dtype=wp.vec3d),
     sorted_ray: wp.array(dtype=wp.int32),
 ):
-    """Rays in sub-cell order (counting sort, second pass)."""
+    """Rays in sub-cell order (counting sort, second pass); ray ``k`` of the arrays is receiver ``base + k``."""
     k = wp.tid()
     if lit[k] != 1.0:
         return
     j = first[fine[k]] + slot[k]
     sorted_start[j] = start[k]
-    sorted_ray[j] = k
+    sorted_ray[j] = base + k
+
+
+@wp.kernel
+def cell_total_kernel(
+    count: wp.array2d(dtype=wp.int32),
+    total: wp.array(dtype=wp.int32),
+):
+    """The rays of fine cell ``f`` over every range of receivers: ``Σ_k count[k, f]``."""
+    f = wp.tid()
+    n = int(0)
+    for k in range(count.shape[0]):
+        n += count[k, f]
+    total[f] = n
+
+
+@wp.kernel
+def range_first_kernel(
+    count: wp.array2d(dtype=wp.int32),
+    first: wp.array2d(dtype=wp.int32),
+):
+    """``first[k, f] = first[k − 1, f] + count[k − 1, f]`` for the ranges ``k ≥ 1`` (row 0 given)."""
+    f = wp.tid()
+    for k in range(1, count.shape[0]):
+        first[k, f] = first[k - 1, f] + count[k - 1, f]
 
 
 @wp.func
@@ -295,13 +330,17 @@ def block_kernel(
     first: wp.array(dtype=wp.int32),
     bounds: wp.array(dtype=wp.float64),
     max_t: wp.float64,
+    phase: int,
+    stride: int,
     blocked: wp.array(dtype=wp.uint8),
 ):
-    """One triangle: mark every ray whose start it covers in light space, nearer the light within ``max_t``.
+    """Triangle ``phase + i·stride``: mark every ray whose start it covers in light space, nearer the light
+    within ``max_t``.
 
-    Every writer of ``blocked[j]`` writes 1, so concurrent triangles need no atomics.
+    Every writer of ``blocked[j]`` writes 1, so the threads of one launch need no atomics; concurrent
+    launches each mark their own ``blocked``.
     """
-    t = wp.tid()
+    t = phase + wp.tid() * stride
     # Most triangles lie beside every start: their float32 rectangle (read in sequence, widened by
     # ``slack`` beyond its rounding) says so before any vertex is gathered.
     rect = box[t]
@@ -393,13 +432,17 @@ def block_kernel(
 
 @wp.kernel
 def shade_kernel(
-    blocked: wp.array(dtype=wp.uint8),
+    blocked: wp.array2d(dtype=wp.uint8),
     sorted_ray: wp.array(dtype=wp.int32),
+    first_ray: int,
     lit: wp.array(dtype=wp.float32),
 ):
-    j = wp.tid()
-    if blocked[j] != wp.uint8(0):
-        lit[sorted_ray[j]] = 0.0
+    """Ray ``first_ray + i`` is shadowed when a triangle of any launch of :func:`block_kernel` blocked it."""
+    j = first_ray + wp.tid()
+    for k in range(blocked.shape[0]):
+        if blocked[k, j] != wp.uint8(0):
+            lit[sorted_ray[j]] = 0.0
+            break
 
 
 def _receivers(points, normals, light_direction) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -414,113 +457,167 @@ def _receivers(points, normals, light_direction) -> tuple[np.ndarray, np.ndarray
     return np.ascontiguousarray(p.reshape(-1, 3)), np.ascontiguousarray(n.reshape(-1, 3)), light_basis(d)
 
 
-def hard_shadow_ray(bvh: MeshBVH, *, points, normals, light_direction) -> np.ndarray:
-    """The hard shadow by one float32 any-hit ray per point through the BVH (arguments of :func:`hard_shadow`)."""
+def hard_shadow_ray(bvh: MeshBVH, *, points, normals, light_direction, threads: int = 1) -> np.ndarray:
+    """The hard shadow by one float32 any-hit ray per point through the BVH (arguments of :func:`hard_shadow`).
+
+    With ``threads`` > 1 on the CPU, each thread casts the rays of one range of points.
+    """
     p, n, basis = _receivers(points, normals, light_direction)
     shape = np.shape(points)[:-1]
+    device = bvh.device
+    threads = checked_threads(threads, device)
     valid = np.all(np.isfinite(p), axis=1)
     out = np.full(p.shape[0], np.nan, dtype=np.float32)
     if np.any(valid):
-        device = bvh.device
-        start = np.ascontiguousarray(p[valid] - bvh.anchor)
-        normal = np.ascontiguousarray(n[valid])
+        start = wp.array(np.ascontiguousarray(p[valid] - bvh.anchor), dtype=wp.vec3d, device=device, copy=False)
+        normal = wp.array(np.ascontiguousarray(n[valid]), dtype=wp.vec3, device=device, copy=False)
         lit = wp.empty(start.shape[0], dtype=wp.float32, device=device)
-        wp.launch(
-            hard_shadow_kernel,
-            dim=start.shape[0],
-            inputs=(
-                bvh.mesh.id,
-                wp.array(start, dtype=wp.vec3d, device=device, copy=False),
-                wp.array(normal, dtype=wp.vec3, device=device, copy=False),
-                wp.vec3d(*-basis[2]),
-                RAY_OFFSET * max(bvh.diagonal, 1e-9),
-                float(RAY_LENGTH * max(bvh.diagonal, 1e-9)),
-            ),
-            outputs=(lit,),
-            device=device,
-        )
+        inputs = (wp.vec3d(*-basis[2]), RAY_OFFSET * max(bvh.diagonal, 1e-9),
+                  float(RAY_LENGTH * max(bvh.diagonal, 1e-9)))
+        with LaunchPool(threads, kernels=(hard_shadow_kernel,), device=device) as pool:
+            pool.run([functools.partial(wp.launch, hard_shadow_kernel, dim=hi - lo,
+                                        inputs=(bvh.mesh.id, start[lo:hi], normal[lo:hi], *inputs),
+                                        outputs=(lit[lo:hi],), device=device)
+                      for lo, hi in split_range(start.shape[0], threads)])
         out[valid] = lit.numpy()
     return out.reshape(shape)
 
 
-def _scene_in_light_space(bvh: MeshBVH, basis: np.ndarray) -> tuple[wp.array, wp.array]:
+def _scene_in_light_space(bvh: MeshBVH, basis: np.ndarray, pool: LaunchPool) -> tuple[wp.array, wp.array]:
     """``bvh``'s vertices in the light space of ``basis`` (relative to the anchor) and its triangles'
-    float32 rectangles there, kept per direction."""
+    float32 rectangles there, kept per direction; each thread of ``pool`` transforms a range."""
     key = basis.tobytes()
     if key not in bvh.light_space:
         device = bvh.device
         light = wp.empty(bvh.vertices.shape[0], dtype=wp.vec3d, device=device)
-        wp.launch(light_space_kernel, dim=light.shape[0], inputs=(bvh.vertices, *(wp.vec3d(*row) for row in basis)),
-                  outputs=(light,), device=device)
+        axes = tuple(wp.vec3d(*row) for row in basis)
+        pool.run([functools.partial(wp.launch, light_space_kernel, dim=hi - lo, inputs=(bvh.vertices[lo:hi], *axes),
+                                    outputs=(light[lo:hi],), device=device)
+                  for lo, hi in split_range(light.shape[0], pool.threads)])
         box = wp.empty(bvh.triangles.shape[0], dtype=wp.vec4, device=device)
-        wp.launch(triangle_box_kernel, dim=box.shape[0], inputs=(light, bvh.triangles), outputs=(box,), device=device)
+        pool.run([functools.partial(wp.launch, triangle_box_kernel, dim=hi - lo, inputs=(light, bvh.triangles[lo:hi]),
+                                    outputs=(box[lo:hi],), device=device)
+                  for lo, hi in split_range(box.shape[0], pool.threads)])
         while len(bvh.light_space) >= _CACHED_LIGHTS:
             bvh.light_space.pop(next(iter(bvh.light_space)))
         bvh.light_space[key] = (light, box)
     return bvh.light_space[key]
 
 
-def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction) -> np.ndarray:
+def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, threads: int = 1) -> np.ndarray:
     """The hard shadow by an irregular z-buffer: rays binned in light space, tested by triangle in float64.
 
     Arguments of :func:`hard_shadow`. The grid spans the ray starts' light-space rectangle with
     square cells of :data:`RAYS_PER_CELL` starts on average.
+
+    Notes
+    -----
+    Split over ``threads`` concurrent CPU launches (:mod:`csmlab.kernels.threads`), each writing
+    its own outputs: the ray starts, their coarse and fine bins and their scatter by ranges of
+    receivers, each range with its own bounds and per-cell counters (a cell's rays are placed
+    range after range, so the sorted rays keep the receivers' order, as one launch sorts them); the
+    triangles interleaved (launch ``k`` takes ``k, k + threads, …``), each launch marking the rays
+    it blocks in its own flags; the shading by ranges of sorted rays, a ray shadowed when any launch
+    blocked it. Every ``threads`` gives the same flags, bit for bit.
     """
     p, n, basis = _receivers(points, normals, light_direction)
     shape = np.shape(points)[:-1]
     device = bvh.device
+    threads = checked_threads(threads, device)
     count = p.shape[0]
     lit = wp.empty(count, dtype=wp.float32, device=device)
     if count == 0:
         return lit.numpy().reshape(shape)
     diagonal = max(bvh.diagonal, 1e-9)
-    light, box = _scene_in_light_space(bvh, basis)
-    axes = tuple(wp.vec3d(*row) for row in basis)
-    start = wp.empty(count, dtype=wp.vec3d, device=device)
-    bounds = wp.array([np.inf, np.inf, -np.inf, -np.inf, -np.inf], dtype=wp.float64, device=device)
-    # On the CPU the kernel reads the NumPy arrays in place.
-    copy = not wp.get_device(device).is_cpu
-    wp.launch(ray_start_kernel, dim=count,
-              inputs=(wp.array(p, dtype=wp.vec3d, device=device, copy=copy),
-                      wp.array(n, dtype=wp.vec3, device=device, copy=copy),
-                      wp.vec3d(*bvh.anchor), *axes, RAY_OFFSET * diagonal),
-              outputs=(start, lit, bounds), device=device)
-    x0, y0, x1, y1, _ = bounds.numpy()
-    if not x0 <= x1:
-        return lit.numpy().reshape(shape)
-    # Square coarse cells, COARSE_RAYS_PER_CELL starts each were the starts spread evenly over
-    # their rectangle (no more along a side than there are rays: a thin rectangle); each then split
-    # for RAYS_PER_CELL starts per sub-cell, wherever the starts crowd.
-    width, height = max(x1 - x0, 1e-12 * diagonal), max(y1 - y0, 1e-12 * diagonal)
-    side = max(math.sqrt(width * height * COARSE_RAYS_PER_CELL / count), max(width, height) / count)
-    nx, ny = math.ceil(width / side), math.ceil(height / side)
-    grid = (wp.vec2d(x0, y0), 1.0 / side, nx)
-    per_coarse = wp.zeros(nx * ny, dtype=wp.int32, device=device)
-    wp.launch(coarse_bin_kernel, dim=count, inputs=(start, lit, *grid, ny), outputs=(per_coarse,), device=device)
-    sub = wp.empty(nx * ny, dtype=wp.int32, device=device)
-    cells = wp.zeros(nx * ny + 1, dtype=wp.int32, device=device)
-    wp.launch(sub_grid_kernel, dim=nx * ny, inputs=(per_coarse, RAYS_PER_CELL), outputs=(sub, cells), device=device)
-    offset = wp.empty_like(cells)
-    wp.utils.array_scan(cells, offset, inclusive=False)
-    fine_cells = int(offset.numpy()[-1])
-    fine = wp.empty(count, dtype=wp.int32, device=device)
-    slot = wp.empty(count, dtype=wp.int32, device=device)
-    per_fine = wp.zeros(fine_cells + 1, dtype=wp.int32, device=device)
-    wp.launch(fine_bin_kernel, dim=count, inputs=(start, lit, *grid, ny, sub, offset),
-              outputs=(fine, slot, per_fine), device=device)
-    first = wp.empty_like(per_fine)
-    wp.utils.array_scan(per_fine, first, inclusive=False)
-    rays = int(first.numpy()[-1])
-    sorted_start = wp.empty(rays, dtype=wp.vec3d, device=device)
-    sorted_ray = wp.empty(rays, dtype=wp.int32, device=device)
-    wp.launch(scatter_kernel, dim=count, inputs=(start, lit, fine, slot, first),
-              outputs=(sorted_start, sorted_ray), device=device)
-    blocked = wp.zeros(rays, dtype=wp.uint8, device=device)
-    wp.launch(block_kernel, dim=bvh.triangles.shape[0],
-              inputs=(light, bvh.triangles, box, diagonal * 2.0**-23, sorted_start, *grid, ny, sub, offset, first, bounds,
-                      RAY_LENGTH * diagonal),
-              outputs=(blocked,), device=device)
-    wp.launch(shade_kernel, dim=rays, inputs=(blocked, sorted_ray), outputs=(lit,), device=device)
+    receivers = split_range(count, threads)
+    parts = len(receivers)
+    kernels = (ray_start_kernel, light_space_kernel, block_kernel)
+    with LaunchPool(threads, kernels=kernels, device=device) as pool:
+        light, box = _scene_in_light_space(bvh, basis, pool)
+        axes = tuple(wp.vec3d(*row) for row in basis)
+        start = wp.empty(count, dtype=wp.vec3d, device=device)
+        # A row of bounds per range, 128 bytes apart: every ray updates its range's row, and two cores
+        # writing to one cache line would pass it back and forth.
+        bounds = np.zeros((parts, 16))
+        bounds[:, :5] = [np.inf, np.inf, -np.inf, -np.inf, -np.inf]
+        bounds = wp.array(bounds, dtype=wp.float64, device=device)
+        # On the CPU the kernel reads the NumPy arrays in place.
+        copy = not wp.get_device(device).is_cpu
+        points_in = wp.array(p, dtype=wp.vec3d, device=device, copy=copy)
+        normals_in = wp.array(n, dtype=wp.vec3, device=device, copy=copy)
+        pool.run([functools.partial(wp.launch, ray_start_kernel, dim=hi - lo,
+                                    inputs=(points_in[lo:hi], normals_in[lo:hi], wp.vec3d(*bvh.anchor), *axes,
+                                            RAY_OFFSET * diagonal),
+                                    outputs=(start[lo:hi], lit[lo:hi], bounds[k]), device=device)
+                  for k, (lo, hi) in enumerate(receivers)])
+        each = bounds.numpy()[:, :5]
+        x0, y0 = each[:, :2].min(axis=0)
+        x1, y1, z1 = each[:, 2:].max(axis=0)
+        if not x0 <= x1:
+            return lit.numpy().reshape(shape)
+        bounds = wp.array([x0, y0, x1, y1, z1], dtype=wp.float64, device=device)
+        # Square coarse cells, COARSE_RAYS_PER_CELL starts each were the starts spread evenly over
+        # their rectangle (no more along a side than there are rays: a thin rectangle); each then split
+        # for RAYS_PER_CELL starts per sub-cell, wherever the starts crowd.
+        width, height = max(x1 - x0, 1e-12 * diagonal), max(y1 - y0, 1e-12 * diagonal)
+        side = max(math.sqrt(width * height * COARSE_RAYS_PER_CELL / count), max(width, height) / count)
+        nx, ny = math.ceil(width / side), math.ceil(height / side)
+        grid = (wp.vec2d(x0, y0), 1.0 / side, nx)
+        per_coarse = wp.zeros((parts, nx * ny), dtype=wp.int32, device=device)
+        pool.run([functools.partial(wp.launch, coarse_bin_kernel, dim=hi - lo,
+                                    inputs=(start[lo:hi], lit[lo:hi], *grid, ny), outputs=(per_coarse[k],),
+                                    device=device)
+                  for k, (lo, hi) in enumerate(receivers)])
+        sub = wp.empty(nx * ny, dtype=wp.int32, device=device)
+        cells = wp.zeros(nx * ny + 1, dtype=wp.int32, device=device)
+        wp.launch(sub_grid_kernel, dim=nx * ny, inputs=(per_coarse, RAYS_PER_CELL), outputs=(sub, cells),
+                  device=device)
+        offset = wp.empty_like(cells)
+        wp.utils.array_scan(cells, offset, inclusive=False)
+        fine_cells = int(offset.numpy()[-1])
+        fine = wp.empty(count, dtype=wp.int32, device=device)
+        slot = wp.empty(count, dtype=wp.int32, device=device)
+        # Rays per range of receivers and fine cell, a contiguous row per range (kernels indexing a
+        # strided column of a cell-major table ran several times slower).
+        per_fine = wp.zeros((parts, fine_cells + 1), dtype=wp.int32, device=device)
+        pool.run([functools.partial(wp.launch, fine_bin_kernel, dim=hi - lo,
+                                    inputs=(start[lo:hi], lit[lo:hi], *grid, ny, sub, offset),
+                                    outputs=(fine[lo:hi], slot[lo:hi], per_fine[k]), device=device)
+                  for k, (lo, hi) in enumerate(receivers)])
+        # first_each[k, f]: where range k's rays of fine cell f go — after every ray of the earlier
+        # cells (the exclusive scan of the cells' totals, row 0) and the earlier ranges' rays of f.
+        first_each = wp.empty_like(per_fine)
+        total = per_fine[0]
+        if parts > 1:
+            total = wp.empty(fine_cells + 1, dtype=wp.int32, device=device)
+            wp.launch(cell_total_kernel, dim=fine_cells + 1, inputs=(per_fine,), outputs=(total,), device=device)
+        wp.utils.array_scan(total, first_each[0], inclusive=False)
+        if parts > 1:
+            wp.launch(range_first_kernel, dim=fine_cells + 1, inputs=(per_fine,), outputs=(first_each,), device=device)
+        rays = int(first_each.numpy()[0, -1])
+        sorted_start = wp.empty(rays, dtype=wp.vec3d, device=device)
+        sorted_ray = wp.empty(rays, dtype=wp.int32, device=device)
+        pool.run([functools.partial(wp.launch, scatter_kernel, dim=hi - lo,
+                                    inputs=(start[lo:hi], lit[lo:hi], fine[lo:hi], slot[lo:hi], first_each[k], lo),
+                                    outputs=(sorted_start, sorted_ray), device=device)
+                  for k, (lo, hi) in enumerate(receivers)])
+        # The first ray of each fine cell (and the total after the last).
+        first = first_each[0]
+        triangle_count = bvh.triangles.shape[0]
+        launches = len(split_range(triangle_count, threads))
+        blocked = wp.empty((launches, rays), dtype=wp.uint8, device=device)
+
+        def block(k: int) -> None:
+            blocked[k].zero_()
+            wp.launch(block_kernel, dim=(triangle_count - k + launches - 1) // launches,
+                      inputs=(light, bvh.triangles, box, diagonal * 2.0**-23, sorted_start, *grid, ny, sub, offset,
+                              first, bounds, RAY_LENGTH * diagonal, k, launches),
+                      outputs=(blocked[k],), device=device)
+
+        pool.run([functools.partial(block, k) for k in range(launches)])
+        pool.run([functools.partial(wp.launch, shade_kernel, dim=hi - lo, inputs=(blocked, sorted_ray, lo),
+                                    outputs=(lit,), device=device)
+                  for lo, hi in split_range(rays, threads)])
     return lit.numpy().reshape(shape)
 
 
@@ -528,7 +625,8 @@ REFERENCE_METHODS = {"irregular": hard_shadow_irregular, "ray": hard_shadow_ray}
 """Methods of the hard shadow by name: the irregular z-buffer (float64, the default) and the BVH ray cast (float32)."""
 
 
-def hard_shadow(bvh: MeshBVH, *, points, normals, light_direction, method: str = "irregular") -> np.ndarray:
+def hard_shadow(bvh: MeshBVH, *, points, normals, light_direction, method: str = "irregular",
+                threads: int = 1) -> np.ndarray:
     """Ray-traced hard shadow R at receiver points: 1 lit, 0 shadowed, NaN where no point.
 
     Parameters
@@ -544,6 +642,9 @@ def hard_shadow(bvh: MeshBVH, *, points, normals, light_direction, method: str =
     method : str
         A key of :data:`REFERENCE_METHODS`: ``"irregular"`` (float64, the faster) or ``"ray"``
         (BVH rays in float32).
+    threads : int
+        Concurrent CPU launches (:mod:`csmlab.kernels.threads`), each writing its own part of the
+        outputs; the result is the same, bit for bit, for every value. Ignored on CUDA.
 
     Returns
     -------
@@ -552,7 +653,8 @@ def hard_shadow(bvh: MeshBVH, *, points, normals, light_direction, method: str =
     Raises
     ------
     ValueError
-        On an unknown method, mis-shaped points or normals, or a zero or non-finite light direction.
+        On an unknown method, mis-shaped points or normals, a zero or non-finite light direction, or
+        ``threads`` not an integer ≥ 1.
     """
     return REFERENCE_METHODS[check_name(method, REFERENCE_METHODS, field="method")](
-        bvh, points=points, normals=normals, light_direction=light_direction)
+        bvh, points=points, normals=normals, light_direction=light_direction, threads=threads)

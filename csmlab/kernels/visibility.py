@@ -19,6 +19,9 @@ equal bit for bit wherever the two methods pick the same triangle — everywhere
 rounding of an edge, where the ray cast's float32 test and the raster's float64 one may pick
 different neighbours. (The footprint of a pixel on that plane is :mod:`csmlab.kernels.footprint`'s.)
 
+Both take ``threads``: on the CPU, that many concurrent Warp launches share the work, each writing
+its own part of the outputs (:mod:`csmlab.kernels.threads`), with the same result for every value.
+
 References
 ----------
 - Olano and Greer, "Triangle Scan Conversion using 2D Homogeneous Coordinates", Graphics Hardware
@@ -28,12 +31,14 @@ References
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device
+from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 from csmlab.registry import check_name
 
 __all__ = ["CameraHits", "MeshBVH", "NEAR_FRACTION", "VISIBILITY_METHODS", "camera_hits", "camera_hits_raster",
@@ -187,6 +192,7 @@ def store_hit(
     forward: wp.vec3d,
     far: wp.float64,
     edge_on: wp.float64,
+    anchor: wp.vec3d,
     row: int,
     col: int,
     position: wp.array2d(dtype=wp.vec3d),
@@ -197,7 +203,8 @@ def store_hit(
     """Write the hit of ray ``origin + t·direction`` on triangle ``face``, or a miss when ``face < 0``.
 
     The hit is the ray's float64 intersection with the triangle's plane; a ray the plane does not
-    meet in (0, far) — the triangle seen edge-on — is taken at ``edge_on`` instead.
+    meet in (0, far) — the triangle seen edge-on — is taken at ``edge_on`` instead. ``position``
+    gets it in world metres (``+ anchor``), ``view_depth`` relative to the eye.
     """
     if face < 0:
         position[row, col] = wp.vec3d(wp.float64(wp.nan), wp.float64(wp.nan), wp.float64(wp.nan))
@@ -216,7 +223,7 @@ def store_hit(
     n = wp.normalize(n)
     if wp.dot(n, direction) > wp.float64(0.0):
         n = -n
-    position[row, col] = hit
+    position[row, col] = hit + anchor
     normal[row, col] = wp.vec3(n)
     triangle[row, col] = face
     view_depth[row, col] = wp.float32(wp.dot(hit - origin, forward))
@@ -234,12 +241,16 @@ def camera_hits_kernel(
     step_x: wp.float64,
     step_y: wp.float64,
     far: wp.float64,
+    anchor: wp.vec3d,
+    row0: int,
     position: wp.array2d(dtype=wp.vec3d),
     normal: wp.array2d(dtype=wp.vec3),
     triangle: wp.array2d(dtype=wp.int32),
     view_depth: wp.array2d(dtype=wp.float32),
 ):
-    row, col = wp.tid()
+    """The rows ``row0 + i`` of the image (a band when the launch is split over threads)."""
+    i, col = wp.tid()
+    row = row0 + i
     # Camera-space ray through the pixel centre with unit forward component, so that its ray
     # parameter is the view depth.
     direction = forward + right * pixel_x(col, position.shape[1], step_x) + up * pixel_y(row, position.shape[0], step_y)
@@ -251,8 +262,8 @@ def camera_hits_kernel(
         face = query.face
         # An edge-on hit keeps the BVH's float32 distance.
         edge_on = wp.float64(query.t) / length
-    store_hit(vertices, triangles, face, origin, direction, forward, far, edge_on, row, col, position, normal, triangle,
-              view_depth)
+    store_hit(vertices, triangles, face, origin, direction, forward, far, edge_on, anchor, row, col, position, normal,
+              triangle, view_depth)
 
 
 @wp.kernel
@@ -350,10 +361,13 @@ def raster_view_kernel(
     near: wp.float64,
     far: wp.float64,
     resolve: int,
+    phase: int,
+    stride: int,
     depth: wp.array2d(dtype=wp.float64),
     nearest: wp.array2d(dtype=wp.int32),
 ):
-    face = wp.tid()
+    """The triangles ``phase + i·stride``, into their own ``depth`` and ``nearest`` (one pair per concurrent launch)."""
+    face = phase + wp.tid() * stride
     ia = triangles[face, 0]
     ib = triangles[face, 1]
     ic = triangles[face, 2]
@@ -432,8 +446,8 @@ def raster_view_kernel(
 def raster_hits_kernel(
     vertices: wp.array(dtype=wp.vec3d),
     triangles: wp.array2d(dtype=wp.int32),
-    nearest: wp.array2d(dtype=wp.int32),
-    depth: wp.array2d(dtype=wp.float64),
+    nearest: wp.array3d(dtype=wp.int32),
+    depth: wp.array3d(dtype=wp.float64),
     origin: wp.vec3d,
     right: wp.vec3d,
     up: wp.vec3d,
@@ -441,18 +455,31 @@ def raster_hits_kernel(
     step_x: wp.float64,
     step_y: wp.float64,
     far: wp.float64,
+    anchor: wp.vec3d,
+    row0: int,
     position: wp.array2d(dtype=wp.vec3d),
     normal: wp.array2d(dtype=wp.vec3),
     triangle: wp.array2d(dtype=wp.int32),
     view_depth: wp.array2d(dtype=wp.float32),
 ):
-    row, col = wp.tid()
+    """The rows ``row0 + i``: each pixel's smallest ``(depth, triangle)`` over the raster's buffers, and its hit."""
+    i, col = wp.tid()
+    row = row0 + i
     direction = forward + right * pixel_x(col, position.shape[1], step_x) + up * pixel_y(row, position.shape[0], step_y)
-    face = nearest[row, col]
+    # The order of the triangles does not change a lexicographic minimum: merging the buffers of
+    # any split of them gives the pixel one launch over all of them would.
+    face = NO_TRIANGLE
+    t = wp.float64(wp.inf)
+    for k in range(nearest.shape[0]):
+        d = depth[k, row, col]
+        f = nearest[k, row, col]
+        if d < t or (d == t and f < face):
+            t = d
+            face = f
     if face == NO_TRIANGLE:
         face = -1
     # An edge-on hit keeps the raster's camera-space depth.
-    store_hit(vertices, triangles, face, origin, direction, forward, far, depth[row, col], row, col, position, normal,
+    store_hit(vertices, triangles, face, origin, direction, forward, far, t, anchor, row, col, position, normal,
               triangle, view_depth)
 
 
@@ -474,33 +501,37 @@ def _pinhole(bvh: MeshBVH, position, rotation, fov_y_deg: float, aspect: float, 
             float(2.0 * tan_y * aspect / width), float(2.0 * tan_y / height))
 
 
-def _hits_record(bvh: MeshBVH, shape: tuple[int, int], launch) -> CameraHits:
-    """Allocate the output arrays, run ``launch(outputs)`` and return them as host arrays."""
-    outputs = (wp.empty(shape, dtype=wp.vec3d, device=bvh.device), wp.empty(shape, dtype=wp.vec3, device=bvh.device),
-               wp.empty(shape, dtype=wp.int32, device=bvh.device), wp.empty(shape, dtype=wp.float32, device=bvh.device))
-    launch(outputs)
-    position, normal, triangle, view_depth = outputs
-    return CameraHits(position=position.numpy() + bvh.anchor, normal=normal.numpy(), triangle=triangle.numpy(),
-                      view_depth=view_depth.numpy())
+def _hits_record(bvh: MeshBVH, shape: tuple[int, int], pool: LaunchPool, kernel, inputs: tuple) -> CameraHits:
+    """Allocate the output arrays, launch ``kernel`` over bands of rows (``inputs``, then the band's first row)
+    and return them as host arrays."""
+    device = bvh.device
+    outputs = (wp.empty(shape, dtype=wp.vec3d, device=device), wp.empty(shape, dtype=wp.vec3, device=device),
+               wp.empty(shape, dtype=wp.int32, device=device), wp.empty(shape, dtype=wp.float32, device=device))
+    pool.run([functools.partial(wp.launch, kernel, dim=(hi - lo, shape[1]), inputs=(*inputs, lo), outputs=outputs,
+                                device=device)
+              for lo, hi in split_range(shape[0], pool.threads)])
+    position, normal, triangle, view_depth = (a.numpy() for a in outputs)
+    return CameraHits(position=position, normal=normal, triangle=triangle, view_depth=view_depth)
 
 
 def camera_hits_ray(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspect: float, far: float, width: int,
-                    height: int) -> CameraHits:
+                    height: int, threads: int = 1) -> CameraHits:
     """:func:`camera_hits` by one BVH ray per pixel centre: the hit triangle found in float32.
 
     ``max_t = far·|d|``: hits beyond view depth ``far`` (to float32 rounding) are not found. This is
-    the raster's independent oracle in the tests.
+    the raster's independent oracle in the tests. With ``threads`` > 1 on the CPU, each thread casts
+    the rays of one band of rows.
     """
     eye, right, up, forward, step_x, step_y = _pinhole(bvh, position, rotation, fov_y_deg, aspect, far, width, height)
-    shape = (height, width)
-    return _hits_record(bvh, shape, lambda outputs: wp.launch(
-        camera_hits_kernel, dim=shape,
-        inputs=(bvh.mesh.id, bvh.vertices, bvh.triangles, eye, right, up, forward, step_x, step_y, float(far)),
-        outputs=outputs, device=bvh.device))
+    threads = checked_threads(threads, bvh.device)
+    with LaunchPool(threads, kernels=(camera_hits_kernel,), device=bvh.device) as pool:
+        return _hits_record(bvh, (height, width), pool, camera_hits_kernel,
+                            (bvh.mesh.id, bvh.vertices, bvh.triangles, eye, right, up, forward, step_x, step_y,
+                             float(far), wp.vec3d(*bvh.anchor)))
 
 
 def camera_hits_raster(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspect: float, far: float, width: int,
-                       height: int, atomic: bool | None = None) -> CameraHits:
+                       height: int, threads: int = 1, atomic: bool | None = None) -> CameraHits:
     """:func:`camera_hits` by perspective rasterization of every triangle: coverage and depth in float64.
 
     Parameters
@@ -513,12 +544,13 @@ def camera_hits_raster(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, as
 
     Notes
     -----
-    Three launches, or four with atomics:
+    Three launches, or four with atomics, each split over ``threads`` concurrent CPU launches
+    (:mod:`csmlab.kernels.threads`) that write disjoint outputs:
 
     1. every vertex to camera space, ``(x, y, z)`` along right, up and forward relative to the eye,
        with an out-code: which of the six half-spaces (``z ≥ near``, ``z ≤ far`` and the four
        through the eye and the image's sides, padded by a pixel) it lies outside, where
-       ``near = NEAR_FRACTION·far``;
+       ``near = NEAR_FRACTION·far`` — each thread a range of vertices;
     2. one thread per triangle: a triangle with all three vertices outside one half-space returns
        (behind the camera, beyond ``far`` or off-screen); the others walk the pixels of their
        image-plane bounding box — of the triangle clipped to ``z ≥ near``, so that triangles crossing
@@ -529,33 +561,48 @@ def camera_hits_raster(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, as
        ``t = n·A / n·(x, y, 1)``, kept for ``near ≤ t ≤ far``. A pixel keeps the smallest
        ``(t, triangle)``: in place on one CPU thread; on CUDA an ``atomic_min`` of ``t`` in a first
        pass, then of the triangle index among those whose ``t`` equals the minimum in a second —
-       either way the result does not depend on the order of the threads;
-    3. per pixel, the hit on the chosen triangle as the ray method computes it.
+       either way the result does not depend on the order of the threads. Split over threads, launch
+       ``k`` takes the triangles ``k, k + threads, …`` (interleaved, so that near and far triangles,
+       small and large, fall to every launch alike) into its own depth and triangle buffers;
+    3. per pixel, the smallest ``(t, triangle)`` over those buffers, and the hit on that triangle as
+       the ray method computes it — each thread a band of rows.
+
+    The minimum of ``(t, triangle)`` pairs does not depend on how they are grouped, so every
+    ``threads`` gives the same pixels, bit for bit.
     """
     eye, right, up, forward, step_x, step_y = _pinhole(bvh, position, rotation, fov_y_deg, aspect, far, width, height)
     device = bvh.device
+    threads = checked_threads(threads, device)
     atomic = device != "cpu" if atomic is None else bool(atomic)
-    shape = (height, width)
     near = float(NEAR_FRACTION * far)
     # The image's extent on the plane at unit depth, padded by a pixel against rounding.
     frustum = wp.vec4d(-(0.5 * width + 1.0) * step_x, (0.5 * width + 1.0) * step_x,
                        -(0.5 * height + 1.0) * step_y, (0.5 * height + 1.0) * step_y)
     vertex_count = bvh.vertices.shape[0]
+    triangle_count = bvh.triangles.shape[0]
     camera = wp.empty(vertex_count, dtype=wp.vec3d, device=device)
     outcode = wp.empty(vertex_count, dtype=wp.int32, device=device)
-    wp.launch(camera_space_kernel, dim=vertex_count,
-              inputs=(bvh.vertices, eye, right, up, forward, frustum, near, float(far)), outputs=(camera, outcode),
-              device=device)
-    depth = wp.full(shape, value=np.inf, dtype=wp.float64, device=device)
-    nearest = wp.full(shape, value=int(NO_TRIANGLE), dtype=wp.int32, device=device)
-    for resolve in ((1, 2) if atomic else (0,)):
-        wp.launch(raster_view_kernel, dim=bvh.triangles.shape[0],
-                  inputs=(camera, outcode, bvh.triangles, step_x, step_y, near, float(far), resolve),
-                  outputs=(depth, nearest), device=device)
-    return _hits_record(bvh, shape, lambda outputs: wp.launch(
-        raster_hits_kernel, dim=shape,
-        inputs=(bvh.vertices, bvh.triangles, nearest, depth, eye, right, up, forward, step_x, step_y, float(far)),
-        outputs=outputs, device=device))
+    parts = len(split_range(triangle_count, threads))
+    depth = wp.empty((parts, height, width), dtype=wp.float64, device=device)
+    nearest = wp.empty((parts, height, width), dtype=wp.int32, device=device)
+
+    def rasterize(k: int) -> None:
+        depth[k].fill_(np.inf)
+        nearest[k].fill_(int(NO_TRIANGLE))
+        for resolve in ((1, 2) if atomic else (0,)):
+            wp.launch(raster_view_kernel, dim=(triangle_count - k + parts - 1) // parts,
+                      inputs=(camera, outcode, bvh.triangles, step_x, step_y, near, float(far), resolve, k, parts),
+                      outputs=(depth[k], nearest[k]), device=device)
+
+    with LaunchPool(threads, kernels=(raster_view_kernel,), device=device) as pool:
+        pool.run([functools.partial(wp.launch, camera_space_kernel, dim=hi - lo,
+                                    inputs=(bvh.vertices[lo:hi], eye, right, up, forward, frustum, near, float(far)),
+                                    outputs=(camera[lo:hi], outcode[lo:hi]), device=device)
+                  for lo, hi in split_range(vertex_count, threads)])
+        pool.run([functools.partial(rasterize, k) for k in range(parts)])
+        return _hits_record(bvh, (height, width), pool, raster_hits_kernel,
+                            (bvh.vertices, bvh.triangles, nearest, depth, eye, right, up, forward, step_x, step_y,
+                             float(far), wp.vec3d(*bvh.anchor)))
 
 
 VISIBILITY_METHODS = {"raster": camera_hits_raster, "ray": camera_hits_ray}
@@ -563,7 +610,7 @@ VISIBILITY_METHODS = {"raster": camera_hits_raster, "ray": camera_hits_ray}
 
 
 def camera_hits(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspect: float, far: float, width: int,
-                height: int, method: str = "raster") -> CameraHits:
+                height: int, method: str = "raster", threads: int = 1) -> CameraHits:
     """First hit of the ray through every pixel centre of a pinhole camera.
 
     Parameters
@@ -585,6 +632,9 @@ def camera_hits(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspect: f
     method : str
         A key of :data:`VISIBILITY_METHODS`: ``"raster"`` (exact coverage, the faster on the
         default scene) or ``"ray"`` (BVH rays, float32 coverage).
+    threads : int
+        Concurrent CPU launches (:mod:`csmlab.kernels.threads`), each writing its own part of the
+        outputs; the result is the same, bit for bit, for every value. Ignored on CUDA.
 
     Returns
     -------
@@ -595,9 +645,9 @@ def camera_hits(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspect: f
     Raises
     ------
     ValueError
-        On an unknown method, a non-positive image size, field of view outside (0, 180) or
-        non-finite camera.
+        On an unknown method, a non-positive image size, field of view outside (0, 180),
+        non-finite camera or ``threads`` not an integer ≥ 1.
     """
     return VISIBILITY_METHODS[check_name(method, VISIBILITY_METHODS, field="method")](
         bvh, position=position, rotation=rotation, fov_y_deg=fov_y_deg, aspect=aspect, far=far, width=width,
-        height=height)
+        height=height, threads=threads)

@@ -1,0 +1,93 @@
+"""Warp CPU launches split over Python threads, each launch writing outputs no other launch writes.
+
+A Warp CPU launch runs every thread of its grid one after another on the calling thread, but it is
+a ctypes call that releases the GIL: launches made from several Python threads run on several
+cores at once. Warp's CPU atomics are atomic only within one launch, so the wrappers that split
+their work here give every concurrent launch its own part of the outputs — a band of rows, a
+range of receivers, or a private buffer merged afterwards — and the result does not depend on how
+many threads ran it. On CUDA one launch already fills the device: ``threads`` is ignored there.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+from typing import Callable, Sequence
+
+import warp as wp
+
+__all__ = ["LaunchPool", "checked_threads", "split_range"]
+
+
+def checked_threads(threads, device: str) -> int:
+    """The number of concurrent CPU launches to use: ``threads`` on the CPU, 1 on CUDA.
+
+    Raises
+    ------
+    ValueError
+        If ``threads`` is not an integer ≥ 1.
+    """
+    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
+        raise ValueError(f"threads: expected an integer >= 1 (concurrent CPU launches), got {threads!r}")
+    return int(threads) if wp.get_device(device).is_cpu else 1
+
+
+def split_range(count: int, parts: int) -> list[tuple[int, int]]:
+    """``[0, count)`` cut into ``min(parts, count)`` consecutive ranges ``(lo, hi)`` of sizes differing by at most 1.
+
+    An empty range gives one empty part, so that a split always has a first part.
+    """
+    parts = max(1, min(parts, count))
+    return [(count * k // parts, count * (k + 1) // parts) for k in range(parts)]
+
+
+class LaunchPool:
+    """Runs groups of tasks (each making Warp launches), one group at a time, on up to ``threads`` threads.
+
+    The first task of a group runs on the calling thread, the others on a pool of ``threads − 1``
+    that lives as long as the ``with`` block (a pool kept across calls would not survive the fork
+    of a process-pool worker).
+
+    Parameters
+    ----------
+    threads : int
+        Checked by :func:`checked_threads`.
+    kernels : sequence of wp.Kernel
+        Kernels the tasks launch: their modules are loaded on ``device`` before any task runs, as
+        Warp's loading on first launch is not meant to run from two threads at once.
+    device : str
+    """
+
+    def __init__(self, threads: int, *, kernels: Sequence = (), device: str = "cpu"):
+        self.threads = threads
+        if threads > 1:
+            for module in {id(k.module): k.module for k in kernels}.values():
+                # The variant a launch on ``device`` loads (one thread per block on the CPU).
+                wp.load_module(module, device=device)
+        self._pool = None
+
+    def __enter__(self) -> LaunchPool:
+        if self.threads > 1:
+            self._pool = ThreadPoolExecutor(self.threads - 1, thread_name_prefix="csmlab-launch")
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
+
+    def run(self, tasks: Sequence[Callable[[], object]]) -> None:
+        """Run every task of ``tasks`` and return when all have finished; the first error is raised."""
+        if not tasks:
+            return
+        if self._pool is None or len(tasks) == 1:
+            for task in tasks:
+                task()
+            return
+        futures = [self._pool.submit(task) for task in tasks[1:]]
+        try:
+            tasks[0]()
+        finally:
+            errors = [f.exception() for f in futures]
+        for error in errors:
+            if error is not None:
+                raise error

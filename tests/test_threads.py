@@ -1,0 +1,63 @@
+"""Splitting Warp CPU launches over threads: ranges that partition, tasks that all run, errors that surface."""
+
+import threading
+
+import pytest
+import warp as wp
+
+from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
+
+
+@pytest.mark.parametrize("count", [0, 1, 2, 5, 360, 1001])
+@pytest.mark.parametrize("parts", [1, 2, 3, 7])
+def test_split_range_partitions_into_nearly_equal_consecutive_ranges(count, parts):
+    ranges = split_range(count, parts)
+    assert len(ranges) == max(1, min(parts, count))
+    assert ranges[0][0] == 0 and ranges[-1][1] == count
+    assert all(hi == lo for (_, hi), (lo, _) in zip(ranges, ranges[1:]))
+    sizes = [hi - lo for lo, hi in ranges]
+    assert max(sizes) - min(sizes) <= 1 and (count == 0 or min(sizes) >= 1)
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_every_task_runs_once_the_first_on_the_calling_thread(threads):
+    ran = []
+    barrier = threading.Barrier(threads)
+
+    def task(k):
+        # With threads > 1 the tasks of a group must run at once: each waits for the others here.
+        if threads > 1:
+            barrier.wait(timeout=30)
+        ran.append((k, threading.get_ident()))
+
+    with LaunchPool(threads) as pool:
+        pool.run([lambda k=k: task(k) for k in range(threads)])
+    assert sorted(k for k, _ in ran) == list(range(threads))
+    assert dict(ran)[0] == threading.get_ident()
+    assert len({ident for _, ident in ran}) == threads
+
+
+def test_an_error_in_a_task_is_raised_after_every_task_has_finished():
+    finished = []
+
+    def fail():
+        raise RuntimeError("task 1 failed")
+
+    def slow():
+        threading.Event().wait(0.05)
+        finished.append("slow")
+
+    with LaunchPool(3) as pool, pytest.raises(RuntimeError, match="task 1 failed"):
+        pool.run([slow, fail, slow])
+    assert finished == ["slow", "slow"]
+
+
+@pytest.mark.parametrize("threads", [0, -1, 1.5, True, "2", None])
+def test_threads_must_be_a_positive_integer(threads):
+    with pytest.raises(ValueError, match=r"threads: expected an integer >= 1"):
+        checked_threads(threads, "cpu")
+
+
+@pytest.mark.skipif(wp.get_cuda_device_count() == 0, reason="no CUDA device")
+def test_cuda_takes_one_launch_whatever_the_threads():
+    assert checked_threads(4, "cuda") == 1 and checked_threads(4, "cpu") == 4
