@@ -7,11 +7,12 @@ Per scene size (the ``terrain`` scene with its ground grid scaled to ~136k and ~
 shadow-map resolution, at frame 60 of the default experiment's walk, it times:
 
 - ``gbuffer raster`` and ``gbuffer ray``: csmlab's camera G-buffer (first hit, position, normal) by
-  each of :data:`csmlab.kernels.visibility.VISIBILITY_METHODS`, both against one measurement of
-  Open3D ``RaycastingScene.cast_rays`` on the same pixel-centre rays;
+  each of :data:`csmlab.kernels.visibility.VISIBILITY_METHODS`, on one core and (``, 2 threads``)
+  on two, all against one measurement of Open3D ``RaycastingScene.cast_rays`` on the same
+  pixel-centre rays;
 - ``shadow irregular`` and ``shadow ray``: csmlab's ray-traced reference by each of
-  :data:`csmlab.kernels.reference.REFERENCE_METHODS`, both against one measurement of Open3D
-  ``test_occlusions`` on the same rays (visible points facing the light, toward the light);
+  :data:`csmlab.kernels.reference.REFERENCE_METHODS`, on one core and on two, all against one
+  measurement of Open3D ``test_occlusions`` on the same rays (visible points facing the light, toward the light);
   ``shadow irregular, new light`` is the first with the scene's light-space vertices transformed
   anew each time, as for a light that moves every frame (a static light transforms them once);
 - ``depth maps``: csmlab's cascade pass (fixed-point conversion + rasterization of 4 cascades)
@@ -138,6 +139,10 @@ def peer_times(rc, rays: np.ndarray, repeats: int, *, occlusion: bool) -> tuple[
     return tuple(best_of(lambda: call(tensor, nthreads=n), repeats) for n in (2, 1))
 
 
+THREADS = ((1, ""), (2, ", 2 threads"))
+"""Thread counts of the G-buffer and reference rows (:attr:`csmlab.render.DeviceScene.threads`) and their labels."""
+
+
 def bench_kernels(label: str, resolution: int, *, width: int, height: int, repeats: int, pose, light,
                   previous_pose) -> list[dict]:
     scene = make_scene("terrain", seed=1, resolution=SIZES[label])
@@ -162,17 +167,18 @@ def bench_kernels(label: str, resolution: int, *, width: int, height: int, repea
     shadow_peer = peer_times(rc, occluders, repeats, occlusion=True)
     texel_peer = peer_times(rc, texel_rays(cascades, anchor), max(1, repeats // 2), occlusion=False)
     rows = [
-        (f"gbuffer {method}", pixels, "Mrays/s",
-         lambda method=method: camera_hits(b, position=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg,
-                                           aspect=pose.aspect, far=pose.far, width=width, height=height, method=method),
+        (f"gbuffer {method}{label}", pixels, "Mrays/s",
+         lambda method=method, threads=threads: camera_hits(
+             b, position=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg, aspect=pose.aspect,
+             far=pose.far, width=width, height=height, method=method, threads=threads),
          lambda: camera_peer)
-        for method in VISIBILITY_METHODS
+        for method in VISIBILITY_METHODS for threads, label in THREADS
     ] + [
-        (f"shadow {method}", len(occluders), "Mrays/s",
-         lambda method=method: hard_shadow(b, points=g.position, normals=g.normal, light_direction=light,
-                                           method=method),
+        (f"shadow {method}{label}", len(occluders), "Mrays/s",
+         lambda method=method, threads=threads: hard_shadow(b, points=g.position, normals=g.normal,
+                                                            light_direction=light, method=method, threads=threads),
          lambda: shadow_peer)
-        for method in REFERENCE_METHODS
+        for method in REFERENCE_METHODS for threads, label in THREADS
     ] + [
         ("shadow irregular, new light", len(occluders), "Mrays/s",
          lambda: (b.light_space.clear(), hard_shadow(b, points=g.position, normals=g.normal, light_direction=light)),

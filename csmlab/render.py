@@ -17,22 +17,41 @@ import numpy as np
 from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet, build_cascades
 from csmlab.cascades.bounds import visible_depth_range
-from csmlab.filters import (filter_mips, filter_moments, filtered_shadow_lookup, looks_up_world_receivers,
-                            receiver_conversion, uses_pixels, world_shadow_lookup)
+from csmlab.filters import (
+    filter_mips,
+    filter_moments,
+    filtered_shadow_lookup,
+    looks_up_world_receivers,
+    receiver_conversion,
+    uses_pixels,
+    world_shadow_lookup,
+)
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import normalized
-from csmlab.kernels.raster import (banded_regions, rasterize_cascades, rasterize_depth, region_candidates,
-                                  triangle_bounds, whole_map_regions)
+from csmlab.kernels.raster import (
+    banded_regions,
+    rasterize_cascades,
+    rasterize_depth,
+    region_candidates,
+    triangle_bounds,
+    whole_map_regions,
+)
 from csmlab.kernels.reference import hard_shadow
 from csmlab.kernels.shadow import receiver_coordinates
+from csmlab.kernels.threads import checked_threads
 from csmlab.kernels.visibility import MeshBVH, camera_hits, mesh_bvh
 from csmlab.quads import Quads, quad_lanes
 from csmlab.scene.core import Scene
 from csmlab.scrolling import RasterizedMaps, scroll_plan
 from csmlab.settings import ShadowSettings
 from csmlab.storage import stored_depth
-from csmlab.texels import (fixed_point_coordinates, fixed_point_origin, light_depth, light_plane_coordinates,
-                           receiver_lookup)
+from csmlab.texels import (
+    fixed_point_coordinates,
+    fixed_point_origin,
+    light_depth,
+    light_plane_coordinates,
+    receiver_lookup,
+)
 
 __all__ = ["DeviceScene", "clipped_casters", "faded", "lookup_shadow", "prepare_scene", "render_frame", "render_shadow",
            "render_view", "shadow_maps", "visible_depth"]
@@ -71,10 +90,8 @@ class DeviceScene:
 
 def prepare_scene(scene: Scene, *, device: str = "cpu", threads: int = 1) -> DeviceScene:
     """Upload ``scene`` to ``device`` (``"cpu"`` or ``"cuda"``) and build its BVH; ``threads`` as :class:`DeviceScene`."""
-    if not isinstance(threads, (int, np.integer)) or threads < 1:
-        raise ValueError(f"threads: expected an integer ≥ 1, got {threads!r}")
     return DeviceScene(scene=scene, bvh=mesh_bvh(scene.vertices, scene.triangles, device=device), device=device,
-                       corners=scene.corners(), threads=int(threads))
+                       corners=scene.corners(), threads=checked_threads(threads, device))
 
 
 def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width: int, height: int,
@@ -108,7 +125,7 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
     d = normalized(light_direction, name="light direction")
     start = time.perf_counter()
     hits = camera_hits(dscene.bvh, position=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg,
-                       aspect=pose.aspect, far=pose.far, width=width, height=height)
+                       aspect=pose.aspect, far=pose.far, width=width, height=height, threads=dscene.threads)
     valid = hits.triangle >= 0
     albedo = np.where(valid[..., None], dscene.scene.albedo[np.maximum(hits.triangle, 0)], np.float32(0.0))
     gbuffer = GBuffer(hits=hits, albedo=albedo.astype(np.float32))
@@ -116,13 +133,15 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
     before = previous = cast = None
     if reference:
         start = time.perf_counter()
-        cast = hard_shadow(dscene.bvh, points=gbuffer.position, normals=gbuffer.normal, light_direction=d)
+        cast = hard_shadow(dscene.bvh, points=gbuffer.position, normals=gbuffer.normal, light_direction=d,
+                           threads=dscene.threads)
         timings["reference"] = time.perf_counter() - start
     if reference and previous_light_direction is not None:
         before = normalized(previous_light_direction, name="previous light direction")
     if before is not None and not np.array_equal(before, d):
         start = time.perf_counter()
-        previous = hard_shadow(dscene.bvh, points=gbuffer.position, normals=gbuffer.normal, light_direction=before)
+        previous = hard_shadow(dscene.bvh, points=gbuffer.position, normals=gbuffer.normal, light_direction=before,
+                               threads=dscene.threads)
         timings["reference_previous"] = time.perf_counter() - start
     else:
         before = None
@@ -144,7 +163,7 @@ def _scene_in_light_space(dscene: DeviceScene, cascades: CascadeSet) -> tuple:
 def visible_depth(dscene: DeviceScene, pose: CameraPose, *, width: int, height: int) -> tuple[float, float] | None:
     """The view-depth range ``(z_min, z_max)`` in metres of the G-buffer :func:`render_view` would make (SDSM)."""
     hits = camera_hits(dscene.bvh, position=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg,
-                       aspect=pose.aspect, far=pose.far, width=width, height=height)
+                       aspect=pose.aspect, far=pose.far, width=width, height=height, threads=dscene.threads)
     return visible_depth_range(hits.view_depth)
 
 

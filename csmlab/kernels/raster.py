@@ -24,7 +24,6 @@ References
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -32,6 +31,7 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device
+from csmlab.kernels.threads import LaunchPool, checked_threads
 
 __all__ = ["TriangleBounds", "banded_regions", "rasterize_cascades", "rasterize_depth", "region_candidates", "triangle_bounds",
            "whole_map_regions"]
@@ -603,22 +603,19 @@ def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin,
               wp.array(areas, dtype=wp.int32, device=device, copy=False))
     fixed = (float(2**bits), float(2**50), wp.int64(2**bits), wp.int64(bits))
 
-    def launch(subset: np.ndarray) -> np.ndarray:
-        covered = wp.empty(subset.shape[0], dtype=wp.int32, device=device)
-        wp.launch(rasterize_regions_kernel, dim=subset.shape[0],
-                  inputs=(*inputs, wp.array(subset, dtype=wp.int32, device=device), *fixed),
-                  outputs=(maps_on, covered), device=device)
-        return np.bincount(subset[:, 0], weights=covered.numpy(), minlength=areas.shape[0])
+    parts = min(checked_threads(threads, device), areas.shape[0])
+    # Region g goes to launch g mod parts: disjoint regions, so no texel is written by two launches.
+    subsets = [np.ascontiguousarray(pairs[pairs[:, 0] % parts == k]) for k in range(parts)]
+    shares = [np.zeros(areas.shape[0])] * parts
 
-    if not isinstance(threads, (int, np.integer)) or threads < 1:
-        raise ValueError(f"threads: expected an integer ≥ 1, got {threads!r}")
-    parts = min(int(threads), areas.shape[0]) if wp.get_device(device).is_cpu else 1
-    if parts == 1:
-        texels = launch(np.ascontiguousarray(pairs))
-    else:
-        # Region g goes to thread g mod parts: disjoint regions, so no texel is written by two launches.
-        wp.load_module(rasterize_regions_kernel.module, device=device)
-        with ThreadPoolExecutor(max_workers=parts) as pool:
-            shares = pool.map(launch, [np.ascontiguousarray(pairs[pairs[:, 0] % parts == k]) for k in range(parts)])
-            texels = np.sum(list(shares), axis=0)
+    def launch(k: int) -> None:
+        covered = wp.empty(subsets[k].shape[0], dtype=wp.int32, device=device)
+        wp.launch(rasterize_regions_kernel, dim=subsets[k].shape[0],
+                  inputs=(*inputs, wp.array(subsets[k], dtype=wp.int32, device=device), *fixed),
+                  outputs=(maps_on, covered), device=device)
+        shares[k] = np.bincount(subsets[k][:, 0], weights=covered.numpy(), minlength=areas.shape[0])
+
+    with LaunchPool(parts, kernels=(rasterize_regions_kernel,), device=device) as pool:
+        pool.run([lambda k=k: launch(k) for k in range(parts)])
+    texels = np.sum(shares, axis=0)
     return None if count_only else maps_on.numpy(), texels.astype(np.int64)
