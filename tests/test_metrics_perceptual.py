@@ -252,3 +252,28 @@ def test_filling_uncompared_pixels_window_by_window_equals_filling_the_whole_ima
         np.testing.assert_array_equal(
             flip_map(previous_shaded, shaded, changed=changed, compared=compared, method=method),
             flip_map(whole_previous_shaded, whole_shaded, changed=changed, method=method))
+
+
+def test_wide_changes_filtered_whole_give_the_windowed_values():
+    from csmlab.metrics.perceptual import FLIP_SUPPORT, SSIM_SUPPORT, WIDE_CHANGE, _flip_warp, _ssim_full, _windowed
+    from csmlab.metrics.shading import srgb_encoded
+
+    rng = np.random.default_rng(21)
+    previous = rng.random((48, 64)).round(1)
+    current = previous.copy()
+    spots = rng.random((48, 64)) < 0.02
+    current[spots] = rng.random(spots.sum())
+    changed = current != previous
+    assert changed.mean() > WIDE_CHANGE
+    windowed = _windowed(_ssim_full, (previous, current), changed_windows(changed, support=SSIM_SUPPORT),
+                         shape=current.shape, fill=1.0, dtype=np.float64)
+    np.testing.assert_array_equal(ssim_map(previous, current, changed=changed), windowed)
+    rgb, previous_rgb = (np.repeat(x[..., None], 3, axis=-1) * [0.9, 0.7, 0.5] for x in (current, previous))
+
+    def flip(a, b):
+        return _flip_warp(np.ascontiguousarray(srgb_encoded(a), dtype=np.float32),
+                          np.ascontiguousarray(srgb_encoded(b), dtype=np.float32))
+
+    windowed = _windowed(flip, (previous_rgb, rgb), changed_windows(changed, support=FLIP_SUPPORT),
+                         shape=current.shape, fill=0.0, dtype=np.float32)
+    np.testing.assert_array_equal(flip_map(previous_rgb, rgb, changed=changed), windowed)
