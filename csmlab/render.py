@@ -17,25 +17,12 @@ import numpy as np
 from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet, build_cascades
 from csmlab.cascades.bounds import visible_depth_range
-from csmlab.filters import (
-    filter_mips,
-    filter_moments,
-    filtered_shadow_lookup,
-    looks_up_world_receivers,
-    receiver_conversion,
-    uses_pixels,
-    world_shadow_lookup,
-)
+from csmlab.filters import (filter_mips, filter_moments, filtered_shadow_lookup, looks_up_world_receivers,
+                            receiver_conversion, uses_pixels, world_shadow_lookup)
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import normalized
-from csmlab.kernels.raster import (
-    banded_regions,
-    rasterize_cascades,
-    rasterize_depth,
-    region_candidates,
-    triangle_bounds,
-    whole_map_regions,
-)
+from csmlab.kernels.raster import (banded_candidates, rasterize_cascades, rasterize_depth, region_candidates,
+                                  triangle_bounds, whole_map_regions)
 from csmlab.kernels.reference import hard_shadow
 from csmlab.kernels.shadow import receiver_coordinates
 from csmlab.kernels.threads import checked_threads
@@ -45,13 +32,8 @@ from csmlab.scene.core import Scene
 from csmlab.scrolling import RasterizedMaps, scroll_plan
 from csmlab.settings import ShadowSettings
 from csmlab.storage import stored_depth
-from csmlab.texels import (
-    fixed_point_coordinates,
-    fixed_point_origin,
-    light_depth,
-    light_plane_coordinates,
-    receiver_lookup,
-)
+from csmlab.texels import (fixed_point_coordinates, fixed_point_origin, light_depth, light_plane_coordinates,
+                           receiver_lookup)
 
 __all__ = ["DeviceScene", "clipped_casters", "faded", "lookup_shadow", "prepare_scene", "render_frame", "render_shadow",
            "render_view", "shadow_maps", "visible_depth"]
@@ -213,9 +195,11 @@ def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
     sizes = [c.resolution for c in cascades.cascades]
 
     def rasterized(corner, fixed_origin, regions, **how):
-        # With several threads each region is cut in bands, one per thread, each band's triangles culled apart.
-        regions = banded_regions(regions, parts=dscene.threads) if dscene.threads > 1 else regions
         candidates = region_candidates(bounds, texel_size=texel_size, origin=corner, regions=regions)
+        if dscene.threads > 1:
+            # Each region cut in bands, one per thread, each band culled from its region's triangles.
+            regions, candidates = banded_candidates(bounds, texel_size=texel_size, origin=corner, regions=regions,
+                                                    candidates=candidates, parts=dscene.threads)
         depth, texels = rasterize_cascades(xy, depth_of_vertex, dscene.scene.triangles, texel_size=texel_size,
                                            origin=fixed_origin, resolution=max(sizes), bits=bits, regions=regions,
                                            candidates=candidates, threads=dscene.threads, device=dscene.device,

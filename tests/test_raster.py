@@ -371,3 +371,21 @@ def test_threads_rasterize_the_same_maps_and_counts_as_one(threads):
     np.testing.assert_array_equal(np.bincount(regions[:, 0], weights=counts), one_count)
     with pytest.raises(ValueError, match="threads"):
         rasterize_cascades(xy, light_depth(cs, vertices), triangles, threads=0, **box)
+
+
+def test_bands_culled_from_their_regions_candidates_are_the_bands_culled_afresh():
+    from csmlab.kernels.raster import banded_candidates, banded_regions, region_candidates, triangle_bounds
+    from csmlab.texels import light_plane_coordinates
+
+    rng = np.random.default_rng(18)
+    cs = cascade_set(direction=OBLIQUE, origins=[(7.0, -3.0), (20.0, 11.0)], texel=0.0411, resolution=40)
+    vertices, triangles = triangle_soup(rng, cs, count=300, lo=-10.0, hi=60.0, size=7.0)
+    bounds = triangle_bounds(light_plane_coordinates(cs, vertices), triangles)
+    box = dict(texel_size=np.stack([c.texel_size for c in cs.cascades]), origin=np.stack([c.origin for c in cs.cascades]))
+    regions = np.array([(0, 0, 40, 0, 40), (1, 0, 40, 0, 3), (1, 0, 5, 3, 40)], np.int32)
+    for parts in (2, 3):
+        bands, pairs = banded_candidates(bounds, regions=regions, parts=parts,
+                                         candidates=region_candidates(bounds, regions=regions, **box), **box)
+        np.testing.assert_array_equal(bands, banded_regions(regions, parts=parts))
+        # A band spans its region along the other axis, so testing its own axis alone keeps the same pairs.
+        np.testing.assert_array_equal(pairs, region_candidates(bounds, regions=bands, **box))

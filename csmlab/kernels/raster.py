@@ -33,7 +33,7 @@ import warp as wp
 from csmlab.kernels import checked_device
 from csmlab.kernels.threads import LaunchPool, checked_threads
 
-__all__ = ["TriangleBounds", "banded_regions", "rasterize_cascades", "rasterize_depth", "region_candidates", "triangle_bounds",
+__all__ = ["TriangleBounds", "banded_candidates", "banded_regions", "rasterize_cascades", "rasterize_depth", "region_candidates", "triangle_bounds",
            "whole_map_regions"]
 
 
@@ -409,6 +409,11 @@ class TriangleBounds:
     hi: np.ndarray
 
     @cached_property
+    def columns(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``lo_x, lo_y, hi_x, hi_y`` ``(T,)`` each contiguous: what every rectangle test reads."""
+        return tuple(np.ascontiguousarray(a[:, k]) for a in (self.lo, self.hi) for k in (0, 1))
+
+    @cached_property
     def sorted_axes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``order (2, T)``: triangles sorted by ``lo`` along x (row 0) and y (row 1); ``sorted_lo (2, T)``:
         ``lo`` in those orders; ``reach (2,)``: the widest rectangle along x and y, metres (a triangle
@@ -467,7 +472,7 @@ def banded_regions(regions, *, parts: int) -> np.ndarray:
     return np.array(out, dtype=np.int32).reshape(-1, 5)
 
 
-def region_candidates(bounds: TriangleBounds, *, texel_size, origin, regions) -> np.ndarray:
+def region_candidates(bounds: TriangleBounds, *, texel_size, origin, regions, within=None) -> np.ndarray:
     """(region, triangle) pairs whose light-space rectangle meets the region: ``(K, 2)`` int32.
 
     Conservative: each region is widened by one texel on every side, far more than the fixed-point
@@ -487,22 +492,76 @@ def region_candidates(bounds: TriangleBounds, *, texel_size, origin, regions) ->
     regions : array_like, shape (G, 5), integer
         Rows ``(c, i0, i1, j0, j1)``: texel columns ``[i0, i1)`` and rows ``[j0, j1)`` of cascade c
         (:func:`whole_map_regions` for whole maps).
+    within : sequence of ndarray, optional
+        Per region, the sorted triangle indices to test (a superset of those that meet it, such as
+        the candidates of a larger region holding it); None: every triangle.
     """
-    lo, hi = bounds.lo, bounds.hi
     size = np.asarray(texel_size, dtype=np.float64)
     corner = np.asarray(origin, dtype=np.float64)
     pairs = [np.zeros((0, 2), np.int32)]
-    for g, (c, i0, i1, j0, j1) in enumerate(np.asarray(regions, dtype=np.int64)):
+    for g, (c, i0, i1, j0, j1) in enumerate(np.asarray(regions, dtype=np.int64).reshape(-1, 5)):
         box_lo = (corner[c] + [i0 - 1.0, j0 - 1.0]) * size[c]
         box_hi = (corner[c] + [i1 + 1.0, j1 + 1.0]) * size[c]
-        tested = _near_triangles(bounds, box_lo, box_hi) if min(i1 - i0, j1 - j0) * 4 < max(i1 - i0, j1 - j0) else None
-        if tested is None:
-            tested = np.arange(len(lo))
-        meets = ((hi[tested, 0] >= box_lo[0]) & (lo[tested, 0] <= box_hi[0]) & (hi[tested, 1] >= box_lo[1])
-                 & (lo[tested, 1] <= box_hi[1]))
-        inside = tested[meets]
-        pairs.append(np.stack([np.full(inside.size, g), inside], axis=1))
-    return np.concatenate(pairs).astype(np.int32)
+        tested = None if within is None else within[g]
+        if tested is None and min(i1 - i0, j1 - j0) * 4 < max(i1 - i0, j1 - j0):
+            tested = _near_triangles(bounds, box_lo, box_hi)
+        pairs.append(_pairs(g, _meeting(bounds, box_lo, box_hi, tested)))
+    return np.concatenate(pairs)
+
+
+def _region_starts(pairs: np.ndarray, regions: int) -> np.ndarray:
+    """``(G + 1,)``: where each region's rows begin in ``pairs`` sorted by region (and where the last ends)."""
+    return np.concatenate([[0], np.cumsum(np.bincount(pairs[:, 0], minlength=regions))])
+
+
+def _pairs(region: int, triangles: np.ndarray) -> np.ndarray:
+    """``(K, 2)`` int32 rows ``(region, triangle)``."""
+    out = np.empty((triangles.size, 2), dtype=np.int32)
+    out[:, 0] = region
+    out[:, 1] = triangles
+    return out
+
+
+def _meeting(bounds: TriangleBounds, box_lo, box_hi, tested) -> np.ndarray:
+    """Sorted indices among ``tested`` (None: all) of the triangles whose rectangle meets ``[box_lo, box_hi]``."""
+    lo_x, lo_y, hi_x, hi_y = bounds.columns
+    if tested is None:
+        return np.flatnonzero((hi_x >= box_lo[0]) & (lo_x <= box_hi[0]) & (hi_y >= box_lo[1]) & (lo_y <= box_hi[1]))
+    meets = ((hi_x[tested] >= box_lo[0]) & (lo_x[tested] <= box_hi[0]) & (hi_y[tested] >= box_lo[1])
+             & (lo_y[tested] <= box_hi[1]))
+    return tested[meets]
+
+
+def banded_candidates(bounds: TriangleBounds, *, texel_size, origin, regions, candidates,
+                      parts: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`banded_regions` of ``regions`` and their (band, triangle) pairs, each band culled from its region's.
+
+    ``candidates`` are :func:`region_candidates` of ``regions`` (sorted by region); the other
+    arguments as there. A band spans its region across one axis, so only the other axis is
+    tested, widened by a texel as there. Returns the bands ``(G', 5)`` int32 and their pairs
+    ``(K', 2)`` int32, sorted by band, then triangle.
+    """
+    regions = np.asarray(regions, dtype=np.int32).reshape(-1, 5)
+    pairs = np.asarray(candidates)
+    size = np.asarray(texel_size, dtype=np.float64)
+    corner = np.asarray(origin, dtype=np.float64)
+    lo_x, lo_y, hi_x, hi_y = bounds.columns
+    starts = _region_starts(pairs, len(regions))
+    bands, out = [], [np.zeros((0, 2), np.int32)]
+    for g, region in enumerate(regions):
+        mine = pairs[starts[g]:starts[g + 1], 1]
+        c = region[0]
+        for band in banded_regions(region[None], parts=parts):
+            # A band cut across rows spans its region's columns, and the reverse.
+            axis, first, last = (1, band[3], band[4]) if band[1] == region[1] and band[2] == region[2] \
+                else (0, band[1], band[2])
+            lo, hi = (lo_y, hi_y) if axis == 1 else (lo_x, hi_x)
+            low = (corner[c, axis] + first - 1.0) * size[c, axis]
+            high = (corner[c, axis] + last + 1.0) * size[c, axis]
+            inside = mine[(hi[mine] >= low) & (lo[mine] <= high)]
+            out.append(_pairs(len(bands), inside))
+            bands.append(band)
+    return np.array(bands, dtype=np.int32).reshape(-1, 5), np.concatenate(out)
 
 
 def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin, resolution: int, bits: int,
@@ -605,7 +664,12 @@ def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin,
 
     parts = min(checked_threads(threads, device), areas.shape[0])
     # Region g goes to launch g mod parts: disjoint regions, so no texel is written by two launches.
-    subsets = [np.ascontiguousarray(pairs[pairs[:, 0] % parts == k]) for k in range(parts)]
+    if parts > 1 and np.any(np.diff(pairs[:, 0]) < 0):
+        pairs = pairs[np.argsort(pairs[:, 0], kind="stable")]
+    starts = _region_starts(pairs, areas.shape[0])
+    subsets = [np.ascontiguousarray(np.concatenate([pairs[starts[g]:starts[g + 1]]
+                                                    for g in range(k, areas.shape[0], parts)] or [pairs[:0]]))
+               for k in range(parts)]
     shares = [np.zeros(areas.shape[0])] * parts
 
     def launch(k: int) -> None:
