@@ -2,20 +2,20 @@
 
 :func:`flip_error_map` follows ``FLIP::evaluate`` of the ``flip_evaluator`` package (version 1.7,
 ``src/cpp/FLIP.h`` and ``src/nanobindFLIP.cpp`` of github.com/NVlabs/flip) in LDR mode with sRGB
-inputs, each step a small kernel over both images at once (index 0 the reference, 1 the test):
+inputs, in three kernels, each over both images at once where they are filtered alike:
 
-1. ``ycxcz_kernel`` — sRGB → linear RGB (``nanobindFLIP.cpp``), clamp to [0, 1], → XYZ (D65) →
-   YCxCz (``LinearRGBToYCxCz``).
-2. ``spatial_rows_kernel``, ``spatial_columns_kernel`` — the contrast sensitivity filters of the
-   three opponent channels, separated (``setSpatialFilters``: Y and Cx one Gaussian each, Cz the
-   sum of two Gaussians split into two separable parts whose results add); then YCxCz → XYZ →
-   linear RGB clamped to [0, 1] → CIELAB → Hunt-adjusted a*, b* (``computeColorDifference``).
-3. ``color_difference_kernel`` — HyAB distance, raised to ``qc = 0.7`` and redistributed so that
-   ``pc · cmax`` maps to ``pt = 0.95`` (``cmax`` the distance between green and blue).
-4. ``feature_rows_kernel``, ``feature_columns_kernel`` — first and second derivatives of a
-   Gaussian of σ = 0.5 · 0.082 · ppd pixels on the normalised achromatic channel: edge and point
-   strengths (``setFeatureFilter``, ``computeFeatureDifferenceAndFinalError``).
-5. ``flip_error_kernel`` — feature difference ``(max(|Δedge|, |Δpoint|) / √2)^qf``, ``qf = 0.5``,
+1. ``ycxcz_kernel`` (index 0 the reference, 1 the test) — sRGB → linear RGB
+   (``nanobindFLIP.cpp``), clamp to [0, 1], → XYZ (D65) → YCxCz (``LinearRGBToYCxCz``), and the
+   achromatic channel normalised to [0, 1] that the feature filters read.
+2. ``rows_kernel`` — the row pass of the separated filters: the contrast sensitivity filters of
+   the three opponent channels (``setSpatialFilters``: Y and Cx one Gaussian each, Cz the sum of
+   two Gaussians split into two separable parts whose results add) and the first and second
+   derivatives of a Gaussian of σ = 0.5 · 0.082 · ppd pixels (``setFeatureFilter``).
+3. ``columns_kernel`` — the column pass, then per pixel: YCxCz → XYZ → linear RGB clamped to
+   [0, 1] → CIELAB → Hunt-adjusted a*, b* (``computeColorDifference``); the HyAB distance raised
+   to ``qc = 0.7`` and redistributed so that ``pc · cmax`` maps to ``pt = 0.95`` (``cmax`` the
+   distance between green and blue); edge and point strengths, the feature difference
+   ``(max(|Δedge|, |Δpoint|) / √2)^qf``, ``qf = 0.5`` (``computeFeatureDifferenceAndFinalError``);
    and the error ``colour difference^(1 − feature difference)``.
 
 Every convolution clamps its taps to the image's edge and sums them in the C++ order (taps from
