@@ -299,19 +299,26 @@ def test_culled_pairs_hold_every_triangle_that_covers_a_texel():
                 assert (c, t) in candidates
 
 
-def test_a_map_rasterized_region_by_region_is_the_whole_map_and_counting_alone_counts_the_same():
-    """Regions tiling each map (as scrolling makes them) give its depths bit for bit and the same coverage tests."""
-    from csmlab.kernels.raster import rasterize_cascades, region_candidates, triangle_bounds, whole_map_regions
+def two_cascade_soup(seed: int):
+    """A triangle soup over two 40² cascades: the cascades, vertices, triangles, light-plane x/y, bounds,
+    the keyword arguments of rasterize_cascades (but depths) and the box corners in texels."""
+    from csmlab.kernels.raster import triangle_bounds
     from csmlab.texels import fixed_point_origin, light_plane_coordinates
 
-    rng = np.random.default_rng(13)
+    rng = np.random.default_rng(seed)
     cs = cascade_set(direction=OBLIQUE, origins=[(7.0, -3.0), (20.0, 11.0)], texel=0.0411, resolution=40)
     vertices, triangles = triangle_soup(rng, cs, count=300, lo=-10.0, hi=60.0, size=7.0)
     xy = light_plane_coordinates(cs, vertices)
-    bounds = triangle_bounds(xy, triangles)
     box = dict(texel_size=np.stack([c.texel_size for c in cs.cascades]),
                origin=np.stack([fixed_point_origin(cs, c, bits=BITS) for c in range(len(cs))]), resolution=40, bits=BITS)
-    corner = np.stack([c.origin for c in cs.cascades])
+    return cs, vertices, triangles, xy, triangle_bounds(xy, triangles), box, np.stack([c.origin for c in cs.cascades])
+
+
+def test_a_map_rasterized_region_by_region_is_the_whole_map_and_counting_alone_counts_the_same():
+    """Regions tiling each map (as scrolling makes them) give its depths bit for bit and the same coverage tests."""
+    from csmlab.kernels.raster import rasterize_cascades, region_candidates, whole_map_regions
+
+    cs, vertices, triangles, xy, bounds, box, corner = two_cascade_soup(13)
     whole, whole_count = rasterize_cascades(xy, light_depth(cs, vertices), triangles, **box)
     # Bands of rows, then bands of columns within the rest, as scroll_plan cuts a moved map.
     regions = np.array([[(c, 0, 40, 0, 3), (c, 0, 40, 3, 17), (c, 0, 1, 17, 40), (c, 1, 29, 17, 40),
@@ -350,18 +357,9 @@ def test_bands_tile_each_region_exactly(parts):
 
 @pytest.mark.parametrize("threads", [2, 3])
 def test_threads_rasterize_the_same_maps_and_counts_as_one(threads):
-    from csmlab.kernels.raster import banded_regions, rasterize_cascades, region_candidates, triangle_bounds
-    from csmlab.kernels.raster import whole_map_regions
-    from csmlab.texels import fixed_point_origin, light_plane_coordinates
+    from csmlab.kernels.raster import banded_regions, rasterize_cascades, region_candidates, whole_map_regions
 
-    rng = np.random.default_rng(17)
-    cs = cascade_set(direction=OBLIQUE, origins=[(7.0, -3.0), (20.0, 11.0)], texel=0.0411, resolution=40)
-    vertices, triangles = triangle_soup(rng, cs, count=300, lo=-10.0, hi=60.0, size=7.0)
-    xy = light_plane_coordinates(cs, vertices)
-    bounds = triangle_bounds(xy, triangles)
-    box = dict(texel_size=np.stack([c.texel_size for c in cs.cascades]),
-               origin=np.stack([fixed_point_origin(cs, c, bits=BITS) for c in range(len(cs))]), resolution=40, bits=BITS)
-    corner = np.stack([c.origin for c in cs.cascades])
+    cs, vertices, triangles, xy, bounds, box, corner = two_cascade_soup(17)
     one, one_count = rasterize_cascades(xy, light_depth(cs, vertices), triangles, **box)
     regions = banded_regions(whole_map_regions([40, 40]), parts=threads)
     candidates = region_candidates(bounds, texel_size=box["texel_size"], origin=corner, regions=regions)
@@ -374,14 +372,10 @@ def test_threads_rasterize_the_same_maps_and_counts_as_one(threads):
 
 
 def test_bands_culled_from_their_regions_candidates_are_the_bands_culled_afresh():
-    from csmlab.kernels.raster import banded_candidates, banded_regions, region_candidates, triangle_bounds
-    from csmlab.texels import light_plane_coordinates
+    from csmlab.kernels.raster import banded_candidates, banded_regions, region_candidates
 
-    rng = np.random.default_rng(18)
-    cs = cascade_set(direction=OBLIQUE, origins=[(7.0, -3.0), (20.0, 11.0)], texel=0.0411, resolution=40)
-    vertices, triangles = triangle_soup(rng, cs, count=300, lo=-10.0, hi=60.0, size=7.0)
-    bounds = triangle_bounds(light_plane_coordinates(cs, vertices), triangles)
-    box = dict(texel_size=np.stack([c.texel_size for c in cs.cascades]), origin=np.stack([c.origin for c in cs.cascades]))
+    _, _, _, _, bounds, sizes, corner = two_cascade_soup(18)
+    box = dict(texel_size=sizes["texel_size"], origin=corner)
     regions = np.array([(0, 0, 40, 0, 40), (1, 0, 40, 0, 3), (1, 0, 5, 3, 40)], np.int32)
     for parts in (2, 3):
         bands, pairs = banded_candidates(bounds, regions=regions, parts=parts,
