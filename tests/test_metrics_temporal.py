@@ -202,3 +202,22 @@ def test_measure_frame_refuses_a_previous_frame_of_another_method():
     _, second = _plane_box_frames("exact")
     with pytest.raises(ValueError, match="previous: expected frame t-1 of the same method"):
         measure_frame(second, first)
+
+
+def test_a_measured_view_keeps_no_earlier_view_alive():
+    import gc
+    import weakref
+
+    dscene = prepare_scene(make_scene("terrain", seed=1, size=60.0, resolution=12, trees=20, ring_trees=0))
+    path = make_path("walk", frames=3, fps=30, seed=1, aspect=48 / 32, far=100.0)
+    settings = ShadowSettings(cascades=2, resolution=64, shadow_distance=40.0)
+    frames = [render_shadow(dscene, render_view(dscene, pose, SUN, width=48, height=32, index=i), settings)
+              for i, pose in enumerate(path.poses())]
+    measure_frame(frames[1], frames[0])
+    measure_frame(frames[2], frames[1])
+    first = weakref.ref(frames[0].view)
+    del frames[:2]
+    gc.collect()
+    # What frame 2's view keeps of frame 1 (its points' depth from frame 1's camera) holds no view.
+    assert first() is None
+    assert any(key[0] == "view_depth_from" for key in frames[0].view.derived)

@@ -93,10 +93,13 @@ def temporal_maps(frame: Frame, previous: Frame, *, device: str = "cpu") -> Temp
     if previous.view.gbuffer.shape != g.shape:
         raise ValueError(f"previous frame: expected an image of {g.shape} pixels, got {previous.view.gbuffer.shape}")
     # The visible points, their normals and their depth from frame t−1's camera: the same for every
-    # method. The entry holds frame t−1's view, so no other view can take its id while it is kept.
-    _, visible, points, normals, earlier_depth = frame.view.shared(("seen_from", id(previous.view)), lambda: (
-        previous.view, g.valid, g.position[g.valid], g.normal[g.valid],
-        previous.view.pose.view_depth(g.position[g.valid])))
+    # method, kept by the view under what they depend on (not frame t−1's view itself, which would
+    # keep every earlier view alive in a chain).
+    visible, points, normals = frame.view.shared(("visible_points",), lambda: (
+        g.valid, g.position[g.valid], g.normal[g.valid]))
+    camera = previous.view.pose
+    earlier_depth = frame.view.shared(("view_depth_from", camera.position.tobytes(), camera.forward.tobytes()),
+                                      lambda: camera.view_depth(points))
     quads = quad_view_depth = None
     if previous.maps.mips is not None:
         # Frame t's pixel quads, each lane selecting with frame t−1's camera (csmlab.quads).
