@@ -651,6 +651,7 @@ def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin,
         raise ValueError(f"depth: expected float32 maps of shape {shape}, got {depth.dtype} {depth.shape}")
     else:
         maps = depth
+    parts = min(checked_threads(threads, device), areas.shape[0])
     if pairs.shape[0] == 0:
         return None if count_only else maps, np.zeros(areas.shape[0], dtype=np.int64)
     maps_on = wp.array(maps, dtype=wp.float32, device=device, copy=False)
@@ -661,8 +662,6 @@ def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin,
               wp.array(corner, dtype=wp.int64, device=device, copy=False),
               wp.array(areas, dtype=wp.int32, device=device, copy=False))
     fixed = (float(2**bits), float(2**50), wp.int64(2**bits), wp.int64(bits))
-
-    parts = min(checked_threads(threads, device), areas.shape[0])
     # Region g goes to launch g mod parts: disjoint regions, so no texel is written by two launches.
     if parts > 1 and np.any(np.diff(pairs[:, 0]) < 0):
         pairs = pairs[np.argsort(pairs[:, 0], kind="stable")]
