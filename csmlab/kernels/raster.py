@@ -472,7 +472,7 @@ def banded_regions(regions, *, parts: int) -> np.ndarray:
     return np.array(out, dtype=np.int32).reshape(-1, 5)
 
 
-def region_candidates(bounds: TriangleBounds, *, texel_size, origin, regions, within=None) -> np.ndarray:
+def region_candidates(bounds: TriangleBounds, *, texel_size, origin, regions) -> np.ndarray:
     """(region, triangle) pairs whose light-space rectangle meets the region: ``(K, 2)`` int32.
 
     Conservative: each region is widened by one texel on every side, far more than the fixed-point
@@ -492,9 +492,6 @@ def region_candidates(bounds: TriangleBounds, *, texel_size, origin, regions, wi
     regions : array_like, shape (G, 5), integer
         Rows ``(c, i0, i1, j0, j1)``: texel columns ``[i0, i1)`` and rows ``[j0, j1)`` of cascade c
         (:func:`whole_map_regions` for whole maps).
-    within : sequence of ndarray, optional
-        Per region, the sorted triangle indices to test (a superset of those that meet it, such as
-        the candidates of a larger region holding it); None: every triangle.
     """
     size = np.asarray(texel_size, dtype=np.float64)
     corner = np.asarray(origin, dtype=np.float64)
@@ -502,9 +499,8 @@ def region_candidates(bounds: TriangleBounds, *, texel_size, origin, regions, wi
     for g, (c, i0, i1, j0, j1) in enumerate(np.asarray(regions, dtype=np.int64).reshape(-1, 5)):
         box_lo = (corner[c] + [i0 - 1.0, j0 - 1.0]) * size[c]
         box_hi = (corner[c] + [i1 + 1.0, j1 + 1.0]) * size[c]
-        tested = None if within is None else within[g]
-        if tested is None and min(i1 - i0, j1 - j0) * 4 < max(i1 - i0, j1 - j0):
-            tested = _near_triangles(bounds, box_lo, box_hi)
+        narrow = min(i1 - i0, j1 - j0) * 4 < max(i1 - i0, j1 - j0)
+        tested = _near_triangles(bounds, box_lo, box_hi) if narrow else None
         pairs.append(_pairs(g, _meeting(bounds, box_lo, box_hi, tested)))
     return np.concatenate(pairs)
 
