@@ -1,5 +1,6 @@
 """The Warp LDR-ꟻLIP against NVIDIA's ``flip_evaluator`` (the C++ it follows) on random, flat, edged,
-rendered and tiny images; identical images give exactly 0; bad input is refused."""
+rendered and tiny images, and with a few changed pixels (the passes skip what lies out of their
+reach); identical images give exactly 0; bad input is refused."""
 
 import flip_evaluator
 import numpy as np
@@ -8,7 +9,7 @@ import warp as wp
 
 from csmlab.camera import CameraPose
 from csmlab.geometry import rotation_looking_at
-from csmlab.kernels.flip import FLIP_DEFAULT_PPD, flip_error_map, flip_filter_radii
+from csmlab.kernels.flip import FLIP_DEFAULT_PPD, flip_error_map, flip_filter_radii, flip_reach, pixels_differ
 from csmlab.metrics.shading import shaded_rgb, srgb_encoded
 from csmlab.render import render_frame
 from csmlab.scene import make_scene
@@ -130,6 +131,58 @@ def test_identical_images_give_exactly_zero_everywhere():
     image[:10] = 0.0
     image[-5:] = 1.0
     assert np.all(flip_error_map(image, image) == 0.0)
+
+
+def _brute_force_reach(differs, radius):
+    """Each level of :func:`flip_reach` by its definition, pixel by pixel."""
+    height, width = differs.shape
+
+    def grown(mask, axis):
+        out = np.zeros_like(mask)
+        for i in range(height):
+            for j in range(width):
+                if axis == 1:
+                    out[i, j] = mask[i, max(j - radius, 0):j + radius + 1].any()
+                else:
+                    out[i, j] = mask[max(i - radius, 0):i + radius + 1, j].any()
+        return out
+
+    levels = [differs]
+    for axis in (1, 0, 0, 1):
+        levels.append(grown(levels[-1], axis))
+    return sum(level.astype(np.uint8) for level in levels)
+
+
+@pytest.mark.parametrize("radius", [0, 1, 3])
+def test_reach_levels_are_the_nested_growths_of_the_differing_pixels(radius):
+    rng = np.random.default_rng(radius)
+    differs = rng.random((17, 23)) < 0.03
+    differs[0, 0] = differs[-1, 5] = True
+    reach = flip_reach(differs, radius=radius)
+    np.testing.assert_array_equal(reach, _brute_force_reach(differs, radius))
+    assert reach.dtype == np.uint8 and np.all((reach == 5) == differs)
+
+
+def test_pixels_differ_in_any_channel():
+    reference = np.zeros((3, 4, 3), np.float32)
+    test = reference.copy()
+    test[0, 1, 2] = 1e-7
+    test[2, 3, 0] = 0.5
+    np.testing.assert_array_equal(np.argwhere(pixels_differ(reference, test)), [[0, 1], [2, 3]])
+
+
+@pytest.mark.parametrize("spots", [[(20, 30)], [(0, 0), (39, 63)], [(5, 60), (6, 61), (30, 2)]])
+def test_a_few_changed_pixels_match_flip_evaluator_and_are_zero_out_of_reach(spots):
+    # The passes skip what lies out of a change's reach, at the edges too (the taps clamp there).
+    rng = np.random.default_rng(len(spots))
+    reference = rng.random((40, 64, 3)).astype(np.float32)
+    test = reference.copy()
+    for i, j in spots:
+        test[i, j] = rng.random(3)
+    error, expected = _assert_matches_oracle(reference, test)
+    may_differ = flip_reach(pixels_differ(reference, test), radius=max(flip_filter_radii())) >= 3
+    assert np.all(error[~may_differ] == 0.0) and np.all(expected[~may_differ] == 0.0)
+    assert np.count_nonzero(error) > 100
 
 
 @pytest.mark.parametrize("reference, test, match", [

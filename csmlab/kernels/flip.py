@@ -37,10 +37,11 @@ import functools
 
 import numpy as np
 import warp as wp
+from scipy.ndimage import maximum_filter1d
 
 from csmlab.kernels import checked_device
 
-__all__ = ["FLIP_DEFAULT_PPD", "flip_error_map", "flip_filter_radii"]
+__all__ = ["FLIP_DEFAULT_PPD", "flip_error_map", "flip_filter_radii", "flip_reach", "pixels_differ"]
 
 # The C++ multiplies and adds separately; an FMA would round differently.
 wp.set_module_options({"fuse_fp": False, "optimization_level": 3})
@@ -106,6 +107,54 @@ def flip_filter_radii(*, pixels_per_degree: float = FLIP_DEFAULT_PPD) -> tuple[i
     spatial = int(np.ceil(_F(3.0) * np.sqrt(_B_MAX / (_F(2.0) * (_PI * _PI))) * ppd))
     feature = int(np.ceil(_F(3.0) * (_F(0.5) * _FEATURE_WIDTH * ppd)))
     return spatial, feature
+
+
+# Levels of :func:`flip_reach`, each pixel's nearness to a pixel where the two images differ.
+READ_BY_ROWS = wp.constant(1)
+READ_BY_COLUMNS = wp.constant(2)
+MAY_DIFFER = wp.constant(3)
+ROWS_DIFFER = wp.constant(4)
+DIFFERS = wp.constant(5)
+
+
+def pixels_differ(reference, test) -> np.ndarray:
+    """``(H, W)`` bool: where two images ``(H, W, 3)`` differ in any channel."""
+    unequal = np.asarray(reference) != np.asarray(test)
+    return unequal[..., 0] | unequal[..., 1] | unequal[..., 2]
+
+
+def flip_reach(differs, *, radius: int) -> np.ndarray:
+    """How near each pixel lies to one where the two images differ, as the three passes need to know.
+
+    The passes clamp their taps to the image, so a pixel's values depend only on pixels within
+    ``radius`` of it, inside the image. Each level is the previous one grown by ``radius`` along
+    the axis its pass filters, so they nest, and a pixel holds the number of them it lies in:
+
+    - 5 (``DIFFERS``): the pixels differ;
+    - 4 (``ROWS_DIFFER``): within ``radius`` columns of one that differs — the row pass differs;
+    - 3 (``MAY_DIFFER``): within ``radius`` rows of level 4 — the error may be nonzero;
+    - 2 (``READ_BY_COLUMNS``): within ``radius`` rows of level 3 — the column pass reads its row pass;
+    - 1 (``READ_BY_ROWS``): within ``radius`` columns of level 2 — the row pass reads its colour;
+    - 0: nothing computed reads it; its error is 0.
+
+    Parameters
+    ----------
+    differs : array_like, shape (H, W), bool
+        Pixels where the reference and the test differ.
+    radius : int
+        The widest filter's radius in pixels (:func:`flip_filter_radii`).
+
+    Returns
+    -------
+    ndarray, shape (H, W), uint8
+    """
+    size = 2 * int(radius) + 1
+    level = np.asarray(differs, dtype=np.uint8)
+    reach = level.copy()
+    for axis in (1, 0, 0, 1):
+        level = maximum_filter1d(level, size, axis=axis, mode="nearest")
+        reach += level
+    return reach
 
 
 @wp.func
@@ -283,22 +332,54 @@ def flip_error(color_difference: float, reference_features: wp.vec2, test_featur
     return wp.pow(color_difference, 1.0 - feature)
 
 
-@wp.kernel
-def ycxcz_kernel(srgb: wp.array3d(dtype=wp.vec3), ycxcz: wp.array3d(dtype=wp.vec3),
-                 luma: wp.array3d(dtype=float)):
-    k, i, j = wp.tid()
-    c = srgb[k, i, j]
+@wp.func
+def ycxcz_and_luma(c: wp.vec3):
+    """sRGB → linear RGB clamped to [0, 1] → YCxCz, and the achromatic channel normalised to [0, 1]."""
     linear = clamp01(wp.vec3(linear_from_srgb(c[0]), linear_from_srgb(c[1]), linear_from_srgb(c[2])))
     v = ycxcz_from_xyz(apply3(RGB_TO_XYZ, linear))
-    ycxcz[k, i, j] = v
-    # The feature filters' input: the achromatic channel normalised to [0, 1].
-    luma[k, i, j] = v[0] * ONE_OVER_116 + SIXTEEN_OVER_116
+    return v, v[0] * ONE_OVER_116 + SIXTEEN_OVER_116
+
+
+@wp.kernel
+def ycxcz_kernel(srgb: wp.array3d(dtype=wp.vec3), reach: wp.array2d(dtype=wp.uint8),
+                 ycxcz: wp.array3d(dtype=wp.vec3), luma: wp.array3d(dtype=float)):
+    # Index 0 the reference, 1 the test; the test's values are the reference's where the pixels agree.
+    i, j = wp.tid()
+    level = int(reach[i, j])
+    if level < READ_BY_ROWS:
+        return
+    v, y = ycxcz_and_luma(srgb[0, i, j])
+    ycxcz[0, i, j] = v
+    luma[0, i, j] = y
+    if level == DIFFERS:
+        v, y = ycxcz_and_luma(srgb[1, i, j])
+    ycxcz[1, i, j] = v
+    luma[1, i, j] = y
+
+
+@wp.func
+def rows_of(ycxcz: wp.array3d(dtype=wp.vec3), luma: wp.array3d(dtype=float), k: int, i: int, j: int,
+            spatial: wp.array(dtype=wp.vec4), spatial_radius: int, feature: wp.array(dtype=wp.vec3),
+            feature_radius: int):
+    """Image k's row pass at (i, j): (Y, Cx, Cz, Cz) by the spatial weights, (d/dx, d²/dx², Gaussian) of the luma."""
+    last = ycxcz.shape[2] - 1
+    spatial_sum = wp.vec4(0.0)
+    for t in range(-spatial_radius, spatial_radius + 1):
+        a = ycxcz[k, i, wp.min(wp.max(0, j + t), last)]
+        # (Y, Cx, Cz, Cz) weighted by (Y, Cx, first Cz, second Cz) weights.
+        spatial_sum += wp.cw_mul(spatial[t + spatial_radius], wp.vec4(a[0], a[1], a[2], a[2]))
+    feature_sum = wp.vec3(0.0)
+    for t in range(-feature_radius, feature_radius + 1):
+        g = feature[t + feature_radius]
+        feature_sum += wp.vec3(g[1], g[2], g[0]) * luma[k, i, wp.min(wp.max(0, j + t), last)]
+    return spatial_sum, feature_sum
 
 
 @wp.kernel
 def rows_kernel(
     ycxcz: wp.array3d(dtype=wp.vec3),
     luma: wp.array3d(dtype=float),
+    reach: wp.array2d(dtype=wp.uint8),
     spatial: wp.array(dtype=wp.vec4),
     spatial_radius: int,
     feature: wp.array(dtype=wp.vec3),
@@ -306,37 +387,44 @@ def rows_kernel(
     spatial_rows: wp.array3d(dtype=wp.vec4),
     feature_rows: wp.array3d(dtype=wp.vec3),
 ):
-    # Both images in one thread: the clamped taps and the weights are read once for the two.
     i, j = wp.tid()
-    last = ycxcz.shape[2] - 1
-    reference = wp.vec4(0.0)
-    test = wp.vec4(0.0)
+    level = int(reach[i, j])
+    if level < READ_BY_COLUMNS:
+        return
+    s, f = rows_of(ycxcz, luma, 0, i, j, spatial, spatial_radius, feature, feature_radius)
+    spatial_rows[0, i, j] = s
+    feature_rows[0, i, j] = f
+    if level >= ROWS_DIFFER:
+        s, f = rows_of(ycxcz, luma, 1, i, j, spatial, spatial_radius, feature, feature_radius)
+    spatial_rows[1, i, j] = s
+    feature_rows[1, i, j] = f
+
+
+@wp.func
+def columns_of(spatial_rows: wp.array3d(dtype=wp.vec4), feature_rows: wp.array3d(dtype=wp.vec3), k: int, i: int,
+               j: int, spatial: wp.array(dtype=wp.vec4), spatial_radius: int, feature: wp.array(dtype=wp.vec3),
+               feature_radius: int):
+    """Image k's column pass at (i, j): its Hunt-adjusted CIELAB and its edge and point strengths."""
+    last = spatial_rows.shape[1] - 1
+    spatial_sum = wp.vec4(0.0)
     for t in range(-spatial_radius, spatial_radius + 1):
-        jj = wp.min(wp.max(0, j + t), last)
-        w = spatial[t + spatial_radius]
-        a = ycxcz[0, i, jj]
-        b = ycxcz[1, i, jj]
-        # (Y, Cx, Cz, Cz) weighted by (Y, Cx, first Cz, second Cz) weights.
-        reference += wp.cw_mul(w, wp.vec4(a[0], a[1], a[2], a[2]))
-        test += wp.cw_mul(w, wp.vec4(b[0], b[1], b[2], b[2]))
-    spatial_rows[0, i, j] = reference
-    spatial_rows[1, i, j] = test
-    # (d/dx, d²/dx², Gaussian) of the luma.
-    reference_features = wp.vec3(0.0)
-    test_features = wp.vec3(0.0)
+        spatial_sum += wp.cw_mul(spatial[t + spatial_radius], spatial_rows[k, wp.min(wp.max(0, i + t), last), j])
+    # The two Cz parts add (the Cz filter is a sum of two Gaussians).
+    lab = filtered_lab(spatial_sum[0], spatial_sum[1], spatial_sum[2] + spatial_sum[3])
+    # x-derivatives smoothed in y by the Gaussian, the x-smoothed luma differentiated in y.
+    feature_sum = wp.vec4(0.0)
     for t in range(-feature_radius, feature_radius + 1):
-        jj = wp.min(wp.max(0, j + t), last)
         g = feature[t + feature_radius]
-        reference_features += wp.vec3(g[1], g[2], g[0]) * luma[0, i, jj]
-        test_features += wp.vec3(g[1], g[2], g[0]) * luma[1, i, jj]
-    feature_rows[0, i, j] = reference_features
-    feature_rows[1, i, j] = test_features
+        a = feature_rows[k, wp.min(wp.max(0, i + t), last), j]
+        feature_sum += wp.cw_mul(wp.vec4(g[0], g[0], g[1], g[2]), wp.vec4(a[0], a[1], a[2], a[2]))
+    return lab, edge_and_point(feature_sum)
 
 
 @wp.kernel
 def columns_kernel(
     spatial_rows: wp.array3d(dtype=wp.vec4),
     feature_rows: wp.array3d(dtype=wp.vec3),
+    reach: wp.array2d(dtype=wp.uint8),
     spatial: wp.array(dtype=wp.vec4),
     spatial_radius: int,
     feature: wp.array(dtype=wp.vec3),
@@ -345,31 +433,16 @@ def columns_kernel(
     error: wp.array2d(dtype=float),
 ):
     i, j = wp.tid()
-    last = spatial_rows.shape[1] - 1
-    reference = wp.vec4(0.0)
-    test = wp.vec4(0.0)
-    for t in range(-spatial_radius, spatial_radius + 1):
-        ii = wp.min(wp.max(0, i + t), last)
-        w = spatial[t + spatial_radius]
-        reference += wp.cw_mul(w, spatial_rows[0, ii, j])
-        test += wp.cw_mul(w, spatial_rows[1, ii, j])
-    # The two Cz parts add (the Cz filter is a sum of two Gaussians).
-    reference_lab = filtered_lab(reference[0], reference[1], reference[2] + reference[3])
-    test_lab = filtered_lab(test[0], test[1], test[2] + test[3])
+    if int(reach[i, j]) < MAY_DIFFER:
+        # Equal inputs over the whole support: equal filtered values, a HyAB distance of 0, an error of 0.
+        error[i, j] = 0.0
+        return
+    reference_lab, reference_features = columns_of(spatial_rows, feature_rows, 0, i, j, spatial, spatial_radius,
+                                                   feature, feature_radius)
+    test_lab, test_features = columns_of(spatial_rows, feature_rows, 1, i, j, spatial, spatial_radius, feature,
+                                         feature_radius)
     color_difference = redistributed(wp.pow(hyab(reference_lab, test_lab), QC), cmax[0])
-
-    # x-derivatives smoothed in y by the Gaussian, the x-smoothed luma differentiated in y.
-    reference_features = wp.vec4(0.0)
-    test_features = wp.vec4(0.0)
-    for t in range(-feature_radius, feature_radius + 1):
-        ii = wp.min(wp.max(0, i + t), last)
-        g = feature[t + feature_radius]
-        weights = wp.vec4(g[0], g[0], g[1], g[2])
-        a = feature_rows[0, ii, j]
-        b = feature_rows[1, ii, j]
-        reference_features += wp.cw_mul(weights, wp.vec4(a[0], a[1], a[2], a[2]))
-        test_features += wp.cw_mul(weights, wp.vec4(b[0], b[1], b[2], b[2]))
-    error[i, j] = flip_error(color_difference, edge_and_point(reference_features), edge_and_point(test_features))
+    error[i, j] = flip_error(color_difference, reference_features, test_features)
 
 
 @functools.lru_cache(maxsize=8)
@@ -433,16 +506,19 @@ def flip_error_map(reference, test, *, pixels_per_degree: float = FLIP_DEFAULT_P
     spatial_radius, feature_radius, spatial, feature, cmax = _filters(ppd, device)
     height, width = reference.shape[:2]
     pair = (2, height, width)
+    reach = wp.array(flip_reach(pixels_differ(reference, test), radius=max(spatial_radius, feature_radius)),
+                     dtype=wp.uint8, device=device)
     srgb = wp.array(np.stack((reference, test)), dtype=wp.vec3, device=device)
     ycxcz = wp.empty(pair, dtype=wp.vec3, device=device)
     luma = wp.empty(pair, dtype=float, device=device)
-    wp.launch(ycxcz_kernel, dim=pair, inputs=(srgb,), outputs=(ycxcz, luma), device=device)
+    wp.launch(ycxcz_kernel, dim=(height, width), inputs=(srgb, reach), outputs=(ycxcz, luma), device=device)
     spatial_rows = wp.empty(pair, dtype=wp.vec4, device=device)
     feature_rows = wp.empty(pair, dtype=wp.vec3, device=device)
-    wp.launch(rows_kernel, dim=(height, width), inputs=(ycxcz, luma, spatial, spatial_radius, feature, feature_radius),
+    wp.launch(rows_kernel, dim=(height, width),
+              inputs=(ycxcz, luma, reach, spatial, spatial_radius, feature, feature_radius),
               outputs=(spatial_rows, feature_rows), device=device)
     error = wp.empty((height, width), dtype=float, device=device)
     wp.launch(columns_kernel, dim=(height, width),
-              inputs=(spatial_rows, feature_rows, spatial, spatial_radius, feature, feature_radius, cmax),
+              inputs=(spatial_rows, feature_rows, reach, spatial, spatial_radius, feature, feature_radius, cmax),
               outputs=(error,), device=device)
     return error.numpy()

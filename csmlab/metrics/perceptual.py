@@ -25,7 +25,9 @@ equal colours, and SSIM and ꟻLIP are local filters: a pixel whose whole filter
 values in both images has SSIM exactly 1 and ꟻLIP exactly 0. So each is computed only on
 *windows* (:func:`changed_windows`) around the pixels whose S changed, each window grown by the
 filter's support so that every value inside is what the whole image gives, and the maps are filled
-with 0 or 1 elsewhere; the summaries are then taken over the full maps exactly as before. A frame
+with 1 or 0 elsewhere; the summaries are then taken over the full maps exactly as before. Inside,
+ꟻLIP's Warp kernels also skip, pixel by pixel, every pass out of a change's reach
+(:func:`csmlab.kernels.flip.flip_reach`), and only the colours they read are sRGB-encoded. A frame
 of ``exact`` changes in a few dozen pixels, so its perceptual metrics cost a few windows instead of
 three full-image filters.
 
@@ -51,7 +53,7 @@ from scipy.ndimage import maximum_filter
 from skimage.metrics import structural_similarity
 
 from csmlab.frame import Frame
-from csmlab.kernels.flip import flip_error_map, flip_filter_radii
+from csmlab.kernels.flip import flip_error_map, flip_filter_radii, flip_reach, pixels_differ
 from csmlab.metric_registry import finite_mean
 from csmlab.metrics.shading import shaded_rgb, srgb_encoded, view_shading_terms
 from csmlab.registry import dispatch
@@ -78,12 +80,6 @@ FLIP_SUPPORT: int = max(flip_filter_radii())
 degree: the colour pipeline's spatial filter reaches ``ceil(3·sqrt(0.04 / (2π²))·67.02) = 10`` pixels
 and the feature pipeline's edge and point detectors ``ceil(3 · 0.5 · 0.082 · 67.02) = 9`` (Andersson
 et al. 2020, sections 4.1 and 4.2)."""
-
-FLIP_WHOLE_IMAGE_FRACTION: float = 0.5
-"""With ``method="warp"``, windows covering more than this fraction of the image are evaluated as
-one whole image instead: the Warp pipeline costs about the same per pixel at any size, and one
-launch sequence spares the crops and the windows' overlapping borders."""
-
 
 @dataclass(frozen=True)
 class PerceptualMaps:
@@ -272,10 +268,11 @@ def ssim_map(previous, current, *, changed=None, compared=None) -> np.ndarray:
 
 
 WIDE_CHANGE: float = 0.005
-"""Fraction of changed pixels above which :func:`ssim_map` and :func:`flip_map` filter the whole
-image rather than :func:`changed_windows`: the same values, and cheaper — on the default walk,
-``none`` changes about 1 % of its pixels a frame, whose windows cover 45 % (SSIM) and 70 % (ꟻLIP)
-of the image, in dozens of windows costing more than the whole; ``exact`` changes under 0.03 %."""
+"""Fraction of changed pixels above which :func:`ssim_map` and :func:`flip_map` (``warp``) filter
+the whole image rather than :func:`changed_windows`: the same values, and cheaper — on the default
+walk, ``none`` changes about 1 % of its pixels a frame, whose windows cover 45 % (SSIM) and 70 %
+(ꟻLIP) of the image, in dozens of windows costing more than the whole; ``exact`` changes under
+0.03 %."""
 
 
 def _changes_widely(changed) -> bool:
@@ -316,30 +313,37 @@ FLIP_METHODS = {"warp": _flip_warp, "flip-evaluator": _flip_evaluator}
 def flip_map(reference, test, *, changed=None, compared=None, method: str = "warp", device: str = "cpu") -> np.ndarray:
     """LDR-ꟻLIP error map ``(H, W)`` float32 of two linear RGB images ``(H, W, 3)`` (sRGB-encoded, clipped, here).
 
-    With ``changed`` (bool ``(H, W)``) it is computed on :func:`changed_windows` only and is
-    exactly 0 elsewhere — the same values as the whole image gives. With ``compared`` (bool
-    ``(H, W)``) every other pixel is first set to the same value in both images (``test``'s, else
-    0), window by window. ``method`` names one of :data:`FLIP_METHODS`; ``device`` is the Warp
-    device of ``warp``. With ``warp``, changes over more than :data:`WIDE_CHANGE` of the pixels,
-    or windows that cover more than :data:`FLIP_WHOLE_IMAGE_FRACTION` of the image, are evaluated
-    on the whole image (the same values).
+    With ``changed`` (bool ``(H, W)``: where the images differ) it is computed on
+    :func:`changed_windows` only, or on the whole image where the changes are wide (more than
+    :data:`WIDE_CHANGE` of the pixels, with ``warp``), and is exactly 0 elsewhere — the same values
+    as the whole image gives. With ``compared`` (bool ``(H, W)``) every other pixel is first set to
+    the same value in both images (``test``'s, else 0). Only the colours ꟻLIP reads to evaluate a
+    pixel that may differ are sRGB-encoded (:func:`csmlab.kernels.flip.flip_reach`). ``method``
+    names one of :data:`FLIP_METHODS`; ``device`` is the Warp device of ``warp``, whose kernels
+    skip, pixel by pixel, what lies out of a change's reach.
     """
     def encoded(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        return dispatch(FLIP_METHODS, method, np.ascontiguousarray(srgb_encoded(a), dtype=np.float32),
-                        np.ascontiguousarray(srgb_encoded(b), dtype=np.float32), field="flip method",
+        return dispatch(FLIP_METHODS, method, *_encoded_where_read(a, b), field="flip method",
                         offered={"device": device})
 
     images, evaluate = _with_compared((np.asarray(reference, dtype=np.float64), np.asarray(test, dtype=np.float64)),
                                       compared, encoded)
     if changed is None or (method == "warp" and _changes_widely(changed)):
         return evaluate(*images)
-    windows = changed_windows(changed, support=FLIP_SUPPORT)
-    height, width = images[1].shape[:2]
-    covered = sum((rows.stop - rows.start) * (cols.stop - cols.start) for (rows, cols), _ in windows)
-    if method == "warp" and covered > FLIP_WHOLE_IMAGE_FRACTION * height * width:
-        # Out of every changed pixel's reach the whole image's error is exactly 0 too.
-        return evaluate(*images)
-    return _windowed(evaluate, images, windows, shape=(height, width), fill=0.0, dtype=np.float32)
+    return _windowed(evaluate, images, changed_windows(changed, support=FLIP_SUPPORT), shape=images[1].shape[:2],
+                     fill=0.0, dtype=np.float32)
+
+
+def _encoded_where_read(reference: np.ndarray, test: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Both linear images ``(H, W, 3)`` sRGB-encoded as float32 where ꟻLIP reads them for a pixel
+    that may differ, and 0 in both elsewhere: the same error map as both encoded whole."""
+    differs = pixels_differ(reference, test)
+    read = flip_reach(differs, radius=FLIP_SUPPORT) > 0
+    out_test = np.zeros(test.shape, dtype=np.float32)
+    out_test[read] = srgb_encoded(test[read])
+    out_reference = out_test.copy()
+    out_reference[differs] = srgb_encoded(reference[differs])
+    return out_reference, out_test
 
 
 def perceptual_summary(maps: PerceptualMaps, *, device: str = "cpu") -> dict[str, float]:
