@@ -108,9 +108,14 @@ def lit_fraction(depth: wp.array3d(dtype=wp.float32), c: int, x: wp.int64, y: wp
     i = x // unit
     j = y // unit
     count = int(0)
-    for dj in range(-radius, radius + 1):
-        for di in range(-radius, radius + 1):
+    # `while` loops: a range known only at run time costs Warp's CPU code several times more per step.
+    dj = -radius
+    while dj <= radius:
+        di = -radius
+        while di <= radius:
             count += tap(depth, c, i + wp.int64(di), j + wp.int64(dj), receiver, slope, x, y, unit, inverse_span)
+            di += 1
+        dj += 1
     side = 2 * radius + 1
     return wp.float64(count) / wp.float64(side * side)
 

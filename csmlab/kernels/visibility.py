@@ -412,14 +412,17 @@ def raster_view_kernel(
     own_ab = edge_owns_centre(g_ab)
     own_bc = edge_owns_centre(g_bc)
     own_ca = edge_owns_centre(g_ca)
-    for row in range(row0, row1 + 1):
+    # `while` loops: a range known only at run time costs Warp's CPU code several times more per step.
+    row = row0
+    while row <= row1:
         y = pixel_y(row, height, step_y)
         k_ab = g_ab[1] * y + g_ab[2]
         k_bc = g_bc[1] * y + g_bc[2]
         k_ca = g_ca[1] * y + g_ca[2]
         k_n = n[1] * y + n[2]
         entered = bool(False)
-        for col in range(col0, col1 + 1):
+        col = col0
+        while col <= col1:
             x = pixel_x(col, width, step_x)
             if (edge_inside(g_ab[0] * x + k_ab, own_ab) and edge_inside(g_bc[0] * x + k_bc, own_bc)
                     and edge_inside(g_ca[0] * x + k_ca, own_ca)):
@@ -440,6 +443,8 @@ def raster_view_kernel(
                 # Each edge function, rounded, is monotone along the row (a product by the
                 # increasing x plus a row constant), so the covered centres form one run.
                 break
+            col += 1
+        row += 1
 
 
 @wp.kernel
