@@ -234,16 +234,19 @@ def shadow_lookup_kernel(
     receiver = wp.float32(0.0)
     slope = wp.vec2d()
     if selection == SELECT_INTERVAL:
-        for c in range(count):
+        c = int(0)
+        while c < count:
             if z >= splits[c] and z < splits[c + 1]:
                 chosen = c
+            c += 1
         if chosen >= 0:
             x, y, receiver, slope = receiver_at(receivers, chosen, k)
             if not holds(x, y, tap_lo, tap_hi):
                 chosen = -1
     else:
         best = wp.float64(wp.inf)
-        for c in range(count):
+        c = int(0)
+        while c < count:
             xc, yc, rc, sc = receiver_at(receivers, c, k)
             if holds(xc, yc, select_lo, select_hi):
                 if (selection == SELECT_MAP and chosen < 0) or (selection == SELECT_BEST_RESOLUTION
@@ -254,6 +257,7 @@ def shadow_lookup_kernel(
                     y = yc
                     receiver = rc
                     slope = sc
+            c += 1
     cascade[k] = chosen
     blend[k] = 0
     if chosen < 0:
@@ -460,13 +464,15 @@ def receiver_coordinates_kernel(
     slope: wp.array3d(dtype=wp.float64),
 ):
     k = wp.tid()
-    for c in range(coords.shape[0]):
+    c = int(0)
+    while c < coords.shape[0]:
         x, y, d, s = receiver_at(receivers, c, k)
         coords[c, k, 0] = x
         coords[c, k, 1] = y
         depth[c, k] = d
         slope[c, k, 0] = s[0]
         slope[c, k, 1] = s[1]
+        c += 1
 
 
 def receiver_coordinates(points, normals, *, basis, texel_size, origin, zref: float, bits: int, normal_offset: float,
