@@ -65,6 +65,9 @@ MARGIN = wp.constant(wp.float64(1e-6))
 SLOPE = wp.constant(wp.float64(1e-3))
 """Below this |dv/du| in grid coordinates, an edge's slice of a sub-row is taken as the whole edge."""
 
+CHUNK = wp.constant(64)
+"""Consecutive triangles whose light-space rectangles are joined, to pass them all at once beside the ray starts."""
+
 _CACHED_LIGHTS = 2
 """Light directions whose light-space vertices a MeshBVH keeps: a frame's and its predecessor's."""
 
@@ -118,6 +121,20 @@ def triangle_box_kernel(
     c = light[triangles[t, 2]]
     box[t] = wp.vec4(wp.float32(wp.min(a[0], wp.min(b[0], c[0]))), wp.float32(wp.min(a[1], wp.min(b[1], c[1]))),
                      wp.float32(wp.max(a[0], wp.max(b[0], c[0]))), wp.float32(wp.max(a[1], wp.max(b[1], c[1]))))
+
+
+@wp.kernel
+def chunk_box_kernel(
+    box: wp.array(dtype=wp.vec4),
+    chunk_box: wp.array(dtype=wp.vec4),
+):
+    """The rectangle of each chunk of :data:`CHUNK` consecutive triangles: the union of theirs."""
+    k = wp.tid()
+    r = box[k * CHUNK]
+    for t in range(k * CHUNK + 1, wp.min(k * CHUNK + CHUNK, box.shape[0])):
+        b = box[t]
+        r = wp.vec4(wp.min(r[0], b[0]), wp.min(r[1], b[1]), wp.max(r[2], b[2]), wp.max(r[3], b[3]))
+    chunk_box[k] = r
 
 
 @wp.kernel
@@ -314,8 +331,9 @@ def strip_extent(p: wp.vec2d, q: wp.vec2d, du_dv: wp.float64, v_lo: wp.float64, 
     return wp.vec2d(wp.min(extent[0], wp.min(u_p, u_q)), wp.max(extent[1], wp.max(u_p, u_q)))
 
 
-@wp.kernel
-def block_kernel(
+@wp.func
+def block_triangle(
+    t: int,
     light: wp.array(dtype=wp.vec3d),
     triangles: wp.array2d(dtype=wp.int32),
     box: wp.array(dtype=wp.vec4),
@@ -330,17 +348,9 @@ def block_kernel(
     first: wp.array(dtype=wp.int32),
     bounds: wp.array(dtype=wp.float64),
     max_t: wp.float64,
-    phase: int,
-    stride: int,
     blocked: wp.array(dtype=wp.uint8),
 ):
-    """Triangle ``phase + i·stride``: mark every ray whose start it covers in light space, nearer the light
-    within ``max_t``.
-
-    Every writer of ``blocked[j]`` writes 1, so the threads of one launch need no atomics; concurrent
-    launches each mark their own ``blocked``.
-    """
-    t = phase + wp.tid() * stride
+    """Triangle ``t``: mark every ray whose start it covers in light space, nearer the light within ``max_t``."""
     # Most triangles lie beside every start: their float32 rectangle (read in sequence, widened by
     # ``slack`` beyond its rounding) says so before any vertex is gathered.
     rect = box[t]
@@ -431,6 +441,44 @@ def block_kernel(
 
 
 @wp.kernel
+def block_kernel(
+    light: wp.array(dtype=wp.vec3d),
+    triangles: wp.array2d(dtype=wp.int32),
+    box: wp.array(dtype=wp.vec4),
+    chunk_box: wp.array(dtype=wp.vec4),
+    slack: wp.float64,
+    sorted_start: wp.array(dtype=wp.vec3d),
+    origin: wp.vec2d,
+    inv_side: wp.float64,
+    nx: int,
+    ny: int,
+    sub: wp.array(dtype=wp.int32),
+    offset: wp.array(dtype=wp.int32),
+    first: wp.array(dtype=wp.int32),
+    bounds: wp.array(dtype=wp.float64),
+    max_t: wp.float64,
+    phase: int,
+    stride: int,
+    blocked: wp.array(dtype=wp.uint8),
+):
+    """The triangles of chunk ``phase + i·stride`` (:data:`CHUNK` consecutive ones), each by :func:`block_triangle`.
+
+    Every writer of ``blocked[j]`` writes 1, so the threads of one launch need no atomics; concurrent
+    launches each mark their own ``blocked``.
+    """
+    k = phase + wp.tid() * stride
+    # A chunk's rectangle holds its triangles': a chunk beside every start is passed whole.
+    rect = chunk_box[k]
+    if wp.float64(rect[2]) + slack < bounds[0] or wp.float64(rect[0]) - slack > bounds[2]:
+        return
+    if wp.float64(rect[3]) + slack < bounds[1] or wp.float64(rect[1]) - slack > bounds[3]:
+        return
+    for t in range(k * CHUNK, wp.min(k * CHUNK + CHUNK, triangles.shape[0])):
+        block_triangle(t, light, triangles, box, slack, sorted_start, origin, inv_side, nx, ny, sub, offset, first,
+                       bounds, max_t, blocked)
+
+
+@wp.kernel
 def shade_kernel(
     blocked: wp.array2d(dtype=wp.uint8),
     sorted_ray: wp.array(dtype=wp.int32),
@@ -498,9 +546,13 @@ def _scene_in_light_space(bvh: MeshBVH, basis: np.ndarray, pool: LaunchPool) -> 
         pool.run([functools.partial(wp.launch, triangle_box_kernel, dim=hi - lo, inputs=(light, bvh.triangles[lo:hi]),
                                     outputs=(box[lo:hi],), device=device)
                   for lo, hi in split_range(box.shape[0], pool.threads)])
+        chunk_box = wp.empty(-(-box.shape[0] // CHUNK), dtype=wp.vec4, device=device)
+        pool.run([functools.partial(wp.launch, chunk_box_kernel, dim=hi - lo, inputs=(box[lo * CHUNK:],),
+                                    outputs=(chunk_box[lo:hi],), device=device)
+                  for lo, hi in split_range(chunk_box.shape[0], pool.threads)])
         while len(bvh.light_space) >= _CACHED_LIGHTS:
             bvh.light_space.pop(next(iter(bvh.light_space)))
-        bvh.light_space[key] = (light, box)
+        bvh.light_space[key] = (light, box, chunk_box)
     return bvh.light_space[key]
 
 
@@ -533,7 +585,7 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
     parts = len(receivers)
     kernels = (ray_start_kernel, light_space_kernel, block_kernel)
     with LaunchPool(threads, kernels=kernels, device=device) as pool:
-        light, box = _scene_in_light_space(bvh, basis, pool)
+        light, box, chunk_box = _scene_in_light_space(bvh, basis, pool)
         axes = tuple(wp.vec3d(*row) for row in basis)
         start = wp.empty(count, dtype=wp.vec3d, device=device)
         # A row of bounds per range, 128 bytes apart: every ray updates its range's row, and two cores
@@ -603,15 +655,15 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
                   for k, (lo, hi) in enumerate(receivers)])
         # The first ray of each fine cell (and the total after the last).
         first = first_each[0]
-        triangle_count = bvh.triangles.shape[0]
-        launches = len(split_range(triangle_count, threads))
+        chunks = chunk_box.shape[0]
+        launches = len(split_range(chunks, threads))
         blocked = wp.empty((launches, rays), dtype=wp.uint8, device=device)
 
         def block(k: int) -> None:
             blocked[k].zero_()
-            wp.launch(block_kernel, dim=(triangle_count - k + launches - 1) // launches,
-                      inputs=(light, bvh.triangles, box, diagonal * 2.0**-23, sorted_start, *grid, ny, sub, offset,
-                              first, bounds, RAY_LENGTH * diagonal, k, launches),
+            wp.launch(block_kernel, dim=(chunks - k + launches - 1) // launches,
+                      inputs=(light, bvh.triangles, box, chunk_box, diagonal * 2.0**-23, sorted_start, *grid, ny, sub,
+                              offset, first, bounds, RAY_LENGTH * diagonal, k, launches),
                       outputs=(blocked[k],), device=device)
 
         pool.run([functools.partial(block, k) for k in range(launches)])
