@@ -229,6 +229,58 @@ def sub_grid_kernel(
 
 
 @wp.kernel
+def ray_table_rows_kernel(
+    count: wp.array2d(dtype=wp.int32),
+    nx: int,
+    table: wp.array(dtype=wp.int32),
+):
+    """Row ``r + 1`` of the coarse cells' summed-area table (``(ny + 1) × (nx + 1)``, row-major): the
+    rays of coarse cells ``(r, 0..c − 1)`` at column ``c``; the columns' sums follow (:func:`ray_table_columns_kernel`).
+
+    ``count[k, c]``: the rays of coarse cell ``c`` that the ``k``-th range of receivers binned.
+    """
+    r = wp.tid()
+    w = nx + 1
+    total = int(0)
+    table[(r + 1) * w] = 0
+    for c in range(nx):
+        for k in range(count.shape[0]):
+            total += count[k, r * nx + c]
+        table[(r + 1) * w + c + 1] = total
+
+
+@wp.kernel
+def ray_table_columns_kernel(
+    ny: int,
+    nx: int,
+    table: wp.array(dtype=wp.int32),
+):
+    """Column ``c`` of the summed-area table summed down its rows: then ``table[r·(nx + 1) + c]`` holds the
+    rays of the coarse cells of rows below ``r`` and columns below ``c``."""
+    c = wp.tid()
+    w = nx + 1
+    table[c] = 0
+    for r in range(1, ny + 1):
+        table[r * w + c] += table[(r - 1) * w + c]
+
+
+@wp.func
+def rays_within(rect: wp.vec4, slack: wp.float64, origin: wp.vec2d, inv_side: wp.float64, nx: int, ny: int,
+                table: wp.array(dtype=wp.int32)) -> bool:
+    """Whether a coarse cell that light-space rectangle ``rect`` (float32, widened by ``slack``) reaches holds rays.
+
+    The cells are those of the rectangle's grid coordinates widened by ``MARGIN``, as a triangle
+    within it reaches no others (:func:`block_triangle`).
+    """
+    c0 = grid_cell((wp.float64(rect[0]) - slack - origin[0]) * inv_side - MARGIN, nx)
+    c1 = grid_cell((wp.float64(rect[2]) + slack - origin[0]) * inv_side + MARGIN, nx) + 1
+    r0 = grid_cell((wp.float64(rect[1]) - slack - origin[1]) * inv_side - MARGIN, ny)
+    r1 = grid_cell((wp.float64(rect[3]) + slack - origin[1]) * inv_side + MARGIN, ny) + 1
+    w = nx + 1
+    return table[r1 * w + c1] - table[r0 * w + c1] - table[r1 * w + c0] + table[r0 * w + c0] > 0
+
+
+@wp.kernel
 def fine_bin_kernel(
     start: wp.array(dtype=wp.vec3d),
     lit: wp.array(dtype=wp.float32),
@@ -348,6 +400,7 @@ def block_triangle(
     first: wp.array(dtype=wp.int32),
     bounds: wp.array(dtype=wp.float64),
     max_t: wp.float64,
+    table: wp.array(dtype=wp.int32),
     blocked: wp.array(dtype=wp.uint8),
 ):
     """Triangle ``t``: mark every ray whose start it covers in light space, nearer the light within ``max_t``."""
@@ -357,6 +410,10 @@ def block_triangle(
     if wp.float64(rect[2]) + slack < bounds[0] or wp.float64(rect[0]) - slack > bounds[2]:
         return
     if wp.float64(rect[3]) + slack < bounds[1] or wp.float64(rect[1]) - slack > bounds[3]:
+        return
+    # Most of the rest reach only cells without rays (the starts' rectangle holds the view's
+    # footprint and the gaps in it).
+    if not rays_within(rect, slack, origin, inv_side, nx, ny, table):
         return
     a = light[triangles[t, 0]]
     b = light[triangles[t, 1]]
@@ -457,6 +514,7 @@ def block_kernel(
     first: wp.array(dtype=wp.int32),
     bounds: wp.array(dtype=wp.float64),
     max_t: wp.float64,
+    table: wp.array(dtype=wp.int32),
     phase: int,
     stride: int,
     blocked: wp.array(dtype=wp.uint8),
@@ -473,9 +531,11 @@ def block_kernel(
         return
     if wp.float64(rect[3]) + slack < bounds[1] or wp.float64(rect[1]) - slack > bounds[3]:
         return
+    if not rays_within(rect, slack, origin, inv_side, nx, ny, table):
+        return
     for t in range(k * CHUNK, wp.min(k * CHUNK + CHUNK, triangles.shape[0])):
         block_triangle(t, light, triangles, box, slack, sorted_start, origin, inv_side, nx, ny, sub, offset, first,
-                       bounds, max_t, blocked)
+                       bounds, max_t, table, blocked)
 
 
 @wp.kernel
@@ -624,6 +684,9 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
         cells = wp.zeros(nx * ny + 1, dtype=wp.int32, device=device)
         wp.launch(sub_grid_kernel, dim=nx * ny, inputs=(per_coarse, RAYS_PER_CELL), outputs=(sub, cells),
                   device=device)
+        table = wp.empty((nx + 1) * (ny + 1), dtype=wp.int32, device=device)
+        wp.launch(ray_table_rows_kernel, dim=ny, inputs=(per_coarse, nx), outputs=(table,), device=device)
+        wp.launch(ray_table_columns_kernel, dim=nx + 1, inputs=(ny, nx), outputs=(table,), device=device)
         offset = wp.empty_like(cells)
         wp.utils.array_scan(cells, offset, inclusive=False)
         fine_cells = int(offset.numpy()[-1])
@@ -663,7 +726,7 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
             blocked[k].zero_()
             wp.launch(block_kernel, dim=(chunks - k + launches - 1) // launches,
                       inputs=(light, bvh.triangles, box, chunk_box, diagonal * 2.0**-23, sorted_start, *grid, ny, sub,
-                              offset, first, bounds, RAY_LENGTH * diagonal, k, launches),
+                              offset, first, bounds, RAY_LENGTH * diagonal, table, k, launches),
                       outputs=(blocked[k],), device=device)
 
         pool.run([functools.partial(block, k) for k in range(launches)])
