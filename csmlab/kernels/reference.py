@@ -331,27 +331,18 @@ def scatter_kernel(
 
 
 @wp.kernel
-def cell_total_kernel(
-    count: wp.array2d(dtype=wp.int32),
-    total: wp.array(dtype=wp.int32),
-):
-    """The rays of fine cell ``f`` over every range of receivers: ``Σ_k count[k, f]``."""
-    f = wp.tid()
-    n = int(0)
-    for k in range(count.shape[0]):
-        n += count[k, f]
-    total[f] = n
-
-
-@wp.kernel
 def range_first_kernel(
     count: wp.array2d(dtype=wp.int32),
     first: wp.array2d(dtype=wp.int32),
 ):
-    """``first[k, f] = first[k − 1, f] + count[k − 1, f]`` for the ranges ``k ≥ 1`` (row 0 given)."""
-    f = wp.tid()
-    for k in range(1, count.shape[0]):
-        first[k, f] = first[k - 1, f] + count[k - 1, f]
+    """``first[k, f]``: the rays of every fine cell before ``f`` and of ranges ``0..k − 1`` in ``f`` (``count[k, f]``:
+    range ``k``'s rays in ``f``), by one thread in one pass — CPU launches of more than one range only.
+    """
+    total = int(0)
+    for f in range(count.shape[1]):
+        for k in range(count.shape[0]):
+            first[k, f] = total
+            total += count[k, f]
 
 
 @wp.func
@@ -401,9 +392,10 @@ def block_triangle(
     bounds: wp.array(dtype=wp.float64),
     max_t: wp.float64,
     table: wp.array(dtype=wp.int32),
-    blocked: wp.array(dtype=wp.uint8),
+    sorted_ray: wp.array(dtype=wp.int32),
+    lit: wp.array(dtype=wp.float32),
 ):
-    """Triangle ``t``: mark every ray whose start it covers in light space, nearer the light within ``max_t``."""
+    """Triangle ``t``: shadow every ray whose start it covers in light space, nearer the light within ``max_t``."""
     # Most triangles lie beside every start: their float32 rectangle (read in sequence, widened by
     # ``slack`` beyond its rounding) says so before any vertex is gathered.
     rect = box[t]
@@ -494,7 +486,7 @@ def block_triangle(
                     w_c = e_b[0] * dy - e_b[1] * dx
                     w_b = e_c[1] * dx - e_c[0] * dy
                     if wp.min(wp.min(w_c, w_b), area - w_b - w_c) >= wp.float64(0.0):
-                        blocked[r] = wp.uint8(1)
+                        lit[sorted_ray[r]] = 0.0
 
 
 @wp.kernel
@@ -515,14 +507,16 @@ def block_kernel(
     bounds: wp.array(dtype=wp.float64),
     max_t: wp.float64,
     table: wp.array(dtype=wp.int32),
+    sorted_ray: wp.array(dtype=wp.int32),
     phase: int,
     stride: int,
-    blocked: wp.array(dtype=wp.uint8),
+    lit: wp.array(dtype=wp.float32),
 ):
     """The triangles of chunk ``phase + i·stride`` (:data:`CHUNK` consecutive ones), each by :func:`block_triangle`.
 
-    Every writer of ``blocked[j]`` writes 1, so the threads of one launch need no atomics; concurrent
-    launches each mark their own ``blocked``.
+    A ray's flag in ``lit`` is written only to 0, by every triangle that blocks it: the threads of
+    one launch and concurrent launches (each taking its own chunks) need no atomics, and the flags
+    do not depend on which triangle wrote first.
     """
     k = phase + wp.tid() * stride
     # A chunk's rectangle holds its triangles': a chunk beside every start is passed whole.
@@ -535,22 +529,7 @@ def block_kernel(
         return
     for t in range(k * CHUNK, wp.min(k * CHUNK + CHUNK, triangles.shape[0])):
         block_triangle(t, light, triangles, box, slack, sorted_start, origin, inv_side, nx, ny, sub, offset, first,
-                       bounds, max_t, table, blocked)
-
-
-@wp.kernel
-def shade_kernel(
-    blocked: wp.array2d(dtype=wp.uint8),
-    sorted_ray: wp.array(dtype=wp.int32),
-    first_ray: int,
-    lit: wp.array(dtype=wp.float32),
-):
-    """Ray ``first_ray + i`` is shadowed when a triangle of any launch of :func:`block_kernel` blocked it."""
-    j = first_ray + wp.tid()
-    for k in range(blocked.shape[0]):
-        if blocked[k, j] != wp.uint8(0):
-            lit[sorted_ray[j]] = 0.0
-            break
+                       bounds, max_t, table, sorted_ray, lit)
 
 
 def _receivers(points, normals, light_direction) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -702,13 +681,12 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
         # first_each[k, f]: where range k's rays of fine cell f go — after every ray of the earlier
         # cells (the exclusive scan of the cells' totals, row 0) and the earlier ranges' rays of f.
         first_each = wp.empty_like(per_fine)
-        total = per_fine[0]
-        if parts > 1:
-            total = wp.empty(fine_cells + 1, dtype=wp.int32, device=device)
-            wp.launch(cell_total_kernel, dim=fine_cells + 1, inputs=(per_fine,), outputs=(total,), device=device)
-        wp.utils.array_scan(total, first_each[0], inclusive=False)
-        if parts > 1:
-            wp.launch(range_first_kernel, dim=fine_cells + 1, inputs=(per_fine,), outputs=(first_each,), device=device)
+        if parts == 1:
+            wp.utils.array_scan(per_fine[0], first_each[0], inclusive=False)
+        else:
+            # A serial pass over the cells (tens of thousands) costs less than the launches of a sum
+            # over the ranges and a scan.
+            wp.launch(range_first_kernel, dim=1, inputs=(per_fine,), outputs=(first_each,), device=device)
         rays = int(first_each.numpy()[0, -1])
         sorted_start = wp.empty(rays, dtype=wp.vec3d, device=device)
         sorted_ray = wp.empty(rays, dtype=wp.int32, device=device)
@@ -720,19 +698,12 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
         first = first_each[0]
         chunks = chunk_box.shape[0]
         launches = len(split_range(chunks, threads))
-        blocked = wp.empty((launches, rays), dtype=wp.uint8, device=device)
-
-        def block(k: int) -> None:
-            blocked[k].zero_()
-            wp.launch(block_kernel, dim=(chunks - k + launches - 1) // launches,
-                      inputs=(light, bvh.triangles, box, chunk_box, diagonal * 2.0**-23, sorted_start, *grid, ny, sub,
-                              offset, first, bounds, RAY_LENGTH * diagonal, table, k, launches),
-                      outputs=(blocked[k],), device=device)
-
-        pool.run([functools.partial(block, k) for k in range(launches)])
-        pool.run([functools.partial(wp.launch, shade_kernel, dim=hi - lo, inputs=(blocked, sorted_ray, lo),
+        pool.run([functools.partial(wp.launch, block_kernel, dim=(chunks - k + launches - 1) // launches,
+                                    inputs=(light, bvh.triangles, box, chunk_box, diagonal * 2.0**-23, sorted_start,
+                                            *grid, ny, sub, offset, first, bounds, RAY_LENGTH * diagonal, table,
+                                            sorted_ray, k, launches),
                                     outputs=(lit,), device=device)
-                  for lo, hi in split_range(rays, threads)])
+                  for k in range(launches)])
     return lit.numpy().reshape(shape)
 
 
