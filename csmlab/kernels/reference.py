@@ -113,27 +113,20 @@ def triangle_box_kernel(
     light: wp.array(dtype=wp.vec3d),
     triangles: wp.array2d(dtype=wp.int32),
     box: wp.array(dtype=wp.vec4),
-):
-    """Each triangle's light-space bounding rectangle ``(x_lo, y_lo, x_hi, y_hi)``, rounded to float32."""
-    t = wp.tid()
-    a = light[triangles[t, 0]]
-    b = light[triangles[t, 1]]
-    c = light[triangles[t, 2]]
-    box[t] = wp.vec4(wp.float32(wp.min(a[0], wp.min(b[0], c[0]))), wp.float32(wp.min(a[1], wp.min(b[1], c[1]))),
-                     wp.float32(wp.max(a[0], wp.max(b[0], c[0]))), wp.float32(wp.max(a[1], wp.max(b[1], c[1]))))
-
-
-@wp.kernel
-def chunk_box_kernel(
-    box: wp.array(dtype=wp.vec4),
     chunk_box: wp.array(dtype=wp.vec4),
 ):
-    """The rectangle of each chunk of :data:`CHUNK` consecutive triangles: the union of theirs."""
+    """Each triangle's light-space bounding rectangle ``(x_lo, y_lo, x_hi, y_hi)``, rounded to float32, and
+    their union over each chunk of :data:`CHUNK` consecutive triangles (one thread per chunk)."""
     k = wp.tid()
-    r = box[k * CHUNK]
-    for t in range(k * CHUNK + 1, wp.min(k * CHUNK + CHUNK, box.shape[0])):
-        b = box[t]
-        r = wp.vec4(wp.min(r[0], b[0]), wp.min(r[1], b[1]), wp.max(r[2], b[2]), wp.max(r[3], b[3]))
+    r = wp.vec4(wp.inf, wp.inf, -wp.inf, -wp.inf)
+    for t in range(k * CHUNK, wp.min(k * CHUNK + CHUNK, triangles.shape[0])):
+        a = light[triangles[t, 0]]
+        b = light[triangles[t, 1]]
+        c = light[triangles[t, 2]]
+        rect = wp.vec4(wp.float32(wp.min(a[0], wp.min(b[0], c[0]))), wp.float32(wp.min(a[1], wp.min(b[1], c[1]))),
+                       wp.float32(wp.max(a[0], wp.max(b[0], c[0]))), wp.float32(wp.max(a[1], wp.max(b[1], c[1]))))
+        box[t] = rect
+        r = wp.vec4(wp.min(r[0], rect[0]), wp.min(r[1], rect[1]), wp.max(r[2], rect[2]), wp.max(r[3], rect[3]))
     chunk_box[k] = r
 
 
@@ -582,12 +575,11 @@ def _scene_in_light_space(bvh: MeshBVH, basis: np.ndarray, pool: LaunchPool) -> 
                                     outputs=(light[lo:hi],), device=device)
                   for lo, hi in split_range(light.shape[0], pool.threads)])
         box = wp.empty(bvh.triangles.shape[0], dtype=wp.vec4, device=device)
-        pool.run([functools.partial(wp.launch, triangle_box_kernel, dim=hi - lo, inputs=(light, bvh.triangles[lo:hi]),
-                                    outputs=(box[lo:hi],), device=device)
-                  for lo, hi in split_range(box.shape[0], pool.threads)])
         chunk_box = wp.empty(-(-box.shape[0] // CHUNK), dtype=wp.vec4, device=device)
-        pool.run([functools.partial(wp.launch, chunk_box_kernel, dim=hi - lo, inputs=(box[lo * CHUNK:],),
-                                    outputs=(chunk_box[lo:hi],), device=device)
+        n = box.shape[0]
+        pool.run([functools.partial(wp.launch, triangle_box_kernel, dim=hi - lo,
+                                    inputs=(light, bvh.triangles[lo * CHUNK:min(hi * CHUNK, n)]),
+                                    outputs=(box[lo * CHUNK:min(hi * CHUNK, n)], chunk_box[lo:hi]), device=device)
                   for lo, hi in split_range(chunk_box.shape[0], pool.threads)])
         while len(bvh.light_space) >= _CACHED_LIGHTS:
             bvh.light_space.pop(next(iter(bvh.light_space)))
