@@ -332,10 +332,15 @@ def range_first_kernel(
     range ``k``'s rays in ``f``), by one thread in one pass — CPU launches of more than one range only.
     """
     total = int(0)
-    for f in range(count.shape[1]):
-        for k in range(count.shape[0]):
+    # `while` loops: see block_triangle.
+    f = int(0)
+    while f < count.shape[1]:
+        k = int(0)
+        while k < count.shape[0]:
             first[k, f] = total
             total += count[k, f]
+            k += 1
+        f += 1
 
 
 @wp.func
@@ -433,8 +438,17 @@ def block_triangle(
     slope_ab = wp.float64(0.0)
     slope_bc = wp.float64(0.0)
     slope_ca = wp.float64(0.0)
-    for row in range(grid_cell(v_lo, ny), grid_cell(v_hi, ny) + 1):
-        for col in range(grid_cell(u_lo, nx), grid_cell(u_hi, nx) + 1):
+    # The loops are `while` loops, each stepping first so that `continue` moves on: on the CPU, a
+    # loop over a range known only at run time costs Warp several times more per step.
+    col_lo = grid_cell(u_lo, nx)
+    col_hi = grid_cell(u_hi, nx)
+    row = grid_cell(v_lo, ny) - 1
+    row_hi = grid_cell(v_hi, ny)
+    while row < row_hi:
+        row += 1
+        col = col_lo - 1
+        while col < col_hi:
+            col += 1
             cell = row * nx + col
             n = sub[cell]
             if n == 0:
@@ -442,7 +456,10 @@ def block_triangle(
             height = wp.float64(1.0) / wp.float64(n)
             box_lo = sub_cell(u_lo, col, n)
             box_hi = sub_cell(u_hi, col, n)
-            for j in range(sub_cell(v_lo, row, n), sub_cell(v_hi, row, n) + 1):
+            j = sub_cell(v_lo, row, n) - 1
+            j_hi = sub_cell(v_hi, row, n)
+            while j < j_hi:
+                j += 1
                 f = offset[cell] + j * n
                 if first[f + box_lo] == first[f + box_hi + 1]:
                     continue
@@ -465,7 +482,10 @@ def block_triangle(
                 i_lo = sub_cell(extent[0] - MARGIN, col, n)
                 i_hi = sub_cell(extent[1] + MARGIN, col, n)
                 # The sub-cells i_lo..i_hi of a sub-row hold consecutive rays.
-                for r in range(first[f + i_lo], first[f + i_hi + 1]):
+                r = first[f + i_lo] - 1
+                r_end = first[f + i_hi + 1] - 1
+                while r < r_end:
+                    r += 1
                     s = sorted_start[r]
                     dx = s[0] - a[0]
                     dy = s[1] - a[1]
@@ -520,9 +540,13 @@ def block_kernel(
         return
     if not rays_within(rect, slack, origin, inv_side, nx, ny, table):
         return
-    for t in range(k * CHUNK, wp.min(k * CHUNK + CHUNK, triangles.shape[0])):
+    # A `while` loop: see block_triangle.
+    t = k * CHUNK
+    end = wp.min(t + CHUNK, triangles.shape[0])
+    while t < end:
         block_triangle(t, light, triangles, box, slack, sorted_start, origin, inv_side, nx, ny, sub, offset, first,
                        bounds, max_t, table, sorted_ray, lit)
+        t += 1
 
 
 def _receivers(points, normals, light_direction) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
