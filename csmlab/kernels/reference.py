@@ -10,8 +10,9 @@ question, registered in :data:`REFERENCE_METHODS`:
   light space (orthographic along ``d``, :func:`csmlab.geometry.light_basis`) a ray from ``S`` is
   blocked exactly when a triangle's projection contains ``S.xy`` and the triangle's depth there is
   nearer the light than ``S`` by more than 0 and less than the ray's length. The ray starts are
-  binned into a uniform light-space grid (a counting sort), then one thread per triangle walks the
-  cells its bounding box covers and tests the starts in them — closed point-in-triangle and depth,
+  binned into a uniform light-space grid (a counting sort), then one thread per chunk of triangles
+  walks, triangle by triangle, the cells a bounding box covers and tests the starts in them — closed
+  point-in-triangle and depth,
   both in float64 from float64 vertices (:func:`hard_shadow_irregular`);
 - ``ray`` — one any-hit ray per point through the BVH in float32, ``wp.mesh_query_ray_anyhit``
   (:func:`hard_shadow_ray`), the independent oracle of the tests.
@@ -20,7 +21,8 @@ They agree everywhere but within float32 rounding of a triangle's edge or of the
 where the float32 ray cast may decide either way.
 
 Both take ``threads``: on the CPU, that many concurrent Warp launches share the work, each writing
-its own part of the outputs (:mod:`csmlab.kernels.threads`), with the same shadow for every value.
+its own part of the outputs (:mod:`csmlab.kernels.threads`) — but for the flags of the rays that the
+irregular z-buffer finds blocked, which every writer sets to 0 — with the same shadow for every value.
 
 References
 ----------
@@ -67,6 +69,9 @@ SLOPE = wp.constant(wp.float64(1e-3))
 
 CHUNK = wp.constant(64)
 """Consecutive triangles whose light-space rectangles are joined, to pass them all at once beside the ray starts."""
+
+RECEIVER_BLOCK = 2048
+"""Receivers per kernel thread of the CPU's passes over them, taken block by block by the launches of a split."""
 
 _CACHED_LIGHTS = 2
 """Light directions whose light-space vertices a MeshBVH keeps: a frame's and its predecessor's."""
@@ -130,6 +135,14 @@ def triangle_box_kernel(
     chunk_box[k] = r
 
 
+@wp.func
+def receiver_block(i: int, block: int, phase: int, stride: int, count: int):
+    """Thread ``i``'s receivers, of a launch taking blocks ``phase, phase + stride, …`` of ``block`` receivers:
+    ``(first − 1, last)``, for a `while` loop that steps first (see :func:`block_triangle`)."""
+    first = (phase + i * stride) * block
+    return first - 1, wp.min(first + block, count) - 1
+
+
 @wp.kernel
 def ray_start_kernel(
     position: wp.array(dtype=wp.vec3d),
@@ -139,33 +152,49 @@ def ray_start_kernel(
     up: wp.vec3d,
     d: wp.vec3d,
     offset: wp.float64,
+    block: int,
+    phase: int,
+    stride: int,
     start: wp.array(dtype=wp.vec3d),
     lit: wp.array(dtype=wp.float32),
     bounds: wp.array(dtype=wp.float64),
 ):
     """Light-space start of each receiver's ray; NaN (no point), 0 (turned away) or 1 (a ray) in ``lit``.
 
-    ``bounds`` gathers the starts' ``(min x, min y, max x, max y, max z)``.
+    ``bounds`` gathers the starts' ``(min x, min y, max x, max y, max z)``. Each thread takes a block
+    of receivers (:func:`receiver_block`).
     """
-    k = wp.tid()
-    p = position[k]
-    if not (wp.isfinite(p[0]) and wp.isfinite(p[1]) and wp.isfinite(p[2])):
-        lit[k] = wp.nan
-        return
-    n = wp.vec3d(normal[k])
-    # The ray cast's test, n·(−d) ≤ 0, with the same operations.
-    if wp.dot(n, -d) <= wp.float64(0.0):
-        lit[k] = 0.0
-        return
-    q = p - anchor + n * offset
-    s = wp.vec3d(wp.dot(q, right), wp.dot(q, up), wp.dot(q, d))
-    start[k] = s
-    lit[k] = 1.0
-    wp.atomic_min(bounds, 0, s[0])
-    wp.atomic_min(bounds, 1, s[1])
-    wp.atomic_max(bounds, 2, s[0])
-    wp.atomic_max(bounds, 3, s[1])
-    wp.atomic_max(bounds, 4, s[2])
+    k, last = receiver_block(wp.tid(), block, phase, stride, lit.shape[0])
+    x_lo = wp.float64(wp.inf)
+    y_lo = wp.float64(wp.inf)
+    x_hi = wp.float64(-wp.inf)
+    y_hi = wp.float64(-wp.inf)
+    z_hi = wp.float64(-wp.inf)
+    while k < last:
+        k += 1
+        p = position[k]
+        if not (wp.isfinite(p[0]) and wp.isfinite(p[1]) and wp.isfinite(p[2])):
+            lit[k] = wp.nan
+            continue
+        n = wp.vec3d(normal[k])
+        # The ray cast's test, n·(−d) ≤ 0, with the same operations.
+        if wp.dot(n, -d) <= wp.float64(0.0):
+            lit[k] = 0.0
+            continue
+        q = p - anchor + n * offset
+        s = wp.vec3d(wp.dot(q, right), wp.dot(q, up), wp.dot(q, d))
+        start[k] = s
+        lit[k] = 1.0
+        x_lo = wp.min(x_lo, s[0])
+        y_lo = wp.min(y_lo, s[1])
+        x_hi = wp.max(x_hi, s[0])
+        y_hi = wp.max(y_hi, s[1])
+        z_hi = wp.max(z_hi, s[2])
+    wp.atomic_min(bounds, 0, x_lo)
+    wp.atomic_min(bounds, 1, y_lo)
+    wp.atomic_max(bounds, 2, x_hi)
+    wp.atomic_max(bounds, 3, y_hi)
+    wp.atomic_max(bounds, 4, z_hi)
 
 
 @wp.func
@@ -188,15 +217,20 @@ def coarse_bin_kernel(
     inv_side: wp.float64,
     nx: int,
     ny: int,
+    block: int,
+    phase: int,
+    stride: int,
     count: wp.array(dtype=wp.int32),
 ):
-    """The rays per coarse cell."""
-    k = wp.tid()
-    if lit[k] != 1.0:
-        return
-    s = start[k]
-    c = grid_cell((s[1] - origin[1]) * inv_side, ny) * nx + grid_cell((s[0] - origin[0]) * inv_side, nx)
-    wp.atomic_add(count, c, 1)
+    """The rays per coarse cell, of the receivers of :func:`receiver_block`."""
+    k, last = receiver_block(wp.tid(), block, phase, stride, lit.shape[0])
+    while k < last:
+        k += 1
+        if lit[k] != 1.0:
+            continue
+        s = start[k]
+        c = grid_cell((s[1] - origin[1]) * inv_side, ny) * nx + grid_cell((s[0] - origin[0]) * inv_side, nx)
+        wp.atomic_add(count, c, 1)
 
 
 @wp.kernel
@@ -283,24 +317,30 @@ def fine_bin_kernel(
     ny: int,
     sub: wp.array(dtype=wp.int32),
     offset: wp.array(dtype=wp.int32),
+    block: int,
+    phase: int,
+    stride: int,
     fine: wp.array(dtype=wp.int32),
     slot: wp.array(dtype=wp.int32),
     count: wp.array(dtype=wp.int32),
 ):
-    """Each ray's sub-cell (row-major within its coarse cell) and its slot there (counting sort, first pass)."""
-    k = wp.tid()
-    if lit[k] != 1.0:
-        return
-    s = start[k]
-    u = (s[0] - origin[0]) * inv_side
-    v = (s[1] - origin[1]) * inv_side
-    col = grid_cell(u, nx)
-    row = grid_cell(v, ny)
-    c = row * nx + col
-    n = sub[c]
-    f = offset[c] + sub_cell(v, row, n) * n + sub_cell(u, col, n)
-    fine[k] = f
-    slot[k] = wp.atomic_add(count, f, 1)
+    """Each ray's sub-cell (row-major within its coarse cell) and its slot there (counting sort, first pass), of
+    the receivers of :func:`receiver_block`."""
+    k, last = receiver_block(wp.tid(), block, phase, stride, lit.shape[0])
+    while k < last:
+        k += 1
+        if lit[k] != 1.0:
+            continue
+        s = start[k]
+        u = (s[0] - origin[0]) * inv_side
+        v = (s[1] - origin[1]) * inv_side
+        col = grid_cell(u, nx)
+        row = grid_cell(v, ny)
+        c = row * nx + col
+        n = sub[c]
+        f = offset[c] + sub_cell(v, row, n) * n + sub_cell(u, col, n)
+        fine[k] = f
+        slot[k] = wp.atomic_add(count, f, 1)
 
 
 @wp.kernel
@@ -310,17 +350,21 @@ def scatter_kernel(
     fine: wp.array(dtype=wp.int32),
     slot: wp.array(dtype=wp.int32),
     first: wp.array(dtype=wp.int32),
-    base: int,
+    block: int,
+    phase: int,
+    stride: int,
     sorted_start: wp.array(dtype=wp.vec3d),
     sorted_ray: wp.array(dtype=wp.int32),
 ):
-    """Rays in sub-cell order (counting sort, second pass); ray ``k`` of the arrays is receiver ``base + k``."""
-    k = wp.tid()
-    if lit[k] != 1.0:
-        return
-    j = first[fine[k]] + slot[k]
-    sorted_start[j] = start[k]
-    sorted_ray[j] = base + k
+    """Rays in sub-cell order (counting sort, second pass), of the receivers of :func:`receiver_block`."""
+    k, last = receiver_block(wp.tid(), block, phase, stride, lit.shape[0])
+    while k < last:
+        k += 1
+        if lit[k] != 1.0:
+            continue
+        j = first[fine[k]] + slot[k]
+        sorted_start[j] = start[k]
+        sorted_ray[j] = k
 
 
 @wp.kernel
@@ -619,13 +663,17 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
 
     Notes
     -----
-    Split over ``threads`` concurrent CPU launches (:mod:`csmlab.kernels.threads`), each writing
-    its own outputs: the ray starts, their coarse and fine bins and their scatter by ranges of
-    receivers, each range with its own bounds and per-cell counters (a cell's rays are placed
-    range after range, so the sorted rays keep the receivers' order, as one launch sorts them); the
-    triangles interleaved (launch ``k`` takes ``k, k + threads, …``), each launch marking the rays
-    it blocks in its own flags; the shading by ranges of sorted rays, a ray shadowed when any launch
-    blocked it. Every ``threads`` gives the same flags, bit for bit.
+    The triangles are tested by chunks of :data:`CHUNK`: a chunk, then a triangle, whose light-space
+    rectangle lies beside the starts' or reaches only coarse cells without rays (a summed-area
+    table of the coarse cells' rays says so in four reads) is passed before any vertex is gathered.
+
+    Split over ``threads`` concurrent CPU launches (:mod:`csmlab.kernels.threads`): the ray starts,
+    their coarse and fine bins and their scatter by blocks of :data:`RECEIVER_BLOCK` receivers
+    (launch ``k`` takes blocks ``k, k + threads, …``), each launch with its own bounds and per-cell
+    counters (a cell's rays are placed launch after launch); the chunks of triangles interleaved
+    the same way. A blocked ray's flag is written to 0 by every triangle that blocks it, whichever
+    launch it is in. Every ``threads`` gives the same flags, bit for bit: the tests of a ray and a
+    triangle do not depend on the grid, nor on the order of the rays in it.
     """
     p, n, basis = _receivers(points, normals, light_direction)
     shape = np.shape(points)[:-1]
@@ -636,8 +684,12 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
     if count == 0:
         return lit.numpy().reshape(shape)
     diagonal = max(bvh.diagonal, 1e-9)
-    receivers = split_range(count, threads)
-    parts = len(receivers)
+    # Blocks of receivers, one per kernel thread on the CPU (one receiver each on CUDA), launch k of
+    # `parts` taking blocks k, k + parts, …: the sky and the ground of an image share out evenly.
+    block = RECEIVER_BLOCK if wp.get_device(device).is_cpu else 1
+    blocks = -(-count // block)
+    parts = len(split_range(blocks, threads))
+    receivers = [(len(range(k, blocks, parts)), (block, k, parts)) for k in range(parts)]
     kernels = (ray_start_kernel, light_space_kernel, block_kernel)
     with LaunchPool(threads, kernels=kernels, device=device) as pool:
         light, box, chunk_box = _scene_in_light_space(bvh, basis, pool)
@@ -652,11 +704,11 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
         copy = not wp.get_device(device).is_cpu
         points_in = wp.array(p, dtype=wp.vec3d, device=device, copy=copy)
         normals_in = wp.array(n, dtype=wp.vec3, device=device, copy=copy)
-        pool.run([functools.partial(wp.launch, ray_start_kernel, dim=hi - lo,
-                                    inputs=(points_in[lo:hi], normals_in[lo:hi], wp.vec3d(*bvh.anchor), *axes,
-                                            RAY_OFFSET * diagonal),
-                                    outputs=(start[lo:hi], lit[lo:hi], bounds[k]), device=device)
-                  for k, (lo, hi) in enumerate(receivers)])
+        pool.run([functools.partial(wp.launch, ray_start_kernel, dim=dim,
+                                    inputs=(points_in, normals_in, wp.vec3d(*bvh.anchor), *axes, RAY_OFFSET * diagonal,
+                                            *take),
+                                    outputs=(start, lit, bounds[k]), device=device)
+                  for k, (dim, take) in enumerate(receivers)])
         each = bounds.numpy()[:, :5]
         x0, y0 = each[:, :2].min(axis=0)
         x1, y1, z1 = each[:, 2:].max(axis=0)
@@ -671,10 +723,9 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
         nx, ny = math.ceil(width / side), math.ceil(height / side)
         grid = (wp.vec2d(x0, y0), 1.0 / side, nx)
         per_coarse = wp.zeros((parts, nx * ny), dtype=wp.int32, device=device)
-        pool.run([functools.partial(wp.launch, coarse_bin_kernel, dim=hi - lo,
-                                    inputs=(start[lo:hi], lit[lo:hi], *grid, ny), outputs=(per_coarse[k],),
-                                    device=device)
-                  for k, (lo, hi) in enumerate(receivers)])
+        pool.run([functools.partial(wp.launch, coarse_bin_kernel, dim=dim, inputs=(start, lit, *grid, ny, *take),
+                                    outputs=(per_coarse[k],), device=device)
+                  for k, (dim, take) in enumerate(receivers)])
         sub = wp.empty(nx * ny, dtype=wp.int32, device=device)
         cells = wp.zeros(nx * ny + 1, dtype=wp.int32, device=device)
         wp.launch(sub_grid_kernel, dim=nx * ny, inputs=(per_coarse, RAYS_PER_CELL), outputs=(sub, cells),
@@ -690,10 +741,10 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
         # Rays per range of receivers and fine cell, a contiguous row per range (kernels indexing a
         # strided column of a cell-major table ran several times slower).
         per_fine = wp.zeros((parts, fine_cells + 1), dtype=wp.int32, device=device)
-        pool.run([functools.partial(wp.launch, fine_bin_kernel, dim=hi - lo,
-                                    inputs=(start[lo:hi], lit[lo:hi], *grid, ny, sub, offset),
-                                    outputs=(fine[lo:hi], slot[lo:hi], per_fine[k]), device=device)
-                  for k, (lo, hi) in enumerate(receivers)])
+        pool.run([functools.partial(wp.launch, fine_bin_kernel, dim=dim,
+                                    inputs=(start, lit, *grid, ny, sub, offset, *take),
+                                    outputs=(fine, slot, per_fine[k]), device=device)
+                  for k, (dim, take) in enumerate(receivers)])
         # first_each[k, f]: where range k's rays of fine cell f go — after every ray of the earlier
         # cells (the exclusive scan of the cells' totals, row 0) and the earlier ranges' rays of f.
         first_each = wp.empty_like(per_fine)
@@ -706,10 +757,10 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
         rays = int(first_each.numpy()[0, -1])
         sorted_start = wp.empty(rays, dtype=wp.vec3d, device=device)
         sorted_ray = wp.empty(rays, dtype=wp.int32, device=device)
-        pool.run([functools.partial(wp.launch, scatter_kernel, dim=hi - lo,
-                                    inputs=(start[lo:hi], lit[lo:hi], fine[lo:hi], slot[lo:hi], first_each[k], lo),
+        pool.run([functools.partial(wp.launch, scatter_kernel, dim=dim,
+                                    inputs=(start, lit, fine, slot, first_each[k], *take),
                                     outputs=(sorted_start, sorted_ray), device=device)
-                  for k, (lo, hi) in enumerate(receivers)])
+                  for k, (dim, take) in enumerate(receivers)])
         # The first ray of each fine cell (and the total after the last).
         first = first_each[0]
         chunks = chunk_box.shape[0]
