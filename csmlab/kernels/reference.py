@@ -46,8 +46,8 @@ from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 from csmlab.kernels.visibility import MeshBVH
 from csmlab.registry import check_name
 
-__all__ = ["COARSE_RAYS_PER_CELL", "RAYS_PER_CELL", "RAY_OFFSET", "REFERENCE_METHODS", "hard_shadow", "hard_shadow_irregular",
-           "hard_shadow_ray"]
+__all__ = ["CHUNK", "COARSE_RAYS_PER_CELL", "RAYS_PER_CELL", "RAY_OFFSET", "RECEIVER_BLOCK", "REFERENCE_METHODS",
+           "hard_shadow", "hard_shadow_irregular", "hard_shadow_ray"]
 
 RAY_OFFSET = 1e-5
 """Ray start offset along the normal, as a fraction of the scene's bounding-box diagonal."""
