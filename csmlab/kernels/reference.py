@@ -11,9 +11,9 @@ question, registered in :data:`REFERENCE_METHODS`:
   blocked exactly when a triangle's projection contains ``S.xy`` and the triangle's depth there is
   nearer the light than ``S`` by more than 0 and less than the ray's length. The ray starts are
   binned into a uniform light-space grid (a counting sort), then one thread per chunk of triangles
-  walks, triangle by triangle, the cells a bounding box covers and tests the starts in them — closed
-  point-in-triangle and depth,
-  both in float64 from float64 vertices (:func:`hard_shadow_irregular`);
+  walks, triangle by triangle, the cells a bounding box covers and tests the starts in them —
+  closed point-in-triangle and depth, both in float64 from float64 vertices
+  (:func:`hard_shadow_irregular`);
 - ``ray`` — one any-hit ray per point through the BVH in float32, ``wp.mesh_query_ray_anyhit``
   (:func:`hard_shadow_ray`), the independent oracle of the tests.
 
@@ -242,7 +242,7 @@ def sub_grid_kernel(
 ):
     """Each coarse cell split ``sub × sub`` ways, ``rays_per_cell`` rays per sub-cell were they spread evenly.
 
-    ``count[k, c]``: the rays of coarse cell ``c`` that the ``k``-th range of receivers binned.
+    ``count[k, c]``: the rays of coarse cell ``c`` that the ``k``-th launch over the receivers binned.
     """
     c = wp.tid()
     n = int(0)
@@ -264,7 +264,7 @@ def ray_table_rows_kernel(
     """Row ``r + 1`` of the coarse cells' summed-area table (``(ny + 1) × (nx + 1)``, row-major): the
     rays of coarse cells ``(r, 0..c − 1)`` at column ``c``; the columns' sums follow (:func:`ray_table_columns_kernel`).
 
-    ``count[k, c]``: the rays of coarse cell ``c`` that the ``k``-th range of receivers binned.
+    ``count[k, c]``: the rays of coarse cell ``c`` that the ``k``-th launch over the receivers binned.
     """
     r = wp.tid()
     w = nx + 1
@@ -368,12 +368,12 @@ def scatter_kernel(
 
 
 @wp.kernel
-def range_first_kernel(
+def launch_first_kernel(
     count: wp.array2d(dtype=wp.int32),
     first: wp.array2d(dtype=wp.int32),
 ):
-    """``first[k, f]``: the rays of every fine cell before ``f`` and of ranges ``0..k − 1`` in ``f`` (``count[k, f]``:
-    range ``k``'s rays in ``f``), by one thread in one pass — CPU launches of more than one range only.
+    """``first[k, f]``: the rays of every fine cell before ``f`` and of launches ``0..k − 1`` in ``f`` (``count[k, f]``:
+    launch ``k``'s rays in ``f``), by one thread in one pass — for a CPU split into more than one launch.
     """
     total = int(0)
     # `while` loops: see block_triangle.
@@ -631,9 +631,10 @@ def hard_shadow_ray(bvh: MeshBVH, *, points, normals, light_direction, threads: 
     return out.reshape(shape)
 
 
-def _scene_in_light_space(bvh: MeshBVH, basis: np.ndarray, pool: LaunchPool) -> tuple[wp.array, wp.array]:
-    """``bvh``'s vertices in the light space of ``basis`` (relative to the anchor) and its triangles'
-    float32 rectangles there, kept per direction; each thread of ``pool`` transforms a range."""
+def _scene_in_light_space(bvh: MeshBVH, basis: np.ndarray, pool: LaunchPool) -> tuple[wp.array, wp.array, wp.array]:
+    """``bvh``'s vertices in the light space of ``basis`` (relative to the anchor), its triangles' float32
+    rectangles there and their union per chunk of :data:`CHUNK`, kept per direction; each thread of
+    ``pool`` transforms a range."""
     key = basis.tobytes()
     if key not in bvh.light_space:
         device = bvh.device
@@ -695,8 +696,8 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
         light, box, chunk_box = _scene_in_light_space(bvh, basis, pool)
         axes = tuple(wp.vec3d(*row) for row in basis)
         start = wp.empty(count, dtype=wp.vec3d, device=device)
-        # A row of bounds per range, 128 bytes apart: every ray updates its range's row, and two cores
-        # writing to one cache line would pass it back and forth.
+        # A row of bounds per launch, 128 bytes apart: every block of receivers updates its launch's
+        # row, and two cores writing to one cache line would pass it back and forth.
         bounds = np.zeros((parts, 16))
         bounds[:, :5] = [np.inf, np.inf, -np.inf, -np.inf, -np.inf]
         bounds = wp.array(bounds, dtype=wp.float64, device=device)
@@ -738,22 +739,22 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
         fine_cells = int(offset.numpy()[-1])
         fine = wp.empty(count, dtype=wp.int32, device=device)
         slot = wp.empty(count, dtype=wp.int32, device=device)
-        # Rays per range of receivers and fine cell, a contiguous row per range (kernels indexing a
-        # strided column of a cell-major table ran several times slower).
+        # Rays per launch over the receivers and fine cell, a contiguous row per launch (kernels
+        # indexing a strided column of a cell-major table ran several times slower).
         per_fine = wp.zeros((parts, fine_cells + 1), dtype=wp.int32, device=device)
         pool.run([functools.partial(wp.launch, fine_bin_kernel, dim=dim,
                                     inputs=(start, lit, *grid, ny, sub, offset, *take),
                                     outputs=(fine, slot, per_fine[k]), device=device)
                   for k, (dim, take) in enumerate(receivers)])
-        # first_each[k, f]: where range k's rays of fine cell f go — after every ray of the earlier
-        # cells (the exclusive scan of the cells' totals, row 0) and the earlier ranges' rays of f.
+        # first_each[k, f]: where launch k's rays of fine cell f go — after every ray of the earlier
+        # cells (row 0: the exclusive scan of the cells' totals) and the earlier launches' rays of f.
         first_each = wp.empty_like(per_fine)
         if parts == 1:
             wp.utils.array_scan(per_fine[0], first_each[0], inclusive=False)
         else:
             # A serial pass over the cells (tens of thousands) costs less than the launches of a sum
-            # over the ranges and a scan.
-            wp.launch(range_first_kernel, dim=1, inputs=(per_fine,), outputs=(first_each,), device=device)
+            # over the launches and a scan.
+            wp.launch(launch_first_kernel, dim=1, inputs=(per_fine,), outputs=(first_each,), device=device)
         rays = int(first_each.numpy()[0, -1])
         sorted_start = wp.empty(rays, dtype=wp.vec3d, device=device)
         sorted_ray = wp.empty(rays, dtype=wp.int32, device=device)
