@@ -262,7 +262,8 @@ def ray_table_rows_kernel(
     table: wp.array(dtype=wp.int32),
 ):
     """Row ``r + 1`` of the coarse cells' summed-area table (``(ny + 1) × (nx + 1)``, row-major): the
-    rays of coarse cells ``(r, 0..c − 1)`` at column ``c``; the columns' sums follow (:func:`ray_table_columns_kernel`).
+    rays of coarse cells ``(r, 0..c − 1)`` at column ``c``; the columns' sums follow
+    (:func:`ray_table_columns_kernel`).
 
     ``count[k, c]``: the rays of coarse cell ``c`` that the ``k``-th launch over the receivers binned.
     """
@@ -372,8 +373,9 @@ def launch_first_kernel(
     count: wp.array2d(dtype=wp.int32),
     first: wp.array2d(dtype=wp.int32),
 ):
-    """``first[k, f]``: the rays of every fine cell before ``f`` and of launches ``0..k − 1`` in ``f`` (``count[k, f]``:
-    launch ``k``'s rays in ``f``), by one thread in one pass — for a CPU split into more than one launch.
+    """``first[k, f]``: the rays of every fine cell before ``f`` and of launches ``0..k − 1`` in ``f``
+    (``count[k, f]``: launch ``k``'s rays in ``f``), by one thread in one pass — for a CPU split into
+    more than one launch.
     """
     total = int(0)
     # `while` loops: see block_triangle.
