@@ -6,7 +6,7 @@ import warp as wp
 
 from csmlab.camera import CameraPose
 from csmlab.geometry import light_basis, rotation_looking_at
-from csmlab.kernels.reference import RAY_OFFSET, REFERENCE_METHODS, hard_shadow
+from csmlab.kernels.reference import CHUNK, RAY_OFFSET, REFERENCE_METHODS, hard_shadow
 from csmlab.kernels.visibility import camera_hits, mesh_bvh
 from csmlab.light import direction_from_angles
 from csmlab.scene import Scene, make_scene
@@ -259,6 +259,65 @@ def test_receivers_all_turned_from_the_light_are_dark_for_every_thread_count(met
         lit = hard_shadow(mesh_bvh(s.vertices, s.triangles), points=points, normals=np.tile(-UP, (9, 1)),
                           light_direction=[0.2, -1.0, 0.0], method=method, threads=threads)
         np.testing.assert_array_equal(lit, np.zeros(9, np.float32))
+
+
+def floating_squares(rng, count: int, *, area: float, height: float) -> tuple[np.ndarray, np.ndarray]:
+    """``count`` horizontal squares (two triangles each) of side 0.5–3 at ``height`` over ``[0, area]²``
+    (x, z), and their ``(x0, x1, z0, z1)`` extents, in the order drawn."""
+    lo = rng.uniform(0.0, area, (count, 2))
+    hi = lo + rng.uniform(0.5, 3.0, (count, 2))
+    x0, z0, x1, z1 = lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1]
+    y = np.full(count, height)
+    corners = np.stack([np.column_stack(c) for c in ((x0, y, z0), (x1, y, z0), (x1, y, z1), (x0, y, z1))], axis=1)
+    first = 4 * np.arange(count)[:, None]
+    triangles = np.concatenate([first + [0, 1, 2], first + [0, 2, 3]], axis=1).reshape(-1, 3)
+    return corners.reshape(-1, 3), triangles, np.column_stack([x0, x1, z0, z1])
+
+
+@pytest.mark.parametrize("order", ["drawn", "along-x"])
+def test_receivers_in_separate_patches_are_shadowed_exactly_under_scattered_squares(order):
+    # Receivers in three patches of a 100 m field leave most of the light-space grid's cells empty,
+    # and 600 small squares lie over the patches, across their borders and over the empty cells between:
+    # the chunks of triangles and the triangles passed as reaching no ray (by their rectangles and
+    # the cells' ray counts) must shadow exactly the points under a square. Drawn at random, a chunk's
+    # squares are far apart; sorted along x, a chunk's lie together and most chunks are passed whole.
+    rng = np.random.default_rng(11)
+    vertices, triangles, squares = floating_squares(rng, 600, area=100.0, height=3.0)
+    if order == "along-x":
+        triangles = triangles[np.argsort(vertices[triangles[:, 0], 0], kind="stable")]
+    ground, tg = quad([[-10.0, 0.0, -10.0], [110.0, 0.0, -10.0], [110.0, 0.0, 110.0], [-10.0, 0.0, 110.0]])
+    bvh = mesh_bvh(np.concatenate([vertices, ground]), np.concatenate([triangles, tg + vertices.shape[0]]))
+    centres = np.array([[15.0, 20.0], [70.0, 30.0], [40.0, 85.0]])
+    xz = np.concatenate([c + rng.uniform(-8.0, 8.0, (2000, 2)) for c in centres])
+    d = direction_from_angles(elevation_deg=55.0, azimuth_deg=25.0)
+    # Where the ray toward the light crosses the squares' height.
+    at = xz + 3.0 * np.array([-d[0], -d[2]]) / -d[1]
+    gap = np.stack([at[:, None, 0] - squares[:, 0], squares[:, 1] - at[:, None, 0],
+                    at[:, None, 1] - squares[:, 2], squares[:, 3] - at[:, None, 1]])
+    shadowed = np.any(np.all(gap > 0.0, axis=0), axis=1)
+    # Points within a millimetre of a square's edge are not compared.
+    robust = np.all(np.abs(gap).min(axis=0) > 1e-3, axis=1)
+    points = np.column_stack([xz[:, 0], np.zeros(len(xz)), xz[:, 1]])
+    assert 0.1 < shadowed[robust].mean() < 0.7
+    for threads in (1, 2):
+        lit = hard_shadow(bvh, points=points, normals=np.tile(UP, (len(xz), 1)), light_direction=d,
+                          threads=threads)
+        np.testing.assert_array_equal(lit[robust], np.where(shadowed[robust], 0.0, 1.0))
+
+
+def test_the_order_of_the_triangles_does_not_change_the_shadow():
+    # Chunks of consecutive triangles are passed whole by their joined rectangle: shuffled, every
+    # chunk spans the scene, and the shadow must stay the same, bit for bit; a last chunk is partial.
+    scene, points, normals = terrain_receivers()
+    triangles = scene.triangles[:len(scene.triangles) // CHUNK * CHUNK - 27]
+    d = direction_from_angles(elevation_deg=40.0, azimuth_deg=30.0)
+    one = hard_shadow(mesh_bvh(scene.vertices, triangles), points=points, normals=normals, light_direction=d)
+    assert 0.05 < np.nanmean(one == 0) < 0.95
+    shuffled = triangles[np.random.default_rng(5).permutation(len(triangles))]
+    for threads in (1, 2):
+        lit = hard_shadow(mesh_bvh(scene.vertices, shuffled), points=points, normals=normals, light_direction=d,
+                          threads=threads)
+        np.testing.assert_array_equal(lit, one)
 
 
 @pytest.mark.parametrize("threads", [0, -1, 2.0, True, "3", None])

@@ -10,9 +10,10 @@ question, registered in :data:`REFERENCE_METHODS`:
   light space (orthographic along ``d``, :func:`csmlab.geometry.light_basis`) a ray from ``S`` is
   blocked exactly when a triangle's projection contains ``S.xy`` and the triangle's depth there is
   nearer the light than ``S`` by more than 0 and less than the ray's length. The ray starts are
-  binned into a uniform light-space grid (a counting sort), then one thread per triangle walks the
-  cells its bounding box covers and tests the starts in them — closed point-in-triangle and depth,
-  both in float64 from float64 vertices (:func:`hard_shadow_irregular`);
+  binned into a uniform light-space grid (a counting sort), then one thread per chunk of triangles
+  walks, triangle by triangle, the cells a bounding box covers and tests the starts in them —
+  closed point-in-triangle and depth, both in float64 from float64 vertices
+  (:func:`hard_shadow_irregular`);
 - ``ray`` — one any-hit ray per point through the BVH in float32, ``wp.mesh_query_ray_anyhit``
   (:func:`hard_shadow_ray`), the independent oracle of the tests.
 
@@ -20,7 +21,8 @@ They agree everywhere but within float32 rounding of a triangle's edge or of the
 where the float32 ray cast may decide either way.
 
 Both take ``threads``: on the CPU, that many concurrent Warp launches share the work, each writing
-its own part of the outputs (:mod:`csmlab.kernels.threads`), with the same shadow for every value.
+its own part of the outputs (:mod:`csmlab.kernels.threads`) — but for the flags of the rays that the
+irregular z-buffer finds blocked, which every writer sets to 0 — with the same shadow for every value.
 
 References
 ----------
@@ -44,8 +46,8 @@ from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 from csmlab.kernels.visibility import MeshBVH
 from csmlab.registry import check_name
 
-__all__ = ["COARSE_RAYS_PER_CELL", "RAYS_PER_CELL", "RAY_OFFSET", "REFERENCE_METHODS", "hard_shadow", "hard_shadow_irregular",
-           "hard_shadow_ray"]
+__all__ = ["CHUNK", "COARSE_RAYS_PER_CELL", "RAYS_PER_CELL", "RAY_OFFSET", "RECEIVER_BLOCK", "REFERENCE_METHODS",
+           "hard_shadow", "hard_shadow_irregular", "hard_shadow_ray"]
 
 RAY_OFFSET = 1e-5
 """Ray start offset along the normal, as a fraction of the scene's bounding-box diagonal."""
@@ -64,6 +66,12 @@ MARGIN = wp.constant(wp.float64(1e-6))
 
 SLOPE = wp.constant(wp.float64(1e-3))
 """Below this |dv/du| in grid coordinates, an edge's slice of a sub-row is taken as the whole edge."""
+
+CHUNK = wp.constant(64)
+"""Consecutive triangles whose light-space rectangles are joined, to pass them all at once beside the ray starts."""
+
+RECEIVER_BLOCK = 2048
+"""Receivers per kernel thread of the CPU's passes over them, taken block by block by the launches of a split."""
 
 _CACHED_LIGHTS = 2
 """Light directions whose light-space vertices a MeshBVH keeps: a frame's and its predecessor's."""
@@ -110,14 +118,29 @@ def triangle_box_kernel(
     light: wp.array(dtype=wp.vec3d),
     triangles: wp.array2d(dtype=wp.int32),
     box: wp.array(dtype=wp.vec4),
+    chunk_box: wp.array(dtype=wp.vec4),
 ):
-    """Each triangle's light-space bounding rectangle ``(x_lo, y_lo, x_hi, y_hi)``, rounded to float32."""
-    t = wp.tid()
-    a = light[triangles[t, 0]]
-    b = light[triangles[t, 1]]
-    c = light[triangles[t, 2]]
-    box[t] = wp.vec4(wp.float32(wp.min(a[0], wp.min(b[0], c[0]))), wp.float32(wp.min(a[1], wp.min(b[1], c[1]))),
-                     wp.float32(wp.max(a[0], wp.max(b[0], c[0]))), wp.float32(wp.max(a[1], wp.max(b[1], c[1]))))
+    """Each triangle's light-space bounding rectangle ``(x_lo, y_lo, x_hi, y_hi)``, rounded to float32, and
+    their union over each chunk of :data:`CHUNK` consecutive triangles (one thread per chunk)."""
+    k = wp.tid()
+    r = wp.vec4(wp.inf, wp.inf, -wp.inf, -wp.inf)
+    for t in range(k * CHUNK, wp.min(k * CHUNK + CHUNK, triangles.shape[0])):
+        a = light[triangles[t, 0]]
+        b = light[triangles[t, 1]]
+        c = light[triangles[t, 2]]
+        rect = wp.vec4(wp.float32(wp.min(a[0], wp.min(b[0], c[0]))), wp.float32(wp.min(a[1], wp.min(b[1], c[1]))),
+                       wp.float32(wp.max(a[0], wp.max(b[0], c[0]))), wp.float32(wp.max(a[1], wp.max(b[1], c[1]))))
+        box[t] = rect
+        r = wp.vec4(wp.min(r[0], rect[0]), wp.min(r[1], rect[1]), wp.max(r[2], rect[2]), wp.max(r[3], rect[3]))
+    chunk_box[k] = r
+
+
+@wp.func
+def receiver_block(i: int, block: int, phase: int, stride: int, count: int):
+    """Thread ``i``'s receivers, of a launch taking blocks ``phase, phase + stride, …`` of ``block`` receivers:
+    ``(first − 1, last)``, for a `while` loop that steps first (see :func:`block_triangle`)."""
+    first = (phase + i * stride) * block
+    return first - 1, wp.min(first + block, count) - 1
 
 
 @wp.kernel
@@ -129,33 +152,49 @@ def ray_start_kernel(
     up: wp.vec3d,
     d: wp.vec3d,
     offset: wp.float64,
+    block: int,
+    phase: int,
+    stride: int,
     start: wp.array(dtype=wp.vec3d),
     lit: wp.array(dtype=wp.float32),
     bounds: wp.array(dtype=wp.float64),
 ):
     """Light-space start of each receiver's ray; NaN (no point), 0 (turned away) or 1 (a ray) in ``lit``.
 
-    ``bounds`` gathers the starts' ``(min x, min y, max x, max y, max z)``.
+    ``bounds`` gathers the starts' ``(min x, min y, max x, max y, max z)``. Each thread takes a block
+    of receivers (:func:`receiver_block`).
     """
-    k = wp.tid()
-    p = position[k]
-    if not (wp.isfinite(p[0]) and wp.isfinite(p[1]) and wp.isfinite(p[2])):
-        lit[k] = wp.nan
-        return
-    n = wp.vec3d(normal[k])
-    # The ray cast's test, n·(−d) ≤ 0, with the same operations.
-    if wp.dot(n, -d) <= wp.float64(0.0):
-        lit[k] = 0.0
-        return
-    q = p - anchor + n * offset
-    s = wp.vec3d(wp.dot(q, right), wp.dot(q, up), wp.dot(q, d))
-    start[k] = s
-    lit[k] = 1.0
-    wp.atomic_min(bounds, 0, s[0])
-    wp.atomic_min(bounds, 1, s[1])
-    wp.atomic_max(bounds, 2, s[0])
-    wp.atomic_max(bounds, 3, s[1])
-    wp.atomic_max(bounds, 4, s[2])
+    k, last = receiver_block(wp.tid(), block, phase, stride, lit.shape[0])
+    x_lo = wp.float64(wp.inf)
+    y_lo = wp.float64(wp.inf)
+    x_hi = wp.float64(-wp.inf)
+    y_hi = wp.float64(-wp.inf)
+    z_hi = wp.float64(-wp.inf)
+    while k < last:
+        k += 1
+        p = position[k]
+        if not (wp.isfinite(p[0]) and wp.isfinite(p[1]) and wp.isfinite(p[2])):
+            lit[k] = wp.nan
+            continue
+        n = wp.vec3d(normal[k])
+        # The ray cast's test, n·(−d) ≤ 0, with the same operations.
+        if wp.dot(n, -d) <= wp.float64(0.0):
+            lit[k] = 0.0
+            continue
+        q = p - anchor + n * offset
+        s = wp.vec3d(wp.dot(q, right), wp.dot(q, up), wp.dot(q, d))
+        start[k] = s
+        lit[k] = 1.0
+        x_lo = wp.min(x_lo, s[0])
+        y_lo = wp.min(y_lo, s[1])
+        x_hi = wp.max(x_hi, s[0])
+        y_hi = wp.max(y_hi, s[1])
+        z_hi = wp.max(z_hi, s[2])
+    wp.atomic_min(bounds, 0, x_lo)
+    wp.atomic_min(bounds, 1, y_lo)
+    wp.atomic_max(bounds, 2, x_hi)
+    wp.atomic_max(bounds, 3, y_hi)
+    wp.atomic_max(bounds, 4, z_hi)
 
 
 @wp.func
@@ -178,15 +217,20 @@ def coarse_bin_kernel(
     inv_side: wp.float64,
     nx: int,
     ny: int,
+    block: int,
+    phase: int,
+    stride: int,
     count: wp.array(dtype=wp.int32),
 ):
-    """The rays per coarse cell."""
-    k = wp.tid()
-    if lit[k] != 1.0:
-        return
-    s = start[k]
-    c = grid_cell((s[1] - origin[1]) * inv_side, ny) * nx + grid_cell((s[0] - origin[0]) * inv_side, nx)
-    wp.atomic_add(count, c, 1)
+    """The rays per coarse cell, of the receivers of :func:`receiver_block`."""
+    k, last = receiver_block(wp.tid(), block, phase, stride, lit.shape[0])
+    while k < last:
+        k += 1
+        if lit[k] != 1.0:
+            continue
+        s = start[k]
+        c = grid_cell((s[1] - origin[1]) * inv_side, ny) * nx + grid_cell((s[0] - origin[0]) * inv_side, nx)
+        wp.atomic_add(count, c, 1)
 
 
 @wp.kernel
@@ -198,7 +242,7 @@ def sub_grid_kernel(
 ):
     """Each coarse cell split ``sub × sub`` ways, ``rays_per_cell`` rays per sub-cell were they spread evenly.
 
-    ``count[k, c]``: the rays of coarse cell ``c`` that the ``k``-th range of receivers binned.
+    ``count[k, c]``: the rays of coarse cell ``c`` that the ``k``-th launch over the receivers binned.
     """
     c = wp.tid()
     n = int(0)
@@ -212,6 +256,59 @@ def sub_grid_kernel(
 
 
 @wp.kernel
+def ray_table_rows_kernel(
+    count: wp.array2d(dtype=wp.int32),
+    nx: int,
+    table: wp.array(dtype=wp.int32),
+):
+    """Row ``r + 1`` of the coarse cells' summed-area table (``(ny + 1) × (nx + 1)``, row-major): the
+    rays of coarse cells ``(r, 0..c − 1)`` at column ``c``; the columns' sums follow
+    (:func:`ray_table_columns_kernel`).
+
+    ``count[k, c]``: the rays of coarse cell ``c`` that the ``k``-th launch over the receivers binned.
+    """
+    r = wp.tid()
+    w = nx + 1
+    total = int(0)
+    table[(r + 1) * w] = 0
+    for c in range(nx):
+        for k in range(count.shape[0]):
+            total += count[k, r * nx + c]
+        table[(r + 1) * w + c + 1] = total
+
+
+@wp.kernel
+def ray_table_columns_kernel(
+    ny: int,
+    nx: int,
+    table: wp.array(dtype=wp.int32),
+):
+    """Column ``c`` of the summed-area table summed down its rows: then ``table[r·(nx + 1) + c]`` holds the
+    rays of the coarse cells of rows below ``r`` and columns below ``c``."""
+    c = wp.tid()
+    w = nx + 1
+    table[c] = 0
+    for r in range(1, ny + 1):
+        table[r * w + c] += table[(r - 1) * w + c]
+
+
+@wp.func
+def rays_within(rect: wp.vec4, slack: wp.float64, origin: wp.vec2d, inv_side: wp.float64, nx: int, ny: int,
+                table: wp.array(dtype=wp.int32)) -> bool:
+    """Whether a coarse cell that light-space rectangle ``rect`` (float32, widened by ``slack``) reaches holds rays.
+
+    The cells are those of the rectangle's grid coordinates widened by ``MARGIN``, as a triangle
+    within it reaches no others (:func:`block_triangle`).
+    """
+    c0 = grid_cell((wp.float64(rect[0]) - slack - origin[0]) * inv_side - MARGIN, nx)
+    c1 = grid_cell((wp.float64(rect[2]) + slack - origin[0]) * inv_side + MARGIN, nx) + 1
+    r0 = grid_cell((wp.float64(rect[1]) - slack - origin[1]) * inv_side - MARGIN, ny)
+    r1 = grid_cell((wp.float64(rect[3]) + slack - origin[1]) * inv_side + MARGIN, ny) + 1
+    w = nx + 1
+    return table[r1 * w + c1] - table[r0 * w + c1] - table[r1 * w + c0] + table[r0 * w + c0] > 0
+
+
+@wp.kernel
 def fine_bin_kernel(
     start: wp.array(dtype=wp.vec3d),
     lit: wp.array(dtype=wp.float32),
@@ -221,24 +318,30 @@ def fine_bin_kernel(
     ny: int,
     sub: wp.array(dtype=wp.int32),
     offset: wp.array(dtype=wp.int32),
+    block: int,
+    phase: int,
+    stride: int,
     fine: wp.array(dtype=wp.int32),
     slot: wp.array(dtype=wp.int32),
     count: wp.array(dtype=wp.int32),
 ):
-    """Each ray's sub-cell (row-major within its coarse cell) and its slot there (counting sort, first pass)."""
-    k = wp.tid()
-    if lit[k] != 1.0:
-        return
-    s = start[k]
-    u = (s[0] - origin[0]) * inv_side
-    v = (s[1] - origin[1]) * inv_side
-    col = grid_cell(u, nx)
-    row = grid_cell(v, ny)
-    c = row * nx + col
-    n = sub[c]
-    f = offset[c] + sub_cell(v, row, n) * n + sub_cell(u, col, n)
-    fine[k] = f
-    slot[k] = wp.atomic_add(count, f, 1)
+    """Each ray's sub-cell (row-major within its coarse cell) and its slot there (counting sort, first pass), of
+    the receivers of :func:`receiver_block`."""
+    k, last = receiver_block(wp.tid(), block, phase, stride, lit.shape[0])
+    while k < last:
+        k += 1
+        if lit[k] != 1.0:
+            continue
+        s = start[k]
+        u = (s[0] - origin[0]) * inv_side
+        v = (s[1] - origin[1]) * inv_side
+        col = grid_cell(u, nx)
+        row = grid_cell(v, ny)
+        c = row * nx + col
+        n = sub[c]
+        f = offset[c] + sub_cell(v, row, n) * n + sub_cell(u, col, n)
+        fine[k] = f
+        slot[k] = wp.atomic_add(count, f, 1)
 
 
 @wp.kernel
@@ -248,41 +351,42 @@ def scatter_kernel(
     fine: wp.array(dtype=wp.int32),
     slot: wp.array(dtype=wp.int32),
     first: wp.array(dtype=wp.int32),
-    base: int,
+    block: int,
+    phase: int,
+    stride: int,
     sorted_start: wp.array(dtype=wp.vec3d),
     sorted_ray: wp.array(dtype=wp.int32),
 ):
-    """Rays in sub-cell order (counting sort, second pass); ray ``k`` of the arrays is receiver ``base + k``."""
-    k = wp.tid()
-    if lit[k] != 1.0:
-        return
-    j = first[fine[k]] + slot[k]
-    sorted_start[j] = start[k]
-    sorted_ray[j] = base + k
+    """Rays in sub-cell order (counting sort, second pass), of the receivers of :func:`receiver_block`."""
+    k, last = receiver_block(wp.tid(), block, phase, stride, lit.shape[0])
+    while k < last:
+        k += 1
+        if lit[k] != 1.0:
+            continue
+        j = first[fine[k]] + slot[k]
+        sorted_start[j] = start[k]
+        sorted_ray[j] = k
 
 
 @wp.kernel
-def cell_total_kernel(
-    count: wp.array2d(dtype=wp.int32),
-    total: wp.array(dtype=wp.int32),
-):
-    """The rays of fine cell ``f`` over every range of receivers: ``Σ_k count[k, f]``."""
-    f = wp.tid()
-    n = int(0)
-    for k in range(count.shape[0]):
-        n += count[k, f]
-    total[f] = n
-
-
-@wp.kernel
-def range_first_kernel(
+def launch_first_kernel(
     count: wp.array2d(dtype=wp.int32),
     first: wp.array2d(dtype=wp.int32),
 ):
-    """``first[k, f] = first[k − 1, f] + count[k − 1, f]`` for the ranges ``k ≥ 1`` (row 0 given)."""
-    f = wp.tid()
-    for k in range(1, count.shape[0]):
-        first[k, f] = first[k - 1, f] + count[k - 1, f]
+    """``first[k, f]``: the rays of every fine cell before ``f`` and of launches ``0..k − 1`` in ``f``
+    (``count[k, f]``: launch ``k``'s rays in ``f``), by one thread in one pass — for a CPU split into
+    more than one launch.
+    """
+    total = int(0)
+    # `while` loops: see block_triangle.
+    f = int(0)
+    while f < count.shape[1]:
+        k = int(0)
+        while k < count.shape[0]:
+            first[k, f] = total
+            total += count[k, f]
+            k += 1
+        f += 1
 
 
 @wp.func
@@ -314,8 +418,9 @@ def strip_extent(p: wp.vec2d, q: wp.vec2d, du_dv: wp.float64, v_lo: wp.float64, 
     return wp.vec2d(wp.min(extent[0], wp.min(u_p, u_q)), wp.max(extent[1], wp.max(u_p, u_q)))
 
 
-@wp.kernel
-def block_kernel(
+@wp.func
+def block_triangle(
+    t: int,
     light: wp.array(dtype=wp.vec3d),
     triangles: wp.array2d(dtype=wp.int32),
     box: wp.array(dtype=wp.vec4),
@@ -330,23 +435,21 @@ def block_kernel(
     first: wp.array(dtype=wp.int32),
     bounds: wp.array(dtype=wp.float64),
     max_t: wp.float64,
-    phase: int,
-    stride: int,
-    blocked: wp.array(dtype=wp.uint8),
+    table: wp.array(dtype=wp.int32),
+    sorted_ray: wp.array(dtype=wp.int32),
+    lit: wp.array(dtype=wp.float32),
 ):
-    """Triangle ``phase + i·stride``: mark every ray whose start it covers in light space, nearer the light
-    within ``max_t``.
-
-    Every writer of ``blocked[j]`` writes 1, so the threads of one launch need no atomics; concurrent
-    launches each mark their own ``blocked``.
-    """
-    t = phase + wp.tid() * stride
+    """Triangle ``t``: shadow every ray whose start it covers in light space, nearer the light within ``max_t``."""
     # Most triangles lie beside every start: their float32 rectangle (read in sequence, widened by
     # ``slack`` beyond its rounding) says so before any vertex is gathered.
     rect = box[t]
     if wp.float64(rect[2]) + slack < bounds[0] or wp.float64(rect[0]) - slack > bounds[2]:
         return
     if wp.float64(rect[3]) + slack < bounds[1] or wp.float64(rect[1]) - slack > bounds[3]:
+        return
+    # Most of the rest reach only cells without rays (the starts' rectangle holds the view's
+    # footprint and the gaps in it).
+    if not rays_within(rect, slack, origin, inv_side, nx, ny, table):
         return
     a = light[triangles[t, 0]]
     b = light[triangles[t, 1]]
@@ -381,8 +484,17 @@ def block_kernel(
     slope_ab = wp.float64(0.0)
     slope_bc = wp.float64(0.0)
     slope_ca = wp.float64(0.0)
-    for row in range(grid_cell(v_lo, ny), grid_cell(v_hi, ny) + 1):
-        for col in range(grid_cell(u_lo, nx), grid_cell(u_hi, nx) + 1):
+    # The loops are `while` loops, each stepping first so that `continue` moves on: on the CPU, a
+    # loop over a range known only at run time costs Warp several times more per step.
+    col_lo = grid_cell(u_lo, nx)
+    col_hi = grid_cell(u_hi, nx)
+    row = grid_cell(v_lo, ny) - 1
+    row_hi = grid_cell(v_hi, ny)
+    while row < row_hi:
+        row += 1
+        col = col_lo - 1
+        while col < col_hi:
+            col += 1
             cell = row * nx + col
             n = sub[cell]
             if n == 0:
@@ -390,7 +502,10 @@ def block_kernel(
             height = wp.float64(1.0) / wp.float64(n)
             box_lo = sub_cell(u_lo, col, n)
             box_hi = sub_cell(u_hi, col, n)
-            for j in range(sub_cell(v_lo, row, n), sub_cell(v_hi, row, n) + 1):
+            j = sub_cell(v_lo, row, n) - 1
+            j_hi = sub_cell(v_hi, row, n)
+            while j < j_hi:
+                j += 1
                 f = offset[cell] + j * n
                 if first[f + box_lo] == first[f + box_hi + 1]:
                     continue
@@ -413,7 +528,10 @@ def block_kernel(
                 i_lo = sub_cell(extent[0] - MARGIN, col, n)
                 i_hi = sub_cell(extent[1] + MARGIN, col, n)
                 # The sub-cells i_lo..i_hi of a sub-row hold consecutive rays.
-                for r in range(first[f + i_lo], first[f + i_hi + 1]):
+                r = first[f + i_lo] - 1
+                r_end = first[f + i_hi + 1] - 1
+                while r < r_end:
+                    r += 1
                     s = sorted_start[r]
                     dx = s[0] - a[0]
                     dy = s[1] - a[1]
@@ -427,22 +545,54 @@ def block_kernel(
                     w_c = e_b[0] * dy - e_b[1] * dx
                     w_b = e_c[1] * dx - e_c[0] * dy
                     if wp.min(wp.min(w_c, w_b), area - w_b - w_c) >= wp.float64(0.0):
-                        blocked[r] = wp.uint8(1)
+                        lit[sorted_ray[r]] = 0.0
 
 
 @wp.kernel
-def shade_kernel(
-    blocked: wp.array2d(dtype=wp.uint8),
+def block_kernel(
+    light: wp.array(dtype=wp.vec3d),
+    triangles: wp.array2d(dtype=wp.int32),
+    box: wp.array(dtype=wp.vec4),
+    chunk_box: wp.array(dtype=wp.vec4),
+    slack: wp.float64,
+    sorted_start: wp.array(dtype=wp.vec3d),
+    origin: wp.vec2d,
+    inv_side: wp.float64,
+    nx: int,
+    ny: int,
+    sub: wp.array(dtype=wp.int32),
+    offset: wp.array(dtype=wp.int32),
+    first: wp.array(dtype=wp.int32),
+    bounds: wp.array(dtype=wp.float64),
+    max_t: wp.float64,
+    table: wp.array(dtype=wp.int32),
     sorted_ray: wp.array(dtype=wp.int32),
-    first_ray: int,
+    phase: int,
+    stride: int,
     lit: wp.array(dtype=wp.float32),
 ):
-    """Ray ``first_ray + i`` is shadowed when a triangle of any launch of :func:`block_kernel` blocked it."""
-    j = first_ray + wp.tid()
-    for k in range(blocked.shape[0]):
-        if blocked[k, j] != wp.uint8(0):
-            lit[sorted_ray[j]] = 0.0
-            break
+    """The triangles of chunk ``phase + i·stride`` (:data:`CHUNK` consecutive ones), each by :func:`block_triangle`.
+
+    A ray's flag in ``lit`` is written only to 0, by every triangle that blocks it: the threads of
+    one launch and concurrent launches (each taking its own chunks) need no atomics, and the flags
+    do not depend on which triangle wrote first.
+    """
+    k = phase + wp.tid() * stride
+    # A chunk's rectangle holds its triangles': a chunk beside every start is passed whole.
+    rect = chunk_box[k]
+    if wp.float64(rect[2]) + slack < bounds[0] or wp.float64(rect[0]) - slack > bounds[2]:
+        return
+    if wp.float64(rect[3]) + slack < bounds[1] or wp.float64(rect[1]) - slack > bounds[3]:
+        return
+    if not rays_within(rect, slack, origin, inv_side, nx, ny, table):
+        return
+    # A `while` loop: see block_triangle.
+    t = k * CHUNK
+    end = wp.min(t + CHUNK, triangles.shape[0])
+    while t < end:
+        block_triangle(t, light, triangles, box, slack, sorted_start, origin, inv_side, nx, ny, sub, offset, first,
+                       bounds, max_t, table, sorted_ray, lit)
+        t += 1
 
 
 def _receivers(points, normals, light_direction) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -483,9 +633,10 @@ def hard_shadow_ray(bvh: MeshBVH, *, points, normals, light_direction, threads: 
     return out.reshape(shape)
 
 
-def _scene_in_light_space(bvh: MeshBVH, basis: np.ndarray, pool: LaunchPool) -> tuple[wp.array, wp.array]:
-    """``bvh``'s vertices in the light space of ``basis`` (relative to the anchor) and its triangles'
-    float32 rectangles there, kept per direction; each thread of ``pool`` transforms a range."""
+def _scene_in_light_space(bvh: MeshBVH, basis: np.ndarray, pool: LaunchPool) -> tuple[wp.array, wp.array, wp.array]:
+    """``bvh``'s vertices in the light space of ``basis`` (relative to the anchor), its triangles' float32
+    rectangles there and their union per chunk of :data:`CHUNK`, kept per direction; each thread of
+    ``pool`` transforms a range."""
     key = basis.tobytes()
     if key not in bvh.light_space:
         device = bvh.device
@@ -495,12 +646,15 @@ def _scene_in_light_space(bvh: MeshBVH, basis: np.ndarray, pool: LaunchPool) -> 
                                     outputs=(light[lo:hi],), device=device)
                   for lo, hi in split_range(light.shape[0], pool.threads)])
         box = wp.empty(bvh.triangles.shape[0], dtype=wp.vec4, device=device)
-        pool.run([functools.partial(wp.launch, triangle_box_kernel, dim=hi - lo, inputs=(light, bvh.triangles[lo:hi]),
-                                    outputs=(box[lo:hi],), device=device)
-                  for lo, hi in split_range(box.shape[0], pool.threads)])
+        chunk_box = wp.empty(-(-box.shape[0] // CHUNK), dtype=wp.vec4, device=device)
+        n = box.shape[0]
+        pool.run([functools.partial(wp.launch, triangle_box_kernel, dim=hi - lo,
+                                    inputs=(light, bvh.triangles[lo * CHUNK:min(hi * CHUNK, n)]),
+                                    outputs=(box[lo * CHUNK:min(hi * CHUNK, n)], chunk_box[lo:hi]), device=device)
+                  for lo, hi in split_range(chunk_box.shape[0], pool.threads)])
         while len(bvh.light_space) >= _CACHED_LIGHTS:
             bvh.light_space.pop(next(iter(bvh.light_space)))
-        bvh.light_space[key] = (light, box)
+        bvh.light_space[key] = (light, box, chunk_box)
     return bvh.light_space[key]
 
 
@@ -512,13 +666,17 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
 
     Notes
     -----
-    Split over ``threads`` concurrent CPU launches (:mod:`csmlab.kernels.threads`), each writing
-    its own outputs: the ray starts, their coarse and fine bins and their scatter by ranges of
-    receivers, each range with its own bounds and per-cell counters (a cell's rays are placed
-    range after range, so the sorted rays keep the receivers' order, as one launch sorts them); the
-    triangles interleaved (launch ``k`` takes ``k, k + threads, …``), each launch marking the rays
-    it blocks in its own flags; the shading by ranges of sorted rays, a ray shadowed when any launch
-    blocked it. Every ``threads`` gives the same flags, bit for bit.
+    The triangles are tested by chunks of :data:`CHUNK`: a chunk, then a triangle, whose light-space
+    rectangle lies beside the starts' or reaches only coarse cells without rays (a summed-area
+    table of the coarse cells' rays says so in four reads) is passed before any vertex is gathered.
+
+    Split over ``threads`` concurrent CPU launches (:mod:`csmlab.kernels.threads`): the ray starts,
+    their coarse and fine bins and their scatter by blocks of :data:`RECEIVER_BLOCK` receivers
+    (launch ``k`` takes blocks ``k, k + threads, …``), each launch with its own bounds and per-cell
+    counters (a cell's rays are placed launch after launch); the chunks of triangles interleaved
+    the same way. A blocked ray's flag is written to 0 by every triangle that blocks it, whichever
+    launch it is in. Every ``threads`` gives the same flags, bit for bit: the tests of a ray and a
+    triangle do not depend on the grid, nor on the order of the rays in it.
     """
     p, n, basis = _receivers(points, normals, light_direction)
     shape = np.shape(points)[:-1]
@@ -529,15 +687,19 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
     if count == 0:
         return lit.numpy().reshape(shape)
     diagonal = max(bvh.diagonal, 1e-9)
-    receivers = split_range(count, threads)
-    parts = len(receivers)
+    # Blocks of receivers, one per kernel thread on the CPU (one receiver each on CUDA), launch k of
+    # `parts` taking blocks k, k + parts, …: the sky and the ground of an image share out evenly.
+    block = RECEIVER_BLOCK if wp.get_device(device).is_cpu else 1
+    blocks = -(-count // block)
+    parts = len(split_range(blocks, threads))
+    receivers = [(len(range(k, blocks, parts)), (block, k, parts)) for k in range(parts)]
     kernels = (ray_start_kernel, light_space_kernel, block_kernel)
     with LaunchPool(threads, kernels=kernels, device=device) as pool:
-        light, box = _scene_in_light_space(bvh, basis, pool)
+        light, box, chunk_box = _scene_in_light_space(bvh, basis, pool)
         axes = tuple(wp.vec3d(*row) for row in basis)
         start = wp.empty(count, dtype=wp.vec3d, device=device)
-        # A row of bounds per range, 128 bytes apart: every ray updates its range's row, and two cores
-        # writing to one cache line would pass it back and forth.
+        # A row of bounds per launch, 128 bytes apart: every block of receivers updates its launch's
+        # row, and two cores writing to one cache line would pass it back and forth.
         bounds = np.zeros((parts, 16))
         bounds[:, :5] = [np.inf, np.inf, -np.inf, -np.inf, -np.inf]
         bounds = wp.array(bounds, dtype=wp.float64, device=device)
@@ -545,11 +707,11 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
         copy = not wp.get_device(device).is_cpu
         points_in = wp.array(p, dtype=wp.vec3d, device=device, copy=copy)
         normals_in = wp.array(n, dtype=wp.vec3, device=device, copy=copy)
-        pool.run([functools.partial(wp.launch, ray_start_kernel, dim=hi - lo,
-                                    inputs=(points_in[lo:hi], normals_in[lo:hi], wp.vec3d(*bvh.anchor), *axes,
-                                            RAY_OFFSET * diagonal),
-                                    outputs=(start[lo:hi], lit[lo:hi], bounds[k]), device=device)
-                  for k, (lo, hi) in enumerate(receivers)])
+        pool.run([functools.partial(wp.launch, ray_start_kernel, dim=dim,
+                                    inputs=(points_in, normals_in, wp.vec3d(*bvh.anchor), *axes, RAY_OFFSET * diagonal,
+                                            *take),
+                                    outputs=(start, lit, bounds[k]), device=device)
+                  for k, (dim, take) in enumerate(receivers)])
         each = bounds.numpy()[:, :5]
         x0, y0 = each[:, :2].min(axis=0)
         x1, y1, z1 = each[:, 2:].max(axis=0)
@@ -564,60 +726,54 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
         nx, ny = math.ceil(width / side), math.ceil(height / side)
         grid = (wp.vec2d(x0, y0), 1.0 / side, nx)
         per_coarse = wp.zeros((parts, nx * ny), dtype=wp.int32, device=device)
-        pool.run([functools.partial(wp.launch, coarse_bin_kernel, dim=hi - lo,
-                                    inputs=(start[lo:hi], lit[lo:hi], *grid, ny), outputs=(per_coarse[k],),
-                                    device=device)
-                  for k, (lo, hi) in enumerate(receivers)])
+        pool.run([functools.partial(wp.launch, coarse_bin_kernel, dim=dim, inputs=(start, lit, *grid, ny, *take),
+                                    outputs=(per_coarse[k],), device=device)
+                  for k, (dim, take) in enumerate(receivers)])
         sub = wp.empty(nx * ny, dtype=wp.int32, device=device)
         cells = wp.zeros(nx * ny + 1, dtype=wp.int32, device=device)
         wp.launch(sub_grid_kernel, dim=nx * ny, inputs=(per_coarse, RAYS_PER_CELL), outputs=(sub, cells),
                   device=device)
+        table = wp.empty((nx + 1) * (ny + 1), dtype=wp.int32, device=device)
+        wp.launch(ray_table_rows_kernel, dim=ny, inputs=(per_coarse, nx), outputs=(table,), device=device)
+        wp.launch(ray_table_columns_kernel, dim=nx + 1, inputs=(ny, nx), outputs=(table,), device=device)
         offset = wp.empty_like(cells)
         wp.utils.array_scan(cells, offset, inclusive=False)
         fine_cells = int(offset.numpy()[-1])
         fine = wp.empty(count, dtype=wp.int32, device=device)
         slot = wp.empty(count, dtype=wp.int32, device=device)
-        # Rays per range of receivers and fine cell, a contiguous row per range (kernels indexing a
-        # strided column of a cell-major table ran several times slower).
+        # Rays per launch over the receivers and fine cell, a contiguous row per launch (kernels
+        # indexing a strided column of a cell-major table ran several times slower).
         per_fine = wp.zeros((parts, fine_cells + 1), dtype=wp.int32, device=device)
-        pool.run([functools.partial(wp.launch, fine_bin_kernel, dim=hi - lo,
-                                    inputs=(start[lo:hi], lit[lo:hi], *grid, ny, sub, offset),
-                                    outputs=(fine[lo:hi], slot[lo:hi], per_fine[k]), device=device)
-                  for k, (lo, hi) in enumerate(receivers)])
-        # first_each[k, f]: where range k's rays of fine cell f go — after every ray of the earlier
-        # cells (the exclusive scan of the cells' totals, row 0) and the earlier ranges' rays of f.
+        pool.run([functools.partial(wp.launch, fine_bin_kernel, dim=dim,
+                                    inputs=(start, lit, *grid, ny, sub, offset, *take),
+                                    outputs=(fine, slot, per_fine[k]), device=device)
+                  for k, (dim, take) in enumerate(receivers)])
+        # first_each[k, f]: where launch k's rays of fine cell f go — after every ray of the earlier
+        # cells (row 0: the exclusive scan of the cells' totals) and the earlier launches' rays of f.
         first_each = wp.empty_like(per_fine)
-        total = per_fine[0]
-        if parts > 1:
-            total = wp.empty(fine_cells + 1, dtype=wp.int32, device=device)
-            wp.launch(cell_total_kernel, dim=fine_cells + 1, inputs=(per_fine,), outputs=(total,), device=device)
-        wp.utils.array_scan(total, first_each[0], inclusive=False)
-        if parts > 1:
-            wp.launch(range_first_kernel, dim=fine_cells + 1, inputs=(per_fine,), outputs=(first_each,), device=device)
+        if parts == 1:
+            wp.utils.array_scan(per_fine[0], first_each[0], inclusive=False)
+        else:
+            # A serial pass over the cells (tens of thousands) costs less than the launches of a sum
+            # over the launches and a scan.
+            wp.launch(launch_first_kernel, dim=1, inputs=(per_fine,), outputs=(first_each,), device=device)
         rays = int(first_each.numpy()[0, -1])
         sorted_start = wp.empty(rays, dtype=wp.vec3d, device=device)
         sorted_ray = wp.empty(rays, dtype=wp.int32, device=device)
-        pool.run([functools.partial(wp.launch, scatter_kernel, dim=hi - lo,
-                                    inputs=(start[lo:hi], lit[lo:hi], fine[lo:hi], slot[lo:hi], first_each[k], lo),
+        pool.run([functools.partial(wp.launch, scatter_kernel, dim=dim,
+                                    inputs=(start, lit, fine, slot, first_each[k], *take),
                                     outputs=(sorted_start, sorted_ray), device=device)
-                  for k, (lo, hi) in enumerate(receivers)])
+                  for k, (dim, take) in enumerate(receivers)])
         # The first ray of each fine cell (and the total after the last).
         first = first_each[0]
-        triangle_count = bvh.triangles.shape[0]
-        launches = len(split_range(triangle_count, threads))
-        blocked = wp.empty((launches, rays), dtype=wp.uint8, device=device)
-
-        def block(k: int) -> None:
-            blocked[k].zero_()
-            wp.launch(block_kernel, dim=(triangle_count - k + launches - 1) // launches,
-                      inputs=(light, bvh.triangles, box, diagonal * 2.0**-23, sorted_start, *grid, ny, sub, offset,
-                              first, bounds, RAY_LENGTH * diagonal, k, launches),
-                      outputs=(blocked[k],), device=device)
-
-        pool.run([functools.partial(block, k) for k in range(launches)])
-        pool.run([functools.partial(wp.launch, shade_kernel, dim=hi - lo, inputs=(blocked, sorted_ray, lo),
+        chunks = chunk_box.shape[0]
+        launches = len(split_range(chunks, threads))
+        pool.run([functools.partial(wp.launch, block_kernel, dim=(chunks - k + launches - 1) // launches,
+                                    inputs=(light, bvh.triangles, box, chunk_box, diagonal * 2.0**-23, sorted_start,
+                                            *grid, ny, sub, offset, first, bounds, RAY_LENGTH * diagonal, table,
+                                            sorted_ray, k, launches),
                                     outputs=(lit,), device=device)
-                  for lo, hi in split_range(rays, threads)])
+                  for k in range(launches)])
     return lit.numpy().reshape(shape)
 
 
