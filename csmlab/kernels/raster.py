@@ -180,50 +180,68 @@ def rasterize_triangle(
                     wp.max(wp.max(ay, by), cy) - wp.min(wp.min(ay, by), cy))
     stepped = extent < wp.int64(67108864)  # 2**26
     step = two * unit
-    step_c = wp.float64(by - ay) * wp.float64(step)
-    step_a = wp.float64(cy - by) * wp.float64(step)
-    step_b = wp.float64(ay - cy) * wp.float64(step)
     count = int(0)
-    # With exact integer edge functions, "inside or owned" is one comparison against a bias:
-    # e > 0, or e ≥ 0 (e > −½) where the edge owns its centres.
-    bias_ab = owned_bias(own_ab)
-    bias_bc = owned_bias(own_bc)
-    bias_ca = owned_bias(own_ca)
-    inverse_c = reciprocal(step_c)
-    inverse_a = reciprocal(step_a)
-    inverse_b = reciprocal(step_b)
-    for j in range(j0, j1 + 1):
-        py = (two * wp.int64(j) + wp.int64(1)) * unit
-        row_ab = wp.float64(bx - ax) * wp.float64(py - ay)
-        row_bc = wp.float64(cx - bx) * wp.float64(py - by)
-        row_ca = wp.float64(ax - cx) * wp.float64(py - cy)
-        w_c, w_a, w_b = edge_values((two * wp.int64(i0) + wp.int64(1)) * unit, ax, ay, bx, by, cx, cy, row_ab,
-                                    row_bc, row_ca)
-        if stepped:
+    if stepped:
+        step_c = wp.float64(by - ay) * wp.float64(step)
+        step_a = wp.float64(cy - by) * wp.float64(step)
+        step_b = wp.float64(ay - cy) * wp.float64(step)
+        # With exact integer edge functions, "inside or owned" is one comparison against a bias:
+        # e > 0, or e ≥ 0 (e > −½) where the edge owns its centres.
+        bias_ab = owned_bias(own_ab)
+        bias_bc = owned_bias(own_bc)
+        bias_ca = owned_bias(own_ca)
+        # A run is solved for only across bounding boxes wide enough to repay three divisions and
+        # the solving of each row: a narrow one (most triangles of a far cascade) is walked whole.
+        wide = i1 - i0 >= 3
+        inverse_c = wp.float64(0.0)
+        inverse_a = wp.float64(0.0)
+        inverse_b = wp.float64(0.0)
+        if wide:
+            inverse_c = reciprocal(step_c)
+            inverse_a = reciprocal(step_a)
+            inverse_b = reciprocal(step_b)
+        # The edge functions at the first centre of the first row; a row up adds dx·2·unit, exactly.
+        bottom = (two * wp.int64(j0) + wp.int64(1)) * unit
+        row_c, row_a, row_b = edge_values((two * wp.int64(i0) + wp.int64(1)) * unit, ax, ay, bx, by, cx, cy,
+                                          wp.float64(bx - ax) * wp.float64(bottom - ay),
+                                          wp.float64(cx - bx) * wp.float64(bottom - by),
+                                          wp.float64(ax - cx) * wp.float64(bottom - cy))
+        rise_c = wp.float64(bx - ax) * wp.float64(step)
+        rise_a = wp.float64(cx - bx) * wp.float64(step)
+        rise_b = wp.float64(ax - cx) * wp.float64(step)
+        start = wp.float64(i0)
+        end = wp.float64(i1)
+        for j in range(j0, j1 + 1):
             # Each edge function falls by its step per texel, so the centres inside form one run;
             # its ends, solved from the three edges (widened by a texel against rounding), bound
             # the walk, and the exact test below decides every centre in it.
-            start = wp.float64(i0)
             lo = start
-            hi = wp.float64(i1)
-            lo, hi = run_bounds(w_c, step_c, inverse_c, bias_ab, start, lo, hi)
-            lo, hi = run_bounds(w_a, step_a, inverse_a, bias_bc, start, lo, hi)
-            lo, hi = run_bounds(w_b, step_b, inverse_b, bias_ca, start, lo, hi)
+            hi = end
+            if wide:
+                lo, hi = run_bounds(row_c, step_c, inverse_c, bias_ab, start, lo, hi)
+                lo, hi = run_bounds(row_a, step_a, inverse_a, bias_bc, start, lo, hi)
+                lo, hi = run_bounds(row_b, step_b, inverse_b, bias_ca, start, lo, hi)
             if lo <= hi:
-                first = int(lo)
-                last = int(hi)
                 skip = lo - start
-                w_c = w_c - step_c * skip
-                w_a = w_a - step_a * skip
-                w_b = w_b - step_b * skip
-                for i in range(first, last + 1):
+                w_c = row_c - step_c * skip
+                w_a = row_a - step_a * skip
+                w_b = row_b - step_b * skip
+                for i in range(int(lo), int(hi) + 1):
                     if w_c > bias_ab and w_a > bias_bc and w_b > bias_ca:
                         store_depth(depth, c, j, i, w_a, w_b, w_c, za, zb, zc, area)
                         count += 1
                     w_c = w_c - step_c
                     w_a = w_a - step_a
                     w_b = w_b - step_b
-        else:
+            row_c = row_c + rise_c
+            row_a = row_a + rise_a
+            row_b = row_b + rise_b
+    else:
+        for j in range(j0, j1 + 1):
+            py = (two * wp.int64(j) + wp.int64(1)) * unit
+            row_ab = wp.float64(bx - ax) * wp.float64(py - ay)
+            row_bc = wp.float64(cx - bx) * wp.float64(py - by)
+            row_ca = wp.float64(ax - cx) * wp.float64(py - cy)
             for i in range(i0, i1 + 1):
                 w_c, w_a, w_b = edge_values((two * wp.int64(i) + wp.int64(1)) * unit, ax, ay, bx, by, cx, cy, row_ab,
                                             row_bc, row_ca)
@@ -298,6 +316,20 @@ def doubled_vertex(points: wp.array3d(dtype=wp.int64), s: int, light_xy: wp.arra
             doubled_fixed_point(light_xy[v, 1], sy, scale, limit, oy))
 
 
+@wp.func
+def misses_span(u: wp.float64, v: wp.float64, w: wp.float64, origin: wp.int64, scale: wp.float64, size: wp.float64,
+                first: int, end: int) -> bool:
+    """Coordinates ``u, v, w`` (metres) all below texel ``first − 1`` or all above texel ``end + 1`` of a box.
+
+    ``origin`` in ``2**-bits`` texels (``scale = 2**bits``), ``size`` metres per texel. The texel of
+    margin is far more than the fixed-point snap and float rounding can move a vertex.
+    """
+    corner = wp.float64(origin) / scale
+    low = (corner + wp.float64(first - 1)) * size
+    high = (corner + wp.float64(end + 1)) * size
+    return wp.max(wp.max(u, v), w) < low or wp.min(wp.min(u, v), w) > high
+
+
 @wp.kernel
 def rasterize_chunks_kernel(
     light_xy: wp.array2d(dtype=wp.float64),
@@ -338,6 +370,15 @@ def rasterize_chunks_kernel(
     ia = triangles[t, 0]
     ib = triangles[t, 1]
     ic = triangles[t, 2]
+    if s < 0:
+        # Converted here: first drop, in metres, a triangle whose rectangle misses the region
+        # widened by a texel, as region_chunks tests chunks (its neighbours in a chunk may not).
+        if misses_span(light_xy[ia, 0], light_xy[ib, 0], light_xy[ic, 0], ox, scale, sx, regions[g, 1],
+                       regions[g, 2]):
+            return
+        if misses_span(light_xy[ia, 1], light_xy[ib, 1], light_xy[ic, 1], oy, scale, sy, regions[g, 3],
+                       regions[g, 4]):
+            return
     ax, ay = doubled_vertex(points, s, light_xy, ia, sx, sy, ox, oy, scale, limit)
     bx, by = doubled_vertex(points, s, light_xy, ib, sx, sy, ox, oy, scale, limit)
     cx, cy = doubled_vertex(points, s, light_xy, ic, sx, sy, ox, oy, scale, limit)
@@ -477,6 +518,16 @@ class TriangleBounds:
         hi = self.hi[fill].reshape(rows, size, 2).max(axis=1) if count else np.zeros((0, 2))
         return tuple(np.ascontiguousarray(a[:, k]) for a in (lo, hi) for k in (0, 1))
 
+    @cached_property
+    def narrow_axis(self) -> int:
+        """The light-space axis (0: x, 1: y) along which chunks are narrower (median extent).
+
+        A grid listed row by row makes chunks long along its rows: bands cut along the other axis
+        (:func:`banded_regions`) meet fewer of them.
+        """
+        lo_x, lo_y, hi_x, hi_y = self.chunks
+        return int(len(lo_x) > 0 and np.median(hi_y - lo_y) < np.median(hi_x - lo_x))
+
 
 def triangle_bounds(light_xy, triangles) -> TriangleBounds:
     """Light-space bounding rectangle of every triangle (:func:`region_chunks` queries them).
@@ -498,16 +549,19 @@ def whole_map_regions(resolutions) -> np.ndarray:
                     axis=1)
 
 
-def banded_regions(regions, *, parts: int) -> np.ndarray:
-    """``regions`` ``(G, 5)`` each cut across its longer side into ``parts`` bands as equal as whole texels allow.
+def banded_regions(regions, *, parts: int, axis: int | None = None) -> np.ndarray:
+    """``regions`` ``(G, 5)`` each cut into ``parts`` bands as equal as whole texels allow.
 
-    Rows ``(c, i0, i1, j0, j1)`` as :func:`region_chunks`; a region narrower than ``parts``
-    texels gives as many bands as it is wide. The bands of a region follow one another, so that
-    :func:`rasterize_cascades` deals them to its threads in turn.
+    Rows ``(c, i0, i1, j0, j1)`` as :func:`region_chunks`. A region is cut along ``axis`` (0: into
+    bands of columns, 1: of rows; :attr:`TriangleBounds.narrow_axis`) when it is at least ``parts``
+    texels long that way, else across its longer side; a region shorter than ``parts`` texels
+    gives as many bands as it is long. The bands of a region follow one another.
     """
     out = []
     for c, i0, i1, j0, j1 in np.asarray(regions, dtype=np.int64).reshape(-1, 5):
         rows = j1 - j0 >= i1 - i0
+        if axis is not None and (j1 - j0 if axis == 1 else i1 - i0) >= parts:
+            rows = axis == 1
         lo, hi = (j0, j1) if rows else (i0, i1)
         cuts = np.unique(np.linspace(lo, hi, min(parts, hi - lo) + 1).round().astype(np.int64))
         for a, b in zip(cuts[:-1], cuts[1:]):
@@ -733,9 +787,11 @@ def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin,
         rows = rows[np.argsort(rows[:, 0], kind="stable")]
     held = np.bincount(rows[:, 0], minlength=areas.shape[0]) << CHUNK_BITS
     starts = np.concatenate([[0], np.cumsum(held >> CHUNK_BITS)])
-    # Triangles each cascade's chunks hold, against what converting its every vertex costs.
-    per_cascade = np.bincount(areas[:, 0], weights=held, minlength=shape[0])
-    converted = np.flatnonzero(3 * per_cascade > xy.shape[0]).astype(np.int32)
+    # Triangles each cascade's chunks hold (a chunk met by two of its regions once), against what
+    # converting its every vertex costs: a vertex pass converts V vertices, the triangles 3 each.
+    distinct = np.zeros((shape[0], count), dtype=bool)
+    distinct[areas[rows[:, 0], 0], rows[:, 1]] = True
+    converted = np.flatnonzero(3 * (distinct.sum(axis=1) << CHUNK_BITS) > xy.shape[0]).astype(np.int32)
     slots = np.full(shape[0], -1, dtype=np.int32)
     slots[converted] = np.arange(converted.size, dtype=np.int32)
     # On the CPU each launch empties its own regions first (on two threads at once); a GPU gets
