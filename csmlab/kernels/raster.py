@@ -783,7 +783,7 @@ def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin,
         maps = depth
     if areas.shape[0] == 0:
         return None if count_only else maps, np.zeros(0, dtype=np.int64)
-    if parts > 1 and np.any(np.diff(rows[:, 0]) < 0):
+    if np.any(np.diff(rows[:, 0]) < 0):
         rows = rows[np.argsort(rows[:, 0], kind="stable")]
     held = np.bincount(rows[:, 0], minlength=areas.shape[0]) << CHUNK_BITS
     starts = np.concatenate([[0], np.cumsum(held >> CHUNK_BITS)])
@@ -808,29 +808,24 @@ def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin,
                   wp.array(tri, dtype=wp.int32, device=device, copy=False), *arrays[1:], points,
                   wp.array(slots, dtype=wp.int32, device=device), wp.array(areas, dtype=wp.int32, device=device))
 
-        def launch(regions: range, subset: np.ndarray) -> None:
-            if on_cpu and not count_only:
-                empty_regions(maps, areas[regions])
-            if subset.shape[0]:
-                wp.launch(rasterize_chunks_kernel, dim=subset.shape[0] << CHUNK_BITS,
-                          inputs=(*inputs, wp.array(subset, dtype=wp.int32, device=device), CHUNK_BITS, *fixed),
-                          outputs=(maps_on, covered), device=device)
+        # Disjoint regions, so no texel is written by two launches: each thread takes the next region
+        # left, costliest first (triangles, then texels), until none is left. Each region is emptied
+        # just before it is rasterized, while its texels are still in the cache.
+        queue = iter(np.lexsort((-extent, -held)).tolist())
+        lock = threading.Lock()
 
-        if parts == 1:
-            launch(range(areas.shape[0]), rows)
-        else:
-            # Disjoint regions, so no texel is written by two launches: each thread takes the next
-            # region left, costliest first (triangles, then texels), until none is left.
-            queue = iter(np.lexsort((-extent, -held)).tolist())
-            lock = threading.Lock()
+        def work() -> None:
+            while True:
+                with lock:
+                    g = next(queue, None)
+                if g is None:
+                    return
+                if on_cpu and not count_only:
+                    empty_regions(maps, areas[g:g + 1])
+                if held[g]:
+                    wp.launch(rasterize_chunks_kernel, dim=int(held[g]),
+                              inputs=(*inputs, wp.array(rows[starts[g]:starts[g + 1]], dtype=wp.int32, device=device),
+                                      CHUNK_BITS, *fixed), outputs=(maps_on, covered), device=device)
 
-            def work() -> None:
-                while True:
-                    with lock:
-                        g = next(queue, None)
-                    if g is None:
-                        return
-                    launch(range(g, g + 1), rows[starts[g]:starts[g + 1]])
-
-            pool.run([work] * parts)
+        pool.run([work] * parts)
     return None if count_only else maps_on.numpy(), covered.numpy()
