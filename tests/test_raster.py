@@ -453,3 +453,76 @@ def test_threads_rasterize_the_same_maps_and_counts_as_one(threads):
         np.testing.assert_array_equal(np.bincount(regions[:, 0], weights=counts), one_count)
     with pytest.raises(ValueError, match="threads"):
         rasterize_cascades(xy, light_depth(cs, vertices), triangles, threads=0, **box)
+
+
+def test_z_order_lists_the_same_triangles_neighbours_together_and_vertices_by_first_use():
+    from csmlab.kernels.raster import CHUNK_BITS, triangle_bounds, z_ordered
+
+    # A 40 × 40 grid of cells listed row by row, plus an unused vertex: rows make long, thin chunks.
+    n = 40
+    x, y = np.meshgrid(np.arange(n + 1.0), np.arange(n + 1.0))
+    xy = np.concatenate([np.stack([x.ravel(), 3.0 * y.ravel()], axis=1), [[1e3, 1e3]]])
+    k = (np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]).ravel()
+    triangles = np.concatenate([np.stack([k, k + 1, k + n + 2], 1), np.stack([k, k + n + 2, k + n + 1], 1)])
+    order, ordered = z_ordered(xy, triangles)
+    assert sorted(order) == list(range(len(xy))) and order[-1] == len(xy) - 1
+    # The same triangles, corner for corner, in a new order.
+    same = {tuple(t) for t in order[ordered]}
+    assert same == {tuple(t) for t in triangles} and len(same) == len(triangles)
+    # Vertices are numbered in the order the triangles first use them.
+    firsts = [v for v in dict.fromkeys(ordered.ravel())]
+    assert firsts == list(range(len(firsts)))
+    # Chunks are compact: far smaller rectangles than the rows' chunks.
+    def chunk_area(points, tris):
+        lo_x, lo_y, hi_x, hi_y = triangle_bounds(points, tris).chunks
+        return np.median((hi_x - lo_x) * (hi_y - lo_y))
+    assert chunk_area(xy[order], ordered) < chunk_area(xy, triangles) / 2
+    assert len(triangles) > 2 << CHUNK_BITS
+
+
+def test_bands_follow_the_axis_asked_for_when_the_region_is_long_enough():
+    from csmlab.kernels.raster import banded_regions
+
+    regions = np.array([(0, 0, 40, 0, 40), (0, 0, 40, 40, 43), (1, 0, 3, 0, 40)], np.int32)
+    columns = banded_regions(regions, parts=4, axis=0)
+    assert all(b[3] == 0 and b[4] == 40 for b in columns[:4])  # the square map: bands of columns
+    assert len(columns) == 12 and all(b[3] == 40 and b[4] == 43 for b in columns[4:8])
+    assert all(b[1] == 0 and b[2] == 3 for b in columns[8:])  # 3 columns only: cut across its rows
+    rows = banded_regions(regions, parts=4, axis=1)
+    assert all(b[1] == 0 and b[2] == 40 for b in rows[:4])
+
+
+def test_the_narrow_axis_is_the_one_across_the_rows_of_a_grid_listed_row_by_row():
+    from csmlab.kernels.raster import triangle_bounds
+
+    n = 64
+    x, y = np.meshgrid(np.arange(n + 1.0), np.arange(n + 1.0))
+    xy = np.stack([x.ravel(), y.ravel()], axis=1)
+    k = (np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]).ravel()
+    by_rows = np.stack([k, k + 1, k + n + 2], 1)  # rows along x: chunks long in x, narrow in y
+    assert triangle_bounds(xy, by_rows).narrow_axis == 1
+    assert triangle_bounds(xy[:, ::-1], by_rows).narrow_axis == 0
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_the_culled_z_ordered_cascade_pass_equals_the_host_path_on_the_scene_as_listed(threads):
+    """render's cascade pass (z-ordered mesh, chunks, vertex pass, bands on threads) gives the maps and counts
+    of rasterize_depth on the scene's own triangle order and host fixed point, bit for bit."""
+    from csmlab.cascades import build_cascades
+    from csmlab.light import direction_from_angles
+    from csmlab.render import prepare_scene, shadow_maps
+    from csmlab.settings import ShadowSettings
+    from tests.test_render import camera, scattered_boxes, scene_of
+
+    scene = scene_of(scattered_boxes(5), plane_half=60.0)
+    dscene = prepare_scene(scene, threads=threads)
+    settings = ShadowSettings(cascades=3, resolution=96, shadow_distance=50.0, stabilization="exact")
+    light = direction_from_angles(elevation_deg=35.0, azimuth_deg=120.0)
+    cs = build_cascades(pose=camera(48, 32), light_direction=light, scene_corners=scene.corners(), settings=settings)
+    maps = shadow_maps(dscene, cs, settings)
+    points = np.stack([fixed_point_coordinates(cs, c, scene.vertices, bits=settings.subtexel_bits)
+                       for c in range(len(cs))])
+    expected, count = rasterize_depth(points, light_depth(cs, scene.vertices), scene.triangles, resolution=96,
+                                      bits=settings.subtexel_bits)
+    np.testing.assert_array_equal(maps.raster.depth, expected)
+    assert maps.texels_rasterized == count > 0

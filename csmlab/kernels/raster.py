@@ -35,7 +35,7 @@ from csmlab.kernels import checked_device
 from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 
 __all__ = ["BANDS_PER_THREAD", "CHUNK_BITS", "TriangleBounds", "banded_regions", "fixed_point_vertices", "rasterize_cascades",
-           "rasterize_depth", "region_chunks", "triangle_bounds", "whole_map_regions"]
+           "rasterize_depth", "region_chunks", "triangle_bounds", "whole_map_regions", "z_ordered"]
 
 
 @wp.func
@@ -540,6 +540,57 @@ def triangle_bounds(light_xy, triangles) -> TriangleBounds:
     """
     xy = np.asarray(light_xy, dtype=np.float64)[np.asarray(triangles)]
     return TriangleBounds(lo=xy.min(axis=1), hi=xy.max(axis=1))
+
+
+def _spread_bits(v: np.ndarray) -> np.ndarray:
+    """The 16 low bits of ``v`` (int64) moved to the even bit positions 0, 2, …, 30."""
+    v = v & 0xFFFF
+    for shift, mask in ((8, 0x00FF00FF), (4, 0x0F0F0F0F), (2, 0x33333333), (1, 0x55555555)):
+        v = (v | (v << shift)) & mask
+    return v
+
+
+def z_ordered(light_xy, triangles) -> tuple[np.ndarray, np.ndarray]:
+    """A mesh's triangles along a Z-order curve in light space, its vertices in the order they are first used.
+
+    Neighbouring triangles then lie close in the list at every scale, so that chunks
+    (:data:`CHUNK_BITS`) are compact, bands meet few of them, and the rasterization writes the
+    depth maps place by place rather than across them.
+
+    Parameters
+    ----------
+    light_xy : array_like, shape (V, 2), float64
+        Vertices' light-space x/y in metres.
+    triangles : array_like, shape (T, 3), integer
+
+    Returns
+    -------
+    order : ndarray, shape (V,), int64
+        The vertices' new order: new vertex k is old vertex ``order[k]`` (unused vertices last).
+    triangles : ndarray, shape (T, 3), int32
+        The triangles in their new order, indexing the reordered vertices.
+    """
+    xy = np.asarray(light_xy, dtype=np.float64)
+    tri = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    if tri.shape[0] == 0:
+        return np.arange(xy.shape[0]), tri.astype(np.int32)
+    key = np.zeros(tri.shape[0], dtype=np.int64)
+    for axis in (0, 1):
+        # Each triangle's centre (times 3) on a 2**16 grid over the centres' extent.
+        u = xy[:, axis]
+        centre = u[tri[:, 0]] + u[tri[:, 1]] + u[tri[:, 2]]
+        lo = centre.min()
+        cell = np.minimum((centre - lo) * (65536.0 / max(centre.max() - lo, 1e-300)), 65535.0).astype(np.int64)
+        key |= _spread_bits(cell) << axis
+    sorted_tri = tri[np.argsort(key, kind="stable")]
+    # First use of each vertex: assigned in reverse so that the earliest use is the last write.
+    flat = sorted_tri.reshape(-1)
+    first = np.full(xy.shape[0], flat.size, dtype=np.int64)
+    first[flat[::-1]] = np.arange(flat.size - 1, -1, -1)
+    order = np.argsort(first, kind="stable")
+    renumber = np.empty(xy.shape[0], dtype=np.int64)
+    renumber[order] = np.arange(xy.shape[0])
+    return order, renumber[sorted_tri].astype(np.int32)
 
 
 def whole_map_regions(resolutions) -> np.ndarray:
