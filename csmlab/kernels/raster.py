@@ -34,8 +34,9 @@ import warp as wp
 from csmlab.kernels import checked_device
 from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 
-__all__ = ["BANDS_PER_THREAD", "CHUNK_BITS", "TriangleBounds", "banded_regions", "fixed_point_vertices", "rasterize_cascades",
-           "rasterize_depth", "region_chunks", "triangle_bounds", "whole_map_regions", "z_ordered"]
+__all__ = ["BANDS_PER_THREAD", "CHUNK_BITS", "TriangleBounds", "banded_regions", "fixed_point_vertices",
+           "rasterize_cascades", "rasterize_depth", "region_chunks", "triangle_bounds", "whole_map_regions",
+           "z_ordered"]
 
 
 @wp.func
@@ -298,7 +299,7 @@ def fixed_point_vertices_kernel(
     limit: wp.float64,
     points: wp.array3d(dtype=wp.int64),
 ):
-    """``points[s, v]``: vertex ``first + k`` in cascade ``cascades[s]``'s doubled fixed point (one thread per (s, k))."""
+    """``points[s, v]``: vertex ``first + k`` in cascade ``cascades[s]``'s doubled fixed point (a thread per s, k)."""
     s, k = wp.tid()
     v = first + k
     c = cascades[s]
