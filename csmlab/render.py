@@ -21,8 +21,8 @@ from csmlab.filters import (filter_mips, filter_moments, filtered_shadow_lookup,
                             receiver_conversion, uses_pixels, world_shadow_lookup)
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import normalized
-from csmlab.kernels.raster import (banded_candidates, rasterize_cascades, rasterize_depth, region_candidates,
-                                  triangle_bounds, whole_map_regions)
+from csmlab.kernels.raster import (BANDS_PER_THREAD, banded_regions, rasterize_cascades, rasterize_depth,
+                                  region_chunks, triangle_bounds, whole_map_regions, z_ordered)
 from csmlab.kernels.reference import hard_shadow
 from csmlab.kernels.shadow import receiver_coordinates
 from csmlab.kernels.threads import checked_threads
@@ -132,13 +132,20 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
 
 
 def _scene_in_light_space(dscene: DeviceScene, cascades: CascadeSet) -> tuple:
-    """Vertices' light-space x/y and depth, triangles' light-space rectangles: computed once per light."""
+    """Vertices' light-space x/y and depth, triangles and their light-space rectangles: computed once per light.
+
+    The triangles and vertices are listed along a Z-order curve in light space
+    (:func:`csmlab.kernels.raster.z_ordered`): the same mesh, rasterized place by place.
+    """
     key = (cascades.basis.tobytes(), cascades.zref)
     if key not in dscene.light_space:
         vertices = dscene.scene.vertices
         xy = light_plane_coordinates(cascades, vertices)
+        order, triangles = z_ordered(xy, dscene.scene.triangles)
+        xy = np.ascontiguousarray(xy[order])
         dscene.light_space.clear()
-        dscene.light_space[key] = (xy, light_depth(cascades, vertices), triangle_bounds(xy, dscene.scene.triangles))
+        dscene.light_space[key] = (xy, light_depth(cascades, vertices)[order], triangles,
+                                   triangle_bounds(xy, triangles))
     return dscene.light_space[key]
 
 
@@ -180,8 +187,8 @@ def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
                        previous: RasterizedMaps | None) -> tuple[np.ndarray, int, RasterizedMaps | None]:
     """``(C, R, R)`` depth maps, texels rasterized and, for boxes on whole texels, what the next frame scrolls from.
 
-    Only the triangles whose light-space rectangle meets a region go to that region's
-    rasterization (:func:`csmlab.kernels.raster.region_candidates`); the others cover none of its
+    Only the chunks of triangles whose light-space rectangle meets a region go to that region's
+    rasterization (:func:`csmlab.kernels.raster.region_chunks`); the others cover none of its
     texels. Cascades of unequal size are each rasterized at their own size into the corner of a
     map of the largest, the rest left empty (the lookup never selects a box there, csmlab.filters).
     Boxes whose origins lie on whole texels (exact, quantized) scroll from ``previous``, rasterizing
@@ -189,21 +196,19 @@ def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
     others are rasterized whole.
     """
     bits = settings.subtexel_bits
-    xy, depth_of_vertex, bounds = _scene_in_light_space(dscene, cascades)
+    xy, depth_of_vertex, triangles, bounds = _scene_in_light_space(dscene, cascades)
     texel_size = np.stack([c.texel_size for c in cascades.cascades])
     origin = np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))])
     sizes = [c.resolution for c in cascades.cascades]
 
     def rasterized(corner, fixed_origin, regions, **how):
-        candidates = region_candidates(bounds, texel_size=texel_size, origin=corner, regions=regions)
         if dscene.threads > 1:
-            # Each region cut in bands, one per thread, each band culled from its region's triangles.
-            regions, candidates = banded_candidates(bounds, texel_size=texel_size, origin=corner, regions=regions,
-                                                    candidates=candidates, parts=dscene.threads)
-        depth, texels = rasterize_cascades(xy, depth_of_vertex, dscene.scene.triangles, texel_size=texel_size,
+            # Each region cut in bands, several per thread, which the threads take in turn.
+            regions = banded_regions(regions, parts=BANDS_PER_THREAD * dscene.threads, axis=bounds.narrow_axis)
+        chunks = region_chunks(bounds, texel_size=texel_size, origin=corner, regions=regions)
+        depth, texels = rasterize_cascades(xy, depth_of_vertex, triangles, texel_size=texel_size,
                                            origin=fixed_origin, resolution=max(sizes), bits=bits, regions=regions,
-                                           candidates=candidates, threads=dscene.threads, device=dscene.device,
-                                           **how)
+                                           chunks=chunks, threads=dscene.threads, device=dscene.device, **how)
         return depth, np.bincount(regions[:, 0], weights=texels, minlength=len(sizes)).astype(np.int64)
 
     corner = np.stack([c.origin for c in cascades.cascades])

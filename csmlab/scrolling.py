@@ -67,7 +67,8 @@ class ScrollPlan:
     Attributes
     ----------
     depth : ndarray, shape (C, R, R), float32
-        The texels kept from the previous frame, +inf elsewhere.
+        The texels kept from the previous frame, +inf beyond a smaller cascade's own map; the
+        texels of ``regions`` are left unset (the rasterization empties them itself).
     regions : ndarray, shape (G, 5), int32
         Rows ``(c, i0, i1, j0, j1)``: texel columns ``[i0, i1)`` and rows ``[j0, j1)`` of cascade c
         still to rasterize (:func:`csmlab.kernels.raster.rasterize_cascades`).
@@ -140,16 +141,13 @@ def scroll_plan(previous: RasterizedMaps | None, *, basis, zref: float, bits: in
         depth[c, size:, :] = np.inf
         depth[c, :size, size:] = np.inf
         if shift is None:
-            depth[c, :size, :size] = np.inf
             regions.append((c, 0, size, 0, size))
             continue
         dx, dy = (int(v) for v in shift)
         i0, i1 = max(0, -dx), min(size, size - dx)
         j0, j1 = max(0, -dy), min(size, size - dy)
         depth[c, j0:j1, i0:i1] = previous.depth[c, j0 + dy:j1 + dy, i0 + dx:i1 + dx]
-        for strip in _outside(c, size, i0, i1, j0, j1):
-            depth[c, strip[3]:strip[4], strip[1]:strip[2]] = np.inf
-            regions.append(strip)
+        regions += _outside(c, size, i0, i1, j0, j1)
         left += _outside(c, size, i0 + dx, i1 + dx, j0 + dy, j1 + dy)
     return ScrollPlan(depth=depth, regions=np.array(regions, dtype=np.int32).reshape(-1, 5), kept_texels=kept_texels,
                       left=np.array(left, dtype=np.int32).reshape(-1, 5))

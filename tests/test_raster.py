@@ -257,51 +257,99 @@ def test_cpu_and_cuda_rasterize_the_same_depth():
     np.testing.assert_allclose(cpu[np.isfinite(cpu)], cuda[np.isfinite(cuda)], rtol=1e-6)
 
 
+def spatially_sorted(xy, triangles):
+    """A soup's triangles listed by their first corner's light-space x, as meshes list neighbours together."""
+    return triangles[np.argsort(xy[triangles[:, 0], 0], kind="stable")]
+
+
 def test_device_fixed_point_and_culled_rasterization_equal_the_host_path_bit_for_bit():
-    """rasterize_cascades (fixed point in a kernel, culled pairs) gives rasterize_depth's maps exactly."""
-    from csmlab.kernels.raster import rasterize_cascades, region_candidates, triangle_bounds, whole_map_regions
+    """rasterize_cascades (fixed point on the device, culled chunks) gives rasterize_depth's maps exactly."""
+    from csmlab.kernels.raster import CHUNK_BITS, rasterize_cascades, region_chunks, triangle_bounds, whole_map_regions
     from csmlab.texels import fixed_point_origin, light_plane_coordinates
 
     rng = np.random.default_rng(11)
     cs = cascade_set(direction=OBLIQUE, origins=[(1000.0, -37.0), (1040.0, -20.0), (990.0, -60.0)], texel=0.0371,
                      resolution=48)
     vertices, triangles = triangle_soup(rng, cs, count=400, lo=-40.0, hi=90.0, size=9.0)
-    expected, expected_count = rasterize(cs, vertices, triangles)
     xy = light_plane_coordinates(cs, vertices)
+    triangles = spatially_sorted(xy, triangles)
+    expected, expected_count = rasterize(cs, vertices, triangles)
     bounds = triangle_bounds(xy, triangles)
     texel_size = np.stack([c.texel_size for c in cs.cascades])
     origin = np.stack([c.origin for c in cs.cascades])
-    candidates = region_candidates(bounds, texel_size=texel_size, origin=origin, regions=whole_map_regions([48] * 3))
-    assert 0 < len(candidates) < 3 * len(triangles)  # culling removed some pairs, kept others
+    chunks = region_chunks(bounds, texel_size=texel_size, origin=origin, regions=whole_map_regions([48] * 3))
+    assert 0 < len(chunks) < 3 * -(-len(triangles) // (1 << CHUNK_BITS))  # culling removed some chunks, kept others
     fixed_origin = np.stack([fixed_point_origin(cs, c, bits=BITS) for c in range(len(cs))])
-    for pairs in (candidates, None):
+    for rows in (chunks, None):
         depth, count = rasterize_cascades(xy, light_depth(cs, vertices), triangles, texel_size=texel_size,
-                                          origin=fixed_origin, resolution=48, bits=BITS, candidates=pairs)
+                                          origin=fixed_origin, resolution=48, bits=BITS, chunks=rows)
         np.testing.assert_array_equal(depth, expected)
         assert count.sum() == expected_count
 
 
-def test_culled_pairs_hold_every_triangle_that_covers_a_texel():
-    from csmlab.kernels.raster import region_candidates, triangle_bounds, whole_map_regions
+def test_culled_chunks_hold_every_triangle_that_covers_a_texel():
+    from csmlab.kernels.raster import CHUNK_BITS, region_chunks, triangle_bounds, whole_map_regions
     from csmlab.texels import light_plane_coordinates
 
     rng = np.random.default_rng(12)
     cs = cascade_set(direction=DOWN, origins=[(0.0, 0.0), (30.0, 10.0)], texel=0.5, resolution=32)
     vertices, triangles = triangle_soup(rng, cs, count=300, lo=-30.0, hi=70.0, size=4.0)
-    bounds = triangle_bounds(light_plane_coordinates(cs, vertices), triangles)
-    candidates = {tuple(p) for p in region_candidates(bounds, texel_size=[[0.5, 0.5]] * 2,
-                                                      origin=[c.origin for c in cs.cascades],
-                                                      regions=whole_map_regions([32, 32]))}
+    xy = light_plane_coordinates(cs, vertices)
+    triangles = spatially_sorted(xy, triangles)
+    bounds = triangle_bounds(xy, triangles)
+    chunks = {tuple(p) for p in region_chunks(bounds, texel_size=[[0.5, 0.5]] * 2,
+                                              origin=[c.origin for c in cs.cascades],
+                                              regions=whole_map_regions([32, 32]))}
+    assert len(chunks) < 2 * len(bounds.chunks[0])  # some chunks were culled
     for t in range(len(triangles)):
         alone, covered = rasterize(cs, vertices, triangles[t:t + 1])
         for c in range(len(cs)):
             if np.isfinite(alone[c]).any():
-                assert (c, t) in candidates
+                assert (c, t >> CHUNK_BITS) in chunks
+
+
+def test_chunk_rectangles_bound_their_triangles_and_the_last_chunk_only_its_own():
+    from csmlab.kernels.raster import CHUNK_BITS, triangle_bounds
+
+    rng = np.random.default_rng(14)
+    size = 1 << CHUNK_BITS
+    xy = rng.uniform(-5.0, 5.0, (3 * (2 * size + 3), 2))
+    bounds = triangle_bounds(xy, np.arange(len(xy)).reshape(-1, 3))
+    lo_x, lo_y, hi_x, hi_y = bounds.chunks
+    assert len(lo_x) == 3
+    for k in range(3):
+        mine = slice(k * size, (k + 1) * size)
+        np.testing.assert_array_equal([lo_x[k], lo_y[k]], bounds.lo[mine].min(axis=0))
+        np.testing.assert_array_equal([hi_x[k], hi_y[k]], bounds.hi[mine].max(axis=0))
+    assert all(len(a) == 0 for a in triangle_bounds(xy[:0], np.zeros((0, 3), int)).chunks)
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_the_vertex_pass_is_twice_the_host_fixed_point(threads):
+    from csmlab.kernels.raster import fixed_point_vertices
+    from csmlab.texels import fixed_point_origin, light_plane_coordinates
+
+    rng = np.random.default_rng(15)
+    cs = cascade_set(direction=OBLIQUE, origins=[(1e5, -37.0), (7.25, 3.0), (-40.0, 1e6)], texel=0.0371,
+                     resolution=48)
+    vertices, _ = triangle_soup(rng, cs, count=101, lo=-1e3, hi=1e3, size=50.0)
+    # A vertex beyond the fixed-point clip (±2**50 steps) is clipped as on the host.
+    vertices = np.concatenate([vertices, [[4e13, 0.0, -3e13]]])
+    origin = np.stack([fixed_point_origin(cs, c, bits=BITS) for c in range(len(cs))])
+    texel_size = np.stack([c.texel_size for c in cs.cascades])
+    xy = light_plane_coordinates(cs, vertices)
+    points = fixed_point_vertices(xy, texel_size=texel_size, origin=origin, bits=BITS, cascades=[2, 0],
+                                  threads=threads)
+    assert points.shape == (2, len(vertices), 2) and points.dtype == np.int64
+    for slot, c in enumerate([2, 0]):
+        np.testing.assert_array_equal(points[slot], 2 * fixed_point_coordinates(cs, c, vertices, bits=BITS))
+    with pytest.raises(ValueError, match="cascades"):
+        fixed_point_vertices(xy, texel_size=texel_size, origin=origin, bits=BITS, cascades=[3])
 
 
 def two_cascade_soup(seed: int):
-    """A triangle soup over two 40² cascades: the cascades, vertices, triangles, light-plane x/y, bounds,
-    the keyword arguments of rasterize_cascades (but depths) and the box corners in texels."""
+    """A triangle soup over two 40² cascades, listed by light-space x: the cascades, vertices, triangles,
+    light-plane x/y, bounds, the keyword arguments of rasterize_cascades (but depths) and the box corners in texels."""
     from csmlab.kernels.raster import triangle_bounds
     from csmlab.texels import fixed_point_origin, light_plane_coordinates
 
@@ -309,32 +357,66 @@ def two_cascade_soup(seed: int):
     cs = cascade_set(direction=OBLIQUE, origins=[(7.0, -3.0), (20.0, 11.0)], texel=0.0411, resolution=40)
     vertices, triangles = triangle_soup(rng, cs, count=300, lo=-10.0, hi=60.0, size=7.0)
     xy = light_plane_coordinates(cs, vertices)
+    triangles = spatially_sorted(xy, triangles)
     box = dict(texel_size=np.stack([c.texel_size for c in cs.cascades]),
                origin=np.stack([fixed_point_origin(cs, c, bits=BITS) for c in range(len(cs))]), resolution=40, bits=BITS)
     return cs, vertices, triangles, xy, triangle_bounds(xy, triangles), box, np.stack([c.origin for c in cs.cascades])
 
 
 def test_a_map_rasterized_region_by_region_is_the_whole_map_and_counting_alone_counts_the_same():
-    """Regions tiling each map (as scrolling makes them) give its depths bit for bit and the same coverage tests."""
-    from csmlab.kernels.raster import rasterize_cascades, region_candidates, whole_map_regions
+    """Regions tiling each map (as scrolling makes them) give its depths bit for bit and the same coverage tests,
+    whatever the maps held in them before."""
+    from csmlab.kernels.raster import rasterize_cascades, region_chunks, whole_map_regions
 
     cs, vertices, triangles, xy, bounds, box, corner = two_cascade_soup(13)
     whole, whole_count = rasterize_cascades(xy, light_depth(cs, vertices), triangles, **box)
     # Bands of rows, then bands of columns within the rest, as scroll_plan cuts a moved map.
     regions = np.array([[(c, 0, 40, 0, 3), (c, 0, 40, 3, 17), (c, 0, 1, 17, 40), (c, 1, 29, 17, 40),
                          (c, 29, 40, 17, 40)] for c in range(2)]).reshape(-1, 5)
-    candidates = region_candidates(bounds, texel_size=box["texel_size"], origin=corner, regions=regions)
-    depth, counts = rasterize_cascades(xy, light_depth(cs, vertices), triangles, regions=regions,
-                                       candidates=candidates, **box)
+    chunks = region_chunks(bounds, texel_size=box["texel_size"], origin=corner, regions=regions)
+    stale = np.full_like(whole, -7.0)
+    depth, counts = rasterize_cascades(xy, light_depth(cs, vertices), triangles, regions=regions, chunks=chunks,
+                                       depth=stale, **box)
     np.testing.assert_array_equal(depth, whole)
     assert counts.sum() == whole_count.sum() > 0
     np.testing.assert_array_equal(np.bincount(regions[:, 0], weights=counts), whole_count)
-    none, counted = rasterize_cascades(xy, light_depth(cs, vertices), triangles, regions=regions,
-                                       candidates=candidates, count_only=True, **box)
+    none, counted = rasterize_cascades(xy, light_depth(cs, vertices), triangles, regions=regions, chunks=chunks,
+                                       count_only=True, **box)
     assert none is None
     np.testing.assert_array_equal(counted, counts)
-    full = region_candidates(bounds, texel_size=box["texel_size"], origin=corner, regions=whole_map_regions([40, 40]))
-    assert len(candidates) < 3 * len(full)
+    # Texels outside the regions keep what they held.
+    part, _ = rasterize_cascades(xy, light_depth(cs, vertices), triangles, regions=regions[1:2], chunks=None,
+                                 depth=np.full_like(whole, -7.0), **box)
+    np.testing.assert_array_equal(part[0, 3:17], whole[0, 3:17])
+    assert np.all(part[0, :3] == -7.0) and np.all(part[1] == -7.0)
+
+
+def test_vertices_converted_once_or_per_triangle_rasterize_the_same_maps(monkeypatch):
+    """A cascade with many triangles gets its vertices converted in one pass, one with few per triangle: the same bits.
+
+    Unused vertices appended to the mesh make the pass too costly for every cascade, so the same
+    triangles go the other way.
+    """
+    from csmlab.kernels import raster
+
+    cs, vertices, triangles, xy, _, box, _ = two_cascade_soup(16)
+    passes = []
+    vertex_pass = raster._vertex_pass
+
+    def spy(pool, arrays, cascades, **kwargs):
+        passes.append(cascades.tolist())
+        return vertex_pass(pool, arrays, cascades, **kwargs)
+
+    monkeypatch.setattr(raster, "_vertex_pass", spy)
+    once, once_count = raster.rasterize_cascades(xy, light_depth(cs, vertices), triangles, **box)
+    far = np.full((20 * len(xy), 2), 1e4)
+    each, each_count = raster.rasterize_cascades(np.concatenate([xy, far]),
+                                                 np.concatenate([light_depth(cs, vertices), np.zeros(len(far))]),
+                                                 triangles, **box)
+    assert passes == [[0, 1], []]
+    np.testing.assert_array_equal(each, once)
+    np.testing.assert_array_equal(each_count, once_count)
+    assert once_count.sum() > 0
 
 
 @pytest.mark.parametrize("parts", [1, 2, 3, 5])
@@ -357,29 +439,90 @@ def test_bands_tile_each_region_exactly(parts):
 
 @pytest.mark.parametrize("threads", [2, 3])
 def test_threads_rasterize_the_same_maps_and_counts_as_one(threads):
-    from csmlab.kernels.raster import banded_regions, rasterize_cascades, region_candidates, whole_map_regions
+    from csmlab.kernels.raster import (BANDS_PER_THREAD, banded_regions, rasterize_cascades, region_chunks,
+                                       whole_map_regions)
 
     cs, vertices, triangles, xy, bounds, box, corner = two_cascade_soup(17)
     one, one_count = rasterize_cascades(xy, light_depth(cs, vertices), triangles, **box)
-    regions = banded_regions(whole_map_regions([40, 40]), parts=threads)
-    candidates = region_candidates(bounds, texel_size=box["texel_size"], origin=corner, regions=regions)
-    many, counts = rasterize_cascades(xy, light_depth(cs, vertices), triangles, regions=regions,
-                                      candidates=candidates, threads=threads, **box)
-    np.testing.assert_array_equal(many, one)
-    np.testing.assert_array_equal(np.bincount(regions[:, 0], weights=counts), one_count)
+    for parts in (threads, BANDS_PER_THREAD * threads):
+        regions = banded_regions(whole_map_regions([40, 40]), parts=parts)
+        chunks = region_chunks(bounds, texel_size=box["texel_size"], origin=corner, regions=regions)
+        many, counts = rasterize_cascades(xy, light_depth(cs, vertices), triangles, regions=regions, chunks=chunks,
+                                          threads=threads, **box)
+        np.testing.assert_array_equal(many, one)
+        np.testing.assert_array_equal(np.bincount(regions[:, 0], weights=counts), one_count)
     with pytest.raises(ValueError, match="threads"):
         rasterize_cascades(xy, light_depth(cs, vertices), triangles, threads=0, **box)
 
 
-def test_bands_culled_from_their_regions_candidates_are_the_bands_culled_afresh():
-    from csmlab.kernels.raster import banded_candidates, banded_regions, region_candidates
+def test_z_order_lists_the_same_triangles_neighbours_together_and_vertices_by_first_use():
+    from csmlab.kernels.raster import CHUNK_BITS, triangle_bounds, z_ordered
 
-    _, _, _, _, bounds, sizes, corner = two_cascade_soup(18)
-    box = dict(texel_size=sizes["texel_size"], origin=corner)
-    regions = np.array([(0, 0, 40, 0, 40), (1, 0, 40, 0, 3), (1, 0, 5, 3, 40)], np.int32)
-    for parts in (2, 3):
-        bands, pairs = banded_candidates(bounds, regions=regions, parts=parts,
-                                         candidates=region_candidates(bounds, regions=regions, **box), **box)
-        np.testing.assert_array_equal(bands, banded_regions(regions, parts=parts))
-        # A band spans its region along the other axis, so testing its own axis alone keeps the same pairs.
-        np.testing.assert_array_equal(pairs, region_candidates(bounds, regions=bands, **box))
+    # A 40 × 40 grid of cells listed row by row, plus an unused vertex: rows make long, thin chunks.
+    n = 40
+    x, y = np.meshgrid(np.arange(n + 1.0), np.arange(n + 1.0))
+    xy = np.concatenate([np.stack([x.ravel(), 3.0 * y.ravel()], axis=1), [[1e3, 1e3]]])
+    k = (np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]).ravel()
+    triangles = np.concatenate([np.stack([k, k + 1, k + n + 2], 1), np.stack([k, k + n + 2, k + n + 1], 1)])
+    order, ordered = z_ordered(xy, triangles)
+    assert sorted(order) == list(range(len(xy))) and order[-1] == len(xy) - 1
+    # The same triangles, corner for corner, in a new order.
+    same = {tuple(t) for t in order[ordered]}
+    assert same == {tuple(t) for t in triangles} and len(same) == len(triangles)
+    # Vertices are numbered in the order the triangles first use them.
+    firsts = [v for v in dict.fromkeys(ordered.ravel())]
+    assert firsts == list(range(len(firsts)))
+    # Chunks are compact: far smaller rectangles than the rows' chunks.
+    def chunk_area(points, tris):
+        lo_x, lo_y, hi_x, hi_y = triangle_bounds(points, tris).chunks
+        return np.median((hi_x - lo_x) * (hi_y - lo_y))
+    assert chunk_area(xy[order], ordered) < chunk_area(xy, triangles) / 2
+    assert len(triangles) > 2 << CHUNK_BITS
+
+
+def test_bands_follow_the_axis_asked_for_when_the_region_is_long_enough():
+    from csmlab.kernels.raster import banded_regions
+
+    regions = np.array([(0, 0, 40, 0, 40), (0, 0, 40, 40, 43), (1, 0, 3, 0, 40)], np.int32)
+    columns = banded_regions(regions, parts=4, axis=0)
+    assert all(b[3] == 0 and b[4] == 40 for b in columns[:4])  # the square map: bands of columns
+    assert len(columns) == 12 and all(b[3] == 40 and b[4] == 43 for b in columns[4:8])
+    assert all(b[1] == 0 and b[2] == 3 for b in columns[8:])  # 3 columns only: cut across its rows
+    rows = banded_regions(regions, parts=4, axis=1)
+    assert all(b[1] == 0 and b[2] == 40 for b in rows[:4])
+
+
+def test_the_narrow_axis_is_the_one_across_the_rows_of_a_grid_listed_row_by_row():
+    from csmlab.kernels.raster import triangle_bounds
+
+    n = 64
+    x, y = np.meshgrid(np.arange(n + 1.0), np.arange(n + 1.0))
+    xy = np.stack([x.ravel(), y.ravel()], axis=1)
+    k = (np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]).ravel()
+    by_rows = np.stack([k, k + 1, k + n + 2], 1)  # rows along x: chunks long in x, narrow in y
+    assert triangle_bounds(xy, by_rows).narrow_axis == 1
+    assert triangle_bounds(xy[:, ::-1], by_rows).narrow_axis == 0
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_the_culled_z_ordered_cascade_pass_equals_the_host_path_on_the_scene_as_listed(threads):
+    """render's cascade pass (z-ordered mesh, chunks, vertex pass, bands on threads) gives the maps and counts
+    of rasterize_depth on the scene's own triangle order and host fixed point, bit for bit."""
+    from csmlab.cascades import build_cascades
+    from csmlab.light import direction_from_angles
+    from csmlab.render import prepare_scene, shadow_maps
+    from csmlab.settings import ShadowSettings
+    from tests.test_render import camera, scattered_boxes, scene_of
+
+    scene = scene_of(scattered_boxes(5), plane_half=60.0)
+    dscene = prepare_scene(scene, threads=threads)
+    settings = ShadowSettings(cascades=3, resolution=96, shadow_distance=50.0, stabilization="exact")
+    light = direction_from_angles(elevation_deg=35.0, azimuth_deg=120.0)
+    cs = build_cascades(pose=camera(48, 32), light_direction=light, scene_corners=scene.corners(), settings=settings)
+    maps = shadow_maps(dscene, cs, settings)
+    points = np.stack([fixed_point_coordinates(cs, c, scene.vertices, bits=settings.subtexel_bits)
+                       for c in range(len(cs))])
+    expected, count = rasterize_depth(points, light_depth(cs, scene.vertices), scene.triangles, resolution=96,
+                                      bits=settings.subtexel_bits)
+    np.testing.assert_array_equal(maps.raster.depth, expected)
+    assert maps.texels_rasterized == count > 0

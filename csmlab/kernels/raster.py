@@ -24,6 +24,7 @@ References
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -31,10 +32,11 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device
-from csmlab.kernels.threads import LaunchPool, checked_threads
+from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 
-__all__ = ["TriangleBounds", "banded_candidates", "banded_regions", "rasterize_cascades", "rasterize_depth", "region_candidates", "triangle_bounds",
-           "whole_map_regions"]
+__all__ = ["BANDS_PER_THREAD", "CHUNK_BITS", "TriangleBounds", "banded_regions", "fixed_point_vertices",
+           "rasterize_cascades", "rasterize_depth", "region_chunks", "triangle_bounds", "whole_map_regions",
+           "z_ordered"]
 
 
 @wp.func
@@ -179,50 +181,68 @@ def rasterize_triangle(
                     wp.max(wp.max(ay, by), cy) - wp.min(wp.min(ay, by), cy))
     stepped = extent < wp.int64(67108864)  # 2**26
     step = two * unit
-    step_c = wp.float64(by - ay) * wp.float64(step)
-    step_a = wp.float64(cy - by) * wp.float64(step)
-    step_b = wp.float64(ay - cy) * wp.float64(step)
     count = int(0)
-    # With exact integer edge functions, "inside or owned" is one comparison against a bias:
-    # e > 0, or e ≥ 0 (e > −½) where the edge owns its centres.
-    bias_ab = owned_bias(own_ab)
-    bias_bc = owned_bias(own_bc)
-    bias_ca = owned_bias(own_ca)
-    inverse_c = reciprocal(step_c)
-    inverse_a = reciprocal(step_a)
-    inverse_b = reciprocal(step_b)
-    for j in range(j0, j1 + 1):
-        py = (two * wp.int64(j) + wp.int64(1)) * unit
-        row_ab = wp.float64(bx - ax) * wp.float64(py - ay)
-        row_bc = wp.float64(cx - bx) * wp.float64(py - by)
-        row_ca = wp.float64(ax - cx) * wp.float64(py - cy)
-        w_c, w_a, w_b = edge_values((two * wp.int64(i0) + wp.int64(1)) * unit, ax, ay, bx, by, cx, cy, row_ab,
-                                    row_bc, row_ca)
-        if stepped:
+    if stepped:
+        step_c = wp.float64(by - ay) * wp.float64(step)
+        step_a = wp.float64(cy - by) * wp.float64(step)
+        step_b = wp.float64(ay - cy) * wp.float64(step)
+        # With exact integer edge functions, "inside or owned" is one comparison against a bias:
+        # e > 0, or e ≥ 0 (e > −½) where the edge owns its centres.
+        bias_ab = owned_bias(own_ab)
+        bias_bc = owned_bias(own_bc)
+        bias_ca = owned_bias(own_ca)
+        # A run is solved for only across bounding boxes wide enough to repay three divisions and
+        # the solving of each row: a narrow one (most triangles of a far cascade) is walked whole.
+        wide = i1 - i0 >= 3
+        inverse_c = wp.float64(0.0)
+        inverse_a = wp.float64(0.0)
+        inverse_b = wp.float64(0.0)
+        if wide:
+            inverse_c = reciprocal(step_c)
+            inverse_a = reciprocal(step_a)
+            inverse_b = reciprocal(step_b)
+        # The edge functions at the first centre of the first row; a row up adds dx·2·unit, exactly.
+        bottom = (two * wp.int64(j0) + wp.int64(1)) * unit
+        row_c, row_a, row_b = edge_values((two * wp.int64(i0) + wp.int64(1)) * unit, ax, ay, bx, by, cx, cy,
+                                          wp.float64(bx - ax) * wp.float64(bottom - ay),
+                                          wp.float64(cx - bx) * wp.float64(bottom - by),
+                                          wp.float64(ax - cx) * wp.float64(bottom - cy))
+        rise_c = wp.float64(bx - ax) * wp.float64(step)
+        rise_a = wp.float64(cx - bx) * wp.float64(step)
+        rise_b = wp.float64(ax - cx) * wp.float64(step)
+        start = wp.float64(i0)
+        end = wp.float64(i1)
+        for j in range(j0, j1 + 1):
             # Each edge function falls by its step per texel, so the centres inside form one run;
             # its ends, solved from the three edges (widened by a texel against rounding), bound
             # the walk, and the exact test below decides every centre in it.
-            start = wp.float64(i0)
             lo = start
-            hi = wp.float64(i1)
-            lo, hi = run_bounds(w_c, step_c, inverse_c, bias_ab, start, lo, hi)
-            lo, hi = run_bounds(w_a, step_a, inverse_a, bias_bc, start, lo, hi)
-            lo, hi = run_bounds(w_b, step_b, inverse_b, bias_ca, start, lo, hi)
+            hi = end
+            if wide:
+                lo, hi = run_bounds(row_c, step_c, inverse_c, bias_ab, start, lo, hi)
+                lo, hi = run_bounds(row_a, step_a, inverse_a, bias_bc, start, lo, hi)
+                lo, hi = run_bounds(row_b, step_b, inverse_b, bias_ca, start, lo, hi)
             if lo <= hi:
-                first = int(lo)
-                last = int(hi)
                 skip = lo - start
-                w_c = w_c - step_c * skip
-                w_a = w_a - step_a * skip
-                w_b = w_b - step_b * skip
-                for i in range(first, last + 1):
+                w_c = row_c - step_c * skip
+                w_a = row_a - step_a * skip
+                w_b = row_b - step_b * skip
+                for i in range(int(lo), int(hi) + 1):
                     if w_c > bias_ab and w_a > bias_bc and w_b > bias_ca:
                         store_depth(depth, c, j, i, w_a, w_b, w_c, za, zb, zc, area)
                         count += 1
                     w_c = w_c - step_c
                     w_a = w_a - step_a
                     w_b = w_b - step_b
-        else:
+            row_c = row_c + rise_c
+            row_a = row_a + rise_a
+            row_b = row_b + rise_b
+    else:
+        for j in range(j0, j1 + 1):
+            py = (two * wp.int64(j) + wp.int64(1)) * unit
+            row_ab = wp.float64(bx - ax) * wp.float64(py - ay)
+            row_bc = wp.float64(cx - bx) * wp.float64(py - by)
+            row_ca = wp.float64(ax - cx) * wp.float64(py - cy)
             for i in range(i0, i1 + 1):
                 w_c, w_a, w_b = edge_values((two * wp.int64(i) + wp.int64(1)) * unit, ax, ay, bx, by, cx, cy, row_ab,
                                             row_bc, row_ca)
@@ -260,49 +280,113 @@ def doubled_fixed_point(u: wp.float64, texel_size: wp.float64, scale: wp.float64
 
     The operations of :func:`csmlab.texels.fixed_point_coordinates`, in its order (no sum, so no
     fused multiply-add can change a rounding): ``rint(u / texel · 2**bits) − origin``, doubled.
+    NaN is caught by ``v != v``: ``wp.isnan`` is a function call on the CPU.
     """
     v = wp.rint(wp.clamp(u / texel_size * scale, -limit, limit))
-    if wp.isnan(v):
+    if v != v:
         v = -limit
     return wp.int64(2) * (wp.int64(v) - origin)
 
 
 @wp.kernel
-def rasterize_regions_kernel(
+def fixed_point_vertices_kernel(
+    light_xy: wp.array2d(dtype=wp.float64),
+    texel_size: wp.array2d(dtype=wp.float64),
+    origin: wp.array2d(dtype=wp.int64),
+    cascades: wp.array(dtype=wp.int32),
+    first: int,
+    scale: wp.float64,
+    limit: wp.float64,
+    points: wp.array3d(dtype=wp.int64),
+):
+    """``points[s, v]``: vertex ``first + k`` in cascade ``cascades[s]``'s doubled fixed point (a thread per s, k)."""
+    s, k = wp.tid()
+    v = first + k
+    c = cascades[s]
+    points[s, v, 0] = doubled_fixed_point(light_xy[v, 0], texel_size[c, 0], scale, limit, origin[c, 0])
+    points[s, v, 1] = doubled_fixed_point(light_xy[v, 1], texel_size[c, 1], scale, limit, origin[c, 1])
+
+
+@wp.func
+def doubled_vertex(points: wp.array3d(dtype=wp.int64), s: int, light_xy: wp.array2d(dtype=wp.float64), v: int,
+                   sx: wp.float64, sy: wp.float64, ox: wp.int64, oy: wp.int64, scale: wp.float64, limit: wp.float64):
+    """Vertex v's doubled fixed point: read from ``points[s]`` when the vertex pass made it (s >= 0), else made here."""
+    if s >= 0:
+        return points[s, v, 0], points[s, v, 1]
+    return (doubled_fixed_point(light_xy[v, 0], sx, scale, limit, ox),
+            doubled_fixed_point(light_xy[v, 1], sy, scale, limit, oy))
+
+
+@wp.func
+def misses_span(u: wp.float64, v: wp.float64, w: wp.float64, origin: wp.int64, scale: wp.float64, size: wp.float64,
+                first: int, end: int) -> bool:
+    """Coordinates ``u, v, w`` (metres) all below texel ``first − 1`` or all above texel ``end + 1`` of a box.
+
+    ``origin`` in ``2**-bits`` texels (``scale = 2**bits``), ``size`` metres per texel. The texel of
+    margin is far more than the fixed-point snap and float rounding can move a vertex.
+    """
+    corner = wp.float64(origin) / scale
+    low = (corner + wp.float64(first - 1)) * size
+    high = (corner + wp.float64(end + 1)) * size
+    return wp.max(wp.max(u, v), w) < low or wp.min(wp.min(u, v), w) > high
+
+
+@wp.kernel
+def rasterize_chunks_kernel(
     light_xy: wp.array2d(dtype=wp.float64),
     vertex_depth: wp.array(dtype=wp.float64),
     triangles: wp.array2d(dtype=wp.int32),
     texel_size: wp.array2d(dtype=wp.float64),
     origin: wp.array2d(dtype=wp.int64),
+    points: wp.array3d(dtype=wp.int64),
+    slots: wp.array(dtype=wp.int32),
     regions: wp.array2d(dtype=wp.int32),
-    candidates: wp.array2d(dtype=wp.int32),
+    chunks: wp.array2d(dtype=wp.int32),
+    chunk_bits: int,
     scale: wp.float64,
     limit: wp.float64,
     unit: wp.int64,
     bits: wp.int64,
     depth: wp.array3d(dtype=wp.float32),
-    covered: wp.array(dtype=wp.int32),
+    covered: wp.array(dtype=wp.int64),
 ):
+    """One thread per triangle of each (region, chunk) row; ``covered[g]`` sums region g's coverage tests passed.
+
+    A chunk is ``2**chunk_bits`` consecutive triangles (the last one shorter). A triangle that
+    meets no texel centre of its region returns before any per-texel work, so the chunks need only
+    be a superset of the triangles that cover a texel.
+    """
     k = wp.tid()
-    g = candidates[k, 0]
-    t = candidates[k, 1]
+    row = k >> chunk_bits
+    t = (chunks[row, 1] << chunk_bits) + (k & ((1 << chunk_bits) - 1))
+    if t >= triangles.shape[0]:
+        return
+    g = chunks[row, 0]
     c = regions[g, 0]
-    ia = triangles[t, 0]
-    ib = triangles[t, 1]
-    ic = triangles[t, 2]
+    s = slots[c]
     sx = texel_size[c, 0]
     sy = texel_size[c, 1]
     ox = origin[c, 0]
     oy = origin[c, 1]
-    ax = doubled_fixed_point(light_xy[ia, 0], sx, scale, limit, ox)
-    ay = doubled_fixed_point(light_xy[ia, 1], sy, scale, limit, oy)
-    bx = doubled_fixed_point(light_xy[ib, 0], sx, scale, limit, ox)
-    by = doubled_fixed_point(light_xy[ib, 1], sy, scale, limit, oy)
-    cx = doubled_fixed_point(light_xy[ic, 0], sx, scale, limit, ox)
-    cy = doubled_fixed_point(light_xy[ic, 1], sy, scale, limit, oy)
-    covered[k] = rasterize_triangle(ax, ay, bx, by, cx, cy, vertex_depth[ia], vertex_depth[ib], vertex_depth[ic], unit,
-                                    bits, depth, c,
-                                    wp.vec4i(regions[g, 1], regions[g, 2], regions[g, 3], regions[g, 4]))
+    ia = triangles[t, 0]
+    ib = triangles[t, 1]
+    ic = triangles[t, 2]
+    if s < 0:
+        # Converted here: first drop, in metres, a triangle whose rectangle misses the region
+        # widened by a texel, as region_chunks tests chunks (its neighbours in a chunk may not).
+        if misses_span(light_xy[ia, 0], light_xy[ib, 0], light_xy[ic, 0], ox, scale, sx, regions[g, 1],
+                       regions[g, 2]):
+            return
+        if misses_span(light_xy[ia, 1], light_xy[ib, 1], light_xy[ic, 1], oy, scale, sy, regions[g, 3],
+                       regions[g, 4]):
+            return
+    ax, ay = doubled_vertex(points, s, light_xy, ia, sx, sy, ox, oy, scale, limit)
+    bx, by = doubled_vertex(points, s, light_xy, ib, sx, sy, ox, oy, scale, limit)
+    cx, cy = doubled_vertex(points, s, light_xy, ic, sx, sy, ox, oy, scale, limit)
+    n = rasterize_triangle(ax, ay, bx, by, cx, cy, vertex_depth[ia], vertex_depth[ib], vertex_depth[ic], unit, bits,
+                           depth, c, wp.vec4i(regions[g, 1], regions[g, 2], regions[g, 3], regions[g, 4]))
+    if n > 0:
+        wp.atomic_add(covered, g, wp.int64(n))
 
 
 def _checked_bits(bits) -> int:
@@ -395,9 +479,24 @@ def rasterize_depth(points, vertex_depth, triangles, *, resolution: int, bits: i
     return depth.numpy(), int(covered.numpy().sum(dtype=np.int64))
 
 
+CHUNK_BITS = 5
+"""Triangles are culled in chunks of ``2**CHUNK_BITS`` consecutive ones (:func:`region_chunks`).
+
+Meshes list neighbouring triangles together (grids by rows, objects one after another), so a
+chunk's rectangle is small: testing 32 times fewer rectangles costs less than the triangles it lets
+through, which the kernel drops before any per-texel work.
+"""
+
+
+BANDS_PER_THREAD = 4
+"""Bands each region is cut into per thread (:func:`banded_regions`): with several per thread, the
+threads that take them in turn (:func:`rasterize_cascades`) finish together, whatever the share of
+triangles and texels in each."""
+
+
 @dataclass
 class TriangleBounds:
-    """Light-space bounding rectangles of a mesh's triangles, sorted for rectangle queries on first use.
+    """Light-space bounding rectangles of a mesh's triangles, and of its chunks (:data:`CHUNK_BITS`).
 
     Attributes
     ----------
@@ -409,22 +508,30 @@ class TriangleBounds:
     hi: np.ndarray
 
     @cached_property
-    def columns(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """``lo_x, lo_y, hi_x, hi_y`` ``(T,)`` each contiguous: what every rectangle test reads."""
-        return tuple(np.ascontiguousarray(a[:, k]) for a in (self.lo, self.hi) for k in (0, 1))
+    def chunks(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``lo_x, lo_y, hi_x, hi_y`` ``(⌈T / 2**CHUNK_BITS⌉,)`` each: the rectangle of every chunk of triangles."""
+        count = len(self.lo)
+        size = 1 << CHUNK_BITS
+        rows = -(-count // size)
+        # The last chunk is padded with copies of the last triangle, which change no minimum or maximum.
+        fill = np.arange(rows * size).clip(max=max(count - 1, 0))
+        lo = self.lo[fill].reshape(rows, size, 2).min(axis=1) if count else np.zeros((0, 2))
+        hi = self.hi[fill].reshape(rows, size, 2).max(axis=1) if count else np.zeros((0, 2))
+        return tuple(np.ascontiguousarray(a[:, k]) for a in (lo, hi) for k in (0, 1))
 
     @cached_property
-    def sorted_axes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``order (2, T)``: triangles sorted by ``lo`` along x (row 0) and y (row 1); ``sorted_lo (2, T)``:
-        ``lo`` in those orders; ``reach (2,)``: the widest rectangle along x and y, metres (a triangle
-        meets ``[a, b]`` along an axis only if its ``lo`` lies in ``[a − reach, b]``)."""
-        order = np.argsort(self.lo.T, axis=1, kind="stable")
-        reach = (self.hi - self.lo).max(axis=0) if len(self.lo) else np.zeros(2)
-        return order, np.take_along_axis(self.lo.T, order, axis=1), reach
+    def narrow_axis(self) -> int:
+        """The light-space axis (0: x, 1: y) along which chunks are narrower (median extent).
+
+        A grid listed row by row makes chunks long along its rows: bands cut along the other axis
+        (:func:`banded_regions`) meet fewer of them.
+        """
+        lo_x, lo_y, hi_x, hi_y = self.chunks
+        return int(len(lo_x) > 0 and np.median(hi_y - lo_y) < np.median(hi_x - lo_x))
 
 
 def triangle_bounds(light_xy, triangles) -> TriangleBounds:
-    """Light-space bounding rectangle of every triangle (:func:`region_candidates` queries them).
+    """Light-space bounding rectangle of every triangle (:func:`region_chunks` queries them).
 
     Parameters
     ----------
@@ -436,16 +543,55 @@ def triangle_bounds(light_xy, triangles) -> TriangleBounds:
     return TriangleBounds(lo=xy.min(axis=1), hi=xy.max(axis=1))
 
 
-def _near_triangles(bounds: TriangleBounds, box_lo, box_hi) -> np.ndarray | None:
-    """Sorted indices of the triangles whose ``lo`` lies within reach of the box along its narrow side.
+def _spread_bits(v: np.ndarray) -> np.ndarray:
+    """The 16 low bits of ``v`` (int64) moved to the even bit positions 0, 2, …, 30."""
+    v = v & 0xFFFF
+    for shift, mask in ((8, 0x00FF00FF), (4, 0x0F0F0F0F), (2, 0x33333333), (1, 0x55555555)):
+        v = (v | (v << shift)) & mask
+    return v
 
-    None when those are half the triangles or more: testing all of them in order is then cheaper.
+
+def z_ordered(light_xy, triangles) -> tuple[np.ndarray, np.ndarray]:
+    """A mesh's triangles along a Z-order curve in light space, its vertices in the order they are first used.
+
+    Neighbouring triangles then lie close in the list at every scale, so that chunks
+    (:data:`CHUNK_BITS`) are compact, bands meet few of them, and the rasterization writes the
+    depth maps place by place rather than across them.
+
+    Parameters
+    ----------
+    light_xy : array_like, shape (V, 2), float64
+        Vertices' light-space x/y in metres.
+    triangles : array_like, shape (T, 3), integer
+
+    Returns
+    -------
+    order : ndarray, shape (V,), int64
+        The vertices' new order: new vertex k is old vertex ``order[k]`` (unused vertices last).
+    triangles : ndarray, shape (T, 3), int32
+        The triangles in their new order, indexing the reordered vertices.
     """
-    order, sorted_lo, reach = bounds.sorted_axes
-    axis = int(np.argmin(np.asarray(box_hi) - np.asarray(box_lo)))
-    first = np.searchsorted(sorted_lo[axis], box_lo[axis] - reach[axis], side="left")
-    last = np.searchsorted(sorted_lo[axis], box_hi[axis], side="right")
-    return np.sort(order[axis, first:last]) if 2 * (last - first) < len(bounds.lo) else None
+    xy = np.asarray(light_xy, dtype=np.float64)
+    tri = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    if tri.shape[0] == 0:
+        return np.arange(xy.shape[0]), tri.astype(np.int32)
+    key = np.zeros(tri.shape[0], dtype=np.int64)
+    for axis in (0, 1):
+        # Each triangle's centre (times 3) on a 2**16 grid over the centres' extent.
+        u = xy[:, axis]
+        centre = u[tri[:, 0]] + u[tri[:, 1]] + u[tri[:, 2]]
+        lo = centre.min()
+        cell = np.minimum((centre - lo) * (65536.0 / max(centre.max() - lo, 1e-300)), 65535.0).astype(np.int64)
+        key |= _spread_bits(cell) << axis
+    sorted_tri = tri[np.argsort(key, kind="stable")]
+    # First use of each vertex: assigned in reverse so that the earliest use is the last write.
+    flat = sorted_tri.reshape(-1)
+    first = np.full(xy.shape[0], flat.size, dtype=np.int64)
+    first[flat[::-1]] = np.arange(flat.size - 1, -1, -1)
+    order = np.argsort(first, kind="stable")
+    renumber = np.empty(xy.shape[0], dtype=np.int64)
+    renumber[order] = np.arange(xy.shape[0])
+    return order, renumber[sorted_tri].astype(np.int32)
 
 
 def whole_map_regions(resolutions) -> np.ndarray:
@@ -455,16 +601,19 @@ def whole_map_regions(resolutions) -> np.ndarray:
                     axis=1)
 
 
-def banded_regions(regions, *, parts: int) -> np.ndarray:
-    """``regions`` ``(G, 5)`` each cut across its longer side into ``parts`` bands as equal as whole texels allow.
+def banded_regions(regions, *, parts: int, axis: int | None = None) -> np.ndarray:
+    """``regions`` ``(G, 5)`` each cut into ``parts`` bands as equal as whole texels allow.
 
-    Rows ``(c, i0, i1, j0, j1)`` as :func:`region_candidates`; a region narrower than ``parts``
-    texels gives as many bands as it is wide. The bands of a region follow one another, so that
-    :func:`rasterize_cascades` deals them to its threads in turn.
+    Rows ``(c, i0, i1, j0, j1)`` as :func:`region_chunks`. A region is cut along ``axis`` (0: into
+    bands of columns, 1: of rows; :attr:`TriangleBounds.narrow_axis`) when it is at least ``parts``
+    texels long that way, else across its longer side; a region shorter than ``parts`` texels
+    gives as many bands as it is long. The bands of a region follow one another.
     """
     out = []
     for c, i0, i1, j0, j1 in np.asarray(regions, dtype=np.int64).reshape(-1, 5):
         rows = j1 - j0 >= i1 - i0
+        if axis is not None and (j1 - j0 if axis == 1 else i1 - i0) >= parts:
+            rows = axis == 1
         lo, hi = (j0, j1) if rows else (i0, i1)
         cuts = np.unique(np.linspace(lo, hi, min(parts, hi - lo) + 1).round().astype(np.int64))
         for a, b in zip(cuts[:-1], cuts[1:]):
@@ -472,14 +621,13 @@ def banded_regions(regions, *, parts: int) -> np.ndarray:
     return np.array(out, dtype=np.int32).reshape(-1, 5)
 
 
-def region_candidates(bounds: TriangleBounds, *, texel_size, origin, regions) -> np.ndarray:
-    """(region, triangle) pairs whose light-space rectangle meets the region: ``(K, 2)`` int32.
+def region_chunks(bounds: TriangleBounds, *, texel_size, origin, regions) -> np.ndarray:
+    """(region, chunk) rows whose chunk rectangle meets the region: ``(K, 2)`` int32, sorted by region, then chunk.
 
-    Conservative: each region is widened by one texel on every side, far more than the fixed-point
-    snap (half a ``2**-bits`` texel) and float rounding can move a vertex, so a triangle left out
-    covers no texel centre of that region. Pairs are sorted by region, then triangle. A narrow
-    region (a strip a scrolled box newly covers) tests only the triangles whose ``lo`` lies within
-    reach of it along its narrow side.
+    Chunk k holds triangles ``[k·2**CHUNK_BITS, (k + 1)·2**CHUNK_BITS)``. Conservative: each region
+    is widened by one texel on every side, far more than the fixed-point snap (half a ``2**-bits``
+    texel) and float rounding can move a vertex, so a chunk left out holds no triangle that covers
+    a texel centre of that region.
 
     Parameters
     ----------
@@ -495,83 +643,107 @@ def region_candidates(bounds: TriangleBounds, *, texel_size, origin, regions) ->
     """
     size = np.asarray(texel_size, dtype=np.float64)
     corner = np.asarray(origin, dtype=np.float64)
-    pairs = [np.zeros((0, 2), np.int32)]
+    lo_x, lo_y, hi_x, hi_y = bounds.chunks
+    rows = [np.zeros((0, 2), np.int32)]
     for g, (c, i0, i1, j0, j1) in enumerate(np.asarray(regions, dtype=np.int64).reshape(-1, 5)):
         box_lo = (corner[c] + [i0 - 1.0, j0 - 1.0]) * size[c]
         box_hi = (corner[c] + [i1 + 1.0, j1 + 1.0]) * size[c]
-        narrow = min(i1 - i0, j1 - j0) * 4 < max(i1 - i0, j1 - j0)
-        tested = _near_triangles(bounds, box_lo, box_hi) if narrow else None
-        pairs.append(_pairs(g, _meeting(bounds, box_lo, box_hi, tested)))
-    return np.concatenate(pairs)
+        meeting = np.flatnonzero((hi_x >= box_lo[0]) & (lo_x <= box_hi[0]) & (hi_y >= box_lo[1]) & (lo_y <= box_hi[1]))
+        pair = np.empty((meeting.size, 2), dtype=np.int32)
+        pair[:, 0] = g
+        pair[:, 1] = meeting
+        rows.append(pair)
+    return np.concatenate(rows)
 
 
-def _region_starts(pairs: np.ndarray, regions: int) -> np.ndarray:
-    """``(G + 1,)``: where each region's rows begin in ``pairs`` sorted by region (and where the last ends)."""
-    return np.concatenate([[0], np.cumsum(np.bincount(pairs[:, 0], minlength=regions))])
+def fixed_point_vertices(light_xy, *, texel_size, origin, bits: int, cascades=None, threads: int = 1,
+                         device: str = "cpu") -> np.ndarray:
+    """Every vertex in cascades' local fixed point, doubled: ``2 ·`` :func:`csmlab.texels.fixed_point_coordinates`.
 
+    Parameters
+    ----------
+    light_xy : array_like, shape (V, 2), float64
+        Vertices' light-space x/y in metres (:func:`csmlab.texels.light_plane_coordinates`).
+    texel_size : array_like, shape (C, 2), float64
+        Metres per texel of each cascade.
+    origin : array_like, shape (C, 2), int64
+        Each box origin in ``2**-bits`` texels (:func:`csmlab.texels.fixed_point_origin`).
+    bits : int
+        Sub-texel bits (0..16).
+    cascades : sequence of int, optional
+        The cascades to convert, in this order; None: all C.
+    threads : int
+        CPU launches run at once, each over its own range of vertices. Ignored on CUDA.
+    device : str
 
-def _pairs(region: int, triangles: np.ndarray) -> np.ndarray:
-    """``(K, 2)`` int32 rows ``(region, triangle)``."""
-    out = np.empty((triangles.size, 2), dtype=np.int32)
-    out[:, 0] = region
-    out[:, 1] = triangles
-    return out
-
-
-def _meeting(bounds: TriangleBounds, box_lo, box_hi, tested) -> np.ndarray:
-    """Sorted indices among ``tested`` (None: all) of the triangles whose rectangle meets ``[box_lo, box_hi]``."""
-    lo_x, lo_y, hi_x, hi_y = bounds.columns
-    if tested is None:
-        return np.flatnonzero((hi_x >= box_lo[0]) & (lo_x <= box_hi[0]) & (hi_y >= box_lo[1]) & (lo_y <= box_hi[1]))
-    meets = ((hi_x[tested] >= box_lo[0]) & (lo_x[tested] <= box_hi[0]) & (hi_y[tested] >= box_lo[1])
-             & (lo_y[tested] <= box_hi[1]))
-    return tested[meets]
-
-
-def banded_candidates(bounds: TriangleBounds, *, texel_size, origin, regions, candidates,
-                      parts: int) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`banded_regions` of ``regions`` and their (band, triangle) pairs, each band culled from its region's.
-
-    ``candidates`` are :func:`region_candidates` of ``regions`` (sorted by region); the other
-    arguments as there. A band spans its region across one axis, so only the other axis is
-    tested, widened by a texel as there. Returns the bands ``(G', 5)`` int32 and their pairs
-    ``(K', 2)`` int32, sorted by band, then triangle.
+    Returns
+    -------
+    ndarray, shape (len(cascades), V, 2), int64
+        Twice the global fixed point ``rint(x / texel · 2**bits)`` (clipped to ±2**50) less the
+        origin, in ``2**-bits`` texels: texel centres fall on odd multiples of ``2**bits``.
     """
-    regions = np.asarray(regions, dtype=np.int32).reshape(-1, 5)
-    pairs = np.asarray(candidates)
-    size = np.asarray(texel_size, dtype=np.float64)
-    corner = np.asarray(origin, dtype=np.float64)
-    lo_x, lo_y, hi_x, hi_y = bounds.columns
-    starts = _region_starts(pairs, len(regions))
-    bands, out = [], [np.zeros((0, 2), np.int32)]
-    for g, region in enumerate(regions):
-        mine = pairs[starts[g]:starts[g + 1], 1]
-        c = region[0]
-        for band in banded_regions(region[None], parts=parts):
-            # A band cut across rows spans its region's columns, and the reverse.
-            axis, first, last = (1, band[3], band[4]) if band[1] == region[1] and band[2] == region[2] \
-                else (0, band[1], band[2])
-            lo, hi = (lo_y, hi_y) if axis == 1 else (lo_x, hi_x)
-            low = (corner[c, axis] + first - 1.0) * size[c, axis]
-            high = (corner[c, axis] + last + 1.0) * size[c, axis]
-            inside = mine[(hi[mine] >= low) & (lo[mine] <= high)]
-            out.append(_pairs(len(bands), inside))
-            bands.append(band)
-    return np.array(bands, dtype=np.int32).reshape(-1, 5), np.concatenate(out)
+    device = checked_device(device)
+    xy = np.ascontiguousarray(light_xy, dtype=np.float64)
+    size = np.ascontiguousarray(texel_size, dtype=np.float64)
+    corner = np.ascontiguousarray(origin, dtype=np.int64)
+    if xy.ndim != 2 or xy.shape[1] != 2 or size.ndim != 2 or size.shape[1] != 2 or corner.shape != size.shape:
+        raise ValueError(f"light_xy, texel_size, origin: expected shapes (V, 2), (C, 2), (C, 2); "
+                         f"got {xy.shape}, {size.shape}, {corner.shape}")
+    chosen = np.arange(size.shape[0], dtype=np.int32) if cascades is None else np.asarray(cascades, dtype=np.int32)
+    if chosen.ndim != 1 or np.any(chosen < 0) or np.any(chosen >= size.shape[0]):
+        raise ValueError(f"cascades: expected indices in [0, {size.shape[0]}), got {cascades!r}")
+    bits = _checked_bits(bits)
+    with LaunchPool(checked_threads(threads, device), kernels=(fixed_point_vertices_kernel,), device=device) as pool:
+        return _vertex_pass(pool, _device_arrays(device, xy, size, corner), chosen, bits=bits, device=device).numpy()
+
+
+def _device_arrays(device: str, xy: np.ndarray, size: np.ndarray, corner: np.ndarray) -> tuple:
+    return (wp.array(xy, dtype=wp.float64, device=device, copy=False),
+            wp.array(size, dtype=wp.float64, device=device, copy=False),
+            wp.array(corner, dtype=wp.int64, device=device, copy=False))
+
+
+def _vertex_pass(pool: LaunchPool, arrays: tuple, cascades: np.ndarray, *, bits: int, device: str) -> wp.array:
+    """:func:`fixed_point_vertices` of ``cascades`` on ``device``, each of the pool's launches over its own vertices."""
+    xy = arrays[0]
+    # NumPy's allocation on the CPU: large arrays get huge pages, and no page is touched before the kernel.
+    points = (wp.array(np.empty((cascades.size, xy.shape[0], 2), dtype=np.int64), dtype=wp.int64, copy=False)
+              if wp.get_device(device).is_cpu else wp.empty((cascades.size, xy.shape[0], 2), dtype=wp.int64,
+                                                            device=device))
+    if cascades.size == 0 or xy.shape[0] == 0:
+        return points
+    chosen = wp.array(cascades, dtype=wp.int32, device=device)
+
+    def launch(lo: int, hi: int) -> None:
+        wp.launch(fixed_point_vertices_kernel, dim=(cascades.size, hi - lo),
+                  inputs=(*arrays, chosen, lo, float(2**bits), _FIXED_LIMIT), outputs=(points,), device=device)
+
+    pool.run([lambda lo=lo, hi=hi: launch(lo, hi) for lo, hi in split_range(xy.shape[0], pool.threads)])
+    return points
+
+
+_FIXED_LIMIT = float(2**50)
+"""The clip of global fixed-point values (:mod:`csmlab.texels`)."""
+
+
+def empty_regions(maps: np.ndarray, regions: np.ndarray) -> None:
+    """Set every texel of ``regions`` ``(G, 5)`` (rows ``(c, i0, i1, j0, j1)``) of ``maps`` ``(C, R, R)`` to +inf."""
+    for c, i0, i1, j0, j1 in regions:
+        maps[c, j0:j1, i0:i1] = np.inf
 
 
 def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin, resolution: int, bits: int,
-                       regions=None, candidates=None, depth=None, count_only: bool = False, threads: int = 1,
+                       regions=None, chunks=None, depth=None, count_only: bool = False, threads: int = 1,
                        device: str = "cpu") -> tuple[np.ndarray | None, np.ndarray]:
     """Depth maps of every cascade from light-space vertices: fixed point and rasterization on the device.
 
     The same maps as :func:`rasterize_depth` of
     :func:`csmlab.texels.fixed_point_coordinates` — bit for bit — with the fixed-point conversion
-    of each vertex inside the kernel and, with ``candidates``, only the (region, triangle) pairs
-    that can cover a texel rasterized. With ``regions``, only those texels are rasterized and every
-    other texel of ``depth`` keeps its value: a texel's depth and coverage depend only on the
-    triangles and on the fixed-point differences, not on the region it is rasterized in
-    (:mod:`csmlab.scrolling` copies the rest from the previous frame).
+    on the device and, with ``chunks``, only the chunks of triangles that can cover a texel of a
+    region rasterized. With ``regions``, only those texels are rasterized and every other texel of
+    ``depth`` keeps its value: a texel's depth and coverage depend only on the triangles and on the
+    fixed-point differences, not on the region it is rasterized in (:mod:`csmlab.scrolling` copies
+    the rest from the previous frame).
 
     Parameters
     ----------
@@ -592,18 +764,19 @@ def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin,
     regions : array_like, shape (G, 5), integer, optional
         Rows ``(c, i0, i1, j0, j1)``: texel columns ``[i0, i1)`` and rows ``[j0, j1)`` of cascade c
         to rasterize, disjoint; None: every cascade's whole map (:func:`whole_map_regions`).
-    candidates : array_like, shape (K, 2), int32, optional
-        (region, triangle) pairs to rasterize (:func:`region_candidates`); None: every pair.
+    chunks : array_like, shape (K, 2), int32, optional
+        (region, chunk) rows to rasterize (:func:`region_chunks`); None: every chunk of every region.
     depth : ndarray, shape (C, R, R), float32, optional
-        The maps to rasterize into (default +inf everywhere): texels outside the regions keep their
-        values. Consumed: on the CPU it is filled in place and returned.
+        The maps to rasterize into (default +inf everywhere): the regions' texels are rasterized
+        afresh (their values are not read), the others keep theirs. Consumed: on the CPU it is
+        filled in place and returned.
     count_only : bool
         Count the coverage tests that pass and store no depth (``depth`` is ignored and None returned).
     threads : int
         CPU launches run at once (one Warp CPU launch runs on one thread). The regions, which are
-        disjoint, are dealt to them in turn, so no two launches write one texel; cut large regions
-        into bands first (:func:`banded_regions`) so that each thread gets a share of each. Ignored
-        on CUDA.
+        disjoint, are taken by the threads one at a time, costliest first, so no two launches write
+        one texel; cut large regions into bands first (:func:`banded_regions`,
+        :data:`BANDS_PER_THREAD` per thread) so that the threads finish together. Ignored on CUDA.
     device : str
 
     Returns
@@ -612,6 +785,13 @@ def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin,
         None with ``count_only``.
     texels_rasterized : ndarray, shape (G,), int64
         Coverage tests that passed in each region.
+
+    Notes
+    -----
+    A cascade whose chunks hold more triangles than a third of the vertices gets every vertex
+    converted once (:func:`fixed_point_vertices`, split over the threads) before the
+    rasterization reads them; the others, such as the strips a scrolled box newly covers, convert
+    the vertices of each triangle as they rasterize it. Both give the same integers.
     """
     device = checked_device(device)
     xy = np.ascontiguousarray(light_xy, dtype=np.float64)
@@ -634,47 +814,70 @@ def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin,
     if (areas.ndim != 2 or areas.shape[1] != 5 or np.any(areas[:, 0] < 0) or np.any(areas[:, 0] >= shape[0])
             or np.any(areas[:, 1:] < 0) or np.any(areas[:, 1:] > resolution)):
         raise ValueError(f"regions: expected rows (c, i0, i1, j0, j1) within {shape}, got shape {areas.shape}")
-    pairs = (np.stack(np.meshgrid(np.arange(areas.shape[0]), np.arange(tri.shape[0]), indexing="ij"), -1).reshape(-1, 2)
-             if candidates is None else np.asarray(candidates)).astype(np.int32)
-    if pairs.ndim != 2 or pairs.shape[1] != 2 or (pairs.size and (pairs[:, 0].max() >= areas.shape[0]
-                                                                   or pairs[:, 1].max() >= tri.shape[0])):
-        raise ValueError(f"candidates: expected (region, triangle) pairs of shape (K, 2), got {pairs.shape}")
+    count = -(-tri.shape[0] // (1 << CHUNK_BITS))
+    rows = (np.stack(np.meshgrid(np.arange(areas.shape[0]), np.arange(count), indexing="ij"), -1).reshape(-1, 2)
+            if chunks is None else np.asarray(chunks)).astype(np.int32)
+    if rows.ndim != 2 or rows.shape[1] != 2 or (rows.size and (rows.min() < 0 or rows[:, 0].max() >= areas.shape[0]
+                                                               or rows[:, 1].max() >= count)):
+        raise ValueError(f"chunks: expected (region, chunk) rows of shape (K, 2) within ({areas.shape[0]}, {count}), "
+                         f"got {rows.shape}")
+    parts = min(checked_threads(threads, device), areas.shape[0])
+    extent = (areas[:, 2].astype(np.int64) - areas[:, 1]) * (areas[:, 4] - areas[:, 3])
     if count_only:
         maps = np.zeros((0, 0, 0), dtype=np.float32)
     elif depth is None:
-        maps = np.full(shape, np.inf, dtype=np.float32)
+        # Regions that tile the maps leave nothing to fill but what each region fills itself.
+        maps = np.empty(shape, dtype=np.float32) if extent.sum() == np.prod(shape) else np.full(shape, np.inf,
+                                                                                               dtype=np.float32)
     elif depth.shape != shape or depth.dtype != np.float32:
         raise ValueError(f"depth: expected float32 maps of shape {shape}, got {depth.dtype} {depth.shape}")
     else:
         maps = depth
-    parts = min(checked_threads(threads, device), areas.shape[0])
-    if pairs.shape[0] == 0:
-        return None if count_only else maps, np.zeros(areas.shape[0], dtype=np.int64)
+    if areas.shape[0] == 0:
+        return None if count_only else maps, np.zeros(0, dtype=np.int64)
+    if np.any(np.diff(rows[:, 0]) < 0):
+        rows = rows[np.argsort(rows[:, 0], kind="stable")]
+    held = np.bincount(rows[:, 0], minlength=areas.shape[0]) << CHUNK_BITS
+    starts = np.concatenate([[0], np.cumsum(held >> CHUNK_BITS)])
+    # Triangles each cascade's chunks hold (a chunk met by two of its regions once), against what
+    # converting its every vertex costs: a vertex pass converts V vertices, the triangles 3 each.
+    distinct = np.zeros((shape[0], count), dtype=bool)
+    distinct[areas[rows[:, 0], 0], rows[:, 1]] = True
+    converted = np.flatnonzero(3 * (distinct.sum(axis=1) << CHUNK_BITS) > xy.shape[0]).astype(np.int32)
+    slots = np.full(shape[0], -1, dtype=np.int32)
+    slots[converted] = np.arange(converted.size, dtype=np.int32)
+    # On the CPU each launch empties its own regions first (on two threads at once); a GPU gets
+    # the maps emptied by the host before they are copied to it.
+    on_cpu = wp.get_device(device).is_cpu
+    empty_regions(maps, areas if not on_cpu and not count_only else areas[:0])
+    arrays = _device_arrays(device, xy, size, corner)
     maps_on = wp.array(maps, dtype=wp.float32, device=device, copy=False)
-    inputs = (wp.array(xy, dtype=wp.float64, device=device, copy=False),
-              wp.array(z, dtype=wp.float64, device=device, copy=False),
-              wp.array(tri, dtype=wp.int32, device=device, copy=False),
-              wp.array(size, dtype=wp.float64, device=device, copy=False),
-              wp.array(corner, dtype=wp.int64, device=device, copy=False),
-              wp.array(areas, dtype=wp.int32, device=device, copy=False))
-    fixed = (float(2**bits), float(2**50), wp.int64(2**bits), wp.int64(bits))
-    # Region g goes to launch g mod parts: disjoint regions, so no texel is written by two launches.
-    if parts > 1 and np.any(np.diff(pairs[:, 0]) < 0):
-        pairs = pairs[np.argsort(pairs[:, 0], kind="stable")]
-    starts = _region_starts(pairs, areas.shape[0])
-    subsets = [np.ascontiguousarray(np.concatenate([pairs[starts[g]:starts[g + 1]]
-                                                    for g in range(k, areas.shape[0], parts)] or [pairs[:0]]))
-               for k in range(parts)]
-    shares = [np.zeros(areas.shape[0])] * parts
+    covered = wp.zeros(areas.shape[0], dtype=wp.int64, device=device)
+    fixed = (float(2**bits), _FIXED_LIMIT, wp.int64(2**bits), wp.int64(bits))
+    with LaunchPool(parts, kernels=(rasterize_chunks_kernel, fixed_point_vertices_kernel), device=device) as pool:
+        points = _vertex_pass(pool, arrays, converted, bits=bits, device=device)
+        inputs = (arrays[0], wp.array(z, dtype=wp.float64, device=device, copy=False),
+                  wp.array(tri, dtype=wp.int32, device=device, copy=False), *arrays[1:], points,
+                  wp.array(slots, dtype=wp.int32, device=device), wp.array(areas, dtype=wp.int32, device=device))
 
-    def launch(k: int) -> None:
-        covered = wp.empty(subsets[k].shape[0], dtype=wp.int32, device=device)
-        wp.launch(rasterize_regions_kernel, dim=subsets[k].shape[0],
-                  inputs=(*inputs, wp.array(subsets[k], dtype=wp.int32, device=device), *fixed),
-                  outputs=(maps_on, covered), device=device)
-        shares[k] = np.bincount(subsets[k][:, 0], weights=covered.numpy(), minlength=areas.shape[0])
+        # Disjoint regions, so no texel is written by two launches: each thread takes the next region
+        # left, costliest first (triangles, then texels), until none is left. Each region is emptied
+        # just before it is rasterized, while its texels are still in the cache.
+        queue = iter(np.lexsort((-extent, -held)).tolist())
+        lock = threading.Lock()
 
-    with LaunchPool(parts, kernels=(rasterize_regions_kernel,), device=device) as pool:
-        pool.run([lambda k=k: launch(k) for k in range(parts)])
-    texels = np.sum(shares, axis=0)
-    return None if count_only else maps_on.numpy(), texels.astype(np.int64)
+        def work() -> None:
+            while True:
+                with lock:
+                    g = next(queue, None)
+                if g is None:
+                    return
+                if on_cpu and not count_only:
+                    empty_regions(maps, areas[g:g + 1])
+                if held[g]:
+                    wp.launch(rasterize_chunks_kernel, dim=int(held[g]),
+                              inputs=(*inputs, wp.array(rows[starts[g]:starts[g + 1]], dtype=wp.int32, device=device),
+                                      CHUNK_BITS, *fixed), outputs=(maps_on, covered), device=device)
+
+        pool.run([work] * parts)
+    return None if count_only else maps_on.numpy(), covered.numpy()
