@@ -366,7 +366,7 @@ def two_cascade_soup(seed: int):
 def test_a_map_rasterized_region_by_region_is_the_whole_map_and_counting_alone_counts_the_same():
     """Regions tiling each map (as scrolling makes them) give its depths bit for bit and the same coverage tests,
     whatever the maps held in them before."""
-    from csmlab.kernels.raster import rasterize_cascades, region_chunks, whole_map_regions
+    from csmlab.kernels.raster import rasterize_cascades, region_chunks
 
     cs, vertices, triangles, xy, bounds, box, corner = two_cascade_soup(13)
     whole, whole_count = rasterize_cascades(xy, light_depth(cs, vertices), triangles, **box)
