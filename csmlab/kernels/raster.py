@@ -212,7 +212,9 @@ def rasterize_triangle(
         rise_b = wp.float64(ax - cx) * wp.float64(step)
         start = wp.float64(i0)
         end = wp.float64(i1)
-        for j in range(j0, j1 + 1):
+        # `while` loops: a range known only at run time costs Warp's CPU code several times more per step.
+        j = j0
+        while j <= j1:
             # Each edge function falls by its step per texel, so the centres inside form one run;
             # its ends, solved from the three edges (widened by a texel against rounding), bound
             # the walk, and the exact test below decides every centre in it.
@@ -227,16 +229,20 @@ def rasterize_triangle(
                 w_c = row_c - step_c * skip
                 w_a = row_a - step_a * skip
                 w_b = row_b - step_b * skip
-                for i in range(int(lo), int(hi) + 1):
+                i = int(lo)
+                last = int(hi)
+                while i <= last:
                     if w_c > bias_ab and w_a > bias_bc and w_b > bias_ca:
                         store_depth(depth, c, j, i, w_a, w_b, w_c, za, zb, zc, area)
                         count += 1
                     w_c = w_c - step_c
                     w_a = w_a - step_a
                     w_b = w_b - step_b
+                    i += 1
             row_c = row_c + rise_c
             row_a = row_a + rise_a
             row_b = row_b + rise_b
+            j += 1
     else:
         for j in range(j0, j1 + 1):
             py = (two * wp.int64(j) + wp.int64(1)) * unit
