@@ -54,6 +54,17 @@ def test_process_pool_gives_the_inprocess_csv(inprocess, tmp_path):
     assert (tmp_path / "pool" / "metrics.csv").read_bytes() == inprocess.read_bytes()
 
 
+def test_dask_local_workers_keep_glibcs_adaptive_mmap_threshold():
+    # Dask's default MALLOC_TRIM_THRESHOLD_ would map and fault in every large array afresh; the
+    # thread limits stay. os.getenv(key, default) runs in the worker, which is given the key as the
+    # shared value and the default as the task.
+    from csmlab.executor import run_dask
+
+    for key, expected in (("MALLOC_TRIM_THRESHOLD_", "unset"), ("OMP_NUM_THREADS", "1")):
+        ((_, value),) = run_dask(os.getenv, ["unset"], shared=key, jobs=1, address="local")
+        assert value == expected
+
+
 def test_dask_local_cluster_gives_the_inprocess_csv(inprocess, tmp_path):
     run(tmp_path, "dask", executor="dask", jobs=2, address="local")
     assert (tmp_path / "dask" / "metrics.csv").read_bytes() == inprocess.read_bytes()
