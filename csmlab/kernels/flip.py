@@ -18,6 +18,11 @@ inputs, in three kernels, each over both images at once where they are filtered 
    ``(max(|Δedge|, |Δpoint|) / √2)^qf``, ``qf = 0.5`` (``computeFeatureDifferenceAndFinalError``);
    and the error ``colour difference^(1 − feature difference)``.
 
+The passes skip what no difference between the images reaches (:func:`flip_reach`): the test
+image's colours and row pass are the reference's wherever its inputs are, a pass nothing reads is
+not computed, and the error is exactly 0 where the two agree over the whole support — the values
+the full computation gives, bit for bit, at a fraction of its cost when few pixels changed.
+
 Every convolution clamps its taps to the image's edge and sums them in the C++ order (taps from
 −r to r, rows first), all in float32 with the C++ constants rounded as the compiler rounds them and
 floating-point contraction off (``fuse_fp``), so the result differs from the C++ only where the
@@ -498,7 +503,8 @@ def flip_error_map(reference, test, *, pixels_per_degree: float = FLIP_DEFAULT_P
     -------
     ndarray, shape (H, W), float32
         The error in [0, 1]; exactly 0 where the two images agree over the filters' support
-        (:func:`flip_filter_radii`). Near the edges the filters clamp to the edge pixel.
+        (:func:`flip_filter_radii`), where it is not computed (:func:`flip_reach`). Near the edges
+        the filters clamp to the edge pixel.
 
     Raises
     ------
