@@ -71,15 +71,20 @@ def run_pool(fn: Callable, tasks: list, *, shared, jobs: int, address: str | Non
                 future.cancel()
 
 
-LOCAL_WORKER_CONFIG = {
-    "distributed.nanny.pre-spawn-environ": {"OMP_NUM_THREADS": 1, "MKL_NUM_THREADS": 1, "OPENBLAS_NUM_THREADS": 1},
-    "distributed.worker.profile.enabled": False,
-}
-"""Dask settings of a LocalCluster's workers. Dask's default environment also sets
-``MALLOC_TRIM_THRESHOLD_``, which turns off glibc's adaptive mmap threshold: every array over 128 KiB
-is then mapped and unmapped afresh, its pages faulted in each time, and a frame's metrics took 1.8×
-as long as in a plain process (158 vs 87 ms). The sampling profiler, which no one reads here, takes
-the GIL every 10 ms."""
+def _local_worker_config() -> dict:
+    """Dask settings of a LocalCluster's workers: Dask's own, less ``MALLOC_TRIM_THRESHOLD_`` and the profiler.
+
+    Dask's pre-spawn environment keeps its thread limits but also sets ``MALLOC_TRIM_THRESHOLD_``,
+    which turns off glibc's adaptive mmap threshold: every array over 128 KiB is then mapped and
+    unmapped afresh, its pages faulted in each time, and a frame's metrics took 1.8× as long as in
+    a plain process (158 vs 87 ms). The sampling profiler, which no one reads here, takes the GIL
+    every 10 ms.
+    """
+    import dask
+
+    environment = dict(dask.config.get("distributed.nanny.pre-spawn-environ", default={}))
+    environment.pop("MALLOC_TRIM_THRESHOLD_", None)
+    return {"distributed.nanny.pre-spawn-environ": environment, "distributed.worker.profile.enabled": False}
 
 
 def run_dask(fn: Callable, tasks: list, *, shared, jobs: int, address: str | None) -> Iterator:
@@ -93,7 +98,7 @@ def run_dask(fn: Callable, tasks: list, *, shared, jobs: int, address: str | Non
         return
     cluster = None
     if address == "local":
-        with dask.config.set(LOCAL_WORKER_CONFIG):
+        with dask.config.set(_local_worker_config()):
             cluster = LocalCluster(n_workers=max(1, min(jobs, len(tasks))), threads_per_worker=1, processes=True,
                                    dashboard_address=None, silence_logs=logging.ERROR)
         client = Client(cluster)

@@ -25,7 +25,7 @@ equal colours, and SSIM and ꟻLIP are local filters: a pixel whose whole filter
 values in both images has SSIM exactly 1 and ꟻLIP exactly 0. So each is computed only on
 *windows* (:func:`changed_windows`) around the pixels whose S changed, each window grown by the
 filter's support so that every value inside is what the whole image gives, and the maps are filled
-with 1 or 0 elsewhere; the summaries are then taken over the full maps exactly as before. Inside,
+with 1 (SSIM) or 0 (ꟻLIP) elsewhere; the summaries are then taken over the full maps exactly as before. Inside,
 ꟻLIP's Warp kernels also skip, pixel by pixel, every pass out of a change's reach
 (:func:`csmlab.kernels.flip.flip_reach`), and only the colours they read are sRGB-encoded. A frame
 of ``exact`` changes in a few dozen pixels, so its perceptual metrics cost a few windows instead of
