@@ -301,16 +301,29 @@ def fixed_point_vertices_kernel(
     origin: wp.array2d(dtype=wp.int64),
     cascades: wp.array(dtype=wp.int32),
     first: int,
+    last: int,
+    run: int,
     scale: wp.float64,
     limit: wp.float64,
     points: wp.array3d(dtype=wp.int64),
 ):
-    """``points[s, v]``: vertex ``first + k`` in cascade ``cascades[s]``'s doubled fixed point (a thread per s, k)."""
+    """``points[s, v]``: vertex v of ``[first, last)`` in cascade ``cascades[s]``'s doubled fixed point.
+
+    A thread per s and run of ``run`` vertices (on the CPU many, so that a thread's set-up serves
+    them all; on a GPU one).
+    """
     s, k = wp.tid()
-    v = first + k
+    v = first + k * run
+    end = wp.min(v + run, last)
     c = cascades[s]
-    points[s, v, 0] = doubled_fixed_point(light_xy[v, 0], texel_size[c, 0], scale, limit, origin[c, 0])
-    points[s, v, 1] = doubled_fixed_point(light_xy[v, 1], texel_size[c, 1], scale, limit, origin[c, 1])
+    sx = texel_size[c, 0]
+    sy = texel_size[c, 1]
+    ox = origin[c, 0]
+    oy = origin[c, 1]
+    while v < end:
+        points[s, v, 0] = doubled_fixed_point(light_xy[v, 0], sx, scale, limit, ox)
+        points[s, v, 1] = doubled_fixed_point(light_xy[v, 1], sy, scale, limit, oy)
+        v += 1
 
 
 @wp.func
@@ -349,6 +362,7 @@ def rasterize_chunks_kernel(
     regions: wp.array2d(dtype=wp.int32),
     chunks: wp.array2d(dtype=wp.int32),
     chunk_bits: int,
+    run_bits: int,
     scale: wp.float64,
     limit: wp.float64,
     unit: wp.int64,
@@ -356,17 +370,19 @@ def rasterize_chunks_kernel(
     depth: wp.array3d(dtype=wp.float32),
     covered: wp.array(dtype=wp.int64),
 ):
-    """One thread per triangle of each (region, chunk) row; ``covered[g]`` sums region g's coverage tests passed.
+    """A thread per run of ``2**run_bits`` triangles of a (region, chunk) row; ``covered[g]`` sums region g's
+    coverage tests passed.
 
-    A chunk is ``2**chunk_bits`` consecutive triangles (the last one shorter). A triangle that
-    meets no texel centre of its region returns before any per-texel work, so the chunks need only
-    be a superset of the triangles that cover a texel.
+    A chunk is ``2**chunk_bits`` consecutive triangles (the last one shorter), cut into runs
+    (``run_bits <= chunk_bits``): on the CPU a run is the whole chunk, so that what a thread reads
+    once (its row, region, cascade and box) serves every triangle of the chunk; a GPU wants a
+    thread per triangle. A triangle that meets no texel centre of its region returns before any
+    per-texel work, so the chunks need only be a superset of the triangles that cover a texel.
     """
-    k = wp.tid()
-    row = k >> chunk_bits
-    t = (chunks[row, 1] << chunk_bits) + (k & ((1 << chunk_bits) - 1))
-    if t >= triangles.shape[0]:
-        return
+    first = wp.tid() << run_bits
+    row = first >> chunk_bits
+    t = (chunks[row, 1] << chunk_bits) + (first & ((1 << chunk_bits) - 1))
+    end = wp.min(t + (1 << run_bits), triangles.shape[0])
     g = chunks[row, 0]
     c = regions[g, 0]
     s = slots[c]
@@ -374,25 +390,26 @@ def rasterize_chunks_kernel(
     sy = texel_size[c, 1]
     ox = origin[c, 0]
     oy = origin[c, 1]
-    ia = triangles[t, 0]
-    ib = triangles[t, 1]
-    ic = triangles[t, 2]
-    if s < 0:
-        # Converted here: first drop, in metres, a triangle whose rectangle misses the region
-        # widened by a texel, as region_chunks tests chunks (its neighbours in a chunk may not).
-        if misses_span(light_xy[ia, 0], light_xy[ib, 0], light_xy[ic, 0], ox, scale, sx, regions[g, 1],
-                       regions[g, 2]):
-            return
-        if misses_span(light_xy[ia, 1], light_xy[ib, 1], light_xy[ic, 1], oy, scale, sy, regions[g, 3],
-                       regions[g, 4]):
-            return
-    ax, ay = doubled_vertex(points, s, light_xy, ia, sx, sy, ox, oy, scale, limit)
-    bx, by = doubled_vertex(points, s, light_xy, ib, sx, sy, ox, oy, scale, limit)
-    cx, cy = doubled_vertex(points, s, light_xy, ic, sx, sy, ox, oy, scale, limit)
-    n = rasterize_triangle(ax, ay, bx, by, cx, cy, vertex_depth[ia], vertex_depth[ib], vertex_depth[ic], unit, bits,
-                           depth, c, wp.vec4i(regions[g, 1], regions[g, 2], regions[g, 3], regions[g, 4]))
-    if n > 0:
-        wp.atomic_add(covered, g, wp.int64(n))
+    window = wp.vec4i(regions[g, 1], regions[g, 2], regions[g, 3], regions[g, 4])
+    n = wp.int64(0)
+    while t < end:
+        ia = triangles[t, 0]
+        ib = triangles[t, 1]
+        ic = triangles[t, 2]
+        # Converted here: first drop, in metres, a triangle whose rectangle misses the region widened
+        # by a texel, as region_chunks tests chunks (its neighbours in a chunk may not).
+        if s >= 0 or not (misses_span(light_xy[ia, 0], light_xy[ib, 0], light_xy[ic, 0], ox, scale, sx, window[0],
+                                      window[1])
+                          or misses_span(light_xy[ia, 1], light_xy[ib, 1], light_xy[ic, 1], oy, scale, sy, window[2],
+                                         window[3])):
+            ax, ay = doubled_vertex(points, s, light_xy, ia, sx, sy, ox, oy, scale, limit)
+            bx, by = doubled_vertex(points, s, light_xy, ib, sx, sy, ox, oy, scale, limit)
+            cx, cy = doubled_vertex(points, s, light_xy, ic, sx, sy, ox, oy, scale, limit)
+            n += wp.int64(rasterize_triangle(ax, ay, bx, by, cx, cy, vertex_depth[ia], vertex_depth[ib],
+                                             vertex_depth[ic], unit, bits, depth, c, window))
+        t += 1
+    if n > wp.int64(0):
+        wp.atomic_add(covered, g, n)
 
 
 def _checked_bits(bits) -> int:
@@ -720,13 +737,19 @@ def _vertex_pass(pool: LaunchPool, arrays: tuple, cascades: np.ndarray, *, bits:
         return points
     chosen = wp.array(cascades, dtype=wp.int32, device=device)
 
+    run = _VERTEX_RUN if wp.get_device(device).is_cpu else 1
+
     def launch(lo: int, hi: int) -> None:
-        wp.launch(fixed_point_vertices_kernel, dim=(cascades.size, hi - lo),
-                  inputs=(*arrays, chosen, lo, float(2**bits), _FIXED_LIMIT), outputs=(points,), device=device)
+        wp.launch(fixed_point_vertices_kernel, dim=(cascades.size, -(-(hi - lo) // run)),
+                  inputs=(*arrays, chosen, lo, hi, run, float(2**bits), _FIXED_LIMIT), outputs=(points,),
+                  device=device)
 
     pool.run([lambda lo=lo, hi=hi: launch(lo, hi) for lo, hi in split_range(xy.shape[0], pool.threads)])
     return points
 
+
+_VERTEX_RUN = 256
+"""Vertices a CPU thread of the vertex pass converts (:func:`fixed_point_vertices`)."""
 
 _FIXED_LIMIT = float(2**50)
 """The clip of global fixed-point values (:mod:`csmlab.texels`)."""
@@ -860,6 +883,7 @@ def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin,
     maps_on = wp.array(maps, dtype=wp.float32, device=device, copy=False)
     covered = wp.zeros(areas.shape[0], dtype=wp.int64, device=device)
     fixed = (float(2**bits), _FIXED_LIMIT, wp.int64(2**bits), wp.int64(bits))
+    run_bits = CHUNK_BITS if on_cpu else 0
     with LaunchPool(parts, kernels=(rasterize_chunks_kernel, fixed_point_vertices_kernel), device=device) as pool:
         points = _vertex_pass(pool, arrays, converted, bits=bits, device=device)
         inputs = (arrays[0], wp.array(z, dtype=wp.float64, device=device, copy=False),
@@ -881,9 +905,9 @@ def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin,
                 if on_cpu and not count_only:
                     empty_regions(maps, areas[g:g + 1])
                 if held[g]:
-                    wp.launch(rasterize_chunks_kernel, dim=int(held[g]),
+                    wp.launch(rasterize_chunks_kernel, dim=int(held[g]) >> run_bits,
                               inputs=(*inputs, wp.array(rows[starts[g]:starts[g + 1]], dtype=wp.int32, device=device),
-                                      CHUNK_BITS, *fixed), outputs=(maps_on, covered), device=device)
+                                      CHUNK_BITS, run_bits, *fixed), outputs=(maps_on, covered), device=device)
 
         pool.run([work] * parts)
     return None if count_only else maps_on.numpy(), covered.numpy()
