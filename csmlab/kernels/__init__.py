@@ -16,9 +16,10 @@ Every wrapper takes ``device=`` (``"cpu"`` by default, ``"cuda"`` when asked) an
 
 from __future__ import annotations
 
+import numpy as np
 import warp as wp
 
-__all__ = ["checked_device"]
+__all__ = ["checked_device", "device_empty"]
 
 
 def checked_device(device: str) -> str:
@@ -39,3 +40,18 @@ def checked_device(device: str) -> str:
     except (RuntimeError, ValueError) as error:
         raise ValueError(f"device: Warp cannot use {device!r}: {error}") from None
     return name
+
+
+def device_empty(shape, dtype, device: str) -> wp.array:
+    """An uninitialized Warp array of ``shape`` and Warp ``dtype`` on ``device``.
+
+    On the CPU its memory is NumPy's, which gives arrays of a few MiB transparent huge pages: a
+    kernel's first writes then fault in 2 MiB at a time, not 4 KiB (Warp's own allocation costs a
+    fresh page fault per 4 KiB, a large share of a kernel that writes a big output once).
+    """
+    if not wp.get_device(device).is_cpu:
+        return wp.empty(shape, dtype=dtype, device=device)
+    shape = (shape,) if isinstance(shape, int) else tuple(shape)
+    scalar = getattr(dtype, "_wp_scalar_type_", dtype)
+    lanes = tuple(getattr(dtype, "_shape_", ()))
+    return wp.array(np.empty(shape + lanes, dtype=wp.dtype_to_numpy(scalar)), dtype=dtype, copy=False)

@@ -31,7 +31,7 @@ from functools import cached_property
 import numpy as np
 import warp as wp
 
-from csmlab.kernels import checked_device
+from csmlab.kernels import checked_device, device_empty
 from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 
 __all__ = ["BANDS_PER_THREAD", "CHUNK_BITS", "TriangleBounds", "banded_regions", "fixed_point_vertices",
@@ -729,10 +729,7 @@ def _device_arrays(device: str, xy: np.ndarray, size: np.ndarray, corner: np.nda
 def _vertex_pass(pool: LaunchPool, arrays: tuple, cascades: np.ndarray, *, bits: int, device: str) -> wp.array:
     """:func:`fixed_point_vertices` of ``cascades`` on ``device``, each of the pool's launches over its own vertices."""
     xy = arrays[0]
-    # NumPy's allocation on the CPU: large arrays get huge pages, and no page is touched before the kernel.
-    points = (wp.array(np.empty((cascades.size, xy.shape[0], 2), dtype=np.int64), dtype=wp.int64, copy=False)
-              if wp.get_device(device).is_cpu else wp.empty((cascades.size, xy.shape[0], 2), dtype=wp.int64,
-                                                            device=device))
+    points = device_empty((cascades.size, xy.shape[0], 2), wp.int64, device)
     if cascades.size == 0 or xy.shape[0] == 0:
         return points
     chosen = wp.array(cascades, dtype=wp.int32, device=device)

@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
-from csmlab.kernels import checked_device
+from csmlab.kernels import checked_device, device_empty
 from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 from csmlab.registry import check_name
 
@@ -266,28 +266,14 @@ def camera_hits_kernel(
               triangle, view_depth)
 
 
-@wp.kernel
-def camera_space_kernel(
-    vertices: wp.array(dtype=wp.vec3d),
-    origin: wp.vec3d,
-    right: wp.vec3d,
-    up: wp.vec3d,
-    forward: wp.vec3d,
-    frustum: wp.vec4d,
-    near: wp.float64,
-    far: wp.float64,
-    camera: wp.array(dtype=wp.vec3d),
-    outcode: wp.array(dtype=wp.int32),
-):
-    v = wp.tid()
-    p = vertices[v] - origin
-    x = wp.dot(p, right)
-    y = wp.dot(p, up)
-    z = wp.dot(p, forward)
-    camera[v] = wp.vec3d(x, y, z)
-    # One bit per half-space through the eye (and the near and far planes) the vertex lies
-    # outside; a triangle whose three vertices share a bit lies wholly outside that half-space,
-    # and so does every hit on it.
+@wp.func
+def outside_code(x: wp.float64, y: wp.float64, z: wp.float64, frustum: wp.vec4d, near: wp.float64,
+                 far: wp.float64) -> int:
+    """One bit per half-space through the eye (and the near and far planes) the camera-space point lies outside.
+
+    A triangle whose three vertices share a bit lies wholly outside that half-space, and so does
+    every hit on it.
+    """
     code = int(0)
     if z < near:
         code = code | 1
@@ -301,7 +287,34 @@ def camera_space_kernel(
         code = code | 16
     if y > frustum[3] * z:
         code = code | 32
-    outcode[v] = code
+    return code
+
+
+@wp.kernel
+def camera_space_kernel(
+    vertices: wp.array(dtype=wp.vec3d),
+    origin: wp.vec3d,
+    right: wp.vec3d,
+    up: wp.vec3d,
+    forward: wp.vec3d,
+    frustum: wp.vec4d,
+    near: wp.float64,
+    far: wp.float64,
+    run: int,
+    camera: wp.array(dtype=wp.vec3d),
+    outcode: wp.array(dtype=wp.int32),
+):
+    """Each vertex in camera space and its :func:`outside_code`: a thread per ``run`` of vertices (on a GPU one)."""
+    v = wp.tid() * run
+    end = wp.min(v + run, vertices.shape[0])
+    while v < end:
+        p = vertices[v] - origin
+        x = wp.dot(p, right)
+        y = wp.dot(p, up)
+        z = wp.dot(p, forward)
+        camera[v] = wp.vec3d(x, y, z)
+        outcode[v] = outside_code(x, y, z, frustum, near, far)
+        v += 1
 
 
 @wp.func
@@ -351,8 +364,9 @@ def edge_inside(e: wp.float64, owns: bool) -> bool:
     return e > wp.float64(0.0) or (e == wp.float64(0.0) and owns)
 
 
-@wp.kernel
-def raster_view_kernel(
+@wp.func
+def raster_view_triangle(
+    face: int,
     camera: wp.array(dtype=wp.vec3d),
     outcode: wp.array(dtype=wp.int32),
     triangles: wp.array2d(dtype=wp.int32),
@@ -361,13 +375,10 @@ def raster_view_kernel(
     near: wp.float64,
     far: wp.float64,
     resolve: int,
-    phase: int,
-    stride: int,
     depth: wp.array2d(dtype=wp.float64),
     nearest: wp.array2d(dtype=wp.int32),
 ):
-    """The triangles ``phase + i·stride``, into their own ``depth`` and ``nearest`` (one pair per concurrent launch)."""
-    face = phase + wp.tid() * stride
+    """Triangle ``face`` into ``depth`` and ``nearest``: the pixels whose centre it covers within ``[near, far]``."""
     ia = triangles[face, 0]
     ib = triangles[face, 1]
     ic = triangles[face, 2]
@@ -448,6 +459,35 @@ def raster_view_kernel(
 
 
 @wp.kernel
+def raster_view_kernel(
+    camera: wp.array(dtype=wp.vec3d),
+    outcode: wp.array(dtype=wp.int32),
+    triangles: wp.array2d(dtype=wp.int32),
+    step_x: wp.float64,
+    step_y: wp.float64,
+    near: wp.float64,
+    far: wp.float64,
+    resolve: int,
+    phase: int,
+    stride: int,
+    run: int,
+    depth: wp.array2d(dtype=wp.float64),
+    nearest: wp.array2d(dtype=wp.int32),
+):
+    """The triangles ``phase + i·stride``, into their own ``depth`` and ``nearest`` (one pair per concurrent launch).
+
+    A thread per ``run`` of them: on the CPU many, so that a thread's set-up serves them all; on a GPU one.
+    """
+    i = wp.tid() * run
+    end = i + run
+    face = phase + i * stride
+    while i < end and face < triangles.shape[0]:
+        raster_view_triangle(face, camera, outcode, triangles, step_x, step_y, near, far, resolve, depth, nearest)
+        i += 1
+        face += stride
+
+
+@wp.kernel
 def raster_hits_kernel(
     vertices: wp.array(dtype=wp.vec3d),
     triangles: wp.array2d(dtype=wp.int32),
@@ -510,8 +550,8 @@ def _hits_record(bvh: MeshBVH, shape: tuple[int, int], pool: LaunchPool, kernel,
     """Allocate the output arrays, launch ``kernel`` over bands of rows (``inputs``, then the band's first row)
     and return them as host arrays."""
     device = bvh.device
-    outputs = (wp.empty(shape, dtype=wp.vec3d, device=device), wp.empty(shape, dtype=wp.vec3, device=device),
-               wp.empty(shape, dtype=wp.int32, device=device), wp.empty(shape, dtype=wp.float32, device=device))
+    outputs = (device_empty(shape, wp.vec3d, device), device_empty(shape, wp.vec3, device),
+               device_empty(shape, wp.int32, device), device_empty(shape, wp.float32, device))
     pool.run([functools.partial(wp.launch, kernel, dim=(hi - lo, shape[1]), inputs=(*inputs, lo), outputs=outputs,
                                 device=device)
               for lo, hi in split_range(shape[0], pool.threads)])
@@ -585,29 +625,35 @@ def camera_hits_raster(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, as
                        -(0.5 * height + 1.0) * step_y, (0.5 * height + 1.0) * step_y)
     vertex_count = bvh.vertices.shape[0]
     triangle_count = bvh.triangles.shape[0]
-    camera = wp.empty(vertex_count, dtype=wp.vec3d, device=device)
-    outcode = wp.empty(vertex_count, dtype=wp.int32, device=device)
+    camera = device_empty(vertex_count, wp.vec3d, device)
+    outcode = device_empty(vertex_count, wp.int32, device)
     parts = len(split_range(triangle_count, threads))
-    depth = wp.empty((parts, height, width), dtype=wp.float64, device=device)
-    nearest = wp.empty((parts, height, width), dtype=wp.int32, device=device)
+    depth = device_empty((parts, height, width), wp.float64, device)
+    nearest = device_empty((parts, height, width), wp.int32, device)
+    run = _TRIANGLE_RUN if wp.get_device(device).is_cpu else 1
 
     def rasterize(k: int) -> None:
         depth[k].fill_(np.inf)
         nearest[k].fill_(int(NO_TRIANGLE))
         for resolve in ((1, 2) if atomic else (0,)):
-            wp.launch(raster_view_kernel, dim=(triangle_count - k + parts - 1) // parts,
-                      inputs=(camera, outcode, bvh.triangles, step_x, step_y, near, float(far), resolve, k, parts),
+            wp.launch(raster_view_kernel, dim=-(-((triangle_count - k + parts - 1) // parts) // run),
+                      inputs=(camera, outcode, bvh.triangles, step_x, step_y, near, float(far), resolve, k, parts, run),
                       outputs=(depth[k], nearest[k]), device=device)
 
     with LaunchPool(threads, kernels=(raster_view_kernel,), device=device) as pool:
-        pool.run([functools.partial(wp.launch, camera_space_kernel, dim=hi - lo,
-                                    inputs=(bvh.vertices[lo:hi], eye, right, up, forward, frustum, near, float(far)),
+        pool.run([functools.partial(wp.launch, camera_space_kernel, dim=-(-(hi - lo) // run),
+                                    inputs=(bvh.vertices[lo:hi], eye, right, up, forward, frustum, near, float(far),
+                                            run),
                                     outputs=(camera[lo:hi], outcode[lo:hi]), device=device)
                   for lo, hi in split_range(vertex_count, threads)])
         pool.run([functools.partial(rasterize, k) for k in range(parts)])
         return _hits_record(bvh, (height, width), pool, raster_hits_kernel,
                             (bvh.vertices, bvh.triangles, nearest, depth, eye, right, up, forward, step_x, step_y,
                              float(far), wp.vec3d(*bvh.anchor)))
+
+
+_TRIANGLE_RUN = 32
+"""Triangles a CPU thread of the camera raster takes (:func:`camera_hits_raster`)."""
 
 
 VISIBILITY_METHODS = {"raster": camera_hits_raster, "ray": camera_hits_ray}

@@ -1,0 +1,34 @@
+"""csmlab.kernels: the device checks and arrays every wrapper shares."""
+
+import numpy as np
+import pytest
+import warp as wp
+
+from csmlab.kernels import checked_device, device_empty
+
+
+@wp.kernel
+def _fill_with_index(out: wp.array(dtype=wp.vec3d)):
+    i = wp.tid()
+    out[i] = wp.vec3d(wp.float64(i), wp.float64(2 * i), wp.float64(3 * i))
+
+
+@pytest.mark.parametrize("shape, dtype, host", [(7, wp.int32, (7,)), ((2, 3), wp.vec3d, (2, 3, 3)),
+                                                ((4, 5), wp.vec3, (4, 5, 3)), ((3,), wp.float64, (3,))])
+def test_device_empty_has_the_shape_and_type_asked_for(shape, dtype, host):
+    array = device_empty(shape, dtype, "cpu")
+    assert array.dtype == dtype
+    assert array.numpy().shape == host
+
+
+def test_device_empty_holds_what_a_kernel_writes():
+    array = device_empty(1000, wp.vec3d, "cpu")
+    wp.launch(_fill_with_index, dim=1000, outputs=(array,), device="cpu")
+    index = np.arange(1000, dtype=np.float64)
+    np.testing.assert_array_equal(array.numpy(), np.stack([index, 2 * index, 3 * index], axis=1))
+
+
+def test_checked_device_refuses_names_warp_does_not_know():
+    with pytest.raises(ValueError, match="device"):
+        checked_device("tpu")
+    assert checked_device("cpu") == "cpu"
