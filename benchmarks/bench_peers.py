@@ -29,8 +29,9 @@ minimum of ``--repeats`` runs after a warm-up (the machine is shared: the minimu
 disturbed). Open3D is optional (``pip install csmlab[bench]``); without it the peer columns print
 ``n/a``. ``--experiment`` also runs the default experiment (``csmlab run``) and reports its wall
 time and the peak RSS of its largest process; ``--dask`` runs a 240-frame walk of ``exact`` on a
-local Dask cluster of 1 and of 2 workers and reports the speed-up of the wall time and of the frames
-phase ``csmlab run`` prints (the report after it runs on one core either way); ``--long`` runs
+local Dask cluster of 1 and of 2 workers, each twice in turn (:data:`DASK_REPEATS`), and reports the
+speed-up of the wall time and of the frames phase ``csmlab run`` prints (the report after it is the
+parent's work either way); ``--long`` runs
 ``benchmarks/long_walk.toml`` (two methods, a 64×36 view) for 1,000 and 10,000 frames and reports the
 peak RSS of each: a flat peak means nothing grows with the path.
 """
@@ -259,13 +260,21 @@ def bench_experiment() -> dict:
         return run_command([sys.executable, "-m", "csmlab.cli", "run", "--out", out])
 
 
-def bench_dask() -> dict:
+DASK_REPEATS = 2
+"""Runs of each Dask configuration, 1 and 2 workers taking turns so that both meet the machine alike;
+each keeps its fastest (wall time), as the kernel rows keep the fastest of ``--repeats``."""
+
+
+def bench_dask(repeats: int = DASK_REPEATS) -> dict:
     experiment = ROOT / "benchmarks" / "dask_walk.toml"
     runs = {}
-    for jobs in (1, 2):
-        with tempfile.TemporaryDirectory() as out:
-            runs[jobs] = run_command([sys.executable, "-m", "csmlab.cli", "run", str(experiment), "--out", out,
-                                      "--scheduler", "local", "--jobs", str(jobs)])
+    for _ in range(repeats):
+        for jobs in (1, 2):
+            with tempfile.TemporaryDirectory() as out:
+                run = run_command([sys.executable, "-m", "csmlab.cli", "run", str(experiment), "--out", out,
+                                   "--scheduler", "local", "--jobs", str(jobs)])
+            if jobs not in runs or run["wall_s"] < runs[jobs]["wall_s"]:
+                runs[jobs] = run
     speedup = runs[1]["wall_s"] / runs[2]["wall_s"]
     return dict(one_worker_s=runs[1]["wall_s"], two_workers_s=runs[2]["wall_s"], speedup=speedup,
                 efficiency=speedup / 2.0, one_worker_run_s=runs[1]["run_s"], two_workers_run_s=runs[2]["run_s"],
@@ -356,7 +365,8 @@ def main() -> None:
         print(f"dask 240 frames: 1 worker {d['one_worker_s']:.1f} s, 2 workers {d['two_workers_s']:.1f} s wall, "
               f"speed-up {d['speedup']:.2f}x (efficiency {d['efficiency']:.0%}); frames phase "
               f"{d['one_worker_run_s']:.1f} / {d['two_workers_run_s']:.1f} s, {d['run_speedup']:.2f}x (the report, "
-              f"{d['report_s']:.1f} s, runs on one core either way); peak RSS {d['peak_rss_mib']:.0f} MiB")
+              f"{d['report_s']:.1f} s, is the parent's work either way); best of {DASK_REPEATS} each; peak RSS "
+              f"{d['peak_rss_mib']:.0f} MiB")
     if args.long:
         result["long"] = bench_long()
         for run in result["long"]:
