@@ -25,8 +25,9 @@ shadow-map resolution, at frame 60 of the default experiment's walk, it times:
 
 Then, on the default scene (265k triangles), frame 60 of the walk against frame 59, the metrics of
 one frame × method for ``exact``, ``quantized`` and ``none`` (``metrics`` rows). Every time is the
-minimum of ``--repeats`` runs after a warm-up (the machine is shared: the minimum is the least
-disturbed). Open3D is optional (``pip install csmlab[bench]``); without it the peer columns print
+minimum of ``--repeats`` runs after a warm-up, taken in rounds: each round runs every row of a scene
+and resolution and its peers once (:func:`best_in_rounds`), so that a slow spell of the shared machine
+meets csmlab and Open3D alike and the minimum is the least disturbed run of each. Open3D is optional (``pip install csmlab[bench]``); without it the peer columns print
 ``n/a``. ``--experiment`` also runs the default experiment (``csmlab run``) and reports its wall
 time and the peak RSS of its largest process; ``--dask`` runs a 240-frame walk of ``exact`` on a
 local Dask cluster of 1 and of 2 workers, each twice in turn (:data:`DASK_REPEATS`), and reports the
@@ -73,14 +74,24 @@ SIZES = {"136k": 196, "265k": 320, "1m": 680}
 FRAME = 60
 
 
-def best_of(fn, repeats: int) -> float:
-    """Minimum wall-clock seconds of ``fn()`` over ``repeats`` runs after one untimed warm-up."""
-    fn()
-    best = np.inf
-    for _ in range(repeats):
-        start = time.perf_counter()
+def best_in_rounds(calls: dict, rounds: int, *, fewer: frozenset = frozenset()) -> dict:
+    """Minimum wall-clock seconds of each of ``calls`` (name → function) over ``rounds`` rounds.
+
+    Each function runs once untimed, then once per round, the rounds one after another: every call
+    meets the machine in the same states (a shared machine drifts between fast and slow spells of
+    seconds, longer than a row's back-to-back repeats), so their ratios are fair. The calls named in
+    ``fewer`` (Open3D's texel rays, seconds each) run only in the first half of the rounds.
+    """
+    for fn in calls.values():
         fn()
-        best = min(best, time.perf_counter() - start)
+    best = dict.fromkeys(calls, np.inf)
+    for k in range(rounds):
+        for name, fn in calls.items():
+            if name in fewer and k >= max(1, rounds // 2):
+                continue
+            start = time.perf_counter()
+            fn()
+            best[name] = min(best[name], time.perf_counter() - start)
     return best
 
 
@@ -132,15 +143,15 @@ def texel_rays(cascades, anchor) -> np.ndarray:
     return np.concatenate(rays).astype(np.float32)
 
 
-def peer_times(rc, rays: np.ndarray, repeats: int, *, occlusion: bool) -> tuple[float, float]:
-    """Open3D seconds with 2 threads and with 1 thread (NaN without Open3D)."""
+def peer_calls(name: str, rc, rays: np.ndarray, *, occlusion: bool) -> dict:
+    """Open3D on ``rays`` with 2 threads and with 1 thread, as ``{(name, threads): function}`` (none without Open3D)."""
     if rc is None:
-        return float("nan"), float("nan")
+        return {}
     import open3d as o3d
 
     tensor = o3d.core.Tensor(rays)
     call = rc.test_occlusions if occlusion else rc.cast_rays
-    return tuple(best_of(lambda: call(tensor, nthreads=n), repeats) for n in (2, 1))
+    return {(name, n): (lambda n=n: call(tensor, nthreads=n)) for n in (2, 1)}
 
 
 THREADS = ((1, ""), (2, ", 2 threads"))
@@ -167,43 +178,43 @@ def bench_kernels(label: str, resolution: int, *, width: int, height: int, repea
     pixels = width * height
     occluders = shadow_rays(view, anchor, dscene.bvh.diagonal)
     b = dscene.bvh
-    camera_peer = peer_times(rc, pixel_rays(pose, width, height, anchor), repeats, occlusion=False)
-    shadow_peer = peer_times(rc, occluders, repeats, occlusion=True)
-    texel_peer = peer_times(rc, texel_rays(cascades, anchor), max(1, repeats // 2), occlusion=False)
+    peers = {**peer_calls("camera", rc, pixel_rays(pose, width, height, anchor), occlusion=False),
+             **peer_calls("shadow", rc, occluders, occlusion=True),
+             **peer_calls("texel", rc, texel_rays(cascades, anchor), occlusion=False)}
     rows = [
         (f"gbuffer {method}{label}", pixels, "Mrays/s",
          lambda method=method, threads=threads: camera_hits(
              b, position=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg, aspect=pose.aspect,
              far=pose.far, width=width, height=height, method=method, threads=threads),
-         lambda: camera_peer)
+         "camera")
         for method in VISIBILITY_METHODS for threads, label in THREADS
     ] + [
         (f"shadow {method}{label}", len(occluders), "Mrays/s",
          lambda method=method, threads=threads: hard_shadow(b, points=g.position, normals=g.normal,
                                                             light_direction=light, method=method, threads=threads),
-         lambda: shadow_peer)
+         "shadow")
         for method in REFERENCE_METHODS for threads, label in THREADS
     ] + [
         ("shadow irregular, new light", len(occluders), "Mrays/s",
          lambda: (b.light_space.clear(), hard_shadow(b, points=g.position, normals=g.normal, light_direction=light)),
-         lambda: shadow_peer),
-        ("depth maps", texels, "Mtexels/s", lambda: shadow_maps(dscene, cascades, settings),
-         lambda: texel_peer),
-        ("depth maps, 2 threads", texels, "Mtexels/s", lambda: shadow_maps(both_cores, cascades, settings),
-         lambda: texel_peer),
+         "shadow"),
+        ("depth maps", texels, "Mtexels/s", lambda: shadow_maps(dscene, cascades, settings), "texel"),
+        ("depth maps, 2 threads", texels, "Mtexels/s", lambda: shadow_maps(both_cores, cascades, settings), "texel"),
         ("depth maps, scrolled", texels, "Mtexels/s",
-         lambda: shadow_maps(dscene, cascades, settings, scroll_from=earlier), lambda: texel_peer),
+         lambda: shadow_maps(dscene, cascades, settings, scroll_from=earlier), "texel"),
         ("lookup", pixels, "Mpix/s",
          lambda: lookup_shadow(maps, points=g.position, normals=g.normal, view_depth=g.view_depth,
                                settings=settings), None),
     ]
-    floor = best_of(lambda: np.copyto(depth_copy, maps.depth), repeats)
+    best = best_in_rounds({**{stage: ours for stage, _, _, ours, _ in rows}, **peers,
+                           "memcpy": lambda: np.copyto(depth_copy, maps.depth)}, repeats,
+                          fewer=frozenset(k for k in peers if k[0] == "texel"))
+    floor = best["memcpy"]
     out = []
-    for stage, count, unit, ours, peer in rows:
-        seconds = best_of(ours, repeats)
-        two, one = peer() if peer is not None else (float("nan"), float("nan"))
+    for stage, count, unit, _, peer in rows:
+        two, one = (best.get((peer, n), float("nan")) for n in (2, 1))
         out.append(dict(scene=label, triangles=scene.triangle_count, resolution=resolution, stage=stage,
-                        count=count, unit=unit, csmlab_s=seconds, open3d_2t_s=two, open3d_1t_s=one,
+                        count=count, unit=unit, csmlab_s=best[stage], open3d_2t_s=two, open3d_1t_s=one,
                         memcpy_s=floor if stage.startswith("depth maps") else float("nan")))
     out.append(dict(scene=label, triangles=scene.triangle_count, resolution=resolution, stage="memcpy",
                     count=texels, unit="Mtexels/s", csmlab_s=floor, open3d_2t_s=float("nan"),
@@ -217,20 +228,19 @@ def bench_metrics(*, repeats: int) -> list[dict]:
     dscene = prepare_scene(workload.scene, device="cpu")
     views = [render_view(dscene, workload.path.pose(i), workload.light.direction(i), width=workload.width,
                          height=workload.height, index=i) for i in (FRAME - 1, FRAME)]
-    out = []
-    for variant in experiment.variants():
-        before, now = (render_shadow(dscene, v, variant.settings) for v in views)
-        # As in a run's worker (csmlab.experiment.run_chunk): one thread per library pool. A fresh copy
-        # of the view each time, so that the view-only work (View.shared) is timed too, as if the
-        # method ran alone; a run shares it among its methods.
-        with threadpool_limits(limits=1):
-            seconds = best_of(lambda: measure_frame(dataclasses.replace(now, view=dataclasses.replace(now.view)),
-                                                    before), repeats)
-        out.append(dict(scene="265k", triangles=workload.scene.triangle_count, resolution=variant.settings.resolution,
-                        stage=f"metrics {variant.method}", count=workload.width * workload.height, unit="Mpix/s",
-                        csmlab_s=seconds, open3d_2t_s=float("nan"), open3d_1t_s=float("nan"),
-                        memcpy_s=float("nan")))
-    return out
+    frames = {variant: tuple(render_shadow(dscene, v, variant.settings) for v in views)
+              for variant in experiment.variants()}
+    # As in a run's worker (csmlab.experiment.run_chunk): one thread per library pool. A fresh copy of
+    # the view each time, so that the view-only work (View.shared) is timed too, as if the method ran
+    # alone; a run shares it among its methods.
+    with threadpool_limits(limits=1):
+        best = best_in_rounds({variant: (lambda before=before, now=now: measure_frame(
+            dataclasses.replace(now, view=dataclasses.replace(now.view)), before))
+            for variant, (before, now) in frames.items()}, repeats)
+    return [dict(scene="265k", triangles=workload.scene.triangle_count, resolution=variant.settings.resolution,
+                 stage=f"metrics {variant.method}", count=workload.width * workload.height, unit="Mpix/s",
+                 csmlab_s=seconds, open3d_2t_s=float("nan"), open3d_1t_s=float("nan"), memcpy_s=float("nan"))
+            for variant, seconds in best.items()]
 
 
 _MEASURED = ("import resource, subprocess, sys; subprocess.run(sys.argv[1:], check=True); "
