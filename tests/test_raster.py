@@ -187,6 +187,38 @@ def test_a_fan_around_a_texel_centre_covers_it_once():
     assert counts.max() == 1
 
 
+def test_triangles_smaller_than_a_texel_equal_the_ray_cast():
+    # Most boxes hold one texel centre or none, as in a far cascade: the one-centre test and the walk
+    # must both agree with the oracle.
+    rng = np.random.default_rng(5)
+    resolution = 48
+    cs = cascade_set(direction=OBLIQUE, origins=[(3.0, -41.0)], texel=0.0731, resolution=resolution)
+    vertices, triangles = triangle_soup(rng, cs, count=12000, lo=-1, hi=resolution + 1, size=0.6)
+    depth, texels = rasterize(cs, vertices, triangles)
+    fixed = fixed_point_coordinates(cs, 0, vertices, bits=BITS) / 2**BITS
+    one_centre = np.all(np.floor(fixed[triangles].max(axis=1) - 0.5) == np.ceil(fixed[triangles].min(axis=1) - 0.5),
+                        axis=1)
+    assert one_centre.mean() > 0.3
+    expected, ambiguous = ray_cast_depth(fixed[triangles], light_depth(cs, vertices)[triangles], resolution)
+    compare = ~ambiguous
+    assert np.array_equal(np.isfinite(depth[0])[compare], np.isfinite(expected)[compare])
+    both = compare & np.isfinite(expected)
+    assert both.mean() > 0.3
+    assert np.all(np.abs(depth[0][both] - expected[both]) <= np.spacing(np.abs(expected[both]).astype(np.float32)))
+
+
+def test_a_fan_smaller_than_a_texel_around_its_centre_covers_it_once():
+    centre = np.array([16.5, 16.5])
+    # Each triangle's box holds this one centre, on a vertex shared by all six.
+    spokes = np.array([[0.5, 0.125], [0.25, 0.375], [-0.375, 0.5], [-0.5, -0.125], [-0.125, -0.5], [0.375, -0.375]])
+    rim = centre + spokes
+    fan = [[centre, rim[k], rim[(k + 1) % 6]] for k in range(6)]
+    fan[4] = fan[4][::-1]
+    counts = coverage(fan, 32).sum(axis=0)
+    assert counts[16, 16] == 1
+    assert counts.sum() == 1
+
+
 @pytest.mark.parametrize("offset", [(0.0, 0.0, 0.0), (1e5, 20.0, -1e5)], ids=["origin", "far"])
 def test_moving_the_box_by_whole_texels_shifts_the_depth_map_bit_for_bit(offset):
     rng = np.random.default_rng(11)
