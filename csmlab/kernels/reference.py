@@ -308,6 +308,21 @@ def rays_within(rect: wp.vec4, slack: wp.float64, origin: wp.vec2d, inv_side: wp
     return table[r1 * w + c1] - table[r0 * w + c1] - table[r1 * w + c0] + table[r0 * w + c0] > 0
 
 
+@wp.func
+def reaches_rays(rect: wp.vec4, slack: wp.float64, bounds: wp.array(dtype=wp.float64), origin: wp.vec2d,
+                 inv_side: wp.float64, nx: int, ny: int, table: wp.array(dtype=wp.int32)) -> bool:
+    """Whether light-space rectangle ``rect`` (float32, widened by ``slack`` beyond its rounding) may hold a start.
+
+    First against the starts' rectangle ``bounds``; then, for the rest, against the coarse cells
+    with rays (:func:`rays_within`): the starts' rectangle holds the view's footprint and the gaps in it.
+    """
+    if wp.float64(rect[2]) + slack < bounds[0] or wp.float64(rect[0]) - slack > bounds[2]:
+        return False
+    if wp.float64(rect[3]) + slack < bounds[1] or wp.float64(rect[1]) - slack > bounds[3]:
+        return False
+    return rays_within(rect, slack, origin, inv_side, nx, ny, table)
+
+
 @wp.kernel
 def fine_bin_kernel(
     start: wp.array(dtype=wp.vec3d),
@@ -440,16 +455,9 @@ def block_triangle(
     lit: wp.array(dtype=wp.float32),
 ):
     """Triangle ``t``: shadow every ray whose start it covers in light space, nearer the light within ``max_t``."""
-    # Most triangles lie beside every start: their float32 rectangle (read in sequence, widened by
-    # ``slack`` beyond its rounding) says so before any vertex is gathered.
-    rect = box[t]
-    if wp.float64(rect[2]) + slack < bounds[0] or wp.float64(rect[0]) - slack > bounds[2]:
-        return
-    if wp.float64(rect[3]) + slack < bounds[1] or wp.float64(rect[1]) - slack > bounds[3]:
-        return
-    # Most of the rest reach only cells without rays (the starts' rectangle holds the view's
-    # footprint and the gaps in it).
-    if not rays_within(rect, slack, origin, inv_side, nx, ny, table):
+    # Most triangles reach no start: their float32 rectangle (read in sequence) says so before any
+    # vertex is gathered.
+    if not reaches_rays(box[t], slack, bounds, origin, inv_side, nx, ny, table):
         return
     a = light[triangles[t, 0]]
     b = light[triangles[t, 1]]
@@ -578,13 +586,8 @@ def block_kernel(
     do not depend on which triangle wrote first.
     """
     k = phase + wp.tid() * stride
-    # A chunk's rectangle holds its triangles': a chunk beside every start is passed whole.
-    rect = chunk_box[k]
-    if wp.float64(rect[2]) + slack < bounds[0] or wp.float64(rect[0]) - slack > bounds[2]:
-        return
-    if wp.float64(rect[3]) + slack < bounds[1] or wp.float64(rect[1]) - slack > bounds[3]:
-        return
-    if not rays_within(rect, slack, origin, inv_side, nx, ny, table):
+    # A chunk's rectangle holds its triangles': a chunk that reaches no start is passed whole.
+    if not reaches_rays(chunk_box[k], slack, bounds, origin, inv_side, nx, ny, table):
         return
     # A `while` loop: see block_triangle.
     t = k * CHUNK

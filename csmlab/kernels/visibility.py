@@ -266,14 +266,28 @@ def camera_hits_kernel(
               triangle, view_depth)
 
 
-@wp.func
-def outside_code(x: wp.float64, y: wp.float64, z: wp.float64, frustum: wp.vec4d, near: wp.float64,
-                 far: wp.float64) -> int:
-    """One bit per half-space through the eye (and the near and far planes) the camera-space point lies outside.
-
-    A triangle whose three vertices share a bit lies wholly outside that half-space, and so does
-    every hit on it.
-    """
+@wp.kernel
+def camera_space_kernel(
+    vertices: wp.array(dtype=wp.vec3d),
+    origin: wp.vec3d,
+    right: wp.vec3d,
+    up: wp.vec3d,
+    forward: wp.vec3d,
+    frustum: wp.vec4d,
+    near: wp.float64,
+    far: wp.float64,
+    camera: wp.array(dtype=wp.vec3d),
+    outcode: wp.array(dtype=wp.int32),
+):
+    v = wp.tid()
+    p = vertices[v] - origin
+    x = wp.dot(p, right)
+    y = wp.dot(p, up)
+    z = wp.dot(p, forward)
+    camera[v] = wp.vec3d(x, y, z)
+    # One bit per half-space through the eye (and the near and far planes) the vertex lies
+    # outside; a triangle whose three vertices share a bit lies wholly outside that half-space,
+    # and so does every hit on it.
     code = int(0)
     if z < near:
         code = code | 1
@@ -287,34 +301,7 @@ def outside_code(x: wp.float64, y: wp.float64, z: wp.float64, frustum: wp.vec4d,
         code = code | 16
     if y > frustum[3] * z:
         code = code | 32
-    return code
-
-
-@wp.kernel
-def camera_space_kernel(
-    vertices: wp.array(dtype=wp.vec3d),
-    origin: wp.vec3d,
-    right: wp.vec3d,
-    up: wp.vec3d,
-    forward: wp.vec3d,
-    frustum: wp.vec4d,
-    near: wp.float64,
-    far: wp.float64,
-    run: int,
-    camera: wp.array(dtype=wp.vec3d),
-    outcode: wp.array(dtype=wp.int32),
-):
-    """Each vertex in camera space and its :func:`outside_code`: a thread per ``run`` of vertices (on a GPU one)."""
-    v = wp.tid() * run
-    end = wp.min(v + run, vertices.shape[0])
-    while v < end:
-        p = vertices[v] - origin
-        x = wp.dot(p, right)
-        y = wp.dot(p, up)
-        z = wp.dot(p, forward)
-        camera[v] = wp.vec3d(x, y, z)
-        outcode[v] = outside_code(x, y, z, frustum, near, far)
-        v += 1
+    outcode[v] = code
 
 
 @wp.func
@@ -636,14 +623,13 @@ def camera_hits_raster(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, as
         depth[k].fill_(np.inf)
         nearest[k].fill_(int(NO_TRIANGLE))
         for resolve in ((1, 2) if atomic else (0,)):
-            wp.launch(raster_view_kernel, dim=-(-((triangle_count - k + parts - 1) // parts) // run),
+            wp.launch(raster_view_kernel, dim=-(-len(range(k, triangle_count, parts)) // run),
                       inputs=(camera, outcode, bvh.triangles, step_x, step_y, near, float(far), resolve, k, parts, run),
                       outputs=(depth[k], nearest[k]), device=device)
 
     with LaunchPool(threads, kernels=(raster_view_kernel,), device=device) as pool:
-        pool.run([functools.partial(wp.launch, camera_space_kernel, dim=-(-(hi - lo) // run),
-                                    inputs=(bvh.vertices[lo:hi], eye, right, up, forward, frustum, near, float(far),
-                                            run),
+        pool.run([functools.partial(wp.launch, camera_space_kernel, dim=hi - lo,
+                                    inputs=(bvh.vertices[lo:hi], eye, right, up, forward, frustum, near, float(far)),
                                     outputs=(camera[lo:hi], outcode[lo:hi]), device=device)
                   for lo, hi in split_range(vertex_count, threads)])
         pool.run([functools.partial(rasterize, k) for k in range(parts)])
