@@ -21,6 +21,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 from csmlab.errors import InputError
+from csmlab.executor import freeze_objects_at_exit
 
 __all__ = ["app", "main"]
 
@@ -406,6 +407,7 @@ def _tune_table(result) -> Table:
 
 def main() -> None:
     """Entry point of the ``csmlab`` console script."""
+    freeze_objects_at_exit()
     app(prog_name="csmlab")
 
 

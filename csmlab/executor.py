@@ -13,6 +13,8 @@ results picklable.
 
 from __future__ import annotations
 
+import atexit
+import gc
 import logging
 import multiprocessing
 import os
@@ -23,9 +25,21 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from csmlab.errors import InputError
 from csmlab.registry import dispatch
 
-__all__ = ["EXECUTORS", "execute", "executor_for", "run_dask", "run_inprocess", "run_pool"]
+__all__ = ["EXECUTORS", "execute", "executor_for", "freeze_objects_at_exit", "run_dask", "run_inprocess", "run_pool"]
 
 _SHARED = None
+
+
+def freeze_objects_at_exit() -> None:
+    """Have this process's exit skip the garbage collector's last pass over every object still alive.
+
+    A process that has imported csmlab's stack (Warp, colour, SciPy, Matplotlib: about 280,000
+    objects the collector tracks) spends 0.5–0.6 s of its exit in that pass, freeing memory the
+    operating system takes back anyway; with :func:`gc.freeze` at exit (after every other exit
+    handler has run: they run last registered first) it takes 0.04 s. The command line and every
+    process csmlab starts call this first, so that no one waits on a process's exit.
+    """
+    atexit.register(gc.freeze)
 
 
 def run_inprocess(fn: Callable, tasks: list, *, shared, jobs: int = 1, address: str | None = None) -> Iterator:
@@ -36,6 +50,7 @@ def run_inprocess(fn: Callable, tasks: list, *, shared, jobs: int = 1, address: 
 
 def _install_shared(packed: bytes) -> None:
     global _SHARED
+    freeze_objects_at_exit()
     _SHARED = pickle.loads(packed)
 
 
@@ -102,6 +117,7 @@ def run_dask(fn: Callable, tasks: list, *, shared, jobs: int, address: str | Non
             cluster = LocalCluster(n_workers=max(1, min(jobs, len(tasks))), threads_per_worker=1, processes=True,
                                    dashboard_address=None, silence_logs=logging.ERROR)
         client = Client(cluster)
+        client.run(freeze_objects_at_exit)
     else:
         try:
             client = Client(address, timeout="10s")

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 
 import pytest
 
@@ -94,3 +96,18 @@ def test_command_line_options_pick_the_executor():
         executor_for(jobs=None, scheduler="10.0.0.1")
     with pytest.raises(InputError, match="--jobs"):
         executor_for(jobs=0, scheduler=None)
+
+
+def test_a_process_that_freezes_its_objects_at_exit_still_runs_every_other_exit_handler():
+    # Handlers run last registered first: the one registered before sees the freeze done, the one
+    # registered after runs before it, and the process exits cleanly.
+    script = """
+import atexit, gc
+atexit.register(lambda: print("frozen", gc.get_freeze_count() > 0, flush=True))
+from csmlab.executor import freeze_objects_at_exit
+freeze_objects_at_exit()
+atexit.register(lambda: print("before", gc.get_freeze_count() == 0, flush=True))
+"""
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["before", "True", "frozen", "True"]

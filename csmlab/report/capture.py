@@ -388,6 +388,12 @@ def _merge_cascades_csv(path: Path, *, method: str, point: str, captures: list[C
     write_atomic(path, text.getvalue().encode())
 
 
+ZIP_LEVEL = 1
+"""zlib level of the ``.npz`` files: the run-wide records are written after the last frame, while
+nothing else runs, and level 1 compresses them 3× faster than zlib's default (6) into files 1.4×
+as large (a 240-frame 640×360 run: 0.44 s and 11.0 MB against 1.38 s and 7.9 MB)."""
+
+
 def _write_npz(path: Path, arrays: dict) -> None:
     """An ``.npz`` whose bytes depend on the arrays only (numpy's own stamps the time)."""
     buffer = io.BytesIO()
@@ -397,5 +403,5 @@ def _write_npz(path: Path, arrays: dict) -> None:
             np.lib.format.write_array(member, np.asarray(value), allow_pickle=False)
             info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
             info.compress_type = zipfile.ZIP_DEFLATED
-            archive.writestr(info, member.getvalue())
+            archive.writestr(info, member.getvalue(), compresslevel=ZIP_LEVEL)
     write_atomic(path, buffer.getvalue())

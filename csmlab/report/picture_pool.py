@@ -19,6 +19,8 @@ from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Callable
 
+from csmlab.executor import freeze_objects_at_exit
+
 __all__ = ["Picture", "PicturePool"]
 
 
@@ -73,7 +75,8 @@ class PicturePool:
         self._pictures: list[Picture] = []
         self._executor = None
         if worker:
-            self._executor = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+            self._executor = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
+                                                 initializer=freeze_objects_at_exit)
 
     def __enter__(self) -> PicturePool:
         return self
