@@ -203,7 +203,7 @@ def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
 
     def rasterized(corner, fixed_origin, regions, **how):
         if dscene.threads > 1:
-            # Each region cut in bands, several per thread, which the threads take in turn.
+            # Each region cut in bands (BANDS_PER_THREAD per thread), which the threads take in turn.
             regions = banded_regions(regions, parts=BANDS_PER_THREAD * dscene.threads, axis=bounds.narrow_axis)
         chunks = region_chunks(bounds, texel_size=texel_size, origin=corner, regions=regions)
         depth, texels = rasterize_cascades(xy, depth_of_vertex, triangles, texel_size=texel_size,

@@ -471,12 +471,11 @@ def test_bands_tile_each_region_exactly(parts):
 
 @pytest.mark.parametrize("threads", [2, 3])
 def test_threads_rasterize_the_same_maps_and_counts_as_one(threads):
-    from csmlab.kernels.raster import (BANDS_PER_THREAD, banded_regions, rasterize_cascades, region_chunks,
-                                       whole_map_regions)
+    from csmlab.kernels.raster import banded_regions, rasterize_cascades, region_chunks, whole_map_regions
 
     cs, vertices, triangles, xy, bounds, box, corner = two_cascade_soup(17)
     one, one_count = rasterize_cascades(xy, light_depth(cs, vertices), triangles, **box)
-    for parts in (threads, BANDS_PER_THREAD * threads):
+    for parts in (1, threads, 4 * threads):
         regions = banded_regions(whole_map_regions([40, 40]), parts=parts)
         chunks = region_chunks(bounds, texel_size=box["texel_size"], origin=corner, regions=regions)
         many, counts = rasterize_cascades(xy, light_depth(cs, vertices), triangles, regions=regions, chunks=chunks,
