@@ -388,10 +388,11 @@ def _merge_cascades_csv(path: Path, *, method: str, point: str, captures: list[C
     write_atomic(path, text.getvalue().encode())
 
 
-ZIP_LEVEL = 1
-"""zlib level of the ``.npz`` files: the run-wide records are written after the last frame, while
-nothing else runs, and level 1 compresses them 3× faster than zlib's default (6) into files 1.4×
-as large (a 240-frame 640×360 run: 0.44 s and 11.0 MB against 1.38 s and 7.9 MB)."""
+ZIP_LEVEL = 2
+"""zlib level of the ``.npz`` files. The run-wide records are written after the last frame, while
+nothing else runs; zlib's default (6) took 1.38 s over a 240-frame 640×360 run's records (7.9 MB),
+level 2 takes 0.45 s (10.4 MB; level 1: 0.44 s, 11.0 MB; level 3: 0.55 s, 9.9 MB). The files
+count against the report's size budget (:data:`csmlab.report.explore.BUDGET_BYTES`)."""
 
 
 def _write_npz(path: Path, arrays: dict) -> None:
