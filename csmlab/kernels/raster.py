@@ -219,8 +219,9 @@ def rasterize_triangle(
         bias_bc = owned_bias(own_bc)
         bias_ca = owned_bias(own_ca)
         # A run is solved for only across bounding boxes wide enough to repay three divisions and
-        # the solving of each row: a narrow one (most triangles of a far cascade) is walked whole.
-        wide = i1 - i0 >= 3
+        # the solving of each row: a narrow one is walked whole. Nine columns: at ~1M triangles,
+        # 4 × 2048² took 5 % less than from four columns, 4 × 1024² 3 % less.
+        wide = i1 - i0 >= 8
         inverse_c = wp.float64(0.0)
         inverse_a = wp.float64(0.0)
         inverse_b = wp.float64(0.0)
