@@ -117,13 +117,15 @@ def run_dask(fn: Callable, tasks: list, *, shared, jobs: int, address: str | Non
             cluster = LocalCluster(n_workers=max(1, min(jobs, len(tasks))), threads_per_worker=1, processes=True,
                                    dashboard_address=None, silence_logs=logging.ERROR)
         client = Client(cluster)
-        client.run(freeze_objects_at_exit)
     else:
         try:
             client = Client(address, timeout="10s")
         except (OSError, ValueError, TimeoutError) as exc:
             raise InputError(f"expected a reachable Dask scheduler, got {exc}", field="--scheduler") from None
     try:
+        if cluster is not None:
+            # The workers this run started: the run does not wait for their exits.
+            client.run(freeze_objects_at_exit)
         shared_future = client.scatter(shared, broadcast=True)
         futures = {client.submit(fn, shared_future, task, pure=False): task for task in tasks}
         try:
