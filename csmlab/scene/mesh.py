@@ -21,7 +21,6 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
-import pyvista as pv
 
 from csmlab.errors import InputError
 from csmlab.registry import check_name
@@ -69,6 +68,8 @@ def _quiet_vtk():
     PyVista forwards VTK errors to the root logger, whose ``logging.error`` would install a
     stderr handler on first use; a temporary null handler and a dropping filter prevent both.
     """
+    import pyvista as pv
+
     root = logging.getLogger()
     null = logging.NullHandler()
     root.addHandler(null)
@@ -92,6 +93,8 @@ def _vtk_reason(text: str) -> str:
 
 def _read_dataset(path: Path, fmt: str):
     """Read ``path`` with VTK's reader for its suffix; any failure becomes an ``InputError``."""
+    import pyvista as pv
+
     expected = f"expected a mesh in {fmt} format that VTK can read"
     try:
         with _quiet_vtk() as (catcher, caught):
@@ -133,6 +136,8 @@ def _line_of_first_non_finite(path: Path) -> int | None:
 
 def _surface_triangles(data, path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Points ``(V, 3)`` float64 and triangles ``(T, 3)`` int64 of the dataset's triangulated surface."""
+    import pyvista as pv
+
     with _quiet_vtk():
         surface = data if isinstance(data, pv.PolyData) else data.extract_surface()
     points = np.asarray(surface.points, dtype=np.float64)
