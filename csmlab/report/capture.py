@@ -388,7 +388,7 @@ def _merge_cascades_csv(path: Path, *, method: str, point: str, captures: list[C
     write_atomic(path, text.getvalue().encode())
 
 
-ZIP_LEVEL = 2
+_ZIP_LEVEL = 2
 """zlib level of the ``.npz`` files. The run-wide records are written after the last frame, while
 nothing else runs; zlib's default (6) took 1.38 s over a 240-frame 640×360 run's records (7.9 MB),
 level 2 takes 0.45 s (10.4 MB; level 1: 0.44 s, 11.0 MB; level 3: 0.55 s, 9.9 MB). The files
@@ -404,5 +404,5 @@ def _write_npz(path: Path, arrays: dict) -> None:
             np.lib.format.write_array(member, np.asarray(value), allow_pickle=False)
             info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
             info.compress_type = zipfile.ZIP_DEFLATED
-            archive.writestr(info, member.getvalue(), compresslevel=ZIP_LEVEL)
+            archive.writestr(info, member.getvalue(), compresslevel=_ZIP_LEVEL)
     write_atomic(path, buffer.getvalue())
