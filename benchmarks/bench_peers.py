@@ -26,15 +26,16 @@ shadow-map resolution, at frame 60 of the default experiment's walk, it times:
 Then, on the default scene (265k triangles), frame 60 of the walk against frame 59, the metrics of
 one frame × method for ``exact``, ``quantized`` and ``none`` (``metrics`` rows). Every time is the
 minimum of ``--repeats`` runs after a warm-up, taken in rounds: each round runs every row of a scene
-and resolution and its peers once (:func:`best_in_rounds`), so that a slow spell of the shared machine
-meets csmlab and Open3D alike and the minimum is the least disturbed run of each. Open3D is optional (``pip install csmlab[bench]``); without it the peer columns print
-``n/a``. ``--experiment`` also runs the default experiment (``csmlab run``) and reports its wall
-time and the peak RSS of its largest process; ``--dask`` runs a 240-frame walk of ``exact`` on a
-local Dask cluster of 1 and of 2 workers, each twice in turn (:data:`DASK_REPEATS`), and reports the
-speed-up of the wall time and of the frames phase ``csmlab run`` prints (the report after it is the
-parent's work either way); ``--long`` runs
-``benchmarks/long_walk.toml`` (two methods, a 64×36 view) for 1,000 and 10,000 frames and reports the
-peak RSS of each: a flat peak means nothing grows with the path.
+and resolution and its peers once (:func:`best_in_rounds`), so that a slow spell of the shared
+machine meets csmlab and Open3D alike and the minimum is the least disturbed run of each. Open3D is
+optional (``pip install csmlab[bench]``); without it the peer columns print ``n/a``.
+
+``--experiment`` also runs the default experiment (``csmlab run``) and reports its wall time and the
+peak RSS of its largest process; ``--dask`` runs a 240-frame walk of ``exact`` on a local Dask
+cluster of 1 and of 2 workers, each twice in turn (:data:`DASK_REPEATS`), and reports the speed-up of
+the wall time and of the frames phase ``csmlab run`` prints (the report after it is the parent's work
+either way); ``--long`` runs ``benchmarks/long_walk.toml`` (two methods, a 64×36 view) for 1,000 and
+10,000 frames and reports the peak RSS of each: a flat peak means nothing grows with the path.
 """
 
 from __future__ import annotations
