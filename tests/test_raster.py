@@ -379,6 +379,26 @@ def test_the_vertex_pass_is_twice_the_host_fixed_point(threads):
         fixed_point_vertices(xy, texel_size=texel_size, origin=origin, bits=BITS, cascades=[3])
 
 
+def test_the_vertex_pass_rounds_every_coordinate_as_the_host_formula_for_any_texel_size():
+    """``rint(u / texel · 2**bits)`` (NumPy, float64) whatever the texel: the kernel divides by ``texel / 2**bits`` instead,
+    which must round alike — on ties (half steps, to even), beyond the clip and for NaN and infinities."""
+    from csmlab.kernels.raster import fixed_point_vertices
+
+    rng = np.random.default_rng(23)
+    bits = 8
+    texel_size = 10.0 ** rng.uniform(-4.0, 3.0, (6, 2))
+    origin = rng.integers(-2**40, 2**40, (6, 2))
+    u = rng.choice([-1.0, 1.0], (4000, 2)) * 10.0 ** rng.uniform(-6.0, 16.0, (4000, 2))
+    # Exact half steps of cascade 0 (rint's ties), and coordinates that are not numbers.
+    ties = (rng.integers(-2**20, 2**20, (500, 2)) + 0.5) * (texel_size[0] / 2.0**bits)
+    odd = np.array([[np.nan, 1.0], [np.inf, -np.inf], [-np.inf, np.nan], [1e300, -1e300]])
+    xy = np.concatenate([u, ties, odd])
+    expected = np.clip(xy[None] / texel_size[:, None] * 2.0**bits, -2.0**50, 2.0**50)
+    expected = np.where(np.isnan(expected), -2.0**50, np.rint(expected)).astype(np.int64)
+    expected = 2 * (expected - origin[:, None])
+    np.testing.assert_array_equal(fixed_point_vertices(xy, texel_size=texel_size, origin=origin, bits=bits), expected)
+
+
 def two_cascade_soup(seed: int):
     """A triangle soup over two 40² cascades, listed by light-space x: the cascades, vertices, triangles,
     light-plane x/y, bounds, the keyword arguments of rasterize_cascades (but depths) and the box corners in texels."""
