@@ -277,6 +277,24 @@ def test_bad_input_names_the_argument():
                         device="tpu")
 
 
+
+def test_the_culled_raster_refuses_vertices_that_are_not_finite_and_indices_outside_the_mesh():
+    """Every value is checked, whatever the sum of the others: values whose sum overflows are still accepted."""
+    from csmlab.kernels.raster import rasterize_cascades
+
+    box = dict(texel_size=[[1.0, 1.0]], origin=[[0, 0]], resolution=8, bits=8)
+    xy = np.array([[1.0, 1.0], [6.0, 1.0], [1.0, 6.0], [1e308, 1e308], [1e308, 1e308]])
+    z = np.array([1.0, 1.0, 1.0, 1e308, 1e308])
+    depth, texels = rasterize_cascades(xy, z, [[0, 1, 2]], **box)
+    assert texels.sum() > 0 and np.isfinite(depth).sum() == texels.sum()
+    for bad_xy, bad_z in ((np.where(np.arange(10).reshape(5, 2) == 7, np.nan, xy), z),
+                          (xy, np.where(np.arange(5) == 3, -np.inf, z))):
+        with pytest.raises(ValueError, match="expected 5 finite vertices and depths"):
+            rasterize_cascades(bad_xy, bad_z, [[0, 1, 2]], **box)
+    for bad in ([[0, 1, 5]], [[0, -1, 2]]):
+        with pytest.raises(ValueError, match=r"triangles: expected indices of shape \(T, 3\) in \[0, 5\)"):
+            rasterize_cascades(xy, z, bad, **box)
+
 @pytest.mark.skipif(wp.get_cuda_device_count() == 0, reason="no CUDA device")
 def test_cpu_and_cuda_rasterize_the_same_depth():
     rng = np.random.default_rng(5)

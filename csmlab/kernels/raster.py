@@ -476,6 +476,14 @@ def rasterize_chunks_kernel(
         wp.atomic_add(covered, g, n)
 
 
+def _all_finite(values: np.ndarray) -> bool:
+    """Whether every float64 value is finite, in one pass where it can: any NaN or infinity makes the sum NaN or
+    infinite, so a finite sum proves it (a sum that overflowed is checked value by value)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        total = values.sum()
+    return bool(np.isfinite(total) or np.isfinite(values).all())
+
+
 def _checked_bits(bits) -> int:
     if not (isinstance(bits, (int, np.integer)) and 0 <= bits <= 16):
         raise ValueError(f"bits: expected an integer in 0..16, got {bits!r}")
@@ -898,9 +906,10 @@ def rasterize_cascades(light_xy, vertex_depth, triangles, *, texel_size, origin,
     if xy.ndim != 2 or xy.shape[1] != 2 or size.ndim != 2 or size.shape[1] != 2 or corner.shape != size.shape:
         raise ValueError(f"light_xy, texel_size, origin: expected shapes (V, 2), (C, 2), (C, 2); "
                          f"got {xy.shape}, {size.shape}, {corner.shape}")
-    if z.shape != (xy.shape[0],) or not np.all(np.isfinite(z)) or not np.all(np.isfinite(xy)):
+    if z.shape != (xy.shape[0],) or not _all_finite(z) or not _all_finite(xy):
         raise ValueError(f"light_xy, vertex_depth: expected {xy.shape[0]} finite vertices and depths")
-    if tri.ndim != 2 or tri.shape[1] != 3 or (tri.size and (tri.min() < 0 or tri.max() >= xy.shape[0])):
+    # One pass, not a minimum and a maximum: read as uint32, a negative index is beyond any vertex count.
+    if tri.ndim != 2 or tri.shape[1] != 3 or (tri.size and tri.view(np.uint32).max() >= xy.shape[0]):
         raise ValueError(f"triangles: expected indices of shape (T, 3) in [0, {xy.shape[0]})")
     bits = _checked_bits(bits)
     resolution = _checked_resolution(resolution)
