@@ -117,7 +117,8 @@ _KEEP_NEARER = """
 #if defined(__CUDA_ARCH__)
     if (covered) wp::atomic_min(&wp::index(depth, c, j, i), z);
 #else
-    float* texel = &wp::index(depth, c, j, i);
+    float* texel = reinterpret_cast<float*>(reinterpret_cast<char*>(depth.data) + c * size_t(depth.strides[0])
+                                            + j * size_t(depth.strides[1]) + i * size_t(depth.strides[2]));
     const float held = *texel;
     *texel = (covered && z < held) ? z : held;
 #endif
