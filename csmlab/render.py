@@ -21,8 +21,8 @@ from csmlab.filters import (filter_mips, filter_moments, filtered_shadow_lookup,
                             receiver_conversion, uses_pixels, world_shadow_lookup)
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.geometry import normalized
-from csmlab.kernels.raster import (BANDS_PER_THREAD, banded_regions, rasterize_cascades, rasterize_depth,
-                                  region_chunks, triangle_bounds, whole_map_regions, z_ordered)
+from csmlab.kernels.raster import (BANDS_PER_THREAD, LightSpaceMesh, banded_regions, light_space_mesh,
+                                  rasterize_cascades, rasterize_depth, region_chunks, whole_map_regions, z_ordered)
 from csmlab.kernels.reference import hard_shadow
 from csmlab.kernels.shadow import receiver_coordinates
 from csmlab.kernels.threads import checked_threads
@@ -131,8 +131,8 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
                 previous_light_direction=before, previous_reference=previous)
 
 
-def _scene_in_light_space(dscene: DeviceScene, cascades: CascadeSet) -> tuple:
-    """Vertices' light-space x/y and depth, triangles and their light-space rectangles: computed once per light.
+def _scene_in_light_space(dscene: DeviceScene, cascades: CascadeSet) -> LightSpaceMesh:
+    """The scene as the depth pass reads it (vertices' light-space x/y and depth, triangles): made and checked once per light.
 
     The triangles and vertices are listed along a Z-order curve in light space
     (:func:`csmlab.kernels.raster.z_ordered`): the same mesh, rasterized place by place.
@@ -142,10 +142,8 @@ def _scene_in_light_space(dscene: DeviceScene, cascades: CascadeSet) -> tuple:
         vertices = dscene.scene.vertices
         xy = light_plane_coordinates(cascades, vertices)
         order, triangles = z_ordered(xy, dscene.scene.triangles)
-        xy = np.ascontiguousarray(xy[order])
         dscene.light_space.clear()
-        dscene.light_space[key] = (xy, light_depth(cascades, vertices)[order], triangles,
-                                   triangle_bounds(xy, triangles))
+        dscene.light_space[key] = light_space_mesh(xy[order], light_depth(cascades, vertices)[order], triangles)
     return dscene.light_space[key]
 
 
@@ -196,7 +194,8 @@ def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
     others are rasterized whole.
     """
     bits = settings.subtexel_bits
-    xy, depth_of_vertex, triangles, bounds = _scene_in_light_space(dscene, cascades)
+    mesh = _scene_in_light_space(dscene, cascades)
+    bounds = mesh.bounds
     texel_size = np.stack([c.texel_size for c in cascades.cascades])
     origin = np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))])
     sizes = [c.resolution for c in cascades.cascades]
@@ -206,9 +205,9 @@ def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
             # Each region cut in bands (BANDS_PER_THREAD per thread), which the threads take in turn.
             regions = banded_regions(regions, parts=BANDS_PER_THREAD * dscene.threads, axis=bounds.narrow_axis)
         chunks = region_chunks(bounds, texel_size=texel_size, origin=corner, regions=regions)
-        depth, texels = rasterize_cascades(xy, depth_of_vertex, triangles, texel_size=texel_size,
-                                           origin=fixed_origin, resolution=max(sizes), bits=bits, regions=regions,
-                                           chunks=chunks, threads=dscene.threads, device=dscene.device, **how)
+        depth, texels = rasterize_cascades(mesh, texel_size=texel_size, origin=fixed_origin, resolution=max(sizes),
+                                           bits=bits, regions=regions, chunks=chunks, threads=dscene.threads,
+                                           device=dscene.device, **how)
         return depth, np.bincount(regions[:, 0], weights=texels, minlength=len(sizes)).astype(np.int64)
 
     corner = np.stack([c.origin for c in cascades.cascades])

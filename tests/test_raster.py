@@ -12,7 +12,7 @@ import warp as wp
 
 from csmlab.cascades import Cascade, CascadeSet
 from csmlab.geometry import light_basis
-from csmlab.kernels.raster import rasterize_depth
+from csmlab.kernels.raster import light_space_mesh, rasterize_depth
 from csmlab.texels import fixed_point_coordinates, light_depth
 
 BITS = 8
@@ -324,22 +324,26 @@ def test_bad_input_names_the_argument():
 
 
 
-def test_the_culled_raster_refuses_vertices_that_are_not_finite_and_indices_outside_the_mesh():
+def test_a_light_space_mesh_refuses_vertices_that_are_not_finite_and_indices_outside_it():
     """Every value is checked, whatever the sum of the others: values whose sum overflows are still accepted."""
     from csmlab.kernels.raster import rasterize_cascades
 
     box = dict(texel_size=[[1.0, 1.0]], origin=[[0, 0]], resolution=8, bits=8)
     xy = np.array([[1.0, 1.0], [6.0, 1.0], [1.0, 6.0], [1e308, 1e308], [1e308, 1e308]])
     z = np.array([1.0, 1.0, 1.0, 1e308, 1e308])
-    depth, texels = rasterize_cascades(xy, z, [[0, 1, 2]], **box)
+    depth, texels = rasterize_cascades(light_space_mesh(xy, z, [[0, 1, 2]]), **box)
     assert texels.sum() > 0 and np.isfinite(depth).sum() == texels.sum()
     for bad_xy, bad_z in ((np.where(np.arange(10).reshape(5, 2) == 7, np.nan, xy), z),
                           (xy, np.where(np.arange(5) == 3, -np.inf, z))):
         with pytest.raises(ValueError, match="expected 5 finite vertices and depths"):
-            rasterize_cascades(bad_xy, bad_z, [[0, 1, 2]], **box)
+            light_space_mesh(bad_xy, bad_z, [[0, 1, 2]])
     for bad in ([[0, 1, 5]], [[0, -1, 2]]):
         with pytest.raises(ValueError, match=r"triangles: expected indices of shape \(T, 3\) in \[0, 5\)"):
-            rasterize_cascades(xy, z, bad, **box)
+            light_space_mesh(xy, z, bad)
+    with pytest.raises(ValueError, match="mesh: expected a LightSpaceMesh"):
+        rasterize_cascades(xy, **box)
+    with pytest.raises(ValueError, match="read-only"):
+        light_space_mesh(xy, z, [[0, 1, 2]]).xy[0, 0] = 7.0
 
 @pytest.mark.skipif(wp.get_cuda_device_count() == 0, reason="no CUDA device")
 def test_cpu_and_cuda_rasterize_the_same_depth():
@@ -377,7 +381,7 @@ def test_device_fixed_point_and_culled_rasterization_equal_the_host_path_bit_for
     assert 0 < len(chunks) < 3 * -(-len(triangles) // (1 << CHUNK_BITS))  # culling removed some chunks, kept others
     fixed_origin = np.stack([fixed_point_origin(cs, c, bits=BITS) for c in range(len(cs))])
     for rows in (chunks, None):
-        depth, count = rasterize_cascades(xy, light_depth(cs, vertices), triangles, texel_size=texel_size,
+        depth, count = rasterize_cascades(light_space_mesh(xy, light_depth(cs, vertices), triangles), texel_size=texel_size,
                                           origin=fixed_origin, resolution=48, bits=BITS, chunks=rows)
         np.testing.assert_array_equal(depth, expected)
         assert count.sum() == expected_count
@@ -485,23 +489,23 @@ def test_a_map_rasterized_region_by_region_is_the_whole_map_and_counting_alone_c
     from csmlab.kernels.raster import rasterize_cascades, region_chunks
 
     cs, vertices, triangles, xy, bounds, box, corner = two_cascade_soup(13)
-    whole, whole_count = rasterize_cascades(xy, light_depth(cs, vertices), triangles, **box)
+    whole, whole_count = rasterize_cascades(light_space_mesh(xy, light_depth(cs, vertices), triangles), **box)
     # Bands of rows, then bands of columns within the rest, as scroll_plan cuts a moved map.
     regions = np.array([[(c, 0, 40, 0, 3), (c, 0, 40, 3, 17), (c, 0, 1, 17, 40), (c, 1, 29, 17, 40),
                          (c, 29, 40, 17, 40)] for c in range(2)]).reshape(-1, 5)
     chunks = region_chunks(bounds, texel_size=box["texel_size"], origin=corner, regions=regions)
     stale = np.full_like(whole, -7.0)
-    depth, counts = rasterize_cascades(xy, light_depth(cs, vertices), triangles, regions=regions, chunks=chunks,
+    depth, counts = rasterize_cascades(light_space_mesh(xy, light_depth(cs, vertices), triangles), regions=regions, chunks=chunks,
                                        depth=stale, **box)
     np.testing.assert_array_equal(depth, whole)
     assert counts.sum() == whole_count.sum() > 0
     np.testing.assert_array_equal(np.bincount(regions[:, 0], weights=counts), whole_count)
-    none, counted = rasterize_cascades(xy, light_depth(cs, vertices), triangles, regions=regions, chunks=chunks,
+    none, counted = rasterize_cascades(light_space_mesh(xy, light_depth(cs, vertices), triangles), regions=regions, chunks=chunks,
                                        count_only=True, **box)
     assert none is None
     np.testing.assert_array_equal(counted, counts)
     # Texels outside the regions keep what they held.
-    part, _ = rasterize_cascades(xy, light_depth(cs, vertices), triangles, regions=regions[1:2], chunks=None,
+    part, _ = rasterize_cascades(light_space_mesh(xy, light_depth(cs, vertices), triangles), regions=regions[1:2], chunks=None,
                                  depth=np.full_like(whole, -7.0), **box)
     np.testing.assert_array_equal(part[0, 3:17], whole[0, 3:17])
     assert np.all(part[0, :3] == -7.0) and np.all(part[1] == -7.0)
@@ -524,11 +528,10 @@ def test_vertices_converted_once_or_per_triangle_rasterize_the_same_maps(monkeyp
         return vertex_pass(pool, arrays, cascades, **kwargs)
 
     monkeypatch.setattr(raster, "_vertex_pass", spy)
-    once, once_count = raster.rasterize_cascades(xy, light_depth(cs, vertices), triangles, **box)
+    once, once_count = raster.rasterize_cascades(raster.light_space_mesh(xy, light_depth(cs, vertices), triangles), **box)
     far = np.full((20 * len(xy), 2), 1e4)
-    each, each_count = raster.rasterize_cascades(np.concatenate([xy, far]),
-                                                 np.concatenate([light_depth(cs, vertices), np.zeros(len(far))]),
-                                                 triangles, **box)
+    each, each_count = raster.rasterize_cascades(raster.light_space_mesh(
+        np.concatenate([xy, far]), np.concatenate([light_depth(cs, vertices), np.zeros(len(far))]), triangles), **box)
     assert passes == [[0, 1], []]
     np.testing.assert_array_equal(each, once)
     np.testing.assert_array_equal(each_count, once_count)
@@ -558,16 +561,16 @@ def test_threads_rasterize_the_same_maps_and_counts_as_one(threads):
     from csmlab.kernels.raster import banded_regions, rasterize_cascades, region_chunks, whole_map_regions
 
     cs, vertices, triangles, xy, bounds, box, corner = two_cascade_soup(17)
-    one, one_count = rasterize_cascades(xy, light_depth(cs, vertices), triangles, **box)
+    one, one_count = rasterize_cascades(light_space_mesh(xy, light_depth(cs, vertices), triangles), **box)
     for parts in (1, threads, 4 * threads):
         regions = banded_regions(whole_map_regions([40, 40]), parts=parts)
         chunks = region_chunks(bounds, texel_size=box["texel_size"], origin=corner, regions=regions)
-        many, counts = rasterize_cascades(xy, light_depth(cs, vertices), triangles, regions=regions, chunks=chunks,
+        many, counts = rasterize_cascades(light_space_mesh(xy, light_depth(cs, vertices), triangles), regions=regions, chunks=chunks,
                                           threads=threads, **box)
         np.testing.assert_array_equal(many, one)
         np.testing.assert_array_equal(np.bincount(regions[:, 0], weights=counts), one_count)
     with pytest.raises(ValueError, match="threads"):
-        rasterize_cascades(xy, light_depth(cs, vertices), triangles, threads=0, **box)
+        rasterize_cascades(light_space_mesh(xy, light_depth(cs, vertices), triangles), threads=0, **box)
 
 
 def test_z_order_lists_the_same_triangles_neighbours_together_and_vertices_by_first_use():
