@@ -132,7 +132,7 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
 
 
 def _scene_in_light_space(dscene: DeviceScene, cascades: CascadeSet) -> LightSpaceMesh:
-    """The scene as the depth pass reads it (vertices' light-space x/y and depth, triangles): made and checked once per light.
+    """The scene as the depth pass reads it (light-space x/y and depth of vertices, triangles), made once per light.
 
     The triangles and vertices are listed along a Z-order curve in light space
     (:func:`csmlab.kernels.raster.z_ordered`): the same mesh, rasterized place by place.

@@ -44,8 +44,9 @@ def test_the_list_of_kernel_modules_is_every_module_that_defines_kernels():
 
     import csmlab.kernels
 
-    found = [m.name for m in pkgutil.iter_modules(csmlab.kernels.__path__)
-             if any(isinstance(v, wp.Kernel) for v in vars(importlib.import_module(f"csmlab.kernels.{m.name}")).values())]
+    modules = {m.name: importlib.import_module(f"csmlab.kernels.{m.name}")
+               for m in pkgutil.iter_modules(csmlab.kernels.__path__)}
+    found = [name for name, module in modules.items() if any(isinstance(v, wp.Kernel) for v in vars(module).values())]
     assert sorted(found) == KERNEL_MODULES
 
 

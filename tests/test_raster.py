@@ -380,9 +380,10 @@ def test_device_fixed_point_and_culled_rasterization_equal_the_host_path_bit_for
     chunks = region_chunks(bounds, texel_size=texel_size, origin=origin, regions=whole_map_regions([48] * 3))
     assert 0 < len(chunks) < 3 * -(-len(triangles) // (1 << CHUNK_BITS))  # culling removed some chunks, kept others
     fixed_origin = np.stack([fixed_point_origin(cs, c, bits=BITS) for c in range(len(cs))])
+    mesh = light_space_mesh(xy, light_depth(cs, vertices), triangles)
     for rows in (chunks, None):
-        depth, count = rasterize_cascades(light_space_mesh(xy, light_depth(cs, vertices), triangles), texel_size=texel_size,
-                                          origin=fixed_origin, resolution=48, bits=BITS, chunks=rows)
+        depth, count = rasterize_cascades(mesh, texel_size=texel_size, origin=fixed_origin, resolution=48, bits=BITS,
+                                          chunks=rows)
         np.testing.assert_array_equal(depth, expected)
         assert count.sum() == expected_count
 
@@ -448,8 +449,8 @@ def test_the_vertex_pass_is_twice_the_host_fixed_point(threads):
 
 
 def test_the_vertex_pass_rounds_every_coordinate_as_the_host_formula_for_any_texel_size():
-    """``rint(u / texel · 2**bits)`` (NumPy, float64) whatever the texel: the kernel divides by ``texel / 2**bits`` instead,
-    which must round alike — on ties (half steps, to even), beyond the clip and for NaN and infinities."""
+    """``rint(u / texel · 2**bits)`` (NumPy, float64) whatever the texel: the kernel divides by ``texel / 2**bits``
+    instead, which must round alike — on ties (half steps, to even), beyond the clip and for NaN and infinities."""
     from csmlab.kernels.raster import fixed_point_vertices
 
     rng = np.random.default_rng(23)
@@ -489,24 +490,22 @@ def test_a_map_rasterized_region_by_region_is_the_whole_map_and_counting_alone_c
     from csmlab.kernels.raster import rasterize_cascades, region_chunks
 
     cs, vertices, triangles, xy, bounds, box, corner = two_cascade_soup(13)
-    whole, whole_count = rasterize_cascades(light_space_mesh(xy, light_depth(cs, vertices), triangles), **box)
+    mesh = light_space_mesh(xy, light_depth(cs, vertices), triangles)
+    whole, whole_count = rasterize_cascades(mesh, **box)
     # Bands of rows, then bands of columns within the rest, as scroll_plan cuts a moved map.
     regions = np.array([[(c, 0, 40, 0, 3), (c, 0, 40, 3, 17), (c, 0, 1, 17, 40), (c, 1, 29, 17, 40),
                          (c, 29, 40, 17, 40)] for c in range(2)]).reshape(-1, 5)
     chunks = region_chunks(bounds, texel_size=box["texel_size"], origin=corner, regions=regions)
     stale = np.full_like(whole, -7.0)
-    depth, counts = rasterize_cascades(light_space_mesh(xy, light_depth(cs, vertices), triangles), regions=regions, chunks=chunks,
-                                       depth=stale, **box)
+    depth, counts = rasterize_cascades(mesh, regions=regions, chunks=chunks, depth=stale, **box)
     np.testing.assert_array_equal(depth, whole)
     assert counts.sum() == whole_count.sum() > 0
     np.testing.assert_array_equal(np.bincount(regions[:, 0], weights=counts), whole_count)
-    none, counted = rasterize_cascades(light_space_mesh(xy, light_depth(cs, vertices), triangles), regions=regions, chunks=chunks,
-                                       count_only=True, **box)
+    none, counted = rasterize_cascades(mesh, regions=regions, chunks=chunks, count_only=True, **box)
     assert none is None
     np.testing.assert_array_equal(counted, counts)
     # Texels outside the regions keep what they held.
-    part, _ = rasterize_cascades(light_space_mesh(xy, light_depth(cs, vertices), triangles), regions=regions[1:2], chunks=None,
-                                 depth=np.full_like(whole, -7.0), **box)
+    part, _ = rasterize_cascades(mesh, regions=regions[1:2], chunks=None, depth=np.full_like(whole, -7.0), **box)
     np.testing.assert_array_equal(part[0, 3:17], whole[0, 3:17])
     assert np.all(part[0, :3] == -7.0) and np.all(part[1] == -7.0)
 
@@ -528,7 +527,8 @@ def test_vertices_converted_once_or_per_triangle_rasterize_the_same_maps(monkeyp
         return vertex_pass(pool, arrays, cascades, **kwargs)
 
     monkeypatch.setattr(raster, "_vertex_pass", spy)
-    once, once_count = raster.rasterize_cascades(raster.light_space_mesh(xy, light_depth(cs, vertices), triangles), **box)
+    once, once_count = raster.rasterize_cascades(raster.light_space_mesh(xy, light_depth(cs, vertices), triangles),
+                                                 **box)
     far = np.full((20 * len(xy), 2), 1e4)
     each, each_count = raster.rasterize_cascades(raster.light_space_mesh(
         np.concatenate([xy, far]), np.concatenate([light_depth(cs, vertices), np.zeros(len(far))]), triangles), **box)
@@ -561,16 +561,16 @@ def test_threads_rasterize_the_same_maps_and_counts_as_one(threads):
     from csmlab.kernels.raster import banded_regions, rasterize_cascades, region_chunks, whole_map_regions
 
     cs, vertices, triangles, xy, bounds, box, corner = two_cascade_soup(17)
-    one, one_count = rasterize_cascades(light_space_mesh(xy, light_depth(cs, vertices), triangles), **box)
+    mesh = light_space_mesh(xy, light_depth(cs, vertices), triangles)
+    one, one_count = rasterize_cascades(mesh, **box)
     for parts in (1, threads, 4 * threads):
         regions = banded_regions(whole_map_regions([40, 40]), parts=parts)
         chunks = region_chunks(bounds, texel_size=box["texel_size"], origin=corner, regions=regions)
-        many, counts = rasterize_cascades(light_space_mesh(xy, light_depth(cs, vertices), triangles), regions=regions, chunks=chunks,
-                                          threads=threads, **box)
+        many, counts = rasterize_cascades(mesh, regions=regions, chunks=chunks, threads=threads, **box)
         np.testing.assert_array_equal(many, one)
         np.testing.assert_array_equal(np.bincount(regions[:, 0], weights=counts), one_count)
     with pytest.raises(ValueError, match="threads"):
-        rasterize_cascades(light_space_mesh(xy, light_depth(cs, vertices), triangles), threads=0, **box)
+        rasterize_cascades(mesh, threads=0, **box)
 
 
 def test_z_order_lists_the_same_triangles_neighbours_together_and_vertices_by_first_use():

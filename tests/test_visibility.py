@@ -420,3 +420,32 @@ def test_threads_leave_a_cuda_launch_unchanged(method):
     kwargs = dict(position=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg, aspect=pose.aspect,
                   far=pose.far, width=96, height=54, method=method)
     assert_same_hits(camera_hits(bvh, **kwargs, threads=4), camera_hits(bvh, **kwargs))
+
+
+@pytest.mark.parametrize("look, far", [((-0.35, -0.09, -1.0), 400.0), ((0.9, -0.2, 0.3), 60.0),
+                                       ((0.0, -1.0, 0.01), 400.0)])
+def test_the_chunks_left_out_of_the_view_hold_only_triangles_the_out_codes_cull(look, far):
+    """A chunk is dropped only when every triangle in it has its three vertices outside one of the six half-spaces,
+    as the kernel's out-codes find them (the oracle here: the same planes in NumPy, per vertex)."""
+    from csmlab.kernels.visibility import CHUNK, NEAR_FRACTION, _pinhole, chunks_in_view
+
+    scene = make_scene("terrain", seed=1, resolution=24, trees=300, ring_trees=40)
+    pose = CameraPose(position=np.array([20.0, 1.7, -1.0]), orientation=rotation_looking_at(look), aspect=96 / 54,
+                      far=far)
+    bvh = mesh_bvh(scene.vertices, scene.triangles)
+    eye, right, up, forward, step_x, step_y = _pinhole(bvh, pose.position, pose.rotation, pose.fov_y_deg,
+                                                       pose.aspect, far, 96, 54)
+    # The image's sides at unit depth, padded by a pixel, as camera_hits_raster pads them.
+    frustum = [-49.0 * float(step_x), 49.0 * float(step_x), -28.0 * float(step_y), 28.0 * float(step_y)]
+    near = NEAR_FRACTION * far
+    kept = chunks_in_view(bvh, eye=eye, right=right, up=up, forward=forward, frustum=wp.vec4d(*frustum), near=near,
+                          far=far)
+    p = bvh.vertices.numpy() - np.array(eye, dtype=np.float64)
+    x, y, z = (p @ np.array(a, dtype=np.float64) for a in (right, up, forward))
+    code = ((z < near) * 1 | (z > far) * 2 | (x < frustum[0] * z) * 4 | (x > frustum[1] * z) * 8
+            | (y < frustum[2] * z) * 16 | (y > frustum[3] * z) * 32)
+    tri = scene.triangles
+    seen = (code[tri[:, 0]] & code[tri[:, 1]] & code[tri[:, 2]]) == 0
+    needed = np.unique(np.flatnonzero(seen) // CHUNK)
+    assert np.isin(needed, kept).all()
+    assert 0 < len(kept) < 0.8 * -(-len(tri) // CHUNK)

@@ -140,7 +140,7 @@ def keep_nearer(depth: wp.array3d(dtype=wp.float32), c: int, j: int, i: int, z: 
 @wp.func
 def offer_depth(depth: wp.array3d(dtype=wp.float32), c: int, j: int, i: int, inside: int, w_a: wp.float64,
                 w_b: wp.float64, w_c: wp.float64, za: wp.float64, zb: wp.float64, zc: wp.float64, area: wp.float64):
-    """Texel (i, j) keeps the nearer of its depth and the triangle's, interpolated with its edge functions, where ``inside``.
+    """Texel (i, j) keeps the nearer of its depth and the triangle's if ``inside`` (interpolated with edge functions).
 
     The depth is computed whether or not the centre is inside: a test as often false as true
     (a small triangle's bounding box) is not worth a branch. An empty ``depth`` (a counting
