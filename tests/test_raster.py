@@ -325,7 +325,8 @@ def test_bad_input_names_the_argument():
 
 
 def test_a_light_space_mesh_refuses_vertices_that_are_not_finite_and_indices_outside_it():
-    """Every value is checked, whatever the sum of the others: values whose sum overflows are still accepted."""
+    """Every value is checked; finite values near the float64 limit are accepted. The maps to rasterize into must be
+    C-contiguous (the runs are walked along their rows)."""
     from csmlab.kernels.raster import rasterize_cascades
 
     box = dict(texel_size=[[1.0, 1.0]], origin=[[0, 0]], resolution=8, bits=8)
@@ -344,6 +345,9 @@ def test_a_light_space_mesh_refuses_vertices_that_are_not_finite_and_indices_out
         rasterize_cascades(xy, **box)
     with pytest.raises(ValueError, match="read-only"):
         light_space_mesh(xy, z, [[0, 1, 2]]).xy[0, 0] = 7.0
+    strided = np.full((1, 8, 16), np.inf, dtype=np.float32)[:, :, ::2]
+    with pytest.raises(ValueError, match="depth: expected C-contiguous float32 maps"):
+        rasterize_cascades(light_space_mesh(xy, z, [[0, 1, 2]]), depth=strided, **box)
 
 @pytest.mark.skipif(wp.get_cuda_device_count() == 0, reason="no CUDA device")
 def test_cpu_and_cuda_rasterize_the_same_depth():
