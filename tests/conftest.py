@@ -1,0 +1,18 @@
+"""Fixtures every test module shares.
+
+``device`` follows Warp's own test pattern (``warp/tests/unittest_utils.get_test_devices``): a
+kernel test that takes it runs once per available Warp device — the CPU everywhere, and the first
+CUDA device where one is present — so a run on a GPU machine covers the whole kernel suite.
+"""
+
+import pytest
+import warp as wp
+
+DEVICES = ["cpu"] + (["cuda:0"] if wp.get_cuda_device_count() > 0 else [])
+"""The Warp devices this machine offers, in the order tests run on them."""
+
+
+@pytest.fixture(params=DEVICES)
+def device(request) -> str:
+    """Each available Warp device in turn (``"cpu"``, then ``"cuda:0"`` where present)."""
+    return request.param
