@@ -7,6 +7,7 @@ checks so that a settings object made in Python is held to the same contract.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, fields, replace
 
 __all__ = ["ShadowSettings"]
@@ -129,6 +130,12 @@ class ShadowSettings:
         need(isinstance(self.resolution, int) and 16 <= self.resolution <= 16384, "resolution",
              "an integer in 16..16384", self.resolution)
         need(0.0 <= self.lambda_ <= 1.0, "lambda", "a value in [0, 1]", self.lambda_)
+        need(all(math.isfinite(z) and z > 0 for z in self.splits)
+             and all(a < b for a, b in zip(self.splits, self.splits[1:])), "splits",
+             "increasing positive far ends (metres, or fractions of shadow_distance when all ≤ 1)", list(self.splits))
+        need(not self.splits or max(self.splits) > 1.0 or math.isclose(self.splits[-1], 1.0, rel_tol=1e-9), "splits",
+             "fractions of shadow_distance ending at 1.0 (the last cascade ends at the shadow distance)",
+             list(self.splits))
         need(self.shadow_distance > 0, "shadow_distance", "a positive distance in metres", self.shadow_distance)
         need(isinstance(self.levels, int) and self.levels >= 1, "levels", "a positive integer", self.levels)
         need(self.quantized_base in ("sphere", "frustum"), "quantized_base", "sphere or frustum", self.quantized_base)

@@ -294,21 +294,38 @@ def shadow_method_registries() -> dict:
             "depth_range": DEPTH_RANGE_METHODS, "bounds": BOUNDS_METHODS, "engine_precision": PRECISION_METHODS}
 
 
-def _checked_settings(settings: ShadowSettings, *, where_of, located: _Located) -> ShadowSettings:
-    """``settings`` after range and method-name checks; ``where_of(field)`` says where a field was set."""
+def _checked_settings(settings: ShadowSettings, *, where_of, located: _Located,
+                      camera: CameraConfig) -> ShadowSettings:
+    """``settings`` after range, method-name and split checks; ``where_of(field)`` says where a field was set."""
     _validated(settings, where_of=where_of, located=located)
     for name, registry in shadow_method_registries().items():
         _registry_name(getattr(settings, name), registry, where=where_of(name), located=located)
     if settings.split == "geometric" and settings.cascades > 1 and settings.first_cascade_far >= settings.shadow_distance:
         raise located.error(where_of("first_cascade_far"), f"expected a distance below shadow_distance "
                                                            f"({settings.shadow_distance} m), got {settings.first_cascade_far}")
-    if settings.split == "manual" and len(settings.splits) != settings.cascades:
-        raise located.error(where_of("splits"), f"expected {settings.cascades} split distances (one per cascade) with "
-                                                f"split = \"manual\", got {len(settings.splits)}")
+    if settings.split == "manual":
+        _manual_splits(settings, camera, where=where_of("splits"), located=located)
     return settings
 
 
-def _methods(entries: list, base: ShadowSettings, located: _Located) -> tuple[Method, ...]:
+def _manual_splits(settings: ShadowSettings, camera: CameraConfig, *, where: str, located: _Located) -> None:
+    """Manual far ends: one per cascade, rising from the camera's near plane to where the shadow ends."""
+    from csmlab.cascades import split_distances
+
+    if len(settings.splits) != settings.cascades:
+        raise located.error(where, f"expected {settings.cascades} split distances (one per cascade) with split = "
+                                   f"\"manual\", got {len(settings.splits)}")
+    if settings.bounds == "sdsm" and max(settings.splits) > 1.0:
+        raise located.error(where, f"expected fractions (all ≤ 1) of the visible depth range with bounds = \"sdsm\", "
+                                   f"got metres {list(settings.splits)}")
+    try:
+        split_distances(near=camera.near, far=min(settings.shadow_distance, camera.far), count=settings.cascades,
+                        method="manual", splits=settings.splits)
+    except ValueError as exc:
+        raise located.error(where, str(exc).partition(": ")[2]) from None
+
+
+def _methods(entries: list, base: ShadowSettings, located: _Located, camera: CameraConfig) -> tuple[Method, ...]:
     if not entries:
         return (Method(name="base", overrides={}, settings=base),)
     out = []
@@ -316,13 +333,14 @@ def _methods(entries: list, base: ShadowSettings, located: _Located) -> tuple[Me
         name = entry["name"]
         overrides = _shadow_fields(entry, where=f"methods.{name}", located=located)
         settings = _checked_settings(
-            base.replace(**overrides), located=located,
+            base.replace(**overrides), located=located, camera=camera,
             where_of=lambda f, o=overrides, n=name: f"methods.{n}.{f}" if f in o else f"shadow.{f}")
         out.append(Method(name=name, overrides=overrides, settings=settings))
     return tuple(out)
 
 
-def _sweep(table, methods: tuple[Method, ...], located: _Located) -> tuple[tuple[str, tuple], ...]:
+def _sweep(table, methods: tuple[Method, ...], located: _Located,
+           camera: CameraConfig) -> tuple[tuple[str, tuple], ...]:
     if not isinstance(table, dict):
         raise located.error("sweep", f"expected a table of shadow fields and their values, got {table!r}")
     out = []
@@ -336,7 +354,7 @@ def _sweep(table, methods: tuple[Method, ...], located: _Located) -> tuple[tuple
     for m in methods:
         for values in itertools.product(*(v for _, v in out)):
             point = dict(zip((k for k, _ in out), values))
-            _checked_settings(m.settings.replace(**point), located=located,
+            _checked_settings(m.settings.replace(**point), located=located, camera=camera,
                               where_of=lambda f, p=point, n=m.name: f"sweep.{f}" if f in p else f"methods.{n}.{f}")
     return tuple(out)
 
@@ -362,7 +380,7 @@ def _regress(table, located: _Located) -> dict:
     return out
 
 
-def _tune(table, methods: tuple[Method, ...], located: _Located) -> TuneConfig:
+def _tune(table, methods: tuple[Method, ...], located: _Located, camera: CameraConfig) -> TuneConfig:
     """``[tune]``: its options, and every other key a ``[shadow]`` field with choices or a range."""
     from csmlab.metric_registry import metric_columns
 
@@ -403,7 +421,7 @@ def _tune(table, methods: tuple[Method, ...], located: _Located) -> TuneConfig:
     tuned = next(m for m in methods if m.name == (values.get("method") or names[0]))
     for key, spec in space:
         for value in (spec[1] if spec[0] == "choice" else spec[1:3]):
-            _checked_settings(tuned.settings.replace(**{key: value}), located=located,
+            _checked_settings(tuned.settings.replace(**{key: value}), located=located, camera=camera,
                               where_of=lambda f, k=key: f"tune.{k}" if f == k else f"methods.{tuned.name}.{f}")
     return _validated(TuneConfig(space=tuple(space), **values), where_of=lambda name: f"tune.{name}", located=located)
 
@@ -491,8 +509,8 @@ def load_experiment(path, *, frames: int | None = None) -> Experiment:
     light = _light(merged.get("light", {}), located)
     base = ShadowSettings().replace(**_shadow_fields(merged.get("shadow", {}), where="shadow", located=located,
                                                      allow=()))
-    base = _checked_settings(base, where_of=lambda f: f"shadow.{f}", located=located)
-    methods = _methods(merged["methods"], base, located)
+    base = _checked_settings(base, where_of=lambda f: f"shadow.{f}", located=located, camera=camera)
+    methods = _methods(merged["methods"], base, located, camera)
     experiment = Experiment(
         name=name,
         description=description,
@@ -503,10 +521,10 @@ def load_experiment(path, *, frames: int | None = None) -> Experiment:
         light=light,
         shadow=base,
         methods=methods,
-        sweep=_sweep(merged.get("sweep", {}), methods, located),
+        sweep=_sweep(merged.get("sweep", {}), methods, located, camera),
         regress=_regress(merged.get("regress", {}), located),
         report=_record(ReportConfig, merged.get("report", {}), where="report", located=located),
         chunk_frames=chunk_frames,
-        tune=_tune(merged.get("tune", {}), methods, located),
+        tune=_tune(merged.get("tune", {}), methods, located, camera),
     )
     return experiment if frames is None else experiment.with_frames(frames)
