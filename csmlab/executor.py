@@ -25,7 +25,8 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from csmlab.errors import InputError
 from csmlab.registry import dispatch
 
-__all__ = ["EXECUTORS", "execute", "executor_for", "freeze_objects_at_exit", "run_dask", "run_inprocess", "run_pool"]
+__all__ = ["EXECUTORS", "execute", "executor_for", "freeze_objects_at_exit", "run_dask", "run_inprocess", "run_pool",
+           "start_worker"]
 
 _SHARED = None
 
@@ -43,15 +44,31 @@ def freeze_objects_at_exit() -> None:
     atexit.register(gc.freeze)
 
 
+def start_worker() -> None:
+    """Prepare a process for csmlab's work: its exit skips the collector, Warp starts quietly.
+
+    Warp's start-up (:func:`csmlab.kernels.start_warp`) drops the CUDA-driver warning Warp's native
+    library prints once per process on a machine without a GPU.
+    """
+    from csmlab.kernels import start_warp
+
+    freeze_objects_at_exit()
+    start_warp()
+
+
 def run_inprocess(fn: Callable, tasks: list, *, shared, jobs: int = 1, address: str | None = None) -> Iterator:
     """Run the tasks one after another in this process."""
+    if tasks:
+        from csmlab.kernels import start_warp
+
+        start_warp()
     for task in tasks:
         yield task, fn(shared, task)
 
 
 def _install_shared(packed: bytes) -> None:
     global _SHARED
-    freeze_objects_at_exit()
+    start_worker()
     _SHARED = pickle.loads(packed)
 
 
@@ -125,8 +142,8 @@ def run_dask(fn: Callable, tasks: list, *, shared, jobs: int, address: str | Non
             raise InputError(f"expected a reachable Dask scheduler, got {exc}", field="--scheduler") from None
     try:
         if cluster is not None:
-            # The workers this run started: the run does not wait for their exits.
-            client.run(freeze_objects_at_exit)
+            # The workers this run started: the run does not wait for their exits, nor reads Warp's warning.
+            client.run(start_worker)
         shared_future = client.scatter(shared, broadcast=True)
         futures = {client.submit(fn, shared_future, task, pure=False): task for task in tasks}
         try:

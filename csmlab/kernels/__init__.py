@@ -16,10 +16,14 @@ Every wrapper takes ``device=`` (``"cpu"`` by default, ``"cuda"`` when asked) an
 
 from __future__ import annotations
 
+import os
+import sys
+import tempfile
+
 import numpy as np
 import warp as wp
 
-__all__ = ["checked_device", "device_empty"]
+__all__ = ["CUDA_DRIVER_WARNING", "checked_device", "device_empty", "start_warp"]
 
 
 def checked_device(device: str) -> str:
@@ -55,3 +59,47 @@ def device_empty(shape, dtype, device: str) -> wp.array:
     scalar = getattr(dtype, "_wp_scalar_type_", dtype)
     lanes = tuple(getattr(dtype, "_shape_", ()))
     return wp.array(np.empty(shape + lanes, dtype=wp.dtype_to_numpy(scalar)), dtype=dtype, copy=False)
+
+
+CUDA_DRIVER_WARNING = "Warp CUDA warning: Could not find or load the NVIDIA CUDA driver"
+"""The start of the line Warp's native library writes to file descriptor 2 when it loads no CUDA driver."""
+
+
+_STARTED = False
+
+
+def start_warp() -> None:
+    """Start Warp's runtime in this process (once), without its greeting or its CUDA-driver warning.
+
+    On a machine without an NVIDIA driver, Warp's native start-up writes :data:`CUDA_DRIVER_WARNING`
+    straight to file descriptor 2 (no Python warning or logger to filter), once in every process that
+    uses Warp: a pool of N workers printed it N times, though the run was asked for on the CPU.
+    csmlab says which device a run uses in its own words (``csmlab run``'s last line), and a request
+    for ``--device cuda`` without a GPU is an input error (exit 2) naming the device, so that line is
+    dropped here; whatever else Warp writes while it starts is passed on to stderr. Messages below
+    Warp's warning level (its greeting, module loads) are kept out too.
+
+    Every process that runs csmlab's work calls this before its first Warp call (the executors do:
+    in process, in each pool worker's initializer, on each Dask worker); later calls return at once,
+    and a call after Warp was started elsewhere only sets the level (``wp.init`` is then a no-op).
+    """
+    global _STARTED
+    wp.config.log_level = max(wp.config.log_level, wp.LOG_WARNING)
+    if _STARTED:
+        return
+    _STARTED = True
+    sys.stderr.flush()
+    with tempfile.TemporaryFile() as caught:
+        saved = os.dup(2)
+        os.dup2(caught.fileno(), 2)
+        try:
+            wp.init()
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        caught.seek(0)
+        lines = caught.read().decode(errors="replace").splitlines(keepends=True)
+    passed = "".join(line for line in lines if not line.startswith(CUDA_DRIVER_WARNING))
+    if passed:
+        sys.stderr.write(passed)
+        sys.stderr.flush()
