@@ -50,15 +50,48 @@ def test_the_list_of_kernel_modules_is_every_module_that_defines_kernels():
     assert sorted(found) == KERNEL_MODULES
 
 
+FMA_FROM_LIBRARIES = {
+    "flip": "libdevice's expf, powf and cbrtf",
+    "moments": "libdevice's exp and log",
+    "pcf": "libdevice's exp",
+    "reference": "Warp's BVH ray query (wp.mesh_query_ray_anyhit)",
+    "visibility": "Warp's BVH ray query (wp.mesh_query_ray)",
+}
+"""Kernel modules whose CUDA build keeps a few ``fma`` that no compiler option removes: the library
+code they call (``fma`` written out by hand, for accuracy) — and which the CPU computes its own way."""
+
+
+def _fma_count(name: str, module_dir, *, fuse_fp=None) -> int:
+    """``fma`` instructions in the PTX of kernel module ``name`` (sm_90, NVRTC), as built, or with ``fuse_fp``."""
+    import importlib
+    import re
+
+    module = wp.get_module(importlib.import_module(f"csmlab.kernels.{name}").__name__)
+    held = module.options["fuse_fp"]
+    try:
+        if fuse_fp is not None:
+            module.options["fuse_fp"] = fuse_fp
+        paths = wp.compile_aot_module(module, arch=90, module_dir=module_dir, use_ptx=True)
+    finally:
+        module.options["fuse_fp"] = held
+    return len(re.findall(r"\bfma\.", paths[0].read_text()))
+
+
 @pytest.mark.skipif(wp.get_cuda_toolkit_version() is None, reason="this Warp has no CUDA compiler (NVRTC)")
 @pytest.mark.parametrize("name", KERNEL_MODULES)
-def test_every_kernel_module_compiles_for_a_gpu(name, tmp_path):
-    """The CUDA source Warp makes of each module compiles (sm_90, NVRTC) on a machine with no GPU.
+def test_every_kernel_module_compiles_for_a_gpu_and_rounds_there_as_on_the_cpu(name, tmp_path):
+    """Each module's CUDA source compiles (sm_90, NVRTC, to PTX) on a machine with no GPU, and fuses no
+    multiply and add (``fuse_fp``): its PTX holds no ``fma`` but what the libraries it calls write out
+    (:data:`FMA_FROM_LIBRARIES`).
 
-    The CUDA tests skip where no GPU is lent; this catches what only the CUDA build sees — the
-    native snippets' ``__CUDA_ARCH__`` branches, device-only builtins — on every machine.
+    The compilation catches what only the CUDA build sees — the native snippets' ``__CUDA_ARCH__``
+    branches, device-only builtins — where no GPU is lent. Warp's CPU build targets a generic
+    x86-64, which has no fused multiply-add, so it rounds every product and every sum; NVRTC
+    contracts ``a * b + c`` into one ``fma`` (one rounding) unless told not to, and then depths,
+    edge functions and lookups differ in their last bits between the devices.
     """
-    import importlib
-
-    wp.compile_aot_module(importlib.import_module(f"csmlab.kernels.{name}"), arch=90, module_dir=tmp_path)
-    assert any(tmp_path.glob("*.sm90.cubin"))
+    fused = _fma_count(name, tmp_path / "built")
+    if name in FMA_FROM_LIBRARIES:
+        assert fused == _fma_count(name, tmp_path / "unfused", fuse_fp=False), FMA_FROM_LIBRARIES[name]
+    else:
+        assert fused == 0

@@ -65,6 +65,8 @@ from csmlab.registry import check_name
 
 __all__ = ["MOMENT_METHODS", "blur_moments", "moment_lookup", "moment_maps", "moment_mip_chain", "moment_mip_lookup"]
 
+wp.set_module_options({"fuse_fp": False})
+
 
 
 @wp.func

@@ -45,6 +45,8 @@ from csmlab.registry import check_name
 
 __all__ = ["PCF_KERNELS", "pcss_width", "weighted_pcf"]
 
+wp.set_module_options({"fuse_fp": False})
+
 
 
 @wp.func

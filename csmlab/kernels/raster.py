@@ -38,6 +38,10 @@ __all__ = ["BANDS_PER_THREAD", "CHUNK_BITS", "LightSpaceMesh", "TriangleBounds",
            "fixed_point_vertices", "light_space_mesh", "rasterize_cascades", "rasterize_depth", "region_chunks",
            "triangle_bounds", "whole_map_regions", "z_ordered"]
 
+# Products and sums rounded one by one, as Warp's CPU build (generic x86-64, no FMA) rounds them: a
+# CUDA build may not contract them into fused multiply-adds, or its bits differ from the CPU's.
+wp.set_module_options({"fuse_fp": False})
+
 
 @wp.func
 def edge_owns_centre(dx: wp.int64, dy: wp.int64) -> bool:

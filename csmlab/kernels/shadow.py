@@ -50,6 +50,8 @@ from csmlab.registry import check_name
 __all__ = ["FILTER_METHODS", "SELECTION_METHODS", "filter_radius", "receiver_coordinates", "shadow_lookup",
            "shadow_lookup_world", "world_receivers"]
 
+wp.set_module_options({"fuse_fp": False})
+
 FILTER_METHODS = BOX_FILTERS
 """The filters this lookup runs itself (:data:`csmlab.lookup_choices.BOX_FILTERS`), mapped to the kernel's code."""
 
