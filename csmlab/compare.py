@@ -8,9 +8,10 @@ two versions of the code or two settings. Two runs of *different* workloads are 
 requires of a baseline.
 
 Methods are matched by name (and sweep point): a method × point in one run only is listed as such.
-Every metric's change B − A is marked better or worse by the metric's direction — the regression
-table's (:func:`metric_direction`, the one place that knows) — and flagged when it exceeds the
-gate's tolerance. Settings that differ are read from both runs' resolved configs.
+Every metric's change B − A is marked better or worse by the metric's direction and flagged when it
+exceeds the gate's tolerance, by the gate's own judgement (:func:`csmlab.regress.judge`: for a
+metric closest to 1, on the ``|ln value|`` scale). Settings that differ are read from both runs'
+resolved configs.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from csmlab.errors import InputError
-from csmlab.regress import tolerance_for, worse
+from csmlab.regress import judge, tolerance_for
 from csmlab.results import read_summary
 
 __all__ = ["Comparison", "MetricDelta", "compare_runs", "flatten", "metric_direction", "workload_differences"]
@@ -52,10 +53,11 @@ class MetricDelta:
     direction : str
         :func:`metric_direction`.
     verdict : str
-        ``better`` or ``worse`` (B against A, by direction), ``same``, ``changed`` (a metric without
-        a better side that moved), or ``n/a`` (a value missing).
+        ``better`` or ``worse`` (B against A, by direction), ``same``, ``changed`` (moved, neither
+        better nor worse: :class:`csmlab.regress.Judgement`), or ``n/a`` (a value missing).
     beyond_tolerance : bool
-        ``|b − a|`` exceeds what the regression gate allows from ``a``.
+        B moved from A, either way, by more than the regression gate allows from ``a``
+        (:func:`csmlab.regress.judge`).
     """
 
     metric: str
@@ -87,15 +89,8 @@ def _delta(metric: str, a, b) -> MetricDelta:
     direction = metric_direction(metric)
     if a is None or b is None:
         return MetricDelta(metric, a, b, None, direction, "n/a", False)
-    delta = b - a
-    beyond = abs(delta) > tolerance_for(metric).allowed(a)
-    if delta == 0.0:
-        verdict = "same"
-    elif direction == "either":
-        verdict = "changed"
-    else:
-        verdict = "worse" if worse(direction, a, b, 0.0) else "better"
-    return MetricDelta(metric, a, b, delta, direction, verdict, beyond)
+    judgement = judge(direction, a, b, tolerance_for(metric).allowed(a))
+    return MetricDelta(metric, a, b, b - a, direction, judgement.change, judgement.beyond)
 
 
 def flatten(document, prefix: str = "") -> dict[str, object]:

@@ -523,6 +523,7 @@ def _captures_part(rank: int) -> str:
 
 def _write_results(out: Path, experiment: Experiment, job: Job, ranges: list[tuple[int, int]], *, run_key: str,
                    config_hash: str) -> dict:
+    from csmlab.invariants import summary_invariants
     from csmlab.metric_registry import metric_columns
     from csmlab.report.capture import write_captures, write_casters
 
@@ -571,6 +572,8 @@ def _write_results(out: Path, experiment: Experiment, job: Job, ranges: list[tup
                    light_moves=not experiment.light.is_static, point_fields=dict(experiment.points()),
                    stabilization={m.name: {v.point: v.settings.stabilization for v in job.variants if v.method == m.name}
                                   for m in experiment.methods},
+                   invariants=summary_invariants(job.variants, light_static=experiment.light.is_static,
+                                                 fov_y_deg=job.workload.path.fov_y_deg),
                    methods=methods, points=points)
     if job.workload.timing is not None:
         summary["recording"] = job.workload.timing.as_dict()

@@ -225,15 +225,15 @@ def finite_mean(values) -> float:
     return float(np.mean(finite, dtype=np.float64)) if finite.size else math.nan
 
 
-def format_number(value) -> str:
-    """A value for a person to read: three significant digits, whole numbers from 1000 up with
+def format_number(value, *, digits: int = 3) -> str:
+    """A value for a person to read: ``digits`` significant digits, whole numbers from 1000 up with
     thousands separators; an exact zero stays ``0`` (exact's same-cascade flicker is zero, not
     small, and a table must say so); None, NaN and infinities are ``—``.
     """
     if value is None or not math.isfinite(float(value)):
         return "—"
     value = float(value)
-    return f"{value:,.0f}" if abs(value) >= 1000 else f"{value:.3g}"
+    return f"{value:,.0f}" if abs(value) >= 1000 else f"{value:.{digits}g}"
 
 
 def best_mask(values, *, better: str) -> np.ndarray:

@@ -17,6 +17,8 @@ A change is a regression when it goes the wrong way by more than ``allowed = max
   0.9 falling to 0.8 or rising to 1.25 moves away from 1:1 about equally);
 - ``either``: shown, not judged.
 
+That judgement is :func:`judge`, the one ``csmlab compare`` makes of run B against run A too.
+
 Every metric is deterministic (same inputs, same bits), so tolerances only leave room for
 code changes that move numbers by rounding. Aliasing and utilization follow the box sizes smoothly
 and get tight tolerances: a quantized method whose levels drop from 64 to 4 loses about 2 % of its
@@ -26,8 +28,10 @@ table and ``--tolerances FILE`` override ``abs`` and ``rel`` per metric, in that
 Two more rules make a verdict:
 
 - a metric with a baseline value and none now (or a method that vanished) is ``missing``: a failure;
-- **the invariant**: under a static light, a method named ``exact`` or stabilized ``exact`` must
-  keep same-cascade flicker at exactly 0 (tolerance 0), whatever the baseline says.
+- **the invariants**: what a method promises, derived from its settings and recorded in the run's
+  ``summary.json`` (``invariants``, :mod:`csmlab.invariants`; the baseline's record when the run
+  has none), is held exactly (tolerance 0) whatever the baseline says — today zero same-cascade
+  flicker for world-locked methods. A method that promises nothing is held to its tolerances only.
 
 Methods are compared on their aggregates (``summary["methods"]``) and, when the experiment has a
 sweep, at every sweep point (``summary["points"]``).
@@ -44,8 +48,8 @@ from csmlab.errors import InputError
 from csmlab.metric_registry import BETTER, METRICS, metric_of
 from csmlab.results import json_text, read_json, read_summary, write_atomic
 
-__all__ = ["TOLERANCES", "Check", "RegressResult", "Tolerance", "compare", "make_baseline", "read_baseline", "regress",
-           "tolerance_for", "worse", "write_baseline"]
+__all__ = ["TOLERANCES", "Check", "Judgement", "RegressResult", "Tolerance", "compare", "judge", "make_baseline",
+           "read_baseline", "regress", "tolerance_for", "write_baseline"]
 
 
 @dataclass(frozen=True)
@@ -64,25 +68,55 @@ class Tolerance:
         return max(self.abs, self.rel * abs(baseline))
 
 
-def worse(direction: str, baseline: float, now: float, allowed: float) -> bool:
-    """Is ``now`` worse than ``baseline`` by more than ``allowed`` (in the metric's units)?
+@dataclass(frozen=True)
+class Judgement:
+    """How a value moved from a baseline, by its metric's direction.
 
-    Worse is a higher score (:data:`csmlab.metric_registry.BETTER`: the value, its negative, or
-    ``|ln value|``); for ``one`` the allowed change becomes the factor ``ln(1 + allowed / baseline)``
-    on that log scale. ``either`` is never worse.
+    Attributes
+    ----------
+    change : str
+        ``better`` or ``worse`` (the score of :data:`csmlab.metric_registry.BETTER` fell or rose),
+        ``same`` (the value did not move), or ``changed`` (it moved, but no nearer to or farther
+        from the better side: a metric with none, or ρ from 0.5 to 2).
+    beyond : bool
+        The score moved, either way, by more than the tolerance allows.
+    """
+
+    change: str
+    beyond: bool
+
+
+def _margin(direction: str, baseline: float, allowed: float) -> float:
+    """The allowed change on the score's scale: ``allowed`` itself, or for ``one`` the factor
+    ``ln(1 + allowed / baseline)`` on the ``|ln value|`` scale."""
+    return math.log1p(allowed / baseline) if direction == "one" and baseline > 0 else allowed
+
+
+def judge(direction: str, baseline: float, now: float, allowed: float) -> Judgement:
+    """Judge ``now`` against ``baseline`` under a tolerance of ``allowed`` (in the metric's units).
+
+    The score is :data:`csmlab.metric_registry.BETTER`'s (the value, its negative, or ``|ln value|``);
+    a metric with no better side (``either``) is compared by its value, and only ``changed`` or ``same``.
+
+    Notes
+    -----
+    Median ρ under ``rel = 0.05``: 1.6 → 2.0 moves the score by ``ln 2.0 − ln 1.6 = 0.223`` against
+    a margin of ``ln(1 + 0.08 / 1.6) = 0.049``: worse, beyond; 1.0 → 0.9 by ``|ln 0.9| = 0.105``
+    against ``ln 1.05``: worse, beyond; 0.9 → 1.1 by ``0.095 − 0.105 < 0``: better, within.
     """
     score = BETTER[direction]
+    moved = "same" if now == baseline else "changed"
     if score is None:
-        return False
-    margin = math.log1p(allowed / baseline) if direction == "one" and baseline > 0 else allowed
-    return score(now) - score(baseline) > margin
+        return Judgement(moved, abs(now - baseline) > allowed)
+    step = score(now) - score(baseline)
+    change = "worse" if step > 0 else "better" if step < 0 else moved
+    return Judgement(change, abs(step) > _margin(direction, baseline, allowed))
 
 
 TOLERANCES: dict[str, Tolerance] = {m.name: Tolerance(m.better, *m.tolerance) for m in METRICS.values()}
 """Default direction and tolerance of each metric, from :data:`csmlab.metric_registry.METRICS`."""
 
 _FAILING = ("regression", "missing", "invariant broken")
-_INVARIANT_METRIC = "flicker_same"
 
 
 def tolerance_for(metric: str, overrides: dict | None = None) -> Tolerance:
@@ -103,8 +137,9 @@ class Check:
 
     ``verdict`` is ``ok``, ``better``, ``regression``, ``missing`` (a value in the baseline, none now),
     ``new`` (no baseline value), ``shown`` (not judged), ``n/a`` (no value in either), or — for
-    the invariant — ``invariant`` / ``invariant broken``. ``delta`` is ``now − baseline``;
-    ``allowed`` the change the tolerance permits.
+    an invariant (direction ``zero``; ``baseline`` is the promised value) — ``invariant`` /
+    ``invariant broken``. ``delta`` is ``now − baseline``; ``allowed`` the change the tolerance
+    permits; ``why`` what makes an invariant hold (empty for other checks).
     """
 
     method: str
@@ -116,6 +151,7 @@ class Check:
     allowed: float | None
     direction: str
     verdict: str
+    why: str = ""
 
     @property
     def failed(self) -> bool:
@@ -135,10 +171,10 @@ def _judge(metric: str, baseline, now, tolerance: Tolerance) -> tuple[float | No
     delta, allowed = now - baseline, tolerance.allowed(baseline)
     if tolerance.direction == "either":
         return delta, None, "shown"
-    if worse(tolerance.direction, baseline, now, allowed):
+    judgement = judge(tolerance.direction, baseline, now, allowed)
+    if judgement.change == "worse" and judgement.beyond:
         return delta, allowed, "regression"
-    better = worse(tolerance.direction, now, baseline, 0.0)
-    return delta, allowed, "better" if better else "ok"
+    return delta, allowed, "better" if judgement.change == "better" else "ok"
 
 
 def _compare_entries(method: str, point: str, baseline: dict, now: dict | None, overrides: dict) -> list[Check]:
@@ -155,25 +191,31 @@ def _compare_entries(method: str, point: str, baseline: dict, now: dict | None, 
     return checks
 
 
-def _exact_under_static_light(summary: dict) -> dict[tuple[str, str], bool]:
-    """``(method, point)`` → the invariant applies (static light; method named or stabilized ``exact``).
+def _promises(summary: dict, baseline: dict) -> dict[tuple[str, str], list[dict]]:
+    """``(method, point)`` → the invariants promised there, each ``{promised, metric, value, why}``.
 
-    Read from the summary's ``light_moves`` and ``stabilization`` (:func:`csmlab.results.write_summary`).
+    Read from the run's ``invariants`` (:func:`csmlab.invariants.summary_invariants`), or the
+    baseline's when the run records none. A method's aggregate (point ``*``) promises what every one
+    of its points promises, for the reason its first point gives.
     """
-    static = not summary["light_moves"]
+    recorded = summary.get("invariants") or baseline.get("invariants") or {}
     out = {}
-    for name, by_point in summary["stabilization"].items():
-        for label, stabilization in by_point.items():
-            out[(name, label)] = static and (name == "exact" or stabilization == "exact")
-        out[(name, "*")] = static and all(out[(name, label)] for label in by_point)
+    for method, by_point in recorded.items():
+        for point, promises in by_point.items():
+            out[(method, point)] = [p for p in promises.values() if p["promised"]]
+        names = set.intersection(*({n for n, p in promises.items() if p["promised"]} for promises in by_point.values()))
+        first = next(iter(by_point.values()))
+        out[(method, "*")] = [first[n] for n in first if n in names]
     return out
 
 
-def _invariant(method: str, point: str, now: dict | None) -> Check:
-    value = None if now is None else _number(now.get(_INVARIANT_METRIC))
-    verdict = "n/a" if value is None else ("invariant" if value == 0.0 else "invariant broken")
-    return Check(method=method, point=point, metric=_INVARIANT_METRIC, baseline=0.0, now=value,
-                 delta=value, allowed=0.0, direction="zero", verdict=verdict)
+def _invariant(method: str, point: str, promise: dict, now: dict | None) -> Check:
+    metric, promised = promise["metric"], float(promise["value"])
+    value = None if now is None else _number(now.get(metric))
+    verdict = "n/a" if value is None else ("invariant" if value == promised else "invariant broken")
+    return Check(method=method, point=point, metric=metric, baseline=promised, now=value,
+                 delta=None if value is None else value - promised, allowed=0.0, direction="zero", verdict=verdict,
+                 why=promise["why"])
 
 
 def compare(summary: dict, baseline: dict, *, tolerances: dict | None = None) -> list[Check]:
@@ -189,7 +231,7 @@ def compare(summary: dict, baseline: dict, *, tolerances: dict | None = None) ->
     Returns
     -------
     list of Check
-        Method aggregates first (point ``*``), then sweep points; the invariant's checks last.
+        Method aggregates first (point ``*``), then sweep points; the invariants' checks last.
     """
     checks = []
     for method, entry in baseline["methods"].items():
@@ -199,17 +241,16 @@ def compare(summary: dict, baseline: dict, *, tolerances: dict | None = None) ->
         for method, entry in baseline["points"][point].items():
             now = summary.get("points", {}).get(point, {}).get(method)
             checks += _compare_entries(method, point, entry, now, tolerances or {})
-    applies = _exact_under_static_light(summary)
-    for (method, point), yes in applies.items():
-        if yes and (point == "*" or point in swept):
+    for (method, point), promises in _promises(summary, baseline).items():
+        if point == "*" or point in swept:
             entry = (summary["methods"].get(method) if point == "*"
                      else summary.get("points", {}).get(point, {}).get(method))
-            checks.append(_invariant(method, point, entry))
+            checks += [_invariant(method, point, promise, entry) for promise in promises]
     return checks
 
 
 def make_baseline(results_dir) -> dict:
-    """A baseline of the run in ``results_dir``: its summary's aggregates, hashes and config."""
+    """A baseline of the run in ``results_dir``: its summary's aggregates, hashes, config and promised invariants."""
     summary = read_summary(results_dir)
     return {
         "kind": "csmlab-baseline",
@@ -219,6 +260,7 @@ def make_baseline(results_dir) -> dict:
         "csmlab_version": summary.get("csmlab_version"),
         "frames": summary.get("frames"),
         "config": summary["config"],
+        "invariants": summary.get("invariants", {}),
         "methods": summary["methods"],
         "points": summary["points"],
     }

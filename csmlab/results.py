@@ -15,10 +15,12 @@ Files in a results directory (DESIGN.md, "Interfaces"):
     method and point.
 ``summary.json``
     ``name, config_hash, workload_hash, csmlab_version, environment, frames, config, light_moves,
-    point_fields, stabilization, methods, points``: ``light_moves`` whether the light's direction
+    point_fields, stabilization, invariants, methods, points``: ``light_moves`` whether the light's direction
     changes over the run, ``point_fields[P]`` the shadow fields sweep point P sets (typed as in the
-    config), ``stabilization[M][P]`` the stabilization method M uses at P — written once, so that no
-    reader rebuilds them from ``config``;
+    config), ``stabilization[M][P]`` the stabilization method M uses at P, ``invariants[M][P]`` what
+    method M promises at P (:func:`csmlab.invariants.summary_invariants`: ``flicker_same_zero`` →
+    ``promised, metric, value, why``, the invariants ``csmlab regress`` holds exactly) — written once,
+    so that no reader rebuilds them from ``config``;
     ``methods[M][metric]`` is the mean of M's rows' finite values (frames and sweep points),
     ``points[P][M][metric]`` the mean over frames at sweep point P; each with ``frames``. A metric with
     no value in any frame is ``null``. A recorded camera path adds ``recording``
@@ -262,8 +264,8 @@ def json_text(document: dict) -> str:
 
 
 def write_summary(path, *, name: str, config_hash: str, workload_hash: str, device: str, frames: int,
-                  config: dict, light_moves: bool, point_fields: dict, stabilization: dict, methods: dict, points: dict,
-                  recording: dict | None = None) -> Path:
+                  config: dict, light_moves: bool, point_fields: dict, stabilization: dict, invariants: dict,
+                  methods: dict, points: dict, recording: dict | None = None) -> Path:
     """Write ``summary.json`` (fields in the module docstring; ``recording`` only for a recorded path)."""
     extra = {} if recording is None else {"recording": recording}
     return write_atomic(path, json_text({
@@ -277,6 +279,7 @@ def write_summary(path, *, name: str, config_hash: str, workload_hash: str, devi
         "light_moves": light_moves,
         "point_fields": point_fields,
         "stabilization": stabilization,
+        "invariants": invariants,
         "methods": methods,
         "points": points,
         **extra,

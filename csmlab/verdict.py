@@ -15,7 +15,7 @@ JUnit layout (the attributes every JUnit reader requires, plus counts of skipped
             delta, tolerance, direction, worst frames</failure>      (a failing check)
           <skipped message="…"/>                                     (a check that is not judged)
         </testcase>
-        <testcase name="flicker_same == 0 (invariant)" …/>           (exact's invariant: its own case)
+        <testcase name="flicker_same == 0 (invariant)" …/>           (a promised invariant: its own case)
 
 One test case per method × metric check (per sweep point when the experiment sweeps), in the
 order of :func:`csmlab.regress.compare`. The same result gives the same bytes (no time stamps).
@@ -29,7 +29,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from csmlab.errors import InputError
-from csmlab.metric_registry import BETTER, BETTER_TEXT
+from csmlab.metric_registry import BETTER, BETTER_TEXT, format_number
 from csmlab.regress import Check, RegressResult
 from csmlab.results import read_metrics, read_summary, write_atomic
 
@@ -43,13 +43,13 @@ _MOVED_ROWS = 8
 """Rows of the Markdown table besides the failures (per-cascade ones are named above it, not tabled):
 the largest relative moves within tolerance."""
 _WORST = 3
+_DIGITS = 4
+"""Significant digits of a value in a verdict: one more than a table's, so that a change within tolerance shows."""
 _PER_CASCADE = re.compile(r"_c\d+$")
 
 
 def _fmt(value: float | None) -> str:
-    if value is None or (isinstance(value, float) and math.isnan(value)):
-        return "—"
-    return f"{value:,.0f}" if abs(value) >= 1000 else f"{value:.4g}"
+    return format_number(value, digits=_DIGITS)
 
 
 def _signed(value: float | None) -> str:
@@ -119,7 +119,7 @@ def _failure_message(check: Check) -> str:
     if check.verdict == "missing":
         return f"{where}: baseline {_fmt(check.baseline)}, no value now"
     if _is_invariant(check):
-        return f"{where}: {_fmt(check.now)}, must stay exactly 0 (exact stabilization under a static light)"
+        return f"{where}: {_fmt(check.now)}, must stay exactly {_fmt(check.baseline)} (promised: {check.why})"
     return (f"{where}: {_fmt(check.now)} vs baseline {_fmt(check.baseline)} (change {_signed(check.delta)}, "
             f"tolerance {_fmt(check.allowed)}, {DIRECTION_TEXT[check.direction]})")
 

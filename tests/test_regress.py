@@ -21,10 +21,15 @@ GATE_FRAMES = 4
 STABILIZATION = {"exact": {"base": "exact"}, "none": {"base": "none"}}
 
 
-def summary(values: dict, *, light_moves=False) -> dict:
+def promise(promised: bool, why: str = "") -> dict:
+    return {"flicker_same_zero": {"promised": promised, "metric": "flicker_same", "value": 0.0, "why": why}}
+
+
+def summary(values: dict, *, promised=("exact",)) -> dict:
     methods = {m: {**v, "frames": 10} for m, v in values.items()}
-    return {"methods": methods, "points": {"base": methods}, "light_moves": light_moves,
-            "point_fields": {"base": {}}, "stabilization": STABILIZATION}
+    return {"methods": methods, "points": {"base": methods}, "light_moves": False,
+            "point_fields": {"base": {}}, "stabilization": STABILIZATION,
+            "invariants": {m: {"base": promise(m in promised, "world-locked")} for m in values}}
 
 
 def verdicts(now: dict, base: dict, **kwargs) -> dict:
@@ -88,16 +93,32 @@ def test_a_vanished_metric_or_method_is_a_failure():
     assert verdicts({"none": {"flicker": None}}, {"none": {"flicker": None}})[("none", "flicker", "lower")] == "n/a"
 
 
-def test_exact_keeps_zero_same_cascade_flicker_whatever_the_baseline_under_a_static_light():
+def test_a_promised_invariant_is_held_exactly_whatever_the_baseline_and_nothing_else_is():
     tiny = 1e-12
     got = verdicts({"exact": {"flicker_same": tiny}, "none": {"flicker_same": 0.2}},
                    {"exact": {"flicker_same": tiny}, "none": {"flicker_same": 0.2}})
     assert got[("exact", "flicker_same", "lower")] == "ok"
     assert got[("exact", "flicker_same", "zero")] == "invariant broken"
     assert ("none", "flicker_same", "zero") not in got
-    checks = compare(summary({"exact": {"flicker_same": tiny}}, light_moves=True),
-                     summary({"exact": {"flicker_same": tiny}}))
+    # A method named and stabilized exact that promises nothing (e.g. a per-pixel rotated filter) is not held.
+    checks = compare(summary({"exact": {"flicker_same": tiny}}, promised=()), summary({"exact": {"flicker_same": tiny}}))
     assert all(c.direction != "zero" for c in checks)
+
+
+def test_the_runs_promise_is_held_and_the_baselines_when_the_run_records_none():
+    now, base = summary({"exact": {"flicker_same": 0.0}}), summary({"exact": {"flicker_same": 0.0}}, promised=())
+    (held,) = [c for c in compare(now, base) if c.direction == "zero"]
+    assert (held.verdict, held.why, held.baseline, held.allowed) == ("invariant", "world-locked", 0.0, 0.0)
+    older = {k: v for k, v in summary({"exact": {"flicker_same": 0.1}}).items() if k != "invariants"}
+    assert [c.verdict for c in compare(older, now) if c.direction == "zero"] == ["invariant broken"]
+
+
+def test_a_method_aggregate_promises_only_what_every_sweep_point_promises():
+    points = {"filter=pcf": {"exact": {"flicker_same": 0.0}}, "filter=pcf_poisson": {"exact": {"flicker_same": 0.3}}}
+    run = {"methods": {"exact": {"flicker_same": 0.15}}, "points": points,
+           "invariants": {"exact": {"filter=pcf": promise(True), "filter=pcf_poisson": promise(False)}}}
+    held = {(c.point, c.verdict) for c in compare(run, run) if c.direction == "zero"}
+    assert held == {("filter=pcf", "invariant")}
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,192 @@
+"""The invariants a method promises, derived from its settings: what ``csmlab regress`` holds exactly.
+
+A method promises **zero same-cascade flicker** (``flicker_same`` exactly 0.0, bit for bit; the
+design's "Exact zero by construction") only when every texel it stores and every lookup it makes
+is fixed in the world, so that a point seen in the same cascade in two frames reads the same bits.
+Each condition below is one row of :data:`_CONDITIONS`; the promise holds when all do:
+
+1. **A static light** (workload): a moving light changes the shadow itself.
+2. **World-locked snapping**: ``stabilization = "exact"`` (``quantized`` rounds the box's extent
+   to steps of the camera's footprint and ``none`` follows it, so their texel sizes change) with a
+   *fixed extent* — ``bounds = "frustum"`` (SDSM moves the splits with the visible depth range),
+   a camera whose field of view never changes (each slice's extent follows it; a zoom path
+   changes it every frame) and an extent of :data:`FIXED_EXTENTS` — and the box snapped to whole
+   texels (:data:`WHOLE_TEXEL_SNAPS`: every snap of :mod:`csmlab.cascades.stabilize` moves the
+   box by whole texels, ``view`` in steps of four).
+3. **Float64 texel math** (``engine_precision``): csmlab's global texel coordinates depend on the
+   world point and the texel size only, and the box origin is an integer shift, so the rule holds
+   at any distance from the world origin (up to the fixed-point clip of :mod:`csmlab.texels`,
+   ~10¹⁰ texels, where every point is clipped alike). An engine's float32 light view is rounded at
+   each box's centre instead: every texel coordinate carries an error that depends on where the
+   box lies — about R·2⁻²⁴ texels near the origin, centimetres 10⁶ m from it — and any error can
+   tip a fixed-point rounding at 2⁻ᵇⁱᵗˢ texels. No coordinate range makes that exactly zero, only
+   rarer, so ``float32`` promises nothing (a tiny run of ``hard_far_origin`` measuring 0.0 is
+   luck, not construction).
+4. **No screen-space input**: a filter that reads the receiver's screen pixel (a per-pixel rotated
+   disk: :func:`_reads_screen_pixels`, the test of :func:`csmlab.filters.uses_pixels` without
+   loading Warp into the process that writes the summary) turns with the camera, and a
+   mipmapped moment lookup (``moment_mips``) takes its level of detail and probes from the pixel
+   quad's derivatives, which change with the camera and with the cascades of neighbouring pixels.
+5. **A world-locked depth**: ``depth_range = "scene"`` (a ``slice`` box's near side follows the
+   camera, and casters nearer than it are clamped onto it or clipped) in a depth format of
+   :data:`WORLD_LOCKED_DEPTH_FORMATS` (quantized over the scene's fixed light-space span in
+   power-of-two steps, :mod:`csmlab.storage`).
+
+Selection, blend bands and the fade-out decide only *which* cascade a point reads or how much a
+camera-dependent weight counts; the temporal metric files those points under "cascade changed"
+(:mod:`csmlab.metrics.temporal`), so they keep the promise.
+
+The promise is written into ``summary.json`` (``invariants``, :func:`summary_invariants`) and
+read back by the gate, which holds exactly what was promised and nothing more.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from csmlab.settings import ShadowSettings
+
+__all__ = ["FIXED_EXTENTS", "FLICKER_SAME_ZERO", "Promise", "WHOLE_TEXEL_SNAPS", "WORLD_LOCKED_DEPTH_FORMATS",
+           "WorkloadFacts", "promised_invariants", "summary_invariants"]
+
+FLICKER_SAME_ZERO = "flicker_same_zero"
+"""The name of the one invariant: ``flicker_same`` is exactly 0.0."""
+
+FIXED_EXTENTS = ("sphere", "diagonal")
+"""``extent`` choices whose box size depends on the projection and the slice depths only
+(:mod:`csmlab.cascades.extent`); a new one promises nothing until it is listed here."""
+
+WHOLE_TEXEL_SNAPS = ("origin", "centre", "view")
+"""``snap`` choices that move an exact box by whole texels (:data:`csmlab.cascades.stabilize.SNAP_METHODS`)."""
+
+WORLD_LOCKED_DEPTH_FORMATS = ("float32", "unorm24", "unorm16")
+"""``depth_format`` choices whose stored levels are fixed per light and scene (:mod:`csmlab.storage`)."""
+
+
+@dataclass(frozen=True)
+class WorkloadFacts:
+    """What the promise needs of the workload, beyond the method's settings.
+
+    Attributes
+    ----------
+    light_static : bool
+        The light's direction is the same in every frame.
+    fov_fixed : bool
+        The camera's field of view is the same in every frame.
+    """
+
+    light_static: bool
+    fov_fixed: bool
+
+
+@dataclass(frozen=True)
+class Promise:
+    """Whether a method promises an invariant, and why (or why not).
+
+    Attributes
+    ----------
+    promised : bool
+    metric : str
+        The ``metrics.csv`` column it holds.
+    value : float
+        The value that column keeps, exactly.
+    why : str
+        What makes it hold, or every condition that fails.
+    """
+
+    promised: bool
+    metric: str
+    value: float
+    why: str
+
+    def as_dict(self) -> dict:
+        """The record ``summary.json`` keeps (``promised``, ``metric``, ``value``, ``why``)."""
+        return {"promised": self.promised, "metric": self.metric, "value": self.value, "why": self.why}
+
+
+def _reads_screen_pixels(settings: ShadowSettings) -> bool:
+    """The filter reads each receiver's screen pixel: a Poisson disk rotated per pixel."""
+    return settings.filter == "pcf_poisson" and settings.poisson_rotation == "pixel"
+
+
+@dataclass(frozen=True)
+class _Condition:
+    """One condition of the promise: a test of the settings and workload, and what fails when it does not hold."""
+
+    holds: Callable[[ShadowSettings, WorkloadFacts], bool]
+    broken: Callable[[ShadowSettings, WorkloadFacts], str]
+
+
+_CONDITIONS = (
+    _Condition(lambda s, w: w.light_static, lambda s, w: "the light moves, so the shadow itself changes"),
+    _Condition(lambda s, w: s.stabilization == "exact",
+               lambda s, w: f"stabilization = {s.stabilization!r}: the box's texel size follows the camera"),
+    _Condition(lambda s, w: s.bounds == "frustum",
+               lambda s, w: f"bounds = {s.bounds!r}: the splits, and so each box's extent, follow the visible depths"),
+    _Condition(lambda s, w: w.fov_fixed,
+               lambda s, w: "the camera's field of view changes, and each box's extent with it"),
+    _Condition(lambda s, w: s.extent in FIXED_EXTENTS,
+               lambda s, w: f"extent = {s.extent!r} is not known to be fixed"),
+    _Condition(lambda s, w: s.snap in WHOLE_TEXEL_SNAPS,
+               lambda s, w: f"snap = {s.snap!r} is not known to move the box by whole texels"),
+    _Condition(lambda s, w: s.engine_precision == "float64",
+               lambda s, w: f"engine_precision = {s.engine_precision!r}: the light view is rounded at each box's "
+                            "centre, so a whole-texel move can tip a fixed-point rounding"),
+    _Condition(lambda s, w: not _reads_screen_pixels(s),
+               lambda s, w: f"filter = {s.filter!r} with poisson_rotation = {s.poisson_rotation!r}: the disk turns "
+                            "with the screen pixel, not the world"),
+    _Condition(lambda s, w: not s.moment_mips,
+               lambda s, w: "moment_mips: the level of detail follows the pixel quads' derivatives"),
+    _Condition(lambda s, w: s.depth_range == "scene",
+               lambda s, w: f"depth_range = {s.depth_range!r}: the box's near side follows the camera, and casters "
+                            "in front of it are clamped or clipped there"),
+    _Condition(lambda s, w: s.depth_format in WORLD_LOCKED_DEPTH_FORMATS,
+               lambda s, w: f"depth_format = {s.depth_format!r} is not known to be world-locked"),
+)
+
+_KEPT = ("exact boxes of fixed extent on whole texels, float64 texel math, no screen-space input and a "
+         "world-locked depth under a static light")
+
+
+def promised_invariants(settings: ShadowSettings, *, workload: WorkloadFacts) -> dict[str, Promise]:
+    """The invariants a method with ``settings`` promises on ``workload``, each with why.
+
+    Parameters
+    ----------
+    settings : ShadowSettings
+    workload : WorkloadFacts
+
+    Returns
+    -------
+    dict
+        :data:`FLICKER_SAME_ZERO` → :class:`Promise`: promised when every condition of the module
+        docstring holds, its ``why`` then naming them; else not promised, ``why`` naming every
+        condition that fails.
+    """
+    broken = [c.broken(settings, workload) for c in _CONDITIONS if not c.holds(settings, workload)]
+    return {FLICKER_SAME_ZERO: Promise(promised=not broken, metric="flicker_same", value=0.0,
+                                       why="; ".join(broken) or _KEPT)}
+
+
+def summary_invariants(variants, *, light_static: bool, fov_y_deg) -> dict[str, dict[str, dict]]:
+    """``summary.json``'s ``invariants``: method → sweep point → invariant → :meth:`Promise.as_dict`.
+
+    Parameters
+    ----------
+    variants : iterable of csmlab.config.Variant
+        Every method × sweep point of the run (``method``, ``point``, ``settings``).
+    light_static : bool
+        The light's direction is the same in every frame.
+    fov_y_deg : array_like, shape (N,)
+        The camera's field of view in every frame, degrees.
+    """
+    fov = np.asarray(fov_y_deg, dtype=np.float64)
+    workload = WorkloadFacts(light_static=bool(light_static), fov_fixed=bool(np.all(fov == fov[0])))
+    out: dict[str, dict[str, dict]] = {}
+    for variant in variants:
+        promises = promised_invariants(variant.settings, workload=workload)
+        out.setdefault(variant.method, {})[variant.point] = {name: p.as_dict() for name, p in promises.items()}
+    return out
