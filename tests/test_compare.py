@@ -119,6 +119,58 @@ class _References(HTMLParser):
         self.found += [value for name, value in attrs if name in ("src", "href") and value]
 
 
+# metric, A, B within the gate's tolerance, B beyond it (both the wrong way), worked by hand from the
+# registry's (abs, rel): allowed = max(abs, rel · |A|); for rho_median on the |ln ρ| scale.
+HAND_WORKED = [
+    ("rho_median", 1.6, 1.605, 1.61),             # (1e-6, 0.005): ln(1 + 0.008/1.6) = 0.00499; ln(1.605/1.6) =
+                                                  # 0.00312, ln(1.61/1.6) = 0.00623
+    ("rho_p05", 0.8, 0.797, 0.795),               # (1e-6, 0.005): 0.004
+    ("rho_frac_lt1", 0.5, 0.509, 0.511),          # (1e-3, 0.02): 0.01
+    ("utilization", 0.4, 0.397, 0.395),           # (1e-4, 0.01): 0.004
+    ("ssim", 0.9, 0.892, 0.89),                   # (1e-4, 0.01): 0.009
+    ("flicker", 0.01, 0.0104, 0.0106),            # (1e-6, 0.05): 0.0005
+    ("flip_rate", 0.02, 0.0209, 0.0211),          # (1e-6, 0.05): 0.001
+    ("de2000_mean", 2.0, 2.09, 2.11),             # (1e-3, 0.05): 0.1
+    ("de2000_frac_jnd", 0.1, 0.104, 0.106),       # (1e-5, 0.05): 0.005
+    ("flip", 0.02, 0.0209, 0.0211),               # (1e-5, 0.05): 0.001
+    ("ref_false_shadow", 0.02, 0.0209, 0.0211),   # (1e-4, 0.05): 0.001
+    ("ref_boundary_px", 3.0, 3.29, 3.31),         # (1e-3, 0.10): 0.3
+    ("texels_rasterized", 1e6, 1.09e6, 1.11e6),   # (0, 0.10): 100,000
+]
+
+
+def _summary_folder(folder: Path, values: dict) -> Path:
+    """A results folder holding only a summary.json of one method ``m`` with ``values``."""
+    folder.mkdir()
+    entry = {**values, "frames": 3}
+    (folder / "summary.json").write_text(json.dumps({
+        "name": "hand", "workload_hash": "w", "config": {}, "light_moves": False, "point_fields": {"base": {}},
+        "stabilization": {"m": {"base": "exact"}}, "methods": {"m": entry}, "points": {"base": {"m": entry}}}))
+    return folder
+
+
+def _deltas(tmp_path, a: dict, b: dict) -> dict:
+    comparison = compare_runs(_summary_folder(tmp_path / "a", a), _summary_folder(tmp_path / "b", b))
+    return {d.metric: d for d in comparison.deltas[("m", "base")]}
+
+
+@pytest.mark.parametrize("beyond", [False, True])
+def test_a_change_is_flagged_beyond_tolerance_by_hand_worked_numbers(tmp_path, beyond):
+    a = {metric: value for metric, value, _, _ in HAND_WORKED}
+    b = {metric: (out if beyond else within) for metric, _, within, out in HAND_WORKED}
+    deltas = _deltas(tmp_path, a, b)
+    for metric, *_ in HAND_WORKED:
+        assert (deltas[metric].verdict, deltas[metric].beyond_tolerance) == ("worse", beyond), metric
+
+
+def test_closest_to_one_is_judged_on_the_log_scale_as_the_gate_does(tmp_path):
+    """0.5 → 2.0 is as far from 1 as before: moved, neither better nor worse, not beyond (a linear margin
+    flags 1.5 ≫ 0.0025); 0.9 → 1.1 is nearer, by |ln 1.1| − |ln 0.9| = −0.0101, beyond ln(1.005) = 0.00499."""
+    deltas = _deltas(tmp_path, {"rho_median": 0.5, "rho_p95": 0.9}, {"rho_median": 2.0, "rho_p95": 1.1})
+    assert (deltas["rho_median"].verdict, deltas["rho_median"].beyond_tolerance) == ("changed", False)
+    assert (deltas["rho_p95"].verdict, deltas["rho_p95"].beyond_tolerance) == ("better", True)
+
+
 def test_report_shows_curves_and_the_frames_that_differ_most_with_every_file_present(runs):
     root, _ = runs
     page = root / "ab" / "index.html"
