@@ -37,10 +37,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from csmlab.cascades.splits import split_distances
+from csmlab.lookup_choices import FILTER_METHODS
 from csmlab.registry import dispatch
 from csmlab.settings import ShadowSettings
 
-__all__ = ["EXPORT_METHODS", "Snippet", "export", "split_boundaries", "ue_split_fractions"]
+__all__ = ["BEVY_EXACT", "BEVY_FILTERING", "EXPORT_METHODS", "Snippet", "UE5_FILTER", "URP_FILTER", "export",
+           "split_boundaries", "ue_split_fractions"]
 
 
 @dataclass(frozen=True)
@@ -124,6 +126,18 @@ def _g(value: float) -> str:
     return f"{value:.4g}"
 
 
+def _hard(settings: ShadowSettings) -> bool:
+    """The filter is one depth test (its record's ``hard``): what engines call no soft shadows."""
+    return FILTER_METHODS[settings.filter].hard
+
+
+UE5_FILTER = ("pcf", 3)
+"""The csmlab filter and size Unreal's shadow filtering matches (r.Shadow.FilterMethod=0); others are lacking."""
+
+URP_FILTER = ("pcf", 3)
+"""The box filter and size URP's soft shadows stand for; that filter at another size is lacking."""
+
+
 def export_ue5(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     """UE5: cvars for an ini file, directional light properties as comments (distances in cm)."""
     z = split_boundaries(settings, near=near, far=far)
@@ -136,7 +150,7 @@ def export_ue5(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     if error_m > 0.01:
         lacking.append(f"split distances {[round(float(v), 2) for v in z[1:-1]]} m: Unreal's exponent spacing "
                        f"misses them by up to {error_m:.2f} m")
-    if settings.filter != "pcf" or settings.filter_size != 3:
+    if (settings.filter, settings.filter_size) != UE5_FILTER:
         lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Unreal's PCF kernel "
                        f"follows r.ShadowQuality)")
     text = "\n".join([
@@ -171,7 +185,7 @@ def export_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> Sn
                        f"{atlas} written for {wanted})")
     if settings.blend_band > 0:
         lacking.append(f"blend_band = {settings.blend_band} (URP blends no cascades; cascadeBorder fades the last)")
-    if settings.filter == "pcf" and settings.filter_size != 3:
+    if settings.filter == URP_FILTER[0] and settings.filter_size != URP_FILTER[1]:
         lacking.append(f"filter_size = {settings.filter_size} (URP's soft shadows are a fixed tent filter)")
     fractions = _fractions(settings.replace(cascades=cascades), near, far)
     lines = ["// UniversalRenderPipelineAsset asset = …;",
@@ -185,7 +199,7 @@ def export_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> Sn
         lines.append(f"asset.cascade4Split = new Vector3({', '.join(_g(f) + 'f' for f in fractions)});")
     lines += [f"asset.mainLightShadowmapResolution = {atlas};  // atlas: {atlas // (1 if cascades == 1 else 2)}² "
               f"per cascade",
-              f"asset.supportsSoftShadows = {'false' if settings.filter == 'none' else 'true'};"]
+              f"asset.supportsSoftShadows = {'false' if _hard(settings) else 'true'};"]
     return Snippet("unity_urp", "Unity URP: UniversalRenderPipelineAsset", "csharp", "\n".join(lines) + "\n",
                    tuple(lacking))
 
@@ -208,25 +222,33 @@ def export_godot4(settings: ShadowSettings, *, near: float, far: float) -> Snipp
               f"rendering/lights_and_shadows/directional_shadow/size = {atlas}  "
               f"# {_size(settings)}² per split (2 splits: half the atlas each)",
               "rendering/lights_and_shadows/directional_shadow/soft_shadow_filter_quality = "
-              f"{0 if settings.filter == 'none' else 2}"]
+              f"{0 if _hard(settings) else 2}"]
     if settings.blend_band > 0:
         lacking.append(f"blend_band = {settings.blend_band} (Godot blends splits over a fixed band)")
-    if settings.filter != "none":
+    if not _hard(settings):
         lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Godot filters with its "
                        f"own soft-shadow kernel)")
     return Snippet("godot4", "Godot 4: DirectionalLight3D and project settings", "gdscript", "\n".join(lines) + "\n",
                    tuple(lacking))
 
 
+BEVY_FILTERING: dict[str, str] = {"pcf_bilinear": "Hardware2x2", "pcf": "Gaussian", "pcf_gaussian": "Gaussian",
+                                  "pcf_tent": "Gaussian"}
+"""Bevy's nearest ``ShadowFilteringMethod`` by csmlab filter (a key of csmlab.lookup_choices.FILTER_METHODS).
+
+Bevy's Gaussian is Castaño's 5×5 tent (configs/engines/bevy.toml); a filter not here gets no method.
+"""
+
+BEVY_EXACT: dict[str, int | None] = {"pcf_bilinear": None, "pcf_tent": 5}
+"""The filters Bevy runs as csmlab does, with the filter_size that matches (None: any); the others are lacking."""
+
+
 def export_bevy(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     """Bevy: the CascadeShadowConfigBuilder, and the exact bounds as a CascadeShadowConfig."""
     z = split_boundaries(settings, near=near, far=far)
     lacking = _common_lacking(settings, stable="exact")
-    # Bevy's Gaussian is Castaño's 5×5 tent (configs/engines/bevy.toml); other kernels get the nearest
-    # method Bevy has, or none, and are named as lacking.
-    filtering = {"pcf_bilinear": "Hardware2x2", "pcf": "Gaussian", "pcf_gaussian": "Gaussian",
-                 "pcf_tent": "Gaussian"}.get(settings.filter)
-    if settings.filter != "pcf_bilinear" and (settings.filter, settings.filter_size) != ("pcf_tent", 5):
+    filtering = BEVY_FILTERING.get(settings.filter)
+    if settings.filter not in BEVY_EXACT or BEVY_EXACT[settings.filter] not in (None, settings.filter_size):
         lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Bevy filters with "
                        f"Hardware2x2, Gaussian or Temporal)")
     bounds = ", ".join(f"{v:.3f}" for v in z[1:])
@@ -263,11 +285,10 @@ def export_threejs_csm(settings: ShadowSettings, *, near: float, far: float) -> 
         lines.append(f"  customSplitsCallback: (cascades, near, far, breaks) => breaks.push({fractions}, 1),")
     lines += [f"  shadowMapSize: {_size(settings)},", "  camera, parent: scene, lightDirection,", "});",
               f"csm.fade = {'true' if settings.blend_band > 0 else 'false'};",
-              "renderer.shadowMap.type = THREE." + ("BasicShadowMap" if settings.filter == "none" else "PCFShadowMap")
-              + ";"]
+              "renderer.shadowMap.type = THREE." + ("BasicShadowMap" if _hard(settings) else "PCFShadowMap") + ";"]
     if settings.blend_band > 0:
         lacking.append(f"blend_band = {settings.blend_band} (CSM's fade has a fixed width)")
-    if settings.filter != "none":
+    if not _hard(settings):
         lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (three.js picks its PCF "
                        f"kernel from shadowMap.type)")
     return Snippet("threejs_csm", "three.js: CSM options", "javascript", "\n".join(lines) + "\n", tuple(lacking))

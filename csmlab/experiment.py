@@ -378,10 +378,11 @@ def _held_depths(workload: Workload, variants, *, device: str) -> dict:
     The visible range of every frame is read from a G-buffer of the run's size once, here, before
     the chunks run: hysteresis depends on every earlier frame, which a chunk does not render.
     """
-    wanted = [v for v in variants if v.settings.bounds == "sdsm" and v.settings.hysteresis > 0.0]
+    from csmlab.cascades.bounds import BOUNDS_METHODS, held_depth_ranges
+
+    wanted = [v for v in variants if BOUNDS_METHODS[v.settings.bounds].visible and v.settings.hysteresis > 0.0]
     if not wanted:
         return {}
-    from csmlab.cascades.bounds import held_depth_ranges
     from csmlab.render import visible_depth
 
     scene = _prepared_scene(Job(workload=workload, variants=(), snapshot_frames=frozenset(), device=device))
@@ -400,6 +401,7 @@ def _held_extents(workload: Workload, variants, held_depths: dict, *, device: st
     if not wanted:
         return {}
     from csmlab.cascades import tight_extents
+    from csmlab.cascades.bounds import BOUNDS_METHODS
     from csmlab.cascades.stabilize import held_extents
     from csmlab.render import visible_depth
 
@@ -407,7 +409,7 @@ def _held_extents(workload: Workload, variants, held_depths: dict, *, device: st
     out = {}
     for v in wanted:
         depths = held_depths.get((v.method, v.point))
-        if v.settings.bounds == "sdsm" and depths is None:
+        if BOUNDS_METHODS[v.settings.bounds].visible and depths is None:
             if ranges is None:
                 scene = _prepared_scene(Job(workload=workload, variants=(), snapshot_frames=frozenset(), device=device))
                 ranges = [visible_depth(scene, workload.path.pose(i), width=workload.width, height=workload.height)

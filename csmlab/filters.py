@@ -1,81 +1,427 @@
-"""Every shadow filter by name, the texels each reads, and the lookup that dispatches to its kernel.
+"""The shadow lookup, read top to bottom (CSM model step 6), and the inputs its filters read.
 
-:data:`FILTER_METHODS` (:mod:`csmlab.lookup_choices`) maps a ``[shadow] filter`` name to what it is. The box filters ``none``,
-``pcf`` and ``pcf_bilinear`` run inside :func:`csmlab.kernels.shadow.shadow_lookup` with the
-cascade selection; the weighted PCF filters (:mod:`csmlab.kernels.pcf`) run after it: the
-selection is made with the filter's tap radius (so no tap is ever clamped, DESIGN.md "Exact
-zero"), then one launch filters each receiver at its cascade and, in a blend band, at the next.
+:func:`lookup_shadow` is the one way in (:mod:`csmlab.render` calls it, and the temporal metric
+through it). Each step is decided once, in the order it runs:
 
-Width per cascade (:func:`filter_widths`): in texels from ``filter_size`` / ``filter_sigma``, or,
-with ``filter_width_m > 0``, the same width in metres in every cascade (Unigine's filter width;
-seed 003, "self-adjusting filtering kernel size", Listing 4.1.8), i.e. ``filter_width_m / texel``
-texels, capped at the taps ``filter_size`` allows. ``pcss`` turns the light's angular diameter into
-penumbra texels per metre of blocker distance, ``2 tan(θ_L / 2) / texel``.
+1. **The filter's record** — :data:`csmlab.lookup_choices.FILTER_METHODS` ``[settings.filter]``:
+   its family, its radius (the texels its taps reach, which every selected box must hold, so that
+   no tap is ever clamped: DESIGN.md "Exact zero"), the width of its weights per cascade, its tap
+   offsets and what it reads besides the depth maps.
+2. **Receivers** — the points with a finite position and view depth (:class:`Receivers`), with
+   their pixel where the filter reads pixels and their 2×2 quad where it reads mips. The others
+   keep S = NaN and cascade −1.
+3. **Texel coordinates** — every receiver in every cascade's fixed point, moved along its normal,
+   with its biased depth and receiver-plane slope (:func:`texel_coordinates`).
+4. **Cascade selection** — the ``selection`` method with the margin and the filter's radius, and the
+   blend band toward the next cascade (:func:`csmlab.kernels.shadow.select_cascades`).
+5. **The family's kernel** (:data:`FAMILY_LOOKUPS`) — ``box`` filters run inside the selection
+   kernel itself (:func:`csmlab.kernels.shadow.shadow_lookup`; over cascades of one size in
+   float64 math it converts world receivers itself, steps 3–5 in one launch); ``weighted``
+   filters run :func:`csmlab.kernels.pcf.weighted_pcf` and ``moment`` filters
+   :func:`csmlab.kernels.moments.moment_lookup` (or its mip-chain lookup) at the selected cascade.
+6. **Fade** — toward lit over the end of the shadow distance (:func:`faded`).
+
+Width per cascade: in texels from ``filter_size`` / ``filter_sigma``, or, with ``filter_width_m > 0``,
+the same width in metres in every cascade (the records' ``width``, :mod:`csmlab.lookup_choices`).
+The moment filters read moment maps and, with ``moment_mips``, their mip chain, both made once per
+frame in the cascade pass (:func:`filter_inputs`).
 """
 
 from __future__ import annotations
 
-import functools
+from dataclasses import dataclass
 
 import numpy as np
 
 from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet
+from csmlab.frame import ShadowLookup, ShadowMaps
 from csmlab.kernels.moments import blur_moments, moment_lookup, moment_maps, moment_mip_chain, moment_mip_lookup
 from csmlab.kernels.pcf import weighted_pcf
-from csmlab.kernels.shadow import shadow_lookup, shadow_lookup_world
-from csmlab.lookup_choices import FILTER_METHODS, MOMENT_METHODS, PCF_KERNELS, filter_radius
-from csmlab.quads import quad_derivatives
+from csmlab.kernels.shadow import receiver_coordinates, select_cascades, shadow_lookup, shadow_lookup_world
+from csmlab.lookup_choices import FILTER_METHODS, Filter
+from csmlab.quads import Quads, quad_derivatives
+from csmlab.registry import check_name
 from csmlab.settings import ShadowSettings
-from csmlab.texels import fixed_point_origin
+from csmlab.texels import PRECISION_METHODS, fixed_point_origin, receiver_lookup
 
-__all__ = ["FILTER_METHODS", "box_texel_origins", "filter_mips", "filter_moments", "filter_radius", "filter_widths",
-           "filtered_shadow_lookup", "interleaved_gradient_noise", "looks_up_world_receivers", "poisson_disk",
-           "receiver_conversion", "screen_pixels", "uses_pixels", "world_shadow_lookup"]
+__all__ = ["FAMILY_LOOKUPS", "Receivers", "faded", "filter_inputs", "interleaved_gradient_noise", "lookup_shadow",
+           "screen_pixels", "texel_coordinates", "uses_pixels"]
 
-def filter_widths(cascades: CascadeSet, settings: ShadowSettings) -> np.ndarray:
-    """The ``width`` of :func:`csmlab.kernels.pcf.weighted_pcf` per cascade ``(C,)`` float64.
 
-    Texel size is the larger side of each cascade's texels (the one the depth bias uses too).
+@dataclass(frozen=True)
+class Receivers:
+    """The points a lookup shades, flattened, and what the filter reads of them.
+
+    Attributes
+    ----------
+    points : ndarray, shape (M, 3), float64
+        Every point given, world metres (NaN rows are no receivers).
+    normals : ndarray, shape (M, 3), float32
+        Their unit normals.
+    index : ndarray, shape (N,), int
+        The rows of ``points`` that are receivers.
+    view_depth : ndarray, shape (N,), float64
+        The receivers' view depth under the camera whose cascade selection is wanted, metres.
+    pixels : ndarray, shape (N, 2), float64, or None
+        Each receiver's pixel (x = column, y = row) in the image being shaded, where the filter
+        reads pixels.
+    quads : Quads or None
+        Each receiver's 2×2 pixel quad (``position`` ``(N, 4, 3)``), where the filter reads mips.
+    quad_view_depth : ndarray, shape (N, 4), float64, or None
+        The quad lanes' view depths under the selecting camera.
     """
-    texel = np.array([float(np.max(c.texel_size)) for c in cascades.cascades])
-    half = settings.filter_size / 2.0
-    if settings.filter == "pcss":
-        return np.full(texel.shape, 2.0 * np.tan(np.radians(settings.light_size_deg) / 2.0)) / texel
-    if settings.filter == "pcf_gaussian":
-        if settings.filter_width_m > 0:
-            return settings.filter_width_m / 4.0 / texel
-        return np.full(texel.shape, settings.filter_sigma)
-    if settings.filter_width_m > 0:
-        # A width of zero texels is no filter; the narrowest kept is a hundredth of a texel.
-        return np.clip(settings.filter_width_m / 2.0 / texel, 0.01, half)
-    return np.full(texel.shape, half)
+
+    points: np.ndarray
+    normals: np.ndarray
+    index: np.ndarray
+    view_depth: np.ndarray
+    pixels: np.ndarray | None = None
+    quads: Quads | None = None
+    quad_view_depth: np.ndarray | None = None
 
 
-@functools.lru_cache(maxsize=16)
-def _disk(taps: int, seed: int) -> tuple:
-    rng = np.random.default_rng(seed)
-    points = np.zeros((0, 2))
-    for _ in range(taps):
-        # Mitchell's best candidate: of 30 uniform candidates in the disk, keep the one farthest
-        # from the taps so far — a blue-noise (Poisson-disk-like) set, fixed by the seed.
-        r = np.sqrt(rng.random(30))
-        a = 2.0 * np.pi * rng.random(30)
-        candidates = np.column_stack([r * np.cos(a), r * np.sin(a)])
-        if len(points):
-            gap = np.min(np.linalg.norm(candidates[:, None] - points[None], axis=2), axis=1)
-            best = candidates[np.argmax(gap)]
-        else:
-            best = candidates[0]
-        points = np.vstack([points, best])
-    return tuple(map(tuple, points))
+def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: ShadowSettings,
+                  pixels=None, quads: Quads | None = None, quad_view_depth=None, device: str = "cpu") -> ShadowLookup:
+    """One method's shadow at receiver points: the filter's record, receivers, selection, the filter, fade.
+
+    Parameters
+    ----------
+    maps : ShadowMaps
+        The cascades and depth maps to look up (and the moments a moment filter reads).
+    points : array_like, shape (N, 3) or (H, W, 3), float64
+        World positions in metres; NaN rows are not receivers.
+    normals : array_like, same shape as ``points``, float32
+        Unit receiver normals (facing the camera).
+    view_depth : array_like, shape (N,) or (H, W)
+        View depth in metres under the camera whose cascade selection is wanted (the temporal
+        metric passes ``pose_{t-1}.view_depth(points)``); non-finite where no receiver.
+    settings : ShadowSettings
+        Selection, filter, bias, normal offset, blend band, fade and sub-texel bits.
+    pixels : array_like, shape (N, 2) or (H, W, 2), optional
+        Each point's pixel (x, y) in the image being shaded, for filters rotated per pixel; None:
+        an ``(H, W, 3)`` image of points is at its own pixels.
+    quads : Quads, optional
+        ``moment_mips``: each point's 2×2 pixel quad (:func:`csmlab.quads.quad_lanes`), shaped like
+        ``view_depth`` plus ``(4, 3)``.
+    quad_view_depth : array_like, shape (..., 4), optional
+        The lanes' view depths under the camera whose cascade selection is wanted.
+    device : str
+        ``"cpu"`` or ``"cuda"``.
+
+    Returns
+    -------
+    ShadowLookup
+        Arrays shaped like ``view_depth``.
+
+    Raises
+    ------
+    ValueError
+        On an unknown filter, shapes that do not match, or maps or receivers without what the
+        filter reads (moments, mips and quads, pixels).
+    """
+    record = FILTER_METHODS[check_name(settings.filter, FILTER_METHODS, field="filter")]
+    reads = record.reads_of(settings)
+    receivers = _receivers(points, normals, view_depth, pixels=pixels, quads=quads, quad_view_depth=quad_view_depth,
+                           reads=reads)
+    _check_maps(maps, reads)
+    radius = record.radius_of(settings)
+    found = FAMILY_LOOKUPS[record.family](maps, receivers, record=record, radius=radius,
+                                          selection=_selection(maps.cascades, settings, radius=radius),
+                                          settings=settings, device=device)
+    return _shadow_of_points(found, receivers, np.asarray(view_depth, dtype=np.float64), settings=settings,
+                             far=float(maps.cascades.splits[-1]))
 
 
-def poisson_disk(taps: int, *, seed: int) -> np.ndarray:
-    """A fixed Poisson-disk-like set of ``taps`` offsets ``(taps, 2)`` in the unit disk, the same for the same seed."""
-    if not (isinstance(taps, (int, np.integer)) and taps >= 1):
-        raise ValueError(f"taps: expected a positive integer, got {taps!r}")
-    return np.array(_disk(int(taps), int(seed)), dtype=np.float64)
+def _receivers(points, normals, view_depth, *, pixels, quads: Quads | None, quad_view_depth, reads) -> Receivers:
+    """Step 2: the receivers among ``points``, with the pixels and quads the filter reads."""
+    p = np.asarray(points, dtype=np.float64)
+    n = np.asarray(normals, dtype=np.float32)
+    z = np.asarray(view_depth, dtype=np.float64)
+    if p.shape[-1:] != (3,) or n.shape != p.shape or z.shape != p.shape[:-1]:
+        raise ValueError(f"points, normals, view_depth: expected shapes (..., 3), (..., 3), (...); "
+                         f"got {p.shape}, {n.shape}, {z.shape}")
+    flat_z = z.reshape(-1)
+    flat = p.reshape(-1, 3)
+    # Component by component: np.all over a length-3 axis is ten times slower than three columns.
+    finite = np.isfinite(flat[:, 0]) & np.isfinite(flat[:, 1]) & np.isfinite(flat[:, 2])
+    index = np.flatnonzero(finite & ~np.isnan(flat_z))
+    at = None
+    if "pixels" in reads:
+        if pixels is None and p.ndim == 3:
+            rows, cols = np.indices(p.shape[:2])
+            pixels = np.stack([cols, rows], axis=-1)
+        if pixels is None:
+            raise ValueError("pixels: a filter rotated per pixel needs each receiver's pixel")
+        at = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)[index]
+    lanes = lane_depth = None
+    if "mips" in reads:
+        if quads is None or quad_view_depth is None:
+            raise ValueError("quads, quad_view_depth: moment_mips takes its level of detail from each point's "
+                             "pixel quad")
+        lanes = Quads(position=quads.position.reshape(-1, 4, 3)[index], slot=quads.slot.reshape(-1)[index])
+        lane_depth = np.asarray(quad_view_depth, dtype=np.float64).reshape(-1, 4)[index]
+    return Receivers(points=flat, normals=n.reshape(-1, 3), index=index, view_depth=flat_z[index], pixels=at,
+                     quads=lanes, quad_view_depth=lane_depth)
+
+
+def _check_maps(maps: ShadowMaps, reads) -> None:
+    """The maps hold what the filter reads (:func:`filter_inputs` made them under the same settings)."""
+    if "moments" in reads and (maps.moments is None or not maps.depth_span > 0):
+        raise ValueError("maps: a moment filter needs the moment maps and their depth span (filter_inputs)")
+    if "mips" in reads and maps.mips is None:
+        raise ValueError("maps: moment_mips needs the moments' mip chain (filter_inputs)")
+
+
+def _selection(cascades: CascadeSet, settings: ShadowSettings, *, radius: int) -> dict:
+    """The cascade-selection arguments of the selection kernel (:mod:`csmlab.kernels.shadow`).
+
+    ``margin`` is the cascades' selection margin, widened to the filter's ``radius`` so that a
+    selected box holds every tap.
+    """
+    return dict(splits=cascades.splits, texel_area=np.array([np.prod(c.texel_size) for c in cascades.cascades]),
+                selection=settings.selection, blend_band=settings.blend_band, bits=settings.subtexel_bits,
+                margin=max(cascades.margin_texels, radius))
+
+
+def _conversion(cascades: CascadeSet, settings: ShadowSettings) -> dict:
+    """What takes world receivers into the cascades' fixed point: the keyword arguments ``basis, texel_size,
+    origin_fixed, zref, normal_offset, bias_constant, bias_slope`` of :func:`csmlab.kernels.shadow.receiver_coordinates`
+    and :func:`csmlab.kernels.shadow.shadow_lookup_world`."""
+    bits = settings.subtexel_bits
+    return dict(basis=cascades.basis, texel_size=np.stack([c.texel_size for c in cascades.cascades]),
+                origin_fixed=np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]),
+                zref=cascades.zref, normal_offset=settings.normal_offset, bias_constant=settings.bias_constant,
+                bias_slope=settings.bias_slope)
+
+
+def texel_coordinates(cascades: CascadeSet, points: np.ndarray, normals: np.ndarray, rows: np.ndarray, *,
+                      settings: ShadowSettings, device: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Step 3: ``points[rows]`` in every cascade's fixed point, moved along ``normals[rows]``.
+
+    :func:`csmlab.texels.receiver_lookup`: on the device where the cascades' grid is the global one
+    (float64, the same bits), on the host for an engine's float32 math (``engine_precision``).
+
+    Returns
+    -------
+    coordinates : ndarray, shape (C, N, 2), int64
+        In ``2**-bits`` texels of each cascade.
+    depth : ndarray, shape (C, N), float32
+        Biased receiver depth, metres.
+    slope : ndarray, shape (C, N, 2), float64
+        Receiver-plane depth change per texel, metres.
+    """
+    bits = settings.subtexel_bits
+    if PRECISION_METHODS[settings.engine_precision].global_grid:
+        return receiver_coordinates(points, normals, receivers=rows, bits=bits, **_conversion(cascades, settings),
+                                    device=device)
+    return receiver_lookup(cascades, points[rows], normals[rows], bits=bits, normal_offset=settings.normal_offset,
+                           bias_constant=settings.bias_constant, bias_slope=settings.bias_slope,
+                           precision=settings.engine_precision)
+
+
+def _selectable(coords: np.ndarray, cascades: CascadeSet, *, margin: int, bits: int, resolution: int) -> np.ndarray:
+    """``coords`` ``(C, N, 2)`` with receivers outside a cascade smaller than the maps moved far outside it.
+
+    A cascade of ``R_c < R`` texels fills the corner ``[0, R_c)²`` of its ``R × R`` map; a receiver
+    less than ``margin`` texels inside that corner's edges gets ``-2**50`` there, so no selection
+    picks the cascade for it and no tap reads the empty rest of the map. Equal cascades: unchanged.
+    """
+    coords = np.asarray(coords, dtype=np.int64)
+    smaller = [c for c, cascade in enumerate(cascades.cascades) if cascade.resolution < resolution]
+    if not smaller:
+        return coords
+    unit = 2**bits
+    out = coords.copy()
+    for c in smaller:
+        size = cascades.cascades[c].resolution
+        inside = np.all((out[c] >= margin * unit) & (out[c] < (size - margin) * unit), axis=1)
+        out[c][~inside] = -2**50
+    return out
+
+
+def _fixed_receivers(maps: ShadowMaps, receivers: Receivers, *, selection: dict, settings: ShadowSettings,
+                     device: str) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Steps 3 and the start of 4: the receivers' fixed point, selectable only inside each cascade's own corner.
+
+    The slope is None without ``receiver_plane_bias`` (each tap compares the receiver's own depth).
+    """
+    cascades = maps.cascades
+    coords, depth, slope = texel_coordinates(cascades, receivers.points, receivers.normals, receivers.index,
+                                             settings=settings, device=device)
+    coords = _selectable(coords, cascades, margin=selection["margin"], bits=settings.subtexel_bits,
+                         resolution=maps.depth.shape[1])
+    return coords, depth, slope if settings.receiver_plane_bias else None
+
+
+def _box_lookup(maps: ShadowMaps, receivers: Receivers, *, record: Filter, radius: int, selection: dict,
+                settings: ShadowSettings, device: str) -> tuple:
+    """Steps 3–5 for a ``box`` filter: the selection kernel filters at the cascade it selects."""
+    cascades = maps.cascades
+    if PRECISION_METHODS[settings.engine_precision].global_grid and all(
+            c.resolution == maps.depth.shape[1] for c in cascades.cascades):
+        # Each receiver converted where the kernel reads it: no (C, N) arrays of every receiver in
+        # every cascade (the same bits as texel_coordinates then shadow_lookup).
+        return shadow_lookup_world(maps.depth, receivers.points, receivers.normals, receivers.view_depth,
+                                   receivers=receivers.index, **_conversion(cascades, settings),
+                                   receiver_plane_bias=settings.receiver_plane_bias, filter=record.name, radius=radius,
+                                   **selection, device=device)
+    coords, depth, slope = _fixed_receivers(maps, receivers, selection=selection, settings=settings, device=device)
+    return shadow_lookup(maps.depth, coords, depth, receivers.view_depth, filter=record.name, radius=radius,
+                         receiver_slope=slope, **selection, device=device)
+
+
+def _weighted_lookup(maps: ShadowMaps, receivers: Receivers, *, record: Filter, radius: int, selection: dict,
+                     settings: ShadowSettings, device: str) -> tuple:
+    """Steps 3–5 for a ``weighted`` filter: select, then weigh the taps at the selected cascade (and the next)."""
+    coords, depth, slope = _fixed_receivers(maps, receivers, selection=selection, settings=settings, device=device)
+    chosen, weight, band = select_cascades(maps.depth, coords, depth, receivers.view_depth, radius=radius,
+                                           **selection, device=device)
+    angle = None if receivers.pixels is None else 2.0 * np.pi * interleaved_gradient_noise(receivers.pixels)
+    texel = np.array([float(np.max(c.texel_size)) for c in maps.cascades.cascades])
+    lit = weighted_pcf(maps.depth, coords, depth, cascade=chosen, filter=record.name,
+                       width=record.width_of(texel, settings), radius=radius, bits=settings.subtexel_bits,
+                       receiver_slope=slope, blend_weight=weight, angle=angle, disk=record.offsets_of(settings),
+                       device=device)
+    return lit, chosen.astype(np.int8), band
+
+
+def _moment_lookup(maps: ShadowMaps, receivers: Receivers, *, record: Filter, radius: int, selection: dict,
+                   settings: ShadowSettings, device: str) -> tuple:
+    """Steps 3–5 for a ``moment`` filter: select, then bound the filtered moments at the selected cascade."""
+    coords, depth, _ = _fixed_receivers(maps, receivers, selection=selection, settings=settings, device=device)
+    chosen, weight, band = select_cascades(maps.depth, coords, depth, receivers.view_depth, radius=radius,
+                                           **selection, device=device)
+    bound = dict(method=record.name, span=maps.depth_span, bits=settings.subtexel_bits,
+                 exponents=settings.evsm_exponents, min_variance=settings.vsm_min_variance, power=settings.vsm_power,
+                 bleed=settings.vsm_bleed, device=device)
+    if maps.mips is None:
+        lit = moment_lookup(maps.moments, coords, depth, cascade=chosen, blend_weight=weight, **bound)
+        return lit, chosen.astype(np.int8), band
+    used, ddx, ddy = _quad_footprint(maps, receivers, coords, chosen, radius=radius, selection=selection,
+                                     settings=settings, device=device)
+    # The blend band needs both samples at the cascades the receiver selected.
+    band &= used == chosen
+    weight = np.where(band, weight, 0.0)
+    lit = moment_mip_lookup(maps.mips, coords, depth, origin_texels=_box_origins(maps.cascades, settings),
+                            cascade=used, ddx=ddx, ddy=ddy, anisotropy=settings.anisotropy, blend_weight=weight,
+                            **bound)
+    return lit, used.astype(np.int8), band
+
+
+def _quad_footprint(maps: ShadowMaps, receivers: Receivers, coords: np.ndarray, chosen: np.ndarray, *, radius: int,
+                    selection: dict, settings: ShadowSettings, device: str) -> tuple:
+    """The cascade a mip lookup reads and the quad's derivatives there (:func:`csmlab.quads.quad_derivatives`).
+
+    The lanes go through the same coordinates as their receiver (same precision, same grid), so
+    their differences are the quad's derivatives; each lane selects its own cascade by the same
+    rules (without the filter's radius: a lane is looked up by no tap), the receiver's lane takes
+    the receiver's selection.
+    """
+    cascades = maps.cascades
+    count, n = len(cascades), receivers.index.shape[0]
+    lane_points = receivers.quads.position.reshape(-1, 3)
+    lane_coords, lane_depth, _ = texel_coordinates(cascades, lane_points, np.repeat(receivers.normals[receivers.index],
+                                                                                     4, axis=0),
+                                                   np.arange(len(lane_points)), settings=settings, device=device)
+    flat = _selectable(lane_coords, cascades, margin=selection["margin"], bits=settings.subtexel_bits,
+                       resolution=maps.depth.shape[1])
+    lane_chosen, _, _ = select_cascades(maps.depth, flat, lane_depth, receivers.quad_view_depth.reshape(-1),
+                                        radius=0, **selection, device=device)
+    lane_cascade = lane_chosen.astype(np.int64).reshape(n, 4)
+    lane_cascade[np.arange(n), receivers.quads.slot.astype(np.int64)] = chosen
+    unit = 2**settings.subtexel_bits
+    top = maps.depth.shape[1]
+    # Which boxes hold the receiver's taps (quad_consistent moves a receiver only into such a box).
+    holds = np.all((coords >= radius * unit) & (coords < (top - radius) * unit), axis=2)
+    return quad_derivatives(lane_coords.reshape(count, n, 4, 2), lane_cascade, chosen, method=settings.lod,
+                            bits=settings.subtexel_bits, holds=holds)
+
+
+FAMILY_LOOKUPS = {"box": _box_lookup, "weighted": _weighted_lookup, "moment": _moment_lookup}
+"""Steps 3–5 of :func:`lookup_shadow` by filter family (:data:`csmlab.lookup_choices.FAMILIES`).
+
+Each takes the maps, the :class:`Receivers`, the filter's record and radius, the selection's
+arguments, the settings and the device, and returns ``(lit, cascade, blend)`` of the receivers.
+"""
+
+
+def _shadow_of_points(found: tuple, receivers: Receivers, view_depth: np.ndarray, *, settings: ShadowSettings,
+                      far: float) -> ShadowLookup:
+    """Step 6: the :class:`ShadowLookup` of every point (shaped like ``view_depth``), faded toward ``far``."""
+    shape = view_depth.shape
+    index = receivers.index
+    lit = np.full(view_depth.size, np.nan, dtype=np.float32)
+    cascade = np.full(view_depth.size, -1, dtype=np.int8)
+    blend = np.zeros(view_depth.size, dtype=bool)
+    lit[index], cascade[index], blend[index] = found
+    if settings.fade_out > 0.0:
+        lit[index], fading = faded(lit[index], receivers.view_depth, far=far, fade_out=settings.fade_out)
+        # Like a blend band, the fade weight follows the camera: the temporal metric counts these
+        # points with the transitions, not with same-cascade swimming.
+        blend[index] |= fading
+    return ShadowLookup(lit=lit.reshape(shape), cascade=cascade.reshape(shape), blend=blend.reshape(shape))
+
+
+def faded(lit: np.ndarray, view_depth: np.ndarray, *, far: float, fade_out: float) -> tuple[np.ndarray, np.ndarray]:
+    """``lit`` ``(N,)`` faded toward 1 over the last ``fade_out`` fraction of ``far`` in view depth.
+
+    The weight rises linearly from 0 at ``far (1 - fade_out)`` to 1 at ``far`` (Unreal's
+    ``ShadowDistanceFadeoutFraction``, Godot's ``1 - directional_shadow_fade_start``).
+
+    Returns
+    -------
+    lit : ndarray, shape (N,), float32
+    fading : ndarray, shape (N,), bool
+        The weight is above 0.
+    """
+    start = far * (1.0 - fade_out)
+    weight = np.clip((np.asarray(view_depth, dtype=np.float64) - start) / max(far - start, 1e-12), 0.0, 1.0)
+    return (lit + (1.0 - lit) * weight).astype(np.float32), weight > 0.0
+
+
+def _box_origins(cascades: CascadeSet, settings: ShadowSettings) -> np.ndarray:
+    """Each box's texel (0, 0) as a global texel index ``(C, 2)`` int64 (the grid a mip chain is anchored to)."""
+    bits = settings.subtexel_bits
+    return np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]) >> bits
+
+
+def filter_inputs(depth, cascades: CascadeSet, *, span: float, settings: ShadowSettings,
+                  device: str = "cpu") -> tuple[np.ndarray | None, list | None]:
+    """What the filter reads besides the depth maps, taken once per frame in the cascade pass.
+
+    Parameters
+    ----------
+    depth : array_like, shape (C, R, R), float32
+        The stored depth maps, metres.
+    cascades : CascadeSet
+    span : float
+        The scene's light-space depth range in metres the moments are normalized over.
+    settings : ShadowSettings
+    device : str
+
+    Returns
+    -------
+    moments : ndarray, shape (C, R, R, 4), float32, or None
+        The blurred moment maps of a moment filter (:mod:`csmlab.kernels.moments`); None for the others.
+    mips : list of ndarray, or None
+        With ``moment_mips``, their mip chain on the global texel grid; else None.
+    """
+    record = FILTER_METHODS[check_name(settings.filter, FILTER_METHODS, field="filter")]
+    reads = record.reads_of(settings)
+    if "moments" not in reads:
+        return None, None
+    moments = moment_maps(depth, span=span, method=record.name, exponents=settings.evsm_exponents, device=device)
+    moments = blur_moments(moments, radius=settings.moment_blur // 2, device=device)
+    if "mips" not in reads:
+        return moments, None
+    return moments, moment_mip_chain(moments, origin_texels=_box_origins(cascades, settings), max_lod=settings.max_lod,
+                                     device=device)
+
+
+def uses_pixels(settings: ShadowSettings) -> bool:
+    """Whether :func:`lookup_shadow` under ``settings`` reads each receiver's pixel (a per-pixel rotation)."""
+    return "pixels" in FILTER_METHODS[check_name(settings.filter, FILTER_METHODS, field="filter")].reads_of(settings)
 
 
 def interleaved_gradient_noise(pixels) -> np.ndarray:
@@ -92,35 +438,6 @@ def interleaved_gradient_noise(pixels) -> np.ndarray:
     return out - np.floor(out)
 
 
-def filter_moments(depth, *, span: float, settings: ShadowSettings, device: str = "cpu") -> np.ndarray | None:
-    """The blurred moment maps ``(C, R, R, 4)`` float32 a moment filter looks up; None for the other filters.
-
-    Taken in the cascade pass, once per frame, from the stored depth normalized over ``span`` metres.
-    """
-    if settings.filter not in MOMENT_METHODS:
-        return None
-    moments = moment_maps(depth, span=span, method=settings.filter, exponents=settings.evsm_exponents, device=device)
-    return blur_moments(moments, radius=settings.moment_blur // 2, device=device)
-
-
-def box_texel_origins(cascades: CascadeSet, *, bits: int) -> np.ndarray:
-    """Each box's texel (0, 0) as a global texel index ``(C, 2)`` int64 (the grid a mip chain is anchored to)."""
-    return np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]) >> bits
-
-
-def filter_mips(moments, cascades: CascadeSet, *, settings: ShadowSettings, device: str = "cpu") -> list | None:
-    """The moments' mip chain (:func:`csmlab.kernels.moments.moment_mip_chain`) with ``moment_mips``; else None."""
-    if moments is None or not settings.moment_mips:
-        return None
-    return moment_mip_chain(moments, origin=box_texel_origins(cascades, bits=settings.subtexel_bits),
-                            max_lod=settings.max_lod, device=device)
-
-
-def uses_pixels(settings: ShadowSettings) -> bool:
-    """Whether :func:`filtered_shadow_lookup` under ``settings`` reads each receiver's pixel (a per-pixel rotation)."""
-    return settings.filter == "pcf_poisson" and settings.poisson_rotation == "pixel"
-
-
 def screen_pixels(pose: CameraPose, points, *, width: int, height: int) -> np.ndarray:
     """Pixel positions ``(..., 2)`` (x = column, y = row, row 0 at the top) of world points ``(..., 3)`` under ``pose``.
 
@@ -134,212 +451,3 @@ def screen_pixels(pose: CameraPose, points, *, width: int, height: int) -> np.nd
         x = (local[..., 0] / (depth * tan_y * pose.aspect) + 1.0) * 0.5 * width
         y = (1.0 - local[..., 1] / (depth * tan_y)) * 0.5 * height
     return np.stack([x, y], axis=-1)
-
-
-def _holds(coords: np.ndarray, unit: int, inset: int, resolution: int) -> np.ndarray:
-    """``(C, N)``: the point lies ``inset`` texels inside each box on both axes (fixed point)."""
-    return np.all((coords >= inset * unit) & (coords < (resolution - inset) * unit), axis=2)
-
-
-def _outside_smaller_boxes(coords: np.ndarray, cascades: CascadeSet, *, unit: int, inset: int,
-                           resolution: int) -> np.ndarray:
-    """``coords`` with receivers outside a cascade smaller than the maps moved far outside it.
-
-    A cascade of ``R_c < R`` texels fills the corner ``[0, R_c)²`` of its ``R × R`` map; a receiver
-    less than ``inset`` texels inside that corner's edges gets ``-2**50`` there, so no selection
-    picks the cascade for it and no tap reads the empty rest of the map. Equal cascades: unchanged.
-    """
-    smaller = [c for c, cascade in enumerate(cascades.cascades) if cascade.resolution < resolution]
-    if not smaller:
-        return coords
-    out = coords.copy()
-    for c in smaller:
-        size = cascades.cascades[c].resolution
-        inside = np.all((out[c] >= inset * unit) & (out[c] < (size - inset) * unit), axis=1)
-        out[c][~inside] = -2**50
-    return out
-
-
-def _selection_parameters(cascades: CascadeSet, settings: ShadowSettings) -> dict:
-    """The cascade-selection arguments of :func:`csmlab.kernels.shadow.shadow_lookup` for ``settings``.
-
-    ``margin`` is the cascades' selection margin, widened to the filter's tap radius
-    (``margin_texels - 1``) so that a selected box holds every tap.
-    """
-    return dict(splits=cascades.splits, texel_area=np.array([np.prod(c.texel_size) for c in cascades.cascades]),
-                selection=settings.selection, blend_band=settings.blend_band, bits=settings.subtexel_bits,
-                margin=max(cascades.margin_texels, settings.margin_texels - 1))
-
-
-def looks_up_world_receivers(cascades: CascadeSet, settings: ShadowSettings, *, resolution: int) -> bool:
-    """Whether :func:`world_shadow_lookup` serves ``settings``: a box filter over equal cascades in float64 math.
-
-    The other filters read every receiver in its selected cascade again after the selection, an
-    engine's float32 math converts receivers on the host, and a cascade smaller than the maps
-    needs its receivers moved out of the empty rest of its map: those take the converted
-    receivers of :func:`filtered_shadow_lookup`.
-    """
-    return (settings.filter not in PCF_KERNELS and settings.filter not in MOMENT_METHODS
-            and settings.engine_precision == "float64"
-            and all(c.resolution == resolution for c in cascades.cascades))
-
-
-def world_shadow_lookup(depth, points, normals, view_depth, *, receivers, cascades: CascadeSet,
-                        settings: ShadowSettings, device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`filtered_shadow_lookup` of world receivers, where :func:`looks_up_world_receivers` holds.
-
-    Parameters
-    ----------
-    depth : array_like, shape (C, R, R), float32
-    points, normals : array_like, shape (M, 3)
-        World positions (float64, metres) and unit normals (float32).
-    view_depth : array_like, shape (N,)
-        View depth of each receiver under the selecting camera.
-    receivers : array_like, shape (N,), int
-        The rows of ``points`` that are receivers.
-    cascades : CascadeSet
-    settings : ShadowSettings
-    device : str
-
-    Returns
-    -------
-    lit, cascade, blend
-        As :func:`filtered_shadow_lookup`, the same bits.
-    """
-    return shadow_lookup_world(
-        depth, points, normals, view_depth, receivers=receivers, **receiver_conversion(cascades, settings),
-        receiver_plane_bias=settings.receiver_plane_bias, filter=settings.filter, filter_size=settings.filter_size,
-        **_selection_parameters(cascades, settings), device=device)
-
-
-def receiver_conversion(cascades: CascadeSet, settings: ShadowSettings) -> dict:
-    """What takes world receivers into the cascades' fixed point, sub-texel bits apart.
-
-    The keyword arguments ``basis, texel_size, origin, zref, normal_offset, bias_constant,
-    bias_slope`` of :func:`csmlab.kernels.shadow.receiver_coordinates` and
-    :func:`csmlab.kernels.shadow.shadow_lookup_world`.
-    """
-    bits = settings.subtexel_bits
-    return dict(basis=cascades.basis, texel_size=np.stack([c.texel_size for c in cascades.cascades]),
-                origin=np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]),
-                zref=cascades.zref, normal_offset=settings.normal_offset, bias_constant=settings.bias_constant,
-                bias_slope=settings.bias_slope)
-
-
-def filtered_shadow_lookup(depth, coords, receiver_depth, view_depth, *, cascades: CascadeSet,
-                           settings: ShadowSettings, receiver_slope=None, pixels=None, moments=None,
-                           span: float = 0.0, mips=None, lanes=None,
-                           device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Lit fraction S, selected cascade and blend flag of receivers under ``settings.filter``.
-
-    Parameters
-    ----------
-    depth, coords, receiver_depth, view_depth, receiver_slope
-        As :func:`csmlab.kernels.shadow.shadow_lookup`: ``(C, R, R)`` float32 maps, ``(C, N, 2)``
-        int64 fixed-point receivers, ``(C, N)`` float32 biased depths, ``(N,)`` view depths,
-        ``(C, N, 2)`` receiver-plane slopes or None.
-    cascades : CascadeSet
-        Splits, texel sizes and the selection margin.
-    settings : ShadowSettings
-        Selection, filter and its parameters, blend band, sub-texel bits.
-    pixels : array_like, shape (N, 2), optional
-        Each receiver's pixel (x = column, y = row) in the image of the camera being shaded; needed
-        by ``poisson_rotation = "pixel"`` only.
-    moments : array_like, shape (C, R, R, 4), float32, optional
-        The moment filters' maps (:func:`filter_moments`).
-    span : float
-        Depth range in metres the moments were taken over.
-    mips : list of ndarray, optional
-        ``moment_mips``: the moments' mip chain (:func:`filter_mips`).
-    lanes : tuple, optional
-        ``moment_mips``: each receiver's quad (:mod:`csmlab.quads`) as ``(coords, receiver_depth,
-        view_depth, slot)`` of shapes ``(C, N, 4, 2)`` int64, ``(C, N, 4)`` float32, ``(N, 4)`` and
-        ``(N,)``: the lanes' fixed-point coordinates and biased depths (as ``coords`` and
-        ``receiver_depth``), their view depths under the selecting camera, and which lane is the
-        receiver itself.
-    device : str
-        ``"cpu"`` or ``"cuda"``.
-
-    Returns
-    -------
-    lit : ndarray, shape (N,), float32
-        S in [0, 1]; NaN where no cascade holds the receiver and every tap.
-    cascade : ndarray, shape (N,), int8
-    blend : ndarray, shape (N,), bool
-
-    Raises
-    ------
-    ValueError
-        On an unknown filter, or a per-pixel rotation without ``pixels``.
-    """
-    filter = settings.filter
-    radius = settings.margin_texels - 1
-    bits = settings.subtexel_bits
-    common = dict(**_selection_parameters(cascades, settings), receiver_slope=receiver_slope, device=device)
-    margin = common["margin"]
-    coords = _outside_smaller_boxes(np.asarray(coords, dtype=np.int64), cascades, unit=2**bits, inset=margin,
-                                    resolution=np.shape(depth)[1])
-    if filter not in PCF_KERNELS and filter not in MOMENT_METHODS:
-        return shadow_lookup(depth, coords, receiver_depth, view_depth, filter=filter,
-                             filter_size=settings.filter_size, **common)
-    # Selection first (one tap), with the filter's radius as margin; then the taps-inside rule of
-    # shadow_lookup for this filter's radius, and the blend band toward a next cascade that holds them.
-    _, chosen, _ = shadow_lookup(depth, coords, receiver_depth, view_depth, filter="none", filter_size=1, **common)
-    xy = coords
-    unit = 2**bits
-    count, resolution = depth.shape[0], depth.shape[1]
-    holds = _holds(xy, unit, radius, resolution)
-    n = chosen.shape[0]
-    index = np.arange(n)
-    cascade = np.where(chosen >= 0, chosen, 0).astype(np.int64)
-    chosen = np.where((chosen >= 0) & holds[cascade, index], chosen, -1).astype(np.int32)
-    weight = np.zeros(n)
-    band = np.zeros(n, dtype=bool)
-    z = np.asarray(view_depth, dtype=np.float64)
-    if settings.blend_band > 0:
-        splits = np.asarray(cascades.splits, dtype=np.float64)
-        nxt = np.minimum(cascade + 1, count - 1)
-        z1 = splits[cascade + 1]
-        start = z1 - settings.blend_band * (z1 - splits[cascade])
-        band = (chosen >= 0) & (cascade + 1 < count) & (z >= start) & (z < z1) & holds[nxt, index]
-        weight[band] = (z[band] - start[band]) / (z1[band] - start[band])
-    if filter in MOMENT_METHODS and settings.moment_mips:
-        if mips is None or lanes is None or not span > 0:
-            raise ValueError("mips, lanes, span: moment_mips needs the mip chain, each receiver's quad and the span")
-        lane_coords, lane_depth, lane_view_depth, slot = lanes
-        lane_coords = np.asarray(lane_coords, dtype=np.int64)
-        flat = lane_coords.reshape(count, -1, 2)
-        _, lane_chosen, _ = shadow_lookup(depth, _outside_smaller_boxes(flat, cascades, unit=unit, inset=margin,
-                                                                        resolution=resolution),
-                                          np.asarray(lane_depth, dtype=np.float32).reshape(count, -1),
-                                          np.asarray(lane_view_depth, dtype=np.float64).reshape(-1), filter="none",
-                                          filter_size=1, **{**common, "receiver_slope": None})
-        lane_cascade = lane_chosen.astype(np.int64).reshape(n, 4)
-        lane_cascade[index, np.asarray(slot, dtype=np.int64)] = chosen
-        used, ddx, ddy = quad_derivatives(lane_coords, lane_cascade, chosen, method=settings.lod, bits=bits,
-                                          holds=holds)
-        band &= used == chosen
-        weight = np.where(band, weight, 0.0)
-        lit = moment_mip_lookup(mips, xy, receiver_depth, origin=box_texel_origins(cascades, bits=bits), cascade=used,
-                                ddx=ddx, ddy=ddy, method=filter, span=span, bits=bits, anisotropy=settings.anisotropy,
-                                exponents=settings.evsm_exponents, min_variance=settings.vsm_min_variance,
-                                power=settings.vsm_power, bleed=settings.vsm_bleed, blend_weight=weight,
-                                device=device)
-        return lit, used.astype(np.int8), band
-    if filter in MOMENT_METHODS:
-        if moments is None or not span > 0:
-            raise ValueError(f"moments, span: filter {filter!r} needs the moment maps and their depth span")
-        lit = moment_lookup(moments, xy, receiver_depth, cascade=chosen, method=filter, span=span, bits=bits,
-                            exponents=settings.evsm_exponents, min_variance=settings.vsm_min_variance,
-                            power=settings.vsm_power, bleed=settings.vsm_bleed, blend_weight=weight, device=device)
-        return lit, chosen.astype(np.int8), band
-    angle = None
-    if uses_pixels(settings):
-        if pixels is None:
-            raise ValueError("pixels: poisson_rotation = 'pixel' needs each receiver's pixel")
-        angle = 2.0 * np.pi * interleaved_gradient_noise(pixels)
-    disk = poisson_disk(settings.poisson_taps, seed=settings.poisson_seed) if filter == "pcf_poisson" else None
-    lit = weighted_pcf(depth, xy, receiver_depth, cascade=chosen, filter=filter,
-                       width=filter_widths(cascades, settings), radius=radius, bits=bits,
-                       receiver_slope=receiver_slope, blend_weight=weight, angle=angle, disk=disk, device=device)
-    return lit, chosen.astype(np.int8), band

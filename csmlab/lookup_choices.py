@@ -1,19 +1,40 @@
-"""The shadow lookup's choices by name, the integer codes the kernels switch on, and each filter's margin.
+"""The shadow lookup's choices by name: one record per cascade selection and one per filter.
 
-The Warp kernels (:mod:`csmlab.kernels.shadow`, :mod:`csmlab.kernels.pcf`,
-:mod:`csmlab.kernels.moments`) take a cascade selection or a filter as an ``int``; the constants
-below are those codes, read by the kernels and by the tables that map a ``[shadow]`` name to them.
-This module imports neither Warp nor the kernels, so the config loader checks ``selection`` and
-``filter`` and computes margins without compiling anything.
+A :class:`Filter` is everything csmlab knows about one ``[shadow] filter`` value: its family (which
+kernel runs it, :data:`FAMILIES`), the integer code that kernel switches on, the texels its taps
+reach and the width of its weights as functions of the settings, its tap offsets, what it reads
+besides the depth map, and what it does in words. :data:`FILTER_METHODS` maps every name to its
+record and :data:`SELECTION_METHODS` does the same for cascade selection. The lookup
+(:mod:`csmlab.filters`), the kernels (:mod:`csmlab.kernels.shadow`, :mod:`csmlab.kernels.pcf`,
+:mod:`csmlab.kernels.moments`), :attr:`csmlab.settings.ShadowSettings.margin_texels`, the engine
+export and the config loader all read these tables; nothing else decides what a filter is.
+
+A record's functions read the ``[shadow]`` fields they declare as keyword-only parameters (their
+declaration is the list of fields a filter depends on), taken from a
+:class:`~csmlab.settings.ShadowSettings` by :meth:`Filter.radius_of`, :meth:`Filter.width_of`,
+:meth:`Filter.offsets_of` and :meth:`Filter.reads_of`.
+
+The kernels switch on the integer constants below; Warp compiles a comparison with a module-level
+``int`` into the kernel, so they stay plain constants, each named once here and held by its record.
+
+This module imports neither Warp nor the kernels (NumPy only), so the settings and the config
+loader use it without compiling anything.
 """
 
 from __future__ import annotations
 
-from csmlab.registry import check_name
+import functools
+from collections.abc import Callable
+from dataclasses import dataclass
 
-__all__ = ["BOX_BILINEAR", "BOX_FILTERS", "BOX_NONE", "BOX_PCF", "FILTER_METHODS", "MOMENT_EVSM2", "MOMENT_EVSM4",
-           "MOMENT_METHODS", "MOMENT_VSM", "PCF_GAUSSIAN", "PCF_KERNELS", "PCF_PCSS", "PCF_POISSON", "PCF_TENT",
-           "SELECTION_METHODS", "SELECT_BEST_RESOLUTION", "SELECT_INTERVAL", "SELECT_MAP", "filter_radius"]
+import numpy as np
+
+from csmlab.registry import check_name, parameters
+
+__all__ = ["BOX_BILINEAR", "BOX_TAPS", "FAMILIES", "FILTER_METHODS", "Filter", "MOMENT_EVSM2", "MOMENT_EVSM4",
+           "MOMENT_VSM", "PCF_GAUSSIAN", "PCF_PCSS", "PCF_POISSON", "PCF_TENT", "SELECTION_METHODS",
+           "SELECT_BEST_RESOLUTION", "SELECT_INTERVAL", "SELECT_MAP", "Selection", "family_code", "family_filters",
+           "poisson_disk"]
 
 SELECT_INTERVAL = 0
 """Selection code: the cascade whose split interval holds the view depth."""
@@ -22,73 +43,271 @@ SELECT_MAP = 1
 SELECT_BEST_RESOLUTION = 2
 """Selection code: of the boxes that hold the point, the one with the smallest texels."""
 
-SELECTION_METHODS: dict[str, int] = {"interval": SELECT_INTERVAL, "map": SELECT_MAP,
-                                     "best_resolution": SELECT_BEST_RESOLUTION}
-"""Cascade selection methods by name, mapped to the kernel's code."""
-
-BOX_NONE = 0
-"""Box filter code: the one texel holding the point."""
-BOX_PCF = 1
-"""Box filter code: N×N texels, equal weights."""
-BOX_BILINEAR = 2
-"""Box filter code: 2×2 texels, bilinear weights."""
-
-BOX_FILTERS: dict[str, int] = {"none": BOX_NONE, "pcf": BOX_PCF, "pcf_bilinear": BOX_BILINEAR}
-"""The filters :func:`csmlab.kernels.shadow.shadow_lookup` runs itself, mapped to its code."""
+BOX_TAPS = 0
+"""Box family code: the (2r + 1)² texels centred on the one holding the point, equal weights (r = 0: one texel)."""
+BOX_BILINEAR = 1
+"""Box family code: the 2×2 texels around the point, bilinear weights."""
 
 PCF_GAUSSIAN = 0
+"""Weighted family code: Gaussian weights (:func:`csmlab.kernels.pcf.weighted_pcf`)."""
 PCF_TENT = 1
+"""Weighted family code: tent weights integrated over each texel."""
 PCF_POISSON = 2
+"""Weighted family code: equal weights at the offsets of a Poisson disk."""
 PCF_PCSS = 3
-
-PCF_KERNELS: dict[str, int] = {"pcf_gaussian": PCF_GAUSSIAN, "pcf_tent": PCF_TENT, "pcf_poisson": PCF_POISSON,
-                               "pcss": PCF_PCSS}
-"""Weighted PCF filters by name, mapped to the code of :func:`csmlab.kernels.pcf.weighted_pcf`."""
+"""Weighted family code: blocker search, then a tent as wide as the penumbra."""
 
 MOMENT_VSM = 0
+"""Moment family code: ``(z, z²)`` (:mod:`csmlab.kernels.moments`)."""
 MOMENT_EVSM2 = 1
+"""Moment family code: the positive exponential warp."""
 MOMENT_EVSM4 = 2
+"""Moment family code: the positive and negative exponential warps."""
 
-MOMENT_METHODS: dict[str, int] = {"vsm": MOMENT_VSM, "evsm2": MOMENT_EVSM2, "evsm4": MOMENT_EVSM4}
-"""Moment filters by name, mapped to the code of the :mod:`csmlab.kernels.moments` kernels."""
 
-FILTER_METHODS: dict[str, str] = {
-    "none": "the one texel holding the point",
-    "pcf": "N×N texels, equal weights",
-    "pcf_bilinear": "2×2 texels, bilinear weights (hardware comparison sampler)",
-    "pcf_gaussian": "N×N texels, Gaussian weights of σ = filter_sigma (DirectX CascadedShadowMaps11)",
-    "pcf_tent": "tent of half-width N/2 integrated over each texel (Unity's 3×3/5×5/7×7 tents)",
-    "pcf_poisson": "poisson_taps taps of a fixed Poisson disk of radius N/2 (optionally rotated per pixel)",
-    "pcss": "blocker search over N×N, penumbra from light_size_deg, then a tent (PCSS)",
-    "vsm": "variance shadow map: blurred (z, z²), Chebyshev bound (DirectX VarianceShadows11)",
-    "evsm2": "exponential VSM, positive warp (MJP, Filament)",
-    "evsm4": "exponential VSM, positive and negative warps (MJP, Filament)",
+@dataclass(frozen=True)
+class Selection:
+    """One cascade selection method.
+
+    Attributes
+    ----------
+    name : str
+        The ``[shadow] selection`` value.
+    code : int
+        What :func:`csmlab.kernels.shadow.shadow_lookup_kernel` switches on.
+    description : str
+    """
+
+    name: str
+    code: int
+    description: str
+
+
+SELECTION_METHODS: dict[str, Selection] = {s.name: s for s in (
+    Selection("interval", SELECT_INTERVAL, "the cascade whose split interval holds the view depth"),
+    Selection("map", SELECT_MAP, "the first cascade whose box holds the point, less the margin"),
+    Selection("best_resolution", SELECT_BEST_RESOLUTION,
+              "of the boxes that hold the point, the one with the smallest texels (seed 003)"),
+)}
+"""Cascade selection methods by name."""
+
+FAMILIES: dict[str, str] = {
+    "box": "equal or bilinear weights over whole texels, run by the selection kernel itself (csmlab.kernels.shadow)",
+    "weighted": "weighted percentage-closer filtering at the selected cascade (csmlab.kernels.pcf)",
+    "moment": "Chebyshev's bound of filtered depth moments at the selected cascade (csmlab.kernels.moments)",
 }
-"""Filters by name (the ``[shadow] filter`` values) and what each does."""
+"""Filter families by name: which kernel runs a filter after (or with) the cascade selection."""
 
 
-def filter_radius(filter: str, filter_size: int, *, moment_blur: int = 1, mips: tuple[int, int] | None = None) -> int:
-    """Texels a filter reads beyond the one holding the point (``filter_size`` N, odd).
+def _depth_only() -> frozenset:
+    return frozenset({"depth"})
 
-    ``none`` 0; ``pcf``, ``pcf_gaussian`` and ``pcss`` N // 2; ``pcf_bilinear`` 1; ``pcf_tent`` and
-    ``pcf_poisson`` N // 2 + 1 (a width of N/2 texels around a point anywhere in its texel); the
-    moment filters ``moment_blur // 2 + 1`` (a bilinear lookup of blurred moments), and with
-    ``mips = (max_lod, anisotropy)`` ``⌈(anisotropy + 2) / 2 · 2^max_lod⌉ + moment_blur // 2``: a
-    bilinear lookup at level l reads within 1.5 · 2^l texels of its probe, and the probes spread
-    over at most ``(anisotropy − 1) / 2 · 2^max_lod`` texels on each side (csmlab.kernels.moments).
+
+def _call(function: Callable, settings, *args):
+    """``function(*args, **{each field it declares: settings.field})``."""
+    return function(*args, **{name: getattr(settings, name) for name in parameters(function)})
+
+
+@dataclass(frozen=True)
+class Filter:
+    """One shadow filter.
+
+    Attributes
+    ----------
+    name : str
+        The ``[shadow] filter`` value.
+    family : str
+        A key of :data:`FAMILIES`.
+    code : int
+        What the family's kernel switches on.
+    description : str
+        What it does, in a line.
+    taps : str
+        Which texels it tests and how it weighs them.
+    radius : callable
+        ``radius(*, <fields>) -> int``: texels the taps reach beyond the texel holding the point
+        (the boxes keep them inside their edges, so no tap is ever clamped; DESIGN.md "Exact zero").
+    width : callable, optional
+        ``width(texel, /, *, <fields>) -> ndarray``: the width of the weights per cascade from the
+        cascades' texel sizes ``(C,)`` in metres (the larger side); None where the taps set it.
+    offsets : callable, optional
+        ``offsets(*, <fields>) -> ndarray (K, 2)``: tap offsets in the unit disk; None where the
+        taps are whole texels.
+    reads : callable
+        ``reads(*, <fields>) -> frozenset``: what the lookup needs besides the receivers, of
+        ``depth`` (the depth maps), ``moments`` (their moments), ``mips`` (the moments' mip chain
+        and every receiver's pixel quad) and ``pixels`` (each receiver's pixel: a per-pixel rotation).
+    hard : bool
+        One depth test per receiver, no filtering: a hard shadow.
+    """
+
+    name: str
+    family: str
+    code: int
+    description: str
+    taps: str
+    radius: Callable[..., int]
+    width: Callable[..., np.ndarray] | None = None
+    offsets: Callable[..., np.ndarray] | None = None
+    reads: Callable[..., frozenset] = _depth_only
+    hard: bool = False
+
+    def radius_of(self, settings) -> int:
+        """Texels the taps reach under ``settings`` (a ShadowSettings, or anything with the fields ``radius`` reads)."""
+        return _call(self.radius, settings)
+
+    def width_of(self, texel, settings) -> np.ndarray | None:
+        """The weights' width ``(C,)`` for texel sizes ``texel`` ``(C,)`` in metres; None where the filter has none."""
+        return None if self.width is None else _call(self.width, settings, np.asarray(texel, dtype=np.float64))
+
+    def offsets_of(self, settings) -> np.ndarray | None:
+        """Tap offsets ``(K, 2)`` in the unit disk; None where the taps are whole texels."""
+        return None if self.offsets is None else _call(self.offsets, settings)
+
+    def reads_of(self, settings) -> frozenset:
+        """What the lookup of this filter reads under ``settings`` (see :attr:`reads`)."""
+        return _call(self.reads, settings)
+
+
+def _no_reach() -> int:
+    return 0
+
+
+def _half(*, filter_size: int) -> int:
+    return filter_size // 2
+
+
+def _one() -> int:
+    return 1
+
+
+def _half_and_one(*, filter_size: int) -> int:
+    # A width of N/2 texels around a point anywhere in its texel reaches one texel further.
+    return filter_size // 2 + 1
+
+
+def _moment_reach(*, moment_blur: int, moment_mips: bool, max_lod: int, anisotropy: int) -> int:
+    """A bilinear lookup reads one texel beyond the point, each blurred from ``moment_blur // 2`` more.
+
+    With mips a bilinear lookup at level l reads within 1.5 · 2^l texels of its probe, and the
+    probes spread over at most ``(anisotropy − 1) / 2 · 2^max_lod`` texels on each side
+    (csmlab.kernels.moments): ``⌈(anisotropy + 2) / 2 · 2^max_lod⌉``.
+    """
+    if moment_mips:
+        return -(-(anisotropy + 2) * 2**max_lod // 2) + moment_blur // 2
+    return moment_blur // 2 + 1
+
+
+def _gaussian_width(texel, /, *, filter_width_m: float, filter_sigma: float) -> np.ndarray:
+    """σ in texels: ``filter_sigma``, or a quarter of ``filter_width_m`` (±2σ) in every cascade's texels."""
+    if filter_width_m > 0:
+        return filter_width_m / 4.0 / texel
+    return np.full(texel.shape, filter_sigma)
+
+
+def _half_width(texel, /, *, filter_width_m: float, filter_size: int) -> np.ndarray:
+    """Half-width in texels: N/2, or half of ``filter_width_m`` in every cascade's texels, capped at N/2.
+
+    The width in metres is Unigine's (seed 003, "self-adjusting filtering kernel size", Listing 4.1.8).
+    """
+    half = filter_size / 2.0
+    if filter_width_m > 0:
+        # A width of zero texels is no filter; the narrowest kept is a hundredth of a texel.
+        return np.clip(filter_width_m / 2.0 / texel, 0.01, half)
+    return np.full(texel.shape, half)
+
+
+def _penumbra_per_metre(texel, /, *, light_size_deg: float) -> np.ndarray:
+    """Penumbra texels per metre between blocker and receiver, ``2 tan(θ_L / 2) / texel``."""
+    return np.full(texel.shape, 2.0 * np.tan(np.radians(light_size_deg) / 2.0)) / texel
+
+
+@functools.lru_cache(maxsize=16)
+def _disk(taps: int, seed: int) -> tuple:
+    rng = np.random.default_rng(seed)
+    points = np.zeros((0, 2))
+    for _ in range(taps):
+        # Mitchell's best candidate: of 30 uniform candidates in the disk, keep the one farthest
+        # from the taps so far — a blue-noise (Poisson-disk-like) set, fixed by the seed.
+        r = np.sqrt(rng.random(30))
+        a = 2.0 * np.pi * rng.random(30)
+        candidates = np.column_stack([r * np.cos(a), r * np.sin(a)])
+        if len(points):
+            gap = np.min(np.linalg.norm(candidates[:, None] - points[None], axis=2), axis=1)
+            best = candidates[np.argmax(gap)]
+        else:
+            best = candidates[0]
+        points = np.vstack([points, best])
+    return tuple(map(tuple, points))
+
+
+def poisson_disk(taps: int, *, seed: int) -> np.ndarray:
+    """A fixed Poisson-disk-like set of ``taps`` offsets ``(taps, 2)`` in the unit disk, the same for the same seed."""
+    if not (isinstance(taps, (int, np.integer)) and taps >= 1):
+        raise ValueError(f"taps: expected a positive integer, got {taps!r}")
+    return np.array(_disk(int(taps), int(seed)), dtype=np.float64)
+
+
+def _poisson_offsets(*, poisson_taps: int, poisson_seed: int) -> np.ndarray:
+    return poisson_disk(poisson_taps, seed=poisson_seed)
+
+
+def _poisson_reads(*, poisson_rotation: str) -> frozenset:
+    # Rotated per pixel, the disk turns with each receiver's pixel (screen-space noise).
+    return frozenset({"depth", "pixels"} if poisson_rotation == "pixel" else {"depth"})
+
+
+def _moment_reads(*, moment_mips: bool) -> frozenset:
+    return frozenset({"moments", "mips"} if moment_mips else {"moments"})
+
+
+_MOMENT_TAPS = "the 2×2 blurred moment texels around the point, bilinear (trilinear in the mips with moment_mips)"
+
+FILTER_METHODS: dict[str, Filter] = {f.name: f for f in (
+    Filter("none", "box", BOX_TAPS, "the one texel holding the point", "that texel", _no_reach, hard=True),
+    Filter("pcf", "box", BOX_TAPS, "N×N texels, equal weights",
+           "the N×N texels centred on the point's, equal weights", _half),
+    Filter("pcf_bilinear", "box", BOX_BILINEAR, "2×2 texels, bilinear weights (hardware comparison sampler)",
+           "the 2×2 texels around the point, weighted by its fixed-point fraction between their centres", _one),
+    Filter("pcf_gaussian", "weighted", PCF_GAUSSIAN,
+           "N×N texels, Gaussian weights of σ = filter_sigma (DirectX CascadedShadowMaps11)",
+           "the N×N texels centred on the point's, weighted exp(−(di² + dj²) / 2σ²), normalized", _half,
+           width=_gaussian_width),
+    Filter("pcf_tent", "weighted", PCF_TENT,
+           "tent of half-width N/2 integrated over each texel (Unity's 3×3/5×5/7×7 tents)",
+           "every texel the tent centred on the point covers, weighted by the tent's integral over it", _half_and_one,
+           width=_half_width),
+    Filter("pcf_poisson", "weighted", PCF_POISSON,
+           "poisson_taps taps of a fixed Poisson disk of radius N/2 (optionally rotated per pixel)",
+           "the texel under each disk offset scaled by the half-width, equal weights", _half_and_one,
+           width=_half_width, offsets=_poisson_offsets, reads=_poisson_reads),
+    Filter("pcss", "weighted", PCF_PCSS, "blocker search over N×N, penumbra from light_size_deg, then a tent (PCSS)",
+           "the N×N texels for the blocker search, then a tent as wide as the penumbra, clamped to them", _half,
+           width=_penumbra_per_metre),
+    Filter("vsm", "moment", MOMENT_VSM,
+           "variance shadow map: blurred (z, z²), Chebyshev bound (DirectX VarianceShadows11)", _MOMENT_TAPS,
+           _moment_reach, reads=_moment_reads),
+    Filter("evsm2", "moment", MOMENT_EVSM2, "exponential VSM, positive warp (MJP, Filament)", _MOMENT_TAPS,
+           _moment_reach, reads=_moment_reads),
+    Filter("evsm4", "moment", MOMENT_EVSM4, "exponential VSM, positive and negative warps (MJP, Filament)",
+           _MOMENT_TAPS, _moment_reach, reads=_moment_reads),
+)}
+"""Filters by name (the ``[shadow] filter`` values)."""
+
+
+def family_filters(family: str) -> dict[str, Filter]:
+    """The filters of one family (a key of :data:`FAMILIES`), by name."""
+    check_name(family, FAMILIES, field="family")
+    return {name: f for name, f in FILTER_METHODS.items() if f.family == family}
+
+
+def family_code(name: str, *, family: str, field: str = "filter") -> int:
+    """The kernel code of filter ``name``, which must belong to ``family``.
 
     Raises
     ------
     ValueError
-        On a name not in :data:`FILTER_METHODS`.
+        ``"<field>: expected one of [...]"``, the family's filters, on any other name.
     """
-    check_name(filter, FILTER_METHODS, field="filter")
-    half = filter_size // 2
-    if filter in MOMENT_METHODS and mips is not None:
-        max_lod, anisotropy = mips
-        return -(-(anisotropy + 2) * 2**max_lod // 2) + moment_blur // 2
-    if filter in MOMENT_METHODS:
-        # The bilinear lookup reads one texel beyond the point, each blurred from moment_blur // 2 more.
-        return moment_blur // 2 + 1
-    return {"none": 0, "pcf": half, "pcf_bilinear": 1, "pcf_gaussian": half, "pcss": half, "pcf_tent": half + 1,
-            "pcf_poisson": half + 1}[filter]
+    members = family_filters(family)
+    return members[check_name(name, members, field=field)].code

@@ -3,8 +3,9 @@
 What depends on the camera and the light only — the G-buffer (step 5) and the ray-traced
 reference (step 7) — is :func:`render_view`, computed once per frame and shared by every shadow
 method. Each method then runs :func:`render_shadow`: cascades (steps 1–3), depth maps in fixed
-point (step 4) and the shadow lookup at every visible pixel (step 6). :func:`render_frame` does
-both. Each stage's wall-clock time goes into the records' ``timings``.
+point (step 4) and the shadow lookup at every visible pixel (step 6, :func:`csmlab.filters.lookup_shadow`,
+which this module also offers as :func:`lookup_shadow`, with its fade :func:`faded`). :func:`render_frame`
+does both. Each stage's wall-clock time goes into the records' ``timings``.
 """
 
 from __future__ import annotations
@@ -16,24 +17,22 @@ import numpy as np
 
 from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet, build_cascades
-from csmlab.cascades.bounds import visible_depth_range
-from csmlab.filters import (filter_mips, filter_moments, filtered_shadow_lookup, looks_up_world_receivers,
-                            receiver_conversion, uses_pixels, world_shadow_lookup)
-from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
+from csmlab.cascades.bounds import BOUNDS_METHODS, DEPTH_RANGE_METHODS, visible_depth_range
+from csmlab.filters import faded, filter_inputs, lookup_shadow
+from csmlab.frame import Frame, GBuffer, ShadowMaps, View
 from csmlab.geometry import normalized
 from csmlab.kernels.raster import (BANDS_PER_THREAD, LightSpaceMesh, banded_regions, light_space_mesh,
                                   rasterize_cascades, rasterize_depth, region_chunks, whole_map_regions, z_ordered)
 from csmlab.kernels.reference import hard_shadow
-from csmlab.kernels.shadow import receiver_coordinates
 from csmlab.kernels.threads import checked_threads
 from csmlab.kernels.visibility import MeshBVH, camera_hits, mesh_bvh
-from csmlab.quads import Quads, quad_lanes
+from csmlab.quads import quad_lanes
 from csmlab.scene.core import Scene
 from csmlab.scrolling import RasterizedMaps, scroll_plan
 from csmlab.settings import ShadowSettings
 from csmlab.storage import stored_depth
-from csmlab.texels import (fixed_point_coordinates, fixed_point_origin, light_depth, light_plane_coordinates,
-                           receiver_lookup)
+from csmlab.texels import (PRECISION_METHODS, fixed_point_coordinates, fixed_point_origin, light_depth,
+                           light_plane_coordinates)
 
 __all__ = ["DeviceScene", "clipped_casters", "faded", "lookup_shadow", "prepare_scene", "render_frame", "render_shadow",
            "render_view", "shadow_maps", "visible_depth"]
@@ -159,26 +158,27 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
     """Rasterize every cascade's depth map from the scene's vertices in fixed point, stored in ``settings.depth_format``.
 
     Pancaked slice boxes (``depth_range = "slice"``) are clamped to their near side; the moments
-    and their mips follow when the filter needs them (:mod:`csmlab.filters`). ``scroll_from``, the
+    and their mips follow when the filter reads them (:func:`csmlab.filters.filter_inputs`). ``scroll_from``, the
     same method's previous maps, lends the texels its boxes already covered (:mod:`csmlab.scrolling`):
     the same maps, less rasterization.
     """
     raster = None
-    if settings.engine_precision == "float64" and not (settings.depth_range == "slice" and not settings.depth_clamp):
+    cut = DEPTH_RANGE_METHODS[settings.depth_range].cuts_casters
+    if PRECISION_METHODS[settings.engine_precision].global_grid and not (cut and not settings.depth_clamp):
         depth, texels, raster = _culled_depth_maps(dscene, cascades, settings,
                                                    previous=None if scroll_from is None else scroll_from.raster)
     else:
         depth, texels = _host_snapped_depth_maps(dscene, cascades, settings)
-    if settings.depth_range == "slice" and settings.depth_clamp:
+    if cut and settings.depth_clamp:
         # Pancaking is a per-fragment clamp max(z, near); the stored minimum of clamped fragments
         # is the clamped minimum, so clamping the map is exact.
         near = np.array([c.depth_near - cascades.zref for c in cascades.cascades], dtype=np.float32)
         depth = np.maximum(depth, near[:, None, None])
     span = float(np.ptp(cascades.to_light(dscene.corners)[:, 2]))
     depth = stored_depth(depth, span=span, depth_format=settings.depth_format)
-    moments = filter_moments(depth, span=span, settings=settings, device=dscene.device)
+    moments, mips = filter_inputs(depth, cascades, span=span, settings=settings, device=dscene.device)
     return ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=texels, moments=moments, depth_span=span,
-                      mips=filter_mips(moments, cascades, settings=settings, device=dscene.device), raster=raster)
+                      mips=mips, raster=raster)
 
 
 def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings, *,
@@ -197,33 +197,35 @@ def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
     mesh = _scene_in_light_space(dscene, cascades)
     bounds = mesh.bounds
     texel_size = np.stack([c.texel_size for c in cascades.cascades])
-    origin = np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))])
+    # Box origins in texels (where the chunks' rectangles are measured) and in 2**-bits texels (the
+    # fixed point the vertices are snapped to): one origin, named by its unit.
+    origin_texels = np.stack([c.origin for c in cascades.cascades])
+    origin_fixed = np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))])
     sizes = [c.resolution for c in cascades.cascades]
 
-    def rasterized(corner, fixed_origin, regions, **how):
+    def rasterized(origin_texels, origin_fixed, regions, **how):
         if dscene.threads > 1:
             # Each region cut in bands (BANDS_PER_THREAD per thread), which the threads take in turn.
             regions = banded_regions(regions, parts=BANDS_PER_THREAD * dscene.threads, axis=bounds.narrow_axis)
-        chunks = region_chunks(bounds, texel_size=texel_size, origin=corner, regions=regions)
-        depth, texels = rasterize_cascades(mesh, texel_size=texel_size, origin=fixed_origin, resolution=max(sizes),
+        chunks = region_chunks(bounds, texel_size=texel_size, origin=origin_texels, regions=regions)
+        depth, texels = rasterize_cascades(mesh, texel_size=texel_size, origin=origin_fixed, resolution=max(sizes),
                                            bits=bits, regions=regions, chunks=chunks, threads=dscene.threads,
                                            device=dscene.device, **how)
         return depth, np.bincount(regions[:, 0], weights=texels, minlength=len(sizes)).astype(np.int64)
 
-    corner = np.stack([c.origin for c in cascades.cascades])
-    if np.any(origin % (1 << bits)):
-        depth, texels = rasterized(corner, origin, whole_map_regions(sizes))
+    if np.any(origin_fixed % (1 << bits)):
+        depth, texels = rasterized(origin_texels, origin_fixed, whole_map_regions(sizes))
         return depth, int(texels.sum()), None
     plan = scroll_plan(previous, basis=cascades.basis, zref=cascades.zref, bits=bits, texel_size=texel_size,
-                       origin=origin, resolution=sizes)
-    depth, texels = rasterized(corner, origin, plan.regions, depth=plan.depth)
+                       origin=origin_fixed, resolution=sizes)
+    depth, texels = rasterized(origin_texels, origin_fixed, plan.regions, depth=plan.depth)
     per_cascade = plan.kept_texels + texels
     if len(plan.left):
         # Counted where the previous boxes lay (scroll_plan keeps only boxes of this texel size).
         per_cascade -= rasterized(previous.origin / float(1 << bits), previous.origin, plan.left, count_only=True)[1]
     depth.flags.writeable = False
-    raster = RasterizedMaps(basis=cascades.basis, zref=cascades.zref, bits=bits, texel_size=texel_size, origin=origin,
-                            resolution=np.array(sizes), depth=depth, texels=per_cascade)
+    raster = RasterizedMaps(basis=cascades.basis, zref=cascades.zref, bits=bits, texel_size=texel_size,
+                            origin=origin_fixed, resolution=np.array(sizes), depth=depth, texels=per_cascade)
     return depth, int(per_cascade.sum()), raster
 
 
@@ -243,7 +245,7 @@ def _host_snapped_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
     texels = 0
     for c, cascade in enumerate(cascades.cascades):
         triangles = dscene.scene.triangles
-        if settings.depth_range == "slice" and not settings.depth_clamp:
+        if DEPTH_RANGE_METHODS[settings.depth_range].cuts_casters and not settings.depth_clamp:
             triangles = clipped_casters(depth_of_vertex, triangles, near=cascade.depth_near - cascades.zref)
         if triangles.shape[0] == 0:
             continue
@@ -262,140 +264,6 @@ def clipped_casters(depth: np.ndarray, triangles: np.ndarray, *, near: float) ->
     crosses the near side is kept whole (a GPU would keep only its part behind the plane).
     """
     return triangles[depth[triangles].max(axis=1) >= near]
-
-
-def _receiver_coordinates(cascades: CascadeSet, points: np.ndarray, normals: np.ndarray, receivers: np.ndarray, *,
-                          settings: ShadowSettings, device: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Fixed-point coordinates ``(C, N, 2)``, biased depths ``(C, N)`` and slopes ``(C, N, 2)`` of ``points[receivers]``.
-
-    :func:`csmlab.texels.receiver_lookup`; in float64 it runs in a kernel (the same bits), an
-    engine's float32 cascade math (``engine_precision``) runs on the host.
-    """
-    bits = settings.subtexel_bits
-    if settings.engine_precision != "float64":
-        return receiver_lookup(cascades, points[receivers], normals[receivers], bits=bits,
-                               normal_offset=settings.normal_offset, bias_constant=settings.bias_constant,
-                               bias_slope=settings.bias_slope, precision=settings.engine_precision)
-    return receiver_coordinates(points, normals, receivers=receivers, bits=bits,
-                                **receiver_conversion(cascades, settings), device=device)
-
-
-def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: ShadowSettings,
-                  pixels=None, quads: Quads | None = None, quad_view_depth=None, device: str = "cpu") -> ShadowLookup:
-    """One method's shadow at receiver points: cascade selection, biased depth test, filter, blend.
-
-    Parameters
-    ----------
-    maps : ShadowMaps
-        The cascades and depth maps to look up.
-    points : array_like, shape (N, 3) or (H, W, 3), float64
-        World positions in metres; NaN rows are not receivers.
-    normals : array_like, same shape as ``points``, float32
-        Unit receiver normals (facing the camera).
-    view_depth : array_like, shape (N,) or (H, W)
-        View depth in metres under the camera whose cascade selection is wanted (the temporal
-        metric passes ``pose_{t-1}.view_depth(points)``); non-finite where no receiver.
-    settings : ShadowSettings
-        Selection, filter, bias, normal offset, blend band and sub-texel bits.
-    pixels : array_like, shape (N, 2) or (H, W, 2), optional
-        Each point's pixel (x, y) in the image being shaded, for filters rotated per pixel; None:
-        an ``(H, W, 3)`` image of points is at its own pixels.
-    quads : Quads, optional
-        ``moment_mips``: each point's 2×2 pixel quad (:func:`csmlab.quads.quad_lanes`), shaped like
-        ``view_depth`` plus ``(4, 3)``.
-    quad_view_depth : array_like, shape (..., 4), optional
-        The lanes' view depths under the camera whose cascade selection is wanted.
-    device : str
-        ``"cpu"`` or ``"cuda"``.
-
-    Returns
-    -------
-    ShadowLookup
-        Arrays shaped like ``view_depth``.
-    """
-    p = np.asarray(points, dtype=np.float64)
-    n = np.asarray(normals, dtype=np.float32)
-    z = np.asarray(view_depth, dtype=np.float64)
-    if p.shape[-1:] != (3,) or n.shape != p.shape or z.shape != p.shape[:-1]:
-        raise ValueError(f"points, normals, view_depth: expected shapes (..., 3), (..., 3), (...); "
-                         f"got {p.shape}, {n.shape}, {z.shape}")
-    # Only receivers go to the kernels: points with a NaN (misses) keep S = NaN and cascade -1.
-    flat_z = z.reshape(-1)
-    flat_points = p.reshape(-1, 3)
-    # Component by component: np.all over a length-3 axis is ten times slower than three columns.
-    finite = np.isfinite(flat_points[:, 0]) & np.isfinite(flat_points[:, 1]) & np.isfinite(flat_points[:, 2])
-    receivers = np.flatnonzero(finite & ~np.isnan(flat_z))
-    cascades = maps.cascades
-    if looks_up_world_receivers(cascades, settings, resolution=maps.depth.shape[1]):
-        # Each receiver converted where the lookup reads it: no (C, N) arrays of every receiver in
-        # every cascade (the same bits as the converted path below).
-        found = world_shadow_lookup(maps.depth, flat_points, n.reshape(-1, 3), flat_z[receivers], receivers=receivers,
-                                    cascades=cascades, settings=settings, device=device)
-        return _shadow_lookup_record(found, receivers, z, settings=settings, far=float(cascades.splits[-1]))
-    coordinates, receiver_depth, receiver_slope = _receiver_coordinates(
-        cascades, flat_points, n.reshape(-1, 3), receivers, settings=settings, device=device)
-    if pixels is None and p.ndim == 3 and uses_pixels(settings):
-        rows, cols = np.indices(p.shape[:2])
-        pixels = np.stack([cols, rows], axis=-1)
-    lanes = None
-    if maps.mips is not None:
-        if quads is None or quad_view_depth is None:
-            raise ValueError("quads, quad_view_depth: moment_mips takes its level of detail from each point's pixel quad")
-        lane_points = quads.position.reshape(-1, 4, 3)[receivers].reshape(-1, 3)
-        # The lanes go through the same coordinates as their centre (same precision, same grid), so
-        # their differences are the quad's derivatives.
-        lane_coords, lane_depth, _ = _receiver_coordinates(
-            cascades, lane_points, np.repeat(n.reshape(-1, 3)[receivers], 4, axis=0), np.arange(len(lane_points)),
-            settings=settings, device=device)
-        count = len(cascades)
-        lanes = (lane_coords.reshape(count, -1, 4, 2), lane_depth.reshape(count, -1, 4),
-                 np.asarray(quad_view_depth, dtype=np.float64).reshape(-1, 4)[receivers],
-                 quads.slot.reshape(-1)[receivers])
-    found = filtered_shadow_lookup(
-        maps.depth, coordinates, receiver_depth, flat_z[receivers], cascades=cascades, settings=settings,
-        moments=maps.moments, span=maps.depth_span, mips=maps.mips, lanes=lanes,
-        receiver_slope=receiver_slope if settings.receiver_plane_bias else None,
-        pixels=None if pixels is None else np.asarray(pixels, dtype=np.float64).reshape(-1, 2)[receivers],
-        device=device,
-    )
-    return _shadow_lookup_record(found, receivers, z, settings=settings, far=float(cascades.splits[-1]))
-
-
-def _shadow_lookup_record(found: tuple, receivers: np.ndarray, view_depth: np.ndarray, *, settings: ShadowSettings,
-                          far: float) -> ShadowLookup:
-    """The :class:`ShadowLookup` of every point (shaped like ``view_depth``) from the receivers' ``(lit, cascade, blend)``.
-
-    The fade-out toward ``far`` (``settings.fade_out``) is applied here, after any lookup.
-    """
-    shape = view_depth.shape
-    flat_z = view_depth.reshape(-1)
-    lit = np.full(flat_z.shape, np.nan, dtype=np.float32)
-    cascade = np.full(flat_z.shape, -1, dtype=np.int8)
-    blend = np.zeros(flat_z.shape, dtype=bool)
-    lit[receivers], cascade[receivers], blend[receivers] = found
-    if settings.fade_out > 0.0:
-        lit[receivers], fading = faded(lit[receivers], flat_z[receivers], far=far, fade_out=settings.fade_out)
-        # Like a blend band, the fade weight follows the camera: the temporal metric counts these
-        # points with the transitions, not with same-cascade swimming.
-        blend[receivers] |= fading
-    return ShadowLookup(lit=lit.reshape(shape), cascade=cascade.reshape(shape), blend=blend.reshape(shape))
-
-
-def faded(lit: np.ndarray, view_depth: np.ndarray, *, far: float, fade_out: float) -> tuple[np.ndarray, np.ndarray]:
-    """``lit`` ``(N,)`` faded toward 1 over the last ``fade_out`` fraction of ``far`` in view depth.
-
-    The weight rises linearly from 0 at ``far (1 - fade_out)`` to 1 at ``far`` (Unreal's
-    ``ShadowDistanceFadeoutFraction``, Godot's ``1 - directional_shadow_fade_start``).
-
-    Returns
-    -------
-    lit : ndarray, shape (N,), float32
-    fading : ndarray, shape (N,), bool
-        The weight is above 0.
-    """
-    start = far * (1.0 - fade_out)
-    weight = np.clip((np.asarray(view_depth, dtype=np.float64) - start) / max(far - start, 1e-12), 0.0, 1.0)
-    return (lit + (1.0 - lit) * weight).astype(np.float32), weight > 0.0
 
 
 def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
@@ -417,7 +285,7 @@ def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
     """
     settings = settings.validated()
     start = time.perf_counter()
-    if settings.bounds == "sdsm" and visible_depth is None:
+    if BOUNDS_METHODS[settings.bounds].visible and visible_depth is None:
         visible_depth = visible_depth_range(view.gbuffer.view_depth)
     cascades = build_cascades(pose=view.pose, light_direction=view.light_direction,
                               scene_corners=dscene.corners, settings=settings, visible_depth=visible_depth,

@@ -10,6 +10,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields, replace
 
+from csmlab.lookup_choices import FILTER_METHODS
+from csmlab.registry import check_name
+
 __all__ = ["ShadowSettings"]
 
 
@@ -194,11 +197,11 @@ class ShadowSettings:
 
     @property
     def margin_texels(self) -> int:
-        """Texels kept free inside each box edge so that filter taps never clamp: filter radius + 1."""
-        from csmlab.filters import filter_radius
+        """Texels kept free inside each box edge so that filter taps never clamp: the filter's radius + 1.
 
-        return filter_radius(self.filter, self.filter_size, moment_blur=self.moment_blur,
-                             mips=(self.max_lod, self.anisotropy) if self.moment_mips else None) + 1
+        The radius is the filter record's (:data:`csmlab.lookup_choices.FILTER_METHODS`).
+        """
+        return FILTER_METHODS[check_name(self.filter, FILTER_METHODS, field="filter")].radius_of(self) + 1
 
     def replace(self, **changes) -> "ShadowSettings":
         """A copy with ``changes`` applied (TOML name ``lambda`` accepted for ``lambda_``)."""

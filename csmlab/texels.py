@@ -15,19 +15,43 @@ texels; depths are metres along the light direction, ``d·X − zref``.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from csmlab.cascades import CascadeSet
 from csmlab.registry import check_name
 
-__all__ = ["PRECISION_METHODS", "fixed_point_coordinates", "fixed_point_origin", "light_depth",
+__all__ = ["PRECISION_METHODS", "Precision", "fixed_point_coordinates", "fixed_point_origin", "light_depth",
            "light_plane_coordinates", "receiver_lookup", "texel_coordinates"]
 
-PRECISION_METHODS: dict[str, str] = {
-    "float64": "global texel coordinates in float64, less an integer origin: world-locked at any distance",
-    "float32": "an engine's float32 light view (eye at the box centre) and projection applied to float32 positions",
+
+@dataclass(frozen=True)
+class Precision:
+    """How world points reach a cascade's texel grid.
+
+    Attributes
+    ----------
+    description : str
+    global_grid : bool
+        Texel coordinates are *global* float64 texel coordinates less an integer origin, so a
+        kernel handed light-space coordinates finishes the conversion itself with the same bits
+        (the depth pass, :mod:`csmlab.kernels.raster`; the receivers,
+        :func:`csmlab.kernels.shadow.receiver_coordinates`). False: only the host functions here
+        convert.
+    """
+
+    description: str
+    global_grid: bool
+
+
+PRECISION_METHODS: dict[str, Precision] = {
+    "float64": Precision("global texel coordinates in float64, less an integer origin: world-locked at any distance",
+                         global_grid=True),
+    "float32": Precision("an engine's float32 light view (eye at the box centre) and projection applied to float32 "
+                         "positions", global_grid=False),
 }
-"""How world points reach a cascade's texel grid (``[shadow] engine_precision``), with what each means.
+"""How world points reach a cascade's texel grid (``[shadow] engine_precision``), by name.
 
 ``float32`` emulates an engine that places each cascade's light eye at the box centre and applies
 its view and projection in float32, as a vertex shader does: the eye's rounding depends on where
@@ -143,7 +167,7 @@ def fixed_point_coordinates(cascades: CascadeSet, index: int, points, *, bits: i
     ``-2**50`` less the origin (outside every box). ``precision = "float32"`` rounds the local
     coordinates of an engine's float32 matrix instead (:data:`PRECISION_METHODS`).
     """
-    if check_name(precision, PRECISION_METHODS, field="engine_precision") == "float32":
+    if not PRECISION_METHODS[check_name(precision, PRECISION_METHODS, field="engine_precision")].global_grid:
         return _snapped(_local_texels_float32(cascades, index, points) * float(2**bits))
     snapped = _snapped(_global_texels(cascades, index, points) * float(2**bits))
     return snapped - fixed_point_origin(cascades, index, bits=bits)
@@ -199,7 +223,7 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
         the plane's depth there instead of the receiver's own (Isidoro, "Shadow Mapping: GPU-based
         Tips and Techniques", GDC 2006; the derivative-based bias of seed 002). Box-independent.
     """
-    check_name(precision, PRECISION_METHODS, field="engine_precision")
+    global_grid = PRECISION_METHODS[check_name(precision, PRECISION_METHODS, field="engine_precision")].global_grid
     p = np.asarray(points, dtype=np.float64)
     n = np.asarray(normals, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != 3 or n.shape != p.shape:
@@ -223,13 +247,13 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
     for c, cascade in enumerate(cascades.cascades):
         texel = float(np.max(cascade.texel_size))
         offset = normal_offset * texel
-        if precision == "float32":
-            coordinates[c] = _snapped(_local_texels_float32(cascades, c, p + n * offset) * scale)
-        else:
+        if global_grid:
             u = light_n[:, :2] * offset
             u += light_p[:, :2]
             u *= scale / cascade.texel_size
             coordinates[c] = _snapped(u) - fixed_point_origin(cascades, c, bits=bits)
+        else:
+            coordinates[c] = _snapped(_local_texels_float32(cascades, c, p + n * offset) * scale)
         bias = bias_constant + bias_slope * texel * tan
         depth[c] = light_p[:, 2] + offset * light_n[:, 2] - cascades.zref - bias
         slope[c] = plane_slope * cascade.texel_size

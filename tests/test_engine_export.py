@@ -128,3 +128,15 @@ def test_every_filter_exports_to_every_engine_and_bevy_names_the_kernels_it_lack
         assert (f"filter = {name!r}" in lacking) == (name not in ("pcf_tent", "pcf_bilinear")), name
     tent = export(ShadowSettings(filter="pcf_tent", filter_size=5), near=NEAR, far=FAR, engine="bevy").text
     assert "ShadowFilteringMethod::Gaussian" in tent
+
+
+def test_the_filter_tables_name_only_csmlab_filters_and_hard_follows_the_record():
+    from csmlab.engine_export import BEVY_EXACT, BEVY_FILTERING, UE5_FILTER, URP_FILTER
+    from csmlab.lookup_choices import FILTER_METHODS
+
+    assert set(BEVY_FILTERING) | set(BEVY_EXACT) | {UE5_FILTER[0], URP_FILTER[0]} <= set(FILTER_METHODS)
+    hard = [name for name, record in FILTER_METHODS.items() if record.hard]
+    assert hard == ["none"]
+    for name in FILTER_METHODS:
+        godot = export(ShadowSettings(filter=name), near=NEAR, far=FAR, engine="godot4").text
+        assert ("soft_shadow_filter_quality = 0" in godot) == (name in hard), name

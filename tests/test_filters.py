@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from csmlab.filters import FILTER_METHODS, filter_radius, filter_widths
+from csmlab.lookup_choices import FAMILIES, FILTER_METHODS
 from csmlab.metrics.temporal import temporal_maps, temporal_summary
 from csmlab.paths import make_path
 from csmlab.render import prepare_scene, render_shadow, render_view
@@ -46,12 +46,31 @@ def test_exact_keeps_zero_same_cascade_flicker_under_every_filter_and_unorm16_an
     assert np.nanmean(summary["none_stabilized"]["flicker_same"]) > 0.0
 
 
-def test_every_filter_has_a_radius_and_the_margin_follows_it():
-    for name in FILTER_METHODS:
-        settings = ShadowSettings(filter=name, filter_size=5)
-        assert settings.margin_texels == filter_radius(name, 5, moment_blur=settings.moment_blur) + 1
-    with pytest.raises(ValueError, match="pcf_poisson"):
-        filter_radius("poisson", 3)
+def test_every_filter_has_one_record_and_the_margin_follows_its_radius():
+    # The texels each filter reads beyond the point's at filter_size 5, moment_blur 5 (module docs of
+    # csmlab.kernels.shadow, .pcf, .moments): a tent or disk of half-width 2.5 around a point anywhere
+    # in its texel reaches 3; a bilinear lookup of moments blurred over 5 texels reaches 1 + 2.
+    radius = {"none": 0, "pcf": 2, "pcf_bilinear": 1, "pcf_gaussian": 2, "pcf_tent": 3, "pcf_poisson": 3, "pcss": 2,
+              "vsm": 3, "evsm2": 3, "evsm4": 3}
+    assert list(FILTER_METHODS) == list(radius)
+    for name, record in FILTER_METHODS.items():
+        settings = ShadowSettings(filter=name, filter_size=5, moment_blur=5)
+        assert record.name == name and record.family in FAMILIES and record.description
+        assert record.radius_of(settings) == radius[name], name
+        assert settings.margin_texels == radius[name] + 1, name
+    # With mips, a bilinear lookup at level 3 reads within 1.5 · 8 texels, two probes spread 4 more.
+    mips = ShadowSettings(filter="vsm", moment_blur=5, moment_mips=True, max_lod=3, anisotropy=2)
+    assert mips.margin_texels == 16 + 2 + 1
+    with pytest.raises(ValueError, match="filter: expected one of .*'pcf_poisson'"):
+        ShadowSettings(filter="poisson").margin_texels
+
+
+def test_a_filter_reads_what_its_record_says():
+    reads = {name: record.reads_of(ShadowSettings(filter=name)) for name, record in FILTER_METHODS.items()}
+    assert {name for name, what in reads.items() if "moments" in what} == {"vsm", "evsm2", "evsm4"}
+    assert all("pixels" not in what and "mips" not in what for what in reads.values())
+    assert "pixels" in FILTER_METHODS["pcf_poisson"].reads_of(ShadowSettings(poisson_rotation="pixel"))
+    assert "mips" in FILTER_METHODS["evsm2"].reads_of(ShadowSettings(moment_mips=True))
 
 
 def test_world_width_is_the_same_in_metres_in_every_cascade_up_to_the_tap_cap():
@@ -64,7 +83,7 @@ def test_world_width_is_the_same_in_metres_in_every_cascade_up_to_the_tap_cap():
     cascades = build_cascades(pose=pose, light_direction=SUN, scene_corners=np.array([[-50, 0, -50], [50, 5, 50]]),
                               settings=settings)
     texel = np.array([max(c.texel_size) for c in cascades.cascades])
-    width = filter_widths(cascades, settings)
+    width = FILTER_METHODS["pcf_tent"].width_of(texel, settings)
     np.testing.assert_allclose(width, np.clip(0.4 / texel, 0.01, 3.5))
     assert width[0] > width[-1]
 

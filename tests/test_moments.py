@@ -2,14 +2,14 @@
 
 import numpy as np
 import pytest
-import warp as wp
 
-from csmlab.kernels.moments import (MOMENT_METHODS, blur_moments, moment_lookup, moment_maps, moment_mip_chain,
-                                    moment_mip_lookup)
+from csmlab.kernels.moments import blur_moments, moment_lookup, moment_maps, moment_mip_chain, moment_mip_lookup
+from csmlab.lookup_choices import family_filters
 
 BITS = 8
 UNIT = 2**BITS
 EXPONENTS = (20.0, 6.0)
+MOMENT_FILTERS = sorted(family_filters("moment"))
 
 
 def ref_moments(depth, span, method):
@@ -64,9 +64,9 @@ def ref_lit(m, c, x, y, receiver, method, span, min_variance, power, bleed):
     return float(np.clip((p - bleed) / (1 - bleed), 0, 1)) if bleed > 0 else p
 
 
-@pytest.mark.parametrize("method", sorted(MOMENT_METHODS))
+@pytest.mark.parametrize("method", sorted(MOMENT_FILTERS))
 @pytest.mark.parametrize("power, bleed", [(1.0, 0.0), (3.0, 0.0), (1.0, 0.3)])
-def test_moment_filters_equal_the_brute_force_chebyshev_reference(method, power, bleed):
+def test_moment_filters_equal_the_brute_force_chebyshev_reference(method, power, bleed, device):
     rng = np.random.default_rng(7)
     span = 40.0
     depth = rng.uniform(0.0, 40.0, (2, 24, 24)).astype(np.float32)
@@ -77,11 +77,12 @@ def test_moment_filters_equal_the_brute_force_chebyshev_reference(method, power,
     receiver = rng.uniform(0.0, 44.0, (2, n)).astype(np.float32)
     receiver[0, :3] = np.nan
     cascade = rng.integers(0, 2, n).astype(np.int32)
-    moments = blur_moments(moment_maps(depth, span=span, method=method, exponents=EXPONENTS), radius=2)
+    moments = blur_moments(moment_maps(depth, span=span, method=method, exponents=EXPONENTS, device=device), radius=2,
+                           device=device)
     expected_moments = ref_blur(ref_moments(depth, span, method), 2)
     np.testing.assert_allclose(moments, expected_moments, rtol=1e-6)
     lit = moment_lookup(moments, coords, receiver, cascade=cascade, method=method, span=span, bits=BITS,
-                        exponents=EXPONENTS, min_variance=1e-4, power=power, bleed=bleed)
+                        exponents=EXPONENTS, min_variance=1e-4, power=power, bleed=bleed, device=device)
     expected = [ref_lit(moments, c, *coords[c, k], receiver[c, k], method, span, 1e-4, power, bleed)
                 for k, c in enumerate(cascade)]
     np.testing.assert_allclose(lit, expected, atol=1e-5)
@@ -92,7 +93,7 @@ def test_moment_lookup_is_lit_in_front_of_a_flat_caster_and_dark_far_behind_it()
     depth = np.full((1, 16, 16), 10.0, np.float32)
     coords = np.full((1, 2, 2), 8 * UNIT + 77)
     receiver = np.array([[9.0, 30.0]], np.float32)
-    for method in MOMENT_METHODS:
+    for method in MOMENT_FILTERS:
         moments = blur_moments(moment_maps(depth, span=40.0, method=method, exponents=EXPONENTS), radius=1)
         lit = moment_lookup(moments, coords, receiver, cascade=np.zeros(2, np.int32), method=method, span=40.0,
                             bits=BITS, exponents=EXPONENTS, min_variance=1e-6)
@@ -132,7 +133,7 @@ def ref_chain(level0, origin, max_lod):
 def test_mip_chain_equals_a_numpy_box_downsample_on_the_global_texel_grid(origin):
     rng = np.random.default_rng(4)
     moments = rng.uniform(0.0, 1.0, (2, 20, 20, 4)).astype(np.float32)
-    chain = moment_mip_chain(moments, origin=np.array(origin), max_lod=3)
+    chain = moment_mip_chain(moments, origin_texels=np.array(origin), max_lod=3)
     expected = ref_chain(moments, origin, 3)
     assert [level.shape for level in chain] == [(2, 20, 20, 4), (2, 11, 11, 4), (2, 6, 6, 4), (2, 4, 4, 4)]
     for level, want in zip(chain, expected):
@@ -198,14 +199,14 @@ def ref_mip_lit(chain, origin, c, x, y, ddx, ddy, receiver, method, span, anisot
 
 @pytest.mark.parametrize("method", ["vsm", "evsm4"])
 @pytest.mark.parametrize("anisotropy", [1, 4])
-def test_trilinear_and_anisotropic_lookup_equal_a_numpy_reference(method, anisotropy):
+def test_trilinear_and_anisotropic_lookup_equal_a_numpy_reference(method, anisotropy, device):
     rng = np.random.default_rng(11)
     span = 40.0
     depth = rng.uniform(0.0, 40.0, (2, 48, 48)).astype(np.float32)
     depth[:, 10:30, 12:26] = 9.0
     origin = np.array([[7, -2], [-5, 4]])
     chain = moment_mip_chain(blur_moments(moment_maps(depth, span=span, method=method, exponents=EXPONENTS), radius=1),
-                             origin=origin, max_lod=3)
+                             origin_texels=origin, max_lod=3, device=device)
     n = 120
     coords = rng.integers(16 * UNIT, 32 * UNIT, (2, n, 2))
     receiver = rng.uniform(0.0, 44.0, (2, n)).astype(np.float32)
@@ -213,8 +214,9 @@ def test_trilinear_and_anisotropic_lookup_equal_a_numpy_reference(method, anisot
     ddx = rng.normal(0.0, 3.0, (n, 2)) * rng.choice([0.1, 1.0, 10.0], (n, 1))
     ddy = rng.normal(0.0, 1.0, (n, 2))
     ddx[:4] = 0.0  # no footprint: level 0
-    lit = moment_mip_lookup(chain, coords, receiver, origin=origin, cascade=cascade, ddx=ddx, ddy=ddy, method=method,
-                            span=span, bits=BITS, anisotropy=anisotropy, exponents=EXPONENTS, min_variance=1e-4)
+    lit = moment_mip_lookup(chain, coords, receiver, origin_texels=origin, cascade=cascade, ddx=ddx, ddy=ddy,
+                            method=method, span=span, bits=BITS, anisotropy=anisotropy, exponents=EXPONENTS, min_variance=1e-4,
+                            device=device)
     expected = [ref_mip_lit(chain, origin, c, *coords[c, k], ddx[k], ddy[k], receiver[c, k], method, span, anisotropy)
                 for k, c in enumerate(cascade)]
     np.testing.assert_allclose(lit, expected, atol=1e-5)
@@ -224,30 +226,13 @@ def test_a_footprint_under_one_texel_is_the_bilinear_lookup_of_level_zero():
     rng = np.random.default_rng(3)
     depth = rng.uniform(0.0, 30.0, (2, 32, 32)).astype(np.float32)
     moments = blur_moments(moment_maps(depth, span=30.0, method="evsm2", exponents=EXPONENTS), radius=2)
-    chain = moment_mip_chain(moments, origin=np.array([[3, 1], [-6, 9]]), max_lod=2)
+    chain = moment_mip_chain(moments, origin_texels=np.array([[3, 1], [-6, 9]]), max_lod=2)
     coords = rng.integers(8 * UNIT, 24 * UNIT, (2, 64, 2))
     receiver = rng.uniform(0.0, 33.0, (2, 64)).astype(np.float32)
     cascade = rng.integers(0, 2, 64).astype(np.int32)
     small = rng.uniform(-0.6, 0.6, (64, 2))
     args = dict(cascade=cascade, method="evsm2", span=30.0, bits=BITS, exponents=EXPONENTS)
     np.testing.assert_array_equal(
-        moment_mip_lookup(chain, coords, receiver, origin=np.array([[3, 1], [-6, 9]]), ddx=small, ddy=small * 0.5,
-                          **args),
+        moment_mip_lookup(chain, coords, receiver, origin_texels=np.array([[3, 1], [-6, 9]]), ddx=small,
+                          ddy=small * 0.5, **args),
         moment_lookup(moments, coords, receiver, **args))
-
-
-@pytest.mark.skipif(wp.get_cuda_device_count() == 0, reason="no CUDA device")
-def test_mip_chain_and_lookup_on_cuda_equal_the_cpu():
-    rng = np.random.default_rng(5)
-    moments = blur_moments(moment_maps(rng.uniform(0, 30, (2, 40, 40)).astype(np.float32), span=30.0, method="vsm"),
-                           radius=1)
-    origin = np.array([[3, -7], [10, 1]])
-    coords = rng.integers(14 * UNIT, 26 * UNIT, (2, 80, 2))
-    receiver = rng.uniform(0, 33, (2, 80)).astype(np.float32)
-    args = dict(origin=origin, cascade=rng.integers(0, 2, 80).astype(np.int32), ddx=rng.normal(0, 4, (80, 2)),
-                ddy=rng.normal(0, 1, (80, 2)), method="vsm", span=30.0, bits=BITS, anisotropy=4)
-    chains = {d: moment_mip_chain(moments, origin=origin, max_lod=3, device=d) for d in ("cpu", "cuda")}
-    for cpu, cuda in zip(chains["cpu"], chains["cuda"]):
-        np.testing.assert_allclose(cuda, cpu, rtol=1e-6)
-    np.testing.assert_allclose(moment_mip_lookup(chains["cuda"], coords, receiver, device="cuda", **args),
-                               moment_mip_lookup(chains["cpu"], coords, receiver, **args), atol=1e-5)

@@ -1,13 +1,20 @@
-"""Weighted PCF kernels against brute-force NumPy references, PCSS on a hand-worked case, exact-zero under box moves."""
+"""Weighted PCF kernels against brute-force NumPy references; Gaussian and PCSS through the lookup on hand-worked
+cases; exact-zero under box moves."""
 
 import numpy as np
 import pytest
 
-from csmlab.filters import filter_radius, filter_widths, interleaved_gradient_noise, poisson_disk
-from csmlab.kernels.pcf import PCF_KERNELS, pcss_width, weighted_pcf
+from csmlab.cascades import Cascade, CascadeSet
+from csmlab.filters import interleaved_gradient_noise, lookup_shadow
+from csmlab.frame import ShadowMaps
+from csmlab.geometry import light_basis
+from csmlab.kernels.pcf import weighted_pcf
+from csmlab.lookup_choices import FILTER_METHODS, family_filters, poisson_disk
+from csmlab.settings import ShadowSettings
 
 BITS = 8
 UNIT = 2**BITS
+WEIGHTED = sorted(family_filters("weighted"))
 
 
 def ref_tap(depth, c, i, j, receiver, slope, x, y):
@@ -76,24 +83,24 @@ def random_case(seed, *, count=2, resolution=16, n=60, radius=3):
 
 @pytest.mark.parametrize("filter, width", [("pcf_gaussian", 0.8), ("pcf_gaussian", 2.0), ("pcf_tent", 2.5),
                                            ("pcf_tent", 0.7), ("pcf_poisson", 2.5), ("pcss", 0.4)])
-def test_weighted_pcf_equals_the_numpy_reference(filter, width):
+def test_weighted_pcf_equals_the_numpy_reference(filter, width, device):
     depth, coords, receiver, slope, cascade = random_case(5)
     radius = 3
     disk = poisson_disk(16, seed=3)
     angle = np.random.default_rng(2).uniform(0, 2 * np.pi, cascade.shape[0])
     lit = weighted_pcf(depth, coords, receiver, cascade=cascade, filter=filter, width=width, radius=radius,
-                       bits=BITS, receiver_slope=slope, disk=disk, angle=angle)
+                       bits=BITS, receiver_slope=slope, disk=disk, angle=angle, device=device)
     expected = [ref_lit(filter, depth, c, *coords[c, k], receiver[c, k], slope[c, k], width, radius, disk, angle[k])
                 for k, c in enumerate(cascade)]
     np.testing.assert_allclose(lit, expected, atol=1e-5)
 
 
-def test_weighted_pcf_blend_mixes_the_next_cascade_by_its_weight():
+def test_weighted_pcf_blend_mixes_the_next_cascade_by_its_weight(device):
     depth, coords, receiver, slope, _ = random_case(8)
     n = coords.shape[1]
     zero = np.zeros(n, np.int32)
     weight = np.linspace(0.0, 0.9, n)
-    args = dict(filter="pcf_tent", width=1.5, radius=2, bits=BITS, receiver_slope=slope)
+    args = dict(filter="pcf_tent", width=1.5, radius=2, bits=BITS, receiver_slope=slope, device=device)
     mixed = weighted_pcf(depth, coords, receiver, cascade=zero, blend_weight=weight, **args)
     first = weighted_pcf(depth, coords, receiver, cascade=zero, **args)
     second = weighted_pcf(depth, coords, receiver, cascade=zero + 1, **args)
@@ -106,60 +113,100 @@ def test_unity_tent_5x5_weights_sum_to_one_over_six_texels():
         w = ref_tent_weights(t, 2.5, -3, 3)
         assert np.count_nonzero(w > 1e-12) == 6
         assert w.sum() == pytest.approx(1.0, abs=1e-6)
-    assert filter_radius("pcf_tent", 5) == 3
+    assert FILTER_METHODS["pcf_tent"].radius_of(ShadowSettings(filter="pcf_tent", filter_size=5)) == 3
 
 
-def test_a_lit_receiver_is_fully_lit_and_a_buried_one_fully_shadowed_by_every_filter():
+def test_a_lit_receiver_is_fully_lit_and_a_buried_one_fully_shadowed_by_every_filter(device):
     depth = np.full((1, 16, 16), 5.0, np.float32)
     coords = np.array([[[8 * UNIT + 37, 8 * UNIT + 200], [7 * UNIT, 9 * UNIT + 1]]])
     disk = poisson_disk(12, seed=1)
-    for filter in PCF_KERNELS:
+    for filter in WEIGHTED:
         width = 0.3 if filter == "pcss" else 1.7
         for receiver, expected in ((4.0, 1.0), (6.0, 0.0)):
             lit = weighted_pcf(depth, coords, np.full((1, 2), receiver, np.float32), cascade=np.zeros(2, np.int32),
-                               filter=filter, width=width, radius=3, bits=BITS, disk=disk)
+                               filter=filter, width=width, radius=3, bits=BITS, disk=disk, device=device)
             np.testing.assert_allclose(lit, expected, atol=1e-6, err_msg=filter)
 
 
-def test_pcss_width_and_lit_fraction_on_a_hand_worked_half_plane_blocker():
+TEXEL = 0.5
+"""Metres per texel of the one cascade of :func:`lit_at_texel_centre`."""
+
+
+def lit_at_texel_centre(depth, settings, *, receiver_depth=10.0, device="cpu"):
+    """S through the whole lookup of one flat receiver facing the light at the centre of texel (8, 8).
+
+    One 16 × 16 cascade of 0.5 m texels with its box at the light-space origin; no normal offset,
+    no bias, no receiver-plane slope: the receiver's depth is ``receiver_depth`` at every tap.
+    """
+    basis = light_basis([0.2, -1.0, 0.1])
+    cascade = Cascade(split_near=0.1, split_far=50.0, slice_near=0.1, slice_far=50.0,
+                      texel_size=np.array([TEXEL, TEXEL]), origin=np.zeros(2), resolution=16, depth_near=0.0,
+                      depth_far=20.0)
+    cascades = CascadeSet(basis=basis, zref=0.0, splits=np.array([0.1, 50.0]), cascades=(cascade,), margin_texels=1)
+    point = np.array([[8.5 * TEXEL, 8.5 * TEXEL, receiver_depth]]) @ basis
+    settings = settings.replace(cascades=1, resolution=16, normal_offset=0.0, bias_constant=0.0, bias_slope=0.0,
+                                receiver_plane_bias=False)
+    maps = ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=0)
+    found = lookup_shadow(maps, points=point, normals=-basis[2:].astype(np.float32), view_depth=np.array([1.0]),
+                          settings=settings, device=device)
+    assert found.cascade.tolist() == [0]
+    return float(found.lit[0])
+
+
+@pytest.mark.parametrize("fields, sigma", [({"filter_sigma": 0.8}, 0.8), ({"filter_sigma": 1.2}, 1.2),
+                                           ({"filter_width_m": 3.0}, 1.5)],
+                         ids=["sigma", "wide_sigma", "width_in_metres"])
+def test_pcf_gaussian_weighs_known_blockers_with_the_gaussian_of_its_sigma(fields, sigma, device):
+    # Oracle: the DirectX sample's Gaussian over the 5 × 5 texels around texel (8, 8), written out:
+    # w(di, dj) = exp(−(di² + dj²) / 2σ²), S = Σ w · lit / Σ w, σ in texels (filter_width_m spans ±2σ:
+    # 3 m over 0.5 m texels is σ = 1.5). Blockers (depth 2 m, above the receiver at 10 m) fill
+    # column 7 and the texels (9, 9) and (10, 6); every other texel is empty.
+    depth = np.full((1, 16, 16), np.inf, np.float32)
+    depth[0, :, 7] = 2.0
+    depth[0, 9, 9] = 2.0
+    depth[0, 6, 10] = 2.0
+    offsets = np.arange(-2, 3)
+    di, dj = np.meshgrid(offsets, offsets, indexing="xy")
+    lit = np.isinf(depth[0, 8 + dj, 8 + di])
+
+    def gaussian(s):
+        weights = np.exp(-(di**2 + dj**2) / (2.0 * s**2))
+        return float(np.sum(weights * lit) / np.sum(weights))
+
+    got = lit_at_texel_centre(depth, ShadowSettings(filter="pcf_gaussian", filter_size=5, **fields), device=device)
+    assert got == pytest.approx(gaussian(sigma), abs=1e-6)
+    # The case tells σ from σ / 2 (a width halved anywhere from the settings to the kernel).
+    assert abs(gaussian(sigma) - gaussian(sigma / 2)) > 0.01
+
+
+@pytest.mark.parametrize("half_width", [0.75, 1.0, 1.5, 2.0])
+def test_pcss_on_a_hand_worked_half_plane_blocker(half_width, device):
     # Blockers at depth 2 m over texels i < 8, empty elsewhere; a flat receiver at depth 10 m at
-    # the centre of texel (8, 8). Search radius 2: columns 6 and 7 block, so d_b = 2 m. A light of
-    # angular diameter θ with 2 tan(θ/2) = 0.125 on texels of 0.5 m gives 0.25 penumbra texels per
-    # metre: w = (10 − 2) · 0.25 = 2 texels, a tent of half-width 1 centred at x = 8.5. The
-    # blockers cover x < 8, where the tent holds (1 − 0.5)² / 2 = 0.125 of its area: S = 0.875.
+    # the centre of texel (8, 8), blocker search over 5 × 5 texels (columns 6 and 7 block: d_b = 2 m).
+    # A light of angular diameter θ gives w = (d_r − d_b) · 2 tan(θ/2) / texel penumbra texels
+    # (Fernando 2005, for a directional light), a tent of half-width h = w / 2 centred at x = 8.5:
+    # the blockers (x < 8) cover (h − ½)² / 2h² of its area, so S = 1 − (h − ½)² / 2h².
+    theta = 2.0 * np.degrees(np.arctan(half_width * TEXEL / (10.0 - 2.0)))
+    assert 0.5 * (10.0 - 2.0) * 2.0 * np.tan(np.radians(theta) / 2.0) / TEXEL == pytest.approx(half_width)
     depth = np.full((1, 16, 16), np.inf, np.float32)
     depth[0, :, :8] = 2.0
-    coords = np.array([[[8 * UNIT + UNIT // 2, 8 * UNIT + UNIT // 2]]])
-    receiver = np.array([[10.0]], np.float32)
-    theta = 2.0 * np.degrees(np.arctan(0.125 / 2.0))
-
-    from csmlab.cascades import Cascade, CascadeSet
-    from csmlab.geometry import light_basis
-    from csmlab.settings import ShadowSettings
-
-    cascade = Cascade(split_near=0.1, split_far=50.0, slice_near=0.1, slice_far=50.0, texel_size=np.array([0.5, 0.5]),
-                      origin=np.zeros(2), resolution=16, depth_near=0.0, depth_far=20.0)
-    cascades = CascadeSet(basis=light_basis([0.0, -1.0, 0.2]), zref=0.0, splits=np.array([0.1, 50.0]),
-                          cascades=(cascade,), margin_texels=3)
-    per_metre = filter_widths(cascades, ShadowSettings(filter="pcss", filter_size=5, light_size_deg=theta))
-    np.testing.assert_allclose(per_metre, [0.25])
-    width = pcss_width(depth, coords, receiver, cascade=np.zeros(1, np.int32), penumbra_per_metre=per_metre,
-                       radius=2, bits=BITS)
-    np.testing.assert_allclose(width, [2.0])
-    lit = weighted_pcf(depth, coords, receiver, cascade=np.zeros(1, np.int32), filter="pcss", width=per_metre,
-                       radius=2, bits=BITS)
-    np.testing.assert_allclose(lit, [0.875], atol=1e-6)
+    expected = 1.0 - (half_width - 0.5) ** 2 / (2.0 * half_width**2)
+    got = lit_at_texel_centre(depth, ShadowSettings(filter="pcss", filter_size=5, light_size_deg=theta), device=device)
+    assert got == pytest.approx(expected, abs=1e-6)
+    # No blocker in reach: fully lit.
+    assert lit_at_texel_centre(np.full((1, 16, 16), np.inf, np.float32),
+                               ShadowSettings(filter="pcss", filter_size=5, light_size_deg=theta), device=device) == 1.0
 
 
-@pytest.mark.parametrize("filter", sorted(PCF_KERNELS))
-def test_weighted_pcf_is_bit_identical_when_the_box_moves_by_whole_texels(filter):
+@pytest.mark.parametrize("filter", WEIGHTED)
+def test_weighted_pcf_is_bit_identical_when_the_box_moves_by_whole_texels(filter, device):
     # The same world: maps shifted by (3, −2) texels and receivers' local coordinates with them.
     depth, coords, receiver, slope, cascade = random_case(11, resolution=24, radius=6)
     moved = np.full_like(depth, np.inf)
     moved[:, 2:, :21] = depth[:, :22, 3:]
     shift = np.array([-3 * UNIT, 2 * UNIT])
     args = dict(cascade=cascade, filter=filter, width=0.35 if filter == "pcss" else 2.2, radius=3, bits=BITS,
-                receiver_slope=slope, disk=poisson_disk(16, seed=1))
+                receiver_slope=slope, disk=poisson_disk(16, seed=1), device=device)
     inside = np.all((coords >= 6 * UNIT) & (coords < 18 * UNIT), axis=(0, 2))
     before = weighted_pcf(depth, coords, receiver, **args)
     after = weighted_pcf(moved, coords + shift, receiver, **args)

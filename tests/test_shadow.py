@@ -7,7 +7,8 @@ from csmlab.cascades import Cascade, CascadeSet
 from csmlab.frame import ShadowMaps
 from csmlab.geometry import light_basis
 from csmlab.kernels.raster import rasterize_depth
-from csmlab.kernels.shadow import FILTER_METHODS, SELECTION_METHODS, shadow_lookup
+from csmlab.kernels.shadow import select_cascades, shadow_lookup
+from csmlab.lookup_choices import FILTER_METHODS, SELECTION_METHODS, family_filters
 from csmlab.render import lookup_shadow
 from csmlab.settings import ShadowSettings
 from csmlab.texels import fixed_point_coordinates, light_depth, texel_coordinates
@@ -17,15 +18,21 @@ UNIT = 2**BITS
 LIGHT = np.array([0.42, -0.71, -0.33])
 
 
+def radius(filter, filter_size):
+    """The taps' radius of a box filter of ``filter_size``, from its record."""
+    return FILTER_METHODS[filter].radius_of(ShadowSettings(filter=filter, filter_size=filter_size))
+
+
 def lookup(depth, coords, receiver_depth, view_depth, *, splits, selection="interval", filter="none", filter_size=1,
-           margin=1, blend_band=0.0, texel_area=None):
+           margin=1, blend_band=0.0, texel_area=None, device="cpu"):
     count = depth.shape[0]
     return shadow_lookup(depth, coords, receiver_depth, view_depth, splits=splits,
                          texel_area=np.ones(count) if texel_area is None else texel_area, selection=selection,
-                         filter=filter, filter_size=filter_size, margin=margin, blend_band=blend_band, bits=BITS)
+                         filter=filter, radius=radius(filter, filter_size) if filter in FILTER_METHODS else 0,
+                         margin=margin, blend_band=blend_band, bits=BITS, device=device)
 
 
-def test_interval_selection_picks_cascade_i_exactly_on_its_split_interval():
+def test_interval_selection_picks_cascade_i_exactly_on_its_split_interval(device):
     splits = np.array([0.5, 3.0, 10.25, 40.0, 100.0])
     depth = np.full((4, 16, 16), np.inf, dtype=np.float32)
     below = np.nextafter(splits[1:], -np.inf)
@@ -34,7 +41,7 @@ def test_interval_selection_picks_cascade_i_exactly_on_its_split_interval():
     expected = np.concatenate([np.arange(4), np.arange(4), np.arange(4), [-1, -1, -1, -1]])
     n = z.shape[0]
     coords = np.full((4, n, 2), 8 * UNIT, dtype=np.int64)
-    cascade = lookup(depth, coords, np.zeros((4, n), np.float32), z, splits=splits)[1]
+    cascade = lookup(depth, coords, np.zeros((4, n), np.float32), z, splits=splits, device=device)[1]
     np.testing.assert_array_equal(cascade, expected)
 
 
@@ -49,7 +56,7 @@ def cascade_set(*, origins, texels, resolution, direction=LIGHT, zref=0.0, margi
 
 
 @pytest.mark.parametrize("selection", ["map", "best_resolution"])
-def test_box_selection_picks_only_boxes_that_contain_the_point(selection):
+def test_box_selection_picks_only_boxes_that_contain_the_point(selection, device):
     rng = np.random.default_rng(17)
     resolution, margin = 32, 2
     # Three overlapping boxes of texel areas 0.01, 0.09 and 0.04 m²: the first inside the second,
@@ -62,7 +69,8 @@ def test_box_selection_picks_only_boxes_that_contain_the_point(selection):
     settings = ShadowSettings(cascades=3, resolution=resolution, selection=selection, filter="pcf", filter_size=3,
                               normal_offset=0.0, bias_slope=0.0)
     maps = ShadowMaps(cascades=cs, depth=np.full((3, resolution, resolution), np.inf, np.float32), texels_rasterized=0)
-    result = lookup_shadow(maps, points=points, normals=normals, view_depth=np.full(3000, 1.0), settings=settings)
+    result = lookup_shadow(maps, points=points, normals=normals, view_depth=np.full(3000, 1.0), settings=settings,
+                           device=device)
 
     tc = np.stack([texel_coordinates(cs, c, points) for c in range(3)])
     contains = np.all((tc >= margin) & (tc < resolution - margin), axis=2)
@@ -102,7 +110,7 @@ def lit_reference(depth, coords, receiver, *, filter, size):
 
 
 @pytest.mark.parametrize("filter,size", [("none", 1), ("pcf", 3), ("pcf", 5), ("pcf_bilinear", 1)])
-def test_filters_match_a_numpy_reference_on_random_depth_maps(filter, size):
+def test_filters_match_a_numpy_reference_on_random_depth_maps(filter, size, device):
     rng = np.random.default_rng(size + len(filter))
     resolution = 24
     depth = rng.uniform(0.0, 1.0, (1, resolution, resolution)).astype(np.float32)
@@ -111,25 +119,44 @@ def test_filters_match_a_numpy_reference_on_random_depth_maps(filter, size):
     coords = rng.integers(3 * UNIT, (resolution - 3) * UNIT, (1, n, 2))
     receiver = rng.uniform(0.0, 1.0, (1, n)).astype(np.float32)
     lit, cascade, blend = lookup(depth, coords, receiver, np.ones(n), splits=np.array([0.0, 2.0]), filter=filter,
-                                 filter_size=size)
+                                 filter_size=size, device=device)
     assert np.all(cascade == 0) and not np.any(blend)
     expected = lit_reference(depth[0], coords[0], receiver[0], filter=filter, size=size)
     np.testing.assert_allclose(lit, expected, rtol=1e-6, atol=1e-7)
     assert lit.min() >= 0.0 and lit.max() <= 1.0 and 0.0 < lit.mean() < 1.0
 
 
-def test_blend_band_moves_linearly_toward_the_next_cascade():
+def test_blend_band_moves_linearly_toward_the_next_cascade(device):
     splits = np.array([1.0, 10.0, 20.0])
     depth = np.stack([np.full((8, 8), -np.inf), np.full((8, 8), np.inf)]).astype(np.float32)
     z = np.array([5.0, 8.2, 8.65, 9.1, 9.99, 10.0, 19.5])
     coords = np.full((2, z.shape[0], 2), 4 * UNIT, dtype=np.int64)
     lit, cascade, blend = lookup(depth, coords, np.zeros((2, z.shape[0]), np.float32), z, splits=splits,
-                                 blend_band=0.2)
+                                 blend_band=0.2, device=device)
     weight = np.clip((z - 8.2) / 1.8, 0.0, 1.0)
     np.testing.assert_allclose(lit[:5], weight[:5], rtol=1e-6)
     np.testing.assert_array_equal(cascade, [0, 0, 0, 0, 0, 1, 1])
     np.testing.assert_array_equal(blend, [False, True, True, True, True, False, False])
     assert lit[5] == 1.0 and lit[6] == 1.0
+    # The selection a weighted or moment filter runs after: the same cascades and band, and the weights.
+    chosen, blend_weight, band = select_cascades(depth, coords, np.zeros((2, z.shape[0]), np.float32), z,
+                                                 splits=splits, texel_area=np.ones(2), selection="interval", radius=0,
+                                                 margin=1, blend_band=0.2, bits=BITS, device=device)
+    np.testing.assert_array_equal(chosen, cascade)
+    np.testing.assert_array_equal(band, blend)
+    np.testing.assert_allclose(blend_weight, np.where(blend, weight, 0.0), rtol=1e-12)
+
+
+def test_selection_for_a_filter_keeps_its_taps_inside_the_box(device):
+    # A receiver 2 texels inside the edge of cascade 0 (interval-selected) holds the taps of a
+    # radius-2 filter, not those of a radius-3 one.
+    depth = np.full((2, 16, 16), np.inf, np.float32)
+    coords = np.array([[[2 * UNIT + 9, 8 * UNIT]], [[8 * UNIT, 8 * UNIT]]], np.int64)
+    args = (depth, coords, np.zeros((2, 1), np.float32), np.array([9.5]))
+    common = dict(splits=np.array([1.0, 10.0, 20.0]), texel_area=np.ones(2), selection="interval", margin=1,
+                  blend_band=0.2, bits=BITS, device=device)
+    assert select_cascades(*args, radius=2, **common)[0].tolist() == [0]
+    assert select_cascades(*args, radius=3, **common)[0].tolist() == [-1]
 
 
 def test_unknown_names_list_the_valid_ones():
@@ -138,10 +165,13 @@ def test_unknown_names_list_the_valid_ones():
         lookup(*args, splits=np.array([0.0, 2.0]), selection="nearest")
     with pytest.raises(ValueError, match=r"filter: expected one of \['none', 'pcf', 'pcf_bilinear'\]"):
         lookup(*args, splits=np.array([0.0, 2.0]), filter="gaussian")
-    with pytest.raises(ValueError, match="filter_size: expected an odd positive integer"):
-        lookup(*args, splits=np.array([0.0, 2.0]), filter="pcf", filter_size=4)
+    with pytest.raises(ValueError, match=r"filter: expected one of \['none', 'pcf', 'pcf_bilinear'\]"):
+        lookup(*args, splits=np.array([0.0, 2.0]), filter="pcf_tent")
+    with pytest.raises(ValueError, match="radius: expected a non-negative integer"):
+        shadow_lookup(*args, splits=np.array([0.0, 2.0]), texel_area=np.ones(1), selection="interval", filter="pcf",
+                      radius=-1, margin=1, blend_band=0.0, bits=BITS)
     assert sorted(SELECTION_METHODS) == ["best_resolution", "interval", "map"]
-    assert sorted(FILTER_METHODS) == ["none", "pcf", "pcf_bilinear"]
+    assert sorted(family_filters("box")) == ["none", "pcf", "pcf_bilinear"]
 
 
 @pytest.mark.parametrize("offset", [(0.0, 0.0, 0.0), (2e5, 0.0, -1e5)], ids=["origin", "far"])
@@ -214,7 +244,7 @@ def test_receiver_plane_bias_leaves_a_lit_plane_fully_lit_under_a_wide_filter():
     assert _lit_ground_fraction_with_partial_shadow(receiver_plane_bias=False) > 0.05
 
 
-def test_receiver_coordinates_on_the_device_equal_the_host_receiver_lookup_bit_for_bit():
+def test_receiver_coordinates_on_the_device_equal_the_host_receiver_lookup_bit_for_bit(device):
     """The kernel finishing csmlab.texels.receiver_lookup gives its coordinates, depths and slopes exactly."""
     from csmlab.cascades import Cascade, CascadeSet
     from csmlab.geometry import light_basis
@@ -236,21 +266,22 @@ def test_receiver_coordinates_on_the_device_equal_the_host_receiver_lookup_bit_f
                                    bias_slope=slope)
         got = receiver_coordinates(
             points, normals, basis=cs.basis, texel_size=np.stack([c.texel_size for c in cs.cascades]),
-            origin=np.stack([fixed_point_origin(cs, c, bits=bits) for c in range(len(cs))]), zref=cs.zref, bits=bits,
-            normal_offset=offset, bias_constant=constant, bias_slope=slope)
+            origin_fixed=np.stack([fixed_point_origin(cs, c, bits=bits) for c in range(len(cs))]), zref=cs.zref,
+            bits=bits, normal_offset=offset, bias_constant=constant, bias_slope=slope, device=device)
         assert np.isnan(expected[1]).any()
         for e, g in zip(expected, got):
             np.testing.assert_array_equal(g, e)
         picked = np.array([4999, 3, 3, 1200])
         for e, g in zip(expected, receiver_coordinates(
                 points, normals, basis=cs.basis, texel_size=np.stack([c.texel_size for c in cs.cascades]),
-                origin=np.stack([fixed_point_origin(cs, c, bits=bits) for c in range(len(cs))]), zref=cs.zref,
-                bits=bits, normal_offset=offset, bias_constant=constant, bias_slope=slope, receivers=picked)):
+                origin_fixed=np.stack([fixed_point_origin(cs, c, bits=bits) for c in range(len(cs))]), zref=cs.zref,
+                bits=bits, normal_offset=offset, bias_constant=constant, bias_slope=slope, receivers=picked,
+                device=device)):
             np.testing.assert_array_equal(g, e[:, picked])
 
 
 @pytest.mark.parametrize("selection", sorted(SELECTION_METHODS))
-def test_world_receivers_look_up_the_same_bits_as_converted_ones(selection):
+def test_world_receivers_look_up_the_same_bits_as_converted_ones(selection, device):
     """shadow_lookup_world converts each receiver where it reads it; receiver_coordinates + shadow_lookup gives the same."""
     from csmlab.kernels.shadow import receiver_coordinates, shadow_lookup_world
 
@@ -273,8 +304,8 @@ def test_world_receivers_look_up_the_same_bits_as_converted_ones(selection):
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     receivers = rng.permutation(points.shape[0])[:900]
     view_depth = depths[receivers]
-    conversion = dict(basis=basis, texel_size=texel, origin=origin, zref=-2.0, bits=BITS, normal_offset=0.75,
-                      bias_constant=0.01, bias_slope=1.5)
+    conversion = dict(basis=basis, texel_size=texel, origin_fixed=origin, zref=-2.0, bits=BITS, normal_offset=0.75,
+                      bias_constant=0.01, bias_slope=1.5, device=device)
     coords, receiver_depth, slope = receiver_coordinates(points, normals, receivers=receivers, **conversion)
     finite = receiver_depth[np.isfinite(receiver_depth)]
     maps = rng.uniform(finite.min(), finite.max(), (count, size, size)).astype(np.float32)
@@ -282,11 +313,12 @@ def test_world_receivers_look_up_the_same_bits_as_converted_ones(selection):
     for filter, filter_size, blend_band, plane in (("none", 1, 0.0, True), ("pcf", 3, 0.3, True),
                                                    ("pcf", 5, 0.0, False), ("pcf_bilinear", 1, 0.2, True)):
         common = dict(splits=splits, texel_area=np.prod(texel, axis=1), selection=selection, filter=filter,
-                      filter_size=filter_size, margin=2, blend_band=blend_band, bits=BITS)
+                      radius=radius(filter, filter_size), margin=2, blend_band=blend_band, bits=BITS, device=device)
         converted = shadow_lookup(maps, coords, receiver_depth, view_depth, receiver_slope=slope if plane else None,
                                   **common)
         world = shadow_lookup_world(maps, points, normals, view_depth, receivers=receivers,
-                                    receiver_plane_bias=plane, **{k: v for k, v in conversion.items() if k != "bits"},
+                                    receiver_plane_bias=plane,
+                                    **{k: v for k, v in conversion.items() if k not in ("bits", "device")},
                                     **common)
         for a, b in zip(converted, world):
             np.testing.assert_array_equal(a, b)

@@ -23,23 +23,63 @@ Light depth, :data:`DEPTH_RANGE_METHODS` (``[shadow] depth_range``), the box's e
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from csmlab.registry import check_name
 
-__all__ = ["BOUNDS_METHODS", "DEPTH_RANGE_METHODS", "held_depth_ranges", "split_range", "visible_depth_range"]
+__all__ = ["BOUNDS_METHODS", "Bounds", "DEPTH_RANGE_METHODS", "DepthRange", "held_depth_ranges",
+           "split_range", "visible_depth_range"]
 
-BOUNDS_METHODS: dict[str, str] = {
-    "frustum": "the splits divide [near, shadow_distance] of the camera",
-    "sdsm": "the splits divide the frame's visible depth range from the G-buffer (sample distribution shadow maps)",
-}
-"""View-depth ranges the splits divide, by name, with what each means."""
 
-DEPTH_RANGE_METHODS: dict[str, str] = {
-    "scene": "box near side pushed toward the light to the scene bounds (every caster captured)",
-    "slice": "box depth from the slice only, near side pulled `pancake` metres toward the light",
+@dataclass(frozen=True)
+class Bounds:
+    """A view-depth range the splits divide.
+
+    Attributes
+    ----------
+    description : str
+    visible : bool
+        The range is the frame's visible depth range, read from its G-buffer (and, held with
+        hysteresis, from every earlier frame's).
+    """
+
+    description: str
+    visible: bool
+
+
+BOUNDS_METHODS: dict[str, Bounds] = {
+    "frustum": Bounds("the splits divide [near, shadow_distance] of the camera", visible=False),
+    "sdsm": Bounds("the splits divide the frame's visible depth range from the G-buffer (sample distribution shadow "
+                   "maps)", visible=True),
 }
-"""Light-depth ranges of a cascade's box, by name, with what each means."""
+"""View-depth ranges the splits divide, by name."""
+
+
+@dataclass(frozen=True)
+class DepthRange:
+    """A light-depth range of a cascade's box.
+
+    Attributes
+    ----------
+    description : str
+    cuts_casters : bool
+        The box's near side may lie behind casters: they are flattened onto it (``depth_clamp``,
+        pancaking) or clipped away. False: every caster lies behind the near side.
+    """
+
+    description: str
+    cuts_casters: bool
+
+
+DEPTH_RANGE_METHODS: dict[str, DepthRange] = {
+    "scene": DepthRange("box near side pushed toward the light to the scene bounds (every caster captured)",
+                        cuts_casters=False),
+    "slice": DepthRange("box depth from the slice only, near side pulled `pancake` metres toward the light",
+                        cuts_casters=True),
+}
+"""Light-depth ranges of a cascade's box, by name."""
 
 
 def visible_depth_range(view_depth) -> tuple[float, float] | None:

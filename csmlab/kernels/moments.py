@@ -5,7 +5,8 @@ range, ``z = depth / span`` in [0, 1] (empty texels: 1, the far plane) — the s
 range as :mod:`csmlab.storage`, so a whole-texel box move changes no moment. One depth sample per
 texel means rasterizing the moments equals taking them of the rasterized depth.
 
-Methods (:data:`MOMENT_METHODS`), moments stored as float32 ``(C, R, R, 4)``:
+Methods (the ``moment`` family of :data:`csmlab.lookup_choices.FILTER_METHODS`), moments stored as
+float32 ``(C, R, R, 4)``:
 
 - ``vsm`` — ``(z, z², 0, 0)`` (Donnelly and Lauritzen 2006; DirectX VarianceShadows11, seed 002).
 - ``evsm2`` — ``(e^{c₊ẑ}, e^{2c₊ẑ}, 0, 0)`` with ``ẑ = 2z − 1`` (Lauritzen and McCool 2008; MJP).
@@ -40,8 +41,8 @@ derivatives. The seeds' caveats, and what csmlab does about each:
   cascade's scale (``analytic``, the sample's ``SampleGrad``).
 - Filtering after the comparison (PCF) takes no derivative and has no such seam (seed 003).
 - A coarse level reads far beyond the point: the boxes keep that reach free inside their edges
-  (:func:`csmlab.filters.filter_radius`, the sample's "Padding for PCF Kernels" carried to the mip
-  footprint), so no lookup reads past a box — where no one rasterized.
+  (the filter record's radius, :mod:`csmlab.lookup_choices`; the sample's "Padding for PCF
+  Kernels" carried to the mip footprint), so no lookup reads past a box — where no one rasterized.
 - A texture's chain starts its 2×2 blocks at the box's first texel, so a box snapped to whole
   texels still changes every coarser level when it moves by an odd number of them; this chain is
   anchored to the global texel grid instead, as world-locked as level 0, and ``exact`` keeps zero
@@ -60,10 +61,9 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device
-from csmlab.lookup_choices import MOMENT_EVSM4, MOMENT_METHODS, MOMENT_VSM
-from csmlab.registry import check_name
+from csmlab.lookup_choices import MOMENT_EVSM4, MOMENT_VSM, family_code
 
-__all__ = ["MOMENT_METHODS", "blur_moments", "moment_lookup", "moment_maps", "moment_mip_chain", "moment_mip_lookup"]
+__all__ = ["blur_moments", "moment_lookup", "moment_maps", "moment_mip_chain", "moment_mip_lookup"]
 
 wp.set_module_options({"fuse_fp": False})
 
@@ -213,7 +213,7 @@ def moment_lookup_kernel(
 
 
 def _code(method: str) -> int:
-    return MOMENT_METHODS[check_name(method, MOMENT_METHODS, field="method")]
+    return family_code(method, family="moment", field="method")
 
 
 def moment_maps(depth, *, span: float, method: str, exponents: tuple[float, float] = (40.0, 5.0),
@@ -227,7 +227,7 @@ def moment_maps(depth, *, span: float, method: str, exponents: tuple[float, floa
     span : float
         The scene's light-space depth range in metres (depth 0 … span maps to 0 … 1).
     method : str
-        A key of :data:`MOMENT_METHODS`.
+        A filter of the ``moment`` family (:data:`csmlab.lookup_choices.FILTER_METHODS`).
     exponents : tuple of float
         ``(c₊, c₋)`` of the EVSM warps (ignored by ``vsm``).
     device : str
@@ -298,7 +298,7 @@ def moment_lookup(moments, coords, receiver_depth, *, cascade, method: str, span
     cascade : array_like, shape (N,), int
         Selected cascade, −1 for none (S is NaN).
     method : str
-        A key of :data:`MOMENT_METHODS`.
+        A filter of the ``moment`` family (:data:`csmlab.lookup_choices.FILTER_METHODS`).
     span : float
         Depth range in metres the moments were normalized over.
     bits : int
@@ -496,16 +496,16 @@ def mip_lookup_kernel(
     lit[k] = wp.float32(s)
 
 
-def _mip_grid(origin, *, max_lod: int) -> tuple[np.ndarray, np.ndarray]:
+def _mip_grid(origin_texels, *, max_lod: int) -> tuple[np.ndarray, np.ndarray]:
     """Per cascade, level and axis: the children's parity ``b`` and the level's shift in level-0 texels."""
-    o = np.asarray(origin, dtype=np.int64)
+    o = np.asarray(origin_texels, dtype=np.int64)
     s = np.stack([o // (1 << level) for level in range(max_lod + 2)], axis=1)  # (C, L + 1, 2) global index of texel 0
     parity = s[:, :-1] - 2 * s[:, 1:]
     shift = o[:, None, :] - s[:, :-1] * (1 << np.arange(max_lod + 1))[None, :, None]
     return parity, shift
 
 
-def moment_mip_chain(moments, *, origin, max_lod: int, device: str = "cpu") -> list[np.ndarray]:
+def moment_mip_chain(moments, *, origin_texels, max_lod: int, device: str = "cpu") -> list[np.ndarray]:
     """Mip levels 0 … ``max_lod`` of (blurred) moment maps, each a 2×2 box of the level below on the global texel grid.
 
     A texel of level l covers the 2^l × 2^l level-0 texels of a *global* block — one whose
@@ -518,7 +518,7 @@ def moment_mip_chain(moments, *, origin, max_lod: int, device: str = "cpu") -> l
     ----------
     moments : array_like, shape (C, R, R, 4), float32
         Level 0 (:func:`blur_moments`).
-    origin : array_like, shape (C, 2), int
+    origin_texels : array_like, shape (C, 2), int
         Global texel index of each box's texel (0, 0) (x, y).
     max_lod : int
         Coarsest level, ≥ 0.
@@ -536,9 +536,10 @@ def moment_mip_chain(moments, *, origin, max_lod: int, device: str = "cpu") -> l
     m = np.ascontiguousarray(moments, dtype=np.float32)
     if m.ndim != 4 or m.shape[3] != 4 or m.shape[1] != m.shape[2]:
         raise ValueError(f"moments: expected shape (C, R, R, 4), got {m.shape}")
-    o = np.asarray(origin)
+    o = np.asarray(origin_texels)
     if o.shape != (m.shape[0], 2) or not np.issubdtype(o.dtype, np.integer):
-        raise ValueError(f"origin: expected integer texel indices of shape ({m.shape[0]}, 2), got {o.shape} {o.dtype}")
+        raise ValueError(f"origin_texels: expected integer texel indices of shape ({m.shape[0]}, 2), "
+                         f"got {o.shape} {o.dtype}")
     if not (isinstance(max_lod, (int, np.integer)) and max_lod >= 0):
         raise ValueError(f"max_lod: expected a non-negative integer, got {max_lod!r}")
     parity, _ = _mip_grid(o, max_lod=int(max_lod))
@@ -555,7 +556,7 @@ def moment_mip_chain(moments, *, origin, max_lod: int, device: str = "cpu") -> l
     return chain
 
 
-def moment_mip_lookup(chain, coords, receiver_depth, *, origin, cascade, ddx, ddy, method: str, span: float,
+def moment_mip_lookup(chain, coords, receiver_depth, *, origin_texels, cascade, ddx, ddy, method: str, span: float,
                       bits: int, anisotropy: int = 1, exponents: tuple[float, float] = (40.0, 5.0),
                       min_variance: float = 1e-5, power: float = 1.0, bleed: float = 0.0, blend_weight=None,
                       device: str = "cpu") -> np.ndarray:
@@ -574,12 +575,12 @@ def moment_mip_lookup(chain, coords, receiver_depth, *, origin, cascade, ddx, dd
     Parameters
     ----------
     chain : list of ndarray
-        :func:`moment_mip_chain` of the moments, built with the same ``origin``.
+        :func:`moment_mip_chain` of the moments, built with the same ``origin_texels``.
     coords : array_like, shape (C, N, 2), int64
         Receivers in ``2**-bits`` texels of each cascade.
     receiver_depth : array_like, shape (C, N), float32
         Biased receiver depth, metres; NaN is shadowed.
-    origin : array_like, shape (C, 2), int
+    origin_texels : array_like, shape (C, 2), int
         Global texel index of each box's texel (0, 0).
     cascade : array_like, shape (N,), int
         Cascade looked up, −1 for none (S is NaN).
@@ -587,7 +588,7 @@ def moment_mip_lookup(chain, coords, receiver_depth, *, origin, cascade, ddx, dd
         Footprint in the looked-up cascade's level-0 texels; with a leading 2, row 1 is the same
         footprint in cascade ``cascade + 1``'s texels, for the blend band.
     method : str
-        A key of :data:`MOMENT_METHODS`.
+        A filter of the ``moment`` family (:data:`csmlab.lookup_choices.FILTER_METHODS`).
     span : float
         Depth range in metres the moments were normalized over.
     bits : int
@@ -627,7 +628,7 @@ def moment_mip_lookup(chain, coords, receiver_depth, *, origin, cascade, ddx, dd
     if n == 0:
         return np.zeros(0, np.float32)
     max_lod = len(levels) - 1
-    _, shift = _mip_grid(origin, max_lod=max_lod)
+    _, shift = _mip_grid(origin_texels, max_lod=max_lod)
     sizes = np.array([level.shape[1] for level in levels], dtype=np.int64)
     offsets = np.concatenate([[0], np.cumsum([level.shape[0] * level.shape[1] ** 2 for level in levels])[:-1]])
     flat = np.concatenate([level.reshape(-1, 4) for level in levels])

@@ -7,7 +7,8 @@ index — exact and the same wherever a box lies — so a box moved by whole tex
 and no weight (DESIGN.md, "Exact zero by construction"); only a per-pixel rotation of the Poisson
 disk (screen-space noise) breaks that, on purpose.
 
-Filters (:data:`PCF_KERNELS`), ``width`` in texels of the cascade, ``radius`` the tap bound:
+Filters (the ``weighted`` family of :data:`csmlab.lookup_choices.FILTER_METHODS`), ``width`` in
+texels of the cascade, ``radius`` the tap bound:
 
 - ``pcf_gaussian`` — the (2r + 1)² texels centred on the one holding the point, weighted by
   ``exp(−(di² + dj²) / 2σ²)`` normalized to 1 (σ = ``width``): the weighted-kernel PCF of the
@@ -40,10 +41,9 @@ import warp as wp
 
 from csmlab.kernels import checked_device
 from csmlab.kernels.shadow import tap
-from csmlab.lookup_choices import PCF_GAUSSIAN, PCF_KERNELS, PCF_POISSON, PCF_TENT
-from csmlab.registry import check_name
+from csmlab.lookup_choices import PCF_GAUSSIAN, PCF_POISSON, PCF_TENT, family_code
 
-__all__ = ["PCF_KERNELS", "pcss_width", "weighted_pcf"]
+__all__ = ["weighted_pcf"]
 
 wp.set_module_options({"fuse_fp": False})
 
@@ -106,7 +106,7 @@ def weighted_lit(depth: wp.array3d(dtype=wp.float32), coords: wp.array3d(dtype=w
                  receiver_depth: wp.array2d(dtype=wp.float32), receiver_slope: wp.array2d(dtype=wp.vec2d),
                  c: int, k: int, unit: wp.int64, code: int, radius: int, width: wp.float64,
                  disk: wp.array(dtype=wp.vec2d), angle: wp.float64) -> wp.float64:
-    """S of receiver k in cascade c under the filter ``code`` (see :data:`PCF_KERNELS`)."""
+    """S of receiver k in cascade c under the weighted filter of kernel code ``code`` (PCF_GAUSSIAN … PCF_PCSS)."""
     x = coords[c, k, 0]
     y = coords[c, k, 1]
     receiver = receiver_depth[c, k]
@@ -178,30 +178,6 @@ def weighted_pcf_kernel(
     lit[k] = wp.float32(s)
 
 
-@wp.kernel
-def pcss_width_kernel(
-    depth: wp.array3d(dtype=wp.float32),
-    coords: wp.array3d(dtype=wp.int64),
-    receiver_depth: wp.array2d(dtype=wp.float32),
-    receiver_slope: wp.array2d(dtype=wp.vec2d),
-    cascade: wp.array(dtype=wp.int32),
-    width: wp.array(dtype=wp.float64),
-    unit: wp.int64,
-    radius: int,
-    penumbra: wp.array(dtype=wp.float64),
-):
-    k = wp.tid()
-    c = cascade[k]
-    x = coords[c, k, 0]
-    y = coords[c, k, 1]
-    receiver = receiver_depth[c, k]
-    blocker = blocker_depth(depth, c, x // unit, y // unit, radius, receiver, receiver_slope[c, k], x, y, unit,
-                            wp.float64(1.0) / wp.float64(wp.int64(2) * unit))
-    penumbra[k] = (wp.float64(receiver) - blocker) * width[c]
-    if not wp.isfinite(blocker):
-        penumbra[k] = wp.float64(0.0)
-
-
 def _checked(depth, coords, receiver_depth, receiver_slope, cascade, width):
     maps = np.ascontiguousarray(depth, dtype=np.float32)
     if maps.ndim != 3 or maps.shape[1] != maps.shape[2] or maps.shape[0] == 0:
@@ -240,14 +216,14 @@ def weighted_pcf(depth, coords, receiver_depth, *, cascade, filter: str, width, 
     cascade : array_like, shape (N,), int
         The selected cascade of each receiver, −1 for none (S is NaN there).
     filter : str
-        A key of :data:`PCF_KERNELS`.
+        A filter of the ``weighted`` family (:data:`csmlab.lookup_choices.FILTER_METHODS`).
     width : float or array_like, shape (C,)
         Per cascade, in texels: σ (``pcf_gaussian``), tent half-width (``pcf_tent``), disk radius
         (``pcf_poisson``); for ``pcss`` the penumbra per metre of blocker distance,
         ``2 tan(θ_L / 2) / texel`` (1/m).
     radius : int
-        Taps reach at most ``radius`` texels from the texel holding the point (the caller keeps
-        the taps inside the box, see :func:`csmlab.filters.filter_radius`).
+        Taps reach at most ``radius`` texels from the texel holding the point: the filter record's
+        ``radius_of`` (the caller keeps the taps inside the box).
     bits : int
         Sub-texel bits of ``coords``.
     receiver_slope : array_like, shape (C, N, 2), float64, optional
@@ -273,12 +249,12 @@ def weighted_pcf(depth, coords, receiver_depth, *, cascade, filter: str, width, 
         non-positive width, a missing disk for ``pcf_poisson`` or a negative radius.
     """
     device = checked_device(device)
-    check_name(filter, PCF_KERNELS, field="filter")
+    code = family_code(filter, family="weighted")
     if not (isinstance(radius, (int, np.integer)) and radius >= 0):
         raise ValueError(f"radius: expected a non-negative integer, got {radius!r}")
     maps, xy, rd, slope, chosen, w, n = _checked(depth, coords, receiver_depth, receiver_slope, cascade, width)
     taps = np.zeros((1, 2)) if disk is None else np.ascontiguousarray(disk, dtype=np.float64)
-    if filter == "pcf_poisson" and (disk is None or taps.ndim != 2 or taps.shape[1] != 2 or taps.shape[0] == 0):
+    if code == PCF_POISSON and (disk is None or taps.ndim != 2 or taps.shape[1] != 2 or taps.shape[0] == 0):
         raise ValueError(f"disk: expected tap offsets of shape (K, 2) for pcf_poisson, got {np.shape(disk)}")
     blend = np.zeros(n) if blend_weight is None else np.ascontiguousarray(blend_weight, dtype=np.float64)
     turn = np.zeros(n) if angle is None else np.ascontiguousarray(angle, dtype=np.float64)
@@ -303,55 +279,10 @@ def weighted_pcf(depth, coords, receiver_depth, *, cascade, filter: str, width, 
             wp.array(turn, dtype=wp.float64, device=device, copy=False),
             wp.array(taps, dtype=wp.vec2d, device=device),
             wp.int64(2**bits),
-            PCF_KERNELS[filter],
+            code,
             int(radius),
         ),
         outputs=(lit,),
         device=device,
     )
     return lit.numpy()
-
-
-def pcss_width(depth, coords, receiver_depth, *, cascade, penumbra_per_metre, radius: int, bits: int,
-               receiver_slope=None, device: str = "cpu") -> np.ndarray:
-    """PCSS penumbra width in texels at each receiver: blocker search, then ``(d_r − d_b) · penumbra_per_metre``.
-
-    Parameters
-    ----------
-    depth, coords, receiver_depth, cascade, receiver_slope, bits, device
-        As :func:`weighted_pcf`; every ``cascade`` must be ≥ 0.
-    penumbra_per_metre : float or array_like, shape (C,)
-        ``2 tan(θ_L / 2) / texel`` per cascade: penumbra texels per metre between blocker and receiver.
-    radius : int
-        The blocker search covers the (2r + 1)² texels centred on the one holding the point.
-
-    Returns
-    -------
-    ndarray, shape (N,), float64
-        The penumbra width in texels before the tent's clamp; 0 where no texel blocks.
-    """
-    device = checked_device(device)
-    maps, xy, rd, slope, chosen, w, n = _checked(depth, coords, receiver_depth, receiver_slope, cascade,
-                                                 penumbra_per_metre)
-    if np.any(chosen < 0):
-        raise ValueError("cascade: expected a selected cascade (≥ 0) for every receiver")
-    if n == 0:
-        return np.zeros(0)
-    out = wp.empty(n, dtype=wp.float64, device=device)
-    wp.launch(
-        pcss_width_kernel,
-        dim=n,
-        inputs=(
-            wp.array(maps, dtype=wp.float32, device=device, copy=False),
-            wp.array(xy, dtype=wp.int64, device=device, copy=False),
-            wp.array(rd, dtype=wp.float32, device=device, copy=False),
-            wp.array(slope, dtype=wp.vec2d, device=device),
-            wp.array(chosen, dtype=wp.int32, device=device, copy=False),
-            wp.array(w, dtype=wp.float64, device=device, copy=False),
-            wp.int64(2**bits),
-            int(radius),
-        ),
-        outputs=(out,),
-        device=device,
-    )
-    return out.numpy()

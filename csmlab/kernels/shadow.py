@@ -8,7 +8,7 @@ and normals (:func:`shadow_lookup_world`) that the lookup converts itself, with 
 fixed-point remainder — exactly representable — never from float texel centres, so a box moved by
 whole texels gives bit-identical results at fixed receivers.
 
-Selection methods (:data:`SELECTION_METHODS`):
+Selection methods (:data:`csmlab.lookup_choices.SELECTION_METHODS`):
 
 - ``interval`` — cascade i for view depth in ``[z_i, z_{i+1})`` of the splits.
 - ``map`` — the first cascade whose box, less ``margin`` texels on each side, contains the point.
@@ -18,7 +18,9 @@ Selection methods (:data:`SELECTION_METHODS`):
 Every selection also requires the selected box to hold all of the filter's taps, so clamping never
 changes a tap; a point that no cascade holds gets cascade −1 (S is NaN there).
 
-Filters (:data:`FILTER_METHODS`), S = lit fraction in [0, 1]:
+The box filters (the ``box`` family of :data:`csmlab.lookup_choices.FILTER_METHODS`), S = lit
+fraction in [0, 1], run here with the selection; :func:`select_cascades` makes the same selection
+for the filters that run after it (:mod:`csmlab.kernels.pcf`, :mod:`csmlab.kernels.moments`):
 
 - ``none`` — the one texel that contains the point.
 - ``pcf`` — the N×N texels centred on it (N = ``filter_size``, odd), equal weights.
@@ -26,7 +28,7 @@ Filters (:data:`FILTER_METHODS`), S = lit fraction in [0, 1]:
   position between their centres (hardware bilinear percentage-closer filtering).
 
 Blend band: within the last ``blend_band`` fraction of the selected cascade's split interval, S
-moves linearly toward cascade i + 1's S (when i + 1 holds the point), reaching it at ``z_{i+1}``.
+moves linearly toward cascade i + 1's S (when i + 1 holds the point's taps), reaching it at ``z_{i+1}``.
 
 References
 ----------
@@ -42,24 +44,13 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device
-from csmlab.lookup_choices import (BOX_BILINEAR, BOX_FILTERS, SELECT_BEST_RESOLUTION, SELECT_INTERVAL, SELECT_MAP,
-                                   SELECTION_METHODS)
-from csmlab.lookup_choices import filter_radius as lookup_filter_radius
+from csmlab.lookup_choices import (BOX_BILINEAR, BOX_TAPS, SELECT_BEST_RESOLUTION, SELECT_INTERVAL, SELECT_MAP,
+                                   SELECTION_METHODS, family_code)
 from csmlab.registry import check_name
 
-__all__ = ["FILTER_METHODS", "SELECTION_METHODS", "filter_radius", "receiver_coordinates", "shadow_lookup",
-           "shadow_lookup_world", "world_receivers"]
+__all__ = ["receiver_coordinates", "select_cascades", "shadow_lookup", "shadow_lookup_world", "world_receivers"]
 
 wp.set_module_options({"fuse_fp": False})
-
-FILTER_METHODS = BOX_FILTERS
-"""The filters this lookup runs itself (:data:`csmlab.lookup_choices.BOX_FILTERS`), mapped to the kernel's code."""
-
-
-def filter_radius(filter: str, filter_size: int) -> int:
-    """Texels a box filter reads beyond the texel that contains the point (0, N // 2, or 1)."""
-    check_name(filter, FILTER_METHODS, field="filter")
-    return lookup_filter_radius(filter, filter_size)
 
 
 @wp.func
@@ -88,7 +79,7 @@ def tap(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int64, r
 @wp.func
 def lit_fraction(depth: wp.array3d(dtype=wp.float32), c: int, x: wp.int64, y: wp.int64, receiver: wp.float32,
                  slope: wp.vec2d, unit: wp.int64, filter_code: int, radius: int) -> wp.float64:
-    """S of a receiver at fixed point ``(x, y)`` in cascade c with the filter of ``filter_code`` (2: bilinear, else box of ``radius``)."""
+    """S of a receiver at fixed point ``(x, y)`` in cascade c: bilinear (``BOX_BILINEAR``), else a box of ``radius``."""
     inverse_span = wp.float64(1.0) / wp.float64(wp.int64(2) * unit)
     if filter_code == BOX_BILINEAR:
         # Texel centres sit at (2i + 1)·unit in doubled units; i0 is the centre at or left of the point.
@@ -106,7 +97,7 @@ def lit_fraction(depth: wp.array3d(dtype=wp.float32), c: int, x: wp.int64, y: wp
         s11 = wp.float64(tap(depth, c, i0 + one, j0 + one, receiver, slope, x, y, unit, inverse_span))
         w1 = wp.float64(1.0)
         return (w1 - wy) * ((w1 - wx) * s00 + wx * s10) + wy * ((w1 - wx) * s01 + wx * s11)
-    # none (radius 0) and pcf: the (2r + 1)² texels centred on the one that contains the point.
+    # BOX_TAPS: the (2r + 1)² texels centred on the one that contains the point (r = 0: none).
     i = x // unit
     j = y // unit
     count = int(0)
@@ -154,7 +145,7 @@ class WorldReceivers:
     to_fixed: wp.array2d(dtype=wp.float64)
     offset: wp.array(dtype=wp.float64)
     slope_bias: wp.array(dtype=wp.float64)
-    origin: wp.array2d(dtype=wp.int64)
+    origin_fixed: wp.array2d(dtype=wp.int64)
     zref: wp.float64
     limit: wp.float64
     bias_constant: wp.float64
@@ -197,8 +188,8 @@ def receiver_at(r: WorldReceivers, c: int, k: int):  # noqa: F811  (a Warp overl
         slope = wp.vec2d(wp.clamp(plane_x, -r.max_tan, r.max_tan) * r.texel_size[c, 0],
                          wp.clamp(plane_y, -r.max_tan, r.max_tan) * r.texel_size[c, 1])
     moved = r.offset[c]
-    x = fixed_point(nx * moved + px, r.to_fixed[c, 0], r.limit) - r.origin[c, 0]
-    y = fixed_point(ny * moved + py, r.to_fixed[c, 1], r.limit) - r.origin[c, 1]
+    x = fixed_point(nx * moved + px, r.to_fixed[c, 0], r.limit) - r.origin_fixed[c, 0]
+    y = fixed_point(ny * moved + py, r.to_fixed[c, 1], r.limit) - r.origin_fixed[c, 1]
     bias = r.bias_constant + r.slope_bias[c] * tan
     return x, y, wp.float32(pz + moved * nz - r.zref - bias), slope
 
@@ -214,19 +205,21 @@ def shadow_lookup_kernel(
     selection: int,
     filter_code: int,
     radius: int,
+    reach: int,
     margin: int,
     blend_band: wp.float64,
     lit: wp.array(dtype=wp.float32),
     cascade: wp.array(dtype=wp.int32),
     blend: wp.array(dtype=wp.int32),
+    blend_weight: wp.array(dtype=wp.float64),
 ):
     k = wp.tid()
     count = depth.shape[0]
     size = wp.int64(depth.shape[1])
-    # A box holds a point for sampling when every tap is inside it, and for `map` selection when
-    # the point is also `margin` texels inside its edges.
-    tap_lo = wp.int64(radius) * unit
-    tap_hi = (size - wp.int64(radius)) * unit
+    # A box holds a point for sampling when every tap (`reach` texels around it) is inside it, and
+    # for `map` selection when the point is also `margin` texels inside its edges.
+    tap_lo = wp.int64(reach) * unit
+    tap_hi = (size - wp.int64(reach)) * unit
     select_lo = wp.int64(margin) * unit
     select_hi = (size - wp.int64(margin)) * unit
     z = view_depth[k]
@@ -262,6 +255,7 @@ def shadow_lookup_kernel(
             c += 1
     cascade[k] = chosen
     blend[k] = 0
+    blend_weight[k] = wp.float64(0.0)
     if chosen < 0:
         lit[k] = 0.0
         return
@@ -278,6 +272,7 @@ def shadow_lookup_kernel(
                 s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, nxt, xn, yn, rn, sn, unit, filter_code,
                                                                  radius)
                 blend[k] = 1
+                blend_weight[k] = w
     lit[k] = wp.float32(s)
 
 
@@ -286,9 +281,9 @@ wp.overload(shadow_lookup_kernel, {"receivers": WorldReceivers})
 
 
 def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_area, selection: str,
-                  filter: str, filter_size: int, margin: int, blend_band: float, bits: int,
+                  filter: str, radius: int, margin: int, blend_band: float, bits: int,
                   receiver_slope=None, device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Lit fraction S and selected cascade at receiver points.
+    """Lit fraction S and selected cascade at receiver points under a box filter.
 
     Parameters
     ----------
@@ -307,13 +302,15 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
     texel_area : array_like, shape (C,), float64
         Texel area of each cascade, m² (``best_resolution``).
     selection : str
-        A key of :data:`SELECTION_METHODS`.
+        A key of :data:`csmlab.lookup_choices.SELECTION_METHODS`.
     filter : str
-        A key of :data:`FILTER_METHODS`.
-    filter_size : int
-        ``pcf``: taps per side N, odd.
+        A filter of the ``box`` family (:data:`csmlab.lookup_choices.FILTER_METHODS`).
+    radius : int
+        Texels the filter's taps reach beyond the one holding the point, its record's
+        ``radius_of`` (``pcf``: the box is (2·radius + 1)² texels; ``none`` 0, ``pcf_bilinear`` 1).
     margin : int
-        ``map`` and ``best_resolution``: texels of each box edge that do not count as inside.
+        ``map`` and ``best_resolution``: texels of each box edge that do not count as inside
+        (at least ``radius``).
     blend_band : float
         Fraction in [0, 0.5] of a split interval blended toward the next cascade.
     bits : int
@@ -337,10 +334,92 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
     Raises
     ------
     ValueError
-        On an unknown selection or filter (the message lists the valid names), an even or
-        non-positive ``filter_size``, or shapes that do not match.
+        On an unknown selection or a filter outside the box family (the message lists the valid
+        names), a negative ``radius``, or shapes that do not match.
     """
     device = checked_device(device)
+    code = family_code(filter, family="box")
+    receivers = _fixed_receivers(depth, coords, receiver_depth, view_depth, receiver_slope, device=device)
+    lit, cascade, blend, _ = _launch(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
+                                     selection=selection, code=code, radius=radius, reach=radius, margin=margin,
+                                     blend_band=blend_band, bits=bits, device=device)
+    return lit, cascade.astype(np.int8), blend
+
+
+def select_cascades(depth, coords, receiver_depth, view_depth, *, splits, texel_area, selection: str, radius: int,
+                    margin: int, blend_band: float, bits: int,
+                    device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The cascade selection of :func:`shadow_lookup` for a filter that runs after it, and its blend band.
+
+    The same kernel and rules: a box is selected only where it holds every tap of a filter
+    reaching ``radius`` texels, and the blend band blends toward the next cascade only where that
+    box holds them too.
+
+    Parameters
+    ----------
+    depth, coords, receiver_depth, view_depth, splits, texel_area, selection, margin, blend_band, bits, device
+        As :func:`shadow_lookup`.
+    radius : int
+        Texels the filter's taps reach beyond the one holding the point.
+
+    Returns
+    -------
+    cascade : ndarray, shape (N,), int32
+        Selected cascade, −1 where none.
+    blend_weight : ndarray, shape (N,), float64
+        Weight in [0, 1) of cascade ``cascade + 1`` in the blend band, 0 outside it.
+    blend : ndarray, shape (N,), bool
+        The receiver lies in a blend band (its weight may be 0 at the band's start).
+    """
+    device = checked_device(device)
+    receivers = _fixed_receivers(depth, coords, receiver_depth, view_depth, None, device=device)
+    _, cascade, blend, weight = _launch(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
+                                        selection=selection, code=BOX_TAPS, radius=0, reach=radius, margin=margin,
+                                        blend_band=blend_band, bits=bits, device=device)
+    return cascade, weight.numpy() if cascade.size else np.zeros(0), blend
+
+
+def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis, texel_size, origin_fixed, zref: float,
+                        normal_offset: float, bias_constant: float, bias_slope: float, receiver_plane_bias: bool,
+                        splits, texel_area, selection: str, filter: str, radius: int, margin: int,
+                        blend_band: float, bits: int, device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`shadow_lookup` of world receivers, each taken into a cascade's fixed point where the lookup reads it.
+
+    The same results, bit for bit, as :func:`receiver_coordinates` followed by :func:`shadow_lookup`
+    (one conversion, :func:`receiver_at`, serves both) without the ``(C, N)`` arrays of every
+    receiver in every cascade: a receiver is converted into the cascades its selection tests only.
+
+    Parameters
+    ----------
+    depth, view_depth, splits, texel_area, selection, filter, radius, margin, blend_band, bits, device
+        As :func:`shadow_lookup`; ``view_depth`` ``(N,)`` one per receiver.
+    points, normals, receivers, basis, texel_size, origin_fixed, zref, normal_offset, bias_constant, bias_slope
+        As :func:`receiver_coordinates`.
+    receiver_plane_bias : bool
+        Compare each tap with the receiver's tangent plane (else with its own depth).
+
+    Returns
+    -------
+    lit, cascade, blend
+        As :func:`shadow_lookup`.
+    """
+    device = checked_device(device)
+    code = family_code(filter, family="box")
+    world = world_receivers(points, normals, receivers=receivers, basis=basis, texel_size=texel_size,
+                            origin_fixed=origin_fixed,
+                            zref=zref, bits=bits, normal_offset=normal_offset, bias_constant=bias_constant,
+                            bias_slope=bias_slope, planar=receiver_plane_bias, device=device)
+    if world.index.shape[0] != np.shape(view_depth)[0] or np.ndim(view_depth) != 1:
+        raise ValueError(f"view_depth: expected one view depth per receiver ({world.index.shape[0]},), "
+                         f"got shape {np.shape(view_depth)}")
+    lit, cascade, blend, _ = _launch(depth, world, view_depth, splits=splits, texel_area=texel_area,
+                                     selection=selection, code=code, radius=radius, reach=radius, margin=margin,
+                                     blend_band=blend_band, bits=bits, device=device)
+    return lit, cascade.astype(np.int8), blend
+
+
+def _fixed_receivers(depth, coords, receiver_depth, view_depth, receiver_slope, *, device: str) -> FixedReceivers:
+    """The :class:`FixedReceivers` of :func:`shadow_lookup`'s arrays, their shapes checked against the maps."""
     xy = np.ascontiguousarray(coords, dtype=np.int64)
     rd = np.ascontiguousarray(receiver_depth, dtype=np.float32)
     slope = (np.zeros(rd.shape + (2,)) if receiver_slope is None
@@ -355,54 +434,21 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
     receivers.coords = wp.array(xy, dtype=wp.int64, device=device, copy=False)
     receivers.depth = wp.array(rd, dtype=wp.float32, device=device, copy=False)
     receivers.slope = wp.array(slope, dtype=wp.vec2d, device=device, copy=False)
-    return _lookup(depth, receivers, view_depth, splits=splits, texel_area=texel_area, selection=selection,
-                   filter=filter, filter_size=filter_size, margin=margin, blend_band=blend_band, bits=bits,
-                   device=device)
+    return receivers
 
 
-def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis, texel_size, origin, zref: float,
-                        normal_offset: float, bias_constant: float, bias_slope: float, receiver_plane_bias: bool,
-                        splits, texel_area, selection: str, filter: str, filter_size: int, margin: int,
-                        blend_band: float, bits: int, device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`shadow_lookup` of world receivers, each taken into a cascade's fixed point where the lookup reads it.
+def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str, code: int, radius: int, reach: int,
+            margin: int, blend_band: float, bits: int, device: str) -> tuple:
+    """Launch :func:`shadow_lookup_kernel` over ``receivers`` (a :class:`FixedReceivers` or :class:`WorldReceivers`).
 
-    The same results, bit for bit, as :func:`receiver_coordinates` followed by :func:`shadow_lookup`
-    (one conversion, :func:`receiver_at`, serves both) without the ``(C, N)`` arrays of every
-    receiver in every cascade: a receiver is converted into the cascades its selection tests only.
-
-    Parameters
-    ----------
-    depth, view_depth, splits, texel_area, selection, filter, filter_size, margin, blend_band, bits, device
-        As :func:`shadow_lookup`; ``view_depth`` ``(N,)`` one per receiver.
-    points, normals, receivers, basis, texel_size, origin, zref, normal_offset, bias_constant, bias_slope
-        As :func:`receiver_coordinates`.
-    receiver_plane_bias : bool
-        Compare each tap with the receiver's tangent plane (else with its own depth).
-
-    Returns
-    -------
-    lit, cascade, blend
-        As :func:`shadow_lookup`.
+    ``code`` and ``radius`` are the box filter run at the selected cascade, ``reach`` the taps a
+    selected box must hold. Returns ``lit`` (NaN where none selected), ``cascade`` int32 and
+    ``blend`` bool as NumPy arrays, and the blend weights as a Warp array (read only by
+    :func:`select_cascades`).
     """
-    device = checked_device(device)
-    world = world_receivers(points, normals, receivers=receivers, basis=basis, texel_size=texel_size, origin=origin,
-                            zref=zref, bits=bits, normal_offset=normal_offset, bias_constant=bias_constant,
-                            bias_slope=bias_slope, planar=receiver_plane_bias, device=device)
-    if world.index.shape[0] != np.shape(view_depth)[0] or np.ndim(view_depth) != 1:
-        raise ValueError(f"view_depth: expected one view depth per receiver ({world.index.shape[0]},), "
-                         f"got shape {np.shape(view_depth)}")
-    return _lookup(depth, world, view_depth, splits=splits, texel_area=texel_area, selection=selection,
-                   filter=filter, filter_size=filter_size, margin=margin, blend_band=blend_band, bits=bits,
-                   device=device)
-
-
-def _lookup(depth, receivers, view_depth, *, splits, texel_area, selection: str, filter: str, filter_size: int,
-            margin: int, blend_band: float, bits: int, device: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Launch :func:`shadow_lookup_kernel` over ``receivers`` (a :class:`FixedReceivers` or :class:`WorldReceivers`)."""
-    check_name(selection, SELECTION_METHODS, field="selection")
-    radius = filter_radius(filter, filter_size)
-    if not (isinstance(filter_size, (int, np.integer)) and filter_size >= 1 and filter_size % 2 == 1):
-        raise ValueError(f"filter_size: expected an odd positive integer, got {filter_size!r}")
+    selected = SELECTION_METHODS[check_name(selection, SELECTION_METHODS, field="selection")]
+    if not (isinstance(reach, (int, np.integer)) and reach >= 0):
+        raise ValueError(f"radius: expected a non-negative integer, got {reach!r}")
     maps = np.ascontiguousarray(depth, dtype=np.float32)
     vd = np.ascontiguousarray(view_depth, dtype=np.float64)
     z = np.ascontiguousarray(splits, dtype=np.float64)
@@ -414,10 +460,11 @@ def _lookup(depth, receivers, view_depth, *, splits, texel_area, selection: str,
         raise ValueError(f"splits, texel_area: expected shapes ({count + 1},), ({count},), got {z.shape}, {area.shape}")
     n = vd.shape[0]
     if n == 0:
-        return np.zeros(0, np.float32), np.zeros(0, np.int8), np.zeros(0, bool)
+        return np.zeros(0, np.float32), np.zeros(0, np.int32), np.zeros(0, bool), None
     lit = wp.empty(n, dtype=wp.float32, device=device)
     chosen = wp.empty(n, dtype=wp.int32, device=device)
     blended = wp.empty(n, dtype=wp.int32, device=device)
+    weight = wp.empty(n, dtype=wp.float64, device=device)
     wp.launch(
         shadow_lookup_kernel,
         dim=n,
@@ -428,19 +475,20 @@ def _lookup(depth, receivers, view_depth, *, splits, texel_area, selection: str,
             wp.array(z, dtype=wp.float64, device=device, copy=False),
             wp.array(area, dtype=wp.float64, device=device, copy=False),
             wp.int64(2**bits),
-            SELECTION_METHODS[selection],
-            FILTER_METHODS[filter],
-            radius,
-            max(int(margin), radius),
+            selected.code,
+            code,
+            int(radius),
+            int(reach),
+            max(int(margin), int(reach)),
             wp.float64(blend_band),
         ),
-        outputs=(lit, chosen, blended),
+        outputs=(lit, chosen, blended, weight),
         device=device,
     )
     cascade = chosen.numpy()
     s = lit.numpy()
     s[cascade < 0] = np.nan
-    return s, cascade.astype(np.int8), blended.numpy().astype(bool)
+    return s, cascade, blended.numpy().astype(bool), weight
 
 
 @wp.func
@@ -477,8 +525,8 @@ def receiver_coordinates_kernel(
         c += 1
 
 
-def receiver_coordinates(points, normals, *, basis, texel_size, origin, zref: float, bits: int, normal_offset: float,
-                         bias_constant: float, bias_slope: float, receivers=None,
+def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zref: float, bits: int,
+                         normal_offset: float, bias_constant: float, bias_slope: float, receivers=None,
                          device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`csmlab.texels.receiver_lookup` on the device, from world receivers.
 
@@ -492,7 +540,7 @@ def receiver_coordinates(points, normals, *, basis, texel_size, origin, zref: fl
         The light basis (:attr:`csmlab.cascades.CascadeSet.basis`): rows x, y and the light direction.
     texel_size : array_like, shape (C, 2), float64
         Metres per texel of each cascade.
-    origin : array_like, shape (C, 2), int64
+    origin_fixed : array_like, shape (C, 2), int64
         Box origins in ``2**-bits`` texels (:func:`csmlab.texels.fixed_point_origin`).
     zref : float
         The cascades' depth offset, metres.
@@ -511,7 +559,8 @@ def receiver_coordinates(points, normals, *, basis, texel_size, origin, zref: fl
         ``(C, N)`` float32, ``(C, N, 2)`` float64.
     """
     device = checked_device(device)
-    world = world_receivers(points, normals, receivers=receivers, basis=basis, texel_size=texel_size, origin=origin,
+    world = world_receivers(points, normals, receivers=receivers, basis=basis, texel_size=texel_size,
+                            origin_fixed=origin_fixed,
                             zref=zref, bits=bits, normal_offset=normal_offset, bias_constant=bias_constant,
                             bias_slope=bias_slope, planar=True, device=device)
     shape = (world.texel_size.shape[0], world.index.shape[0])
@@ -524,7 +573,7 @@ def receiver_coordinates(points, normals, *, basis, texel_size, origin, zref: fl
     return coords.numpy(), depth.numpy(), slope.numpy()
 
 
-def world_receivers(points, normals, *, receivers, basis, texel_size, origin, zref: float, bits: int,
+def world_receivers(points, normals, *, receivers, basis, texel_size, origin_fixed, zref: float, bits: int,
                     normal_offset: float, bias_constant: float, bias_slope: float, planar: bool,
                     device: str) -> WorldReceivers:
     """The :class:`WorldReceivers` of :func:`receiver_coordinates`'s arguments, checked (``planar``: receiver-plane slopes)."""
@@ -532,11 +581,11 @@ def world_receivers(points, normals, *, receivers, basis, texel_size, origin, zr
     n = np.ascontiguousarray(normals, dtype=np.float32)
     rows = np.ascontiguousarray(basis, dtype=np.float64)
     size = np.ascontiguousarray(texel_size, dtype=np.float64)
-    corner = np.ascontiguousarray(origin, dtype=np.int64)
+    corner = np.ascontiguousarray(origin_fixed, dtype=np.int64)
     if p.ndim != 2 or p.shape[1] != 3 or n.shape != p.shape or rows.shape != (3, 3) or size.ndim != 2 \
             or size.shape[1] != 2 or corner.shape != size.shape:
-        raise ValueError(f"points, normals, basis, texel_size, origin: expected shapes (M, 3), (M, 3), (3, 3), (C, 2), "
-                         f"(C, 2); got {p.shape}, {n.shape}, {rows.shape}, {size.shape}, {corner.shape}")
+        raise ValueError(f"points, normals, basis, texel_size, origin_fixed: expected shapes (M, 3), (M, 3), (3, 3), "
+                         f"(C, 2), (C, 2); got {p.shape}, {n.shape}, {rows.shape}, {size.shape}, {corner.shape}")
     index = np.arange(p.shape[0], dtype=np.int32) if receivers is None else np.ascontiguousarray(receivers, np.int32)
     if index.ndim != 1 or (index.size and (index.min() < 0 or index.max() >= p.shape[0])):
         raise ValueError(f"receivers: expected row indices in [0, {p.shape[0]}), got shape {index.shape}")
@@ -550,7 +599,7 @@ def world_receivers(points, normals, *, receivers, basis, texel_size, origin, zr
     world.to_fixed = wp.array(float(2**bits) / size, dtype=wp.float64, device=device)
     world.offset = wp.array(normal_offset * texel, dtype=wp.float64, device=device)
     world.slope_bias = wp.array(bias_slope * texel, dtype=wp.float64, device=device)
-    world.origin = wp.array(corner, dtype=wp.int64, device=device)
+    world.origin_fixed = wp.array(corner, dtype=wp.int64, device=device)
     world.zref = float(zref)
     world.limit = float(2**50)
     world.bias_constant = float(bias_constant)
