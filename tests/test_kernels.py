@@ -34,8 +34,8 @@ def test_checked_device_refuses_names_warp_does_not_know():
     assert checked_device("cpu") == "cpu"
 
 
-KERNEL_MODULES = ["flip", "footprint", "moments", "pcf", "raster", "reference", "shadow", "usage", "visibility"]
-"""csmlab's Warp modules: each of csmlab.kernels that defines kernels."""
+KERNEL_MODULES = ["flip", "footprint", "moments", "pcf", "raster.kernels", "reference", "shadow", "usage", "visibility"]
+"""csmlab's Warp modules: each module under csmlab.kernels (packages included) that defines kernels."""
 
 
 def test_the_list_of_kernel_modules_is_every_module_that_defines_kernels():
@@ -44,9 +44,11 @@ def test_the_list_of_kernel_modules_is_every_module_that_defines_kernels():
 
     import csmlab.kernels
 
-    modules = {m.name: importlib.import_module(f"csmlab.kernels.{m.name}")
-               for m in pkgutil.iter_modules(csmlab.kernels.__path__)}
-    found = [name for name, module in modules.items() if any(isinstance(v, wp.Kernel) for v in vars(module).values())]
+    prefix = "csmlab.kernels."
+    modules = {m.name.removeprefix(prefix): importlib.import_module(m.name)
+               for m in pkgutil.walk_packages(csmlab.kernels.__path__, prefix)}
+    found = [name for name, module in modules.items()
+             if any(isinstance(v, wp.Kernel) and v.func.__module__ == module.__name__ for v in vars(module).values())]
     assert sorted(found) == KERNEL_MODULES
 
 

@@ -41,10 +41,10 @@ def triangle_soup(rng, cs: CascadeSet, *, count: int, lo, hi, size: float, offse
     return vertices, np.arange(3 * count).reshape(count, 3)
 
 
-def rasterize(cs: CascadeSet, vertices, triangles, *, device="cpu"):
+def rasterize(cs: CascadeSet, vertices, triangles, *, device, paths=None):
     points = np.stack([fixed_point_coordinates(cs, c, vertices, bits=BITS) for c in range(len(cs))])
     return rasterize_depth(points, light_depth(cs, vertices), triangles, resolution=cs.cascades[0].resolution,
-                           bits=BITS, device=device)
+                           bits=BITS, paths=paths, device=device)
 
 
 def ray_cast_depth(corners, depth, resolution):
@@ -86,7 +86,7 @@ def ray_cast_depth(corners, depth, resolution):
 
 @pytest.mark.parametrize("direction", [DOWN, OBLIQUE], ids=["down", "oblique"])
 @pytest.mark.parametrize("resolution", [64, 128])
-def test_depth_equals_ray_cast_through_every_texel_centre(direction, resolution):
+def test_depth_equals_ray_cast_through_every_texel_centre(direction, resolution, device):
     rng = np.random.default_rng(resolution + int(direction[0] * 100))
     cs = cascade_set(direction=direction, origins=[(-37.0, 912.0)], texel=0.0731, resolution=resolution)
     vertices, triangles = triangle_soup(rng, cs, count=1200, lo=-8, hi=resolution + 8, size=resolution / 12)
@@ -94,7 +94,7 @@ def test_depth_equals_ray_cast_through_every_texel_centre(direction, resolution)
     n = vertices.shape[0]
     vertices = np.concatenate([vertices, vertices[[0, 0, 1]], vertices[3] + np.outer([0, 1, 2], cs.basis[2])])
     triangles = np.concatenate([triangles, np.arange(n, n + 6).reshape(2, 3)])
-    depth, texels = rasterize(cs, vertices, triangles)
+    depth, texels = rasterize(cs, vertices, triangles, device=device)
 
     fixed = fixed_point_coordinates(cs, 0, vertices, bits=BITS)
     expected, ambiguous = ray_cast_depth(fixed[triangles] / 2**BITS, light_depth(cs, vertices)[triangles], resolution)
@@ -142,7 +142,7 @@ def interpolated_depth_map(points, depth, triangles, resolution):
 
 
 @pytest.mark.parametrize("size", [0.7, 3.0, 9.0, 30.0])
-def test_every_depth_is_the_edge_function_interpolation_rounded_once_bit_for_bit(size):
+def test_every_depth_is_the_edge_function_interpolation_rounded_once_bit_for_bit(size, device):
     """Runs of every length (a vector's width and its masked tail, narrow and solved runs) give the specified bits."""
     rng = np.random.default_rng(int(size * 10))
     resolution = 48
@@ -151,10 +151,80 @@ def test_every_depth_is_the_edge_function_interpolation_rounded_once_bit_for_bit
     points = np.round(corners.reshape(-1, 2) * 2**BITS).astype(np.int64)
     depth = rng.uniform(-30.0, 30.0, len(points))
     triangles = np.arange(len(points)).reshape(-1, 3)
-    rasterized, _ = rasterize_depth(points[None], depth, triangles, resolution=resolution, bits=BITS)
+    rasterized, _ = rasterize_depth(points[None], depth, triangles, resolution=resolution, bits=BITS, device=device)
     expected = interpolated_depth_map(points, depth, triangles, resolution)
     assert np.isfinite(expected).sum() > 100
     np.testing.assert_array_equal(rasterized[0], expected)
+
+
+def oversized_triangle(cs: CascadeSet):
+    """World vertices ``(3, 3)`` of one triangle millions of texels across, behind the box: the large-triangle path."""
+    t = cs.cascades[0].texel_size[0]
+    corners = np.array([[-1e7, -1e7], [1e7, -1e7], [0.0, 1e7]]) + cs.cascades[0].origin
+    return np.concatenate([corners * t, np.full((3, 1), 50.0)], axis=1) @ cs.basis
+
+
+def path_test_triangles(rng, resolution: int):
+    """Fixed-point triangles ``(V, 2)`` int64 (``2**-BITS`` texels), their depths ``(V,)`` and indices ``(T, 3)``:
+    boxes holding one centre or none, small and wide walks, and triangles of 2**16 to 2**19 texels across the map.
+
+    Half of the small ones have their corners on a quarter-texel grid, so that many texel centres lie exactly on
+    an edge or a corner and the top-left rule decides them.
+    """
+    corners = [rng.uniform(-2.0, resolution + 2.0, (count, 1, 2)) + rng.uniform(-size, size, (count, 3, 2))
+               for size, count in ((0.6, 3000), (3.0, 600), (12.0, 200), (40.0, 30))]
+    corners = np.concatenate(corners)
+    corners[::2] = np.round(corners[::2] * 4.0) / 4.0
+    span = 2.0 ** np.array([16.0, 17.0, 17.5, 18.0, 19.0])
+    big = np.stack([np.stack([-span + 0.375, -0.8125 * span + 3.25], 1), np.tile([[resolution - 2.5, 30.0625]],
+                                                                                (len(span), 1)),
+                    np.stack([0.625 * span, -span + 1.5], 1)], axis=1)
+    points = np.round(np.concatenate([corners, big]).reshape(-1, 2) * 2**BITS).astype(np.int64)
+    depth = rng.uniform(-30.0, 30.0, len(points))
+    return points, depth, np.arange(len(points)).reshape(-1, 3)
+
+
+FORCED_PATHS = {
+    "one centre off": dict(one_centre=False),
+    "runs always solved": dict(solved_columns=0),
+    "runs never solved": dict(solved_columns=2**30),
+    "walk only": dict(one_centre=False, solved_columns=0),
+    "large triangle only": dict(stepped_extent=0),
+    "walk everything": dict(stepped_extent=2**62),
+}
+"""Each of a triangle's paths forced on every triangle it can take (:func:`csmlab.kernels.raster.triangle_paths`)."""
+
+
+@pytest.mark.parametrize("forced", FORCED_PATHS, ids=list(FORCED_PATHS))
+def test_every_triangle_path_forced_gives_the_default_maps_bit_for_bit(forced, device):
+    """One centre, walk (runs solved or not) and large triangle agree on the same triangles: depths and counts.
+
+    So a changed threshold (:data:`csmlab.kernels.raster.kernels.ONE_CENTRE`, ``STEPPED_EXTENT``,
+    ``SOLVED_COLUMNS``) that changes a result fails here, and forcing any path changes nothing.
+    """
+    from csmlab.kernels.raster import triangle_paths
+
+    points, depth, triangles = path_test_triangles(np.random.default_rng(41), 48)
+    expected, expected_count = rasterize_depth(points[None], depth, triangles, resolution=48, bits=BITS,
+                                               device=device)
+    assert np.isfinite(expected).mean() > 0.9 and expected_count > 48 * 48
+    forced_maps, forced_count = rasterize_depth(points[None], depth, triangles, resolution=48, bits=BITS,
+                                                paths=triangle_paths(**FORCED_PATHS[forced]), device=device)
+    np.testing.assert_array_equal(forced_maps, expected)
+    assert forced_count == expected_count
+
+
+def test_every_path_gives_the_specified_depths_and_the_walk_its_exact_integers():
+    """The default paths give :func:`interpolated_depth_map` (exact integer edge functions) on the small triangles,
+    and the walk's threshold keeps every edge function below 2**53, where float64 integers are exact."""
+    from csmlab.kernels.raster.kernels import STEPPED_EXTENT
+
+    points, depth, triangles = path_test_triangles(np.random.default_rng(43), 32)
+    small = triangles[:-5]
+    rasterized, _ = rasterize_depth(points[None], depth, small, resolution=32, bits=BITS)
+    np.testing.assert_array_equal(rasterized[0], interpolated_depth_map(points, depth, small, 32))
+    assert 2 * STEPPED_EXTENT**2 <= 2**53
+
 
 def fixed_point_triangles(corners_texels):
     """One cascade of fixed-point corners ``(1, 3T, 2)`` from texel positions ``(T, 3, 2)`` (multiples of 2**-BITS)."""
@@ -163,12 +233,12 @@ def fixed_point_triangles(corners_texels):
     return c.astype(np.int64).reshape(1, -1, 2)
 
 
-def coverage(corners_texels, resolution):
+def coverage(corners_texels, resolution, *, device):
     """Per triangle, the boolean coverage map (rasterized one at a time)."""
     out = []
     for tri in np.asarray(corners_texels, dtype=np.float64):
         depth, _ = rasterize_depth(fixed_point_triangles([tri]), np.zeros(3), [[0, 1, 2]], resolution=resolution,
-                                   bits=BITS)
+                                   bits=BITS, device=device)
         out.append(np.isfinite(depth[0]))
     return np.array(out)
 
@@ -185,14 +255,14 @@ def strictly_inside(corners, resolution):
     return inside
 
 
-def test_two_triangles_sharing_an_edge_cover_each_texel_centre_once():
+def test_two_triangles_sharing_an_edge_cover_each_texel_centre_once(device):
     # The shared diagonal A-C runs through texel centres every 2 texels; the outer edges miss every
     # centre (their corners sit at 37/256 and 91/256 of a texel), so the quad's interior and its
     # diagonal are exactly the centres that must be covered once.
     a, c = (2.5, 3.5), (42.5, 23.5)
     b, d = (40 + 37 / 256, 1 + 91 / 256), (4 + 91 / 256, 25 + 37 / 256)
     for first, second in (([a, b, c], [a, c, d]), ([a, c, b], [a, d, c]), ([a, b, c], [c, a, d])):
-        maps = coverage([first, second], 48)
+        maps = coverage([first, second], 48, device=device)
         assert not np.any(maps[0] & maps[1])
         expected = strictly_inside([a, b, c, d], 48)
         for corner in (a, c):
@@ -203,7 +273,7 @@ def test_two_triangles_sharing_an_edge_cover_each_texel_centre_once():
 
 @pytest.mark.parametrize("span", [2**14, 2**17 - 64, 2**17, 2**19], ids=["stepped", "stepped-limit", "afresh",
                                                                           "afresh-far"])
-def test_large_triangles_cover_exactly_the_centres_inside_them(span):
+def test_large_triangles_cover_exactly_the_centres_inside_them(span, device):
     # A triangle spanning about `span` texels: below 2**17 texels (2**26 doubled fixed-point units
     # at 8 bits) the rasterizer steps its edge functions texel to texel, from there on it evaluates
     # them afresh. Either way the covered centres are those strictly inside, in exact integers.
@@ -212,20 +282,20 @@ def test_large_triangles_cover_exactly_the_centres_inside_them(span):
     tri = np.array([[-span + 0.375, -0.8125 * span + 3.25], [157.5, 150.0625], [0.625 * span, -span + 1.5]])
     (ux, uy), (vx, vy) = tri[1] - tri[0], tri[2] - tri[0]
     corners = tri if ux * vy - uy * vx > 0 else tri[::-1]
-    covered = coverage([tri], resolution)[0]
+    covered = coverage([tri], resolution, device=device)[0]
     inside = strictly_inside(corners, resolution)
     assert 0 < inside.sum() < resolution**2
     assert np.array_equal(covered, inside)
 
 
-def test_a_fan_around_a_texel_centre_covers_it_once():
+def test_a_fan_around_a_texel_centre_covers_it_once(device):
     centre = np.array([16.5, 16.5])
     # Every spoke runs through further texel centres (its texel offsets share a factor of 2).
     spokes = np.array([[8, 2], [4, 6], [-6, 8], [-8, -2], [-2, -8], [6, -6]], dtype=np.float64)
     rim = centre + spokes
     fan = [[centre, rim[k], rim[(k + 1) % 6]] for k in range(6)]
     fan[2] = fan[2][::-1]
-    maps = coverage(fan, 32)
+    maps = coverage(fan, 32, device=device)
     counts = maps.sum(axis=0)
     assert counts[16, 16] == 1
     inside = strictly_inside(rim, 32)
@@ -233,14 +303,14 @@ def test_a_fan_around_a_texel_centre_covers_it_once():
     assert counts.max() == 1
 
 
-def test_triangles_smaller_than_a_texel_equal_the_ray_cast():
+def test_triangles_smaller_than_a_texel_equal_the_ray_cast(device):
     # Most boxes hold one texel centre or none, as in a far cascade: the one-centre test and the walk
     # must both agree with the oracle.
     rng = np.random.default_rng(5)
     resolution = 48
     cs = cascade_set(direction=OBLIQUE, origins=[(3.0, -41.0)], texel=0.0731, resolution=resolution)
     vertices, triangles = triangle_soup(rng, cs, count=12000, lo=-1, hi=resolution + 1, size=0.6)
-    depth, texels = rasterize(cs, vertices, triangles)
+    depth, texels = rasterize(cs, vertices, triangles, device=device)
     fixed = fixed_point_coordinates(cs, 0, vertices, bits=BITS) / 2**BITS
     one_centre = np.all(np.floor(fixed[triangles].max(axis=1) - 0.5) == np.ceil(fixed[triangles].min(axis=1) - 0.5),
                         axis=1)
@@ -253,20 +323,20 @@ def test_triangles_smaller_than_a_texel_equal_the_ray_cast():
     assert np.all(np.abs(depth[0][both] - expected[both]) <= np.spacing(np.abs(expected[both]).astype(np.float32)))
 
 
-def test_a_fan_smaller_than_a_texel_around_its_centre_covers_it_once():
+def test_a_fan_smaller_than_a_texel_around_its_centre_covers_it_once(device):
     centre = np.array([16.5, 16.5])
     # Each triangle's box holds this one centre, on a vertex shared by all six.
     spokes = np.array([[0.5, 0.125], [0.25, 0.375], [-0.375, 0.5], [-0.5, -0.125], [-0.125, -0.5], [0.375, -0.375]])
     rim = centre + spokes
     fan = [[centre, rim[k], rim[(k + 1) % 6]] for k in range(6)]
     fan[4] = fan[4][::-1]
-    counts = coverage(fan, 32).sum(axis=0)
+    counts = coverage(fan, 32, device=device).sum(axis=0)
     assert counts[16, 16] == 1
     assert counts.sum() == 1
 
 
 @pytest.mark.parametrize("offset", [(0.0, 0.0, 0.0), (1e5, 20.0, -1e5)], ids=["origin", "far"])
-def test_moving_the_box_by_whole_texels_shifts_the_depth_map_bit_for_bit(offset):
+def test_moving_the_box_by_whole_texels_shifts_the_depth_map_bit_for_bit(offset, device):
     rng = np.random.default_rng(11)
     resolution = 1100
     shifts = np.array([[0, 0], [1000, -1000], [-999, 7], [3, 1]])
@@ -274,7 +344,7 @@ def test_moving_the_box_by_whole_texels_shifts_the_depth_map_bit_for_bit(offset)
     anchor = np.floor((probe.basis @ np.asarray(offset))[:2] / 0.0371)
     cs = cascade_set(direction=OBLIQUE, origins=[anchor + s for s in shifts], texel=0.0371, resolution=resolution)
     vertices, triangles = triangle_soup(rng, cs, count=4000, lo=-1000, hi=resolution + 1000, size=40.0)
-    depth, _ = rasterize(cs, vertices, triangles)
+    depth, _ = rasterize(cs, vertices, triangles, device=device)
     for c, (kx, ky) in enumerate(shifts[1:], start=1):
         # Texel (i, j) of the moved box is texel (i + kx, j + ky) of the first one.
         i0, i1 = max(0, kx), min(resolution, resolution + kx)
@@ -284,7 +354,7 @@ def test_moving_the_box_by_whole_texels_shifts_the_depth_map_bit_for_bit(offset)
         assert np.array_equal(depth[c, j0 - ky:j1 - ky, i0 - kx:i1 - kx], window)
 
 
-def test_degenerate_near_plane_crossing_and_oversized_triangles_stay_finite_and_in_bounds():
+def test_degenerate_near_plane_crossing_and_oversized_triangles_stay_finite_and_in_bounds(device):
     cs = cascade_set(direction=OBLIQUE, origins=[(100.0, -50.0)], texel=0.05, resolution=64, zref=-5.0)
     t = 0.05
     to_world = lambda x, y, z: np.array([x * t, y * t, z]) @ cs.basis  # noqa: E731
@@ -297,7 +367,7 @@ def test_degenerate_near_plane_crossing_and_oversized_triangles_stay_finite_and_
         # Millions of texels across, far behind everything: covers the whole map.
         to_world(-1e7, -1e7, 50.0), to_world(1e7, -1e7, 50.0), to_world(0, 1e7, 50.0),
     ])
-    depth, texels = rasterize(cs, vertices, np.arange(12).reshape(4, 3))
+    depth, texels = rasterize(cs, vertices, np.arange(12).reshape(4, 3), device=device)
     assert depth.shape == (1, 64, 64)
     assert np.all(np.isfinite(depth))
     assert texels >= 64 * 64
@@ -307,9 +377,9 @@ def test_degenerate_near_plane_crossing_and_oversized_triangles_stay_finite_and_
     np.testing.assert_array_equal(depth[0][~near], np.float32(plane))
 
 
-def test_an_empty_scene_leaves_every_texel_empty():
+def test_an_empty_scene_leaves_every_texel_empty(device):
     depth, texels = rasterize_depth(np.zeros((2, 3, 2), dtype=np.int64), np.zeros(3), [[0, 1, 2]], resolution=16,
-                                    bits=BITS)
+                                    bits=BITS, device=device)
     assert depth.shape == (2, 16, 16) and np.all(depth == np.inf) and texels == 0
 
 
@@ -321,7 +391,9 @@ def test_bad_input_names_the_argument():
     with pytest.raises(ValueError, match="device: expected 'cpu' or 'cuda'"):
         rasterize_depth(np.zeros((1, 3, 2), dtype=np.int64), np.zeros(3), [[0, 1, 2]], resolution=16, bits=8,
                         device="tpu")
-
+    with pytest.raises(ValueError, match="paths: expected a TrianglePaths"):
+        rasterize_depth(np.zeros((1, 3, 2), dtype=np.int64), np.zeros(3), [[0, 1, 2]], resolution=16, bits=8,
+                        paths="walk")
 
 
 def test_a_light_space_mesh_refuses_vertices_that_are_not_finite_and_indices_outside_it():
@@ -349,16 +421,20 @@ def test_a_light_space_mesh_refuses_vertices_that_are_not_finite_and_indices_out
     with pytest.raises(ValueError, match="depth: expected C-contiguous float32 maps"):
         rasterize_cascades(light_space_mesh(xy, z, [[0, 1, 2]]), depth=strided, **box)
 
+
 @pytest.mark.skipif(wp.get_cuda_device_count() == 0, reason="no CUDA device")
-def test_cpu_and_cuda_rasterize_the_same_depth():
+def test_cpu_and_cuda_rasterize_the_same_depth_bit_for_bit():
+    """Every path on both devices (tiny, small, large and oversized triangles): the same maps and counts, bit for bit
+    (the CUDA build fuses no multiply-add: tests/test_kernels.py)."""
     rng = np.random.default_rng(5)
     cs = cascade_set(direction=OBLIQUE, origins=[(3.0, 4.0), (-50.0, 20.0)], texel=0.0731, resolution=128)
-    vertices, triangles = triangle_soup(rng, cs, count=2000, lo=-60, hi=190, size=12.0)
+    soups = [triangle_soup(rng, cs, count=2000, lo=-60, hi=190, size=size) for size in (0.6, 12.0)]
+    vertices = np.concatenate([v for v, _ in soups] + [oversized_triangle(cs)])
+    triangles = np.arange(len(vertices)).reshape(-1, 3)
     cpu, cpu_texels = rasterize(cs, vertices, triangles, device="cpu")
-    cuda, cuda_texels = rasterize(cs, vertices, triangles, device="cuda")
+    cuda, cuda_texels = rasterize(cs, vertices, triangles, device="cuda:0")
     assert cpu_texels == cuda_texels
-    np.testing.assert_array_equal(np.isfinite(cpu), np.isfinite(cuda))
-    np.testing.assert_allclose(cpu[np.isfinite(cpu)], cuda[np.isfinite(cuda)], rtol=1e-6)
+    np.testing.assert_array_equal(cpu, cuda)
 
 
 def spatially_sorted(xy, triangles):
@@ -366,7 +442,7 @@ def spatially_sorted(xy, triangles):
     return triangles[np.argsort(xy[triangles[:, 0], 0], kind="stable")]
 
 
-def test_device_fixed_point_and_culled_rasterization_equal_the_host_path_bit_for_bit():
+def test_device_fixed_point_and_culled_rasterization_equal_the_host_path_bit_for_bit(device):
     """rasterize_cascades (fixed point on the device, culled chunks) gives rasterize_depth's maps exactly."""
     from csmlab.kernels.raster import CHUNK_BITS, rasterize_cascades, region_chunks, triangle_bounds, whole_map_regions
     from csmlab.texels import fixed_point_origin, light_plane_coordinates
@@ -377,7 +453,7 @@ def test_device_fixed_point_and_culled_rasterization_equal_the_host_path_bit_for
     vertices, triangles = triangle_soup(rng, cs, count=400, lo=-40.0, hi=90.0, size=9.0)
     xy = light_plane_coordinates(cs, vertices)
     triangles = spatially_sorted(xy, triangles)
-    expected, expected_count = rasterize(cs, vertices, triangles)
+    expected, expected_count = rasterize(cs, vertices, triangles, device=device)
     bounds = triangle_bounds(xy, triangles)
     texel_size = np.stack([c.texel_size for c in cs.cascades])
     origin = np.stack([c.origin for c in cs.cascades])
@@ -387,7 +463,7 @@ def test_device_fixed_point_and_culled_rasterization_equal_the_host_path_bit_for
     mesh = light_space_mesh(xy, light_depth(cs, vertices), triangles)
     for rows in (chunks, None):
         depth, count = rasterize_cascades(mesh, texel_size=texel_size, origin=fixed_origin, resolution=48, bits=BITS,
-                                          chunks=rows)
+                                          chunks=rows, device=device)
         np.testing.assert_array_equal(depth, expected)
         assert count.sum() == expected_count
 
@@ -407,7 +483,7 @@ def test_culled_chunks_hold_every_triangle_that_covers_a_texel():
                                               regions=whole_map_regions([32, 32]))}
     assert len(chunks) < 2 * len(bounds.chunks[0])  # some chunks were culled
     for t in range(len(triangles)):
-        alone, covered = rasterize(cs, vertices, triangles[t:t + 1])
+        alone, covered = rasterize(cs, vertices, triangles[t:t + 1], device="cpu")
         for c in range(len(cs)):
             if np.isfinite(alone[c]).any():
                 assert (c, t >> CHUNK_BITS) in chunks
@@ -430,7 +506,7 @@ def test_chunk_rectangles_bound_their_triangles_and_the_last_chunk_only_its_own(
 
 
 @pytest.mark.parametrize("threads", [1, 2, 3])
-def test_the_vertex_pass_is_twice_the_host_fixed_point(threads):
+def test_the_vertex_pass_is_twice_the_host_fixed_point(threads, device):
     from csmlab.kernels.raster import fixed_point_vertices
     from csmlab.texels import fixed_point_origin, light_plane_coordinates
 
@@ -444,7 +520,7 @@ def test_the_vertex_pass_is_twice_the_host_fixed_point(threads):
     texel_size = np.stack([c.texel_size for c in cs.cascades])
     xy = light_plane_coordinates(cs, vertices)
     points = fixed_point_vertices(xy, texel_size=texel_size, origin=origin, bits=BITS, cascades=[2, 0],
-                                  threads=threads)
+                                  threads=threads, device=device)
     assert points.shape == (2, len(vertices), 2) and points.dtype == np.int64
     for slot, c in enumerate([2, 0]):
         np.testing.assert_array_equal(points[slot], 2 * fixed_point_coordinates(cs, c, vertices, bits=BITS))
@@ -452,7 +528,7 @@ def test_the_vertex_pass_is_twice_the_host_fixed_point(threads):
         fixed_point_vertices(xy, texel_size=texel_size, origin=origin, bits=BITS, cascades=[3])
 
 
-def test_the_vertex_pass_rounds_every_coordinate_as_the_host_formula_for_any_texel_size():
+def test_the_vertex_pass_rounds_every_coordinate_as_the_host_formula_for_any_texel_size(device):
     """``rint(u / texel · 2**bits)`` (NumPy, float64) whatever the texel: the kernel divides by ``texel / 2**bits``
     instead, which must round alike — on ties (half steps, to even), beyond the clip and for NaN and infinities."""
     from csmlab.kernels.raster import fixed_point_vertices
@@ -469,12 +545,14 @@ def test_the_vertex_pass_rounds_every_coordinate_as_the_host_formula_for_any_tex
     expected = np.clip(xy[None] / texel_size[:, None] * 2.0**bits, -2.0**50, 2.0**50)
     expected = np.where(np.isnan(expected), -2.0**50, np.rint(expected)).astype(np.int64)
     expected = 2 * (expected - origin[:, None])
-    np.testing.assert_array_equal(fixed_point_vertices(xy, texel_size=texel_size, origin=origin, bits=bits), expected)
+    np.testing.assert_array_equal(fixed_point_vertices(xy, texel_size=texel_size, origin=origin, bits=bits,
+                                                       device=device), expected)
 
 
-def two_cascade_soup(seed: int):
+def two_cascade_soup(seed: int, *, device: str = "cpu"):
     """A triangle soup over two 40² cascades, listed by light-space x: the cascades, vertices, triangles,
-    light-plane x/y, bounds, the keyword arguments of rasterize_cascades (but depths) and the box corners in texels."""
+    light-plane x/y, bounds, the keyword arguments of rasterize_cascades on ``device`` (but depths) and the box
+    corners in texels."""
     from csmlab.kernels.raster import triangle_bounds
     from csmlab.texels import fixed_point_origin, light_plane_coordinates
 
@@ -484,16 +562,17 @@ def two_cascade_soup(seed: int):
     xy = light_plane_coordinates(cs, vertices)
     triangles = spatially_sorted(xy, triangles)
     box = dict(texel_size=np.stack([c.texel_size for c in cs.cascades]),
-               origin=np.stack([fixed_point_origin(cs, c, bits=BITS) for c in range(len(cs))]), resolution=40, bits=BITS)
+               origin=np.stack([fixed_point_origin(cs, c, bits=BITS) for c in range(len(cs))]), resolution=40, bits=BITS,
+               device=device)
     return cs, vertices, triangles, xy, triangle_bounds(xy, triangles), box, np.stack([c.origin for c in cs.cascades])
 
 
-def test_a_map_rasterized_region_by_region_is_the_whole_map_and_counting_alone_counts_the_same():
+def test_a_map_rasterized_region_by_region_is_the_whole_map_and_counting_alone_counts_the_same(device):
     """Regions tiling each map (as scrolling makes them) give its depths bit for bit and the same coverage tests,
     whatever the maps held in them before."""
     from csmlab.kernels.raster import rasterize_cascades, region_chunks
 
-    cs, vertices, triangles, xy, bounds, box, corner = two_cascade_soup(13)
+    cs, vertices, triangles, xy, bounds, box, corner = two_cascade_soup(13, device=device)
     mesh = light_space_mesh(xy, light_depth(cs, vertices), triangles)
     whole, whole_count = rasterize_cascades(mesh, **box)
     # Bands of rows, then bands of columns within the rest, as scroll_plan cuts a moved map.
@@ -514,23 +593,24 @@ def test_a_map_rasterized_region_by_region_is_the_whole_map_and_counting_alone_c
     assert np.all(part[0, :3] == -7.0) and np.all(part[1] == -7.0)
 
 
-def test_vertices_converted_once_or_per_triangle_rasterize_the_same_maps(monkeypatch):
+def test_vertices_converted_once_or_per_triangle_rasterize_the_same_maps(monkeypatch, device):
     """A cascade with many triangles gets its vertices converted in one pass, one with few per triangle: the same bits.
 
     Unused vertices appended to the mesh make the pass too costly for every cascade, so the same
     triangles go the other way.
     """
     from csmlab.kernels import raster
+    from csmlab.kernels.raster import schedule
 
-    cs, vertices, triangles, xy, _, box, _ = two_cascade_soup(16)
+    cs, vertices, triangles, xy, _, box, _ = two_cascade_soup(16, device=device)
     passes = []
-    vertex_pass = raster._vertex_pass
+    vertex_pass = schedule._vertex_pass
 
-    def spy(pool, arrays, cascades, **kwargs):
+    def spy(pool, xy, boxes, cascades, *args, **kwargs):
         passes.append(cascades.tolist())
-        return vertex_pass(pool, arrays, cascades, **kwargs)
+        return vertex_pass(pool, xy, boxes, cascades, *args, **kwargs)
 
-    monkeypatch.setattr(raster, "_vertex_pass", spy)
+    monkeypatch.setattr(schedule, "_vertex_pass", spy)
     once, once_count = raster.rasterize_cascades(raster.light_space_mesh(xy, light_depth(cs, vertices), triangles),
                                                  **box)
     far = np.full((20 * len(xy), 2), 1e4)
@@ -561,10 +641,10 @@ def test_bands_tile_each_region_exactly(parts):
 
 
 @pytest.mark.parametrize("threads", [2, 3])
-def test_threads_rasterize_the_same_maps_and_counts_as_one(threads):
+def test_threads_rasterize_the_same_maps_and_counts_as_one(threads, device):
     from csmlab.kernels.raster import banded_regions, rasterize_cascades, region_chunks, whole_map_regions
 
-    cs, vertices, triangles, xy, bounds, box, corner = two_cascade_soup(17)
+    cs, vertices, triangles, xy, bounds, box, corner = two_cascade_soup(17, device=device)
     mesh = light_space_mesh(xy, light_depth(cs, vertices), triangles)
     one, one_count = rasterize_cascades(mesh, **box)
     for parts in (1, threads, 4 * threads):

@@ -61,3 +61,21 @@ def test_threads_must_be_a_positive_integer(threads):
 @pytest.mark.skipif(wp.get_cuda_device_count() == 0, reason="no CUDA device")
 def test_cuda_takes_one_launch_whatever_the_threads():
     assert checked_threads(4, "cuda") == 1 and checked_threads(4, "cpu") == 4
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_taken_in_turn_every_item_runs_once_and_the_threads_take_them_in_order(threads):
+    started = []
+    lock = threading.Lock()
+
+    def job(item):
+        with lock:
+            started.append(item)
+
+    with LaunchPool(threads) as pool:
+        pool.take_in_turn([5, None, 3, 0, 8, 1, 2], job)
+        pool.take_in_turn([], job)
+    # Each thread takes the next item left: with one thread exactly the list's order.
+    assert sorted(started, key=str) == sorted([5, None, 3, 0, 8, 1, 2], key=str)
+    if threads == 1:
+        assert started == [5, None, 3, 0, 8, 1, 2]

@@ -10,6 +10,7 @@ many threads ran it. On CUDA one launch already fills the device: ``threads`` is
 
 from __future__ import annotations
 
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from typing import Callable, Sequence
 
@@ -91,3 +92,26 @@ class LaunchPool:
         for error in errors:
             if error is not None:
                 raise error
+
+    def take_in_turn(self, items: Sequence, job: Callable[[object], object]) -> None:
+        """Run ``job(item)`` for every item of ``items``: each thread takes the next item left, in order, until none is.
+
+        A work queue: with the items listed costliest first, the threads finish together however
+        unequal the items are. The jobs of two items run at once, so they must write disjoint outputs.
+        """
+        queue = iter(items)
+        lock = threading.Lock()
+
+        def work() -> None:
+            while True:
+                with lock:
+                    item = next(queue, _NONE_LEFT)
+                if item is _NONE_LEFT:
+                    return
+                job(item)
+
+        self.run([work] * min(self.threads, len(items)))
+
+
+_NONE_LEFT = object()
+"""What :meth:`LaunchPool.take_in_turn`'s queue gives when it is empty (``None`` may be an item)."""

@@ -1,0 +1,188 @@
+"""The mesh as the depth pass reads it: checked once per light, listed along a Z-order curve, bounded by chunks.
+
+NumPy only, run on the host once per light (:func:`light_space_mesh`, :func:`z_ordered`) or once per
+mesh (:class:`TriangleBounds`); :mod:`csmlab.kernels.raster.regions` queries the bounds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+__all__ = ["CHUNK_BITS", "LightSpaceMesh", "TriangleBounds", "light_space_mesh", "triangle_bounds", "z_ordered"]
+
+CHUNK_BITS = 5
+"""Triangles are culled in chunks of ``2**CHUNK_BITS`` consecutive ones
+(:func:`~csmlab.kernels.raster.regions.region_chunks`).
+
+Meshes list neighbouring triangles together (grids by rows, objects one after another), so a
+chunk's rectangle is small: testing 32 times fewer rectangles costs less than the triangles it lets
+through, which the kernel drops before any per-texel work.
+"""
+
+
+
+@dataclass
+class TriangleBounds:
+    """Light-space bounding rectangles of a mesh's triangles, and of its chunks (:data:`CHUNK_BITS`).
+
+    Attributes
+    ----------
+    lo, hi : ndarray, shape (T, 2), float64
+        Each triangle's rectangle, metres.
+    """
+
+    lo: np.ndarray
+    hi: np.ndarray
+
+    @cached_property
+    def chunks(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``lo_x, lo_y, hi_x, hi_y`` ``(⌈T / 2**CHUNK_BITS⌉,)`` each: the rectangle of every chunk of triangles."""
+        count = len(self.lo)
+        size = 1 << CHUNK_BITS
+        rows = -(-count // size)
+        # The last chunk is padded with copies of the last triangle, which change no minimum or maximum.
+        fill = np.arange(rows * size).clip(max=max(count - 1, 0))
+        lo = self.lo[fill].reshape(rows, size, 2).min(axis=1) if count else np.zeros((0, 2))
+        hi = self.hi[fill].reshape(rows, size, 2).max(axis=1) if count else np.zeros((0, 2))
+        return tuple(np.ascontiguousarray(a[:, k]) for a in (lo, hi) for k in (0, 1))
+
+    @cached_property
+    def narrow_axis(self) -> int:
+        """The light-space axis (0: x, 1: y) along which chunks are narrower (median extent).
+
+        A grid listed row by row makes chunks long along its rows: bands cut along the other axis
+        (:func:`~csmlab.kernels.raster.regions.banded_regions`) meet fewer of them.
+        """
+        lo_x, lo_y, hi_x, hi_y = self.chunks
+        return int(len(lo_x) > 0 and np.median(hi_y - lo_y) < np.median(hi_x - lo_x))
+
+
+def triangle_bounds(light_xy, triangles) -> TriangleBounds:
+    """Light-space bounding rectangle of every triangle (:func:`~csmlab.kernels.raster.regions.region_chunks`
+    queries them).
+
+    Parameters
+    ----------
+    light_xy : array_like, shape (V, 2), float64
+        Vertices' light-space x/y in metres (:func:`csmlab.texels.light_plane_coordinates`).
+    triangles : array_like, shape (T, 3), integer
+    """
+    xy = np.asarray(light_xy, dtype=np.float64)[np.asarray(triangles)]
+    return TriangleBounds(lo=xy.min(axis=1), hi=xy.max(axis=1))
+
+
+@dataclass(frozen=True)
+class LightSpaceMesh:
+    """A mesh as the depth pass reads it, checked once (:func:`light_space_mesh`) and read by every cascade and frame.
+
+    Attributes
+    ----------
+    xy : ndarray, shape (V, 2), float64
+        Vertices' light-space x/y in metres (:func:`csmlab.texels.light_plane_coordinates`), finite.
+    depth : ndarray, shape (V,), float64
+        ``d·X − zref`` of each vertex in metres, finite.
+    triangles : ndarray, shape (T, 3), int32
+        Vertex indices in ``[0, V)``; either winding.
+    """
+
+    xy: np.ndarray
+    depth: np.ndarray
+    triangles: np.ndarray
+
+    @cached_property
+    def bounds(self) -> TriangleBounds:
+        """The light-space rectangles of the triangles and of their chunks (queried by
+        :func:`~csmlab.kernels.raster.regions.region_chunks`)."""
+        return triangle_bounds(self.xy, self.triangles)
+
+
+def light_space_mesh(light_xy, vertex_depth, triangles) -> LightSpaceMesh:
+    """A :class:`LightSpaceMesh` of the arrays, checked: finite vertices and depths, indices within the mesh.
+
+    The check reads every array (~24 MB at ~1M triangles, a few ms from memory): a run makes the mesh
+    once per light, not once per frame. The arrays are not copied when already contiguous and of
+    their type, and are read-only through the record; do not change them afterwards.
+
+    Parameters
+    ----------
+    light_xy : array_like, shape (V, 2), float64
+        Vertices' light-space x/y in metres.
+    vertex_depth : array_like, shape (V,), float64
+        ``d·X − zref`` of each vertex in metres.
+    triangles : array_like, shape (T, 3), integer
+
+    Raises
+    ------
+    ValueError
+        Naming the argument: a shape that does not match, a value not finite, an index outside the mesh.
+    """
+    xy = np.ascontiguousarray(light_xy, dtype=np.float64)
+    z = np.ascontiguousarray(vertex_depth, dtype=np.float64)
+    tri = np.ascontiguousarray(triangles, dtype=np.int32)
+    if xy.ndim != 2 or xy.shape[1] != 2:
+        raise ValueError(f"light_xy: expected vertices of shape (V, 2), got {xy.shape}")
+    if z.shape != (xy.shape[0],) or not np.all(np.isfinite(z)) or not np.all(np.isfinite(xy)):
+        raise ValueError(f"light_xy, vertex_depth: expected {xy.shape[0]} finite vertices and depths")
+    if tri.ndim != 2 or tri.shape[1] != 3 or (tri.size and (tri.min() < 0 or tri.max() >= xy.shape[0])):
+        raise ValueError(f"triangles: expected indices of shape (T, 3) in [0, {xy.shape[0]})")
+    return LightSpaceMesh(*(_read_only(a) for a in (xy, z, tri)))
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    view = array.view()
+    view.flags.writeable = False
+    return view
+
+
+def _spread_bits(v: np.ndarray) -> np.ndarray:
+    """The 16 low bits of ``v`` (int64) moved to the even bit positions 0, 2, …, 30."""
+    v = v & 0xFFFF
+    for shift, mask in ((8, 0x00FF00FF), (4, 0x0F0F0F0F), (2, 0x33333333), (1, 0x55555555)):
+        v = (v | (v << shift)) & mask
+    return v
+
+
+def z_ordered(light_xy, triangles) -> tuple[np.ndarray, np.ndarray]:
+    """A mesh's triangles along a Z-order curve in light space, its vertices in the order they are first used.
+
+    Neighbouring triangles then lie close in the list at every scale, so that chunks
+    (:data:`CHUNK_BITS`) are compact, bands meet few of them, and the rasterization writes the
+    depth maps place by place rather than across them.
+
+    Parameters
+    ----------
+    light_xy : array_like, shape (V, 2), float64
+        Vertices' light-space x/y in metres.
+    triangles : array_like, shape (T, 3), integer
+
+    Returns
+    -------
+    order : ndarray, shape (V,), int64
+        The vertices' new order: new vertex k is old vertex ``order[k]`` (unused vertices last).
+    triangles : ndarray, shape (T, 3), int32
+        The triangles in their new order, indexing the reordered vertices.
+    """
+    xy = np.asarray(light_xy, dtype=np.float64)
+    tri = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    if tri.shape[0] == 0:
+        return np.arange(xy.shape[0]), tri.astype(np.int32)
+    key = np.zeros(tri.shape[0], dtype=np.int64)
+    for axis in (0, 1):
+        # Each triangle's centre (times 3) on a 2**16 grid over the centres' extent.
+        u = xy[:, axis]
+        centre = u[tri[:, 0]] + u[tri[:, 1]] + u[tri[:, 2]]
+        lo = centre.min()
+        cell = np.minimum((centre - lo) * (65536.0 / max(centre.max() - lo, 1e-300)), 65535.0).astype(np.int64)
+        key |= _spread_bits(cell) << axis
+    sorted_tri = tri[np.argsort(key, kind="stable")]
+    # First use of each vertex: assigned in reverse so that the earliest use is the last write.
+    flat = sorted_tri.reshape(-1)
+    first = np.full(xy.shape[0], flat.size, dtype=np.int64)
+    first[flat[::-1]] = np.arange(flat.size - 1, -1, -1)
+    order = np.argsort(first, kind="stable")
+    renumber = np.empty(xy.shape[0], dtype=np.int64)
+    renumber[order] = np.arange(xy.shape[0])
+    return order, renumber[sorted_tri].astype(np.int32)

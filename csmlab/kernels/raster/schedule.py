@@ -1,0 +1,367 @@
+"""The depth raster's host side: checks, uploads, and how the launches are scheduled over the threads.
+
+Typed NumPy-in/NumPy-out wrappers of :mod:`csmlab.kernels.raster.kernels`. On the CPU the work of a
+call is cut so that concurrent launches write disjoint texels (:mod:`csmlab.kernels.threads`): the
+vertex pass by ranges of vertices, the rasterization by regions (:mod:`csmlab.kernels.raster.regions`)
+taken in turn, costliest first.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from csmlab.kernels import checked_device, device_empty
+from csmlab.kernels.raster.kernels import (Boxes, ChunkRows, FixedPoint, LightMesh, TrianglePaths, VertexPass,
+                                           fixed_point_vertices_kernel, rasterize_chunks_kernel,
+                                           rasterize_depth_kernel, triangle_paths, vec2l)
+from csmlab.kernels.raster.mesh import CHUNK_BITS, LightSpaceMesh
+from csmlab.kernels.raster.regions import empty_regions, whole_map_regions
+from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
+
+__all__ = ["fixed_point_vertices", "rasterize_cascades", "rasterize_depth"]
+
+
+def _checked_bits(bits) -> int:
+    if not (isinstance(bits, (int, np.integer)) and 0 <= bits <= 16):
+        raise ValueError(f"bits: expected an integer in 0..16, got {bits!r}")
+    return int(bits)
+
+
+def _checked_resolution(resolution) -> int:
+    if not (isinstance(resolution, (int, np.integer)) and 1 <= resolution <= 16384):
+        raise ValueError(f"resolution: expected an integer in 1..16384, got {resolution!r}")
+    return int(resolution)
+
+
+def _checked_paths(paths) -> TrianglePaths:
+    if paths is None:
+        return triangle_paths()
+    if getattr(paths, "_cls", None) is not TrianglePaths:
+        raise ValueError(f"paths: expected a TrianglePaths (triangle_paths) or None, got {type(paths).__name__}")
+    return paths
+
+
+def _fixed_point(bits: int) -> FixedPoint:
+    """The :class:`FixedPoint` grid of ``bits`` sub-texel bits."""
+    fixed = FixedPoint()
+    fixed.scale = float(2**bits)
+    fixed.limit = _FIXED_LIMIT
+    fixed.unit = 2**bits
+    fixed.bits = bits
+    return fixed
+
+
+def rasterize_depth(points, vertex_depth, triangles, *, resolution: int, bits: int, paths: TrianglePaths | None = None,
+                    device: str = "cpu") -> tuple[np.ndarray, int]:
+    """Depth maps of every cascade: per texel centre the nearest caster's light-space depth.
+
+    Parameters
+    ----------
+    points : array_like, shape (C, V, 2), int64
+        Every vertex in every cascade's local fixed point: ``2**-bits`` texels from the box origin
+        (:func:`csmlab.texels.fixed_point_coordinates`), within ±2**52.
+    vertex_depth : array_like, shape (V,), float64
+        ``d·X − zref`` of each vertex in metres (the same in every cascade).
+    triangles : array_like, shape (T, 3), integer
+        Vertex indices; either winding.
+    resolution : int
+        Texels per side R of each map.
+    bits : int
+        Sub-texel bits of ``points`` (0..16).
+    paths : TrianglePaths, optional
+        Which path each triangle takes (:func:`~csmlab.kernels.raster.kernels.triangle_paths`); None:
+        the module's thresholds. Every choice gives the same maps: tests force each path with it.
+    device : str
+        ``"cpu"`` or ``"cuda"``.
+
+    Returns
+    -------
+    depth : ndarray, shape (C, R, R), float32
+        ``depth[c, j, i]`` is the minimum depth over triangles whose interior (top-left rule on
+        edges) contains the centre of texel column i, row j of cascade c; +inf where none.
+    texels_rasterized : int
+        Coverage tests that passed, summed over triangles and cascades.
+
+    Raises
+    ------
+    ValueError
+        On shapes that do not match, non-finite depths, out-of-range indices, bits or resolution.
+
+    Notes
+    -----
+    One thread per cascade and triangle. A triangle whose bounding box holds no texel centre of
+    the map, or of zero area, returns before any per-texel work; the others walk their bounding
+    box clamped to the map, so geometry far larger than the box costs no more than the box.
+    Depth is not clipped: casters in front of the box's near plane are kept (the box is pushed to
+    the scene bounds anyway). Atomic minima make the result independent of thread order.
+    """
+    device = checked_device(device)
+    pts = np.ascontiguousarray(points, dtype=np.int64)
+    z = np.ascontiguousarray(vertex_depth, dtype=np.float64)
+    tri = np.ascontiguousarray(triangles, dtype=np.int32)
+    if pts.ndim != 3 or pts.shape[2] != 2 or pts.shape[0] == 0:
+        raise ValueError(f"points: expected fixed-point vertices of shape (C, V, 2), got {pts.shape}")
+    if np.any(np.abs(pts) > 2**52):
+        raise ValueError("points: expected fixed-point coordinates within ±2**52")
+    if z.shape != (pts.shape[1],) or not np.all(np.isfinite(z)):
+        raise ValueError(f"vertex_depth: expected {pts.shape[1]} finite depths in metres, got shape {z.shape}")
+    if tri.ndim != 2 or tri.shape[1] != 3:
+        raise ValueError(f"triangles: expected vertex indices of shape (T, 3), got {tri.shape}")
+    if tri.size and (tri.min() < 0 or tri.max() >= pts.shape[1]):
+        raise ValueError(f"triangles: expected indices in [0, {pts.shape[1]}), got [{tri.min()}, {tri.max()}]")
+    resolution = _checked_resolution(resolution)
+    bits = _checked_bits(bits)
+    paths = _checked_paths(paths)
+    cascades = pts.shape[0]
+    depth = wp.full((cascades, resolution, resolution), value=np.inf, dtype=wp.float32, device=device)
+    if tri.shape[0] == 0:
+        return depth.numpy(), 0
+    covered = wp.empty((cascades, tri.shape[0]), dtype=wp.int32, device=device)
+    wp.launch(
+        rasterize_depth_kernel,
+        dim=(cascades, tri.shape[0]),
+        inputs=(
+            wp.array(pts, dtype=wp.int64, device=device, copy=False),
+            wp.array(z, dtype=wp.float64, device=device, copy=False),
+            wp.array(tri, dtype=wp.int32, device=device, copy=False),
+            _fixed_point(bits),
+            paths,
+        ),
+        outputs=(depth, covered),
+        device=device,
+    )
+    return depth.numpy(), int(covered.numpy().sum(dtype=np.int64))
+
+
+def fixed_point_vertices(light_xy, *, texel_size, origin, bits: int, cascades=None, threads: int = 1,
+                         device: str = "cpu") -> np.ndarray:
+    """Every vertex in cascades' local fixed point, doubled: ``2 ·`` :func:`csmlab.texels.fixed_point_coordinates`.
+
+    Parameters
+    ----------
+    light_xy : array_like, shape (V, 2), float64
+        Vertices' light-space x/y in metres (:func:`csmlab.texels.light_plane_coordinates`).
+    texel_size : array_like, shape (C, 2), float64
+        Metres per texel of each cascade.
+    origin : array_like, shape (C, 2), int64
+        Each box origin in ``2**-bits`` texels (:func:`csmlab.texels.fixed_point_origin`).
+    bits : int
+        Sub-texel bits (0..16).
+    cascades : sequence of int, optional
+        The cascades to convert, in this order; None: all C.
+    threads : int
+        CPU launches run at once, each over its own range of vertices. Ignored on CUDA.
+    device : str
+
+    Returns
+    -------
+    ndarray, shape (len(cascades), V, 2), int64
+        Twice the global fixed point ``rint(x / texel · 2**bits)`` (clipped to ±2**50) less the
+        origin, in ``2**-bits`` texels: texel centres fall on odd multiples of ``2**bits``.
+    """
+    device = checked_device(device)
+    xy = np.ascontiguousarray(light_xy, dtype=np.float64)
+    size = np.ascontiguousarray(texel_size, dtype=np.float64)
+    origin_fixed = np.ascontiguousarray(origin, dtype=np.int64)
+    if (xy.ndim != 2 or xy.shape[1] != 2 or size.ndim != 2 or size.shape[1] != 2
+            or origin_fixed.shape != size.shape):
+        raise ValueError(f"light_xy, texel_size, origin: expected shapes (V, 2), (C, 2), (C, 2); "
+                         f"got {xy.shape}, {size.shape}, {origin_fixed.shape}")
+    chosen = np.arange(size.shape[0], dtype=np.int32) if cascades is None else np.asarray(cascades, dtype=np.int32)
+    if chosen.ndim != 1 or np.any(chosen < 0) or np.any(chosen >= size.shape[0]):
+        raise ValueError(f"cascades: expected indices in [0, {size.shape[0]}), got {cascades!r}")
+    bits = _checked_bits(bits)
+    with LaunchPool(checked_threads(threads, device), kernels=(fixed_point_vertices_kernel,), device=device) as pool:
+        return _vertex_pass(pool, wp.array(xy, dtype=wp.vec2d, device=device, copy=False),
+                            _boxes(device, size, origin_fixed), chosen, _fixed_point(bits), device=device).numpy()
+
+
+def _boxes(device: str, size: np.ndarray, origin_fixed: np.ndarray) -> Boxes:
+    """The :class:`Boxes` of texel sizes (metres) and origins (``2**-bits`` texels), ``(C, 2)`` each, on ``device``."""
+    boxes = Boxes()
+    boxes.texel_size = wp.array(size, dtype=wp.vec2d, device=device, copy=False)
+    boxes.origin_fixed = wp.array(origin_fixed, dtype=vec2l, device=device, copy=False)
+    return boxes
+
+
+def _vertex_pass(pool: LaunchPool, xy: wp.array, boxes: Boxes, cascades: np.ndarray, fixed: FixedPoint, *,
+                 device: str) -> wp.array:
+    """:func:`fixed_point_vertices` of ``cascades`` on ``device``, each of the pool's launches over its own vertices."""
+    points = device_empty((cascades.size, xy.shape[0]), vec2l, device)
+    if cascades.size == 0 or xy.shape[0] == 0:
+        return points
+    chosen = wp.array(cascades, dtype=wp.int32, device=device)
+
+    run = _VERTEX_RUN if wp.get_device(device).is_cpu else 1
+
+    def launch(lo: int, hi: int) -> None:
+        wp.launch(fixed_point_vertices_kernel, dim=(cascades.size, -(-(hi - lo) // run)),
+                  inputs=(xy, boxes, chosen, lo, hi, run, fixed), outputs=(points,),
+                  device=device)
+
+    pool.run([lambda lo=lo, hi=hi: launch(lo, hi) for lo, hi in split_range(xy.shape[0], pool.threads)])
+    return points
+
+
+_VERTEX_RUN = 256
+"""Vertices a CPU thread of the vertex pass converts (:func:`fixed_point_vertices`)."""
+
+_FIXED_LIMIT = float(2**50)
+"""The clip of global fixed-point values (:mod:`csmlab.texels`)."""
+
+
+def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: int, bits: int,
+                       regions=None, chunks=None, depth=None, count_only: bool = False, threads: int = 1,
+                       paths: TrianglePaths | None = None, device: str = "cpu") -> tuple[np.ndarray | None, np.ndarray]:
+    """Depth maps of every cascade from light-space vertices: fixed point and rasterization on the device.
+
+    The same maps as :func:`rasterize_depth` of
+    :func:`csmlab.texels.fixed_point_coordinates` — bit for bit — with the fixed-point conversion
+    on the device and, with ``chunks``, only the chunks of triangles that can cover a texel of a
+    region rasterized. With ``regions``, only those texels are rasterized and every other texel of
+    ``depth`` keeps its value: a texel's depth and coverage depend only on the triangles and on the
+    fixed-point differences, not on the region it is rasterized in (:mod:`csmlab.scrolling` copies
+    the rest from the previous frame).
+
+    Parameters
+    ----------
+    mesh : LightSpaceMesh
+        The vertices' light-space x/y and depths and the triangles, checked
+        (:func:`~csmlab.kernels.raster.mesh.light_space_mesh`).
+    texel_size : array_like, shape (C, 2), float64
+        Metres per texel of each cascade.
+    origin : array_like, shape (C, 2), int64
+        Each box origin in ``2**-bits`` texels (:func:`csmlab.texels.fixed_point_origin`).
+    resolution : int
+        Texels per side R of the maps (the largest cascade's: a smaller cascade's regions lie in
+        the corner ``[0, R_c)²`` of its map).
+    bits : int
+        Sub-texel bits (0..16).
+    regions : array_like, shape (G, 5), integer, optional
+        Rows ``(c, i0, i1, j0, j1)``: texel columns ``[i0, i1)`` and rows ``[j0, j1)`` of cascade c
+        to rasterize, disjoint; None: every cascade's whole map (:func:`whole_map_regions`).
+    chunks : array_like, shape (K, 2), int32, optional
+        (region, chunk) rows to rasterize (:func:`~csmlab.kernels.raster.regions.region_chunks`); None: every
+        chunk of every region.
+    depth : ndarray, shape (C, R, R), float32, C-contiguous, optional
+        The maps to rasterize into (default +inf everywhere): the regions' texels are rasterized
+        afresh (their values are not read), the others keep theirs. Consumed: on the CPU it is
+        filled in place and returned.
+    count_only : bool
+        Count the coverage tests that pass and store no depth (``depth`` is ignored and None returned).
+    threads : int
+        CPU launches run at once (one Warp CPU launch runs on one thread). The regions, which are
+        disjoint, are taken by the threads one at a time, costliest first, so no two launches write
+        one texel; cut large regions into bands first
+        (:func:`~csmlab.kernels.raster.regions.banded_regions`,
+        :data:`~csmlab.kernels.raster.regions.BANDS_PER_THREAD` per thread) so that the threads
+        finish together. Ignored on CUDA.
+    paths : TrianglePaths, optional
+        Which path each triangle takes (:func:`~csmlab.kernels.raster.kernels.triangle_paths`); None:
+        the module's thresholds. Every choice gives the same maps: tests force each path with it.
+    device : str
+
+    Returns
+    -------
+    depth : ndarray, shape (C, R, R), float32, or None
+        None with ``count_only``.
+    texels_rasterized : ndarray, shape (G,), int64
+        Coverage tests that passed in each region.
+
+    Notes
+    -----
+    A cascade whose chunks hold more triangles than a third of the vertices gets every vertex
+    converted once (:func:`fixed_point_vertices`, split over the threads) before the
+    rasterization reads them; the others, such as the strips a scrolled box newly covers, convert
+    the vertices of each triangle as they rasterize it. Both give the same integers.
+    """
+    device = checked_device(device)
+    if not isinstance(mesh, LightSpaceMesh):
+        raise ValueError(f"mesh: expected a LightSpaceMesh (light_space_mesh), got {type(mesh).__name__}")
+    xy, z, tri = mesh.xy, mesh.depth, mesh.triangles
+    size = np.ascontiguousarray(texel_size, dtype=np.float64)
+    origin_fixed = np.ascontiguousarray(origin, dtype=np.int64)
+    if size.ndim != 2 or size.shape[1] != 2 or origin_fixed.shape != size.shape:
+        raise ValueError(f"texel_size, origin: expected shapes (C, 2), (C, 2); got {size.shape}, "
+                         f"{origin_fixed.shape}")
+    bits = _checked_bits(bits)
+    resolution = _checked_resolution(resolution)
+    paths = _checked_paths(paths)
+    shape = (size.shape[0], resolution, resolution)
+    areas = np.ascontiguousarray(whole_map_regions([resolution] * shape[0]) if regions is None else regions,
+                                 dtype=np.int32)
+    if (areas.ndim != 2 or areas.shape[1] != 5 or np.any(areas[:, 0] < 0) or np.any(areas[:, 0] >= shape[0])
+            or np.any(areas[:, 1:] < 0) or np.any(areas[:, 1:] > resolution)):
+        raise ValueError(f"regions: expected rows (c, i0, i1, j0, j1) within {shape}, got shape {areas.shape}")
+    count = -(-tri.shape[0] // (1 << CHUNK_BITS))
+    rows = (np.stack(np.meshgrid(np.arange(areas.shape[0]), np.arange(count), indexing="ij"), -1).reshape(-1, 2)
+            if chunks is None else np.asarray(chunks)).astype(np.int32)
+    if rows.ndim != 2 or rows.shape[1] != 2 or (rows.size and (rows.min() < 0 or rows[:, 0].max() >= areas.shape[0]
+                                                               or rows[:, 1].max() >= count)):
+        raise ValueError(f"chunks: expected (region, chunk) rows of shape (K, 2) within ({areas.shape[0]}, {count}), "
+                         f"got {rows.shape}")
+    parts = min(checked_threads(threads, device), areas.shape[0])
+    extent = (areas[:, 2].astype(np.int64) - areas[:, 1]) * (areas[:, 4] - areas[:, 3])
+    if count_only:
+        maps = np.zeros((0, 0, 0), dtype=np.float32)
+    elif depth is None:
+        # Regions that tile the maps leave nothing to fill but what each region fills itself.
+        maps = np.empty(shape, dtype=np.float32) if extent.sum() == np.prod(shape) else np.full(shape, np.inf,
+                                                                                               dtype=np.float32)
+    elif depth.shape != shape or depth.dtype != np.float32 or not depth.flags.c_contiguous:
+        raise ValueError(f"depth: expected C-contiguous float32 maps of shape {shape}, got {depth.dtype} {depth.shape}")
+    else:
+        maps = depth
+    if areas.shape[0] == 0:
+        return None if count_only else maps, np.zeros(0, dtype=np.int64)
+    if np.any(np.diff(rows[:, 0]) < 0):
+        rows = rows[np.argsort(rows[:, 0], kind="stable")]
+    held = np.bincount(rows[:, 0], minlength=areas.shape[0]) << CHUNK_BITS
+    starts = np.concatenate([[0], np.cumsum(held >> CHUNK_BITS)])
+    # Triangles each cascade's chunks hold (a chunk met by two of its regions once), against what
+    # converting its every vertex costs: a vertex pass converts V vertices, the triangles 3 each.
+    distinct = np.zeros((shape[0], count), dtype=bool)
+    distinct[areas[rows[:, 0], 0], rows[:, 1]] = True
+    converted = np.flatnonzero(3 * (distinct.sum(axis=1) << CHUNK_BITS) > xy.shape[0]).astype(np.int32)
+    slots = np.full(shape[0], -1, dtype=np.int32)
+    slots[converted] = np.arange(converted.size, dtype=np.int32)
+    # On the CPU each launch empties its own regions first (on two threads at once); a GPU gets
+    # the maps emptied by the host before they are copied to it.
+    on_cpu = wp.get_device(device).is_cpu
+    empty_regions(maps, areas if not on_cpu and not count_only else areas[:0])
+    light = LightMesh()
+    light.xy = wp.array(xy, dtype=wp.vec2d, device=device, copy=False)
+    light.depth = wp.array(z, dtype=wp.float64, device=device, copy=False)
+    light.triangles = wp.array(tri, dtype=wp.int32, device=device, copy=False)
+    boxes = _boxes(device, size, origin_fixed)
+    fixed = _fixed_point(bits)
+    region_rows = wp.array(areas, dtype=wp.int32, device=device)
+    maps_on = wp.array(maps, dtype=wp.float32, device=device, copy=False)
+    covered = wp.zeros(areas.shape[0], dtype=wp.int64, device=device)
+    # A CPU thread takes a whole chunk, so that what it reads first serves 32 triangles; a GPU thread one.
+    run_bits = CHUNK_BITS if on_cpu else 0
+    with LaunchPool(parts, kernels=(rasterize_chunks_kernel, fixed_point_vertices_kernel), device=device) as pool:
+        converted_here = VertexPass()
+        converted_here.points = _vertex_pass(pool, light.xy, boxes, converted, fixed, device=device)
+        converted_here.slots = wp.array(slots, dtype=wp.int32, device=device)
+
+        def rasterize_region(g: int) -> None:
+            # Emptied just before it is rasterized, while its texels are still in the cache.
+            if on_cpu and not count_only:
+                empty_regions(maps, areas[g:g + 1])
+            if held[g]:
+                work = ChunkRows()
+                work.regions = region_rows
+                work.chunks = wp.array(rows[starts[g]:starts[g + 1]], dtype=wp.int32, device=device)
+                work.chunk_bits = CHUNK_BITS
+                work.run_bits = run_bits
+                wp.launch(rasterize_chunks_kernel, dim=int(held[g]) >> run_bits,
+                          inputs=(light, boxes, converted_here, work, fixed, paths), outputs=(maps_on, covered),
+                          device=device)
+
+        # Disjoint regions, so no texel is written by two launches: the threads take them in turn,
+        # costliest first (triangles, then texels), so that they finish together.
+        pool.take_in_turn(np.lexsort((-extent, -held)).tolist(), rasterize_region)
+    return None if count_only else maps_on.numpy(), covered.numpy()
+
