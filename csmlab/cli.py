@@ -59,10 +59,6 @@ def _number(value) -> str:
     return format_number(value)
 
 
-def _shown(value, scale: float) -> str:
-    return _number(None if value is None else float(value) * scale)
-
-
 def _summary_table(summary: dict) -> Table:
     """Method × the registry's headline metrics (name over unit); a row per method and sweep point when the
     experiment sweeps."""
@@ -79,7 +75,7 @@ def _summary_table(summary: dict) -> Table:
             else [(m, None, v) for m, v in summary["methods"].items()])
     for method, point, values in rows:
         labels = (escape(method), escape(point)) if swept else (escape(method),)
-        table.add_row(*labels, *(_shown(values.get(metric.name), metric.scale) for metric in HEADLINE))
+        table.add_row(*labels, *(metric.shown(values.get(metric.name)) for metric in HEADLINE))
     return table
 
 
@@ -387,20 +383,28 @@ def tune(
 
 
 def _tune_table(result) -> Table:
-    """The recommended setting, the start and every engine preset: memory, ρ and flicker."""
+    """The recommended setting, the start and every engine preset: memory, ρ and flicker (name over unit, as the
+    registry shows them)."""
+    from csmlab.metric_registry import METRICS
+
     flicker = result.budgets.flicker_metric
-    metrics = ["rho_p05", "rho_median", "flicker_same", *([flicker] if flicker != "flicker_same" else []), "flip_rate"]
+    names = ["rho_p05", "rho_median", "flicker_same", *([flicker] if flicker != "flicker_same" else []), "flip_rate"]
+    metrics = [METRICS[name] for name in names]
+    memory = METRICS["memory_bytes"]
     table = Table(title=escape(f"{result.name}: {result.method} tuned over {result.frames} frames"),
                   title_justify="left")
-    for name in ("setting", "changes", "memory (MiB)", *metrics, "budgets"):
-        table.add_column(name, justify="left" if name in ("setting", "changes", "budgets") else "right")
+    table.add_column("setting")
+    table.add_column("changes")
+    for metric in (memory, *metrics):
+        table.add_column(f"{metric.name}\n{escape(metric.unit)}", justify="right")
+    table.add_column("budgets")
     rows = [result.recommended, *result.references]
     for c in rows:
         changes = ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in c.params.items())
         over = [name for name, v in c.violations.items() if v > 0]
         label = f"[bold]{escape(c.label)} (recommended)[/]" if c is result.recommended else escape(c.label)
-        table.add_row(label, escape(changes or "—"), f"{c.memory_bytes / 2 ** 20:g}",
-                      *(_number(None if c.values is None else c.values.get(m)) for m in metrics),
+        table.add_row(label, escape(changes or "—"), memory.shown(c.memory_bytes),
+                      *(m.shown(None if c.values is None else c.values.get(m.name)) for m in metrics),
                       "over " + ", ".join(over) if over else "within")
     return table
 

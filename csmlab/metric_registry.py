@@ -1,11 +1,14 @@
 """Every metric column of ``metrics.csv``, declared once: name, label, unit, which way is better, tolerance.
 
-:data:`METRICS` is the one place a metric's meaning lives. ``metrics.csv``'s column order
-(:func:`metric_columns`), the regression gate's directions and tolerances (:mod:`csmlab.regress`),
-the tuner's objectives (:mod:`csmlab.tune`), the report's tables, best-marks and plots
-(:mod:`csmlab.report`) and the headline of ``csmlab run`` all read it. Adding a column is one
-:class:`Metric` here plus the function that computes it (its key in the dict that function returns,
-merged by :func:`csmlab.metrics.measure_frame`).
+:data:`METRICS` is the one place a metric's meaning lives: its label, unit, display scale, direction
+and tolerance. ``metrics.csv``'s column order (:func:`metric_columns`), the regression gate's and
+``csmlab compare``'s directions and tolerances (:mod:`csmlab.regress`, :mod:`csmlab.compare`), the
+tuner's objectives and tables (:mod:`csmlab.tune`, :mod:`csmlab.report.tune_page`), the report's
+tables, best-marks, at-a-glance lines, plots and Explore curves (:mod:`csmlab.report`) and the
+headline of ``csmlab run`` all read it. Adding a column is one :class:`Metric` here plus the
+function that computes it (its key in the dict that function returns, merged by
+:func:`csmlab.metrics.measure_frame`). :data:`DERIVED` holds the metrics the report computes from
+columns (``ref_error``, the sum of false shadow and false light): registered, never a column.
 
 This module imports neither Warp nor the metrics' code, so that reading a TOML file or a results
 directory does not load the kernels.
@@ -29,8 +32,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["BETTER", "BETTER_TEXT", "CASCADE_PLACES", "HEADLINE", "METRICS", "PLOTS", "Metric", "best_mask", "finite_mean",
-           "format_number", "is_metric_column", "metric_columns", "metric_of", "temporal_columns"]
+__all__ = ["BETTER", "BETTER_TEXT", "CASCADE_PLACES", "DERIVED", "HEADLINE", "METRICS", "PLOTS", "Metric", "best_mask",
+           "finite_mean", "format_number", "is_metric_column", "metric_columns", "metric_named", "metric_of",
+           "metric_values", "temporal_columns"]
 
 
 def _distance_from_one(value: float) -> float:
@@ -90,6 +94,12 @@ class Metric:
         Shown in the summary tables (``csmlab run``'s and the report's).
     plots : tuple of str
         Entries of :data:`PLOTS` it is drawn in.
+    glance : str
+        The report's at-a-glance line naming the method best at it; empty: none.
+    curve : str
+        The label of its per-frame curve on the report's Explore page; empty: no curve.
+    sum_of : tuple of str
+        A derived metric (:data:`DERIVED`): the per-frame sum of these columns.
     """
 
     name: str
@@ -102,6 +112,9 @@ class Metric:
     scale: float = 1.0
     headline: bool = False
     plots: tuple[str, ...] = ()
+    glance: str = ""
+    curve: str = ""
+    sum_of: tuple[str, ...] = ()
 
     def __post_init__(self):
         if self.better not in BETTER:
@@ -115,6 +128,10 @@ class Metric:
     def title(self) -> str:
         """``label (unit)``, for a plot axis."""
         return f"{self.label} ({self.unit})"
+
+    def shown(self, value, *, digits: int = 3) -> str:
+        """``value`` (stored units) as a person reads it in :attr:`unit`: times :attr:`scale`, :func:`format_number`."""
+        return format_number(None if value is None else float(value) * self.scale, digits=digits)
 
     def score(self, value: float) -> float:
         """The value's badness, to minimise: ``value``, ``-value`` or ``|ln value|`` by :attr:`better`.
@@ -136,21 +153,22 @@ _DS = "mean |ΔS|"
 
 METRICS: dict[str, Metric] = {m.name: m for m in (
     Metric("rho_median", "median ρ", _RHO, "one", (1e-6, 0.005), cascades="tail", headline=True,
-           plots=("frames", "sweep")),
+           plots=("frames", "sweep"), glance="Closest to one texel per pixel (median ρ)",
+           curve="median ρ (texels / pixel)"),
     Metric("rho_p05", "ρ, 5th percentile", _RHO, "higher", (1e-6, 0.005), cascades="tail"),
     Metric("rho_p95", "ρ, 95th percentile", _RHO, "one", (1e-6, 0.005), cascades="tail"),
     Metric("rho_frac_lt1", "ρ < 1", _PIXELS, "lower", (1e-3, 0.02), cascades="tail", scale=100.0, headline=True),
     Metric("rho_frac_lt05", "ρ < 0.5", _PIXELS, "lower", (1e-3, 0.02), cascades="tail", scale=100.0),
     Metric("sigma_min_p05", "σ_min, 5th percentile", _RHO, "higher", (1e-6, 0.005)),
     Metric("utilization", "utilization", "% texels", "higher", (1e-4, 0.01), cascades="beside", scale=100.0,
-           headline=True),
-    Metric("flicker", "flicker", _DS, "lower", (1e-6, 0.05), temporal=True),
+           headline=True, glance="Least wasted shadow map (utilization)"),
+    Metric("flicker", "flicker", _DS, "lower", (1e-6, 0.05), temporal=True, curve="flicker (mean |ΔS|)"),
     Metric("flicker_same", "flicker, same cascade", _DS, "lower", (1e-6, 0.05), temporal=True, headline=True,
-           plots=("frames", "sweep")),
+           plots=("frames", "sweep"), glance="Steadiest texels (same-cascade flicker)"),
     Metric("flicker_changed", "flicker, cascade changed", _DS, "lower", (1e-6, 0.05), temporal=True, headline=True,
-           plots=("frames", "sweep")),
+           plots=("frames", "sweep"), glance="Calmest cascade transitions (cascade-changed flicker)"),
     Metric("flip_rate", "flip rate", _PIXELS, "lower", (1e-6, 0.05), temporal=True, scale=100.0, headline=True,
-           plots=("frames", "sweep")),
+           plots=("frames", "sweep"), curve="flip rate (%)"),
     Metric("flip_same", "flip rate, same cascade", _PIXELS, "lower", (1e-6, 0.05), temporal=True, scale=100.0),
     Metric("flip_changed", "flip rate, cascade changed", _PIXELS, "lower", (1e-6, 0.05), temporal=True, scale=100.0),
     Metric("de2000_mean", "mean ΔE2000", "ΔE", "lower", (1e-3, 0.05), temporal=True, headline=True,
@@ -168,6 +186,14 @@ METRICS: dict[str, Metric] = {m.name: m for m in (
     Metric("texels_rasterized", "texels rasterized", "texels", "lower", (0.0, 0.10)),
 )}
 """Every metric column, in ``metrics.csv`` order (DESIGN.md "Interfaces")."""
+
+DERIVED: dict[str, Metric] = {m.name: m for m in (
+    Metric("ref_error", "vs. reference", "% pixels wrong", "lower", (1e-4, 0.05), scale=100.0,
+           glance="Closest to the ray-traced shadow", curve="vs. reference (% of pixels)",
+           sum_of=("ref_false_shadow", "ref_false_light")),
+)}
+"""Metrics computed from columns, never columns themselves: ``ref_error``, the fraction of pixels whose
+shadow state differs from the reference either way (false shadow + false light)."""
 
 HEADLINE: tuple[Metric, ...] = tuple(m for m in METRICS.values() if m.headline)
 """The metrics a summary table leads with, in column order."""
@@ -200,6 +226,29 @@ def metric_of(column: str) -> Metric | None:
     match = _PER_CASCADE.match(column)
     metric = METRICS.get(match["name"]) if match else None
     return metric if metric is not None and metric.cascades else None
+
+
+def metric_named(name: str) -> Metric | None:
+    """The :class:`Metric` of a column (:func:`metric_of`) or of a :data:`DERIVED` metric; None if unknown."""
+    return metric_of(name) if name not in DERIVED else DERIVED[name]
+
+
+def metric_values(name: str, columns) -> np.ndarray | None:
+    """Per-frame values ``(N,)`` of a column or a :data:`DERIVED` metric; None when a column it needs is absent.
+
+    Parameters
+    ----------
+    name : str
+    columns : mapping
+        Column name → ``(N,)`` float64 array (``metrics.csv`` rows of one method × point, or all of them);
+        a column is returned as it is, a derived metric summed in the order of ``sum_of``.
+    """
+    if name not in DERIVED:
+        return columns[name] if name in columns else None
+    parts = DERIVED[name].sum_of
+    if not all(part in columns for part in parts):
+        return None
+    return sum((columns[part] for part in parts[1:]), start=columns[parts[0]])
 
 
 def is_metric_column(column: str) -> bool:

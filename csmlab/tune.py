@@ -420,8 +420,10 @@ def _holds(spec: tuple, value) -> bool:
 def _infeasible_message(candidates, budgets: Budgets, goals) -> tuple[str, str]:
     """The option to blame when no candidate can be recommended, and why: the budget no candidate met
     with the candidate closest to meeting it, or an objective no run defined."""
+    memory = METRICS["memory_bytes"]
+
     def mib(n):
-        return f"{n / 2 ** 20:.4g} MiB"
+        return f"{memory.shown(n, digits=4)} {memory.unit}"
 
     if budgets.memory_bytes is not None and all(c.violations["memory"] > 0 for c in candidates):
         cheapest = min(candidates, key=lambda c: c.memory_bytes)

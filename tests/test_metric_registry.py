@@ -3,12 +3,14 @@
 import math
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from csmlab.metric_registry import (METRICS, best_mask, finite_mean, format_number, is_metric_column, metric_columns,
-                                    metric_of, temporal_columns)
+import csmlab
+from csmlab.metric_registry import (DERIVED, METRICS, best_mask, finite_mean, format_number, is_metric_column,
+                                    metric_columns, metric_named, metric_of, metric_values, temporal_columns)
 
 DESIGN_COLUMNS = (
     "rho_median, rho_p05, rho_p95, rho_frac_lt1, rho_frac_lt05, sigma_min_p05, utilization, flicker, flicker_same, "
@@ -72,6 +74,35 @@ def test_format_number_keeps_an_exact_zero_and_marks_undefined():
     assert format_number(float("nan")) == "—" and format_number(None) == "—" and format_number(math.inf) == "—"
     assert format_number(0.000123456) == "0.000123"
     assert format_number(4321.5) == "4,322"
+
+
+def test_format_number_takes_more_digits_when_asked_and_a_metric_shows_its_scaled_value():
+    assert format_number(0.0123456, digits=4) == "0.01235" and format_number(4321.5, digits=4) == "4,322"
+    assert METRICS["memory_bytes"].shown(16 * 2**20) == "16" and METRICS["flip_rate"].shown(0.0123) == "1.23"
+    assert METRICS["flip_rate"].shown(None) == "—"
+
+
+def test_ref_error_is_registered_derived_from_false_shadow_and_false_light_and_never_a_column():
+    ref_error = DERIVED["ref_error"]
+    assert metric_named("ref_error") is ref_error and metric_named("flicker") is METRICS["flicker"]
+    assert ref_error.sum_of == ("ref_false_shadow", "ref_false_light") and ref_error.better == "lower"
+    assert "ref_error" not in metric_columns(4) and not is_metric_column("ref_error")
+    columns = {"ref_false_shadow": np.array([0.25, np.nan]), "ref_false_light": np.array([0.5, 0.125])}
+    np.testing.assert_array_equal(metric_values("ref_error", columns), [0.75, np.nan])
+    assert metric_values("ref_error", {"ref_false_shadow": columns["ref_false_shadow"]}) is None
+    assert metric_values("ref_false_light", columns) is columns["ref_false_light"]
+
+
+def test_metric_labels_live_only_in_the_registry():
+    """Every at-a-glance line, Explore curve label and label-unit pair is spelled once, in the registry."""
+    registered = [*METRICS.values(), *DERIVED.values()]
+    spelled = ([m.glance for m in registered if m.glance] + [m.curve for m in registered if m.curve]
+               + [f'"{m.label}", "{m.unit}"' for m in registered])
+    package = Path(csmlab.__file__).parent
+    for path in package.rglob("*.py"):
+        if path.name != "metric_registry.py":
+            text = path.read_text()
+            assert not [s for s in spelled if s in text], path
 
 
 def test_finite_mean_leaves_out_missing_values_and_sums_in_float64():

@@ -101,7 +101,8 @@ def test_a_promised_invariant_is_held_exactly_whatever_the_baseline_and_nothing_
     assert got[("exact", "flicker_same", "zero")] == "invariant broken"
     assert ("none", "flicker_same", "zero") not in got
     # A method named and stabilized exact that promises nothing (e.g. a per-pixel rotated filter) is not held.
-    checks = compare(summary({"exact": {"flicker_same": tiny}}, promised=()), summary({"exact": {"flicker_same": tiny}}))
+    checks = compare(summary({"exact": {"flicker_same": tiny}}, promised=()),
+                     summary({"exact": {"flicker_same": tiny}}))
     assert all(c.direction != "zero" for c in checks)
 
 

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from csmlab.files import write_atomic
-from csmlab.metric_registry import format_number
+from csmlab.metric_registry import format_number, metric_named
 from csmlab.report.animation import write_animation
 from csmlab.report.capture import ANIM_WIDTH, capture_stem, read_npz, safe_name
 from csmlab.report.explore import BUDGET_BYTES, explore_files, write_explore
@@ -41,15 +41,6 @@ from csmlab.report.tables import ResultFiles, read_results
 from csmlab.report.view3d import view3d_figure
 
 __all__ = ["write_report"]
-
-_GLANCE = {
-    "flicker_same": "Steadiest texels (same-cascade flicker)",
-    "flicker_changed": "Calmest cascade transitions (cascade-changed flicker)",
-    "rho_median": "Closest to one texel per pixel (median ρ)",
-    "utilization": "Least wasted shadow map (utilization)",
-    "ref_error": "Closest to the ray-traced shadow",
-}
-
 
 def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES, worker: bool | None = None) -> Path:
     """Write ``index.html`` and its figures into a results directory; return the page's path.
@@ -174,12 +165,12 @@ def _describe(section: dict, keys: tuple[str, ...]) -> str:
 def _glance(columns, rows) -> list[str]:
     lines = []
     for k, column in enumerate(columns):
-        if column.key in _GLANCE:
-            best = [r for r in rows if r.cells[k].best]
-            if best:
-                names = ", ".join(r.method if len({x.point for x in rows}) == 1 else f"{r.method} @ {r.point}"
-                                  for r in best)
-                lines.append(f"{_GLANCE[column.key]}: {names} ({best[0].cells[k].text} {column.unit})")
+        metric = metric_named(column.key)
+        best = [r for r in rows if r.cells[k].best]
+        if metric is not None and metric.glance and best:
+            names = ", ".join(r.method if len({x.point for x in rows}) == 1 else f"{r.method} @ {r.point}"
+                              for r in best)
+            lines.append(f"{metric.glance}: {names} ({best[0].cells[k].text} {column.unit})")
     return lines
 
 

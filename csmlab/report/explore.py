@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from csmlab.errors import InputError
+from csmlab.metric_registry import metric_named, metric_values
 from csmlab.report.capture import capture_stem, read_npz
 from csmlab.report.images import (CATEGORY_COLOURS, FALSE_LIGHT, FALSE_SHADOW, NO_SURFACE, change_image,
                                   rho_image)
@@ -52,13 +53,8 @@ BUDGET_BYTES = 60 * 2 ** 20
 """Default size budget of a results directory with its report: 60 MiB."""
 PLANES = ("lit", "dS", "cascade", "rho", "reference", "ref_diff")
 """The value planes of a frame file, in order."""
-CURVES = (
-    ("flicker", "flicker (mean |ΔS|)", 1.0),
-    ("flip_rate", "flip rate (%)", 100.0),
-    ("rho_median", "median ρ (texels / pixel)", 1.0),
-    ("ref_error", "vs. reference (% of pixels)", 100.0),
-)
-"""Per-frame curves of the page: metrics.csv column (``ref_error`` = false shadow + false light), label, scale."""
+CURVES = tuple(metric_named(name) for name in ("flicker", "flip_rate", "rho_median", "ref_error"))
+"""Per-frame curves of the page, in order: registered metrics (``ref_error`` derived), each with its ``curve`` label."""
 _WEBP = {"format": "WEBP", "quality": 86, "method": 2}
 _INDEX_RESERVE = 256 * 2 ** 10
 _ENCODING_THREADS = 2
@@ -244,14 +240,11 @@ def _run_data(present, records, frames, metrics, casters) -> str:
         rows = metrics.of(method, point)
         by_frame = {int(f): k for k, f in enumerate(rows["frame"])}
         curves = {}
-        for key, _, scale in CURVES:
-            if key == "ref_error" and "ref_false_shadow" in rows and "ref_false_light" in rows:
-                column = rows["ref_false_shadow"] + rows["ref_false_light"]
-            elif key in rows:
-                column = rows[key]
-            else:
-                continue
-            curves[key] = _rounded([column[by_frame[f]] * scale if f in by_frame else np.nan for f in frames], 6)
+        for metric in CURVES:
+            column = metric_values(metric.name, rows)
+            if column is not None:
+                curves[metric.name] = _rounded([column[by_frame[f]] * metric.scale if f in by_frame else np.nan
+                                                for f in frames], 6)
         counted = record["world_counted"].astype(np.float64)
         with np.errstate(invalid="ignore", divide="ignore"):
             mean_dS = np.where(counted > 0, record["world_dS"] / counted, np.nan)
@@ -277,7 +270,7 @@ def _run_data(present, records, frames, metrics, casters) -> str:
         "stride": int(first["stride"]),
         "cascades": int(first["box_corners"].shape[1]),
         "planes": list(PLANES), "no_value": NO_VALUE, "rho_steps": RHO_STEPS,
-        "curves": [{"key": k, "label": label} for k, label, _ in CURVES],
+        "curves": [{"key": m.name, "label": m.curve} for m in CURVES],
         "colours": {"rho": rho_lut.tolist(), "dS": dS_lut.tolist(), "categories": _u8_colours(CATEGORY_COLOURS),
                     "false_shadow": _u8_colours(FALSE_SHADOW), "false_light": _u8_colours(FALSE_LIGHT),
                     "no_surface": _u8_colours(NO_SURFACE)},

@@ -2,7 +2,7 @@
 
 Values are means over frames, NaN cells (frame 0's temporal metrics) left out, read from
 ``metrics.csv``; time per frame comes from ``timings.csv``. Labels, units, display factors and
-which way is better come from :data:`csmlab.metric_registry.METRICS`: lowest flicker, highest
+which way is better come from :data:`csmlab.metric_registry.METRICS` (and ``DERIVED``): lowest flicker, highest
 utilization, median ρ closest to the 1:1 ideal (smallest ``|ln ρ|``).
 """
 
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from csmlab.metric_registry import HEADLINE as HEADLINE_METRICS
-from csmlab.metric_registry import Metric, best_mask, finite_mean, format_number, metric_of
+from csmlab.metric_registry import DERIVED, Metric, best_mask, finite_mean, format_number, metric_of, metric_values
 from csmlab.report.tables import Columns
 from csmlab.results import KEY_COLUMNS
 
@@ -27,8 +27,8 @@ class Headline:
     Attributes
     ----------
     key : str
-        A ``metrics.csv`` column, or ``ref_error`` (false shadow + false light), ``time_ms`` (from
-        ``timings.csv``).
+        A ``metrics.csv`` column, a derived metric (:data:`csmlab.metric_registry.DERIVED`:
+        ``ref_error``), or ``time_ms`` (from ``timings.csv``).
     label, unit : str
         Column title and unit as shown.
     better : str
@@ -51,7 +51,7 @@ class Headline:
 
 HEADLINE = (
     *(Headline.of(m) for m in HEADLINE_METRICS),
-    Headline("ref_error", "vs. reference", "% pixels wrong", "lower", 100.0),
+    Headline.of(DERIVED["ref_error"]),
     Headline("time_ms", "time", "ms / frame", "lower"),
 )
 """The summary table's columns, in order: the registry's headline metrics, then two derived ones."""
@@ -114,13 +114,10 @@ def full_table(metrics: Columns) -> tuple[list[str], list[TableRow]]:
 
 
 def _headline_mean(key: str, rows: Columns, timings: Columns | None, method: str, point: str) -> float:
-    if key == "ref_error":
-        if "ref_false_shadow" not in rows or "ref_false_light" not in rows:
-            return np.nan
-        return finite_mean(rows["ref_false_shadow"] + rows["ref_false_light"])
     if key == "time_ms":
         return _time_per_frame_ms(timings, method, point)
-    return finite_mean(rows[key]) if key in rows else np.nan
+    values = metric_values(key, rows)
+    return np.nan if values is None else finite_mean(values)
 
 
 def _time_per_frame_ms(timings: Columns | None, method: str, point: str) -> float:

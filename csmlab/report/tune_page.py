@@ -13,6 +13,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 import csmlab
+from csmlab.metric_registry import METRICS, format_number
 from csmlab.report.html import render_report_html
 from csmlab.report.images import CATEGORY_COLOURS
 from csmlab.report.png import save_figure
@@ -20,11 +21,11 @@ from csmlab.results import write_atomic
 
 __all__ = ["TABLE_COLUMNS", "tune_figure", "write_tune_report"]
 
-TABLE_COLUMNS = (("memory_bytes", "memory", "MiB", 2.0 ** -20), ("rho_p05", "ρ p05", "texels / pixel", 1.0),
-                 ("rho_median", "median ρ", "texels / pixel", 1.0),
-                 ("flicker_same", "flicker, same cascade", "mean |ΔS|", 1.0),
-                 ("flicker", "flicker", "mean |ΔS|", 1.0), ("flip_rate", "flip rate", "% of pixels", 100.0))
-"""Columns of the tables: metric, label, unit, display factor."""
+TABLE_COLUMNS = tuple(METRICS[name] for name in ("memory_bytes", "rho_p05", "rho_median", "flicker_same", "flicker",
+                                                  "flip_rate"))
+"""Columns of the tables, in order; label, unit and display factor from the registry."""
+_DIGITS = 4
+"""Significant digits of a table cell: tuned settings differ in the third."""
 
 
 def _value(candidate, metric: str):
@@ -43,8 +44,10 @@ def tune_figure(result, path) -> None:
     axes = fig.subplots(1, 2, sharey=True)
     measured = [c for c in result.trials if c.values is not None and _value(c, "rho_p05") is not None]
     front = [c for c in measured if c.label in result.front]
-    for ax, (metric, label, scale) in zip(axes, (("memory_bytes", "shadow-map memory (MiB, log scale)", 2.0 ** -20),
-                                                  (flicker, f"{flicker} (mean |ΔS| per frame)", 1.0))):
+    memory, aliasing = METRICS["memory_bytes"], METRICS["rho_p05"]
+    for ax, (metric, label, scale) in zip(axes, (
+            ("memory_bytes", f"shadow-map {memory.label} ({memory.unit}, log scale)", memory.scale),
+            (flicker, f"{METRICS[flicker].label} ({METRICS[flicker].unit} per frame)", METRICS[flicker].scale))):
         def xy(items):
             pairs = [(_value(c, metric), _value(c, "rho_p05")) for c in items]
             pairs = [(x * scale, y) for x, y in pairs if x is not None and y is not None]
@@ -75,17 +78,23 @@ def tune_figure(result, path) -> None:
             ax.set_xscale("log", base=2)
         ax.set_xlabel(label)
         ax.grid(True, alpha=0.3)
-    axes[0].set_ylabel("ρ p05 (texels / pixel, higher is sharper)")
+    axes[0].set_ylabel(f"{aliasing.label} ({aliasing.unit}, higher is sharper)")
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside right center", fontsize=8)
     save_figure(fig, path)
 
 
+def _memory_text(memory_bytes: int) -> str:
+    """A memory budget in the registry's unit, and in bytes."""
+    memory = METRICS["memory_bytes"]
+    return f"{memory_bytes * memory.scale:g} {memory.unit} ({memory_bytes} bytes)"
+
+
 def _row(candidate, *, mark: str = "") -> dict:
     cells = []
-    for metric, _, _, factor in TABLE_COLUMNS:
-        value = _value(candidate, metric)
-        cells.append("—" if value is None else f"{value * factor:.4g}")
+    for metric in TABLE_COLUMNS:
+        value = _value(candidate, metric.name)
+        cells.append(format_number(None if value is None else value * metric.scale, digits=_DIGITS))
     setting = ", ".join(f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}"
                         for k, v in candidate.params.items()) or "as the experiment has it"
     over = [name for name, v in candidate.violations.items() if v > 0]
@@ -125,12 +134,11 @@ def write_tune_report(out_dir, result, *, snippets, preset_file: str) -> Path:
         "trials": len(result.trials),
         "runs_computed": result.runs_computed,
         "objectives": ", ".join(f"{m} ({d})" for m, d in result.objectives),
-        "memory_budget": "none" if budgets.memory_bytes is None else
-        f"{budgets.memory_bytes / 2 ** 20:g} MiB ({budgets.memory_bytes} bytes)",
+        "memory_budget": "none" if budgets.memory_bytes is None else _memory_text(budgets.memory_bytes),
         "flicker_budget": "none" if budgets.max_flicker is None else f"{budgets.flicker_metric} ≤ {budgets.max_flicker:.6g}",
         "space": [(field, ", ".join(map(str, spec[1])) if spec[0] == "choice" else
                    f"{spec[1]} … {spec[2]}{' (log)' if spec[3] else ''}") for field, spec in result.space.items()],
-        "columns": [(label, unit) for _, label, unit, _ in TABLE_COLUMNS],
+        "columns": [(m.label, m.unit) for m in TABLE_COLUMNS],
         "headline": headline,
         "front": front,
         "all_trials": [_row(c) for c in result.trials],
