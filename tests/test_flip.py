@@ -5,7 +5,6 @@ reach); identical images give exactly 0; bad input is refused."""
 import flip_evaluator
 import numpy as np
 import pytest
-import warp as wp
 
 from csmlab.camera import CameraPose
 from csmlab.geometry import rotation_looking_at
@@ -14,8 +13,6 @@ from csmlab.metrics.shading import shaded_rgb, srgb_encoded
 from csmlab.render import render_frame
 from csmlab.scene import make_scene
 from csmlab.settings import ShadowSettings
-
-CUDA = pytest.mark.skipif(not wp.is_cuda_available(), reason="no CUDA device")
 
 # The brief's bounds: per pixel, and of the mean error relative to the oracle's mean. Measured: the
 # two differ in at most a few pixels by one float32 ulp (different libm powf/expf).
@@ -48,17 +45,17 @@ def _noisy_pair(seed, shape, *, sigma=0.05):
 
 
 @pytest.mark.parametrize("seed, shape", [(0, (24, 40)), (1, (40, 24)), (2, (33, 57))])
-def test_random_images_match_flip_evaluator(seed, shape):
-    _assert_matches_oracle(*_noisy_pair(seed, shape))
+def test_random_images_match_flip_evaluator(seed, shape, device):
+    _assert_matches_oracle(*_noisy_pair(seed, shape), device=device)
 
 
-def test_unrelated_random_images_match_flip_evaluator():
+def test_unrelated_random_images_match_flip_evaluator(device):
     rng = np.random.default_rng(5)
     reference, test = rng.random((2, 30, 30, 3)).astype(np.float32)
-    _assert_matches_oracle(reference, test)
+    _assert_matches_oracle(reference, test, device=device)
 
 
-def test_flat_regions_and_hard_edges_match_flip_evaluator():
+def test_flat_regions_and_hard_edges_match_flip_evaluator(device):
     # Flat blocks of saturated and grey colours, a one-pixel line and a checkerboard corner; the
     # test image moves the block edges by a pixel and recolours one block: large colour and
     # feature differences, and exact zeros where both images stay flat far from any change.
@@ -72,12 +69,12 @@ def test_flat_regions_and_hard_edges_match_flip_evaluator():
     test[10:30, 5] = 0.0
     test[:, 31] = (0.0, 1.0, 0.0)
     test[0:8, 0:8] = 0.5
-    error, expected = _assert_matches_oracle(reference, test)
+    error, expected = _assert_matches_oracle(reference, test, device=device)
     assert expected.max() > 0.9 and np.any(expected == 0.0)
     np.testing.assert_array_equal(error == 0.0, expected == 0.0)
 
 
-def test_rendered_frames_whose_shadow_moved_match_flip_evaluator():
+def test_rendered_frames_whose_shadow_moved_match_flip_evaluator(device):
     # Two csmlab frames of a box on a plane under a light that turned slightly: the shaded images
     # the perceptual metric compares.
     scene = make_scene("plane_box", plane_size=40.0, box_size=3.0)
@@ -90,21 +87,22 @@ def test_rendered_frames_whose_shadow_moved_match_flip_evaluator():
         lit = np.where(g.valid, frame.shadow.lit, 0.0)
         images.append(srgb_encoded(shaded_rgb(g.albedo, g.normal, lit, light_direction=light, ambient=0.25))
                       .astype(np.float32))
-    error, expected = _assert_matches_oracle(*images)
+    error, expected = _assert_matches_oracle(*images, device=device)
     assert np.count_nonzero(expected) > 100
 
 
 @pytest.mark.parametrize("shape", [(1, 1), (1, 25), (25, 1), (3, 4), (9, 21)])
-def test_images_smaller_than_the_filters_match_flip_evaluator(shape):
+def test_images_smaller_than_the_filters_match_flip_evaluator(shape, device):
     # Every tap beyond the edge clamps to the edge pixel, many times over.
     assert min(shape) < 2 * max(flip_filter_radii()) + 1
-    _assert_matches_oracle(*_noisy_pair(11, shape, sigma=0.2))
+    _assert_matches_oracle(*_noisy_pair(11, shape, sigma=0.2), device=device)
 
 
-def test_another_viewing_distance_matches_flip_evaluator():
+def test_another_viewing_distance_matches_flip_evaluator(device):
     reference, test = _noisy_pair(3, (30, 36))
     assert flip_filter_radii(pixels_per_degree=30.0) == (5, 4)
-    _assert_matches_oracle(reference, test, expected=_oracle(reference, test, ppd=30.0), pixels_per_degree=30.0)
+    _assert_matches_oracle(reference, test, expected=_oracle(reference, test, ppd=30.0), pixels_per_degree=30.0,
+                           device=device)
 
 
 def test_default_viewing_distance_is_flip_evaluators():
@@ -125,12 +123,12 @@ def test_filter_radii_bound_where_one_changed_pixel_reaches_in_flip_evaluator():
     assert max(np.abs(rows - 20).max(), np.abs(cols - 20).max()) == reach
 
 
-def test_identical_images_give_exactly_zero_everywhere():
+def test_identical_images_give_exactly_zero_everywhere(device):
     rng = np.random.default_rng(8)
     image = rng.random((37, 29, 3)).astype(np.float32)
     image[:10] = 0.0
     image[-5:] = 1.0
-    assert np.all(flip_error_map(image, image) == 0.0)
+    assert np.all(flip_error_map(image, image, device=device) == 0.0)
 
 
 def _brute_force_reach(differs, radius):
@@ -172,14 +170,14 @@ def test_pixels_differ_in_any_channel():
 
 
 @pytest.mark.parametrize("spots", [[(20, 30)], [(0, 0), (39, 63)], [(5, 60), (6, 61), (30, 2)]])
-def test_a_few_changed_pixels_match_flip_evaluator_and_are_zero_out_of_reach(spots):
+def test_a_few_changed_pixels_match_flip_evaluator_and_are_zero_out_of_reach(spots, device):
     # The passes skip what lies out of a change's reach, at the edges too (the taps clamp there).
     rng = np.random.default_rng(len(spots))
     reference = rng.random((40, 64, 3)).astype(np.float32)
     test = reference.copy()
     for i, j in spots:
         test[i, j] = rng.random(3)
-    error, expected = _assert_matches_oracle(reference, test)
+    error, expected = _assert_matches_oracle(reference, test, device=device)
     may_differ = flip_reach(pixels_differ(reference, test), radius=max(flip_filter_radii())) >= 3
     assert np.all(error[~may_differ] == 0.0) and np.all(expected[~may_differ] == 0.0)
     assert np.count_nonzero(error) > 100
@@ -205,8 +203,3 @@ def test_bad_viewing_distance_and_device_are_refused():
     with pytest.raises(ValueError, match="device"):
         flip_error_map(image, image, device="tpu")
 
-
-@CUDA
-def test_cuda_matches_flip_evaluator():
-    reference, test = _noisy_pair(4, (64, 96))
-    _assert_matches_oracle(reference, test, device="cuda")

@@ -25,9 +25,9 @@ def _numpy_singular_values(dpdx, dpdy, cascade, axes):
     return np.linalg.svd(jac, compute_uv=False)
 
 
-def test_texel_footprint_matches_numpy_svd_on_random_jacobians():
+def test_texel_footprint_matches_numpy_svd_on_random_jacobians(device):
     dpdx, dpdy, cascade, axes = _random_case(7)
-    rho, sigma_min = texel_footprint(dpdx, dpdy, cascade, texel_axes=axes)
+    rho, sigma_min = texel_footprint(dpdx, dpdy, cascade, texel_axes=axes, device=device)
     s = _numpy_singular_values(dpdx, dpdy, cascade, axes)
     selected = cascade >= 0
     atol = 1e-5 * s[..., 0][selected].max()
@@ -36,30 +36,30 @@ def test_texel_footprint_matches_numpy_svd_on_random_jacobians():
     assert np.all(np.isnan(rho[~selected])) and np.all(np.isnan(sigma_min[~selected]))
 
 
-def test_texel_footprint_of_an_axis_aligned_pixel_is_pixel_size_over_texel_size():
+def test_texel_footprint_of_an_axis_aligned_pixel_is_pixel_size_over_texel_size(device):
     # A pixel 0.1 m × 0.3 m seen through texels of 0.05 m: J = diag(2, 6), ρ = sqrt(12), σ_min = 2.
     dpdx = np.broadcast_to(np.float32([0.1, 0.0, 0.0]), (2, 3, 3))
     dpdy = np.broadcast_to(np.float32([0.0, 0.0, 0.3]), (2, 3, 3))
     axes = np.array([[[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]]) / 0.05
-    rho, sigma_min = texel_footprint(dpdx, dpdy, np.zeros((2, 3), np.int8), texel_axes=axes)
+    rho, sigma_min = texel_footprint(dpdx, dpdy, np.zeros((2, 3), np.int8), texel_axes=axes, device=device)
     np.testing.assert_allclose(rho, np.sqrt(12.0), rtol=1e-6)
     np.testing.assert_allclose(sigma_min, 2.0, rtol=1e-6)
 
 
-def test_texel_footprint_doubles_exactly_when_texels_halve():
+def test_texel_footprint_doubles_exactly_when_texels_halve(device):
     dpdx, dpdy, cascade, axes = _random_case(11)
-    rho, sigma_min = texel_footprint(dpdx, dpdy, cascade, texel_axes=axes)
-    rho2, sigma_min2 = texel_footprint(dpdx, dpdy, cascade, texel_axes=axes * 2.0)
+    rho, sigma_min = texel_footprint(dpdx, dpdy, cascade, texel_axes=axes, device=device)
+    rho2, sigma_min2 = texel_footprint(dpdx, dpdy, cascade, texel_axes=axes * 2.0, device=device)
     np.testing.assert_array_equal(rho2, 2.0 * rho)
     np.testing.assert_array_equal(sigma_min2, 2.0 * sigma_min)
 
 
-def test_texel_footprint_rejects_a_cascade_index_beyond_the_axes():
+def test_texel_footprint_rejects_a_cascade_index_beyond_the_axes(device):
     dpdx, dpdy, cascade, axes = _random_case(3, cascades=2)
     with pytest.raises(ValueError, match="cascade: expected indices below 1"):
-        texel_footprint(dpdx, dpdy, cascade, texel_axes=axes[:1])
+        texel_footprint(dpdx, dpdy, cascade, texel_axes=axes[:1], device=device)
     with pytest.raises(ValueError, match=r"texel_axes: expected a finite \(C, 2, 3\)"):
-        texel_footprint(dpdx, dpdy, cascade, texel_axes=axes[:, :1])
+        texel_footprint(dpdx, dpdy, cascade, texel_axes=axes[:, :1], device=device)
 
 
 @CUDA

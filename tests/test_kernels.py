@@ -15,15 +15,15 @@ def _fill_with_index(out: wp.array(dtype=wp.vec3d)):
 
 @pytest.mark.parametrize("shape, dtype, host", [(7, wp.int32, (7,)), ((2, 3), wp.vec3d, (2, 3, 3)),
                                                 ((4, 5), wp.vec3, (4, 5, 3)), ((3,), wp.float64, (3,))])
-def test_device_empty_has_the_shape_and_type_asked_for(shape, dtype, host):
-    array = device_empty(shape, dtype, "cpu")
+def test_device_empty_has_the_shape_and_type_asked_for(shape, dtype, host, device):
+    array = device_empty(shape, dtype, device)
     assert array.dtype == dtype
     assert array.numpy().shape == host
 
 
-def test_device_empty_holds_what_a_kernel_writes():
-    array = device_empty(1000, wp.vec3d, "cpu")
-    wp.launch(_fill_with_index, dim=1000, outputs=(array,), device="cpu")
+def test_device_empty_holds_what_a_kernel_writes(device):
+    array = device_empty(1000, wp.vec3d, device)
+    wp.launch(_fill_with_index, dim=1000, outputs=(array,), device=device)
     index = np.arange(1000, dtype=np.float64)
     np.testing.assert_array_equal(array.numpy(), np.stack([index, 2 * index, 3 * index], axis=1))
 

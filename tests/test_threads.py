@@ -3,7 +3,6 @@
 import threading
 
 import pytest
-import warp as wp
 
 from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 
@@ -58,9 +57,8 @@ def test_threads_must_be_a_positive_integer(threads):
         checked_threads(threads, "cpu")
 
 
-@pytest.mark.skipif(wp.get_cuda_device_count() == 0, reason="no CUDA device")
-def test_cuda_takes_one_launch_whatever_the_threads():
-    assert checked_threads(4, "cuda") == 1 and checked_threads(4, "cpu") == 4
+def test_the_cpu_takes_the_threads_asked_for_and_cuda_one_launch(device):
+    assert checked_threads(4, device) == (4 if device == "cpu" else 1)
 
 
 @pytest.mark.parametrize("threads", [1, 2, 3])

@@ -36,7 +36,7 @@ def _numpy_count(cs, points, selected):
 
 
 @pytest.mark.parametrize("far", [0.0, 1.0e5])
-def test_looked_up_texels_count_the_distinct_floors_of_each_cascade(far):
+def test_looked_up_texels_count_the_distinct_floors_of_each_cascade(far, device):
     cs = _cascades(far)
     rng = np.random.default_rng(4)
     # Points spread around each box (some outside it, many sharing a texel), a few with no cascade.
@@ -46,16 +46,16 @@ def test_looked_up_texels_count_the_distinct_floors_of_each_cascade(far):
     selected = np.repeat(np.arange(3), 3000)
     selected[::17] = -1
     args = dict(basis=cs.basis, texel_size=[c.texel_size for c in cs.cascades], origin=[c.origin for c in cs.cascades],
-                resolution=[c.resolution for c in cs.cascades])
+                resolution=[c.resolution for c in cs.cascades], device=device)
     expected = _numpy_count(cs, points, selected)
     np.testing.assert_array_equal(looked_up_texels(points, selected, **args), expected)
     assert np.all(expected > 50) and np.all(expected < [r * r for _, _, r in _BOXES])
 
 
-def test_no_points_look_up_no_texels_and_bad_shapes_are_refused():
+def test_no_points_look_up_no_texels_and_bad_shapes_are_refused(device):
     cs = _cascades(0.0)
     args = dict(basis=cs.basis, texel_size=[c.texel_size for c in cs.cascades], origin=[c.origin for c in cs.cascades],
-                resolution=[c.resolution for c in cs.cascades])
+                resolution=[c.resolution for c in cs.cascades], device=device)
     np.testing.assert_array_equal(looked_up_texels(np.zeros((0, 3)), np.zeros(0, int), **args), [0, 0, 0])
     with pytest.raises(ValueError, match="expected indices below 3"):
         looked_up_texels(np.zeros((2, 3)), [0, 3], **args)
