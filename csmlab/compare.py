@@ -16,18 +16,16 @@ resolved configs.
 
 from __future__ import annotations
 
-import math
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
 from csmlab.errors import InputError
+from csmlab.metric_registry import is_per_cascade, number_or_none
 from csmlab.regress import judge, tolerance_for
 from csmlab.results import read_summary
 
 __all__ = ["Comparison", "MetricDelta", "compare_runs", "flatten", "metric_direction", "workload_differences"]
 
-_PER_CASCADE = re.compile(r"_c\d+$")
 
 
 def metric_direction(metric: str) -> str:
@@ -70,7 +68,7 @@ class MetricDelta:
 
     @property
     def per_cascade(self) -> bool:
-        return bool(_PER_CASCADE.search(self.metric))
+        return is_per_cascade(self.metric)
 
     @property
     def relative(self) -> float | None:
@@ -80,12 +78,8 @@ class MetricDelta:
         return self.delta / abs(self.a)
 
 
-def _number(value) -> float | None:
-    return None if value is None or (isinstance(value, float) and math.isnan(value)) else float(value)
-
-
 def _delta(metric: str, a, b) -> MetricDelta:
-    a, b = _number(a), _number(b)
+    a, b = number_or_none(a), number_or_none(b)
     direction = metric_direction(metric)
     if a is None or b is None:
         return MetricDelta(metric, a, b, None, direction, "n/a", False)

@@ -33,8 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["BETTER", "BETTER_TEXT", "CASCADE_PLACES", "DERIVED", "HEADLINE", "METRICS", "PLOTS", "Metric", "best_mask",
-           "finite_mean", "format_number", "is_metric_column", "metric_columns", "metric_named", "metric_of",
-           "metric_values", "temporal_columns"]
+           "finite_mean", "format_number", "is_metric_column", "is_per_cascade", "metric_columns", "metric_named",
+           "metric_of", "metric_values", "number_or_none", "temporal_columns"]
 
 
 def _distance_from_one(value: float) -> float:
@@ -251,6 +251,11 @@ def metric_values(name: str, columns) -> np.ndarray | None:
     return sum((columns[part] for part in parts[1:]), start=columns[parts[0]])
 
 
+def is_per_cascade(column: str) -> bool:
+    """``column`` is one cascade's column of a metric (``utilization_c2``), not the metric's own."""
+    return column not in METRICS and metric_of(column) is not None
+
+
 def is_metric_column(column: str) -> bool:
     """``column`` is a metric column of ``metrics.csv`` for some number of cascades."""
     return metric_of(column) is not None
@@ -259,6 +264,11 @@ def is_metric_column(column: str) -> bool:
 def temporal_columns() -> tuple[str, ...]:
     """The columns measured between frames (empty at frame 0)."""
     return tuple(m.name for m in METRICS.values() if m.temporal)
+
+
+def number_or_none(value) -> float | None:
+    """A summary value as a float; None for a missing one (None or NaN, as ``summary.json``'s null reads back)."""
+    return None if value is None or (isinstance(value, float) and math.isnan(value)) else float(value)
 
 
 def finite_mean(values) -> float:

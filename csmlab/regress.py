@@ -45,7 +45,7 @@ from pathlib import Path
 
 import csmlab
 from csmlab.errors import InputError
-from csmlab.metric_registry import BETTER, METRICS, metric_of
+from csmlab.metric_registry import BETTER, METRICS, metric_of, number_or_none
 from csmlab.results import json_text, read_json, read_summary, write_atomic
 
 __all__ = ["TOLERANCES", "Check", "Judgement", "RegressResult", "Tolerance", "compare", "judge", "make_baseline",
@@ -158,12 +158,8 @@ class Check:
         return self.verdict in _FAILING
 
 
-def _number(value) -> float | None:
-    return None if value is None or (isinstance(value, float) and math.isnan(value)) else float(value)
-
-
 def _judge(metric: str, baseline, now, tolerance: Tolerance) -> tuple[float | None, float | None, str]:
-    baseline, now = _number(baseline), _number(now)
+    baseline, now = number_or_none(baseline), number_or_none(now)
     if baseline is None:
         return None, None, "n/a" if now is None else "new"
     if now is None:
@@ -185,8 +181,8 @@ def _compare_entries(method: str, point: str, baseline: dict, now: dict | None, 
         tolerance = tolerance_for(metric, overrides)
         now_value = None if now is None else now.get(metric)
         delta, allowed, verdict = _judge(metric, base_value, now_value, tolerance)
-        checks.append(Check(method=method, point=point, metric=metric, baseline=_number(base_value),
-                            now=_number(now_value), delta=delta, allowed=allowed, direction=tolerance.direction,
+        checks.append(Check(method=method, point=point, metric=metric, baseline=number_or_none(base_value),
+                            now=number_or_none(now_value), delta=delta, allowed=allowed, direction=tolerance.direction,
                             verdict=verdict))
     return checks
 
@@ -211,7 +207,7 @@ def _promises(summary: dict, baseline: dict) -> dict[tuple[str, str], list[dict]
 
 def _invariant(method: str, point: str, promise: dict, now: dict | None) -> Check:
     metric, promised = promise["metric"], float(promise["value"])
-    value = None if now is None else _number(now.get(metric))
+    value = None if now is None else number_or_none(now.get(metric))
     verdict = "n/a" if value is None else ("invariant" if value == promised else "invariant broken")
     return Check(method=method, point=point, metric=metric, baseline=promised, now=value,
                  delta=None if value is None else value - promised, allowed=0.0, direction="zero", verdict=verdict,

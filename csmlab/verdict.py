@@ -24,12 +24,11 @@ order of :func:`csmlab.regress.compare`. The same result gives the same bytes (n
 from __future__ import annotations
 
 import math
-import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from csmlab.errors import InputError
-from csmlab.metric_registry import BETTER, BETTER_TEXT, format_number
+from csmlab.metric_registry import BETTER, BETTER_TEXT, format_number, is_per_cascade
 from csmlab.regress import Check, RegressResult
 from csmlab.results import read_metrics, read_summary, write_atomic
 
@@ -45,7 +44,6 @@ the largest relative moves within tolerance."""
 _WORST = 3
 _DIGITS = 4
 """Significant digits of a value in a verdict: one more than a table's, so that a change within tolerance shows."""
-_PER_CASCADE = re.compile(r"_c\d+$")
 
 
 def _fmt(value: float | None) -> str:
@@ -185,9 +183,9 @@ def _change_text(check: Check) -> str:
 def _moved(result: RegressResult) -> tuple[list[Check], int]:
     """Failures first, then the largest relative moves within tolerance (per-cascade columns left out)."""
     others = [c for c in result.checks if not c.failed and c.delta not in (None, 0.0)
-              and not _PER_CASCADE.search(c.metric) and not _is_invariant(c)]
+              and not is_per_cascade(c.metric) and not _is_invariant(c)]
     others.sort(key=_relative, reverse=True)
-    failures = [c for c in result.failures if not _PER_CASCADE.search(c.metric)] or result.failures
+    failures = [c for c in result.failures if not is_per_cascade(c.metric)] or result.failures
     return failures + others[:_MOVED_ROWS], max(0, len(others) - _MOVED_ROWS)
 
 
@@ -247,8 +245,8 @@ def _failed_names(failures: list[Check]) -> str:
         by_method.setdefault(c.method + ("" if c.point == "*" else f" at {c.point}"), []).append(_case_name(c))
     parts = []
     for method, names in by_method.items():
-        whole = [f"`{n}`" for n in names if not _PER_CASCADE.search(n)]
-        cascades = [f"`{n}`" for n in names if _PER_CASCADE.search(n)]
+        whole = [f"`{n}`" for n in names if not is_per_cascade(n)]
+        cascades = [f"`{n}`" for n in names if is_per_cascade(n)]
         text = ", ".join(whole) + (f" (per cascade: {', '.join(cascades)})" if cascades else "")
         parts.append(f"**{method}**: {text.strip()}")
     return "; ".join(parts)

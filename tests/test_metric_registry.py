@@ -10,7 +10,8 @@ import pytest
 
 import csmlab
 from csmlab.metric_registry import (DERIVED, METRICS, best_mask, finite_mean, format_number, is_metric_column,
-                                    metric_columns, metric_named, metric_of, metric_values, temporal_columns)
+                                    is_per_cascade, metric_columns, metric_named, metric_of, metric_values,
+                                    number_or_none, temporal_columns)
 
 DESIGN_COLUMNS = (
     "rho_median, rho_p05, rho_p95, rho_frac_lt1, rho_frac_lt05, sigma_min_p05, utilization, flicker, flicker_same, "
@@ -39,6 +40,8 @@ def test_temporal_columns_are_the_ones_measured_between_frames():
 
 
 def test_per_cascade_columns_resolve_to_their_metric_and_nothing_else_does():
+    assert is_per_cascade("utilization_c11") and is_per_cascade("rho_p05_c0")
+    assert not is_per_cascade("utilization") and not is_per_cascade("flicker_c0") and not is_per_cascade("abc_c1")
     assert metric_of("utilization_c11") is METRICS["utilization"]
     assert metric_of("rho_frac_lt05_c0") is METRICS["rho_frac_lt05"]
     assert metric_of("flicker_c0") is None          # flicker has no per-cascade columns
@@ -103,6 +106,10 @@ def test_metric_labels_live_only_in_the_registry():
         if path.name != "metric_registry.py":
             text = path.read_text()
             assert not [s for s in spelled if s in text], path
+
+
+def test_a_missing_summary_value_is_none():
+    assert number_or_none(None) is None and number_or_none(math.nan) is None and number_or_none(2) == 2.0
 
 
 def test_finite_mean_leaves_out_missing_values_and_sums_in_float64():

@@ -40,16 +40,16 @@ def assert_valid_junit(text: str) -> ET.Element:
     return root
 
 
-def check(method, metric, baseline, now, allowed, direction, verdict, point="*") -> Check:
+def check(method, metric, baseline, now, allowed, direction, verdict, point="*", why="") -> Check:
     delta = None if baseline is None or now is None else now - baseline
     return Check(method=method, point=point, metric=metric, baseline=baseline, now=now, delta=delta, allowed=allowed,
-                 direction=direction, verdict=verdict)
+                 direction=direction, verdict=verdict, why=why)
 
 
 SYNTHETIC = RegressResult(passed=False, baseline="base.json", workload_hash="abc", checks=[
     check("exact", "flicker_same", 0.0, 0.0, 1e-6, "lower", "ok"),
     check("exact", "rho_p95", 2.0, 2.1, None, "either", "shown"),
-    check("exact", "flicker_same", 0.0, 1e-9, 0.0, "zero", "invariant broken"),
+    check("exact", "flicker_same", 0.0, 1e-9, 0.0, "zero", "invariant broken", why="world-locked exact boxes"),
     check("none", "flicker", 0.01, 0.02, 5e-4, "lower", "regression"),
     check("none", "ssim", 0.9, 0.95, 0.009, "higher", "better"),
     check("none", "flicker", 0.02, 0.02, 1e-3, "lower", "ok", point="resolution=512"),
@@ -65,6 +65,7 @@ def test_junit_has_a_case_per_check_and_the_invariant_as_its_own_case():
     assert names == ["flicker_same", "rho_p95", "flicker_same == 0 (invariant)"]
     invariant = exact.find("testcase[@name='flicker_same == 0 (invariant)']/failure")
     assert invariant.get("type") == "invariant broken" and "must stay exactly 0" in invariant.get("message")
+    assert "(promised: world-locked exact boxes)" in invariant.get("message")
     assert exact.find("testcase[@name='rho_p95']/skipped") is not None
 
 
