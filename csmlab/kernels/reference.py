@@ -77,6 +77,69 @@ CHUNK = wp.constant(64)
 RECEIVER_BLOCK = 2048
 """Receivers per kernel thread of the CPU's passes over them, taken block by block by the launches of a split."""
 
+
+@wp.struct
+class ReceiverBlocks:
+    """The receivers one launch takes: blocks ``phase, phase + stride, …`` of ``block`` receivers each."""
+
+    block: int
+    """Receivers per kernel thread (:data:`RECEIVER_BLOCK` on the CPU, 1 on a GPU)."""
+    phase: int
+    """The launch's first block."""
+    stride: int
+    """Blocks from one of the launch's blocks to its next (the launches of a split)."""
+
+
+@wp.struct
+class RayGrid:
+    """The irregular z-buffer's coarse grid over the ray starts' light-space rectangle: square cells."""
+
+    origin: wp.vec2d
+    """Light-space x/y of the grid's corner, metres."""
+    inv_side: wp.float64
+    """Cells per metre."""
+    nx: int
+    """Columns of cells."""
+    ny: int
+    """Rows of cells."""
+
+
+@wp.struct
+class BinnedRays:
+    """The ray starts sorted by fine cell, and what a triangle reads to find those it covers."""
+
+    grid: RayGrid
+    sub: wp.array(dtype=wp.int32)
+    """Each coarse cell's split: ``sub × sub`` fine cells."""
+    offset: wp.array(dtype=wp.int32)
+    """Each coarse cell's first fine cell (row-major within it)."""
+    first: wp.array(dtype=wp.int32)
+    """Each fine cell's first ray in the sorted rays (and the total after the last)."""
+    table: wp.array(dtype=wp.int32)
+    """The coarse cells' summed-area table of rays, ``(ny + 1) × (nx + 1)`` row-major."""
+    bounds: wp.array(dtype=wp.float64)
+    """The starts' ``(min x, min y, max x, max y, max z)`` in light space."""
+    start: wp.array(dtype=wp.vec3d)
+    """The sorted rays' light-space starts."""
+    ray: wp.array(dtype=wp.int32)
+    """The sorted rays' receivers."""
+
+
+@wp.struct
+class LightTriangles:
+    """The scene in light space, and the float32 rectangles of its triangles and chunks (:data:`CHUNK`)."""
+
+    light: wp.array(dtype=wp.vec3d)
+    """Vertices relative to the anchor in light space, ``(x·right, x·up, x·d)``, metres."""
+    triangles: wp.array2d(dtype=wp.int32)
+    box: wp.array(dtype=wp.vec4)
+    """Each triangle's light-space rectangle ``(x0, y0, x1, y1)``, float32."""
+    chunk_box: wp.array(dtype=wp.vec4)
+    """The union of the rectangles of each chunk of :data:`CHUNK` triangles."""
+    slack: wp.float64
+    """Metres by which a float32 rectangle is widened beyond its rounding."""
+
+
 _CACHED_LIGHTS = 2
 """Light directions whose light-space vertices a MeshBVH keeps: a frame's and its predecessor's."""
 
@@ -140,11 +203,11 @@ def triangle_box_kernel(
 
 
 @wp.func
-def receiver_block(i: int, block: int, phase: int, stride: int, count: int):
-    """Thread ``i``'s receivers, of a launch taking blocks ``phase, phase + stride, …`` of ``block`` receivers:
-    ``(first − 1, last)``, for a `while` loop that steps first (see :func:`block_triangle`)."""
-    first = (phase + i * stride) * block
-    return first - 1, wp.min(first + block, count) - 1
+def receiver_block(i: int, take: ReceiverBlocks, count: int):
+    """Thread ``i``'s receivers, of a launch taking the blocks ``take``: ``(first − 1, last)``, for a `while`
+    loop that steps first (see :func:`block_triangle`)."""
+    first = (take.phase + i * take.stride) * take.block
+    return first - 1, wp.min(first + take.block, count) - 1
 
 
 @wp.kernel
@@ -156,9 +219,7 @@ def ray_start_kernel(
     up: wp.vec3d,
     d: wp.vec3d,
     offset: wp.float64,
-    block: int,
-    phase: int,
-    stride: int,
+    take: ReceiverBlocks,
     start: wp.array(dtype=wp.vec3d),
     lit: wp.array(dtype=wp.float32),
     bounds: wp.array(dtype=wp.float64),
@@ -168,7 +229,7 @@ def ray_start_kernel(
     ``bounds`` gathers the starts' ``(min x, min y, max x, max y, max z)``. Each thread takes a block
     of receivers (:func:`receiver_block`).
     """
-    k, last = receiver_block(wp.tid(), block, phase, stride, lit.shape[0])
+    k, last = receiver_block(wp.tid(), take, lit.shape[0])
     x_lo = wp.float64(wp.inf)
     y_lo = wp.float64(wp.inf)
     x_hi = wp.float64(-wp.inf)
@@ -217,17 +278,16 @@ def sub_cell(u: wp.float64, cell: int, sub: int) -> int:
 def coarse_bin_kernel(
     start: wp.array(dtype=wp.vec3d),
     lit: wp.array(dtype=wp.float32),
-    origin: wp.vec2d,
-    inv_side: wp.float64,
-    nx: int,
-    ny: int,
-    block: int,
-    phase: int,
-    stride: int,
+    grid: RayGrid,
+    take: ReceiverBlocks,
     count: wp.array(dtype=wp.int32),
 ):
     """The rays per coarse cell, of the receivers of :func:`receiver_block`."""
-    k, last = receiver_block(wp.tid(), block, phase, stride, lit.shape[0])
+    origin = grid.origin
+    inv_side = grid.inv_side
+    nx = grid.nx
+    ny = grid.ny
+    k, last = receiver_block(wp.tid(), take, lit.shape[0])
     while k < last:
         k += 1
         if lit[k] != 1.0:
@@ -297,13 +357,16 @@ def ray_table_columns_kernel(
 
 
 @wp.func
-def rays_within(rect: wp.vec4, slack: wp.float64, origin: wp.vec2d, inv_side: wp.float64, nx: int, ny: int,
-                table: wp.array(dtype=wp.int32)) -> bool:
+def rays_within(rect: wp.vec4, slack: wp.float64, grid: RayGrid, table: wp.array(dtype=wp.int32)) -> bool:
     """Whether a coarse cell that light-space rectangle ``rect`` (float32, widened by ``slack``) reaches holds rays.
 
     The cells are those of the rectangle's grid coordinates widened by ``MARGIN``, as a triangle
     within it reaches no others (:func:`block_triangle`).
     """
+    origin = grid.origin
+    inv_side = grid.inv_side
+    nx = grid.nx
+    ny = grid.ny
     c0 = grid_cell((wp.float64(rect[0]) - slack - origin[0]) * inv_side - MARGIN, nx)
     c1 = grid_cell((wp.float64(rect[2]) + slack - origin[0]) * inv_side + MARGIN, nx) + 1
     r0 = grid_cell((wp.float64(rect[1]) - slack - origin[1]) * inv_side - MARGIN, ny)
@@ -313,40 +376,39 @@ def rays_within(rect: wp.vec4, slack: wp.float64, origin: wp.vec2d, inv_side: wp
 
 
 @wp.func
-def reaches_rays(rect: wp.vec4, slack: wp.float64, bounds: wp.array(dtype=wp.float64), origin: wp.vec2d,
-                 inv_side: wp.float64, nx: int, ny: int, table: wp.array(dtype=wp.int32)) -> bool:
+def reaches_rays(rect: wp.vec4, slack: wp.float64, rays: BinnedRays) -> bool:
     """Whether light-space rectangle ``rect`` (float32, widened by ``slack`` beyond its rounding) may hold a start.
 
     First against the starts' rectangle ``bounds``; then, for the rest, against the coarse cells
     with rays (:func:`rays_within`): the starts' rectangle holds the view's footprint and the gaps in it.
     """
+    bounds = rays.bounds
     if wp.float64(rect[2]) + slack < bounds[0] or wp.float64(rect[0]) - slack > bounds[2]:
         return False
     if wp.float64(rect[3]) + slack < bounds[1] or wp.float64(rect[1]) - slack > bounds[3]:
         return False
-    return rays_within(rect, slack, origin, inv_side, nx, ny, table)
+    return rays_within(rect, slack, rays.grid, rays.table)
 
 
 @wp.kernel
 def fine_bin_kernel(
     start: wp.array(dtype=wp.vec3d),
     lit: wp.array(dtype=wp.float32),
-    origin: wp.vec2d,
-    inv_side: wp.float64,
-    nx: int,
-    ny: int,
+    grid: RayGrid,
     sub: wp.array(dtype=wp.int32),
     offset: wp.array(dtype=wp.int32),
-    block: int,
-    phase: int,
-    stride: int,
+    take: ReceiverBlocks,
     fine: wp.array(dtype=wp.int32),
     slot: wp.array(dtype=wp.int32),
     count: wp.array(dtype=wp.int32),
 ):
     """Each ray's sub-cell (row-major within its coarse cell) and its slot there (counting sort, first pass), of
     the receivers of :func:`receiver_block`."""
-    k, last = receiver_block(wp.tid(), block, phase, stride, lit.shape[0])
+    origin = grid.origin
+    inv_side = grid.inv_side
+    nx = grid.nx
+    ny = grid.ny
+    k, last = receiver_block(wp.tid(), take, lit.shape[0])
     while k < last:
         k += 1
         if lit[k] != 1.0:
@@ -370,14 +432,12 @@ def scatter_kernel(
     fine: wp.array(dtype=wp.int32),
     slot: wp.array(dtype=wp.int32),
     first: wp.array(dtype=wp.int32),
-    block: int,
-    phase: int,
-    stride: int,
+    take: ReceiverBlocks,
     sorted_start: wp.array(dtype=wp.vec3d),
     sorted_ray: wp.array(dtype=wp.int32),
 ):
     """Rays in sub-cell order (counting sort, second pass), of the receivers of :func:`receiver_block`."""
-    k, last = receiver_block(wp.tid(), block, phase, stride, lit.shape[0])
+    k, last = receiver_block(wp.tid(), take, lit.shape[0])
     while k < last:
         k += 1
         if lit[k] != 1.0:
@@ -438,31 +498,24 @@ def strip_extent(p: wp.vec2d, q: wp.vec2d, du_dv: wp.float64, v_lo: wp.float64, 
 
 
 @wp.func
-def block_triangle(
-    t: int,
-    light: wp.array(dtype=wp.vec3d),
-    triangles: wp.array2d(dtype=wp.int32),
-    box: wp.array(dtype=wp.vec4),
-    slack: wp.float64,
-    sorted_start: wp.array(dtype=wp.vec3d),
-    origin: wp.vec2d,
-    inv_side: wp.float64,
-    nx: int,
-    ny: int,
-    sub: wp.array(dtype=wp.int32),
-    offset: wp.array(dtype=wp.int32),
-    first: wp.array(dtype=wp.int32),
-    bounds: wp.array(dtype=wp.float64),
-    max_t: wp.float64,
-    table: wp.array(dtype=wp.int32),
-    sorted_ray: wp.array(dtype=wp.int32),
-    lit: wp.array(dtype=wp.float32),
-):
+def block_triangle(t: int, scene: LightTriangles, rays: BinnedRays, max_t: wp.float64, lit: wp.array(dtype=wp.float32)):
     """Triangle ``t``: shadow every ray whose start it covers in light space, nearer the light within ``max_t``."""
     # Most triangles reach no start: their float32 rectangle (read in sequence) says so before any
     # vertex is gathered.
-    if not reaches_rays(box[t], slack, bounds, origin, inv_side, nx, ny, table):
+    if not reaches_rays(scene.box[t], scene.slack, rays):
         return
+    light = scene.light
+    triangles = scene.triangles
+    bounds = rays.bounds
+    origin = rays.grid.origin
+    inv_side = rays.grid.inv_side
+    nx = rays.grid.nx
+    ny = rays.grid.ny
+    sub = rays.sub
+    offset = rays.offset
+    first = rays.first
+    sorted_start = rays.start
+    sorted_ray = rays.ray
     a = light[triangles[t, 0]]
     b = light[triangles[t, 1]]
     c = light[triangles[t, 2]]
@@ -562,23 +615,9 @@ def block_triangle(
 
 @wp.kernel
 def block_kernel(
-    light: wp.array(dtype=wp.vec3d),
-    triangles: wp.array2d(dtype=wp.int32),
-    box: wp.array(dtype=wp.vec4),
-    chunk_box: wp.array(dtype=wp.vec4),
-    slack: wp.float64,
-    sorted_start: wp.array(dtype=wp.vec3d),
-    origin: wp.vec2d,
-    inv_side: wp.float64,
-    nx: int,
-    ny: int,
-    sub: wp.array(dtype=wp.int32),
-    offset: wp.array(dtype=wp.int32),
-    first: wp.array(dtype=wp.int32),
-    bounds: wp.array(dtype=wp.float64),
+    scene: LightTriangles,
+    rays: BinnedRays,
     max_t: wp.float64,
-    table: wp.array(dtype=wp.int32),
-    sorted_ray: wp.array(dtype=wp.int32),
     phase: int,
     stride: int,
     lit: wp.array(dtype=wp.float32),
@@ -591,15 +630,23 @@ def block_kernel(
     """
     k = phase + wp.tid() * stride
     # A chunk's rectangle holds its triangles': a chunk that reaches no start is passed whole.
-    if not reaches_rays(chunk_box[k], slack, bounds, origin, inv_side, nx, ny, table):
+    if not reaches_rays(scene.chunk_box[k], scene.slack, rays):
         return
     # A `while` loop: see block_triangle.
     t = k * CHUNK
-    end = wp.min(t + CHUNK, triangles.shape[0])
+    end = wp.min(t + CHUNK, scene.triangles.shape[0])
     while t < end:
-        block_triangle(t, light, triangles, box, slack, sorted_start, origin, inv_side, nx, ny, sub, offset, first,
-                       bounds, max_t, table, sorted_ray, lit)
+        block_triangle(t, scene, rays, max_t, lit)
         t += 1
+
+
+def _receiver_blocks(block: int, phase: int, stride: int) -> ReceiverBlocks:
+    """The :class:`ReceiverBlocks` of a launch."""
+    take = ReceiverBlocks()
+    take.block = block
+    take.phase = phase
+    take.stride = stride
+    return take
 
 
 def _receivers(points, normals, light_direction) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -699,7 +746,7 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
     block = RECEIVER_BLOCK if wp.get_device(device).is_cpu else 1
     blocks = -(-count // block)
     parts = len(split_range(blocks, threads))
-    receivers = [(len(range(k, blocks, parts)), (block, k, parts)) for k in range(parts)]
+    receivers = [(len(range(k, blocks, parts)), _receiver_blocks(block, k, parts)) for k in range(parts)]
     kernels = (ray_start_kernel, light_space_kernel, block_kernel)
     with LaunchPool(threads, kernels=kernels, device=device) as pool:
         light, box, chunk_box = _scene_in_light_space(bvh, basis, pool)
@@ -716,7 +763,7 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
         normals_in = wp.array(n, dtype=wp.vec3, device=device, copy=copy)
         pool.run([functools.partial(wp.launch, ray_start_kernel, dim=dim,
                                     inputs=(points_in, normals_in, wp.vec3d(*bvh.anchor), *axes, RAY_OFFSET * diagonal,
-                                            *take),
+                                            take),
                                     outputs=(start, lit, bounds[k]), device=device)
                   for k, (dim, take) in enumerate(receivers)])
         each = bounds.numpy()[:, :5]
@@ -731,9 +778,13 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
         width, height = max(x1 - x0, 1e-12 * diagonal), max(y1 - y0, 1e-12 * diagonal)
         side = max(math.sqrt(width * height * COARSE_RAYS_PER_CELL / count), max(width, height) / count)
         nx, ny = math.ceil(width / side), math.ceil(height / side)
-        grid = (wp.vec2d(x0, y0), 1.0 / side, nx)
+        grid = RayGrid()
+        grid.origin = wp.vec2d(x0, y0)
+        grid.inv_side = 1.0 / side
+        grid.nx = nx
+        grid.ny = ny
         per_coarse = wp.zeros((parts, nx * ny), dtype=wp.int32, device=device)
-        pool.run([functools.partial(wp.launch, coarse_bin_kernel, dim=dim, inputs=(start, lit, *grid, ny, *take),
+        pool.run([functools.partial(wp.launch, coarse_bin_kernel, dim=dim, inputs=(start, lit, grid, take),
                                     outputs=(per_coarse[k],), device=device)
                   for k, (dim, take) in enumerate(receivers)])
         sub = wp.empty(nx * ny, dtype=wp.int32, device=device)
@@ -752,7 +803,7 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
         # indexing a strided column of a cell-major table ran several times slower).
         per_fine = wp.zeros((parts, fine_cells + 1), dtype=wp.int32, device=device)
         pool.run([functools.partial(wp.launch, fine_bin_kernel, dim=dim,
-                                    inputs=(start, lit, *grid, ny, sub, offset, *take),
+                                    inputs=(start, lit, grid, sub, offset, take),
                                     outputs=(fine, slot, per_fine[k]), device=device)
                   for k, (dim, take) in enumerate(receivers)])
         # first_each[k, f]: where launch k's rays of fine cell f go — after every ray of the earlier
@@ -768,18 +819,29 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
         sorted_start = wp.empty(rays, dtype=wp.vec3d, device=device)
         sorted_ray = wp.empty(rays, dtype=wp.int32, device=device)
         pool.run([functools.partial(wp.launch, scatter_kernel, dim=dim,
-                                    inputs=(start, lit, fine, slot, first_each[k], *take),
+                                    inputs=(start, lit, fine, slot, first_each[k], take),
                                     outputs=(sorted_start, sorted_ray), device=device)
                   for k, (dim, take) in enumerate(receivers)])
-        # The first ray of each fine cell (and the total after the last).
-        first = first_each[0]
+        rays = BinnedRays()
+        rays.grid = grid
+        rays.sub = sub
+        rays.offset = offset
+        rays.first = first_each[0]  # The first ray of each fine cell (and the total after the last).
+        rays.table = table
+        rays.bounds = bounds
+        rays.start = sorted_start
+        rays.ray = sorted_ray
+        scene = LightTriangles()
+        scene.light = light
+        scene.triangles = bvh.triangles
+        scene.box = box
+        scene.chunk_box = chunk_box
+        scene.slack = diagonal * 2.0**-23
         chunks = chunk_box.shape[0]
         launches = len(split_range(chunks, threads))
         pool.run([functools.partial(wp.launch, block_kernel, dim=(chunks - k + launches - 1) // launches,
-                                    inputs=(light, bvh.triangles, box, chunk_box, diagonal * 2.0**-23, sorted_start,
-                                            *grid, ny, sub, offset, first, bounds, RAY_LENGTH * diagonal, table,
-                                            sorted_ray, k, launches),
-                                    outputs=(lit,), device=device)
+                                    inputs=(scene, rays, RAY_LENGTH * diagonal, k, launches), outputs=(lit,),
+                                    device=device)
                   for k in range(launches)])
     return lit.numpy().reshape(shape)
 
