@@ -8,17 +8,22 @@ checks so that a settings object made in Python is held to the same contract.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, fields, replace
 
 from csmlab.lookup_choices import FILTER_METHODS
-from csmlab.registry import check_name
+from csmlab.registry import check_name, parameters
 
-__all__ = ["ShadowSettings"]
+__all__ = ["APPLIES", "Applies", "ShadowSettings"]
 
 
 @dataclass(frozen=True)
 class ShadowSettings:
-    """Cascaded-shadow-map settings of one method."""
+    """Cascaded-shadow-map settings of one method.
+
+    A field whose documentation starts with where it applies (``pcf_poisson: …``) takes effect only
+    there: :data:`APPLIES` holds that condition as a test over the settings.
+    """
 
     cascades: int = 4
     """Number of cascades C."""
@@ -27,7 +32,7 @@ class ShadowSettings:
     split: str = "practical"
     """Split scheme: uniform | log | practical | manual."""
     lambda_: float = 0.75
-    """PSSM blend λ of log and uniform splits (TOML field ``lambda``)."""
+    """practical: PSSM blend λ of log and uniform splits (TOML field ``lambda``)."""
     splits: tuple[float, ...] = ()
     """manual: far end of each cascade, metres, or fractions of shadow_distance when all ≤ 1."""
     shadow_distance: float = 200.0
@@ -45,7 +50,7 @@ class ShadowSettings:
     filter: str = "pcf"
     """Filter: none | pcf | pcf_bilinear | pcf_gaussian | pcf_tent | pcf_poisson | pcss | vsm | evsm2 | evsm4 (csmlab.filters)."""
     filter_size: int = 3
-    """pcf: taps per side N (odd)."""
+    """pcf, pcf_gaussian, pcf_tent, pcf_poisson, pcss: taps per side N (odd)."""
     bias_constant: float = 0.0
     """Constant depth bias, metres along the light."""
     bias_slope: float = 1.0
@@ -69,7 +74,7 @@ class ShadowSettings:
     cascade_resolutions: tuple[int, ...] = ()
     """Texels per side of each cascade, one per cascade; empty: resolution for every cascade."""
     filter_sigma: float = 1.0
-    """pcf_gaussian: standard deviation σ of the weights, texels."""
+    """pcf_gaussian with filter_width_m = 0: standard deviation σ of the weights, texels."""
     filter_width_m: float = 0.0
     """pcf_gaussian, pcf_tent, pcf_poisson: filter width in metres, the same in every cascade (Unigine); 0: in texels from filter_size and filter_sigma."""
     poisson_taps: int = 16
@@ -85,13 +90,13 @@ class ShadowSettings:
     evsm_exponents: tuple[float, float] = (40.0, 5.0)
     """evsm2, evsm4: exponents c+ and c- of the positive and negative warps."""
     vsm_min_variance: float = 1e-5
-    """vsm, evsm: minimum variance in normalized depth squared (DirectX VarianceShadows11: 0.00001)."""
+    """vsm, evsm2, evsm4: minimum variance in normalized depth squared (DirectX VarianceShadows11: 0.00001)."""
     vsm_power: float = 1.0
-    """vsm, evsm: light-bleeding reduction p ← p^power (seed 002's MAGIC_NUMBER; 1: none)."""
+    """vsm, evsm2, evsm4: light-bleeding reduction p ← p^power (seed 002's MAGIC_NUMBER; 1: none)."""
     vsm_bleed: float = 0.0
-    """vsm, evsm: light-bleeding reduction p ← linstep(amount, 1, p) (Lauritzen; 0: none), in [0, 1)."""
+    """vsm, evsm2, evsm4: light-bleeding reduction p ← linstep(amount, 1, p) (Lauritzen; 0: none), in [0, 1)."""
     moment_mips: bool = False
-    """vsm, evsm: look the moments up in a mip chain, trilinear at a level of detail from screen-space derivatives (lod), not bilinear at level 0."""
+    """vsm, evsm2, evsm4: look the moments up in a mip chain, trilinear at a level of detail from screen-space derivatives (lod), not bilinear at level 0."""
     lod: str = "quad"
     """moment_mips: derivatives the level of detail comes from: quad (hardware, per 2×2 quad; a seam at splits) | quad_consistent (PSVSM) | analytic (csmlab.quads)."""
     max_lod: int = 3
@@ -103,7 +108,7 @@ class ShadowSettings:
     first_cascade_far: float = 10.0
     """split = geometric: far end of the first cascade in metres, the rest geometric (Bevy's first_cascade_far_bound)."""
     extent: str = "sphere"
-    """exact: the fixed box diameter, sphere (slice bounding sphere) | diagonal (ceil of the slice's largest diagonal, Bevy, three.js)."""
+    """exact, and quantized with quantized_base = sphere: the fixed box diameter, sphere (slice bounding sphere) | diagonal (ceil of the slice's largest diagonal, Bevy, three.js)."""
     snap: str = "origin"
     """exact: what is snapped to whole texels, origin (box corner: Valient, DirectX, Unreal) | centre (box centre: Bevy, three.js, Stride projection snapping) | view (centre in 4-texel steps: Stride view snapping)."""
     depth_range: str = "scene"
@@ -191,8 +196,6 @@ class ShadowSettings:
         need(0.0 <= self.fade_out <= 1.0, "fade_out", "a fraction in [0, 1]", self.fade_out)
         need(0.0 <= self.hysteresis < 1.0, "hysteresis", "a fraction in [0, 1)", self.hysteresis)
         need(0.0 <= self.extent_hysteresis < 1.0, "extent_hysteresis", "a fraction in [0, 1)", self.extent_hysteresis)
-        need(self.extent_hysteresis == 0.0 or self.stabilization == "none", "extent_hysteresis",
-             "0 unless stabilization = \"none\" (a stabilized box already has a fixed extent)", self.extent_hysteresis)
         return self
 
     @property
@@ -213,3 +216,91 @@ class ShadowSettings:
     def field_names(cls) -> list[str]:
         """Field names as a TOML file spells them (``lambda``, not ``lambda_``)."""
         return ["lambda" if f.name == "lambda_" else f.name for f in fields(cls)]
+
+
+def _family(filter: str) -> str | None:
+    """The family of the filter named ``filter`` (:data:`csmlab.lookup_choices.FAMILIES`); None for another name."""
+    record = FILTER_METHODS.get(filter)
+    return None if record is None else record.family
+
+
+@dataclass(frozen=True)
+class Applies:
+    """Where a ``[shadow]`` field takes effect: elsewhere setting it changes nothing.
+
+    Attributes
+    ----------
+    test : callable
+        ``test(*, <fields>) -> bool``: whether the field takes effect, from the fields it declares
+        (keyword-only, as :class:`ShadowSettings` names them).
+    when : str
+        The condition in words, as a message shows it.
+    """
+
+    test: Callable[..., bool]
+    when: str
+
+    def inputs(self, settings: ShadowSettings) -> dict:
+        """The fields :attr:`test` reads, from ``settings``."""
+        return {name: getattr(settings, name) for name in parameters(self.test)}
+
+    def holds(self, settings: ShadowSettings) -> bool:
+        """Whether the field takes effect under ``settings``."""
+        return self.test(**self.inputs(settings))
+
+
+def _filters(test: Callable[[str], bool], why: str) -> Applies:
+    """The field takes effect with the filters ``test`` accepts (named in the condition): ``why``."""
+    names = [f'"{name}"' for name in FILTER_METHODS if test(name)]
+    listed = f"{', '.join(names[:-1])} or {names[-1]}" if len(names) > 1 else names[0]
+    return Applies(lambda *, filter: test(filter), f"filter = {listed} ({why})")
+
+
+def _moment_mips(*, filter: str, moment_mips: bool) -> bool:
+    return _family(filter) == "moment" and moment_mips
+
+
+APPLIES: dict[str, Applies] = {
+    "lambda": Applies(lambda *, split: split == "practical", 'split = "practical" (the blend of log and uniform splits)'),
+    "splits": Applies(lambda *, split: split == "manual", 'split = "manual" (the far end of each cascade)'),
+    "distribution_exponent": Applies(lambda *, split: split == "exponent",
+                                     'split = "exponent" (the depth ratio of consecutive cascades)'),
+    "first_cascade_far": Applies(lambda *, split: split == "geometric", 'split = "geometric" (the first far end)'),
+    "levels": Applies(lambda *, stabilization: stabilization == "quantized",
+                      'stabilization = "quantized" (the steps an extent is rounded up to)'),
+    "quantized_base": Applies(lambda *, stabilization: stabilization == "quantized",
+                              'stabilization = "quantized" (the extent its steps divide)'),
+    "extent": Applies(lambda *, stabilization, quantized_base: stabilization == "exact" or (
+        stabilization == "quantized" and quantized_base == "sphere"),
+        'stabilization = "exact", or "quantized" with quantized_base = "sphere" (the fixed box diameter)'),
+    "snap": Applies(lambda *, stabilization: stabilization == "exact",
+                    'stabilization = "exact" (what its fixed box snaps to whole texels)'),
+    "extent_hysteresis": Applies(lambda *, stabilization: stabilization == "none",
+                                 'stabilization = "none" (a stabilized box already has a fixed extent)'),
+    "pancake": Applies(lambda *, depth_range: depth_range == "slice",
+                       'depth_range = "slice" (the pull of its near side toward the light)'),
+    "depth_clamp": Applies(lambda *, depth_range: depth_range == "slice",
+                           'depth_range = "slice" (casters nearer than its near side)'),
+    "hysteresis": Applies(lambda *, bounds: bounds == "sdsm", 'bounds = "sdsm" (the hold of its visible range)'),
+    "atlas_layout": Applies(lambda *, storage: storage == "atlas", 'storage = "atlas" (the tiles of the atlas)'),
+    "filter_size": _filters(lambda f: f == "pcf" or _family(f) == "weighted", "taps per side"),
+    "filter_sigma": Applies(lambda *, filter, filter_width_m: filter == "pcf_gaussian" and filter_width_m == 0,
+                            'filter = "pcf_gaussian" and filter_width_m = 0 (σ in texels; a width in metres sets '
+                            'σ otherwise)'),
+    "filter_width_m": _filters(lambda f: f in ("pcf_gaussian", "pcf_tent", "pcf_poisson"), "the width in metres"),
+    "poisson_taps": _filters(lambda f: f == "pcf_poisson", "the taps of its disk"),
+    "poisson_seed": _filters(lambda f: f == "pcf_poisson", "the seed of its disk"),
+    "poisson_rotation": _filters(lambda f: f == "pcf_poisson", "the rotation of its disk"),
+    "light_size_deg": _filters(lambda f: f == "pcss", "the light's size that sets the penumbra"),
+    "moment_blur": _filters(lambda f: _family(f) == "moment", "the blur of the moments"),
+    "evsm_exponents": _filters(lambda f: f in ("evsm2", "evsm4"), "the exponents of the warps"),
+    "vsm_min_variance": _filters(lambda f: _family(f) == "moment", "the variance floor of the Chebyshev bound"),
+    "vsm_power": _filters(lambda f: _family(f) == "moment", "a light-bleeding reduction"),
+    "vsm_bleed": _filters(lambda f: _family(f) == "moment", "a light-bleeding reduction"),
+    "moment_mips": _filters(lambda f: _family(f) == "moment", "the moments' mip chain"),
+    "lod": Applies(_moment_mips, "a moment filter with moment_mips = true (the mip chain's level of detail)"),
+    "max_lod": Applies(_moment_mips, "a moment filter with moment_mips = true (the mip chain's coarsest level)"),
+    "anisotropy": Applies(_moment_mips, "a moment filter with moment_mips = true (the probes along the footprint)"),
+}
+"""The ``[shadow]`` fields that take effect only with some settings (TOML names), and where; every other
+field takes effect in every method. The config loader refuses a field written where it does not apply."""

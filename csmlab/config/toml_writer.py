@@ -10,7 +10,7 @@ import textwrap
 
 from csmlab.config.document import _settings_document, experiment_document
 from csmlab.config.records import (_DOCS_TOP, CameraConfig, Experiment, LightConfig, ReportConfig, SceneConfig)
-from csmlab.settings import ShadowSettings
+from csmlab.settings import APPLIES, ShadowSettings
 
 
 def field_docs(cls) -> dict[str, str]:
@@ -76,12 +76,15 @@ def experiment_toml(experiment: Experiment, *, comments: bool = True) -> str:
 
 
 def method_preset_toml(name: str, settings: ShadowSettings, *, description: str, header: str = "") -> str:
-    """A method preset (``configs/methods`` form) holding every field of ``settings``, each documented.
+    """A method preset (``configs/methods`` form) holding every field of ``settings`` that applies, each documented.
 
     ``header`` becomes comment lines at the top; ``extends = ["that_file.toml"]`` then gives a method
-    named ``name`` with exactly these settings.
+    named ``name`` with these settings (a field that does not apply, :data:`~csmlab.settings.APPLIES`,
+    is left out: it would change nothing, and the loader refuses it).
     """
     lines = [f"# {line}" for line in header.splitlines()]
     lines += [f"description = {_toml_value(description)}", "", "[[methods]]", f"name = {_toml_value(name)}",
-              *_toml_table(_settings_document(settings), field_docs(ShadowSettings), comments=True)]
+              *_toml_table({k: v for k, v in _settings_document(settings).items()
+                            if k not in APPLIES or APPLIES[k].holds(settings)}, field_docs(ShadowSettings),
+                           comments=True)]
     return "\n".join(lines) + "\n"

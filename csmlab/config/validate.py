@@ -20,10 +20,11 @@ from pathlib import Path
 from csmlab.config.locate import _Located
 from csmlab.config.presets import _METHOD_NAME, _merged, _read_toml
 from csmlab.config.records import (_TOP_FIELDS, CameraConfig, Experiment, LightConfig, Method, ReportConfig,
-                                   SceneConfig, TuneConfig, _positive, _record_fields)
+                                   SceneConfig, TuneConfig, _positive, _record_fields, sweep_points)
+from csmlab.config.toml_writer import _toml_value
 from csmlab.errors import InputError
 from csmlab.registry import parameters, unknown_name_message
-from csmlab.settings import ShadowSettings
+from csmlab.settings import APPLIES, ShadowSettings
 
 
 _SIZE_UNITS = {"": 1, "b": 1, "kb": 10**3, "mb": 10**6, "gb": 10**9, "kib": 2**10, "mib": 2**20, "gib": 2**30}
@@ -325,6 +326,51 @@ def _manual_splits(settings: ShadowSettings, camera: CameraConfig, *, where: str
         raise located.error(where, str(exc).partition(": ")[2]) from None
 
 
+def _by_toml_name(settings: ShadowSettings) -> dict:
+    """Every field of ``settings`` by its TOML name."""
+    return dict(zip(ShadowSettings.field_names(), (getattr(settings, f.name) for f in fields(settings))))
+
+
+_DEFAULTS = _by_toml_name(ShadowSettings())
+
+
+def _refuse_where_it_never_applies(key: str, candidates: list[ShadowSettings], *, where: str, located: _Located,
+                                   everywhere: str) -> None:
+    """Raise at ``where`` when the field ``key`` takes effect under none of ``candidates`` (:data:`APPLIES`)."""
+    rule = APPLIES.get(key)
+    if rule is None or any(rule.holds(s) for s in candidates):
+        return
+    inputs = [rule.inputs(s) for s in candidates]
+    got = ", ".join(f"{name} = {' or '.join(dict.fromkeys(_toml_value(i[name]) for i in inputs))}"
+                    for name in inputs[0])
+    raise located.error(where, f"expected {key} only with {rule.when}, got {got}{everywhere}")
+
+
+def _written_where_they_apply(base: ShadowSettings, shadow: dict, methods: tuple[Method, ...], sweep,
+                              located: _Located) -> None:
+    """Refuse a written field that changes nothing (:data:`~csmlab.settings.APPLIES`; presets count as written).
+
+    A method's own field must apply to that method at some sweep point; a ``[shadow]`` or ``[sweep]``
+    field to some method at some point. A field written at its default value says nothing and passes
+    (the resolved document, which writes every field, loads back).
+    """
+    points = [point for _, point in sweep_points(sweep)]
+    variants = {m.name: [m.settings.replace(**point) for point in points] for m in methods}
+    every = [s for candidates in variants.values() for s in candidates]
+    scope = " in every method" + (" and sweep point" if sweep else "")
+    for m in methods:
+        for key, value in m.overrides.items():
+            if value != _DEFAULTS[key]:
+                _refuse_where_it_never_applies(key, variants[m.name], where=f"methods.{m.name}.{key}",
+                                               located=located, everywhere=" at every sweep point" if sweep else "")
+    written = _by_toml_name(base)
+    for key in shadow:
+        if written[key] != _DEFAULTS[key]:
+            _refuse_where_it_never_applies(key, every, where=f"shadow.{key}", located=located, everywhere=scope)
+    for key, _ in sweep:
+        _refuse_where_it_never_applies(key, every, where=f"sweep.{key}", located=located, everywhere=scope)
+
+
 def _methods(entries: list, base: ShadowSettings, located: _Located, camera: CameraConfig) -> tuple[Method, ...]:
     if not entries:
         return (Method(name="base", overrides={}, settings=base),)
@@ -423,6 +469,13 @@ def _tune(table, methods: tuple[Method, ...], located: _Located, camera: CameraC
         for value in (spec[1] if spec[0] == "choice" else spec[1:3]):
             _checked_settings(tuned.settings.replace(**{key: value}), located=located, camera=camera,
                               where_of=lambda f, k=key: f"tune.{k}" if f == k else f"methods.{tuned.name}.{f}")
+    deciding = {name for rule in APPLIES.values() for name in parameters(rule.test)}
+    grid = [[(key, value) for value in (spec[1] if spec[0] == "choice" else spec[1:3])]
+            for key, spec in space if key in deciding]
+    candidates = [tuned.settings.replace(**dict(point)) for point in itertools.product(*grid)]
+    for key, _ in space:
+        _refuse_where_it_never_applies(key, candidates, where=f"tune.{key}", located=located,
+                                       everywhere=f" in every candidate of {tuned.name}")
     return _validated(TuneConfig(space=tuple(space), **values), where_of=lambda name: f"tune.{name}", located=located)
 
 
@@ -488,7 +541,9 @@ def load_experiment(path, *, frames: int | None = None) -> Experiment:
     InputError
         Malformed TOML, an unknown field (with the closest known name), a wrong type or range, an
         unknown scene, path, format or method name, a missing or unreadable file, a zero-length light
-        direction: the message names the file, the line where found, the field and what was expected.
+        direction, manual splits that do not rise from the camera's near plane to the shadow distance, a
+        ``[shadow]`` field written where it does not apply (:data:`~csmlab.settings.APPLIES`): the
+        message names the file, the line where found, the field and what was expected.
     """
     path = Path(path).resolve()
     merged, origins = _merged(path)
@@ -511,6 +566,8 @@ def load_experiment(path, *, frames: int | None = None) -> Experiment:
                                                      allow=()))
     base = _checked_settings(base, where_of=lambda f: f"shadow.{f}", located=located, camera=camera)
     methods = _methods(merged["methods"], base, located, camera)
+    sweep = _sweep(merged.get("sweep", {}), methods, located, camera)
+    _written_where_they_apply(base, merged.get("shadow", {}), methods, sweep, located)
     experiment = Experiment(
         name=name,
         description=description,
@@ -521,7 +578,7 @@ def load_experiment(path, *, frames: int | None = None) -> Experiment:
         light=light,
         shadow=base,
         methods=methods,
-        sweep=_sweep(merged.get("sweep", {}), methods, located, camera),
+        sweep=sweep,
         regress=_regress(merged.get("regress", {}), located),
         report=_record(ReportConfig, merged.get("report", {}), where="report", located=located),
         chunk_frames=chunk_frames,
