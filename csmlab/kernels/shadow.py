@@ -208,6 +208,7 @@ def shadow_lookup_kernel(
     reach: int,
     margin: int,
     blend_band: wp.float64,
+    keep_weight: int,
     lit: wp.array(dtype=wp.float32),
     cascade: wp.array(dtype=wp.int32),
     blend: wp.array(dtype=wp.int32),
@@ -255,7 +256,8 @@ def shadow_lookup_kernel(
             c += 1
     cascade[k] = chosen
     blend[k] = 0
-    blend_weight[k] = wp.float64(0.0)
+    if keep_weight != 0:
+        blend_weight[k] = wp.float64(0.0)
     if chosen < 0:
         lit[k] = 0.0
         return
@@ -272,7 +274,8 @@ def shadow_lookup_kernel(
                 s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, nxt, xn, yn, rn, sn, unit, filter_code,
                                                                  radius)
                 blend[k] = 1
-                blend_weight[k] = w
+                if keep_weight != 0:
+                    blend_weight[k] = w
     lit[k] = wp.float32(s)
 
 
@@ -342,7 +345,7 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
     receivers = _fixed_receivers(depth, coords, receiver_depth, view_depth, receiver_slope, device=device)
     lit, cascade, blend, _ = _launch(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
                                      selection=selection, code=code, radius=radius, reach=radius, margin=margin,
-                                     blend_band=blend_band, bits=bits, device=device)
+                                     blend_band=blend_band, bits=bits, weights=False, device=device)
     return lit, cascade.astype(np.int8), blend
 
 
@@ -375,8 +378,8 @@ def select_cascades(depth, coords, receiver_depth, view_depth, *, splits, texel_
     receivers = _fixed_receivers(depth, coords, receiver_depth, view_depth, None, device=device)
     _, cascade, blend, weight = _launch(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
                                         selection=selection, code=BOX_TAPS, radius=0, reach=radius, margin=margin,
-                                        blend_band=blend_band, bits=bits, device=device)
-    return cascade, weight.numpy() if cascade.size else np.zeros(0), blend
+                                        blend_band=blend_band, bits=bits, weights=True, device=device)
+    return cascade, weight, blend
 
 
 def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis, texel_size, origin_fixed, zref: float,
@@ -414,7 +417,7 @@ def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis,
                          f"got shape {np.shape(view_depth)}")
     lit, cascade, blend, _ = _launch(depth, world, view_depth, splits=splits, texel_area=texel_area,
                                      selection=selection, code=code, radius=radius, reach=radius, margin=margin,
-                                     blend_band=blend_band, bits=bits, device=device)
+                                     blend_band=blend_band, bits=bits, weights=False, device=device)
     return lit, cascade.astype(np.int8), blend
 
 
@@ -438,13 +441,12 @@ def _fixed_receivers(depth, coords, receiver_depth, view_depth, receiver_slope, 
 
 
 def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str, code: int, radius: int, reach: int,
-            margin: int, blend_band: float, bits: int, device: str) -> tuple:
+            margin: int, blend_band: float, bits: int, weights: bool, device: str) -> tuple:
     """Launch :func:`shadow_lookup_kernel` over ``receivers`` (a :class:`FixedReceivers` or :class:`WorldReceivers`).
 
     ``code`` and ``radius`` are the box filter run at the selected cascade, ``reach`` the taps a
-    selected box must hold. Returns ``lit`` (NaN where none selected), ``cascade`` int32 and
-    ``blend`` bool as NumPy arrays, and the blend weights as a Warp array (read only by
-    :func:`select_cascades`).
+    selected box must hold. Returns ``lit`` (NaN where none selected), ``cascade`` int32, ``blend``
+    bool and, with ``weights``, the blend weights float64 (else None) as NumPy arrays.
     """
     selected = SELECTION_METHODS[check_name(selection, SELECTION_METHODS, field="selection")]
     if not (isinstance(reach, (int, np.integer)) and reach >= 0):
@@ -460,11 +462,12 @@ def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str,
         raise ValueError(f"splits, texel_area: expected shapes ({count + 1},), ({count},), got {z.shape}, {area.shape}")
     n = vd.shape[0]
     if n == 0:
-        return np.zeros(0, np.float32), np.zeros(0, np.int32), np.zeros(0, bool), None
+        return np.zeros(0, np.float32), np.zeros(0, np.int32), np.zeros(0, bool), np.zeros(0) if weights else None
     lit = wp.empty(n, dtype=wp.float32, device=device)
     chosen = wp.empty(n, dtype=wp.int32, device=device)
     blended = wp.empty(n, dtype=wp.int32, device=device)
-    weight = wp.empty(n, dtype=wp.float64, device=device)
+    # The box filters' lookups keep no weights: one element stands in for the array they do not write.
+    weight = wp.empty(n if weights else 1, dtype=wp.float64, device=device)
     wp.launch(
         shadow_lookup_kernel,
         dim=n,
@@ -481,6 +484,7 @@ def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str,
             int(reach),
             max(int(margin), int(reach)),
             wp.float64(blend_band),
+            int(weights),
         ),
         outputs=(lit, chosen, blended, weight),
         device=device,
@@ -488,7 +492,7 @@ def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str,
     cascade = chosen.numpy()
     s = lit.numpy()
     s[cascade < 0] = np.nan
-    return s, cascade, blended.numpy().astype(bool), weight
+    return s, cascade, blended.numpy().astype(bool), weight.numpy() if weights else None
 
 
 @wp.func
