@@ -19,9 +19,9 @@ Each condition below is one row of :data:`_CONDITIONS`; the promise holds when a
    ~10¹⁰ texels, where every point is clipped alike). An engine's float32 light view is rounded at
    each box's centre instead: every texel coordinate carries an error that depends on where the
    box lies — about R·2⁻²⁴ texels near the origin, centimetres 10⁶ m from it — and any error can
-   tip a fixed-point rounding at 2⁻ᵇⁱᵗˢ texels. Measured on 200,000 points within 50 m of the
-   point named, 256² boxes of 30 m moved by (3, −2) texels at 8 sub-texel bits: 0.3 % of the
-   coordinates tip at the origin, 13 % at 10³ m, all at 10⁶ m. No coordinate range makes that
+   tip a fixed-point rounding at 2⁻ᵇⁱᵗˢ texels. Measured on 200,000 random points in a 100 m cube,
+   256² boxes of 30 m moved by (3, −2) texels at 8 sub-texel bits: 0.3 % of the coordinates tip
+   with the cube at the origin, 13 % 10³ m from it, all 10⁶ m from it. No coordinate range makes that
    exactly zero, only rarer (a tipped vertex changes a stored texel only where an edge passes
    that close to its centre), so ``float32`` promises nothing: a run that measures 0.0 is luck,
    not construction.
