@@ -73,12 +73,15 @@ def test_the_design_documents_every_experiment_field():
 
 
 def test_the_design_documents_every_metric_and_summary_key():
+    from csmlab import metric_registry
     from csmlab.metric_registry import METRICS
     from csmlab.results import write_summary
 
     text = _design()
     columns = _words(text.split("`metrics.csv` columns:", 1)[1].split("(C: the most", 1)[0])
     assert not [name for name in METRICS if name not in columns], "a metric of the registry is not in docs/design.md"
+    derived = getattr(metric_registry, "DERIVED", {})
+    assert not [name for name in derived if f"`{name}`" not in text], "a derived metric is not in docs/design.md"
     keys = [name for name in inspect.signature(write_summary).parameters if name not in ("path", "device")]
     summary = text.split("`summary.json`: ", 1)[1]
     assert not [key for key in keys if f'"{key}"' not in summary], "a summary.json key is not in docs/design.md"
