@@ -89,25 +89,27 @@ def test_moment_filters_equal_the_brute_force_chebyshev_reference(method, power,
     assert np.all(lit[:3][cascade[:3] == 0] == 0.0)  # receivers turned from the light
 
 
-def test_moment_lookup_is_lit_in_front_of_a_flat_caster_and_dark_far_behind_it():
+def test_moment_lookup_is_lit_in_front_of_a_flat_caster_and_dark_far_behind_it(device):
     depth = np.full((1, 16, 16), 10.0, np.float32)
     coords = np.full((1, 2, 2), 8 * UNIT + 77)
     receiver = np.array([[9.0, 30.0]], np.float32)
     for method in MOMENT_FILTERS:
-        moments = blur_moments(moment_maps(depth, span=40.0, method=method, exponents=EXPONENTS), radius=1)
+        moments = blur_moments(moment_maps(depth, span=40.0, method=method, exponents=EXPONENTS, device=device),
+                               radius=1, device=device)
         lit = moment_lookup(moments, coords, receiver, cascade=np.zeros(2, np.int32), method=method, span=40.0,
-                            bits=BITS, exponents=EXPONENTS, min_variance=1e-6)
+                            bits=BITS, exponents=EXPONENTS, min_variance=1e-6, device=device)
         assert lit[0] == 1.0, method
         assert lit[1] < 0.01, method
 
 
-def test_blur_moves_with_the_map():
+def test_blur_moves_with_the_map(device):
     # A whole-texel shift of the map shifts the blurred moments by the same texels (away from the edges).
     rng = np.random.default_rng(2)
     depth = rng.uniform(0, 30, (1, 32, 32)).astype(np.float32)
-    a = blur_moments(moment_maps(depth, span=30.0, method="evsm4", exponents=EXPONENTS), radius=3)
+    a = blur_moments(moment_maps(depth, span=30.0, method="evsm4", exponents=EXPONENTS, device=device), radius=3,
+                     device=device)
     b = blur_moments(moment_maps(np.roll(depth, (2, -3), axis=(1, 2)), span=30.0, method="evsm4",
-                                 exponents=EXPONENTS), radius=3)
+                                 exponents=EXPONENTS, device=device), radius=3, device=device)
     np.testing.assert_array_equal(np.roll(a, (2, -3), axis=(1, 2))[:, 8:24, 8:24], b[:, 8:24, 8:24])
 
 
@@ -130,10 +132,10 @@ def ref_chain(level0, origin, max_lod):
 
 
 @pytest.mark.parametrize("origin", [[[0, 0], [0, 0]], [[5, -3], [-8, 13]]])
-def test_mip_chain_equals_a_numpy_box_downsample_on_the_global_texel_grid(origin):
+def test_mip_chain_equals_a_numpy_box_downsample_on_the_global_texel_grid(origin, device):
     rng = np.random.default_rng(4)
     moments = rng.uniform(0.0, 1.0, (2, 20, 20, 4)).astype(np.float32)
-    chain = moment_mip_chain(moments, origin_texels=np.array(origin), max_lod=3)
+    chain = moment_mip_chain(moments, origin_texels=np.array(origin), max_lod=3, device=device)
     expected = ref_chain(moments, origin, 3)
     assert [level.shape for level in chain] == [(2, 20, 20, 4), (2, 11, 11, 4), (2, 6, 6, 4), (2, 4, 4, 4)]
     for level, want in zip(chain, expected):
@@ -222,7 +224,7 @@ def test_trilinear_and_anisotropic_lookup_equal_a_numpy_reference(method, anisot
     np.testing.assert_allclose(lit, expected, atol=1e-5)
 
 
-def test_a_footprint_under_one_texel_is_the_bilinear_lookup_of_level_zero():
+def test_a_footprint_under_one_texel_is_the_bilinear_lookup_of_level_zero(device):
     rng = np.random.default_rng(3)
     depth = rng.uniform(0.0, 30.0, (2, 32, 32)).astype(np.float32)
     moments = blur_moments(moment_maps(depth, span=30.0, method="evsm2", exponents=EXPONENTS), radius=2)
@@ -231,7 +233,7 @@ def test_a_footprint_under_one_texel_is_the_bilinear_lookup_of_level_zero():
     receiver = rng.uniform(0.0, 33.0, (2, 64)).astype(np.float32)
     cascade = rng.integers(0, 2, 64).astype(np.int32)
     small = rng.uniform(-0.6, 0.6, (64, 2))
-    args = dict(cascade=cascade, method="evsm2", span=30.0, bits=BITS, exponents=EXPONENTS)
+    args = dict(cascade=cascade, method="evsm2", span=30.0, bits=BITS, exponents=EXPONENTS, device=device)
     np.testing.assert_array_equal(
         moment_mip_lookup(chain, coords, receiver, origin_texels=np.array([[3, 1], [-6, 9]]), ddx=small,
                           ddy=small * 0.5, **args),

@@ -77,28 +77,29 @@ def compare_with_reference(frame, boxes, *, footprints):
     return frame.shadow.lit[keep][far], frame.view.reference[keep][far]
 
 
-def test_filter_none_without_bias_equals_the_reference_away_from_the_shadow_boundary():
+def test_filter_none_without_bias_equals_the_reference_away_from_the_shadow_boundary(device):
     # Under a light straight down every horizontal receiver has the depth of its texel centre, so
     # zero bias is exact there; walls lie on the boundary and are left out with it.
     settings = ShadowSettings(cascades=2, resolution=256, shadow_distance=40.0, filter="none", bias_constant=0.0,
                               bias_slope=0.0, normal_offset=0.0)
-    frame = render_frame(scene_of(BOXES), camera(96, 64), [0.0, -1.0, 0.0], settings, width=96, height=64)
+    frame = render_frame(scene_of(BOXES), camera(96, 64), [0.0, -1.0, 0.0], settings, width=96, height=64,
+                         device=device)
     lit, reference = compare_with_reference(frame, BOXES, footprints=1.0)
     assert lit.size > 3000 and np.sum(reference == 0) > 100
     np.testing.assert_array_equal(lit, reference)
 
 
-def test_default_bias_equals_the_reference_away_from_the_shadow_boundary_under_an_oblique_light():
+def test_default_bias_equals_the_reference_away_from_the_shadow_boundary_under_an_oblique_light(device):
     settings = ShadowSettings(cascades=3, resolution=512, shadow_distance=40.0, filter="none")
     light = direction_from_angles(elevation_deg=40.0, azimuth_deg=-150.0)
-    frame = render_frame(scene_of(BOXES), camera(96, 64), light, settings, width=96, height=64)
+    frame = render_frame(scene_of(BOXES), camera(96, 64), light, settings, width=96, height=64, device=device)
     lit, reference = compare_with_reference(frame, BOXES, footprints=2.0)
     assert lit.size > 3000 and np.sum(reference == 0) > 1000
     np.testing.assert_array_equal(lit, reference)
 
 
 @pytest.mark.parametrize("filter,size", [("pcf", 3), ("pcf", 5), ("pcf_bilinear", 1)])
-def test_filtered_shadow_is_monotone_across_a_straight_shadow_edge(filter, size):
+def test_filtered_shadow_is_monotone_across_a_straight_shadow_edge(filter, size, device):
     # A roof at y = 3 over x < 0 casts a half-plane shadow with one straight edge on the ground.
     scene = scene_of([], quads=[(-40.0, 0.0, 3.0, -40.0, 40.0)])
     light = direction_from_angles(elevation_deg=50.0, azimuth_deg=30.0)
@@ -108,7 +109,7 @@ def test_filtered_shadow_is_monotone_across_a_straight_shadow_edge(filter, size)
     settings = ShadowSettings(cascades=1, resolution=256, shadow_distance=20.0, filter=filter, filter_size=size,
                               bias_slope=radius + 1.0)
     pose = camera(32, 32, eye=(4.0, 2.0, 10.0), target=(2.0, 0.0, 0.0))
-    frame = render_frame(scene, pose, light, settings, width=32, height=32)
+    frame = render_frame(scene, pose, light, settings, width=32, height=32, device=device)
     cascades = frame.maps.cascades
     right, up, d = cascades.basis
     # The edge seen from the light runs along the world z axis; step across it along its normal
@@ -126,7 +127,7 @@ def test_filtered_shadow_is_monotone_across_a_straight_shadow_edge(filter, size)
     assert np.allclose(points[:, 1], 0.0, atol=1e-9)
     normals = np.tile(np.float32([0.0, 1.0, 0.0]), (points.shape[0], 1))
     result = lookup_shadow(frame.maps, points=points, normals=normals, view_depth=pose.view_depth(points),
-                           settings=settings)
+                           settings=settings, device=device)
     assert np.all(result.cascade == 0)
     lit = result.lit
     assert lit[0] == 0.0 and lit[-1] == 1.0
@@ -146,8 +147,8 @@ def scattered_boxes(seed: int):
 
 
 @pytest.mark.parametrize("stabilization", ["exact", "none"])
-def test_exact_stabilization_keeps_S_bit_identical_at_fixed_points_when_the_camera_moves(stabilization):
-    dscene = prepare_scene(scene_of(scattered_boxes(3), plane_half=60.0))
+def test_exact_stabilization_keeps_S_bit_identical_at_fixed_points_when_the_camera_moves(stabilization, device):
+    dscene = prepare_scene(scene_of(scattered_boxes(3), plane_half=60.0), device=device)
     light = direction_from_angles(elevation_deg=35.0, azimuth_deg=120.0)
     settings = ShadowSettings(cascades=3, resolution=256, shadow_distance=50.0, stabilization=stabilization,
                               filter="pcf", filter_size=3)
@@ -158,7 +159,7 @@ def test_exact_stabilization_keeps_S_bit_identical_at_fixed_points_when_the_came
     g = current.view.gbuffer
     points = g.position[g.valid]
     earlier = lookup_shadow(previous.maps, points=points, normals=g.normal[g.valid],
-                            view_depth=before.view_depth(points), settings=settings)
+                            view_depth=before.view_depth(points), settings=settings, device=device)
     now = current.shadow.lit[g.valid]
     same = (earlier.cascade == current.shadow.cascade[g.valid]) & (earlier.cascade >= 0)
     assert same.sum() > 1000 and 0.05 < np.mean(now[same] < 1.0) < 0.95

@@ -175,7 +175,7 @@ def test_unknown_names_list_the_valid_ones():
 
 
 @pytest.mark.parametrize("offset", [(0.0, 0.0, 0.0), (2e5, 0.0, -1e5)], ids=["origin", "far"])
-def test_moving_the_box_by_whole_texels_keeps_S_bit_identical_at_fixed_receivers(offset):
+def test_moving_the_box_by_whole_texels_keeps_S_bit_identical_at_fixed_receivers(offset, device):
     rng = np.random.default_rng(23)
     resolution, texel = 1100, 0.0371
     shifts = np.array([[0, 0], [1000, -1000], [-999, 7], [3, 1]])
@@ -194,7 +194,8 @@ def test_moving_the_box_by_whole_texels_keeps_S_bit_identical_at_fixed_receivers
     vertices = np.concatenate([corners, depth], axis=-1).reshape(-1, 3) @ basis
     triangles = np.arange(18000).reshape(-1, 3)
     points = np.stack([fixed_point_coordinates(cs, c, vertices, bits=BITS) for c in range(4)])
-    maps, _ = rasterize_depth(points, light_depth(cs, vertices), triangles, resolution=resolution, bits=BITS)
+    maps, _ = rasterize_depth(points, light_depth(cs, vertices), triangles, resolution=resolution, bits=BITS,
+                              device=device)
     # Receivers on the casters (random barycentrics), with their normals.
     w = rng.dirichlet(np.ones(3), 6000)
     v = vertices[triangles]
@@ -209,7 +210,7 @@ def test_moving_the_box_by_whole_texels_keeps_S_bit_identical_at_fixed_receivers
             one = CascadeSet(basis=cs.basis, zref=cs.zref, splits=cs.splits[:2], cascades=(cs.cascades[c],),
                              margin_texels=3)
             results.append(lookup_shadow(ShadowMaps(one, maps[c:c + 1], 0), points=receivers, normals=normals,
-                                         view_depth=np.ones(6000), settings=settings))
+                                         view_depth=np.ones(6000), settings=settings, device=device))
         for c in range(1, 4):
             both = (results[0].cascade == 0) & (results[c].cascade == 0)
             assert both.sum() > 50
