@@ -36,6 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from csmlab.cascades.bounds import BOUNDS_METHODS
 from csmlab.cascades.splits import split_distances
 from csmlab.lookup_choices import FILTER_METHODS
 from csmlab.registry import dispatch
@@ -102,7 +103,7 @@ def _common_lacking(settings: ShadowSettings, *, stable: str) -> list[str]:
         # The engines below give every cascade one size; the largest keeps the nearest cascades as sharp.
         lacking.append(f"cascade_resolutions = {list(settings.cascade_resolutions)} (one size for every cascade: "
                        f"{max(settings.cascade_resolutions)} written)")
-    if settings.bounds != "frustum":
+    if BOUNDS_METHODS[settings.bounds].visible:
         lacking.append(f"bounds = {settings.bounds!r} (splits over the visible depth range need the engine's "
                        f"depth readback)")
     if settings.depth_format != "float32":
