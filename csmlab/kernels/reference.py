@@ -357,16 +357,13 @@ def ray_table_columns_kernel(
 
 
 @wp.func
-def rays_within(rect: wp.vec4, slack: wp.float64, grid: RayGrid, table: wp.array(dtype=wp.int32)) -> bool:
+def rays_within(rect: wp.vec4, slack: wp.float64, origin: wp.vec2d, inv_side: wp.float64, nx: int, ny: int,
+                table: wp.array(dtype=wp.int32)) -> bool:
     """Whether a coarse cell that light-space rectangle ``rect`` (float32, widened by ``slack``) reaches holds rays.
 
     The cells are those of the rectangle's grid coordinates widened by ``MARGIN``, as a triangle
     within it reaches no others (:func:`block_triangle`).
     """
-    origin = grid.origin
-    inv_side = grid.inv_side
-    nx = grid.nx
-    ny = grid.ny
     c0 = grid_cell((wp.float64(rect[0]) - slack - origin[0]) * inv_side - MARGIN, nx)
     c1 = grid_cell((wp.float64(rect[2]) + slack - origin[0]) * inv_side + MARGIN, nx) + 1
     r0 = grid_cell((wp.float64(rect[1]) - slack - origin[1]) * inv_side - MARGIN, ny)
@@ -376,18 +373,18 @@ def rays_within(rect: wp.vec4, slack: wp.float64, grid: RayGrid, table: wp.array
 
 
 @wp.func
-def reaches_rays(rect: wp.vec4, slack: wp.float64, rays: BinnedRays) -> bool:
+def reaches_rays(rect: wp.vec4, slack: wp.float64, bounds: wp.array(dtype=wp.float64), origin: wp.vec2d,
+                 inv_side: wp.float64, nx: int, ny: int, table: wp.array(dtype=wp.int32)) -> bool:
     """Whether light-space rectangle ``rect`` (float32, widened by ``slack`` beyond its rounding) may hold a start.
 
     First against the starts' rectangle ``bounds``; then, for the rest, against the coarse cells
     with rays (:func:`rays_within`): the starts' rectangle holds the view's footprint and the gaps in it.
     """
-    bounds = rays.bounds
     if wp.float64(rect[2]) + slack < bounds[0] or wp.float64(rect[0]) - slack > bounds[2]:
         return False
     if wp.float64(rect[3]) + slack < bounds[1] or wp.float64(rect[1]) - slack > bounds[3]:
         return False
-    return rays_within(rect, slack, rays.grid, rays.table)
+    return rays_within(rect, slack, origin, inv_side, nx, ny, table)
 
 
 @wp.kernel
@@ -498,24 +495,31 @@ def strip_extent(p: wp.vec2d, q: wp.vec2d, du_dv: wp.float64, v_lo: wp.float64, 
 
 
 @wp.func
-def block_triangle(t: int, scene: LightTriangles, rays: BinnedRays, max_t: wp.float64, lit: wp.array(dtype=wp.float32)):
+def block_triangle(
+    t: int,
+    light: wp.array(dtype=wp.vec3d),
+    triangles: wp.array2d(dtype=wp.int32),
+    box: wp.array(dtype=wp.vec4),
+    slack: wp.float64,
+    sorted_start: wp.array(dtype=wp.vec3d),
+    origin: wp.vec2d,
+    inv_side: wp.float64,
+    nx: int,
+    ny: int,
+    sub: wp.array(dtype=wp.int32),
+    offset: wp.array(dtype=wp.int32),
+    first: wp.array(dtype=wp.int32),
+    bounds: wp.array(dtype=wp.float64),
+    max_t: wp.float64,
+    table: wp.array(dtype=wp.int32),
+    sorted_ray: wp.array(dtype=wp.int32),
+    lit: wp.array(dtype=wp.float32),
+):
     """Triangle ``t``: shadow every ray whose start it covers in light space, nearer the light within ``max_t``."""
     # Most triangles reach no start: their float32 rectangle (read in sequence) says so before any
     # vertex is gathered.
-    if not reaches_rays(scene.box[t], scene.slack, rays):
+    if not reaches_rays(box[t], slack, bounds, origin, inv_side, nx, ny, table):
         return
-    light = scene.light
-    triangles = scene.triangles
-    bounds = rays.bounds
-    origin = rays.grid.origin
-    inv_side = rays.grid.inv_side
-    nx = rays.grid.nx
-    ny = rays.grid.ny
-    sub = rays.sub
-    offset = rays.offset
-    first = rays.first
-    sorted_start = rays.start
-    sorted_ray = rays.ray
     a = light[triangles[t, 0]]
     b = light[triangles[t, 1]]
     c = light[triangles[t, 2]]
@@ -629,14 +633,33 @@ def block_kernel(
     do not depend on which triangle wrote first.
     """
     k = phase + wp.tid() * stride
+    # The structs' fields as locals: the functions below run per triangle, and a struct passed to
+    # them would be copied each time (Warp passes structs by value).
+    light = scene.light
+    triangles = scene.triangles
+    box = scene.box
+    slack = scene.slack
+    grid = rays.grid
+    origin = grid.origin
+    inv_side = grid.inv_side
+    nx = grid.nx
+    ny = grid.ny
+    bounds = rays.bounds
+    table = rays.table
+    sorted_start = rays.start
+    sorted_ray = rays.ray
+    sub = rays.sub
+    offset = rays.offset
+    first = rays.first
     # A chunk's rectangle holds its triangles': a chunk that reaches no start is passed whole.
-    if not reaches_rays(scene.chunk_box[k], scene.slack, rays):
+    if not reaches_rays(scene.chunk_box[k], slack, bounds, origin, inv_side, nx, ny, table):
         return
     # A `while` loop: see block_triangle.
     t = k * CHUNK
-    end = wp.min(t + CHUNK, scene.triangles.shape[0])
+    end = wp.min(t + CHUNK, triangles.shape[0])
     while t < end:
-        block_triangle(t, scene, rays, max_t, lit)
+        block_triangle(t, light, triangles, box, slack, sorted_start, origin, inv_side, nx, ny, sub, offset, first,
+                       bounds, max_t, table, sorted_ray, lit)
         t += 1
 
 

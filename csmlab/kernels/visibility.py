@@ -200,6 +200,50 @@ def chunks_in_view(bvh: MeshBVH, *, eye, right, up, forward, frustum, near: floa
     return np.flatnonzero(~outside).astype(np.int32)
 
 
+@wp.struct
+class PinholeCamera:
+    """A pinhole camera as the kernels read it: its frame relative to the scene's anchor, its image plane at
+    unit view depth and its clip distances."""
+
+    eye: wp.vec3d
+    """The eye relative to the scene's anchor, metres."""
+    right: wp.vec3d
+    up: wp.vec3d
+    forward: wp.vec3d
+    """The view direction: a pixel's ray is ``forward + x·right + y·up`` on the image plane at unit depth."""
+    step_x: wp.float64
+    """Pixel width on the image plane at unit view depth."""
+    step_y: wp.float64
+    """Pixel height on the image plane at unit view depth."""
+    near: wp.float64
+    """The raster's near clip (:data:`NEAR_FRACTION` of ``far``), metres of view depth."""
+    far: wp.float64
+    """The far clip, metres of view depth."""
+    frustum: wp.vec4d
+    """The image's extent at unit depth ``(x lo, x hi, y lo, y hi)``, padded by a pixel against rounding."""
+    anchor: wp.vec3d
+    """The scene's anchor in world metres (:attr:`MeshBVH.anchor`)."""
+
+
+@wp.struct
+class CameraSpaceVertices:
+    """Every vertex in camera space and its out-code (:func:`camera_space_kernel`)."""
+
+    camera: wp.array(dtype=wp.vec3d)
+    """``(x, y, z)`` along right, up and forward relative to the eye, metres."""
+    outcode: wp.array(dtype=wp.int32)
+    """One bit per half-space of the view the vertex lies outside."""
+
+
+@wp.struct
+class ChunkRuns:
+    """One launch's triangles: chunks of ``2**chunk_bits``, a thread per run of ``2**run_bits`` of them."""
+
+    chunks: wp.array(dtype=wp.int32)
+    chunk_bits: int
+    run_bits: int
+
+
 @wp.func
 def plane_distance(n: wp.vec3d, point: wp.vec3d, origin: wp.vec3d, direction: wp.vec3d, t_max: wp.float64):
     """Ray parameter where ``origin + t·direction`` meets the plane through ``point`` with normal ``n``.
@@ -283,14 +327,7 @@ def camera_hits_kernel(
     mesh: wp.uint64,
     vertices: wp.array(dtype=wp.vec3d),
     triangles: wp.array2d(dtype=wp.int32),
-    origin: wp.vec3d,
-    right: wp.vec3d,
-    up: wp.vec3d,
-    forward: wp.vec3d,
-    step_x: wp.float64,
-    step_y: wp.float64,
-    far: wp.float64,
-    anchor: wp.vec3d,
+    pinhole: PinholeCamera,
     row0: int,
     position: wp.array2d(dtype=wp.vec3d),
     normal: wp.array2d(dtype=wp.vec3),
@@ -300,9 +337,13 @@ def camera_hits_kernel(
     """The rows ``row0 + i`` of the image (a band when the launch is split over threads)."""
     i, col = wp.tid()
     row = row0 + i
+    origin = pinhole.eye
+    forward = pinhole.forward
+    far = pinhole.far
     # Camera-space ray through the pixel centre with unit forward component, so that its ray
     # parameter is the view depth.
-    direction = forward + right * pixel_x(col, position.shape[1], step_x) + up * pixel_y(row, position.shape[0], step_y)
+    direction = (forward + pinhole.right * pixel_x(col, position.shape[1], pinhole.step_x)
+                 + pinhole.up * pixel_y(row, position.shape[0], pinhole.step_y))
     length = wp.length(direction)
     query = wp.mesh_query_ray(mesh, wp.vec3(origin), wp.vec3(direction / length), wp.float32(far * length))
     face = int(-1)
@@ -311,28 +352,25 @@ def camera_hits_kernel(
         face = query.face
         # An edge-on hit keeps the BVH's float32 distance.
         edge_on = wp.float64(query.t) / length
-    store_hit(vertices, triangles, face, origin, direction, forward, far, edge_on, anchor, row, col, position, normal,
-              triangle, view_depth)
+    store_hit(vertices, triangles, face, origin, direction, forward, far, edge_on, pinhole.anchor, row, col, position,
+              normal, triangle, view_depth)
 
 
 @wp.kernel
 def camera_space_kernel(
     vertices: wp.array(dtype=wp.vec3d),
-    origin: wp.vec3d,
-    right: wp.vec3d,
-    up: wp.vec3d,
-    forward: wp.vec3d,
-    frustum: wp.vec4d,
-    near: wp.float64,
-    far: wp.float64,
+    pinhole: PinholeCamera,
     camera: wp.array(dtype=wp.vec3d),
     outcode: wp.array(dtype=wp.int32),
 ):
     v = wp.tid()
-    p = vertices[v] - origin
-    x = wp.dot(p, right)
-    y = wp.dot(p, up)
-    z = wp.dot(p, forward)
+    near = pinhole.near
+    far = pinhole.far
+    frustum = pinhole.frustum
+    p = vertices[v] - pinhole.eye
+    x = wp.dot(p, pinhole.right)
+    y = wp.dot(p, pinhole.up)
+    z = wp.dot(p, pinhole.forward)
     camera[v] = wp.vec3d(x, y, z)
     # One bit per half-space through the eye (and the near and far planes) the vertex lies
     # outside; a triangle whose three vertices share a bit lies wholly outside that half-space,
@@ -496,28 +534,32 @@ def raster_view_triangle(
 
 @wp.kernel
 def raster_view_kernel(
-    camera: wp.array(dtype=wp.vec3d),
-    outcode: wp.array(dtype=wp.int32),
+    view: CameraSpaceVertices,
     triangles: wp.array2d(dtype=wp.int32),
-    step_x: wp.float64,
-    step_y: wp.float64,
-    near: wp.float64,
-    far: wp.float64,
+    pinhole: PinholeCamera,
     resolve: int,
-    chunks: wp.array(dtype=wp.int32),
-    chunk_bits: int,
-    run_bits: int,
+    work: ChunkRuns,
     depth: wp.array2d(dtype=wp.float64),
     nearest: wp.array2d(dtype=wp.int32),
 ):
-    """The triangles of ``chunks`` (of ``2**chunk_bits`` each), into their own ``depth`` and ``nearest`` (one pair
-    per concurrent launch).
+    """The triangles of ``work``'s chunks (of ``2**chunk_bits`` each), into their own ``depth`` and ``nearest``
+    (one pair per concurrent launch).
 
     A thread per run of ``2**run_bits`` of them: on the CPU a whole chunk, so that a thread's set-up
     serves them all; on a GPU one.
     """
+    chunk_bits = work.chunk_bits
+    run_bits = work.run_bits
+    # The structs' fields as locals: raster_view_triangle runs per triangle, and a struct passed to
+    # it would be copied each time (Warp passes structs by value).
+    camera = view.camera
+    outcode = view.outcode
+    step_x = pinhole.step_x
+    step_y = pinhole.step_y
+    near = pinhole.near
+    far = pinhole.far
     first = wp.tid() << run_bits
-    face = (chunks[first >> chunk_bits] << chunk_bits) + (first & ((1 << chunk_bits) - 1))
+    face = (work.chunks[first >> chunk_bits] << chunk_bits) + (first & ((1 << chunk_bits) - 1))
     end = wp.min(face + (1 << run_bits), triangles.shape[0])
     while face < end:
         raster_view_triangle(face, camera, outcode, triangles, step_x, step_y, near, far, resolve, depth, nearest)
@@ -530,14 +572,7 @@ def raster_hits_kernel(
     triangles: wp.array2d(dtype=wp.int32),
     nearest: wp.array3d(dtype=wp.int32),
     depth: wp.array3d(dtype=wp.float64),
-    origin: wp.vec3d,
-    right: wp.vec3d,
-    up: wp.vec3d,
-    forward: wp.vec3d,
-    step_x: wp.float64,
-    step_y: wp.float64,
-    far: wp.float64,
-    anchor: wp.vec3d,
+    pinhole: PinholeCamera,
     row0: int,
     position: wp.array2d(dtype=wp.vec3d),
     normal: wp.array2d(dtype=wp.vec3),
@@ -547,7 +582,9 @@ def raster_hits_kernel(
     """The rows ``row0 + i``: each pixel's smallest ``(depth, triangle)`` over the raster's buffers, and its hit."""
     i, col = wp.tid()
     row = row0 + i
-    direction = forward + right * pixel_x(col, position.shape[1], step_x) + up * pixel_y(row, position.shape[0], step_y)
+    forward = pinhole.forward
+    direction = (forward + pinhole.right * pixel_x(col, position.shape[1], pinhole.step_x)
+                 + pinhole.up * pixel_y(row, position.shape[0], pinhole.step_y))
     # The order of the triangles does not change a lexicographic minimum: merging the buffers of
     # any split of them gives the pixel one launch over all of them would.
     face = NO_TRIANGLE
@@ -561,8 +598,8 @@ def raster_hits_kernel(
     if face == NO_TRIANGLE:
         face = -1
     # An edge-on hit keeps the raster's camera-space depth.
-    store_hit(vertices, triangles, face, origin, direction, forward, far, t, anchor, row, col, position, normal,
-              triangle, view_depth)
+    store_hit(vertices, triangles, face, pinhole.eye, direction, forward, pinhole.far, t, pinhole.anchor, row, col,
+              position, normal, triangle, view_depth)
 
 
 def _pinhole(bvh: MeshBVH, position, rotation, fov_y_deg: float, aspect: float, far: float, width: int,
@@ -581,6 +618,19 @@ def _pinhole(bvh: MeshBVH, position, rotation, fov_y_deg: float, aspect: float, 
     tan_y = np.tan(np.radians(fov_y_deg) / 2.0)
     return (wp.vec3d(*eye), wp.vec3d(*r[:, 0]), wp.vec3d(*r[:, 1]), wp.vec3d(*(-r[:, 2])),
             float(2.0 * tan_y * aspect / width), float(2.0 * tan_y / height))
+
+
+def _pinhole_camera(bvh: MeshBVH, camera: tuple, *, far: float, frustum=None) -> PinholeCamera:
+    """The :class:`PinholeCamera` of :func:`_pinhole`'s ``camera``, clipped at ``far`` (and :data:`NEAR_FRACTION` of it)
+    with the raster's padded ``frustum`` (unset for the ray cast, which reads none)."""
+    pinhole = PinholeCamera()
+    pinhole.eye, pinhole.right, pinhole.up, pinhole.forward, pinhole.step_x, pinhole.step_y = camera
+    pinhole.near = float(NEAR_FRACTION * far)
+    pinhole.far = float(far)
+    if frustum is not None:
+        pinhole.frustum = frustum
+    pinhole.anchor = wp.vec3d(*bvh.anchor)
+    return pinhole
 
 
 def _hits_record(bvh: MeshBVH, shape: tuple[int, int], pool: LaunchPool, kernel, inputs: tuple) -> CameraHits:
@@ -604,12 +654,11 @@ def camera_hits_ray(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspec
     the raster's independent oracle in the tests. With ``threads`` > 1 on the CPU, each thread casts
     the rays of one band of rows.
     """
-    eye, right, up, forward, step_x, step_y = _pinhole(bvh, position, rotation, fov_y_deg, aspect, far, width, height)
+    pinhole = _pinhole_camera(bvh, _pinhole(bvh, position, rotation, fov_y_deg, aspect, far, width, height), far=far)
     threads = checked_threads(threads, bvh.device)
     with LaunchPool(threads, kernels=(camera_hits_kernel,), device=bvh.device) as pool:
         return _hits_record(bvh, (height, width), pool, camera_hits_kernel,
-                            (bvh.mesh.id, bvh.vertices, bvh.triangles, eye, right, up, forward, step_x, step_y,
-                             float(far), wp.vec3d(*bvh.anchor)))
+                            (bvh.mesh.id, bvh.vertices, bvh.triangles, pinhole))
 
 
 def camera_hits_raster(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspect: float, far: float, width: int,
@@ -653,18 +702,21 @@ def camera_hits_raster(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, as
     The minimum of ``(t, triangle)`` pairs does not depend on how they are grouped, so every
     ``threads`` gives the same pixels, bit for bit.
     """
-    eye, right, up, forward, step_x, step_y = _pinhole(bvh, position, rotation, fov_y_deg, aspect, far, width, height)
+    camera = _pinhole(bvh, position, rotation, fov_y_deg, aspect, far, width, height)
+    eye, right, up, forward, step_x, step_y = camera
     device = bvh.device
     threads = checked_threads(threads, device)
     atomic = device != "cpu" if atomic is None else bool(atomic)
-    near = float(NEAR_FRACTION * far)
     # The image's extent on the plane at unit depth, padded by a pixel against rounding.
     frustum = wp.vec4d(-(0.5 * width + 1.0) * step_x, (0.5 * width + 1.0) * step_x,
                        -(0.5 * height + 1.0) * step_y, (0.5 * height + 1.0) * step_y)
+    pinhole = _pinhole_camera(bvh, camera, far=far, frustum=frustum)
     vertex_count = bvh.vertices.shape[0]
-    camera = device_empty(vertex_count, wp.vec3d, device)
-    outcode = device_empty(vertex_count, wp.int32, device)
-    visible = chunks_in_view(bvh, eye=eye, right=right, up=up, forward=forward, frustum=frustum, near=near, far=far)
+    view = CameraSpaceVertices()
+    view.camera = device_empty(vertex_count, wp.vec3d, device)
+    view.outcode = device_empty(vertex_count, wp.int32, device)
+    visible = chunks_in_view(bvh, eye=eye, right=right, up=up, forward=forward, frustum=frustum, near=pinhole.near,
+                             far=far)
     parts = max(1, min(threads, len(visible)))
     depth = device_empty((parts, height, width), wp.float64, device)
     nearest = device_empty((parts, height, width), wp.int32, device)
@@ -675,24 +727,25 @@ def camera_hits_raster(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, as
         depth[k].fill_(np.inf)
         nearest[k].fill_(int(NO_TRIANGLE))
         # Launch k takes the chunks k, k + parts, …: near and far, small and large alike.
-        chunks = wp.array(visible[k::parts], dtype=wp.int32, device=device)
-        if chunks.shape[0] == 0:
+        work = ChunkRuns()
+        work.chunks = wp.array(visible[k::parts], dtype=wp.int32, device=device)
+        work.chunk_bits = chunk_bits
+        work.run_bits = run_bits
+        if work.chunks.shape[0] == 0:
             return
         for resolve in ((1, 2) if atomic else (0,)):
-            wp.launch(raster_view_kernel, dim=chunks.shape[0] << (chunk_bits - run_bits),
-                      inputs=(camera, outcode, bvh.triangles, step_x, step_y, near, float(far), resolve, chunks,
-                              chunk_bits, run_bits),
-                      outputs=(depth[k], nearest[k]), device=device)
+            wp.launch(raster_view_kernel, dim=work.chunks.shape[0] << (chunk_bits - run_bits),
+                      inputs=(view, bvh.triangles, pinhole, resolve, work), outputs=(depth[k], nearest[k]),
+                      device=device)
 
     with LaunchPool(threads, kernels=(raster_view_kernel,), device=device) as pool:
         pool.run([functools.partial(wp.launch, camera_space_kernel, dim=hi - lo,
-                                    inputs=(bvh.vertices[lo:hi], eye, right, up, forward, frustum, near, float(far)),
-                                    outputs=(camera[lo:hi], outcode[lo:hi]), device=device)
+                                    inputs=(bvh.vertices[lo:hi], pinhole),
+                                    outputs=(view.camera[lo:hi], view.outcode[lo:hi]), device=device)
                   for lo, hi in split_range(vertex_count, threads)])
         pool.run([functools.partial(rasterize, k) for k in range(parts)])
         return _hits_record(bvh, (height, width), pool, raster_hits_kernel,
-                            (bvh.vertices, bvh.triangles, nearest, depth, eye, right, up, forward, step_x, step_y,
-                             float(far), wp.vec3d(*bvh.anchor)))
+                            (bvh.vertices, bvh.triangles, nearest, depth, pinhole))
 
 
 VISIBILITY_METHODS = {"raster": camera_hits_raster, "ray": camera_hits_ray}
