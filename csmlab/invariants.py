@@ -25,11 +25,11 @@ Each condition below is one row of :data:`_CONDITIONS`; the promise holds when a
    exactly zero, only rarer (a tipped vertex changes a stored texel only where an edge passes
    that close to its centre), so ``float32`` promises nothing: a run that measures 0.0 is luck,
    not construction.
-4. **No screen-space input**: a filter that reads the receiver's screen pixel (a per-pixel rotated
-   disk: :func:`_reads_screen_pixels`, the test of :func:`csmlab.filters.uses_pixels` without
-   loading Warp into the process that writes the summary) turns with the camera, and a
-   mipmapped moment lookup (``moment_mips``) takes its level of detail and probes from the pixel
-   quad's derivatives, which change with the camera and with the cascades of neighbouring pixels.
+4. **No screen-space input**: the filter's record reads only :data:`WORLD_LOCKED_READS`
+   (:meth:`csmlab.lookup_choices.Filter.reads_of`): a disk rotated per screen pixel (``pixels``)
+   turns with the camera, and a mipmapped moment lookup (``mips``) takes its level of detail and
+   probes from the pixel quad's derivatives, which change with the camera and with the cascades of
+   neighbouring pixels.
 5. **A world-locked depth**: ``depth_range = "scene"`` (a ``slice`` box's near side follows the
    camera, and casters nearer than it are clamped onto it or clipped) in a depth format of
    :data:`WORLD_LOCKED_DEPTH_FORMATS` (quantized over the scene's fixed light-space span in
@@ -50,10 +50,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from csmlab.lookup_choices import FILTER_METHODS
 from csmlab.settings import ShadowSettings
 
-__all__ = ["FIXED_EXTENTS", "FLICKER_SAME_ZERO", "Promise", "WHOLE_TEXEL_SNAPS", "WORLD_LOCKED_DEPTH_FORMATS",
-           "WorkloadFacts", "promised_invariants", "summary_invariants"]
+__all__ = ["FIXED_EXTENTS", "FLICKER_SAME_ZERO", "Promise", "SCREEN_READS", "WHOLE_TEXEL_SNAPS",
+           "WORLD_LOCKED_DEPTH_FORMATS", "WORLD_LOCKED_READS", "WorkloadFacts", "promised_invariants",
+           "summary_invariants"]
 
 FLICKER_SAME_ZERO = "flicker_same_zero"
 """The name of the one invariant: ``flicker_same`` is exactly 0.0."""
@@ -67,6 +69,15 @@ WHOLE_TEXEL_SNAPS = ("origin", "centre", "view")
 
 WORLD_LOCKED_DEPTH_FORMATS = ("float32", "unorm24", "unorm16")
 """``depth_format`` choices whose stored levels are fixed per light and scene (:mod:`csmlab.storage`)."""
+
+WORLD_LOCKED_READS = ("depth", "moments")
+"""What a filter may read (:attr:`csmlab.lookup_choices.Filter.reads`) and keep the promise: texels of the maps."""
+
+SCREEN_READS = {
+    "pixels": "each receiver's screen pixel, so its taps turn with the camera",
+    "mips": "the moments' mips at a level of detail from each receiver's pixel quad, which follows the camera",
+}
+"""What a filter may read that follows the screen, and why it breaks the promise."""
 
 
 @dataclass(frozen=True)
@@ -110,9 +121,14 @@ class Promise:
         return {"promised": self.promised, "metric": self.metric, "value": self.value, "why": self.why}
 
 
-def _reads_screen_pixels(settings: ShadowSettings) -> bool:
-    """The filter reads each receiver's screen pixel: a Poisson disk rotated per pixel."""
-    return settings.filter == "pcf_poisson" and settings.poisson_rotation == "pixel"
+def _screen_reads(settings: ShadowSettings) -> list[str]:
+    """What the filter reads under ``settings`` beyond :data:`WORLD_LOCKED_READS`, sorted."""
+    return sorted(FILTER_METHODS[settings.filter].reads_of(settings) - set(WORLD_LOCKED_READS))
+
+
+def _screen_reads_text(settings: ShadowSettings) -> str:
+    reads = [SCREEN_READS.get(read, f"{read}, not known to be world-locked") for read in _screen_reads(settings)]
+    return f"filter = {settings.filter!r} reads " + " and ".join(reads)
 
 
 @dataclass(frozen=True)
@@ -138,11 +154,7 @@ _CONDITIONS = (
     _Condition(lambda s, w: s.engine_precision == "float64",
                lambda s, w: f"engine_precision = {s.engine_precision!r}: the light view is rounded at each box's "
                             "centre, so a whole-texel move can tip a fixed-point rounding"),
-    _Condition(lambda s, w: not _reads_screen_pixels(s),
-               lambda s, w: f"filter = {s.filter!r} with poisson_rotation = {s.poisson_rotation!r}: the disk turns "
-                            "with the screen pixel, not the world"),
-    _Condition(lambda s, w: not s.moment_mips,
-               lambda s, w: "moment_mips: the level of detail follows the pixel quads' derivatives"),
+    _Condition(lambda s, w: not _screen_reads(s), lambda s, w: _screen_reads_text(s)),
     _Condition(lambda s, w: s.depth_range == "scene",
                lambda s, w: f"depth_range = {s.depth_range!r}: the box's near side follows the camera, and casters "
                             "in front of it are clamped or clipped there"),

@@ -17,9 +17,8 @@ from csmlab.cascades.stabilize import SNAP_METHODS
 from csmlab.cli import app
 from csmlab.config import load_experiment
 from csmlab.experiment import run_experiment
-from csmlab.filters import uses_pixels
-from csmlab.invariants import (FIXED_EXTENTS, FLICKER_SAME_ZERO, WHOLE_TEXEL_SNAPS, WORLD_LOCKED_DEPTH_FORMATS,
-                               WorkloadFacts, _reads_screen_pixels, promised_invariants)
+from csmlab.invariants import (FIXED_EXTENTS, FLICKER_SAME_ZERO, SCREEN_READS, WHOLE_TEXEL_SNAPS,
+                               WORLD_LOCKED_DEPTH_FORMATS, WORLD_LOCKED_READS, WorkloadFacts, promised_invariants)
 from csmlab.lookup_choices import FILTER_METHODS
 from csmlab.settings import ShadowSettings
 from csmlab.storage import DEPTH_FORMATS
@@ -73,8 +72,8 @@ def test_exact_with_a_fixed_extent_float64_and_a_world_locked_lookup_promises_ze
     ({"stabilization": "none"}, STILL, "stabilization = 'none'"),
     ({"bounds": "sdsm"}, STILL, "bounds = 'sdsm'"),
     ({"engine_precision": "float32"}, STILL, "engine_precision = 'float32'"),
-    ({"filter": "pcf_poisson", "filter_size": 5, "poisson_rotation": "pixel"}, STILL, "poisson_rotation = 'pixel'"),
-    ({"filter": "vsm", "moment_mips": True}, STILL, "moment_mips"),
+    ({"filter": "pcf_poisson", "filter_size": 5, "poisson_rotation": "pixel"}, STILL, "screen pixel"),
+    ({"filter": "vsm", "moment_mips": True}, STILL, "pixel quad"),
     ({"depth_range": "slice", "pancake": 20.0}, STILL, "depth_range = 'slice'"),
     ({"depth_range": "slice", "depth_clamp": False}, STILL, "depth_range = 'slice'"),
 ])
@@ -89,18 +88,21 @@ def test_every_failing_condition_is_named():
 
 
 def test_the_promises_choices_are_reviewed_against_every_registered_choice():
-    """A snap, extent or depth format added to its registry fails here until it is judged world-locked or not."""
+    """A snap, extent, depth format or filter input added fails here until it is judged world-locked or not."""
     assert set(WHOLE_TEXEL_SNAPS) == set(SNAP_METHODS)
     assert set(FIXED_EXTENTS) == set(EXTENT_METHODS)
     assert set(WORLD_LOCKED_DEPTH_FORMATS) == set(DEPTH_FORMATS)
+    reads = set()
+    for record in FILTER_METHODS.values():
+        for rotation in ("none", "pixel"):
+            for mips in (False, True):
+                reads |= record.reads_of(ShadowSettings(poisson_rotation=rotation, moment_mips=mips))
+    assert reads == set(WORLD_LOCKED_READS) | set(SCREEN_READS)
 
 
 @pytest.mark.parametrize("filter", sorted(FILTER_METHODS))
-@pytest.mark.parametrize("rotation", ["none", "pixel"])
-def test_the_screen_pixel_test_is_the_lookups(filter, rotation):
-    settings = ShadowSettings(filter=filter, filter_size=5, poisson_rotation=rotation)
-    assert _reads_screen_pixels(settings) == uses_pixels(settings)
-
+def test_every_filter_without_screen_input_keeps_the_promise(filter):
+    assert promise(ShadowSettings(filter=filter, filter_size=5)).promised
 
 @pytest.fixture(scope="module")
 def godot4_run(tmp_path_factory):
@@ -116,7 +118,7 @@ def test_the_run_records_each_methods_promise_and_why(godot4_run):
     (godot4,) = recorded["godot4"].values()
     (exact,) = recorded["exact"].values()
     assert not godot4[FLICKER_SAME_ZERO]["promised"] and exact[FLICKER_SAME_ZERO]["promised"]
-    assert "poisson_rotation = 'pixel'" in godot4[FLICKER_SAME_ZERO]["why"]
+    assert "filter = 'pcf_poisson' reads each receiver's screen pixel" in godot4[FLICKER_SAME_ZERO]["why"]
     assert "depth_range = 'slice'" in godot4[FLICKER_SAME_ZERO]["why"]
 
 
