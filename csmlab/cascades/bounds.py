@@ -23,6 +23,7 @@ Light depth, :data:`DEPTH_RANGE_METHODS` (``[shadow] depth_range``), the box's e
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,7 +31,7 @@ import numpy as np
 from csmlab.registry import check_name
 
 __all__ = ["BOUNDS_METHODS", "Bounds", "DEPTH_RANGE_METHODS", "DepthRange", "held_depth_ranges",
-           "split_range", "visible_depth_range"]
+           "scene_box_depth", "slice_box_depth", "split_range", "visible_depth_range"]
 
 
 @dataclass(frozen=True)
@@ -57,6 +58,17 @@ BOUNDS_METHODS: dict[str, Bounds] = {
 """View-depth ranges the splits divide, by name."""
 
 
+def scene_box_depth(slice_depth: np.ndarray, scene_depth: np.ndarray, *, pancake: float) -> tuple[float, float]:
+    """``scene``: the slice's light-depth range widened to the scene's, so every caster in the box's
+    x/y range is captured whatever the slice's own depth range is (``pancake`` plays no part)."""
+    return float(min(slice_depth.min(), scene_depth.min())), float(max(slice_depth.max(), scene_depth.max()))
+
+
+def slice_box_depth(slice_depth: np.ndarray, scene_depth: np.ndarray, *, pancake: float) -> tuple[float, float]:
+    """``slice``: the slice's own light-depth range, its near side pulled ``pancake`` metres toward the light."""
+    return float(slice_depth.min() - pancake), float(slice_depth.max())
+
+
 @dataclass(frozen=True)
 class DepthRange:
     """A light-depth range of a cascade's box.
@@ -64,20 +76,24 @@ class DepthRange:
     Attributes
     ----------
     description : str
+    box_depth : callable
+        ``box_depth(slice_depth, scene_depth, *, pancake) -> (near, far)``: the box's near and far
+        light depth in metres from the light depths of the slice's corners and of the scene's bounds.
     cuts_casters : bool
         The box's near side may lie behind casters: they are flattened onto it (``depth_clamp``,
         pancaking) or clipped away. False: every caster lies behind the near side.
     """
 
     description: str
+    box_depth: Callable[..., tuple[float, float]]
     cuts_casters: bool
 
 
 DEPTH_RANGE_METHODS: dict[str, DepthRange] = {
     "scene": DepthRange("box near side pushed toward the light to the scene bounds (every caster captured)",
-                        cuts_casters=False),
+                        scene_box_depth, cuts_casters=False),
     "slice": DepthRange("box depth from the slice only, near side pulled `pancake` metres toward the light",
-                        cuts_casters=True),
+                        slice_box_depth, cuts_casters=True),
 }
 """Light-depth ranges of a cascade's box, by name."""
 

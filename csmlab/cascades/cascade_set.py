@@ -178,14 +178,8 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
         texel, origin = stabilize(footprint, method=settings.stabilization, resolution=resolution,
                                   margin=margin, levels=settings.levels, quantized_base=settings.quantized_base,
                                   snap=settings.snap, held_extent=None if held_extents is None else held_extents[i])
-        if settings.depth_range == "scene":
-            # The near side is pushed toward the light to the scene's bounds, so every caster in the
-            # box's x/y range is captured whatever the slice's own depth range is.
-            depth_near = float(min(corners[:, 2].min(), scene_light[:, 2].min()))
-            depth_far = float(max(corners[:, 2].max(), scene_light[:, 2].max()))
-        else:
-            depth_near = float(corners[:, 2].min() - settings.pancake)
-            depth_far = float(corners[:, 2].max())
+        depth_near, depth_far = DEPTH_RANGE_METHODS[settings.depth_range].box_depth(
+            corners[:, 2], scene_light[:, 2], pancake=settings.pancake)
         cascades.append(Cascade(
             split_near=float(splits[i]), split_far=float(splits[i + 1]), slice_near=float(z0), slice_far=float(z1),
             texel_size=texel, origin=origin, resolution=resolution, depth_near=depth_near,
