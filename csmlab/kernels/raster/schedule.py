@@ -37,7 +37,7 @@ def _checked_resolution(resolution) -> int:
 def _checked_paths(paths) -> TrianglePaths:
     if paths is None:
         return triangle_paths()
-    if getattr(paths, "_cls", None) is not TrianglePaths:
+    if not isinstance(paths, TrianglePaths.cls):
         raise ValueError(f"paths: expected a TrianglePaths (triangle_paths) or None, got {type(paths).__name__}")
     return paths
 
