@@ -147,8 +147,8 @@ class ShadowSettings:
         need(self.shadow_distance > 0, "shadow_distance", "a positive distance in metres", self.shadow_distance)
         need(isinstance(self.levels, int) and self.levels >= 1, "levels", "a positive integer", self.levels)
         need(self.quantized_base in ("sphere", "frustum"), "quantized_base", "sphere or frustum", self.quantized_base)
-        need(isinstance(self.filter_size, int) and self.filter_size >= 1 and self.filter_size % 2 == 1,
-             "filter_size", "an odd positive integer", self.filter_size)
+        need(isinstance(self.filter_size, int) and 1 <= self.filter_size <= 63 and self.filter_size % 2 == 1,
+             "filter_size", "an odd integer in 1..63", self.filter_size)
         need(self.bias_constant >= 0, "bias_constant", "a non-negative distance in metres", self.bias_constant)
         need(self.bias_slope >= 0, "bias_slope", "a non-negative number of texels", self.bias_slope)
         need(self.normal_offset >= 0, "normal_offset", "a non-negative number of texels", self.normal_offset)
@@ -163,8 +163,8 @@ class ShadowSettings:
              self.poisson_seed)
         need(self.poisson_rotation in ("none", "pixel"), "poisson_rotation", "none or pixel", self.poisson_rotation)
         need(0.0 < self.light_size_deg < 90.0, "light_size_deg", "an angle in (0, 90) degrees", self.light_size_deg)
-        need(isinstance(self.moment_blur, int) and self.moment_blur >= 1 and self.moment_blur % 2 == 1, "moment_blur",
-             "an odd positive integer", self.moment_blur)
+        need(isinstance(self.moment_blur, int) and 1 <= self.moment_blur <= 63 and self.moment_blur % 2 == 1,
+             "moment_blur", "an odd integer in 1..63", self.moment_blur)
         need(len(self.evsm_exponents) == 2 and all(0 < c <= 44 for c in self.evsm_exponents), "evsm_exponents",
              "two exponents in (0, 44] (e^(2c) must fit float32)", self.evsm_exponents)
         need(self.vsm_min_variance >= 0, "vsm_min_variance", "a non-negative variance", self.vsm_min_variance)
@@ -188,8 +188,8 @@ class ShadowSettings:
              f"{self.cascades} integers in 16..16384 (one per cascade) or an empty list", self.cascade_resolutions)
         need(isinstance(self.subtexel_bits, int) and 0 <= self.subtexel_bits <= 16, "subtexel_bits",
              "an integer in 0..16", self.subtexel_bits)
-        need(self.distribution_exponent >= 1.0, "distribution_exponent", "a ratio of at least 1",
-             self.distribution_exponent)
+        need(1.0 <= self.distribution_exponent <= 100.0, "distribution_exponent",
+             "a ratio of at least 1 and at most 100", self.distribution_exponent)
         need(self.first_cascade_far > 0, "first_cascade_far", "a positive distance in metres", self.first_cascade_far)
         need(self.pancake >= 0, "pancake", "a non-negative distance in metres", self.pancake)
         need(isinstance(self.depth_clamp, bool), "depth_clamp", "true or false", self.depth_clamp)

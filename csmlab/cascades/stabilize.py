@@ -25,8 +25,8 @@ import numpy as np
 
 from csmlab.registry import check_name, dispatch
 
-__all__ = ["QUANTIZED_BASES", "SNAP_METHODS", "STABILIZATION_METHODS", "SliceFootprint", "held_extents", "stabilize",
-           "stabilize_exact", "stabilize_none", "stabilize_quantized"]
+__all__ = ["QUANTIZED_BASES", "SNAP_METHODS", "STABILIZATION_METHODS", "SliceFootprint", "check_resolution",
+           "held_extents", "stabilize", "stabilize_exact", "stabilize_none", "stabilize_quantized"]
 
 
 @dataclass(frozen=True)
@@ -193,6 +193,20 @@ STABILIZATION_METHODS: dict[str, Callable[..., tuple[np.ndarray, np.ndarray]]] =
 """Stabilization methods by name: ``f(footprint, *, resolution, margin, levels, quantized_base, snap)``."""
 
 
+def check_resolution(resolution: int, *, margin: int, method: str, snap: str = "origin") -> None:
+    """Raise ``ValueError("resolution: …")`` unless a box of ``resolution`` texels leaves texels inside its margins.
+
+    Every method needs ``R - 2m - 3 ≥ 1`` (the snap's spare texel and the rounding of the extent);
+    ``exact`` with ``snap = "view"`` moves its centre in 4-texel steps: ``R // 2 - m - 4 ≥ 1``.
+    """
+    if resolution - 2 * margin - 3 < 1:
+        raise ValueError(f"resolution: expected more than {2 * margin + 3} texels for a {margin}-texel margin, "
+                         f"got {resolution}")
+    if method == "exact" and snap == "view" and resolution // 2 - margin - 4 < 1:
+        raise ValueError(f"resolution: expected more than {2 * margin + 9} texels for snap = \"view\" with a "
+                         f"{margin}-texel margin, got {resolution}")
+
+
 def stabilize(fp: SliceFootprint, *, method: str, resolution: int, margin: int, levels: int = 64,
               quantized_base: str = "sphere", snap: str = "origin", held_extent=None) -> tuple[np.ndarray, np.ndarray]:
     """Texel size ``(2,)`` in metres and box origin ``(2,)`` in texels of one cascade.
@@ -206,11 +220,7 @@ def stabilize(fp: SliceFootprint, *, method: str, resolution: int, margin: int, 
         texel inside the margins.
     """
     check_name(method, STABILIZATION_METHODS, field="stabilization")
-    if resolution - 2 * margin - 3 < 1:
-        raise ValueError(f"resolution: expected more than {2 * margin + 3} texels for a {margin}-texel margin, got {resolution}")
-    if method == "exact" and snap == "view" and resolution // 2 - margin - 4 < 1:
-        raise ValueError(f"resolution: expected more than {2 * margin + 9} texels for snap = \"view\" with a "
-                         f"{margin}-texel margin, got {resolution}")
+    check_resolution(resolution, margin=margin, method=method, snap=snap)
     return dispatch(STABILIZATION_METHODS, method, fp, field="stabilization", resolution=resolution, margin=margin,
                     offered={"levels": levels, "quantized_base": quantized_base, "snap": snap,
                              "held_extent": held_extent})

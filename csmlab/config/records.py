@@ -110,7 +110,7 @@ class CameraConfig(_Checked):
     """Image height in pixels."""
     fov_y_deg: float = field(default=60.0, metadata=_expect(lambda x: 0 < x < 180, "an angle in (0, 180) degrees"))
     """Vertical field of view, degrees."""
-    near: float = field(default=0.1, metadata=_expect(_positive, "a positive distance in metres"))
+    near: float = field(default=0.1, metadata=_expect(lambda x: x >= 1e-6, "a distance of at least 1e-6 metres"))
     """Near clip distance, metres."""
     far: float = field(default=400.0, metadata=_expect(_positive, "a positive distance in metres"))
     """Far clip distance, metres."""

@@ -304,26 +304,44 @@ def _checked_settings(settings: ShadowSettings, *, where_of, located: _Located,
     if settings.split == "geometric" and settings.cascades > 1 and settings.first_cascade_far >= settings.shadow_distance:
         raise located.error(where_of("first_cascade_far"), f"expected a distance below shadow_distance "
                                                            f"({settings.shadow_distance} m), got {settings.first_cascade_far}")
-    if settings.split == "manual":
-        _manual_splits(settings, camera, where=where_of("splits"), located=located)
+    _split_distances(settings, camera, where_of=where_of, located=located)
+    _room_inside_margins(settings, where_of=where_of, located=located)
     return settings
 
 
-def _manual_splits(settings: ShadowSettings, camera: CameraConfig, *, where: str, located: _Located) -> None:
-    """Manual far ends: one per cascade, rising from the camera's near plane to where the shadow ends."""
+def _room_inside_margins(settings: ShadowSettings, *, where_of, located: _Located) -> None:
+    """Every cascade's resolution leaves texels inside the margins its filter keeps free."""
+    from csmlab.cascades.stabilize import check_resolution
+
+    for resolution in settings.cascade_resolutions or (settings.resolution,):
+        try:
+            check_resolution(resolution, margin=settings.margin_texels, method=settings.stabilization,
+                             snap=settings.snap)
+        except ValueError as exc:
+            raise located.error(where_of("cascade_resolutions" if settings.cascade_resolutions else "resolution"),
+                                f"{str(exc).partition(': ')[2]} (the filter's taps and a texel kept inside each "
+                                f"box edge)") from None
+
+
+def _split_distances(settings: ShadowSettings, camera: CameraConfig, *, where_of, located: _Located) -> None:
+    """The splits over the camera's near plane to where the shadow ends, as a frame computes them: manual far
+    ends one per cascade and rising, a geometric first far end inside that range, a shadow beyond the near plane."""
     from csmlab.cascades import split_distances
 
-    if len(settings.splits) != settings.cascades:
-        raise located.error(where, f"expected {settings.cascades} split distances (one per cascade) with split = "
-                                   f"\"manual\", got {len(settings.splits)}")
-    if settings.bounds == "sdsm" and max(settings.splits) > 1.0:
-        raise located.error(where, f"expected fractions (all ≤ 1) of the visible depth range with bounds = \"sdsm\", "
-                                   f"got metres {list(settings.splits)}")
+    if settings.split == "manual" and len(settings.splits) != settings.cascades:
+        raise located.error(where_of("splits"), f"expected {settings.cascades} split distances (one per cascade) "
+                                                f"with split = \"manual\", got {len(settings.splits)}")
+    if settings.split == "manual" and settings.bounds == "sdsm" and max(settings.splits) > 1.0:
+        raise located.error(where_of("splits"), f"expected fractions (all ≤ 1) of the visible depth range with "
+                                                f"bounds = \"sdsm\", got metres {list(settings.splits)}")
     try:
         split_distances(near=camera.near, far=min(settings.shadow_distance, camera.far), count=settings.cascades,
-                        method="manual", splits=settings.splits)
+                        method=settings.split, lambda_=settings.lambda_, splits=settings.splits,
+                        distribution_exponent=settings.distribution_exponent,
+                        first_cascade_far=settings.first_cascade_far)
     except ValueError as exc:
-        raise located.error(where, str(exc).partition(": ")[2]) from None
+        name, _, message = str(exc).partition(": ")
+        raise located.error(where_of(name), message) from None
 
 
 def _by_toml_name(settings: ShadowSettings) -> dict:
