@@ -60,6 +60,18 @@ def test_manual_splits_out_of_order_or_short_of_the_shadow_exit_2_naming_file_an
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize("split", ['split = "manual"\nsplits = [0.001, 0.5, 1.0]',
+                                   'split = "geometric"\nfirst_cascade_far = 0.2'])
+def test_fixed_split_ends_over_the_visible_range_of_sdsm_exit_2_naming_bounds(tmp_path, split):
+    path = tmp_path / "exp.toml"
+    path.write_text(TINY + f'{split}\n[[methods]]\nname = "m"\nbounds = "sdsm"\n')
+    outcome = CliRunner().invoke(app, ["run", str(path), "--out", str(tmp_path / "out")])
+    assert outcome.exit_code == 2, outcome.output
+    message = outcome.stderr.strip()
+    assert len(message.splitlines()) == 1 and "Traceback" not in outcome.output
+    assert f"{path}:" in message and "methods.m.bounds" in message and 'bounds = "frustum"' in message
+
+
 # --- every documented field fed its bad values ---------------------------------------------------------
 
 SECTIONS = {"scene": SceneConfig, "camera": CameraConfig, "light": LightConfig, "shadow": ShadowSettings,

@@ -325,15 +325,17 @@ def _room_inside_margins(settings: ShadowSettings, *, where_of, located: _Locate
 
 def _split_distances(settings: ShadowSettings, camera: CameraConfig, *, where_of, located: _Located) -> None:
     """The splits over the camera's near plane to where the shadow ends, as a frame computes them: manual far
-    ends one per cascade and rising, a geometric first far end inside that range, a shadow beyond the near plane."""
+    ends one per cascade and rising, a geometric first far end inside that range, a shadow beyond the near plane;
+    neither scheme's fixed ends over the visible range of ``bounds = "sdsm"``."""
     from csmlab.cascades import split_distances
 
     if settings.split == "manual" and len(settings.splits) != settings.cascades:
         raise located.error(where_of("splits"), f"expected {settings.cascades} split distances (one per cascade) "
                                                 f"with split = \"manual\", got {len(settings.splits)}")
-    if settings.split == "manual" and settings.bounds == "sdsm" and max(settings.splits) > 1.0:
-        raise located.error(where_of("splits"), f"expected fractions (all ≤ 1) of the visible depth range with "
-                                                f"bounds = \"sdsm\", got metres {list(settings.splits)}")
+    if settings.bounds == "sdsm" and settings.split in ("manual", "geometric"):
+        raise located.error(where_of("bounds"), f"expected bounds = \"frustum\" with split = \"{settings.split}\" "
+                                                f"(its far ends are fixed, and the visible depth range may begin "
+                                                f"beyond them), got \"sdsm\"")
     try:
         split_distances(near=camera.near, far=min(settings.shadow_distance, camera.far), count=settings.cascades,
                         method=settings.split, lambda_=settings.lambda_, splits=settings.splits,
