@@ -295,7 +295,7 @@ def _moment_lookup(maps: ShadowMaps, receivers: Receivers, *, record: Filter, ra
     bound = dict(method=record.name, span=maps.depth_span, bits=settings.subtexel_bits,
                  exponents=settings.evsm_exponents, min_variance=settings.vsm_min_variance, power=settings.vsm_power,
                  bleed=settings.vsm_bleed, device=device)
-    if maps.mips is None:
+    if "mips" not in record.reads_of(settings):
         lit = moment_lookup(maps.moments, coords, depth, cascade=chosen, blend_weight=weight, **bound)
         return lit, chosen.astype(np.int8), band
     used, ddx, ddy = _quad_footprint(maps, receivers, coords, chosen, radius=radius, selection=selection,
