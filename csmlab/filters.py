@@ -280,7 +280,8 @@ def _weighted_lookup(maps: ShadowMaps, receivers: Receivers, *, record: Filter, 
     angle = None if receivers.pixels is None else 2.0 * np.pi * interleaved_gradient_noise(receivers.pixels)
     texel = np.array([float(np.max(c.texel_size)) for c in maps.cascades.cascades])
     lit = weighted_pcf(maps.depth, coords, depth, cascade=chosen, filter=record.name,
-                       width=record.width_of(texel, settings), radius=radius, bits=settings.subtexel_bits,
+                       width=record.width_of(texel, settings, maps.cascades.splits[1:]), radius=radius,
+                       bits=settings.subtexel_bits,
                        receiver_slope=slope, blend_weight=weight, angle=angle, disk=record.offsets_of(settings),
                        device=device)
     return lit, chosen.astype(np.int8), band

@@ -31,10 +31,10 @@ import numpy as np
 
 from csmlab.registry import check_name, parameters
 
-__all__ = ["BOX_BILINEAR", "BOX_TAPS", "FAMILIES", "FILTER_METHODS", "Filter", "MOMENT_EVSM2", "MOMENT_EVSM4",
-           "MOMENT_VSM", "PCF_GAUSSIAN", "PCF_PCSS", "PCF_POISSON", "PCF_TENT", "SELECTION_METHODS",
-           "SELECT_BEST_RESOLUTION", "SELECT_INTERVAL", "SELECT_MAP", "Selection", "family_code", "family_filters",
-           "poisson_disk"]
+__all__ = ["BOX_BILINEAR", "BOX_TAPS", "CASTANO_SIZES", "FAMILIES", "FILTER_METHODS", "Filter", "MOMENT_EVSM2",
+           "MOMENT_EVSM4", "MOMENT_VSM", "PCF_BILINEAR_BOX", "PCF_CASTANO", "PCF_GAUSSIAN", "PCF_PCSS", "PCF_POISSON",
+           "PCF_TENT", "PCF_TENT_BILINEAR", "PCF_VOGEL", "SELECTION_METHODS", "SELECT_BEST_RESOLUTION",
+           "SELECT_INTERVAL", "SELECT_MAP", "Selection", "family_code", "family_filters", "poisson_disk", "vogel_disk"]
 
 SELECT_INTERVAL = 0
 """Selection code: the cascade whose split interval holds the view depth."""
@@ -56,6 +56,17 @@ PCF_POISSON = 2
 """Weighted family code: equal weights at the offsets of a Poisson disk."""
 PCF_PCSS = 3
 """Weighted family code: blocker search, then a tent as wide as the penumbra."""
+PCF_VOGEL = 4
+"""Weighted family code: hardware bilinear-compare taps on a Vogel disk, equal weights (Godot 4, three.js)."""
+PCF_CASTANO = 5
+"""Weighted family code: Castaño's kernels of hardware bilinear-compare taps (Filament, Bevy, Stride, MJP)."""
+PCF_TENT_BILINEAR = 6
+"""Weighted family code: a tent folded into hardware bilinear-compare taps, two texels per tap and axis (Unity)."""
+PCF_BILINEAR_BOX = 7
+"""Weighted family code: N×N hardware bilinear-compare taps a whole texel apart, equal weights (DirectX CSM11)."""
+
+CASTANO_SIZES = (3, 5)
+"""The filter_size values of ``pcf_castano``: Castaño's 3×3 kernel (4 taps) and 5×5 kernel (9 taps)."""
 
 MOMENT_VSM = 0
 """Moment family code: ``(z, z²)`` (:mod:`csmlab.kernels.moments`)."""
@@ -128,8 +139,9 @@ class Filter:
         ``radius(*, <fields>) -> int``: texels the taps reach beyond the texel holding the point
         (the boxes keep them inside their edges, so no tap is ever clamped; DESIGN.md "Exact zero").
     width : callable, optional
-        ``width(texel, /, *, <fields>) -> ndarray``: the width of the weights per cascade from the
-        cascades' texel sizes ``(C,)`` in metres (the larger side); None where the taps set it.
+        ``width(texel, far, /, *, <fields>) -> ndarray``: the width of the weights per cascade from the
+        cascades' texel sizes ``(C,)`` in metres (the larger side) and their far split ends ``(C,)``
+        in metres of view depth; None where the taps set it.
     offsets : callable, optional
         ``offsets(*, <fields>) -> ndarray (K, 2)``: tap offsets in the unit disk; None where the
         taps are whole texels.
@@ -156,9 +168,14 @@ class Filter:
         """Texels the taps reach under ``settings`` (a ShadowSettings, or anything with the fields ``radius`` reads)."""
         return _call(self.radius, settings)
 
-    def width_of(self, texel, settings) -> np.ndarray | None:
-        """The weights' width ``(C,)`` for texel sizes ``texel`` ``(C,)`` in metres; None where the filter has none."""
-        return None if self.width is None else _call(self.width, settings, np.asarray(texel, dtype=np.float64))
+    def width_of(self, texel, settings, far=None) -> np.ndarray | None:
+        """The weights' width ``(C,)`` for texel sizes ``texel`` ``(C,)`` in metres and the cascades' far split
+        ends ``far`` ``(C,)`` (metres; None: the width must not need them); None where the filter has none."""
+        if self.width is None:
+            return None
+        texel = np.asarray(texel, dtype=np.float64)
+        ends = np.full(texel.shape, np.nan) if far is None else np.asarray(far, dtype=np.float64)
+        return _call(self.width, settings, texel, ends)
 
     def offsets_of(self, settings) -> np.ndarray | None:
         """Tap offsets ``(K, 2)`` in the unit disk; None where the taps are whole texels."""
@@ -198,14 +215,14 @@ def _moment_reach(*, moment_blur: int, moment_mips: bool, max_lod: int, anisotro
     return moment_blur // 2 + 1
 
 
-def _gaussian_width(texel, /, *, filter_width_m: float, filter_sigma: float) -> np.ndarray:
+def _gaussian_width(texel, far, /, *, filter_width_m: float, filter_sigma: float) -> np.ndarray:
     """σ in texels: ``filter_sigma``, or a quarter of ``filter_width_m`` (±2σ) in every cascade's texels."""
     if filter_width_m > 0:
         return filter_width_m / 4.0 / texel
     return np.full(texel.shape, filter_sigma)
 
 
-def _half_width(texel, /, *, filter_width_m: float, filter_size: int) -> np.ndarray:
+def _half_width(texel, far, /, *, filter_width_m: float, filter_size: int) -> np.ndarray:
     """Half-width in texels: N/2, or half of ``filter_width_m`` in every cascade's texels, capped at N/2.
 
     The width in metres is Unigine's (seed 003, "self-adjusting filtering kernel size", Listing 4.1.8).
@@ -217,7 +234,7 @@ def _half_width(texel, /, *, filter_width_m: float, filter_size: int) -> np.ndar
     return np.full(texel.shape, half)
 
 
-def _penumbra_per_metre(texel, /, *, light_size_deg: float) -> np.ndarray:
+def _penumbra_per_metre(texel, far, /, *, light_size_deg: float) -> np.ndarray:
     """Penumbra texels per metre between blocker and receiver, ``2 tan(θ_L / 2) / texel``."""
     return np.full(texel.shape, 2.0 * np.tan(np.radians(light_size_deg) / 2.0)) / texel
 
@@ -252,6 +269,57 @@ def _poisson_offsets(*, poisson_taps: int, poisson_seed: int) -> np.ndarray:
     return poisson_disk(poisson_taps, seed=poisson_seed)
 
 
+def vogel_disk(taps: int, *, angle: float) -> np.ndarray:
+    """The Vogel disk of ``taps`` offsets ``(taps, 2)`` in the unit disk: tap i at radius ``sqrt((i + 0.5) / taps)``,
+    angle ``i · angle``.
+
+    Godot 4 (``RendererSceneRenderRD::get_vogel_disk``: ``r = sqrt(i + 0.5) / sqrt(n)``,
+    ``theta = i · golden_angle`` with ``golden_angle = 2.4``) and three.js r182+
+    (``shadowmap_pars_fragment`` ``vogelDiskSample``: ``r = sqrt((i + 0.5) / n)``,
+    ``theta = i · 2.399963229728653 + phi``).
+    """
+    if not (isinstance(taps, (int, np.integer)) and taps >= 1):
+        raise ValueError(f"taps: expected a positive integer, got {taps!r}")
+    i = np.arange(int(taps), dtype=np.float64)
+    r = np.sqrt((i + 0.5) / float(taps))
+    theta = i * float(angle)
+    return np.column_stack([r * np.cos(theta), r * np.sin(theta)])
+
+
+def _vogel_offsets(*, vogel_taps: int, vogel_angle: float) -> np.ndarray:
+    return vogel_disk(vogel_taps, angle=vogel_angle)
+
+
+def _vogel_reach(*, vogel_radius: float) -> int:
+    # A bilinear tap at most vogel_radius texels from the point reads one texel beyond the texel it falls in.
+    return int(np.ceil(vogel_radius)) + 1
+
+
+def _vogel_width(texel, far, /, *, vogel_radius: float, vogel_scale: str) -> np.ndarray:
+    """The disk's radius in texels per cascade: ``vogel_radius``, times ``far_0 / far_k`` with ``first_split``.
+
+    Godot 4 (``scene_forward_lights_inc.glsl``, directional lights without ``blend_splits``): the
+    radius is ``directional_shadow_pixel_size · soft_shadow_scale · blur_factor`` with
+    ``blur_factor = shadow_split_offsets.x / shadow_split_offsets[k]`` ("Adjust shadow blur with
+    reference to the first split").
+    """
+    if vogel_scale == "first_split":
+        if not np.all(np.isfinite(far)):
+            raise ValueError("far: vogel_scale = \"first_split\" needs the cascades' far split ends")
+        return vogel_radius * far[0] / far
+    return np.full(texel.shape, float(vogel_radius))
+
+
+def _half_size(texel, far, /, *, filter_size: int) -> np.ndarray:
+    """N / 2 texels in every cascade: the kernel's size, which its taps and weights follow."""
+    return np.full(texel.shape, filter_size / 2.0)
+
+
+def _castano_reach(*, filter_size: int) -> int:
+    # Castaño's taps sit around the texel corner nearest the point, up to N/2 + ½ texels from it.
+    return filter_size // 2 + 1
+
+
 def _poisson_reads(*, poisson_rotation: str) -> frozenset:
     # Rotated per pixel, the disk turns with each receiver's pixel (screen-space noise).
     return frozenset({"depth", "pixels"} if poisson_rotation == "pixel" else {"depth"})
@@ -281,6 +349,30 @@ FILTER_METHODS: dict[str, Filter] = {f.name: f for f in (
            "poisson_taps taps of a fixed Poisson disk of radius N/2 (optionally rotated per pixel)",
            "the texel under each disk offset scaled by the half-width, equal weights", _half_and_one,
            width=_half_width, offsets=_poisson_offsets, reads=_poisson_reads),
+    Filter("pcf_vogel", "weighted", PCF_VOGEL,
+           "vogel_taps hardware bilinear-compare taps on a Vogel disk of vogel_radius texels, equal weights, "
+           "optionally rotated per pixel (Godot 4 Soft Low: 4 taps, 2.0 texels; three.js PCFShadowMap: 5, 1.0)",
+           "a 2×2 bilinear depth comparison at each disk offset (scaled by the radius, rotated by the pixel's "
+           "noise), weighted by its fixed-point fraction; the taps averaged", _vogel_reach,
+           width=_vogel_width, offsets=_vogel_offsets, reads=_poisson_reads),
+    Filter("pcf_castano", "weighted", PCF_CASTANO,
+           "Castaño's N×N kernel (N = 3: 4 taps, N = 5: 9 taps) of hardware bilinear-compare taps "
+           "(Filament PCF_LOW, Bevy Gaussian, Stride PCF 5×5, MJP OptimizedPCF)",
+           "per axis, taps of weights (3 − 2s, 1 + 2s) / 4 (N = 3) or (4 − 3s, 7, 1 + 3s) / 12 (N = 5) at "
+           "Castaño's offsets from the texel corner nearest the point (s its fraction past that corner), "
+           "each a 2×2 bilinear comparison: texel weights [1, 2, 1] / 4 or [1, 3, 4, 3, 1] / 12 at a texel "
+           "centre", _castano_reach, width=_half_size),
+    Filter("pcf_tent_bilinear", "weighted", PCF_TENT_BILINEAR,
+           "tent of half-width N/2 folded into ((N + 1) / 2)² hardware bilinear-compare taps (Unity's "
+           "SampleShadow_ComputeSamples_Tent_NxN: 3×3 4 taps, 5×5 9, 7×7 16)",
+           "per axis, the tent's integrals over the N + 1 texels around the texel corner nearest the point, "
+           "paired: each pair one bilinear comparison of their summed weight, placed between their centres "
+           "at the second's share", _castano_reach, width=_half_size),
+    Filter("pcf_bilinear_box", "weighted", PCF_BILINEAR_BOX,
+           "N×N hardware bilinear-compare taps one texel apart, equal weights (DirectX CascadedShadowMaps11's "
+           "CalculatePercentLit)",
+           "a 2×2 bilinear depth comparison at the point moved by each whole-texel offset in [−N/2, N/2]², "
+           "averaged", _half_and_one, width=_half_size),
     Filter("pcss", "weighted", PCF_PCSS, "blocker search over N×N, penumbra from light_size_deg, then a tent (PCSS)",
            "the N×N texels for the blocker search, then a tent as wide as the penumbra, clamped to them", _half,
            width=_penumbra_per_metre),

@@ -11,7 +11,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, fields, replace
 
-from csmlab.lookup_choices import FILTER_METHODS
+from csmlab.lookup_choices import CASTANO_SIZES, FILTER_METHODS
 from csmlab.registry import check_name, parameters
 
 __all__ = ["APPLIES", "Applies", "ShadowSettings"]
@@ -48,9 +48,9 @@ class ShadowSettings:
     selection: str = "interval"
     """Cascade selection: interval | map | best_resolution."""
     filter: str = "pcf"
-    """Filter: none | pcf | pcf_bilinear | pcf_gaussian | pcf_tent | pcf_poisson | pcss | vsm | evsm2 | evsm4 (csmlab.filters)."""
+    """Filter: none | pcf | pcf_bilinear | pcf_gaussian | pcf_tent | pcf_poisson | pcf_vogel | pcf_castano | pcf_tent_bilinear | pcf_bilinear_box | pcss | vsm | evsm2 | evsm4 (csmlab.filters)."""
     filter_size: int = 3
-    """pcf, pcf_gaussian, pcf_tent, pcf_poisson, pcss: taps per side N (odd)."""
+    """pcf, pcf_gaussian, pcf_tent, pcf_poisson, pcss, pcf_castano (3 or 5), pcf_tent_bilinear, pcf_bilinear_box: taps per side N (odd)."""
     bias_constant: float = 0.0
     """Constant depth bias, metres along the light."""
     bias_slope: float = 1.0
@@ -82,7 +82,15 @@ class ShadowSettings:
     poisson_seed: int = 1
     """pcf_poisson: seed of the disk's (deterministic) construction."""
     poisson_rotation: str = "none"
-    """pcf_poisson: none (one disk everywhere) | pixel (rotated per screen pixel by interleaved gradient noise)."""
+    """pcf_poisson, pcf_vogel: none (one disk everywhere) | pixel (rotated per screen pixel by interleaved gradient noise)."""
+    vogel_taps: int = 5
+    """pcf_vogel: taps of the Vogel disk (Godot 4 Soft Low: 4, three.js PCFShadowMap: 5)."""
+    vogel_radius: float = 1.0
+    """pcf_vogel: radius of the disk in texels (Godot 4 Soft Low: 2.0, three.js LightShadow.radius: 1)."""
+    vogel_angle: float = 2.399963229728653
+    """pcf_vogel: angle between consecutive taps, radians (three.js: 2.399963229728653, Godot 4: 2.4)."""
+    vogel_scale: str = "none"
+    """pcf_vogel: none (vogel_radius in every cascade) | first_split (× the first cascade's far end / this cascade's: Godot 4)."""
     light_size_deg: float = 0.53
     """pcss: angular diameter of the light, degrees (the sun: 0.53)."""
     moment_blur: int = 5
@@ -162,6 +170,13 @@ class ShadowSettings:
         need(isinstance(self.poisson_seed, int) and self.poisson_seed >= 0, "poisson_seed", "a non-negative integer",
              self.poisson_seed)
         need(self.poisson_rotation in ("none", "pixel"), "poisson_rotation", "none or pixel", self.poisson_rotation)
+        need(self.filter != "pcf_castano" or self.filter_size in CASTANO_SIZES, "filter_size",
+             "3 or 5 with filter = \"pcf_castano\" (Castaño's 3×3 and 5×5 kernels)", self.filter_size)
+        need(isinstance(self.vogel_taps, int) and 1 <= self.vogel_taps <= 64, "vogel_taps", "an integer in 1..64",
+             self.vogel_taps)
+        need(0.0 < self.vogel_radius <= 16.0, "vogel_radius", "a radius in (0, 16] texels", self.vogel_radius)
+        need(0.0 <= self.vogel_angle <= 2.0 * math.pi, "vogel_angle", "an angle in [0, 2π] radians", self.vogel_angle)
+        need(self.vogel_scale in ("none", "first_split"), "vogel_scale", "none or first_split", self.vogel_scale)
         need(0.0 < self.light_size_deg < 90.0, "light_size_deg", "an angle in (0, 90) degrees", self.light_size_deg)
         need(isinstance(self.moment_blur, int) and 1 <= self.moment_blur <= 63 and self.moment_blur % 2 == 1,
              "moment_blur", "an odd integer in 1..63", self.moment_blur)
@@ -283,14 +298,18 @@ APPLIES: dict[str, Applies] = {
                            'depth_range = "slice" (casters nearer than its near side)'),
     "hysteresis": Applies(lambda *, bounds: bounds == "sdsm", 'bounds = "sdsm" (the hold of its visible range)'),
     "atlas_layout": Applies(lambda *, storage: storage == "atlas", 'storage = "atlas" (the tiles of the atlas)'),
-    "filter_size": _filters(lambda f: f == "pcf" or _family(f) == "weighted", "taps per side"),
+    "filter_size": _filters(lambda f: f == "pcf" or (_family(f) == "weighted" and f != "pcf_vogel"), "taps per side"),
     "filter_sigma": Applies(lambda *, filter, filter_width_m: filter == "pcf_gaussian" and filter_width_m == 0,
                             'filter = "pcf_gaussian" and filter_width_m = 0 (σ in texels; a width in metres sets '
                             'σ otherwise)'),
     "filter_width_m": _filters(lambda f: f in ("pcf_gaussian", "pcf_tent", "pcf_poisson"), "the width in metres"),
     "poisson_taps": _filters(lambda f: f == "pcf_poisson", "the taps of its disk"),
     "poisson_seed": _filters(lambda f: f == "pcf_poisson", "the seed of its disk"),
-    "poisson_rotation": _filters(lambda f: f == "pcf_poisson", "the rotation of its disk"),
+    "poisson_rotation": _filters(lambda f: f in ("pcf_poisson", "pcf_vogel"), "the rotation of its disk"),
+    "vogel_taps": _filters(lambda f: f == "pcf_vogel", "the taps of its disk"),
+    "vogel_radius": _filters(lambda f: f == "pcf_vogel", "the radius of its disk"),
+    "vogel_angle": _filters(lambda f: f == "pcf_vogel", "the angle between its taps"),
+    "vogel_scale": _filters(lambda f: f == "pcf_vogel", "its radius per cascade"),
     "light_size_deg": _filters(lambda f: f == "pcss", "the light's size that sets the penumbra"),
     "moment_blur": _filters(lambda f: _family(f) == "moment", "the blur of the moments"),
     "evsm_exponents": _filters(lambda f: f in ("evsm2", "evsm4"), "the exponents of the warps"),

@@ -14,7 +14,9 @@ SUN = np.array([0.5, -0.7, 0.35])
 STEADY = {"pcf_gaussian": {}, "pcf_tent": {"filter_size": 5}, "pcf_poisson": {"filter_size": 5},
           "pcss": {"filter_size": 5, "light_size_deg": 2.0}, "pcf_tent_world": {"filter_width_m": 1.5},
           "pcf_unorm16": {"depth_format": "unorm16"}, "vsm": {"vsm_bleed": 0.2}, "evsm2": {},
-          "evsm4": {"moment_blur": 3, "depth_format": "unorm16"}}
+          "evsm4": {"moment_blur": 3, "depth_format": "unorm16"},
+          "pcf_vogel": {"vogel_taps": 4, "vogel_radius": 2.0, "vogel_angle": 2.4, "vogel_scale": "first_split"},
+          "pcf_castano": {"filter_size": 5}, "pcf_tent_bilinear": {"filter_size": 7}, "pcf_bilinear_box": {}}
 
 
 def _walk(variants, frames=10):
@@ -37,12 +39,14 @@ def test_exact_keeps_zero_same_cascade_flicker_under_every_filter_and_unorm16_an
     base = ShadowSettings(cascades=3, resolution=256, stabilization="exact", shadow_distance=60.0)
     variants = {name: base.replace(filter=name.removesuffix("_world").removesuffix("_unorm16"), **params) for name, params in STEADY.items()}
     variants["rotated"] = base.replace(filter="pcf_poisson", filter_size=5, poisson_rotation="pixel")
+    variants["rotated_vogel"] = base.replace(filter="pcf_vogel", vogel_taps=4, vogel_radius=2.0, poisson_rotation="pixel")
     variants["none_stabilized"] = base.replace(stabilization="none", filter="pcf_tent", filter_size=5)
     summary = _walk(variants)
     for name in STEADY:
         assert np.all(summary[name]["flicker_same"] == 0.0), name
         assert np.all(summary[name]["flip_same"] == 0.0), name
     assert np.nanmean(summary["rotated"]["flicker_same"]) > 0.0
+    assert np.nanmean(summary["rotated_vogel"]["flicker_same"]) > 0.0
     assert np.nanmean(summary["none_stabilized"]["flicker_same"]) > 0.0
 
 
@@ -50,7 +54,10 @@ def test_every_filter_has_one_record_and_the_margin_follows_its_radius():
     # The texels each filter reads beyond the point's at filter_size 5, moment_blur 5 (module docs of
     # csmlab.kernels.shadow, .pcf, .moments): a tent or disk of half-width 2.5 around a point anywhere
     # in its texel reaches 3; a bilinear lookup of moments blurred over 5 texels reaches 1 + 2.
-    radius = {"none": 0, "pcf": 2, "pcf_bilinear": 1, "pcf_gaussian": 2, "pcf_tent": 3, "pcf_poisson": 3, "pcss": 2,
+    # Bilinear-compare taps read one texel past where they fall: a Vogel disk of 1 texel reaches 2, Castaño's
+    # 5×5, Unity's 5×5 tent and DirectX's 5×5 of bilinear taps reach 3.
+    radius = {"none": 0, "pcf": 2, "pcf_bilinear": 1, "pcf_gaussian": 2, "pcf_tent": 3, "pcf_poisson": 3,
+              "pcf_vogel": 2, "pcf_castano": 3, "pcf_tent_bilinear": 3, "pcf_bilinear_box": 3, "pcss": 2,
               "vsm": 3, "evsm2": 3, "evsm4": 3}
     assert list(FILTER_METHODS) == list(radius)
     for name, record in FILTER_METHODS.items():
@@ -83,7 +90,7 @@ def test_world_width_is_the_same_in_metres_in_every_cascade_up_to_the_tap_cap():
     cascades = build_cascades(pose=pose, light_direction=SUN, scene_corners=np.array([[-50, 0, -50], [50, 5, 50]]),
                               settings=settings)
     texel = np.array([max(c.texel_size) for c in cascades.cascades])
-    width = FILTER_METHODS["pcf_tent"].width_of(texel, settings)
+    width = FILTER_METHODS["pcf_tent"].width_of(texel, settings, cascades.splits[1:])
     np.testing.assert_allclose(width, np.clip(0.4 / texel, 0.01, 3.5))
     assert width[0] > width[-1]
 
@@ -93,6 +100,9 @@ def test_world_width_is_the_same_in_metres_in_every_cascade_up_to_the_tap_cap():
     ("light_size_deg = 0.0", "methods.m.light_size_deg"), ("filter_width_m = -1.0", "methods.m.filter_width_m"),
     ('depth_format = "d16"', "methods.m.depth_format"), ('atlas_layout = "3x3"', "methods.m.atlas_layout"),
     ("cascade_resolutions = [512, 256]", "methods.m.cascade_resolutions"),
+    ('filter = "pcf_vogel"\nvogel_scale = "split"', "methods.m.vogel_scale"),
+    ('filter = "pcf_vogel"\nvogel_radius = 0.0', "methods.m.vogel_radius"),
+    ('filter = "pcf_castano"\nfilter_size = 7', "methods.m.filter_size"),
 ])
 def test_a_bad_filter_or_storage_field_is_an_input_error_naming_it(tmp_path, line, field):
     from csmlab.config import load_experiment

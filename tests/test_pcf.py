@@ -233,3 +233,202 @@ def test_weighted_pcf_rejects_an_unknown_filter_naming_the_valid_ones():
     depth, coords, receiver, _, cascade = random_case(1)
     with pytest.raises(ValueError, match="pcf_tent"):
         weighted_pcf(depth, coords, receiver, cascade=cascade, filter="tent", width=1.0, radius=2, bits=BITS)
+
+
+# --- The engines' kernels of hardware bilinear-compare taps, each against its engine's formula written out.
+
+
+def ref_bilinear(depth, px, py, receiver):
+    """A comparison sampler with linear filtering at (px, py) texels: the 2×2 texel centres around it, bilinear."""
+    i0, j0 = int(np.floor(px - 0.5)), int(np.floor(py - 0.5))
+    fx, fy = px - 0.5 - i0, py - 0.5 - j0
+    lit = lambda i, j: float(receiver <= depth[j, i])  # noqa: E731
+    return ((1 - fy) * ((1 - fx) * lit(i0, j0) + fx * lit(i0 + 1, j0))
+            + fy * ((1 - fx) * lit(i0, j0 + 1) + fx * lit(i0 + 1, j0 + 1)))
+
+
+def ref_vogel(depth, px, py, receiver, *, taps, radius, golden_angle, phi=0.0):
+    """Godot 4 ``sample_directional_pcf_shadow`` over ``get_vogel_disk`` (r = sqrt(i + 0.5) / sqrt(n),
+    θ = i · 2.4) and three.js ``vogelDiskSample`` (r = sqrt((i + 0.5) / n), θ = i · 2.39996… + φ):
+    equal weights of bilinear-compare taps at the point plus radius · r · (cos θ, sin θ)."""
+    total = 0.0
+    for i in range(taps):
+        r = np.sqrt(i + 0.5) / np.sqrt(taps)
+        theta = i * golden_angle + phi
+        total += ref_bilinear(depth, px + radius * r * np.cos(theta), py + radius * r * np.sin(theta), receiver)
+    return total / taps
+
+
+def ref_castano(depth, px, py, receiver, size):
+    """Castaño's kernel as Filament's ``ShadowSample_PCF_Low`` (size 3) and Bevy's
+    ``sample_shadow_map_castano_thirteen`` / Stride's ``Get5x5FilterKernel`` (size 5) write it."""
+    base_u, base_v = np.floor(px + 0.5), np.floor(py + 0.5)
+    s, t = px + 0.5 - base_u, py + 0.5 - base_v
+    base_u -= 0.5
+    base_v -= 0.5
+
+    def axis(s):
+        if size == 3:
+            uw = [3 - 2 * s, 1 + 2 * s]
+            return uw, [(2 - s) / uw[0] - 1, s / uw[1] + 1], 16.0
+        uw = [4 - 3 * s, 7.0, 1 + 3 * s]
+        return uw, [(3 - 2 * s) / uw[0] - 2, (3 + s) / uw[1], s / uw[2] + 2], 144.0
+
+    uw, u, norm = axis(s)
+    vw, v, _ = axis(t)
+    return sum(uw[a] * vw[b] * ref_bilinear(depth, base_u + u[a], base_v + v[b], receiver)
+               for a in range(len(u)) for b in range(len(v))) / norm
+
+
+def ref_dx_box(depth, px, py, receiver, size):
+    """DirectX CascadedShadowMaps11 ``CalculatePCFPercentLit``: SampleCmpLevelZero at whole-texel offsets, averaged."""
+    r = size // 2
+    return sum(ref_bilinear(depth, px + a, py + b, receiver) for a in range(-r, r + 1) for b in range(-r, r + 1)) \
+        / size**2
+
+
+def ref_tent_texels(depth, px, py, receiver, size):
+    """Unity's tent of base N (half-width N/2): each texel weighted by the tent's integral over it."""
+    i, j = int(px), int(py)
+    r = size // 2 + 1
+    wx = ref_tent_weights(px, size / 2.0, i - r, i + r, samples=20000)
+    wy = ref_tent_weights(py, size / 2.0, j - r, j + r, samples=20000)
+    return sum(wx[a] * wy[b] * float(receiver <= depth[j - r + b, i - r + a])
+               for a in range(2 * r + 1) for b in range(2 * r + 1))
+
+
+def blocker_field(seed=4, resolution=24):
+    """A 24 × 24 map of blockers at 2 m (a column, a row end, scattered texels) over empty texels, one cascade."""
+    rng = np.random.default_rng(seed)
+    depth = np.full((resolution, resolution), np.inf, np.float32)
+    depth[:, 9] = 2.0
+    depth[14, 12:] = 2.0
+    depth[rng.random(depth.shape) < 0.25] = 2.0
+    return depth
+
+
+POINTS = [tuple(np.round(np.array(p) * UNIT) / UNIT) for p in
+          [(11.5, 11.5), (11.0, 12.0), (12.3, 10.77), (10.9, 13.41), (12.99, 12.01)]]
+"""Receiver points in texels (on the 2⁻⁸-texel fixed point): texel centres, texel corners and arbitrary fractions."""
+
+
+def lit_of(filter, depth, point, *, width, radius, disk=None, angle=0.0, device="cpu"):
+    coords = np.round(np.array(point) * UNIT).astype(np.int64)[None, None, :]
+    return float(weighted_pcf(depth[None], coords, np.full((1, 1), 10.0, np.float32), cascade=np.zeros(1, np.int32),
+                              filter=filter, width=width, radius=radius, bits=BITS, disk=disk,
+                              angle=None if angle == 0.0 else np.array([angle]), device=device)[0])
+
+
+@pytest.mark.parametrize("engine, taps, radius, golden_angle", [("godot4_soft_low", 4, 2.0, 2.4),
+                                                                ("threejs_pcf", 5, 1.0, 2.399963229728653)])
+@pytest.mark.parametrize("phi", [0.0, 1.3])
+def test_pcf_vogel_is_the_engines_vogel_disk_of_bilinear_taps(engine, taps, radius, golden_angle, phi, device):
+    depth = blocker_field()
+    settings = ShadowSettings(filter="pcf_vogel", vogel_taps=taps, vogel_radius=radius, vogel_angle=golden_angle)
+    record = FILTER_METHODS["pcf_vogel"]
+    for point in POINTS:
+        got = lit_of("pcf_vogel", depth, point, width=float(record.width_of([1.0], settings)[0]),
+                     radius=record.radius_of(settings), disk=record.offsets_of(settings), angle=phi, device=device)
+        expected = ref_vogel(depth, *point, 10.0, taps=taps, radius=radius, golden_angle=golden_angle, phi=phi)
+        # Tap positions are rounded to 2⁻⁸ texel (the hardware's sub-texel precision): a bilinear weight moves < 1/256.
+        assert got == pytest.approx(expected, abs=taps * 2.0 / UNIT), (engine, point)
+
+
+def test_godot_shrinks_the_vogel_radius_with_the_split():
+    # scene_forward_lights_inc.glsl: blur_factor = shadow_split_offsets.x / shadow_split_offsets[k] (no blend_splits),
+    # the radius directional_shadow_pixel_size · soft_shadow_scale (blur 1.0 × quality radius 2.0) · blur_factor.
+    far = np.array([10.09, 20.08, 50.05, 100.0])
+    settings = ShadowSettings(filter="pcf_vogel", vogel_taps=4, vogel_radius=2.0, vogel_scale="first_split")
+    width = FILTER_METHODS["pcf_vogel"].width_of(np.ones(4), settings, far)
+    np.testing.assert_allclose(width, 2.0 * far[0] / far)
+    assert FILTER_METHODS["pcf_vogel"].width_of(np.ones(4), settings.replace(vogel_scale="none"), far).tolist() \
+        == [2.0] * 4
+    assert "pixels" in FILTER_METHODS["pcf_vogel"].reads_of(settings.replace(poisson_rotation="pixel"))
+    assert "pixels" not in FILTER_METHODS["pcf_vogel"].reads_of(settings)
+
+
+@pytest.mark.parametrize("engine, size", [("filament_pcf_low", 3), ("bevy_gaussian_stride_5x5", 5)])
+def test_pcf_castano_is_castanos_kernel_of_bilinear_taps(engine, size, device):
+    depth = blocker_field(seed=7)
+    settings = ShadowSettings(filter="pcf_castano", filter_size=size)
+    record = FILTER_METHODS["pcf_castano"]
+    for point in POINTS:
+        got = lit_of("pcf_castano", depth, point, width=float(record.width_of([1.0], settings)[0]),
+                     radius=record.radius_of(settings), device=device)
+        assert got == pytest.approx(ref_castano(depth, *point, 10.0, size), abs=2.0 / UNIT), (engine, point)
+
+
+@pytest.mark.parametrize("size, weights", [(3, [1, 2, 1]), (5, [1, 3, 4, 3, 1])])
+def test_pcf_castano_weighs_texels_1_2_1_and_1_3_4_3_1_at_a_texel_centre(size, weights, device):
+    # Castaño's kernels at a texel centre are the binomial-like texel weights [1,2,1]/4 and [1,3,4,3,1]/12:
+    # a lone blocker at (di, dj) from the receiver's texel takes w(di) · w(dj) of the light.
+    w = np.array(weights, float) / sum(weights)
+    r = size // 2
+    for di, dj in [(-1, 0), (0, 0), (1, 1), (r, -r)]:
+        depth = np.full((24, 24), np.inf, np.float32)
+        depth[11 + dj, 11 + di] = 2.0
+        got = lit_of("pcf_castano", depth, (11.5, 11.5), width=size / 2.0, radius=r + 1, device=device)
+        # Castaño's offsets (1/3 texel, …) round to 2⁻⁸ texel, the hardware's sub-texel precision.
+        assert got == pytest.approx(1.0 - w[di + r] * w[dj + r], abs=1.0 / UNIT)
+
+
+@pytest.mark.parametrize("size", [3, 5, 7])
+def test_pcf_tent_bilinear_is_unitys_tent_in_bilinear_taps(size, device):
+    # Unity's SampleShadow_ComputeSamples_Tent_NxN: the per-texel tent weights, folded two texels per tap and axis.
+    depth = blocker_field(seed=9)
+    for point in POINTS:
+        got = lit_of("pcf_tent_bilinear", depth, point, width=size / 2.0, radius=size // 2 + 1, device=device)
+        expected = ref_tent_texels(depth, *point, 10.0, size)
+        assert got == pytest.approx(expected, abs=((size + 1) // 2) ** 2 * 2.0 / UNIT), point
+    # The same weights as the tent of point taps (pcf_tent), up to the taps' rounding to 2⁻⁸ texel.
+    for point in POINTS:
+        a = lit_of("pcf_tent_bilinear", depth, point, width=size / 2.0, radius=size // 2 + 1, device=device)
+        b = lit_of("pcf_tent", depth, point, width=size / 2.0, radius=size // 2 + 1, device=device)
+        assert a == pytest.approx(b, abs=((size + 1) // 2) ** 2 * 2.0 / UNIT)
+
+
+def test_pcf_bilinear_box_is_the_directx_samples_nine_bilinear_taps(device):
+    depth = blocker_field(seed=3)
+    for point in POINTS:
+        got = lit_of("pcf_bilinear_box", depth, point, width=1.5, radius=2, device=device)
+        assert got == pytest.approx(ref_dx_box(depth, *point, 10.0, 3), abs=1e-6), point
+
+
+@pytest.mark.parametrize("filter, fields", [("pcf_vogel", {"vogel_taps": 4, "vogel_radius": 2.0}),
+                                            ("pcf_castano", {"filter_size": 3}), ("pcf_castano", {"filter_size": 5}),
+                                            ("pcf_tent_bilinear", {"filter_size": 7}),
+                                            ("pcf_bilinear_box", {"filter_size": 3})])
+def test_bilinear_tap_filters_are_bit_identical_when_the_box_moves_by_whole_texels(filter, fields, device):
+    settings = ShadowSettings(filter=filter, **fields)
+    record = FILTER_METHODS[filter]
+    radius = record.radius_of(settings)
+    depth, coords, receiver, slope, cascade = random_case(21, resolution=24, radius=6)
+    moved = np.full_like(depth, np.inf)
+    moved[:, 2:, :21] = depth[:, :22, 3:]
+    shift = np.array([-3 * UNIT, 2 * UNIT])
+    args = dict(cascade=cascade, filter=filter, width=float(record.width_of([1.0], settings)[0]), radius=radius,
+                bits=BITS, receiver_slope=slope, disk=record.offsets_of(settings), device=device)
+    # Taps reach 4 texels at most: the shifted maps hold every tap of a receiver in [7, 17)².
+    inside = np.all((coords >= 7 * UNIT) & (coords < 17 * UNIT), axis=(0, 2))
+    before = weighted_pcf(depth, coords, receiver, **args)
+    after = weighted_pcf(moved, coords + shift, receiver, **args)
+    np.testing.assert_array_equal(before[inside], after[inside])
+    assert not np.all(np.isin(before[inside], (0.0, 1.0)))  # the taps do filter
+
+
+def test_bilinear_tap_filters_reach_no_further_than_their_radius(device):
+    # A blocker ring just beyond the record's radius never shadows; the same ring at the radius does somewhere.
+    for filter, fields in [("pcf_vogel", {"vogel_taps": 5, "vogel_radius": 1.0}), ("pcf_castano", {"filter_size": 5}),
+                           ("pcf_tent_bilinear", {"filter_size": 7}), ("pcf_bilinear_box", {"filter_size": 3})]:
+        settings = ShadowSettings(filter=filter, **fields)
+        record = FILTER_METHODS[filter]
+        r = record.radius_of(settings)
+        depth = np.full((32, 32), 2.0, np.float32)
+        depth[16 - r:17 + r, 16 - r:17 + r] = np.inf
+        rng = np.random.default_rng(0)
+        for _ in range(40):
+            point = 16 + rng.random(2)
+            for phi in (0.0, 2.0):
+                got = lit_of(filter, depth, point, width=float(record.width_of([1.0], settings)[0]), radius=r,
+                             disk=record.offsets_of(settings), angle=phi, device=device)
+                assert got == 1.0, (filter, point)

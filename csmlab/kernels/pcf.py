@@ -1,4 +1,5 @@
-"""Weighted percentage-closer filters at an already selected cascade: Gaussian, tent, Poisson disk, PCSS.
+"""Weighted percentage-closer filters at an already selected cascade: Gaussian, tent, Poisson and Vogel disks,
+Castaño's kernels, bilinear tents and boxes, PCSS.
 
 Every filter here is a weighted sum of depth tests ``S = Σ w_k · test(texel_k)`` over texels around
 the receiver, the test being the receiver-plane comparison of :func:`csmlab.kernels.shadow.tap`.
@@ -20,6 +21,20 @@ texels of the cascade, ``radius`` the tap bound:
 - ``pcf_poisson`` — ``len(disk)`` equally weighted taps at ``point + width · R(θ) · o_k``, ``o_k``
   a fixed Poisson disk in the unit disk, each tap testing the texel its offset point falls in;
   θ per receiver (0 unless rotated per pixel).
+- ``pcf_vogel`` — ``len(disk)`` equally weighted hardware bilinear-compare taps
+  (:func:`csmlab.kernels.shadow.bilinear_tap`) at ``point + width · R(θ) · o_k``, ``o_k`` a Vogel disk:
+  Godot 4's Soft Low and three.js's ``PCFShadowMap``.
+- ``pcf_castano`` — Castaño's kernels of bilinear-compare taps, separable: from the texel corner
+  ``b = floor(u + ½)`` nearest the point ``u`` (texels) and ``s = u + ½ − b``, per axis the taps
+  ``(weight, offset from b − ½)`` are ``(3 − 2s, (2 − s)/(3 − 2s) − 1)``, ``(1 + 2s, s/(1 + 2s) + 1)`` for
+  N = 3 (Filament ``ShadowSample_PCF_Low``) and ``(4 − 3s, (3 − 2s)/(4 − 3s) − 2)``, ``(7, (3 + s)/7)``,
+  ``(1 + 3s, s/(1 + 3s) + 2)`` for N = 5 (Bevy ``sample_shadow_map_castano_thirteen``, Stride
+  ``Get5x5FilterKernel``), the 2-D weight the product, normalized by the weights' sum (16, 144).
+- ``pcf_tent_bilinear`` — Unity's ``SampleShadow_ComputeSamples_Tent_NxN``: per axis the tent's
+  integrals over the N + 1 texels from ``b − (N + 1)/2``, paired; each pair one bilinear tap of the
+  pair's summed weight at the first centre plus the second's share of it.
+- ``pcf_bilinear_box`` — N × N bilinear taps at the point plus whole-texel offsets, equal weights
+  (DirectX CascadedShadowMaps11 ``CalculatePercentLit``).
 - ``pcss`` — percentage-closer soft shadows (Fernando 2005) for a directional light: the blockers
   among the (2r + 1)² texels give their mean depth ``d_b``; the penumbra width is
   ``w = (d_r − d_b) · 2 tan(θ_L / 2) / texel`` texels for a light of angular diameter θ_L (``width``
@@ -40,8 +55,9 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device
-from csmlab.kernels.shadow import tap
-from csmlab.lookup_choices import PCF_GAUSSIAN, PCF_POISSON, PCF_TENT, family_code
+from csmlab.kernels.shadow import bilinear_tap, tap
+from csmlab.lookup_choices import (PCF_BILINEAR_BOX, PCF_CASTANO, PCF_GAUSSIAN, PCF_POISSON, PCF_TENT,
+                                   PCF_TENT_BILINEAR, PCF_VOGEL, family_code)
 
 __all__ = ["weighted_pcf"]
 
@@ -102,6 +118,56 @@ def blocker_depth(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: w
 
 
 @wp.func
+def axis_fetch(code: int, size: int, a: int, x: wp.int64, unit: wp.int64):
+    """Tap ``a`` of a separable bilinear-tap filter along one axis: its fixed-point position and weight.
+
+    ``x`` is the point on that axis in ``2**-bits`` texels; the taps depend on ``x`` only through
+    its remainder past a texel corner, so they move with a box by whole texels.
+    """
+    if code == PCF_BILINEAR_BOX:
+        return x + wp.int64(a - size // 2) * unit, wp.float64(1.0)
+    span = wp.int64(2) * unit
+    # b: the texel corner nearest the point; s in [0, 1): the point's distance past b − ½, in texels.
+    b = (wp.int64(2) * x + unit) // span
+    s = wp.float64(wp.int64(2) * x + unit - b * span) / wp.float64(span)
+    one = wp.float64(1.0)
+    two = wp.float64(2.0)
+    three = wp.float64(3.0)
+    if code == PCF_CASTANO:
+        u = wp.float64(0.0)
+        w = wp.float64(0.0)
+        if size == 3:
+            if a == 0:
+                w = three - two * s
+                u = (two - s) / w - one
+            else:
+                w = one + two * s
+                u = s / w + one
+        else:
+            if a == 0:
+                w = wp.float64(4.0) - three * s
+                u = (three - two * s) / w - two
+            elif a == 1:
+                w = wp.float64(7.0)
+                u = (three + s) / w
+            else:
+                w = one + three * s
+                u = s / w + two
+        return b * unit + wp.int64(wp.round((u - wp.float64(0.5)) * wp.float64(unit))), w
+    # PCF_TENT_BILINEAR: texels t0 = b − m + 2a and t0 + 1 of the N + 1 around b (m = (N + 1) / 2).
+    h = wp.float64(size) * wp.float64(0.5)
+    t0 = b - wp.int64((size + 1) // 2) + wp.int64(2 * a)
+    p = wp.float64(x - t0 * unit) / wp.float64(unit)
+    w0 = tent_cdf(one - p, h) - tent_cdf(-p, h)
+    w1 = tent_cdf(two - p, h) - tent_cdf(one - p, h)
+    w = w0 + w1
+    share = wp.float64(0.5)
+    if w > wp.float64(0.0):
+        share = w1 / w
+    return t0 * unit + wp.int64(wp.round((wp.float64(0.5) + share) * wp.float64(unit))), w
+
+
+@wp.func
 def weighted_lit(depth: wp.array3d(dtype=wp.float32), coords: wp.array3d(dtype=wp.int64),
                  receiver_depth: wp.array2d(dtype=wp.float32), receiver_slope: wp.array2d(dtype=wp.vec2d),
                  c: int, k: int, unit: wp.int64, code: int, radius: int, width: wp.float64,
@@ -129,6 +195,31 @@ def weighted_lit(depth: wp.array3d(dtype=wp.float32), coords: wp.array3d(dtype=w
         return s / total
     if code == PCF_TENT:
         return tent_sum(depth, c, i, j, tx, ty, width, radius, receiver, slope, x, y, unit, inverse_span)
+    if code == PCF_VOGEL:
+        ca = wp.cos(angle)
+        sa = wp.sin(angle)
+        total = wp.float64(0.0)
+        for n in range(disk.shape[0]):
+            o = disk[n]
+            ox = wp.int64(wp.round(width * (ca * o[0] - sa * o[1]) * wp.float64(unit)))
+            oy = wp.int64(wp.round(width * (sa * o[0] + ca * o[1]) * wp.float64(unit)))
+            total += bilinear_tap(depth, c, x + ox, y + oy, receiver, slope, x, y, unit, inverse_span)
+        return total / wp.float64(disk.shape[0])
+    if code == PCF_CASTANO or code == PCF_TENT_BILINEAR or code == PCF_BILINEAR_BOX:
+        # width carries N / 2; Castaño's and the tent's N + 1 texels per axis take (N + 1) / 2 taps.
+        size = int(wp.round(wp.float64(2.0) * width))
+        count = size
+        if code != PCF_BILINEAR_BOX:
+            count = (size + 1) // 2
+        s = wp.float64(0.0)
+        total = wp.float64(0.0)
+        for bj in range(count):
+            qy, wy = axis_fetch(code, size, bj, y, unit)
+            for ai in range(count):
+                qx, wx = axis_fetch(code, size, ai, x, unit)
+                s += wx * wy * bilinear_tap(depth, c, qx, qy, receiver, slope, x, y, unit, inverse_span)
+                total += wx * wy
+        return s / total
     if code == PCF_POISSON:
         ca = wp.cos(angle)
         sa = wp.sin(angle)
@@ -219,7 +310,8 @@ def weighted_pcf(depth, coords, receiver_depth, *, cascade, filter: str, width, 
         A filter of the ``weighted`` family (:data:`csmlab.lookup_choices.FILTER_METHODS`).
     width : float or array_like, shape (C,)
         Per cascade, in texels: σ (``pcf_gaussian``), tent half-width (``pcf_tent``), disk radius
-        (``pcf_poisson``); for ``pcss`` the penumbra per metre of blocker distance,
+        (``pcf_poisson``, ``pcf_vogel``), N / 2 (``pcf_castano``, ``pcf_tent_bilinear``,
+        ``pcf_bilinear_box``); for ``pcss`` the penumbra per metre of blocker distance,
         ``2 tan(θ_L / 2) / texel`` (1/m).
     radius : int
         Taps reach at most ``radius`` texels from the texel holding the point: the filter record's
@@ -231,9 +323,9 @@ def weighted_pcf(depth, coords, receiver_depth, *, cascade, filter: str, width, 
     blend_weight : array_like, shape (N,), float64, optional
         Weight in [0, 1) of cascade ``cascade + 1`` mixed into S (blend band); None: no blend.
     angle : array_like, shape (N,), float64, optional
-        ``pcf_poisson``: rotation of the disk per receiver, radians; None: unrotated.
+        ``pcf_poisson``, ``pcf_vogel``: rotation of the disk per receiver, radians; None: unrotated.
     disk : array_like, shape (K, 2), float64, optional
-        ``pcf_poisson``: tap offsets in the unit disk.
+        ``pcf_poisson``, ``pcf_vogel``: tap offsets in the unit disk.
     device : str
         ``"cpu"`` or ``"cuda"``.
 
@@ -254,8 +346,9 @@ def weighted_pcf(depth, coords, receiver_depth, *, cascade, filter: str, width, 
         raise ValueError(f"radius: expected a non-negative integer, got {radius!r}")
     maps, xy, rd, slope, chosen, w, n = _checked(depth, coords, receiver_depth, receiver_slope, cascade, width)
     taps = np.zeros((1, 2)) if disk is None else np.ascontiguousarray(disk, dtype=np.float64)
-    if code == PCF_POISSON and (disk is None or taps.ndim != 2 or taps.shape[1] != 2 or taps.shape[0] == 0):
-        raise ValueError(f"disk: expected tap offsets of shape (K, 2) for pcf_poisson, got {np.shape(disk)}")
+    if code in (PCF_POISSON, PCF_VOGEL) and (disk is None or taps.ndim != 2 or taps.shape[1] != 2
+                                             or taps.shape[0] == 0):
+        raise ValueError(f"disk: expected tap offsets of shape (K, 2) for {filter}, got {np.shape(disk)}")
     blend = np.zeros(n) if blend_weight is None else np.ascontiguousarray(blend_weight, dtype=np.float64)
     turn = np.zeros(n) if angle is None else np.ascontiguousarray(angle, dtype=np.float64)
     if blend.shape != (n,) or turn.shape != (n,):

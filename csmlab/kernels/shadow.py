@@ -77,26 +77,39 @@ def tap(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int64, r
 
 
 @wp.func
+def bilinear_tap(depth: wp.array3d(dtype=wp.float32), c: int, qx: wp.int64, qy: wp.int64, receiver: wp.float32,
+                 slope: wp.vec2d, x: wp.int64, y: wp.int64, unit: wp.int64, inverse_span: wp.float64) -> wp.float64:
+    """One hardware bilinear-compare tap at fixed point ``(qx, qy)``: the 2×2 texels around it, each a :func:`tap`
+    of the receiver at ``(x, y)``, weighted bilinearly by the exact fraction of ``(qx, qy)`` between their centres.
+
+    What a comparison sampler with linear filtering returns (``SampleCmpLevelZero``,
+    ``textureProj(sampler2DShadow)``, ``textureSampleCompareLevel``), at the fixed point's precision
+    rather than the hardware's 8 sub-texel bits.
+    """
+    # Texel centres sit at (2i + 1)·unit in doubled units; i0 is the centre at or left of the point.
+    x2 = wp.int64(2) * qx - unit
+    y2 = wp.int64(2) * qy - unit
+    span = wp.int64(2) * unit
+    i0 = x2 // span
+    j0 = y2 // span
+    wx = wp.float64(x2 - i0 * span) / wp.float64(span)
+    wy = wp.float64(y2 - j0 * span) / wp.float64(span)
+    one = wp.int64(1)
+    s00 = wp.float64(tap(depth, c, i0, j0, receiver, slope, x, y, unit, inverse_span))
+    s10 = wp.float64(tap(depth, c, i0 + one, j0, receiver, slope, x, y, unit, inverse_span))
+    s01 = wp.float64(tap(depth, c, i0, j0 + one, receiver, slope, x, y, unit, inverse_span))
+    s11 = wp.float64(tap(depth, c, i0 + one, j0 + one, receiver, slope, x, y, unit, inverse_span))
+    w1 = wp.float64(1.0)
+    return (w1 - wy) * ((w1 - wx) * s00 + wx * s10) + wy * ((w1 - wx) * s01 + wx * s11)
+
+
+@wp.func
 def lit_fraction(depth: wp.array3d(dtype=wp.float32), c: int, x: wp.int64, y: wp.int64, receiver: wp.float32,
                  slope: wp.vec2d, unit: wp.int64, filter_code: int, radius: int) -> wp.float64:
     """S of a receiver at fixed point ``(x, y)`` in cascade c: bilinear (``BOX_BILINEAR``), else a box of ``radius``."""
     inverse_span = wp.float64(1.0) / wp.float64(wp.int64(2) * unit)
     if filter_code == BOX_BILINEAR:
-        # Texel centres sit at (2i + 1)·unit in doubled units; i0 is the centre at or left of the point.
-        x2 = wp.int64(2) * x - unit
-        y2 = wp.int64(2) * y - unit
-        span = wp.int64(2) * unit
-        i0 = x2 // span
-        j0 = y2 // span
-        wx = wp.float64(x2 - i0 * span) / wp.float64(span)
-        wy = wp.float64(y2 - j0 * span) / wp.float64(span)
-        one = wp.int64(1)
-        s00 = wp.float64(tap(depth, c, i0, j0, receiver, slope, x, y, unit, inverse_span))
-        s10 = wp.float64(tap(depth, c, i0 + one, j0, receiver, slope, x, y, unit, inverse_span))
-        s01 = wp.float64(tap(depth, c, i0, j0 + one, receiver, slope, x, y, unit, inverse_span))
-        s11 = wp.float64(tap(depth, c, i0 + one, j0 + one, receiver, slope, x, y, unit, inverse_span))
-        w1 = wp.float64(1.0)
-        return (w1 - wy) * ((w1 - wx) * s00 + wx * s10) + wy * ((w1 - wx) * s01 + wx * s11)
+        return bilinear_tap(depth, c, x, y, receiver, slope, x, y, unit, inverse_span)
     # BOX_TAPS: the (2r + 1)² texels centred on the one that contains the point (r = 0: none).
     i = x // unit
     j = y // unit
