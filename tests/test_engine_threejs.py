@@ -1,0 +1,155 @@
+"""three.js's own CSM addon run beside csmlab's ``threejs_csm`` preset on the same camera poses.
+
+tests/data/threejs_csm/csm_driver.mjs runs the addon's ``CSM.js`` and ``CSMFrustum.js`` (from
+tests/data/threejs_csm/vendor/ or an npm install of ``three``, see the README there) under Node with the addon's constructor defaults
+and prints its breaks and each cascade's shadow camera; this test builds csmlab's cascades of the preset
+for the same poses (the ``engines`` experiment's walk, camera and light) and compares them. What csmlab
+builds as three.js does is asserted; what it does not yet build is a strict xfail naming the missing
+behaviour, so that it fails (XPASS) the day csmlab models it and the mark must go.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from csmlab.cascades import build_cascades
+from csmlab.config import find_experiment, load_experiment
+from csmlab.light import direction_from_angles
+from csmlab.paths.generators import make_path
+
+DATA = Path(__file__).parent / "data" / "threejs_csm"
+DRIVER = DATA / "csm_driver.mjs"
+ADDON = next((folder for folder in (DATA / "vendor", DATA / "node_modules/three/examples/jsm/csm",
+                                    Path(__file__).parents[1] / "node_modules/three/examples/jsm/csm")
+              if (folder / "CSM.js").is_file() and (folder / "CSMFrustum.js").is_file()), None)
+NODE = shutil.which("node")
+
+pytestmark = [
+    pytest.mark.skipif(NODE is None, reason="node is not installed: three.js's CSM addon cannot run"),
+    pytest.mark.skipif(ADDON is None, reason="three.js's CSM.js and CSMFrustum.js are neither in "
+                       "tests/data/threejs_csm/vendor/ nor in an npm install of three (see "
+                       "tests/data/threejs_csm/README.md)"),
+]
+
+FRAMES = (0, 30, 60, 90, 119)
+
+
+@pytest.fixture(scope="module")
+def compared():
+    """``[(pose, csmlab CascadeSet, three.js result)]`` for a few frames of the engines experiment's walk."""
+    experiment = load_experiment(find_experiment("engines"))
+    settings = next(m.settings for m in experiment.methods if m.name == "threejs_csm")
+    camera, light = experiment.camera, experiment.light
+    d = direction_from_angles(elevation_deg=light.elevation_deg, azimuth_deg=light.azimuth_deg)
+    path = make_path(camera.path, frames=camera.frames, fps=camera.fps, seed=camera.seed, light_direction=d,
+                     fov_y_deg=camera.fov_y_deg, aspect=camera.aspect, near=camera.near, far=camera.far,
+                     **camera.params)
+    poses = [path.pose(i) for i in FRAMES]
+    scene_corners = np.array([[x, y, z] for x in (-1e3, 1e3) for y in (-1e3, 1e3) for z in (-1e3, 1e3)])
+    ours = [build_cascades(pose=p, light_direction=d, scene_corners=scene_corners, settings=settings) for p in poses]
+    request = {"csm": {}, "light_direction": d.tolist(), "poses": [
+        {"fov_y_deg": p.fov_y_deg, "aspect": p.aspect, "near": p.near, "far": p.far,
+         "position": p.position.tolist(), "right": p.rotation[:, 0].tolist(), "up": p.rotation[:, 1].tolist(),
+         "back": p.rotation[:, 2].tolist()} for p in poses]}
+    done = subprocess.run([NODE, str(DRIVER), str(ADDON)], input=json.dumps(request), capture_output=True, text=True,
+                          timeout=60, check=True)
+    theirs = json.loads(done.stdout)
+    return settings, d, list(zip(poses, ours, theirs))
+
+
+def test_cascade_count_and_map_size_are_the_addons_defaults(compared):
+    settings, _, cases = compared
+    for _, ours, theirs in cases:
+        assert len(ours) == len(theirs["cascades"]) == len(theirs["breaks"]) == settings.cascades
+    # CSM.js: shadowMapSize = data.shadowMapSize || 2048 (the driver passes no options).
+    assert settings.resolution == 2048
+
+
+def test_split_depths_equal_the_addons_breaks_times_its_far(compared):
+    """three.js's breaks are fractions of min(camera.far, maxFar) (_getBreaks, practicalSplit λ 0.5)."""
+    _, _, cases = compared
+    for pose, ours, theirs in cases:
+        expected = np.array(theirs["breaks"]) * theirs["shadow_far"]
+        assert ours.splits[0] == pose.near
+        np.testing.assert_allclose(ours.splits[1:], expected, rtol=1e-12, atol=0)
+
+
+def test_light_axis_and_light_position_depth(compared):
+    """Both light spaces share the light axis (three.js's +Z points toward the light), and csmlab's box near
+    side (slice depth − pancake 200) lies where three.js puts the light: lightMargin = 200 m toward the light
+    from the slice's corner nearest the light (up to the ≤ 0.1 m by which three.js's slice boundaries lie
+    further than csmlab's, see the xfails)."""
+    _, d, cases = compared
+    for _, ours, theirs in cases:
+        np.testing.assert_allclose(theirs["light_axes"][2], -ours.direction, atol=1e-12)
+        for ours_c, theirs_c in zip(ours.cascades, theirs["cascades"]):
+            light_depth = float(np.dot(theirs_c["position"], d))
+            assert abs(ours_c.depth_near - light_depth) <= 0.1
+
+
+def test_box_size_within_two_percent_of_the_addons(compared):
+    """The box is sized by the larger of the far-plane and body diagonals in both (_updateShadowBounds)."""
+    _, _, cases = compared
+    for _, ours, theirs in cases:
+        for ours_c, theirs_c in zip(ours.cascades, theirs["cascades"]):
+            width = theirs_c["right"] - theirs_c["left"]
+            assert theirs_c["top"] - theirs_c["bottom"] == width
+            assert ours_c.extent[0] == ours_c.extent[1]
+            assert abs(ours_c.extent[0] / width - 1.0) <= 0.02
+
+
+@pytest.mark.xfail(strict=True, reason="csmlab's extent = \"diagonal\" ceils the diagonal to whole metres and "
+                   "measures it on slices ending at b·far, while three.js's CSMFrustum.split lerps the near- and "
+                   "far-plane vertices (slice ends at near + b·(far − near)) and keeps the diagonal unrounded; and "
+                   "csmlab's snap = \"centre\" texel is D/(R − 2m − 2) (filter margins kept inside), three.js's D/R")
+def test_box_size_equals_the_addons(compared):
+    _, _, cases = compared
+    for _, ours, theirs in cases:
+        for ours_c, theirs_c in zip(ours.cascades, theirs["cascades"]):
+            width = theirs_c["right"] - theirs_c["left"]
+            np.testing.assert_allclose(ours_c.extent, [width, width], rtol=1e-9)
+            np.testing.assert_allclose(ours_c.texel_size, [width / 2048, width / 2048], rtol=1e-9)
+
+
+@pytest.mark.xfail(strict=True, reason="per-engine light basis not modelled: csmlab's light space takes the "
+                   "world axis least aligned with the light as up (geometry.light_basis), three.js's CSM.update() "
+                   "uses Matrix4.lookAt(origin, lightDirection, world +Y), so the texel grid is turned about the "
+                   "light axis")
+def test_light_space_basis_equals_the_addons(compared):
+    _, _, cases = compared
+    for _, ours, theirs in cases:
+        np.testing.assert_allclose(ours.basis[0], theirs["light_axes"][0], atol=1e-9)
+        np.testing.assert_allclose(ours.basis[1], theirs["light_axes"][1], atol=1e-9)
+
+
+@pytest.mark.xfail(strict=True, reason="the box centre lies on another texel grid: csmlab's basis (not world "
+                   "+Y up), its texel D/(R − 2m − 2) of a ceiled diagonal, and slices ending at b·far (three.js: "
+                   "floor(centre / (D/R)) in the lookAt(+Y) basis, D unrounded, slices lerped from near to far)")
+def test_box_centre_equals_the_addons(compared):
+    _, d, cases = compared
+    for _, ours, theirs in cases:
+        for ours_c, theirs_c in zip(ours.cascades, theirs["cascades"]):
+            centre = 0.5 * (ours_c.box_min + ours_c.box_max)
+            ours_world = centre[0] * ours.basis[0] + centre[1] * ours.basis[1]
+            position = np.array(theirs_c["position"])
+            theirs_world = position - np.dot(position, d) * d
+            np.testing.assert_allclose(ours_world, theirs_world, atol=1e-6)
+
+
+@pytest.mark.xfail(strict=True, reason="the shadow camera's depth range is not modelled: three.js clips at "
+                   "lightNear = 1 m and lightFar = 2000 m from a light lightMargin = 200 m toward the light from "
+                   "the slice, csmlab's depth_range = \"slice\" with pancake = 200 spans from 200 m in front of "
+                   "the slice to the slice's far corner")
+def test_depth_range_equals_the_addons(compared):
+    _, d, cases = compared
+    for _, ours, theirs in cases:
+        for ours_c, theirs_c in zip(ours.cascades, theirs["cascades"]):
+            light_depth = float(np.dot(theirs_c["position"], d))
+            assert ours_c.depth_near == pytest.approx(light_depth + theirs_c["near"], abs=1e-6)
+            assert ours_c.depth_far == pytest.approx(light_depth + theirs_c["far"], abs=1e-6)
