@@ -29,12 +29,14 @@ frame in the cascade pass (:func:`filter_inputs`).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet
+from csmlab.cascades.fit import BLEND_CURVES, transition_bands
 from csmlab.frame import ShadowLookup, ShadowMaps
 from csmlab.kernels.moments import blur_moments, moment_lookup, moment_maps, moment_mip_chain, moment_mip_lookup
 from csmlab.kernels.pcf import weighted_pcf
@@ -45,7 +47,8 @@ from csmlab.registry import check_name
 from csmlab.settings import ShadowSettings
 from csmlab.texels import PRECISION_METHODS, fixed_point_origin, receiver_lookup
 
-__all__ = ["FAMILY_LOOKUPS", "Receivers", "faded", "filter_inputs", "interleaved_gradient_noise", "lookup_shadow",
+__all__ = ["FADE_METHODS", "FAMILY_LOOKUPS", "Fade", "Receivers", "faded", "filter_inputs", "interleaved_gradient_noise",
+           "lookup_shadow",
            "screen_pixels", "texel_coordinates", "uses_pixels"]
 
 
@@ -130,7 +133,7 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
                                           selection=_selection(maps.cascades, settings, radius=radius),
                                           settings=settings, device=device)
     return _shadow_of_points(found, receivers, np.asarray(view_depth, dtype=np.float64), settings=settings,
-                             far=float(maps.cascades.splits[-1]))
+                             far=float(maps.cascades.splits[-1]), eye=maps.cascades.eye)
 
 
 def _receivers(points, normals, view_depth, *, pixels, quads: Quads | None, quad_view_depth, reads) -> Receivers:
@@ -178,9 +181,14 @@ def _selection(cascades: CascadeSet, settings: ShadowSettings, *, radius: int) -
 
     ``margin`` is the cascades' selection margin, widened to the filter's ``radius`` so that a
     selected box holds every tap.
+    The interval selection switches cascade where ``transition`` puts the end of each band
+    (:func:`csmlab.cascades.fit.transition_bands`), and each band starts at ``band_start``.
     """
-    return dict(splits=cascades.splits, texel_area=np.array([np.prod(c.texel_size) for c in cascades.cascades]),
-                selection=settings.selection, blend_band=settings.blend_band, bits=settings.subtexel_bits,
+    select, start = transition_bands(cascades.splits, blend_band=settings.blend_band, transition=settings.transition)
+    return dict(splits=select, texel_area=np.array([np.prod(c.texel_size) for c in cascades.cascades]),
+                selection=settings.selection, blend_band=settings.blend_band, band_start=start,
+                blend_curve=BLEND_CURVES[check_name(settings.blend_curve, BLEND_CURVES, field="blend_curve")][0],
+                bits=settings.subtexel_bits,
                 margin=max(cascades.margin_texels, radius))
 
 
@@ -348,7 +356,7 @@ arguments, the settings and the device, and returns ``(lit, cascade, blend)`` of
 
 
 def _shadow_of_points(found: tuple, receivers: Receivers, view_depth: np.ndarray, *, settings: ShadowSettings,
-                      far: float) -> ShadowLookup:
+                      far: float, eye=None) -> ShadowLookup:
     """Step 6: the :class:`ShadowLookup` of every point (shaped like ``view_depth``), faded toward ``far``."""
     shape = view_depth.shape
     index = receivers.index
@@ -357,18 +365,83 @@ def _shadow_of_points(found: tuple, receivers: Receivers, view_depth: np.ndarray
     blend = np.zeros(view_depth.size, dtype=bool)
     lit[index], cascade[index], blend[index] = found
     if settings.fade_out > 0.0:
-        lit[index], fading = faded(lit[index], receivers.view_depth, far=far, fade_out=settings.fade_out)
+        radial = None
+        if FADE_METHODS[check_name(settings.fade, FADE_METHODS, field="fade")].radial:
+            radial = np.linalg.norm(receivers.points[index] - eye, axis=1)
+        lit[index], fading = faded(lit[index], receivers.view_depth, far=far, fade_out=settings.fade_out,
+                                   fade=settings.fade, distance=radial)
         # Like a blend band, the fade weight follows the camera: the temporal metric counts these
         # points with the transitions, not with same-cascade swimming.
         blend[index] |= fading
     return ShadowLookup(lit=lit.reshape(shape), cascade=cascade.reshape(shape), blend=blend.reshape(shape))
 
 
-def faded(lit: np.ndarray, view_depth: np.ndarray, *, far: float, fade_out: float) -> tuple[np.ndarray, np.ndarray]:
-    """``lit`` ``(N,)`` faded toward 1 over the last ``fade_out`` fraction of ``far`` in view depth.
+@dataclass(frozen=True)
+class Fade:
+    """One shape of the far fade: the weight toward lit over the last ``fade_out`` of the shadow distance ``d``.
 
-    The weight rises linearly from 0 at ``far (1 - fade_out)`` to 1 at ``far`` (Unreal's
-    ``ShadowDistanceFadeoutFraction``, Godot's ``1 - directional_shadow_fade_start``).
+    Attributes
+    ----------
+    weight : callable
+        ``weight(z, r, *, far, fade_out) -> w`` in [0, 1] from the view depth ``z`` and the distance
+        ``r`` to the camera (None unless :attr:`radial`), metres.
+    radial : bool
+        The weight reads the distance to the camera, not the view depth.
+    what : str
+        The shape in words, and whose it is.
+    """
+
+    weight: Callable[..., np.ndarray]
+    radial: bool
+    what: str
+
+
+def _ramp(u: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    return np.clip((u - lo) / max(hi - lo, 1e-12), 0.0, 1.0)
+
+
+def _fade_linear(z, r, *, far: float, fade_out: float) -> np.ndarray:
+    return _ramp(np.asarray(z, dtype=np.float64), far * (1.0 - fade_out), far)
+
+
+def _fade_smoothstep(z, r, *, far: float, fade_out: float) -> np.ndarray:
+    t = _fade_linear(z, r, far=far, fade_out=fade_out)
+    return t * t * (3.0 - 2.0 * t)
+
+
+def _fade_radial(z, r, *, far: float, fade_out: float) -> np.ndarray:
+    return _ramp(np.asarray(r, dtype=np.float64), far * (1.0 - fade_out), far)
+
+
+def _fade_squared_radial(z, r, *, far: float, fade_out: float) -> np.ndarray:
+    r2 = np.square(np.asarray(r, dtype=np.float64))
+    return _ramp(r2, (far * (1.0 - fade_out)) ** 2, far * far)
+
+
+FADE_METHODS: dict[str, Fade] = {
+    "linear": Fade(_fade_linear, False, "linear in view depth from d (1 - f) to d (Unreal "
+                                        "ShadowDistanceFadeoutFraction; Unity built-in Close Fit)"),
+    "smoothstep": Fade(_fade_smoothstep, False, "smoothstep in view depth from d (1 - f) to d (Godot 4: "
+                                                "smoothstep(fade_from, fade_to, vertex.z), light_storage.cpp "
+                                                "fade_from = -split_offsets[3] · fade_start)"),
+    "radial": Fade(_fade_radial, True, "linear in the distance to the camera from d (1 - f) to d (Unity built-in "
+                                       "Stable Fit's spherical fade, UnityComputeShadowFadeDistance; its centre is "
+                                       "set natively, taken here as the camera)"),
+    "squared_radial": Fade(_fade_squared_radial, True, "linear in the squared distance to the camera from "
+                                                       "(d (1 - f))² to d² (Unity URP: ShadowUtils."
+                                                       "GetScaleAndBiasForLinearDistanceFade, GetMainLightShadowFade)"),
+}
+"""Far-fade shapes by name (``[shadow] fade``)."""
+
+
+def faded(lit: np.ndarray, view_depth: np.ndarray, *, far: float, fade_out: float, fade: str = "linear",
+          distance=None) -> tuple[np.ndarray, np.ndarray]:
+    """``lit`` ``(N,)`` faded toward 1 over the last ``fade_out`` fraction of ``far``.
+
+    With ``fade = "linear"`` the weight rises linearly in view depth from 0 at ``far (1 - fade_out)``
+    to 1 at ``far`` (Unreal's ``ShadowDistanceFadeoutFraction``); the other shapes are those of
+    :data:`FADE_METHODS`, the radial ones reading ``distance`` ``(N,)``, each receiver's distance to
+    the camera in metres.
 
     Returns
     -------
@@ -376,8 +449,10 @@ def faded(lit: np.ndarray, view_depth: np.ndarray, *, far: float, fade_out: floa
     fading : ndarray, shape (N,), bool
         The weight is above 0.
     """
-    start = far * (1.0 - fade_out)
-    weight = np.clip((np.asarray(view_depth, dtype=np.float64) - start) / max(far - start, 1e-12), 0.0, 1.0)
+    record = FADE_METHODS[check_name(fade, FADE_METHODS, field="fade")]
+    if record.radial and distance is None:
+        raise ValueError(f"distance: fade = {fade!r} needs each receiver's distance to the camera")
+    weight = record.weight(view_depth, distance, far=far, fade_out=fade_out)
     return (lit + (1.0 - lit) * weight).astype(np.float32), weight > 0.0
 
 

@@ -12,7 +12,11 @@ Each condition below is one row of :data:`_CONDITIONS`; the promise holds when a
    a camera whose field of view never changes (each slice's extent follows it; a zoom path
    changes it every frame) and an extent of :data:`FIXED_EXTENTS` — and the box snapped to whole
    texels (:data:`WHOLE_TEXEL_SNAPS`: every snap of :mod:`csmlab.cascades.stabilize` moves the
-   box by whole texels, ``view`` in steps of four).
+   box by whole texels, ``view`` in steps of four, ``nearest2`` — Godot's edges rounded to the
+   nearest 2-texel unit — in steps of two: its texel size is the fixed radius's, its origin a whole
+   texel index, so rounding to nearest rather than down changes only when the box steps). The
+   ``centroid`` extent (Godot, Stride) is fixed like ``sphere``: its centre's depth and its radius
+   are closed forms of the projection and the slice depths.
 3. **Float64 texel math** (``engine_precision``): csmlab's global texel coordinates depend on the
    world point and the texel size only, and the box origin is an integer shift, so the rule holds
    at any distance from the world origin (up to the fixed-point clip of :mod:`csmlab.texels`,
@@ -35,8 +39,9 @@ Each condition below is one row of :data:`_CONDITIONS`; the promise holds when a
    :data:`WORLD_LOCKED_DEPTH_FORMATS` (quantized over the scene's fixed light-space span in
    power-of-two steps, :mod:`csmlab.storage`).
 
-Selection, blend bands and the fade-out decide only *which* cascade a point reads or how much a
-camera-dependent weight counts; the temporal metric files those points under "cascade changed"
+Selection, blend bands and the fade-out — whatever their ``transition``, ``blend_curve`` or
+``fade`` shape (a band placed forward or at the far bound, a smoothstep, a radial distance) — decide
+only *which* cascade a point reads or how much a camera-dependent weight counts; the temporal metric files those points under "cascade changed"
 (:mod:`csmlab.metrics.temporal`), so they keep the promise.
 
 The promise is written into ``summary.json`` (``invariants``, :func:`summary_invariants`) and
@@ -60,11 +65,11 @@ __all__ = ["FIXED_EXTENTS", "FLICKER_SAME_ZERO", "Promise", "SCREEN_READS", "WHO
 FLICKER_SAME_ZERO = "flicker_same_zero"
 """The name of the one invariant: ``flicker_same`` is exactly 0.0."""
 
-FIXED_EXTENTS = ("sphere", "diagonal")
+FIXED_EXTENTS = ("sphere", "diagonal", "centroid")
 """``extent`` choices whose box size depends on the projection and the slice depths only
 (:mod:`csmlab.cascades.extent`); a new one promises nothing until it is listed here."""
 
-WHOLE_TEXEL_SNAPS = ("origin", "centre", "view")
+WHOLE_TEXEL_SNAPS = ("origin", "centre", "view", "nearest2")
 """``snap`` choices that move an exact box by whole texels (:data:`csmlab.cascades.stabilize.SNAP_METHODS`)."""
 
 WORLD_LOCKED_DEPTH_FORMATS = ("float32", "unorm24", "unorm16")

@@ -30,11 +30,11 @@ class ShadowSettings:
     resolution: int = 1024
     """Texels per side R of each cascade's depth map."""
     split: str = "practical"
-    """Split scheme: uniform | log | practical | manual."""
+    """Split scheme: uniform | log | practical | manual | manual_range | exponent | geometric."""
     lambda_: float = 0.75
     """practical: PSSM blend λ of log and uniform splits (TOML field ``lambda``)."""
     splits: tuple[float, ...] = ()
-    """manual: far end of each cascade, metres, or fractions of shadow_distance when all ≤ 1."""
+    """manual: far end of each cascade, metres, or fractions of shadow_distance when all ≤ 1; manual_range: fractions of the range from the near plane to shadow_distance (Godot, MJP)."""
     shadow_distance: float = 200.0
     """View depth in metres that the last cascade ends at (clamped to the camera's far plane)."""
     fit: str = "cascade"
@@ -65,6 +65,10 @@ class ShadowSettings:
     """Fixed-point bits below a texel for vertices and receivers (DESIGN.md, "Exact zero")."""
     depth_bytes: int = 0
     """Bytes per stored depth texel (memory cost only); 0: what depth_format allocates (2, 4, 4)."""
+    transition: str = "backward"
+    """blend_band > 0: where each band lies, backward (the last blend_band of cascade i's width, cascade i + 1 reaching back) | far_bound (from (1 - blend_band) z_i+1 to z_i+1: Bevy) | forward (cascade i reaching blend_band of its width past its split: Unreal) (csmlab.cascades.fit.TRANSITION_METHODS)."""
+    blend_curve: str = "linear"
+    """blend_band > 0: the next cascade's weight over the band, linear | smoothstep (Stride, Godot) (csmlab.cascades.fit.BLEND_CURVES)."""
     depth_format: str = "float32"
     """Stored depth: float32 | unorm24 | unorm16, quantized over the scene's light-space depth range (csmlab.storage)."""
     storage: str = "array"
@@ -116,9 +120,9 @@ class ShadowSettings:
     first_cascade_far: float = 10.0
     """split = geometric: far end of the first cascade in metres, the rest geometric (Bevy's first_cascade_far_bound)."""
     extent: str = "sphere"
-    """exact, and quantized with quantized_base = sphere: the fixed box diameter, sphere (slice bounding sphere) | diagonal (ceil of the slice's largest diagonal, Bevy, three.js)."""
+    """exact, and quantized with quantized_base = sphere: the fixed box diameter, sphere (slice bounding sphere) | diagonal (ceil of the slice's largest diagonal, Bevy, three.js) | centroid (sphere about the corners' centroid: Godot, Stride)."""
     snap: str = "origin"
-    """exact: what is snapped to whole texels, origin (box corner: Valient, DirectX, Unreal) | centre (box centre: Bevy, three.js, Stride projection snapping) | view (centre in 4-texel steps: Stride view snapping)."""
+    """exact: what is snapped to whole texels, origin (box corner: Valient, DirectX, Unreal) | centre (box centre: Bevy, three.js, Stride projection snapping) | view (centre in 4-texel steps: Stride view snapping) | nearest2 (edges rounded to the nearest 2-texel unit: Godot)."""
     depth_range: str = "scene"
     """Box depth: scene (near side pushed to the scene bounds) | slice (the slice's own range, less pancake)."""
     pancake: float = 0.0
@@ -131,6 +135,8 @@ class ShadowSettings:
     """Depth range the splits divide, frustum (near .. shadow_distance) | sdsm (the frame's visible depth range, from the G-buffer)."""
     hysteresis: float = 0.0
     """bounds = sdsm: the held range grows at once and shrinks only when the visible range is this fraction inside it."""
+    fade: str = "linear"
+    """fade_out > 0: the fade's shape, linear (in view depth: Unreal) | smoothstep (in view depth: Godot) | radial (linear in the distance to the camera: Unity built-in Stable Fit) | squared_radial (linear in its square: Unity URP) (csmlab.filters.FADE_METHODS)."""
     extent_hysteresis: float = 0.0
     """stabilization = none: the tight box's extent grows at once and shrinks only when the tight extent is this fraction below it (csmlab.cascades.stabilize.held_extents)."""
     engine_precision: str = "float64"
@@ -277,7 +283,8 @@ def _moment_mips(*, filter: str, moment_mips: bool) -> bool:
 
 APPLIES: dict[str, Applies] = {
     "lambda": Applies(lambda *, split: split == "practical", 'split = "practical" (the blend of log and uniform splits)'),
-    "splits": Applies(lambda *, split: split == "manual", 'split = "manual" (the far end of each cascade)'),
+    "splits": Applies(lambda *, split: split in ("manual", "manual_range"),
+                      'split = "manual" or "manual_range" (the far end of each cascade)'),
     "distribution_exponent": Applies(lambda *, split: split == "exponent",
                                      'split = "exponent" (the depth ratio of consecutive cascades)'),
     "first_cascade_far": Applies(lambda *, split: split == "geometric", 'split = "geometric" (the first far end)'),
@@ -302,6 +309,9 @@ APPLIES: dict[str, Applies] = {
     "filter_sigma": Applies(lambda *, filter, filter_width_m: filter == "pcf_gaussian" and filter_width_m == 0,
                             'filter = "pcf_gaussian" and filter_width_m = 0 (σ in texels; a width in metres sets '
                             'σ otherwise)'),
+    "transition": Applies(lambda *, blend_band: blend_band > 0, "blend_band > 0 (where its bands lie)"),
+    "blend_curve": Applies(lambda *, blend_band: blend_band > 0, "blend_band > 0 (the weight over its bands)"),
+    "fade": Applies(lambda *, fade_out: fade_out > 0, "fade_out > 0 (the shape of the far fade)"),
     "filter_width_m": _filters(lambda f: f in ("pcf_gaussian", "pcf_tent", "pcf_poisson"), "the width in metres"),
     "poisson_taps": _filters(lambda f: f == "pcf_poisson", "the taps of its disk"),
     "poisson_seed": _filters(lambda f: f == "pcf_poisson", "the seed of its disk"),

@@ -170,6 +170,7 @@ def _context(key: str) -> dict:
     choices = {name: list(registries[name]) if name in registries else
                [True, False] if isinstance(getattr(defaults, name), bool) else
                [getattr(defaults, name), *quoted] if isinstance(getattr(defaults, name), str) else
+               [getattr(defaults, name), 0.1] if isinstance(getattr(defaults, name), float) else
                [getattr(defaults, name)] for name in parameters(rule.test)}
     return next(point for point in (dict(zip(choices, values)) for values in itertools.product(*choices.values()))
                 if rule.holds(defaults.replace(**point)))

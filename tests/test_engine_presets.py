@@ -67,23 +67,27 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
 @pytest.mark.parametrize("preset, defaults", [
     # DirectionalLightComponent.h: DynamicShadowCascades 3, CascadeDistributionExponent 3.0,
     # CascadeTransitionFraction 0.1, ShadowDistanceFadeoutFraction 0.1, 20000 cm.
-    ("engines/ue5", dict(cascades=3, split="exponent", distribution_exponent=3.0, blend_band=0.1, fade_out=0.1,
+    ("engines/ue5", dict(cascades=3, split="exponent", distribution_exponent=3.0, blend_band=0.1,
+                         transition="forward", fade_out=0.1,
                          shadow_distance=200.0, stabilization="exact")),
     # Unity QualitySettings: shadowCascade4Split (0.067, 0.2, 0.467), shadowDistance 150.
     # Built-in: Internal-ScreenSpaceShadows frag_pcf5x5 -> UnitySampleShadowmap_PCF5x5Tent; one 2×2 shadowmap.
     ("engines/unity_builtin_stable", dict(cascades=4, splits=(0.067, 0.2, 0.467, 1.0), shadow_distance=150.0,
+                                          fade="radial",
                                           stabilization="exact", selection="map", filter="pcf_tent", filter_size=5,
                                           storage="atlas", atlas_layout="2x2")),
     ("engines/unity_builtin_close", dict(cascades=4, splits=(0.067, 0.2, 0.467, 1.0), stabilization="none",
                                          filter="pcf_tent", filter_size=5, storage="atlas")),
     # UniversalRenderPipelineAsset: m_ShadowDistance 50, m_Cascade4Split (0.067, 0.2, 0.467), m_CascadeBorder 0.2;
     # m_SoftShadowQuality Medium = SampleShadow_ComputeSamples_Tent_5x5; 2×2 atlas; k_ShadowmapBufferBits = 16.
-    ("engines/unity_urp", dict(shadow_distance=50.0, splits=(0.067, 0.2, 0.467, 1.0), fade_out=0.2, filter="pcf_tent",
+    ("engines/unity_urp", dict(shadow_distance=50.0, splits=(0.067, 0.2, 0.467, 1.0), fade_out=0.2,
+                               fade="squared_radial", filter="pcf_tent",
                                filter_size=5, storage="atlas", atlas_layout="2x2", depth_format="unorm16")),
     # DirectionalLight3D: splits 0.1/0.2/0.5, max distance 100, fade_start 0.8, pancake_size 20, blend off;
     # soft_shadow_filter_quality 2 (SOFT_LOW): directional_soft_shadow_samples = 4, quality radius 2.0, a
     # Vogel disk rotated per pixel; directional_shadow/16_bits = true; 4 splits as quadrants of one atlas.
-    ("engines/godot4", dict(splits=(0.1, 0.2, 0.5, 1.0), shadow_distance=100.0, fade_out=0.2, pancake=20.0,
+    ("engines/godot4", dict(split="manual_range", splits=(0.1, 0.2, 0.5, 1.0), shadow_distance=100.0, fade_out=0.2,
+                            fade="smoothstep", extent="centroid", snap="nearest2", pancake=20.0,
                             depth_range="slice", depth_clamp=True, blend_band=0.0, filter="pcf_poisson",
                             poisson_taps=4, filter_size=5, poisson_rotation="pixel", storage="atlas",
                             depth_format="unorm16")),
@@ -94,7 +98,8 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     # CascadeShadowConfigBuilder::default(): 4, 0.1, 150, first bound 10, overlap 0.2;
     # ShadowFilteringMethod::Gaussian = sample_shadow_map_castano_thirteen, weights (4 - 3s, 7, 1 + 3s) over 5 texels.
     ("engines/bevy", dict(cascades=4, split="geometric", first_cascade_far=10.0, shadow_distance=150.0,
-                          blend_band=0.2, extent="diagonal", snap="centre", filter="pcf_tent", filter_size=5)),
+                          blend_band=0.2, transition="far_bound", extent="diagonal", snap="centre",
+                          filter="pcf_tent", filter_size=5)),
     # CSM.js: cascades 3, mode 'practical', lightMargin 200, fade false; renderer default PCFShadowMap.
     ("engines/threejs_csm", dict(cascades=3, split="practical", lambda_=0.5, pancake=200.0, fade_out=0.0,
                                  extent="diagonal", filter="pcf", filter_size=3)),
@@ -102,11 +107,14 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     # DepthRange.IsAutomatic true (held: DepthIncreaseThreshold 1.1, DepthDecreaseThreshold 2.0),
     # IsBlendingCascades true (overlap 0.2); PCF 5×5 in the shadow atlas.
     ("engines/stride", dict(cascades=4, lambda_=0.5, bounds="sdsm", hysteresis=0.5, stabilization="exact",
-                            extent="sphere", snap="centre", blend_band=0.2, filter="pcf", filter_size=5,
+                            extent="centroid", snap="centre", blend_band=0.2, blend_curve="smoothstep",
+                            transition="backward", filter="pcf", filter_size=5,
                             storage="atlas")),
     # TheRealMJP/Shadows AppSettings.cs: SplitDistance0..3 0.05/0.15/0.5/1.0, StabilizeCascades = false,
     # ShadowMode FixedSizePCF with FixedFilterSize Filter2x2, DepthBufferFormat DB32Float.
-    ("engines/mjp", dict(cascades=4, splits=(0.05, 0.15, 0.5, 1.0), stabilization="none", filter="pcf_bilinear",
+    ("engines/mjp", dict(cascades=4, split="manual_range", splits=(0.05, 0.15, 0.5, 1.0), shadow_distance=400.0,
+                         depth_range="slice", depth_clamp=True, pancake=0.0, stabilization="none",
+                         filter="pcf_bilinear",
                          depth_format="float32")),
     # Seed 001: m_cascadeEnd = {zNear, 25.0, 90.0, zFar}; slice AABB, its own depth only.
     ("seeds/ogldev49", dict(cascades=3, splits=(25.0, 90.0, 200.0), stabilization="none", depth_range="slice",
@@ -116,7 +124,8 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     # uses this approach"; VarianceShadows11 "use[s] texture arrays instead of a texture atlas" (CSM11: an atlas).
     ("seeds/dx_csm11_cascade", dict(fit="cascade", selection="interval", extent="diagonal", filter="pcf_gaussian",
                                     storage="atlas", atlas_layout="1x4")),
-    ("seeds/dx_csm11_scene", dict(fit="scene", selection="map", blend_band=0.1, filter="pcf_gaussian",
+    ("seeds/dx_csm11_scene", dict(fit="scene", selection="map", blend_band=0.0, cascades=3,
+                                  splits=(19.995, 59.985, 239.94), filter="pcf_gaussian",
                                   storage="atlas")),
     # Seed 003, 4.1.2: 64 levels; 4.1.1: "Packing CSMs into an atlas texture ... our project uses this strategy".
     ("seeds/unigine_quantized", dict(stabilization="quantized", levels=64, storage="atlas", atlas_layout="unigine")),
@@ -267,3 +276,230 @@ def test_report_draws_methods_with_different_cascade_counts(tmp_path):
     _run(tmp_path, extends=["engines/filament", "engines/ue5", "methods/exact"], frames=2)
     index = write_report(tmp_path / "out")
     assert index.is_file() and any((tmp_path / "out" / "figures").glob("*stabilization*"))
+
+
+# --- Each preset's cascades against its engine's formula, written out here from the engine's source ---
+# A hand-worked pose: at (3, 2, -5) looking down -z (identity orientation), fov 60°, 16:9, near 0.1,
+# far 400; the sun of lights/sun_40. Light space is csmlab's basis (a separate choice).
+
+POSE_AT = np.array([3.0, 2.0, -5.0])
+SUN = np.array([-0.383, -0.643, -0.663])
+
+
+def _preset(preset: str, tmp_path):
+    from csmlab.camera import CameraPose
+
+    path = tmp_path / "exp.toml"
+    path.write_text(f'extends = ["{preset}"]\n[camera]\npath = "walk"\n')
+    (method,) = load_experiment(path).methods
+    pose = CameraPose(position=POSE_AT, orientation=[0.0, 0.0, 0.0, 1.0], fov_y_deg=60.0, aspect=16.0 / 9.0,
+                      near=0.1, far=400.0)
+    return method.settings, pose
+
+
+def _build(settings, pose, **kw):
+    from csmlab.cascades import build_cascades
+
+    scene = np.array([[x, y, z] for x in (-300.0, 300.0) for y in (-20.0, 60.0) for z in (-300.0, 300.0)])
+    return build_cascades(pose=pose, light_direction=SUN, scene_corners=scene, settings=settings, **kw)
+
+
+def _corners(z0: float, z1: float) -> np.ndarray:
+    """The 8 world corners of the view slice [z0, z1] of the hand-worked pose."""
+    ty = np.tan(np.radians(30.0))
+    tx = ty * 16.0 / 9.0
+    return np.array([POSE_AT + [sx * z * tx, sy * z * ty, -z] for z in (z0, z1) for sx in (-1, 1) for sy in (-1, 1)])
+
+
+def _blend_weights(settings, cascades, depths) -> tuple[np.ndarray, np.ndarray]:
+    """The selection kernel's cascade and next-cascade weight at view ``depths``, every box holding the point."""
+    from csmlab.cascades.fit import BLEND_CURVES, transition_bands
+    from csmlab.kernels.shadow import select_cascades
+
+    count, n, bits = len(cascades), len(depths), 8
+    select, start = transition_bands(cascades.splits, blend_band=settings.blend_band, transition=settings.transition)
+    chosen, weight, _ = select_cascades(
+        np.full((count, 16, 16), np.inf, np.float32), np.full((count, n, 2), 8 << bits, np.int64),
+        np.zeros((count, n), np.float32), np.asarray(depths, np.float64), splits=select,
+        texel_area=np.ones(count), selection="interval", radius=1, margin=1, blend_band=settings.blend_band,
+        band_start=start, blend_curve=BLEND_CURVES[settings.blend_curve][0], bits=bits)
+    return chosen, weight
+
+
+def test_godot4_splits_sphere_snap_and_fade_are_godots(tmp_path):
+    settings, pose = _preset("engines/godot4", tmp_path)
+    cs = _build(settings, pose)
+    # renderer_scene_cull.cpp, _light_instance_setup_directional_shadow: min_distance = z_near,
+    # max_distance = min(shadow max distance, z_far), range = max - min;
+    # distances[i + 1] = min_distance + split_offset_i * range.
+    near, far = 0.1, min(100.0, 400.0)
+    distances = [near] + [near + s * (far - near) for s in (0.1, 0.2, 0.5)] + [far]
+    np.testing.assert_allclose(cs.splits, distances, rtol=1e-12)
+    np.testing.assert_allclose(cs.splits[1:4], [10.09, 20.08, 50.05])
+    margin = cs.margin_texels
+    for i, cascade in enumerate(cs.cascades):
+        # blend_splits = false: split i's frustum is [distances[i], distances[i + 1]].
+        endpoints = _corners(distances[i], distances[i + 1])
+        center = endpoints.sum(axis=0) / 8.0                                   # center /= 8.0
+        radius = max(np.linalg.norm(e - center) for e in endpoints)
+        # Godot's map of T texels; csmlab lays the filter's margin outside Godot's box: T = R - 2m.
+        size = cascade.resolution - 2 * margin
+        radius *= size / (size - 2.0)                                          # add a texel by each side
+        texel = radius * 2.0 / size                                            # shadow_texel_size
+        unit = radius * 4.0 / size
+        snapped = lambda v, s: np.floor(v / s + 0.5) * s                       # Math::snapped
+        x_min = np.array([snapped(axis @ center - radius, unit) for axis in cs.basis[:2]])
+        np.testing.assert_allclose(cascade.texel_size, [texel, texel], rtol=2.0 ** -11)
+        # The same edge on the same 2-texel grid (csmlab's radius is rounded up by < 2^-12, its texel with it).
+        np.testing.assert_array_equal(cascade.origin + margin, np.rint(x_min / texel))
+        assert np.all(np.rint(x_min / texel) % 2 == 0)
+        np.testing.assert_allclose(cascade.box_min + margin * cascade.texel_size, x_min, rtol=2.0 ** -11)
+    # light_storage.cpp: fade_from = -split_offsets[3] * min(fade_start, 0.999), fade_to = -split_offsets[3];
+    # scene_forward_clustered.glsl: shadow = mix(shadow, 1.0, smoothstep(fade_from, fade_to, vertex.z)).
+    fade_from, fade_to = far * 0.8, far
+    depths = np.array([85.0, 90.0, 95.0])
+    t = np.clip((depths - fade_from) / (fade_to - fade_from), 0.0, 1.0)
+    godot = t * t * (3.0 - 2.0 * t)                                           # GLSL smoothstep
+    lit, _ = faded(np.zeros(3, np.float32), depths, far=float(cs.splits[-1]), fade_out=settings.fade_out,
+                   fade=settings.fade)
+    np.testing.assert_allclose(lit, godot, rtol=1e-6)
+    np.testing.assert_allclose(lit, [0.15625, 0.5, 0.84375], rtol=1e-6)
+
+
+def test_unity_urp_fade_is_linear_in_squared_distance(tmp_path):
+    settings, pose = _preset("engines/unity_urp", tmp_path)
+    cs = _build(settings, pose)
+    # ShadowUtils.GetScaleAndBiasForLinearDistanceFade(fadeDistance = maxShadowDistance², border):
+    # border = 1 - border; border *= border; distanceFadeNear = border * fadeDistance;
+    # scale = 1 / (fadeDistance - distanceFadeNear); bias = -distanceFadeNear / (fadeDistance - distanceFadeNear).
+    fade_distance = 50.0 ** 2
+    border = (1.0 - 0.2) ** 2
+    fade_near = border * fade_distance
+    scale, bias = 1.0 / (fade_distance - fade_near), -fade_near / (fade_distance - fade_near)
+    # Points off the view axis, so that their distance is not their view depth.
+    directions = np.array([[0.3, 0.1, -1.0]] * 3)
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    points = POSE_AT + directions * np.array([[42.5], [45.0], [47.5]])
+    cam_to_pixel = points - POSE_AT
+    urp = np.clip(np.einsum("ij,ij->i", cam_to_pixel, cam_to_pixel) * scale + bias, 0.0, 1.0)  # GetMainLightShadowFade
+    lit, _ = faded(np.zeros(3, np.float32), pose.view_depth(points), far=float(cs.splits[-1]),
+                   fade_out=settings.fade_out, fade=settings.fade, distance=np.linalg.norm(points - cs.eye, axis=1))
+    np.testing.assert_allclose(lit, urp, rtol=1e-6)
+    np.testing.assert_allclose(lit, [0.229167, 0.472222, 0.729167], rtol=1e-5)
+
+
+def test_unity_builtin_stable_fit_fades_with_the_distance_to_the_camera(tmp_path):
+    settings, pose = _preset("engines/unity_builtin_stable", tmp_path)
+    cs = _build(settings, pose)
+    # UnityShadowLibrary.cginc: UnityComputeShadowFadeDistance = distance(wpos, fade centre) (Stable Fit),
+    # UnityComputeShadowFade = saturate(fadeDist * _LightShadowData.z + _LightShadowData.w), linear; the centre
+    # (native) taken as the camera, the fade over the last 0.1 of 150 m.
+    r = np.array([137.5, 142.5, 147.5])
+    points = POSE_AT + np.array([0.6, 0.0, -0.8]) * r[:, None]
+    unity = np.clip((np.linalg.norm(points - POSE_AT, axis=1) - 135.0) / 15.0, 0.0, 1.0)
+    lit, _ = faded(np.zeros(3, np.float32), pose.view_depth(points), far=float(cs.splits[-1]),
+                   fade_out=settings.fade_out, fade=settings.fade, distance=np.linalg.norm(points - cs.eye, axis=1))
+    np.testing.assert_allclose(lit, unity, rtol=1e-6)
+    np.testing.assert_allclose(lit, [1 / 6, 0.5, 5 / 6], rtol=1e-6)
+
+
+def test_ue5_transition_extends_each_cascade_forward_past_its_split(tmp_path):
+    settings, pose = _preset("engines/ue5", tmp_path)
+    cs = _build(settings, pose)
+    # GetSplitDistance (CascadeDistributionExponent 3): near + (far - near) (e^i - 1) / (e^C - 1).
+    near, far, e = 0.1, 200.0, 3.0
+    z = [near + (far - near) * (e ** i - 1.0) / (e ** 3 - 1.0) for i in range(4)]
+    np.testing.assert_allclose(cs.splits, z, rtol=1e-12)
+    # The transition: FadePlaneOffset = SplitFar; SplitFar += CascadeTransitionFraction * (SplitFar - SplitNear);
+    # FadePlaneLength = SplitFar - FadePlaneOffset; cascade i fades out (i + 1 in) over it, linearly.
+    fade_offset = z[1]
+    split_far = z[1] + 0.1 * (z[1] - z[0])
+    assert cs.cascades[0].slice_far == pytest.approx(split_far, rel=1e-12)
+    assert cs.cascades[1].slice_near == pytest.approx(z[1], rel=1e-12)
+    depths = fade_offset + np.array([0.25, 0.5, 0.75]) * (split_far - fade_offset)
+    unreal = (depths - fade_offset) / (split_far - fade_offset)
+    chosen, weight = _blend_weights(settings, cs, depths)
+    np.testing.assert_array_equal(chosen, [0, 0, 0])
+    np.testing.assert_allclose(weight, unreal, rtol=1e-9)
+    # Before the split there is no band: cascade 0 alone.
+    chosen, weight = _blend_weights(settings, cs, [z[1] - 0.5])
+    assert chosen[0] == 0 and weight[0] == 0.0
+
+
+def test_bevy_overlap_is_a_proportion_of_the_far_bound(tmp_path):
+    settings, pose = _preset("engines/bevy", tmp_path)
+    cs = _build(settings, pose)
+    # cascade.rs calculate_cascade_bounds: base = (max / first)^(1 / (n - 1)); bounds[i] = first * base^i.
+    base = (150.0 / 10.0) ** (1.0 / 3.0)
+    far_bounds = [10.0 * base ** i for i in range(4)]
+    np.testing.assert_allclose(cs.splits[1:], far_bounds, rtol=1e-12)
+    # build_directional_light_cascades: near_bounds = [minimum_distance] + (1 - overlap_proportion) * far_bounds.
+    near_bounds = [0.1] + [0.8 * b for b in far_bounds[:-1]]
+    np.testing.assert_allclose([c.slice_near for c in cs.cascades], near_bounds, rtol=1e-12)
+    # shadows.wesl fetch_directional_shadow: next_near_bound = (1 - overlap) * this_far_bound;
+    # mix(shadow, next_shadow, (-view_z - next_near_bound) / (this_far_bound - next_near_bound)).
+    this_far = far_bounds[1]
+    next_near = 0.8 * this_far
+    depths = next_near + np.array([0.25, 0.5, 0.75]) * (this_far - next_near)
+    chosen, weight = _blend_weights(settings, cs, depths)
+    np.testing.assert_array_equal(chosen, [1, 1, 1])
+    np.testing.assert_allclose(weight, (depths - next_near) / (this_far - next_near), rtol=1e-9)
+
+
+def test_stride_sphere_is_from_points_and_its_blend_a_smoothstep(tmp_path):
+    settings, pose = _preset("engines/stride", tmp_path)
+    cs = _build(settings, pose, visible_depth=(1.0, 120.0))
+    # LightDirectionalShadowMapRenderer.ComputeCascadeSplits: logRatio = 1 - PSSMFactor (0.5);
+    # logZ = min * (max / min)^d, uniformZ = min + (max - min) * d, distance = lerp(uniformZ, logZ, logRatio).
+    lo, hi = 1.0, 120.0
+    d = np.arange(5) / 4.0
+    stride = (lo + (hi - lo) * d) * 0.5 + lo * (hi / lo) ** d * 0.5
+    np.testing.assert_allclose(cs.splits, stride, rtol=1e-12)
+    margin = cs.margin_texels
+    for cascade in cs.cascades:
+        # BoundingSphere.FromPoints: the centre is the points' average, the radius the largest distance to it.
+        points = _corners(cascade.slice_near, cascade.slice_far)
+        centre = points.mean(axis=0)
+        radius = max(np.linalg.norm(p - centre) for p in points)
+        # snap = "centre": the box is 2 (R / 2 - m - 1) texels of the radius plus the margins.
+        held = cascade.texel_size[0] * (cascade.resolution // 2 - margin - 1)
+        assert held == pytest.approx(radius, rel=2.0 ** -11)
+        box_centre = 0.5 * (cascade.box_min + cascade.box_max)
+        assert np.all(np.abs(box_centre - cs.basis[:2] @ centre) <= cascade.texel_size)
+    # ShadowMapReceiverDirectional.sdsl: splitDist = (nextSplit - DepthVS) / splitSize; if (splitDist < 0.2)
+    # { lerpAmt = smoothstep(0.0, 0.2, splitDist); shadow = lerp(nextShadow, shadow, lerpAmt); }
+    z0, z1 = stride[1], stride[2]
+    depths = z1 - np.array([0.15, 0.1, 0.05]) * (z1 - z0)
+    split_dist = (z1 - depths) / (z1 - z0)
+    u = np.clip(split_dist / 0.2, 0.0, 1.0)
+    next_weight = 1.0 - u * u * (3.0 - 2.0 * u)
+    chosen, weight = _blend_weights(settings, cs, depths)
+    np.testing.assert_array_equal(chosen, [1, 1, 1])
+    np.testing.assert_allclose(weight, next_weight, rtol=1e-9)
+    np.testing.assert_allclose(weight, [0.15625, 0.5, 0.84375], rtol=1e-9)
+
+
+def test_mjp_cascades_cover_the_clip_range_with_each_slices_own_depth(tmp_path):
+    settings, pose = _preset("engines/mjp", tmp_path)
+    cs = _build(settings, pose)
+    # MeshRenderer.cpp: splits over the whole clip range; view-depth split
+    # camera.NearClip() + splitDist * (FarClip - NearClip), MinCascadeDistance 0, MaxCascadeDistance 1.
+    near, far = 0.1, 400.0
+    np.testing.assert_allclose(cs.splits, [near] + [near + s * (far - near) for s in (0.05, 0.15, 0.5, 1.0)],
+                               rtol=1e-12)
+    for cascade in cs.cascades:
+        # OrthographicCamera(..., 0.0, cascadeExtents.z): the slice corners' own light depth.
+        depth = _corners(cascade.slice_near, cascade.slice_far) @ cs.basis[2]
+        assert cascade.depth_near == pytest.approx(depth.min(), abs=1e-9)
+        assert cascade.depth_far == pytest.approx(depth.max(), abs=1e-9)
+
+
+@pytest.mark.parametrize("preset", ["seeds/dx_csm11_cascade", "seeds/dx_csm11_scene"])
+def test_dx_csm11_has_the_samples_three_partitions_and_no_blend(tmp_path, preset):
+    settings, pose = _preset(preset, tmp_path)
+    cs = _build(settings, pose)
+    # CascadedShadowMaps11.cpp: m_nCascadeLevels = 3, partitions {5, 15, 60} of m_iCascadePartitionsMax = 100;
+    # CascadedShadowsManager.cpp: fIntervalEnd = partition / 100 * (far - near), from view depth 0.
+    near, far = 0.1, 400.0
+    np.testing.assert_allclose(cs.splits[1:], [p / 100.0 * (far - near) for p in (5, 15, 60)], rtol=1e-12)
+    assert settings.blend_band == 0.0                                          # m_iBlurBetweenCascades(0)

@@ -43,7 +43,7 @@ def test_manual_rejects_bad_lists(splits, match):
 def test_unknown_scheme_lists_the_valid_ones():
     with pytest.raises(ValueError, match="practical"):
         split_distances(near=0.1, far=100.0, count=3, method="pssm")
-    assert set(SPLIT_METHODS) == {"uniform", "log", "practical", "manual", "exponent", "geometric"}
+    assert set(SPLIT_METHODS) == {"uniform", "log", "practical", "manual", "manual_range", "exponent", "geometric"}
 
 
 @pytest.mark.parametrize("near, far", [(0.0, 100.0), (-1.0, 100.0), (5.0, 5.0), (5.0, 1.0)])
@@ -84,3 +84,22 @@ def test_geometric_is_bevys_first_bound_then_geometric_spacing():
 def test_ten_cascades_are_accepted():
     z = split_distances(near=0.1, far=500.0, count=10, method="exponent", distribution_exponent=1.5)
     assert z.shape == (11,) and np.all(np.diff(z) > 0)
+
+
+@pytest.mark.parametrize("near, far, fractions", [(0.1, 100.0, (0.1, 0.2, 0.5, 1.0)), (0.25, 250.0, (0.05, 0.15, 0.5, 1.0))])
+def test_manual_range_places_fractions_over_the_range_from_near(near, far, fractions):
+    # Godot renderer_scene_cull.cpp: distances[i + 1] = min_distance + split * (max_distance - min_distance);
+    # MJP MeshRenderer.cpp: camera.NearClip() + splitDist * (FarClip - NearClip).
+    expected = [near] + [near + s * (far - near) for s in fractions]
+    got = split_distances(near=near, far=far, count=len(fractions), method="manual_range", splits=fractions)
+    np.testing.assert_allclose(got, expected, rtol=1e-12)
+    # Not manual's fractions of far alone.
+    manual = split_distances(near=near, far=far, count=len(fractions), method="manual", splits=fractions)
+    assert not np.allclose(got[1:-1], manual[1:-1])
+
+
+def test_manual_range_refuses_fractions_that_do_not_end_at_one():
+    with pytest.raises(ValueError, match="splits: expected increasing fractions"):
+        split_distances(near=0.1, far=100.0, count=3, method="manual_range", splits=(0.1, 0.5, 0.9))
+    with pytest.raises(ValueError, match="splits: expected 3 fractions"):
+        split_distances(near=0.1, far=100.0, count=3, method="manual_range", splits=(0.5, 1.0))

@@ -85,6 +85,8 @@ class CascadeSet:
     cascades : tuple of Cascade
     margin_texels : int
         Texels kept free inside each box edge for the filter.
+    eye : ndarray, shape (3,), optional
+        World position of the camera the cascades were built for (the radial fades' centre).
     """
 
     basis: np.ndarray
@@ -92,6 +94,7 @@ class CascadeSet:
     splits: np.ndarray
     cascades: tuple[Cascade, ...]
     margin_texels: int
+    eye: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.cascades)
@@ -114,7 +117,8 @@ def _slices(pose: CameraPose, settings: ShadowSettings, visible_depth) -> tuple:
                              lambda_=settings.lambda_, splits=settings.splits,
                              distribution_exponent=settings.distribution_exponent,
                              first_cascade_far=settings.first_cascade_far)
-    return near, far, splits, slice_intervals(splits, method=settings.fit, blend_band=settings.blend_band)
+    return near, far, splits, slice_intervals(splits, method=settings.fit, blend_band=settings.blend_band,
+                                              transition=settings.transition)
 
 
 def tight_extents(*, pose: CameraPose, light_direction, settings: ShadowSettings,
@@ -186,7 +190,7 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
             depth_far=depth_far,
         ))
     return CascadeSet(basis=basis, zref=float(scene_light[:, 2].min()), splits=splits, cascades=tuple(cascades),
-                      margin_texels=margin)
+                      margin_texels=margin, eye=np.array(pose.position, dtype=np.float64))
 
 
 def _slice_light_corners(pose: CameraPose, basis: np.ndarray, z0: float, z1: float) -> np.ndarray:

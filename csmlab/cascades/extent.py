@@ -10,6 +10,14 @@ size is bit-identical from frame to frame. Engines take it from different shapes
   far-plane diagonal, rounded up to whole metres, centred on the slice's light-space AABB (Bevy
   ``bevy_light/src/cascade.rs`` ``calculate_cascade``; three.js ``examples/jsm/csm/CSM.js``
   ``updateShadowBounds``, which skips the rounding).
+- ``centroid`` — the sphere centred on the centroid of the slice's eight corners, its radius the
+  distance to the farthest corner (Godot 4 ``RendererSceneCull::_light_instance_setup_directional_shadow``:
+  ``center += endpoints[j]`` … ``center /= 8.0``, ``radius = max(|endpoints[j] - center|)``; Stride
+  ``LightDirectionalShadowMapRenderer.Collect``: ``BoundingSphere.FromPoints`` of the corners). The
+  centroid lies on the view axis at depth ``(z_n + z_f) / 2``; the radius, to a far corner, is
+  ``sqrt(((z_f - z_n) / 2)² + z_f² (tan²(fov_x/2) + tan²(fov_y/2)))``, larger than the smallest
+  sphere's (+8.5 % for a 0.1–10 m slice at 60°, 16:9). Godot's ``× T / (T - 2)`` texel of margin is
+  :func:`csmlab.cascades.stabilize.snap_nearest2`'s.
 
 Both depend on the projection and the slice's depths only, never on the camera's position or
 orientation.
@@ -24,7 +32,7 @@ import numpy as np
 from csmlab.camera import CameraPose
 from csmlab.geometry import slice_bounding_sphere
 
-__all__ = ["EXTENT_METHODS", "extent_diagonal", "extent_sphere", "radius_rounded_up"]
+__all__ = ["EXTENT_METHODS", "extent_centroid", "extent_diagonal", "extent_sphere", "radius_rounded_up"]
 
 
 def radius_rounded_up(radius: float, *, bits: int = 12) -> float:
@@ -59,8 +67,24 @@ def extent_diagonal(*, pose: CameraPose, basis: np.ndarray, z_near: float, z_far
     return 0.5 * (lo + hi), 0.5 * diameter
 
 
+def extent_centroid(*, pose: CameraPose, basis: np.ndarray, z_near: float, z_far: float,
+                    corners: np.ndarray) -> tuple[np.ndarray, float]:
+    """Centre x/y ``(2,)`` of the corners' centroid and the distance to the farthest corner (rounded up to a 2^-12 quantum).
+
+    Closed form in the view frame, so it is bit-stable from frame to frame (the centroid of the
+    corners lies on the view axis at depth ``(z_n + z_f) / 2``; the far corners are the farthest).
+    """
+    ty = np.tan(np.radians(pose.fov_y_deg) / 2.0)
+    tx = ty * pose.aspect
+    mid = 0.5 * (z_near + z_far)
+    radius = float(np.sqrt((z_far - mid) ** 2 + (z_far * tx) ** 2 + (z_far * ty) ** 2))
+    centre = basis @ (pose.position + pose.forward * mid)
+    return centre[:2], radius_rounded_up(radius)
+
+
 EXTENT_METHODS: dict[str, Callable[..., tuple[np.ndarray, float]]] = {
     "sphere": extent_sphere,
     "diagonal": extent_diagonal,
+    "centroid": extent_centroid,
 }
 """Fixed-extent shapes by name: ``f(*, pose, basis, z_near, z_far, corners) -> (centre_xy, radius)``."""

@@ -3,17 +3,25 @@
 Reference: Microsoft, "Cascaded Shadow Maps" (seed 002): *fit to cascade* covers only the
 cascade's own slice ``[z_i, z_{i+1}]``; *fit to scene* covers ``[z_0, z_{i+1}]`` so each
 cascade contains all nearer ones. Registered in :data:`FIT_METHODS`.
+
+Transitions (``[shadow] transition``, with ``blend_band > 0``): where the band in which cascade
+``i`` blends into cascade ``i + 1`` lies, registered in :data:`TRANSITION_METHODS`. Each gives the
+depths the selection switches cascade at and where each band starts; the band of cascade ``i`` ends
+where the selection leaves it, and the boxes are fitted so that both cascades hold it.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
+from csmlab.kernels.shadow import BLEND_LINEAR, BLEND_SMOOTHSTEP
 from csmlab.registry import check_name
 
-__all__ = ["FIT_METHODS", "fit_cascade", "fit_scene", "slice_intervals"]
+__all__ = ["BLEND_CURVES", "TRANSITION_METHODS", "FIT_METHODS", "Transition", "fit_cascade", "fit_scene", "slice_intervals",
+           "transition_bands"]
 
 
 def fit_cascade(splits: np.ndarray, i: int) -> tuple[float, float]:
@@ -33,15 +41,90 @@ FIT_METHODS: dict[str, Callable[[np.ndarray, int], tuple[float, float]]] = {
 """Fit modes by name."""
 
 
-def slice_intervals(splits: np.ndarray, *, method: str, blend_band: float = 0.0) -> np.ndarray:
+def _backward(z: np.ndarray, b: float) -> tuple[np.ndarray, np.ndarray]:
+    return z, z[1:] - b * (z[1:] - z[:-1])
+
+
+def _far_bound(z: np.ndarray, b: float) -> tuple[np.ndarray, np.ndarray]:
+    return z, (1.0 - b) * z[1:]
+
+
+def _forward(z: np.ndarray, b: float) -> tuple[np.ndarray, np.ndarray]:
+    select = z.copy()
+    select[1:-1] = np.minimum(z[1:-1] + b * (z[1:-1] - z[:-2]), z[2:])
+    return select, z[1:].copy()
+
+
+@dataclass(frozen=True)
+class Transition:
+    """One placement of the blend band between consecutive cascades.
+
+    Attributes
+    ----------
+    bands : callable
+        ``bands(z, b) -> (select, start)``: from the splits ``z`` ``(C + 1,)`` and the band ``b``,
+        the depths ``(C + 1,)`` the interval selection switches cascade at and the start ``(C,)`` of
+        each cascade's band toward the next (the band of cascade ``i`` is ``[start_i, select_{i+1})``).
+    what : str
+        The band in words, and whose it is.
+    """
+
+    bands: Callable[[np.ndarray, float], tuple[np.ndarray, np.ndarray]]
+    what: str
+
+
+TRANSITION_METHODS: dict[str, Transition] = {
+    "backward": Transition(_backward, "the last b of cascade i's width before z_i+1, cascade i + 1 reaching back "
+                                      "(DirectX CSM11, Stride's IsBlendingCascades)"),
+    "far_bound": Transition(_far_bound, "from (1 - b) z_i+1 to z_i+1: b of the far bound, not of the width (Bevy "
+                                        "overlap_proportion: build_directional_light_cascades, fetch_directional_shadow)"),
+    "forward": Transition(_forward, "from z_i+1 to z_i+1 + b (z_i+1 - z_i): cascade i reaching forward past its split "
+                                    "(Unreal CascadeTransitionFraction, FShadowCascadeSettings' fade plane)"),
+}
+"""Blend-band placements by name (``[shadow] transition``)."""
+
+
+BLEND_CURVES: dict[str, tuple[int, str]] = {
+    "linear": (int(BLEND_LINEAR), "the next cascade's weight rises linearly over the band (DirectX CSM11, Bevy, "
+                                  "Unreal)"),
+    "smoothstep": (int(BLEND_SMOOTHSTEP), "smoothstep of the linear weight, w² (3 - 2w) (Stride "
+                                          "ShadowMapReceiverDirectional: smoothstep(0, 0.2, splitDist); Godot "
+                                          "pssm_blend; MJP FilterAcrossCascades)"),
+}
+"""Blend-band weight curves by name (``[shadow] blend_curve``): the kernel's code and what it is."""
+
+
+def transition_bands(splits, *, blend_band: float, transition: str = "backward") -> tuple[np.ndarray, np.ndarray]:
+    """The selection's switch depths ``(C + 1,)`` and each cascade's band start ``(C,)``, metres of view depth.
+
+    A cascade without a band (the last one, or every one when ``blend_band`` is 0) starts its band at
+    ``+inf``. ``blend_band = 0`` gives the splits themselves as switch depths.
+    """
+    check_name(transition, TRANSITION_METHODS, field="transition")
+    z = np.asarray(splits, dtype=np.float64)
+    if blend_band <= 0.0:
+        return z.copy(), np.full(len(z) - 1, np.inf)
+    select, start = TRANSITION_METHODS[transition].bands(z, float(blend_band))
+    start = np.asarray(start, dtype=np.float64).copy()
+    start[-1] = np.inf
+    return np.asarray(select, dtype=np.float64), start
+
+
+def slice_intervals(splits: np.ndarray, *, method: str, blend_band: float = 0.0,
+                    transition: str = "backward") -> np.ndarray:
     """View-depth interval ``(C, 2)`` in metres that each cascade's box must contain.
 
-    With a blend band ``b`` the slice of cascade ``i > 0`` starts ``b · (z_i - z_{i-1})`` earlier,
-    so that the band at the end of cascade ``i - 1``, where the two are blended, lies in both.
+    Each box holds where the selection reads it (:func:`transition_bands`) besides its fitted slice:
+    with a band of ``transition = "backward"``, the slice of cascade ``i > 0`` starts
+    ``b · (z_i - z_{i-1})`` earlier, so that the band at the end of cascade ``i - 1`` lies in both;
+    ``"forward"`` extends cascade ``i``'s far end instead.
     """
     check_name(method, FIT_METHODS, field="fit")
     count = len(splits) - 1
     out = np.array([FIT_METHODS[method](splits, i) for i in range(count)], dtype=np.float64)
-    for i in range(1, count):
-        out[i, 0] = min(out[i, 0], splits[i] - blend_band * (splits[i] - splits[i - 1]))
+    select, start = transition_bands(splits, blend_band=blend_band, transition=transition)
+    for i in range(count):
+        out[i, 1] = max(out[i, 1], select[i + 1])
+        if i > 0:
+            out[i, 0] = min(out[i, 0], start[i - 1])
     return out

@@ -3,7 +3,9 @@
 References: NVIDIA, "Cascaded Shadow Maps" (2007), seed 000 — the logarithmic and practical
 (PSSM) schemes; Zhang et al., "Practical Cascaded Shadow Maps", seed 003; Unreal Engine
 ``FDirectionalLightSceneProxy::GetSplitDistance`` (``CascadeDistributionExponent``); Bevy
-``bevy_light/src/cascade.rs`` ``calculate_cascade_bounds`` (``first_cascade_far_bound``).
+``bevy_light/src/cascade.rs`` ``calculate_cascade_bounds`` (``first_cascade_far_bound``); Godot 4 ``renderer_scene_cull.cpp``
+``_light_instance_setup_directional_shadow`` and MJP's ``Shadows`` sample (``MeshRenderer.cpp``), which
+place fractions over the range from the near plane (``manual_range``).
 
 Every scheme returns the ``C + 1`` boundaries ``z_0 = n < z_1 < … < z_C = f`` in metres of
 view depth. Schemes are registered by name in :data:`SPLIT_METHODS`; :func:`split_distances`
@@ -19,7 +21,7 @@ import numpy as np
 from csmlab.registry import check_name, dispatch
 
 __all__ = ["SPLIT_METHODS", "split_distances", "splits_exponent", "splits_geometric", "splits_log", "splits_manual",
-           "splits_practical", "splits_uniform"]
+           "splits_manual_range", "splits_practical", "splits_uniform"]
 
 
 def splits_uniform(*, near: float, far: float, count: int) -> np.ndarray:
@@ -60,6 +62,25 @@ def splits_manual(*, near: float, far: float, count: int, splits=()) -> np.ndarr
     return z
 
 
+def splits_manual_range(*, near: float, far: float, count: int, splits=()) -> np.ndarray:
+    """User-given fractions of the range from the near plane: ``z_i = n + s_i (f - n)``, ``s_C = 1``.
+
+    Godot 4 (``RendererSceneCull::_light_instance_setup_directional_shadow``: ``distances[i + 1] =
+    min_distance + split · range`` with ``range = max_distance - min_distance`` and ``min_distance``
+    the camera's near plane) and MJP's ``Shadows`` sample (``MeshRenderer::RenderShadowMap``:
+    ``camera.NearClip() + splitDist · (FarClip - NearClip)``); :func:`splits_manual` scales the
+    fractions by ``f`` alone.
+    """
+    s = np.asarray(splits, dtype=np.float64).reshape(-1)
+    if s.shape[0] != count:
+        raise ValueError(f"splits: expected {count} fractions (one per cascade), got {s.shape[0]}")
+    if not (np.all(np.isfinite(s)) and np.all(s > 0) and np.all(np.diff(s) > 0) and np.isclose(s[-1], 1.0, rtol=1e-9)):
+        raise ValueError(f"splits: expected increasing fractions of the range in (0, 1] ending at 1.0, got {s.tolist()}")
+    z = np.concatenate([[near], near + s * (far - near)])
+    z[-1] = far
+    return z
+
+
 def splits_exponent(*, near: float, far: float, count: int, distribution_exponent: float = 3.0) -> np.ndarray:
     """Unreal's distribution exponent: each cascade ``e`` times deeper than the one before.
 
@@ -95,6 +116,7 @@ SPLIT_METHODS: dict[str, Callable[..., np.ndarray]] = {
     "log": splits_log,
     "practical": splits_practical,
     "manual": splits_manual,
+    "manual_range": splits_manual_range,
     "exponent": splits_exponent,
     "geometric": splits_geometric,
 }
@@ -116,7 +138,7 @@ def split_distances(*, near: float, far: float, count: int, method: str = "pract
     lambda_ : float
         practical: weight of the log scheme.
     splits : sequence of float
-        manual: far ends (metres, or fractions of ``far``).
+        manual: far ends (metres, or fractions of ``far``); manual_range: fractions of ``far - near``.
     distribution_exponent : float
         exponent: depth ratio of consecutive cascades (Unreal).
     first_cascade_far : float

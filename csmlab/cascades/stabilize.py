@@ -139,10 +139,28 @@ def snap_view(fp: SliceFootprint, *, resolution: int, margin: int, step: int = 4
     return texel, np.ceil(fp.centre / (step * texel)) * step - half
 
 
+def snap_nearest2(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[np.ndarray, np.ndarray]:
+    """The box's edges rounded to the nearest 2-texel unit (Godot 4), the filter's margin laid outside.
+
+    Godot (``RendererSceneCull::_light_instance_setup_directional_shadow``) widens the sphere by one
+    texel on each side (``radius *= T / (T - 2)``), takes ``t = 2r' / T`` and snaps each edge with
+    ``Math::snapped(c - r', unit)``, ``unit = 4r' / T = 2t`` (``floor(v / s + 0.5) · s``: round to
+    nearest). Here that is Godot's box for a map of ``T = R - 2m`` texels — ``t = 2r / (R - 2m - 2)``,
+    ``r' = r + t``, edge ``k = 2 floor((c - r') / 2t + 1/2)`` texels — with the ``m`` texels of the
+    filter's margin added outside it: the box spans ``[k - m, k + R - m)``. Godot's box holds the
+    sphere (its edge moves at most one texel from the widened sphere's), so this one holds the sphere
+    and the margins. The grid stays world-locked; the box moves in steps of two texels.
+    """
+    t = 2.0 * fp.radius / (resolution - 2 * margin - 2)
+    texel = np.array([t, t])
+    return texel, 2.0 * np.floor((fp.centre - (fp.radius + t)) / (2.0 * texel) + 0.5) - margin
+
+
 SNAP_METHODS: dict[str, Callable[..., tuple[np.ndarray, np.ndarray]]] = {
     "origin": snap_origin,
     "centre": snap_centre,
     "view": snap_view,
+    "nearest2": snap_nearest2,
 }
 """What exact snaps to whole texels, by name: ``f(footprint, *, resolution, margin) -> (texel, origin)``."""
 

@@ -29,6 +29,9 @@ for the filters that run after it (:mod:`csmlab.kernels.pcf`, :mod:`csmlab.kerne
 
 Blend band: within the last ``blend_band`` fraction of the selected cascade's split interval, S
 moves linearly toward cascade i + 1's S (when i + 1 holds the point's taps), reaching it at ``z_{i+1}``.
+``band_start`` (one start per cascade, metres) places the bands elsewhere, the band of cascade i
+ending where the selection's ``splits`` leave it (:func:`csmlab.cascades.fit.transition_bands`),
+and ``blend_curve`` (:data:`BLEND_SMOOTHSTEP`) shapes the weight.
 
 References
 ----------
@@ -48,9 +51,15 @@ from csmlab.lookup_choices import (BOX_BILINEAR, BOX_TAPS, SELECT_BEST_RESOLUTIO
                                    SELECTION_METHODS, family_code)
 from csmlab.registry import check_name
 
-__all__ = ["receiver_coordinates", "select_cascades", "shadow_lookup", "shadow_lookup_world", "world_receivers"]
+__all__ = ["BLEND_LINEAR", "BLEND_SMOOTHSTEP", "receiver_coordinates", "select_cascades", "shadow_lookup",
+           "shadow_lookup_world", "world_receivers"]
 
 wp.set_module_options({"fuse_fp": False})
+
+BLEND_LINEAR = wp.constant(0)
+"""Blend-curve code: the next cascade's weight rises linearly over the band."""
+BLEND_SMOOTHSTEP = wp.constant(1)
+"""Blend-curve code: the weight is ``smoothstep`` of the linear one, ``w² (3 - 2w)`` (Stride, Godot, MJP)."""
 
 
 @wp.func
@@ -220,7 +229,8 @@ def shadow_lookup_kernel(
     radius: int,
     reach: int,
     margin: int,
-    blend_band: wp.float64,
+    band_start: wp.array(dtype=wp.float64),
+    blend_curve: int,
     keep_weight: int,
     lit: wp.array(dtype=wp.float32),
     cascade: wp.array(dtype=wp.int32),
@@ -276,14 +286,17 @@ def shadow_lookup_kernel(
         return
     s = lit_fraction(depth, chosen, x, y, receiver, slope, unit, filter_code, radius)
     nxt = chosen + 1
-    if blend_band > wp.float64(0.0) and nxt < count:
-        z0 = splits[chosen]
+    if nxt < count:
+        # The band of cascade `chosen` runs from band_start[chosen] (+inf: none) to where the
+        # selection leaves it (csmlab.cascades.fit.transition_bands).
         z1 = splits[nxt]
-        start = z1 - blend_band * (z1 - z0)
+        start = band_start[chosen]
         if z >= start and z < z1:
             xn, yn, rn, sn = receiver_at(receivers, nxt, k)
             if holds(xn, yn, tap_lo, tap_hi):
                 w = (z - start) / (z1 - start)
+                if blend_curve == BLEND_SMOOTHSTEP:
+                    w = w * w * (wp.float64(3.0) - wp.float64(2.0) * w)
                 s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, nxt, xn, yn, rn, sn, unit, filter_code,
                                                                  radius)
                 blend[k] = 1
@@ -298,7 +311,8 @@ wp.overload(shadow_lookup_kernel, {"receivers": WorldReceivers})
 
 def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_area, selection: str,
                   filter: str, radius: int, margin: int, blend_band: float, bits: int,
-                  receiver_slope=None, device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                  receiver_slope=None, band_start=None, blend_curve: int = 0,
+                  device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Lit fraction S and selected cascade at receiver points under a box filter.
 
     Parameters
@@ -331,6 +345,11 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
         Fraction in [0, 0.5] of a split interval blended toward the next cascade.
     bits : int
         Sub-texel bits of ``coords``.
+    band_start : array_like, shape (C,), float64, optional
+        Where each cascade's band toward the next starts, metres of view depth (+inf: none); it ends
+        at the cascade's far split. None: the last ``blend_band`` of each split interval.
+    blend_curve : int
+        :data:`BLEND_LINEAR` or :data:`BLEND_SMOOTHSTEP`: the next cascade's weight over the band.
     receiver_slope : array_like, shape (C, N, 2), float64, optional
         Receiver-plane depth change per texel along x and y, metres
         (:func:`csmlab.texels.receiver_lookup`); each tap compares the plane's depth at its texel
@@ -358,12 +377,13 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
     receivers = _fixed_receivers(depth, coords, receiver_depth, view_depth, receiver_slope, device=device)
     lit, cascade, blend, _ = _launch(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
                                      selection=selection, code=code, radius=radius, reach=radius, margin=margin,
-                                     blend_band=blend_band, bits=bits, weights=False, device=device)
+                                     blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
+                                     bits=bits, weights=False, device=device)
     return lit, cascade.astype(np.int8), blend
 
 
 def select_cascades(depth, coords, receiver_depth, view_depth, *, splits, texel_area, selection: str, radius: int,
-                    margin: int, blend_band: float, bits: int,
+                    margin: int, blend_band: float, bits: int, band_start=None, blend_curve: int = 0,
                     device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The cascade selection of :func:`shadow_lookup` for a filter that runs after it, and its blend band.
 
@@ -391,14 +411,16 @@ def select_cascades(depth, coords, receiver_depth, view_depth, *, splits, texel_
     receivers = _fixed_receivers(depth, coords, receiver_depth, view_depth, None, device=device)
     _, cascade, blend, weight = _launch(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
                                         selection=selection, code=BOX_TAPS, radius=0, reach=radius, margin=margin,
-                                        blend_band=blend_band, bits=bits, weights=True, device=device)
+                                        blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
+                                     bits=bits, weights=True, device=device)
     return cascade, weight, blend
 
 
 def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis, texel_size, origin_fixed, zref: float,
                         normal_offset: float, bias_constant: float, bias_slope: float, receiver_plane_bias: bool,
                         splits, texel_area, selection: str, filter: str, radius: int, margin: int,
-                        blend_band: float, bits: int, device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                        blend_band: float, bits: int, band_start=None, blend_curve: int = 0,
+                        device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`shadow_lookup` of world receivers, each taken into a cascade's fixed point where the lookup reads it.
 
     The same results, bit for bit, as :func:`receiver_coordinates` followed by :func:`shadow_lookup`
@@ -430,7 +452,8 @@ def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis,
                          f"got shape {np.shape(view_depth)}")
     lit, cascade, blend, _ = _launch(depth, world, view_depth, splits=splits, texel_area=texel_area,
                                      selection=selection, code=code, radius=radius, reach=radius, margin=margin,
-                                     blend_band=blend_band, bits=bits, weights=False, device=device)
+                                     blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
+                                     bits=bits, weights=False, device=device)
     return lit, cascade.astype(np.int8), blend
 
 
@@ -454,7 +477,8 @@ def _fixed_receivers(depth, coords, receiver_depth, view_depth, receiver_slope, 
 
 
 def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str, code: int, radius: int, reach: int,
-            margin: int, blend_band: float, bits: int, weights: bool, device: str) -> tuple:
+            margin: int, blend_band: float, bits: int, weights: bool, device: str, band_start=None,
+            blend_curve: int = 0) -> tuple:
     """Launch :func:`shadow_lookup_kernel` over ``receivers`` (a :class:`FixedReceivers` or :class:`WorldReceivers`).
 
     ``code`` and ``radius`` are the box filter run at the selected cascade, ``reach`` the taps a
@@ -473,6 +497,13 @@ def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str,
         raise ValueError(f"depth: expected depth maps of shape (C, R, R), got {maps.shape}")
     if z.shape != (count + 1,) or area.shape != (count,):
         raise ValueError(f"splits, texel_area: expected shapes ({count + 1},), ({count},), got {z.shape}, {area.shape}")
+    if band_start is None:
+        # Each cascade's band: the last blend_band of its split interval (+inf: none).
+        start = z[1:] - blend_band * (z[1:] - z[:-1]) if blend_band > 0.0 else np.full(count, np.inf)
+    else:
+        start = np.ascontiguousarray(band_start, dtype=np.float64)
+    if start.shape != (count,):
+        raise ValueError(f"band_start: expected shape ({count},), got {start.shape}")
     n = vd.shape[0]
     if n == 0:
         return np.zeros(0, np.float32), np.zeros(0, np.int32), np.zeros(0, bool), np.zeros(0) if weights else None
@@ -496,7 +527,8 @@ def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str,
             int(radius),
             int(reach),
             max(int(margin), int(reach)),
-            wp.float64(blend_band),
+            wp.array(np.ascontiguousarray(start), dtype=wp.float64, device=device, copy=False),
+            int(blend_curve),
             int(weights),
         ),
         outputs=(lit, chosen, blended, weight),
