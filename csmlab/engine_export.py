@@ -42,8 +42,8 @@ from csmlab.lookup_choices import FILTER_METHODS
 from csmlab.registry import dispatch
 from csmlab.settings import ShadowSettings
 
-__all__ = ["BEVY_EXACT", "BEVY_FILTERING", "EXPORT_METHODS", "Snippet", "UE5_FILTER", "URP_FILTER", "export",
-           "split_boundaries", "ue_split_fractions"]
+__all__ = ["BEVY_EXACT", "BEVY_FILTERING", "EXPORT_METHODS", "GODOT_SOFT_LOW", "Snippet", "THREEJS_PCF", "UE5_FILTER",
+           "URP_FILTER", "export", "split_boundaries", "ue_split_fractions"]
 
 
 @dataclass(frozen=True)
@@ -128,15 +128,30 @@ def _g(value: float) -> str:
 
 
 def _hard(settings: ShadowSettings) -> bool:
-    """The filter is one depth test (its record's ``hard``): what engines call no soft shadows."""
-    return FILTER_METHODS[settings.filter].hard
+    """The filter is one depth test (its record's ``hard``) or one hardware 2×2 comparison (``pcf_bilinear``):
+    what engines call no soft shadows (URP's soft shadows off, Godot's Hard, both a linear comparison sampler)."""
+    return FILTER_METHODS[settings.filter].hard or settings.filter == "pcf_bilinear"
+
+
+def _vogel_is(settings: ShadowSettings, **fields) -> bool:
+    """``settings`` run ``pcf_vogel`` rotated per pixel with ``fields`` (an engine's disk)."""
+    return settings.filter == "pcf_vogel" and settings.poisson_rotation == "pixel" and all(
+        getattr(settings, name) == value for name, value in fields.items())
+
+
+GODOT_SOFT_LOW = {"vogel_taps": 4, "vogel_radius": 2.0, "vogel_angle": 2.4, "vogel_scale": "first_split"}
+"""Godot 4's Soft Low (soft_shadow_filter_quality = 2) as csmlab's ``pcf_vogel`` fields (configs/engines/godot4.toml)."""
+
+THREEJS_PCF = {"vogel_taps": 5, "vogel_angle": 2.399963229728653, "vogel_scale": "none"}
+"""three.js r182+ PCFShadowMap as csmlab's ``pcf_vogel`` fields, its radius LightShadow.radius (configs/engines/threejs_csm.toml)."""
 
 
 UE5_FILTER = ("pcf", 3)
 """The csmlab filter and size Unreal's shadow filtering matches (r.Shadow.FilterMethod=0); others are lacking."""
 
-URP_FILTER = ("pcf", 3)
-"""The box filter and size URP's soft shadows stand for; that filter at another size is lacking."""
+URP_FILTER = ("pcf_tent_bilinear", 5)
+"""The filter and size of URP's soft shadows at the asset's Medium quality (SampleShadow_ComputeSamples_Tent_5x5);
+another soft filter is lacking (soft shadows off: pcf_bilinear)."""
 
 
 def export_ue5(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
@@ -186,8 +201,9 @@ def export_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> Sn
                        f"{atlas} written for {wanted})")
     if settings.blend_band > 0:
         lacking.append(f"blend_band = {settings.blend_band} (URP blends no cascades; cascadeBorder fades the last)")
-    if settings.filter == URP_FILTER[0] and settings.filter_size != URP_FILTER[1]:
-        lacking.append(f"filter_size = {settings.filter_size} (URP's soft shadows are a fixed tent filter)")
+    if not _hard(settings) and (settings.filter, settings.filter_size) != URP_FILTER:
+        lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (URP's soft shadows are "
+                       f"fixed tents of bilinear taps: Medium {URP_FILTER[0]} {URP_FILTER[1]})")
     fractions = _fractions(settings.replace(cascades=cascades), near, far)
     lines = ["// UniversalRenderPipelineAsset asset = …;",
              f"asset.shadowDistance = {_g(min(settings.shadow_distance, far))}f;",
@@ -223,24 +239,26 @@ def export_godot4(settings: ShadowSettings, *, near: float, far: float) -> Snipp
               f"rendering/lights_and_shadows/directional_shadow/size = {atlas}  "
               f"# {_size(settings)}² per split (2 splits: half the atlas each)",
               "rendering/lights_and_shadows/directional_shadow/soft_shadow_filter_quality = "
-              f"{0 if _hard(settings) else 2}"]
+              f"{0 if _hard(settings) else 2}  # 2: Soft Low, 4 Vogel taps of 2 texels"]
     if settings.blend_band > 0:
         lacking.append(f"blend_band = {settings.blend_band} (Godot blends splits over a fixed band)")
-    if not _hard(settings):
+    if not _hard(settings) and not _vogel_is(settings, **GODOT_SOFT_LOW):
         lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Godot filters with its "
-                       f"own soft-shadow kernel)")
+                       f"own soft-shadow kernel: Soft Low is pcf_vogel {GODOT_SOFT_LOW})")
     return Snippet("godot4", "Godot 4: DirectionalLight3D and project settings", "gdscript", "\n".join(lines) + "\n",
                    tuple(lacking))
 
 
 BEVY_FILTERING: dict[str, str] = {"pcf_bilinear": "Hardware2x2", "pcf": "Gaussian", "pcf_gaussian": "Gaussian",
-                                  "pcf_tent": "Gaussian"}
+                                  "pcf_tent": "Gaussian", "pcf_castano": "Gaussian", "pcf_tent_bilinear": "Gaussian",
+                                  "pcf_bilinear_box": "Gaussian"}
 """Bevy's nearest ``ShadowFilteringMethod`` by csmlab filter (a key of csmlab.lookup_choices.FILTER_METHODS).
 
-Bevy's Gaussian is Castaño's 5×5 tent (configs/engines/bevy.toml); a filter not here gets no method.
+Bevy's Gaussian is Castaño's 5×5 of 9 bilinear taps, ``sample_shadow_map_castano_thirteen``
+(csmlab's ``pcf_castano`` 5, configs/engines/bevy.toml); a filter not here gets no method.
 """
 
-BEVY_EXACT: dict[str, int | None] = {"pcf_bilinear": None, "pcf_tent": 5}
+BEVY_EXACT: dict[str, int | None] = {"pcf_bilinear": None, "pcf_castano": 5}
 """The filters Bevy runs as csmlab does, with the filter_size that matches (None: any); the others are lacking."""
 
 
@@ -284,14 +302,18 @@ def export_threejs_csm(settings: ShadowSettings, *, near: float, far: float) -> 
     if mode == "custom":
         fractions = ", ".join(_g(f) for f in _fractions(settings, near, far))
         lines.append(f"  customSplitsCallback: (cascades, near, far, breaks) => breaks.push({fractions}, 1),")
-    lines += [f"  shadowMapSize: {_size(settings)},", "  camera, parent: scene, lightDirection,", "});",
+    lines += [f"  shadowMapSize: {_size(settings)},", "  camera, parent: scene, lightDirection,", "});"]
+    if _vogel_is(settings, **THREEJS_PCF) and settings.vogel_radius != 1.0:
+        lines.append(f"csm.lights.forEach((light) => {{ light.shadow.radius = {_g(settings.vogel_radius)}; }});")
+    lines += [
               f"csm.fade = {'true' if settings.blend_band > 0 else 'false'};",
-              "renderer.shadowMap.type = THREE." + ("BasicShadowMap" if _hard(settings) else "PCFShadowMap") + ";"]
+              "renderer.shadowMap.type = THREE." + ("BasicShadowMap" if FILTER_METHODS[settings.filter].hard
+                                                    else "PCFShadowMap") + ";"]
     if settings.blend_band > 0:
         lacking.append(f"blend_band = {settings.blend_band} (CSM's fade has a fixed width)")
-    if not _hard(settings):
+    if settings.filter != "none" and not _vogel_is(settings, **THREEJS_PCF):
         lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (three.js picks its PCF "
-                       f"kernel from shadowMap.type)")
+                       f"kernel from shadowMap.type: PCFShadowMap is pcf_vogel {THREEJS_PCF}, radius = shadow.radius)")
     return Snippet("threejs_csm", "three.js: CSM options", "javascript", "\n".join(lines) + "\n", tuple(lacking))
 
 

@@ -199,8 +199,24 @@ def _conversion(cascades: CascadeSet, settings: ShadowSettings) -> dict:
     bits = settings.subtexel_bits
     return dict(basis=cascades.basis, texel_size=np.stack([c.texel_size for c in cascades.cascades]),
                 origin_fixed=np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]),
-                zref=cascades.zref, normal_offset=settings.normal_offset, bias_constant=settings.bias_constant,
+                zref=cascades.zref, normal_offset=settings.normal_offset,
+                bias_constant=_cascade_bias(cascades, settings),
                 bias_slope=settings.bias_slope)
+
+
+def _cascade_bias(cascades: CascadeSet, settings: ShadowSettings):
+    """The constant depth bias in metres: ``bias_constant``, or per cascade ``(C,)`` with a bias model's scaling.
+
+    ``bias_constant + bias_depth_range · (depth_far − depth_near) + bias_texels · texel`` of each
+    cascade: a fraction of its light-space depth range (Godot 4's ``shadow_bias / 100 ×
+    soft_shadow_scale × (z_max − z_min)``, Stride's ``DepthBias`` in normalized depth) and texels of
+    it (Unity URP's depth bias, ``ShadowUtils.GetShadowBias``). Neither set: the scalar itself.
+    """
+    if settings.bias_depth_range == 0.0 and settings.bias_texels == 0.0:
+        return settings.bias_constant
+    span = np.array([c.depth_far - c.depth_near for c in cascades.cascades], dtype=np.float64)
+    texel = np.array([float(np.max(c.texel_size)) for c in cascades.cascades])
+    return settings.bias_constant + settings.bias_depth_range * span + settings.bias_texels * texel
 
 
 def texel_coordinates(cascades: CascadeSet, points: np.ndarray, normals: np.ndarray, rows: np.ndarray, *,
@@ -224,7 +240,7 @@ def texel_coordinates(cascades: CascadeSet, points: np.ndarray, normals: np.ndar
         return receiver_coordinates(points, normals, receivers=rows, bits=bits, **_conversion(cascades, settings),
                                     device=device)
     return receiver_lookup(cascades, points[rows], normals[rows], bits=bits, normal_offset=settings.normal_offset,
-                           bias_constant=settings.bias_constant, bias_slope=settings.bias_slope,
+                           bias_constant=_cascade_bias(cascades, settings), bias_slope=settings.bias_slope,
                            precision=settings.engine_precision)
 
 

@@ -55,6 +55,10 @@ class ShadowSettings:
     """Constant depth bias, metres along the light."""
     bias_slope: float = 1.0
     """Slope-scaled bias in texels: bias += bias_slope · texel · tan(angle(n, -d))."""
+    bias_depth_range: float = 0.0
+    """Constant depth bias as a fraction of each cascade's light-space depth range, added to bias_constant (Godot 4, Stride)."""
+    bias_texels: float = 0.0
+    """Constant depth bias in texels of each cascade, added to bias_constant (Unity URP's depth bias)."""
     normal_offset: float = 0.5
     """Receiver offset along its normal, in texels."""
     receiver_plane_bias: bool = True
@@ -165,6 +169,8 @@ class ShadowSettings:
              "filter_size", "an odd integer in 1..63", self.filter_size)
         need(self.bias_constant >= 0, "bias_constant", "a non-negative distance in metres", self.bias_constant)
         need(self.bias_slope >= 0, "bias_slope", "a non-negative number of texels", self.bias_slope)
+        need(0.0 <= self.bias_depth_range <= 1.0, "bias_depth_range", "a fraction in [0, 1]", self.bias_depth_range)
+        need(0.0 <= self.bias_texels <= 1000.0, "bias_texels", "a number of texels in [0, 1000]", self.bias_texels)
         need(self.normal_offset >= 0, "normal_offset", "a non-negative number of texels", self.normal_offset)
         need(isinstance(self.receiver_plane_bias, bool), "receiver_plane_bias", "true or false",
              self.receiver_plane_bias)
@@ -303,6 +309,9 @@ APPLIES: dict[str, Applies] = {
                        'depth_range = "slice" (the pull of its near side toward the light)'),
     "depth_clamp": Applies(lambda *, depth_range: depth_range == "slice",
                            'depth_range = "slice" (casters nearer than its near side)'),
+    "transition": Applies(lambda *, blend_band: blend_band > 0, "blend_band > 0 (where its bands lie)"),
+    "blend_curve": Applies(lambda *, blend_band: blend_band > 0, "blend_band > 0 (the weight over its bands)"),
+    "fade": Applies(lambda *, fade_out: fade_out > 0, "fade_out > 0 (the shape of the far fade)"),
     "hysteresis": Applies(lambda *, bounds: bounds == "sdsm", 'bounds = "sdsm" (the hold of its visible range)'),
     "atlas_layout": Applies(lambda *, storage: storage == "atlas", 'storage = "atlas" (the tiles of the atlas)'),
     "filter_size": _filters(lambda f: f == "pcf" or (_family(f) == "weighted" and f != "pcf_vogel"), "taps per side"),

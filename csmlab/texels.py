@@ -179,7 +179,7 @@ def light_depth(cascades: CascadeSet, points) -> np.ndarray:
     return _light_space(p, cascades.basis[2:])[..., 0] - cascades.zref
 
 
-def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_offset: float, bias_constant: float,
+def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_offset: float, bias_constant,
                     bias_slope: float, precision: str = "float64") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Where receivers look every cascade up: fixed-point coordinates, biased depth, depth slope.
 
@@ -204,7 +204,8 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
     bits : int
         Sub-texel bits of the fixed-point grid.
     normal_offset, bias_constant, bias_slope : float
-        Texels, metres, texels (DESIGN.md ``[shadow]``).
+        Texels, metres, texels (DESIGN.md ``[shadow]``); ``bias_constant`` may be one value per
+        cascade ``(C,)`` (a bias model's per-cascade scaling, csmlab.filters).
     precision : str
         A key of :data:`PRECISION_METHODS`: float32 maps the moved points as an engine's float32
         matrix does.
@@ -237,6 +238,7 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
         tan = np.sqrt(np.maximum(1.0 - cos * cos, 0.0)) / cos
     tan = np.where(cos > 0.0, np.minimum(tan, _MAX_TAN), np.nan)
     count = len(cascades)
+    constant = np.broadcast_to(np.asarray(bias_constant, dtype=np.float64), (count,))
     coordinates = np.empty((count, p.shape[0], 2), dtype=np.int64)
     depth = np.empty((count, p.shape[0]), dtype=np.float32)
     slope = np.empty((count, p.shape[0], 2), dtype=np.float64)
@@ -254,7 +256,7 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
             coordinates[c] = _snapped(u) - fixed_point_origin(cascades, c, bits=bits)
         else:
             coordinates[c] = _snapped(_local_texels_float32(cascades, c, p + n * offset) * scale)
-        bias = bias_constant + bias_slope * texel * tan
+        bias = constant[c] + bias_slope * texel * tan
         depth[c] = light_p[:, 2] + offset * light_n[:, 2] - cascades.zref - bias
         slope[c] = plane_slope * cascade.texel_size
     return coordinates, depth, slope

@@ -125,9 +125,27 @@ def test_every_filter_exports_to_every_engine_and_bevy_names_the_kernels_it_lack
         for engine in sorted(EXPORT_METHODS):
             export(settings, near=NEAR, far=FAR, engine=engine)
         lacking = " ".join(export(settings, near=NEAR, far=FAR, engine="bevy").lacking)
-        assert (f"filter = {name!r}" in lacking) == (name not in ("pcf_tent", "pcf_bilinear")), name
-    tent = export(ShadowSettings(filter="pcf_tent", filter_size=5), near=NEAR, far=FAR, engine="bevy").text
-    assert "ShadowFilteringMethod::Gaussian" in tent
+        assert (f"filter = {name!r}" in lacking) == (name not in ("pcf_castano", "pcf_bilinear")), name
+    # Bevy's Gaussian is Castaño's 5×5 (sample_shadow_map_castano_thirteen): pcf_castano 5, not a tent.
+    castano = export(ShadowSettings(filter="pcf_castano", filter_size=5), near=NEAR, far=FAR, engine="bevy")
+    assert "ShadowFilteringMethod::Gaussian" in castano.text
+    assert not any("filter" in item for item in castano.lacking)
+
+
+def test_the_engine_presets_filters_export_as_their_engines_filters():
+    from csmlab.engine_export import GODOT_SOFT_LOW, THREEJS_PCF
+
+    godot = export(ShadowSettings(filter="pcf_vogel", poisson_rotation="pixel", **GODOT_SOFT_LOW), near=NEAR,
+                   far=FAR, engine="godot4")
+    assert "soft_shadow_filter_quality = 2" in godot.text and not any("filter" in i for i in godot.lacking)
+    three = export(ShadowSettings(filter="pcf_vogel", poisson_rotation="pixel", vogel_radius=2.0, **THREEJS_PCF),
+                   near=NEAR, far=FAR, engine="threejs_csm")
+    assert "THREE.PCFShadowMap" in three.text and "light.shadow.radius = 2;" in three.text
+    assert not any("filter" in i for i in three.lacking)
+    urp = export(ShadowSettings(filter="pcf_bilinear"), near=NEAR, far=FAR, engine="unity_urp")
+    assert "supportsSoftShadows = false" in urp.text and not any("filter" in i for i in urp.lacking)
+    medium = export(ShadowSettings(filter="pcf_tent_bilinear", filter_size=5), near=NEAR, far=FAR, engine="unity_urp")
+    assert "supportsSoftShadows = true" in medium.text and not any("filter" in i for i in medium.lacking)
 
 
 def test_the_filter_tables_name_only_csmlab_filters_and_hard_follows_the_record():
@@ -139,4 +157,5 @@ def test_the_filter_tables_name_only_csmlab_filters_and_hard_follows_the_record(
     assert hard == ["none"]
     for name in FILTER_METHODS:
         godot = export(ShadowSettings(filter=name), near=NEAR, far=FAR, engine="godot4").text
-        assert ("soft_shadow_filter_quality = 0" in godot) == (name in hard), name
+        # Godot's Hard is one comparison through the linear compare sampler: pcf_bilinear, or csmlab's one texel.
+        assert ("soft_shadow_filter_quality = 0" in godot) == (name in hard + ["pcf_bilinear"]), name

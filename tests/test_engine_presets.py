@@ -74,41 +74,45 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     # Built-in: Internal-ScreenSpaceShadows frag_pcf5x5 -> UnitySampleShadowmap_PCF5x5Tent; one 2×2 shadowmap.
     ("engines/unity_builtin_stable", dict(cascades=4, splits=(0.067, 0.2, 0.467, 1.0), shadow_distance=150.0,
                                           fade="radial",
-                                          stabilization="exact", selection="map", filter="pcf_tent", filter_size=5,
+                                          stabilization="exact", selection="map", filter="pcf_tent_bilinear",
+                                          filter_size=7,
                                           storage="atlas", atlas_layout="2x2")),
     ("engines/unity_builtin_close", dict(cascades=4, splits=(0.067, 0.2, 0.467, 1.0), stabilization="none",
-                                         filter="pcf_tent", filter_size=5, storage="atlas")),
+                                         filter="pcf_tent_bilinear", filter_size=7, storage="atlas")),
     # UniversalRenderPipelineAsset: m_ShadowDistance 50, m_Cascade4Split (0.067, 0.2, 0.467), m_CascadeBorder 0.2;
     # m_SoftShadowQuality Medium = SampleShadow_ComputeSamples_Tent_5x5; 2×2 atlas; k_ShadowmapBufferBits = 16.
     ("engines/unity_urp", dict(shadow_distance=50.0, splits=(0.067, 0.2, 0.467, 1.0), fade_out=0.2,
-                               fade="squared_radial", filter="pcf_tent",
-                               filter_size=5, storage="atlas", atlas_layout="2x2", depth_format="unorm16")),
+                               fade="squared_radial", filter="pcf_bilinear",
+                               storage="atlas", atlas_layout="2x2", depth_format="unorm16")),
     # DirectionalLight3D: splits 0.1/0.2/0.5, max distance 100, fade_start 0.8, pancake_size 20, blend off;
     # soft_shadow_filter_quality 2 (SOFT_LOW): directional_soft_shadow_samples = 4, quality radius 2.0, a
     # Vogel disk rotated per pixel; directional_shadow/16_bits = true; 4 splits as quadrants of one atlas.
     ("engines/godot4", dict(split="manual_range", splits=(0.1, 0.2, 0.5, 1.0), shadow_distance=100.0, fade_out=0.2,
                             fade="smoothstep", extent="centroid", snap="nearest2", pancake=20.0,
-                            depth_range="slice", depth_clamp=True, blend_band=0.0, filter="pcf_poisson",
-                            poisson_taps=4, filter_size=5, poisson_rotation="pixel", storage="atlas",
+                            depth_range="sphere", depth_clamp=True, blend_band=0.0, filter="pcf_vogel",
+                            vogel_taps=4, vogel_radius=2.0, vogel_angle=2.4, vogel_scale="first_split",
+                            poisson_rotation="pixel", storage="atlas",
                             depth_format="unorm16")),
     # ShadowOptions: shadowCascades 1, practical splits lambda 0.5, stable false; ShadowType::PCF =
     # ShadowSample_PCF_Low, "hardware assisted PCF + 3x3 gaussian filter" (Castaño 2013).
-    ("engines/filament", dict(cascades=1, split="practical", lambda_=0.5, stabilization="none", filter="pcf_tent",
-                              filter_size=3)),
+    ("engines/filament", dict(cascades=1, split="practical", lambda_=0.5, stabilization="none",
+                              filter="pcf_castano", filter_size=3)),
     # CascadeShadowConfigBuilder::default(): 4, 0.1, 150, first bound 10, overlap 0.2;
     # ShadowFilteringMethod::Gaussian = sample_shadow_map_castano_thirteen, weights (4 - 3s, 7, 1 + 3s) over 5 texels.
     ("engines/bevy", dict(cascades=4, split="geometric", first_cascade_far=10.0, shadow_distance=150.0,
                           blend_band=0.2, transition="far_bound", extent="diagonal", snap="centre",
-                          filter="pcf_tent", filter_size=5)),
+                          filter="pcf_castano", filter_size=5)),
     # CSM.js: cascades 3, mode 'practical', lightMargin 200, fade false; renderer default PCFShadowMap.
     ("engines/threejs_csm", dict(cascades=3, split="practical", lambda_=0.5, pancake=200.0, fade_out=0.0,
-                                 extent="diagonal", filter="pcf", filter_size=3)),
+                                 extent="diagonal", filter="pcf_vogel", vogel_taps=5, vogel_radius=1.0,
+                                 poisson_rotation="pixel")),
     # LightDirectionalShadowMap: FourCascades, PSSMFactor 0.5, StabilizationMode ProjectionSnapping,
     # DepthRange.IsAutomatic true (held: DepthIncreaseThreshold 1.1, DepthDecreaseThreshold 2.0),
     # IsBlendingCascades true (overlap 0.2); PCF 5×5 in the shadow atlas.
     ("engines/stride", dict(cascades=4, lambda_=0.5, bounds="sdsm", hysteresis=0.5, stabilization="exact",
                             extent="centroid", snap="centre", blend_band=0.2, blend_curve="smoothstep",
-                            transition="backward", filter="pcf", filter_size=5,
+                            depth_range="sphere", depth_clamp=True,
+                            transition="backward", filter="pcf_castano", filter_size=5,
                             storage="atlas")),
     # TheRealMJP/Shadows AppSettings.cs: SplitDistance0..3 0.05/0.15/0.5/1.0, StabilizeCascades = false,
     # ShadowMode FixedSizePCF with FixedFilterSize Filter2x2, DepthBufferFormat DB32Float.
@@ -122,10 +126,11 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     ("seeds/nvidia_sdk", dict(split="practical", lambda_=0.75, stabilization="none")),
     # Seed 002/004: "create a kernel (such as a Gaussian) for an N × N grid ... The CascadedShadowMaps11 sample
     # uses this approach"; VarianceShadows11 "use[s] texture arrays instead of a texture atlas" (CSM11: an atlas).
-    ("seeds/dx_csm11_cascade", dict(fit="cascade", selection="interval", extent="diagonal", filter="pcf_gaussian",
+    ("seeds/dx_csm11_cascade", dict(fit="cascade", selection="interval", extent="diagonal",
+                                    filter="pcf_bilinear_box", filter_size=3,
                                     storage="atlas", atlas_layout="1x4")),
     ("seeds/dx_csm11_scene", dict(fit="scene", selection="map", blend_band=0.0, cascades=3,
-                                  splits=(19.995, 59.985, 239.94), filter="pcf_gaussian",
+                                  splits=(19.995, 59.985, 239.94), filter="pcf_bilinear_box",
                                   storage="atlas")),
     # Seed 003, 4.1.2: 64 levels; 4.1.1: "Packing CSMs into an atlas texture ... our project uses this strategy".
     ("seeds/unigine_quantized", dict(stabilization="quantized", levels=64, storage="atlas", atlas_layout="unigine")),
@@ -153,7 +158,7 @@ def test_snapping_presets_are_flicker_free_and_refitting_ones_are_not(tmp_path, 
     (method,) = load_experiment(tmp_path / "exp.toml").methods
     if method.settings.stabilization == "none":
         assert values["flicker_same"] > 0.0
-    elif method.settings.filter == "pcf_poisson" and method.settings.poisson_rotation == "pixel":
+    elif method.settings.filter in ("pcf_poisson", "pcf_vogel") and method.settings.poisson_rotation == "pixel":
         assert values["flicker_same"] > 0.0
         unrotated = _run(tmp_path, extends=[preset], methods=f'[[methods]]\nname = "{method.name}"\n'
                                                              'poisson_rotation = "none"\n')
@@ -354,6 +359,11 @@ def test_godot4_splits_sphere_snap_and_fade_are_godots(tmp_path):
         np.testing.assert_array_equal(cascade.origin + margin, np.rint(x_min / texel))
         assert np.all(np.rint(x_min / texel) % 2 == 0)
         np.testing.assert_allclose(cascade.box_min + margin * cascade.texel_size, x_min, rtol=2.0 ** -11)
+        # z_min_cam = z_vec.dot(center) - radius; z_max = z_vec.dot(center) + radius + pancake_size, z_vec
+        # toward the light (csmlab's depth grows away from it). Godot's radius is the widened one (< 0.1 %).
+        depth = cs.basis[2] @ center
+        np.testing.assert_allclose([cascade.depth_near, cascade.depth_far], [depth - radius - 20.0, depth + radius],
+                                   rtol=0, atol=2e-3 * radius)
     # light_storage.cpp: fade_from = -split_offsets[3] * min(fade_start, 0.999), fade_to = -split_offsets[3];
     # scene_forward_clustered.glsl: shadow = mix(shadow, 1.0, smoothstep(fade_from, fade_to, vertex.z)).
     fade_from, fade_to = far * 0.8, far
@@ -466,6 +476,10 @@ def test_stride_sphere_is_from_points_and_its_blend_a_smoothstep(tmp_path):
         assert held == pytest.approx(radius, rel=2.0 ** -11)
         box_centre = 0.5 * (cascade.box_min + cascade.box_max)
         assert np.all(np.abs(box_centre - cs.basis[:2] @ centre) <= cascade.texel_size)
+        # LookAtRH(target - direction * r, target), nearClip 0, farClip 2r: the sphere's centre ± r along the light.
+        depth = cs.basis[2] @ centre
+        np.testing.assert_allclose([cascade.depth_near, cascade.depth_far], [depth - radius, depth + radius],
+                                   rtol=1e-12)
     # ShadowMapReceiverDirectional.sdsl: splitDist = (nextSplit - DepthVS) / splitSize; if (splitDist < 0.2)
     # { lerpAmt = smoothstep(0.0, 0.2, splitDist); shadow = lerp(nextShadow, shadow, lerpAmt); }
     z0, z1 = stride[1], stride[2]
@@ -503,3 +517,74 @@ def test_dx_csm11_has_the_samples_three_partitions_and_no_blend(tmp_path, preset
     near, far = 0.1, 400.0
     np.testing.assert_allclose(cs.splits[1:], [p / 100.0 * (far - near) for p in (5, 15, 60)], rtol=1e-12)
     assert settings.blend_band == 0.0                                          # m_iBlurBetweenCascades(0)
+
+
+# --- Each preset's filter and bias in its engine's own terms (configs/*: the file and function of each) ---
+
+FILTER_AND_BIAS = {
+    # name: (filter fields, bias fields) — csmlab's field values as each engine's source sets them.
+    "engines/godot4": ({"filter": "pcf_vogel", "vogel_taps": 4, "vogel_radius": 2.0, "vogel_angle": 2.4,
+                        "vogel_scale": "first_split", "poisson_rotation": "pixel"},
+                       {"bias_depth_range": 0.1 / 100.0 * 2.0, "bias_slope": 0.0, "normal_offset": 2.0,
+                        "receiver_plane_bias": False}),
+    "engines/threejs_csm": ({"filter": "pcf_vogel", "vogel_taps": 5, "vogel_radius": 1.0,
+                             "vogel_angle": 2.399963229728653, "poisson_rotation": "pixel"},
+                            {"bias_constant": 0.0, "bias_slope": 0.0, "normal_offset": 0.0,
+                             "receiver_plane_bias": False}),
+    "engines/filament": ({"filter": "pcf_castano", "filter_size": 3},
+                         {"bias_constant": 0.001, "bias_depth_range": 0.5 / 2**16, "bias_slope": 2.0,
+                          "normal_offset": 0.5, "receiver_plane_bias": False}),
+    "engines/bevy": ({"filter": "pcf_castano", "filter_size": 5},
+                     {"bias_constant": 0.02, "bias_slope": 0.0, "normal_offset": 1.8, "receiver_plane_bias": False}),
+    "engines/stride": ({"filter": "pcf_castano", "filter_size": 5},
+                       {"bias_depth_range": 0.01, "bias_slope": 0.0, "normal_offset": 0.0,
+                        "receiver_plane_bias": False}),
+    "engines/mjp": ({"filter": "pcf_bilinear"},
+                    {"bias_constant": 0.0, "bias_slope": 0.0, "normal_offset": 0.0, "receiver_plane_bias": True}),
+    "engines/unity_urp": ({"filter": "pcf_bilinear"},
+                          {"bias_texels": 1.0, "bias_depth_range": 1.0 / 2**16, "bias_slope": 2.5,
+                           "normal_offset": 1.0, "receiver_plane_bias": False}),
+    "engines/unity_builtin_stable": ({"filter": "pcf_tent_bilinear", "filter_size": 7},
+                                     {"bias_slope": 1.0, "receiver_plane_bias": False}),
+    "engines/unity_builtin_close": ({"filter": "pcf_tent_bilinear", "filter_size": 7},
+                                    {"bias_slope": 1.0, "receiver_plane_bias": False}),
+    "engines/ue5": ({"filter": "pcf_bilinear_box", "filter_size": 5}, {"receiver_plane_bias": False}),
+    "seeds/dx_csm11_cascade": ({"filter": "pcf_bilinear_box", "filter_size": 3},
+                               {"bias_depth_range": 0.002, "bias_slope": 1.0, "normal_offset": 0.0,
+                                "receiver_plane_bias": False}),
+    "seeds/dx_csm11_scene": ({"filter": "pcf_bilinear_box", "filter_size": 3},
+                             {"bias_depth_range": 0.002, "bias_slope": 1.0, "normal_offset": 0.0,
+                              "receiver_plane_bias": False}),
+}
+
+
+@pytest.mark.parametrize("preset", sorted(FILTER_AND_BIAS))
+def test_preset_filter_and_bias_are_its_engines(preset, tmp_path):
+    settings, pose = _preset(preset, tmp_path)
+    filter_fields, bias_fields = FILTER_AND_BIAS[preset]
+    for field, value in {**filter_fields, **bias_fields}.items():
+        assert getattr(settings, field) == (value if isinstance(value, (str, bool)) else pytest.approx(value)), field
+
+
+def test_receiver_plane_bias_is_on_only_where_the_engine_uses_it(tmp_path):
+    # Only MJP's sample turns it on by default (AppSettings.cs UsePlaneDepthBias = true).
+    on = [preset for preset in PRESETS if _preset(preset, tmp_path)[0].receiver_plane_bias]
+    assert on == ["engines/mjp"]
+
+
+def test_godot4_bias_at_a_receiver_is_godots(tmp_path):
+    """light_storage.cpp update_light_buffers: shadow_bias[j] = SHADOW_BIAS / 100 · (z_max − z_min_cam) ·
+    soft_shadow_scale (0.1 / 100 · depth range · 2.0), toward the light; the receiver's compared depth is its own
+    light depth less that bias (normal offset left out: normal_offset = 0 here)."""
+    from csmlab.filters import _cascade_bias
+    from csmlab.texels import receiver_lookup
+
+    settings, pose = _preset("engines/godot4", tmp_path)
+    cs = _build(settings, pose)
+    godot = np.array([0.1 / 100.0 * (c.depth_far - c.depth_near) * (1.0 * 2.0) for c in cs.cascades])
+    np.testing.assert_allclose(_cascade_bias(cs, settings), godot, rtol=1e-12)
+    point = POSE_AT + np.array([0.5, -1.0, -8.0])
+    normal = -cs.basis[2]                                                      # facing the light: tan θ = 0
+    _, depth, _ = receiver_lookup(cs, point[None], normal[None], bits=8, normal_offset=0.0,
+                                  bias_constant=_cascade_bias(cs, settings), bias_slope=settings.bias_slope)
+    np.testing.assert_allclose(depth[:, 0], point @ cs.basis[2] - cs.zref - godot, rtol=1e-6)

@@ -118,7 +118,7 @@ def test_the_run_records_each_methods_promise_and_why(godot4_run):
     (godot4,) = recorded["godot4"].values()
     (exact,) = recorded["exact"].values()
     assert not godot4[FLICKER_SAME_ZERO]["promised"] and exact[FLICKER_SAME_ZERO]["promised"]
-    assert "filter = 'pcf_poisson' reads each receiver's screen pixel" in godot4[FLICKER_SAME_ZERO]["why"]
+    assert "filter = 'pcf_vogel' reads each receiver's screen pixel" in godot4[FLICKER_SAME_ZERO]["why"]
     assert "depth_range = 'slice'" in godot4[FLICKER_SAME_ZERO]["why"]
 
 

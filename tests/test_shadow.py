@@ -262,7 +262,9 @@ def test_receiver_coordinates_on_the_device_equal_the_host_receiver_lookup_bit_f
     points = rng.uniform(-1e3, 1e3, (5000, 3)) + np.array([7.5e5, 0.0, 0.0])
     normals = rng.normal(size=(5000, 3)).astype(np.float32)
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)  # about half turned from the light
-    for bits, offset, constant, slope in ((8, 0.5, 0.0, 1.0), (12, 1.25, 0.013, 2.5)):
+    # The last: a bias model's constant per cascade (csmlab.filters: depth range and texel scaling).
+    for bits, offset, constant, slope in ((8, 0.5, 0.0, 1.0), (12, 1.25, 0.013, 2.5),
+                                          (10, 2.0, np.array([0.092, 0.137, 0.52]), 0.0)):
         expected = receiver_lookup(cs, points, normals, bits=bits, normal_offset=offset, bias_constant=constant,
                                    bias_slope=slope)
         got = receiver_coordinates(
@@ -327,3 +329,27 @@ def test_world_receivers_look_up_the_same_bits_as_converted_ones(selection, devi
         assert np.isfinite(lit).sum() > 100 and 0 < np.mean(lit[np.isfinite(lit)]) < 1
         assert len(set(chosen.tolist()) - {-1}) >= 2
         assert blended.any() == (blend_band > 0.0)
+
+
+def test_bias_models_scale_the_constant_bias_per_cascade_as_the_engines_do():
+    """Godot 4 (light_storage.cpp, update_light_buffers): shadow_bias[j] = SHADOW_BIAS / 100 · bias_scale with
+    bias_scale = (z_max − z_min_cam) · soft_shadow_scale (blur 1.0 × Soft Low radius 2.0), SHADOW_BIAS 0.1 by default;
+    Stride (ShadowMapReceiverBase.sdsl): DepthBias 0.01 of the normalized [0, 2r] depth; Unity URP
+    (ShadowUtils.GetShadowBias): depthBias = bias · frustumSize / resolution, one texel at the default 1."""
+    from csmlab.cascades import Cascade, CascadeSet
+    from csmlab.filters import _cascade_bias
+    from csmlab.geometry import light_basis
+    from csmlab.settings import ShadowSettings
+
+    spans = np.array([45.8, 68.4, 141.8, 261.0])
+    texels = np.array([0.0126, 0.0236, 0.0594, 0.1177])
+    cascades = tuple(Cascade(split_near=0.1, split_far=10.0 * (k + 1), slice_near=0.1, slice_far=10.0 * (k + 1),
+                             texel_size=np.array([t, t]), origin=np.zeros(2), resolution=2048, depth_near=-5.0,
+                             depth_far=-5.0 + d) for k, (t, d) in enumerate(zip(texels, spans)))
+    cs = CascadeSet(basis=light_basis([0.3, -0.8, 0.2]), zref=0.0, splits=np.array([0.1, 10.0, 20.0, 30.0, 40.0]),
+                    cascades=cascades, margin_texels=2)
+    godot = _cascade_bias(cs, ShadowSettings(bias_depth_range=0.1 / 100.0 * 2.0))
+    np.testing.assert_allclose(godot, 0.1 / 100.0 * spans * (1.0 * 2.0), rtol=1e-12)
+    np.testing.assert_allclose(godot, [0.0916, 0.1368, 0.2836, 0.522], rtol=1e-12)  # 9.2 / 13.7 / 28.4 / 52.2 cm
+    np.testing.assert_allclose(_cascade_bias(cs, ShadowSettings(bias_texels=1.0, bias_constant=0.02)), 0.02 + texels)
+    assert _cascade_bias(cs, ShadowSettings(bias_constant=0.02)) == 0.02  # no model: the scalar, bit for bit

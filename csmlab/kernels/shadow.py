@@ -154,8 +154,8 @@ class FixedReceivers:
 class WorldReceivers:
     """Receivers as world points, taken into a cascade's fixed point where a kernel reads them.
 
-    ``to_fixed = 2**bits / texel_size``, ``offset`` (the normal offset in metres) and ``slope_bias``
-    (``bias_slope · texel``) are per cascade; ``planar`` 0 gives every receiver a flat plane (no
+    ``to_fixed = 2**bits / texel_size``, ``offset`` (the normal offset in metres), ``bias_constant``
+    (metres) and ``slope_bias`` (``bias_slope · texel``) are per cascade; ``planar`` 0 gives every receiver a flat plane (no
     receiver-plane bias).
     """
 
@@ -170,7 +170,7 @@ class WorldReceivers:
     origin_fixed: wp.array2d(dtype=wp.int64)
     zref: wp.float64
     limit: wp.float64
-    bias_constant: wp.float64
+    bias_constant: wp.array(dtype=wp.float64)
     max_tan: wp.float64
     planar: int
 
@@ -212,7 +212,7 @@ def receiver_at(r: WorldReceivers, c: int, k: int):  # noqa: F811  (a Warp overl
     moved = r.offset[c]
     x = fixed_point(nx * moved + px, r.to_fixed[c, 0], r.limit) - r.origin_fixed[c, 0]
     y = fixed_point(ny * moved + py, r.to_fixed[c, 1], r.limit) - r.origin_fixed[c, 1]
-    bias = r.bias_constant + r.slope_bias[c] * tan
+    bias = r.bias_constant[c] + r.slope_bias[c] * tan
     return x, y, wp.float32(pz + moved * nz - r.zref - bias), slope
 
 
@@ -417,7 +417,7 @@ def select_cascades(depth, coords, receiver_depth, view_depth, *, splits, texel_
 
 
 def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis, texel_size, origin_fixed, zref: float,
-                        normal_offset: float, bias_constant: float, bias_slope: float, receiver_plane_bias: bool,
+                        normal_offset: float, bias_constant, bias_slope: float, receiver_plane_bias: bool,
                         splits, texel_area, selection: str, filter: str, radius: int, margin: int,
                         blend_band: float, bits: int, band_start=None, blend_curve: int = 0,
                         device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -575,7 +575,7 @@ def receiver_coordinates_kernel(
 
 
 def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zref: float, bits: int,
-                         normal_offset: float, bias_constant: float, bias_slope: float, receivers=None,
+                         normal_offset: float, bias_constant, bias_slope: float, receivers=None,
                          device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`csmlab.texels.receiver_lookup` on the device, from world receivers.
 
@@ -596,7 +596,8 @@ def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zr
     bits : int
         Sub-texel bits.
     normal_offset, bias_constant, bias_slope : float
-        Texels, metres, texels (DESIGN.md ``[shadow]``).
+        Texels, metres, texels (DESIGN.md ``[shadow]``); ``bias_constant`` may be one value per
+        cascade ``(C,)`` (a bias model's per-cascade scaling, csmlab.filters).
     receivers : array_like, shape (N,), integer, optional
         The rows of ``points`` and ``normals`` that are receivers, in output order; None: all.
     device : str
@@ -623,7 +624,7 @@ def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zr
 
 
 def world_receivers(points, normals, *, receivers, basis, texel_size, origin_fixed, zref: float, bits: int,
-                    normal_offset: float, bias_constant: float, bias_slope: float, planar: bool,
+                    normal_offset: float, bias_constant, bias_slope: float, planar: bool,
                     device: str) -> WorldReceivers:
     """The :class:`WorldReceivers` of :func:`receiver_coordinates`'s arguments, checked (``planar``: receiver-plane slopes)."""
     p = np.ascontiguousarray(points, dtype=np.float64)
@@ -651,7 +652,8 @@ def world_receivers(points, normals, *, receivers, basis, texel_size, origin_fix
     world.origin_fixed = wp.array(corner, dtype=wp.int64, device=device)
     world.zref = float(zref)
     world.limit = float(2**50)
-    world.bias_constant = float(bias_constant)
+    world.bias_constant = wp.array(np.broadcast_to(np.asarray(bias_constant, dtype=np.float64), texel.shape).copy(),
+                                   dtype=wp.float64, device=device)
     world.max_tan = 10.0
     world.planar = int(bool(planar))
     return world
