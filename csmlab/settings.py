@@ -128,11 +128,11 @@ class ShadowSettings:
     snap: str = "origin"
     """exact: what is snapped to whole texels, origin (box corner: Valient, DirectX, Unreal) | centre (box centre: Bevy, three.js, Stride projection snapping) | view (centre in 4-texel steps: Stride view snapping) | nearest2 (edges rounded to the nearest 2-texel unit: Godot)."""
     depth_range: str = "scene"
-    """Box depth: scene (near side pushed to the scene bounds) | slice (the slice's own range, less pancake)."""
+    """Box depth: scene (near side pushed to the scene bounds) | slice (the slice's own range, less pancake) | sphere (the slice corners' centroid sphere ± radius, less pancake: Godot, Stride)."""
     pancake: float = 0.0
-    """depth_range = slice: metres the near side is pulled toward the light beyond the slice (Godot pancake_size)."""
+    """depth_range = slice or sphere: metres the near side is pulled toward the light beyond the slice (Godot pancake_size)."""
     depth_clamp: bool = True
-    """depth_range = slice: casters nearer than the near side are flattened onto it (pancaking) rather than clipped."""
+    """depth_range = slice or sphere: casters nearer than the near side are flattened onto it (pancaking) rather than clipped."""
     fade_out: float = 0.0
     """Fraction of the shadow distance at its end over which the shadow fades to lit (Unreal, Unity, Godot 1 - fade_start)."""
     bounds: str = "frustum"
@@ -305,10 +305,10 @@ APPLIES: dict[str, Applies] = {
                     'stabilization = "exact" (what its fixed box snaps to whole texels)'),
     "extent_hysteresis": Applies(lambda *, stabilization: stabilization == "none",
                                  'stabilization = "none" (a stabilized box already has a fixed extent)'),
-    "pancake": Applies(lambda *, depth_range: depth_range == "slice",
-                       'depth_range = "slice" (the pull of its near side toward the light)'),
-    "depth_clamp": Applies(lambda *, depth_range: depth_range == "slice",
-                           'depth_range = "slice" (casters nearer than its near side)'),
+    "pancake": Applies(lambda *, depth_range: depth_range in ("slice", "sphere"),
+                       'depth_range = "slice" or "sphere" (the pull of its near side toward the light)'),
+    "depth_clamp": Applies(lambda *, depth_range: depth_range in ("slice", "sphere"),
+                           'depth_range = "slice" or "sphere" (casters nearer than its near side)'),
     "transition": Applies(lambda *, blend_band: blend_band > 0, "blend_band > 0 (where its bands lie)"),
     "blend_curve": Applies(lambda *, blend_band: blend_band > 0, "blend_band > 0 (the weight over its bands)"),
     "fade": Applies(lambda *, fade_out: fade_out > 0, "fade_out > 0 (the shape of the far fade)"),

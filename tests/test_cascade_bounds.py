@@ -122,3 +122,15 @@ def test_slice_depth_range_takes_the_slice_less_the_pancake():
         assert c.depth_far == pytest.approx(corners[:, 2].max(), abs=1e-9)
     scene_wide = build_cascades(pose=pose, light_direction=LIGHT, scene_corners=SCENE, settings=ShadowSettings())
     assert all(c.depth_near == pytest.approx((SCENE @ basis.T)[:, 2].min()) for c in scene_wide.cascades)
+
+
+def test_sphere_depth_range_is_the_centroid_sphere_less_pancake():
+    from csmlab.cascades.bounds import DEPTH_RANGE_METHODS
+
+    # A 2 × 2 × 4 m box of corners about (1, 2, 10): centroid depth 10, radius sqrt(1 + 1 + 4).
+    corners = np.array([[1 + sx, 2 + sy, 10 + 2 * sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], float)
+    sphere = DEPTH_RANGE_METHODS["sphere"]
+    near, far = sphere.box_depth(corners[:, 2], corners[:, 2], pancake=5.0, corners=corners)
+    r = np.sqrt(6.0)
+    assert (near, far) == pytest.approx((10 - r - 5.0, 10 + r), rel=1e-12)
+    assert near <= corners[:, 2].min() and far >= corners[:, 2].max() and sphere.cuts_casters

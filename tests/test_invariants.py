@@ -119,7 +119,7 @@ def test_the_run_records_each_methods_promise_and_why(godot4_run):
     (exact,) = recorded["exact"].values()
     assert not godot4[FLICKER_SAME_ZERO]["promised"] and exact[FLICKER_SAME_ZERO]["promised"]
     assert "filter = 'pcf_vogel' reads each receiver's screen pixel" in godot4[FLICKER_SAME_ZERO]["why"]
-    assert "depth_range = 'slice'" in godot4[FLICKER_SAME_ZERO]["why"]
+    assert "depth_range = 'sphere'" in godot4[FLICKER_SAME_ZERO]["why"]
 
 
 def test_a_rotated_filter_on_exact_boxes_passes_the_gate_against_its_own_baseline(godot4_run):

@@ -19,6 +19,13 @@ Light depth, :data:`DEPTH_RANGE_METHODS` (``[shadow] depth_range``), the box's e
   (Godot ``directional_shadow_pancake_size``, default 20; ogldev tutorial 49, seed 001, uses 0).
   Casters nearer than that are flattened onto it (``depth_clamp``: pancaking, Godot, Unreal, Bevy's
   unclipped depth) or clipped away (their shadows lost).
+- ``sphere`` — the light-depth range of the sphere about the slice corners' centroid, centre ± its
+  radius, the near side pulled ``pancake`` metres toward the light (Godot 4
+  ``RendererSceneCull::_light_instance_setup_directional_shadow``: ``z_min_cam = z_vec.dot(center) -
+  radius``, ``z_max = z_vec.dot(center) + radius + pancake_size``; Stride
+  ``LightDirectionalShadowMapRenderer``: the shadow camera ``r`` behind the sphere's centre, near 0,
+  far ``2r``). Always at least the corners' range. Godot's radius is also widened by ``T / (T - 2)``
+  (one texel, < 0.1 % at 2048), which this range leaves out.
 """
 
 from __future__ import annotations
@@ -58,15 +65,27 @@ BOUNDS_METHODS: dict[str, Bounds] = {
 """View-depth ranges the splits divide, by name."""
 
 
-def scene_box_depth(slice_depth: np.ndarray, scene_depth: np.ndarray, *, pancake: float) -> tuple[float, float]:
+def scene_box_depth(slice_depth: np.ndarray, scene_depth: np.ndarray, *, pancake: float,
+                    corners=None) -> tuple[float, float]:
     """``scene``: the slice's light-depth range widened to the scene's, so every caster in the box's
     x/y range is captured whatever the slice's own depth range is (``pancake`` plays no part)."""
     return float(min(slice_depth.min(), scene_depth.min())), float(max(slice_depth.max(), scene_depth.max()))
 
 
-def slice_box_depth(slice_depth: np.ndarray, scene_depth: np.ndarray, *, pancake: float) -> tuple[float, float]:
+def slice_box_depth(slice_depth: np.ndarray, scene_depth: np.ndarray, *, pancake: float,
+                    corners=None) -> tuple[float, float]:
     """``slice``: the slice's own light-depth range, its near side pulled ``pancake`` metres toward the light."""
     return float(slice_depth.min() - pancake), float(slice_depth.max())
+
+
+def sphere_box_depth(slice_depth: np.ndarray, scene_depth: np.ndarray, *, pancake: float,
+                     corners=None) -> tuple[float, float]:
+    """``sphere``: the centroid sphere of the slice's light-space ``corners`` ``(8, 3)``, centre ± radius along
+    the light, its near side pulled ``pancake`` metres toward the light (Godot 4, Stride)."""
+    points = np.asarray(corners, dtype=np.float64).reshape(-1, 3)
+    centre = points.mean(axis=0)
+    radius = float(np.sqrt(np.max(np.sum((points - centre) ** 2, axis=1))))
+    return float(centre[2] - radius - pancake), float(centre[2] + radius)
 
 
 @dataclass(frozen=True)
@@ -77,8 +96,9 @@ class DepthRange:
     ----------
     description : str
     box_depth : callable
-        ``box_depth(slice_depth, scene_depth, *, pancake) -> (near, far)``: the box's near and far
-        light depth in metres from the light depths of the slice's corners and of the scene's bounds.
+        ``box_depth(slice_depth, scene_depth, *, pancake, corners) -> (near, far)``: the box's near and
+        far light depth in metres from the light depths of the slice's corners and of the scene's
+        bounds (and the corners' light-space positions ``(8, 3)``).
     cuts_casters : bool
         The box's near side may lie behind casters: they are flattened onto it (``depth_clamp``,
         pancaking) or clipped away. False: every caster lies behind the near side.
@@ -94,6 +114,9 @@ DEPTH_RANGE_METHODS: dict[str, DepthRange] = {
                         scene_box_depth, cuts_casters=False),
     "slice": DepthRange("box depth from the slice only, near side pulled `pancake` metres toward the light",
                         slice_box_depth, cuts_casters=True),
+    "sphere": DepthRange("box depth from the sphere about the slice corners' centroid (centre ± radius), near side "
+                         "pulled `pancake` metres toward the light (Godot 4, Stride)", sphere_box_depth,
+                         cuts_casters=True),
 }
 """Light-depth ranges of a cascade's box, by name."""
 

@@ -183,7 +183,7 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
                                   margin=margin, levels=settings.levels, quantized_base=settings.quantized_base,
                                   snap=settings.snap, held_extent=None if held_extents is None else held_extents[i])
         depth_near, depth_far = DEPTH_RANGE_METHODS[settings.depth_range].box_depth(
-            corners[:, 2], scene_light[:, 2], pancake=settings.pancake)
+            corners[:, 2], scene_light[:, 2], pancake=settings.pancake, corners=corners)
         cascades.append(Cascade(
             split_near=float(splits[i]), split_far=float(splits[i + 1]), slice_near=float(z0), slice_far=float(z1),
             texel_size=texel, origin=origin, resolution=resolution, depth_near=depth_near,
