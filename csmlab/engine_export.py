@@ -228,7 +228,10 @@ def export_godot4(settings: ShadowSettings, *, near: float, far: float) -> Snipp
     cascades = settings.cascades if settings.cascades in modes else (2 if settings.cascades < 4 else 4)
     if cascades != settings.cascades:
         lacking.append(f"cascades = {settings.cascades} (Godot has 1, 2 or 4 splits; {cascades} written)")
-    fractions = _fractions(settings.replace(cascades=cascades), near, far)
+    # Godot places each split at min_distance + split · (max_distance - min_distance) from the camera's near
+    # plane (RendererSceneCull::_light_instance_setup_directional_shadow): fractions of the range, not of far.
+    z = split_boundaries(settings.replace(cascades=cascades), near=near, far=far)
+    fractions = [float((v - z[0]) / (z[-1] - z[0])) for v in z[1:-1]]
     atlas = _size(settings) * (1 if cascades == 1 else 2)
     lines = ["# DirectionalLight3D",
              f"directional_shadow_mode = {modes[cascades]}",

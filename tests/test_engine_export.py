@@ -49,8 +49,9 @@ def test_godot_and_bevy_and_threejs_carry_the_same_boundaries():
     settings = ShadowSettings(cascades=4, split="log", shadow_distance=100.0)
     z = split_distances(near=NEAR, far=100.0, count=4, method="log")
     godot = export(settings, near=NEAR, far=FAR, engine="godot4").text
-    assert np.allclose([_numbers(godot, f"directional_shadow_split_{i} =")[0] for i in (1, 2, 3)], z[1:-1] / 100.0,
-                       atol=1e-4)
+    # Godot's splits are fractions of the range from the near plane: distances[i + 1] = min_distance + split · range.
+    assert np.allclose([_numbers(godot, f"directional_shadow_split_{i} =")[0] for i in (1, 2, 3)],
+                       (z[1:-1] - NEAR) / (100.0 - NEAR), atol=1e-4)
     bevy = export(settings, near=NEAR, far=FAR, engine="bevy").text
     assert np.allclose(_numbers(bevy, "bounds: vec!")[:4], z[1:], atol=1e-3)
     three = export(settings, near=NEAR, far=FAR, engine="threejs_csm").text
