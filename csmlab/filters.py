@@ -200,7 +200,7 @@ def _conversion(cascades: CascadeSet, settings: ShadowSettings) -> dict:
     return dict(basis=cascades.basis, texel_size=np.stack([c.texel_size for c in cascades.cascades]),
                 origin_fixed=np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]),
                 zref=cascades.zref, normal_offset=settings.normal_offset,
-                bias_constant=_cascade_bias(cascades, settings),
+                bias_constant=_cascade_bias(cascades, settings), normal_scale=settings.normal_offset_scale,
                 bias_slope=settings.bias_slope)
 
 
@@ -241,6 +241,7 @@ def texel_coordinates(cascades: CascadeSet, points: np.ndarray, normals: np.ndar
                                     device=device)
     return receiver_lookup(cascades, points[rows], normals[rows], bits=bits, normal_offset=settings.normal_offset,
                            bias_constant=_cascade_bias(cascades, settings), bias_slope=settings.bias_slope,
+                           normal_scale=settings.normal_offset_scale,
                            precision=settings.engine_precision)
 
 

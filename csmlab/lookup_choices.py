@@ -31,7 +31,8 @@ import numpy as np
 
 from csmlab.registry import check_name, parameters
 
-__all__ = ["BOX_BILINEAR", "BOX_TAPS", "CASTANO_SIZES", "FAMILIES", "FILTER_METHODS", "Filter", "MOMENT_EVSM2",
+__all__ = ["BOX_BILINEAR", "BOX_TAPS", "CASTANO_SIZES", "NORMAL_NONE", "NORMAL_OFFSET_SCALES", "NORMAL_ONE_MINUS_COS",
+           "NORMAL_ONE_MINUS_COS_LATERAL", "NORMAL_SIN", "FAMILIES", "FILTER_METHODS", "Filter", "MOMENT_EVSM2",
            "MOMENT_EVSM4", "MOMENT_VSM", "PCF_BILINEAR_BOX", "PCF_CASTANO", "PCF_GAUSSIAN", "PCF_PCSS", "PCF_POISSON",
            "PCF_TENT", "PCF_TENT_BILINEAR", "PCF_VOGEL", "SELECTION_METHODS", "SELECT_BEST_RESOLUTION",
            "SELECT_INTERVAL", "SELECT_MAP", "Selection", "family_code", "family_filters", "poisson_disk", "vogel_disk"]
@@ -64,6 +65,28 @@ PCF_TENT_BILINEAR = 6
 """Weighted family code: a tent folded into hardware bilinear-compare taps, two texels per tap and axis (Unity)."""
 PCF_BILINEAR_BOX = 7
 """Weighted family code: N×N hardware bilinear-compare taps a whole texel apart, equal weights (DirectX CSM11)."""
+
+NORMAL_NONE = 0
+"""Normal-offset code: ``normal_offset`` texels along the full normal."""
+NORMAL_ONE_MINUS_COS = 1
+"""Normal-offset code: times ``1 − max(0, cos θ)`` (Unity URP, Stride, MJP)."""
+NORMAL_SIN = 2
+"""Normal-offset code: times ``sin θ`` (Filament, Unity built-in)."""
+NORMAL_ONE_MINUS_COS_LATERAL = 3
+"""Normal-offset code: times ``1 − max(0, cos θ)``, its component along the light removed (Godot 4)."""
+
+NORMAL_OFFSET_SCALES: dict[str, int] = {"none": NORMAL_NONE, "one_minus_cos": NORMAL_ONE_MINUS_COS, "sin": NORMAL_SIN,
+                                        "one_minus_cos_lateral": NORMAL_ONE_MINUS_COS_LATERAL}
+"""The ``[shadow] normal_offset_scale`` values by name, with the code the receiver conversion switches on.
+
+θ is the angle between the receiver's normal and the direction toward the light. ``one_minus_cos``:
+Unity URP ``ApplyShadowBias`` (``1 − saturate(dot(L, N))``), Stride ``GetShadowPositionOffset``
+(``saturate(1 − N·L)``), MJP ``GetShadowPosOffset``; ``sin``: Filament
+``computeLightSpacePosition`` (``n · sinθ · b``), Unity built-in ``UnityClipSpaceShadowCasterPos``
+(``sqrt(1 − cos²)``); ``one_minus_cos_lateral``: Godot 4 (``N · (1 − max(0, dot(light_dir, −N)))``,
+then ``normal_bias −= light_dir · dot(light_dir, normal_bias)``), which moves the receiver across
+the light only, never along it.
+"""
 
 CASTANO_SIZES = (3, 5)
 """The filter_size values of ``pcf_castano``: Castaño's 3×3 kernel (4 taps) and 5×5 kernel (9 taps)."""

@@ -11,7 +11,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, fields, replace
 
-from csmlab.lookup_choices import CASTANO_SIZES, FILTER_METHODS
+from csmlab.lookup_choices import CASTANO_SIZES, FILTER_METHODS, NORMAL_OFFSET_SCALES
 from csmlab.registry import check_name, parameters
 
 __all__ = ["APPLIES", "Applies", "ShadowSettings"]
@@ -61,6 +61,8 @@ class ShadowSettings:
     """Constant depth bias in texels of each cascade, added to bias_constant (Unity URP's depth bias)."""
     normal_offset: float = 0.5
     """Receiver offset along its normal, in texels."""
+    normal_offset_scale: str = "none"
+    """The normal offset per receiver: none | one_minus_cos (× 1 − cos θ: URP, Stride) | sin (× sin θ: Filament, Unity built-in) | one_minus_cos_lateral (Godot 4: × 1 − cos θ, across the light only)."""
     receiver_plane_bias: bool = True
     """Compare each filter tap against the receiver's tangent plane at that texel (derivative-based bias)."""
     blend_band: float = 0.0
@@ -171,6 +173,8 @@ class ShadowSettings:
         need(self.bias_slope >= 0, "bias_slope", "a non-negative number of texels", self.bias_slope)
         need(0.0 <= self.bias_depth_range <= 1.0, "bias_depth_range", "a fraction in [0, 1]", self.bias_depth_range)
         need(0.0 <= self.bias_texels <= 1000.0, "bias_texels", "a number of texels in [0, 1000]", self.bias_texels)
+        need(self.normal_offset_scale in NORMAL_OFFSET_SCALES, "normal_offset_scale",
+             f"one of {list(NORMAL_OFFSET_SCALES)}", self.normal_offset_scale)
         need(self.normal_offset >= 0, "normal_offset", "a non-negative number of texels", self.normal_offset)
         need(isinstance(self.receiver_plane_bias, bool), "receiver_plane_bias", "true or false",
              self.receiver_plane_bias)

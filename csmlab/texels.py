@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from csmlab.cascades import CascadeSet
+from csmlab.lookup_choices import NORMAL_NONE, NORMAL_OFFSET_SCALES, NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN
 from csmlab.registry import check_name
 
 __all__ = ["PRECISION_METHODS", "Precision", "fixed_point_coordinates", "fixed_point_origin", "light_depth",
@@ -180,7 +181,8 @@ def light_depth(cascades: CascadeSet, points) -> np.ndarray:
 
 
 def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_offset: float, bias_constant,
-                    bias_slope: float, precision: str = "float64") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                    bias_slope: float, precision: str = "float64",
+                    normal_scale: str = "none") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Where receivers look every cascade up: fixed-point coordinates, biased depth, depth slope.
 
     In cascade c the receiver is moved ``normal_offset`` texels along its normal before the
@@ -209,6 +211,10 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
     precision : str
         A key of :data:`PRECISION_METHODS`: float32 maps the moved points as an engine's float32
         matrix does.
+    normal_scale : str
+        A key of :data:`csmlab.lookup_choices.NORMAL_OFFSET_SCALES`: the offset times ``1 − max(0, cos θ)``
+        or ``sin θ`` per receiver, and with ``one_minus_cos_lateral`` across the light only (its
+        depth unchanged).
 
     Returns
     -------
@@ -246,9 +252,18 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
         plane_slope = np.where(cos[:, None] > 0.0, light_n[:, :2] / cos[:, None], 0.0)
     plane_slope = np.clip(plane_slope, -_MAX_TAN, _MAX_TAN)
     scale = float(2**bits)
+    code = NORMAL_OFFSET_SCALES[check_name(normal_scale, NORMAL_OFFSET_SCALES, field="normal_offset_scale")]
+    factor = None
+    if code == NORMAL_SIN:
+        factor = np.sqrt(np.maximum(1.0 - cos * cos, 0.0))
+    elif code != NORMAL_NONE:
+        factor = 1.0 - np.maximum(cos, 0.0)
+    along = 0.0 if code == NORMAL_ONE_MINUS_COS_LATERAL else 1.0
     for c, cascade in enumerate(cascades.cascades):
         texel = float(np.max(cascade.texel_size))
         offset = normal_offset * texel
+        if factor is not None:
+            offset = (offset * factor)[:, None]
         if global_grid:
             u = light_n[:, :2] * offset
             u += light_p[:, :2]
@@ -257,6 +272,7 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
         else:
             coordinates[c] = _snapped(_local_texels_float32(cascades, c, p + n * offset) * scale)
         bias = constant[c] + bias_slope * texel * tan
-        depth[c] = light_p[:, 2] + offset * light_n[:, 2] - cascades.zref - bias
+        depth[c] = light_p[:, 2] + (along * offset if factor is None else along * offset[:, 0]) * light_n[:, 2] \
+            - cascades.zref - bias
         slope[c] = plane_slope * cascade.texel_size
     return coordinates, depth, slope

@@ -353,3 +353,45 @@ def test_bias_models_scale_the_constant_bias_per_cascade_as_the_engines_do():
     np.testing.assert_allclose(godot, [0.0916, 0.1368, 0.2836, 0.522], rtol=1e-12)  # 9.2 / 13.7 / 28.4 / 52.2 cm
     np.testing.assert_allclose(_cascade_bias(cs, ShadowSettings(bias_texels=1.0, bias_constant=0.02)), 0.02 + texels)
     assert _cascade_bias(cs, ShadowSettings(bias_constant=0.02)) == 0.02  # no model: the scalar, bit for bit
+
+
+@pytest.mark.parametrize("scale", ["none", "one_minus_cos", "sin", "one_minus_cos_lateral"])
+def test_normal_offset_scales_are_the_engines_on_host_and_device_bit_for_bit(scale, device):
+    """The receiver moved by normal_offset texels along its normal, times the engine's angle term:
+    URP ApplyShadowBias / Stride GetShadowPositionOffset ``(1 − saturate(N·L))``, Filament computeLightSpacePosition
+    ``sinθ``, Godot 4 ``N (1 − max(0, dot(light_dir, −N)))`` less its component along the light (the depth kept)."""
+    from csmlab.cascades import Cascade, CascadeSet
+    from csmlab.geometry import light_basis
+    from csmlab.kernels.shadow import receiver_coordinates
+    from csmlab.texels import fixed_point_origin, receiver_lookup
+
+    texel, offset, bits = 0.25, 2.0, 12
+    cascade = Cascade(split_near=0.1, split_far=50.0, slice_near=0.1, slice_far=50.0, texel_size=np.array([texel] * 2),
+                      origin=np.array([-40.0, -40.0]), resolution=512, depth_near=-1e3, depth_far=1e3)
+    cs = CascadeSet(basis=light_basis([0.3, -0.8, 0.2]), zref=-3.25, splits=np.array([0.1, 50.0]),
+                    cascades=(cascade,), margin_texels=2)
+    rng = np.random.default_rng(3)
+    points = rng.uniform(-5.0, 5.0, (400, 3))
+    normals = rng.normal(size=(400, 3)).astype(np.float32)
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    args = dict(bits=bits, normal_offset=offset, bias_constant=0.0, bias_slope=0.0, normal_scale=scale)
+    coords, depth, _ = receiver_lookup(cs, points, normals, **args)
+    got = receiver_coordinates(points, normals, basis=cs.basis, texel_size=np.array([[texel, texel]]),
+                               origin_fixed=np.stack([fixed_point_origin(cs, 0, bits=bits)]), zref=cs.zref,
+                               device=device, **args)
+    for e, g in zip((coords, depth), got[:2]):
+        np.testing.assert_array_equal(g, e)
+    # The engines' formulas in light space: cos θ = n · (−d), the offset o = k(θ) · normal_offset · texel · n.
+    n = normals.astype(np.float64) @ cs.basis.T
+    p = points @ cs.basis.T
+    cos = -n[:, 2]
+    k = {"none": np.ones_like(cos), "one_minus_cos": 1.0 - np.clip(cos, 0.0, 1.0), "sin": np.sqrt(1.0 - cos**2),
+         "one_minus_cos_lateral": 1.0 - np.maximum(cos, 0.0)}[scale]
+    moved = p + (k * offset * texel)[:, None] * n
+    if scale == "one_minus_cos_lateral":
+        moved[:, 2] = p[:, 2]                              # normal_bias -= light_dir · dot(light_dir, normal_bias)
+    lit = cos > 0.0
+    base, base_depth, _ = receiver_lookup(cs, points, normals, **{**args, "normal_offset": 0.0})
+    np.testing.assert_allclose((coords[0, lit] - base[0, lit]) / 2.0**bits, (moved - p)[lit, :2] / texel,
+                               atol=2.0**-bits)
+    np.testing.assert_allclose(depth[0, lit] - base_depth[0, lit], (moved - p)[lit, 2], atol=1e-5)

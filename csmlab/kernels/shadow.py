@@ -47,7 +47,8 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device
-from csmlab.lookup_choices import (BOX_BILINEAR, BOX_TAPS, SELECT_BEST_RESOLUTION, SELECT_INTERVAL, SELECT_MAP,
+from csmlab.lookup_choices import (BOX_BILINEAR, BOX_TAPS, NORMAL_NONE, NORMAL_OFFSET_SCALES, NORMAL_ONE_MINUS_COS_LATERAL,
+                                   NORMAL_SIN, SELECT_BEST_RESOLUTION, SELECT_INTERVAL, SELECT_MAP,
                                    SELECTION_METHODS, family_code)
 from csmlab.registry import check_name
 
@@ -173,6 +174,7 @@ class WorldReceivers:
     bias_constant: wp.array(dtype=wp.float64)
     max_tan: wp.float64
     planar: int
+    normal_scale: int
 
 
 @wp.func
@@ -210,10 +212,19 @@ def receiver_at(r: WorldReceivers, c: int, k: int):  # noqa: F811  (a Warp overl
         slope = wp.vec2d(wp.clamp(plane_x, -r.max_tan, r.max_tan) * r.texel_size[c, 0],
                          wp.clamp(plane_y, -r.max_tan, r.max_tan) * r.texel_size[c, 1])
     moved = r.offset[c]
+    along = wp.float64(1.0)
+    if r.normal_scale != NORMAL_NONE:
+        # csmlab.texels.receiver_lookup's scale of the offset by the normal's angle to the light.
+        if r.normal_scale == NORMAL_SIN:
+            moved = moved * wp.sqrt(wp.max(wp.float64(1.0) - cos * cos, zero))
+        else:
+            moved = moved * (wp.float64(1.0) - wp.max(cos, zero))
+        if r.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
+            along = zero
     x = fixed_point(nx * moved + px, r.to_fixed[c, 0], r.limit) - r.origin_fixed[c, 0]
     y = fixed_point(ny * moved + py, r.to_fixed[c, 1], r.limit) - r.origin_fixed[c, 1]
     bias = r.bias_constant[c] + r.slope_bias[c] * tan
-    return x, y, wp.float32(pz + moved * nz - r.zref - bias), slope
+    return x, y, wp.float32(pz + along * moved * nz - r.zref - bias), slope
 
 
 @wp.kernel
@@ -418,7 +429,7 @@ def select_cascades(depth, coords, receiver_depth, view_depth, *, splits, texel_
 
 def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis, texel_size, origin_fixed, zref: float,
                         normal_offset: float, bias_constant, bias_slope: float, receiver_plane_bias: bool,
-                        splits, texel_area, selection: str, filter: str, radius: int, margin: int,
+                        splits, normal_scale: str = "none", texel_area, selection: str, filter: str, radius: int, margin: int,
                         blend_band: float, bits: int, band_start=None, blend_curve: int = 0,
                         device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`shadow_lookup` of world receivers, each taken into a cascade's fixed point where the lookup reads it.
@@ -446,7 +457,8 @@ def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis,
     world = world_receivers(points, normals, receivers=receivers, basis=basis, texel_size=texel_size,
                             origin_fixed=origin_fixed,
                             zref=zref, bits=bits, normal_offset=normal_offset, bias_constant=bias_constant,
-                            bias_slope=bias_slope, planar=receiver_plane_bias, device=device)
+                            bias_slope=bias_slope, planar=receiver_plane_bias, normal_scale=normal_scale,
+                            device=device)
     if world.index.shape[0] != np.shape(view_depth)[0] or np.ndim(view_depth) != 1:
         raise ValueError(f"view_depth: expected one view depth per receiver ({world.index.shape[0]},), "
                          f"got shape {np.shape(view_depth)}")
@@ -576,7 +588,7 @@ def receiver_coordinates_kernel(
 
 def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zref: float, bits: int,
                          normal_offset: float, bias_constant, bias_slope: float, receivers=None,
-                         device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                         normal_scale: str = "none", device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`csmlab.texels.receiver_lookup` on the device, from world receivers.
 
     Parameters
@@ -612,7 +624,7 @@ def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zr
     world = world_receivers(points, normals, receivers=receivers, basis=basis, texel_size=texel_size,
                             origin_fixed=origin_fixed,
                             zref=zref, bits=bits, normal_offset=normal_offset, bias_constant=bias_constant,
-                            bias_slope=bias_slope, planar=True, device=device)
+                            bias_slope=bias_slope, planar=True, normal_scale=normal_scale, device=device)
     shape = (world.texel_size.shape[0], world.index.shape[0])
     coords = wp.empty(shape + (2,), dtype=wp.int64, device=device)
     depth = wp.empty(shape, dtype=wp.float32, device=device)
@@ -625,7 +637,7 @@ def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zr
 
 def world_receivers(points, normals, *, receivers, basis, texel_size, origin_fixed, zref: float, bits: int,
                     normal_offset: float, bias_constant, bias_slope: float, planar: bool,
-                    device: str) -> WorldReceivers:
+                    device: str, normal_scale: str = "none") -> WorldReceivers:
     """The :class:`WorldReceivers` of :func:`receiver_coordinates`'s arguments, checked (``planar``: receiver-plane slopes)."""
     p = np.ascontiguousarray(points, dtype=np.float64)
     n = np.ascontiguousarray(normals, dtype=np.float32)
@@ -656,4 +668,6 @@ def world_receivers(points, normals, *, receivers, basis, texel_size, origin_fix
                                    dtype=wp.float64, device=device)
     world.max_tan = 10.0
     world.planar = int(bool(planar))
+    world.normal_scale = NORMAL_OFFSET_SCALES[check_name(normal_scale, NORMAL_OFFSET_SCALES,
+                                                         field="normal_offset_scale")]
     return world
