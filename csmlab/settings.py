@@ -52,7 +52,7 @@ class ShadowSettings:
     filter_size: int = 3
     """pcf, pcf_gaussian, pcf_tent, pcf_poisson, pcss, pcf_castano (3 or 5), pcf_tent_bilinear, pcf_bilinear_box: taps per side N (odd)."""
     bias_constant: float = 0.0
-    """Constant depth bias, metres along the light."""
+    """Constant depth bias, metres along the light (negative: away from it, toward acne, as three.js's shadowBias)."""
     bias_slope: float = 1.0
     """Slope-scaled bias in texels: bias += bias_slope · texel · tan(angle(n, -d))."""
     bias_depth_range: float = 0.0
@@ -169,7 +169,9 @@ class ShadowSettings:
         need(self.quantized_base in ("sphere", "frustum"), "quantized_base", "sphere or frustum", self.quantized_base)
         need(isinstance(self.filter_size, int) and 1 <= self.filter_size <= 63 and self.filter_size % 2 == 1,
              "filter_size", "an odd integer in 1..63", self.filter_size)
-        need(self.bias_constant >= 0, "bias_constant", "a non-negative distance in metres", self.bias_constant)
+        need(self.bias_constant >= -1.0, "bias_constant",
+             "a distance in metres of at least -1 (negative: away from the light, three.js's shadowBias)",
+             self.bias_constant)
         need(self.bias_slope >= 0, "bias_slope", "a non-negative number of texels", self.bias_slope)
         need(0.0 <= self.bias_depth_range <= 1.0, "bias_depth_range", "a fraction in [0, 1]", self.bias_depth_range)
         need(0.0 <= self.bias_texels <= 1000.0, "bias_texels", "a number of texels in [0, 1000]", self.bias_texels)

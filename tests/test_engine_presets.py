@@ -529,7 +529,7 @@ FILTER_AND_BIAS = {
                         "normal_offset_scale": "one_minus_cos_lateral", "receiver_plane_bias": False}),
     "engines/threejs_csm": ({"filter": "pcf_vogel", "vogel_taps": 5, "vogel_radius": 1.0,
                              "vogel_angle": 2.399963229728653, "poisson_rotation": "pixel"},
-                            {"bias_constant": 0.0, "bias_slope": 0.0, "normal_offset": 0.0,
+                            {"bias_constant": -1e-6 * (2000.0 - 1.0), "bias_slope": 0.0, "normal_offset": 0.0,
                              "receiver_plane_bias": False}),
     "engines/filament": ({"filter": "pcf_castano", "filter_size": 3},
                          {"bias_constant": 0.001, "bias_depth_range": 0.5 / 2**16, "bias_slope": 2.0,
