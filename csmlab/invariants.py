@@ -14,7 +14,8 @@ Each condition below is one row of :data:`_CONDITIONS`; the promise holds when a
    texels (:data:`WHOLE_TEXEL_SNAPS`: every snap of :mod:`csmlab.cascades.stabilize` moves the
    box by whole texels, ``view`` in steps of four, ``nearest2`` — Godot's edges rounded to the
    nearest 2-texel unit — in steps of two: its texel size is the fixed radius's, its origin a whole
-   texel index, so rounding to nearest rather than down changes only when the box steps). The
+   texel index, so rounding to nearest rather than down changes only when the box steps; so does
+   ``centre_nearest``, Stride's centre rounded to the nearest texel). The
    ``centroid`` extent (Godot, Stride) is fixed like ``sphere``: its centre's depth and its radius
    are closed forms of the projection and the slice depths.
 3. **Float64 texel math** (``engine_precision``): csmlab's global texel coordinates depend on the
@@ -69,7 +70,7 @@ FIXED_EXTENTS = ("sphere", "diagonal", "centroid")
 """``extent`` choices whose box size depends on the projection and the slice depths only
 (:mod:`csmlab.cascades.extent`); a new one promises nothing until it is listed here."""
 
-WHOLE_TEXEL_SNAPS = ("origin", "centre", "view", "nearest2")
+WHOLE_TEXEL_SNAPS = ("origin", "centre", "view", "nearest2", "centre_nearest")
 """``snap`` choices that move an exact box by whole texels (:data:`csmlab.cascades.stabilize.SNAP_METHODS`)."""
 
 WORLD_LOCKED_DEPTH_FORMATS = ("float32", "unorm24", "unorm16")

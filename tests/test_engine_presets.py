@@ -110,7 +110,7 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     # DepthRange.IsAutomatic true (held: DepthIncreaseThreshold 1.1, DepthDecreaseThreshold 2.0),
     # IsBlendingCascades true (overlap 0.2); PCF 5×5 in the shadow atlas.
     ("engines/stride", dict(cascades=4, lambda_=0.5, bounds="sdsm", hysteresis=0.5, stabilization="exact",
-                            extent="centroid", snap="centre", blend_band=0.2, blend_curve="smoothstep",
+                            extent="centroid", snap="centre_nearest", blend_band=0.2, blend_curve="smoothstep",
                             depth_range="sphere", depth_clamp=True,
                             transition="backward", filter="pcf_castano", filter_size=5,
                             storage="atlas")),
@@ -471,11 +471,12 @@ def test_stride_sphere_is_from_points_and_its_blend_a_smoothstep(tmp_path):
         points = _corners(cascade.slice_near, cascade.slice_far)
         centre = points.mean(axis=0)
         radius = max(np.linalg.norm(p - centre) for p in points)
-        # snap = "centre": the box is 2 (R / 2 - m - 1) texels of the radius plus the margins.
+        # snap = "centre_nearest": the box is 2 (R / 2 - m - 1) texels of the radius plus the margins.
         held = cascade.texel_size[0] * (cascade.resolution // 2 - margin - 1)
         assert held == pytest.approx(radius, rel=2.0 ** -11)
+        # ProjectionSnapping: the projection's translation rounded to whole pixels, the centre to the nearest texel.
         box_centre = 0.5 * (cascade.box_min + cascade.box_max)
-        assert np.all(np.abs(box_centre - cs.basis[:2] @ centre) <= cascade.texel_size)
+        assert np.all(np.abs(box_centre - cs.basis[:2] @ centre) <= 0.5 * cascade.texel_size * (1 + 1e-9))
         # LookAtRH(target - direction * r, target), nearClip 0, farClip 2r: the sphere's centre ± r along the light.
         depth = cs.basis[2] @ centre
         np.testing.assert_allclose([cascade.depth_near, cascade.depth_far], [depth - radius, depth + radius],

@@ -106,3 +106,19 @@ def test_nearest2_snap_rounds_godots_edges_to_two_texels_and_holds_the_sphere(ma
         lo, hi = origin * texel, (origin + resolution) * texel
         assert np.all(lo + margin * texel <= np.array([c, 2 * c]) - radius + 1e-9)
         assert np.all(hi - margin * texel >= np.array([c, 2 * c]) + radius - 1e-9)
+
+
+def test_centre_nearest_snap_rounds_the_centre_to_the_nearest_texel():
+    from csmlab.cascades.stabilize import snap_centre, snap_centre_nearest
+
+    resolution, margin, radius = 64, 2, 10.0
+    for c in np.linspace(-7.3, 7.3, 37) + 0.0123:
+        texel, origin = snap_centre_nearest(_footprint([c, -c], radius), resolution=resolution, margin=margin)
+        floor_texel, _ = snap_centre(_footprint([c, -c], radius), resolution=resolution, margin=margin)
+        np.testing.assert_array_equal(texel, floor_texel)
+        # Stride: the projection's translation in pixels rounded (Round), so the box centre is the nearest texel.
+        centre = (origin + resolution // 2) * texel
+        assert np.all(np.abs(centre - [c, -c]) <= 0.5 * texel + 1e-12)
+        np.testing.assert_array_equal(origin + resolution // 2, np.floor(np.array([c, -c]) / texel + 0.5))
+        lo, hi = origin * texel, (origin + resolution) * texel
+        assert np.all(lo + margin * texel <= np.array([c, -c]) - radius) and np.all(hi - margin * texel >= np.array([c, -c]) + radius)

@@ -121,6 +121,21 @@ def snap_centre(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[np
     return texel, np.floor(fp.centre / texel) - half
 
 
+def snap_centre_nearest(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[np.ndarray, np.ndarray]:
+    """The box's centre rounded to the *nearest* whole texel and the box laid around it (Stride's ``ProjectionSnapping``).
+
+    Stride (``LightDirectionalShadowMapRenderer.Collect``) takes the shadow projection's translation in
+    shadow-map pixels, ``shadowPixelPosition = viewProjection.TranslationVector · size · 0.5``, rounds it
+    and adds the difference back: the world origin lands on a texel boundary and the box centre moves
+    to within half a texel of the sphere's centre. Here ``k = floor(c / t + 1/2)`` and the box spans
+    ``[k - h, k - h + R)`` with ``h = floor(R / 2)`` and :func:`snap_centre`'s texel.
+    """
+    half = resolution // 2
+    t = fp.radius / (half - margin - 1)
+    texel = np.array([t, t])
+    return texel, np.floor(fp.centre / texel + 0.5) - half
+
+
 def snap_view(fp: SliceFootprint, *, resolution: int, margin: int, step: int = 4) -> tuple[np.ndarray, np.ndarray]:
     """The box's centre rounded *up* to a multiple of ``step`` texels (Stride's ``ViewSnapping``).
 
@@ -161,6 +176,7 @@ SNAP_METHODS: dict[str, Callable[..., tuple[np.ndarray, np.ndarray]]] = {
     "centre": snap_centre,
     "view": snap_view,
     "nearest2": snap_nearest2,
+    "centre_nearest": snap_centre_nearest,
 }
 """What exact snaps to whole texels, by name: ``f(footprint, *, resolution, margin) -> (texel, origin)``."""
 
