@@ -86,6 +86,21 @@ def ue_split_fractions(exponent: float, count: int) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(powers) / powers.sum()])
 
 
+def _shape_lacking(settings: ShadowSettings, *, transition: str | None = None, blend_curve: str = "linear",
+                   fade: str | None = None) -> list[str]:
+    """Where the engine's blend band or far fade has another shape than the setting's (``transition``,
+    ``blend_curve``: csmlab.cascades.fit; ``fade``: csmlab.filters); None: the engine has no such knob here."""
+    lacking = []
+    if transition is not None and settings.blend_band > 0:
+        if settings.transition != transition:
+            lacking.append(f"transition = {settings.transition!r} (the engine's band is {transition!r})")
+        if settings.blend_curve != blend_curve:
+            lacking.append(f"blend_curve = {settings.blend_curve!r} (the engine's weight is {blend_curve!r})")
+    if fade is not None and settings.fade_out > 0 and settings.fade != fade:
+        lacking.append(f"fade = {settings.fade!r} (the engine's fade is {fade!r})")
+    return lacking
+
+
 def _common_lacking(settings: ShadowSettings, *, stable: str) -> list[str]:
     """Knobs no exporter maps: stabilization other than the engine's own, fit, selection, per-cascade
     resolution, splits over the visible depth range, depth format, bias units."""
@@ -162,7 +177,7 @@ def export_ue5(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     errors = [np.abs(ue_split_fractions(e, settings.cascades) - wanted).max() for e in exponents]
     best = int(np.argmin(errors))
     error_m = errors[best] * (z[-1] - z[0])
-    lacking = _common_lacking(settings, stable="exact")
+    lacking = _common_lacking(settings, stable="exact") + _shape_lacking(settings, transition="forward", fade="linear")
     if error_m > 0.01:
         lacking.append(f"split distances {[round(float(v), 2) for v in z[1:-1]]} m: Unreal's exponent spacing "
                        f"misses them by up to {error_m:.2f} m")
@@ -189,7 +204,7 @@ def export_ue5(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
 
 def export_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     """Unity URP: the pipeline asset's shadow fields, set from a script."""
-    lacking = _common_lacking(settings, stable="exact")
+    lacking = _common_lacking(settings, stable="exact") + _shape_lacking(settings, fade="squared_radial")
     cascades = min(settings.cascades, 4)
     if settings.cascades > 4:
         lacking.append(f"cascades = {settings.cascades} (URP has at most 4)")
@@ -223,7 +238,7 @@ def export_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> Sn
 
 def export_godot4(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     """Godot 4: DirectionalLight3D properties and the directional shadow atlas size."""
-    lacking = _common_lacking(settings, stable="exact")
+    lacking = _common_lacking(settings, stable="exact") + _shape_lacking(settings, fade="smoothstep")
     modes = {1: 0, 2: 1, 4: 2}
     cascades = settings.cascades if settings.cascades in modes else (2 if settings.cascades < 4 else 4)
     if cascades != settings.cascades:
@@ -268,7 +283,7 @@ BEVY_EXACT: dict[str, int | None] = {"pcf_bilinear": None, "pcf_castano": 5}
 def export_bevy(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     """Bevy: the CascadeShadowConfigBuilder, and the exact bounds as a CascadeShadowConfig."""
     z = split_boundaries(settings, near=near, far=far)
-    lacking = _common_lacking(settings, stable="exact")
+    lacking = _common_lacking(settings, stable="exact") + _shape_lacking(settings, transition="far_bound")
     filtering = BEVY_FILTERING.get(settings.filter)
     if settings.filter not in BEVY_EXACT or BEVY_EXACT[settings.filter] not in (None, settings.filter_size):
         lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Bevy filters with "

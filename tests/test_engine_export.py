@@ -160,3 +160,19 @@ def test_the_filter_tables_name_only_csmlab_filters_and_hard_follows_the_record(
         godot = export(ShadowSettings(filter=name), near=NEAR, far=FAR, engine="godot4").text
         # Godot's Hard is one comparison through the linear compare sampler: pcf_bilinear, or csmlab's one texel.
         assert ("soft_shadow_filter_quality = 0" in godot) == (name in hard + ["pcf_bilinear"]), name
+
+
+def test_each_engine_names_a_band_or_fade_of_another_shape():
+    # Unreal's band lies past the split (forward), Bevy's is a proportion of the far bound; Godot fades with a
+    # smoothstep, URP linearly in the squared distance.
+    band = ShadowSettings(blend_band=0.1, fade_out=0.1)
+    assert any("transition = 'backward'" in i for i in export(band, near=NEAR, far=FAR, engine="ue5").lacking)
+    assert any("transition = 'backward'" in i for i in export(band, near=NEAR, far=FAR, engine="bevy").lacking)
+    assert any("fade = 'linear'" in i for i in export(band, near=NEAR, far=FAR, engine="godot4").lacking)
+    assert any("fade = 'linear'" in i for i in export(band, near=NEAR, far=FAR, engine="unity_urp").lacking)
+    assert not any("transition" in i or "fade =" in i
+                   for i in export(band.replace(transition="forward"), near=NEAR, far=FAR, engine="ue5").lacking)
+    assert not any("transition" in i for i in export(band.replace(transition="far_bound"), near=NEAR, far=FAR,
+                                                     engine="bevy").lacking)
+    assert not any("fade =" in i for i in export(band.replace(fade="smoothstep"), near=NEAR, far=FAR,
+                                                 engine="godot4").lacking)
