@@ -201,6 +201,7 @@ def _conversion(cascades: CascadeSet, settings: ShadowSettings) -> dict:
                 origin_fixed=np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]),
                 zref=cascades.zref, normal_offset=settings.normal_offset,
                 bias_constant=_cascade_bias(cascades, settings), normal_scale=settings.normal_offset_scale,
+                plane_offset=_plane_offset(cascades, settings),
                 bias_slope=settings.bias_slope)
 
 
@@ -217,6 +218,14 @@ def _cascade_bias(cascades: CascadeSet, settings: ShadowSettings):
     span = np.array([c.depth_far - c.depth_near for c in cascades.cascades], dtype=np.float64)
     texel = np.array([float(np.max(c.texel_size)) for c in cascades.cascades])
     return settings.bias_constant + settings.bias_depth_range * span + settings.bias_texels * texel
+
+
+def _plane_offset(cascades: CascadeSet, settings: ShadowSettings):
+    """The cap in metres of MJP's static receiver-plane offset per cascade ``(C,)``: ``receiver_plane_offset`` of
+    each cascade's light-space depth range (MJP: ``min(fractionalSamplingError, 0.01f)`` in normalized depth); 0: none."""
+    if settings.receiver_plane_offset == 0.0:
+        return 0.0
+    return settings.receiver_plane_offset * np.array([c.depth_far - c.depth_near for c in cascades.cascades])
 
 
 def texel_coordinates(cascades: CascadeSet, points: np.ndarray, normals: np.ndarray, rows: np.ndarray, *,
@@ -241,7 +250,7 @@ def texel_coordinates(cascades: CascadeSet, points: np.ndarray, normals: np.ndar
                                     device=device)
     return receiver_lookup(cascades, points[rows], normals[rows], bits=bits, normal_offset=settings.normal_offset,
                            bias_constant=_cascade_bias(cascades, settings), bias_slope=settings.bias_slope,
-                           normal_scale=settings.normal_offset_scale,
+                           normal_scale=settings.normal_offset_scale, plane_offset=_plane_offset(cascades, settings),
                            precision=settings.engine_precision)
 
 

@@ -63,6 +63,8 @@ class ShadowSettings:
     """Receiver offset along its normal, in texels."""
     normal_offset_scale: str = "none"
     """The normal offset per receiver: none | one_minus_cos (× 1 − cos θ: URP, Stride) | sin (× sin θ: Filament, Unity built-in) | one_minus_cos_lateral (Godot 4: × 1 − cos θ, across the light only)."""
+    receiver_plane_offset: float = 0.0
+    """MJP's receiver-plane bias for one hardware compare: the depth pulled toward the light by its tangent plane's change over a texel in x and one in y, at most this fraction of the cascade's depth range (MJP: 0.01); 0: none."""
     receiver_plane_bias: bool = True
     """Compare each filter tap against the receiver's tangent plane at that texel (derivative-based bias)."""
     blend_band: float = 0.0
@@ -177,6 +179,8 @@ class ShadowSettings:
         need(0.0 <= self.bias_texels <= 1000.0, "bias_texels", "a number of texels in [0, 1000]", self.bias_texels)
         need(self.normal_offset_scale in NORMAL_OFFSET_SCALES, "normal_offset_scale",
              f"one of {list(NORMAL_OFFSET_SCALES)}", self.normal_offset_scale)
+        need(0.0 <= self.receiver_plane_offset <= 1.0, "receiver_plane_offset", "a fraction in [0, 1]",
+             self.receiver_plane_offset)
         need(self.normal_offset >= 0, "normal_offset", "a non-negative number of texels", self.normal_offset)
         need(isinstance(self.receiver_plane_bias, bool), "receiver_plane_bias", "true or false",
              self.receiver_plane_bias)

@@ -182,7 +182,7 @@ def light_depth(cascades: CascadeSet, points) -> np.ndarray:
 
 def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_offset: float, bias_constant,
                     bias_slope: float, precision: str = "float64",
-                    normal_scale: str = "none") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                    normal_scale: str = "none", plane_offset=0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Where receivers look every cascade up: fixed-point coordinates, biased depth, depth slope.
 
     In cascade c the receiver is moved ``normal_offset`` texels along its normal before the
@@ -215,6 +215,10 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
         A key of :data:`csmlab.lookup_choices.NORMAL_OFFSET_SCALES`: the offset times ``1 − max(0, cos θ)``
         or ``sin θ`` per receiver, and with ``one_minus_cos_lateral`` across the light only (its
         depth unchanged).
+    plane_offset : float or array_like, shape (C,)
+        Metres per cascade: where positive, the depth is also pulled toward the light by its tangent
+        plane's depth change over one texel in x plus one in y, at most this much (MJP's static
+        receiver-plane offset for a single hardware compare, ``Mesh.hlsl`` ``SampleShadowMapFixedSizePCF``).
 
     Returns
     -------
@@ -245,6 +249,7 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
     tan = np.where(cos > 0.0, np.minimum(tan, _MAX_TAN), np.nan)
     count = len(cascades)
     constant = np.broadcast_to(np.asarray(bias_constant, dtype=np.float64), (count,))
+    cap = np.broadcast_to(np.asarray(plane_offset, dtype=np.float64), (count,))
     coordinates = np.empty((count, p.shape[0], 2), dtype=np.int64)
     depth = np.empty((count, p.shape[0]), dtype=np.float32)
     slope = np.empty((count, p.shape[0], 2), dtype=np.float64)
@@ -272,6 +277,9 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
         else:
             coordinates[c] = _snapped(_local_texels_float32(cascades, c, p + n * offset) * scale)
         bias = constant[c] + bias_slope * texel * tan
+        if cap[c] > 0.0:
+            step = plane_slope * cascade.texel_size
+            bias = bias + np.minimum(np.abs(step[:, 0]) + np.abs(step[:, 1]), cap[c])
         depth[c] = light_p[:, 2] + (along * offset if factor is None else along * offset[:, 0]) * light_n[:, 2] \
             - cascades.zref - bias
         slope[c] = plane_slope * cascade.texel_size

@@ -541,7 +541,8 @@ FILTER_AND_BIAS = {
                        {"bias_depth_range": 0.01, "bias_slope": 0.0, "normal_offset": 0.0,
                         "receiver_plane_bias": False}),
     "engines/mjp": ({"filter": "pcf_bilinear"},
-                    {"bias_constant": 0.0, "bias_slope": 0.0, "normal_offset": 0.0, "receiver_plane_bias": True}),
+                    {"bias_constant": 0.0, "bias_slope": 0.0, "normal_offset": 0.0, "receiver_plane_offset": 0.01,
+                     "receiver_plane_bias": False}),
     "engines/unity_urp": ({"filter": "pcf_bilinear"},
                           {"bias_texels": 1.0, "bias_depth_range": 1.0 / 2**16, "bias_slope": 2.5,
                            "normal_offset": 1.0, "normal_offset_scale": "one_minus_cos",
@@ -569,9 +570,12 @@ def test_preset_filter_and_bias_are_its_engines(preset, tmp_path):
 
 
 def test_receiver_plane_bias_is_on_only_where_the_engine_uses_it(tmp_path):
-    # Only MJP's sample turns it on by default (AppSettings.cs UsePlaneDepthBias = true).
-    on = [preset for preset in PRESETS if _preset(preset, tmp_path)[0].receiver_plane_bias]
+    # Only MJP's sample turns it on by default (AppSettings.cs UsePlaneDepthBias = true), and for its 2×2
+    # filter as one static offset (Mesh.hlsl SampleShadowMapFixedSizePCF), not per-tap planes.
+    on = [preset for preset in PRESETS if _preset(preset, tmp_path)[0].receiver_plane_bias
+          or _preset(preset, tmp_path)[0].receiver_plane_offset > 0]
     assert on == ["engines/mjp"]
+    assert not _preset("engines/mjp", tmp_path)[0].receiver_plane_bias
 
 
 def test_godot4_bias_at_a_receiver_is_godots(tmp_path):

@@ -395,3 +395,39 @@ def test_normal_offset_scales_are_the_engines_on_host_and_device_bit_for_bit(sca
     np.testing.assert_allclose((coords[0, lit] - base[0, lit]) / 2.0**bits, (moved - p)[lit, :2] / texel,
                                atol=2.0**-bits)
     np.testing.assert_allclose(depth[0, lit] - base_depth[0, lit], (moved - p)[lit, 2], atol=1e-5)
+
+
+def test_mjps_receiver_plane_offset_is_its_formula_on_host_and_device_bit_for_bit(device):
+    """MJP Mesh.hlsl SampleShadowMapFixedSizePCF with UsePlaneDepthBias: fractionalSamplingError =
+    dot((1, 1) · texelSize, |receiverPlaneDepthBias|), lightDepth −= min(fractionalSamplingError, 0.01) in the
+    cascade's normalized depth: the plane's depth change over one texel in x plus one in y, capped."""
+    from csmlab.cascades import Cascade, CascadeSet
+    from csmlab.geometry import light_basis
+    from csmlab.kernels.shadow import receiver_coordinates
+    from csmlab.texels import fixed_point_origin, receiver_lookup
+
+    texel, bits, span = np.array([0.25, 0.3]), 10, 80.0
+    cascade = Cascade(split_near=0.1, split_far=50.0, slice_near=0.1, slice_far=50.0, texel_size=texel,
+                      origin=np.array([-40.0, -40.0]), resolution=512, depth_near=-40.0, depth_far=-40.0 + span)
+    cs = CascadeSet(basis=light_basis([0.3, -0.8, 0.2]), zref=-3.25, splits=np.array([0.1, 50.0]),
+                    cascades=(cascade,), margin_texels=2)
+    rng = np.random.default_rng(4)
+    points = rng.uniform(-5.0, 5.0, (500, 3))
+    normals = rng.normal(size=(500, 3)).astype(np.float32)
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    cap = 0.01 * span
+    args = dict(bits=bits, normal_offset=0.0, bias_constant=0.0, bias_slope=0.0, plane_offset=np.array([cap]))
+    _, depth, _ = receiver_lookup(cs, points, normals, **args)
+    got = receiver_coordinates(points, normals, basis=cs.basis, texel_size=texel[None],
+                               origin_fixed=np.stack([fixed_point_origin(cs, 0, bits=bits)]), zref=cs.zref,
+                               device=device, **args)
+    np.testing.assert_array_equal(got[1], depth)
+    _, plain, _ = receiver_lookup(cs, points, normals, **{**args, "plane_offset": 0.0})
+    n = normals.astype(np.float64) @ cs.basis.T
+    cos = -n[:, 2]
+    lit = cos > 0.0
+    # The receiver plane's depth change per texel: −n_xy / n_z · texel (clamped like tan θ at 10).
+    per_texel = np.abs(np.clip(n[lit, :2] / cos[lit, None], -10.0, 10.0) * texel)
+    mjp = np.minimum(per_texel.sum(axis=1), cap)
+    np.testing.assert_allclose(plain[0, lit] - depth[0, lit], mjp, atol=2e-5)
+    assert np.any(mjp == cap) and np.any(mjp < cap)

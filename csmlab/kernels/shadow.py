@@ -175,6 +175,7 @@ class WorldReceivers:
     max_tan: wp.float64
     planar: int
     normal_scale: int
+    plane_offset: wp.array(dtype=wp.float64)
 
 
 @wp.func
@@ -224,6 +225,11 @@ def receiver_at(r: WorldReceivers, c: int, k: int):  # noqa: F811  (a Warp overl
     x = fixed_point(nx * moved + px, r.to_fixed[c, 0], r.limit) - r.origin_fixed[c, 0]
     y = fixed_point(ny * moved + py, r.to_fixed[c, 1], r.limit) - r.origin_fixed[c, 1]
     bias = r.bias_constant[c] + r.slope_bias[c] * tan
+    if r.plane_offset[c] > zero:
+        # MJP's static receiver-plane offset: the plane's depth change over a texel in x and one in y, capped.
+        sx = wp.clamp(plane_x, -r.max_tan, r.max_tan) * r.texel_size[c, 0]
+        sy = wp.clamp(plane_y, -r.max_tan, r.max_tan) * r.texel_size[c, 1]
+        bias = bias + wp.min(wp.abs(sx) + wp.abs(sy), r.plane_offset[c])
     return x, y, wp.float32(pz + along * moved * nz - r.zref - bias), slope
 
 
@@ -429,7 +435,7 @@ def select_cascades(depth, coords, receiver_depth, view_depth, *, splits, texel_
 
 def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis, texel_size, origin_fixed, zref: float,
                         normal_offset: float, bias_constant, bias_slope: float, receiver_plane_bias: bool,
-                        splits, normal_scale: str = "none", texel_area, selection: str, filter: str, radius: int, margin: int,
+                        splits, normal_scale: str = "none", plane_offset=0.0, texel_area, selection: str, filter: str, radius: int, margin: int,
                         blend_band: float, bits: int, band_start=None, blend_curve: int = 0,
                         device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`shadow_lookup` of world receivers, each taken into a cascade's fixed point where the lookup reads it.
@@ -458,7 +464,7 @@ def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis,
                             origin_fixed=origin_fixed,
                             zref=zref, bits=bits, normal_offset=normal_offset, bias_constant=bias_constant,
                             bias_slope=bias_slope, planar=receiver_plane_bias, normal_scale=normal_scale,
-                            device=device)
+                            plane_offset=plane_offset, device=device)
     if world.index.shape[0] != np.shape(view_depth)[0] or np.ndim(view_depth) != 1:
         raise ValueError(f"view_depth: expected one view depth per receiver ({world.index.shape[0]},), "
                          f"got shape {np.shape(view_depth)}")
@@ -588,7 +594,7 @@ def receiver_coordinates_kernel(
 
 def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zref: float, bits: int,
                          normal_offset: float, bias_constant, bias_slope: float, receivers=None,
-                         normal_scale: str = "none", device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                         normal_scale: str = "none", plane_offset=0.0, device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`csmlab.texels.receiver_lookup` on the device, from world receivers.
 
     Parameters
@@ -624,7 +630,8 @@ def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zr
     world = world_receivers(points, normals, receivers=receivers, basis=basis, texel_size=texel_size,
                             origin_fixed=origin_fixed,
                             zref=zref, bits=bits, normal_offset=normal_offset, bias_constant=bias_constant,
-                            bias_slope=bias_slope, planar=True, normal_scale=normal_scale, device=device)
+                            bias_slope=bias_slope, planar=True, normal_scale=normal_scale, plane_offset=plane_offset,
+                            device=device)
     shape = (world.texel_size.shape[0], world.index.shape[0])
     coords = wp.empty(shape + (2,), dtype=wp.int64, device=device)
     depth = wp.empty(shape, dtype=wp.float32, device=device)
@@ -637,7 +644,7 @@ def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zr
 
 def world_receivers(points, normals, *, receivers, basis, texel_size, origin_fixed, zref: float, bits: int,
                     normal_offset: float, bias_constant, bias_slope: float, planar: bool,
-                    device: str, normal_scale: str = "none") -> WorldReceivers:
+                    device: str, normal_scale: str = "none", plane_offset=0.0) -> WorldReceivers:
     """The :class:`WorldReceivers` of :func:`receiver_coordinates`'s arguments, checked (``planar``: receiver-plane slopes)."""
     p = np.ascontiguousarray(points, dtype=np.float64)
     n = np.ascontiguousarray(normals, dtype=np.float32)
@@ -668,6 +675,8 @@ def world_receivers(points, normals, *, receivers, basis, texel_size, origin_fix
                                    dtype=wp.float64, device=device)
     world.max_tan = 10.0
     world.planar = int(bool(planar))
+    world.plane_offset = wp.array(np.broadcast_to(np.asarray(plane_offset, dtype=np.float64), texel.shape).copy(),
+                                  dtype=wp.float64, device=device)
     world.normal_scale = NORMAL_OFFSET_SCALES[check_name(normal_scale, NORMAL_OFFSET_SCALES,
                                                          field="normal_offset_scale")]
     return world
