@@ -378,9 +378,10 @@ def _held_depths(workload: Workload, variants, *, device: str) -> dict:
     The visible range of every frame is read from a G-buffer of the run's size once, here, before
     the chunks run: hysteresis depends on every earlier frame, which a chunk does not render.
     """
-    from csmlab.cascades.bounds import BOUNDS_METHODS, held_depth_ranges
+    from csmlab.cascades.bounds import BOUNDS_METHODS, HOLD_METHODS
 
-    wanted = [v for v in variants if BOUNDS_METHODS[v.settings.bounds].visible and v.settings.hysteresis > 0.0]
+    wanted = [v for v in variants if BOUNDS_METHODS[v.settings.bounds].visible
+              and HOLD_METHODS[v.settings.hold].active(v.settings.hysteresis)]
     if not wanted:
         return {}
     from csmlab.render import visible_depth
@@ -388,7 +389,8 @@ def _held_depths(workload: Workload, variants, *, device: str) -> dict:
     scene = _prepared_scene(Job(workload=workload, variants=(), snapshot_frames=frozenset(), device=device))
     ranges = np.array([visible_depth(scene, workload.path.pose(i), width=workload.width, height=workload.height)
                        or (np.nan, np.nan) for i in range(len(workload.path))], dtype=np.float64)
-    return {(v.method, v.point): held_depth_ranges(ranges, hysteresis=v.settings.hysteresis) for v in wanted}
+    return {(v.method, v.point): HOLD_METHODS[v.settings.hold].held(ranges, hysteresis=v.settings.hysteresis,
+                                                                      near=workload.path.near) for v in wanted}
 
 
 def _held_extents(workload: Workload, variants, held_depths: dict, *, device: str) -> dict:

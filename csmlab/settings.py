@@ -142,7 +142,9 @@ class ShadowSettings:
     bounds: str = "frustum"
     """Depth range the splits divide, frustum (near .. shadow_distance) | sdsm (the frame's visible depth range, from the G-buffer)."""
     hysteresis: float = 0.0
-    """bounds = sdsm: the held range grows at once and shrinks only when the visible range is this fraction inside it."""
+    """bounds = sdsm with hold = fraction: the held range grows at once and shrinks only when the visible range is this fraction inside it."""
+    hold: str = "fraction"
+    """bounds = sdsm: how the visible range is held, fraction (hysteresis) | stepped (Stride: grows in 1.1^k and shrinks in 2^-k steps) (csmlab.cascades.bounds.HOLD_METHODS)."""
     fade: str = "linear"
     """fade_out > 0: the fade's shape, linear (in view depth: Unreal) | smoothstep (in view depth: Godot) | radial (linear in the distance to the camera: Unity built-in Stable Fit) | squared_radial (linear in its square: Unity URP) (csmlab.filters.FADE_METHODS)."""
     extent_hysteresis: float = 0.0
@@ -322,7 +324,9 @@ APPLIES: dict[str, Applies] = {
     "transition": Applies(lambda *, blend_band: blend_band > 0, "blend_band > 0 (where its bands lie)"),
     "blend_curve": Applies(lambda *, blend_band: blend_band > 0, "blend_band > 0 (the weight over its bands)"),
     "fade": Applies(lambda *, fade_out: fade_out > 0, "fade_out > 0 (the shape of the far fade)"),
-    "hysteresis": Applies(lambda *, bounds: bounds == "sdsm", 'bounds = "sdsm" (the hold of its visible range)'),
+    "hysteresis": Applies(lambda *, bounds, hold: bounds == "sdsm" and hold == "fraction",
+                          'bounds = "sdsm" with hold = "fraction" (the hold of its visible range)'),
+    "hold": Applies(lambda *, bounds: bounds == "sdsm", 'bounds = "sdsm" (how its visible range is held)'),
     "atlas_layout": Applies(lambda *, storage: storage == "atlas", 'storage = "atlas" (the tiles of the atlas)'),
     "filter_size": _filters(lambda f: f == "pcf" or (_family(f) == "weighted" and f != "pcf_vogel"), "taps per side"),
     "filter_sigma": Applies(lambda *, filter, filter_width_m: filter == "pcf_gaussian" and filter_width_m == 0,

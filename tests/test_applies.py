@@ -33,6 +33,7 @@ CASES = {
     "pancake": ("5.0", {"depth_range": '"slice"'}),
     "depth_clamp": ("false", {"depth_range": '"slice"'}),
     "hysteresis": ("0.2", {"bounds": '"sdsm"'}),
+    "hold": ('"stepped"', {"bounds": '"sdsm"'}),
     "transition": ('"forward"', {"blend_band": "0.1"}),
     "blend_curve": ('"smoothstep"', {"blend_band": "0.1"}),
     "fade": ('"smoothstep"', {"fade_out": "0.1"}),

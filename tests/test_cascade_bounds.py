@@ -1,5 +1,7 @@
 """SDSM bounds, hysteresis, extents, snapping and depth ranges, each against a hand-worked case."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -134,3 +136,25 @@ def test_sphere_depth_range_is_the_centroid_sphere_less_pancake():
     r = np.sqrt(6.0)
     assert (near, far) == pytest.approx((10 - r - 5.0, 10 + r), rel=1e-12)
     assert near <= corners[:, 2].min() and far >= corners[:, 2].max() and sphere.cuts_casters
+
+
+def test_stepped_hold_is_strides_log_ceiling_steps():
+    from csmlab.cascades.bounds import stepped_depth_ranges
+
+    # LightDirectionalShadowMapRenderer.ComputeCascadeSplits: max = LogCeiling(max / current, 1.1 or 2.0) · current;
+    # range stepped likewise against current max - current min; min = max - stepped range (at least near).
+    def log_ceiling(v, b):
+        return b ** math.ceil(math.log(v, b))
+
+    visible = [(1.0, 100.0), (1.0, 104.0), (1.0, 120.0), (1.0, 60.0), (1.0, 40.0), (10.0, 50.0), (40.0, 50.0)]
+    held = stepped_depth_ranges(visible, near=0.1)
+    # By hand: 104 > 100 -> 1.1 · 100 = 110; 120 > 110 -> 121; 60 <= 121 / 2 -> 60.5; 40 > 60.5 / 2 -> held;
+    # (40, 50): depth 20.5 <= (60.5 - 1) / 2 -> 60.5 - 59.5 / 2 = 30.75.
+    np.testing.assert_allclose(held, [(1, 100), (1, 110), (1, 121), (1, 60.5), (1, 60.5), (1, 60.5), (30.75, 60.5)],
+                               rtol=1e-12)
+    lo, hi = visible[0]
+    for (z0, z1), (h0, h1) in zip(visible[1:], held[1:]):
+        hi = log_ceiling(z1 / hi, 1.1 if z1 > hi else 2.0) * hi
+        depth, held_depth = hi - z0, hi - lo
+        lo = max(hi - log_ceiling(depth / held_depth, 1.1 if depth > held_depth else 2.0) * held_depth, 0.1)
+        assert (h0, h1) == pytest.approx((lo, hi), rel=1e-12)

@@ -109,7 +109,7 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     # LightDirectionalShadowMap: FourCascades, PSSMFactor 0.5, StabilizationMode ProjectionSnapping,
     # DepthRange.IsAutomatic true (held: DepthIncreaseThreshold 1.1, DepthDecreaseThreshold 2.0),
     # IsBlendingCascades true (overlap 0.2); PCF 5×5 in the shadow atlas.
-    ("engines/stride", dict(cascades=4, lambda_=0.5, bounds="sdsm", hysteresis=0.5, stabilization="exact",
+    ("engines/stride", dict(cascades=4, lambda_=0.5, bounds="sdsm", hold="stepped", stabilization="exact",
                             extent="centroid", snap="centre_nearest", blend_band=0.2, blend_curve="smoothstep",
                             depth_range="sphere", depth_clamp=True,
                             transition="backward", filter="pcf_castano", filter_size=5,

@@ -9,7 +9,9 @@ View depth, :data:`BOUNDS_METHODS` (``[shadow] bounds``):
   and every box: the "flashing" SDSM is known for. Stride's automatic depth range does the same
   (``LightDirectionalShadowMapRenderer.ComputeCascadeSplits``, ``DepthRange.IsAutomatic``, default on).
   With ``hysteresis = h`` the range is *held* (:func:`held_depth_ranges`): it grows at once and
-  shrinks only when the visible range lies a fraction ``h`` inside it.
+  shrinks only when the visible range lies a fraction ``h`` inside it. ``hold = "stepped"`` holds it
+  as Stride does instead (:func:`stepped_depth_ranges`): the far end grows in steps of 1.1ᵏ and
+  shrinks in steps of 2⁻ᵏ of the held one, and so does the held range's depth (:data:`HOLD_METHODS`).
 
 Light depth, :data:`DEPTH_RANGE_METHODS` (``[shadow] depth_range``), the box's extent along the light:
 
@@ -37,8 +39,9 @@ import numpy as np
 
 from csmlab.registry import check_name
 
-__all__ = ["BOUNDS_METHODS", "Bounds", "DEPTH_RANGE_METHODS", "DepthRange", "held_depth_ranges",
-           "scene_box_depth", "slice_box_depth", "split_range", "visible_depth_range"]
+__all__ = ["BOUNDS_METHODS", "Bounds", "DEPTH_RANGE_METHODS", "DepthRange", "HOLD_METHODS", "Hold",
+           "held_depth_ranges", "scene_box_depth", "slice_box_depth", "split_range", "stepped_depth_ranges",
+           "visible_depth_range"]
 
 
 @dataclass(frozen=True)
@@ -169,6 +172,87 @@ def held_depth_ranges(ranges, *, hysteresis: float) -> np.ndarray:
         out[i, 1] = z1 if (z1 > hi or z1 < keep * hi) else hi
         out[i, 0] = z0 if (z0 < lo or keep * z0 > lo) else lo
     return out
+
+
+def _log_ceiling(value: float, base: float) -> float:
+    """``base^ceil(log_base value)`` (Stride's ``LogCeiling``)."""
+    return float(base ** np.ceil(np.log(value) / np.log(base)))
+
+
+def stepped_depth_ranges(ranges, *, near: float = 0.0, grow: float = 1.1, shrink: float = 2.0) -> np.ndarray:
+    """The range Stride's automatic depth range holds in each frame (``LightDirectionalShadowMapRenderer.
+    ComputeCascadeSplits``, ``DepthIncreaseThreshold = 1.1``, ``DepthDecreaseThreshold = 2.0``).
+
+    Frame 0 holds its own visible range. Later the held far end becomes ``LogCeiling(z_max / held,
+    base) · held`` (base ``grow`` when the visible far end lies beyond the held one, else ``shrink``):
+    it grows in steps of 1.1ᵏ past the visible far end and shrinks in steps of 2⁻ᵏ, only once the
+    visible far end is at most half the held one. The held depth ``far - near`` is stepped the same
+    way from ``far_new - z_min`` against ``far_new - near_held``, and the near end is ``far_new`` less
+    it (at least ``near``, the camera's near plane).
+
+    Parameters
+    ----------
+    ranges : array_like, shape (N, 2)
+        Visible ``(z_min, z_max)`` per frame in metres; NaN rows (nothing visible) keep the held range.
+    near : float
+        The camera's near plane in metres.
+
+    Returns
+    -------
+    ndarray, shape (N, 2), float64
+    """
+    r = np.asarray(ranges, dtype=np.float64).reshape(-1, 2)
+    out = r.copy()
+    held = None
+    for i in range(r.shape[0]):
+        z0, z1 = r[i]
+        if np.isnan(z0) or np.isnan(z1):
+            if held is not None:
+                out[i] = held
+            continue
+        low, high = max(z0, near), max(z1, z0, near)
+        if held is None:
+            held = (low, high)
+            out[i] = held
+            continue
+        held_low, held_high = held
+        high = _log_ceiling(high / held_high, grow if high > held_high else shrink) * held_high
+        depth, held_depth = high - low, high - held_low
+        if held_depth > 0.0 and depth > 0.0:
+            low = high - _log_ceiling(depth / held_depth, grow if depth > held_depth else shrink) * held_depth
+        held = (max(low, near), high)
+        out[i] = held
+    return out
+
+
+@dataclass(frozen=True)
+class Hold:
+    """How an SDSM's visible range is held from frame to frame (``[shadow] hold``).
+
+    Attributes
+    ----------
+    held : callable
+        ``held(ranges, *, hysteresis, near) -> (N, 2)``: the held range of every frame from the
+        visible ``ranges`` ``(N, 2)``.
+    active : callable
+        ``active(hysteresis) -> bool``: whether it holds anything (else each frame's own range).
+    what : str
+    """
+
+    held: Callable[..., np.ndarray]
+    active: Callable[[float], bool]
+    what: str
+
+
+HOLD_METHODS: dict[str, Hold] = {
+    "fraction": Hold(lambda ranges, *, hysteresis, near: held_depth_ranges(ranges, hysteresis=hysteresis),
+                     lambda hysteresis: hysteresis > 0.0,
+                     "grows at once, shrinks when the visible range is `hysteresis` inside it (held_depth_ranges)"),
+    "stepped": Hold(lambda ranges, *, hysteresis, near: stepped_depth_ranges(ranges, near=near),
+                    lambda hysteresis: True,
+                    "Stride: grows in 1.1^k and shrinks in 2^-k steps of the held range (stepped_depth_ranges)"),
+}
+"""Holds of an SDSM's visible range, by name."""
 
 
 def split_range(*, near: float, far: float, visible: tuple[float, float] | None, method: str) -> tuple[float, float]:
