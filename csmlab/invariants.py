@@ -17,7 +17,8 @@ Each condition below is one row of :data:`_CONDITIONS`; the promise holds when a
    texel index, so rounding to nearest rather than down changes only when the box steps; so does
    ``centre_nearest``, Stride's centre rounded to the nearest texel). The
    ``centroid`` extent (Godot, Stride) is fixed like ``sphere``: its centre's depth and its radius
-   are closed forms of the projection and the slice depths.
+   are closed forms of the projection and the slice depths; so is ``body_diagonal`` (DirectX CSM11's
+   fit to scene) like ``diagonal``.
 3. **Float64 texel math** (``engine_precision``): csmlab's global texel coordinates depend on the
    world point and the texel size only, and the box origin is an integer shift, so the rule holds
    at any distance from the world origin (up to the fixed-point clip of :mod:`csmlab.texels`,
@@ -66,7 +67,7 @@ __all__ = ["FIXED_EXTENTS", "FLICKER_SAME_ZERO", "Promise", "SCREEN_READS", "WHO
 FLICKER_SAME_ZERO = "flicker_same_zero"
 """The name of the one invariant: ``flicker_same`` is exactly 0.0."""
 
-FIXED_EXTENTS = ("sphere", "diagonal", "centroid")
+FIXED_EXTENTS = ("sphere", "diagonal", "centroid", "body_diagonal")
 """``extent`` choices whose box size depends on the projection and the slice depths only
 (:mod:`csmlab.cascades.extent`); a new one promises nothing until it is listed here."""
 

@@ -128,7 +128,7 @@ class ShadowSettings:
     first_cascade_far: float = 10.0
     """split = geometric: far end of the first cascade in metres, the rest geometric (Bevy's first_cascade_far_bound)."""
     extent: str = "sphere"
-    """exact, and quantized with quantized_base = sphere: the fixed box diameter, sphere (slice bounding sphere) | diagonal (ceil of the slice's largest diagonal, Bevy, three.js) | centroid (sphere about the corners' centroid: Godot, Stride)."""
+    """exact, and quantized with quantized_base = sphere: the fixed box diameter, sphere (slice bounding sphere) | diagonal (ceil of the slice's largest diagonal, Bevy, three.js) | centroid (sphere about the corners' centroid: Godot, Stride) | body_diagonal (the body diagonal alone, unrounded: DirectX CSM11 fit to scene)."""
     snap: str = "origin"
     """exact: what is snapped to whole texels, origin (box corner: Valient, DirectX, Unreal) | centre (box centre: Bevy, three.js, Stride projection snapping) | view (centre in 4-texel steps: Stride view snapping) | nearest2 (edges rounded to the nearest 2-texel unit: Godot) | centre_nearest (box centre rounded to the nearest texel: Stride projection snapping)."""
     depth_range: str = "scene"

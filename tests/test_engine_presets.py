@@ -594,3 +594,27 @@ def test_godot4_bias_at_a_receiver_is_godots(tmp_path):
     _, depth, _ = receiver_lookup(cs, point[None], normal[None], bits=8, normal_offset=0.0,
                                   bias_constant=_cascade_bias(cs, settings), bias_slope=settings.bias_slope)
     np.testing.assert_allclose(depth[:, 0], point @ cs.basis[2] - cs.zref - godot, rtol=1e-6)
+
+
+def test_dx_csm11_fit_to_scene_box_is_the_body_diagonal_of_corners_0_and_6(tmp_path):
+    settings, pose = _preset("seeds/dx_csm11_scene", tmp_path)
+    cs = _build(settings, pose)
+    margin = cs.margin_texels
+    for cascade in cs.cascades:
+        # CascadedShadowsManager::InitFrame, FIT_TO_SCENE: vDiagonal = vFrustumPoints[0] - vFrustumPoints[6]
+        # (point 0 right-top-near, 6 left-bottom-far, CreateFrustumPointsFromCascadeInterval); the box is padded
+        # to its length about the AABB's centre: vBoarderOffset = (diagonal - (max - min)) / 2.
+        ty = np.tan(np.radians(30.0))
+        tx = ty * 16.0 / 9.0
+        zn, zf = cascade.slice_near, cascade.slice_far
+        p0 = np.array([zn * tx, zn * ty, -zn])
+        p6 = np.array([-zf * tx, -zf * ty, -zf])
+        diagonal = np.linalg.norm(p0 - p6)
+        light = _corners(zn, zf) @ cs.basis[:2].T
+        centre = 0.5 * (light.min(axis=0) + light.max(axis=0))
+        # csmlab's texel keeps the filter's margins and one spare texel: diagonal / (R - 2m - 1), DX's diagonal / R.
+        assert cascade.texel_size[0] == pytest.approx(diagonal / (cascade.resolution - 2 * margin - 1), rel=1e-12)
+        # Floored to whole texels (min = floor(min / t) * t): the box's lower edge within a texel of the padded one.
+        lower = centre - 0.5 * diagonal
+        assert np.all((cascade.box_min + margin * cascade.texel_size <= lower + 1e-9)
+                      & (cascade.box_min + (margin + 1) * cascade.texel_size > lower - 1e-9))

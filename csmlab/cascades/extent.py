@@ -10,6 +10,13 @@ size is bit-identical from frame to frame. Engines take it from different shapes
   far-plane diagonal, rounded up to whole metres, centred on the slice's light-space AABB (Bevy
   ``bevy_light/src/cascade.rs`` ``calculate_cascade``; three.js ``examples/jsm/csm/CSM.js``
   ``updateShadowBounds``, which skips the rounding).
+- ``body_diagonal`` — the slice's body diagonal alone, near corner 0 to far corner 6, not rounded,
+  centred on the slice's light-space AABB (DirectX SDK CascadedShadowMaps11,
+  ``CascadedShadowsManager::InitFrame``, FIT_TO_SCENE: ``vDiagonal = vFrustumPoints[0] -
+  vFrustumPoints[6]``, the box padded to that length on x and y about the AABB's centre). For wide
+  fields of view it is shorter than the far-plane diagonal, so the box may not hold its whole slice
+  (the sample's behaviour: points it misses fall to the next cascade, or to none). The sample's
+  fit-to-scene slices begin at view depth 0, csmlab's at the near plane.
 - ``centroid`` — the sphere centred on the centroid of the slice's eight corners, its radius the
   distance to the farthest corner (Godot 4 ``RendererSceneCull::_light_instance_setup_directional_shadow``:
   ``center += endpoints[j]`` … ``center /= 8.0``, ``radius = max(|endpoints[j] - center|)``; Stride
@@ -32,7 +39,7 @@ import numpy as np
 from csmlab.camera import CameraPose
 from csmlab.geometry import slice_bounding_sphere
 
-__all__ = ["EXTENT_METHODS", "extent_centroid", "extent_diagonal", "extent_sphere", "radius_rounded_up"]
+__all__ = ["EXTENT_METHODS", "extent_body_diagonal", "extent_centroid", "extent_diagonal", "extent_sphere", "radius_rounded_up"]
 
 
 def radius_rounded_up(radius: float, *, bits: int = 12) -> float:
@@ -67,6 +74,20 @@ def extent_diagonal(*, pose: CameraPose, basis: np.ndarray, z_near: float, z_far
     return 0.5 * (lo + hi), 0.5 * diameter
 
 
+def extent_body_diagonal(*, pose: CameraPose, basis: np.ndarray, z_near: float, z_far: float,
+                         corners: np.ndarray) -> tuple[np.ndarray, float]:
+    """Centre x/y ``(2,)`` of the slice's light-space AABB and half its body diagonal (DirectX CSM11 fit to scene).
+
+    ``sqrt((x_n + x_f)² + (y_n + y_f)² + (z_f - z_n)²)`` with the half-extents of :func:`extent_diagonal`,
+    neither widened to the far-plane diagonal nor rounded.
+    """
+    ty = np.tan(np.radians(pose.fov_y_deg) / 2.0)
+    tx = ty * pose.aspect
+    body = float(np.sqrt((z_near * tx + z_far * tx) ** 2 + (z_near * ty + z_far * ty) ** 2 + (z_far - z_near) ** 2))
+    lo, hi = corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)
+    return 0.5 * (lo + hi), 0.5 * body
+
+
 def extent_centroid(*, pose: CameraPose, basis: np.ndarray, z_near: float, z_far: float,
                     corners: np.ndarray) -> tuple[np.ndarray, float]:
     """Centre x/y ``(2,)`` of the corners' centroid and the distance to the farthest corner (rounded up to a 2^-12 quantum).
@@ -86,5 +107,6 @@ EXTENT_METHODS: dict[str, Callable[..., tuple[np.ndarray, float]]] = {
     "sphere": extent_sphere,
     "diagonal": extent_diagonal,
     "centroid": extent_centroid,
+    "body_diagonal": extent_body_diagonal,
 }
 """Fixed-extent shapes by name: ``f(*, pose, basis, z_near, z_far, corners) -> (centre_xy, radius)``."""
