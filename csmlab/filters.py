@@ -201,7 +201,7 @@ def _conversion(cascades: CascadeSet, settings: ShadowSettings) -> dict:
                 origin_fixed=np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]),
                 zref=cascades.zref, normal_offset=settings.normal_offset,
                 bias_constant=_cascade_bias(cascades, settings), normal_scale=settings.normal_offset_scale,
-                plane_offset=_plane_offset(cascades, settings),
+                plane_offset=_plane_offset(cascades, settings), normal_offset_m=settings.normal_offset_m,
                 bias_slope=settings.bias_slope)
 
 
@@ -251,6 +251,7 @@ def texel_coordinates(cascades: CascadeSet, points: np.ndarray, normals: np.ndar
     return receiver_lookup(cascades, points[rows], normals[rows], bits=bits, normal_offset=settings.normal_offset,
                            bias_constant=_cascade_bias(cascades, settings), bias_slope=settings.bias_slope,
                            normal_scale=settings.normal_offset_scale, plane_offset=_plane_offset(cascades, settings),
+                           normal_offset_m=settings.normal_offset_m,
                            precision=settings.engine_precision)
 
 

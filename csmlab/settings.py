@@ -61,6 +61,8 @@ class ShadowSettings:
     """Constant depth bias in texels of each cascade, added to bias_constant (Unity URP's depth bias)."""
     normal_offset: float = 0.5
     """Receiver offset along its normal, in texels."""
+    normal_offset_m: float = 0.0
+    """Metres added to the normal offset in every cascade, a world distance (Stride: 2 · NormalOffsetScale / atlas size)."""
     normal_offset_scale: str = "none"
     """The normal offset per receiver: none | one_minus_cos (× 1 − cos θ: URP, Stride) | sin (× sin θ: Filament, Unity built-in) | one_minus_cos_lateral (Godot 4: × 1 − cos θ, across the light only)."""
     receiver_plane_offset: float = 0.0
@@ -183,6 +185,7 @@ class ShadowSettings:
              f"one of {list(NORMAL_OFFSET_SCALES)}", self.normal_offset_scale)
         need(0.0 <= self.receiver_plane_offset <= 1.0, "receiver_plane_offset", "a fraction in [0, 1]",
              self.receiver_plane_offset)
+        need(0.0 <= self.normal_offset_m <= 10.0, "normal_offset_m", "a distance in [0, 10] metres", self.normal_offset_m)
         need(self.normal_offset >= 0, "normal_offset", "a non-negative number of texels", self.normal_offset)
         need(isinstance(self.receiver_plane_bias, bool), "receiver_plane_bias", "true or false",
              self.receiver_plane_bias)

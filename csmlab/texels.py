@@ -182,7 +182,8 @@ def light_depth(cascades: CascadeSet, points) -> np.ndarray:
 
 def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_offset: float, bias_constant,
                     bias_slope: float, precision: str = "float64",
-                    normal_scale: str = "none", plane_offset=0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                    normal_scale: str = "none", plane_offset=0.0,
+                    normal_offset_m: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Where receivers look every cascade up: fixed-point coordinates, biased depth, depth slope.
 
     In cascade c the receiver is moved ``normal_offset`` texels along its normal before the
@@ -215,6 +216,8 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
         A key of :data:`csmlab.lookup_choices.NORMAL_OFFSET_SCALES`: the offset times ``1 − max(0, cos θ)``
         or ``sin θ`` per receiver, and with ``one_minus_cos_lateral`` across the light only (its
         depth unchanged).
+    normal_offset_m : float
+        Metres added to the normal offset in every cascade (Stride's world-space offset).
     plane_offset : float or array_like, shape (C,)
         Metres per cascade: where positive, the depth is also pulled toward the light by its tangent
         plane's depth change over one texel in x plus one in y, at most this much (MJP's static
@@ -267,6 +270,8 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
     for c, cascade in enumerate(cascades.cascades):
         texel = float(np.max(cascade.texel_size))
         offset = normal_offset * texel
+        if normal_offset_m != 0.0:
+            offset = offset + normal_offset_m
         if factor is not None:
             offset = (offset * factor)[:, None]
         if global_grid:

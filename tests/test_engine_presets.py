@@ -539,6 +539,7 @@ FILTER_AND_BIAS = {
                      {"bias_constant": 0.02, "bias_slope": 0.0, "normal_offset": 1.8, "receiver_plane_bias": False}),
     "engines/stride": ({"filter": "pcf_castano", "filter_size": 5},
                        {"bias_depth_range": 0.01, "bias_slope": 0.0, "normal_offset": 0.0,
+                        "normal_offset_m": 2.0 * 10.0 / 4096.0, "normal_offset_scale": "one_minus_cos",
                         "receiver_plane_bias": False}),
     "engines/mjp": ({"filter": "pcf_bilinear"},
                     {"bias_constant": 0.0, "bias_slope": 0.0, "normal_offset": 0.0, "receiver_plane_offset": 0.01,

@@ -375,6 +375,9 @@ def test_normal_offset_scales_are_the_engines_on_host_and_device_bit_for_bit(sca
     normals = rng.normal(size=(400, 3)).astype(np.float32)
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     args = dict(bits=bits, normal_offset=offset, bias_constant=0.0, bias_slope=0.0, normal_scale=scale)
+    # Stride's world-space part of the offset (normal_offset_m) rides along: 2 · NormalOffsetScale / atlas size.
+    metres = 2.0 * 10.0 / 4096.0
+    args["normal_offset_m"] = metres
     coords, depth, _ = receiver_lookup(cs, points, normals, **args)
     got = receiver_coordinates(points, normals, basis=cs.basis, texel_size=np.array([[texel, texel]]),
                                origin_fixed=np.stack([fixed_point_origin(cs, 0, bits=bits)]), zref=cs.zref,
@@ -387,11 +390,11 @@ def test_normal_offset_scales_are_the_engines_on_host_and_device_bit_for_bit(sca
     cos = -n[:, 2]
     k = {"none": np.ones_like(cos), "one_minus_cos": 1.0 - np.clip(cos, 0.0, 1.0), "sin": np.sqrt(1.0 - cos**2),
          "one_minus_cos_lateral": 1.0 - np.maximum(cos, 0.0)}[scale]
-    moved = p + (k * offset * texel)[:, None] * n
+    moved = p + (k * (offset * texel + metres))[:, None] * n
     if scale == "one_minus_cos_lateral":
         moved[:, 2] = p[:, 2]                              # normal_bias -= light_dir · dot(light_dir, normal_bias)
     lit = cos > 0.0
-    base, base_depth, _ = receiver_lookup(cs, points, normals, **{**args, "normal_offset": 0.0})
+    base, base_depth, _ = receiver_lookup(cs, points, normals, **{**args, "normal_offset": 0.0, "normal_offset_m": 0.0})
     np.testing.assert_allclose((coords[0, lit] - base[0, lit]) / 2.0**bits, (moved - p)[lit, :2] / texel,
                                atol=2.0**-bits)
     np.testing.assert_allclose(depth[0, lit] - base_depth[0, lit], (moved - p)[lit, 2], atol=1e-5)

@@ -435,7 +435,7 @@ def select_cascades(depth, coords, receiver_depth, view_depth, *, splits, texel_
 
 def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis, texel_size, origin_fixed, zref: float,
                         normal_offset: float, bias_constant, bias_slope: float, receiver_plane_bias: bool,
-                        splits, normal_scale: str = "none", plane_offset=0.0, texel_area, selection: str, filter: str, radius: int, margin: int,
+                        splits, normal_scale: str = "none", plane_offset=0.0, normal_offset_m: float = 0.0, texel_area, selection: str, filter: str, radius: int, margin: int,
                         blend_band: float, bits: int, band_start=None, blend_curve: int = 0,
                         device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`shadow_lookup` of world receivers, each taken into a cascade's fixed point where the lookup reads it.
@@ -464,7 +464,7 @@ def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis,
                             origin_fixed=origin_fixed,
                             zref=zref, bits=bits, normal_offset=normal_offset, bias_constant=bias_constant,
                             bias_slope=bias_slope, planar=receiver_plane_bias, normal_scale=normal_scale,
-                            plane_offset=plane_offset, device=device)
+                            plane_offset=plane_offset, normal_offset_m=normal_offset_m, device=device)
     if world.index.shape[0] != np.shape(view_depth)[0] or np.ndim(view_depth) != 1:
         raise ValueError(f"view_depth: expected one view depth per receiver ({world.index.shape[0]},), "
                          f"got shape {np.shape(view_depth)}")
@@ -594,7 +594,8 @@ def receiver_coordinates_kernel(
 
 def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zref: float, bits: int,
                          normal_offset: float, bias_constant, bias_slope: float, receivers=None,
-                         normal_scale: str = "none", plane_offset=0.0, device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                         normal_scale: str = "none", plane_offset=0.0, normal_offset_m: float = 0.0,
+                         device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`csmlab.texels.receiver_lookup` on the device, from world receivers.
 
     Parameters
@@ -631,7 +632,7 @@ def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zr
                             origin_fixed=origin_fixed,
                             zref=zref, bits=bits, normal_offset=normal_offset, bias_constant=bias_constant,
                             bias_slope=bias_slope, planar=True, normal_scale=normal_scale, plane_offset=plane_offset,
-                            device=device)
+                            normal_offset_m=normal_offset_m, device=device)
     shape = (world.texel_size.shape[0], world.index.shape[0])
     coords = wp.empty(shape + (2,), dtype=wp.int64, device=device)
     depth = wp.empty(shape, dtype=wp.float32, device=device)
@@ -644,7 +645,8 @@ def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zr
 
 def world_receivers(points, normals, *, receivers, basis, texel_size, origin_fixed, zref: float, bits: int,
                     normal_offset: float, bias_constant, bias_slope: float, planar: bool,
-                    device: str, normal_scale: str = "none", plane_offset=0.0) -> WorldReceivers:
+                    device: str, normal_scale: str = "none", plane_offset=0.0,
+                    normal_offset_m: float = 0.0) -> WorldReceivers:
     """The :class:`WorldReceivers` of :func:`receiver_coordinates`'s arguments, checked (``planar``: receiver-plane slopes)."""
     p = np.ascontiguousarray(points, dtype=np.float64)
     n = np.ascontiguousarray(normals, dtype=np.float32)
@@ -666,7 +668,10 @@ def world_receivers(points, normals, *, receivers, basis, texel_size, origin_fix
     world.basis = wp.mat33d(*rows.reshape(-1))
     world.texel_size = wp.array(size, dtype=wp.float64, device=device)
     world.to_fixed = wp.array(float(2**bits) / size, dtype=wp.float64, device=device)
-    world.offset = wp.array(normal_offset * texel, dtype=wp.float64, device=device)
+    offset = normal_offset * texel
+    if normal_offset_m != 0.0:
+        offset = offset + normal_offset_m  # a world distance, the same in every cascade (Stride)
+    world.offset = wp.array(offset, dtype=wp.float64, device=device)
     world.slope_bias = wp.array(bias_slope * texel, dtype=wp.float64, device=device)
     world.origin_fixed = wp.array(corner, dtype=wp.int64, device=device)
     world.zref = float(zref)
