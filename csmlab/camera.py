@@ -1,7 +1,7 @@
 """Camera poses and paths: float64 positions, unit quaternions, projection and time.
 
 A pose's quaternion ``(x, y, z, w)`` rotates camera space into world space; the camera looks
-along its -Z axis with +Y up (DESIGN.md, "Conventions").
+along its -Z axis with +Y up (docs/design.md, "Conventions").
 """
 
 from __future__ import annotations

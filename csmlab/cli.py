@@ -1,4 +1,4 @@
-"""The ``csmlab`` command (DESIGN.md, "Interfaces").
+"""The ``csmlab`` command (docs/design.md, "Interfaces").
 
 ``run`` an experiment, re-render its ``report``, ``regress`` it against a ``baseline``, ``compare`` two
 runs of one workload, ``list`` what can be named in an experiment, ``show`` an experiment resolved.

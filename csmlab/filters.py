@@ -5,7 +5,7 @@ through it). Each step is decided once, in the order it runs:
 
 1. **The filter's record** — :data:`csmlab.lookup_choices.FILTER_METHODS` ``[settings.filter]``:
    its family, its radius (the texels its taps reach, which every selected box must hold, so that
-   no tap is ever clamped: DESIGN.md "Exact zero"), the width of its weights per cascade, its tap
+   no tap is ever clamped: docs/design.md "Exact zero"), the width of its weights per cascade, its tap
    offsets and what it reads besides the depth maps.
 2. **Receivers** — the points with a finite position and view depth (:class:`Receivers`), with
    their pixel where the filter reads pixels and their 2×2 quad where it reads mips. The others

@@ -1,6 +1,6 @@
 """Float64 host math: rotations, view and projection matrices, light basis, frustum slices.
 
-Conventions (DESIGN.md, "Conventions"): right-handed world in metres with +Y up; a camera looks
+Conventions (docs/design.md, "Conventions"): right-handed world in metres with +Y up; a camera looks
 along -Z of its view space, so the view depth of a point is ``-z_view > 0``. Quaternions are
 stored scalar-last, ``(x, y, z, w)``, and rotate camera space into world space.
 

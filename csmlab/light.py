@@ -1,6 +1,6 @@
 """Directional light: a direction per frame, static or swept along a sun path.
 
-The direction ``d`` points from the light toward the scene (DESIGN.md, "Conventions").
+The direction ``d`` points from the light toward the scene (docs/design.md, "Conventions").
 Elevation is the sun's angle above the horizon, azimuth is measured from +Z toward +X about +Y.
 """
 

@@ -160,7 +160,7 @@ class Filter:
         Which texels it tests and how it weighs them.
     radius : callable
         ``radius(*, <fields>) -> int``: texels the taps reach beyond the texel holding the point
-        (the boxes keep them inside their edges, so no tap is ever clamped; DESIGN.md "Exact zero").
+        (the boxes keep them inside their edges, so no tap is ever clamped; docs/design.md "Exact zero").
     width : callable, optional
         ``width(texel, far, /, *, <fields>) -> ndarray``: the width of the weights per cascade from the
         cascades' texel sizes ``(C,)`` in metres (the larger side) and their far split ends ``(C,)``

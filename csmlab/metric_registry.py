@@ -74,7 +74,7 @@ class Metric:
     Attributes
     ----------
     name : str
-        The column name (a contract: DESIGN.md "Interfaces").
+        The column name (a contract: docs/design.md "Interfaces").
     label : str
         What a person reads in a table header or on a plot axis.
     unit : str
@@ -185,7 +185,7 @@ METRICS: dict[str, Metric] = {m.name: m for m in (
            plots=("sweep",)),
     Metric("texels_rasterized", "texels rasterized", "texels", "lower", (0.0, 0.10)),
 )}
-"""Every metric column, in ``metrics.csv`` order (DESIGN.md "Interfaces")."""
+"""Every metric column, in ``metrics.csv`` order (docs/design.md "Interfaces")."""
 
 DERIVED: dict[str, Metric] = {m.name: m for m in (
     Metric("ref_error", "vs. reference", "% pixels wrong", "lower", (1e-4, 0.05), scale=100.0,

@@ -1,4 +1,4 @@
-"""One frame on one Warp device, in the order of DESIGN.md's CSM model.
+"""One frame on one Warp device, in the order of docs/design.md's CSM model.
 
 What depends on the camera and the light only — the G-buffer (step 5) and the ray-traced
 reference (step 7) — is :func:`render_view`, computed once per frame and shared by every shadow

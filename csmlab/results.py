@@ -1,6 +1,6 @@
 """The results files of a run, written atomically, and their reading back.
 
-Files in a results directory (DESIGN.md, "Interfaces"):
+Files in a results directory (docs/design.md, "Interfaces"):
 
 ``config.resolved.toml``
     The experiment with its presets merged, written before any work.

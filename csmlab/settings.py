@@ -1,4 +1,4 @@
-"""The shadow settings of one method: every knob of DESIGN.md's ``[shadow]`` section.
+"""The shadow settings of one method: every knob of docs/design.md's ``[shadow]`` section.
 
 A plain record shared by the host cascades and the Warp shadow lookup. :mod:`csmlab.config` builds it
 from TOML and validates it at the edge; :meth:`ShadowSettings.validated` repeats the range
@@ -72,7 +72,7 @@ class ShadowSettings:
     blend_band: float = 0.0
     """Fraction of a cascade's depth range blended with the next cascade, in [0, 0.5]."""
     subtexel_bits: int = 8
-    """Fixed-point bits below a texel for vertices and receivers (DESIGN.md, "Exact zero")."""
+    """Fixed-point bits below a texel for vertices and receivers (docs/design.md, "Exact zero")."""
     depth_bytes: int = 0
     """Bytes per stored depth texel (memory cost only); 0: what depth_format allocates (2, 4, 4)."""
     transition: str = "backward"

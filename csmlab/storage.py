@@ -9,7 +9,7 @@ The near/far a box quantizes over is the light-space depth range of the scene's 
 caster and receiver lies inside it. That range is fixed per light and scene and never moves with
 the camera, and the level step is rounded up to a power of two, ``step = 2^⌈log₂(span / (2^b − 1))⌉``
 metres, so each stored value ``round(z / step) · step`` is exact in float32 and a whole-texel box
-move changes no level: ``exact`` keeps its zero same-cascade flicker (DESIGN.md, "Exact zero").
+move changes no level: ``exact`` keeps its zero same-cascade flicker (docs/design.md, "Exact zero").
 The power-of-two step costs up to one bit against a step of exactly ``span / (2^b − 1)``.
 
 Memory (:func:`memory_bytes`): a texture ``array`` holds C slices of the largest cascade's size;

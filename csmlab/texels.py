@@ -1,6 +1,6 @@
 """World points to a cascade's texel grid: texel coordinates, fixed point, receiver lookups.
 
-Everything here is host float64 NumPy and feeds the Warp kernels (DESIGN.md, "Exact zero by
+Everything here is host float64 NumPy and feeds the Warp kernels (docs/design.md, "Exact zero by
 construction"). A world point X has light-space coordinates ``(right·X, up·X)`` in metres; divided
 by a cascade's texel size they become *global* texel units, which depend on the light direction
 and the texel size only — never on where the box lies. Snapped to ``2**bits`` steps per texel they
@@ -207,7 +207,7 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
     bits : int
         Sub-texel bits of the fixed-point grid.
     normal_offset, bias_constant, bias_slope : float
-        Texels, metres, texels (DESIGN.md ``[shadow]``); ``bias_constant`` may be one value per
+        Texels, metres, texels (docs/design.md ``[shadow]``); ``bias_constant`` may be one value per
         cascade ``(C,)`` (a bias model's per-cascade scaling, csmlab.filters).
     precision : str
         A key of :data:`PRECISION_METHODS`: float32 maps the moved points as an engine's float32

@@ -1,6 +1,6 @@
 """Imports point downward only: every ``csmlab`` import names a module of the same or a lower layer.
 
-:data:`LAYERS` is the house's layering, bottom first, after DESIGN.md's direction (cli → experiment →
+:data:`LAYERS` is the house's layering, bottom first, after docs/design.md's direction (cli → experiment →
 render/metrics → cascades/scene/paths → geometry/kernels) fitted to the real tree: the settings
 and the filter records sit under the kernels (the kernels switch on the records' codes), and the
 records a run writes and reads, the judgement and the reports sit between the metrics and the

@@ -1,4 +1,4 @@
-"""The metric registry: DESIGN.md's column order, one meaning of "better", and no Warp to read a result."""
+"""The metric registry: docs/design.md's column order, one meaning of "better", and no Warp to read a result."""
 
 import math
 import subprocess
@@ -17,7 +17,7 @@ DESIGN_COLUMNS = (
     "rho_median, rho_p05, rho_p95, rho_frac_lt1, rho_frac_lt05, sigma_min_p05, utilization, flicker, flicker_same, "
     "flicker_changed, flip_rate, flip_same, flip_changed, de2000_mean, de2000_p99, de2000_frac_jnd, ssim, flip, "
     "ref_false_shadow, ref_false_light, ref_boundary_px, memory_bytes, texels_rasterized").split(", ")
-"""DESIGN.md "Interfaces", copied by hand: the contract the registry must keep."""
+"""docs/design.md "Interfaces", copied by hand: the contract the registry must keep."""
 
 
 def test_metric_columns_keep_the_design_order_with_per_cascade_columns():
@@ -27,7 +27,7 @@ def test_metric_columns_keep_the_design_order_with_per_cascade_columns():
     assert columns[at + 1:at + 3] == ("utilization_c0", "utilization_c1")
     rho_keys = ("rho_median", "rho_p05", "rho_p95", "rho_frac_lt1", "rho_frac_lt05")
     assert columns[columns.index("texels_rasterized") + 1:] == tuple(f"{k}_c{c}" for c in range(2) for k in rho_keys)
-    extensions = ("ref_seam_error",)  # columns added after DESIGN.md's list
+    extensions = ("ref_seam_error",)  # columns added after docs/design.md's list
     assert set(extensions) <= set(columns)
     assert len(set(columns)) == len(columns) == len(DESIGN_COLUMNS) + len(extensions) + 2 + 2 * len(rho_keys)
     with pytest.raises(ValueError, match="positive integer"):

@@ -1,6 +1,6 @@
 """Build the cascades of one frame: splits → slices → footprints → stabilized boxes.
 
-Reads top to bottom like DESIGN.md's CSM model, steps 1–3. The result, a :class:`CascadeSet`,
+Reads top to bottom like docs/design.md's CSM model, steps 1–3. The result, a :class:`CascadeSet`,
 is all the Warp kernels need to know of where each cascade lies.
 """
 

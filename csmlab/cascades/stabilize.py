@@ -3,7 +3,7 @@
 Each method maps a slice's light-space footprint to a texel size ``(tx, ty)`` in metres and a
 box origin in whole or fractional texels; the box is then
 ``[origin · t, (origin + R) · t]`` on each axis. Every method keeps ``margin`` texels free inside
-each edge so that the widest filter never reads outside the box (DESIGN.md, "Exact zero").
+each edge so that the widest filter never reads outside the box (docs/design.md, "Exact zero").
 
 References
 ----------

@@ -1,6 +1,6 @@
 """The experiment schema: documented records, TOML loading with presets, validation, sweep expansion.
 
-An experiment file (DESIGN.md, "Experiments, CLI, outputs") names a scene, a camera path, a light,
+An experiment file (docs/design.md, "Experiments, CLI, outputs") names a scene, a camera path, a light,
 base ``[shadow]`` settings, ``[[methods]]`` (named variations on the base), an optional ``[sweep]``
 (cartesian product over shadow fields) and optional ``[regress]`` tolerances.
 

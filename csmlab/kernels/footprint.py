@@ -21,7 +21,7 @@ linear, ``T = diag(1/tx, 1/ty) · [right; up]``, and the Jacobian is exactly
 
 with ρ = sqrt|det J| (texels per pixel, linear) and σ_min(J) (the worst direction). Taking the
 differentials on the tangent plane rather than differencing neighbouring hit points keeps J
-meaningful at silhouettes (DESIGN.md, "Metrics").
+meaningful at silhouettes (docs/design.md, "Metrics").
 
 References
 ----------

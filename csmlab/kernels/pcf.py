@@ -5,7 +5,7 @@ Every filter here is a weighted sum of depth tests ``S = Σ w_k · test(texel_k)
 the receiver, the test being the receiver-plane comparison of :func:`csmlab.kernels.shadow.tap`.
 Tap positions and weights come from the receiver's fixed-point position less its integer texel
 index — exact and the same wherever a box lies — so a box moved by whole texels changes no tap
-and no weight (DESIGN.md, "Exact zero by construction"); only a per-pixel rotation of the Poisson
+and no weight (docs/design.md, "Exact zero by construction"); only a per-pixel rotation of the Poisson
 disk (screen-space noise) breaks that, on purpose.
 
 Filters (the ``weighted`` family of :data:`csmlab.lookup_choices.FILTER_METHODS`), ``width`` in

@@ -1,4 +1,4 @@
-"""The ray-traced hard shadow, ground truth of every shadow map (DESIGN.md, CSM model step 7).
+"""The ray-traced hard shadow, ground truth of every shadow map (docs/design.md, CSM model step 7).
 
 From each visible point, moved a small epsilon along its normal (relative to the scene's size, far
 above the float32 error of the BVH's anchored vertices), a ray toward the light (``−d``) of length

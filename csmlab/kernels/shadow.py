@@ -615,7 +615,7 @@ def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zr
     bits : int
         Sub-texel bits.
     normal_offset, bias_constant, bias_slope : float
-        Texels, metres, texels (DESIGN.md ``[shadow]``); ``bias_constant`` may be one value per
+        Texels, metres, texels (docs/design.md ``[shadow]``); ``bias_constant`` may be one value per
         cascade ``(C,)`` (a bias model's per-cascade scaling, csmlab.filters).
     receivers : array_like, shape (N,), integer, optional
         The rows of ``points`` and ``normals`` that are receivers, in output order; None: all.

@@ -1,4 +1,4 @@
-"""The scene's BVH on a device, and what the camera sees (DESIGN.md, CSM model step 5).
+"""The scene's BVH on a device, and what the camera sees (docs/design.md, CSM model step 5).
 
 :func:`mesh_bvh` uploads a triangle mesh once: a float32 ``wp.Mesh`` for the BVH traversal, with
 vertices taken relative to a float64 anchor (the bounds centre) so that a scene far from the world

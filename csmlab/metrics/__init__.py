@@ -2,7 +2,7 @@
 
 Each module is a pure function of :class:`csmlab.frame.Frame` records that returns per-pixel maps
 and a summary dict; :func:`measure_frame` composes them into one row of ``metrics.csv``. The
-definitions are DESIGN.md's "Metrics" section (a contract).
+definitions are docs/design.md's "Metrics" section (a contract).
 
 Columns: :func:`csmlab.metric_registry.metric_columns`, declared in
 :data:`csmlab.metric_registry.METRICS`. The columns measured between frames (``temporal``) are NaN

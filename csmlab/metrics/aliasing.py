@@ -1,6 +1,6 @@
 """Perspective aliasing: shadow texels per screen pixel (ρ, σ_min) and texel utilization.
 
-Definitions (DESIGN.md, "Metrics", a contract):
+Definitions (docs/design.md, "Metrics", a contract):
 
 - ρ = sqrt|det J| with J the 2×2 Jacobian from screen pixels to the selected cascade's texels at
   the pixel centre, from exact ray differentials (the derivative of the hit point with respect to

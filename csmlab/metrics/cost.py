@@ -1,7 +1,7 @@
 """Cost of a method in one frame: texture memory, rasterization work and wall-clock time per stage.
 
 Memory and texels rasterized are results (deterministic, in ``metrics.csv``); seconds per stage
-are not (they go to ``timings.csv``, DESIGN.md "Interfaces").
+are not (they go to ``timings.csv``, docs/design.md "Interfaces").
 """
 
 from __future__ import annotations

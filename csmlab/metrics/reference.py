@@ -1,6 +1,6 @@
 """Error of a method's shadow against the ray-traced reference of the same frame.
 
-Definitions (DESIGN.md, "Metrics", a contract). A pixel is *compared* where it is visible, the
+Definitions (docs/design.md, "Metrics", a contract). A pixel is *compared* where it is visible, the
 method has a shadow value (some cascade contains it) and the reference is defined. Its state is
 shadowed when ``S <= 0.5`` (the method) or ``R <= 0.5`` (the reference).
 

@@ -1,7 +1,7 @@
 """Shading of a shadow image: what a player sees, for the perceptual metrics and the report.
 
 Linear RGB ``albedo × (ambient + S · max(0, n · l))`` with ``l = −d`` the unit vector toward the
-light (DESIGN.md, "Metrics"), and its sRGB encoding for display and for ꟻLIP.
+light (docs/design.md, "Metrics"), and its sRGB encoding for display and for ꟻLIP.
 """
 
 from __future__ import annotations

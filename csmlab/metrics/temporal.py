@@ -1,6 +1,6 @@
 """Temporal shadow change (flicker) between consecutive frames of one method.
 
-Definition (DESIGN.md, "Metrics", a contract). Keep frame t−1's cascades, depth maps and camera.
+Definition (docs/design.md, "Metrics", a contract). Keep frame t−1's cascades, depth maps and camera.
 For every visible point X of frame t, evaluate S_{t−1}(X) with frame t−1's state — its own
 cascade selection, from ``pose_{t−1}.view_depth(X)`` — and count X only where it lies inside a
 t−1 cascade (and frame t has a shadow value there too). Then

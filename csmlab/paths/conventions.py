@@ -1,6 +1,6 @@
 """Axis conventions of recorded camera paths, and csmlab's yaw/pitch/roll.
 
-csmlab's own convention, ``opengl`` (DESIGN.md, "Conventions"): a right-handed world in metres
+csmlab's own convention, ``opengl`` (docs/design.md, "Conventions"): a right-handed world in metres
 with +Y up; a camera looks along its -Z axis with +Y up and +X right, and its quaternion
 ``(x, y, z, w)`` rotates camera coordinates into world coordinates.
 

@@ -1,7 +1,7 @@
 """The results files the report is drawn from, read back as columns.
 
 ``metrics.csv``, ``timings.csv`` and ``cascades.csv`` are read into :class:`Columns`: one NumPy
-array per column, float64 where every cell is a number (empty cells become NaN, as DESIGN.md
+array per column, float64 where every cell is a number (empty cells become NaN, as docs/design.md
 writes undefined values) and str otherwise. Rows keep the file's order.
 """
 

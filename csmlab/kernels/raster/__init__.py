@@ -1,4 +1,4 @@
-"""Depth rasterization of every cascade in fixed point (DESIGN.md, CSM model step 4).
+"""Depth rasterization of every cascade in fixed point (docs/design.md, CSM model step 4).
 
 A texel is covered when its centre lies inside the triangle; it stores the minimum light-space
 depth of the triangles covering it (metres, ``d·X − zref``); empty texels hold +inf. Vertices
