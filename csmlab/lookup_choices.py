@@ -31,7 +31,7 @@ import numpy as np
 
 from csmlab.registry import check_name, parameters
 
-__all__ = ["BOX_BILINEAR", "BOX_TAPS", "CASTANO_SIZES", "NORMAL_NONE", "NORMAL_OFFSET_SCALES", "NORMAL_ONE_MINUS_COS",
+__all__ = ["BLEND_LINEAR", "BLEND_SMOOTHSTEP", "BOX_BILINEAR", "BOX_TAPS", "CASTANO_SIZES", "NORMAL_NONE", "NORMAL_OFFSET_SCALES", "NORMAL_ONE_MINUS_COS",
            "NORMAL_ONE_MINUS_COS_LATERAL", "NORMAL_SIN", "FAMILIES", "FILTER_METHODS", "Filter", "MOMENT_EVSM2",
            "MOMENT_EVSM4", "MOMENT_VSM", "PCF_BILINEAR_BOX", "PCF_CASTANO", "PCF_GAUSSIAN", "PCF_PCSS", "PCF_POISSON",
            "PCF_TENT", "PCF_TENT_BILINEAR", "PCF_VOGEL", "SELECTION_METHODS", "SELECT_BEST_RESOLUTION",
@@ -43,6 +43,11 @@ SELECT_MAP = 1
 """Selection code: the first cascade whose box holds the point inside its margins."""
 SELECT_BEST_RESOLUTION = 2
 """Selection code: of the boxes that hold the point, the one with the smallest texels."""
+
+BLEND_LINEAR = 0
+"""Blend-curve code: the next cascade's weight rises linearly over the band."""
+BLEND_SMOOTHSTEP = 1
+"""Blend-curve code: the weight is ``smoothstep`` of the linear one, ``w² (3 - 2w)`` (Stride, Godot, MJP)."""
 
 BOX_TAPS = 0
 """Box family code: the (2r + 1)² texels centred on the one holding the point, equal weights (r = 0: one texel)."""

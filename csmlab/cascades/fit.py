@@ -17,7 +17,7 @@ from typing import Callable
 
 import numpy as np
 
-from csmlab.kernels.shadow import BLEND_LINEAR, BLEND_SMOOTHSTEP
+from csmlab.lookup_choices import BLEND_LINEAR, BLEND_SMOOTHSTEP
 from csmlab.registry import check_name
 
 __all__ = ["BLEND_CURVES", "TRANSITION_METHODS", "FIT_METHODS", "Transition", "fit_cascade", "fit_scene", "slice_intervals",
@@ -85,9 +85,9 @@ TRANSITION_METHODS: dict[str, Transition] = {
 
 
 BLEND_CURVES: dict[str, tuple[int, str]] = {
-    "linear": (int(BLEND_LINEAR), "the next cascade's weight rises linearly over the band (DirectX CSM11, Bevy, "
+    "linear": (BLEND_LINEAR, "the next cascade's weight rises linearly over the band (DirectX CSM11, Bevy, "
                                   "Unreal)"),
-    "smoothstep": (int(BLEND_SMOOTHSTEP), "smoothstep of the linear weight, w² (3 - 2w) (Stride "
+    "smoothstep": (BLEND_SMOOTHSTEP, "smoothstep of the linear weight, w² (3 - 2w) (Stride "
                                           "ShadowMapReceiverDirectional: smoothstep(0, 0.2, splitDist); Godot "
                                           "pssm_blend; MJP FilterAcrossCascades)"),
 }

@@ -31,7 +31,7 @@ Blend band: within the last ``blend_band`` fraction of the selected cascade's sp
 moves linearly toward cascade i + 1's S (when i + 1 holds the point's taps), reaching it at ``z_{i+1}``.
 ``band_start`` (one start per cascade, metres) places the bands elsewhere, the band of cascade i
 ending where the selection's ``splits`` leave it (:func:`csmlab.cascades.fit.transition_bands`),
-and ``blend_curve`` (:data:`BLEND_SMOOTHSTEP`) shapes the weight.
+and ``blend_curve`` (:data:`csmlab.lookup_choices.BLEND_SMOOTHSTEP`) shapes the weight.
 
 References
 ----------
@@ -47,21 +47,14 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device
-from csmlab.lookup_choices import (BOX_BILINEAR, BOX_TAPS, NORMAL_NONE, NORMAL_OFFSET_SCALES, NORMAL_ONE_MINUS_COS_LATERAL,
-                                   NORMAL_SIN, SELECT_BEST_RESOLUTION, SELECT_INTERVAL, SELECT_MAP,
-                                   SELECTION_METHODS, family_code)
+from csmlab.lookup_choices import (BLEND_SMOOTHSTEP, BOX_BILINEAR, BOX_TAPS, NORMAL_NONE, NORMAL_OFFSET_SCALES,
+                                   NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN, SELECT_BEST_RESOLUTION, SELECT_INTERVAL,
+                                   SELECT_MAP, SELECTION_METHODS, family_code)
 from csmlab.registry import check_name
 
-__all__ = ["BLEND_LINEAR", "BLEND_SMOOTHSTEP", "receiver_coordinates", "select_cascades", "shadow_lookup",
-           "shadow_lookup_world", "world_receivers"]
+__all__ = ["receiver_coordinates", "select_cascades", "shadow_lookup", "shadow_lookup_world", "world_receivers"]
 
 wp.set_module_options({"fuse_fp": False})
-
-BLEND_LINEAR = wp.constant(0)
-"""Blend-curve code: the next cascade's weight rises linearly over the band."""
-BLEND_SMOOTHSTEP = wp.constant(1)
-"""Blend-curve code: the weight is ``smoothstep`` of the linear one, ``w² (3 - 2w)`` (Stride, Godot, MJP)."""
-
 
 @wp.func
 def tap(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int64, receiver: wp.float32,
@@ -366,7 +359,8 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
         Where each cascade's band toward the next starts, metres of view depth (+inf: none); it ends
         at the cascade's far split. None: the last ``blend_band`` of each split interval.
     blend_curve : int
-        :data:`BLEND_LINEAR` or :data:`BLEND_SMOOTHSTEP`: the next cascade's weight over the band.
+        :data:`csmlab.lookup_choices.BLEND_LINEAR` or :data:`csmlab.lookup_choices.BLEND_SMOOTHSTEP`: the next
+        cascade's weight over the band.
     receiver_slope : array_like, shape (C, N, 2), float64, optional
         Receiver-plane depth change per texel along x and y, metres
         (:func:`csmlab.texels.receiver_lookup`); each tap compares the plane's depth at its texel
