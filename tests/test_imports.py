@@ -108,7 +108,8 @@ def test_the_layer_check_sees_function_level_and_relative_imports(tmp_path):
     assert all(layer_of(name) > layer_of("csmlab.settings") for _, name in found)
 
 
-@pytest.mark.parametrize("module", ["csmlab.settings", "csmlab.lookup_choices", "csmlab.config"])
+@pytest.mark.parametrize("module", ["csmlab.settings", "csmlab.lookup_choices", "csmlab.config", "csmlab.cascades",
+                                    "csmlab.results", "csmlab.regress"])
 def test_the_settings_and_the_config_load_without_warp(module):
     code = f"import sys, {module}; print(sorted(m for m in sys.modules if m == 'warp' or m.startswith('warp.')))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120)
