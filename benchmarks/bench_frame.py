@@ -19,7 +19,7 @@ import warp as wp
 
 from csmlab.camera import CameraPose
 from csmlab.geometry import rotation_looking_at
-from csmlab.kernels import checked_device
+from csmlab.kernels import checked_device, start_warp
 from csmlab.light import direction_from_angles
 from csmlab.render import prepare_scene, render_shadow, render_view
 from csmlab.scene import make_scene
@@ -38,7 +38,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3, help="timed runs; the best is reported")
     args = parser.parse_args()
 
-    wp.config.quiet = True
+    start_warp()
     try:
         checked_device(args.device)
     except ValueError as error:

@@ -62,6 +62,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from csmlab.cascades import build_cascades
 from csmlab.config import load_experiment
 from csmlab.experiment import build_workload
+from csmlab.kernels import start_warp
 from csmlab.kernels.reference import RAY_OFFSET, REFERENCE_METHODS, hard_shadow
 from csmlab.kernels.visibility import VISIBILITY_METHODS, camera_hits
 from csmlab.metrics import measure_frame
@@ -344,8 +345,7 @@ def main() -> None:
         parser.error(f"--sizes: expected labels of {sorted(SIZES)}, got {args.sizes!r}")
     resolutions = [int(r) for r in args.resolutions.split(",")]
 
-    wp.config.quiet = True
-    wp.init()
+    start_warp()
     experiment = load_experiment(ROOT / "experiments" / "default.toml")
     workload = build_workload(experiment)
     pose, light = workload.path.pose(FRAME), workload.light.direction(FRAME)

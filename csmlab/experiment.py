@@ -155,13 +155,6 @@ class RunResult:
     summary: dict
 
 
-def _quiet_warp() -> None:
-    """Keep Warp's greeting and module-load lines out of a run's output (warnings still show)."""
-    import warp as wp
-
-    wp.config.log_level = max(wp.config.log_level, wp.LOG_WARNING)
-
-
 def check_device(device: str) -> str:
     """``device`` if Warp can run on it here: ``cpu``, or ``cuda``/``cuda:N`` on a machine with that GPU.
 
@@ -176,8 +169,9 @@ def check_device(device: str) -> str:
         raise InputError(f"expected cpu, cuda or cuda:N, got {device!r}", field="--device")
     import warp as wp
 
-    _quiet_warp()
-    wp.init()
+    from csmlab.kernels import start_warp
+
+    start_warp()
     count = wp.get_cuda_device_count()
     if count == 0 or (device != "cuda" and int(device[5:]) >= count):
         raise InputError(f"expected a CUDA device, but this machine has {count} CUDA device(s) for {device!r}: "
@@ -299,11 +293,12 @@ _PREPARED: dict = {}
 
 def _prepared_scene(job: Job):
     """The scene on the job's device, built once per process and kept for the next chunks."""
+    from csmlab.kernels import start_warp
     from csmlab.render import prepare_scene
 
     key = (job.workload.key, job.device, job.threads)
     if key not in _PREPARED:
-        _quiet_warp()
+        start_warp()
         _PREPARED.clear()
         _PREPARED[key] = prepare_scene(job.workload.scene, device=job.device, threads=job.threads)
     return _PREPARED[key]
