@@ -299,11 +299,11 @@ def show(experiment: Optional[str] = typer.Argument(None, help="Experiment file 
 @app.command()
 def tune(
     experiment: str = typer.Argument(..., help="Experiment file or built-in name: the workload, the method and "
-                                               "its [tune] table."),
-    param: Optional[list[str]] = typer.Option(None, "--param", help="A [shadow] field to search: FIELD=LO:HI (a "
-                                              "range) or FIELD=A,B,C (choices); repeat for more; adds to [tune]."),
+                                               "its \\[tune] table."),
+    param: Optional[list[str]] = typer.Option(None, "--param", help="A \\[shadow] field to search: FIELD=LO:HI (a "
+                                              "range) or FIELD=A,B,C (choices); repeat for more; adds to \\[tune]."),
     objective: Optional[list[str]] = typer.Option(None, "--objective", help="A metrics.csv column to improve (mean "
-                                                  "over frames); repeat for several. Default: [tune] objectives, "
+                                                  "over frames); repeat for several. Default: \\[tune] objectives, "
                                                   "else rho_p05."),
     memory_budget: Optional[str] = typer.Option(None, "--memory-budget", help="Shadow-map memory a recommended "
                                                 "setting may not exceed: 64MiB, 16MB or bytes."),
@@ -312,7 +312,7 @@ def tune(
     flicker_metric: Optional[str] = typer.Option(None, "--flicker-metric", help="The flicker column the limit "
                                                  "applies to; default flicker."),
     method: Optional[str] = typer.Option(None, "--method", help="The method to tune; default the first."),
-    trials: Optional[int] = typer.Option(None, "--trials", help="Candidates to search; default [tune] trials, "
+    trials: Optional[int] = typer.Option(None, "--trials", help="Candidates to search; default \\[tune] trials, "
                                                                 "else 20."),
     batch: int = typer.Option(4, "--batch", help="Candidates run together (they share each frame's view); a "
                                                  "resumed tune must use the same."),

@@ -162,3 +162,10 @@ def test_list_names_every_engine_choice():
     for name in ("exponent", "geometric", "diagonal", "centre", "sdsm", "float32", "engines/ue5", "seeds/ogldev49",
                  "hard_far_origin"):
         assert name in outcome.stdout, name
+
+
+def test_help_keeps_the_toml_table_names_that_rich_would_read_as_markup():
+    result = CliRunner().invoke(app, ["tune", "--help"], env={"COLUMNS": "200"})
+    assert result.exit_code == 0
+    text = " ".join(result.output.split())
+    assert "its [tune] table" in text and "A [shadow] field to search" in text
