@@ -41,6 +41,10 @@ Each condition below is one row of :data:`_CONDITIONS`; the promise holds when a
    :data:`WORLD_LOCKED_DEPTH_FORMATS` (quantized over the scene's fixed light-space span in
    power-of-two steps, :mod:`csmlab.storage`).
 
+Face culling (``cull``, :mod:`csmlab.culling`) keeps the promise: the triangles it drops are
+chosen by their facing to the light direction alone, the same in every frame of a static light,
+whatever the camera or the boxes.
+
 Selection, blend bands and the fade-out — whatever their ``transition``, ``blend_curve`` or
 ``fade`` shape (a band placed forward or at the far bound, a smoothstep, a radial distance) — decide
 only *which* cascade a point reads or how much a camera-dependent weight counts; the temporal metric files those points under "cascade changed"

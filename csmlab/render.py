@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from csmlab.camera import CameraPose
+from csmlab.culling import culled_triangles
 from csmlab.cascades import CascadeSet, build_cascades
 from csmlab.cascades.bounds import BOUNDS_METHODS, DEPTH_RANGE_METHODS, visible_depth_range
 from csmlab.filters import faded, filter_inputs, lookup_shadow
@@ -55,7 +56,7 @@ class DeviceScene:
     light_space : dict
         The scene in the light space of the last light direction seen (what the cascade pass
         needs of every vertex and triangle, which a static light leaves unchanged from frame to
-        frame), keyed by the light basis.
+        frame), keyed by the light basis, its depth offset and the face cull (``settings.cull``).
     threads : int
         CPU threads a frame's kernels may use at once (one Warp CPU launch runs on one thread):
         1 where processes already share out the cores (:mod:`csmlab.executor`).
@@ -130,18 +131,22 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
                 previous_light_direction=before, previous_reference=previous)
 
 
-def _scene_in_light_space(dscene: DeviceScene, cascades: CascadeSet) -> LightSpaceMesh:
+def _scene_in_light_space(dscene: DeviceScene, cascades: CascadeSet, cull: str = "none") -> LightSpaceMesh:
     """The scene as the depth pass reads it (light-space x/y and depth of vertices, triangles), made once per light.
 
-    The triangles and vertices are listed along a Z-order curve in light space
-    (:func:`csmlab.kernels.raster.z_ordered`): the same mesh, rasterized place by place.
+    Only the triangles ``cull`` keeps (:func:`csmlab.culling.culled_triangles`, judged by ``d``
+    alone) are handed on, listed with their vertices along a Z-order curve in light space
+    (:func:`csmlab.kernels.raster.z_ordered`): the same mesh, rasterized place by place. Meshes of
+    the same light under other culls are kept beside it; another light's are dropped.
     """
-    key = (cascades.basis.tobytes(), cascades.zref)
+    light = (cascades.basis.tobytes(), cascades.zref)
+    key = (*light, cull)
     if key not in dscene.light_space:
         vertices = dscene.scene.vertices
         xy = light_plane_coordinates(cascades, vertices)
-        order, triangles = z_ordered(xy, dscene.scene.triangles)
-        dscene.light_space.clear()
+        order, triangles = z_ordered(xy, culled_triangles(vertices, dscene.scene.triangles, cascades.direction, cull))
+        for other in [k for k in dscene.light_space if k[:2] != light]:
+            del dscene.light_space[other]
         dscene.light_space[key] = light_space_mesh(xy[order], light_depth(cascades, vertices)[order], triangles)
     return dscene.light_space[key]
 
@@ -194,7 +199,7 @@ def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
     others are rasterized whole.
     """
     bits = settings.subtexel_bits
-    mesh = _scene_in_light_space(dscene, cascades)
+    mesh = _scene_in_light_space(dscene, cascades, settings.cull)
     bounds = mesh.bounds
     texel_size = np.stack([c.texel_size for c in cascades.cascades])
     # Box origins in texels (where the chunks' rectangles are measured) and in 2**-bits texels (the
@@ -235,7 +240,8 @@ def _host_snapped_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
 
     The path for what the culled kernels do not model: an engine's float32 cascade math
     (``engine_precision``, :mod:`csmlab.texels`) and casters clipped at a slice's near side
-    without pancaking (``depth_range = "slice"``, ``depth_clamp = false``).
+    without pancaking (``depth_range = "slice"``, ``depth_clamp = false``). Faces are culled as
+    on the other path (``settings.cull``, once per call, by ``d`` alone).
     """
     bits = settings.subtexel_bits
     vertices = dscene.scene.vertices
@@ -243,8 +249,9 @@ def _host_snapped_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
     sizes = [c.resolution for c in cascades.cascades]
     maps = np.full((len(sizes), max(sizes), max(sizes)), np.inf, dtype=np.float32)
     texels = 0
+    kept = culled_triangles(vertices, dscene.scene.triangles, cascades.direction, settings.cull)
     for c, cascade in enumerate(cascades.cascades):
-        triangles = dscene.scene.triangles
+        triangles = kept
         if DEPTH_RANGE_METHODS[settings.depth_range].cuts_casters and not settings.depth_clamp:
             triangles = clipped_casters(depth_of_vertex, triangles, near=cascade.depth_near - cascades.zref)
         if triangles.shape[0] == 0:

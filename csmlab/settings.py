@@ -11,6 +11,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, fields, replace
 
+from csmlab.culling import CULL_METHODS
 from csmlab.lookup_choices import CASTANO_SIZES, FILTER_METHODS, NORMAL_OFFSET_SCALES
 from csmlab.registry import check_name, parameters
 
@@ -97,6 +98,8 @@ class ShadowSettings:
     """pcf_poisson: seed of the disk's (deterministic) construction."""
     poisson_rotation: str = "none"
     """pcf_poisson, pcf_vogel: none (one disk everywhere) | pixel (rotated per screen pixel by interleaved gradient noise)."""
+    cull: str = "none"
+    """Faces the depth pass drops, judged in the light's view as OpenGL's glCullFace (counter-clockwise fronts): none (both rasterized) | back (keeps the faces turned toward the light) | front (keeps those turned away: three.js's shadowSide = BackSide) (csmlab.culling.CULL_METHODS)."""
     vogel_taps: int = 5
     """pcf_vogel: taps of the Vogel disk (Godot 4 Soft Low: 4, three.js PCFShadowMap: 5)."""
     vogel_radius: float = 1.0
@@ -235,6 +238,7 @@ class ShadowSettings:
         need(self.first_cascade_far > 0, "first_cascade_far", "a positive distance in metres", self.first_cascade_far)
         need(self.pancake >= 0, "pancake", "a non-negative distance in metres", self.pancake)
         need(isinstance(self.depth_clamp, bool), "depth_clamp", "true or false", self.depth_clamp)
+        need(self.cull in CULL_METHODS, "cull", f"one of {list(CULL_METHODS)}", self.cull)
         need(0.0 <= self.fade_out <= 1.0, "fade_out", "a fraction in [0, 1]", self.fade_out)
         need(0.0 <= self.hysteresis < 1.0, "hysteresis", "a fraction in [0, 1)", self.hysteresis)
         need(0.0 <= self.extent_hysteresis < 1.0, "extent_hysteresis", "a fraction in [0, 1)", self.extent_hysteresis)

@@ -85,7 +85,8 @@ class LightSpaceMesh:
     depth : ndarray, shape (V,), float64
         ``d·X − zref`` of each vertex in metres, finite.
     triangles : ndarray, shape (T, 3), int32
-        Vertex indices in ``[0, V)``; either winding.
+        Vertex indices in ``[0, V)``; either winding. The rows are those the method's face cull
+        kept (:func:`csmlab.culling.culled_triangles`, chosen on the host before this record is made).
     """
 
     xy: np.ndarray
