@@ -158,3 +158,17 @@ def test_a_bad_cull_in_an_experiment_exits_2_naming_cull(tmp_path, value, words)
     assert len(message.splitlines()) == 1 and "Traceback" not in outcome.output
     assert f"{path}:" in message and "shadow.cull" in message, message
     assert not (tmp_path / "out").exists()
+
+
+def test_each_engine_preset_culls_the_faces_its_engine_culls(tmp_path):
+    # three.js renders a FrontSide mesh's back faces (WebGLShadowMap getDepthMaterial: shadowSide
+    # FrontSide -> BackSide); Godot 4 and Bevy draw the material's default back-face culling; Stride
+    # (CullMode.None), MJP (NoCullDesc) and every preset not yet read for it rasterize both windings.
+    from csmlab.config import CONFIGS_DIR, load_experiment
+
+    expected = {"threejs_csm": "front", "godot4": "back", "bevy": "back"}
+    for preset in sorted((CONFIGS_DIR / "engines").glob("*.toml")):
+        path = tmp_path / "exp.toml"
+        path.write_text(f'extends = ["engines/{preset.stem}"]\n[camera]\npath = "walk"\n')
+        (method,) = load_experiment(path).methods
+        assert method.settings.cull == expected.get(preset.stem, "none"), preset.stem
