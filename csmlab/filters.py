@@ -19,7 +19,7 @@ through it). Each step is decided once, in the order it runs:
    float64 math it converts world receivers itself, steps 3–5 in one launch); ``weighted``
    filters run :func:`csmlab.kernels.pcf.weighted_pcf` and ``moment`` filters
    :func:`csmlab.kernels.moments.moment_lookup` (or its mip-chain lookup) at the selected cascade.
-6. **Fade** — toward lit over the end of the shadow distance (:func:`faded`).
+6. **Fade** — toward lit over the end of the shadow distance (:func:`csmlab.fades.faded`).
 
 Width per cascade: in texels from ``filter_size`` / ``filter_sigma``, or, with ``filter_width_m > 0``,
 the same width in metres in every cascade (the records' ``width``, :mod:`csmlab.lookup_choices`).
@@ -29,7 +29,6 @@ frame in the cascade pass (:func:`filter_inputs`).
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,6 +36,7 @@ import numpy as np
 from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet
 from csmlab.cascades.fit import BLEND_CURVES, transition_bands
+from csmlab.fades import FADE_METHODS, faded
 from csmlab.frame import ShadowLookup, ShadowMaps
 from csmlab.kernels.moments import blur_moments, moment_lookup, moment_maps, moment_mip_chain, moment_mip_lookup
 from csmlab.kernels.pcf import weighted_pcf
@@ -47,9 +47,8 @@ from csmlab.registry import check_name
 from csmlab.settings import ShadowSettings
 from csmlab.texels import PRECISION_METHODS, fixed_point_origin, receiver_lookup
 
-__all__ = ["FADE_METHODS", "FAMILY_LOOKUPS", "Fade", "Receivers", "faded", "filter_inputs", "interleaved_gradient_noise",
-           "lookup_shadow",
-           "screen_pixels", "texel_coordinates", "uses_pixels"]
+__all__ = ["FAMILY_LOOKUPS", "Receivers", "filter_inputs", "interleaved_gradient_noise", "lookup_shadow", "screen_pixels",
+           "texel_coordinates", "uses_pixels"]
 
 
 @dataclass(frozen=True)
@@ -401,86 +400,6 @@ def _shadow_of_points(found: tuple, receivers: Receivers, view_depth: np.ndarray
         # points with the transitions, not with same-cascade swimming.
         blend[index] |= fading
     return ShadowLookup(lit=lit.reshape(shape), cascade=cascade.reshape(shape), blend=blend.reshape(shape))
-
-
-@dataclass(frozen=True)
-class Fade:
-    """One shape of the far fade: the weight toward lit over the last ``fade_out`` of the shadow distance ``d``.
-
-    Attributes
-    ----------
-    weight : callable
-        ``weight(z, r, *, far, fade_out) -> w`` in [0, 1] from the view depth ``z`` and the distance
-        ``r`` to the camera (None unless :attr:`radial`), metres.
-    radial : bool
-        The weight reads the distance to the camera, not the view depth.
-    what : str
-        The shape in words, and whose it is.
-    """
-
-    weight: Callable[..., np.ndarray]
-    radial: bool
-    what: str
-
-
-def _ramp(u: np.ndarray, lo: float, hi: float) -> np.ndarray:
-    return np.clip((u - lo) / max(hi - lo, 1e-12), 0.0, 1.0)
-
-
-def _fade_linear(z, r, *, far: float, fade_out: float) -> np.ndarray:
-    return _ramp(np.asarray(z, dtype=np.float64), far * (1.0 - fade_out), far)
-
-
-def _fade_smoothstep(z, r, *, far: float, fade_out: float) -> np.ndarray:
-    t = _fade_linear(z, r, far=far, fade_out=fade_out)
-    return t * t * (3.0 - 2.0 * t)
-
-
-def _fade_radial(z, r, *, far: float, fade_out: float) -> np.ndarray:
-    return _ramp(np.asarray(r, dtype=np.float64), far * (1.0 - fade_out), far)
-
-
-def _fade_squared_radial(z, r, *, far: float, fade_out: float) -> np.ndarray:
-    r2 = np.square(np.asarray(r, dtype=np.float64))
-    return _ramp(r2, (far * (1.0 - fade_out)) ** 2, far * far)
-
-
-FADE_METHODS: dict[str, Fade] = {
-    "linear": Fade(_fade_linear, False, "linear in view depth from d (1 - f) to d (Unreal "
-                                        "ShadowDistanceFadeoutFraction; Unity built-in Close Fit)"),
-    "smoothstep": Fade(_fade_smoothstep, False, "smoothstep in view depth from d (1 - f) to d (Godot 4: "
-                                                "smoothstep(fade_from, fade_to, vertex.z), light_storage.cpp "
-                                                "fade_from = -split_offsets[3] · fade_start)"),
-    "radial": Fade(_fade_radial, True, "linear in the distance to the camera from d (1 - f) to d (Unity built-in "
-                                       "Stable Fit's spherical fade, UnityComputeShadowFadeDistance; its centre is "
-                                       "set natively, taken here as the camera)"),
-    "squared_radial": Fade(_fade_squared_radial, True, "linear in the squared distance to the camera from "
-                                                       "(d (1 - f))² to d² (Unity URP: ShadowUtils."
-                                                       "GetScaleAndBiasForLinearDistanceFade, GetMainLightShadowFade)"),
-}
-"""Far-fade shapes by name (``[shadow] fade``)."""
-
-
-def faded(lit: np.ndarray, view_depth: np.ndarray, *, far: float, fade_out: float, fade: str = "linear",
-          distance=None) -> tuple[np.ndarray, np.ndarray]:
-    """``lit`` ``(N,)`` faded toward 1 over the last ``fade_out`` fraction of ``far``.
-
-    With ``fade = "linear"`` the weight rises linearly in view depth from 0 at ``far (1 - fade_out)``
-    to 1 at ``far`` (Unreal's ``ShadowDistanceFadeoutFraction``); the other shapes are those of
-    :data:`FADE_METHODS`, the radial ones reading ``distance`` ``(N,)``, each receiver's distance to
-    the camera in metres.
-
-    Returns
-    -------
-    lit : ndarray, shape (N,), float32
-    fading : ndarray, shape (N,), bool
-        The weight is above 0.
-    """
-    record = FADE_METHODS[check_name(fade, FADE_METHODS, field="fade")]
-    if record.radial and distance is None:
-        raise ValueError(f"distance: fade = {fade!r} needs each receiver's distance to the camera")
-    weight = record.weight(view_depth, distance, far=far, fade_out=fade_out)
-    return (lit + (1.0 - lit) * weight).astype(np.float32), weight > 0.0
 
 
 def _box_origins(cascades: CascadeSet, settings: ShadowSettings) -> np.ndarray:

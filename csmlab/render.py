@@ -4,7 +4,7 @@ What depends on the camera and the light only — the G-buffer (step 5) and the 
 reference (step 7) — is :func:`render_view`, computed once per frame and shared by every shadow
 method. Each method then runs :func:`render_shadow`: cascades (steps 1–3), depth maps in fixed
 point (step 4) and the shadow lookup at every visible pixel (step 6, :func:`csmlab.filters.lookup_shadow`,
-which this module also offers as :func:`lookup_shadow`, with its fade :func:`faded`). :func:`render_frame`
+which this module also offers as :func:`lookup_shadow`; its fade is :mod:`csmlab.fades`). :func:`render_frame`
 does both. Each stage's wall-clock time goes into the records' ``timings``.
 """
 
@@ -19,7 +19,7 @@ from csmlab.camera import CameraPose
 from csmlab.culling import culled_triangles
 from csmlab.cascades import CascadeSet, build_cascades
 from csmlab.cascades.bounds import BOUNDS_METHODS, DEPTH_RANGE_METHODS, visible_depth_range
-from csmlab.filters import faded, filter_inputs, lookup_shadow
+from csmlab.filters import filter_inputs, lookup_shadow
 from csmlab.frame import Frame, GBuffer, ShadowMaps, View
 from csmlab.geometry import normalized
 from csmlab.kernels.raster import (BANDS_PER_THREAD, LightSpaceMesh, banded_regions, light_space_mesh,
@@ -35,7 +35,7 @@ from csmlab.storage import stored_depth
 from csmlab.texels import (PRECISION_METHODS, fixed_point_coordinates, fixed_point_origin, light_depth,
                            light_plane_coordinates)
 
-__all__ = ["DeviceScene", "clipped_casters", "faded", "lookup_shadow", "prepare_scene", "render_frame", "render_shadow",
+__all__ = ["DeviceScene", "clipped_casters", "lookup_shadow", "prepare_scene", "render_frame", "render_shadow",
            "render_view", "shadow_maps", "visible_depth"]
 
 

@@ -16,7 +16,8 @@ from csmlab.cascades import tight_extents
 from csmlab.config import CONFIGS_DIR, load_experiment
 from csmlab.errors import InputError
 from csmlab.experiment import run_experiment
-from csmlab.render import clipped_casters, faded
+from csmlab.fades import faded
+from csmlab.render import clipped_casters
 
 ENGINES = sorted(p.stem for p in (CONFIGS_DIR / "engines").glob("*.toml"))
 SEEDS = sorted(p.stem for p in (CONFIGS_DIR / "seeds").glob("*.toml"))

@@ -24,7 +24,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "csmlab"
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("foundations", ("csmlab", "csmlab.errors", "csmlab.files", "csmlab.registry", "csmlab.geometry",
                      "csmlab.metric_registry")),
-    ("settings", ("csmlab.lookup_choices", "csmlab.culling", "csmlab.settings")),
+    ("settings", ("csmlab.lookup_choices", "csmlab.culling", "csmlab.fades", "csmlab.settings")),
     ("kernels", ("csmlab.kernels",)),
     ("world", ("csmlab.camera", "csmlab.light", "csmlab.scene", "csmlab.paths", "csmlab.cascades", "csmlab.texels",
                "csmlab.quads", "csmlab.storage", "csmlab.scrolling", "csmlab.frame")),
@@ -108,8 +108,8 @@ def test_the_layer_check_sees_function_level_and_relative_imports(tmp_path):
     assert all(layer_of(name) > layer_of("csmlab.settings") for _, name in found)
 
 
-@pytest.mark.parametrize("module", ["csmlab.settings", "csmlab.lookup_choices", "csmlab.config", "csmlab.cascades",
-                                    "csmlab.results", "csmlab.regress"])
+@pytest.mark.parametrize("module", ["csmlab.settings", "csmlab.lookup_choices", "csmlab.fades", "csmlab.config",
+                                    "csmlab.cascades", "csmlab.results", "csmlab.regress"])
 def test_the_settings_and_the_config_load_without_warp(module):
     code = f"import sys, {module}; print(sorted(m for m in sys.modules if m == 'warp' or m.startswith('warp.')))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120)

@@ -291,7 +291,7 @@ def shadow_method_registries() -> dict:
     from csmlab.cascades.bounds import HOLD_METHODS
     from csmlab.cascades.fit import BLEND_CURVES, TRANSITION_METHODS
     from csmlab.culling import CULL_METHODS
-    from csmlab.filters import FADE_METHODS
+    from csmlab.fades import FADE_METHODS
     from csmlab.texels import PRECISION_METHODS
 
     return {"split": SPLIT_METHODS, "fit": FIT_METHODS, "stabilization": STABILIZATION_METHODS,
