@@ -72,14 +72,14 @@ class ShadowSettings:
     """Compare each filter tap against the receiver's tangent plane at that texel (derivative-based bias)."""
     blend_band: float = 0.0
     """Fraction of a cascade's depth range blended with the next cascade, in [0, 0.5]."""
-    subtexel_bits: int = 8
-    """Fixed-point bits below a texel for vertices and receivers (docs/design.md, "Exact zero")."""
-    depth_bytes: int = 0
-    """Bytes per stored depth texel (memory cost only); 0: what depth_format allocates (2, 4, 4)."""
     transition: str = "backward"
     """blend_band > 0: where each band lies, backward (the last blend_band of cascade i's width, cascade i + 1 reaching back) | far_bound (from (1 - blend_band) z_i+1 to z_i+1: Bevy) | forward (cascade i reaching blend_band of its width past its split: Unreal) (csmlab.cascades.fit.TRANSITION_METHODS)."""
     blend_curve: str = "linear"
     """blend_band > 0: the next cascade's weight over the band, linear | smoothstep (Stride, Godot) (csmlab.cascades.fit.BLEND_CURVES)."""
+    subtexel_bits: int = 8
+    """Fixed-point bits below a texel for vertices and receivers (docs/design.md, "Exact zero")."""
+    depth_bytes: int = 0
+    """Bytes per stored depth texel (memory cost only); 0: what depth_format allocates (2, 4, 4)."""
     depth_format: str = "float32"
     """Stored depth: float32 | unorm24 | unorm16, quantized over the scene's light-space depth range (csmlab.storage)."""
     storage: str = "array"
@@ -144,14 +144,14 @@ class ShadowSettings:
     """depth_range = slice or sphere: casters nearer than the near side are flattened onto it (pancaking) rather than clipped."""
     fade_out: float = 0.0
     """Fraction of the shadow distance at its end over which the shadow fades to lit (Unreal, Unity, Godot 1 - fade_start)."""
+    fade: str = "linear"
+    """fade_out > 0: the fade's shape, linear (in view depth: Unreal) | smoothstep (in view depth: Godot) | radial (linear in the distance to the camera: Unity built-in Stable Fit) | squared_radial (linear in its square: Unity URP) (csmlab.fades.FADE_METHODS)."""
     bounds: str = "frustum"
     """Depth range the splits divide, frustum (near .. shadow_distance) | sdsm (the frame's visible depth range, from the G-buffer)."""
     hysteresis: float = 0.0
     """bounds = sdsm with hold = fraction: the held range grows at once and shrinks only when the visible range is this fraction inside it."""
     hold: str = "fraction"
     """bounds = sdsm: how the visible range is held, fraction (hysteresis) | stepped (Stride: grows in 1.1^k and shrinks in 2^-k steps) (csmlab.cascades.bounds.HOLD_METHODS)."""
-    fade: str = "linear"
-    """fade_out > 0: the fade's shape, linear (in view depth: Unreal) | smoothstep (in view depth: Godot) | radial (linear in the distance to the camera: Unity built-in Stable Fit) | squared_radial (linear in its square: Unity URP) (csmlab.filters.FADE_METHODS)."""
     extent_hysteresis: float = 0.0
     """stabilization = none: the tight box's extent grows at once and shrinks only when the tight extent is this fraction below it (csmlab.cascades.stabilize.held_extents)."""
     engine_precision: str = "float64"
@@ -339,9 +339,6 @@ APPLIES: dict[str, Applies] = {
     "filter_sigma": Applies(lambda *, filter, filter_width_m: filter == "pcf_gaussian" and filter_width_m == 0,
                             'filter = "pcf_gaussian" and filter_width_m = 0 (σ in texels; a width in metres sets '
                             'σ otherwise)'),
-    "transition": Applies(lambda *, blend_band: blend_band > 0, "blend_band > 0 (where its bands lie)"),
-    "blend_curve": Applies(lambda *, blend_band: blend_band > 0, "blend_band > 0 (the weight over its bands)"),
-    "fade": Applies(lambda *, fade_out: fade_out > 0, "fade_out > 0 (the shape of the far fade)"),
     "filter_width_m": _filters(lambda f: f in ("pcf_gaussian", "pcf_tent", "pcf_poisson"), "the width in metres"),
     "poisson_taps": _filters(lambda f: f == "pcf_poisson", "the taps of its disk"),
     "poisson_seed": _filters(lambda f: f == "pcf_poisson", "the seed of its disk"),
