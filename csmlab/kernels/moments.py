@@ -61,6 +61,7 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device
+from csmlab.kernels.shadow import bilinear_corner
 from csmlab.lookup_choices import MOMENT_EVSM4, MOMENT_VSM, family_code
 
 __all__ = ["blur_moments", "moment_lookup", "moment_maps", "moment_mip_chain", "moment_mip_lookup"]
@@ -130,13 +131,8 @@ def chebyshev(mean: wp.float64, variance: wp.float64, t: wp.float64) -> wp.float
 def bilinear_moments(moments: wp.array3d(dtype=wp.vec4f), c: int, x: wp.int64, y: wp.int64,
                      unit: wp.int64) -> wp.vec4d:
     """The 2×2 texels around fixed-point ``(x, y)`` (``unit`` per texel), bilinear in its exact fraction."""
-    x2 = wp.int64(2) * x - unit
-    y2 = wp.int64(2) * y - unit
-    span = wp.int64(2) * unit
-    i0 = x2 // span
-    j0 = y2 // span
-    wx = wp.float64(x2 - i0 * span) / wp.float64(span)
-    wy = wp.float64(y2 - j0 * span) / wp.float64(span)
+    i0, wx = bilinear_corner(x, unit)
+    j0, wy = bilinear_corner(y, unit)
     one = wp.int64(1)
     w1 = wp.float64(1.0)
     return (w1 - wy) * ((w1 - wx) * fetch(moments, c, i0, j0) + wx * fetch(moments, c, i0 + one, j0)) + wy * (
@@ -387,13 +383,8 @@ def bilinear_level(levels: wp.array(dtype=wp.vec4f), offset: wp.array(dtype=wp.i
                    x: wp.int64, y: wp.int64, unit: wp.int64) -> wp.vec4d:
     """:func:`bilinear_moments` at ``level``: fixed-point level-0 ``(x, y)`` moved onto the level's global grid."""
     lunit = unit * (wp.int64(1) << wp.int64(level))
-    x2 = wp.int64(2) * (x + shift[c, level, 0]) - lunit
-    y2 = wp.int64(2) * (y + shift[c, level, 1]) - lunit
-    span = wp.int64(2) * lunit
-    i0 = x2 // span
-    j0 = y2 // span
-    wx = wp.float64(x2 - i0 * span) / wp.float64(span)
-    wy = wp.float64(y2 - j0 * span) / wp.float64(span)
+    i0, wx = bilinear_corner(x + shift[c, level, 0], lunit)
+    j0, wy = bilinear_corner(y + shift[c, level, 1], lunit)
     one = wp.int64(1)
     w1 = wp.float64(1.0)
     return (w1 - wy) * ((w1 - wx) * fetch_level(levels, offset, size, level, c, i0, j0)

@@ -80,6 +80,17 @@ def tap(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int64, r
 
 
 @wp.func
+def bilinear_corner(x: wp.int64, unit: wp.int64):
+    """The texel centre at or before fixed-point ``x`` (``unit`` per texel) on one axis, and the exact fraction
+    of ``x`` between it and the next centre: the index and weight of a bilinear footprint."""
+    # Texel centres sit at (2i + 1)·unit in doubled units, so the division is exact in integers.
+    x2 = wp.int64(2) * x - unit
+    span = wp.int64(2) * unit
+    i0 = x2 // span
+    return i0, wp.float64(x2 - i0 * span) / wp.float64(span)
+
+
+@wp.func
 def bilinear_tap(depth: wp.array3d(dtype=wp.float32), c: int, qx: wp.int64, qy: wp.int64, receiver: wp.float32,
                  slope: wp.vec2d, x: wp.int64, y: wp.int64, unit: wp.int64, inverse_span: wp.float64) -> wp.float64:
     """One hardware bilinear-compare tap at fixed point ``(qx, qy)``: the 2×2 texels around it, each a :func:`tap`
@@ -89,14 +100,8 @@ def bilinear_tap(depth: wp.array3d(dtype=wp.float32), c: int, qx: wp.int64, qy: 
     ``textureProj(sampler2DShadow)``, ``textureSampleCompareLevel``), at the fixed point's precision
     rather than the hardware's 8 sub-texel bits.
     """
-    # Texel centres sit at (2i + 1)·unit in doubled units; i0 is the centre at or left of the point.
-    x2 = wp.int64(2) * qx - unit
-    y2 = wp.int64(2) * qy - unit
-    span = wp.int64(2) * unit
-    i0 = x2 // span
-    j0 = y2 // span
-    wx = wp.float64(x2 - i0 * span) / wp.float64(span)
-    wy = wp.float64(y2 - j0 * span) / wp.float64(span)
+    i0, wx = bilinear_corner(qx, unit)
+    j0, wy = bilinear_corner(qy, unit)
     one = wp.int64(1)
     s00 = wp.float64(tap(depth, c, i0, j0, receiver, slope, x, y, unit, inverse_span))
     s10 = wp.float64(tap(depth, c, i0 + one, j0, receiver, slope, x, y, unit, inverse_span))
