@@ -115,12 +115,14 @@ def _project(path, reading: Reading) -> None:
         elif name == "16_bits":
             if not isinstance(value, bool):
                 raise InputError(f"expected true or false, got {value!r}", file=path, field=key)
-            reading.set("depth_format", "unorm16" if value else "float32", file=path, key=key, raw=value)
+            reading.set("depth_format", "unorm16" if value else "float32", file=path, key=key, raw=str(value).lower())
         else:
             reading.lack(file=path, key=key, value=value, why="no csmlab knob")
 
 
 def _light(path, reading: Reading) -> None:
+    if not read_text(path).lstrip().startswith(("[gd_scene", "[gd_resource")):
+        raise InputError("expected a Godot scene ([gd_scene …] on the first line)", file=path, field="gd_scene")
     sections = config_sections(path)
     if len(sections) < 2 or sections[1][0] not in ("gd_scene", "gd_resource"):
         raise InputError("expected a Godot scene ([gd_scene …] on the first line)", file=path, field="gd_scene")
@@ -170,7 +172,8 @@ def _light(path, reading: Reading) -> None:
         if start > 1.0:
             raise InputError(f"expected a fraction in [0, 1], got {start}", file=path,
                              field=prefix + "directional_shadow_fade_start")
-        reading.set("fade_out", 1.0 - start, file=path, key=prefix + "directional_shadow_fade_start", raw=start)
+        # Rounded to 12 digits: 1 - 0.8 is 0.19999999999999996 in binary, Godot's fade_start is a float32.
+        reading.set("fade_out", round(1.0 - start, 12), file=path, key=prefix + "directional_shadow_fade_start", raw=start)
     if "shadow_reverse_cull_face" in keys:
         reading.set("cull", "front" if keys["shadow_reverse_cull_face"] is True else "back", file=path,
                     key=prefix + "shadow_reverse_cull_face", raw=keys["shadow_reverse_cull_face"])

@@ -106,6 +106,9 @@ def read_threejs_csm(paths) -> Imported:
         if "shadowRadius" in options:
             reading.set("vogel_radius", number(options["shadowRadius"], file=path, key="shadowRadius", above=0.0),
                         file=path, key="shadowRadius")
+        for key in sorted(set(options) - known):
+            reading.lack(file=path, key=key, value=json.dumps(options[key]),
+                         why="the light is the experiment's [light]" if key.startswith("light") else "no csmlab knob")
     return reading.result()
 
 

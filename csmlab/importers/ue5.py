@@ -98,6 +98,8 @@ def read_ue5(paths) -> Imported:
             if any(s.startswith("ShadowQuality@") for s in parser.sections()):
                 scalability.append((path, parser))
             for section in parser.sections():
+                if "@" in section:
+                    continue  # a scalability level: only the one in use applies, below
                 for key, value in parser.items(section):
                     if key.lower().startswith(("r.shadow", "sg.shadowquality")):
                         cvars[key.lower()] = (value, path, f"[{section}] {key}")
@@ -112,7 +114,8 @@ def read_ue5(paths) -> Imported:
 
     def cvar(name, **checks):
         value, path, key = cvars.pop(name.lower())
-        return number(value, file=path, key=key, **checks), path, key
+        # The engine reads a cvar's leading number: project files often trail it with "; comment".
+        return number(value.split(";", 1)[0].strip(), file=path, key=key, **checks), path, key
 
     def prop(name, **checks):
         value, path = light.pop(name)
