@@ -263,8 +263,9 @@ def _about(obj) -> str:
 
 @app.command("list")
 def list_names() -> None:
-    """List scenes, camera paths, file formats, conventions, methods, presets and experiments."""
+    """List scenes, camera paths, file formats, conventions, methods, presets, experiments and importers."""
     from csmlab.config import list_experiments, list_presets, shadow_method_registries
+    from csmlab.importers import IMPORT_METHODS
     from csmlab.paths import CONVENTIONS, PATH_FORMATS, PATH_GENERATORS
     from csmlab.scene import SCENE_KINDS
 
@@ -280,6 +281,8 @@ def list_names() -> None:
         (field, ", ".join(registry)) for field, registry in shadow_method_registries().items()]))
     console.print(_names_table("presets (extends = [...])", list_presets().items()))
     console.print(_names_table("experiments (csmlab run NAME)", list_experiments().items()))
+    console.print(_names_table("engine files (csmlab import ENGINE FILE...)",
+                               [(k, v.files) for k, v in IMPORT_METHODS.items()]))
 
 
 @app.command()
@@ -385,8 +388,7 @@ def tune(
 
 @app.command("import")
 def import_(
-    engine: str = typer.Argument(..., help="The engine: godot4, unity_urp, unity_builtin, ue5, filament, threejs_csm "
-                                           "or bevy."),
+    engine: str = typer.Argument(..., help="The engine (csmlab list names each with its files)."),
     files: list[Path] = typer.Argument(..., help="The engine's own files (README.md, 'Your engine's settings')."),
     out: Path = typer.Option(..., "--out", help="The method preset to write (TOML, for extends)."),
     name: Optional[str] = typer.Option(None, "--name", help="The method's name; default the file's stem."),

@@ -38,7 +38,7 @@ class EngineFiles:
     preset : callable
         ``preset(settings) -> str``: the engine preset a setting is written against.
     files : str
-        What to pass, for the documentation and ``csmlab list``.
+        The files to pass, in words (``csmlab list``).
     """
 
     read: Callable[..., Imported]

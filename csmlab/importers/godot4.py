@@ -20,7 +20,7 @@ from pathlib import Path
 
 from csmlab.engine_export import _hard, split_boundaries
 from csmlab.errors import InputError
-from csmlab.importers.reading import Imported, Reading, number, read_text
+from csmlab.importers.reading import Imported, Reading, engine_settings, number, read_text
 from csmlab.settings import ShadowSettings
 
 __all__ = ["FIELDS", "PRESET", "config_sections", "read_godot4", "write_godot4"]
@@ -253,6 +253,4 @@ def write_godot4(settings: ShadowSettings, *, near: float, far: float) -> tuple[
 
 def _soft_low_radius() -> float:
     """Soft Low's disk radius in texels at shadow_blur 1: the preset's vogel_radius."""
-    from csmlab.importers.reading import engine_settings
-
     return engine_settings(PRESET).vogel_radius

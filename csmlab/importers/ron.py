@@ -58,7 +58,7 @@ def parse_ron(text: str, *, file=None):
 
     def parenthesised():
         take("(")
-        kind, text_, _ = peek()
+        kind = peek()[0]
         after = tokens[position[0] + 1][1] if position[0] + 1 < len(tokens) else ""
         if kind == "ident" and after == ":":
             fields = {}

@@ -53,31 +53,23 @@ def _ini(path) -> configparser.ConfigParser:
 
 
 def _light_properties(path) -> dict:
-    """``{Key: value}`` of the first DirectionalLight actor in T3D text (its component's properties)."""
-    properties, depth, inside = {}, 0, False
+    """``{Key: value}`` of the first DirectionalLight actor in T3D text (its components' property lines)."""
+    properties, found = {}, False
     for line in read_text(path).splitlines():
         begin, end = _BEGIN.match(line), _END.match(line)
-        if begin:
-            if begin.group(1).lower() == "actor" and re.search(r"Class=\S*\bDirectionalLight\b", begin.group(2)):
-                if properties:
-                    break
-                inside, depth = True, 0
-            elif inside:
-                depth += 1
-        elif end and inside:
-            if end.group(1).lower() == "actor":
+        if begin and begin.group(1).lower() == "actor":
+            if found:
                 break
-            depth -= 1
-        elif inside:
+            found = re.search(r"Class=\S*\bDirectionalLight\b", begin.group(2)) is not None
+        elif found and end and end.group(1).lower() == "actor":
+            break
+        elif found and not begin and not end:
             match = _PROPERTY.match(line)
             if match:
                 properties.setdefault(match.group(1), match.group(2))
-        if begin and inside and not properties:
-            properties["__actor__"] = True
-    if not properties:
+    if not found:
         raise InputError("expected T3D text with a DirectionalLight actor (Begin Actor Class=…DirectionalLight)",
                          file=path, field="Begin Actor")
-    properties.pop("__actor__", None)
     return properties
 
 
@@ -104,7 +96,7 @@ def read_ue5(paths) -> Imported:
                     if key.lower().startswith(("r.shadow", "sg.shadowquality")):
                         cvars[key.lower()] = (value, path, f"[{section}] {key}")
         else:
-            light = {k: (v, path) for k, v in _light_properties(path).items()} or light
+            light = {k: (v, path) for k, v in _light_properties(path).items()}
     level = cvars.get("sg.shadowquality", (str(_DEFAULT_SHADOW_QUALITY), None, None))[0]
     for path, parser in scalability:
         section = f"ShadowQuality@{level}"

@@ -136,7 +136,7 @@ def write_unity_builtin(settings: ShadowSettings, *, near: float, far: float) ->
         lacking.append(f"resolution = {size} (Unity's levels give {top} >> k at 640 px: "
                        f"{top >> (_VERY_HIGH - steps)} written)")
     four = fractions if cascades == 4 else list(engine_settings(preset).splits[:3])
-    level = [f"  - serializedVersion: 2", f"    name: csmlab",
+    level = ["  - serializedVersion: 2", "    name: csmlab",
              f"    shadows: {1 if _hard(settings) else 2}", f"    shadowResolution: {steps}",
              f"    shadowProjection: {1 if preset == PRESETS[1] else 0}", f"    shadowCascades: {cascades}",
              f"    shadowDistance: {float(z[-1])!r}",

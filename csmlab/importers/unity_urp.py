@@ -38,7 +38,7 @@ _UNMODELLED = {"m_ConservativeEnclosingSphere": "URP's tighter cascade spheres (
                "m_ShadowType": "an obsolete field of early URP assets"}
 
 
-def _split_fractions(fields: dict, cascades: int, path, base: ShadowSettings) -> tuple[list, str] | None:
+def _split_fractions(fields: dict, cascades: int, path) -> tuple[list, str] | None:
     key = {2: "m_Cascade2Split", 3: "m_Cascade3Split", 4: "m_Cascade4Split"}.get(cascades)
     if key is None or key not in fields:
         return None
@@ -80,7 +80,7 @@ def read_unity_urp(paths) -> Imported:
             if cascades > 4:
                 raise InputError(f"expected 1 to 4 cascades, got {cascades}", file=path, field="m_ShadowCascadeCount")
             reading.set("cascades", cascades, file=path, key="m_ShadowCascadeCount")
-        found = _split_fractions(fields, cascades, path, base)
+        found = _split_fractions(fields, cascades, path)
         if found is not None or "m_ShadowCascadeCount" in fields:
             fractions, key = found if found is not None else (
                 list(_FEWER_SPLITS.get(cascades, base.splits[:cascades - 1])), "m_ShadowCascadeCount")
