@@ -412,10 +412,12 @@ def import_(
             try:
                 load_experiment(Path(folder) / "probe.toml")
             except InputError as exc:
+                # Name the engine's file and key the refused value came from (origins: "file name: key = value").
                 field = (exc.field or "").rsplit(".", 1)[-1]
                 origin = imported.origins.get("lambda_" if field == "lambda" else field, "")
-                raise InputError(exc.detail, file=origin.split(": ", 1)[0] or files[0],
-                                 field=origin.split(": ", 1)[-1].split(" = ", 1)[0] or field) from None
+                name, _, key = origin.partition(": ")
+                raise InputError(exc.detail, file=next((f for f in files if f.name == name), files[0]),
+                                 field=key.split(" = ", 1)[0] or field) from None
     except ValueError as exc:
         raise _bad_input(exc) from None
     write_atomic(out, text)

@@ -262,6 +262,12 @@ def test_cli_import_of_a_bad_file_exits_2_with_one_line(tmp_path):
     done = _csmlab("import", "threejs_csm", bad, "--out", tmp_path / "x.toml")
     assert done.returncode == 2 and done.stderr.count("\n") == 1 and str(bad) in done.stderr
     assert not (tmp_path / "x.toml").exists()
+    near = tmp_path / "near.asset"
+    near.write_text((DATA / "unity_urp/UniversalRP-HighQuality.asset").read_text().replace(
+        "m_ShadowDistance: 100", "m_ShadowDistance: 0.05"))
+    refused = _csmlab("import", "unity_urp", near, "--out", tmp_path / "x.toml")
+    assert refused.returncode == 2 and f"{near}: m_ShadowDistance: expected a distance greater than near" in \
+        refused.stderr
     unknown = _csmlab("import", "cryengine", bad, "--out", tmp_path / "x.toml")
     assert unknown.returncode == 2 and "expected one of ['bevy'" in unknown.stderr
 
