@@ -273,7 +273,9 @@ def test_cli_import_of_a_bad_file_exits_2_with_one_line(tmp_path):
 
 
 REAL = {
-    "godot4": (["godot4/project.godot", "godot4/test.tscn"], {"cascades": 1, "shadow_distance": 32.0}),
+    # One split (directional_shadow_mode = 0) fills Godot's default 4096 atlas: one 4096 map.
+    "godot4": (["godot4/project.godot", "godot4/test.tscn"], {"cascades": 1, "shadow_distance": 32.0,
+                                                              "resolution": 4096, "storage": "array"}),
     "unity_urp": (["unity_urp/SamplesPipelineAsset.asset"], {"splits": (0.16, 0.32, 0.64, 1.0), "fade_out": 0.1}),
     "unity_builtin": (["unity_builtin/QualitySettings.asset"], {"cascades": 4, "shadow_distance": 150.0}),
 }

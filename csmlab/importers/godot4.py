@@ -217,6 +217,10 @@ def read_godot4(paths) -> Imported:
         reading.set("resolution", 2 * reading.base.resolution, file=reading.origins["cascades"].split(":")[0],
                     key="directional_shadow_mode",
                     raw="0 (one split takes the whole default atlas)")
+    if reading.values.get("cascades", reading.base.cascades) == 1:
+        # One split fills the atlas: one texture of one map, csmlab's array of one slice (memory_bytes).
+        reading.set("storage", "array", file=reading.origins["cascades"].split(":")[0],
+                    key="directional_shadow_mode", raw="0 (one split fills the atlas)")
     return reading.result()
 
 

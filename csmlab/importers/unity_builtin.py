@@ -96,6 +96,8 @@ def read_unity_builtin(paths) -> Imported:
     else:
         reading.set("split", "manual", file=path, key=f"{where}.shadowCascades", raw=1)
         reading.set("splits", (1.0,), file=path, key=f"{where}.shadowCascades", raw=1)
+        # One cascade takes the whole shadowmap: csmlab's array of one slice (memory_bytes).
+        reading.set("storage", "array", file=path, key=f"{where}.shadowCascades", raw=1)
     if "shadowDistance" in level:
         reading.set("shadow_distance", number(level["shadowDistance"], file=path, key=f"{where}.shadowDistance",
                                               above=0.0), file=path, key=f"{where}.shadowDistance")

@@ -98,6 +98,13 @@ def read_unity_urp(paths) -> Imported:
                            integer=True, minimum=1)
             reading.set("resolution", atlas if cascades == 1 else atlas // 2, file=path,
                         key="m_MainLightShadowmapResolution", raw=atlas)
+        if cascades == 1:
+            # One cascade takes the whole shadowmap: one texture of one map, csmlab's array of one slice.
+            reading.set("storage", "array", file=path, key="m_ShadowCascadeCount", raw=1)
+        elif cascades == 2:
+            reading.lack(file=path, key="m_ShadowCascadeCount", value=2,
+                         why="URP allocates 2 tiles (the atlas's half height), csmlab's 2x2 layout counts 4 in "
+                             "memory_bytes")
         if "m_SoftShadowsSupported" in fields:
             soft = number(fields["m_SoftShadowsSupported"], file=path, key="m_SoftShadowsSupported", integer=True)
             quality = fields.get("m_SoftShadowQuality", _SOFT_MEDIUM)
