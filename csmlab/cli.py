@@ -1,7 +1,8 @@
 """The ``csmlab`` command (docs/design.md, "Interfaces").
 
 ``run`` an experiment, re-render its ``report``, ``regress`` it against a ``baseline``, ``compare`` two
-runs of one workload, ``list`` what can be named in an experiment, ``show`` an experiment resolved.
+runs of one workload, ``list`` what can be named in an experiment, ``show`` an experiment resolved,
+``import`` an engine's own settings files as a method preset.
 Exit codes: 0 success, 1 a regression found, 2 bad input — one line naming the file, the field and
 what was expected, never a traceback.
 """
@@ -262,8 +263,9 @@ def _about(obj) -> str:
 
 @app.command("list")
 def list_names() -> None:
-    """List scenes, camera paths, file formats, conventions, methods, presets and experiments."""
+    """List scenes, camera paths, file formats, conventions, methods, presets, experiments and importers."""
     from csmlab.config import list_experiments, list_presets, shadow_method_registries
+    from csmlab.importers import IMPORT_METHODS
     from csmlab.paths import CONVENTIONS, PATH_FORMATS, PATH_GENERATORS
     from csmlab.scene import SCENE_KINDS
 
@@ -279,6 +281,8 @@ def list_names() -> None:
         (field, ", ".join(registry)) for field, registry in shadow_method_registries().items()]))
     console.print(_names_table("presets (extends = [...])", list_presets().items()))
     console.print(_names_table("experiments (csmlab run NAME)", list_experiments().items()))
+    console.print(_names_table("engine files (csmlab import ENGINE FILE...)",
+                               [(k, v.files) for k, v in IMPORT_METHODS.items()]))
 
 
 @app.command()
@@ -380,6 +384,48 @@ def tune(
     console.print(f"recommended: {result.recommended.label} → {out_dir / 'recommended.toml'}; engine snippets in "
                   f"{out_dir / 'exports'}")
     console.print(f"report:  {out_dir / 'index.html'}")
+
+
+@app.command("import")
+def import_(
+    engine: str = typer.Argument(..., help="The engine (csmlab list names each with its files)."),
+    files: list[Path] = typer.Argument(..., help="The engine's own files (README.md, 'Your engine's settings')."),
+    out: Path = typer.Option(..., "--out", help="The method preset to write (TOML, for extends)."),
+    name: Optional[str] = typer.Option(None, "--name", help="The method's name; default the file's stem."),
+) -> None:
+    """Read an engine's shadow settings from its own files as a method preset: each field commented with the file
+    and key it came from, the engine settings csmlab cannot model listed."""
+    import tempfile
+
+    from csmlab.config import load_experiment
+    from csmlab.importers import import_settings, preset_toml
+    from csmlab.files import write_atomic
+
+    try:
+        imported = import_settings(files, engine=engine)
+        text = preset_toml(imported, name=name or out.stem, files=files)
+        with tempfile.TemporaryDirectory() as folder:
+            # The preset must load as csmlab loads it: a value the engine allows but csmlab refuses is bad input.
+            (Path(folder) / "preset.toml").write_text(text, encoding="utf-8")
+            (Path(folder) / "probe.toml").write_text('extends = ["preset.toml"]\n[camera]\npath = "walk"\n',
+                                                      encoding="utf-8")
+            try:
+                load_experiment(Path(folder) / "probe.toml")
+            except InputError as exc:
+                # Name the engine's file and key the refused value came from (origins: "file name: key = value").
+                field = (exc.field or "").rsplit(".", 1)[-1]
+                origin = imported.origins.get("lambda_" if field == "lambda" else field, "")
+                name, _, key = origin.partition(": ")
+                raise InputError(exc.detail, file=next((f for f in files if f.name == name), files[0]),
+                                 field=key.split(" = ", 1)[0] or field) from None
+    except ValueError as exc:
+        raise _bad_input(exc) from None
+    write_atomic(out, text)
+    console = _out()
+    console.print(f"{engine}: {len(imported.origins)} field(s) from {len(files)} file(s), "
+                  f"{len(imported.unmodelled)} setting(s) not modelled → {out}")
+    for item in imported.unmodelled:
+        console.print(f"  not modelled: {escape(item)}")
 
 
 def _tune_table(result) -> Table:

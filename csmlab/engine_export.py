@@ -32,7 +32,7 @@ Sources of the engine names
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -62,6 +62,9 @@ class Snippet:
         The snippet.
     lacking : tuple of str
         csmlab knobs the engine has no setting for, each with the value this setting uses.
+    files : tuple of (str, str)
+        The engine's own files holding the setting, ``(file name, text)``: what ``csmlab import``
+        reads back (csmlab.importers); empty for an engine without an importer.
     """
 
     engine: str
@@ -69,6 +72,7 @@ class Snippet:
     language: str
     text: str
     lacking: tuple[str, ...]
+    files: tuple[tuple[str, str], ...] = ()
 
 
 def split_boundaries(settings: ShadowSettings, *, near: float, far: float) -> np.ndarray:
@@ -335,12 +339,43 @@ def export_threejs_csm(settings: ShadowSettings, *, near: float, far: float) -> 
     return Snippet("threejs_csm", "three.js: CSM options", "javascript", "\n".join(lines) + "\n", tuple(lacking))
 
 
+def export_unity_builtin(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
+    """Unity's built-in pipeline: a quality level of ``ProjectSettings/QualitySettings.asset``."""
+    from csmlab.importers.unity_builtin import write_unity_builtin
+
+    lacking = _common_lacking(settings, stable="exact") + _shape_lacking(settings, fade="radial")
+    if settings.blend_band > 0:
+        lacking.append(f"blend_band = {settings.blend_band} (the built-in pipeline blends no cascades)")
+    files, _ = write_unity_builtin(settings, near=near, far=far)
+    (text,) = files.values()
+    return Snippet("unity_builtin", "Unity built-in pipeline: ProjectSettings/QualitySettings.asset", "yaml", text,
+                   tuple(lacking))
+
+
+def export_filament(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
+    """Filament: the sun's ``LightManager::ShadowOptions`` in the viewer's settings JSON."""
+    from csmlab.importers.filament import write_filament
+
+    lacking = _common_lacking(settings, stable="none")
+    lacking = [item for item in lacking if not item.startswith(("stabilization", "bias_constant"))]
+    if settings.stabilization not in ("none", "exact"):
+        lacking.append(f"stabilization = {settings.stabilization!r} (Filament's stable is on or off)")
+    if settings.blend_band > 0:
+        lacking.append(f"blend_band = {settings.blend_band} (Filament blends no cascades)")
+    files, _ = write_filament(settings, near=near, far=far)
+    (text,) = files.values()
+    return Snippet("filament", "Filament: the viewer's settings JSON (LightManager::ShadowOptions)", "json", text,
+                   tuple(lacking))
+
+
 EXPORT_METHODS: dict[str, Callable[..., Snippet]] = {
     "ue5": export_ue5,
     "unity_urp": export_unity_urp,
+    "unity_builtin": export_unity_builtin,
     "godot4": export_godot4,
     "bevy": export_bevy,
     "threejs_csm": export_threejs_csm,
+    "filament": export_filament,
 }
 """Exporters by engine name (the names of their presets in ``configs/engines``)."""
 
@@ -357,9 +392,20 @@ def export(settings: ShadowSettings, *, near: float, far: float, engine: str) ->
     engine : str
         A key of :data:`EXPORT_METHODS`.
 
+    An engine with an importer (csmlab.importers.IMPORT_METHODS) also gets its own files, and every
+    knob they cannot hold is added to ``lacking``.
+
     Raises
     ------
     ValueError
         For an unknown engine (the known ones listed).
     """
-    return dispatch(EXPORT_METHODS, engine, settings, field="engine", near=near, far=far)
+    from csmlab.importers import IMPORT_METHODS, engine_files
+
+    snippet = dispatch(EXPORT_METHODS, engine, settings, field="engine", near=near, far=far)
+    if engine not in IMPORT_METHODS:
+        return snippet
+    files, more = engine_files(settings, near=near, far=far, engine=engine)
+    named = " ".join(snippet.lacking)
+    extra = tuple(item for item in more if f"{item.split(' =', 1)[0]} =" not in named)
+    return replace(snippet, lacking=snippet.lacking + extra, files=tuple(files.items()))

@@ -650,7 +650,7 @@ def tune(experiment: Experiment, *, out_dir, space: dict | None = None, objectiv
 
 
 _SUFFIXES = {"ini": ("ini", ";"), "csharp": ("cs", "//"), "gdscript": ("txt", "#"), "rust": ("rs", "//"),
-             "javascript": ("js", "//")}
+             "javascript": ("js", "//"), "yaml": ("asset", "#"), "json": ("txt", "//")}
 
 
 def write_outputs(result: TuneResult, out_dir, *, near: float, far: float) -> Path:
@@ -680,6 +680,9 @@ def write_outputs(result: TuneResult, out_dir, *, near: float, far: float) -> Pa
         lacking = "".join(f"{comment} lacks: {item}\n" for item in snippet.lacking)
         write_atomic(out_dir / "exports" / f"{snippet.engine}.{suffix}",
                      f"{comment} {snippet.title} — csmlab tune of {result.name}, {best.label}\n{snippet.text}{lacking}")
+        for name, text in snippet.files:
+            # The engine's own files, as the engine writes them: csmlab import ENGINE reads them back.
+            write_atomic(out_dir / "exports" / snippet.engine / name, text)
     return write_tune_report(out_dir, result, snippets=snippets, preset_file="recommended.toml")
 
 

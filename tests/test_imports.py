@@ -31,7 +31,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("lookup and render", ("csmlab.filters", "csmlab.render")),
     ("metrics", ("csmlab.metrics",)),
     ("run records", ("csmlab.config", "csmlab.results", "csmlab.executor", "csmlab.engine_export",
-                     "csmlab.invariants")),
+                     "csmlab.importers", "csmlab.invariants")),
     ("judgement and reports", ("csmlab.regress", "csmlab.compare", "csmlab.verdict", "csmlab.report")),
     ("experiment", ("csmlab.experiment",)),
     ("tune", ("csmlab.tune",)),

@@ -75,16 +75,20 @@ def experiment_toml(experiment: Experiment, *, comments: bool = True) -> str:
     return "\n".join(lines)
 
 
-def method_preset_toml(name: str, settings: ShadowSettings, *, description: str, header: str = "") -> str:
+def method_preset_toml(name: str, settings: ShadowSettings, *, description: str, header: str = "",
+                       notes: dict | None = None, default_note: str = "") -> str:
     """A method preset (``configs/methods`` form) holding every field of ``settings`` that applies, each documented.
 
     ``header`` becomes comment lines at the top; ``extends = ["that_file.toml"]`` then gives a method
     named ``name`` with these settings (a field that does not apply, :data:`~csmlab.settings.APPLIES`,
-    is left out: it would change nothing, and the loader refuses it).
+    is left out: it would change nothing, and the loader refuses it). ``notes`` (``{TOML name: comment}``),
+    when given, comment each field in place of its documentation, ``default_note`` the fields it does
+    not name (``csmlab import``: where each value came from).
     """
     lines = [f"# {line}" for line in header.splitlines()]
+    docs = field_docs(ShadowSettings) if notes is None else {k: notes.get(k, default_note)
+                                                                for k in _settings_document(settings)}
     lines += [f"description = {_toml_value(description)}", "", "[[methods]]", f"name = {_toml_value(name)}",
               *_toml_table({k: v for k, v in _settings_document(settings).items()
-                            if k not in APPLIES or APPLIES[k].holds(settings)}, field_docs(ShadowSettings),
-                           comments=True)]
+                            if k not in APPLIES or APPLIES[k].holds(settings)}, docs, comments=True)]
     return "\n".join(lines) + "\n"

@@ -1,0 +1,135 @@
+"""Filament: the viewer's settings JSON (``libs/viewer``: ``Settings.h``, ``JsonSerializer``), read and written.
+
+The sun's ``LightManager::ShadowOptions`` sit at ``lighting.sunlight.shadowOptions`` (older viewers:
+``lighting.shadowOptions``) and ``view.shadowType`` picks the filter (google/filament @000e151b,
+libs/viewer/src/Settings.cpp ``parse(…, LightManager::ShadowOptions*)``). ``mapSize`` (resolution),
+``shadowCascades``, ``cascadeSplitPositions`` (fractions of the range from the near plane: split =
+"manual_range"), ``shadowFar`` (0: the camera's far plane), ``stable``, ``constantBias`` (metres toward the
+light), ``normalBias`` (ShadowMapManager halves it: normal_offset = 0.5 · normalBias texels),
+``polygonOffsetSlope`` and ``polygonOffsetConstant`` (DEPTH16 steps: bias_depth_range = constant / 2^16)
+map to csmlab fields; missing keys keep ``configs/engines/filament.toml``.
+"""
+
+from __future__ import annotations
+
+import json
+
+from csmlab.engine_export import split_boundaries
+from csmlab.errors import InputError
+from csmlab.importers.reading import Imported, Reading, engine_settings, number, read_text
+from csmlab.settings import ShadowSettings
+
+__all__ = ["FIELDS", "PRESET", "read_filament", "write_filament"]
+
+PRESET = "filament"
+"""The engine preset holding Filament's defaults."""
+
+FIELDS = frozenset({"cascades", "split", "splits", "lambda_", "shadow_distance", "stabilization", "bias_constant",
+                    "normal_offset", "bias_slope", "bias_depth_range", "resolution"})
+"""The csmlab fields the settings JSON carries."""
+
+DEPTH16_STEPS = 65536.0
+"""polygonOffsetConstant's unit: one step of the DEPTH16 shadow map."""
+NORMAL_BIAS_SCALE = 0.5
+"""ShadowMapManager: normalBias = 0.5 · ShadowOptions.normalBias · texel ("a half-texel size")."""
+
+
+def _options(document: dict, path) -> tuple[dict, str]:
+    lighting = document.get("lighting")
+    if not isinstance(lighting, dict):
+        raise InputError("expected a Filament viewer settings object with a lighting section", file=path,
+                         field="lighting")
+    sun = lighting.get("sunlight")
+    if isinstance(sun, dict) and isinstance(sun.get("shadowOptions"), dict):
+        return sun["shadowOptions"], "lighting.sunlight.shadowOptions"
+    if isinstance(lighting.get("shadowOptions"), dict):
+        return lighting["shadowOptions"], "lighting.shadowOptions"
+    return {}, "lighting.sunlight.shadowOptions"
+
+
+def read_filament(paths) -> Imported:
+    """Filament settings from the viewer's settings JSON.
+
+    Raises
+    ------
+    InputError
+        Not JSON, not viewer settings, or a value out of range (file and key named).
+    """
+    reading = Reading("filament", PRESET)
+    base = reading.base
+    for path in paths:
+        try:
+            document = json.loads(read_text(path))
+        except json.JSONDecodeError as exc:
+            raise InputError(f"expected JSON, got {exc.msg}", file=path, line=exc.lineno) from None
+        if not isinstance(document, dict):
+            raise InputError("expected a JSON object of viewer settings", file=path, field="lighting")
+        options, where = _options(document, path)
+        cascades = base.cascades
+        if "shadowCascades" in options:
+            cascades = number(options["shadowCascades"], file=path, key=f"{where}.shadowCascades", integer=True,
+                              minimum=1)
+            if cascades > 4:
+                raise InputError(f"expected 1 to 4 cascades, got {cascades}", file=path, field=f"{where}.shadowCascades")
+            reading.set("cascades", cascades, file=path, key=f"{where}.shadowCascades")
+        if "cascadeSplitPositions" in options:
+            key = f"{where}.cascadeSplitPositions"
+            positions = options["cascadeSplitPositions"]
+            if not isinstance(positions, list) or len(positions) < cascades - 1:
+                raise InputError(f"expected a list of at least {cascades - 1} fractions, got {positions!r}", file=path,
+                                 field=key)
+            fractions = [number(v, file=path, key=key, above=0.0) for v in positions[:cascades - 1]] + [1.0]
+            if any(b <= a for a, b in zip(fractions, fractions[1:])):
+                raise InputError(f"expected increasing fractions below 1, got {positions}", file=path, field=key)
+            reading.set("split", "manual_range", file=path, key=key, raw=positions)
+            reading.set("splits", tuple(fractions), file=path, key=key, raw=positions)
+        if "shadowFar" in options:
+            far = number(options["shadowFar"], file=path, key=f"{where}.shadowFar", minimum=0.0)
+            if far > 0:
+                reading.set("shadow_distance", far, file=path, key=f"{where}.shadowFar")
+        if "stable" in options:
+            stable = options["stable"]
+            if not isinstance(stable, bool):
+                raise InputError(f"expected true or false, got {stable!r}", file=path, field=f"{where}.stable")
+            reading.set("stabilization", "exact" if stable else "none", file=path, key=f"{where}.stable", raw=stable)
+        scaled = {"constantBias": ("bias_constant", 1.0), "normalBias": ("normal_offset", NORMAL_BIAS_SCALE),
+                  "polygonOffsetSlope": ("bias_slope", 1.0),
+                  "polygonOffsetConstant": ("bias_depth_range", 1.0 / DEPTH16_STEPS)}
+        for key, (attribute, scale) in scaled.items():
+            if key in options:
+                value = number(options[key], file=path, key=f"{where}.{key}", minimum=0.0)
+                reading.set(attribute, value * scale, file=path, key=f"{where}.{key}", raw=options[key])
+        if "mapSize" in options:
+            reading.set("resolution", number(options["mapSize"], file=path, key=f"{where}.mapSize", integer=True,
+                                             minimum=1), file=path, key=f"{where}.mapSize")
+        for key in ("lispsm", "shadowNearHint", "shadowFarHint", "screenSpaceContactShadows", "vsm",
+                    "shadowBulbRadius", "transform", "maxShadowDistance", "stepCount"):
+            if key in options and not (key in ("lispsm", "screenSpaceContactShadows") and options[key] is False):
+                reading.lack(file=path, key=f"{where}.{key}", value=json.dumps(options[key]),
+                             why="LiSPSM warp" if key == "lispsm" else "no csmlab knob")
+        shadow_type = document.get("view", {}).get("shadowType", "PCF") if isinstance(document.get("view"), dict) \
+            else "PCF"
+        if shadow_type != "PCF":
+            reading.lack(file=path, key="view.shadowType", value=shadow_type,
+                         why="csmlab models PCF (PCF_LOW); the preset's pcf_castano 3 is kept")
+    return reading.result()
+
+
+def write_filament(settings: ShadowSettings, *, near: float, far: float) -> tuple[dict, list]:
+    """``settings`` as the viewer's settings JSON, and the knobs it cannot hold."""
+    cascades = min(settings.cascades, 4)
+    z = split_boundaries(settings.replace(cascades=cascades), near=near, far=far)
+    lacking = []
+    if settings.cascades > 4:
+        lacking.append(f"cascades = {settings.cascades} (Filament has at most 4; 4 written)")
+    base = engine_settings(PRESET)
+    options = {"mapSize": max(settings.cascade_resolutions or (settings.resolution,)), "shadowCascades": cascades}
+    if (settings.split, settings.lambda_) != (base.split, base.lambda_):
+        options["cascadeSplitPositions"] = [float((v - z[0]) / (z[-1] - z[0])) for v in z[1:-1]]
+    options.update({"shadowFar": float(z[-1]), "stable": settings.stabilization != "none",
+                    "constantBias": settings.bias_constant, "normalBias": settings.normal_offset / NORMAL_BIAS_SCALE,
+                    "polygonOffsetConstant": settings.bias_depth_range * DEPTH16_STEPS,
+                    "polygonOffsetSlope": settings.bias_slope, "lispsm": False})
+    document = {"view": {"shadowType": "PCF"},
+                "lighting": {"enableShadows": True, "sunlight": {"castShadows": True, "shadowOptions": options}}}
+    return {"settings.json": json.dumps(document, indent=4) + "\n"}, lacking

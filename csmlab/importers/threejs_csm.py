@@ -1,0 +1,133 @@
+"""three.js: the CSM addon's constructor options (examples/jsm/csm/CSM.js) as JSON, read and written.
+
+Keys are the constructor's ``data`` fields — ``cascades``, ``maxFar``, ``mode`` (``uniform``,
+``logarithmic``, ``practical`` (λ 0.5), ``custom``), ``shadowMapSize``, ``shadowBias``, ``lightNear``,
+``lightFar``, ``lightMargin`` — plus ``fade`` (the property), ``customSplits`` (the breaks
+``customSplitsCallback`` pushes, fractions of ``maxFar``: the callback itself is code), and the
+renderer's ``shadowMapType`` and each light's ``shadowRadius`` (LightShadow.radius). Missing keys keep
+``configs/engines/threejs_csm.toml``.
+"""
+
+from __future__ import annotations
+
+import json
+
+from csmlab.engine_export import THREEJS_PCF, split_boundaries
+from csmlab.errors import InputError
+from csmlab.importers.reading import Imported, Reading, number, read_text
+from csmlab.lookup_choices import FILTER_METHODS
+from csmlab.settings import ShadowSettings
+
+__all__ = ["CSM_LIGHT_RANGE", "FIELDS", "PRESET", "read_threejs_csm", "write_threejs_csm"]
+
+PRESET = "threejs_csm"
+"""The engine preset holding the CSM addon's defaults."""
+
+FIELDS = frozenset({"cascades", "split", "splits", "lambda_", "shadow_distance", "resolution", "pancake",
+                    "bias_constant", "filter", "vogel_radius"})
+"""The csmlab fields the options carry."""
+
+CSM_LIGHT_RANGE = (1.0, 2000.0, 1e-6)
+"""CSM.js constructor defaults lightNear, lightFar and shadowBias: the bias is a fraction of that depth range."""
+
+_MODES = {"uniform": ("uniform", None), "logarithmic": ("log", None), "practical": ("practical", 0.5)}
+
+
+def read_threejs_csm(paths) -> Imported:
+    """three.js CSM settings from its options as JSON.
+
+    Raises
+    ------
+    InputError
+        Not JSON, not a CSM options object, or a value out of range (file and key named).
+    """
+    reading = Reading("threejs_csm", PRESET)
+    base = reading.base
+    for path in paths:
+        try:
+            options = json.loads(read_text(path))
+        except json.JSONDecodeError as exc:
+            raise InputError(f"expected JSON, got {exc.msg}", file=path, line=exc.lineno) from None
+        known = {"cascades", "maxFar", "mode", "shadowMapSize", "shadowBias", "lightNear", "lightFar", "lightMargin",
+                 "fade", "customSplits", "shadowMapType", "shadowRadius"}
+        if not isinstance(options, dict) or not set(options) & known:
+            raise InputError(f"expected a JSON object of CSM options ({', '.join(sorted(known))})", file=path,
+                             field="cascades")
+        cascades = base.cascades
+        if "cascades" in options:
+            cascades = number(options["cascades"], file=path, key="cascades", integer=True, minimum=1)
+            reading.set("cascades", cascades, file=path, key="cascades")
+        if "maxFar" in options:
+            reading.set("shadow_distance", number(options["maxFar"], file=path, key="maxFar", above=0.0), file=path,
+                        key="maxFar")
+        mode = options.get("mode")
+        if mode in _MODES:
+            split, lambda_ = _MODES[mode]
+            reading.set("split", split, file=path, key="mode", raw=mode)
+            if lambda_ is not None:
+                reading.set("lambda_", lambda_, file=path, key="mode", raw=mode)
+        elif mode == "custom":
+            breaks = options.get("customSplits")
+            if not isinstance(breaks, list) or len(breaks) != cascades:
+                raise InputError(f"expected customSplits, {cascades} fractions of maxFar ending at 1, for mode "
+                                 f"'custom', got {breaks!r}", file=path, field="customSplits")
+            fractions = [number(v, file=path, key="customSplits", above=0.0) for v in breaks]
+            if any(b <= a for a, b in zip(fractions, fractions[1:])) or fractions[-1] != 1.0:
+                raise InputError(f"expected increasing fractions ending at 1, got {breaks}", file=path,
+                                 field="customSplits")
+            reading.set("split", "manual", file=path, key="mode, customSplits", raw=breaks)
+            reading.set("splits", tuple(fractions), file=path, key="customSplits", raw=breaks)
+        elif mode is not None:
+            raise InputError(f"expected one of {[*_MODES, 'custom']}, got {mode!r}", file=path, field="mode")
+        if "shadowMapSize" in options:
+            reading.set("resolution", number(options["shadowMapSize"], file=path, key="shadowMapSize", integer=True,
+                                             minimum=1), file=path, key="shadowMapSize")
+        if "lightMargin" in options:
+            reading.set("pancake", number(options["lightMargin"], file=path, key="lightMargin", minimum=0.0),
+                        file=path, key="lightMargin")
+        if {"shadowBias", "lightNear", "lightFar"} & set(options):
+            near, far_, bias = (number(options.get(k, d), file=path, key=k) for k, d in
+                                zip(("lightNear", "lightFar", "shadowBias"), CSM_LIGHT_RANGE))
+            if far_ <= near:
+                raise InputError(f"expected lightFar above lightNear ({near}), got {far_}", file=path, field="lightFar")
+            # shadowmap_pars_fragment adds shadowBias to the light's normalized depth: away from the light.
+            reading.set("bias_constant", -bias * (far_ - near), file=path,
+                        key=", ".join(k for k in ("shadowBias", "lightNear", "lightFar") if k in options),
+                        raw=[options.get(k) for k in ("shadowBias", "lightNear", "lightFar") if k in options])
+        if options.get("fade") is True:
+            reading.lack(file=path, key="fade", value=True, why="CSM's fade band has a fixed width; blend_band "
+                         "keeps the preset's 0")
+        kind = options.get("shadowMapType")
+        if kind == "BasicShadowMap":
+            reading.set("filter", "none", file=path, key="shadowMapType", raw=kind)
+        elif kind not in (None, "PCFShadowMap"):
+            reading.lack(file=path, key="shadowMapType", value=kind,
+                         why="csmlab models BasicShadowMap and r182+ PCFShadowMap; the latter is kept")
+        if "shadowRadius" in options:
+            reading.set("vogel_radius", number(options["shadowRadius"], file=path, key="shadowRadius", above=0.0),
+                        file=path, key="shadowRadius")
+        for key in sorted(set(options) - known):
+            reading.lack(file=path, key=key, value=json.dumps(options[key]),
+                         why="the light is the experiment's [light]" if key.startswith("light") else "no csmlab knob")
+    return reading.result()
+
+
+def write_threejs_csm(settings: ShadowSettings, *, near: float, far: float) -> tuple[dict, list]:
+    """``settings`` as CSM options JSON, and the knobs it cannot hold."""
+    z = split_boundaries(settings, near=near, far=far)
+    mode = {"uniform": "uniform", "log": "logarithmic"}.get(settings.split, "practical" if (
+        settings.split == "practical" and settings.lambda_ == 0.5) else "custom")
+    light_near, light_far, _ = CSM_LIGHT_RANGE
+    options = {"cascades": settings.cascades, "maxFar": float(z[-1]), "mode": mode}
+    if mode == "custom":
+        options["customSplits"] = [float(v / z[-1]) for v in z[1:]]
+    options.update({"shadowMapSize": max(settings.cascade_resolutions or (settings.resolution,)),
+                    "lightMargin": settings.pancake, "lightNear": light_near, "lightFar": light_far,
+                    "shadowBias": -settings.bias_constant / (light_far - light_near), "fade": settings.blend_band > 0,
+                    "shadowMapType": "BasicShadowMap" if FILTER_METHODS[settings.filter].hard else "PCFShadowMap",
+                    "shadowRadius": settings.vogel_radius})
+    lacking = []
+    if settings.filter not in ("none", "pcf_vogel") or (settings.filter == "pcf_vogel" and any(
+            getattr(settings, k) != v for k, v in THREEJS_PCF.items())):
+        lacking.append(f"filter = {settings.filter!r} (three.js's PCFShadowMap is pcf_vogel {THREEJS_PCF})")
+    return {"csm.json": json.dumps(options, indent=2) + "\n"}, lacking

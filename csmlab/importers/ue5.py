@@ -1,0 +1,189 @@
+"""Unreal Engine 5: ``DefaultEngine.ini`` / ``DefaultScalability.ini`` shadow cvars and a DirectionalLight as T3D.
+
+The ini files are read with configparser (duplicate keys allowed, case kept); ``r.Shadow.*`` cvars are
+taken from any section of DefaultEngine.ini and from DefaultScalability.ini's ``[ShadowQuality@N]``
+with N = ``sg.ShadowQuality`` (default 3, Epic). The light is the editor's clipboard text (T3D:
+``Begin Actor Class=…DirectionalLight`` … ``Begin Object`` blocks of ``Key=Value`` lines). Mapping:
+``DynamicShadowCascades`` (capped by ``r.Shadow.CSM.MaxCascades``), ``CascadeDistributionExponent``
+(split = "exponent"), ``DynamicShadowDistanceMovableLight`` (cm, × ``r.Shadow.DistanceScale``),
+``CascadeTransitionFraction`` (blend_band, × ``r.Shadow.CSM.TransitionScale``),
+``ShadowDistanceFadeoutFraction`` (fade_out), ``r.Shadow.MaxCSMResolution`` (resolution). Missing values
+keep ``configs/engines/ue5.toml`` (T3D holds only properties changed from the defaults).
+"""
+
+from __future__ import annotations
+
+import configparser
+import re
+from pathlib import Path
+
+import numpy as np
+
+from csmlab.engine_export import split_boundaries, ue_split_fractions
+from csmlab.errors import InputError
+from csmlab.importers.reading import Imported, Reading, number, read_text
+from csmlab.settings import ShadowSettings
+
+__all__ = ["FIELDS", "PRESET", "read_ue5", "write_ue5"]
+
+PRESET = "ue5"
+"""The engine preset holding Unreal's defaults."""
+
+FIELDS = frozenset({"cascades", "split", "distribution_exponent", "shadow_distance", "blend_band", "fade_out",
+                    "resolution"})
+"""The csmlab fields the ini files and the light carry."""
+
+_DEFAULT_SHADOW_QUALITY = 3
+"""sg.ShadowQuality's default level (Epic)."""
+_BEGIN = re.compile(r"^\s*Begin\s+(\w+)(.*)$", re.I)
+_END = re.compile(r"^\s*End\s+(\w+)", re.I)
+_PROPERTY = re.compile(r"^\s*([A-Za-z_][\w]*(?:\(\d+\))?)\s*=\s*(.*?)\s*$")
+
+
+def _ini(path) -> configparser.ConfigParser:
+    parser = configparser.ConfigParser(strict=False, interpolation=None, allow_no_value=True,
+                                       comment_prefixes=(";", "#"), inline_comment_prefixes=None)
+    parser.optionxform = str
+    try:
+        parser.read_string(read_text(path), source=str(path))
+    except configparser.Error as exc:
+        raise InputError(f"expected an Unreal ini file, got {exc.message.splitlines()[0]}", file=path,
+                         line=getattr(exc, "lineno", None)) from None
+    return parser
+
+
+def _light_properties(path) -> dict:
+    """``{Key: value}`` of the first DirectionalLight actor in T3D text (its components' property lines)."""
+    properties, found = {}, False
+    for line in read_text(path).splitlines():
+        begin, end = _BEGIN.match(line), _END.match(line)
+        if begin and begin.group(1).lower() == "actor":
+            if found:
+                break
+            found = re.search(r"Class=\S*\bDirectionalLight\b", begin.group(2)) is not None
+        elif found and end and end.group(1).lower() == "actor":
+            break
+        elif found and not begin and not end:
+            match = _PROPERTY.match(line)
+            if match:
+                properties.setdefault(match.group(1), match.group(2))
+    if not found:
+        raise InputError("expected T3D text with a DirectionalLight actor (Begin Actor Class=…DirectionalLight)",
+                         file=path, field="Begin Actor")
+    return properties
+
+
+def read_ue5(paths) -> Imported:
+    """Unreal settings from ini files and a DirectionalLight's T3D text (any of them).
+
+    Raises
+    ------
+    InputError
+        A file of another kind, malformed text, or a value out of range (file and key named).
+    """
+    reading = Reading("ue5", PRESET)
+    base = reading.base
+    cvars, light, scalability = {}, {}, []
+    for path in paths:
+        if Path(path).suffix.lower() == ".ini":
+            parser = _ini(path)
+            if any(s.startswith("ShadowQuality@") for s in parser.sections()):
+                scalability.append((path, parser))
+            for section in parser.sections():
+                if "@" in section:
+                    continue  # a scalability level: only the one in use applies, below
+                for key, value in parser.items(section):
+                    if key.lower().startswith(("r.shadow", "sg.shadowquality")):
+                        cvars[key.lower()] = (value, path, f"[{section}] {key}")
+        else:
+            light = {k: (v, path) for k, v in _light_properties(path).items()}
+    level = cvars.get("sg.shadowquality", (str(_DEFAULT_SHADOW_QUALITY), None, None))[0]
+    for path, parser in scalability:
+        section = f"ShadowQuality@{level}"
+        if parser.has_section(section):
+            for key, value in parser.items(section):
+                cvars.setdefault(key.lower(), (value, path, f"[{section}] {key}"))
+
+    def cvar(name, **checks):
+        value, path, key = cvars.pop(name.lower())
+        # The engine reads a cvar's leading number: project files often trail it with "; comment".
+        return number(value.split(";", 1)[0].strip(), file=path, key=key, **checks), path, key
+
+    def prop(name, **checks):
+        value, path = light.pop(name)
+        return number(value, file=path, key=f"DirectionalLight.{name}", **checks), path, f"DirectionalLight.{name}"
+
+    cascades = base.cascades
+    if "DynamicShadowCascades" in light:
+        cascades, path, key = prop("DynamicShadowCascades", integer=True, minimum=1)
+        reading.set("cascades", cascades, file=path, key=key)
+    if "r.shadow.csm.maxcascades" in cvars:
+        cap, path, key = cvar("r.Shadow.CSM.MaxCascades", integer=True, minimum=1)
+        if cap < cascades:
+            cascades = cap
+            reading.set("cascades", cap, file=path, key=key)
+    if "CascadeDistributionExponent" in light:
+        exponent, path, key = prop("CascadeDistributionExponent", minimum=1.0)
+        reading.set("split", "exponent", file=path, key=key, raw=exponent)
+        reading.set("distribution_exponent", exponent, file=path, key=key)
+    scale = 1.0
+    if "r.shadow.distancescale" in cvars:
+        scale, scale_path, scale_key = cvar("r.Shadow.DistanceScale", above=0.0)
+    if "DynamicShadowDistanceMovableLight" in light:
+        distance, path, key = prop("DynamicShadowDistanceMovableLight", above=0.0)
+        reading.set("shadow_distance", distance / 100.0 * scale, file=path, key=key, raw=f"{distance} cm")
+    elif scale != 1.0:
+        reading.set("shadow_distance", base.shadow_distance * scale, file=scale_path, key=scale_key, raw=scale)
+    transition = 1.0
+    if "r.shadow.csm.transitionscale" in cvars:
+        transition, t_path, t_key = cvar("r.Shadow.CSM.TransitionScale", minimum=0.0)
+    if "CascadeTransitionFraction" in light:
+        fraction, path, key = prop("CascadeTransitionFraction", minimum=0.0)
+        reading.set("blend_band", fraction * transition, file=path, key=key, raw=fraction)
+    elif transition != 1.0:
+        reading.set("blend_band", base.blend_band * transition, file=t_path, key=t_key, raw=transition)
+    if "ShadowDistanceFadeoutFraction" in light:
+        fade, path, key = prop("ShadowDistanceFadeoutFraction", minimum=0.0)
+        reading.set("fade_out", fade, file=path, key=key)
+    if "r.shadow.maxcsmresolution" in cvars:
+        size, path, key = cvar("r.Shadow.MaxCSMResolution", integer=True, minimum=1)
+        reading.set("resolution", size, file=path, key=key)
+    for name, (value, path, key) in sorted(cvars.items()):
+        why = ("virtual shadow maps replace cascaded shadow maps when on; csmlab models the cascades"
+               if name == "r.shadow.virtual.enable" else "no csmlab knob")
+        if name not in ("sg.shadowquality", "r.shadow.filtermethod") or value.strip() not in ("0", str(level)):
+            reading.lack(file=path, key=key, value=value, why=why)
+    for name, (value, path) in sorted(light.items()):
+        if re.search(r"Shadow|Cascade", name):
+            reading.lack(file=path, key=f"DirectionalLight.{name}", value=value, why="no csmlab knob")
+    return reading.result()
+
+
+def write_ue5(settings: ShadowSettings, *, near: float, far: float) -> tuple[dict, list]:
+    """``settings`` as ``DefaultEngine.ini`` and a DirectionalLight's T3D text, and the knobs they cannot hold."""
+    z = split_boundaries(settings, near=near, far=far)
+    if settings.split == "exponent":
+        exponent = settings.distribution_exponent
+    else:
+        wanted = (z - z[0]) / (z[-1] - z[0])
+        exponents = np.arange(1.0, 10.0001, 0.01)
+        exponent = float(exponents[int(np.argmin([np.abs(ue_split_fractions(e, settings.cascades) - wanted).max()
+                                                  for e in exponents]))])
+    size = max(settings.cascade_resolutions or (settings.resolution,))
+    ini = ["[/Script/Engine.RendererSettings]", "r.Shadow.Virtual.Enable=0", "",
+           "[SystemSettings]", f"r.Shadow.CSM.MaxCascades={settings.cascades}", f"r.Shadow.MaxCSMResolution={size}",
+           "r.Shadow.FilterMethod=0"]
+    t3d = ["Begin Map", "   Begin Level",
+           "      Begin Actor Class=/Script/Engine.DirectionalLight Name=DirectionalLight_0",
+           '         Begin Object Class=/Script/Engine.DirectionalLightComponent Name="LightComponent0"',
+           "         End Object",
+           '         Begin Object Name="LightComponent0"',
+           f"            DynamicShadowDistanceMovableLight={float(z[-1]) * 100.0!r}",
+           f"            DynamicShadowCascades={settings.cascades}",
+           f"            CascadeDistributionExponent={exponent!r}",
+           f"            CascadeTransitionFraction={settings.blend_band!r}",
+           f"            ShadowDistanceFadeoutFraction={settings.fade_out!r}",
+           "         End Object",
+           '         LightComponent="LightComponent0"',
+           "      End Actor", "   End Level", "End Map"]
+    return {"DefaultEngine.ini": "\n".join(ini) + "\n", "DirectionalLight.t3d": "\n".join(t3d) + "\n"}, []

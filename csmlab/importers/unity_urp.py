@@ -1,0 +1,149 @@
+"""Unity URP: the ``UniversalRenderPipelineAsset`` (``.asset``, YAML), read and written.
+
+Fields (``Runtime/Data/UniversalRenderPipelineAsset.cs``): ``m_ShadowCascadeCount``, ``m_Cascade2Split``
+(a fraction), ``m_Cascade3Split`` ``{x, y}``, ``m_Cascade4Split`` ``{x, y, z}`` (fractions of the shadow
+distance: split = "manual"), ``m_ShadowDistance``, ``m_CascadeBorder`` (fade_out),
+``m_ShadowDepthBias`` and ``m_ShadowNormalBias`` (texels: bias_texels, normal_offset),
+``m_MainLightShadowmapResolution`` (the atlas: one cascade takes it all, two to four a half-side tile
+each, ``ShadowUtils.GetMaxTileResolutionInAtlas``), ``m_SoftShadowsSupported`` and ``m_SoftShadowQuality``
+(off: one hardware 2×2 compare, pcf_bilinear; Medium: Tent 5×5). A field the asset lacks keeps the
+default, ``configs/engines/unity_urp.toml``'s value.
+"""
+
+from __future__ import annotations
+
+from csmlab.engine_export import URP_FILTER, _hard, split_boundaries
+from csmlab.errors import InputError
+from csmlab.importers.reading import Imported, Reading, engine_settings, number
+from csmlab.importers.unity_yaml import unity_objects, unity_text
+from csmlab.settings import ShadowSettings
+
+__all__ = ["FIELDS", "PRESET", "read_unity_urp", "write_unity_urp"]
+
+PRESET = "unity_urp"
+"""The engine preset holding URP's defaults."""
+
+FIELDS = frozenset({"cascades", "split", "splits", "shadow_distance", "fade_out", "bias_texels", "normal_offset",
+                    "resolution", "filter", "filter_size"})
+"""The csmlab fields the URP asset carries."""
+
+_FEWER_SPLITS = {2: (0.25,), 3: (0.1, 0.3)}
+"""URP's m_Cascade2Split and m_Cascade3Split defaults (UniversalRenderPipelineAsset.cs); 4 cascades: the preset's."""
+
+_SOFT_MEDIUM = 2
+"""UnityEngine.Rendering.Universal.SoftShadowQuality.Medium, the quality csmlab models (URP_FILTER)."""
+_UNMODELLED = {"m_ConservativeEnclosingSphere": "URP's tighter cascade spheres (Unity 2023+)",
+               "m_NumIterationsEnclosingSphere": "URP's tighter cascade spheres (Unity 2023+)",
+               "m_MainLightShadowsSupported": "main light shadows switched off in the asset",
+               "m_ShadowType": "an obsolete field of early URP assets"}
+
+
+def _split_fractions(fields: dict, cascades: int, path) -> tuple[list, str] | None:
+    key = {2: "m_Cascade2Split", 3: "m_Cascade3Split", 4: "m_Cascade4Split"}.get(cascades)
+    if key is None or key not in fields:
+        return None
+    value = fields[key]
+    if cascades == 2:
+        fractions = [number(value, file=path, key=key, above=0.0)]
+    else:
+        axes = "xyz"[:cascades - 1]
+        if not isinstance(value, dict) or any(a not in value for a in axes):
+            raise InputError(f"expected {{{', '.join(a + ': …' for a in axes)}}}, got {value!r}", file=path, field=key)
+        fractions = [number(value[a], file=path, key=f"{key}.{a}", above=0.0) for a in axes]
+    if any(b <= a for a, b in zip(fractions, fractions[1:])) or fractions[-1] >= 1.0:
+        raise InputError(f"expected increasing fractions below 1, got {fractions}", file=path, field=key)
+    return fractions, key
+
+
+def read_unity_urp(paths) -> Imported:
+    """URP settings from a ``UniversalRenderPipelineAsset`` ``.asset``.
+
+    Raises
+    ------
+    InputError
+        A file that is not a Unity asset, an asset without a URP pipeline asset's shadow fields, or a
+        value out of range (file and key named).
+    """
+    reading = Reading("unity_urp", PRESET)
+    base = reading.base
+    for path in paths:
+        assets = [f for class_id, name, f in unity_objects(path) if name == "MonoBehaviour"
+                  and ("m_ShadowCascadeCount" in f or "m_MainLightShadowmapResolution" in f)]
+        if not assets:
+            raise InputError("expected a UniversalRenderPipelineAsset (a MonoBehaviour with m_ShadowCascadeCount)",
+                             file=path, field="m_ShadowCascadeCount")
+        fields = assets[0]
+        cascades = base.cascades
+        if "m_ShadowCascadeCount" in fields:
+            cascades = number(fields["m_ShadowCascadeCount"], file=path, key="m_ShadowCascadeCount", integer=True,
+                              minimum=1)
+            if cascades > 4:
+                raise InputError(f"expected 1 to 4 cascades, got {cascades}", file=path, field="m_ShadowCascadeCount")
+            reading.set("cascades", cascades, file=path, key="m_ShadowCascadeCount")
+        found = _split_fractions(fields, cascades, path)
+        if found is not None or "m_ShadowCascadeCount" in fields:
+            fractions, key = found if found is not None else (
+                list(_FEWER_SPLITS.get(cascades, base.splits[:cascades - 1])), "m_ShadowCascadeCount")
+            reading.set("split", "manual", file=path, key=key, raw=fractions)
+            reading.set("splits", (*fractions, 1.0), file=path, key=key, raw=fractions)
+        for key, attribute, above in (("m_ShadowDistance", "shadow_distance", 0.0), ("m_CascadeBorder", "fade_out", None),
+                                      ("m_ShadowDepthBias", "bias_texels", None),
+                                      ("m_ShadowNormalBias", "normal_offset", None)):
+            if key in fields:
+                reading.set(attribute, number(fields[key], file=path, key=key, above=above,
+                                              minimum=None if above is not None else 0.0), file=path, key=key,
+                            raw=fields[key])
+        if "m_MainLightShadowmapResolution" in fields:
+            atlas = number(fields["m_MainLightShadowmapResolution"], file=path, key="m_MainLightShadowmapResolution",
+                           integer=True, minimum=1)
+            reading.set("resolution", atlas if cascades == 1 else atlas // 2, file=path,
+                        key="m_MainLightShadowmapResolution", raw=atlas)
+        if cascades == 1:
+            # One cascade takes the whole shadowmap: one texture of one map, csmlab's array of one slice.
+            reading.set("storage", "array", file=path, key="m_ShadowCascadeCount", raw=1)
+        elif cascades == 2:
+            reading.lack(file=path, key="m_ShadowCascadeCount", value=2,
+                         why="URP allocates 2 tiles (the atlas's half height), csmlab's 2x2 layout counts 4 in "
+                             "memory_bytes")
+        if "m_SoftShadowsSupported" in fields:
+            soft = number(fields["m_SoftShadowsSupported"], file=path, key="m_SoftShadowsSupported", integer=True)
+            quality = fields.get("m_SoftShadowQuality", _SOFT_MEDIUM)
+            if not soft:
+                reading.set("filter", "pcf_bilinear", file=path, key="m_SoftShadowsSupported", raw=soft)
+            elif quality == _SOFT_MEDIUM:
+                reading.set("filter", URP_FILTER[0], file=path, key="m_SoftShadowsSupported", raw=soft)
+                reading.set("filter_size", URP_FILTER[1], file=path, key="m_SoftShadowQuality" if "m_SoftShadowQuality"
+                            in fields else "m_SoftShadowsSupported (no m_SoftShadowQuality: Medium)", raw=quality)
+            else:
+                reading.lack(file=path, key="m_SoftShadowQuality", value=quality,
+                             why="csmlab models soft shadows off and Medium (Tent 5×5); the asset's default, "
+                                 "soft shadows off, is kept")
+        for key, why in _UNMODELLED.items():
+            if key in fields and not (key == "m_MainLightShadowsSupported" and fields[key] == 1):
+                reading.lack(file=path, key=key, value=fields[key], why=why)
+    return reading.result()
+
+
+def write_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> tuple[dict, list]:
+    """``settings`` as a ``UniversalRenderPipelineAsset`` asset text, and the knobs it cannot hold."""
+    cascades = min(settings.cascades, 4)
+    wanted = max(settings.cascade_resolutions or (settings.resolution,)) * (1 if cascades == 1 else 2)
+    atlas = 1 << max(8, min(13, wanted.bit_length() - 1))
+    z = split_boundaries(settings.replace(cascades=cascades), near=near, far=far)
+    fractions = [float(v / z[-1]) for v in z[1:-1]]
+    splits = {**_FEWER_SPLITS, 4: engine_settings(PRESET).splits[:3]}
+    if cascades > 1:
+        splits[cascades] = fractions
+    lacking = []
+    if settings.depth_format != "unorm16":
+        lacking.append(f"depth_format = {settings.depth_format!r} (URP's shadowmap is 16-bit)")
+    soft = not _hard(settings)
+    fields = ["m_Name: UniversalRP", "m_MainLightShadowsSupported: 1", f"m_MainLightShadowmapResolution: {atlas}",
+              f"m_ShadowDistance: {float(z[-1])!r}", f"m_ShadowCascadeCount: {cascades}",
+              f"m_Cascade2Split: {splits[2][0]!r}",
+              f"m_Cascade3Split: {{x: {splits[3][0]!r}, y: {splits[3][1]!r}}}",
+              f"m_Cascade4Split: {{x: {splits[4][0]!r}, y: {splits[4][1]!r}, z: {splits[4][2]!r}}}",
+              f"m_CascadeBorder: {settings.fade_out!r}", f"m_ShadowDepthBias: {settings.bias_texels!r}",
+              f"m_ShadowNormalBias: {settings.normal_offset!r}", f"m_SoftShadowsSupported: {int(soft)}",
+              f"m_SoftShadowQuality: {_SOFT_MEDIUM}"]
+    return {"UniversalRP.asset": unity_text(114, "MonoBehaviour", fields)}, lacking
