@@ -59,7 +59,7 @@ def _run(tmp_path, *, extends=(), methods="", scene="", frames=4) -> dict:
 
 
 def test_every_engine_and_seed_of_the_issue_has_a_preset():
-    assert set(ENGINES) == {"ue5", "unity_builtin_stable", "unity_builtin_close", "unity_urp", "godot4", "filament",
+    assert set(ENGINES) == {"ue5", "ue5_vsm", "unity_builtin_stable", "unity_builtin_close", "unity_urp", "godot4", "filament",
                             "bevy", "threejs_csm", "stride", "mjp"}
     assert set(SEEDS) == {"nvidia_sdk", "ogldev49", "dx_csm11_cascade", "dx_csm11_scene", "dx_vsm11", "unigine_exact",
                           "unigine_quantized", "unigine_best_resolution"}
