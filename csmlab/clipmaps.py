@@ -110,7 +110,7 @@ class VirtualPages:
     ----------
     clipmap : Clipmap
     keys : ndarray, shape (P, 3), int64
-        ``(level index, global page x, global page y)`` of each resident page, sorted.
+        ``(level index, global page x, global page y)`` of each resident page, by level, page row, page column.
     table : ndarray, shape (L, pages_per_side, pages_per_side), int32
         ``table[k, y, x]``: the resident page at page ``(x, y)`` of level k's box, -1 where none.
     marked : int
@@ -309,24 +309,32 @@ def chosen_levels(clip: Clipmap, light_points: np.ndarray, light_normals: np.nda
 
 def marked_pages(clip: Clipmap, light_points: np.ndarray, light_normals: np.ndarray, wanted: np.ndarray, *,
                  settings: ShadowSettings, radius: int) -> np.ndarray:
-    """The pages the receivers need, ``(M, 3)`` int64 rows ``(level index, global page x, global page y)``, sorted.
+    """The pages the receivers need, ``(M, 3)`` int64 rows ``(level index, global page x, global page y)``.
 
     Each receiver marks the pages under the corners of its taps at the first level from its wanted
-    one whose box holds them all (:func:`chosen_levels`).
+    one whose box holds them all (:func:`chosen_levels`), in a page mask of every level's box, as
+    Unreal's page-marking pass fills its page-request flags; the rows are the marks in level, page
+    row, page column order.
     """
     level, coordinates, _ = chosen_levels(clip, light_points, light_normals, wanted, settings=settings,
                                           radius=radius, holds=lambda k, pages: np.ones(len(pages), dtype=bool))
     used = level >= 0
-    pages = _tap_pages(clip, coordinates[used], radius=radius, bits=settings.subtexel_bits)
-    keys = np.concatenate([np.repeat(level[used], 4)[:, None], pages.reshape(-1, 2)], axis=1)
-    return np.unique(keys.reshape(-1, 3), axis=0)
+    side = clip.pages_per_side
+    local = _tap_pages(clip, coordinates[used], radius=radius, bits=settings.subtexel_bits) \
+        - clip.origin_page[level[used]][:, None, :]
+    mask = np.zeros(len(clip) * side * side, dtype=bool)
+    mask[(level[used][:, None] * side + local[..., 1]) * side + local[..., 0]] = True
+    k, rest = np.divmod(np.flatnonzero(mask), side * side)
+    row, column = np.divmod(rest, side)
+    return np.stack([k, column + clip.origin_page[k, 0], row + clip.origin_page[k, 1]], axis=1).astype(np.int64)
 
 
 def resident_pages(marked: np.ndarray, *, pool: int) -> np.ndarray:
-    """The marked pages ``(P, 3)`` the pool of ``pool`` pages holds, sorted: all, or the coarsest levels' first."""
+    """The marked pages ``(P, 3)`` the pool of ``pool`` pages holds, in their order: all, or the coarsest levels' first
+    (within the last level kept, the first in page row, page column order)."""
     if len(marked) <= pool:
         return marked
-    order = np.lexsort((marked[:, 2], marked[:, 1], -marked[:, 0]))
+    order = np.lexsort((marked[:, 1], marked[:, 2], -marked[:, 0]))
     return marked[np.sort(order[:pool])]
 
 

@@ -293,7 +293,9 @@ def virtual_shadow_maps(dscene: DeviceScene, view: View, settings: ShadowSetting
     """
     g = view.gbuffer
     basis = light_basis(view.light_direction)
-    scene_depth = light_space(dscene.corners, basis)[:, 2]
+    # The depth offset as build_cascades takes it, bit for bit: the scene's light-space mesh is kept per
+    # (basis, zref), so cascades and a clipmap of one light share it.
+    scene_depth = (np.asarray(dscene.corners, dtype=np.float64).reshape(-1, 3) @ basis.T)[:, 2]
     clip = clipmap_levels(eye=view.pose.position, light_direction=view.light_direction,
                           zref=float(scene_depth.min()), footprint=footprint_scale(view.pose, height=g.shape[0]),
                           settings=settings)
