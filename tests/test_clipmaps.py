@@ -12,6 +12,7 @@ from csmlab.geometry import rotation_looking_at
 from csmlab.kernels.pages import page_lookup
 from csmlab.light import direction_from_angles
 from csmlab.metrics import measure_frame
+from csmlab.metrics.aliasing import utilization
 from csmlab.metrics.temporal import temporal_maps
 from csmlab.render import prepare_scene, render_shadow, render_view
 from csmlab.settings import ShadowSettings
@@ -223,3 +224,18 @@ def test_a_clipmap_with_a_filter_it_cannot_look_up_is_bad_input(tmp_path):
     path.write_text('[scene]\nkind = "plane_box"\n[camera]\npath = "walk"\nframes = 2\n[shadow]\npage_size = 64\n')
     with pytest.raises(InputError, match="page_size"):
         load_experiment(path)
+
+
+def test_utilization_counts_each_levels_distinct_texels_over_its_resident_texels(dscene):
+    (frame,) = frames(dscene, CLIPMAP, [camera(160, 96)], [LIGHT], size=(160, 96))
+    g, clip = frame.view.gbuffer, frame.maps.pages.clipmap
+    chosen = g.valid & (frame.shadow.cascade >= 0)
+    xy = g.position[chosen] @ clip.basis[:2].T
+    looked = {(int(k), int(np.floor(x / clip.texel[k])), int(np.floor(y / clip.texel[k])))
+              for (x, y), k in zip(xy, frame.shadow.cascade[chosen])}
+    counts = np.bincount([k for k, _, _ in looked], minlength=len(clip))
+    resident = np.bincount(frame.maps.pages.keys[:, 0], minlength=len(clip)) * CLIPMAP.page_size ** 2
+    want = np.where(resident > 0, counts / np.maximum(resident, 1), np.nan)
+    got = utilization(frame)
+    assert np.isfinite(got).sum() >= 2
+    assert np.allclose(got, want, rtol=0, atol=0, equal_nan=True)

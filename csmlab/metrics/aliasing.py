@@ -163,9 +163,12 @@ def _resident_utilization(frame: Frame) -> np.ndarray:
     selected = np.where(g.valid, frame.shadow.cascade, -1)
     level = selected[selected >= 0].astype(np.int64)
     xy = light_space(g.position[selected >= 0], clip.basis)[:, :2]
-    texel = np.floor(xy / clip.texel[level][:, None]).astype(np.int64)
-    looked = np.unique(np.concatenate([level[:, None], texel], axis=1), axis=0)
-    counts = np.bincount(looked[:, 0], minlength=len(clip)).astype(np.float64)
+    side = clip.pages_per_side * clip.page_size
+    # Texels of the level's box: a point outside it (impossible for a correct choice) is not counted.
+    local = np.floor(xy / clip.texel[level][:, None]).astype(np.int64) - clip.origin_page[level] * clip.page_size
+    inside = np.all((local >= 0) & (local < side), axis=1)
+    looked = np.unique((level[inside] * side + local[inside, 1]) * side + local[inside, 0])
+    counts = np.bincount(looked // (side * side), minlength=len(clip)).astype(np.float64)
     resident = np.bincount(pages.keys[:, 0], minlength=len(clip)).astype(np.float64) * clip.page_size ** 2
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(resident > 0, counts / resident, np.nan)
