@@ -182,7 +182,8 @@ def clipmap_cascades(clip: Clipmap, *, scene_depth: tuple[float, float], margin:
     """The levels as a :class:`CascadeSet`, one cascade per level, for what reads boxes (ρ, reports).
 
     A level's ``split_near``/``split_far`` (and slice) are the distances from the camera, in metres,
-    over which :func:`wanted_levels` chooses it (the first from 0, the last to infinity); its origin
+    over which :func:`wanted_levels` chooses it (the first from 0; the last is chosen beyond its far end
+    too, which stays where its bias would end it, so that a frustum drawn to it is finite); its origin
     is its box corner in texels, its resolution ``virtual_resolution``; ``scene_depth`` is the
     ``(least, greatest)`` light depth ``dot(X, d)`` of the scene.
     """
@@ -191,7 +192,7 @@ def clipmap_cascades(clip: Clipmap, *, scene_depth: tuple[float, float], margin:
     # The distance at which the wanted level reaches n: log2(D · footprint · V / 2 cm) + bias = n.
     splits = np.ldexp(2.0 * CENTIMETRE, levels) * 2.0 ** -clip.lod_bias / (
         clip.footprint * clip.pages_per_side * clip.page_size)
-    splits[0], splits[-1] = 0.0, np.inf
+    splits[0] = 0.0
     cascades = tuple(Cascade(split_near=float(splits[k]), split_far=float(splits[k + 1]),
                              slice_near=float(splits[k]), slice_far=float(splits[k + 1]),
                              texel_size=np.full(2, clip.texel[k]),

@@ -13,6 +13,7 @@ from csmlab.kernels.pages import page_lookup
 from csmlab.light import direction_from_angles
 from csmlab.metrics import measure_frame
 from csmlab.metrics.aliasing import utilization
+from csmlab.metrics.cost import shadow_memory_bytes
 from csmlab.metrics.temporal import temporal_maps
 from csmlab.render import prepare_scene, render_shadow, render_view
 from csmlab.settings import ShadowSettings
@@ -239,3 +240,13 @@ def test_utilization_counts_each_levels_distinct_texels_over_its_resident_texels
     got = utilization(frame)
     assert np.isfinite(got).sum() >= 2
     assert np.allclose(got, want, rtol=0, atol=0, equal_nan=True)
+
+
+def test_a_clipmaps_memory_is_its_whole_pool_and_its_pool_bytes_its_resident_pages(dscene):
+    assert shadow_memory_bytes(CLIPMAP.replace(physical_pages=2048, page_size=128)) == 2048 * 128 * 128 * 4
+    assert shadow_memory_bytes(CLIPMAP.replace(depth_format="unorm16")) == 4096 * 32 * 32 * 2
+    (frame,) = frames(dscene, CLIPMAP, [camera(96, 64)], [LIGHT])
+    values = measure_frame(frame).values
+    assert values["memory_bytes"] == 4096 * 32 * 32 * 4
+    assert values["pool_bytes"] == len(frame.maps.pages.keys) * 32 * 32 * 4 < values["memory_bytes"]
+    assert values["pages_marked"] == values["pages_rendered"] == len(frame.maps.pages.keys)
