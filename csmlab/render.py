@@ -310,7 +310,8 @@ def virtual_shadow_maps(dscene: DeviceScene, view: View, settings: ShadowSetting
     side = settings.page_size
     span = float(np.ptp(scene_depth))
     depth = np.empty((len(keys), side, side), dtype=np.float32)
-    depth[cache.kept] = previous.depth[cache.source[cache.kept]] if cache.kept.any() else 0.0
+    if cache.kept.any():
+        depth[cache.kept] = previous.depth[cache.source[cache.kept]]
     texels = 0
     missed = ~cache.kept
     if missed.any():
