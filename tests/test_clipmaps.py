@@ -9,6 +9,7 @@ from csmlab.camera import CameraPose
 from csmlab.config import load_experiment
 from csmlab.errors import InputError
 from csmlab.geometry import rotation_looking_at
+from csmlab.invariants import FLICKER_SAME_ZERO, WorkloadFacts, promised_invariants
 from csmlab.kernels.pages import page_lookup
 from csmlab.light import direction_from_angles
 from csmlab.metrics import measure_frame
@@ -250,3 +251,12 @@ def test_a_clipmaps_memory_is_its_whole_pool_and_its_pool_bytes_its_resident_pag
     assert values["memory_bytes"] == 4096 * 32 * 32 * 4
     assert values["pool_bytes"] == len(frame.maps.pages.keys) * 32 * 32 * 4 < values["memory_bytes"]
     assert values["pages_marked"] == values["pages_rendered"] == len(frame.maps.pages.keys)
+
+
+def test_a_clipmap_promises_zero_same_level_flicker_whatever_the_cascades_fields_under_a_static_light():
+    static = WorkloadFacts(light_static=True, fov_fixed=False)
+    loose = CLIPMAP.replace(stabilization="none", bounds="sdsm", depth_range="slice")
+    assert promised_invariants(loose, workload=static)[FLICKER_SAME_ZERO].promised
+    assert not promised_invariants(loose.replace(shadow_map="cascades"), workload=static)[FLICKER_SAME_ZERO].promised
+    moving = promised_invariants(loose, workload=WorkloadFacts(light_static=False, fov_fixed=True))
+    assert not moving[FLICKER_SAME_ZERO].promised
