@@ -23,8 +23,8 @@ told the same values, proposes the same candidates again.
 Beside the search, the starting setting (the tuned method as the experiment has it) and every engine
 preset (``configs/engines/*.toml``, each a method preset naming its ``[[methods]]`` entry after the
 file) are evaluated on the same frames. Under a memory budget a preset over it is evaluated at the
-largest power-of-two fraction of its resolution that fits ("ue5 @ 512²"): what an engine team would
-do to meet the budget.
+largest power-of-two fraction of its resolution that fits ("ue5 @ 512²"), a virtual clipmap at that
+fraction of its page pool ("ue5_vsm @ 256 pages"): what an engine team would do to meet the budget.
 
 References
 ----------
