@@ -526,7 +526,7 @@ def _write_results(out: Path, experiment: Experiment, job: Job, ranges: list[tup
     from csmlab.metric_registry import metric_columns
     from csmlab.report.capture import write_captures, write_casters
 
-    columns = metric_columns(max(v.settings.cascades for v in job.variants))
+    columns = metric_columns(max(v.settings.map_count for v in job.variants))
     order = {(v.method, v.point): rank for rank, v in enumerate(job.variants)}
 
     def chunks():

@@ -35,10 +35,12 @@ import numpy as np
 
 from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet
+from csmlab.clipmaps import chosen_levels, light_space, wanted_levels
 from csmlab.cascades.fit import BLEND_CURVES, transition_bands
 from csmlab.fades import FADE_METHODS, faded
 from csmlab.frame import ShadowLookup, ShadowMaps
 from csmlab.kernels.moments import blur_moments, moment_lookup, moment_maps, moment_mip_chain, moment_mip_lookup
+from csmlab.kernels.pages import page_lookup
 from csmlab.kernels.pcf import weighted_pcf
 from csmlab.kernels.shadow import receiver_coordinates, select_cascades, shadow_lookup, shadow_lookup_world
 from csmlab.lookup_choices import FILTER_METHODS, Filter
@@ -47,7 +49,7 @@ from csmlab.registry import check_name
 from csmlab.settings import ShadowSettings
 from csmlab.texels import PRECISION_METHODS, fixed_point_origin, receiver_lookup
 
-__all__ = ["FAMILY_LOOKUPS", "Receivers", "filter_inputs", "interleaved_gradient_noise", "lookup_shadow", "screen_pixels",
+__all__ = ["FAMILY_LOOKUPS", "Receivers", "clipmap_radius", "filter_inputs", "interleaved_gradient_noise", "lookup_shadow", "screen_pixels",
            "texel_coordinates", "uses_pixels"]
 
 
@@ -122,6 +124,8 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
         On an unknown filter, shapes that do not match, or maps or receivers without what the
         filter reads (moments, mips and quads, pixels).
     """
+    if maps.pages is not None:
+        return _clipmap_lookup(maps, points=points, normals=normals, settings=settings, device=device)
     record = FILTER_METHODS[check_name(settings.filter, FILTER_METHODS, field="filter")]
     reads = record.reads_of(settings)
     receivers = _receivers(points, normals, view_depth, pixels=pixels, quads=quads, quad_view_depth=quad_view_depth,
@@ -133,6 +137,44 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
                                           settings=settings, device=device)
     return _shadow_of_points(found, receivers, np.asarray(view_depth, dtype=np.float64), settings=settings,
                              far=float(maps.cascades.splits[-1]), eye=maps.cascades.eye)
+
+
+def clipmap_radius(settings: ShadowSettings) -> int:
+    """Texels a virtual clipmap's taps reach about the receiver's texel: 0 for ``none``, ``filter_size // 2`` for ``pcf``."""
+    return 0 if settings.filter == "none" else settings.filter_size // 2
+
+
+def _clipmap_lookup(maps: ShadowMaps, *, points, normals, settings: ShadowSettings, device: str) -> ShadowLookup:
+    """A virtual clipmap's shadow at ``points``: each receiver at the first level from the one its distance to
+    the maps' camera wants whose pages hold all its taps (:func:`csmlab.clipmaps.chosen_levels`), read through the
+    page table (:func:`csmlab.kernels.pages.page_lookup`). ``cascade`` is the level index; no blend band, no fade.
+
+    The maps' camera (:attr:`csmlab.clipmaps.Clipmap.eye`) chooses the levels, so frame t−1's maps
+    are looked up at frame t's points as frame t−1 would have: a point that camera did not see may
+    find no resident page at its level and take a coarser one, or none (S = NaN, cascade −1).
+    """
+    pages = maps.pages
+    clip = pages.clipmap
+    p = np.asarray(points, dtype=np.float64)
+    n = np.asarray(normals, dtype=np.float64)
+    shape = p.shape[:-1]
+    flat, flat_n = p.reshape(-1, 3), n.reshape(-1, 3)
+    index = np.flatnonzero(np.isfinite(flat[:, 0]) & np.isfinite(flat[:, 1]) & np.isfinite(flat[:, 2]))
+    radius = clipmap_radius(settings)
+    table = pages.table
+
+    def resident(k, local):
+        return np.all(table[k, local[..., 1], local[..., 0]] >= 0, axis=1)
+
+    level, coordinates, depth = chosen_levels(clip, light_space(flat[index], clip.basis),
+                                              light_space(flat_n[index], clip.basis), wanted_levels(clip, flat[index]),
+                                              settings=settings, radius=radius, holds=resident)
+    lit = np.full(flat.shape[0], np.nan, dtype=np.float32)
+    cascade = np.full(flat.shape[0], -1, dtype=np.int8)
+    lit[index] = page_lookup(maps.depth, table, clip.origin_page, level, coordinates, depth, radius=radius,
+                             bits=settings.subtexel_bits, device=device)
+    cascade[index] = level
+    return ShadowLookup(lit=lit.reshape(shape), cascade=cascade.reshape(shape), blend=np.zeros(shape, dtype=bool))
 
 
 def _receivers(points, normals, view_depth, *, pixels, quads: Quads | None, quad_view_depth, reads) -> Receivers:

@@ -21,6 +21,7 @@ if TYPE_CHECKING:
     # Only for the annotation: the record lives beside the kernel that fills it, and loading
     # csmlab.frame does not load Warp.
     from csmlab.kernels.visibility import CameraHits
+    from csmlab.clipmaps import VirtualPages
     from csmlab.scrolling import RasterizedMaps
 
 __all__ = ["Frame", "GBuffer", "ShadowLookup", "ShadowMaps", "View"]
@@ -145,6 +146,10 @@ class ShadowMaps:
     raster : RasterizedMaps, optional
         The raw maps and their coverage counts, which the next frame of boxes on whole texels
         scrolls from (:mod:`csmlab.scrolling`); None for other boxes.
+    pages : VirtualPages, optional
+        ``shadow_map = "virtual_clipmap"``: the page table of the resident pages, whose depths are
+        ``depth`` ``(P, page_size, page_size)``, and the frame's page counts; ``cascades`` then holds
+        one box per clipmap level (:mod:`csmlab.clipmaps`). None for cascades.
     """
 
     cascades: CascadeSet
@@ -154,6 +159,7 @@ class ShadowMaps:
     depth_span: float = 0.0
     mips: list | None = None
     raster: RasterizedMaps | None = None
+    pages: VirtualPages | None = None
 
 
 @dataclass(frozen=True)

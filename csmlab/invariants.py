@@ -41,6 +41,13 @@ Each condition below is one row of :data:`_CONDITIONS`; the promise holds when a
    :data:`WORLD_LOCKED_DEPTH_FORMATS` (quantized over the scene's fixed light-space span in
    power-of-two steps, :mod:`csmlab.storage`).
 
+A **virtual clipmap** (``shadow_map = "virtual_clipmap"``, :mod:`csmlab.clipmaps`) has no boxes to
+stabilize: its levels are the global texel grids of fixed texel sizes, placed on whole pages, its
+texel math float64 on the host, and its depth offset fixed per light, so of the conditions above
+only 1, 4 and the depth format of 5 are its own (the others are marked ``cascades`` below); the
+level each point reads follows its distance to the camera, which, like a selection, only decides
+which grid it reads.
+
 Face culling (``cull``, :mod:`csmlab.culling`) keeps the promise: the triangles it drops are
 chosen by their facing to the light direction alone, the same in every frame of a static light,
 whatever the camera or the boxes.
@@ -148,33 +155,46 @@ class _Condition:
 
     holds: Callable[[ShadowSettings, WorkloadFacts], bool]
     broken: Callable[[ShadowSettings, WorkloadFacts], str]
+    cascades: bool = False
+    """The condition is on the cascades' boxes or texel math: a virtual clipmap has none to test."""
 
 
 _CONDITIONS = (
     _Condition(lambda s, w: w.light_static, lambda s, w: "the light moves, so the shadow itself changes"),
     _Condition(lambda s, w: s.stabilization == "exact",
-               lambda s, w: f"stabilization = {s.stabilization!r}: the box's texel size follows the camera"),
+               lambda s, w: f"stabilization = {s.stabilization!r}: the box's texel size follows the camera",
+               cascades=True),
     _Condition(lambda s, w: s.bounds == "frustum",
-               lambda s, w: f"bounds = {s.bounds!r}: the splits, and so each box's extent, follow the visible depths"),
+               lambda s, w: f"bounds = {s.bounds!r}: the splits, and so each box's extent, follow the visible depths",
+               cascades=True),
     _Condition(lambda s, w: w.fov_fixed,
-               lambda s, w: "the camera's field of view changes, and each box's extent with it"),
+               lambda s, w: "the camera's field of view changes, and each box's extent with it",
+               cascades=True),
     _Condition(lambda s, w: s.extent in FIXED_EXTENTS,
-               lambda s, w: f"extent = {s.extent!r} is not known to be fixed"),
+               lambda s, w: f"extent = {s.extent!r} is not known to be fixed",
+               cascades=True),
     _Condition(lambda s, w: s.snap in WHOLE_TEXEL_SNAPS,
-               lambda s, w: f"snap = {s.snap!r} is not known to move the box by whole texels"),
+               lambda s, w: f"snap = {s.snap!r} is not known to move the box by whole texels",
+               cascades=True),
     _Condition(lambda s, w: s.engine_precision == "float64",
                lambda s, w: f"engine_precision = {s.engine_precision!r}: the light view is rounded at each box's "
-                            "centre, so a whole-texel move can tip a fixed-point rounding"),
+                            "centre, so a whole-texel move can tip a fixed-point rounding",
+               cascades=True),
     _Condition(lambda s, w: not _screen_reads(s), lambda s, w: _screen_reads_text(s)),
     _Condition(lambda s, w: s.depth_range == "scene",
                lambda s, w: f"depth_range = {s.depth_range!r}: the box's near side follows the camera, and casters "
-                            "in front of it are clamped or clipped there"),
+                            "in front of it are clamped or clipped there",
+               cascades=True),
     _Condition(lambda s, w: s.depth_format in WORLD_LOCKED_DEPTH_FORMATS,
                lambda s, w: f"depth_format = {s.depth_format!r} is not known to be world-locked"),
 )
 
 _KEPT = ("exact boxes of fixed extent on whole texels, float64 texel math, no screen-space input and a "
          "world-locked depth under a static light")
+
+
+_KEPT_CLIPMAP = ("clipmap levels on whole pages of global texel grids, no screen-space input and a world-locked depth "
+                 "under a static light")
 
 
 def promised_invariants(settings: ShadowSettings, *, workload: WorkloadFacts) -> dict[str, Promise]:
@@ -192,9 +212,11 @@ def promised_invariants(settings: ShadowSettings, *, workload: WorkloadFacts) ->
         docstring holds, its ``why`` then naming them; else not promised, ``why`` naming every
         condition that fails.
     """
-    broken = [c.broken(settings, workload) for c in _CONDITIONS if not c.holds(settings, workload)]
+    clipmap = settings.shadow_map == "virtual_clipmap"
+    broken = [c.broken(settings, workload) for c in _CONDITIONS
+              if not (c.cascades and clipmap) and not c.holds(settings, workload)]
     return {FLICKER_SAME_ZERO: Promise(promised=not broken, metric="flicker_same", value=0.0,
-                                       why="; ".join(broken) or _KEPT)}
+                                       why="; ".join(broken) or (_KEPT_CLIPMAP if clipmap else _KEPT))}
 
 
 def summary_invariants(variants, *, light_static: bool, fov_y_deg) -> dict[str, dict[str, dict]]:

@@ -184,6 +184,9 @@ METRICS: dict[str, Metric] = {m.name: m for m in (
     Metric("memory_bytes", "memory", "MiB", "lower", (0.0, 0.0), scale=2.0 ** -20, headline=True,
            plots=("sweep",)),
     Metric("texels_rasterized", "texels rasterized", "texels", "lower", (0.0, 0.10)),
+    Metric("pages_marked", "pages marked", "pages", "lower", (0.0, 0.0)),
+    Metric("pages_rendered", "pages rendered", "pages", "lower", (0.0, 0.0)),
+    Metric("pool_bytes", "resident pool", "MiB", "lower", (0.0, 0.0), scale=2.0 ** -20),
 )}
 """Every metric column, in ``metrics.csv`` order (docs/design.md "Interfaces")."""
 

@@ -16,12 +16,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from csmlab.camera import CameraPose
+from csmlab.clipmaps import (VirtualPages, clipmap_cascades, clipmap_levels, footprint_scale, light_space,
+                             marked_pages, page_cache, page_table, pool_bytes, resident_pages, wanted_levels)
 from csmlab.culling import culled_triangles
 from csmlab.cascades import CascadeSet, build_cascades
 from csmlab.cascades.bounds import BOUNDS_METHODS, DEPTH_RANGE_METHODS, visible_depth_range
-from csmlab.filters import filter_inputs, lookup_shadow
+from csmlab.filters import clipmap_radius, filter_inputs, lookup_shadow
 from csmlab.frame import Frame, GBuffer, ShadowMaps, View
-from csmlab.geometry import normalized
+from csmlab.geometry import light_basis, normalized
 from csmlab.kernels.raster import (BANDS_PER_THREAD, LightSpaceMesh, banded_regions, light_space_mesh,
                                   rasterize_cascades, rasterize_depth, region_chunks, whole_map_regions, z_ordered)
 from csmlab.kernels.reference import hard_shadow
@@ -36,7 +38,7 @@ from csmlab.texels import (PRECISION_METHODS, fixed_point_coordinates, fixed_poi
                            light_plane_coordinates)
 
 __all__ = ["DeviceScene", "clipped_casters", "lookup_shadow", "prepare_scene", "render_frame", "render_shadow",
-           "render_view", "shadow_maps", "visible_depth"]
+           "render_view", "shadow_maps", "virtual_shadow_maps", "visible_depth"]
 
 
 @dataclass(frozen=True)
@@ -273,6 +275,74 @@ def clipped_casters(depth: np.ndarray, triangles: np.ndarray, *, near: float) ->
     return triangles[depth[triangles].max(axis=1) >= near]
 
 
+def virtual_shadow_maps(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
+                        previous: ShadowMaps | None = None) -> ShadowMaps:
+    """A virtual clipmap's resident pages for one view (``shadow_map = "virtual_clipmap"``, :mod:`csmlab.clipmaps`).
+
+    The levels are placed around the camera, every visible pixel of the view's G-buffer marks the
+    pages under its taps at its level, and the pages the pool keeps are taken from ``previous`` (the
+    same method's previous maps) where it holds them under the same light, the others rasterized,
+    each as a map of its own (:func:`_rasterized_pages`).
+
+    Returns
+    -------
+    ShadowMaps
+        ``depth`` ``(P, page_size, page_size)`` in the order of ``pages.keys``; ``cascades`` one box
+        per level; ``texels_rasterized`` the coverage tests that passed in the pages rasterized this
+        frame (the cache misses: the work the frame did).
+    """
+    g = view.gbuffer
+    basis = light_basis(view.light_direction)
+    # The depth offset as build_cascades takes it, bit for bit: the scene's light-space mesh is kept per
+    # (basis, zref), so cascades and a clipmap of one light share it.
+    scene_depth = (np.asarray(dscene.corners, dtype=np.float64).reshape(-1, 3) @ basis.T)[:, 2]
+    clip = clipmap_levels(eye=view.pose.position, light_direction=view.light_direction,
+                          zref=float(scene_depth.min()), footprint=footprint_scale(view.pose, height=g.shape[0]),
+                          settings=settings)
+    cascades = clipmap_cascades(clip, scene_depth=(float(scene_depth.min()), float(scene_depth.max())),
+                                margin=settings.margin_texels)
+    valid = g.valid
+    points = g.position[valid]
+    marked = marked_pages(clip, light_space(points, basis), light_space(g.normal[valid], basis),
+                          wanted_levels(clip, points), settings=settings, radius=clipmap_radius(settings))
+    keys = resident_pages(marked, pool=settings.physical_pages)
+    cache = page_cache(keys, clip, None if previous is None else previous.pages)
+    side = settings.page_size
+    span = float(np.ptp(scene_depth))
+    depth = np.empty((len(keys), side, side), dtype=np.float32)
+    if cache.kept.any():
+        depth[cache.kept] = previous.depth[cache.source[cache.kept]]
+    texels = 0
+    missed = ~cache.kept
+    if missed.any():
+        fresh, texels = _rasterized_pages(dscene, cascades, clip.texel, keys[missed], settings)
+        depth[missed] = stored_depth(fresh, span=span, depth_format=settings.depth_format)
+    depth.flags.writeable = False
+    pages = VirtualPages(clipmap=clip, keys=keys, table=page_table(clip, keys), marked=len(marked),
+                         rendered=int(missed.sum()), resident_bytes=pool_bytes(len(keys), settings))
+    return ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=texels, depth_span=span, pages=pages)
+
+
+def _rasterized_pages(dscene: DeviceScene, cascades: CascadeSet, texel: np.ndarray, keys: np.ndarray,
+                      settings: ShadowSettings) -> tuple[np.ndarray, int]:
+    """``(M, S, S)`` depths of the pages ``keys`` ``(M, 3)`` (level, global page x, y) and the texels rasterized.
+
+    Each page is a map of its own for the cascades' rasterizer: its level's texel size and its
+    corner, a whole page of texels, as origin. Its texels are then those of the level's global grid,
+    with the same fixed-point vertices wherever the page lies (:mod:`csmlab.kernels.raster`).
+    """
+    side = settings.page_size
+    bits = settings.subtexel_bits
+    mesh = _scene_in_light_space(dscene, cascades, settings.cull)
+    texel_size = np.repeat(texel[keys[:, 0]][:, None], 2, axis=1)
+    origin = keys[:, 1:] * side
+    regions = whole_map_regions([side] * len(keys))
+    chunks = region_chunks(mesh.bounds, texel_size=texel_size, origin=origin, regions=regions)
+    depth, texels = rasterize_cascades(mesh, texel_size=texel_size, origin=origin << bits, resolution=side, bits=bits,
+                                       regions=regions, chunks=chunks, threads=dscene.threads, device=dscene.device)
+    return depth, int(texels.sum())
+
+
 def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
                   visible_depth: tuple[float, float] | None = None, held_extents=None, lookup: bool = True,
                   scroll_from: ShadowMaps | None = None) -> Frame:
@@ -284,23 +354,23 @@ def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
     ``lookup = False`` stops after the depth maps (``Frame.shadow`` None): all the temporal
     metrics read of a previous frame. ``scroll_from``: the same method's previous maps, whose texels
     the boxes still cover are copied instead of rasterized (:mod:`csmlab.scrolling`; the same maps).
+    With ``shadow_map = "virtual_clipmap"`` the maps are a clipmap's pages (:func:`virtual_shadow_maps`),
+    ``scroll_from`` its page cache, and the split, fit and stabilization fields are not read.
 
     Returns
     -------
     Frame
-        ``timings`` holds ``cascades``, ``raster`` (and ``shadow``) in seconds.
+        ``timings`` holds ``cascades`` (not for a clipmap, whose level placement and page marking
+        count in ``raster``), ``raster`` (and ``shadow``) in seconds.
     """
     settings = settings.validated()
     start = time.perf_counter()
-    if BOUNDS_METHODS[settings.bounds].visible and visible_depth is None:
-        visible_depth = visible_depth_range(view.gbuffer.view_depth)
-    cascades = build_cascades(pose=view.pose, light_direction=view.light_direction,
-                              scene_corners=dscene.corners, settings=settings, visible_depth=visible_depth,
-                              held_extents=held_extents)
-    timings = {"cascades": time.perf_counter() - start}
-    start = time.perf_counter()
-    maps = shadow_maps(dscene, cascades, settings, scroll_from=scroll_from)
-    timings["raster"] = time.perf_counter() - start
+    if settings.shadow_map == "virtual_clipmap":
+        maps = virtual_shadow_maps(dscene, view, settings, previous=scroll_from)
+        timings = {"raster": time.perf_counter() - start}
+    else:
+        maps, timings = _cascaded_shadow_maps(dscene, view, settings, visible_depth=visible_depth,
+                                              held_extents=held_extents, scroll_from=scroll_from)
     if not lookup:
         return Frame(view=view, settings=settings, maps=maps, shadow=None, timings=timings)
     start = time.perf_counter()
@@ -313,6 +383,22 @@ def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
                            quads=quads, quad_view_depth=quad_view_depth, device=dscene.device)
     timings["shadow"] = time.perf_counter() - start
     return Frame(view=view, settings=settings, maps=maps, shadow=shadow, timings=timings)
+
+
+def _cascaded_shadow_maps(dscene: DeviceScene, view: View, settings: ShadowSettings, *, visible_depth, held_extents,
+                          scroll_from: ShadowMaps | None) -> tuple[ShadowMaps, dict]:
+    """:func:`render_shadow`'s cascades and depth maps, and the seconds of each (``cascades``, ``raster``)."""
+    start = time.perf_counter()
+    if BOUNDS_METHODS[settings.bounds].visible and visible_depth is None:
+        visible_depth = visible_depth_range(view.gbuffer.view_depth)
+    cascades = build_cascades(pose=view.pose, light_direction=view.light_direction,
+                              scene_corners=dscene.corners, settings=settings, visible_depth=visible_depth,
+                              held_extents=held_extents)
+    timings = {"cascades": time.perf_counter() - start}
+    start = time.perf_counter()
+    maps = shadow_maps(dscene, cascades, settings, scroll_from=scroll_from)
+    timings["raster"] = time.perf_counter() - start
+    return maps, timings
 
 
 def render_frame(scene_or_dscene: Scene | DeviceScene, pose: CameraPose, light_direction,

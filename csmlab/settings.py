@@ -15,7 +15,20 @@ from csmlab.culling import CULL_METHODS
 from csmlab.lookup_choices import CASTANO_SIZES, FILTER_METHODS, NORMAL_OFFSET_SCALES
 from csmlab.registry import check_name, parameters
 
-__all__ = ["APPLIES", "Applies", "ShadowSettings"]
+__all__ = ["APPLIES", "CLIPMAP_FILTERS", "SHADOW_MAP_METHODS", "Applies", "ShadowSettings"]
+
+SHADOW_MAP_METHODS: dict[str, str] = {
+    "cascades": "cascaded shadow maps: one stabilized box per split of the view depth (csmlab.cascades)",
+    "virtual_clipmap": "Unreal 5's virtual shadow map clipmap: world-locked levels of pages, marked from the "
+                       "G-buffer, rasterized when not cached (csmlab.clipmaps)",
+}
+"""The ``[shadow] shadow_map`` choices: what a method's depth maps are, by name."""
+
+CLIPMAP_FILTERS = ("none", "pcf")
+"""The filters a virtual clipmap's page-table lookup offers (:mod:`csmlab.kernels.pages`): one compare, or a box of
+``filter_size``² compares."""
+
+_POWERS_OF_TWO = frozenset(2**k for k in range(17))
 
 
 @dataclass(frozen=True)
@@ -30,6 +43,20 @@ class ShadowSettings:
     """Number of cascades C."""
     resolution: int = 1024
     """Texels per side R of each cascade's depth map."""
+    shadow_map: str = "cascades"
+    """What the depth maps are: cascades (one box per split, the fields below) | virtual_clipmap (Unreal 5's virtual shadow map clipmap: levels of pages rasterized where visible pixels need them, csmlab.clipmaps)."""
+    virtual_resolution: int = 16384
+    """virtual_clipmap: virtual texels per side of every clipmap level (Unreal: 16k)."""
+    page_size: int = 128
+    """virtual_clipmap: texels per side of a page, the unit of marking, caching and rasterization (Unreal: 128)."""
+    clipmap_first_level: int = 6
+    """virtual_clipmap: the finest level n, covering a radius of 2^n cm around the camera (r.Shadow.Virtual.Clipmap.FirstLevel)."""
+    clipmap_last_level: int = 22
+    """virtual_clipmap: the coarsest level (r.Shadow.Virtual.Clipmap.LastLevel)."""
+    lod_bias: float = -0.5
+    """virtual_clipmap: log2 bias of the level chosen from a pixel's footprint, -1 doubles the resolution (r.Shadow.Virtual.ResolutionLodBiasDirectional)."""
+    physical_pages: int = 2048
+    """virtual_clipmap: pages of the physical pool, its memory (r.Shadow.Virtual.MaxPhysicalPages)."""
     split: str = "practical"
     """Split scheme: uniform | log | practical | manual | manual_range | exponent | geometric."""
     lambda_: float = 0.75
@@ -166,6 +193,25 @@ class ShadowSettings:
         need(isinstance(self.cascades, int) and 1 <= self.cascades <= 10, "cascades", "an integer in 1..10", self.cascades)
         need(isinstance(self.resolution, int) and 16 <= self.resolution <= 16384, "resolution",
              "an integer in 16..16384", self.resolution)
+        need(self.shadow_map in SHADOW_MAP_METHODS, "shadow_map", f"one of {list(SHADOW_MAP_METHODS)}", self.shadow_map)
+        need(isinstance(self.page_size, int) and self.page_size in _POWERS_OF_TWO and 8 <= self.page_size <= 1024,
+             "page_size", "a power of two in 8..1024", self.page_size)
+        need(isinstance(self.virtual_resolution, int) and self.virtual_resolution in _POWERS_OF_TWO
+             and self.page_size <= self.virtual_resolution <= 65536, "virtual_resolution",
+             f"a power of two in page_size ({self.page_size})..65536", self.virtual_resolution)
+        need(isinstance(self.clipmap_first_level, int) and -10 <= self.clipmap_first_level <= 30,
+             "clipmap_first_level", "an integer in -10..30", self.clipmap_first_level)
+        need(isinstance(self.clipmap_last_level, int) and self.clipmap_first_level <= self.clipmap_last_level <= 30
+             and self.clipmap_last_level - self.clipmap_first_level < 32, "clipmap_last_level",
+             f"an integer in clipmap_first_level ({self.clipmap_first_level})..30, at most 32 levels",
+             self.clipmap_last_level)
+        need(math.isfinite(self.lod_bias) and -8.0 <= self.lod_bias <= 8.0, "lod_bias", "a number in [-8, 8]",
+             self.lod_bias)
+        need(isinstance(self.physical_pages, int) and 1 <= self.physical_pages <= 65536, "physical_pages",
+             "an integer in 1..65536", self.physical_pages)
+        need(self.shadow_map != "virtual_clipmap" or self.filter in CLIPMAP_FILTERS, "filter",
+             f"one of {list(CLIPMAP_FILTERS)} with shadow_map = \"virtual_clipmap\" (its page-table lookup)",
+             self.filter)
         need(0.0 <= self.lambda_ <= 1.0, "lambda", "a value in [0, 1]", self.lambda_)
         need(all(math.isfinite(z) and z > 0 for z in self.splits)
              and all(a < b for a, b in zip(self.splits, self.splits[1:])), "splits",
@@ -245,6 +291,13 @@ class ShadowSettings:
         return self
 
     @property
+    def map_count(self) -> int:
+        """Depth maps the per-cascade metric columns count: ``cascades``, or a clipmap's levels."""
+        if self.shadow_map == "virtual_clipmap":
+            return self.clipmap_last_level - self.clipmap_first_level + 1
+        return self.cascades
+
+    @property
     def margin_texels(self) -> int:
         """Texels kept free inside each box edge so that filter taps never clamp: the filter's radius + 1.
 
@@ -306,8 +359,19 @@ def _moment_mips(*, filter: str, moment_mips: bool) -> bool:
     return _family(filter) == "moment" and moment_mips
 
 
+def _clipmap(why: str) -> Applies:
+    """The field takes effect in a virtual clipmap: ``why``."""
+    return Applies(lambda *, shadow_map: shadow_map == "virtual_clipmap", f'shadow_map = "virtual_clipmap" ({why})')
+
+
 APPLIES: dict[str, Applies] = {
     "lambda": Applies(lambda *, split: split == "practical", 'split = "practical" (the blend of log and uniform splits)'),
+    "virtual_resolution": _clipmap("the texels per side of each level"),
+    "page_size": _clipmap("the texels per side of a page"),
+    "clipmap_first_level": _clipmap("its finest level"),
+    "clipmap_last_level": _clipmap("its coarsest level"),
+    "lod_bias": _clipmap("the bias of its level choice"),
+    "physical_pages": _clipmap("its page pool"),
     "splits": Applies(lambda *, split: split in ("manual", "manual_range"),
                       'split = "manual" or "manual_range" (the far end of each cascade)'),
     "distribution_exponent": Applies(lambda *, split: split == "exponent",

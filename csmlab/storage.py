@@ -97,7 +97,11 @@ def memory_bytes(settings: ShadowSettings) -> int:
 
     ``array``: ``C · R_max² · bytes`` (every slice of an array has one size). ``atlas``: the whole
     grid of :data:`ATLAS_LAYOUTS` ``[atlas_layout]`` in tiles of ``R_max``, empty tiles included.
+    A virtual clipmap (``shadow_map = "virtual_clipmap"``): its physical pool, ``physical_pages ·
+    page_size² · bytes``, allocated whole however few pages are resident (:mod:`csmlab.clipmaps`).
     """
+    if settings.shadow_map == "virtual_clipmap":
+        return settings.physical_pages * settings.page_size * settings.page_size * texel_bytes(settings)
     size = max(settings.cascade_resolutions or (settings.resolution,))
     if settings.storage == "array":
         return settings.cascades * size * size * texel_bytes(settings)

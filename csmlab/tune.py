@@ -23,8 +23,8 @@ told the same values, proposes the same candidates again.
 Beside the search, the starting setting (the tuned method as the experiment has it) and every engine
 preset (``configs/engines/*.toml``, each a method preset naming its ``[[methods]]`` entry after the
 file) are evaluated on the same frames. Under a memory budget a preset over it is evaluated at the
-largest power-of-two fraction of its resolution that fits ("ue5 @ 512²"): what an engine team would
-do to meet the budget.
+largest power-of-two fraction of its resolution that fits ("ue5 @ 512²"), a virtual clipmap at that
+fraction of its page pool ("ue5_vsm @ 256 pages"): what an engine team would do to meet the budget.
 
 References
 ----------
@@ -293,10 +293,19 @@ def _preset_settings(experiment: Experiment, preset: Path) -> ShadowSettings:
 
 
 def _fitted(settings: ShadowSettings, budget: int | None) -> ShadowSettings:
-    """``settings`` with its resolution halved until its memory fits ``budget`` (not below 16 texels)."""
-    while budget is not None and shadow_memory_bytes(settings) > budget and settings.resolution // 2 >= 16:
-        settings = settings.replace(resolution=settings.resolution // 2)
+    """``settings`` with its resolution halved until its memory fits ``budget`` (not below 16 texels); a virtual
+    clipmap's page pool halved instead (not below one page), its memory (:func:`csmlab.storage.memory_bytes`)."""
+    size, least = ("physical_pages", 1) if settings.shadow_map == "virtual_clipmap" else ("resolution", 16)
+    while budget is not None and shadow_memory_bytes(settings) > budget and getattr(settings, size) // 2 >= least:
+        settings = settings.replace(**{size: getattr(settings, size) // 2})
     return settings
+
+
+def _fitted_label(name: str, fitted: ShadowSettings) -> str:
+    """How a preset measured at a smaller size is named: ``ue5 @ 512²``, ``ue5_vsm @ 256 pages``."""
+    if fitted.shadow_map == "virtual_clipmap":
+        return f"{name} @ {fitted.physical_pages} pages"
+    return f"{name} @ {fitted.resolution}²"
 
 
 class _Cache:
@@ -563,7 +572,7 @@ def tune(experiment: Experiment, *, out_dir, space: dict | None = None, objectiv
     reference_settings = {"start": base.settings}
     for name, settings in preset_settings.items():
         fitted = _fitted(settings, memory_budget)
-        reference_settings[name if fitted == settings else f"{name} @ {fitted.resolution}²"] = fitted
+        reference_settings[name if fitted == settings else _fitted_label(name, fitted)] = fitted
     measured = evaluate(reference_settings)
     for label in reference_settings:
         tick(label)

@@ -58,6 +58,12 @@ CASES = {
     "lod": ('"analytic"', {"filter": '"vsm"', "moment_mips": "true"}),
     "max_lod": ("2", {"filter": '"evsm2"', "moment_mips": "true"}),
     "anisotropy": ("4", {"filter": '"evsm4"', "moment_mips": "true"}),
+    "virtual_resolution": ("1024", {"shadow_map": '"virtual_clipmap"'}),
+    "page_size": ("64", {"shadow_map": '"virtual_clipmap"'}),
+    "clipmap_first_level": ("4", {"shadow_map": '"virtual_clipmap"'}),
+    "clipmap_last_level": ("20", {"shadow_map": '"virtual_clipmap"'}),
+    "lod_bias": ("-1.5", {"shadow_map": '"virtual_clipmap"'}),
+    "physical_pages": ("512", {"shadow_map": '"virtual_clipmap"'}),
 }
 # Where each does not apply: the defaults, but for the fields that the defaults make apply.
 NOT_THERE = {"lambda": {"split": '"log"'}, "extent": {"stabilization": '"none"'}, "snap": {"stabilization": '"none"'},

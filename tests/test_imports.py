@@ -27,7 +27,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("settings", ("csmlab.lookup_choices", "csmlab.culling", "csmlab.fades", "csmlab.settings")),
     ("kernels", ("csmlab.kernels",)),
     ("world", ("csmlab.camera", "csmlab.light", "csmlab.scene", "csmlab.paths", "csmlab.cascades", "csmlab.texels",
-               "csmlab.quads", "csmlab.storage", "csmlab.scrolling", "csmlab.frame")),
+               "csmlab.quads", "csmlab.storage", "csmlab.scrolling", "csmlab.clipmaps", "csmlab.frame")),
     ("lookup and render", ("csmlab.filters", "csmlab.render")),
     ("metrics", ("csmlab.metrics",)),
     ("run records", ("csmlab.config", "csmlab.results", "csmlab.executor", "csmlab.engine_export",

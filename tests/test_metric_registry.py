@@ -26,8 +26,10 @@ def test_metric_columns_keep_the_design_order_with_per_cascade_columns():
     at = columns.index("utilization")
     assert columns[at + 1:at + 3] == ("utilization_c0", "utilization_c1")
     rho_keys = ("rho_median", "rho_p05", "rho_p95", "rho_frac_lt1", "rho_frac_lt05")
-    assert columns[columns.index("texels_rasterized") + 1:] == tuple(f"{k}_c{c}" for c in range(2) for k in rho_keys)
-    extensions = ("ref_seam_error",)  # columns added after docs/design.md's list
+    extensions = ("pages_marked", "pages_rendered", "pool_bytes")  # a virtual clipmap's pages, after the cost
+    assert columns[columns.index("texels_rasterized") + 1:] == extensions + tuple(
+        f"{k}_c{c}" for c in range(2) for k in rho_keys)
+    extensions += ("ref_seam_error",)  # columns added after docs/design.md's list
     assert set(extensions) <= set(columns)
     assert len(set(columns)) == len(columns) == len(DESIGN_COLUMNS) + len(extensions) + 2 + 2 * len(rho_keys)
     with pytest.raises(ValueError, match="positive integer"):

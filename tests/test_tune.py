@@ -306,3 +306,14 @@ def test_real_engine_presets_are_measured_on_the_same_frames_fitted_and_labelled
     assert frames[f"k{ue5.key}"] == set(range(plain.camera.frames))
     assert result.budgets.max_flicker == min(ue5.values["flicker_same"], bevy.values["flicker_same"])
     assert result.recommended.values["flicker_same"] <= result.budgets.max_flicker
+
+
+def test_a_virtual_clipmap_preset_is_fitted_to_a_budget_by_its_page_pool():
+    """ue5_vsm's memory is its pool of 2048 pages of 128² float32 (128 MiB): under 16 MiB it is measured with 256
+    pages, its resolution untouched (a clipmap's memory does not depend on it)."""
+    vsm = ShadowSettings(shadow_map="virtual_clipmap", filter="none")
+    fitted = tune_module._fitted(vsm, 16 * 2**20)
+    assert fitted == vsm.replace(physical_pages=256)
+    assert shadow_memory_bytes(fitted) == 16 * 2**20
+    assert tune_module._fitted_label("ue5_vsm", fitted) == "ue5_vsm @ 256 pages"
+    assert tune_module._fitted(vsm, 1) == vsm.replace(physical_pages=1)

@@ -49,6 +49,14 @@ class FrameMeasures:
     pixels: dict[str, np.ndarray]
 
 
+def _mean_utilization(share: np.ndarray) -> float:
+    """The mean of the maps' utilizations ``(C,)``, over those that have texels (a clipmap level without resident
+    pages has none: NaN); NaN when none has."""
+    if np.all(np.isfinite(share)):
+        return float(np.mean(share))
+    return float(np.nanmean(share)) if np.isfinite(share).any() else float("nan")
+
+
 def measure_frame(frame: Frame, previous: Frame | None = None, *, ambient: float = 0.25,
                   device: str = "cpu") -> FrameMeasures:
     """Every metric of ``frame``; the temporal and perceptual ones against ``previous``.
@@ -80,7 +88,7 @@ def measure_frame(frame: Frame, previous: Frame | None = None, *, ambient: float
     alias = aliasing_maps(frame, device=device)
     share = utilization(frame, device=device)
     errors = reference_maps(frame)
-    values = {**aliasing_summary(alias, cascades=cascades), "utilization": float(np.mean(share)),
+    values = {**aliasing_summary(alias, cascades=cascades), "utilization": _mean_utilization(share),
               **{f"utilization_c{c}": float(u) for c, u in enumerate(share)},
               **reference_summary(errors), **seam_error(frame), **cost_summary(frame)}
     g = frame.view.gbuffer

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from csmlab.cascades import CascadeSet
+from csmlab.clipmaps import light_space
 from csmlab.frame import Frame
 from csmlab.kernels.footprint import surface_differentials, texel_footprint
 from csmlab.kernels.usage import looked_up_texels
@@ -137,12 +138,37 @@ def utilization(frame: Frame, *, device: str = "cpu") -> np.ndarray:
     coordinates from :func:`csmlab.texels.texel_coordinates`); the count of distinct such texels
     (:func:`csmlab.kernels.usage.looked_up_texels`) is divided by R². Points outside the R×R grid
     (impossible for a correct selection) are not counted.
+
+    A virtual clipmap (:mod:`csmlab.clipmaps`) allocates only its resident pages: there the count of
+    each level is divided by the texels of its resident pages (NaN for a level with none), not by
+    the level's virtual R².
     """
     g = frame.view.gbuffer
     cascades = frame.maps.cascades
+    if frame.maps.pages is not None:
+        return _resident_utilization(frame)
     selected = np.where(g.valid, frame.shadow.cascade, -1).reshape(-1)
     sides = np.array([c.resolution for c in cascades.cascades])
     counts = looked_up_texels(g.position.reshape(-1, 3), selected, basis=cascades.basis,
                               texel_size=np.stack([c.texel_size for c in cascades.cascades]),
                               origin=np.stack([c.origin for c in cascades.cascades]), resolution=sides, device=device)
     return counts / (sides.astype(np.float64) ** 2)
+
+
+def _resident_utilization(frame: Frame) -> np.ndarray:
+    """:func:`utilization` of a virtual clipmap: distinct texels looked up per level over its resident texels, ``(L,)``."""
+    g = frame.view.gbuffer
+    pages = frame.maps.pages
+    clip = pages.clipmap
+    selected = np.where(g.valid, frame.shadow.cascade, -1)
+    level = selected[selected >= 0].astype(np.int64)
+    xy = light_space(g.position[selected >= 0], clip.basis)[:, :2]
+    side = clip.pages_per_side * clip.page_size
+    # Texels of the level's box: a point outside it (impossible for a correct choice) is not counted.
+    local = np.floor(xy / clip.texel[level][:, None]).astype(np.int64) - clip.origin_page[level] * clip.page_size
+    inside = np.all((local >= 0) & (local < side), axis=1)
+    looked = np.unique((level[inside] * side + local[inside, 1]) * side + local[inside, 0])
+    counts = np.bincount(looked // (side * side), minlength=len(clip)).astype(np.float64)
+    resident = np.bincount(pages.keys[:, 0], minlength=len(clip)).astype(np.float64) * clip.page_size ** 2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(resident > 0, counts / resident, np.nan)

@@ -22,8 +22,16 @@ def shadow_memory_bytes(settings: ShadowSettings) -> int:
 
 
 def cost_summary(frame: Frame) -> dict[str, float]:
-    """``memory_bytes`` and ``texels_rasterized`` of one frame, as floats for the metrics table."""
+    """``memory_bytes``, ``texels_rasterized`` and a virtual clipmap's page counts of one frame, as floats.
+
+    ``pages_marked``, ``pages_rendered`` (the cache misses) and ``pool_bytes`` (its resident pages'
+    bytes) are NaN for cascades, which have no pages (:mod:`csmlab.clipmaps`).
+    """
+    pages = frame.maps.pages
     return {
         "memory_bytes": float(shadow_memory_bytes(frame.settings)),
         "texels_rasterized": float(frame.maps.texels_rasterized),
+        "pages_marked": float("nan") if pages is None else float(pages.marked),
+        "pages_rendered": float("nan") if pages is None else float(pages.rendered),
+        "pool_bytes": float("nan") if pages is None else float(pages.resident_bytes),
     }
