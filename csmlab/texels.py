@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from csmlab.cascades import CascadeSet
+from csmlab.cascades.warp import warped_texels
 from csmlab.lookup_choices import NORMAL_NONE, NORMAL_OFFSET_SCALES, NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN
 from csmlab.registry import check_name
 
@@ -131,10 +132,13 @@ def texel_coordinates(cascades: CascadeSet, index: int, points) -> np.ndarray:
     -------
     ndarray, shape (..., 2), float64
         Light-space x/y in texels relative to the box's minimum corner: texel ``(i, j)`` spans
-        ``[i, i + 1) × [j, j + 1)``. Not snapped to the fixed-point grid. For a fractional
+        ``[i, i + 1) × [j, j + 1)`` (through the homography for a warped cascade). Not snapped to
+        the fixed-point grid. For a fractional
         origin (``none``) the rasterizer's grid sits up to half a fixed-point step from this one
         (see :func:`fixed_point_origin`).
     """
+    if cascades.cascades[index].warp is not None:
+        return _local_texels_warped(cascades, index, points)
     return _global_texels(cascades, index, points) - cascades.cascades[index].origin
 
 
@@ -158,6 +162,16 @@ def _local_texels_float32(cascades: CascadeSet, index: int, points) -> np.ndarra
     return u.astype(np.float64)
 
 
+def _local_texels_warped(cascades: CascadeSet, index: int, points) -> np.ndarray:
+    """Local texel coordinates ``(..., 2)`` of world points in a warped cascade (:mod:`csmlab.cascades.warp`).
+
+    Points behind the warp's eye (``w ≤ 0``, never on the map) get NaN, snapped far outside.
+    """
+    texels, w = warped_texels(cascades.cascades[index].warp.homography,
+                              _light_space(np.asarray(points, dtype=np.float64), cascades.basis[:2]))
+    return np.where((w > 0.0)[..., None], texels, np.nan)
+
+
 def fixed_point_coordinates(cascades: CascadeSet, index: int, points, *, bits: int,
                             precision: str = "float64") -> np.ndarray:
     """Snapped local texel coordinates ``(..., 2)`` int64 of world points, in ``2**-bits`` texels.
@@ -168,6 +182,8 @@ def fixed_point_coordinates(cascades: CascadeSet, index: int, points, *, bits: i
     ``-2**50`` less the origin (outside every box). ``precision = "float32"`` rounds the local
     coordinates of an engine's float32 matrix instead (:data:`PRECISION_METHODS`).
     """
+    if cascades.cascades[index].warp is not None:
+        return _snapped(_local_texels_warped(cascades, index, points) * float(2**bits))
     if not PRECISION_METHODS[check_name(precision, PRECISION_METHODS, field="engine_precision")].global_grid:
         return _snapped(_local_texels_float32(cascades, index, points) * float(2**bits))
     snapped = _snapped(_global_texels(cascades, index, points) * float(2**bits))
@@ -274,7 +290,9 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
             offset = offset + normal_offset_m
         if factor is not None:
             offset = (offset * factor)[:, None]
-        if global_grid:
+        if cascade.warp is not None:
+            coordinates[c] = _snapped(_local_texels_warped(cascades, c, p + n * offset) * scale)
+        elif global_grid:
             u = light_n[:, :2] * offset
             u += light_p[:, :2]
             u *= scale / cascade.texel_size
