@@ -91,6 +91,13 @@ def light_plane_coordinates(cascades: CascadeSet, points) -> np.ndarray:
     return _light_space(np.asarray(points, dtype=np.float64), cascades.basis[:2])
 
 
+def _warped(cascades: CascadeSet, index: int) -> bool:
+    """Whether cascade ``index`` (checked) is perspective-warped."""
+    if not 0 <= index < len(cascades):
+        raise ValueError(f"cascade index: expected 0..{len(cascades) - 1}, got {index}")
+    return cascades.cascades[index].warp is not None
+
+
 def _global_texels(cascades: CascadeSet, index: int, points) -> np.ndarray:
     if not 0 <= index < len(cascades):
         raise ValueError(f"cascade index: expected 0..{len(cascades) - 1}, got {index}")
@@ -137,7 +144,7 @@ def texel_coordinates(cascades: CascadeSet, index: int, points) -> np.ndarray:
         origin (``none``) the rasterizer's grid sits up to half a fixed-point step from this one
         (see :func:`fixed_point_origin`).
     """
-    if cascades.cascades[index].warp is not None:
+    if _warped(cascades, index):
         return _local_texels_warped(cascades, index, points)
     return _global_texels(cascades, index, points) - cascades.cascades[index].origin
 
@@ -182,7 +189,7 @@ def fixed_point_coordinates(cascades: CascadeSet, index: int, points, *, bits: i
     ``-2**50`` less the origin (outside every box). ``precision = "float32"`` rounds the local
     coordinates of an engine's float32 matrix instead (:data:`PRECISION_METHODS`).
     """
-    if cascades.cascades[index].warp is not None:
+    if _warped(cascades, index):
         return _snapped(_local_texels_warped(cascades, index, points) * float(2**bits))
     if not PRECISION_METHODS[check_name(precision, PRECISION_METHODS, field="engine_precision")].global_grid:
         return _snapped(_local_texels_float32(cascades, index, points) * float(2**bits))
