@@ -237,3 +237,16 @@ def test_lispsm_raises_the_near_cascades_worst_texel_density_and_still_matches_t
 def test_lispsm_needs_a_tight_box():
     with pytest.raises(ValueError, match="warp"):
         ShadowSettings(stabilization="exact", warp="lispsm").validated()
+
+
+def test_the_report_draws_a_warped_cascade_at_its_maps_corners():
+    from csmlab.report.pixels import box_corners
+
+    light = direction_from_angles(elevation_deg=35.0, azimuth_deg=60.0)
+    pose = _pose((4.0, 1.8, 6.0), (0.3, -0.2, -1.0), near=0.1, far=50.0)
+    settings = ShadowSettings(cascades=2, resolution=128, stabilization="none", warp="lispsm", shadow_distance=50.0)
+    cascades = build_cascades(pose=pose, light_direction=light, scene_corners=SCENE_CORNERS, settings=settings)
+    corners = box_corners(cascades)
+    grid = ((np.arange(8)[:, None] >> np.arange(2)) & 1) * 128.0
+    for c in range(2):
+        np.testing.assert_allclose(texel_coordinates(cascades, c, corners[c]), grid, atol=1e-6)
