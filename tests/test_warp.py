@@ -250,3 +250,19 @@ def test_the_report_draws_a_warped_cascade_at_its_maps_corners():
     grid = ((np.arange(8)[:, None] >> np.arange(2)) & 1) * 128.0
     for c in range(2):
         np.testing.assert_allclose(texel_coordinates(cascades, c, corners[c]), grid, atol=1e-6)
+
+
+@pytest.mark.parametrize("warp", ["none", "lispsm"])
+def test_the_general_4x4_projection_gives_each_cascades_texels_and_light_depth(warp):
+    # Ortho is the special case (w = 1); the warped one divides by w, its z / w times w the light depth.
+    light = direction_from_angles(elevation_deg=35.0, azimuth_deg=60.0)
+    pose = _pose((4.0, 1.8, 6.0), (0.3, -0.2, -1.0), near=0.1, far=50.0)
+    settings = ShadowSettings(cascades=2, resolution=128, stabilization="none", warp=warp, shadow_distance=50.0)
+    cascades = build_cascades(pose=pose, light_direction=light, scene_corners=SCENE_CORNERS, settings=settings)
+    points = np.random.default_rng(5).uniform([-5, 0, -40], [10, 3, 0], size=(50, 3))
+    for c in range(2):
+        clip = np.column_stack([points, np.ones(50)]) @ cascades.projection(c).T
+        if warp == "none":
+            np.testing.assert_array_equal(clip[:, 3], 1.0)
+        np.testing.assert_allclose(clip[:, :2] / clip[:, 3:], texel_coordinates(cascades, c, points), atol=1e-8)
+        np.testing.assert_allclose(clip[:, 2], points @ cascades.basis[2] - cascades.zref, atol=1e-9)
