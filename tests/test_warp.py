@@ -102,7 +102,7 @@ def test_texel_density_falls_as_the_warp_perspective_predicts_along_and_across_t
 
 
 def _filament_chain(basis, corners, pose, *, n_opt, resolution, margin):
-    """Filament's matrices written out in 4×4 (ShadowMap.cpp: L, translation(−p), warpFrustum, the focus F), then texels."""
+    """Filament's matrices in 4×4 (ShadowMap.cpp: L, translation(−p), warpFrustum, the focus F), then texels."""
     f_light = basis @ pose.forward
     vp = f_light[:2] / np.linalg.norm(f_light[:2])
     L = np.eye(4)

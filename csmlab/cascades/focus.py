@@ -35,7 +35,7 @@ def _box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
 
 
 def _outward_planes(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unit outward normals ``(6, 3)`` and offsets ``(6,)`` of a convex hexahedron's faces: ``n·p + c ≤ 0`` inside."""
+    """Unit outward normals ``(6, 3)`` and offsets ``(6,)`` of a hexahedron's faces (``n·p + c ≤ 0`` inside)."""
     centre = corners.mean(axis=0)
     quads = corners[_FACES]
     normals = np.cross(quads[:, 2] - quads[:, 0], quads[:, 1] - quads[:, 0])

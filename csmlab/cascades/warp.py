@@ -25,7 +25,9 @@ Perspective Shadow Maps", EGSR 2004:
    between light and view, ``z0 = zn`` the volume's nearest view depth, ``z1 = z0 + δ sin γ``,
    ``vz0, vz1`` those clamped to the virtual near and far planes of ``shadowNearHint`` and
    ``shadowFarHint``; ``dzn = max(0, near_hint − camera near)``, ``dzf = max(0, camera far −
-   far_hint)``). Its eye sits at the camera's x. ``warpFrustum(n_opt, n_opt + δ)``:
+   far_hint)``; the camera's near and far are the cascade's split, as
+   ``ShadowMapManager::updateCascadeShadowMaps`` sets ``cameraInfo.zn``/``zf`` per cascade). Its eye
+   sits at the camera's x. ``warpFrustum(n_opt, n_opt + δ)``:
    ``x' = n_opt x / y``, ``y' = (A y + B) / y``, ``A = (f + n)/(f − n)``, ``B = −2 f n/(f − n)``.
 3. Filament falls back to no warp (``W`` identity: the rotated orthographic map) when ``sin γ``
    ≤ 0.02 (light along the view, ``n_opt → ∞``), when the volume has no y extent, or when
@@ -135,7 +137,7 @@ def lispsm_parameter(*, sin_gamma: float, z_near: float, z_far: float, camera_ne
 
 
 def _light_rotation(forward_light: np.ndarray) -> np.ndarray:
-    """Filament's ``computeLightRotation`` on light-space x/y: rows (x̂, ŷ) with ŷ the camera's forward seen from the light."""
+    """Filament's ``computeLightRotation`` on light x/y: rows (x̂, ŷ), ŷ the camera's forward seen from the light."""
     if abs(forward_light[2]) >= _ROTATION_LIMIT:
         return np.eye(2)
     vp = forward_light[:2] / np.hypot(forward_light[0], forward_light[1])

@@ -15,7 +15,8 @@ centres (a one-pixel forward difference) under-estimates the footprint on a plan
 bound toward the horizon, where perspective aliasing lives.
 
 :func:`texel_footprint` maps the differentials into the selected cascade's texel coordinates. For an
-orthographic cascade the map from world metres to texels is linear, ``T = diag(1/tx, 1/ty) · [right; up]``, and the Jacobian is exactly
+orthographic cascade the map from world metres to texels is linear, ``T = diag(1/tx, 1/ty) · [right; up]``,
+and the Jacobian is exactly
 
     J = T · [dX/du, dX/dv]        (2 × 2, texels per pixel)
 
@@ -226,7 +227,7 @@ def warped_texel_footprint_kernel(
 
 def warped_texel_footprint(position, dpdx, dpdy, cascade, *, basis, homographies,
                            device: str = "cpu") -> tuple[np.ndarray, np.ndarray]:
-    """ρ and σ_min of every pixel in its selected cascade through each cascade's homography (a warped light projection).
+    """ρ and σ_min of every pixel in its selected cascade through the cascade's homography (a warped projection).
 
     The map from world metres to texels is no longer linear: at the pixel's point ``X`` its
     Jacobian is ``(H[:2, :2] − t ⊗ H[2, :2]) / w · [right; up]`` (``t`` the point's texel

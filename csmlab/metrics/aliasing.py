@@ -157,7 +157,7 @@ def utilization(frame: Frame, *, device: str = "cpu") -> np.ndarray:
 
 
 def _warped_utilization(points: np.ndarray, selected: np.ndarray, cascades: CascadeSet) -> np.ndarray:
-    """:func:`utilization` of cascades placed by homographies: the distinct texels of each cascade's points, on the host."""
+    """:func:`utilization` of cascades placed by homographies: each one's distinct texels looked up, on the host."""
     out = np.zeros(len(cascades), dtype=np.float64)
     for c, cascade in enumerate(cascades.cascades):
         texel = np.floor(texel_coordinates(cascades, c, points[selected == c]))
