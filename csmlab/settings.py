@@ -339,8 +339,9 @@ APPLIES: dict[str, Applies] = {
         'stabilization = "exact", or "quantized" with quantized_base = "sphere" (the fixed box diameter)'),
     "snap": Applies(lambda *, stabilization: stabilization == "exact",
                     'stabilization = "exact" (what its fixed box snaps to whole texels)'),
-    "extent_hysteresis": Applies(lambda *, stabilization: stabilization == "none",
-                                 'stabilization = "none" (a stabilized box already has a fixed extent)'),
+    "extent_hysteresis": Applies(lambda *, stabilization, warp: stabilization == "none" and warp == "none",
+                                 'stabilization = "none" with warp = "none" (a stabilized box already has a fixed '
+                                 'extent; a warped map is focused every frame)'),
     "focus": Applies(lambda *, stabilization: stabilization == "none",
                      'stabilization = "none" (what its tight box covers)'),
     "lispsm_near_hint": Applies(lambda *, warp, stabilization: warp == "lispsm" and stabilization == "none",
