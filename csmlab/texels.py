@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from csmlab.cascades import CascadeSet
-from csmlab.cascades.warp import warped_texels
+from csmlab.cascades.warp import warped_texel_jacobian, warped_texels
 from csmlab.lookup_choices import NORMAL_NONE, NORMAL_OFFSET_SCALES, NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN
 from csmlab.registry import check_name
 
@@ -306,11 +306,30 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
             coordinates[c] = _snapped(u) - fixed_point_origin(cascades, c, bits=bits)
         else:
             coordinates[c] = _snapped(_local_texels_float32(cascades, c, p + n * offset) * scale)
+        step = plane_slope * cascade.texel_size
+        if cascade.warp is not None:
+            # A warped texel's size changes across the map: the slope bias and the receiver plane's
+            # change per texel step take the receiver's own, from the homography's Jacobian there.
+            texel, step = _warped_texel_steps(cascade.warp.homography, light_p[:, :2], plane_slope)
         bias = constant[c] + bias_slope * texel * tan
         if cap[c] > 0.0:
-            step = plane_slope * cascade.texel_size
             bias = bias + np.minimum(np.abs(step[:, 0]) + np.abs(step[:, 1]), cap[c])
         depth[c] = light_p[:, 2] + (along * offset if factor is None else along * offset[:, 0]) * light_n[:, 2] \
             - cascades.zref - bias
-        slope[c] = plane_slope * cascade.texel_size
+        slope[c] = step
     return coordinates, depth, slope
+
+
+def _warped_texel_steps(homography: np.ndarray, light_xy: np.ndarray,
+                        plane_slope: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per receiver of a warped cascade: its texel's larger side ``(N,)`` in metres and its plane's depth change per
+    texel step along the map's two axes ``(N, 2)``, from the inverse of the homography's Jacobian at ``light_xy``."""
+    j = warped_texel_jacobian(homography, light_xy)
+    det = j[:, 0, 0] * j[:, 1, 1] - j[:, 0, 1] * j[:, 1, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # Columns: light x/y metres per texel step along the map's i and j axes (the 2×2 inverse).
+        along_i = np.column_stack([j[:, 1, 1], -j[:, 1, 0]]) / det[:, None]
+        along_j = np.column_stack([-j[:, 0, 1], j[:, 0, 0]]) / det[:, None]
+    texel = np.maximum(np.hypot(along_i[:, 0], along_i[:, 1]), np.hypot(along_j[:, 0], along_j[:, 1]))
+    step = np.column_stack([np.sum(plane_slope * along_i, axis=1), np.sum(plane_slope * along_j, axis=1)])
+    return texel, step

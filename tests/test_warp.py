@@ -266,3 +266,20 @@ def test_the_general_4x4_projection_gives_each_cascades_texels_and_light_depth(w
             np.testing.assert_array_equal(clip[:, 3], 1.0)
         np.testing.assert_allclose(clip[:, :2] / clip[:, 3:], texel_coordinates(cascades, c, points), atol=1e-8)
         np.testing.assert_allclose(clip[:, 2], points @ cascades.basis[2] - cascades.zref, atol=1e-9)
+
+
+@pytest.mark.parametrize("filter_name", ["pcf", "pcf_castano"])
+def test_a_bare_lit_plane_stays_lit_through_a_warped_maps_filter_taps(filter_name):
+    # Texels grow across a warped map: a tap one texel away must compare against the receiver
+    # plane's depth there, from the homography's Jacobian at the receiver, or the plane shadows itself
+    # (not the one texel size at the camera). The default slope bias
+    # of one texel covers the plane's curvature in texel space (the homography is not linear).
+    scene = scene_of([], plane_half=80.0)
+    pose = _pose((0.0, 2.0, 0.0), (0.2, -0.35, -1.0), far=70.0, aspect=160 / 90)
+    light = direction_from_angles(elevation_deg=35.0, azimuth_deg=50.0)
+    settings = ShadowSettings(cascades=1, resolution=256, stabilization="none", warp="lispsm", shadow_distance=70.0,
+                              filter=filter_name)
+    frame = render_frame(scene, pose, light, settings, width=96, height=54)
+    ok = frame.view.gbuffer.valid & (frame.shadow.cascade >= 0)
+    assert np.isfinite(frame.maps.cascades.cascades[0].warp.n_opt) and ok.mean() > 0.5
+    assert np.all(frame.shadow.lit[ok] == 1.0)
