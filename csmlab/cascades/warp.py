@@ -76,7 +76,8 @@ class Warp:
     texel_size : ndarray, shape (2,)
         Metres per texel along the map's axes at the camera's eye (Filament's
         ``texelSizeAtOneMeterWs``, from the Jacobian at the world origin, where it puts the camera):
-        what normal offset and slope bias are scaled by.
+        what the normal offset is scaled by. The slope and receiver-plane biases take each
+        receiver's own texel instead (:func:`csmlab.texels.receiver_lookup`).
     """
 
     homography: np.ndarray
