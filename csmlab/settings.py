@@ -339,9 +339,11 @@ APPLIES: dict[str, Applies] = {
         'stabilization = "exact", or "quantized" with quantized_base = "sphere" (the fixed box diameter)'),
     "snap": Applies(lambda *, stabilization: stabilization == "exact",
                     'stabilization = "exact" (what its fixed box snaps to whole texels)'),
-    "extent_hysteresis": Applies(lambda *, stabilization, warp: stabilization == "none" and warp == "none",
-                                 'stabilization = "none" with warp = "none" (a stabilized box already has a fixed '
-                                 'extent; a warped map is focused every frame)'),
+    "extent_hysteresis": Applies(lambda *, stabilization, warp, focus: stabilization == "none" and warp == "none"
+                                 and focus == "slice",
+                                 'stabilization = "none" with warp = "none" and focus = "slice" (a stabilized box '
+                                 'already has a fixed extent; a warped map is focused every frame; the held extent '
+                                 'is the slice\'s)'),
     "focus": Applies(lambda *, stabilization: stabilization == "none",
                      'stabilization = "none" (what its tight box covers)'),
     "lispsm_near_hint": Applies(lambda *, warp, stabilization: warp == "lispsm" and stabilization == "none",
