@@ -274,7 +274,8 @@ def texel_coordinates(cascades: CascadeSet, points: np.ndarray, normals: np.ndar
     """Step 3: ``points[rows]`` in every cascade's fixed point, moved along ``normals[rows]``.
 
     :func:`csmlab.texels.receiver_lookup`: on the device where the cascades' grid is the global one
-    (float64, the same bits), on the host for an engine's float32 math (``engine_precision``).
+    (float64, the same bits), on the host for an engine's float32 math (``engine_precision``) and
+    for warped cascades (``warp``: a homography per cascade).
 
     Returns
     -------
@@ -286,7 +287,7 @@ def texel_coordinates(cascades: CascadeSet, points: np.ndarray, normals: np.ndar
         Receiver-plane depth change per texel, metres.
     """
     bits = settings.subtexel_bits
-    if PRECISION_METHODS[settings.engine_precision].global_grid:
+    if PRECISION_METHODS[settings.engine_precision].global_grid and not cascades.warped:
         return receiver_coordinates(points, normals, receivers=rows, bits=bits, **_conversion(cascades, settings),
                                     device=device)
     return receiver_lookup(cascades, points[rows], normals[rows], bits=bits, normal_offset=settings.normal_offset,
@@ -334,7 +335,7 @@ def _box_lookup(maps: ShadowMaps, receivers: Receivers, *, record: Filter, radiu
                 settings: ShadowSettings, device: str) -> tuple:
     """Steps 3–5 for a ``box`` filter: the selection kernel filters at the cascade it selects."""
     cascades = maps.cascades
-    if PRECISION_METHODS[settings.engine_precision].global_grid and all(
+    if PRECISION_METHODS[settings.engine_precision].global_grid and not cascades.warped and all(
             c.resolution == maps.depth.shape[1] for c in cascades.cascades):
         # Each receiver converted where the kernel reads it: no (C, N) arrays of every receiver in
         # every cascade (the same bits as texel_coordinates then shadow_lookup).

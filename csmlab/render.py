@@ -21,6 +21,7 @@ from csmlab.clipmaps import (VirtualPages, clipmap_cascades, clipmap_levels, foo
 from csmlab.culling import culled_triangles
 from csmlab.cascades import CascadeSet, build_cascades
 from csmlab.cascades.bounds import BOUNDS_METHODS, DEPTH_RANGE_METHODS, visible_depth_range
+from csmlab.cascades.warp import warped_texels
 from csmlab.filters import clipmap_radius, filter_inputs, lookup_shadow
 from csmlab.frame import Frame, GBuffer, ShadowMaps, View
 from csmlab.geometry import light_basis, normalized
@@ -37,8 +38,8 @@ from csmlab.storage import stored_depth
 from csmlab.texels import (PRECISION_METHODS, fixed_point_coordinates, fixed_point_origin, light_depth,
                            light_plane_coordinates)
 
-__all__ = ["DeviceScene", "clipped_casters", "lookup_shadow", "prepare_scene", "render_frame", "render_shadow",
-           "render_view", "shadow_maps", "virtual_shadow_maps", "visible_depth"]
+__all__ = ["DeviceScene", "clipped_casters", "clipped_triangles", "lookup_shadow", "prepare_scene", "render_frame",
+           "render_shadow", "render_view", "shadow_maps", "virtual_shadow_maps", "visible_depth", "warped_depth_map"]
 
 
 @dataclass(frozen=True)
@@ -171,7 +172,8 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
     """
     raster = None
     cut = DEPTH_RANGE_METHODS[settings.depth_range].cuts_casters
-    if PRECISION_METHODS[settings.engine_precision].global_grid and not (cut and not settings.depth_clamp):
+    if PRECISION_METHODS[settings.engine_precision].global_grid and not cascades.warped \
+            and not (cut and not settings.depth_clamp):
         depth, texels, raster = _culled_depth_maps(dscene, cascades, settings,
                                                    previous=None if scroll_from is None else scroll_from.raster)
     else:
@@ -241,9 +243,10 @@ def _host_snapped_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
     """``(C, R, R)`` depth maps and texels rasterized, vertices snapped on the host cascade by cascade.
 
     The path for what the culled kernels do not model: an engine's float32 cascade math
-    (``engine_precision``, :mod:`csmlab.texels`) and casters clipped at a slice's near side
-    without pancaking (``depth_range = "slice"``, ``depth_clamp = false``). Faces are culled as
-    on the other path (``settings.cull``, once per call, by ``d`` alone).
+    (``engine_precision``, :mod:`csmlab.texels`), casters clipped at a slice's near side
+    without pancaking (``depth_range = "slice"``, ``depth_clamp = false``) and perspective-warped
+    cascades (``warp``, :func:`warped_depth_map`). Faces are culled as on the other path
+    (``settings.cull``, once per call, by ``d`` alone).
     """
     bits = settings.subtexel_bits
     vertices = dscene.scene.vertices
@@ -258,12 +261,117 @@ def _host_snapped_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
             triangles = clipped_casters(depth_of_vertex, triangles, near=cascade.depth_near - cascades.zref)
         if triangles.shape[0] == 0:
             continue
+        if cascade.warp is not None:
+            one, count = warped_depth_map(cascades, c, vertices, depth_of_vertex, triangles, bits=bits,
+                                          device=dscene.device)
+            maps[c, :sizes[c], :sizes[c]] = one
+            texels += count
+            continue
         points = fixed_point_coordinates(cascades, c, vertices, bits=bits, precision=settings.engine_precision)
         one, count = rasterize_depth(points[None], depth_of_vertex, triangles, resolution=sizes[c], bits=bits,
                                      device=dscene.device)
         maps[c, :sizes[c], :sizes[c]] = one[0]
         texels += count
     return maps, texels
+
+
+def warped_depth_map(cascades: CascadeSet, index: int, vertices: np.ndarray, depth: np.ndarray,
+                     triangles: np.ndarray, *, bits: int, device: str) -> tuple[np.ndarray, int]:
+    """``(R, R)`` depth map and texels rasterized of warped cascade ``index`` (:mod:`csmlab.cascades.warp`).
+
+    Its projection (:meth:`csmlab.cascades.CascadeSet.projection`) takes a vertex to texels
+    ``(i, j)`` and ``z / w``, which is affine across the warped image of a triangle (a projective
+    map keeps planes planar): the rasterizer interpolates ``z / w`` at texel centres, and each
+    texel's value times that centre's ``w`` is the light depth ``d·X − zref`` in metres of the
+    surface its ray meets. Triangles are first clipped to ``w ≥ n_opt / 2`` (half the warp's near
+    distance: what they lose lies below the map's edge, ``w < n_opt``), as a GPU clips at the warp
+    eye's near plane.
+
+    Parameters
+    ----------
+    cascades : CascadeSet
+    index : int
+    vertices : ndarray, shape (V, 3)
+        World positions, metres.
+    depth : ndarray, shape (V,)
+        Their light depths ``d·X − zref``, metres.
+    triangles : ndarray, shape (T, 3)
+    bits : int
+        Sub-texel bits.
+    device : str
+    """
+    cascade = cascades.cascades[index]
+    h = cascade.warp.homography
+    xy = light_plane_coordinates(cascades, vertices)
+    w = xy[:, 0] * h[2, 0] + xy[:, 1] * h[2, 1] + h[2, 2]
+    near = 0.5 * (cascade.warp.n_opt if np.isfinite(cascade.warp.n_opt) else 1.0)
+    attributes, kept = clipped_triangles(np.column_stack([xy, depth, w]), triangles, column=3, threshold=near)
+    if kept.shape[0] == 0:
+        return np.full((cascade.resolution,) * 2, np.inf, dtype=np.float32), 0
+    texels, w = warped_texels(h, attributes[:, :2])
+    points = np.rint(np.clip(texels * float(2**bits), -2.0**50, 2.0**50)).astype(np.int64)
+    per_w, count = rasterize_depth(points[None], attributes[:, 2] / w, kept, resolution=cascade.resolution,
+                                   bits=bits, device=device)
+    centre = np.arange(cascade.resolution, dtype=np.float64) + 0.5
+    i, j = np.meshgrid(centre, centre)
+    inverse = np.linalg.inv(h)
+    w_centre = 1.0 / (inverse[2, 0] * i + inverse[2, 1] * j + inverse[2, 2])
+    return (per_w[0].astype(np.float64) * w_centre).astype(np.float32), count
+
+
+def clipped_triangles(attributes: np.ndarray, triangles: np.ndarray, *, column: int,
+                      threshold: float) -> tuple[np.ndarray, np.ndarray]:
+    """Triangles clipped to the half-space ``attributes[:, column] ≥ threshold`` (one Sutherland–Hodgman plane).
+
+    Parameters
+    ----------
+    attributes : ndarray, shape (V, K)
+        Per-vertex values, affine in space (positions, depths), interpolated along clipped edges.
+    triangles : ndarray, shape (T, 3)
+    column : int
+        The attribute clipped against.
+    threshold : float
+
+    Returns
+    -------
+    attributes : ndarray, shape (V', K)
+        The input rows, then the new vertices where edges cross the plane.
+    triangles : ndarray, shape (T', 3)
+        Whole triangles inside, then one per triangle with one vertex inside and two per triangle
+        with two (either winding kept).
+    """
+    value = attributes[:, column]
+    inside = value[triangles] >= threshold
+    count = inside.sum(axis=1)
+    whole = triangles[count == 3]
+
+    def rotated(which, first):
+        k = first[which]
+        t = triangles[which]
+        r = np.arange(t.shape[0])
+        return t[r, k], t[r, (k + 1) % 3], t[r, (k + 2) % 3]
+
+    def crossing(p, q):
+        vp, vq = value[p], value[q]
+        t = (threshold - vp) / (vq - vp)
+        return attributes[p] + t[:, None] * (attributes[q] - attributes[p])
+
+    one = count == 1
+    a, b, c = rotated(one, np.argmax(inside, axis=1))
+    ab, ac = crossing(a, b), crossing(a, c)
+    two = count == 2
+    a2, b2, c2 = rotated(two, (np.argmin(inside, axis=1) + 1) % 3)
+    bc2, ac2 = crossing(b2, c2), crossing(a2, c2)
+    base = attributes.shape[0]
+    m, n = a.shape[0], a2.shape[0]
+    new = np.vstack([attributes, ab, ac, bc2, ac2])
+    i_ab = base + np.arange(m)
+    i_ac = i_ab + m
+    i_bc2 = base + 2 * m + np.arange(n)
+    i_ac2 = i_bc2 + n
+    clipped = np.vstack([whole, np.column_stack([a, i_ab, i_ac]), np.column_stack([a2, b2, i_bc2]),
+                         np.column_stack([a2, i_bc2, i_ac2])]).astype(triangles.dtype)
+    return new, clipped
 
 
 def clipped_casters(depth: np.ndarray, triangles: np.ndarray, *, near: float) -> np.ndarray:

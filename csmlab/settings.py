@@ -181,6 +181,14 @@ class ShadowSettings:
     """bounds = sdsm: how the visible range is held, fraction (hysteresis) | stepped (Stride: grows in 1.1^k and shrinks in 2^-k steps) (csmlab.cascades.bounds.HOLD_METHODS)."""
     extent_hysteresis: float = 0.0
     """stabilization = none: the tight box's extent grows at once and shrinks only when the tight extent is this fraction below it (csmlab.cascades.stabilize.held_extents)."""
+    focus: str = "slice"
+    """stabilization = none: what a tight box covers, slice (the view slice) | scene (the slice clipped to the scene's light-space bounds, receivers ∩ casters: Filament's tightly bound scene) (csmlab.cascades.focus)."""
+    warp: str = "none"
+    """Light projection, none (orthographic boxes) | lispsm (Filament's light-space perspective warp, stabilization = none only) (csmlab.cascades.warp)."""
+    lispsm_near_hint: float = 1.0
+    """warp = lispsm: metres from the camera where shadow quality is optimized from (Filament's shadowNearHint)."""
+    lispsm_far_hint: float = 100.0
+    """warp = lispsm: metres from the camera where shadow quality is optimized up to (Filament's shadowFarHint)."""
     engine_precision: str = "float64"
     """Cascade math (light matrices, snapping) as csmlab does it, float64 | float32 (an engine's, shimmering far from the origin)."""
 
@@ -288,6 +296,15 @@ class ShadowSettings:
         need(0.0 <= self.fade_out <= 1.0, "fade_out", "a fraction in [0, 1]", self.fade_out)
         need(0.0 <= self.hysteresis < 1.0, "hysteresis", "a fraction in [0, 1)", self.hysteresis)
         need(0.0 <= self.extent_hysteresis < 1.0, "extent_hysteresis", "a fraction in [0, 1)", self.extent_hysteresis)
+        need(self.focus in ("slice", "scene"), "focus", "slice or scene", self.focus)
+        need(self.warp in ("none", "lispsm"), "warp", "none or lispsm", self.warp)
+        need(self.warp == "none" or self.stabilization == "none", "warp",
+             'none with a stabilized box (Filament: "We can\'t use LISPSM in stable mode"); lispsm needs '
+             'stabilization = "none"', self.warp)
+        need(self.warp == "none" or self.engine_precision == "float64", "warp",
+             'none with engine_precision = "float32" (the warp is computed in float64)', self.warp)
+        need(0.0 <= self.lispsm_near_hint < self.lispsm_far_hint, "lispsm_near_hint",
+             "a distance in metres of at least 0 and below lispsm_far_hint", self.lispsm_near_hint)
         return self
 
     @property
@@ -386,8 +403,17 @@ APPLIES: dict[str, Applies] = {
         'stabilization = "exact", or "quantized" with quantized_base = "sphere" (the fixed box diameter)'),
     "snap": Applies(lambda *, stabilization: stabilization == "exact",
                     'stabilization = "exact" (what its fixed box snaps to whole texels)'),
-    "extent_hysteresis": Applies(lambda *, stabilization: stabilization == "none",
-                                 'stabilization = "none" (a stabilized box already has a fixed extent)'),
+    "extent_hysteresis": Applies(lambda *, stabilization, warp, focus: stabilization == "none" and warp == "none"
+                                 and focus == "slice",
+                                 'stabilization = "none" with warp = "none" and focus = "slice" (a stabilized box '
+                                 'already has a fixed extent; a warped map is focused every frame; the held extent '
+                                 'is the slice\'s)'),
+    "focus": Applies(lambda *, stabilization: stabilization == "none",
+                     'stabilization = "none" (what its tight box covers)'),
+    "lispsm_near_hint": Applies(lambda *, warp, stabilization: warp == "lispsm" and stabilization == "none",
+                                'warp = "lispsm" with stabilization = "none" (its virtual near plane)'),
+    "lispsm_far_hint": Applies(lambda *, warp, stabilization: warp == "lispsm" and stabilization == "none",
+                               'warp = "lispsm" with stabilization = "none" (its virtual far plane)'),
     "pancake": Applies(lambda *, depth_range: depth_range in ("slice", "sphere"),
                        'depth_range = "slice" or "sphere" (the pull of its near side toward the light)'),
     "depth_clamp": Applies(lambda *, depth_range: depth_range in ("slice", "sphere"),

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from csmlab.cascades import CascadeSet
+from csmlab.cascades.warp import warped_texel_jacobian, warped_texels
 from csmlab.lookup_choices import NORMAL_NONE, NORMAL_OFFSET_SCALES, NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN
 from csmlab.registry import check_name
 
@@ -90,6 +91,13 @@ def light_plane_coordinates(cascades: CascadeSet, points) -> np.ndarray:
     return _light_space(np.asarray(points, dtype=np.float64), cascades.basis[:2])
 
 
+def _warped(cascades: CascadeSet, index: int) -> bool:
+    """Whether cascade ``index`` (checked) is perspective-warped."""
+    if not 0 <= index < len(cascades):
+        raise ValueError(f"cascade index: expected 0..{len(cascades) - 1}, got {index}")
+    return cascades.cascades[index].warp is not None
+
+
 def _global_texels(cascades: CascadeSet, index: int, points) -> np.ndarray:
     if not 0 <= index < len(cascades):
         raise ValueError(f"cascade index: expected 0..{len(cascades) - 1}, got {index}")
@@ -131,10 +139,13 @@ def texel_coordinates(cascades: CascadeSet, index: int, points) -> np.ndarray:
     -------
     ndarray, shape (..., 2), float64
         Light-space x/y in texels relative to the box's minimum corner: texel ``(i, j)`` spans
-        ``[i, i + 1) × [j, j + 1)``. Not snapped to the fixed-point grid. For a fractional
+        ``[i, i + 1) × [j, j + 1)`` (through the homography for a warped cascade). Not snapped to
+        the fixed-point grid. For a fractional
         origin (``none``) the rasterizer's grid sits up to half a fixed-point step from this one
         (see :func:`fixed_point_origin`).
     """
+    if _warped(cascades, index):
+        return _local_texels_warped(cascades, index, points)
     return _global_texels(cascades, index, points) - cascades.cascades[index].origin
 
 
@@ -158,6 +169,16 @@ def _local_texels_float32(cascades: CascadeSet, index: int, points) -> np.ndarra
     return u.astype(np.float64)
 
 
+def _local_texels_warped(cascades: CascadeSet, index: int, points) -> np.ndarray:
+    """Local texel coordinates ``(..., 2)`` of world points in a warped cascade (:mod:`csmlab.cascades.warp`).
+
+    Points behind the warp's eye (``w ≤ 0``, never on the map) get NaN, snapped far outside.
+    """
+    texels, w = warped_texels(cascades.cascades[index].warp.homography,
+                              _light_space(np.asarray(points, dtype=np.float64), cascades.basis[:2]))
+    return np.where((w > 0.0)[..., None], texels, np.nan)
+
+
 def fixed_point_coordinates(cascades: CascadeSet, index: int, points, *, bits: int,
                             precision: str = "float64") -> np.ndarray:
     """Snapped local texel coordinates ``(..., 2)`` int64 of world points, in ``2**-bits`` texels.
@@ -168,6 +189,8 @@ def fixed_point_coordinates(cascades: CascadeSet, index: int, points, *, bits: i
     ``-2**50`` less the origin (outside every box). ``precision = "float32"`` rounds the local
     coordinates of an engine's float32 matrix instead (:data:`PRECISION_METHODS`).
     """
+    if _warped(cascades, index):
+        return _snapped(_local_texels_warped(cascades, index, points) * float(2**bits))
     if not PRECISION_METHODS[check_name(precision, PRECISION_METHODS, field="engine_precision")].global_grid:
         return _snapped(_local_texels_float32(cascades, index, points) * float(2**bits))
     snapped = _snapped(_global_texels(cascades, index, points) * float(2**bits))
@@ -274,18 +297,39 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
             offset = offset + normal_offset_m
         if factor is not None:
             offset = (offset * factor)[:, None]
-        if global_grid:
+        if cascade.warp is not None:
+            coordinates[c] = _snapped(_local_texels_warped(cascades, c, p + n * offset) * scale)
+        elif global_grid:
             u = light_n[:, :2] * offset
             u += light_p[:, :2]
             u *= scale / cascade.texel_size
             coordinates[c] = _snapped(u) - fixed_point_origin(cascades, c, bits=bits)
         else:
             coordinates[c] = _snapped(_local_texels_float32(cascades, c, p + n * offset) * scale)
+        step = plane_slope * cascade.texel_size
+        if cascade.warp is not None:
+            # A warped texel's size changes across the map: the slope bias and the receiver plane's
+            # change per texel step take the receiver's own, from the homography's Jacobian there.
+            texel, step = _warped_texel_steps(cascade.warp.homography, light_p[:, :2], plane_slope)
         bias = constant[c] + bias_slope * texel * tan
         if cap[c] > 0.0:
-            step = plane_slope * cascade.texel_size
             bias = bias + np.minimum(np.abs(step[:, 0]) + np.abs(step[:, 1]), cap[c])
         depth[c] = light_p[:, 2] + (along * offset if factor is None else along * offset[:, 0]) * light_n[:, 2] \
             - cascades.zref - bias
-        slope[c] = plane_slope * cascade.texel_size
+        slope[c] = step
     return coordinates, depth, slope
+
+
+def _warped_texel_steps(homography: np.ndarray, light_xy: np.ndarray,
+                        plane_slope: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per receiver of a warped cascade: its texel's larger side ``(N,)`` in metres and its plane's depth change per
+    texel step along the map's two axes ``(N, 2)``, from the inverse of the homography's Jacobian at ``light_xy``."""
+    j = warped_texel_jacobian(homography, light_xy)
+    det = j[:, 0, 0] * j[:, 1, 1] - j[:, 0, 1] * j[:, 1, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # Columns: light x/y metres per texel step along the map's i and j axes (the 2×2 inverse).
+        along_i = np.column_stack([j[:, 1, 1], -j[:, 1, 0]]) / det[:, None]
+        along_j = np.column_stack([-j[:, 0, 1], j[:, 0, 0]]) / det[:, None]
+    texel = np.maximum(np.hypot(along_i[:, 0], along_i[:, 1]), np.hypot(along_j[:, 0], along_j[:, 1]))
+    step = np.column_stack([np.sum(plane_slope * along_i, axis=1), np.sum(plane_slope * along_j, axis=1)])
+    return texel, step

@@ -94,9 +94,11 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
                             vogel_taps=4, vogel_radius=2.0, vogel_angle=2.4, vogel_scale="first_split",
                             poisson_rotation="pixel", storage="atlas",
                             depth_format="unorm16")),
-    # ShadowOptions: shadowCascades 1, practical splits lambda 0.5, stable false; ShadowType::PCF =
+    # ShadowOptions: shadowCascades 1, practical splits lambda 0.5, stable false, lispsm true with
+    # shadowNearHint 1 and shadowFarHint 100; focus_shadowcasters; ShadowType::PCF =
     # ShadowSample_PCF_Low, "hardware assisted PCF + 3x3 gaussian filter" (Castaño 2013).
     ("engines/filament", dict(cascades=1, split="practical", lambda_=0.5, stabilization="none",
+                              focus="scene", warp="lispsm", lispsm_near_hint=1.0, lispsm_far_hint=100.0,
                               filter="pcf_castano", filter_size=3)),
     # CascadeShadowConfigBuilder::default(): 4, 0.1, 150, first bound 10, overlap 0.2;
     # ShadowFilteringMethod::Gaussian = sample_shadow_map_castano_thirteen, weights (4 - 3s, 7, 1 + 3s) over 5 texels.

@@ -14,8 +14,10 @@ from csmlab.camera import CameraPose
 from csmlab.cascades.bounds import DEPTH_RANGE_METHODS, split_range
 from csmlab.cascades.extent import EXTENT_METHODS, radius_rounded_up
 from csmlab.cascades.fit import slice_intervals
+from csmlab.cascades.focus import focused_volume
 from csmlab.cascades.splits import split_distances
 from csmlab.cascades.stabilize import SliceFootprint, stabilize
+from csmlab.cascades.warp import Warp, cascade_warp
 from csmlab.geometry import frustum_slice_corners, light_basis
 from csmlab.registry import check_name, dispatch
 from csmlab.settings import ShadowSettings
@@ -25,7 +27,7 @@ __all__ = ["Cascade", "CascadeSet", "build_cascades", "radius_rounded_up", "tigh
 
 @dataclass(frozen=True)
 class Cascade:
-    """One cascade's orthographic box in light space.
+    """One cascade's box in light space: orthographic, or warped by a perspective (``warp``).
 
     Attributes
     ----------
@@ -34,13 +36,18 @@ class Cascade:
     slice_near, slice_far : float
         The fitted view-depth interval the box covers (fit mode and blend band applied).
     texel_size : ndarray, shape (2,)
-        Metres per texel along light-space x and y.
+        Metres per texel along light-space x and y; for a warped cascade, along the map's axes at
+        the camera's eye (what biases and offsets in texels are scaled by, as in Filament).
     origin : ndarray, shape (2,)
-        Box minimum corner in texels of ``texel_size`` (whole numbers for exact and quantized).
+        Box minimum corner in texels of ``texel_size`` (whole numbers for exact and quantized);
+        zero for a warped cascade, whose texels are placed by ``warp.homography`` alone (its
+        ``box_min``, ``box_max`` and ``extent`` then describe no box).
     resolution : int
         Texels per side R.
     depth_near, depth_far : float
         Depth range in metres along the light direction (``dot(X, d)``, not relative to zref).
+    warp : Warp, optional
+        The perspective warp of ``warp = "lispsm"`` (:mod:`csmlab.cascades.warp`); None: orthographic.
     """
 
     split_near: float
@@ -52,6 +59,16 @@ class Cascade:
     resolution: int
     depth_near: float
     depth_far: float
+    warp: Warp | None = None
+
+    @property
+    def homography(self) -> np.ndarray:
+        """Light-space ``(x, y, 1)`` metres to ``(i·w, j·w, w)`` local texels ``(3, 3)``: the warp's, or the box's (w = 1)."""
+        if self.warp is not None:
+            return self.warp.homography
+        return np.array([[1.0 / self.texel_size[0], 0.0, -self.origin[0]],
+                         [0.0, 1.0 / self.texel_size[1], -self.origin[1]],
+                         [0.0, 0.0, 1.0]])
 
     @property
     def box_min(self) -> np.ndarray:
@@ -100,9 +117,25 @@ class CascadeSet:
         return len(self.cascades)
 
     @property
+    def warped(self) -> bool:
+        """Whether any cascade is perspective-warped (its texels placed by a homography, on the host)."""
+        return any(c.warp is not None for c in self.cascades)
+
+    @property
     def direction(self) -> np.ndarray:
         """Unit light direction ``(3,)`` (light toward scene)."""
         return self.basis[2]
+
+    def projection(self, index: int) -> np.ndarray:
+        """Cascade ``index``'s light projection, a general 4×4 ``(4, 4)`` from world ``(X, 1)`` to ``(i·w, j·w, z, w)``.
+
+        After the projective divide: local texel coordinates ``(i, j)`` and ``z / w`` with
+        ``z = d·X − zref`` the stored light depth in metres (affine across a triangle in ``(i, j)``,
+        what the rasterizer interpolates). Orthographic cascades have ``w = 1``.
+        """
+        h = self.cascades[index].homography
+        rows = [h[k, 0] * self.basis[0] + h[k, 1] * self.basis[1] for k in range(3)]
+        return np.array([[*rows[0], h[0, 2]], [*rows[1], h[1, 2]], [*self.basis[2], -self.zref], [*rows[2], h[2, 2]]])
 
     def to_light(self, points) -> np.ndarray:
         """Light-space coordinates ``(..., 3)`` (x, y metres; depth ``dot(X, d)`` metres) of world points."""
@@ -174,9 +207,11 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
     cascades = []
     for i, (z0, z1) in enumerate(intervals):
         corners = _slice_light_corners(pose, basis, z0, z1)
+        volume = focused_volume(settings.focus, corners=corners, scene_light=scene_light) \
+            if settings.stabilization == "none" else corners
         centre, radius = dispatch(EXTENT_METHODS, settings.extent, field="extent", pose=pose, basis=basis, z_near=z0,
                                   z_far=z1, corners=corners)
-        footprint = SliceFootprint(lo=corners[:, :2].min(axis=0), hi=corners[:, :2].max(axis=0), centre=centre,
+        footprint = SliceFootprint(lo=volume[:, :2].min(axis=0), hi=volume[:, :2].max(axis=0), centre=centre,
                                    radius=radius, frustum_extent=frustum_extent)
         resolution = settings.cascade_resolutions[i] if settings.cascade_resolutions else settings.resolution
         texel, origin = stabilize(footprint, method=settings.stabilization, resolution=resolution,
@@ -184,10 +219,15 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
                                   snap=settings.snap, held_extent=None if held_extents is None else held_extents[i])
         depth_near, depth_far = DEPTH_RANGE_METHODS[settings.depth_range].box_depth(
             corners[:, 2], scene_light[:, 2], pancake=settings.pancake, corners=corners)
+        warp = cascade_warp(settings.warp, basis=basis, volume=volume, pose=pose, resolution=resolution,
+                            margin=margin, z_near=z0, z_far=z1, near_hint=settings.lispsm_near_hint,
+                            far_hint=settings.lispsm_far_hint)
+        if warp is not None:
+            texel, origin = warp.texel_size, np.zeros(2)
         cascades.append(Cascade(
             split_near=float(splits[i]), split_far=float(splits[i + 1]), slice_near=float(z0), slice_far=float(z1),
             texel_size=texel, origin=origin, resolution=resolution, depth_near=depth_near,
-            depth_far=depth_far,
+            depth_far=depth_far, warp=warp,
         ))
     return CascadeSet(basis=basis, zref=float(scene_light[:, 2].min()), splits=splits, cascades=tuple(cascades),
                       margin_texels=margin, eye=np.array(pose.position, dtype=np.float64))

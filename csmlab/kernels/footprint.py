@@ -14,14 +14,17 @@ centres (a one-pixel forward difference) under-estimates the footprint on a plan
 ``D_n / (D_n + δ)`` per axis, where ``D_n`` is ``n·D`` and ``δ`` its change over one pixel — without
 bound toward the horizon, where perspective aliasing lives.
 
-:func:`texel_footprint` maps the differentials into the selected cascade's texel coordinates. Light space is an orthographic projection, so the map from world metres to texels is
-linear, ``T = diag(1/tx, 1/ty) · [right; up]``, and the Jacobian is exactly
+:func:`texel_footprint` maps the differentials into the selected cascade's texel coordinates. For an
+orthographic cascade the map from world metres to texels is linear, ``T = diag(1/tx, 1/ty) · [right; up]``,
+and the Jacobian is exactly
 
     J = T · [dX/du, dX/dv]        (2 × 2, texels per pixel)
 
 with ρ = sqrt|det J| (texels per pixel, linear) and σ_min(J) (the worst direction). Taking the
 differentials on the tangent plane rather than differencing neighbouring hit points keeps J
-meaningful at silhouettes (docs/design.md, "Metrics").
+meaningful at silhouettes (docs/design.md, "Metrics"). A perspective-warped cascade (LiSPSM,
+:mod:`csmlab.cascades.warp`) maps through a homography whose Jacobian changes from point to point:
+:func:`warped_texel_footprint` evaluates it at each pixel's point.
 
 References
 ----------
@@ -36,7 +39,7 @@ import warp as wp
 
 from csmlab.kernels import checked_device
 
-__all__ = ["surface_differentials", "texel_footprint"]
+__all__ = ["surface_differentials", "texel_footprint", "warped_texel_footprint"]
 
 # Products and sums rounded one by one, as Warp's CPU build (generic x86-64, no FMA) rounds them: a
 # CUDA build may not contract them into fused multiply-adds, or its bits differ from the CPU's.
@@ -181,6 +184,107 @@ def texel_footprint_kernel(
     d = wp.dot(axis_y[c], dv)
     rho[i, j] = wp.sqrt(wp.abs(a * d - b * cc))
     sigma_min[i, j] = smallest_singular_value(a, b, cc, d)
+
+
+@wp.kernel
+def warped_texel_footprint_kernel(
+    position: wp.array2d(dtype=wp.vec3d),
+    dpdx: wp.array2d(dtype=wp.vec3),
+    dpdy: wp.array2d(dtype=wp.vec3),
+    cascade: wp.array2d(dtype=wp.int32),
+    right: wp.vec3d,
+    up: wp.vec3d,
+    homography: wp.array(dtype=wp.mat33d),
+    rho: wp.array2d(dtype=float),
+    sigma_min: wp.array2d(dtype=float),
+):
+    i, j = wp.tid()
+    c = cascade[i, j]
+    if c < 0:
+        rho[i, j] = wp.nan
+        sigma_min[i, j] = wp.nan
+        return
+    h = homography[c]
+    p = position[i, j]
+    x = wp.dot(right, p)
+    y = wp.dot(up, p)
+    w = h[2, 0] * x + h[2, 1] * y + h[2, 2]
+    u = (h[0, 0] * x + h[0, 1] * y + h[0, 2]) / w
+    v = (h[1, 0] * x + h[1, 1] * y + h[1, 2]) / w
+    # The homography's Jacobian at (x, y), (H[:2, :2] − (u, v) ⊗ H[2, :2]) / w, composed with the
+    # light basis: the world directions of texel u and v per metre at this point.
+    axis_u = ((h[0, 0] - u * h[2, 0]) * right + (h[0, 1] - u * h[2, 1]) * up) / w
+    axis_v = ((h[1, 0] - v * h[2, 0]) * right + (h[1, 1] - v * h[2, 1]) * up) / w
+    du = wp.vec3d(dpdx[i, j])
+    dv = wp.vec3d(dpdy[i, j])
+    a = wp.float32(wp.dot(axis_u, du))
+    b = wp.float32(wp.dot(axis_u, dv))
+    cc = wp.float32(wp.dot(axis_v, du))
+    d = wp.float32(wp.dot(axis_v, dv))
+    rho[i, j] = wp.sqrt(wp.abs(a * d - b * cc))
+    sigma_min[i, j] = smallest_singular_value(a, b, cc, d)
+
+
+def warped_texel_footprint(position, dpdx, dpdy, cascade, *, basis, homographies,
+                           device: str = "cpu") -> tuple[np.ndarray, np.ndarray]:
+    """ρ and σ_min of every pixel in its selected cascade through the cascade's homography (a warped projection).
+
+    The map from world metres to texels is no longer linear: at the pixel's point ``X`` its
+    Jacobian is ``(H[:2, :2] − t ⊗ H[2, :2]) / w · [right; up]`` (``t`` the point's texel
+    coordinates, ``w`` its homogeneous weight; :mod:`csmlab.cascades.warp`), and
+    ``J = that · [dX/du, dX/dv]`` as in :func:`texel_footprint`.
+
+    Parameters
+    ----------
+    position : array_like, shape (H, W, 3), float64
+        World positions of the pixels' points, metres.
+    dpdx, dpdy, cascade
+        As :func:`texel_footprint`.
+    basis : array_like, shape (3, 3), float64
+        The light basis (rows right, up, d).
+    homographies : array_like, shape (C, 3, 3), float64
+        Each cascade's light-space ``(x, y, 1)`` to ``(i·w, j·w, w)`` (:attr:`csmlab.cascades.Cascade.homography`).
+    device : str
+
+    Returns
+    -------
+    rho, sigma_min : ndarray, shape (H, W), float32
+        As :func:`texel_footprint`.
+    """
+    device = checked_device(device)
+    p = np.ascontiguousarray(position, dtype=np.float64)
+    dpdx = np.ascontiguousarray(dpdx, dtype=np.float32)
+    dpdy = np.ascontiguousarray(dpdy, dtype=np.float32)
+    cascade = np.ascontiguousarray(cascade, dtype=np.int32)
+    h = np.ascontiguousarray(homographies, dtype=np.float64)
+    rows = np.asarray(basis, dtype=np.float64)
+    if p.ndim != 3 or p.shape[2] != 3 or dpdx.shape != p.shape or dpdy.shape != p.shape \
+            or cascade.shape != p.shape[:2]:
+        raise ValueError(f"position, dpdx, dpdy, cascade: expected (H, W, 3) ×3 and (H, W), got {p.shape}, "
+                         f"{dpdx.shape}, {dpdy.shape}, {cascade.shape}")
+    if h.ndim != 3 or h.shape[1:] != (3, 3) or h.shape[0] == 0 or rows.shape != (3, 3):
+        raise ValueError(f"homographies, basis: expected (C, 3, 3) and (3, 3), got {h.shape} and {rows.shape}")
+    if cascade.size and cascade.max() >= h.shape[0]:
+        raise ValueError(f"cascade: expected indices below {h.shape[0]} (the cascade count), got {cascade.max()}")
+    shape = cascade.shape
+    rho = wp.empty(shape, dtype=float, device=device)
+    sigma_min = wp.empty(shape, dtype=float, device=device)
+    wp.launch(
+        warped_texel_footprint_kernel,
+        dim=shape,
+        inputs=(
+            wp.array(np.nan_to_num(p), dtype=wp.vec3d, device=device),
+            wp.array(dpdx, dtype=wp.vec3, device=device),
+            wp.array(dpdy, dtype=wp.vec3, device=device),
+            wp.array(cascade, dtype=wp.int32, device=device),
+            wp.vec3d(*rows[0]),
+            wp.vec3d(*rows[1]),
+            wp.array(h, dtype=wp.mat33d, device=device),
+        ),
+        outputs=(rho, sigma_min),
+        device=device,
+    )
+    return rho.numpy(), sigma_min.numpy()
 
 
 def texel_footprint(dpdx, dpdy, cascade, *, texel_axes, device: str = "cpu") -> tuple[np.ndarray, np.ndarray]:

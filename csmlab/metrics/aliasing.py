@@ -27,8 +27,9 @@ import numpy as np
 from csmlab.cascades import CascadeSet
 from csmlab.clipmaps import light_space
 from csmlab.frame import Frame
-from csmlab.kernels.footprint import surface_differentials, texel_footprint
+from csmlab.kernels.footprint import surface_differentials, texel_footprint, warped_texel_footprint
 from csmlab.kernels.usage import looked_up_texels
+from csmlab.texels import texel_coordinates
 
 __all__ = ["AliasingMaps", "RHO_SUMMARIES", "aliasing_maps", "aliasing_summary", "texel_axes", "utilization"]
 
@@ -85,8 +86,13 @@ def aliasing_maps(frame: Frame, *, device: str = "cpu") -> AliasingMaps:
     dpdu, dpdv = frame.view.shared(("surface_differentials", device), lambda: surface_differentials(
         g.position, g.normal, eye=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg,
         aspect=pose.aspect, device=device))
-    rho, sigma_min = texel_footprint(dpdu, dpdv, cascade, texel_axes=texel_axes(frame.maps.cascades),
-                                     device=device)
+    cascades = frame.maps.cascades
+    if cascades.warped:
+        rho, sigma_min = warped_texel_footprint(g.position, dpdu, dpdv, cascade, basis=cascades.basis,
+                                                homographies=[c.homography for c in cascades.cascades],
+                                                device=device)
+    else:
+        rho, sigma_min = texel_footprint(dpdu, dpdv, cascade, texel_axes=texel_axes(cascades), device=device)
     return AliasingMaps(rho=rho, sigma_min=sigma_min, cascade=cascade)
 
 
@@ -149,6 +155,8 @@ def utilization(frame: Frame, *, device: str = "cpu") -> np.ndarray:
         return _resident_utilization(frame)
     selected = np.where(g.valid, frame.shadow.cascade, -1).reshape(-1)
     sides = np.array([c.resolution for c in cascades.cascades])
+    if cascades.warped:
+        return _warped_utilization(g.position.reshape(-1, 3), selected, cascades)
     counts = looked_up_texels(g.position.reshape(-1, 3), selected, basis=cascades.basis,
                               texel_size=np.stack([c.texel_size for c in cascades.cascades]),
                               origin=np.stack([c.origin for c in cascades.cascades]), resolution=sides, device=device)
@@ -172,3 +180,14 @@ def _resident_utilization(frame: Frame) -> np.ndarray:
     resident = np.bincount(pages.keys[:, 0], minlength=len(clip)).astype(np.float64) * clip.page_size ** 2
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(resident > 0, counts / resident, np.nan)
+
+
+def _warped_utilization(points: np.ndarray, selected: np.ndarray, cascades: CascadeSet) -> np.ndarray:
+    """:func:`utilization` of cascades placed by homographies: each one's distinct texels looked up, on the host."""
+    out = np.zeros(len(cascades), dtype=np.float64)
+    for c, cascade in enumerate(cascades.cascades):
+        texel = np.floor(texel_coordinates(cascades, c, points[selected == c]))
+        inside = np.all((texel >= 0) & (texel < cascade.resolution), axis=1)
+        cells = texel[inside].astype(np.int64)
+        out[c] = np.unique(cells[:, 1] * cascade.resolution + cells[:, 0]).size / float(cascade.resolution) ** 2
+    return out

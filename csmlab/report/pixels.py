@@ -144,9 +144,20 @@ def frustum_corners(frame: Frame) -> np.ndarray:
 
 
 def box_corners(cascades) -> np.ndarray:
-    """World corners ``(C, 8, 3)`` of each cascade's box: light x, y, depth each low/high, x fastest."""
+    """World corners ``(C, 8, 3)`` of each cascade's box: light x, y, depth each low/high, x fastest.
+
+    A warped cascade's (``warp``) are its map's corners taken back through its homography: the
+    quadrilateral its texels cover in light x/y, between the same depths.
+    """
     high = ((np.arange(8)[:, None] >> np.arange(3)) & 1).astype(bool)
-    boxes = [np.where(high, [*c.box_max, c.depth_far], [*c.box_min, c.depth_near]) for c in cascades.cascades]
+    boxes = []
+    for c in cascades.cascades:
+        if c.warp is None:
+            boxes.append(np.where(high, [*c.box_max, c.depth_far], [*c.box_min, c.depth_near]))
+            continue
+        texels = np.column_stack([high[:, :2] * float(c.resolution), np.ones(8)])
+        light = texels @ np.linalg.inv(c.homography).T
+        boxes.append(np.column_stack([light[:, :2] / light[:, 2:], np.where(high[:, 2], c.depth_far, c.depth_near)]))
     return np.stack(boxes) @ cascades.basis
 
 
