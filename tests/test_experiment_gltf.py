@@ -97,3 +97,19 @@ def test_a_level_without_a_sun_stops_naming_the_extension(tmp_path):
     with pytest.raises(InputError, match="one directional light") as info:
         build_workload(load_experiment(_experiment(tmp_path, LEVEL + "[light]\nfrom_scene = true\n")))
     assert info.value.field == "KHR_lights_punctual" and info.value.file == str(tmp_path / "level.glb")
+
+
+@pytest.mark.parametrize("camera, key", [("", "animations"), ("nobody", "camera")])
+def test_a_bad_camera_file_exits_2_with_one_line_naming_the_file_and_key(tmp_path, camera, key):
+    from typer.testing import CliRunner
+
+    from csmlab.cli import app
+
+    b = GltfBuilder()
+    eye = b.add_node(name="eye", camera=b.add_camera(name="eye", yfov_rad=1.0, znear=0.1))
+    b.save(tmp_path / "level.glb", roots=[b.add_node(mesh=b.add_mesh(*box())), eye])
+    text = LEVEL + (f'camera = "{camera}"\n' if camera else "")
+    outcome = CliRunner().invoke(app, ["run", str(_experiment(tmp_path, text)), "--out", str(tmp_path / "out")])
+    assert outcome.exit_code == 2, outcome.output
+    message = outcome.stderr.strip()
+    assert len(message.splitlines()) == 1 and str(tmp_path / "level.glb") in message and key in message

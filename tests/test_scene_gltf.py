@@ -166,3 +166,18 @@ def test_vendor_cameras_sample_loads_its_turned_square():
     assert scene.triangle_count == 2
     angle = 2 * np.arctan2(0.383, 0.92375)
     np.testing.assert_allclose(scene.bounds, [[0, 0, -np.sin(angle)], [1, np.cos(angle), 0]], atol=1e-6)
+
+
+def test_strips_and_fans_give_the_specifications_triangles(tmp_path):
+    b = GltfBuilder()
+    square = np.array([[0, 0, 0], [1, 0, 0], [0, 0, -1], [1, 0, -1]], dtype=float)  # on y = 0, facing +Y
+    mesh = b.add_mesh(square, [[0, 1, 2], [3, 0, 0]], name="strip")  # six indices 0 1 2 3 0 0, re-moded below
+    b.document.meshes[mesh].primitives[0].mode = 5
+    b.document.accessors[b.document.meshes[mesh].primitives[0].indices].count = 4  # strip 0 1 2 3
+    fan = b.add_mesh(square[[0, 1, 3, 2]] + [5, 0, 0], [[0, 1, 2], [3, 0, 0]], name="fan")
+    b.document.meshes[fan].primitives[0].mode = 6
+    b.document.accessors[b.document.meshes[fan].primitives[0].indices].count = 4  # fan 0 1 2 3
+    scene = load_mesh(b.save(tmp_path / "strip.glb", roots=[b.add_node(mesh=mesh), b.add_node(mesh=fan)]))
+    # Strip (0 1 2), (2 1 3); fan (0 1 2), (0 2 3): four triangles, all counter-clockwise seen from +Y.
+    assert scene.triangle_count == 4
+    np.testing.assert_allclose(scene.normals, np.tile([0.0, 1.0, 0.0], (4, 1)), atol=1e-12)

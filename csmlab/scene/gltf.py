@@ -341,8 +341,8 @@ def _primitive_triangles(gltf: GltfFile, mesh_index: int, p: int) -> tuple[np.nd
         triangles = np.stack([indices[first], indices[second], indices[k + 2]], axis=1)
     else:
         k = np.arange(max(indices.size - 2, 0))
-        triangles = np.stack([np.full(k.shape, indices[0]) if indices.size else k, indices[k + 1], indices[k + 2]],
-                             axis=1)
+        hub = np.full(k.shape, indices[0] if indices.size else 0)
+        triangles = np.stack([hub, indices[k + 1], indices[k + 2]], axis=1)
     return points, triangles
 
 
