@@ -377,7 +377,8 @@ def gltf_scene_triangles(gltf: GltfFile) -> tuple[np.ndarray, np.ndarray]:
         placements = matrix @ _instance_matrices(gltf, index)
         mirrored = np.linalg.det(placements[:, :3, :3]) < 0
         for points, triangles in cache[mesh]:
-            placed = np.einsum("iab,vb->iva", placements[:, :3, :3], points) + placements[:, None, :3, 3]
+            # (I, V, 3): every instance's copy of the points; a batched matmul, several times einsum's speed.
+            placed = np.matmul(points, placements[:, :3, :3].transpose(0, 2, 1)) + placements[:, None, :3, 3]
             wound = np.where(mirrored[:, None, None], triangles[None, :, ::-1], triangles[None])
             shift = offset + points.shape[0] * np.arange(placements.shape[0])
             points_out.append(placed.reshape(-1, 3))
