@@ -181,3 +181,11 @@ def test_strips_and_fans_give_the_specifications_triangles(tmp_path):
     # Strip (0 1 2), (2 1 3); fan (0 1 2), (0 2 3): four triangles, all counter-clockwise seen from +Y.
     assert scene.triangle_count == 4
     np.testing.assert_allclose(scene.normals, np.tile([0.0, 1.0, 0.0], (4, 1)), atol=1e-12)
+
+
+def test_a_non_unit_node_rotation_names_the_node(tmp_path):
+    b = GltfBuilder()
+    node = b.add_node(mesh=_unit_box(b), rotation=[0.0, 0.0, 0.0, 2.0])
+    with pytest.raises(InputError, match="expected a unit quaternion") as info:
+        load_mesh(b.save(tmp_path / "rotation.glb", roots=[node]))
+    assert info.value.field == "nodes[0].rotation"

@@ -22,6 +22,11 @@ _FLOAT, _UINT32 = 5126, 5125
 _TYPES = {1: "SCALAR", 3: "VEC3", 4: "VEC4"}
 
 
+def _listed(values) -> list[float] | None:
+    """``values`` as a flat list of Python floats (what the JSON holds); None stays None."""
+    return None if values is None else [float(x) for x in np.asarray(values).reshape(-1)]
+
+
 class GltfBuilder:
     """Collects a glTF level's parts; indices returned by the ``add_*`` methods refer to them.
 
@@ -89,10 +94,9 @@ class GltfBuilder:
             self._extensions.add(INSTANCING)
             extensions[INSTANCING] = {"attributes": {k: self._accessor(v, component=_FLOAT)
                                                      for k, v in instances.items()}}
-        listed = lambda v: None if v is None else [float(x) for x in np.asarray(v).reshape(-1)]  # noqa: E731
         self.document.nodes.append(self._g.Node(
-            name=name or None, mesh=mesh, camera=camera, translation=listed(translation), rotation=listed(rotation),
-            scale=listed(scale), matrix=listed(matrix), children=list(children), extensions=extensions))
+            name=name or None, mesh=mesh, camera=camera, translation=_listed(translation), rotation=_listed(rotation),
+            scale=_listed(scale), matrix=_listed(matrix), children=list(children), extensions=extensions))
         return len(self.document.nodes) - 1
 
     def add_animation(self, channels, *, name: str = "") -> int:
