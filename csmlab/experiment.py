@@ -216,8 +216,21 @@ def _moved_path(path: CameraPath, offset) -> CameraPath:
     return dataclasses.replace(path, positions=path.positions + np.asarray(offset, dtype=np.float64))
 
 
+def _scene_sun(experiment: Experiment):
+    """``[light] from_scene``: the glTF scene's directional light in csmlab's axes (``[scene] up``)."""
+    from csmlab.scene.gltf import read_gltf, sun_of
+    from csmlab.scene.mesh import UP_AXES
+
+    try:
+        return UP_AXES[experiment.scene.up] @ sun_of(read_gltf(experiment.scene.file)).direction
+    except ValueError as exc:
+        raise _located(exc, file=experiment.scene.file, field="light.from_scene") from None
+
+
 def _first_light_direction(experiment: Experiment):
     light = experiment.light
+    if light.from_scene:
+        return _scene_sun(experiment)
     if light.direction is not None:
         return normalized(light.direction, name="light.direction")
     return direction_from_angles(elevation_deg=light.elevation_deg, azimuth_deg=light.azimuth_deg)
@@ -241,7 +254,7 @@ def _camera_path(experiment: Experiment, light_direction) -> tuple[CameraPath, T
             camera.file, format=camera.format or None, convention=camera.convention or None, scale=camera.scale,
             offset=camera.offset, anchor=camera.anchor, time_offset=camera.time_offset, fps=camera.fps,
             times_file=camera.times_file or None, from_first_pose=True, duplicate_times=camera.duplicate_times,
-            max_gap=camera.max_gap, gaps=camera.gaps, **projection)
+            max_gap=camera.max_gap, gaps=camera.gaps, camera=camera.camera, **projection)
         path = recording.path
         if camera.start_s is not None or camera.end_s is not None:
             start = path.times[0] if camera.start_s is None else camera.start_s
@@ -256,6 +269,8 @@ def _camera_path(experiment: Experiment, light_direction) -> tuple[CameraPath, T
 
 def _light_path(experiment: Experiment, frames: int) -> LightPath:
     light = experiment.light
+    if light.from_scene:
+        return LightPath.static(_scene_sun(experiment), frames)
     if light.direction is not None:
         return LightPath.static(light.direction, frames)
     if light.is_static:
@@ -279,8 +294,19 @@ def build_workload(experiment: Experiment) -> Workload:
     path, timing, restarts = _camera_path(experiment, _first_light_direction(experiment))
     path = _moved_path(path, experiment.scene.offset)
     return Workload(scene=_scene(experiment), path=path, light=_light_path(experiment, len(path)),
-                    width=experiment.camera.width, height=experiment.camera.height,
+                    width=_image_width(experiment.camera, path), height=experiment.camera.height,
                     key=workload_hash(experiment, frames=len(path)), timing=timing, restarts=restarts)
+
+
+def _image_width(camera, path: CameraPath) -> int:
+    """``[camera] width``, unless the camera file states another aspect: then ``height × aspect``, rounded.
+
+    Pixels stay square: a glTF camera's ``aspectRatio`` or a nerfstudio path's render size sets the
+    image's shape, ``[camera] height`` its size.
+    """
+    if abs(path.aspect - camera.aspect) <= 1e-9 * camera.aspect:
+        return camera.width
+    return max(8, int(round(camera.height * path.aspect)))
 
 
 def chunk_ranges(frames: int, chunk_frames: int) -> list[tuple[int, int]]:

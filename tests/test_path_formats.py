@@ -46,9 +46,10 @@ def test_every_format_reads_back_the_poses_it_wrote(walk, tmp_path):
         write_path(walk, file, format=name)
         assert guess_format(file) == name
         back = read_path(file, format=name, fps=30.0) if name == "kitti" else read_path(file)
-        _assert_same_poses(walk, back, times=name != "kitti")
-        if name in ("csv", "json"):
-            np.testing.assert_array_equal(back.fov_y_deg, walk.fov_y_deg)
+        # glTF accessors are float32; nerfstudio, like KITTI, has no clock of its own (pose i at i · seconds / N).
+        _assert_same_poses(walk, back, times=name not in ("kitti", "nerfstudio"), atol=2e-5 if name == "gltf" else 1e-9)
+        if name in ("csv", "json", "nerfstudio"):
+            np.testing.assert_allclose(back.fov_y_deg, walk.fov_y_deg, rtol=1e-15)
     kitti = read_path(tmp_path / "walk.kitti", format="kitti", fps=30.0)
     np.testing.assert_allclose(kitti.times, walk.times - 0.25, atol=1e-12)
 

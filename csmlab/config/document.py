@@ -48,16 +48,21 @@ def experiment_document(experiment: Experiment) -> dict:
         scene.pop("offset")
     camera = _section_document(experiment.camera)
     drop = ("path",) if experiment.camera.file else ("file", "format", "convention", "scale", "offset", "time_offset",
-                                                     "times_file", "anchor", "duplicate_times", "max_gap", "gaps")
+                                                     "times_file", "anchor", "duplicate_times", "max_gap", "gaps", "camera")
     for key in drop:
         camera.pop(key, None)
+    if not experiment.camera.camera:
+        camera.pop("camera", None)
+    light = _section_document(experiment.light)
+    if not experiment.light.from_scene:
+        light.pop("from_scene")
     document = {
         "name": experiment.name,
         "description": experiment.description,
         "chunk_frames": experiment.chunk_frames,
         "scene": scene,
         "camera": camera,
-        "light": _section_document(experiment.light),
+        "light": light,
         "shadow": _settings_document(experiment.shadow),
         "methods": [{"name": m.name, **_plain(m.overrides)} for m in experiment.methods],
     }

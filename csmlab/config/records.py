@@ -76,6 +76,8 @@ class CameraConfig(_Checked):
     """A recorded camera path, relative to the file that names it; leave empty when ``path`` is set."""
     format: str = ""
     """file: its format (``csmlab list`` names them); empty guesses it from the file."""
+    camera: str = ""
+    """file, glTF: the animated camera's node (or camera) name; empty when the file has one camera."""
     convention: str = ""
     """file: its camera axis convention; empty takes the format's own."""
     scale: float = field(default=1.0, metadata=_expect(_positive, "a positive number of metres per file unit"))
@@ -129,6 +131,8 @@ class LightConfig(_Checked):
 
     direction: tuple[float, float, float] | None = None
     """From the light toward the scene, any non-zero length; or set elevation/azimuth instead."""
+    from_scene: bool = False
+    """The glTF scene's directional light (KHR_lights_punctual) instead of direction or angles."""
     elevation_deg: float | None = field(default=None, metadata=_expect(lambda x: -90 <= x <= 90,
                                                                        "an angle in [-90, 90] degrees"))
     """Sun elevation above the horizon, degrees (90: straight down). Default 40."""
@@ -143,7 +147,7 @@ class LightConfig(_Checked):
     @property
     def is_static(self) -> bool:
         """The light direction is the same in every frame."""
-        return self.direction is not None or (
+        return self.direction is not None or self.from_scene or (
             self.elevation_end_deg in (None, self.elevation_deg) and self.azimuth_end_deg in (None, self.azimuth_deg))
 
 

@@ -215,7 +215,7 @@ def _camera(table, located: _Located) -> CameraConfig:
     if camera.far <= camera.near:
         raise located.error("camera.far", f"expected a distance greater than near ({camera.near}), got {camera.far}")
     file_only = ("format", "convention", "scale", "offset", "time_offset", "start_s", "end_s", "times_file", "anchor",
-                 "duplicate_times", "max_gap", "gaps")
+                 "duplicate_times", "max_gap", "gaps", "camera")
     if camera.path and camera.file:
         raise located.error("camera.file", f"expected either path (a generator) or file, got both: path = "
                                            f"{camera.path!r} (from {located.file_of('camera.path')}) and file")
@@ -235,6 +235,10 @@ def _camera(table, located: _Located) -> CameraConfig:
         _registry_name(camera.format, PATH_FORMATS, where="camera.format", located=located)
     if camera.convention:
         _registry_name(camera.convention, CONVENTIONS, where="camera.convention", located=located)
+    is_gltf = camera.format == "gltf" or (not camera.format and Path(camera.file).suffix.lower() in (".gltf", ".glb"))
+    if camera.camera and not is_gltf:
+        raise located.error("camera.camera", f"expected camera only with a glTF file (format gltf), got file = "
+                                             f"{camera.file!r}, format = {camera.format!r}")
     for key, choices in (("anchor", ANCHORS), ("duplicate_times", DUPLICATE_RULES), ("gaps", GAP_RULES)):
         _registry_name(getattr(camera, key), choices, where=f"camera.{key}", located=located)
     if camera.start_s is not None and camera.end_s is not None and camera.end_s < camera.start_s:
@@ -249,6 +253,12 @@ def _camera(table, located: _Located) -> CameraConfig:
 def _light(table, located: _Located) -> LightConfig:
     light = _record(LightConfig, table, where="light", located=located)
     angles = [k for k in ("elevation_deg", "azimuth_deg", "elevation_end_deg", "azimuth_end_deg") if k in table]
+    if light.from_scene:
+        given = [k for k in ("direction", *angles) if k in table]
+        if given:
+            raise located.error(f"light.{given[0]}", "expected either from_scene = true or a direction or angles, "
+                                                     "got both")
+        return light
     if light.direction is not None:
         if angles:
             raise located.error(f"light.{angles[0]}", "expected either direction or elevation/azimuth angles, got both")
@@ -590,6 +600,10 @@ def load_experiment(path, *, frames: int | None = None) -> Experiment:
     scene = _scene(merged.get("scene", {}), located)
     camera = _camera(merged.get("camera", {}), located)
     light = _light(merged.get("light", {}), located)
+    if light.from_scene and not (scene.kind == "mesh" and Path(scene.file).suffix.lower() in (".gltf", ".glb")):
+        raise located.error("light.from_scene", f"expected a glTF scene (kind = \"mesh\", file *.gltf or *.glb) "
+                                                f"to take the light from, got kind = {scene.kind!r}"
+                                                + (f", file = {scene.file!r}" if scene.file else ""))
     base = ShadowSettings().replace(**_shadow_fields(merged.get("shadow", {}), where="shadow", located=located,
                                                      allow=()))
     base = _checked_settings(base, where_of=lambda f: f"shadow.{f}", located=located, camera=camera)

@@ -112,6 +112,11 @@ CONVENTIONS: dict[str, Convention] = {
         description="ROS REP 103 (GNSS/INS, robot logs): world x east/forward, y left, z up; body x forward, "
                     "y left, z up, used as the camera (looks along body +x); metres",
     ),
+    "nerfstudio": Convention(
+        world=_Z_UP_TO_Y_UP, camera=np.eye(3), metres_per_unit=1.0,
+        description="nerfstudio camera paths: world z up (its data parsers' orientation 'up'); camera OpenGL, "
+                    "x right, y up, looks -z; the scene's own unit",
+    ),
     "unreal": Convention(
         world=[[0, 1, 0], [0, 0, 1], [-1, 0, 0]], camera=[[0, 0, -1], [1, 0, 0], [0, 1, 0]], metres_per_unit=0.01,
         description="Unreal Engine: left-handed, x forward, y right, z up, centimetres; camera looks +x",
@@ -123,18 +128,19 @@ CONVENTIONS: dict[str, Convention] = {
 }
 """Conventions by name; add an entry to register a new one.
 
-=========  ===================================  ===================================  =====
-name       ``W`` (file world → csmlab world)    ``K`` (csmlab camera → file camera)  unit
-=========  ===================================  ===================================  =====
-opengl     I                                    I                                    1 m
-tum        diag(1, -1, -1)                      diag(1, -1, -1)                      1 m
-kitti      diag(1, -1, -1)                      diag(1, -1, -1)                      1 m
-mocap      [[1,0,0], [0,0,1], [0,-1,0]]         diag(1, -1, -1)                      1 m
-euroc      [[1,0,0], [0,0,1], [0,-1,0]]         [[0,1,0], [1,0,0], [0,0,-1]]         1 m
-ros        [[1,0,0], [0,0,1], [0,-1,0]]         [[0,0,-1], [-1,0,0], [0,1,0]]        1 m
-unreal     [[0,1,0], [0,0,1], [-1,0,0]]         [[0,0,-1], [1,0,0], [0,1,0]]         1 cm
-unity      diag(1, 1, -1)                       diag(1, 1, -1)                       1 m
-=========  ===================================  ===================================  =====
+==========  ===================================  ===================================  =====
+name        ``W`` (file world → csmlab world)    ``K`` (csmlab camera → file camera)  unit
+==========  ===================================  ===================================  =====
+opengl      I                                    I                                    1 m
+tum         diag(1, -1, -1)                      diag(1, -1, -1)                      1 m
+kitti       diag(1, -1, -1)                      diag(1, -1, -1)                      1 m
+mocap       [[1,0,0], [0,0,1], [0,-1,0]]         diag(1, -1, -1)                      1 m
+euroc       [[1,0,0], [0,0,1], [0,-1,0]]         [[0,1,0], [1,0,0], [0,0,-1]]         1 m
+ros         [[1,0,0], [0,0,1], [0,-1,0]]         [[0,0,-1], [-1,0,0], [0,1,0]]        1 m
+nerfstudio  [[1,0,0], [0,0,1], [0,-1,0]]         I                                    1 m
+unreal      [[0,1,0], [0,0,1], [-1,0,0]]         [[0,0,-1], [1,0,0], [0,1,0]]         1 cm
+unity       diag(1, 1, -1)                       diag(1, 1, -1)                       1 m
+==========  ===================================  ===================================  =====
 
 - ``tum``/``kitti``: the world is the first camera's frame (y down, z forward), as SLAM estimates
   and KITTI poses are written; turning y and z over makes it csmlab's (y up, the first camera
@@ -150,6 +156,9 @@ unity      diag(1, 1, -1)                       diag(1, 1, -1)                  
   ``mocap``; the body's x forward, y left, z up is the camera: it looks along body +x with body +z
   up, so body +x = csmlab -Z, body -y = csmlab +X (right), body +z = csmlab +Y. UTM or local ENU
   positions of a GNSS/INS log go in with ``anchor = "first"``.
+- ``nerfstudio``: a z-up world as ``mocap`` (nerfstudio's data parsers turn the mean camera up
+  to +z and its viewer shows +z up) with OpenGL camera axes, as its camera paths store them;
+  a path recorded over a y-up world is read with ``opengl``.
 - ``unreal``: file (x forward, y right, z up) → csmlab (y, z, -x), centimetres; the camera looks
   along its +x with +z up. Quaternions are read as the rotation matrix they represent, which is
   how the engine stores an ``FQuat``.

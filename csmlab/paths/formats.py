@@ -9,6 +9,7 @@ field, before any pose is returned.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -19,7 +20,9 @@ from csmlab.camera import CameraPath
 from csmlab.errors import InputError
 from csmlab.paths.conventions import convention_named, poses_from_opengl, poses_to_opengl
 from csmlab.paths.euroc import read_euroc, write_euroc
+from csmlab.paths.gltf import read_gltf_camera, write_gltf_camera
 from csmlab.paths.kitti import read_kitti, read_kitti_times, write_kitti
+from csmlab.paths.nerfstudio import read_nerfstudio, write_nerfstudio
 from csmlab.paths.recorded import RecordedPoses, data_rows, require_poses, text_lines
 from csmlab.paths.tabular import read_csv, read_json, write_csv, write_json
 from csmlab.paths.timing import GAP_RULES, TimingReport, find_gaps, frames_outside_gaps, resolve_duplicates
@@ -48,12 +51,15 @@ class PathFormat:
         The convention its files are read and written in unless one is given.
     description : str
         One line for ``csmlab list``.
+    options : tuple of str
+        Keywords of :func:`read_recording` that ``read`` takes as well (glTF: ``camera``, ``fps``).
     """
 
     read: Callable[..., RecordedPoses]
     write: Callable[..., None]
     convention: str
     description: str
+    options: tuple[str, ...] = ()
 
 
 PATH_FORMATS: dict[str, PathFormat] = {
@@ -65,6 +71,12 @@ PATH_FORMATS: dict[str, PathFormat] = {
     "csv": PathFormat(read_csv, write_csv, "opengl",
                       "csmlab CSV: header time,x,y,z then qx,qy,qz,qw or yaw,pitch,roll [,fov_y_deg]"),
     "json": PathFormat(read_json, write_json, "opengl", "csmlab JSON: {\"poses\": [{time, x, y, z, qx, ...}, ...]}"),
+    "gltf": PathFormat(read_gltf_camera, write_gltf_camera, "opengl",
+                       "glTF 2.0 (.gltf/.glb): an animated camera node sampled at the frame times (camera = its name)",
+                       options=("camera", "fps")),
+    "nerfstudio": PathFormat(read_nerfstudio, write_nerfstudio, "nerfstudio",
+                             "nerfstudio camera-path JSON: camera_path [{camera_to_world (4×4 row-major), fov}], "
+                             "seconds, render_width/height"),
 }
 """Path formats by name; add an entry to register a new one."""
 
@@ -80,7 +92,8 @@ def _is_number(text: str) -> bool:
 def guess_format(file) -> str:
     """The name of ``file``'s format in :data:`PATH_FORMATS`, from its extension and first lines.
 
-    ``.json`` or a leading ``{`` → json; a ``#timestamp`` header → euroc; a comma-separated
+    ``.gltf``/``.glb`` → gltf; ``.json`` or a leading ``{`` → nerfstudio when the object has a
+    ``camera_path`` key, else json; a ``#timestamp`` header → euroc; a comma-separated
     first row → csv when it is a header of names, euroc when it holds eight or more numbers;
     a whitespace-separated first row of 8 numbers → tum, of 12 → kitti.
 
@@ -89,10 +102,16 @@ def guess_format(file) -> str:
     InputError
         If the file is empty or matches no rule.
     """
+    if Path(file).suffix.lower() in (".gltf", ".glb"):
+        return "gltf"
     lines = text_lines(file)
     first = next((text.strip() for text in lines if text.strip()), "")
     if Path(file).suffix.lower() == ".json" or first.startswith("{"):
-        return "json"
+        try:
+            document = json.loads("\n".join(lines))
+        except ValueError:
+            return "json"  # its reader locates the syntax error
+        return "nerfstudio" if isinstance(document, dict) and "camera_path" in document else "json"
     if first.lower().startswith("#timestamp"):
         return "euroc"
     rows = data_rows(lines)
@@ -149,7 +168,8 @@ class Recording:
     restarts: np.ndarray
 
 
-def read_recording(file, *, format: str | None = None, convention: str | None = None, scale: float = 1.0,
+def read_recording(file, *, format: str | None = None, camera: str = "", convention: str | None = None,
+                   scale: float = 1.0,
                    offset=(0.0, 0.0, 0.0), anchor: str = "", time_offset: float = 0.0, fps: float | None = None,
                    times_file=None, from_first_pose: bool = False, duplicate_times: str = "first",
                    max_gap: float | None = None, gaps: str = "interpolate", fov_y_deg: float = 60.0,
@@ -162,6 +182,8 @@ def read_recording(file, *, format: str | None = None, convention: str | None = 
         The path file.
     format : str, optional
         A key of :data:`PATH_FORMATS`; guessed by :func:`guess_format` when ``None``.
+    camera : str
+        gltf only: the camera node's (or camera's) name; may be empty when the file has one camera.
     convention : str, optional
         A key of :data:`~csmlab.paths.conventions.CONVENTIONS`; the format's own when ``None``
         (tum → ``tum``, kitti → ``kitti``, euroc → ``euroc``, csv/json → ``opengl``).
@@ -192,7 +214,9 @@ def read_recording(file, *, format: str | None = None, convention: str | None = 
     gaps : str
         What a gap does (:data:`csmlab.paths.timing.GAP_RULES`).
     fov_y_deg, aspect, near, far : float
-        Projection (degrees, width/height, metres, metres); a file's ``fov_y_deg`` column wins.
+        Projection (degrees, width/height, metres, metres); what the file states wins: a
+        ``fov_y_deg`` column or ``yfov``/``fov``, an aspect (glTF ``aspectRatio``, nerfstudio's
+        render size), clip distances (glTF ``znear``/``zfar``, times ``scale``).
 
     Returns
     -------
@@ -207,7 +231,8 @@ def read_recording(file, *, format: str | None = None, convention: str | None = 
     ValueError
         On a bad argument (unknown format, convention or rule, non-positive scale, fps or max_gap, ...).
     """
-    spec = _format(format if format is not None else guess_format(file))
+    name = format if format is not None else guess_format(file)
+    spec = _format(name)
     convention = convention if convention is not None else spec.convention
     convention_named(convention)
     offset = np.asarray(offset, dtype=np.float64)
@@ -224,7 +249,11 @@ def read_recording(file, *, format: str | None = None, convention: str | None = 
         raise ValueError(f"max_gap: expected a positive number of seconds, got {max_gap}")
     check_name(gaps, GAP_RULES, field="gaps")
 
-    recorded, duplicates = resolve_duplicates(spec.read(file), rule=duplicate_times)
+    if camera and "camera" not in spec.options:
+        raise ValueError(f"camera: expected only with a glTF camera file (format gltf), got format {name!r}")
+    taken = {"camera": camera, "fps": fps if fps is not None else 30.0}
+    recorded, duplicates = resolve_duplicates(spec.read(file, **{k: taken[k] for k in spec.options}),
+                                              rule=duplicate_times)
     if recorded.angles_line is not None and convention != "opengl":
         raise InputError(f"yaw/pitch/roll are defined in csmlab's own axes: read this file with convention "
                          f"'opengl', or give quaternions (qx qy qz qw) for convention {convention!r}",
@@ -239,7 +268,9 @@ def read_recording(file, *, format: str | None = None, convention: str | None = 
         positions=positions * scale + offset,
         orientations=orientations,
         fov_y_deg=recorded.fov_y_deg if recorded.fov_y_deg is not None else fov_y_deg,
-        aspect=aspect, near=near, far=far, name=Path(file).name,
+        aspect=recorded.aspect if recorded.aspect is not None else aspect,
+        near=recorded.near * scale if recorded.near is not None else near,
+        far=recorded.far * scale if recorded.far is not None else far, name=Path(file).name,
     )
     limit, found = find_gaps(path.times, path.positions, recorded.lines, max_gap=max_gap)
     if found and gaps == "error":
@@ -257,8 +288,8 @@ def read_recording(file, *, format: str | None = None, convention: str | None = 
         keep, restart = frames_outside_gaps(path.times, found)
         kept = np.flatnonzero(keep)
         path = CameraPath(times=path.times[kept], positions=path.positions[kept],
-                          orientations=path.orientations[kept], fov_y_deg=path.fov_y_deg[kept], aspect=aspect,
-                          near=near, far=far, name=path.name)
+                          orientations=path.orientations[kept], fov_y_deg=path.fov_y_deg[kept], aspect=path.aspect,
+                          near=path.near, far=path.far, name=path.name)
         restarts = path.times[restart]
     return Recording(path=path, timing=timing, restarts=restarts)
 

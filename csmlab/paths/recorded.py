@@ -54,6 +54,10 @@ class RecordedPoses:
         which are defined in csmlab's own axes only.
     time_field : str
         The format's name of the time column (for error messages).
+    aspect : float or None
+        Width / height when the file states it (glTF ``aspectRatio``, nerfstudio's render size).
+    near, far : float or None
+        Clip distances in the file's length unit when the file states them (glTF ``znear``, ``zfar``).
     """
 
     file: str
@@ -64,6 +68,9 @@ class RecordedPoses:
     fov_y_deg: np.ndarray | None = None
     angles_line: int | None = None
     time_field: str = "timestamp"
+    aspect: float | None = None
+    near: float | None = None
+    far: float | None = None
 
 
 def text_lines(file) -> list[str]:

@@ -1,9 +1,10 @@
 """Mesh import: a user's level geometry read through PyVista/VTK and checked before use.
 
-Formats: Wavefront OBJ, PLY, STL, legacy VTK (``.vtk``), VTK XML (``.vtp``, ``.vtu``) and glTF
-2.0 (``.gltf``, ``.glb``) as far as VTK's readers go. Whatever the file holds — polygons, triangle
-strips, volume cells, a multi-block glTF scene — becomes its outer surface, triangulated; lines and
-points are ignored. Normals are recomputed per triangle from the winding (counter-clockwise seen
+Formats: Wavefront OBJ, PLY, STL, legacy VTK (``.vtk``), VTK XML (``.vtp``, ``.vtu``) as far as
+VTK's readers go, and glTF 2.0 (``.gltf``, ``.glb``) through :mod:`csmlab.scene.gltf` (pygltflib),
+which places every mesh by the node hierarchy and ``EXT_mesh_gpu_instancing``. Whatever a VTK
+file holds — polygons, triangle strips, volume cells — becomes its outer surface, triangulated;
+lines and points are ignored. Normals are recomputed per triangle from the winding (counter-clockwise seen
 from outside), never taken from the file.
 
 A broken file stops here with an :class:`~csmlab.errors.InputError` naming the file and what was
@@ -25,9 +26,10 @@ import numpy as np
 from csmlab.errors import InputError
 from csmlab.registry import check_name
 from csmlab.scene.core import Scene
+from csmlab.scene.gltf import gltf_scene_triangles, read_gltf
 from csmlab.scene.shapes import height_field, scene_from_parts
 
-__all__ = ["GROUND_ALBEDO", "GROUND_SIZE_FACTOR", "MESH_FORMATS", "UP_AXES", "load_mesh"]
+__all__ = ["GLTF_SUFFIXES", "GROUND_ALBEDO", "GROUND_SIZE_FACTOR", "MESH_FORMATS", "UP_AXES", "load_mesh"]
 
 MESH_FORMATS: dict[str, str] = {
     ".obj": "Wavefront OBJ",
@@ -40,6 +42,8 @@ MESH_FORMATS: dict[str, str] = {
     ".glb": "binary glTF",
 }
 """File suffixes :func:`load_mesh` accepts, with the format each names."""
+GLTF_SUFFIXES = (".gltf", ".glb")
+"""Suffixes read by :mod:`csmlab.scene.gltf` (node transforms, instancing) instead of VTK."""
 
 UP_AXES: dict[str, np.ndarray] = {
     "y": np.eye(3),
@@ -192,7 +196,8 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
     ------
     InputError
         Naming the file and the field: ``file`` (missing, not a file, unknown suffix, unreadable
-        by VTK, no vertices), ``triangles`` (no polygon, or only zero-area ones), ``vertices``
+        by VTK or pygltflib, no vertices), a glTF key (a broken accessor, node or reference),
+        ``triangles`` (no polygon, or only zero-area ones), ``vertices``
         (NaN or infinite coordinates).
     ValueError
         On a bad ``scale``, ``up`` or ``albedo``, naming the keyword.
@@ -217,7 +222,10 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
         raise InputError(f"expected a mesh file ending in one of {', '.join(MESH_FORMATS)}, "
                          f"got {path.suffix or 'no suffix'!r}", file=path, field="file")
 
-    points, triangles = _surface_triangles(_read_dataset(path, fmt), path)
+    if path.suffix.lower() in GLTF_SUFFIXES:
+        points, triangles = gltf_scene_triangles(read_gltf(path))
+    else:
+        points, triangles = _surface_triangles(_read_dataset(path, fmt), path)
     points = (points * scale_value) @ UP_AXES[up].T
     try:
         scene = Scene.from_triangles(points, triangles, albedo=colour, name=path.name)
