@@ -192,3 +192,65 @@ def test_a_leaf_mask_file_that_cannot_be_read_exits_2_naming_it(tmp_path):
     message = outcome.stderr.strip()
     assert len(message.splitlines()) == 1 and str(bad) in message and "scene.leaf_mask_file" in message
     assert not (tmp_path / "out" / "metrics.csv").exists()
+
+
+CARD_OBJ = """mtllib card.mtl
+v -1 0 -1
+v 1 0 -1
+v 1 0 1
+v -1 0 1
+v -1 1 0
+v 1 1 0
+v 1 2 0
+v -1 2 0
+vt 0 0
+vt 1 0
+vt 1 1
+vt 0 1
+usemtl ground
+f 1 4 3 2
+usemtl leaf
+f 5/1 6/2 7/3 8/4
+"""
+CARD_MTL = "newmtl ground\nKd 0.5 0.5 0.5\nnewmtl leaf\nKd 0.2 0.5 0.1\nmap_d leaf.png\n"
+
+
+def write_card(folder, png: bytes | None):
+    (folder / "card.obj").write_text(CARD_OBJ)
+    (folder / "card.mtl").write_text(CARD_MTL)
+    if png is not None:
+        (folder / "leaf.png").write_bytes(png)
+
+
+def test_an_obj_materials_map_d_becomes_the_alpha_mask_of_its_faces(tmp_path):
+    from io import BytesIO
+
+    from PIL import Image
+
+    rgba = np.zeros((4, 8, 4), np.uint8)
+    rgba[..., 3] = random_mask(3, (4, 8)) * 255
+    buffer = BytesIO()
+    Image.fromarray(rgba, "RGBA").save(buffer, format="PNG")
+    write_card(tmp_path, buffer.getvalue())
+    scene = make_scene("mesh", file=tmp_path / "card.obj")
+    (mask,) = scene.alpha
+    np.testing.assert_array_equal(mask.alpha, rgba[..., 3] / 255.0)
+    assert mask.cutoff == 0.5
+    card = scene.vertex_mask[scene.triangles[:, 0]] == 0
+    assert card.sum() == 2 and np.all(scene.vertex_mask[scene.triangles[~card]] == -1)
+    # OBJ's v runs up the image: the corner at vt (0, 0) (the card's bottom left, y = 1) samples the image's
+    # last row, v = 1 here.
+    corners = scene.triangles[card].reshape(-1)
+    bottom_left = corners[np.all(scene.vertices[corners] == [-1.0, 1.0, 0.0], axis=1)][0]
+    np.testing.assert_array_equal(scene.uv[bottom_left], [0.0, 1.0])
+
+
+def test_an_obj_map_d_that_cannot_be_read_exits_2_naming_it(tmp_path):
+    write_card(tmp_path, b"GIF89a broken")
+    exp = tmp_path / "exp.toml"
+    exp.write_text(f'extends = ["paths/walk", "methods/exact"]\n[scene]\nkind = "mesh"\nfile = "{tmp_path / "card.obj"}"\n'
+                   '[camera]\nframes = 2\nwidth = 32\nheight = 18\n[shadow]\nresolution = 64\n')
+    outcome = CliRunner().invoke(app, ["run", str(exp), "--out", str(tmp_path / "out")])
+    assert outcome.exit_code == 2, outcome.output
+    message = outcome.stderr.strip()
+    assert len(message.splitlines()) == 1 and "leaf.png" in message and "map_d" in message

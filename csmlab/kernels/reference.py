@@ -53,8 +53,8 @@ from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 from csmlab.kernels.visibility import MeshBVH
 from csmlab.registry import check_name
 
-__all__ = ["CHUNK", "COARSE_RAYS_PER_CELL", "MASKED_HITS", "RAYS_PER_CELL", "RAY_OFFSET", "RECEIVER_BLOCK", "REFERENCE_METHODS",
-           "hard_shadow", "hard_shadow_irregular", "hard_shadow_ray"]
+__all__ = ["CHUNK", "COARSE_RAYS_PER_CELL", "MASKED_HITS", "RAYS_PER_CELL", "RAY_OFFSET", "RECEIVER_BLOCK",
+           "REFERENCE_METHODS", "hard_shadow", "hard_shadow_irregular", "hard_shadow_ray"]
 
 # Products and sums rounded one by one, as Warp's CPU build (generic x86-64, no FMA) rounds them: a
 # CUDA build may not contract them into fused multiply-adds, or its bits differ from the CPU's.

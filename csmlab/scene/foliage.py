@@ -60,7 +60,7 @@ def leaf_mask(rng: np.random.Generator, *, texels: int = MASK_TEXELS, leaves: in
 
 
 def chain_link_mask(*, texels: int = MASK_TEXELS, wire: float = 0.08) -> np.ndarray:
-    """One diamond of a chain-link mesh, ``(texels, texels)``: 1 within ``wire`` (a fraction of the cell) of either diagonal."""
+    """One chain-link diamond ``(texels, texels)``: 1 within ``wire`` (a fraction of the cell) of a diagonal."""
     j, i = np.mgrid[0:texels, 0:texels]
     x, y = (i + 0.5) / texels, (j + 0.5) / texels
     # The two diagonals of the unit cell, repeated: |x − y| and |x + y − 1| measured across the cell's wrap.
@@ -103,8 +103,9 @@ def _ring_places(rng: np.random.Generator, n: int, bands) -> np.ndarray:
     return np.stack([r * np.cos(angle), r * np.sin(angle)], axis=1)
 
 
-def _crown_cards(rng: np.random.Generator, centres: np.ndarray, cards: int, size: float) -> tuple[np.ndarray, np.ndarray]:
-    """Leaf cards ``(N·cards, 4, 3)`` around crown ``centres`` ``(N, 3)``, each turned at random, and their coordinates."""
+def _crown_cards(rng: np.random.Generator, centres: np.ndarray, cards: int,
+                 size: float) -> tuple[np.ndarray, np.ndarray]:
+    """Leaf cards ``(N·cards, 4, 3)`` around crown ``centres`` ``(N, 3)``, turned at random, and their coordinates."""
     n = centres.shape[0] * cards
     # Uniform in the crown's ball, each card facing a random direction.
     direction = rng.normal(size=(n, 3))
@@ -168,7 +169,8 @@ def foliage(*, seed: int = 1, size: float = 200.0, trees: int = 16, cards_per_tr
     seed = count(seed, field="seed")
     size = positive(size, field="size")
     if size < 80.0:
-        raise ValueError(f"size: expected at least 80 m so the outer trees and fences stand on the ground, got {size!r}")
+        raise ValueError(f"size: expected at least 80 m so the outer trees and fences stand on the ground, "
+                         f"got {size!r}")
     n_trees = count(trees, field="trees")
     n_cards = count(cards_per_tree, field="cards_per_tree", minimum=1)
     card_size = positive(card_size, field="card_size")
