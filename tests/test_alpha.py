@@ -248,9 +248,73 @@ def test_an_obj_materials_map_d_becomes_the_alpha_mask_of_its_faces(tmp_path):
 def test_an_obj_map_d_that_cannot_be_read_exits_2_naming_it(tmp_path):
     write_card(tmp_path, b"GIF89a broken")
     exp = tmp_path / "exp.toml"
-    exp.write_text(f'extends = ["paths/walk", "methods/exact"]\n[scene]\nkind = "mesh"\nfile = "{tmp_path / "card.obj"}"\n'
+    exp.write_text(f'extends = ["paths/walk", "methods/exact"]\n[scene]\nkind = "mesh"\n'
+                   f'file = "{tmp_path / "card.obj"}"\n'
                    '[camera]\nframes = 2\nwidth = 32\nheight = 18\n[shadow]\nresolution = 64\n')
     outcome = CliRunner().invoke(app, ["run", str(exp), "--out", str(tmp_path / "out")])
     assert outcome.exit_code == 2, outcome.output
     message = outcome.stderr.strip()
     assert len(message.splitlines()) == 1 and "leaf.png" in message and "map_d" in message
+
+
+def gltf_card(image_uri: str) -> str:
+    """A glTF of an opaque ground quad and, under a node moved 1 m up, a card of a MASK material (cutoff 0.3)."""
+    import base64
+    import json
+
+    positions = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1], [-1, 0, 0], [1, 0, 0], [1, 1, 0], [-1, 1, 0]],
+                         np.float32)
+    uv = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], np.float32)
+    indices = np.array([0, 2, 1, 0, 3, 2], np.uint16)
+    blob = positions.tobytes() + uv.tobytes() + indices.tobytes()
+    views = [dict(buffer=0, byteOffset=0, byteLength=96), dict(buffer=0, byteOffset=96, byteLength=32),
+             dict(buffer=0, byteOffset=128, byteLength=12)]
+    accessors = [dict(bufferView=0, componentType=5126, count=4, type="VEC3"),
+                 dict(bufferView=0, byteOffset=48, componentType=5126, count=4, type="VEC3"),
+                 dict(bufferView=1, componentType=5126, count=4, type="VEC2"),
+                 dict(bufferView=2, componentType=5123, count=6, type="SCALAR")]
+    gltf = dict(asset=dict(version="2.0"), scene=0, scenes=[dict(nodes=[0, 1])],
+                nodes=[dict(mesh=0), dict(mesh=1, translation=[0.0, 1.0, 0.0])],
+                meshes=[dict(primitives=[dict(attributes=dict(POSITION=0), indices=3, material=0)]),
+                        dict(primitives=[dict(attributes=dict(POSITION=1, TEXCOORD_0=2), indices=3, material=1)])],
+                materials=[dict(), dict(alphaMode="MASK", alphaCutoff=0.3,
+                                        pbrMetallicRoughness=dict(baseColorTexture=dict(index=0)))],
+                textures=[dict(source=0)], images=[dict(uri=image_uri)],
+                buffers=[dict(byteLength=len(blob), uri="data:application/octet-stream;base64,"
+                              + base64.b64encode(blob).decode())], bufferViews=views, accessors=accessors)
+    return json.dumps(gltf)
+
+
+def test_a_gltf_mask_materials_base_colour_alpha_cuts_its_primitives(tmp_path):
+    from io import BytesIO
+
+    from PIL import Image
+
+    rgba = np.full((4, 4, 4), 255, np.uint8)
+    rgba[..., 3] = (random_mask(8, (4, 4)) * 255).astype(np.uint8)
+    Image.fromarray(rgba, "RGBA").save(tmp_path / "leaf.png")
+    (tmp_path / "card.gltf").write_text(gltf_card("leaf.png"))
+    scene = make_scene("mesh", file=tmp_path / "card.gltf")
+    (mask,) = scene.alpha
+    np.testing.assert_array_equal(mask.alpha, rgba[..., 3] / 255.0)
+    assert mask.cutoff == pytest.approx(0.3)
+    card = scene.vertex_mask[scene.triangles[:, 0]] == 0
+    assert card.sum() == 2 and (~card).sum() == 2
+    # The node's translation moves the card 1 m up; glTF's coordinates are kept as they are (v down).
+    corners = scene.triangles[card].reshape(-1)
+    assert scene.vertices[corners, 1].min() == 1.0 and scene.vertices[corners, 1].max() == 2.0
+    top_left = corners[np.all(scene.vertices[corners] == [-1.0, 2.0, 0.0], axis=1)][0]
+    np.testing.assert_array_equal(scene.uv[top_left], [0.0, 0.0])
+
+
+def test_a_gltf_mask_image_that_cannot_be_read_exits_2_naming_it(tmp_path):
+    (tmp_path / "leaf.png").write_bytes(b"\x89PNG broken")
+    (tmp_path / "card.gltf").write_text(gltf_card("leaf.png"))
+    exp = tmp_path / "exp.toml"
+    exp.write_text(f'extends = ["paths/walk", "methods/exact"]\n[scene]\nkind = "mesh"\n'
+                   f'file = "{tmp_path / "card.gltf"}"\n[camera]\nframes = 2\nwidth = 32\nheight = 18\n'
+                   '[shadow]\nresolution = 64\n')
+    outcome = CliRunner().invoke(app, ["run", str(exp), "--out", str(tmp_path / "out")])
+    assert outcome.exit_code == 2, outcome.output
+    message = outcome.stderr.strip()
+    assert len(message.splitlines()) == 1 and "leaf.png" in message and "images" in message

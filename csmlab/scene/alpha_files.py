@@ -9,6 +9,7 @@ convention). A file that is missing or that Pillow cannot read is bad input: an
 
 from __future__ import annotations
 
+from io import BytesIO
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +17,7 @@ import numpy as np
 from csmlab.errors import InputError
 from csmlab.scene.core import AlphaMask
 
-__all__ = ["read_alpha_mask"]
+__all__ = ["alpha_mask_of_image", "read_alpha_mask"]
 
 
 def read_alpha_mask(file, *, cutoff: float = 0.5, field: str = "alpha_mask") -> AlphaMask:
@@ -36,14 +37,23 @@ def read_alpha_mask(file, *, cutoff: float = 0.5, field: str = "alpha_mask") -> 
     InputError
         Naming the file and ``field``: missing, not an image Pillow can read, or empty.
     """
-    from PIL import Image, UnidentifiedImageError
-
     path = Path(file)
     if not path.is_file():
         raise InputError("expected an existing image file with an alpha mask, found "
                          + ("a directory" if path.is_dir() else "nothing"), file=path, field=field)
+    return alpha_mask_of_image(path.read_bytes(), cutoff=cutoff, source=path, field=field)
+
+
+def alpha_mask_of_image(data: bytes, *, cutoff: float = 0.5, source, field: str = "alpha_mask") -> AlphaMask:
+    """The :class:`~csmlab.scene.core.AlphaMask` of an encoded image's bytes (as :func:`read_alpha_mask` reads a file).
+
+    ``source`` names the image (its file, or the file that embeds it) in the mask and in the error.
+    """
+    from PIL import Image, UnidentifiedImageError
+
+    path = Path(source)
     try:
-        with Image.open(path) as image:
+        with Image.open(BytesIO(data)) as image:
             image.load()
             if "A" in image.getbands() or "transparency" in image.info:
                 coverage = np.asarray(image.convert("RGBA"), dtype=np.float32)[..., 3]

@@ -11,6 +11,8 @@ triangles (:class:`~csmlab.scene.core.AlphaMask`, cutoff 0.5: OBJ has none of it
 alpha channel (or luminance) read by :func:`csmlab.scene.alpha_files.read_alpha_mask`, the
 material's texture coordinates (``vt``, which VTK keeps per material), ``v`` turned to run down the
 image (OBJ's origin is the image's bottom-left). Each masked triangle gets vertices of its own.
+A glTF file with ``alphaMode = "MASK"`` materials is read by :mod:`csmlab.scene.gltf` instead of
+VTK (whose reader keeps no material).
 
 A broken file stops here with an :class:`~csmlab.errors.InputError` naming the file and what was
 expected. VTK reports failures in three ways — an exception, an error or warning event (with an
@@ -32,6 +34,7 @@ from csmlab.errors import InputError
 from csmlab.registry import check_name
 from csmlab.scene.alpha_files import read_alpha_mask
 from csmlab.scene.core import Scene
+from csmlab.scene.gltf import has_masked_materials, read_masked_gltf
 from csmlab.scene.shapes import height_field, scene_from_parts
 
 __all__ = ["GROUND_ALBEDO", "GROUND_SIZE_FACTOR", "MESH_FORMATS", "UP_AXES", "load_mesh"]
@@ -200,7 +203,7 @@ def _obj_materials(path: Path) -> tuple[list[str], dict[str, Path]]:
 
 def _obj_masks(cell_count: int, path: Path, points: np.ndarray, triangles: np.ndarray, cells: np.ndarray,
                point_arrays: dict):
-    """Vertices, triangles and ``uv, vertex_mask, alpha`` of an OBJ mesh whose materials have ``map_d``; None if none has.
+    """Vertices, triangles and ``uv, vertex_mask, alpha`` of an OBJ mesh with ``map_d`` materials; None if it has none.
 
     Each masked triangle's corners become vertices of their own (appended after ``points``), so a
     vertex a masked face shares with another face keeps one mask.
@@ -295,14 +298,10 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
     if fmt is None:
         raise InputError(f"expected a mesh file ending in one of {', '.join(MESH_FORMATS)}, "
                          f"got {path.suffix or 'no suffix'!r}", file=path, field="file")
-
-    data = _read_dataset(path, fmt)
-    points, triangles, cells, point_arrays = _surface_triangles(data, path)
-    masks = {}
-    if fmt == MESH_FORMATS[".obj"]:
-        found = _obj_masks(data.n_cells, path, points, triangles, cells, point_arrays)
-        if found is not None:
-            points, triangles, masks = found
+    if path.suffix.lower() in (".gltf", ".glb") and has_masked_materials(path):
+        points, triangles, masks = read_masked_gltf(path)
+    else:
+        points, triangles, masks = _vtk_mesh(path, fmt)
     points = (points * scale_value) @ UP_AXES[up].T
     try:
         scene = Scene.from_triangles(points, triangles, albedo=colour, name=path.name)
@@ -312,3 +311,15 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
     if masks:
         scene = Scene(scene.vertices, scene.triangles, scene.normals, scene.albedo, name=scene.name, **masks)
     return scene.merged(_ground_under(scene)) if ground else scene
+
+
+def _vtk_mesh(path: Path, fmt: str) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Points, triangles and (an OBJ's ``map_d``) masks of a mesh file read through VTK."""
+    data = _read_dataset(path, fmt)
+    points, triangles, cells, point_arrays = _surface_triangles(data, path)
+    masks = {}
+    if fmt == MESH_FORMATS[".obj"]:
+        found = _obj_masks(data.n_cells, path, points, triangles, cells, point_arrays)
+        if found is not None:
+            points, triangles, masks = found
+    return points, triangles, masks
