@@ -558,8 +558,8 @@ def mip_lookup_kernel(
             if not wp.isnan(receiver):
                 m = filtered_moments(levels, offset, size, shift, c + b, coords[c + b, k, 0], coords[c + b, k, 1],
                                      ddx[b, k], ddy[b, k], unit, max_lod, max_aniso)
-                p = moment_bound(m, receiver, inv_span, code, c_pos, c_neg, min_variance, moment_bias, depth_bias, power,
-                                 bleed)
+                p = moment_bound(m, receiver, inv_span, code, c_pos, c_neg, min_variance, moment_bias, depth_bias,
+                                 power, bleed)
             if b == 0 and w == wp.float64(1.0):
                 s = p
             else:
