@@ -206,7 +206,7 @@ def _moved_scene(scene: Scene, offset) -> Scene:
     if not any(offset):
         return scene
     return Scene(scene.vertices + np.asarray(offset, dtype=np.float64), scene.triangles, scene.normals, scene.albedo,
-                 name=scene.name)
+                 name=scene.name, uv=scene.uv, vertex_mask=scene.vertex_mask, alpha=scene.alpha)
 
 
 def _moved_path(path: CameraPath, offset) -> CameraPath:

@@ -371,7 +371,8 @@ def _moment_lookup(maps: ShadowMaps, receivers: Receivers, *, record: Filter, ra
     chosen, weight, band = select_cascades(maps.depth, coords, depth, receivers.view_depth, radius=radius,
                                            **selection, device=device)
     bound = dict(method=record.name, span=maps.depth_span, bits=settings.subtexel_bits,
-                 exponents=settings.evsm_exponents, min_variance=settings.vsm_min_variance, power=settings.vsm_power,
+                 exponents=settings.evsm_exponents, min_variance=settings.vsm_min_variance,
+                 moment_bias=settings.msm_moment_bias, depth_bias=settings.msm_depth_bias, power=settings.vsm_power,
                  bleed=settings.vsm_bleed, device=device)
     if "mips" not in record.reads_of(settings):
         lit = moment_lookup(maps.moments, coords, depth, cascade=chosen, blend_weight=weight, **bound)

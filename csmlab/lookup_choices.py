@@ -33,7 +33,7 @@ from csmlab.registry import check_name, parameters
 
 __all__ = ["BLEND_LINEAR", "BLEND_SMOOTHSTEP", "BOX_BILINEAR", "BOX_TAPS", "CASTANO_SIZES", "NORMAL_NONE", "NORMAL_OFFSET_SCALES", "NORMAL_ONE_MINUS_COS",
            "NORMAL_ONE_MINUS_COS_LATERAL", "NORMAL_SIN", "FAMILIES", "FILTER_METHODS", "Filter", "MOMENT_EVSM2",
-           "MOMENT_EVSM4", "MOMENT_VSM", "PCF_BILINEAR_BOX", "PCF_CASTANO", "PCF_GAUSSIAN", "PCF_PCSS", "PCF_POISSON",
+           "MOMENT_EVSM4", "MOMENT_MSM", "MOMENT_VSM", "PCF_BILINEAR_BOX", "PCF_CASTANO", "PCF_GAUSSIAN", "PCF_PCSS", "PCF_POISSON",
            "PCF_TENT", "PCF_TENT_BILINEAR", "PCF_VOGEL", "SELECTION_METHODS", "SELECT_BEST_RESOLUTION",
            "SELECT_INTERVAL", "SELECT_MAP", "Selection", "family_code", "family_filters", "poisson_disk", "vogel_disk"]
 
@@ -102,6 +102,8 @@ MOMENT_EVSM2 = 1
 """Moment family code: the positive exponential warp."""
 MOMENT_EVSM4 = 2
 """Moment family code: the positive and negative exponential warps."""
+MOMENT_MSM = 3
+"""Moment family code: four power moments ``(z, z², z³, z⁴)``, Hamburger reconstruction (Peters and Klein 2015)."""
 
 
 @dataclass(frozen=True)
@@ -133,7 +135,8 @@ SELECTION_METHODS: dict[str, Selection] = {s.name: s for s in (
 FAMILIES: dict[str, str] = {
     "box": "equal or bilinear weights over whole texels, run by the selection kernel itself (csmlab.kernels.shadow)",
     "weighted": "weighted percentage-closer filtering at the selected cascade (csmlab.kernels.pcf)",
-    "moment": "Chebyshev's bound of filtered depth moments at the selected cascade (csmlab.kernels.moments)",
+    "moment": "Chebyshev's bound (or MSM's Hamburger bound) of filtered depth moments at the selected cascade "
+              "(csmlab.kernels.moments)",
 }
 """Filter families by name: which kernel runs a filter after (or with) the cascade selection."""
 
@@ -411,6 +414,9 @@ FILTER_METHODS: dict[str, Filter] = {f.name: f for f in (
            _moment_reach, reads=_moment_reads),
     Filter("evsm4", "moment", MOMENT_EVSM4, "exponential VSM, positive and negative warps (MJP, Filament)",
            _MOMENT_TAPS, _moment_reach, reads=_moment_reads),
+    Filter("msm", "moment", MOMENT_MSM,
+           "moment shadow map: blurred (z, z², z³, z⁴), Hamburger 4-moment lower bound with moment and depth bias "
+           "(Peters and Klein 2015; MJP's MSM Hamburger)", _MOMENT_TAPS, _moment_reach, reads=_moment_reads),
 )}
 """Filters by name (the ``[shadow] filter`` values)."""
 

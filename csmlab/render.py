@@ -75,7 +75,9 @@ class DeviceScene:
 
 def prepare_scene(scene: Scene, *, device: str = "cpu", threads: int = 1) -> DeviceScene:
     """Upload ``scene`` to ``device`` (``"cpu"`` or ``"cuda"``) and build its BVH; ``threads`` as :class:`DeviceScene`."""
-    return DeviceScene(scene=scene, bvh=mesh_bvh(scene.vertices, scene.triangles, device=device), device=device,
+    return DeviceScene(scene=scene, bvh=mesh_bvh(scene.vertices, scene.triangles, uv=scene.uv,
+                                                 vertex_mask=scene.vertex_mask, alpha=scene.alpha, device=device),
+                       device=device,
                        corners=scene.corners(), threads=checked_threads(threads, device))
 
 
@@ -150,7 +152,11 @@ def _scene_in_light_space(dscene: DeviceScene, cascades: CascadeSet, cull: str =
         order, triangles = z_ordered(xy, culled_triangles(vertices, dscene.scene.triangles, cascades.direction, cull))
         for other in [k for k in dscene.light_space if k[:2] != light]:
             del dscene.light_space[other]
-        dscene.light_space[key] = light_space_mesh(xy[order], light_depth(cascades, vertices)[order], triangles)
+        scene = dscene.scene
+        masks = {} if scene.vertex_mask is None else dict(uv=scene.uv[order], vertex_mask=scene.vertex_mask[order],
+                                                          alpha=scene.alpha)
+        dscene.light_space[key] = light_space_mesh(xy[order], light_depth(cascades, vertices)[order], triangles,
+                                                   **masks)
     return dscene.light_space[key]
 
 
@@ -269,7 +275,7 @@ def _host_snapped_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
             continue
         points = fixed_point_coordinates(cascades, c, vertices, bits=bits, precision=settings.engine_precision)
         one, count = rasterize_depth(points[None], depth_of_vertex, triangles, resolution=sizes[c], bits=bits,
-                                     device=dscene.device)
+                                     masks=dscene.bvh.masks, device=dscene.device)
         maps[c, :sizes[c], :sizes[c]] = one[0]
         texels += count
     return maps, texels

@@ -76,7 +76,7 @@ class ShadowSettings:
     selection: str = "interval"
     """Cascade selection: interval | map | best_resolution."""
     filter: str = "pcf"
-    """Filter: none | pcf | pcf_bilinear | pcf_gaussian | pcf_tent | pcf_poisson | pcf_vogel | pcf_castano | pcf_tent_bilinear | pcf_bilinear_box | pcss | vsm | evsm2 | evsm4 (csmlab.filters)."""
+    """Filter: none | pcf | pcf_bilinear | pcf_gaussian | pcf_tent | pcf_poisson | pcf_vogel | pcf_castano | pcf_tent_bilinear | pcf_bilinear_box | pcss | vsm | evsm2 | evsm4 | msm (csmlab.filters)."""
     filter_size: int = 3
     """pcf, pcf_gaussian, pcf_tent, pcf_poisson, pcss, pcf_castano (3 or 5), pcf_tent_bilinear, pcf_bilinear_box: taps per side N (odd)."""
     bias_constant: float = 0.0
@@ -138,17 +138,21 @@ class ShadowSettings:
     light_size_deg: float = 0.53
     """pcss: angular diameter of the light, degrees (the sun: 0.53)."""
     moment_blur: int = 5
-    """vsm, evsm2, evsm4: taps per side of the separable box blur of the moments (odd; 1: none)."""
+    """vsm, evsm2, evsm4, msm: taps per side of the separable box blur of the moments (odd; 1: none)."""
     evsm_exponents: tuple[float, float] = (40.0, 5.0)
     """evsm2, evsm4: exponents c+ and c- of the positive and negative warps."""
     vsm_min_variance: float = 1e-5
     """vsm, evsm2, evsm4: minimum variance in normalized depth squared (DirectX VarianceShadows11: 0.00001)."""
     vsm_power: float = 1.0
-    """vsm, evsm2, evsm4: light-bleeding reduction p ← p^power (seed 002's MAGIC_NUMBER; 1: none)."""
+    """vsm, evsm2, evsm4, msm: light-bleeding reduction p ← p^power (seed 002's MAGIC_NUMBER; 1: none)."""
     vsm_bleed: float = 0.0
-    """vsm, evsm2, evsm4: light-bleeding reduction p ← linstep(amount, 1, p) (Lauritzen; 0: none), in [0, 1)."""
+    """vsm, evsm2, evsm4, msm: light-bleeding reduction p ← linstep(amount, 1, p) (Lauritzen; 0: none), in [0, 1)."""
+    msm_moment_bias: float = 3e-6
+    """msm: moment bias α in [0, 1), the weight of (0.5, 0.5, 0.5, 0.5) mixed into the moments (MJP's Shadows sample: MSMMomentBias 0.003 × 10⁻³ for float32 moments)."""
+    msm_depth_bias: float = 0.0
+    """msm: depth bias in normalized depth (a fraction of the scene's light-space depth range) subtracted from the receiver's (MJP: MSMDepthBias, default 0)."""
     moment_mips: bool = False
-    """vsm, evsm2, evsm4: look the moments up in a mip chain, trilinear at a level of detail from screen-space derivatives (lod), not bilinear at level 0."""
+    """vsm, evsm2, evsm4, msm: look the moments up in a mip chain, trilinear at a level of detail from screen-space derivatives (lod), not bilinear at level 0."""
     lod: str = "quad"
     """moment_mips: derivatives the level of detail comes from: quad (hardware, per 2×2 quad; a seam at splits) | quad_consistent (PSVSM) | analytic (csmlab.quads)."""
     max_lod: int = 3
@@ -269,6 +273,8 @@ class ShadowSettings:
         need(self.vsm_min_variance >= 0, "vsm_min_variance", "a non-negative variance", self.vsm_min_variance)
         need(self.vsm_power > 0, "vsm_power", "a positive exponent", self.vsm_power)
         need(0.0 <= self.vsm_bleed < 1.0, "vsm_bleed", "an amount in [0, 1)", self.vsm_bleed)
+        need(0.0 <= self.msm_moment_bias < 1.0, "msm_moment_bias", "a weight in [0, 1)", self.msm_moment_bias)
+        need(math.isfinite(self.msm_depth_bias), "msm_depth_bias", "a finite normalized depth", self.msm_depth_bias)
         need(isinstance(self.moment_mips, bool), "moment_mips", "true or false", self.moment_mips)
         need(self.lod in ("quad", "quad_consistent", "analytic"), "lod", "quad, quad_consistent or analytic", self.lod)
         need(isinstance(self.max_lod, int) and 0 <= self.max_lod <= 8, "max_lod", "an integer in 0..8", self.max_lod)
@@ -440,9 +446,11 @@ APPLIES: dict[str, Applies] = {
     "light_size_deg": _filters(lambda f: f == "pcss", "the light's size that sets the penumbra"),
     "moment_blur": _filters(lambda f: _family(f) == "moment", "the blur of the moments"),
     "evsm_exponents": _filters(lambda f: f in ("evsm2", "evsm4"), "the exponents of the warps"),
-    "vsm_min_variance": _filters(lambda f: _family(f) == "moment", "the variance floor of the Chebyshev bound"),
+    "vsm_min_variance": _filters(lambda f: _family(f) == "moment" and f != "msm", "the variance floor of the Chebyshev bound"),
     "vsm_power": _filters(lambda f: _family(f) == "moment", "a light-bleeding reduction"),
     "vsm_bleed": _filters(lambda f: _family(f) == "moment", "a light-bleeding reduction"),
+    "msm_moment_bias": _filters(lambda f: f == "msm", "the moment bias of the Hamburger bound"),
+    "msm_depth_bias": _filters(lambda f: f == "msm", "the depth bias of the Hamburger bound"),
     "moment_mips": _filters(lambda f: _family(f) == "moment", "the moments' mip chain"),
     "lod": Applies(_moment_mips, "a moment filter with moment_mips = true (the mip chain's level of detail)"),
     "max_lod": Applies(_moment_mips, "a moment filter with moment_mips = true (the mip chain's coarsest level)"),

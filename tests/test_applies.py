@@ -57,6 +57,8 @@ CASES = {
     "vsm_min_variance": ("0.001", {"filter": '"evsm4"'}),
     "vsm_power": ("2.0", {"filter": '"vsm"'}),
     "vsm_bleed": ("0.2", {"filter": '"vsm"'}),
+    "msm_moment_bias": ("3e-5", {"filter": '"msm"'}),
+    "msm_depth_bias": ("0.001", {"filter": '"msm"'}),
     "moment_mips": ("true", {"filter": '"vsm"'}),
     "lod": ('"analytic"', {"filter": '"vsm"', "moment_mips": "true"}),
     "max_lod": ("2", {"filter": '"evsm2"', "moment_mips": "true"}),

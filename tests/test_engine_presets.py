@@ -59,7 +59,7 @@ def _run(tmp_path, *, extends=(), methods="", scene="", frames=4) -> dict:
 
 
 def test_every_engine_and_seed_of_the_issue_has_a_preset():
-    assert set(ENGINES) == {"ue5", "ue5_vsm", "unity_builtin_stable", "unity_builtin_close", "unity_urp", "godot4", "filament",
+    assert set(ENGINES) == {"ue5", "ue5_vsm", "unity_builtin_stable", "unity_builtin_close", "unity_urp", "unity_hdrp", "godot4", "filament",
                             "bevy", "threejs_csm", "stride", "mjp"}
     assert set(SEEDS) == {"nvidia_sdk", "ogldev49", "dx_csm11_cascade", "dx_csm11_scene", "dx_vsm11", "unigine_exact",
                           "unigine_quantized", "unigine_best_resolution"}
@@ -85,6 +85,11 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     ("engines/unity_urp", dict(shadow_distance=50.0, splits=(0.067, 0.2, 0.467, 1.0), fade_out=0.2,
                                fade="squared_radial", filter="pcf_bilinear",
                                storage="atlas", atlas_layout="2x2", depth_format="unorm16")),
+    # HDRP 10.10.1 DefaultSettingsVolumeProfile.asset: maxShadowDistance 150, splits 0.05/0.15/0.3; HDShadowInitParameters
+    # Medium → SampleShadow_PCF_Tent_7x7, Depth32; the light's shadow resolution 512, 4 cascades as 2×2 atlas tiles.
+    ("engines/unity_hdrp", dict(cascades=4, splits=(0.05, 0.15, 0.3, 1.0), shadow_distance=150.0, selection="map",
+                                blend_band=0.0, fade_out=0.0, filter="pcf_tent_bilinear", filter_size=7,
+                                storage="atlas", atlas_layout="2x2", depth_format="float32", resolution=512)),
     # DirectionalLight3D: splits 0.1/0.2/0.5, max distance 100, fade_start 0.8, pancake_size 20, blend off;
     # soft_shadow_filter_quality 2 (SOFT_LOW): directional_soft_shadow_samples = 4, quality radius 2.0, a
     # Vogel disk rotated per pixel; directional_shadow/16_bits = true; 4 splits as quadrants of one atlas.
@@ -551,6 +556,9 @@ FILTER_AND_BIAS = {
                           {"bias_texels": 1.0, "bias_depth_range": 1.0 / 2**16, "bias_slope": 2.5,
                            "normal_offset": 1.0, "normal_offset_scale": "one_minus_cos",
                            "receiver_plane_bias": False}),
+    "engines/unity_hdrp": ({"filter": "pcf_tent_bilinear", "filter_size": 7},
+                           {"bias_depth_range": 1.0 / 2**16, "bias_slope": 2.5, "normal_offset": 0.75,
+                            "normal_offset_scale": "none", "receiver_plane_bias": False}),
     "engines/unity_builtin_stable": ({"filter": "pcf_tent_bilinear", "filter_size": 7},
                                      {"bias_slope": 1.0, "receiver_plane_bias": False}),
     "engines/unity_builtin_close": ({"filter": "pcf_tent_bilinear", "filter_size": 7},

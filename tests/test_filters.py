@@ -14,7 +14,7 @@ SUN = np.array([0.5, -0.7, 0.35])
 STEADY = {"pcf_gaussian": {}, "pcf_tent": {"filter_size": 5}, "pcf_poisson": {"filter_size": 5},
           "pcss": {"filter_size": 5, "light_size_deg": 2.0}, "pcf_tent_world": {"filter_width_m": 1.5},
           "pcf_unorm16": {"depth_format": "unorm16"}, "vsm": {"vsm_bleed": 0.2}, "evsm2": {},
-          "evsm4": {"moment_blur": 3, "depth_format": "unorm16"},
+          "evsm4": {"moment_blur": 3, "depth_format": "unorm16"}, "msm": {},
           "pcf_vogel": {"vogel_taps": 4, "vogel_radius": 2.0, "vogel_angle": 2.4, "vogel_scale": "first_split"},
           "pcf_castano": {"filter_size": 5}, "pcf_tent_bilinear": {"filter_size": 7}, "pcf_bilinear_box": {}}
 
@@ -58,7 +58,7 @@ def test_every_filter_has_one_record_and_the_margin_follows_its_radius():
     # 5×5, Unity's 5×5 tent and DirectX's 5×5 of bilinear taps reach 3.
     radius = {"none": 0, "pcf": 2, "pcf_bilinear": 1, "pcf_gaussian": 2, "pcf_tent": 3, "pcf_poisson": 3,
               "pcf_vogel": 2, "pcf_castano": 3, "pcf_tent_bilinear": 3, "pcf_bilinear_box": 3, "pcss": 2,
-              "vsm": 3, "evsm2": 3, "evsm4": 3}
+              "vsm": 3, "evsm2": 3, "evsm4": 3, "msm": 3}
     assert list(FILTER_METHODS) == list(radius)
     for name, record in FILTER_METHODS.items():
         settings = ShadowSettings(filter=name, filter_size=5, moment_blur=5)
@@ -74,7 +74,7 @@ def test_every_filter_has_one_record_and_the_margin_follows_its_radius():
 
 def test_a_filter_reads_what_its_record_says():
     reads = {name: record.reads_of(ShadowSettings(filter=name)) for name, record in FILTER_METHODS.items()}
-    assert {name for name, what in reads.items() if "moments" in what} == {"vsm", "evsm2", "evsm4"}
+    assert {name for name, what in reads.items() if "moments" in what} == {"vsm", "evsm2", "evsm4", "msm"}
     assert all("pixels" not in what and "mips" not in what for what in reads.values())
     assert "pixels" in FILTER_METHODS["pcf_poisson"].reads_of(ShadowSettings(poisson_rotation="pixel"))
     assert "mips" in FILTER_METHODS["evsm2"].reads_of(ShadowSettings(moment_mips=True))

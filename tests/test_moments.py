@@ -1,4 +1,4 @@
-"""VSM and EVSM moments, blur and Chebyshev lookup against a brute-force NumPy reference."""
+"""VSM, EVSM and MSM moments, blur and their bounds against brute-force NumPy references."""
 
 import numpy as np
 import pytest
@@ -17,6 +17,9 @@ def ref_moments(depth, span, method):
     out = np.zeros(depth.shape + (4,))
     if method == "vsm":
         out[..., 0], out[..., 1] = z, z * z
+        return out.astype(np.float32)
+    if method == "msm":
+        out[...] = z[..., None] ** np.arange(1, 5)
         return out.astype(np.float32)
     p = np.exp(EXPONENTS[0] * (2 * z - 1))
     out[..., 0], out[..., 1] = p, p * p
@@ -42,6 +45,27 @@ def chebyshev(mean, variance, t):
     return 1.0 if t <= mean else variance / (variance + (t - mean) ** 2)
 
 
+def hamburger(mom, t, alpha=3e-6, depth_bias=0.0):
+    """Peters and Klein 2015, Algorithm 3 (Hamburger 4MSM): solve the Hankel system, then the quadratic.
+
+    Written from the paper with a general solver and polynomial roots (not the Cholesky steps of
+    the kernel): ``b = (1 − α) b + α (½, ½, ½, ½)``, ``B c = (1, z_f, z_f²)`` with B the 3×3 Hankel
+    matrix of (1, b₁ … b₄), ``z₂ ≤ z₃`` the roots of ``c₀ + c₁ z + c₂ z²``, G by the three cases.
+    """
+    b = (1.0 - alpha) * np.asarray(mom, dtype=np.float64) + alpha * 0.5
+    zf = t - depth_bias
+    hankel = np.array([[1.0, b[0], b[1]], [b[0], b[1], b[2]], [b[1], b[2], b[3]]])
+    c = np.linalg.solve(hankel, [1.0, zf, zf * zf])
+    z2, z3 = sorted(np.roots([c[2], c[1], c[0]]).real)
+    if zf <= z2:
+        g = 0.0
+    elif zf <= z3:
+        g = (zf * z3 - b[0] * (zf + z3) + b[1]) / ((z3 - z2) * (zf - z2))
+    else:
+        g = 1.0 - (z2 * z3 - b[0] * (z2 + z3) + b[1]) / ((zf - z2) * (zf - z3))
+    return 1.0 - float(np.clip(g, 0.0, 1.0))
+
+
 def ref_lit(m, c, x, y, receiver, method, span, min_variance, power, bleed):
     if np.isnan(receiver):
         return 0.0
@@ -52,7 +76,9 @@ def ref_lit(m, c, x, y, receiver, method, span, min_variance, power, bleed):
     at = lambda i, j: m[c, min(max(j, 0), r), min(max(i, 0), r)].astype(np.float64)
     mom = (1 - wy) * ((1 - wx) * at(i0, j0) + wx * at(i0 + 1, j0)) + wy * ((1 - wx) * at(i0, j0 + 1) + wx * at(i0 + 1, j0 + 1))
     t = float(receiver) / span
-    if method == "vsm":
+    if method == "msm":
+        p = hamburger(mom, t)
+    elif method == "vsm":
         p = chebyshev(mom[0], np.clip(mom[1] - mom[0] ** 2 + min_variance, 0, 1), t)
     else:
         w = np.exp(EXPONENTS[0] * (2 * t - 1))
@@ -100,6 +126,47 @@ def test_moment_lookup_is_lit_in_front_of_a_flat_caster_and_dark_far_behind_it(d
                             bits=BITS, exponents=EXPONENTS, min_variance=1e-6, device=device)
         assert lit[0] == 1.0, method
         assert lit[1] < 0.01, method
+
+
+@pytest.mark.parametrize("alpha, depth_bias", [(3e-6, 0.0), (3e-5, 0.002)])
+def test_msm_equals_the_papers_hamburger_reconstruction_under_its_moment_and_depth_bias(alpha, depth_bias, device):
+    rng = np.random.default_rng(17)
+    depth = rng.uniform(0.0, 30.0, (1, 20, 20)).astype(np.float32)
+    depth[:, 4:12, 3:9] = 6.0
+    moments = blur_moments(moment_maps(depth, span=30.0, method="msm", device=device), radius=2, device=device)
+    np.testing.assert_allclose(moments, ref_blur(ref_moments(depth, 30.0, "msm"), 2), rtol=1e-6)
+    n = 300
+    coords = rng.integers(2 * UNIT, 18 * UNIT, (1, n, 2))
+    receiver = rng.uniform(0.0, 33.0, (1, n)).astype(np.float32)
+    lit = moment_lookup(moments, coords, receiver, cascade=np.zeros(n, np.int32), method="msm", span=30.0, bits=BITS,
+                        moment_bias=alpha, depth_bias=depth_bias, device=device)
+    expected = []
+    for k in range(n):
+        x, y = coords[0, k]
+        fx, fy = (2 * x - UNIT) / (2 * UNIT), (2 * y - UNIT) / (2 * UNIT)
+        i0, j0 = int(np.floor(fx)), int(np.floor(fy))
+        wx, wy = fx - i0, fy - j0
+        m = moments[0].astype(np.float64)
+        mom = (1 - wy) * ((1 - wx) * m[j0, i0] + wx * m[j0, i0 + 1]) + wy * ((1 - wx) * m[j0 + 1, i0] + wx * m[j0 + 1, i0 + 1])
+        expected.append(hamburger(mom, float(receiver[0, k]) / 30.0, alpha, depth_bias))
+    np.testing.assert_allclose(lit, expected, atol=1e-5)
+    assert 0.05 < np.mean(lit) < 0.95  # both lit and shadowed receivers are tested
+
+
+def test_msm_bleeds_less_than_vsm_where_two_occluders_overlap_in_the_filter(device):
+    """The paper's light-leaking case: a receiver in the shadow of a far occluder (z = 0.5) whose filter
+    also holds a near occluder's edge (z = 0.2); every receiver at 0.6 is fully shadowed."""
+    depth = np.where(np.arange(32) < 16, 0.2, 0.5).astype(np.float32)[None, None, :].repeat(32, axis=1)
+    coords = np.stack([np.arange(8 * UNIT, 24 * UNIT, UNIT // 4), np.full(64, 16 * UNIT)], axis=-1)[None]
+    receiver = np.full((1, 64), 0.6, np.float32)
+    lit = {}
+    for method in ("vsm", "msm"):
+        moments = blur_moments(moment_maps(depth, span=1.0, method=method, device=device), radius=3, device=device)
+        lit[method] = moment_lookup(moments, coords, receiver, cascade=np.zeros(64, np.int32), method=method,
+                                    span=1.0, bits=BITS, device=device)
+    assert lit["vsm"].max() > 0.3  # Chebyshev's bound leaks 1 − a of the near occluder's share a
+    assert lit["msm"].max() < 0.01
+    assert np.all(lit["msm"] <= lit["vsm"])
 
 
 def test_blur_moves_with_the_map(device):
@@ -191,6 +258,8 @@ def ref_mip_lit(chain, origin, c, x, y, ddx, ddy, receiver, method, span, anisot
         total += m
     mom = total / probes
     t = float(receiver) / span
+    if method == "msm":
+        return hamburger(mom, t)
     if method == "vsm":
         return chebyshev(mom[0], np.clip(mom[1] - mom[0] ** 2 + 1e-4, 0, 1), t)
     w = np.exp(EXPONENTS[0] * (2 * t - 1))
@@ -199,7 +268,7 @@ def ref_mip_lit(chain, origin, c, x, y, ddx, ddy, receiver, method, span, anisot
     return min(p, chebyshev(mom[2], max(mom[3] - mom[2] ** 2, 1e-4 * (EXPONENTS[1] * w) ** 2), w))
 
 
-@pytest.mark.parametrize("method", ["vsm", "evsm4"])
+@pytest.mark.parametrize("method", ["vsm", "evsm4", "msm"])
 @pytest.mark.parametrize("anisotropy", [1, 4])
 def test_trilinear_and_anisotropic_lookup_equal_a_numpy_reference(method, anisotropy, device):
     rng = np.random.default_rng(11)

@@ -1,4 +1,4 @@
-"""Moment shadow maps: VSM and EVSM moments from the cascade pass, a separable blur, the Chebyshev lookup.
+"""Moment shadow maps: VSM, EVSM and MSM moments from the cascade pass, a separable blur, their bounds.
 
 Moments are taken of each texel's stored depth normalized over the scene's light-space depth
 range, ``z = depth / span`` in [0, 1] (empty texels: 1, the far plane) — the same world-locked
@@ -11,6 +11,9 @@ float32 ``(C, R, R, 4)``:
 - ``vsm`` — ``(z, z², 0, 0)`` (Donnelly and Lauritzen 2006; DirectX VarianceShadows11, seed 002).
 - ``evsm2`` — ``(e^{c₊ẑ}, e^{2c₊ẑ}, 0, 0)`` with ``ẑ = 2z − 1`` (Lauritzen and McCool 2008; MJP).
 - ``evsm4`` — also the negative warp ``(−e^{−c₋ẑ}, e^{−2c₋ẑ})``; S is the smaller of the two bounds.
+- ``msm`` — the four power moments ``(z, z², z³, z⁴)`` (Peters and Klein 2015, "Moment Shadow
+  Mapping"), stored as float32 as MJP's Shadows sample stores them in its 32-bit format (its
+  ``GetOptimizedMoments`` quantization is for the 16-bit format only, so it is not used here).
 
 Blur: a box of ``2r + 1`` texels along x, then along y, clamped at the map's edge, summed in
 float64 in a fixed order (the sample's two-pass separable convolution). Lookup: the 2×2 texels
@@ -21,7 +24,15 @@ around the receiver, bilinear in its fixed-point fraction, then Chebyshev's one-
 - ``evsm``: ``σ² = max(M₂ − M₁², v_min · (c·w)²)``, the minimum variance carried through the
   warp's slope ``c·w`` at the receiver's warped depth ``w``;
 
-then the light-bleeding reductions of the sources: ``p ← p^power`` (seed 002, "raise the
+``msm`` instead takes the Hamburger four-moment bound (the paper's Algorithm 3; MJP's
+``ComputeMSMHamburger``, Shadows/MSM.hlsl @338290a): the moments mixed with (½, ½, ½, ½) by the
+moment bias α, ``b ← (1 − α) b + α/2`` (MJP's default 3e-6 for float32 moments, its
+``MSMMomentBias`` 0.003 × 10⁻³), the receiver's normalized depth less the depth bias
+(``MSMDepthBias``, default 0), the Cholesky factorization of the Hankel matrix
+``B = [[1, b₁, b₂], [b₁, b₂, b₃], [b₂, b₃, b₄]]`` solving ``B c = (1, t, t²)``, the roots ``z₂ ≤ z₃``
+of ``c₀ + c₁ z + c₂ z² = 0``, and the shadow intensity G of the three cases (``t ≤ z₂``: 0;
+``z₂ < t ≤ z₃``; ``t > z₃``), lit ``1 − clamp(G, 0, 1)``. All bounds take
+the light-bleeding reductions of the sources: ``p ← p^power`` (seed 002, "raise the
 fPercentLit to a power") and ``p ← clamp((p − a) / (1 − a), 0, 1)`` (Lauritzen's linstep, MJP,
 Filament).
 
@@ -52,6 +63,9 @@ References
 ----------
 - Donnelly, Lauritzen, "Variance Shadow Maps", I3D 2006.
 - Lauritzen, McCool, "Layered Variance Shadow Maps", GI 2008 (exponential warp, EVSM).
+- Peters, Klein, "Moment Shadow Mapping", I3D 2015 (four moments, Hamburger bound, moment bias).
+- MJP (TheRealMJP/Shadows @338290a), Shadows/MSM.hlsl ``ComputeMSMHamburger``, AppSettings.cpp
+  ``MSMDepthBias``, ``MSMMomentBias``.
 - Microsoft, "Cascaded Shadow Maps" (seed 002), "Variance Shadow Maps" and "Light Bleeding".
 """
 
@@ -62,7 +76,7 @@ import warp as wp
 
 from csmlab.kernels import checked_device
 from csmlab.kernels.shadow import bilinear_corner
-from csmlab.lookup_choices import MOMENT_EVSM4, MOMENT_VSM, family_code
+from csmlab.lookup_choices import MOMENT_EVSM4, MOMENT_MSM, MOMENT_VSM, family_code
 
 __all__ = ["blur_moments", "moment_lookup", "moment_maps", "moment_mip_chain", "moment_mip_lookup"]
 
@@ -85,6 +99,10 @@ def moments_kernel(depth: wp.array3d(dtype=wp.float32), inv_span: wp.float64, co
     z = normalized_depth(depth[c, j, i], inv_span)
     if code == MOMENT_VSM:
         out[c, j, i] = wp.vec4f(wp.float32(z), wp.float32(z * z), wp.float32(0.0), wp.float32(0.0))
+        return
+    if code == MOMENT_MSM:
+        z2 = z * z
+        out[c, j, i] = wp.vec4f(wp.float32(z), wp.float32(z2), wp.float32(z2 * z), wp.float32(z2 * z2))
         return
     zw = wp.float64(2.0) * z - wp.float64(1.0)
     p = wp.exp(c_pos * zw)
@@ -140,13 +158,56 @@ def bilinear_moments(moments: wp.array3d(dtype=wp.vec4f), c: int, x: wp.int64, y
 
 
 @wp.func
+def hamburger_lit(m: wp.vec4d, t: wp.float64, moment_bias: wp.float64, depth_bias: wp.float64) -> wp.float64:
+    """Lit fraction ``1 − G`` of the Hamburger four-moment bound at normalized depth ``t``.
+
+    MJP's ``ComputeMSMHamburger`` (Shadows/MSM.hlsl) step by step, in float64: the moments pulled
+    toward 0.5 by ``moment_bias``, the Hankel matrix's Cholesky factors, the quadratic's roots.
+    """
+    half = wp.float64(0.5)
+    keep = wp.float64(1.0) - moment_bias
+    b0 = keep * m[0] + moment_bias * half
+    b1 = keep * m[1] + moment_bias * half
+    b2 = keep * m[2] + moment_bias * half
+    b3 = keep * m[3] + moment_bias * half
+    zf = t - depth_bias
+    l32_d22 = b2 - b0 * b1
+    d22 = b1 - b0 * b0
+    d33_d22 = (b3 - b1 * b1) * d22 - l32_d22 * l32_d22
+    inv_d22 = wp.float64(1.0) / d22
+    l32 = l32_d22 * inv_d22
+    c1 = zf - b0
+    c2 = zf * zf - b1 - l32 * c1
+    c1 = c1 * inv_d22
+    c2 = c2 * d22 / d33_d22
+    c1 = c1 - l32 * c2
+    c0 = wp.float64(1.0) - (c1 * b0 + c2 * b1)
+    p = c1 / c2
+    q = c0 / c2
+    # Rounding can take the discriminant of a double root just below zero.
+    r = wp.sqrt(wp.max(p * p * wp.float64(0.25) - q, wp.float64(0.0)))
+    z1 = -p * half - r
+    z2 = -p * half + r
+    g = wp.float64(0.0)
+    if z2 < zf:
+        g = wp.float64(1.0) - (z1 * z2 - b0 * (z1 + z2) + b1) / ((zf - z1) * (zf - z2))
+    elif z1 < zf:
+        g = (zf * z2 - b0 * (zf + z2) + b1) / ((z2 - z1) * (zf - z1))
+    return wp.float64(1.0) - wp.clamp(g, wp.float64(0.0), wp.float64(1.0))
+
+
+@wp.func
 def moment_bound(m: wp.vec4d, receiver: wp.float32, inv_span: wp.float64, code: int, c_pos: wp.float64,
-                 c_neg: wp.float64, min_variance: wp.float64, power: wp.float64, bleed: wp.float64) -> wp.float64:
-    """Chebyshev's bound of filtered moments ``m`` at the receiver's depth, then the light-bleeding reductions."""
+                 c_neg: wp.float64, min_variance: wp.float64, moment_bias: wp.float64, depth_bias: wp.float64,
+                 power: wp.float64, bleed: wp.float64) -> wp.float64:
+    """Chebyshev's (or MSM's Hamburger) bound of filtered moments ``m`` at the receiver's depth, then the
+    light-bleeding reductions."""
     # The receiver's own depth is not clamped: one beyond the range is behind everything stored.
     t = wp.float64(receiver) * inv_span
     p = wp.float64(0.0)
-    if code == MOMENT_VSM:
+    if code == MOMENT_MSM:
+        p = hamburger_lit(m, t, moment_bias, depth_bias)
+    elif code == MOMENT_VSM:
         variance = wp.clamp(m[1] - m[0] * m[0] + min_variance, wp.float64(0.0), wp.float64(1.0))
         p = chebyshev(m[0], variance, t)
     else:
@@ -168,13 +229,13 @@ def moment_bound(m: wp.vec4d, receiver: wp.float32, inv_span: wp.float64, code: 
 @wp.func
 def moment_lit(moments: wp.array3d(dtype=wp.vec4f), coords: wp.array3d(dtype=wp.int64),
                receiver_depth: wp.array2d(dtype=wp.float32), c: int, k: int, unit: wp.int64, inv_span: wp.float64,
-               code: int, c_pos: wp.float64, c_neg: wp.float64, min_variance: wp.float64, power: wp.float64,
-               bleed: wp.float64) -> wp.float64:
+               code: int, c_pos: wp.float64, c_neg: wp.float64, min_variance: wp.float64, moment_bias: wp.float64,
+               depth_bias: wp.float64, power: wp.float64, bleed: wp.float64) -> wp.float64:
     receiver = receiver_depth[c, k]
     if wp.isnan(receiver):
         return wp.float64(0.0)
     m = bilinear_moments(moments, c, coords[c, k, 0], coords[c, k, 1], unit)
-    return moment_bound(m, receiver, inv_span, code, c_pos, c_neg, min_variance, power, bleed)
+    return moment_bound(m, receiver, inv_span, code, c_pos, c_neg, min_variance, moment_bias, depth_bias, power, bleed)
 
 
 @wp.kernel
@@ -190,6 +251,8 @@ def moment_lookup_kernel(
     c_pos: wp.float64,
     c_neg: wp.float64,
     min_variance: wp.float64,
+    moment_bias: wp.float64,
+    depth_bias: wp.float64,
     power: wp.float64,
     bleed: wp.float64,
     lit: wp.array(dtype=wp.float32),
@@ -199,17 +262,25 @@ def moment_lookup_kernel(
     if c < 0:
         lit[k] = wp.float32(wp.nan)
         return
-    s = moment_lit(moments, coords, receiver_depth, c, k, unit, inv_span, code, c_pos, c_neg, min_variance, power,
-                   bleed)
+    s = moment_lit(moments, coords, receiver_depth, c, k, unit, inv_span, code, c_pos, c_neg, min_variance, moment_bias,
+                   depth_bias, power, bleed)
     w = blend_weight[k]
     if w > wp.float64(0.0):
         s = (wp.float64(1.0) - w) * s + w * moment_lit(moments, coords, receiver_depth, c + 1, k, unit, inv_span, code,
-                                                       c_pos, c_neg, min_variance, power, bleed)
+                                                       c_pos, c_neg, min_variance, moment_bias, depth_bias, power,
+                                                       bleed)
     lit[k] = wp.float32(s)
 
 
 def _code(method: str) -> int:
     return family_code(method, family="moment", field="method")
+
+
+def _check_bound(*, min_variance: float, moment_bias: float, depth_bias: float, power: float, bleed: float) -> None:
+    if not (0.0 <= bleed < 1.0 and power > 0 and min_variance >= 0 and 0.0 <= moment_bias < 1.0
+            and np.isfinite(depth_bias)):
+        raise ValueError(f"bleed, power, min_variance, moment_bias, depth_bias: expected [0, 1), > 0, ≥ 0, [0, 1), "
+                         f"finite; got {bleed}, {power}, {min_variance}, {moment_bias}, {depth_bias}")
 
 
 def moment_maps(depth, *, span: float, method: str, exponents: tuple[float, float] = (40.0, 5.0),
@@ -279,8 +350,9 @@ def blur_moments(moments, *, radius: int, device: str = "cpu") -> np.ndarray:
 
 
 def moment_lookup(moments, coords, receiver_depth, *, cascade, method: str, span: float, bits: int,
-                  exponents: tuple[float, float] = (40.0, 5.0), min_variance: float = 1e-5, power: float = 1.0,
-                  bleed: float = 0.0, blend_weight=None, device: str = "cpu") -> np.ndarray:
+                  exponents: tuple[float, float] = (40.0, 5.0), min_variance: float = 1e-5,
+                  moment_bias: float = 3e-6, depth_bias: float = 0.0, power: float = 1.0, bleed: float = 0.0,
+                  blend_weight=None, device: str = "cpu") -> np.ndarray:
     """Lit fraction S of receivers from (blurred) moment maps at their selected cascade.
 
     Parameters
@@ -302,7 +374,12 @@ def moment_lookup(moments, coords, receiver_depth, *, cascade, method: str, span
     exponents : tuple of float
         ``(c₊, c₋)`` of the EVSM warps.
     min_variance : float
-        Minimum variance in normalized depth² (DirectX's 0.00001).
+        Minimum variance in normalized depth² (DirectX's 0.00001); not read by ``msm``.
+    moment_bias : float
+        ``msm``: the weight α in [0, 1) of (0.5, 0.5, 0.5, 0.5) mixed into the moments (MJP's default
+        3e-6 for float32 moments).
+    depth_bias : float
+        ``msm``: subtracted from the receiver's normalized depth (MJP's default 0).
     power : float
         ``p ← p^power`` light-bleeding reduction (1: none).
     bleed : float
@@ -327,8 +404,7 @@ def moment_lookup(moments, coords, receiver_depth, *, cascade, method: str, span
         raise ValueError(f"moments, coords, receiver_depth, cascade: expected shapes (C, R, R, 4), (C, N, 2), (C, N), "
                          f"(N,); got {m.shape}, {xy.shape}, {rd.shape}, {chosen.shape}")
     blend = np.zeros(n) if blend_weight is None else np.ascontiguousarray(blend_weight, dtype=np.float64)
-    if not (0.0 <= bleed < 1.0 and power > 0 and min_variance >= 0):
-        raise ValueError(f"bleed, power, min_variance: expected [0, 1), > 0, ≥ 0; got {bleed}, {power}, {min_variance}")
+    _check_bound(min_variance=min_variance, moment_bias=moment_bias, depth_bias=depth_bias, power=power, bleed=bleed)
     if n == 0:
         return np.zeros(0, np.float32)
     lit = wp.empty(n, dtype=wp.float32, device=device)
@@ -339,7 +415,8 @@ def moment_lookup(moments, coords, receiver_depth, *, cascade, method: str, span
                 wp.array(rd, dtype=wp.float32, device=device, copy=False),
                 wp.array(chosen, dtype=wp.int32, device=device, copy=False),
                 wp.array(blend, dtype=wp.float64, device=device, copy=False), wp.int64(2**bits), 1.0 / span, code,
-                float(exponents[0]), float(exponents[1]), float(min_variance), float(power), float(bleed)),
+                float(exponents[0]), float(exponents[1]), float(min_variance), float(moment_bias), float(depth_bias),
+                float(power), float(bleed)),
         outputs=(lit,),
         device=device,
     )
@@ -458,6 +535,8 @@ def mip_lookup_kernel(
     c_pos: wp.float64,
     c_neg: wp.float64,
     min_variance: wp.float64,
+    moment_bias: wp.float64,
+    depth_bias: wp.float64,
     power: wp.float64,
     bleed: wp.float64,
     lit: wp.array(dtype=wp.float32),
@@ -479,7 +558,8 @@ def mip_lookup_kernel(
             if not wp.isnan(receiver):
                 m = filtered_moments(levels, offset, size, shift, c + b, coords[c + b, k, 0], coords[c + b, k, 1],
                                      ddx[b, k], ddy[b, k], unit, max_lod, max_aniso)
-                p = moment_bound(m, receiver, inv_span, code, c_pos, c_neg, min_variance, power, bleed)
+                p = moment_bound(m, receiver, inv_span, code, c_pos, c_neg, min_variance, moment_bias, depth_bias,
+                                 power, bleed)
             if b == 0 and w == wp.float64(1.0):
                 s = p
             else:
@@ -549,8 +629,8 @@ def moment_mip_chain(moments, *, origin_texels, max_lod: int, device: str = "cpu
 
 def moment_mip_lookup(chain, coords, receiver_depth, *, origin_texels, cascade, ddx, ddy, method: str, span: float,
                       bits: int, anisotropy: int = 1, exponents: tuple[float, float] = (40.0, 5.0),
-                      min_variance: float = 1e-5, power: float = 1.0, bleed: float = 0.0, blend_weight=None,
-                      device: str = "cpu") -> np.ndarray:
+                      min_variance: float = 1e-5, moment_bias: float = 3e-6, depth_bias: float = 0.0,
+                      power: float = 1.0, bleed: float = 0.0, blend_weight=None, device: str = "cpu") -> np.ndarray:
     """Lit fraction S from a moment mip chain, trilinear or anisotropic at a level of detail from a footprint.
 
     The footprint is the pair of screen-space derivatives of the receiver's level-0 texel
@@ -586,7 +666,7 @@ def moment_mip_lookup(chain, coords, receiver_depth, *, origin_texels, cascade, 
         Sub-texel bits of ``coords``.
     anisotropy : int
         Largest number of probes, 1..16 (1: trilinear).
-    exponents, min_variance, power, bleed, blend_weight, device
+    exponents, min_variance, moment_bias, depth_bias, power, bleed, blend_weight, device
         As :func:`moment_lookup`.
 
     Returns
@@ -613,8 +693,7 @@ def moment_mip_lookup(chain, coords, receiver_depth, *, origin_texels, cascade, 
                          f"or (2, N, 2); got {xy.shape}, {rd.shape}, {chosen.shape}, {dx.shape}, {dy.shape}")
     if not (isinstance(anisotropy, (int, np.integer)) and 1 <= anisotropy <= 16):
         raise ValueError(f"anisotropy: expected an integer in 1..16, got {anisotropy!r}")
-    if not (0.0 <= bleed < 1.0 and power > 0 and min_variance >= 0):
-        raise ValueError(f"bleed, power, min_variance: expected [0, 1), > 0, ≥ 0; got {bleed}, {power}, {min_variance}")
+    _check_bound(min_variance=min_variance, moment_bias=moment_bias, depth_bias=depth_bias, power=power, bleed=bleed)
     blend = np.zeros(n) if blend_weight is None else np.ascontiguousarray(blend_weight, dtype=np.float64)
     if n == 0:
         return np.zeros(0, np.float32)
@@ -638,7 +717,7 @@ def moment_mip_lookup(chain, coords, receiver_depth, *, origin_texels, cascade, 
                 wp.array(np.ascontiguousarray(dy), dtype=wp.vec2d, device=device),
                 wp.array(blend, dtype=wp.float64, device=device, copy=False), wp.int64(2**bits), int(max_lod),
                 int(anisotropy), 1.0 / span, code, float(exponents[0]), float(exponents[1]), float(min_variance),
-                float(power), float(bleed)),
+                float(moment_bias), float(depth_bias), float(power), float(bleed)),
         outputs=(lit,),
         device=device,
     )

@@ -20,6 +20,12 @@ question, registered in :data:`REFERENCE_METHODS`:
 They agree everywhere but within float32 rounding of a triangle's edge or of the ray's start plane,
 where the float32 ray cast may decide either way.
 
+Alpha-tested triangles (:mod:`csmlab.kernels.alpha`) block only where their mask is opaque: the
+irregular z-buffer interpolates the texture coordinates with the start's light-space barycentric
+weights; the ray cast (a masked mesh only) walks the ray's hits nearest first
+(``wp.mesh_query_ray``), stepping past each hole at the hit's barycentric coordinates, up to
+:data:`MASKED_HITS` of them.
+
 Both take ``threads``: on the CPU, that many concurrent Warp launches share the work, each writing
 its own part of the outputs (:mod:`csmlab.kernels.threads`) — but for the flags of the rays that the
 irregular z-buffer finds blocked, which every writer sets to 0 — with the same shadow for every value.
@@ -42,12 +48,13 @@ import numpy as np
 import warp as wp
 
 from csmlab.geometry import light_basis
+from csmlab.kernels.alpha import AlphaTextures, alpha_passes
 from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 from csmlab.kernels.visibility import MeshBVH
 from csmlab.registry import check_name
 
-__all__ = ["CHUNK", "COARSE_RAYS_PER_CELL", "RAYS_PER_CELL", "RAY_OFFSET", "RECEIVER_BLOCK", "REFERENCE_METHODS",
-           "hard_shadow", "hard_shadow_irregular", "hard_shadow_ray"]
+__all__ = ["CHUNK", "COARSE_RAYS_PER_CELL", "MASKED_HITS", "RAYS_PER_CELL", "RAY_OFFSET", "RECEIVER_BLOCK",
+           "REFERENCE_METHODS", "hard_shadow", "hard_shadow_irregular", "hard_shadow_ray"]
 
 # Products and sums rounded one by one, as Warp's CPU build (generic x86-64, no FMA) rounds them: a
 # CUDA build may not contract them into fused multiply-adds, or its bits differ from the CPU's.
@@ -138,7 +145,17 @@ class LightTriangles:
     """The union of the rectangles of each chunk of :data:`CHUNK` triangles."""
     slack: wp.float64
     """Metres by which a float32 rectangle is widened beyond its rounding."""
+    uv: wp.array(dtype=wp.vec2d)
+    """Texture coordinates of each vertex (zero-length: no masks)."""
+    vertex_mask: wp.array(dtype=wp.int32)
+    """Each vertex's alpha mask, −1 opaque (zero-length: every triangle opaque)."""
+    textures: AlphaTextures
+    """The masks (:mod:`csmlab.kernels.alpha`)."""
 
+
+MASKED_HITS = 64
+"""The most holes of alpha-tested triangles the masked ray cast steps through on one ray; a ray with
+more is taken as blocked (a forest seen along the light holds far fewer cards per ray)."""
 
 _CACHED_LIGHTS = 2
 """Light directions whose light-space vertices a MeshBVH keeps: a frame's and its predecessor's."""
@@ -164,6 +181,53 @@ def hard_shadow_kernel(
         lit[k] = 0.0
     else:
         lit[k] = 1.0
+
+
+@wp.kernel
+def hard_shadow_masked_kernel(
+    mesh: wp.uint64,
+    position: wp.array(dtype=wp.vec3d),
+    normal: wp.array(dtype=wp.vec3),
+    toward_light: wp.vec3d,
+    offset: wp.float64,
+    max_t: wp.float32,
+    triangles: wp.array2d(dtype=wp.int32),
+    uv: wp.array(dtype=wp.vec2d),
+    vertex_mask: wp.array(dtype=wp.int32),
+    textures: AlphaTextures,
+    lit: wp.array(dtype=wp.float32),
+):
+    """:func:`hard_shadow_kernel` through alpha masks: the hits nearest first, each hole stepped past."""
+    k = wp.tid()
+    n = wp.vec3d(normal[k])
+    if wp.dot(n, toward_light) <= wp.float64(0.0):
+        lit[k] = 0.0
+        return
+    start = wp.vec3(position[k] + n * offset)
+    direction = wp.vec3(toward_light)
+    left = max_t
+    lit[k] = 1.0
+    for _ in range(MASKED_HITS):
+        query = wp.mesh_query_ray(mesh, start, direction, left)
+        if not query.result:
+            return
+        face = query.face
+        ia = triangles[face, 0]
+        m = vertex_mask[ia]
+        # Warp's barycentrics: the hit is u·A + v·B + (1 − u − v)·C.
+        u = wp.float64(query.u)
+        v = wp.float64(query.v)
+        at = u * uv[ia] + v * uv[triangles[face, 1]] + (wp.float64(1.0) - u - v) * uv[triangles[face, 2]]
+        if alpha_passes(textures, m, at[0], at[1]):
+            lit[k] = 0.0
+            return
+        # Past the hole by a float32 step of the distance travelled, and on from there.
+        step = query.t + wp.max(query.t, wp.float32(1.0)) * wp.float32(1e-6)
+        start = start + direction * step
+        left = left - step
+        if left <= wp.float32(0.0):
+            return
+    lit[k] = 0.0
 
 
 @wp.kernel
@@ -513,9 +577,13 @@ def block_triangle(
     max_t: wp.float64,
     table: wp.array(dtype=wp.int32),
     sorted_ray: wp.array(dtype=wp.int32),
+    uv: wp.array(dtype=wp.vec2d),
+    vertex_mask: wp.array(dtype=wp.int32),
+    textures: AlphaTextures,
     lit: wp.array(dtype=wp.float32),
 ):
-    """Triangle ``t``: shadow every ray whose start it covers in light space, nearer the light within ``max_t``."""
+    """Triangle ``t``: shadow every ray whose start it covers in light space, nearer the light within ``max_t``
+    (and where its alpha mask, if any, is opaque)."""
     # Most triangles reach no start: their float32 rectangle (read in sequence) says so before any
     # vertex is gathered.
     if not reaches_rays(box[t], slack, bounds, origin, inv_side, nx, ny, table):
@@ -533,8 +601,19 @@ def block_triangle(
     # Seen edge-on, a triangle covers no area of light space.
     if area == wp.float64(0.0):
         return
+    m = int(-1)
+    uv_a = wp.vec2d()
+    uv_b = wp.vec2d()
+    uv_c = wp.vec2d()
+    if vertex_mask.shape[0] > 0:
+        m = vertex_mask[triangles[t, 0]]
+        if m >= 0:
+            uv_a = uv[triangles[t, 0]]
+            uv_b = uv[triangles[t, 1]]
+            uv_c = uv[triangles[t, 2]]
     if area < wp.float64(0.0):
         e_b, e_c = e_c, e_b
+        uv_b, uv_c = uv_c, uv_b
         area = -area
     # The vertices in grid coordinates (cells from the origin), mapped as the starts were: a start
     # inside the triangle lies inside it there too, within rounding far below MARGIN.
@@ -614,6 +693,10 @@ def block_triangle(
                     w_c = e_b[0] * dy - e_b[1] * dx
                     w_b = e_c[1] * dx - e_c[0] * dy
                     if wp.min(wp.min(w_c, w_b), area - w_b - w_c) >= wp.float64(0.0):
+                        if m >= 0:
+                            at = ((area - w_b - w_c) * uv_a + w_b * uv_b + w_c * uv_c) / area
+                            if not alpha_passes(textures, m, at[0], at[1]):
+                                continue
                         lit[sorted_ray[r]] = 0.0
 
 
@@ -651,6 +734,9 @@ def block_kernel(
     sub = rays.sub
     offset = rays.offset
     first = rays.first
+    uv = scene.uv
+    vertex_mask = scene.vertex_mask
+    textures = scene.textures
     # A chunk's rectangle holds its triangles': a chunk that reaches no start is passed whole.
     if not reaches_rays(scene.chunk_box[k], slack, bounds, origin, inv_side, nx, ny, table):
         return
@@ -659,7 +745,7 @@ def block_kernel(
     end = wp.min(t + CHUNK, triangles.shape[0])
     while t < end:
         block_triangle(t, light, triangles, box, slack, sorted_start, origin, inv_side, nx, ny, sub, offset, first,
-                       bounds, max_t, table, sorted_ray, lit)
+                       bounds, max_t, table, sorted_ray, uv, vertex_mask, textures, lit)
         t += 1
 
 
@@ -701,9 +787,13 @@ def hard_shadow_ray(bvh: MeshBVH, *, points, normals, light_direction, threads: 
         lit = wp.empty(start.shape[0], dtype=wp.float32, device=device)
         inputs = (wp.vec3d(*-basis[2]), RAY_OFFSET * max(bvh.diagonal, 1e-9),
                   float(RAY_LENGTH * max(bvh.diagonal, 1e-9)))
-        with LaunchPool(threads, kernels=(hard_shadow_kernel,), device=device) as pool:
-            pool.run([functools.partial(wp.launch, hard_shadow_kernel, dim=hi - lo,
-                                        inputs=(bvh.mesh.id, start[lo:hi], normal[lo:hi], *inputs),
+        kernel, masks = hard_shadow_kernel, ()
+        if bvh.masked:
+            kernel = hard_shadow_masked_kernel
+            masks = (bvh.triangles, bvh.masks.uv, bvh.masks.vertex_mask, bvh.masks.textures)
+        with LaunchPool(threads, kernels=(kernel,), device=device) as pool:
+            pool.run([functools.partial(wp.launch, kernel, dim=hi - lo,
+                                        inputs=(bvh.mesh.id, start[lo:hi], normal[lo:hi], *inputs, *masks),
                                         outputs=(lit[lo:hi],), device=device)
                       for lo, hi in split_range(start.shape[0], threads)])
         out[valid] = lit.numpy()
@@ -860,6 +950,9 @@ def hard_shadow_irregular(bvh: MeshBVH, *, points, normals, light_direction, thr
         scene.box = box
         scene.chunk_box = chunk_box
         scene.slack = diagonal * 2.0**-23
+        scene.uv = bvh.masks.uv
+        scene.vertex_mask = bvh.masks.vertex_mask
+        scene.textures = bvh.masks.textures
         chunks = chunk_box.shape[0]
         launches = len(split_range(chunks, threads))
         pool.run([functools.partial(wp.launch, block_kernel, dim=(chunks - k + launches - 1) // launches,

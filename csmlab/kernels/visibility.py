@@ -13,6 +13,11 @@ the top) by one of :data:`VISIBILITY_METHODS`:
 - ``ray`` — one ray per pixel through the BVH (:func:`camera_hits_ray`), the hit triangle found in
   float32 by ``wp.mesh_query_ray``.
 
+Alpha-tested triangles (:mod:`csmlab.kernels.alpha`) are holes to the raster where their mask is
+transparent at the coordinates interpolated with the pixel's edge functions (perspective-correct:
+each edge function is the opposite vertex's barycentric weight times one common factor); the ray
+method finds only the nearest triangle and refuses a masked scene.
+
 Both then take the hit point in float64 as the ray's intersection with the hit triangle's plane,
 with the same operations, so positions and view depths are as exact as the float64 geometry and
 equal bit for bit wherever the two methods pick the same triangle — everywhere but within float32
@@ -38,6 +43,7 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device, device_empty
+from csmlab.kernels.alpha import AlphaTextures, MaskedMesh, alpha_passes, masked_mesh
 from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 from csmlab.registry import check_name
 
@@ -80,6 +86,8 @@ class MeshBVH:
         Corners of the box around each chunk of :data:`CHUNK` consecutive triangles, metres
         relative to ``anchor``: the camera raster drops a chunk outside the view whole
         (:func:`chunks_in_view`).
+    masks : MaskedMesh
+        Texture coordinates and alpha masks of the vertices (zero-length arrays: no masks).
     light_space : dict
         What :mod:`csmlab.kernels.reference` derives from the vertices per light direction (their
         light-space coordinates), keyed by the direction: a static light transforms them once.
@@ -93,7 +101,13 @@ class MeshBVH:
     device: str
     chunk_lo: np.ndarray
     chunk_hi: np.ndarray
+    masks: MaskedMesh = field(default=None, compare=False, repr=False)
     light_space: dict = field(default_factory=dict, compare=False, repr=False)
+
+    @property
+    def masked(self) -> bool:
+        """Whether any vertex carries an alpha mask."""
+        return self.masks is not None and self.masks.vertex_mask.shape[0] > 0
 
 
 @dataclass(frozen=True)
@@ -118,7 +132,7 @@ class CameraHits:
     view_depth: np.ndarray
 
 
-def mesh_bvh(vertices, triangles, *, device: str = "cpu") -> MeshBVH:
+def mesh_bvh(vertices, triangles, *, uv=None, vertex_mask=None, alpha=(), device: str = "cpu") -> MeshBVH:
     """Upload a triangle mesh and build its BVH.
 
     Parameters
@@ -127,6 +141,9 @@ def mesh_bvh(vertices, triangles, *, device: str = "cpu") -> MeshBVH:
         World positions in metres.
     triangles : array_like, shape (T, 3), integer
         Vertex indices.
+    uv, vertex_mask, alpha
+        The vertices' texture coordinates ``(V, 2)``, alpha masks ``(V,)`` (−1 opaque) and the
+        :class:`~csmlab.scene.core.AlphaMask` records (:class:`csmlab.scene.core.Scene`); None: no masks.
     device : str
         ``"cpu"`` or ``"cuda"``.
 
@@ -162,6 +179,7 @@ def mesh_bvh(vertices, triangles, *, device: str = "cpu") -> MeshBVH:
         device=device,
         chunk_lo=chunk.min(axis=1),
         chunk_hi=chunk.max(axis=1),
+        masks=masked_mesh(uv, vertex_mask, alpha, device=device),
     )
 
 
@@ -449,15 +467,22 @@ def raster_view_triangle(
     near: wp.float64,
     far: wp.float64,
     resolve: int,
+    uv: wp.array(dtype=wp.vec2d),
+    vertex_mask: wp.array(dtype=wp.int32),
+    textures: AlphaTextures,
     depth: wp.array2d(dtype=wp.float64),
     nearest: wp.array2d(dtype=wp.int32),
 ):
-    """Triangle ``face`` into ``depth`` and ``nearest``: the pixels whose centre it covers within ``[near, far]``."""
+    """Triangle ``face`` into ``depth`` and ``nearest``: the pixels whose centre it covers within ``[near, far]``
+    (and where its alpha mask, if any, is opaque)."""
     ia = triangles[face, 0]
     ib = triangles[face, 1]
     ic = triangles[face, 2]
     if (outcode[ia] & outcode[ib] & outcode[ic]) != 0:
         return
+    m = int(-1)
+    if vertex_mask.shape[0] > 0:
+        m = vertex_mask[ia]
     a = camera[ia]
     b = camera[ib]
     c = camera[ic]
@@ -513,7 +538,15 @@ def raster_view_triangle(
                     and edge_inside(g_ca[0] * x + k_ca, own_ca)):
                 entered = True
                 t = plane / (n[0] * x + k_n)
-                if t >= near and t <= far:
+                opaque = bool(True)
+                if m >= 0:
+                    # Each edge function is its opposite vertex's barycentric weight times one factor.
+                    e_ab = g_ab[0] * x + k_ab
+                    e_bc = g_bc[0] * x + k_bc
+                    e_ca = g_ca[0] * x + k_ca
+                    at = (e_bc * uv[ia] + e_ca * uv[ib] + e_ab * uv[ic]) / (e_ab + e_bc + e_ca)
+                    opaque = alpha_passes(textures, m, at[0], at[1])
+                if opaque and t >= near and t <= far:
                     if resolve == 0:
                         # One thread (Warp's CPU launch): compare and write, nearest then lowest index.
                         best = depth[row, col]
@@ -539,6 +572,9 @@ def raster_view_kernel(
     pinhole: PinholeCamera,
     resolve: int,
     work: ChunkRuns,
+    uv: wp.array(dtype=wp.vec2d),
+    vertex_mask: wp.array(dtype=wp.int32),
+    textures: AlphaTextures,
     depth: wp.array2d(dtype=wp.float64),
     nearest: wp.array2d(dtype=wp.int32),
 ):
@@ -562,7 +598,8 @@ def raster_view_kernel(
     face = (work.chunks[first >> chunk_bits] << chunk_bits) + (first & ((1 << chunk_bits) - 1))
     end = wp.min(face + (1 << run_bits), triangles.shape[0])
     while face < end:
-        raster_view_triangle(face, camera, outcode, triangles, step_x, step_y, near, far, resolve, depth, nearest)
+        raster_view_triangle(face, camera, outcode, triangles, step_x, step_y, near, far, resolve, uv, vertex_mask,
+                             textures, depth, nearest)
         face += 1
 
 
@@ -653,7 +690,15 @@ def camera_hits_ray(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspec
     ``max_t = far·|d|``: hits beyond view depth ``far`` (to float32 rounding) are not found. This is
     the raster's independent oracle in the tests. With ``threads`` > 1 on the CPU, each thread casts
     the rays of one band of rows.
+
+    Raises
+    ------
+    ValueError
+        On a mesh with alpha masks: the nearest triangle a ray meets may be a hole there.
     """
+    if bvh.masked:
+        raise ValueError("method: the ray method finds only the nearest triangle and cannot see through alpha "
+                         "masks; expected \"raster\" for a masked scene")
     pinhole = _pinhole_camera(bvh, _pinhole(bvh, position, rotation, fov_y_deg, aspect, far, width, height), far=far)
     threads = checked_threads(threads, bvh.device)
     with LaunchPool(threads, kernels=(camera_hits_kernel,), device=bvh.device) as pool:
@@ -735,7 +780,8 @@ def camera_hits_raster(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, as
             return
         for resolve in ((1, 2) if atomic else (0,)):
             wp.launch(raster_view_kernel, dim=work.chunks.shape[0] << (chunk_bits - run_bits),
-                      inputs=(view, bvh.triangles, pinhole, resolve, work), outputs=(depth[k], nearest[k]),
+                      inputs=(view, bvh.triangles, pinhole, resolve, work, bvh.masks.uv, bvh.masks.vertex_mask,
+                              bvh.masks.textures), outputs=(depth[k], nearest[k]),
                       device=device)
 
     with LaunchPool(threads, kernels=(raster_view_kernel,), device=device) as pool:

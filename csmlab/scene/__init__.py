@@ -15,6 +15,7 @@ from csmlab.registry import check_name, dispatch
 from csmlab.scene.city import city
 from csmlab.scene.core import Scene
 from csmlab.scene.fence import fence
+from csmlab.scene.foliage import foliage
 from csmlab.scene.mesh import load_mesh
 from csmlab.scene.plane_box import plane_box
 from csmlab.scene.terrain import terrain
@@ -26,6 +27,7 @@ SCENE_KINDS: dict[str, Callable[..., Scene]] = {
     "terrain": terrain,
     "city": city,
     "fence": fence,
+    "foliage": foliage,
     "mesh": load_mesh,
 }
 """Scene generators by name; add an entry to register a new one. Each takes keyword arguments

@@ -1,4 +1,12 @@
-"""The :class:`Scene` record: an indexed triangle mesh with per-triangle normals and albedo."""
+"""The :class:`Scene` record: an indexed triangle mesh with per-triangle normals and albedo, and its alpha masks.
+
+Alpha-tested casters (leaf cards, chain-link fences: glTF ``alphaMode = MASK``, an OBJ material's
+``map_d``) carry texture coordinates per vertex and an :class:`AlphaMask` per vertex: a triangle
+takes the mask of its vertices (all three the same, so the depth pass, the camera pass and the
+reference need no triangle order: culling and reordering triangles keep it). Where the mask's
+nearest texel to the interpolated coordinates is below the mask's cutoff the surface is a hole,
+in every pass (:mod:`csmlab.kernels.alpha`).
+"""
 
 from __future__ import annotations
 
@@ -6,7 +14,38 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Scene"]
+__all__ = ["AlphaMask", "Scene"]
+
+
+@dataclass(frozen=True)
+class AlphaMask:
+    """One alpha-mask texture and its cutoff.
+
+    Attributes
+    ----------
+    alpha : ndarray, shape (H, W), float32
+        Coverage in [0, 1]; row 0 is texture coordinate v = 0 (glTF's convention, the image's top
+        row), column 0 is u = 0; coordinates repeat outside [0, 1).
+    cutoff : float
+        A texel is opaque where ``alpha ≥ cutoff`` (glTF ``alphaCutoff``, default 0.5), in (0, 1].
+    source : str
+        Where it came from (a file, or the generator that drew it).
+    """
+
+    alpha: np.ndarray
+    cutoff: float = 0.5
+    source: str = "mask"
+
+    def __post_init__(self) -> None:
+        a = np.ascontiguousarray(self.alpha, dtype=np.float32)
+        if a.ndim != 2 or a.size == 0 or not np.all((a >= 0.0) & (a <= 1.0)):
+            raise ValueError(f"{self.source}: alpha: expected a non-empty (H, W) array of values in [0, 1], "
+                             f"got shape {a.shape}")
+        if not 0.0 < float(self.cutoff) <= 1.0:
+            raise ValueError(f"{self.source}: cutoff: expected a value in (0, 1], got {self.cutoff!r}")
+        a.setflags(write=False)
+        object.__setattr__(self, "alpha", a)
+        object.__setattr__(self, "cutoff", float(self.cutoff))
 
 
 @dataclass(frozen=True)
@@ -25,6 +64,13 @@ class Scene:
         Linear RGB reflectance in [0, 1] per triangle.
     name : str
         Where the scene came from (generator name or file).
+    uv : ndarray, shape (V, 2), float64, or None
+        Texture coordinates per vertex (read only where a mask applies).
+    vertex_mask : ndarray, shape (V,), int32, or None
+        Index into ``alpha`` of each vertex's mask, −1 for opaque; a triangle's three vertices
+        hold the same value. None: every triangle opaque.
+    alpha : tuple of AlphaMask
+        The masks ``vertex_mask`` indexes.
 
     Raises
     ------
@@ -38,6 +84,9 @@ class Scene:
     normals: np.ndarray
     albedo: np.ndarray
     name: str = "scene"
+    uv: np.ndarray | None = None
+    vertex_mask: np.ndarray | None = None
+    alpha: tuple = ()
 
     def __post_init__(self) -> None:
         v = np.ascontiguousarray(self.vertices, dtype=np.float64)
@@ -57,6 +106,35 @@ class Scene:
         for name, value in (("vertices", v), ("triangles", t), ("normals", n), ("albedo", a)):
             value.setflags(write=False)
             object.__setattr__(self, name, value)
+        self._check_masks(v.shape[0], t)
+
+    def _check_masks(self, vertex_count: int, t: np.ndarray) -> None:
+        if self.vertex_mask is None:
+            if self.uv is not None or self.alpha:
+                raise ValueError(f"{self.name}: uv and alpha: expected vertex_mask with them")
+            return
+        m = np.ascontiguousarray(self.vertex_mask, dtype=np.int32)
+        uv = np.ascontiguousarray(self.uv, dtype=np.float64) if self.uv is not None else None
+        masks = tuple(self.alpha)
+        if m.shape != (vertex_count,) or m.min() < -1 or m.max() >= len(masks):
+            raise ValueError(f"{self.name}: vertex_mask: expected ({vertex_count},) indices in [-1, {len(masks)})")
+        if uv is None or uv.shape != (vertex_count, 2) or not np.all(np.isfinite(uv)):
+            raise ValueError(f"{self.name}: uv: expected finite texture coordinates of shape ({vertex_count}, 2)")
+        if not all(isinstance(mask, AlphaMask) for mask in masks):
+            raise ValueError(f"{self.name}: alpha: expected AlphaMask records")
+        per_corner = m[t]
+        if np.any(per_corner != per_corner[:, :1]):
+            raise ValueError(f"{self.name}: vertex_mask: expected the three vertices of a triangle to share a mask "
+                             f"(give masked triangles vertices of their own)")
+        for name, value in (("vertex_mask", m), ("uv", uv)):
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "alpha", masks)
+
+    @property
+    def masked(self) -> bool:
+        """Whether any triangle is alpha-tested."""
+        return self.vertex_mask is not None and bool(np.any(self.vertex_mask >= 0))
 
     @classmethod
     def from_triangles(cls, vertices, triangles, *, albedo=(0.6, 0.6, 0.6), name: str = "scene") -> "Scene":
@@ -97,11 +175,22 @@ class Scene:
         return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
 
     def merged(self, other: "Scene", *, name: str | None = None) -> "Scene":
-        """This scene and ``other`` as one."""
+        """This scene and ``other`` as one (their masks side by side)."""
+        masks = {}
+        if self.vertex_mask is not None or other.vertex_mask is not None:
+            def mask_of(scene, first):
+                if scene.vertex_mask is None:
+                    return np.full(len(scene.vertices), -1, np.int32), np.zeros((len(scene.vertices), 2))
+                return np.where(scene.vertex_mask >= 0, scene.vertex_mask + first, -1), scene.uv
+            own, own_uv = mask_of(self, 0)
+            theirs, their_uv = mask_of(other, len(self.alpha))
+            masks = dict(uv=np.concatenate([own_uv, their_uv]), vertex_mask=np.concatenate([own, theirs]),
+                         alpha=self.alpha + other.alpha)
         return Scene(
             np.concatenate([self.vertices, other.vertices]),
             np.concatenate([self.triangles, other.triangles + self.vertices.shape[0]]),
             np.concatenate([self.normals, other.normals]),
             np.concatenate([self.albedo, other.albedo]),
             name=name or self.name,
+            **masks,
         )

@@ -7,6 +7,14 @@ file holds — polygons, triangle strips, volume cells — becomes its outer sur
 lines and points are ignored. Normals are recomputed per triangle from the winding (counter-clockwise seen
 from outside), never taken from the file.
 
+An OBJ file's materials with an alpha map (``map_d`` in its ``mtllib``) become alpha-tested
+triangles (:class:`~csmlab.scene.core.AlphaMask`, cutoff 0.5: OBJ has none of its own): the map's
+alpha channel (or luminance) read by :func:`csmlab.scene.alpha_files.read_alpha_mask`, the
+material's texture coordinates (``vt``, which VTK keeps per material), ``v`` turned to run down the
+image (OBJ's origin is the image's bottom-left). Each masked triangle gets vertices of its own.
+A glTF file with ``alphaMode = "MASK"`` materials is read by :mod:`csmlab.scene.gltf` instead of
+VTK (whose reader keeps no material).
+
 A broken file stops here with an :class:`~csmlab.errors.InputError` naming the file and what was
 expected. VTK reports failures in three ways — an exception, an error or warning event (with an
 empty or partial result), or silently an empty result — and prints to stderr while doing so; all
@@ -25,8 +33,10 @@ import numpy as np
 
 from csmlab.errors import InputError
 from csmlab.registry import check_name
+from csmlab.scene.alpha_files import read_alpha_mask
 from csmlab.scene.core import Scene
 from csmlab.scene.gltf import gltf_scene_triangles, read_gltf
+from csmlab.scene.gltf_masked import has_masked_materials, read_masked_gltf
 from csmlab.scene.shapes import height_field, scene_from_parts
 
 __all__ = ["GLTF_SUFFIXES", "GROUND_ALBEDO", "GROUND_SIZE_FACTOR", "MESH_FORMATS", "UP_AXES", "load_mesh"]
@@ -138,8 +148,9 @@ def _line_of_first_non_finite(path: Path) -> int | None:
     return None
 
 
-def _surface_triangles(data, path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Points ``(V, 3)`` float64 and triangles ``(T, 3)`` int64 of the dataset's triangulated surface."""
+def _surface_triangles(data, path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
+    """Points ``(V, 3)`` float64 and triangles ``(T, 3)`` int64 of the dataset's triangulated surface, each
+    triangle's cell ``(T,)`` (of a PolyData: the file's face) and the surface's point arrays by name."""
     import pyvista as pv
 
     with _quiet_vtk():
@@ -150,13 +161,84 @@ def _surface_triangles(data, path: Path) -> tuple[np.ndarray, np.ndarray]:
         raise InputError(f"expected finite vertex coordinates; {int(bad.sum())} of {bad.size} vertices are NaN or "
                          f"infinite (first: vertex {int(np.argmax(bad)) + 1} in reading order)", file=path,
                          line=_line_of_first_non_finite(path), field="vertices")
+    surface = surface.copy(deep=False)
+    surface.cell_data["csmlab_cell"] = np.arange(surface.n_cells)
     with _quiet_vtk():
         triangulated = surface.triangulate()
     faces = np.asarray(triangulated.faces, dtype=np.int64)
     if faces.size == 0:
         raise InputError(f"expected at least one polygon (triangle, quad, …); the file holds {data.n_points} "
                          f"vertices and {data.n_cells} cells, none of them a surface", file=path, field="triangles")
-    return np.asarray(triangulated.points, dtype=np.float64), faces.reshape(-1, 4)[:, 1:]
+    return (np.asarray(triangulated.points, dtype=np.float64), faces.reshape(-1, 4)[:, 1:],
+            np.asarray(triangulated.cell_data["csmlab_cell"], dtype=np.int64),
+            {name: np.asarray(triangulated.point_data[name]) for name in triangulated.point_data.keys()})
+
+
+def _obj_materials(path: Path) -> tuple[list[str], dict[str, Path]]:
+    """The material of every face of an OBJ file, in file order, and the ``map_d`` of each material that has one.
+
+    ``mtllib`` files are read relative to the OBJ file, their ``map_d`` images relative to the
+    ``.mtl`` file (the last word of the line: options before it are not read). A missing ``.mtl``
+    leaves its materials without maps, as viewers draw them.
+    """
+    faces, maps, current = [], {}, ""
+    for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
+        words = line.split()
+        if not words:
+            continue
+        if words[0] == "usemtl":
+            current = " ".join(words[1:])
+        elif words[0] == "f":
+            faces.append(current)
+        elif words[0] == "mtllib":
+            for name in words[1:]:
+                library = path.parent / name
+                if not library.is_file():
+                    continue
+                material = ""
+                for entry in library.read_text(encoding="utf-8", errors="replace").splitlines():
+                    parts = entry.split()
+                    if parts and parts[0] == "newmtl":
+                        material = " ".join(parts[1:])
+                    elif parts and parts[0] == "map_d" and len(parts) > 1:
+                        maps[material] = library.parent / parts[-1]
+    return faces, maps
+
+
+def _obj_masks(cell_count: int, path: Path, points: np.ndarray, triangles: np.ndarray, cells: np.ndarray,
+               point_arrays: dict):
+    """Vertices, triangles and ``uv, vertex_mask, alpha`` of an OBJ mesh with ``map_d`` materials; None if it has none.
+
+    Each masked triangle's corners become vertices of their own (appended after ``points``), so a
+    vertex a masked face shares with another face keeps one mask.
+    """
+    faces, maps = _obj_materials(path)
+    used = sorted({name for name in faces if name in maps})
+    if not used:
+        return None
+    if len(faces) != cell_count:
+        raise InputError(f"expected one cell per face line to match materials to faces, VTK read {cell_count} "
+                         f"cells for {len(faces)} faces", file=path, field="usemtl")
+    masks = tuple(read_alpha_mask(maps[name], field="map_d") for name in used)
+    face_mask = np.array([used.index(name) if name in maps else -1 for name in faces], dtype=np.int32)
+    mask = face_mask[cells]
+    masked = np.flatnonzero(mask >= 0)
+    uv = np.zeros((points.shape[0] + 3 * masked.size, 2))
+    vertex_mask = np.full(uv.shape[0], -1, dtype=np.int32)
+    out = triangles.copy()
+    for k, name in enumerate(used):
+        rows = masked[mask[masked] == k]
+        if name not in point_arrays:
+            raise InputError(f"expected texture coordinates (vt) on the faces of material {name!r}, which has a map_d",
+                             file=path, field="vt")
+        coordinates = np.asarray(point_arrays[name], dtype=np.float64)
+        slots = points.shape[0] + 3 * np.searchsorted(masked, rows)[:, None] + np.arange(3)
+        corner = triangles[rows]
+        uv[slots] = np.stack([coordinates[corner, 0], 1.0 - coordinates[corner, 1]], axis=-1)
+        vertex_mask[slots] = k
+        out[rows] = slots
+    vertices = np.concatenate([points, points[triangles[masked]].reshape(-1, 3)])
+    return vertices, out, dict(uv=uv, vertex_mask=vertex_mask, alpha=masks)
 
 
 def _ground_under(scene: Scene) -> Scene:
@@ -221,15 +303,31 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
     if fmt is None:
         raise InputError(f"expected a mesh file ending in one of {', '.join(MESH_FORMATS)}, "
                          f"got {path.suffix or 'no suffix'!r}", file=path, field="file")
-
-    if path.suffix.lower() in GLTF_SUFFIXES:
+    if path.suffix.lower() in GLTF_SUFFIXES and has_masked_materials(path):
+        points, triangles, masks = read_masked_gltf(path)
+    elif path.suffix.lower() in GLTF_SUFFIXES:
         points, triangles = gltf_scene_triangles(read_gltf(path))
+        masks = {}
     else:
-        points, triangles = _surface_triangles(_read_dataset(path, fmt), path)
+        points, triangles, masks = _vtk_mesh(path, fmt)
     points = (points * scale_value) @ UP_AXES[up].T
     try:
         scene = Scene.from_triangles(points, triangles, albedo=colour, name=path.name)
     except ValueError as exc:
         raise InputError(f"expected at least one triangle of non-zero area, all {triangles.shape[0]} are degenerate",
                          file=path, field="triangles") from exc
+    if masks:
+        scene = Scene(scene.vertices, scene.triangles, scene.normals, scene.albedo, name=scene.name, **masks)
     return scene.merged(_ground_under(scene)) if ground else scene
+
+
+def _vtk_mesh(path: Path, fmt: str) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Points, triangles and (an OBJ's ``map_d``) masks of a mesh file read through VTK."""
+    data = _read_dataset(path, fmt)
+    points, triangles, cells, point_arrays = _surface_triangles(data, path)
+    masks = {}
+    if fmt == MESH_FORMATS[".obj"]:
+        found = _obj_masks(data.n_cells, path, points, triangles, cells, point_arrays)
+        if found is not None:
+            points, triangles, masks = found
+    return points, triangles, masks

@@ -12,11 +12,20 @@ applies:
   texel); across a box wide enough, each row's run is first solved for (:func:`run_bounds`);
 - **large triangle**: a larger one has each edge function evaluated afresh at every centre, with
   float64 rounding, and the top-left rule applied to the rounded values.
+
+An alpha-tested triangle (a vertex mask ≥ 0, :mod:`csmlab.kernels.alpha`) takes a fourth path,
+:func:`rasterize_masked_triangle`: the large triangle's test at every centre of its box, the same
+depth, kept only where the mask is opaque at the coordinates interpolated with the same edge
+functions. Its covered centres are counted whether or not the mask keeps them (the fragments a GPU
+rasterizes, then discards). Opaque triangles never reach it: a mask of all ones gives the maps of
+the opaque triangle, bit for bit.
 """
 
 from __future__ import annotations
 
 import warp as wp
+
+from csmlab.kernels.alpha import AlphaTextures, alpha_passes
 
 __all__ = ["ONE_CENTRE", "SOLVED_COLUMNS", "STEPPED_EXTENT", "Boxes", "ChunkRows", "FixedPoint", "LightMesh",
            "TrianglePaths", "VertexPass", "fixed_point_vertices_kernel", "rasterize_chunks_kernel",
@@ -121,6 +130,12 @@ class LightMesh:
     """``d·X − zref`` of each vertex, metres."""
     triangles: wp.array2d(dtype=wp.int32)
     """Vertex indices, ``(T, 3)``; either winding."""
+    uv: wp.array(dtype=wp.vec2d)
+    """Texture coordinates of each vertex (zero-length: no masks)."""
+    vertex_mask: wp.array(dtype=wp.int32)
+    """Each vertex's alpha mask, −1 opaque (zero-length: every triangle opaque)."""
+    textures: AlphaTextures
+    """The masks (:mod:`csmlab.kernels.alpha`)."""
 
 
 @wp.struct
@@ -475,11 +490,93 @@ def rasterize_triangle(
     return count
 
 
+@wp.func
+def rasterize_masked_triangle(
+    ax: wp.int64,
+    ay: wp.int64,
+    bx: wp.int64,
+    by: wp.int64,
+    cx: wp.int64,
+    cy: wp.int64,
+    za: wp.float64,
+    zb: wp.float64,
+    zc: wp.float64,
+    uva: wp.vec2d,
+    uvb: wp.vec2d,
+    uvc: wp.vec2d,
+    m: int,
+    textures: AlphaTextures,
+    fixed: FixedPoint,
+    depth: wp.array3d(dtype=wp.float32),
+    c: int,
+    window: wp.vec4i,
+) -> int:
+    """:func:`rasterize_triangle` of an alpha-tested triangle (mask ``m``, texture coordinates ``uva, uvb, uvc``).
+
+    Every centre of the bounding box is tested as the large-triangle path tests it; a covered
+    centre is counted, and its depth kept where nearer and where :func:`~csmlab.kernels.alpha.alpha_passes`
+    at ``(w_a·uva + w_b·uvb + w_c·uvc) / area``. The edge functions are those of the other paths
+    (exact integers below ``STEPPED_EXTENT``), so a texel the mask keeps holds their depth bit for bit.
+    """
+    unit = fixed.unit
+    bits = fixed.bits
+    two = wp.int64(2)
+    i0 = first_centre(wp.min(wp.min(ax, bx), cx), unit, bits, window[0], window[1])
+    i1 = last_centre(wp.max(wp.max(ax, bx), cx), unit, bits, window[0], window[1])
+    j0 = first_centre(wp.min(wp.min(ay, by), cy), unit, bits, window[2], window[3])
+    j1 = last_centre(wp.max(wp.max(ay, by), cy), unit, bits, window[2], window[3])
+    if i0 > i1 or j0 > j1:
+        return 0
+    area = wp.float64(bx - ax) * wp.float64(cy - ay) - wp.float64(by - ay) * wp.float64(cx - ax)
+    if area == wp.float64(0.0):
+        return 0
+    if area < wp.float64(0.0):
+        # Counter-clockwise, as rasterize_triangle turns it; the coordinates follow their vertices.
+        sx = bx
+        sy = by
+        sz = zb
+        suv = uvb
+        bx = cx
+        by = cy
+        zb = zc
+        uvb = uvc
+        cx = sx
+        cy = sy
+        zc = sz
+        uvc = suv
+        area = -area
+    own_ab = edge_owns_centre(bx - ax, by - ay)
+    own_bc = edge_owns_centre(cx - bx, cy - by)
+    own_ca = edge_owns_centre(ax - cx, ay - cy)
+    count = int(0)
+    j = j0
+    while j <= j1:
+        py = (two * wp.int64(j) + wp.int64(1)) * unit
+        row_ab = wp.float64(bx - ax) * wp.float64(py - ay)
+        row_bc = wp.float64(cx - bx) * wp.float64(py - by)
+        row_ca = wp.float64(ax - cx) * wp.float64(py - cy)
+        i = i0
+        while i <= i1:
+            w_c, w_a, w_b = edge_values((two * wp.int64(i) + wp.int64(1)) * unit, ax, ay, bx, by, cx, cy, row_ab,
+                                        row_bc, row_ca)
+            if edge_inside(w_c, own_ab) and edge_inside(w_a, own_bc) and edge_inside(w_b, own_ca):
+                count += 1
+                uv = (w_a * uva + w_b * uvb + w_c * uvc) / area
+                if alpha_passes(textures, m, uv[0], uv[1]):
+                    offer_depth(depth, c, j, i, 1, w_a, w_b, w_c, za, zb, zc, area)
+            i += 1
+        j += 1
+    return count
+
+
 @wp.kernel
 def rasterize_depth_kernel(
     points: wp.array3d(dtype=wp.int64),
     vertex_depth: wp.array(dtype=wp.float64),
     triangles: wp.array2d(dtype=wp.int32),
+    uv: wp.array(dtype=wp.vec2d),
+    vertex_mask: wp.array(dtype=wp.int32),
+    textures: AlphaTextures,
     fixed: FixedPoint,
     paths: TrianglePaths,
     depth: wp.array3d(dtype=wp.float32),
@@ -488,17 +585,28 @@ def rasterize_depth_kernel(
     """``covered[c, t]``: texel centres of cascade c's whole map that triangle t covers; its depth kept where nearer.
 
     A thread per cascade and triangle; ``points[c, v]`` is vertex v in cascade c's local fixed point
-    (not doubled).
+    (not doubled). A triangle whose vertices hold a mask (``vertex_mask``, zero-length: none) is
+    alpha-tested (:func:`rasterize_masked_triangle`).
     """
     c, t = wp.tid()
     ia = triangles[t, 0]
     ib = triangles[t, 1]
     ic = triangles[t, 2]
     two = wp.int64(2)
-    covered[c, t] = rasterize_triangle(
-        two * points[c, ia, 0], two * points[c, ia, 1], two * points[c, ib, 0], two * points[c, ib, 1],
-        two * points[c, ic, 0], two * points[c, ic, 1], vertex_depth[ia], vertex_depth[ib], vertex_depth[ic], fixed,
-        paths, depth, c, wp.vec4i(0, depth.shape[2], 0, depth.shape[1]))
+    m = int(-1)
+    if vertex_mask.shape[0] > 0:
+        m = vertex_mask[ia]
+    window = wp.vec4i(0, depth.shape[2], 0, depth.shape[1])
+    if m >= 0:
+        covered[c, t] = rasterize_masked_triangle(
+            two * points[c, ia, 0], two * points[c, ia, 1], two * points[c, ib, 0], two * points[c, ib, 1],
+            two * points[c, ic, 0], two * points[c, ic, 1], vertex_depth[ia], vertex_depth[ib], vertex_depth[ic],
+            uv[ia], uv[ib], uv[ic], m, textures, fixed, depth, c, window)
+    else:
+        covered[c, t] = rasterize_triangle(
+            two * points[c, ia, 0], two * points[c, ia, 1], two * points[c, ib, 0], two * points[c, ib, 1],
+            two * points[c, ic, 0], two * points[c, ic, 1], vertex_depth[ia], vertex_depth[ib], vertex_depth[ic],
+            fixed, paths, depth, c, window)
 
 
 @wp.func
@@ -604,6 +712,8 @@ def rasterize_chunks_kernel(
     light_xy = mesh.xy
     triangles = mesh.triangles
     vertex_depth = mesh.depth
+    vertex_mask = mesh.vertex_mask
+    masked = vertex_mask.shape[0] > 0
     points = converted.points
     scale = fixed.scale
     limit = fixed.limit
@@ -636,8 +746,17 @@ def rasterize_chunks_kernel(
             a = doubled_vertex(points, s, light_xy, ia, step, corner, limit)
             b = doubled_vertex(points, s, light_xy, ib, step, corner, limit)
             p = doubled_vertex(points, s, light_xy, ic, step, corner, limit)
-            n += wp.int64(rasterize_triangle(a[0], a[1], b[0], b[1], p[0], p[1], vertex_depth[ia], vertex_depth[ib],
-                                             vertex_depth[ic], fixed, paths, depth, c, window))
+            m = int(-1)
+            if masked:
+                m = vertex_mask[ia]
+            if m >= 0:
+                uv = mesh.uv
+                n += wp.int64(rasterize_masked_triangle(a[0], a[1], b[0], b[1], p[0], p[1], vertex_depth[ia],
+                                                        vertex_depth[ib], vertex_depth[ic], uv[ia], uv[ib], uv[ic], m,
+                                                        mesh.textures, fixed, depth, c, window))
+            else:
+                n += wp.int64(rasterize_triangle(a[0], a[1], b[0], b[1], p[0], p[1], vertex_depth[ia],
+                                                 vertex_depth[ib], vertex_depth[ic], fixed, paths, depth, c, window))
         t += 1
     if n > wp.int64(0):
         wp.atomic_add(covered, g, n)

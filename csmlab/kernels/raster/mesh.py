@@ -87,11 +87,20 @@ class LightSpaceMesh:
     triangles : ndarray, shape (T, 3), int32
         Vertex indices in ``[0, V)``; either winding. The rows are those the method's face cull
         kept (:func:`csmlab.culling.culled_triangles`, chosen on the host before this record is made).
+    uv : ndarray, shape (V, 2), float64, or None
+        Texture coordinates of each vertex, where masks apply (:class:`csmlab.scene.core.Scene`).
+    vertex_mask : ndarray, shape (V,), int32, or None
+        Each vertex's alpha mask, −1 opaque; None: every triangle opaque.
+    alpha : tuple of AlphaMask
+        The masks ``vertex_mask`` indexes.
     """
 
     xy: np.ndarray
     depth: np.ndarray
     triangles: np.ndarray
+    uv: np.ndarray | None = None
+    vertex_mask: np.ndarray | None = None
+    alpha: tuple = ()
 
     @cached_property
     def bounds(self) -> TriangleBounds:
@@ -100,7 +109,7 @@ class LightSpaceMesh:
         return triangle_bounds(self.xy, self.triangles)
 
 
-def light_space_mesh(light_xy, vertex_depth, triangles) -> LightSpaceMesh:
+def light_space_mesh(light_xy, vertex_depth, triangles, *, uv=None, vertex_mask=None, alpha=()) -> LightSpaceMesh:
     """A :class:`LightSpaceMesh` of the arrays, checked: finite vertices and depths, indices within the mesh.
 
     The check reads every array (~24 MB at ~1M triangles, a few ms from memory): a run makes the mesh
@@ -114,6 +123,9 @@ def light_space_mesh(light_xy, vertex_depth, triangles) -> LightSpaceMesh:
     vertex_depth : array_like, shape (V,), float64
         ``d·X − zref`` of each vertex in metres.
     triangles : array_like, shape (T, 3), integer
+    uv, vertex_mask, alpha
+        The vertices' texture coordinates ``(V, 2)`` and masks ``(V,)`` and the masks' records, in
+        the vertices' order here; ``vertex_mask`` None: no masks.
 
     Raises
     ------
@@ -129,7 +141,15 @@ def light_space_mesh(light_xy, vertex_depth, triangles) -> LightSpaceMesh:
         raise ValueError(f"light_xy, vertex_depth: expected {xy.shape[0]} finite vertices and depths")
     if tri.ndim != 2 or tri.shape[1] != 3 or (tri.size and (tri.min() < 0 or tri.max() >= xy.shape[0])):
         raise ValueError(f"triangles: expected indices of shape (T, 3) in [0, {xy.shape[0]})")
-    return LightSpaceMesh(*(_read_only(a) for a in (xy, z, tri)))
+    if vertex_mask is None:
+        return LightSpaceMesh(*(_read_only(a) for a in (xy, z, tri)))
+    m = np.ascontiguousarray(vertex_mask, dtype=np.int32)
+    coordinates = np.ascontiguousarray(uv, dtype=np.float64)
+    if m.shape != (xy.shape[0],) or coordinates.shape != (xy.shape[0], 2) or m.max(initial=-1) >= len(alpha):
+        raise ValueError(f"uv, vertex_mask: expected shapes ({xy.shape[0]}, 2), ({xy.shape[0]},) and masks "
+                         f"in [-1, {len(alpha)})")
+    return LightSpaceMesh(*(_read_only(a) for a in (xy, z, tri)), uv=_read_only(coordinates),
+                          vertex_mask=_read_only(m), alpha=tuple(alpha))
 
 
 def _read_only(array: np.ndarray) -> np.ndarray:

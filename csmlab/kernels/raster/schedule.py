@@ -12,6 +12,7 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device, device_empty
+from csmlab.kernels.alpha import MaskedMesh, masked_mesh, no_masks
 from csmlab.kernels.raster.kernels import (Boxes, ChunkRows, FixedPoint, LightMesh, TrianglePaths, VertexPass,
                                            fixed_point_vertices_kernel, rasterize_chunks_kernel,
                                            rasterize_depth_kernel, triangle_paths, vec2l)
@@ -53,7 +54,7 @@ def _fixed_point(bits: int) -> FixedPoint:
 
 
 def rasterize_depth(points, vertex_depth, triangles, *, resolution: int, bits: int, paths: TrianglePaths | None = None,
-                    device: str = "cpu") -> tuple[np.ndarray, int]:
+                    masks: MaskedMesh | None = None, device: str = "cpu") -> tuple[np.ndarray, int]:
     """Depth maps of every cascade: per texel centre the nearest caster's light-space depth.
 
     Parameters
@@ -72,6 +73,9 @@ def rasterize_depth(points, vertex_depth, triangles, *, resolution: int, bits: i
     paths : TrianglePaths, optional
         Which path each triangle takes (:func:`~csmlab.kernels.raster.kernels.triangle_paths`); None:
         the module's thresholds. Every choice gives the same maps: tests force each path with it.
+    masks : MaskedMesh, optional
+        The vertices' texture coordinates and alpha masks on ``device``
+        (:func:`csmlab.kernels.alpha.masked_mesh`); None: every triangle opaque.
     device : str
         ``"cpu"`` or ``"cuda"``.
 
@@ -79,7 +83,8 @@ def rasterize_depth(points, vertex_depth, triangles, *, resolution: int, bits: i
     -------
     depth : ndarray, shape (C, R, R), float32
         ``depth[c, j, i]`` is the minimum depth over triangles whose interior (top-left rule on
-        edges) contains the centre of texel column i, row j of cascade c; +inf where none.
+        edges) contains the centre of texel column i, row j of cascade c, where an alpha-tested
+        triangle's mask is opaque there; +inf where none.
     texels_rasterized : int
         Coverage tests that passed, summed over triangles and cascades.
 
@@ -118,6 +123,7 @@ def rasterize_depth(points, vertex_depth, triangles, *, resolution: int, bits: i
     if tri.shape[0] == 0:
         return depth.numpy(), 0
     covered = wp.empty((cascades, tri.shape[0]), dtype=wp.int32, device=device)
+    masks = masks or no_masks(device=device)
     wp.launch(
         rasterize_depth_kernel,
         dim=(cascades, tri.shape[0]),
@@ -125,6 +131,9 @@ def rasterize_depth(points, vertex_depth, triangles, *, resolution: int, bits: i
             wp.array(pts, dtype=wp.int64, device=device, copy=False),
             wp.array(z, dtype=wp.float64, device=device, copy=False),
             wp.array(tri, dtype=wp.int32, device=device, copy=False),
+            masks.uv,
+            masks.vertex_mask,
+            masks.textures,
             _fixed_point(bits),
             paths,
         ),
@@ -334,6 +343,10 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
     light.xy = wp.array(xy, dtype=wp.vec2d, device=device, copy=False)
     light.depth = wp.array(z, dtype=wp.float64, device=device, copy=False)
     light.triangles = wp.array(tri, dtype=wp.int32, device=device, copy=False)
+    masks = masked_mesh(mesh.uv, mesh.vertex_mask, mesh.alpha, device=device)
+    light.uv = masks.uv
+    light.vertex_mask = masks.vertex_mask
+    light.textures = masks.textures
     boxes = _boxes(device, size, origin_fixed)
     fixed = _fixed_point(bits)
     region_rows = wp.array(areas, dtype=wp.int32, device=device)

@@ -1,0 +1,67 @@
+"""Alpha masks read from image files: the alpha channel an OBJ material's ``map_d`` or a glTF texture holds.
+
+:func:`read_alpha_mask` opens an image with Pillow and keeps its coverage: the alpha channel of an
+image that has one (RGBA, LA, a palette with transparency), else its luminance (a grey ``map_d``
+mask), as values in [0, 1] with row 0 the image's top row (texture coordinate v = 0, glTF's
+convention). A file that is missing or that Pillow cannot read is bad input: an
+:class:`~csmlab.errors.InputError` naming the file and the field it came from.
+"""
+
+from __future__ import annotations
+
+from io import BytesIO
+from pathlib import Path
+
+import numpy as np
+
+from csmlab.errors import InputError
+from csmlab.scene.core import AlphaMask
+
+__all__ = ["alpha_mask_of_image", "read_alpha_mask"]
+
+
+def read_alpha_mask(file, *, cutoff: float = 0.5, field: str = "alpha_mask") -> AlphaMask:
+    """The :class:`~csmlab.scene.core.AlphaMask` of an image file's alpha channel (or luminance) and ``cutoff``.
+
+    Parameters
+    ----------
+    file : str or os.PathLike
+        An image Pillow reads (PNG, TGA, …).
+    cutoff : float
+        Opaque where coverage ≥ cutoff (glTF ``alphaCutoff``; 0.5 by default), in (0, 1].
+    field : str
+        The configuration field that named the file, for the error.
+
+    Raises
+    ------
+    InputError
+        Naming the file and ``field``: missing, not an image Pillow can read, or empty.
+    """
+    path = Path(file)
+    if not path.is_file():
+        raise InputError("expected an existing image file with an alpha mask, found "
+                         + ("a directory" if path.is_dir() else "nothing"), file=path, field=field)
+    return alpha_mask_of_image(path.read_bytes(), cutoff=cutoff, source=path, field=field)
+
+
+def alpha_mask_of_image(data: bytes, *, cutoff: float = 0.5, source, field: str = "alpha_mask") -> AlphaMask:
+    """The :class:`~csmlab.scene.core.AlphaMask` of an encoded image's bytes (as :func:`read_alpha_mask` reads a file).
+
+    ``source`` names the image (its file, or the file that embeds it) in the mask and in the error.
+    """
+    from PIL import Image, UnidentifiedImageError
+
+    path = Path(source)
+    try:
+        with Image.open(BytesIO(data)) as image:
+            image.load()
+            if "A" in image.getbands() or "transparency" in image.info:
+                coverage = np.asarray(image.convert("RGBA"), dtype=np.float32)[..., 3]
+            else:
+                coverage = np.asarray(image.convert("L"), dtype=np.float32)
+    except (OSError, UnidentifiedImageError, ValueError) as exc:
+        raise InputError(f"expected an image file with an alpha mask (PNG, TGA, …) that Pillow can read; "
+                         f"reading failed: {exc}", file=path, field=field) from None
+    if coverage.size == 0:
+        raise InputError("expected an image of at least one texel", file=path, field=field)
+    return AlphaMask(coverage / 255.0, cutoff, source=str(path))
