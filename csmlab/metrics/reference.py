@@ -7,6 +7,18 @@ shadowed when ``S <= 0.5`` (the method) or ``R <= 0.5`` (the reference).
 - false shadow: the method says shadow where the reference is lit (acne, over-shadowing);
 - false light: the method says lit where the reference is shadowed (leaks, peter-panning);
   both as fractions of the compared pixels.
+- acne and peter-panning (``acne``, ``peter_panning``): the false shadow and the false light that
+  the map's resolution cannot explain, as fractions of the compared pixels. Near a shadow boundary
+  the texel grid and the filter decide the state, whatever the bias: a pixel is in the
+  *resolution band* when, in the light's view (its position projected on the plane normal to the
+  light), it lies within ``margin_texels`` (the filter's radius + 1, :attr:`ShadowSettings.margin_texels`)
+  texels of its selected cascade — the larger of the two texel sides — of a reference boundary
+  point: the light-space projection of a compared pixel whose 4-neighbour has the other reference
+  state (both sides of the boundary). Acne is false shadow outside the band (self-shadowing of a
+  surface the reference lights), peter-panning false light outside it (a shadow pulled off its
+  caster by the bias, or any other leak: a far fade counts here too). Only the boundaries the
+  camera sees are known, so a pixel near a hidden one may be counted; with no reference boundary
+  in view no pixel is in the band.
 - boundary distance: the shadow boundary of an image is the set of its shadowed compared pixels
   with a lit compared 4-neighbour. ``ref_boundary_px`` is the average symmetric boundary distance
   (ASSD, as in image segmentation): the Euclidean distance in pixels from every boundary pixel of
@@ -28,8 +40,8 @@ from scipy.spatial import cKDTree
 
 from csmlab.frame import Frame
 
-__all__ = ["ReferenceMaps", "boundary_pixels", "mean_boundary_distance", "reference_maps", "reference_summary",
-           "seam_error", "split_boundary_pixels"]
+__all__ = ["ReferenceMaps", "bias_errors", "boundary_pixels", "mean_boundary_distance", "reference_boundary",
+           "reference_maps", "reference_summary", "seam_error", "split_boundary_pixels"]
 
 
 @dataclass(frozen=True)
@@ -49,6 +61,49 @@ class ReferenceMaps:
     compared: np.ndarray
     shadowed: np.ndarray
     reference_shadowed: np.ndarray
+
+
+def reference_boundary(reference_shadowed, compared) -> np.ndarray:
+    """``(H, W)`` bool: compared pixels with a compared 4-neighbour of the other reference state (both sides)."""
+    compared = np.asarray(compared, dtype=bool)
+    shadowed = np.asarray(reference_shadowed, dtype=bool) & compared
+    return boundary_pixels(shadowed, compared) | boundary_pixels(compared & ~shadowed, compared)
+
+
+def bias_errors(frame: Frame, maps: ReferenceMaps) -> dict[str, float]:
+    """``acne`` and ``peter_panning``: false shadow and false light outside the resolution band.
+
+    Parameters
+    ----------
+    frame : Frame
+        Its G-buffer positions (world metres), selected cascades and their texel sizes.
+    maps : ReferenceMaps
+        :func:`reference_maps` of ``frame``.
+
+    Returns
+    -------
+    dict of str to float
+        Fractions of the compared pixels (module docstring); NaN when no pixel is compared.
+    """
+    count = int(maps.compared.sum())
+    if count == 0:
+        return dict.fromkeys(("acne", "peter_panning"), float("nan"))
+    wrong = maps.diff != 0
+    outside = wrong.copy()
+    boundary = reference_boundary(maps.reference_shadowed, maps.compared)
+    if wrong.any() and boundary.any():
+        cascades = frame.maps.cascades
+        # Light-space x/y of the positions: the plane the map is indexed in, where resolution errors live.
+        light_xy = cascades.to_light(frame.view.gbuffer.position)[..., :2]
+        texel = np.array([float(np.max(c.texel_size)) for c in cascades.cascades])
+        selected = frame.shadow.cascade[wrong].astype(np.int64)
+        band = cascades.margin_texels * texel[selected]
+        distance = cKDTree(light_xy[boundary]).query(light_xy[wrong])[0]
+        outside[wrong] = distance > band
+    return {
+        "acne": float(np.count_nonzero(outside & (maps.diff == 1))) / count,
+        "peter_panning": float(np.count_nonzero(outside & (maps.diff == -1))) / count,
+    }
 
 
 def reference_maps(frame: Frame) -> ReferenceMaps:
