@@ -31,12 +31,12 @@ from csmlab.quads import quad_lanes
 from csmlab.scene.core import Scene
 from csmlab.scrolling import RasterizedMaps, scroll_plan
 from csmlab.settings import ShadowSettings
-from csmlab.storage import stored_depth
+from csmlab.storage import polygon_offset_unit, stored_depth
 from csmlab.texels import (PRECISION_METHODS, fixed_point_coordinates, fixed_point_origin, light_depth,
                            light_plane_coordinates)
 
-__all__ = ["DeviceScene", "clipped_casters", "lookup_shadow", "prepare_scene", "render_frame", "render_shadow",
-           "render_view", "shadow_maps", "visible_depth"]
+__all__ = ["DeviceScene", "caster_offsets", "clipped_casters", "lookup_shadow", "prepare_scene", "render_frame",
+           "render_shadow", "render_view", "shadow_maps", "visible_depth"]
 
 
 @dataclass(frozen=True)
@@ -186,6 +186,18 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
                       mips=mips, raster=raster)
 
 
+def caster_offsets(cascades: CascadeSet, settings: ShadowSettings) -> np.ndarray:
+    """``(C,)`` metres each cascade's casters are pushed away from the light, the constant part of their offset.
+
+    ``caster_bias_texels`` texels of the cascade (the larger side) plus ``caster_bias_units`` steps of
+    ``depth_format`` over its light-space depth range (:func:`csmlab.storage.polygon_offset_unit`); the
+    slope part, ``caster_bias_slope``, is the raster's per triangle.
+    """
+    return np.array([settings.caster_bias_texels * float(np.max(c.texel_size)) + settings.caster_bias_units
+                     * polygon_offset_unit(c.depth_far - c.depth_near, depth_format=settings.depth_format)
+                     for c in cascades.cascades], dtype=np.float64)
+
+
 def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings, *,
                        previous: RasterizedMaps | None) -> tuple[np.ndarray, int, RasterizedMaps | None]:
     """``(C, R, R)`` depth maps, texels rasterized and, for boxes on whole texels, what the next frame scrolls from.
@@ -207,6 +219,7 @@ def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
     origin_texels = np.stack([c.origin for c in cascades.cascades])
     origin_fixed = np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))])
     sizes = [c.resolution for c in cascades.cascades]
+    offset = dict(caster_constant=caster_offsets(cascades, settings), caster_slope=settings.caster_bias_slope)
 
     def rasterized(origin_texels, origin_fixed, regions, **how):
         if dscene.threads > 1:
@@ -215,14 +228,14 @@ def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
         chunks = region_chunks(bounds, texel_size=texel_size, origin=origin_texels, regions=regions)
         depth, texels = rasterize_cascades(mesh, texel_size=texel_size, origin=origin_fixed, resolution=max(sizes),
                                            bits=bits, regions=regions, chunks=chunks, threads=dscene.threads,
-                                           device=dscene.device, **how)
+                                           device=dscene.device, **offset, **how)
         return depth, np.bincount(regions[:, 0], weights=texels, minlength=len(sizes)).astype(np.int64)
 
     if np.any(origin_fixed % (1 << bits)):
         depth, texels = rasterized(origin_texels, origin_fixed, whole_map_regions(sizes))
         return depth, int(texels.sum()), None
     plan = scroll_plan(previous, basis=cascades.basis, zref=cascades.zref, bits=bits, texel_size=texel_size,
-                       origin=origin_fixed, resolution=sizes)
+                       origin=origin_fixed, resolution=sizes, **offset)
     depth, texels = rasterized(origin_texels, origin_fixed, plan.regions, depth=plan.depth)
     per_cascade = plan.kept_texels + texels
     if len(plan.left):
@@ -230,7 +243,8 @@ def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
         per_cascade -= rasterized(previous.origin / float(1 << bits), previous.origin, plan.left, count_only=True)[1]
     depth.flags.writeable = False
     raster = RasterizedMaps(basis=cascades.basis, zref=cascades.zref, bits=bits, texel_size=texel_size,
-                            origin=origin_fixed, resolution=np.array(sizes), depth=depth, texels=per_cascade)
+                            origin=origin_fixed, resolution=np.array(sizes), depth=depth, texels=per_cascade,
+                            **offset)
     return depth, int(per_cascade.sum()), raster
 
 
@@ -250,6 +264,7 @@ def _host_snapped_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
     maps = np.full((len(sizes), max(sizes), max(sizes)), np.inf, dtype=np.float32)
     texels = 0
     kept = culled_triangles(vertices, dscene.scene.triangles, cascades.direction, settings.cull)
+    offsets = caster_offsets(cascades, settings)
     for c, cascade in enumerate(cascades.cascades):
         triangles = kept
         if DEPTH_RANGE_METHODS[settings.depth_range].cuts_casters and not settings.depth_clamp:
@@ -258,6 +273,7 @@ def _host_snapped_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
             continue
         points = fixed_point_coordinates(cascades, c, vertices, bits=bits, precision=settings.engine_precision)
         one, count = rasterize_depth(points[None], depth_of_vertex, triangles, resolution=sizes[c], bits=bits,
+                                     caster_constant=offsets[c:c + 1], caster_slope=settings.caster_bias_slope,
                                      device=dscene.device)
         maps[c, :sizes[c], :sizes[c]] = one[0]
         texels += count
