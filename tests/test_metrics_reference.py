@@ -221,7 +221,8 @@ def test_a_negative_bias_is_acne_on_every_lit_surface_and_no_peter_panning():
     assert errors["peter_panning"] == 0.0
 
 
-def test_zero_bias_on_a_plane_sloped_to_the_light_is_acne_where_the_texel_centre_lies_nearer_the_light():
+def _sloped_plane_view():
+    """A plane alone (nothing casts: no reference boundary), the light 45.6° off its normal."""
     from csmlab.scene.shapes import height_field, scene_from_parts
 
     grid = np.linspace(-10.0, 10.0, 2)
@@ -230,7 +231,11 @@ def test_zero_bias_on_a_plane_sloped_to_the_light_is_acne_where_the_texel_centre
     eye = np.array([0.0, 3.0, 4.0])
     pose = CameraPose(position=eye, orientation=rotation_looking_at(-eye), aspect=1.5, far=50.0)
     light = np.array([0.5, -0.7, 0.3]) / np.linalg.norm([0.5, -0.7, 0.3])
-    view = render_view(dscene, pose, light, width=96, height=64)
+    return dscene, render_view(dscene, pose, light, width=96, height=64)
+
+
+def test_zero_bias_on_a_plane_sloped_to_the_light_is_acne_where_the_texel_centre_lies_nearer_the_light():
+    dscene, view = _sloped_plane_view()
     frame = render_shadow(dscene, view, _bias_only(0.0))
     maps = reference_maps(frame)
     errors = bias_errors(frame, maps)
@@ -246,3 +251,12 @@ def test_zero_bias_on_a_plane_sloped_to_the_light_is_acne_where_the_texel_centre
     assert 0.3 < expected < 0.7
     assert errors["acne"] == pytest.approx(expected, abs=0.01)
     assert errors["peter_panning"] == 0.0
+
+
+def test_false_shadow_where_the_far_fade_reaches_is_not_counted_as_acne():
+    dscene, view = _sloped_plane_view()
+    # The fade's weight rises over the whole shadow distance: above 0 at every pixel in front of the camera.
+    frame = render_shadow(dscene, view, _bias_only(0.0).replace(fade_out=1.0))
+    maps = reference_maps(frame)
+    assert np.count_nonzero(maps.diff == 1) > 0.2 * maps.compared.sum()  # the near half of the weights leaves S ≤ 0.5
+    assert bias_errors(frame, maps) == {"acne": 0.0, "peter_panning": 0.0}

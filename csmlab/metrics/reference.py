@@ -16,9 +16,11 @@ shadowed when ``S <= 0.5`` (the method) or ``R <= 0.5`` (the reference).
   point: the light-space projection of a compared pixel whose 4-neighbour has the other reference
   state (both sides of the boundary). Acne is false shadow outside the band (self-shadowing of a
   surface the reference lights), peter-panning false light outside it (a shadow pulled off its
-  caster by the bias, or any other leak: a far fade counts here too). Only the boundaries the
-  camera sees are known, so a pixel near a hidden one may be counted; with no reference boundary
-  in view no pixel is in the band.
+  caster by the bias, or any other leak). Pixels the far fade reaches (weight above 0,
+  :mod:`csmlab.fades`, from the pixel's view depth or distance to the camera) are counted in
+  neither: there the fade, not the bias, lights the shadow. Only the boundaries the camera sees are
+  known, so a pixel near a hidden one may be counted; with no reference boundary in view no pixel
+  is in the band.
 - boundary distance: the shadow boundary of an image is the set of its shadowed compared pixels
   with a lit compared 4-neighbour. ``ref_boundary_px`` is the average symmetric boundary distance
   (ASSD, as in image segmentation): the Euclidean distance in pixels from every boundary pixel of
@@ -38,7 +40,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from csmlab.fades import FADE_METHODS
 from csmlab.frame import Frame
+from csmlab.registry import check_name
 
 __all__ = ["ReferenceMaps", "bias_errors", "boundary_pixels", "mean_boundary_distance", "reference_boundary",
            "reference_maps", "reference_summary", "seam_error", "split_boundary_pixels"]
@@ -70,13 +74,28 @@ def reference_boundary(reference_shadowed, compared) -> np.ndarray:
     return boundary_pixels(shadowed, compared) | boundary_pixels(compared & ~shadowed, compared)
 
 
+def _fading(frame: Frame) -> np.ndarray:
+    """``(H, W)`` bool: the far fade's weight is above 0 at the pixel (all False without a fade)."""
+    settings = frame.settings
+    g = frame.view.gbuffer
+    if settings.fade_out <= 0.0:
+        return np.zeros(g.shape, dtype=bool)
+    record = FADE_METHODS[check_name(settings.fade, FADE_METHODS, field="fade")]
+    distance = np.linalg.norm(g.position - frame.view.pose.position, axis=-1) if record.radial else None
+    with np.errstate(invalid="ignore"):
+        weight = record.weight(g.view_depth, distance, far=float(frame.maps.cascades.splits[-1]),
+                               fade_out=settings.fade_out)
+        return np.asarray(weight > 0.0)
+
+
 def bias_errors(frame: Frame, maps: ReferenceMaps) -> dict[str, float]:
     """``acne`` and ``peter_panning``: false shadow and false light outside the resolution band.
 
     Parameters
     ----------
     frame : Frame
-        Its G-buffer positions (world metres), selected cascades and their texel sizes.
+        Its G-buffer positions (world metres) and view depths, selected cascades and their texel
+        sizes, and its far fade.
     maps : ReferenceMaps
         :func:`reference_maps` of ``frame``.
 
@@ -88,7 +107,7 @@ def bias_errors(frame: Frame, maps: ReferenceMaps) -> dict[str, float]:
     count = int(maps.compared.sum())
     if count == 0:
         return dict.fromkeys(("acne", "peter_panning"), float("nan"))
-    wrong = maps.diff != 0
+    wrong = (maps.diff != 0) & ~_fading(frame)
     outside = wrong.copy()
     boundary = reference_boundary(maps.reference_shadowed, maps.compared)
     if wrong.any() and boundary.any():
