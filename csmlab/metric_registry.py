@@ -179,6 +179,8 @@ METRICS: dict[str, Metric] = {m.name: m for m in (
     Metric("flip", "ꟻLIP", "mean", "lower", (1e-5, 0.05), temporal=True, headline=True),
     Metric("ref_false_shadow", "false shadow", _PIXELS, "lower", (1e-4, 0.05), scale=100.0),
     Metric("ref_false_light", "false light", _PIXELS, "lower", (1e-4, 0.05), scale=100.0),
+    Metric("acne", "acne", _PIXELS, "lower", (1e-4, 0.05), scale=100.0),
+    Metric("peter_panning", "peter-panning", _PIXELS, "lower", (1e-4, 0.05), scale=100.0),
     Metric("ref_boundary_px", "shadow boundary distance", "pixels", "lower", (1e-3, 0.10)),
     Metric("ref_seam_error", "error at split boundaries", "mean |S − R|", "lower", (1e-4, 0.05)),
     Metric("memory_bytes", "memory", "MiB", "lower", (0.0, 0.0), scale=2.0 ** -20, headline=True,

@@ -27,6 +27,7 @@ from csmlab.frame import Frame, GBuffer, ShadowMaps, View
 from csmlab.geometry import light_basis, normalized
 from csmlab.kernels.raster import (BANDS_PER_THREAD, LightSpaceMesh, banded_regions, light_space_mesh,
                                   rasterize_cascades, rasterize_depth, region_chunks, whole_map_regions, z_ordered)
+from csmlab.kernels.alpha import masked_mesh
 from csmlab.kernels.reference import hard_shadow
 from csmlab.kernels.threads import checked_threads
 from csmlab.kernels.visibility import MeshBVH, camera_hits, mesh_bvh
@@ -34,12 +35,13 @@ from csmlab.quads import quad_lanes
 from csmlab.scene.core import Scene
 from csmlab.scrolling import RasterizedMaps, scroll_plan
 from csmlab.settings import ShadowSettings
-from csmlab.storage import stored_depth
+from csmlab.storage import polygon_offset_unit, stored_depth
 from csmlab.texels import (PRECISION_METHODS, fixed_point_coordinates, fixed_point_origin, light_depth,
                            light_plane_coordinates)
 
-__all__ = ["DeviceScene", "clipped_casters", "clipped_triangles", "lookup_shadow", "prepare_scene", "render_frame",
-           "render_shadow", "render_view", "shadow_maps", "virtual_shadow_maps", "visible_depth", "warped_depth_map"]
+__all__ = ["DeviceScene", "caster_offsets", "clipped_casters", "clipped_triangles", "lookup_shadow", "prepare_scene",
+           "render_frame", "render_shadow", "render_view", "shadow_maps", "virtual_shadow_maps", "visible_depth",
+           "warped_depth_map"]
 
 
 @dataclass(frozen=True)
@@ -196,6 +198,18 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
                       mips=mips, raster=raster)
 
 
+def caster_offsets(cascades: CascadeSet, settings: ShadowSettings) -> np.ndarray:
+    """``(C,)`` metres each cascade's casters are pushed away from the light, the constant part of their offset.
+
+    ``caster_bias_texels`` texels of the cascade (the larger side) plus ``caster_bias_units`` steps of
+    ``depth_format`` over its light-space depth range (:func:`csmlab.storage.polygon_offset_unit`); the
+    slope part, ``caster_bias_slope``, is the raster's per triangle.
+    """
+    return np.array([settings.caster_bias_texels * float(np.max(c.texel_size)) + settings.caster_bias_units
+                     * polygon_offset_unit(c.depth_far - c.depth_near, depth_format=settings.depth_format)
+                     for c in cascades.cascades], dtype=np.float64)
+
+
 def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings, *,
                        previous: RasterizedMaps | None) -> tuple[np.ndarray, int, RasterizedMaps | None]:
     """``(C, R, R)`` depth maps, texels rasterized and, for boxes on whole texels, what the next frame scrolls from.
@@ -217,6 +231,7 @@ def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
     origin_texels = np.stack([c.origin for c in cascades.cascades])
     origin_fixed = np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))])
     sizes = [c.resolution for c in cascades.cascades]
+    offset = dict(caster_constant=caster_offsets(cascades, settings), caster_slope=settings.caster_bias_slope)
 
     def rasterized(origin_texels, origin_fixed, regions, **how):
         if dscene.threads > 1:
@@ -225,14 +240,14 @@ def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
         chunks = region_chunks(bounds, texel_size=texel_size, origin=origin_texels, regions=regions)
         depth, texels = rasterize_cascades(mesh, texel_size=texel_size, origin=origin_fixed, resolution=max(sizes),
                                            bits=bits, regions=regions, chunks=chunks, threads=dscene.threads,
-                                           device=dscene.device, **how)
+                                           device=dscene.device, **offset, **how)
         return depth, np.bincount(regions[:, 0], weights=texels, minlength=len(sizes)).astype(np.int64)
 
     if np.any(origin_fixed % (1 << bits)):
         depth, texels = rasterized(origin_texels, origin_fixed, whole_map_regions(sizes))
         return depth, int(texels.sum()), None
     plan = scroll_plan(previous, basis=cascades.basis, zref=cascades.zref, bits=bits, texel_size=texel_size,
-                       origin=origin_fixed, resolution=sizes)
+                       origin=origin_fixed, resolution=sizes, **offset)
     depth, texels = rasterized(origin_texels, origin_fixed, plan.regions, depth=plan.depth)
     per_cascade = plan.kept_texels + texels
     if len(plan.left):
@@ -240,7 +255,8 @@ def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
         per_cascade -= rasterized(previous.origin / float(1 << bits), previous.origin, plan.left, count_only=True)[1]
     depth.flags.writeable = False
     raster = RasterizedMaps(basis=cascades.basis, zref=cascades.zref, bits=bits, texel_size=texel_size,
-                            origin=origin_fixed, resolution=np.array(sizes), depth=depth, texels=per_cascade)
+                            origin=origin_fixed, resolution=np.array(sizes), depth=depth, texels=per_cascade,
+                            **offset)
     return depth, int(per_cascade.sum()), raster
 
 
@@ -261,6 +277,7 @@ def _host_snapped_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
     maps = np.full((len(sizes), max(sizes), max(sizes)), np.inf, dtype=np.float32)
     texels = 0
     kept = culled_triangles(vertices, dscene.scene.triangles, cascades.direction, settings.cull)
+    offsets = caster_offsets(cascades, settings)
     for c, cascade in enumerate(cascades.cascades):
         triangles = kept
         if DEPTH_RANGE_METHODS[settings.depth_range].cuts_casters and not settings.depth_clamp:
@@ -269,20 +286,23 @@ def _host_snapped_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
             continue
         if cascade.warp is not None:
             one, count = warped_depth_map(cascades, c, vertices, depth_of_vertex, triangles, bits=bits,
-                                          device=dscene.device)
+                                          scene=dscene.scene, caster_constant=float(offsets[c]),
+                                          caster_slope=settings.caster_bias_slope, device=dscene.device)
             maps[c, :sizes[c], :sizes[c]] = one
             texels += count
             continue
         points = fixed_point_coordinates(cascades, c, vertices, bits=bits, precision=settings.engine_precision)
         one, count = rasterize_depth(points[None], depth_of_vertex, triangles, resolution=sizes[c], bits=bits,
-                                     masks=dscene.bvh.masks, device=dscene.device)
+                                     masks=dscene.bvh.masks, caster_constant=offsets[c:c + 1],
+                                     caster_slope=settings.caster_bias_slope, device=dscene.device)
         maps[c, :sizes[c], :sizes[c]] = one[0]
         texels += count
     return maps, texels
 
 
 def warped_depth_map(cascades: CascadeSet, index: int, vertices: np.ndarray, depth: np.ndarray,
-                     triangles: np.ndarray, *, bits: int, device: str) -> tuple[np.ndarray, int]:
+                     triangles: np.ndarray, *, bits: int, scene: Scene | None = None, caster_constant: float = 0.0,
+                     caster_slope: float = 0.0, device: str) -> tuple[np.ndarray, int]:
     """``(R, R)`` depth map and texels rasterized of warped cascade ``index`` (:mod:`csmlab.cascades.warp`).
 
     Its projection (:meth:`csmlab.cascades.CascadeSet.projection`) takes a vertex to texels
@@ -292,6 +312,11 @@ def warped_depth_map(cascades: CascadeSet, index: int, vertices: np.ndarray, dep
     surface its ray meets. Triangles are first clipped to ``w ≥ n_opt / 2`` (half the warp's near
     distance: what they lose lies below the map's edge, ``w < n_opt``), as a GPU clips at the warp
     eye's near plane.
+
+    A caster's polygon offset acts as a GPU's does on a warped map: its slope part on the
+    interpolated ``z / w`` (the warped depth's change over a texel), its constant part in metres
+    on the stored light depth. Alpha masks are tested at texture coordinates interpolated across
+    the warped image (affine there, not perspective-correct: a small error inside a card).
 
     Parameters
     ----------
@@ -304,6 +329,13 @@ def warped_depth_map(cascades: CascadeSet, index: int, vertices: np.ndarray, dep
     triangles : ndarray, shape (T, 3)
     bits : int
         Sub-texel bits.
+    scene : Scene, optional
+        Whose ``uv``, ``vertex_mask`` and ``alpha`` (in the order of ``vertices``) cut its masked
+        casters; None or unmasked: every caster opaque.
+    caster_constant : float
+        Metres every caster is pushed away from the light (:func:`caster_offsets`).
+    caster_slope : float
+        ``caster_bias_slope``.
     device : str
     """
     cascade = cascades.cascades[index]
@@ -311,18 +343,23 @@ def warped_depth_map(cascades: CascadeSet, index: int, vertices: np.ndarray, dep
     xy = light_plane_coordinates(cascades, vertices)
     w = xy[:, 0] * h[2, 0] + xy[:, 1] * h[2, 1] + h[2, 2]
     near = 0.5 * (cascade.warp.n_opt if np.isfinite(cascade.warp.n_opt) else 1.0)
-    attributes, kept = clipped_triangles(np.column_stack([xy, depth, w]), triangles, column=3, threshold=near)
+    masked = scene is not None and scene.vertex_mask is not None
+    columns = [xy, depth, w] + ([scene.uv, scene.vertex_mask.astype(np.float64)] if masked else [])
+    attributes, kept = clipped_triangles(np.column_stack(columns), triangles, column=3, threshold=near)
     if kept.shape[0] == 0:
         return np.full((cascade.resolution,) * 2, np.inf, dtype=np.float32), 0
     texels, w = warped_texels(h, attributes[:, :2])
     points = np.rint(np.clip(texels * float(2**bits), -2.0**50, 2.0**50)).astype(np.int64)
+    # A triangle's three vertices share its mask, so the interpolated mask column is that mask exactly.
+    masks = masked_mesh(attributes[:, 4:6], attributes[:, 6].astype(np.int32), scene.alpha,
+                        device=device) if masked else None
     per_w, count = rasterize_depth(points[None], attributes[:, 2] / w, kept, resolution=cascade.resolution,
-                                   bits=bits, device=device)
+                                   bits=bits, masks=masks, caster_slope=caster_slope, device=device)
     centre = np.arange(cascade.resolution, dtype=np.float64) + 0.5
     i, j = np.meshgrid(centre, centre)
     inverse = np.linalg.inv(h)
     w_centre = 1.0 / (inverse[2, 0] * i + inverse[2, 1] * j + inverse[2, 2])
-    return (per_w[0].astype(np.float64) * w_centre).astype(np.float32), count
+    return (per_w[0].astype(np.float64) * w_centre + caster_constant).astype(np.float32), count
 
 
 def clipped_triangles(attributes: np.ndarray, triangles: np.ndarray, *, column: int,

@@ -48,6 +48,11 @@ class RasterizedMaps:
         Rasterized depth ``d·X − zref`` in metres, before the depth format; +inf where empty. Read-only.
     texels : ndarray, shape (C,), int64
         Coverage tests that pass in each cascade's whole map (its ``texels_rasterized``).
+    caster_constant : ndarray, shape (C,), float64
+        Metres each cascade's casters were pushed away from the light (the polygon offset's constant
+        part, :func:`csmlab.kernels.raster.rasterize_cascades`).
+    caster_slope : float
+        The polygon offset's slope factor.
     """
 
     basis: np.ndarray
@@ -58,6 +63,12 @@ class RasterizedMaps:
     resolution: np.ndarray
     depth: np.ndarray
     texels: np.ndarray
+    caster_constant: np.ndarray | None = None
+    caster_slope: float = 0.0
+
+    def offset_of(self, c: int) -> tuple[float, float]:
+        """Cascade c's caster offset ``(constant metres, slope factor)``; a map without one has ``(0, 0)``."""
+        return (0.0 if self.caster_constant is None else float(self.caster_constant[c]), float(self.caster_slope))
 
 
 @dataclass(frozen=True)
@@ -86,11 +97,11 @@ class ScrollPlan:
 
 
 def _shift(previous: RasterizedMaps, c: int, *, basis, zref: float, bits: int, texel_size, origin,
-           resolution: int) -> np.ndarray | None:
+           resolution: int, offset: tuple[float, float]) -> np.ndarray | None:
     """Whole-texel move ``(dx, dy)`` of cascade c's box since ``previous``, or None when its texels cannot be kept."""
     if (previous.bits != bits or previous.zref != zref or not np.array_equal(previous.basis, basis)
             or c >= len(previous.resolution) or int(previous.resolution[c]) != resolution
-            or not np.array_equal(previous.texel_size[c], texel_size[c])):
+            or not np.array_equal(previous.texel_size[c], texel_size[c]) or previous.offset_of(c) != offset):
         return None
     moved = np.asarray(origin[c], dtype=np.int64) - previous.origin[c]
     if np.any(moved % (1 << bits)):
@@ -100,7 +111,7 @@ def _shift(previous: RasterizedMaps, c: int, *, basis, zref: float, bits: int, t
 
 
 def scroll_plan(previous: RasterizedMaps | None, *, basis, zref: float, bits: int, texel_size, origin,
-                resolution) -> ScrollPlan:
+                resolution, caster_constant=None, caster_slope: float = 0.0) -> ScrollPlan:
     """The texels each cascade keeps from ``previous`` and the regions left to rasterize.
 
     Parameters
@@ -115,19 +126,26 @@ def scroll_plan(previous: RasterizedMaps | None, *, basis, zref: float, bits: in
         This frame's boxes, as in :class:`RasterizedMaps`.
     resolution : sequence of int, length C
         Texels per side of each cascade; the maps are ``(C, R, R)`` with R the largest.
+    caster_constant : array_like, shape (C,), float64, optional
+    caster_slope : float
+        This frame's caster offset (:class:`RasterizedMaps`); None: 0 in every cascade.
 
     Returns
     -------
     ScrollPlan
         A cascade whose box moved by whole texels less than its side keeps the texels both boxes
         cover: new texel ``(i, j)`` is old texel ``(i + dx, j + dy)``. A cascade whose light space,
-        texel size or resolution changed, or that moved by a fraction of a texel, starts empty and
-        is rasterized whole. When no box moved, the previous arrays themselves are returned.
+        texel size, resolution or caster offset changed, or that moved by a fraction of a texel,
+        starts empty and is rasterized whole. When no box moved, the previous arrays themselves are
+        returned.
     """
     sizes = [int(r) for r in resolution]
     count, side = len(sizes), max(sizes)
     box = dict(basis=basis, zref=zref, bits=bits, texel_size=texel_size, origin=origin)
-    shifts = [None if previous is None else _shift(previous, c, resolution=sizes[c], **box) for c in range(count)]
+    offsets = [(0.0 if caster_constant is None else float(caster_constant[c]), float(caster_slope))
+               for c in range(count)]
+    shifts = [None if previous is None else _shift(previous, c, resolution=sizes[c], offset=offsets[c], **box)
+              for c in range(count)]
     kept_texels = np.array([0 if shift is None else previous.texels[c] for c, shift in enumerate(shifts)],
                            dtype=np.int64)
     no_regions = np.zeros((0, 5), np.int32)

@@ -87,6 +87,12 @@ class ShadowSettings:
     """Constant depth bias as a fraction of each cascade's light-space depth range, added to bias_constant (Godot 4, Stride)."""
     bias_texels: float = 0.0
     """Constant depth bias in texels of each cascade, added to bias_constant (Unity URP's depth bias)."""
+    caster_bias_texels: float = 0.0
+    """Casters pushed away from the light by this many texels of each cascade before they are rasterized (Unity URP's depth bias on the caster vertices, ShadowUtils.GetShadowBias)."""
+    caster_bias_units: float = 0.0
+    """Raster polygon offset, constant part: caster depth pushed away from the light by this many smallest steps of depth_format over each cascade's light-space depth range (Direct3D DepthBias, OpenGL polygon offset units; csmlab.storage.polygon_offset_unit)."""
+    caster_bias_slope: float = 0.0
+    """Raster polygon offset, slope part: caster depth pushed away from the light by this times each caster triangle's largest depth change over one texel along light-space x or y (Direct3D SlopeScaledDepthBias, OpenGL polygon offset factor)."""
     normal_offset: float = 0.5
     """Receiver offset along its normal, in texels."""
     normal_offset_m: float = 0.0
@@ -242,6 +248,12 @@ class ShadowSettings:
         need(self.bias_slope >= 0, "bias_slope", "a non-negative number of texels", self.bias_slope)
         need(0.0 <= self.bias_depth_range <= 1.0, "bias_depth_range", "a fraction in [0, 1]", self.bias_depth_range)
         need(0.0 <= self.bias_texels <= 1000.0, "bias_texels", "a number of texels in [0, 1000]", self.bias_texels)
+        need(0.0 <= self.caster_bias_texels <= 1000.0, "caster_bias_texels", "a number of texels in [0, 1000]",
+             self.caster_bias_texels)
+        need(0.0 <= self.caster_bias_units <= 2.0**24, "caster_bias_units", "a number of depth steps in [0, 2^24]",
+             self.caster_bias_units)
+        need(0.0 <= self.caster_bias_slope <= 1000.0, "caster_bias_slope", "a slope factor in [0, 1000]",
+             self.caster_bias_slope)
         need(self.normal_offset_scale in NORMAL_OFFSET_SCALES, "normal_offset_scale",
              f"one of {list(NORMAL_OFFSET_SCALES)}", self.normal_offset_scale)
         need(0.0 <= self.receiver_plane_offset <= 1.0, "receiver_plane_offset", "a fraction in [0, 1]",

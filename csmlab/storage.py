@@ -31,7 +31,8 @@ import numpy as np
 from csmlab.registry import check_name
 from csmlab.settings import ShadowSettings
 
-__all__ = ["ATLAS_LAYOUTS", "DEPTH_FORMATS", "MOMENT_BYTES", "depth_step", "memory_bytes", "stored_depth", "texel_bytes"]
+__all__ = ["ATLAS_LAYOUTS", "DEPTH_FORMATS", "MOMENT_BYTES", "depth_step", "memory_bytes", "polygon_offset_unit",
+           "stored_depth", "texel_bytes"]
 
 DEPTH_FORMATS: dict[str, tuple[int | None, int]] = {"float32": (None, 4), "unorm24": (24, 4), "unorm16": (16, 2)}
 """Depth formats by name: (bits of the unorm level or None for float, bytes per texel as allocated; D24 pads to 4)."""
@@ -53,6 +54,21 @@ def depth_step(span: float, *, depth_format: str) -> float:
     if not (math.isfinite(span) and span > 0):
         raise ValueError(f"span: expected a positive depth range in metres, got {span!r}")
     return math.ldexp(1.0, math.ceil(math.log2(span / (2**bits - 1))))
+
+
+def polygon_offset_unit(span: float, *, depth_format: str) -> float:
+    """Metres of one unit of a polygon offset's constant (Direct3D's ``DepthBias``, OpenGL's ``units``) over a
+    depth range ``span`` metres deep.
+
+    Direct3D's r: the smallest stored value above 0 — ``1 / (2^n − 1)`` of the range for an n-bit unorm;
+    for ``float32``, ``2^(e − 23)`` with e the exponent of the primitive's largest depth, taken here
+    at the largest depths of ``[0, 1]`` (e = −1): ``2^-24`` of the range.
+    """
+    check_name(depth_format, DEPTH_FORMATS, field="depth_format")
+    if not (math.isfinite(span) and span >= 0):
+        raise ValueError(f"span: expected a non-negative depth range in metres, got {span!r}")
+    bits = DEPTH_FORMATS[depth_format][0]
+    return span * (2.0**-24 if bits is None else 1.0 / (2**bits - 1))
 
 
 def stored_depth(depth, *, span: float, depth_format: str) -> np.ndarray:

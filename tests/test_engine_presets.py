@@ -541,8 +541,9 @@ FILTER_AND_BIAS = {
                             {"bias_constant": -1e-6 * (2000.0 - 1.0), "bias_slope": 0.0, "normal_offset": 0.0,
                              "receiver_plane_bias": False}),
     "engines/filament": ({"filter": "pcf_castano", "filter_size": 3},
-                         {"bias_constant": 0.001, "bias_depth_range": 0.5 / 2**16, "bias_slope": 2.0,
-                          "normal_offset": 0.5, "normal_offset_scale": "sin", "receiver_plane_bias": False}),
+                         {"bias_constant": 0.001, "bias_depth_range": 0.0, "bias_slope": 0.0, "caster_bias_units": 0.5,
+                          "caster_bias_slope": 2.0, "normal_offset": 0.5, "normal_offset_scale": "sin",
+                          "receiver_plane_bias": False}),
     "engines/bevy": ({"filter": "pcf_castano", "filter_size": 5},
                      {"bias_constant": 0.02, "bias_slope": 0.0, "normal_offset": 1.8, "receiver_plane_bias": False}),
     "engines/stride": ({"filter": "pcf_castano", "filter_size": 5},
@@ -553,23 +554,25 @@ FILTER_AND_BIAS = {
                     {"bias_constant": 0.0, "bias_slope": 0.0, "normal_offset": 0.0, "receiver_plane_offset": 0.01,
                      "receiver_plane_bias": False}),
     "engines/unity_urp": ({"filter": "pcf_bilinear"},
-                          {"bias_texels": 1.0, "bias_depth_range": 1.0 / 2**16, "bias_slope": 2.5,
-                           "normal_offset": 1.0, "normal_offset_scale": "one_minus_cos",
-                           "receiver_plane_bias": False}),
+                          {"bias_texels": 0.0, "bias_depth_range": 0.0, "bias_slope": 0.0, "caster_bias_texels": 1.0,
+                           "caster_bias_units": 1.0, "caster_bias_slope": 2.5, "normal_offset": 1.0,
+                           "normal_offset_scale": "one_minus_cos", "receiver_plane_bias": False}),
     "engines/unity_hdrp": ({"filter": "pcf_tent_bilinear", "filter_size": 7},
                            {"bias_depth_range": 1.0 / 2**16, "bias_slope": 2.5, "normal_offset": 0.75,
                             "normal_offset_scale": "none", "receiver_plane_bias": False}),
     "engines/unity_builtin_stable": ({"filter": "pcf_tent_bilinear", "filter_size": 7},
-                                     {"bias_slope": 1.0, "receiver_plane_bias": False}),
+                                     {"bias_slope": 0.0, "caster_bias_units": 1.0, "caster_bias_slope": 1.0,
+                                      "receiver_plane_bias": False}),
     "engines/unity_builtin_close": ({"filter": "pcf_tent_bilinear", "filter_size": 7},
-                                    {"bias_slope": 1.0, "receiver_plane_bias": False}),
+                                    {"bias_slope": 0.0, "caster_bias_units": 1.0, "caster_bias_slope": 1.0,
+                                     "receiver_plane_bias": False}),
     "engines/ue5": ({"filter": "pcf_bilinear_box", "filter_size": 5}, {"receiver_plane_bias": False}),
     "seeds/dx_csm11_cascade": ({"filter": "pcf_bilinear_box", "filter_size": 3},
-                               {"bias_depth_range": 0.002, "bias_slope": 1.0, "normal_offset": 0.0,
-                                "receiver_plane_bias": False}),
+                               {"bias_depth_range": 0.002, "bias_slope": 0.0, "caster_bias_slope": 1.0,
+                                "caster_bias_units": 0.0, "normal_offset": 0.0, "receiver_plane_bias": False}),
     "seeds/dx_csm11_scene": ({"filter": "pcf_bilinear_box", "filter_size": 3},
-                             {"bias_depth_range": 0.002, "bias_slope": 1.0, "normal_offset": 0.0,
-                              "receiver_plane_bias": False}),
+                             {"bias_depth_range": 0.002, "bias_slope": 0.0, "caster_bias_slope": 1.0,
+                              "caster_bias_units": 0.0, "normal_offset": 0.0, "receiver_plane_bias": False}),
 }
 
 
@@ -632,3 +635,20 @@ def test_dx_csm11_fit_to_scene_box_is_the_body_diagonal_of_corners_0_and_6(tmp_p
         lower = centre - 0.5 * diagonal
         assert np.all((cascade.box_min + margin * cascade.texel_size <= lower + 1e-9)
                       & (cascade.box_min + (margin + 1) * cascade.texel_size > lower - 1e-9))
+
+
+def test_urp_filament_and_unity_builtin_caster_offsets_are_their_engines(tmp_path):
+    """The metres each cascade's casters are pushed from the light, from the engines' formulas: URP
+    ShadowUtils.GetShadowBias texelSize = frustumSize / shadowResolution × m_ShadowDepthBias 1 plus
+    SetGlobalDepthBias's 1 unit of D16 over the tile's near/far; Filament's polygonOffsetConstant 0.5 unit of
+    DEPTH16; Unity built-in's 1 unit (float32 here: 2^-24 of the range)."""
+    from csmlab.render import caster_offsets
+
+    for preset, expected in (
+            ("engines/unity_urp", lambda c: c.extent[0] / c.resolution + (c.depth_far - c.depth_near) / 65535.0),
+            ("engines/filament", lambda c: 0.5 * (c.depth_far - c.depth_near) / 65535.0),
+            ("engines/unity_builtin_stable", lambda c: (c.depth_far - c.depth_near) * 2.0**-24)):
+        settings, pose = _preset(preset, tmp_path)
+        cs = _build(settings, pose)
+        np.testing.assert_allclose(caster_offsets(cs, settings), [expected(c) for c in cs.cascades], rtol=1e-12,
+                                   err_msg=preset)

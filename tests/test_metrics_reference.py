@@ -8,7 +8,8 @@ from csmlab.cascades import build_cascades
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.kernels.visibility import CameraHits
 from csmlab.geometry import rotation_looking_at
-from csmlab.metrics.reference import boundary_pixels, mean_boundary_distance, reference_maps, reference_summary
+from csmlab.metrics.reference import (bias_errors, boundary_pixels, mean_boundary_distance, reference_maps,
+                                     reference_summary)
 from csmlab.render import prepare_scene, render_shadow, render_view
 from csmlab.scene import make_scene
 from csmlab.settings import ShadowSettings
@@ -144,3 +145,118 @@ def test_split_boundary_pixels_are_both_sides_of_a_cascade_change_and_the_seam_e
     assert seam_error(frame) == {"ref_seam_error": (0.25 + 0.5) / 2}
     frame.shadow.cascade = np.zeros((3, 6), int)
     assert np.isnan(seam_error(frame)["ref_seam_error"])
+
+
+# Acne and peter-panning: analytic scenes whose expected errors follow from their geometry alone.
+
+def _slab_view():
+    """A 2 × 2 m slab floating 3.0–3.2 m above a plane, the light straight down, seen from below it.
+
+    Returns the device scene, the view, and the slab footprint's ``|x|, |z| < 1`` m outline.
+    """
+    from csmlab.scene.shapes import height_field, placed, scene_from_parts, unit_box
+
+    grid = np.linspace(-10.0, 10.0, 2)
+    plane = height_field(grid, grid, np.zeros((2, 2)), albedo=(0.5, 0.5, 0.5))
+    slab = placed(unit_box(), scale=[1.0, 0.1, 1.0], offset=[[0.0, 3.1, 0.0]], albedo=(0.7, 0.35, 0.2))
+    dscene = prepare_scene(scene_from_parts([plane, slab], name="slab"))
+    eye = np.array([2.5, 1.5, 0.8])
+    pose = CameraPose(position=eye, orientation=rotation_looking_at(-eye), aspect=1.5, far=50.0)
+    return dscene, render_view(dscene, pose, LIGHT_DOWN, width=96, height=64)
+
+
+def _bias_only(bias_constant):
+    """One 256² cascade, the nearest texel, no slope bias, normal offset or receiver plane: the constant bias alone."""
+    return ShadowSettings(cascades=1, resolution=256, shadow_distance=10.0, filter="none", bias_slope=0.0,
+                          normal_offset=0.0, receiver_plane_bias=False, bias_constant=bias_constant)
+
+
+def _footprint_distances(view):
+    """Per pixel: on the ground, the distance in metres (x/z, the light's view) to the slab's outline; the
+    largest step between ground 4-neighbours within 0.5 m of it (how far a pixel centre lies from an edge)."""
+    p = view.gbuffer.position
+    ground = view.gbuffer.valid & (np.abs(p[..., 1]) < 1e-9)
+    inside = ground & (np.abs(p[..., 0]) < 1.0) & (np.abs(p[..., 2]) < 1.0)
+    outline = np.abs(np.abs(p[..., [0, 2]]) - 1.0)
+    to_outline = np.where(inside, outline.min(axis=-1),
+                          np.hypot(np.maximum(np.abs(p[..., 0]) - 1.0, 0.0), np.maximum(np.abs(p[..., 2]) - 1.0, 0.0)))
+    near = ground & (np.abs(p[..., 0]) < 1.5) & (np.abs(p[..., 2]) < 1.5)
+    step = 0.0
+    for a, b, both in ((p[1:], p[:-1], near[1:] & near[:-1]), (p[:, 1:], p[:, :-1], near[:, 1:] & near[:, :-1])):
+        step = max(step, float(np.linalg.norm((a - b)[both][:, [0, 2]], axis=-1).max()))
+    return ground, inside, to_outline, step
+
+
+def test_a_constant_bias_above_the_casters_height_is_peter_panning_and_no_acne():
+    dscene, view = _slab_view()
+    _, inside, to_outline, step = _footprint_distances(view)
+    frame = render_shadow(dscene, view, _bias_only(3.5))  # the slab's top stands 3.2 m above the ground
+    maps = reference_maps(frame)
+    errors = bias_errors(frame, maps)
+    compared = maps.compared.sum()
+    band = frame.maps.cascades.margin_texels * float(np.max(frame.maps.cascades.cascades[0].texel_size))
+    # Every visible ground point under the slab is lit: the whole shadow is false light.
+    assert np.count_nonzero(maps.diff == -1) == np.count_nonzero(inside & maps.compared)
+    # Peter-panning counts it but for the points within the band of the outline (less a pixel's step).
+    surely_counted = np.count_nonzero(inside & maps.compared & (to_outline > band + 2.0 * step))
+    assert surely_counted > 40
+    assert surely_counted / compared <= errors["peter_panning"] <= np.count_nonzero(inside & maps.compared) / compared
+    assert errors["acne"] == 0.0
+
+
+def test_a_negative_bias_is_acne_on_every_lit_surface_and_no_peter_panning():
+    dscene, view = _slab_view()
+    ground, inside, to_outline, step = _footprint_distances(view)
+    frame = render_shadow(dscene, view, _bias_only(-0.05))
+    maps = reference_maps(frame)
+    errors = bias_errors(frame, maps)
+    compared = maps.compared.sum()
+    band = frame.maps.cascades.margin_texels * float(np.max(frame.maps.cascades.cascades[0].texel_size))
+    lit_ground = ground & ~inside & maps.compared
+    # The flat ground faces the light: moved 5 cm away from it, all of it falls behind its own depth.
+    assert np.count_nonzero(maps.diff == 1) == np.count_nonzero(lit_ground)
+    surely_counted = np.count_nonzero(lit_ground & (to_outline > band + 2.0 * step))
+    assert surely_counted > 0.5 * np.count_nonzero(lit_ground)
+    assert surely_counted / compared <= errors["acne"] <= np.count_nonzero(lit_ground) / compared
+    assert errors["peter_panning"] == 0.0
+
+
+def _sloped_plane_view():
+    """A plane alone (nothing casts: no reference boundary), the light 45.6° off its normal."""
+    from csmlab.scene.shapes import height_field, scene_from_parts
+
+    grid = np.linspace(-10.0, 10.0, 2)
+    dscene = prepare_scene(scene_from_parts([height_field(grid, grid, np.zeros((2, 2)), albedo=(0.5, 0.5, 0.5))],
+                                            name="plane"))
+    eye = np.array([0.0, 3.0, 4.0])
+    pose = CameraPose(position=eye, orientation=rotation_looking_at(-eye), aspect=1.5, far=50.0)
+    light = np.array([0.5, -0.7, 0.3]) / np.linalg.norm([0.5, -0.7, 0.3])
+    return dscene, render_view(dscene, pose, light, width=96, height=64)
+
+
+def test_zero_bias_on_a_plane_sloped_to_the_light_is_acne_where_the_texel_centre_lies_nearer_the_light():
+    dscene, view = _sloped_plane_view()
+    frame = render_shadow(dscene, view, _bias_only(0.0))
+    maps = reference_maps(frame)
+    errors = bias_errors(frame, maps)
+    # The plane y = 0 seen along the light: the depth stored at the centre of the texel a point falls
+    # in, against the point's own depth (no bias; nothing else casts, so no boundary and no band).
+    cascades = frame.maps.cascades
+    cascade = cascades.cascades[0]
+    right, up, d = cascades.basis
+    points = cascades.to_light(view.gbuffer.position[maps.compared])
+    centre = (cascade.origin + np.floor(points[:, :2] / cascade.texel_size - cascade.origin) + 0.5) * cascade.texel_size
+    centre_depth = -(centre[:, 0] * right[1] + centre[:, 1] * up[1]) / d[1]
+    expected = np.count_nonzero(points[:, 2] > centre_depth) / points.shape[0]
+    assert 0.3 < expected < 0.7
+    assert errors["acne"] == pytest.approx(expected, abs=0.01)
+    assert errors["peter_panning"] == 0.0
+
+
+def test_false_shadow_where_the_far_fade_reaches_is_not_counted_as_acne():
+    dscene, view = _sloped_plane_view()
+    # The fade's weight rises over the whole shadow distance: above 0 at every pixel in front of the camera.
+    frame = render_shadow(dscene, view, _bias_only(0.0).replace(fade_out=1.0))
+    maps = reference_maps(frame)
+    assert np.count_nonzero(maps.diff == 1) > 0.2 * maps.compared.sum()  # the near half of the weights leaves S ≤ 0.5
+    assert bias_errors(frame, maps) == {"acne": 0.0, "peter_panning": 0.0}

@@ -728,3 +728,38 @@ def test_the_culled_z_ordered_cascade_pass_equals_the_host_path_on_the_scene_as_
                                       bits=settings.subtexel_bits)
     np.testing.assert_array_equal(maps.raster.depth, expected)
     assert maps.texels_rasterized == count > 0
+
+
+@pytest.mark.parametrize("constant, slope", [(0.0, 0.0), (0.05, 0.0), (0.0, 2.0), (0.013, 2.5)])
+def test_a_caster_offset_pushes_a_sloped_plane_by_its_constant_and_slope_times_its_depth_change_per_texel(
+        constant, slope, device):
+    """A plane z = 7 + 0.3 x − 0.8 y (light space, metres) over a whole 32² map, its corners on the texel grid:
+    each texel stores the plane's depth at its centre plus the polygon offset constant + slope · max(|∂z/∂x|,
+    |∂z/∂y|) · texel, on both raster paths."""
+    from csmlab.kernels.raster import rasterize_cascades
+    from csmlab.texels import fixed_point_origin, light_plane_coordinates
+
+    texel, resolution = 0.25, 32
+    cs = cascade_set(direction=OBLIQUE, origins=[(-16.0, -16.0)], texel=texel, resolution=resolution)
+    corners = np.array([[-20.0, -20.0], [20.0, -20.0], [20.0, 20.0], [-20.0, 20.0]]) * texel
+
+    def plane(x, y):
+        return 7.0 + 0.3 * x - 0.8 * y
+
+    light = np.column_stack([corners, plane(corners[:, 0], corners[:, 1])])
+    vertices = light @ cs.basis
+    triangles = np.array([[0, 1, 2], [0, 2, 3]])
+    centres = (np.arange(resolution) - 16.0 + 0.5) * texel
+    x, y = np.meshgrid(centres, centres)  # depth[c, j, i]: row j is light y, column i light x
+    expected = plane(x, y) + constant + slope * 0.8 * texel
+    points = fixed_point_coordinates(cs, 0, vertices, bits=BITS)[None]
+    depth, count = rasterize_depth(points, light_depth(cs, vertices), triangles, resolution=resolution, bits=BITS,
+                                   caster_constant=[constant], caster_slope=slope, device=device)
+    np.testing.assert_allclose(depth[0], expected, rtol=0, atol=4e-6)
+    assert count == resolution**2
+    mesh = light_space_mesh(light_plane_coordinates(cs, vertices), light_depth(cs, vertices), triangles)
+    culled, counts = rasterize_cascades(mesh, texel_size=np.array([[texel, texel]]),
+                                        origin=fixed_point_origin(cs, 0, bits=BITS)[None], resolution=resolution,
+                                        bits=BITS, caster_constant=[constant], caster_slope=slope, device=device)
+    np.testing.assert_array_equal(culled, depth)
+    assert counts.sum() == count

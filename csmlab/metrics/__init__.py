@@ -21,7 +21,7 @@ from csmlab.metric_registry import metric_columns, temporal_columns
 from csmlab.metrics.aliasing import aliasing_maps, aliasing_summary, utilization
 from csmlab.metrics.cost import cost_summary
 from csmlab.metrics.perceptual import perceptual_maps, perceptual_summary
-from csmlab.metrics.reference import reference_maps, reference_summary, seam_error
+from csmlab.metrics.reference import bias_errors, reference_maps, reference_summary, seam_error
 from csmlab.metrics.shading import shaded_rgb, view_shading_terms
 from csmlab.metrics.temporal import temporal_maps, temporal_summary
 
@@ -90,7 +90,7 @@ def measure_frame(frame: Frame, previous: Frame | None = None, *, ambient: float
     errors = reference_maps(frame)
     values = {**aliasing_summary(alias, cascades=cascades), "utilization": _mean_utilization(share),
               **{f"utilization_c{c}": float(u) for c, u in enumerate(share)},
-              **reference_summary(errors), **seam_error(frame), **cost_summary(frame)}
+              **reference_summary(errors), **bias_errors(frame, errors), **seam_error(frame), **cost_summary(frame)}
     g = frame.view.gbuffer
     if previous is None:
         values.update(dict.fromkeys(temporal_columns(), float("nan")))

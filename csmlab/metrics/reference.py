@@ -7,6 +7,20 @@ shadowed when ``S <= 0.5`` (the method) or ``R <= 0.5`` (the reference).
 - false shadow: the method says shadow where the reference is lit (acne, over-shadowing);
 - false light: the method says lit where the reference is shadowed (leaks, peter-panning);
   both as fractions of the compared pixels.
+- acne and peter-panning (``acne``, ``peter_panning``): the false shadow and the false light that
+  the map's resolution cannot explain, as fractions of the compared pixels. Near a shadow boundary
+  the texel grid and the filter decide the state, whatever the bias: a pixel is in the
+  *resolution band* when, in the light's view (its position projected on the plane normal to the
+  light), it lies within ``margin_texels`` (the filter's radius + 1, :attr:`ShadowSettings.margin_texels`)
+  texels of its selected cascade — the larger of the two texel sides — of a reference boundary
+  point: the light-space projection of a compared pixel whose 4-neighbour has the other reference
+  state (both sides of the boundary). Acne is false shadow outside the band (self-shadowing of a
+  surface the reference lights), peter-panning false light outside it (a shadow pulled off its
+  caster by the bias, or any other leak). Pixels the far fade reaches (weight above 0,
+  :mod:`csmlab.fades`, from the pixel's view depth or distance to the camera) are counted in
+  neither: there the fade, not the bias, lights the shadow. Only the boundaries the camera sees are
+  known, so a pixel near a hidden one may be counted; with no reference boundary in view no pixel
+  is in the band.
 - boundary distance: the shadow boundary of an image is the set of its shadowed compared pixels
   with a lit compared 4-neighbour. ``ref_boundary_px`` is the average symmetric boundary distance
   (ASSD, as in image segmentation): the Euclidean distance in pixels from every boundary pixel of
@@ -26,10 +40,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from csmlab.fades import FADE_METHODS
 from csmlab.frame import Frame
+from csmlab.registry import check_name
 
-__all__ = ["ReferenceMaps", "boundary_pixels", "mean_boundary_distance", "reference_maps", "reference_summary",
-           "seam_error", "split_boundary_pixels"]
+__all__ = ["ReferenceMaps", "bias_errors", "boundary_pixels", "mean_boundary_distance", "reference_boundary",
+           "reference_maps", "reference_summary", "seam_error", "split_boundary_pixels"]
 
 
 @dataclass(frozen=True)
@@ -49,6 +65,64 @@ class ReferenceMaps:
     compared: np.ndarray
     shadowed: np.ndarray
     reference_shadowed: np.ndarray
+
+
+def reference_boundary(reference_shadowed, compared) -> np.ndarray:
+    """``(H, W)`` bool: compared pixels with a compared 4-neighbour of the other reference state (both sides)."""
+    compared = np.asarray(compared, dtype=bool)
+    shadowed = np.asarray(reference_shadowed, dtype=bool) & compared
+    return boundary_pixels(shadowed, compared) | boundary_pixels(compared & ~shadowed, compared)
+
+
+def _fading(frame: Frame) -> np.ndarray:
+    """``(H, W)`` bool: the far fade's weight is above 0 at the pixel (all False without a fade)."""
+    settings = frame.settings
+    g = frame.view.gbuffer
+    if settings.fade_out <= 0.0:
+        return np.zeros(g.shape, dtype=bool)
+    record = FADE_METHODS[check_name(settings.fade, FADE_METHODS, field="fade")]
+    distance = np.linalg.norm(g.position - frame.view.pose.position, axis=-1) if record.radial else None
+    with np.errstate(invalid="ignore"):
+        weight = record.weight(g.view_depth, distance, far=float(frame.maps.cascades.splits[-1]),
+                               fade_out=settings.fade_out)
+        return np.asarray(weight > 0.0)
+
+
+def bias_errors(frame: Frame, maps: ReferenceMaps) -> dict[str, float]:
+    """``acne`` and ``peter_panning``: false shadow and false light outside the resolution band.
+
+    Parameters
+    ----------
+    frame : Frame
+        Its G-buffer positions (world metres) and view depths, selected cascades and their texel
+        sizes, and its far fade.
+    maps : ReferenceMaps
+        :func:`reference_maps` of ``frame``.
+
+    Returns
+    -------
+    dict of str to float
+        Fractions of the compared pixels (module docstring); NaN when no pixel is compared.
+    """
+    count = int(maps.compared.sum())
+    if count == 0:
+        return dict.fromkeys(("acne", "peter_panning"), float("nan"))
+    wrong = (maps.diff != 0) & ~_fading(frame)
+    outside = wrong.copy()
+    boundary = reference_boundary(maps.reference_shadowed, maps.compared)
+    if wrong.any() and boundary.any():
+        cascades = frame.maps.cascades
+        # Light-space x/y of the positions: the plane the map is indexed in, where resolution errors live.
+        light_xy = cascades.to_light(frame.view.gbuffer.position)[..., :2]
+        texel = np.array([float(np.max(c.texel_size)) for c in cascades.cascades])
+        selected = frame.shadow.cascade[wrong].astype(np.int64)
+        band = cascades.margin_texels * texel[selected]
+        distance = cKDTree(light_xy[boundary]).query(light_xy[wrong])[0]
+        outside[wrong] = distance > band
+    return {
+        "acne": float(np.count_nonzero(outside & (maps.diff == 1))) / count,
+        "peter_panning": float(np.count_nonzero(outside & (maps.diff == -1))) / count,
+    }
 
 
 def reference_maps(frame: Frame) -> ReferenceMaps:

@@ -27,9 +27,9 @@ import warp as wp
 
 from csmlab.kernels.alpha import AlphaTextures, alpha_passes
 
-__all__ = ["ONE_CENTRE", "SOLVED_COLUMNS", "STEPPED_EXTENT", "Boxes", "ChunkRows", "FixedPoint", "LightMesh",
-           "TrianglePaths", "VertexPass", "fixed_point_vertices_kernel", "rasterize_chunks_kernel",
-           "rasterize_depth_kernel", "triangle_paths", "vec2l"]
+__all__ = ["ONE_CENTRE", "SOLVED_COLUMNS", "STEPPED_EXTENT", "Boxes", "CasterOffset", "ChunkRows", "FixedPoint",
+           "LightMesh", "TrianglePaths", "VertexPass", "caster_offset", "fixed_point_vertices_kernel",
+           "rasterize_chunks_kernel", "rasterize_depth_kernel", "triangle_paths", "vec2l"]
 
 # Products and sums rounded one by one, as Warp's CPU build (generic x86-64, no FMA) rounds them: a
 # CUDA build may not contract them into fused multiply-adds, or its bits differ from the CPU's.
@@ -118,6 +118,22 @@ class Boxes:
     """Metres per texel of each cascade, x and y."""
     origin_fixed: wp.array(dtype=vec2l)
     """Each box's minimum corner in global ``2**-bits`` texels (:func:`csmlab.texels.fixed_point_origin`)."""
+
+
+@wp.struct
+class CasterOffset:
+    """The depth offset a triangle is rasterized with, away from the light: a polygon offset per cascade.
+
+    A triangle of cascade c is stored ``constant[c] + slope · m`` metres farther from the light, m its
+    largest light-space depth change over one texel along x or y (metres per texel, from its
+    fixed-point vertices): Direct3D's ``DepthBias · r + SlopeScaledDepthBias · MaxDepthSlope``, in
+    metres (:func:`csmlab.kernels.raster.schedule.caster_offsets`).
+    """
+
+    constant: wp.array(dtype=wp.float64)
+    """Metres of each cascade's constant offset."""
+    slope: wp.float64
+    """Times the triangle's largest depth change per texel; 0: no slope offset."""
 
 
 @wp.struct
@@ -569,6 +585,29 @@ def rasterize_masked_triangle(
     return count
 
 
+@wp.func
+def caster_offset(offset: CasterOffset, c: int, ax: wp.int64, ay: wp.int64, bx: wp.int64, by: wp.int64, cx: wp.int64,
+                  cy: wp.int64, za: wp.float64, zb: wp.float64, zc: wp.float64, unit: wp.int64) -> wp.float64:
+    """Metres triangle (a, b, c) of cascade c is pushed away from the light (:class:`CasterOffset`).
+
+    Vertices in doubled ``2**-bits`` texels (``unit = 2**bits``); a triangle of zero area takes the
+    constant alone (it covers no texel centre anyway).
+    """
+    push = offset.constant[c]
+    if offset.slope != wp.float64(0.0):
+        e1x = wp.float64(bx - ax)
+        e1y = wp.float64(by - ay)
+        e2x = wp.float64(cx - ax)
+        e2y = wp.float64(cy - ay)
+        det = e1x * e2y - e1y * e2x
+        if det != wp.float64(0.0):
+            # The plane's depth gradient per doubled unit, times the 2·unit doubled units of a texel.
+            gx = ((zb - za) * e2y - (zc - za) * e1y) / det
+            gy = (e1x * (zc - za) - e2x * (zb - za)) / det
+            push = push + offset.slope * wp.max(wp.abs(gx), wp.abs(gy)) * wp.float64(wp.int64(2) * unit)
+    return push
+
+
 @wp.kernel
 def rasterize_depth_kernel(
     points: wp.array3d(dtype=wp.int64),
@@ -579,34 +618,42 @@ def rasterize_depth_kernel(
     textures: AlphaTextures,
     fixed: FixedPoint,
     paths: TrianglePaths,
+    offset: CasterOffset,
     depth: wp.array3d(dtype=wp.float32),
     covered: wp.array2d(dtype=wp.int32),
 ):
     """``covered[c, t]``: texel centres of cascade c's whole map that triangle t covers; its depth kept where nearer.
 
     A thread per cascade and triangle; ``points[c, v]`` is vertex v in cascade c's local fixed point
-    (not doubled). A triangle whose vertices hold a mask (``vertex_mask``, zero-length: none) is
-    alpha-tested (:func:`rasterize_masked_triangle`).
+    (not doubled). Each triangle's depths are pushed away from the light by its ``offset``. A
+    triangle whose vertices hold a mask (``vertex_mask``, zero-length: none) is alpha-tested
+    (:func:`rasterize_masked_triangle`).
     """
     c, t = wp.tid()
     ia = triangles[t, 0]
     ib = triangles[t, 1]
     ic = triangles[t, 2]
     two = wp.int64(2)
+    ax = two * points[c, ia, 0]
+    ay = two * points[c, ia, 1]
+    bx = two * points[c, ib, 0]
+    by = two * points[c, ib, 1]
+    cx = two * points[c, ic, 0]
+    cy = two * points[c, ic, 1]
+    za = vertex_depth[ia]
+    zb = vertex_depth[ib]
+    zc = vertex_depth[ic]
+    push = caster_offset(offset, c, ax, ay, bx, by, cx, cy, za, zb, zc, fixed.unit)
     m = int(-1)
     if vertex_mask.shape[0] > 0:
         m = vertex_mask[ia]
     window = wp.vec4i(0, depth.shape[2], 0, depth.shape[1])
     if m >= 0:
-        covered[c, t] = rasterize_masked_triangle(
-            two * points[c, ia, 0], two * points[c, ia, 1], two * points[c, ib, 0], two * points[c, ib, 1],
-            two * points[c, ic, 0], two * points[c, ic, 1], vertex_depth[ia], vertex_depth[ib], vertex_depth[ic],
-            uv[ia], uv[ib], uv[ic], m, textures, fixed, depth, c, window)
+        covered[c, t] = rasterize_masked_triangle(ax, ay, bx, by, cx, cy, za + push, zb + push, zc + push, uv[ia],
+                                                  uv[ib], uv[ic], m, textures, fixed, depth, c, window)
     else:
-        covered[c, t] = rasterize_triangle(
-            two * points[c, ia, 0], two * points[c, ia, 1], two * points[c, ib, 0], two * points[c, ib, 1],
-            two * points[c, ic, 0], two * points[c, ic, 1], vertex_depth[ia], vertex_depth[ib], vertex_depth[ic],
-            fixed, paths, depth, c, window)
+        covered[c, t] = rasterize_triangle(ax, ay, bx, by, cx, cy, za + push, zb + push, zc + push, fixed, paths,
+                                           depth, c, window)
 
 
 @wp.func
@@ -694,6 +741,7 @@ def rasterize_chunks_kernel(
     work: ChunkRows,
     fixed: FixedPoint,
     paths: TrianglePaths,
+    offset: CasterOffset,
     depth: wp.array3d(dtype=wp.float32),
     covered: wp.array(dtype=wp.int64),
 ):
@@ -704,7 +752,8 @@ def rasterize_chunks_kernel(
     (``run_bits <= chunk_bits``): on the CPU a run is the whole chunk, so that what a thread reads
     once (its row, region, cascade and box) serves every triangle of the chunk; a GPU wants a
     thread per triangle. A triangle that meets no texel centre of its region returns before any
-    per-texel work, so the chunks need only be a superset of the triangles that cover a texel.
+    per-texel work, so the chunks need only be a superset of the triangles that cover a texel. Each
+    triangle's depths are pushed away from the light by its ``offset``.
     """
     chunk_bits = work.chunk_bits
     run_bits = work.run_bits
@@ -746,17 +795,21 @@ def rasterize_chunks_kernel(
             a = doubled_vertex(points, s, light_xy, ia, step, corner, limit)
             b = doubled_vertex(points, s, light_xy, ib, step, corner, limit)
             p = doubled_vertex(points, s, light_xy, ic, step, corner, limit)
+            za = vertex_depth[ia]
+            zb = vertex_depth[ib]
+            zc = vertex_depth[ic]
+            push = caster_offset(offset, c, a[0], a[1], b[0], b[1], p[0], p[1], za, zb, zc, fixed.unit)
             m = int(-1)
             if masked:
                 m = vertex_mask[ia]
             if m >= 0:
                 uv = mesh.uv
-                n += wp.int64(rasterize_masked_triangle(a[0], a[1], b[0], b[1], p[0], p[1], vertex_depth[ia],
-                                                        vertex_depth[ib], vertex_depth[ic], uv[ia], uv[ib], uv[ic], m,
-                                                        mesh.textures, fixed, depth, c, window))
+                n += wp.int64(rasterize_masked_triangle(a[0], a[1], b[0], b[1], p[0], p[1], za + push, zb + push,
+                                                        zc + push, uv[ia], uv[ib], uv[ic], m, mesh.textures, fixed,
+                                                        depth, c, window))
             else:
-                n += wp.int64(rasterize_triangle(a[0], a[1], b[0], b[1], p[0], p[1], vertex_depth[ia],
-                                                 vertex_depth[ib], vertex_depth[ic], fixed, paths, depth, c, window))
+                n += wp.int64(rasterize_triangle(a[0], a[1], b[0], b[1], p[0], p[1], za + push, zb + push, zc + push,
+                                                 fixed, paths, depth, c, window))
         t += 1
     if n > wp.int64(0):
         wp.atomic_add(covered, g, n)

@@ -8,13 +8,15 @@ taken in turn, costliest first.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device, device_empty
 from csmlab.kernels.alpha import MaskedMesh, masked_mesh, no_masks
-from csmlab.kernels.raster.kernels import (Boxes, ChunkRows, FixedPoint, LightMesh, TrianglePaths, VertexPass,
-                                           fixed_point_vertices_kernel, rasterize_chunks_kernel,
+from csmlab.kernels.raster.kernels import (Boxes, CasterOffset, ChunkRows, FixedPoint, LightMesh, TrianglePaths,
+                                           VertexPass, fixed_point_vertices_kernel, rasterize_chunks_kernel,
                                            rasterize_depth_kernel, triangle_paths, vec2l)
 from csmlab.kernels.raster.mesh import CHUNK_BITS, LightSpaceMesh
 from csmlab.kernels.raster.regions import empty_regions, whole_map_regions
@@ -54,7 +56,8 @@ def _fixed_point(bits: int) -> FixedPoint:
 
 
 def rasterize_depth(points, vertex_depth, triangles, *, resolution: int, bits: int, paths: TrianglePaths | None = None,
-                    masks: MaskedMesh | None = None, device: str = "cpu") -> tuple[np.ndarray, int]:
+                    masks: MaskedMesh | None = None, caster_constant=None, caster_slope: float = 0.0,
+                    device: str = "cpu") -> tuple[np.ndarray, int]:
     """Depth maps of every cascade: per texel centre the nearest caster's light-space depth.
 
     Parameters
@@ -76,6 +79,12 @@ def rasterize_depth(points, vertex_depth, triangles, *, resolution: int, bits: i
     masks : MaskedMesh, optional
         The vertices' texture coordinates and alpha masks on ``device``
         (:func:`csmlab.kernels.alpha.masked_mesh`); None: every triangle opaque.
+    caster_constant : array_like, shape (C,), float64, optional
+        Metres every triangle of cascade c is pushed away from the light before it is stored
+        (a polygon offset's constant part); None: 0.
+    caster_slope : float
+        Times each triangle's largest light-space depth change over one texel along x or y, added
+        to that push (a polygon offset's slope-scaled part, :class:`~csmlab.kernels.raster.kernels.CasterOffset`).
     device : str
         ``"cpu"`` or ``"cuda"``.
 
@@ -136,6 +145,7 @@ def rasterize_depth(points, vertex_depth, triangles, *, resolution: int, bits: i
             masks.textures,
             _fixed_point(bits),
             paths,
+            _caster_offset(caster_constant, caster_slope, cascades, device),
         ),
         outputs=(depth, covered),
         device=device,
@@ -186,6 +196,19 @@ def fixed_point_vertices(light_xy, *, texel_size, origin, bits: int, cascades=No
                             _boxes(device, size, origin_fixed), chosen, _fixed_point(bits), device=device).numpy()
 
 
+def _caster_offset(constant, slope: float, cascades: int, device: str) -> CasterOffset:
+    """The :class:`CasterOffset` of ``constant`` (``(C,)`` metres; None: 0) and ``slope``, checked, on ``device``."""
+    offset = CasterOffset()
+    push = np.zeros(cascades) if constant is None else np.ascontiguousarray(constant, dtype=np.float64)
+    if push.shape != (cascades,) or not np.all(np.isfinite(push)):
+        raise ValueError(f"caster_constant: expected {cascades} finite offsets in metres, got {constant!r}")
+    if not (isinstance(slope, (int, float)) and math.isfinite(slope)):
+        raise ValueError(f"caster_slope: expected a finite factor, got {slope!r}")
+    offset.constant = wp.array(push, dtype=wp.float64, device=device)
+    offset.slope = float(slope)
+    return offset
+
+
 def _boxes(device: str, size: np.ndarray, origin_fixed: np.ndarray) -> Boxes:
     """The :class:`Boxes` of texel sizes (metres) and origins (``2**-bits`` texels), ``(C, 2)`` each, on ``device``."""
     boxes = Boxes()
@@ -222,7 +245,8 @@ _FIXED_LIMIT = float(2**50)
 
 def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: int, bits: int,
                        regions=None, chunks=None, depth=None, count_only: bool = False, threads: int = 1,
-                       paths: TrianglePaths | None = None, device: str = "cpu") -> tuple[np.ndarray | None, np.ndarray]:
+                       paths: TrianglePaths | None = None, caster_constant=None, caster_slope: float = 0.0,
+                       device: str = "cpu") -> tuple[np.ndarray | None, np.ndarray]:
     """Depth maps of every cascade from light-space vertices: fixed point and rasterization on the device.
 
     The same maps as :func:`rasterize_depth` of
@@ -269,6 +293,9 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
     paths : TrianglePaths, optional
         Which path each triangle takes (:func:`~csmlab.kernels.raster.kernels.triangle_paths`); None:
         the module's thresholds. Every choice gives the same maps: tests force each path with it.
+    caster_constant : array_like, shape (C,), float64, optional
+    caster_slope : float
+        The polygon offset each triangle is stored with, as :func:`rasterize_depth`'s.
     device : str
 
     Returns
@@ -349,6 +376,7 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
     light.textures = masks.textures
     boxes = _boxes(device, size, origin_fixed)
     fixed = _fixed_point(bits)
+    offset = _caster_offset(caster_constant, caster_slope, shape[0], device)
     region_rows = wp.array(areas, dtype=wp.int32, device=device)
     maps_on = wp.array(maps, dtype=wp.float32, device=device, copy=False)
     covered = wp.zeros(areas.shape[0], dtype=wp.int64, device=device)
@@ -370,7 +398,7 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
                 work.chunk_bits = CHUNK_BITS
                 work.run_bits = run_bits
                 wp.launch(rasterize_chunks_kernel, dim=int(held[g]) >> run_bits,
-                          inputs=(light, boxes, converted_here, work, fixed, paths), outputs=(maps_on, covered),
+                          inputs=(light, boxes, converted_here, work, fixed, paths, offset), outputs=(maps_on, covered),
                           device=device)
 
         # Disjoint regions, so no texel is written by two launches: the threads take them in turn,
