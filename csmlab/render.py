@@ -32,8 +32,8 @@ from csmlab.scene.core import Scene
 from csmlab.scrolling import RasterizedMaps, scroll_plan
 from csmlab.settings import ShadowSettings
 from csmlab.storage import stored_depth
-from csmlab.texels import (PRECISION_METHODS, fixed_point_coordinates, fixed_point_origin, light_depth,
-                           light_plane_coordinates)
+from csmlab.texels import (fixed_point_coordinates, fixed_point_origin, light_depth, light_plane_coordinates,
+                           uses_global_grid, vertex_depth)
 
 __all__ = ["DeviceScene", "clipped_casters", "lookup_shadow", "prepare_scene", "render_frame", "render_shadow",
            "render_view", "shadow_maps", "visible_depth"]
@@ -169,7 +169,8 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
     """
     raster = None
     cut = DEPTH_RANGE_METHODS[settings.depth_range].cuts_casters
-    if PRECISION_METHODS[settings.engine_precision].global_grid and not (cut and not settings.depth_clamp):
+    if uses_global_grid(precision=settings.engine_precision, snap=settings.vertex_snap) and not (
+            cut and not settings.depth_clamp):
         depth, texels, raster = _culled_depth_maps(dscene, cascades, settings,
                                                    previous=None if scroll_from is None else scroll_from.raster)
     else:
@@ -238,8 +239,9 @@ def _host_snapped_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
                              settings: ShadowSettings) -> tuple[np.ndarray, int]:
     """``(C, R, R)`` depth maps and texels rasterized, vertices snapped on the host cascade by cascade.
 
-    The path for what the culled kernels do not model: an engine's float32 cascade math
-    (``engine_precision``, :mod:`csmlab.texels`) and casters clipped at a slice's near side
+    The path for what the culled kernels do not model: an engine's float32 pipeline, its depth
+    per cascade from the float32 window depth (``engine_precision``, :mod:`csmlab.texels`), snapping
+    of the window position (``vertex_snap``) and casters clipped at a slice's near side
     without pancaking (``depth_range = "slice"``, ``depth_clamp = false``). Faces are culled as
     on the other path (``settings.cull``, once per call, by ``d`` alone).
     """
@@ -256,9 +258,10 @@ def _host_snapped_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
             triangles = clipped_casters(depth_of_vertex, triangles, near=cascade.depth_near - cascades.zref)
         if triangles.shape[0] == 0:
             continue
-        points = fixed_point_coordinates(cascades, c, vertices, bits=bits, precision=settings.engine_precision)
-        one, count = rasterize_depth(points[None], depth_of_vertex, triangles, resolution=sizes[c], bits=bits,
-                                     device=dscene.device)
+        how = {"precision": settings.engine_precision, "rebase_distance": settings.rebase_distance}
+        points = fixed_point_coordinates(cascades, c, vertices, bits=bits, snap=settings.vertex_snap, **how)
+        one, count = rasterize_depth(points[None], vertex_depth(cascades, c, vertices, **how), triangles,
+                                     resolution=sizes[c], bits=bits, device=dscene.device)
         maps[c, :sizes[c], :sizes[c]] = one[0]
         texels += count
     return maps, texels

@@ -155,7 +155,11 @@ class ShadowSettings:
     extent_hysteresis: float = 0.0
     """stabilization = none: the tight box's extent grows at once and shrinks only when the tight extent is this fraction below it (csmlab.cascades.stabilize.held_extents)."""
     engine_precision: str = "float64"
-    """Cascade math (light matrices, snapping) as csmlab does it, float64 | float32 (an engine's, shimmering far from the origin)."""
+    """Cascade math (light matrices, positions, snapping, depth) as csmlab does it, float64 | float32 (an engine's float32 pipeline on absolute world positions: Godot 4, Unity) | camera_relative (the same relative to an origin rebased near the camera: Unreal 5, HDRP) (csmlab.texels.PRECISION_METHODS)."""
+    rebase_distance: float = 0.0
+    """engine_precision = camera_relative: metres between the origins the float32 positions are taken from; 0 rebases at the camera every frame (Unreal 5, HDRP), d > 0 to the camera rounded to multiples of d."""
+    vertex_snap: str = "world"
+    """engine_precision = float64: where vertices and receivers are snapped to 2**-subtexel_bits texels, world (global fixed point less the box origin: world-locked) | window (the window position, the rasterizer's rule: follows a fractional box origin) (csmlab.texels.VERTEX_SNAPS)."""
 
     def validated(self) -> "ShadowSettings":
         """Return ``self`` after checking every field's range; raise ``ValueError`` naming the field."""
@@ -242,6 +246,8 @@ class ShadowSettings:
         need(0.0 <= self.fade_out <= 1.0, "fade_out", "a fraction in [0, 1]", self.fade_out)
         need(0.0 <= self.hysteresis < 1.0, "hysteresis", "a fraction in [0, 1)", self.hysteresis)
         need(0.0 <= self.extent_hysteresis < 1.0, "extent_hysteresis", "a fraction in [0, 1)", self.extent_hysteresis)
+        need(math.isfinite(self.rebase_distance) and self.rebase_distance >= 0.0, "rebase_distance",
+             "a non-negative distance in metres (0: rebased at the camera every frame)", self.rebase_distance)
         return self
 
     @property
@@ -324,6 +330,10 @@ APPLIES: dict[str, Applies] = {
                     'stabilization = "exact" (what its fixed box snaps to whole texels)'),
     "extent_hysteresis": Applies(lambda *, stabilization: stabilization == "none",
                                  'stabilization = "none" (a stabilized box already has a fixed extent)'),
+    "rebase_distance": Applies(lambda *, engine_precision: engine_precision == "camera_relative",
+                               'engine_precision = "camera_relative" (how often its origin is rebased)'),
+    "vertex_snap": Applies(lambda *, engine_precision: engine_precision == "float64",
+                           'engine_precision = "float64" (a float32 pipeline snaps its window position)'),
     "pancake": Applies(lambda *, depth_range: depth_range in ("slice", "sphere"),
                        'depth_range = "slice" or "sphere" (the pull of its near side toward the light)'),
     "depth_clamp": Applies(lambda *, depth_range: depth_range in ("slice", "sphere"),
