@@ -2,9 +2,10 @@
 
 Everything here is host NumPy and feeds the Warp kernels (docs/design.md, "Exact zero by
 construction"); csmlab's own conversion is float64, and :data:`PRECISION_METHODS` also emulates an
-engine's float32 pipeline (its matrices, positions, window coordinates and depths). A world point X has light-space coordinates ``(right·X, up·X)`` in metres; divided
-by a cascade's texel size they become *global* texel units, which depend on the light direction
-and the texel size only — never on where the box lies. Snapped to ``2**bits`` steps per texel they
+engine's float32 pipeline (its matrices, positions, window coordinates and depths). A world point X
+has light-space coordinates ``(right·X, up·X)`` in metres; divided by a cascade's texel size they
+become *global* texel units, which depend on the light direction and the texel size only — never on
+where the box lies. Snapped to ``2**bits`` steps per texel they
 become int64 fixed point; subtracting the box origin (an integer number of texels for the exact
 and quantized stabilizations) gives the local coordinates a kernel sees. Moving a box by k whole
 texels then shifts every local coordinate by exactly ``k · 2**bits`` and changes no rounding.
@@ -55,13 +56,14 @@ class Precision:
 PRECISION_METHODS: dict[str, Precision] = {
     "float64": Precision("global texel coordinates in float64, less an integer origin: world-locked at any distance",
                          global_grid=True),
-    "float32": Precision("an engine's float32 pipeline on absolute world positions: light view and projection built "
-                         "in float32 on the host, float32 vertices and G-buffer positions, float32 window position "
-                         "and depth normalized per cascade (Godot 4, Unity URP and built-in, three.js's GPU side)",
-                         global_grid=False),
-    "camera_relative": Precision("the float32 pipeline relative to an origin rebased near the camera (rebase_distance): "
-                                 "world positions less the origin in float64, then float32 (Unreal 5's translated world, "
-                                 "Unity HDRP's camera-relative rendering)", global_grid=False, camera_relative=True),
+    "float32": Precision("an engine's float32 pipeline on absolute world positions: light view and projection "
+                         "built in float32 on the host, float32 vertices and G-buffer positions, float32 window "
+                         "position and depth normalized per cascade (Godot 4, Unity URP and built-in, Bevy, "
+                         "Stride, MJP, three.js's GPU side)", global_grid=False),
+    "camera_relative": Precision("the float32 pipeline relative to an origin rebased near the camera "
+                                 "(rebase_distance): world positions less the origin in float64, then float32 "
+                                 "(Unreal 5's translated world, Unity HDRP's camera-relative rendering, "
+                                 "Filament's camera_at_origin)", global_grid=False, camera_relative=True),
 }
 """How world points reach a cascade's texel grid (``[shadow] engine_precision``), by name.
 
@@ -88,6 +90,7 @@ The float32 pipelines (``engine_precision`` other than ``float64``) always snap 
 position, as the hardware does; for boxes on whole texels (exact, quantized) in float64 both rules
 give the same bits, since the window position is then the global one less an integer.
 """
+
 
 def uses_global_grid(*, precision: str, snap: str) -> bool:
     """The kernels may finish the conversion themselves (float64 and world-locked snapping); else the host converts."""
@@ -192,7 +195,10 @@ def engine_origin(eye, *, precision: str, rebase_distance: float = 0.0) -> np.nd
 
 
 def engine_positions(points, origin) -> np.ndarray:
-    """World points ``(..., 3)`` as an engine's float32 buffers hold them: ``points − origin`` in float64, rounded once to float32."""
+    """World points ``(..., 3)`` as an engine's float32 buffers hold them.
+
+    ``points − origin`` in float64, rounded once to float32 (world metres relative to ``origin``).
+    """
     return (np.asarray(points, dtype=np.float64) - np.asarray(origin, dtype=np.float64)).astype(np.float32)
 
 
@@ -237,7 +243,7 @@ def window_positions(matrix: np.ndarray, positions: np.ndarray, *, resolution: i
 
 
 def window_depth_metres(cascades: CascadeSet, index: int, depth) -> np.ndarray:
-    """Stored light-space depth ``(...)`` float64 metres (``d·X − zref``) of window depths in [0, 1] of cascade ``index``.
+    """Stored depth ``(...)`` float64 metres (``d·X − zref``) of cascade ``index``'s window depths in [0, 1].
 
     The float32 pipeline's depths taken back to csmlab's unit for storage and comparison: one
     monotone map per cascade, the same for casters and receivers.
@@ -278,7 +284,7 @@ def fixed_point_coordinates(cascades: CascadeSet, index: int, points, *, bits: i
 
 def vertex_depth(cascades: CascadeSet, index: int, points, *, precision: str = "float64",
                  rebase_distance: float = 0.0) -> np.ndarray:
-    """Stored depth ``(...)`` float64 metres (``d·X − zref``) of world points as cascade ``index``'s depth pass sees them.
+    """Stored depth ``(...)`` float64 metres (``d·X − zref``) of world points in cascade ``index``'s depth pass.
 
     :func:`light_depth` in float64; for an engine's float32 ``precision``, the float32 window depth
     normalized over the cascade's depth range, taken back to metres (:func:`window_depth_metres`).
