@@ -145,3 +145,12 @@ def test_far_from_the_origin_the_emulation_swims_as_much_as_gl(ctx, tmp, offset,
     run = _runs(ctx, offset, tmp, precision, stabilization)
     low, high = sorted((run["csm_flicker"], run["gl_flicker"]))
     assert high <= 1.5 * low, run
+
+
+def test_without_moderngl_the_oracle_says_what_to_install(monkeypatch):
+    """Where the GL stack is missing the tests skip, and the reason names what to install."""
+    import sys
+
+    monkeypatch.setitem(sys.modules, "moderngl", None)
+    with pytest.raises(GLUnavailable, match=r"moderngl is not installed .*pip install -e '\.\[gl\]'"):
+        gl_context()
