@@ -5,9 +5,10 @@ set -euo pipefail
 cd "$(dirname "$0")"
 python3 -m venv .venv
 .venv/bin/python -m pip install --quiet --upgrade pip
-.venv/bin/python -m pip install --quiet -e ".[test]"
+.venv/bin/python -m pip install --quiet -e ".[test,gl]"
 # Debian packages: chromium + chromedriver drive the browser test of the HTML report; EGL/Mesa let
-# VTK (PyVista) render the report's 3D view off-screen with no display.
+# VTK (PyVista) render the report's 3D view off-screen with no display, and give the GL oracle
+# (tests/test_gl_oracle.py, moderngl) its headless OpenGL 4.5 on llvmpipe.
 apt_packages="chromium chromium-driver libegl1 libegl-mesa0 libgl1-mesa-dri"
 if ! command -v chromium >/dev/null 2>&1 || ! command -v chromedriver >/dev/null 2>&1 \
     || ! ldconfig -p | grep 'libEGL.so.1' >/dev/null; then

@@ -47,7 +47,7 @@ from csmlab.lookup_choices import FILTER_METHODS, Filter
 from csmlab.quads import Quads, quad_derivatives
 from csmlab.registry import check_name
 from csmlab.settings import ShadowSettings
-from csmlab.texels import PRECISION_METHODS, fixed_point_origin, receiver_lookup
+from csmlab.texels import fixed_point_origin, receiver_lookup, uses_global_grid
 
 __all__ = ["FAMILY_LOOKUPS", "Receivers", "clipmap_radius", "filter_inputs", "interleaved_gradient_noise", "lookup_shadow", "screen_pixels",
            "texel_coordinates", "uses_pixels"]
@@ -274,8 +274,9 @@ def texel_coordinates(cascades: CascadeSet, points: np.ndarray, normals: np.ndar
     """Step 3: ``points[rows]`` in every cascade's fixed point, moved along ``normals[rows]``.
 
     :func:`csmlab.texels.receiver_lookup`: on the device where the cascades' grid is the global one
-    (float64, the same bits), on the host for an engine's float32 math (``engine_precision``) and
-    for warped cascades (``warp``: a homography per cascade).
+    (float64, world-locked snapping: the same bits), on the host for an engine's float32 pipeline
+    (``engine_precision``), window-space snapping (``vertex_snap``) and warped cascades (``warp``: a
+    homography per cascade).
 
     Returns
     -------
@@ -287,14 +288,15 @@ def texel_coordinates(cascades: CascadeSet, points: np.ndarray, normals: np.ndar
         Receiver-plane depth change per texel, metres.
     """
     bits = settings.subtexel_bits
-    if PRECISION_METHODS[settings.engine_precision].global_grid and not cascades.warped:
+    if uses_global_grid(precision=settings.engine_precision, snap=settings.vertex_snap) and not cascades.warped:
         return receiver_coordinates(points, normals, receivers=rows, bits=bits, **_conversion(cascades, settings),
                                     device=device)
     return receiver_lookup(cascades, points[rows], normals[rows], bits=bits, normal_offset=settings.normal_offset,
                            bias_constant=_cascade_bias(cascades, settings), bias_slope=settings.bias_slope,
                            normal_scale=settings.normal_offset_scale, plane_offset=_plane_offset(cascades, settings),
                            normal_offset_m=settings.normal_offset_m,
-                           precision=settings.engine_precision)
+                           precision=settings.engine_precision, snap=settings.vertex_snap,
+                           rebase_distance=settings.rebase_distance)
 
 
 def _selectable(coords: np.ndarray, cascades: CascadeSet, *, margin: int, bits: int, resolution: int) -> np.ndarray:
@@ -335,7 +337,7 @@ def _box_lookup(maps: ShadowMaps, receivers: Receivers, *, record: Filter, radiu
                 settings: ShadowSettings, device: str) -> tuple:
     """Steps 3–5 for a ``box`` filter: the selection kernel filters at the cascade it selects."""
     cascades = maps.cascades
-    if PRECISION_METHODS[settings.engine_precision].global_grid and not cascades.warped and all(
+    if uses_global_grid(precision=settings.engine_precision, snap=settings.vertex_snap) and not cascades.warped and all(
             c.resolution == maps.depth.shape[1] for c in cascades.cascades):
         # Each receiver converted where the kernel reads it: no (C, N) arrays of every receiver in
         # every cascade (the same bits as texel_coordinates then shadow_lookup).

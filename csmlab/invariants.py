@@ -30,7 +30,8 @@ Each condition below is one row of :data:`_CONDITIONS`; the promise holds when a
    with the cube at the origin, 13 % 10³ m from it, all 10⁶ m from it. No coordinate range makes that
    exactly zero, only rarer (a tipped vertex changes a stored texel only where an edge passes
    that close to its centre), so ``float32`` promises nothing: a run that measures 0.0 is luck,
-   not construction.
+   not construction. Nor does ``camera_relative``: its positions are small, so its errors are
+   micrometres at any distance, but its matrix is still rounded where the box lies.
 4. **No screen-space input**: the filter's record reads only :data:`WORLD_LOCKED_READS`
    (:meth:`csmlab.lookup_choices.Filter.reads_of`): a disk rotated per screen pixel (``pixels``)
    turns with the camera, and a mipmapped moment lookup (``mips``) takes its level of detail and
@@ -177,8 +178,8 @@ _CONDITIONS = (
                lambda s, w: f"snap = {s.snap!r} is not known to move the box by whole texels",
                cascades=True),
     _Condition(lambda s, w: s.engine_precision == "float64",
-               lambda s, w: f"engine_precision = {s.engine_precision!r}: the light view is rounded at each box's "
-                            "centre, so a whole-texel move can tip a fixed-point rounding",
+               lambda s, w: f"engine_precision = {s.engine_precision!r}: the float32 light view is rounded at "
+                            "each box's centre, so a whole-texel move can tip a fixed-point rounding",
                cascades=True),
     _Condition(lambda s, w: not _screen_reads(s), lambda s, w: _screen_reads_text(s)),
     _Condition(lambda s, w: s.depth_range == "scene",

@@ -36,8 +36,8 @@ from csmlab.scene.core import Scene
 from csmlab.scrolling import RasterizedMaps, scroll_plan
 from csmlab.settings import ShadowSettings
 from csmlab.storage import polygon_offset_unit, stored_depth
-from csmlab.texels import (PRECISION_METHODS, fixed_point_coordinates, fixed_point_origin, light_depth,
-                           light_plane_coordinates)
+from csmlab.texels import (fixed_point_coordinates, fixed_point_origin, light_depth, light_plane_coordinates,
+                           uses_global_grid, vertex_depth)
 
 __all__ = ["DeviceScene", "caster_offsets", "clipped_casters", "clipped_triangles", "lookup_shadow", "prepare_scene",
            "render_frame", "render_shadow", "render_view", "shadow_maps", "virtual_shadow_maps", "visible_depth",
@@ -180,7 +180,7 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
     """
     raster = None
     cut = DEPTH_RANGE_METHODS[settings.depth_range].cuts_casters
-    if PRECISION_METHODS[settings.engine_precision].global_grid and not cascades.warped \
+    if uses_global_grid(precision=settings.engine_precision, snap=settings.vertex_snap) and not cascades.warped \
             and not (cut and not settings.depth_clamp):
         depth, texels, raster = _culled_depth_maps(dscene, cascades, settings,
                                                    previous=None if scroll_from is None else scroll_from.raster)
@@ -264,11 +264,12 @@ def _host_snapped_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
                              settings: ShadowSettings) -> tuple[np.ndarray, int]:
     """``(C, R, R)`` depth maps and texels rasterized, vertices snapped on the host cascade by cascade.
 
-    The path for what the culled kernels do not model: an engine's float32 cascade math
-    (``engine_precision``, :mod:`csmlab.texels`), casters clipped at a slice's near side
-    without pancaking (``depth_range = "slice"``, ``depth_clamp = false``) and perspective-warped
-    cascades (``warp``, :func:`warped_depth_map`). Faces are culled as on the other path
-    (``settings.cull``, once per call, by ``d`` alone).
+    The path for what the culled kernels do not model: an engine's float32 pipeline, its depth
+    per cascade from the float32 window depth (``engine_precision``, :mod:`csmlab.texels`), snapping
+    of the window position (``vertex_snap``), casters clipped at a slice's near side without
+    pancaking (``depth_range = "slice"``, ``depth_clamp = false``) and perspective-warped cascades
+    (``warp``, :func:`warped_depth_map`). Faces are culled as on the other path (``settings.cull``,
+    once per call, by ``d`` alone).
     """
     bits = settings.subtexel_bits
     vertices = dscene.scene.vertices
@@ -291,10 +292,12 @@ def _host_snapped_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
             maps[c, :sizes[c], :sizes[c]] = one
             texels += count
             continue
-        points = fixed_point_coordinates(cascades, c, vertices, bits=bits, precision=settings.engine_precision)
-        one, count = rasterize_depth(points[None], depth_of_vertex, triangles, resolution=sizes[c], bits=bits,
-                                     masks=dscene.bvh.masks, caster_constant=offsets[c:c + 1],
-                                     caster_slope=settings.caster_bias_slope, device=dscene.device)
+        how = {"precision": settings.engine_precision, "rebase_distance": settings.rebase_distance}
+        points = fixed_point_coordinates(cascades, c, vertices, bits=bits, snap=settings.vertex_snap, **how)
+        one, count = rasterize_depth(points[None], vertex_depth(cascades, c, vertices, **how), triangles,
+                                     resolution=sizes[c], bits=bits, masks=dscene.bvh.masks,
+                                     caster_constant=offsets[c:c + 1], caster_slope=settings.caster_bias_slope,
+                                     device=dscene.device)
         maps[c, :sizes[c], :sizes[c]] = one[0]
         texels += count
     return maps, texels

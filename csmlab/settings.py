@@ -200,7 +200,11 @@ class ShadowSettings:
     lispsm_far_hint: float = 100.0
     """warp = lispsm: metres from the camera where shadow quality is optimized up to (Filament's shadowFarHint)."""
     engine_precision: str = "float64"
-    """Cascade math (light matrices, snapping) as csmlab does it, float64 | float32 (an engine's, shimmering far from the origin)."""
+    """Cascade math (light matrices, positions, snapping, depth) as csmlab does it, float64 | float32 (an engine's float32 pipeline on absolute world positions: Godot 4, Unity) | camera_relative (the same relative to an origin rebased near the camera: Unreal 5, HDRP) (csmlab.texels.PRECISION_METHODS)."""
+    rebase_distance: float = 0.0
+    """engine_precision = camera_relative: metres between the origins the float32 positions are taken from; 0 rebases at the camera every frame (Unreal 5, HDRP), d > 0 to the camera rounded to multiples of d."""
+    vertex_snap: str = "world"
+    """engine_precision = float64: where vertices and receivers are snapped to 2**-subtexel_bits texels, world (global fixed point less the box origin: world-locked) | window (the window position, the rasterizer's rule: follows a fractional box origin) (csmlab.texels.VERTEX_SNAPS)."""
 
     def validated(self) -> "ShadowSettings":
         """Return ``self`` after checking every field's range; raise ``ValueError`` naming the field."""
@@ -323,6 +327,8 @@ class ShadowSettings:
              'none with engine_precision = "float32" (the warp is computed in float64)', self.warp)
         need(0.0 <= self.lispsm_near_hint < self.lispsm_far_hint, "lispsm_near_hint",
              "a distance in metres of at least 0 and below lispsm_far_hint", self.lispsm_near_hint)
+        need(math.isfinite(self.rebase_distance) and self.rebase_distance >= 0.0, "rebase_distance",
+             "a non-negative distance in metres (0: rebased at the camera every frame)", self.rebase_distance)
         return self
 
     @property
@@ -432,6 +438,10 @@ APPLIES: dict[str, Applies] = {
                                 'warp = "lispsm" with stabilization = "none" (its virtual near plane)'),
     "lispsm_far_hint": Applies(lambda *, warp, stabilization: warp == "lispsm" and stabilization == "none",
                                'warp = "lispsm" with stabilization = "none" (its virtual far plane)'),
+    "rebase_distance": Applies(lambda *, engine_precision: engine_precision == "camera_relative",
+                               'engine_precision = "camera_relative" (how often its origin is rebased)'),
+    "vertex_snap": Applies(lambda *, engine_precision: engine_precision == "float64",
+                           'engine_precision = "float64" (a float32 pipeline snaps its window position)'),
     "pancake": Applies(lambda *, depth_range: depth_range in ("slice", "sphere"),
                        'depth_range = "slice" or "sphere" (the pull of its near side toward the light)'),
     "depth_clamp": Applies(lambda *, depth_range: depth_range in ("slice", "sphere"),

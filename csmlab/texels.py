@@ -1,9 +1,11 @@
 """World points to a cascade's texel grid: texel coordinates, fixed point, receiver lookups.
 
-Everything here is host float64 NumPy and feeds the Warp kernels (docs/design.md, "Exact zero by
-construction"). A world point X has light-space coordinates ``(right·X, up·X)`` in metres; divided
-by a cascade's texel size they become *global* texel units, which depend on the light direction
-and the texel size only — never on where the box lies. Snapped to ``2**bits`` steps per texel they
+Everything here is host NumPy and feeds the Warp kernels (docs/design.md, "Exact zero by
+construction"); csmlab's own conversion is float64, and :data:`PRECISION_METHODS` also emulates an
+engine's float32 pipeline (its matrices, positions, window coordinates and depths). A world point X
+has light-space coordinates ``(right·X, up·X)`` in metres; divided by a cascade's texel size they
+become *global* texel units, which depend on the light direction and the texel size only — never on
+where the box lies. Snapped to ``2**bits`` steps per texel they
 become int64 fixed point; subtracting the box origin (an integer number of texels for the exact
 and quantized stabilizations) gives the local coordinates a kernel sees. Moving a box by k whole
 texels then shifts every local coordinate by exactly ``k · 2**bits`` and changes no rounding.
@@ -24,8 +26,9 @@ from csmlab.cascades.warp import warped_texel_jacobian, warped_texels
 from csmlab.lookup_choices import NORMAL_NONE, NORMAL_OFFSET_SCALES, NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN
 from csmlab.registry import check_name
 
-__all__ = ["PRECISION_METHODS", "Precision", "fixed_point_coordinates", "fixed_point_origin", "light_depth",
-           "light_plane_coordinates", "receiver_lookup", "texel_coordinates"]
+__all__ = ["PRECISION_METHODS", "Precision", "VERTEX_SNAPS", "engine_matrix", "engine_origin", "engine_positions",
+           "fixed_point_coordinates", "fixed_point_origin", "light_depth", "light_plane_coordinates", "receiver_lookup",
+           "texel_coordinates", "uses_global_grid", "vertex_depth", "window_depth_metres", "window_positions"]
 
 
 @dataclass(frozen=True)
@@ -39,27 +42,62 @@ class Precision:
         Texel coordinates are *global* float64 texel coordinates less an integer origin, so a
         kernel handed light-space coordinates finishes the conversion itself with the same bits
         (the depth pass, :mod:`csmlab.kernels.raster`; the receivers,
-        :func:`csmlab.kernels.shadow.receiver_coordinates`). False: only the host functions here
-        convert.
+        :func:`csmlab.kernels.shadow.receiver_coordinates`). False: an engine's float32 pipeline,
+        which only the host functions here emulate (:func:`engine_matrix`, :func:`window_positions`).
+    camera_relative : bool
+        The float32 positions and matrices are taken relative to an origin rebased near the camera
+        (:func:`engine_origin`), not to the world origin.
     """
 
     description: str
     global_grid: bool
+    camera_relative: bool = False
 
 
 PRECISION_METHODS: dict[str, Precision] = {
     "float64": Precision("global texel coordinates in float64, less an integer origin: world-locked at any distance",
                          global_grid=True),
-    "float32": Precision("an engine's float32 light view (eye at the box centre) and projection applied to float32 "
-                         "positions", global_grid=False),
+    "float32": Precision("an engine's float32 pipeline on absolute world positions: light view and projection "
+                         "built in float32 on the host, float32 vertices and G-buffer positions, float32 window "
+                         "position and depth normalized per cascade (Godot 4, Unity URP and built-in, Bevy, "
+                         "Stride, MJP, three.js's GPU side)", global_grid=False),
+    "camera_relative": Precision("the float32 pipeline relative to an origin rebased near the camera "
+                                 "(rebase_distance): world positions less the origin in float64, then float32 "
+                                 "(Unreal 5's translated world, Unity HDRP's camera-relative rendering, "
+                                 "Filament's camera_at_origin)", global_grid=False, camera_relative=True),
 }
 """How world points reach a cascade's texel grid (``[shadow] engine_precision``), by name.
 
-``float32`` emulates an engine that places each cascade's light eye at the box centre and applies
-its view and projection in float32, as a vertex shader does: the eye's rounding depends on where
-the box lies, so far from the origin (10⁶ m: a float32 step of 6 cm) a box moved by whole texels
-moves its texel grid by a fraction of a texel, and the shadow swims although the box is snapped.
+``float32`` is what an engine that keeps world positions in float32 runs: the host builds each
+cascade's light view (eye at the box centre) and orthographic projection in float32 from float32
+inputs; the GPU applies that matrix in float32 to float32 absolute world positions, vertices and
+receivers alike (a receiver's position as a float32 G-buffer holds it), maps the clip position to
+a float32 window position and normalizes depth per cascade to [0, 1] in float32. Far from the
+origin (10⁶ m: a float32 step of 6 cm) the eye's rounding changes as a box moves by whole texels,
+and the receivers' positions are off by up to half a step: the shadow swims and acne and leaks
+appear. ``camera_relative`` runs the same float32 pipeline on positions less an origin near the
+camera, subtracted in float64 (:func:`engine_origin`), so its numbers stay small at any distance.
 """
+
+VERTEX_SNAPS: dict[str, str] = {
+    "world": "world-locked fixed point: the global texel coordinate snapped to 2**-subtexel_bits texels, less the "
+             "box origin (csmlab's, invariant under whole-texel box moves)",
+    "window": "the rasterizer's rule: the window position (texels from the box's corner) snapped to "
+              "2**-subtexel_bits of a texel (GPUs: 8 sub-pixel bits), which follows a fractional box origin",
+}
+"""Where float64 vertices and receivers are snapped to fixed point (``[shadow] vertex_snap``), by name.
+
+The float32 pipelines (``engine_precision`` other than ``float64``) always snap the float32 window
+position, as the hardware does; for boxes on whole texels (exact, quantized) in float64 both rules
+give the same bits, since the window position is then the global one less an integer.
+"""
+
+
+def uses_global_grid(*, precision: str, snap: str) -> bool:
+    """The kernels may finish the conversion themselves (float64 and world-locked snapping); else the host converts."""
+    return (PRECISION_METHODS[check_name(precision, PRECISION_METHODS, field="engine_precision")].global_grid
+            and check_name(snap, VERTEX_SNAPS, field="vertex_snap") == "world")
+
 
 # Global fixed-point values are clipped to ±2**50 so that, less a box origin, doubled and
 # differenced in the rasterizer (which takes ±2**52), they can neither overflow int64 nor lose
@@ -149,24 +187,53 @@ def texel_coordinates(cascades: CascadeSet, index: int, points) -> np.ndarray:
     return _global_texels(cascades, index, points) - cascades.cascades[index].origin
 
 
-def _local_texels_float32(cascades: CascadeSet, index: int, points) -> np.ndarray:
-    """Local texel coordinates ``(..., 2)`` as an engine's float32 light view and projection give them.
+def engine_origin(eye, *, precision: str, rebase_distance: float = 0.0) -> np.ndarray:
+    """The origin ``(3,)`` float64 in world metres that an engine's float32 positions are taken from.
 
-    The light's eye sits at the (snapped) box centre; the engine stores it as a float32 world
-    position, subtracts it from float32 world positions, rotates into light space and scales to
-    texels, all in float32. Far from the origin the eye's float32 rounding (6 cm at 10⁶ m) differs
-    from one snapped box position to the next, so the texel grid slides by fractions of a texel.
+    The world origin for ``float64`` and ``float32``. For ``camera_relative``, the camera
+    position ``eye`` itself when ``rebase_distance`` is 0 (rebased every frame: Unreal 5's
+    PreViewTranslation, HDRP's camera-relative rendering), else ``eye`` rounded to the nearest
+    multiple of ``rebase_distance`` metres per axis (an origin rebased only when the camera has
+    moved about that far, as a floating-origin scheme does).
+    """
+    record = PRECISION_METHODS[check_name(precision, PRECISION_METHODS, field="engine_precision")]
+    if not record.camera_relative or eye is None:
+        return np.zeros(3)
+    eye = np.asarray(eye, dtype=np.float64)
+    if rebase_distance == 0.0:
+        return eye.copy()
+    return np.floor(eye / rebase_distance + 0.5) * rebase_distance
+
+
+def engine_positions(points, origin) -> np.ndarray:
+    """World points ``(..., 3)`` as an engine's float32 buffers hold them.
+
+    ``points − origin`` in float64, rounded once to float32 (world metres relative to ``origin``).
+    """
+    return (np.asarray(points, dtype=np.float64) - np.asarray(origin, dtype=np.float64)).astype(np.float32)
+
+
+def engine_matrix(cascades: CascadeSet, index: int, *, origin) -> np.ndarray:
+    """Cascade ``index``'s world-to-clip matrix ``(3, 4)`` float32 as an engine builds it on the host.
+
+    Built in float32 from float32 inputs: the light basis rows ``R`` and the eye ``e`` (the box
+    centre on its near side, ``centre − origin`` subtracted in float64 then rounded); the view
+    translation ``−R·e`` summed in float32; the orthographic scales ``2 / (R_c · texel)`` in x and y
+    and ``1 / (far − near)`` in depth; their product with the view, once rounded per entry. Rows:
+    clip x and y in [−1, 1] across the box, depth in [0, 1] from the box's near to its far side
+    (a [0, 1] clip-depth convention, D3D's and Vulkan's).
     """
     cascade = cascades.cascades[index]
+    f = np.float32
     half = 0.5 * cascade.resolution
     centre = np.array([*((cascade.origin + half) * cascade.texel_size), cascade.depth_near])
-    eye = (cascades.basis.T @ centre).astype(np.float32)
-    rows = cascades.basis[:2].astype(np.float32)
-    p = np.asarray(points, dtype=np.float64).astype(np.float32) - eye
-    u = np.einsum("...k,jk->...j", p, rows, dtype=np.float32)
-    u /= cascade.texel_size.astype(np.float32)
-    u += np.float32(half)
-    return u.astype(np.float64)
+    eye = engine_positions(cascades.basis.T @ centre, origin)
+    rows = cascades.basis.astype(f)
+    translation = -((rows[:, 0] * eye[0] + rows[:, 1] * eye[1]) + rows[:, 2] * eye[2])
+    size = f(cascade.resolution) * cascade.texel_size.astype(f)
+    scale = np.array([f(2.0) / size[0], f(2.0) / size[1], f(1.0) / f(cascade.depth_far - cascade.depth_near)],
+                     dtype=f)
+    return np.concatenate([rows * scale[:, None], (translation * scale)[:, None]], axis=1).astype(f)
 
 
 def _local_texels_warped(cascades: CascadeSet, index: int, points) -> np.ndarray:
@@ -179,22 +246,76 @@ def _local_texels_warped(cascades: CascadeSet, index: int, points) -> np.ndarray
     return np.where((w > 0.0)[..., None], texels, np.nan)
 
 
-def fixed_point_coordinates(cascades: CascadeSet, index: int, points, *, bits: int,
-                            precision: str = "float64") -> np.ndarray:
+def window_positions(matrix: np.ndarray, positions: np.ndarray, *, resolution: int) -> np.ndarray:
+    """Float32 window positions ``(..., 3)`` of float32 positions ``(..., 3)`` under a :func:`engine_matrix`.
+
+    Clip coordinates summed in float32 as ``((m0·x + m1·y) + m2·z) + m3`` (no fused multiply-add);
+    x and y to the viewport as ``clip · R/2 + R/2`` in float32 — texels from the box's minimum
+    corner, texel ``(i, j)`` spanning ``[i, i + 1) × [j, j + 1)`` — and depth kept as the clip depth
+    in [0, 1] across the box's depth range.
+    """
+    m = matrix
+    p = np.asarray(positions, dtype=np.float32)
+    x, y, z = p[..., 0, None], p[..., 1, None], p[..., 2, None]
+    clip = ((x * m[:, 0] + y * m[:, 1]) + z * m[:, 2]) + m[:, 3]
+    half = np.float32(0.5 * resolution)
+    clip[..., :2] = clip[..., :2] * half + half
+    return clip
+
+
+def window_depth_metres(cascades: CascadeSet, index: int, depth) -> np.ndarray:
+    """Stored depth ``(...)`` float64 metres (``d·X − zref``) of cascade ``index``'s window depths in [0, 1].
+
+    The float32 pipeline's depths taken back to csmlab's unit for storage and comparison: one
+    monotone map per cascade, the same for casters and receivers.
+    """
+    cascade = cascades.cascades[index]
+    return (cascade.depth_near - cascades.zref) + np.asarray(depth, dtype=np.float64) * (
+        cascade.depth_far - cascade.depth_near)
+
+
+def _engine_texels(cascades: CascadeSet, index: int, points, *, precision: str,
+                   rebase_distance: float) -> np.ndarray:
+    """Float32 window positions ``(..., 3)`` of float64 world points in cascade ``index`` (:func:`window_positions`)."""
+    origin = engine_origin(cascades.eye, precision=precision, rebase_distance=rebase_distance)
+    matrix = engine_matrix(cascades, index, origin=origin)
+    return window_positions(matrix, engine_positions(points, origin), resolution=cascades.cascades[index].resolution)
+
+
+def fixed_point_coordinates(cascades: CascadeSet, index: int, points, *, bits: int, precision: str = "float64",
+                            snap: str = "world", rebase_distance: float = 0.0) -> np.ndarray:
     """Snapped local texel coordinates ``(..., 2)`` int64 of world points, in ``2**-bits`` texels.
 
     ``round(u · 2**bits) − round(origin · 2**bits)`` with ``u`` the global texel coordinate
     computed in float64: the same world point gets the same global value whatever the box, so a
     box moved by whole texels shifts the result by an exact integer. Non-finite points give
-    ``-2**50`` less the origin (outside every box). ``precision = "float32"`` rounds the local
-    coordinates of an engine's float32 matrix instead (:data:`PRECISION_METHODS`).
+    ``-2**50`` less the origin (outside every box). ``snap = "window"`` rounds ``(u − origin) · 2**bits``
+    instead (:data:`VERTEX_SNAPS`); an engine's float32 ``precision`` rounds its float32 window
+    position (:func:`window_positions`, relative to :func:`engine_origin` with ``rebase_distance``).
     """
     if _warped(cascades, index):
         return _snapped(_local_texels_warped(cascades, index, points) * float(2**bits))
+    scale = float(2**bits)
     if not PRECISION_METHODS[check_name(precision, PRECISION_METHODS, field="engine_precision")].global_grid:
-        return _snapped(_local_texels_float32(cascades, index, points) * float(2**bits))
-    snapped = _snapped(_global_texels(cascades, index, points) * float(2**bits))
+        window = _engine_texels(cascades, index, points, precision=precision, rebase_distance=rebase_distance)
+        return _snapped(window[..., :2] * scale)
+    if check_name(snap, VERTEX_SNAPS, field="vertex_snap") == "window":
+        return _snapped(texel_coordinates(cascades, index, points) * scale)
+    snapped = _snapped(_global_texels(cascades, index, points) * scale)
     return snapped - fixed_point_origin(cascades, index, bits=bits)
+
+
+def vertex_depth(cascades: CascadeSet, index: int, points, *, precision: str = "float64",
+                 rebase_distance: float = 0.0) -> np.ndarray:
+    """Stored depth ``(...)`` float64 metres (``d·X − zref``) of world points in cascade ``index``'s depth pass.
+
+    :func:`light_depth` in float64; for an engine's float32 ``precision``, the float32 window depth
+    normalized over the cascade's depth range, taken back to metres (:func:`window_depth_metres`).
+    """
+    if PRECISION_METHODS[check_name(precision, PRECISION_METHODS, field="engine_precision")].global_grid:
+        return light_depth(cascades, points)
+    window = _engine_texels(cascades, index, points, precision=precision, rebase_distance=rebase_distance)
+    return window_depth_metres(cascades, index, window[..., 2])
 
 
 def light_depth(cascades: CascadeSet, points) -> np.ndarray:
@@ -206,7 +327,8 @@ def light_depth(cascades: CascadeSet, points) -> np.ndarray:
 def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_offset: float, bias_constant,
                     bias_slope: float, precision: str = "float64",
                     normal_scale: str = "none", plane_offset=0.0,
-                    normal_offset_m: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                    normal_offset_m: float = 0.0, snap: str = "world",
+                    rebase_distance: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Where receivers look every cascade up: fixed-point coordinates, biased depth, depth slope.
 
     In cascade c the receiver is moved ``normal_offset`` texels along its normal before the
@@ -233,8 +355,15 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
         Texels, metres, texels (docs/design.md ``[shadow]``); ``bias_constant`` may be one value per
         cascade ``(C,)`` (a bias model's per-cascade scaling, csmlab.filters).
     precision : str
-        A key of :data:`PRECISION_METHODS`: float32 maps the moved points as an engine's float32
-        matrix does.
+        A key of :data:`PRECISION_METHODS`: ``float32`` and ``camera_relative`` take the receivers
+        as float32 positions (a float32 G-buffer's, relative to :func:`engine_origin`), move them
+        along their float32 normals in float32 and map them with the cascade's float32 matrix
+        (:func:`engine_matrix`, :func:`window_positions`); their depth is the float32 window depth
+        (:func:`window_depth_metres`) less the bias.
+    snap : str
+        A key of :data:`VERTEX_SNAPS` (float64 only): ``window`` snaps the local texel coordinate.
+    rebase_distance : float
+        ``camera_relative``: metres between the origins it rebases to (0: at the camera).
     normal_scale : str
         A key of :data:`csmlab.lookup_choices.NORMAL_OFFSET_SCALES`: the offset times ``1 − max(0, cos θ)``
         or ``sin θ`` per receiver, and with ``one_minus_cos_lateral`` across the light only (its
@@ -261,6 +390,7 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
         Tips and Techniques", GDC 2006; the derivative-based bias of seed 002). Box-independent.
     """
     global_grid = PRECISION_METHODS[check_name(precision, PRECISION_METHODS, field="engine_precision")].global_grid
+    window_snap = check_name(snap, VERTEX_SNAPS, field="vertex_snap") == "window"
     p = np.asarray(points, dtype=np.float64)
     n = np.asarray(normals, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != 3 or n.shape != p.shape:
@@ -290,6 +420,10 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
     elif code != NORMAL_NONE:
         factor = 1.0 - np.maximum(cos, 0.0)
     along = 0.0 if code == NORMAL_ONE_MINUS_COS_LATERAL else 1.0
+    if not global_grid:
+        origin = engine_origin(cascades.eye, precision=precision, rebase_distance=rebase_distance)
+        p32 = engine_positions(p, origin)
+        n32 = n.astype(np.float32)
     for c, cascade in enumerate(cascades.cascades):
         texel = float(np.max(cascade.texel_size))
         offset = normal_offset * texel
@@ -299,19 +433,35 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
             offset = (offset * factor)[:, None]
         if cascade.warp is not None:
             coordinates[c] = _snapped(_local_texels_warped(cascades, c, p + n * offset) * scale)
-        elif global_grid:
-            u = light_n[:, :2] * offset
-            u += light_p[:, :2]
-            u *= scale / cascade.texel_size
-            coordinates[c] = _snapped(u) - fixed_point_origin(cascades, c, bits=bits)
-        else:
-            coordinates[c] = _snapped(_local_texels_float32(cascades, c, p + n * offset) * scale)
-        step = plane_slope * cascade.texel_size
-        if cascade.warp is not None:
             # A warped texel's size changes across the map: the slope bias and the receiver plane's
             # change per texel step take the receiver's own, from the homography's Jacobian there.
             texel, step = _warped_texel_steps(cascade.warp.homography, light_p[:, :2], plane_slope)
-        bias = constant[c] + bias_slope * texel * tan
+            bias = constant[c] + bias_slope * texel * tan
+        else:
+            step = plane_slope * cascade.texel_size
+            bias = constant[c] + bias_slope * texel * tan
+            if not global_grid:
+                matrix = engine_matrix(cascades, c, origin=origin)
+                moved = p32 + n32 * np.asarray(offset, dtype=np.float32)
+                window = window_positions(matrix, moved, resolution=cascade.resolution)
+                coordinates[c] = _snapped(window[:, :2] * scale)
+                if along == 0.0:
+                    window = window_positions(matrix, p32, resolution=cascade.resolution)
+                if cap[c] > 0.0:
+                    bias = bias + np.minimum(np.abs(step[:, 0]) + np.abs(step[:, 1]), cap[c])
+                depth[c] = window_depth_metres(cascades, c, window[:, 2]) - bias
+                slope[c] = step
+                continue
+            u = light_n[:, :2] * offset
+            u += light_p[:, :2]
+            if window_snap:
+                u /= cascade.texel_size
+                u -= cascade.origin
+                u *= scale
+                coordinates[c] = _snapped(u)
+            else:
+                u *= scale / cascade.texel_size
+                coordinates[c] = _snapped(u) - fixed_point_origin(cascades, c, bits=bits)
         if cap[c] > 0.0:
             bias = bias + np.minimum(np.abs(step[:, 0]) + np.abs(step[:, 1]), cap[c])
         depth[c] = light_p[:, 2] + (along * offset if factor is None else along * offset[:, 0]) * light_n[:, 2] \

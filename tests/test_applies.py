@@ -33,6 +33,8 @@ CASES = {
     "focus": ('"scene"', {"stabilization": '"none"'}),
     "lispsm_near_hint": ("2.0", {"stabilization": '"none"', "warp": '"lispsm"'}),
     "lispsm_far_hint": ("50.0", {"stabilization": '"none"', "warp": '"lispsm"'}),
+    "rebase_distance": ("1024.0", {"engine_precision": '"camera_relative"'}),
+    "vertex_snap": ('"window"', {}),
     "pancake": ("5.0", {"depth_range": '"slice"'}),
     "depth_clamp": ("false", {"depth_range": '"slice"'}),
     "hysteresis": ("0.2", {"bounds": '"sdsm"'}),
@@ -72,7 +74,8 @@ CASES = {
 }
 # Where each does not apply: the defaults, but for the fields that the defaults make apply.
 NOT_THERE = {"lambda": {"split": '"log"'}, "extent": {"stabilization": '"none"'}, "snap": {"stabilization": '"none"'},
-             "filter_size": {"filter": '"pcf_bilinear"'}}
+             "filter_size": {"filter": '"pcf_bilinear"'},
+             "vertex_snap": {"engine_precision": '"float32"'}}
 
 
 def load(tmp_path, text: str):

@@ -160,19 +160,28 @@ def test_snapping_presets_are_flicker_free_and_refitting_ones_are_not(tmp_path, 
 
     A filter rotated per screen pixel (Godot's disk) moves with the screen, not the world: that preset
     flickers through its filter alone, and without the rotation it is flicker-free like the others.
+    An engine's float32 pipeline (``engine_precision``) rounds its matrix where the box lies: at the
+    origin that moves a rare vertex or receiver by one sub-texel step (flicker below 10⁻⁴), and in
+    csmlab's float64 math the same preset is flicker-free.
     """
     summary = _run(tmp_path, extends=[preset])
     (values,) = summary.values()
     (method,) = load_experiment(tmp_path / "exp.toml").methods
     if method.settings.stabilization == "none":
         assert values["flicker_same"] > 0.0
-    elif method.settings.filter in ("pcf_poisson", "pcf_vogel") and method.settings.poisson_rotation == "pixel":
+        return
+    rotated = method.settings.filter in ("pcf_poisson", "pcf_vogel") and method.settings.poisson_rotation == "pixel"
+    float32 = method.settings.engine_precision != "float64"
+    if rotated:
         assert values["flicker_same"] > 0.0
-        unrotated = _run(tmp_path, extends=[preset], methods=f'[[methods]]\nname = "{method.name}"\n'
-                                                             'poisson_rotation = "none"\n')
-        assert unrotated[method.name]["flicker_same"] == 0.0
+    elif float32:
+        assert values["flicker_same"] < 1e-4
     else:
         assert values["flicker_same"] == 0.0
+    changes = ('poisson_rotation = "none"\n' if rotated else "") + ('engine_precision = "float64"\n' if float32 else "")
+    if changes:
+        locked = _run(tmp_path, extends=[preset], methods=f'[[methods]]\nname = "{method.name}"\n' + changes)
+        assert locked[method.name]["flicker_same"] == 0.0
 
 
 def test_sdsm_without_hysteresis_flickers_more_than_with_it(tmp_path):

@@ -72,6 +72,7 @@ def test_exact_with_a_fixed_extent_float64_and_a_world_locked_lookup_promises_ze
     ({"stabilization": "none"}, STILL, "stabilization = 'none'"),
     ({"bounds": "sdsm"}, STILL, "bounds = 'sdsm'"),
     ({"engine_precision": "float32"}, STILL, "engine_precision = 'float32'"),
+    ({"engine_precision": "camera_relative"}, STILL, "engine_precision = 'camera_relative'"),
     ({"filter": "pcf_poisson", "filter_size": 5, "poisson_rotation": "pixel"}, STILL, "screen pixel"),
     ({"filter": "vsm", "moment_mips": True}, STILL, "pixel quad"),
     ({"depth_range": "slice", "pancake": 20.0}, STILL, "depth_range = 'slice'"),

@@ -5,7 +5,8 @@ import pytest
 
 from csmlab.cascades import Cascade, CascadeSet
 from csmlab.geometry import light_basis
-from csmlab.texels import fixed_point_coordinates, light_depth, receiver_lookup, texel_coordinates
+from csmlab.texels import (engine_matrix, engine_origin, engine_positions, fixed_point_coordinates, light_depth,
+                           receiver_lookup, texel_coordinates, vertex_depth, window_positions)
 
 LIGHT = np.array([0.3, -0.8, 0.45])
 
@@ -105,3 +106,90 @@ def test_a_wrong_cascade_index_names_the_valid_range():
     cs = cascade_set(origins=[(0.0, 0.0)])
     with pytest.raises(ValueError, match=r"cascade index: expected 0\.\.0"):
         texel_coordinates(cs, 1, np.zeros((1, 3)))
+
+
+def test_engine_window_positions_put_the_box_corners_at_0_and_r_and_its_depth_range_at_0_and_1():
+    """An engine's float32 matrix maps the box's minimum corner on its near side to window (0, 0, 0) and the
+    opposite corner to (R, R, 1): the orthographic box of docs/design.md, to float32 precision."""
+    cs = cascade_set(origins=[(-40.0, 25.0)])
+    cascade = cs.cascades[0]
+    t = cascade.texel_size[0]
+    low = world_from_light(cs, -40.0 * t, 25.0 * t, cascade.depth_near)
+    high = world_from_light(cs, (-40.0 + 64) * t, (25.0 + 64) * t, cascade.depth_far)
+    matrix = engine_matrix(cs, 0, origin=np.zeros(3))
+    assert matrix.dtype == np.float32 and matrix.shape == (3, 4)
+    window = window_positions(matrix, engine_positions(np.stack([low, high]), np.zeros(3)), resolution=64)
+    np.testing.assert_allclose(window, [[0.0, 0.0, 0.0], [64.0, 64.0, 1.0]], atol=1e-4)
+
+
+def test_engine_origin_is_the_world_origin_or_the_camera_rebased_every_frame_or_in_steps():
+    eye = np.array([1234.5, 10.0, -2600.2])
+    assert np.array_equal(engine_origin(eye, precision="float32"), np.zeros(3))
+    assert np.array_equal(engine_origin(eye, precision="float64"), np.zeros(3))
+    assert np.array_equal(engine_origin(eye, precision="camera_relative"), eye)
+    assert np.array_equal(engine_origin(eye, precision="camera_relative", rebase_distance=1000.0),
+                          [1000.0, 0.0, -3000.0])
+
+
+def _shifted_pair(offset: float):
+    """A cascade at the origin and the same cascade with the world moved ``offset`` metres along x and z.
+
+    The box is moved by the whole number of texels nearest the offset; the points and the camera move
+    by that same light-space amount, so in exact arithmetic every texel coordinate is unchanged."""
+    here = cascade_set(origins=[(-32.0, -32.0)])
+    t = here.cascades[0].texel_size[0]
+    shift = here.basis @ np.array([offset, 0.0, offset])
+    whole = np.round(shift[:2] / t)
+    moved_light = np.array([*(whole * t), shift[2]])
+    there = CascadeSet(basis=here.basis, zref=here.zref, splits=here.splits,
+                       cascades=(Cascade(**{**here.cascades[0].__dict__, "origin": here.cascades[0].origin + whole,
+                                            "depth_near": -100.0 + shift[2], "depth_far": 100.0 + shift[2]}),),
+                       margin_texels=2, eye=moved_light @ here.basis)
+    here = CascadeSet(basis=here.basis, zref=here.zref, splits=here.splits, cascades=here.cascades, margin_texels=2,
+                      eye=np.zeros(3))
+    return here, there, moved_light @ here.basis
+
+
+@pytest.mark.parametrize("offset", [1e5, 1e6])
+def test_camera_relative_snaps_far_from_the_origin_as_at_it_and_float32_does_not(offset):
+    """The same points, box and camera 10⁵ or 10⁶ m away: camera-relative coordinates stay within one
+    sub-texel step of the origin's, float32 ones move by a float32 step of the world position there
+    (np.spacing: 1/128 m at 10⁵, 1/16 m at 10⁶), many sub-texel steps."""
+    rng = np.random.default_rng(5)
+    here, there, move = _shifted_pair(offset)
+    points = rng.uniform(-1.0, 1.0, (400, 3))
+    bits = 8
+    at_origin = fixed_point_coordinates(here, 0, points, bits=bits, precision="camera_relative")
+    relative = fixed_point_coordinates(there, 0, points + move, bits=bits, precision="camera_relative")
+    absolute = fixed_point_coordinates(there, 0, points + move, bits=bits, precision="float32")
+    assert np.max(np.abs(relative - at_origin)) <= 1
+    step = float(np.spacing(np.float32(offset))) / here.cascades[0].texel_size[0] * 2**bits
+    assert np.max(np.abs(absolute - at_origin)) >= 0.25 * step > 1
+
+
+def test_float32_depth_is_the_light_depth_to_float32_precision_at_the_origin_and_coarser_far_from_it():
+    """At 10⁶ m each float32 world coordinate of the point and of the eye is off by up to half a step of
+    1/16 m and the sums round at that step again: a few steps of error in depth, where at the origin
+    it is micrometres."""
+    rng = np.random.default_rng(6)
+    here, there, move = _shifted_pair(1e6)
+    points = rng.uniform(-1.0, 1.0, (400, 3))
+    near = vertex_depth(here, 0, points, precision="float32")
+    np.testing.assert_allclose(near, light_depth(here, points), atol=2e-5)
+    far = vertex_depth(there, 0, points + move, precision="float32")
+    error = np.abs(far - light_depth(there, points + move))
+    step = float(np.spacing(np.float32(1e6)))
+    assert step / 4 < error.max() <= 4 * step
+
+
+def test_window_snapping_equals_world_snapping_on_whole_texel_boxes_and_follows_a_fractional_origin():
+    rng = np.random.default_rng(7)
+    points = rng.uniform(-3.0, 3.0, (1000, 3)) + np.array([5e4, 0.0, -5e4])
+    bits = 8
+    whole = cascade_set(origins=[(40000.0, -12000.0)])
+    assert np.array_equal(fixed_point_coordinates(whole, 0, points, bits=bits, snap="window"),
+                          fixed_point_coordinates(whole, 0, points, bits=bits))
+    fractional = cascade_set(origins=[(40000.3, -12000.7)])
+    window = fixed_point_coordinates(fractional, 0, points, bits=bits, snap="window")
+    assert np.array_equal(window, np.rint(texel_coordinates(fractional, 0, points) * 2**bits).astype(np.int64))
+    assert not np.array_equal(window, fixed_point_coordinates(fractional, 0, points, bits=bits))

@@ -302,7 +302,7 @@ def shadow_method_registries() -> dict:
     from csmlab.cascades.fit import BLEND_CURVES, TRANSITION_METHODS
     from csmlab.culling import CULL_METHODS
     from csmlab.fades import FADE_METHODS
-    from csmlab.texels import PRECISION_METHODS
+    from csmlab.texels import PRECISION_METHODS, VERTEX_SNAPS
     from csmlab.cascades.focus import FOCUS_METHODS
     from csmlab.cascades.warp import WARP_METHODS
 
@@ -310,7 +310,7 @@ def shadow_method_registries() -> dict:
             "selection": SELECTION_METHODS, "filter": FILTER_METHODS, "extent": EXTENT_METHODS, "snap": SNAP_METHODS,
             "depth_range": DEPTH_RANGE_METHODS, "bounds": BOUNDS_METHODS, "engine_precision": PRECISION_METHODS,
             "transition": TRANSITION_METHODS, "hold": HOLD_METHODS, "blend_curve": BLEND_CURVES, "fade": FADE_METHODS,
-            "cull": CULL_METHODS, "focus": FOCUS_METHODS, "warp": WARP_METHODS}
+            "cull": CULL_METHODS, "focus": FOCUS_METHODS, "warp": WARP_METHODS, "vertex_snap": VERTEX_SNAPS}
 
 
 def _checked_settings(settings: ShadowSettings, *, where_of, located: _Located,
