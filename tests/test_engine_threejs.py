@@ -117,20 +117,17 @@ def test_box_size_equals_the_addons(compared):
             np.testing.assert_allclose(ours_c.texel_size, [width / 2048, width / 2048], rtol=1e-9)
 
 
-@pytest.mark.xfail(strict=True, reason="per-engine light basis not modelled: csmlab's light space takes the "
-                   "world axis least aligned with the light as up (geometry.light_basis), three.js's CSM.update() "
-                   "uses Matrix4.lookAt(origin, lightDirection, world +Y), so the texel grid is turned about the "
-                   "light axis")
 def test_light_space_basis_equals_the_addons(compared):
+    """light_basis = "world_y": the rows of CSM.update()'s Matrix4.lookAt(origin, lightDirection, +Y)."""
     _, _, cases = compared
     for _, ours, theirs in cases:
         np.testing.assert_allclose(ours.basis[0], theirs["light_axes"][0], atol=1e-9)
         np.testing.assert_allclose(ours.basis[1], theirs["light_axes"][1], atol=1e-9)
 
 
-@pytest.mark.xfail(strict=True, reason="the box centre lies on another texel grid: csmlab's basis (not world "
-                   "+Y up), its texel D/(R − 2m − 2) of a ceiled diagonal, and slices ending at b·far (three.js: "
-                   "floor(centre / (D/R)) in the lookAt(+Y) basis, D unrounded, slices lerped from near to far)")
+@pytest.mark.xfail(strict=True, reason="the box centre lies on another texel grid: csmlab's texel D/(R − 2m − 2) "
+                   "of a ceiled diagonal, and slices ending at b·far (three.js: floor(centre / (D/R)), D "
+                   "unrounded, slices lerped from near to far)")
 def test_box_centre_equals_the_addons(compared):
     _, d, cases = compared
     for _, ours, theirs in cases:

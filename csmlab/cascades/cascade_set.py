@@ -16,7 +16,7 @@ from csmlab.cascades.extent import EXTENT_METHODS, radius_rounded_up
 from csmlab.cascades.fit import slice_intervals
 from csmlab.cascades.splits import split_distances
 from csmlab.cascades.stabilize import SliceFootprint, stabilize
-from csmlab.geometry import frustum_slice_corners, light_basis
+from csmlab.geometry import LIGHT_BASIS_METHODS, frustum_slice_corners
 from csmlab.registry import check_name, dispatch
 from csmlab.settings import ShadowSettings
 
@@ -76,7 +76,8 @@ class CascadeSet:
     Attributes
     ----------
     basis : ndarray, shape (3, 3)
-        Rows (right, up, d): world to light space; depends on the light direction only.
+        Rows (right, up, d): world to light space; depends on the light direction only
+        (``settings.light_basis``, :data:`csmlab.geometry.LIGHT_BASIS_METHODS`).
     zref : float
         Depth offset in metres subtracted from ``dot(X, d)`` before storing (fixed per light and
         scene, never per box, so a moved box stores the same depths).
@@ -127,7 +128,7 @@ def tight_extents(*, pose: CameraPose, light_direction, settings: ShadowSettings
 
     What :func:`csmlab.cascades.stabilize.held_extents` holds over a path for extent hysteresis.
     """
-    basis = light_basis(light_direction)
+    basis = dispatch(LIGHT_BASIS_METHODS, settings.light_basis, field="light_basis", direction=light_direction)
     _, _, _, intervals = _slices(pose, settings, visible_depth)
     out = []
     for z0, z1 in intervals:
@@ -162,7 +163,7 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
     CascadeSet
     """
     settings.validated()
-    basis = light_basis(light_direction)
+    basis = dispatch(LIGHT_BASIS_METHODS, settings.light_basis, field="light_basis", direction=light_direction)
     scene_light = np.asarray(scene_corners, dtype=np.float64).reshape(-1, 3) @ basis.T
     near, far, splits, intervals = _slices(pose, settings, visible_depth)
     frustum_light = _slice_light_corners(pose, basis, near, far)
