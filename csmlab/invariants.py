@@ -39,7 +39,9 @@ Each condition below is one row of :data:`_CONDITIONS`; the promise holds when a
 5. **A world-locked depth**: ``depth_range = "scene"`` (a ``slice`` box's near side follows the
    camera, and casters nearer than it are clamped onto it or clipped) in a depth format of
    :data:`WORLD_LOCKED_DEPTH_FORMATS` (quantized over the scene's fixed light-space span in
-   power-of-two steps, :mod:`csmlab.storage`).
+   power-of-two steps, :mod:`csmlab.storage`), and a unorm format quantized that way
+   (``depth_quantization = "scene"``): ``"cascade"`` divides each box's own near/far, which moves
+   with the slice wherever the slice reaches past the scene's bounds.
 
 Face culling (``cull``, :mod:`csmlab.culling`) keeps the promise: the triangles it drops are
 chosen by their facing to the light direction alone, the same in every frame of a static light,
@@ -171,6 +173,9 @@ _CONDITIONS = (
                             "in front of it are clamped or clipped there"),
     _Condition(lambda s, w: s.depth_format in WORLD_LOCKED_DEPTH_FORMATS,
                lambda s, w: f"depth_format = {s.depth_format!r} is not known to be world-locked"),
+    _Condition(lambda s, w: s.depth_format == "float32" or s.depth_quantization == "scene",
+               lambda s, w: f"depth_quantization = {s.depth_quantization!r}: each box's levels divide its own "
+                            "near/far, which may follow the camera"),
 )
 
 _KEPT = ("exact boxes of fixed extent on whole texels, float64 texel math, no screen-space input and a "

@@ -81,7 +81,9 @@ class ShadowSettings:
     depth_bytes: int = 0
     """Bytes per stored depth texel (memory cost only); 0: what depth_format allocates (2, 4, 4)."""
     depth_format: str = "float32"
-    """Stored depth: float32 | unorm24 | unorm16, quantized over the scene's light-space depth range (csmlab.storage)."""
+    """Stored depth: float32 | unorm24 | unorm16, quantized over depth_quantization's range (csmlab.storage)."""
+    depth_quantization: str = "scene"
+    """depth_format = unorm24 or unorm16: the range its levels divide, scene (the scene's light-space depth span, in power-of-two steps) | cascade (each box's own near/far, as engines store it) (csmlab.storage.DEPTH_QUANTIZATION_METHODS)."""
     storage: str = "array"
     """Texture the cascades live in: array (C slices) | atlas (one texture, atlas_layout)."""
     atlas_layout: str = "2x2"
@@ -336,6 +338,8 @@ APPLIES: dict[str, Applies] = {
     "hysteresis": Applies(lambda *, bounds, hold: bounds == "sdsm" and hold == "fraction",
                           'bounds = "sdsm" with hold = "fraction" (the hold of its visible range)'),
     "hold": Applies(lambda *, bounds: bounds == "sdsm", 'bounds = "sdsm" (how its visible range is held)'),
+    "depth_quantization": Applies(lambda *, depth_format: depth_format != "float32",
+                                  'depth_format = "unorm24" or "unorm16" (the range its levels divide)'),
     "atlas_layout": Applies(lambda *, storage: storage == "atlas", 'storage = "atlas" (the tiles of the atlas)'),
     "filter_size": _filters(lambda f: f == "pcf" or (_family(f) == "weighted" and f != "pcf_vogel"), "taps per side"),
     "filter_sigma": Applies(lambda *, filter, filter_width_m: filter == "pcf_gaussian" and filter_width_m == 0,

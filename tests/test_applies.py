@@ -37,6 +37,7 @@ CASES = {
     "transition": ('"forward"', {"blend_band": "0.1"}),
     "blend_curve": ('"smoothstep"', {"blend_band": "0.1"}),
     "fade": ('"smoothstep"', {"fade_out": "0.1"}),
+    "depth_quantization": ('"cascade"', {"depth_format": '"unorm16"'}),
     "atlas_layout": ('"1x4"', {"storage": '"atlas"'}),
     "filter_size": ("5", {}),
     "filter_sigma": ("2.0", {"filter": '"pcf_gaussian"'}),

@@ -293,13 +293,15 @@ def shadow_method_registries() -> dict:
     from csmlab.culling import CULL_METHODS
     from csmlab.fades import FADE_METHODS
     from csmlab.geometry import LIGHT_BASIS_METHODS
+    from csmlab.storage import DEPTH_QUANTIZATION_METHODS
     from csmlab.texels import PRECISION_METHODS
 
     return {"split": SPLIT_METHODS, "fit": FIT_METHODS, "stabilization": STABILIZATION_METHODS,
             "selection": SELECTION_METHODS, "filter": FILTER_METHODS, "extent": EXTENT_METHODS, "snap": SNAP_METHODS,
             "depth_range": DEPTH_RANGE_METHODS, "bounds": BOUNDS_METHODS, "engine_precision": PRECISION_METHODS,
             "transition": TRANSITION_METHODS, "hold": HOLD_METHODS, "blend_curve": BLEND_CURVES, "fade": FADE_METHODS,
-            "cull": CULL_METHODS, "light_basis": LIGHT_BASIS_METHODS}
+            "cull": CULL_METHODS, "light_basis": LIGHT_BASIS_METHODS,
+            "depth_quantization": DEPTH_QUANTIZATION_METHODS}
 
 
 def _checked_settings(settings: ShadowSettings, *, where_of, located: _Located,
