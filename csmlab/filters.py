@@ -40,7 +40,8 @@ from csmlab.fades import FADE_METHODS, faded
 from csmlab.frame import ShadowLookup, ShadowMaps
 from csmlab.kernels.moments import blur_moments, moment_lookup, moment_maps, moment_mip_chain, moment_mip_lookup
 from csmlab.kernels.pcf import weighted_pcf
-from csmlab.kernels.shadow import receiver_coordinates, select_cascades, shadow_lookup, shadow_lookup_world
+from csmlab.kernels.shadow import (receiver_coordinates, select_cascades, shadow_lookup, shadow_lookup_world,
+                                   split_sphere_cascades)
 from csmlab.lookup_choices import FILTER_METHODS, Filter
 from csmlab.quads import Quads, quad_derivatives
 from csmlab.registry import check_name
@@ -128,8 +129,10 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
                            reads=reads)
     _check_maps(maps, reads)
     radius = record.radius_of(settings)
-    found = FAMILY_LOOKUPS[record.family](maps, receivers, record=record, radius=radius,
-                                          selection=_selection(maps.cascades, settings, radius=radius),
+    selection = _selection(maps.cascades, settings, radius=radius)
+    if settings.selection == "sphere":
+        selection["sphere_cascade"] = _sphere_cascades(maps.cascades, receivers.points[receivers.index], device=device)
+    found = FAMILY_LOOKUPS[record.family](maps, receivers, record=record, radius=radius, selection=selection,
                                           settings=settings, device=device)
     return _shadow_of_points(found, receivers, np.asarray(view_depth, dtype=np.float64), settings=settings,
                              far=float(maps.cascades.splits[-1]), eye=maps.cascades.eye)
@@ -189,6 +192,12 @@ def _selection(cascades: CascadeSet, settings: ShadowSettings, *, radius: int) -
                 blend_curve=BLEND_CURVES[check_name(settings.blend_curve, BLEND_CURVES, field="blend_curve")][0],
                 bits=settings.subtexel_bits,
                 margin=max(cascades.margin_texels, radius))
+
+
+def _sphere_cascades(cascades: CascadeSet, points: np.ndarray, *, device: str) -> np.ndarray:
+    """``selection = "sphere"``: each point's first cascade whose split sphere holds it, −1 where none."""
+    return split_sphere_cascades(points, centres=np.stack([c.sphere_centre for c in cascades.cascades]),
+                                 radii=np.array([c.sphere_radius for c in cascades.cascades]), device=device)
 
 
 def _conversion(cascades: CascadeSet, settings: ShadowSettings) -> dict:
@@ -361,8 +370,11 @@ def _quad_footprint(maps: ShadowMaps, receivers: Receivers, coords: np.ndarray, 
                                                    np.arange(len(lane_points)), settings=settings, device=device)
     flat = _selectable(lane_coords, cascades, margin=selection["margin"], bits=settings.subtexel_bits,
                        resolution=maps.depth.shape[1])
+    lanes = dict(selection)
+    if "sphere_cascade" in selection:
+        lanes["sphere_cascade"] = _sphere_cascades(cascades, lane_points, device=device)
     lane_chosen, _, _ = select_cascades(maps.depth, flat, lane_depth, receivers.quad_view_depth.reshape(-1),
-                                        radius=0, **selection, device=device)
+                                        radius=0, **lanes, device=device)
     lane_cascade = lane_chosen.astype(np.int64).reshape(n, 4)
     lane_cascade[np.arange(n), receivers.quads.slot.astype(np.int64)] = chosen
     unit = 2**settings.subtexel_bits

@@ -35,7 +35,7 @@ __all__ = ["BLEND_LINEAR", "BLEND_SMOOTHSTEP", "BOX_BILINEAR", "BOX_TAPS", "CAST
            "NORMAL_ONE_MINUS_COS_LATERAL", "NORMAL_SIN", "FAMILIES", "FILTER_METHODS", "Filter", "MOMENT_EVSM2",
            "MOMENT_EVSM4", "MOMENT_VSM", "PCF_BILINEAR_BOX", "PCF_CASTANO", "PCF_GAUSSIAN", "PCF_PCSS", "PCF_POISSON",
            "PCF_TENT", "PCF_TENT_BILINEAR", "PCF_VOGEL", "SELECTION_METHODS", "SELECT_BEST_RESOLUTION",
-           "SELECT_INTERVAL", "SELECT_MAP", "Selection", "family_code", "family_filters", "poisson_disk", "vogel_disk"]
+           "SELECT_INTERVAL", "SELECT_MAP", "SELECT_SPHERE", "Selection", "family_code", "family_filters", "poisson_disk", "vogel_disk"]
 
 SELECT_INTERVAL = 0
 """Selection code: the cascade whose split interval holds the view depth."""
@@ -43,6 +43,8 @@ SELECT_MAP = 1
 """Selection code: the first cascade whose box holds the point inside its margins."""
 SELECT_BEST_RESOLUTION = 2
 """Selection code: of the boxes that hold the point, the one with the smallest texels."""
+SELECT_SPHERE = 3
+"""Selection code: the first cascade whose split sphere holds the point (Unity)."""
 
 BLEND_LINEAR = 0
 """Blend-curve code: the next cascade's weight rises linearly over the band."""
@@ -127,6 +129,8 @@ SELECTION_METHODS: dict[str, Selection] = {s.name: s for s in (
     Selection("map", SELECT_MAP, "the first cascade whose box holds the point, less the margin"),
     Selection("best_resolution", SELECT_BEST_RESOLUTION,
               "of the boxes that hold the point, the one with the smallest texels (seed 003)"),
+    Selection("sphere", SELECT_SPHERE, "the first cascade whose split sphere holds the point (Unity built-in Stable Fit "
+              "getCascadeWeights_splitSpheres, URP ComputeCascadeIndex)"),
 )}
 """Cascade selection methods by name."""
 

@@ -47,7 +47,7 @@ class ShadowSettings:
     quantized_base: str = "sphere"
     """quantized: base extent, sphere (slice bounding-sphere diameter) | frustum (whole frustum box)."""
     selection: str = "interval"
-    """Cascade selection: interval | map | best_resolution."""
+    """Cascade selection: interval | map | best_resolution | sphere (the first split sphere holding the point: Unity)."""
     filter: str = "pcf"
     """Filter: none | pcf | pcf_bilinear | pcf_gaussian | pcf_tent | pcf_poisson | pcf_vogel | pcf_castano | pcf_tent_bilinear | pcf_bilinear_box | pcss | vsm | evsm2 | evsm4 (csmlab.filters)."""
     filter_size: int = 3

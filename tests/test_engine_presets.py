@@ -72,28 +72,32 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
                          transition="forward", fade_out=0.1,
                          shadow_distance=200.0, stabilization="exact")),
     # Unity QualitySettings: shadowCascade4Split (0.067, 0.2, 0.467), shadowDistance 150.
-    # Built-in: Internal-ScreenSpaceShadows frag_pcf5x5 -> UnitySampleShadowmap_PCF5x5Tent; one 2×2 shadowmap.
+    # Built-in: Internal-ScreenSpaceShadows frag_pcf5x5 -> UnitySampleShadowmap_PCF5x5Tent; one 2×2 shadowmap;
+    # getCascadeWeights_splitSpheres: the first split sphere holding the point.
     ("engines/unity_builtin_stable", dict(cascades=4, splits=(0.067, 0.2, 0.467, 1.0), shadow_distance=150.0,
                                           fade="radial",
-                                          stabilization="exact", selection="map", filter="pcf_tent_bilinear",
+                                          stabilization="exact", selection="sphere", filter="pcf_tent_bilinear",
                                           filter_size=7,
                                           storage="atlas", atlas_layout="2x2")),
     ("engines/unity_builtin_close", dict(cascades=4, splits=(0.067, 0.2, 0.467, 1.0), stabilization="none",
                                          filter="pcf_tent_bilinear", filter_size=7, storage="atlas")),
     # UniversalRenderPipelineAsset: m_ShadowDistance 50, m_Cascade4Split (0.067, 0.2, 0.467), m_CascadeBorder 0.2;
-    # m_SoftShadowQuality Medium = SampleShadow_ComputeSamples_Tent_5x5; 2×2 atlas; k_ShadowmapBufferBits = 16.
+    # m_SoftShadowQuality Medium = SampleShadow_ComputeSamples_Tent_5x5; 2×2 atlas; k_ShadowmapBufferBits = 16,
+    # each tile rendered with its slice's projection (RenderShadowSlice); ComputeCascadeIndex: split spheres.
     ("engines/unity_urp", dict(shadow_distance=50.0, splits=(0.067, 0.2, 0.467, 1.0), fade_out=0.2,
-                               fade="squared_radial", filter="pcf_bilinear",
-                               storage="atlas", atlas_layout="2x2", depth_format="unorm16")),
+                               fade="squared_radial", filter="pcf_bilinear", selection="sphere",
+                               storage="atlas", atlas_layout="2x2", depth_format="unorm16",
+                               depth_quantization="cascade")),
     # DirectionalLight3D: splits 0.1/0.2/0.5, max distance 100, fade_start 0.8, pancake_size 20, blend off;
     # soft_shadow_filter_quality 2 (SOFT_LOW): directional_soft_shadow_samples = 4, quality radius 2.0, a
-    # Vogel disk rotated per pixel; directional_shadow/16_bits = true; 4 splits as quadrants of one atlas.
+    # Vogel disk rotated per pixel; directional_shadow/16_bits = true, each split over its own z range; 4 splits
+    # as quadrants of one atlas; the light node's basis (a roll-free node: a look-at with +Y up).
     ("engines/godot4", dict(split="manual_range", splits=(0.1, 0.2, 0.5, 1.0), shadow_distance=100.0, fade_out=0.2,
                             fade="smoothstep", extent="centroid", snap="nearest2", pancake=20.0,
                             depth_range="sphere", depth_clamp=True, blend_band=0.0, filter="pcf_vogel",
                             vogel_taps=4, vogel_radius=2.0, vogel_angle=2.4, vogel_scale="first_split",
-                            poisson_rotation="pixel", storage="atlas",
-                            depth_format="unorm16")),
+                            poisson_rotation="pixel", storage="atlas", light_basis="world_y",
+                            depth_format="unorm16", depth_quantization="cascade")),
     # ShadowOptions: shadowCascades 1, practical splits lambda 0.5, stable false; ShadowType::PCF =
     # ShadowSample_PCF_Low, "hardware assisted PCF + 3x3 gaussian filter" (Castaño 2013).
     ("engines/filament", dict(cascades=1, split="practical", lambda_=0.5, stabilization="none",

@@ -16,7 +16,7 @@ from csmlab.cascades.extent import EXTENT_METHODS, radius_rounded_up
 from csmlab.cascades.fit import slice_intervals
 from csmlab.cascades.splits import split_distances
 from csmlab.cascades.stabilize import SliceFootprint, stabilize
-from csmlab.geometry import LIGHT_BASIS_METHODS, frustum_slice_corners
+from csmlab.geometry import LIGHT_BASIS_METHODS, frustum_slice_corners, slice_bounding_sphere
 from csmlab.registry import check_name, dispatch
 from csmlab.settings import ShadowSettings
 
@@ -41,6 +41,11 @@ class Cascade:
         Texels per side R.
     depth_near, depth_far : float
         Depth range in metres along the light direction (``dot(X, d)``, not relative to zref).
+    sphere_centre : ndarray, shape (3,), optional
+        World centre in metres of the fitted slice's smallest bounding sphere: the split sphere of
+        ``selection = "sphere"`` (Unity's culling sphere).
+    sphere_radius : float
+        Its radius in metres, rounded up as the ``sphere`` extent's (0 where not built).
     """
 
     split_near: float
@@ -52,6 +57,8 @@ class Cascade:
     resolution: int
     depth_near: float
     depth_far: float
+    sphere_centre: np.ndarray | None = None
+    sphere_radius: float = 0.0
 
     @property
     def box_min(self) -> np.ndarray:
@@ -188,10 +195,21 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
         cascades.append(Cascade(
             split_near=float(splits[i]), split_far=float(splits[i + 1]), slice_near=float(z0), slice_far=float(z1),
             texel_size=texel, origin=origin, resolution=resolution, depth_near=depth_near,
-            depth_far=depth_far,
+            depth_far=depth_far, **_split_sphere(pose, z0, z1),
         ))
     return CascadeSet(basis=basis, zref=float(scene_light[:, 2].min()), splits=splits, cascades=tuple(cascades),
                       margin_texels=margin, eye=np.array(pose.position, dtype=np.float64))
+
+
+def _split_sphere(pose: CameraPose, z0: float, z1: float) -> dict:
+    """``sphere_centre`` (world, metres) and ``sphere_radius`` of the slice ``[z0, z1]``'s smallest bounding sphere.
+
+    Unity's split spheres are native (``ComputeDirectionalShadowMatricesAndCullingPrimitives``'s
+    culling sphere, unverified): csmlab takes the sphere its ``sphere`` extent sizes the box by.
+    """
+    sphere = slice_bounding_sphere(fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, z_near=z0, z_far=z1)
+    return dict(sphere_centre=np.asarray(pose.position, dtype=np.float64) + pose.forward * sphere.centre_depth,
+                sphere_radius=radius_rounded_up(sphere.radius))
 
 
 def _slice_light_corners(pose: CameraPose, basis: np.ndarray, z0: float, z1: float) -> np.ndarray:
