@@ -17,8 +17,9 @@ Each condition below is one row of :data:`_CONDITIONS`; the promise holds when a
    texel index, so rounding to nearest rather than down changes only when the box steps; so does
    ``centre_nearest``, Stride's centre rounded to the nearest texel). The
    ``centroid`` extent (Godot, Stride) is fixed like ``sphere``: its centre's depth and its radius
-   are closed forms of the projection and the slice depths; so is ``body_diagonal`` (DirectX CSM11's
-   fit to scene) like ``diagonal``.
+   are closed forms of the projection and the slice depths; so are ``body_diagonal`` (DirectX CSM11's
+   fit to scene) and ``diagonal_unrounded`` (three.js) like ``diagonal``, and ``centre_full`` (the
+   whole map as the box, texel D/R) snaps by whole texels like ``centre``.
 3. **Float64 texel math** (``engine_precision``): csmlab's global texel coordinates depend on the
    world point and the texel size only, and the box origin is an integer shift, so the rule holds
    at any distance from the world origin (up to the fixed-point clip of :mod:`csmlab.texels`,
@@ -73,11 +74,11 @@ __all__ = ["FIXED_EXTENTS", "FLICKER_SAME_ZERO", "Promise", "SCREEN_READS", "WHO
 FLICKER_SAME_ZERO = "flicker_same_zero"
 """The name of the one invariant: ``flicker_same`` is exactly 0.0."""
 
-FIXED_EXTENTS = ("sphere", "diagonal", "centroid", "body_diagonal")
+FIXED_EXTENTS = ("sphere", "diagonal", "centroid", "body_diagonal", "diagonal_unrounded")
 """``extent`` choices whose box size depends on the projection and the slice depths only
 (:mod:`csmlab.cascades.extent`); a new one promises nothing until it is listed here."""
 
-WHOLE_TEXEL_SNAPS = ("origin", "centre", "view", "nearest2", "centre_nearest")
+WHOLE_TEXEL_SNAPS = ("origin", "centre", "view", "nearest2", "centre_nearest", "centre_full")
 """``snap`` choices that move an exact box by whole texels (:data:`csmlab.cascades.stabilize.SNAP_METHODS`)."""
 
 WORLD_LOCKED_DEPTH_FORMATS = ("float32", "unorm24", "unorm16")

@@ -39,7 +39,7 @@ class ShadowSettings:
     shadow_distance: float = 200.0
     """View depth in metres that the last cascade ends at (clamped to the camera's far plane)."""
     fit: str = "cascade"
-    """Fit: cascade (slice [z_i, z_i+1]) | scene (slice [near, z_i+1])."""
+    """Fit: cascade (slice [z_i, z_i+1]) | cascade_lerp (its ends lerped from near to far: n + (z_i/f)(f − n), three.js) | scene (slice [near, z_i+1])."""
     stabilization: str = "exact"
     """none | exact | quantized."""
     levels: int = 64
@@ -135,17 +135,21 @@ class ShadowSettings:
     first_cascade_far: float = 10.0
     """split = geometric: far end of the first cascade in metres, the rest geometric (Bevy's first_cascade_far_bound)."""
     extent: str = "sphere"
-    """exact, and quantized with quantized_base = sphere: the fixed box diameter, sphere (slice bounding sphere) | diagonal (ceil of the slice's largest diagonal, Bevy, three.js) | centroid (sphere about the corners' centroid: Godot, Stride) | body_diagonal (the body diagonal alone, unrounded: DirectX CSM11 fit to scene)."""
+    """exact, and quantized with quantized_base = sphere: the fixed box diameter, sphere (slice bounding sphere) | diagonal (ceil of the slice's largest diagonal, Bevy) | diagonal_unrounded (the same unrounded: three.js) | centroid (sphere about the corners' centroid: Godot, Stride) | body_diagonal (the body diagonal alone, unrounded: DirectX CSM11 fit to scene)."""
     snap: str = "origin"
-    """exact: what is snapped to whole texels, origin (box corner: Valient, DirectX, Unreal) | centre (box centre: Bevy, three.js, Stride projection snapping) | view (centre in 4-texel steps: Stride view snapping) | nearest2 (edges rounded to the nearest 2-texel unit: Godot) | centre_nearest (box centre rounded to the nearest texel: Stride projection snapping)."""
+    """exact: what is snapped to whole texels, origin (box corner: Valient, DirectX, Unreal) | centre (box centre: Stride projection snapping) | centre_full (box centre, texel D/R with no filter margin inside: Bevy, three.js) | view (centre in 4-texel steps: Stride view snapping) | nearest2 (edges rounded to the nearest 2-texel unit: Godot) | centre_nearest (box centre rounded to the nearest texel: Stride projection snapping)."""
     light_basis: str = "least_aligned"
     """Light space's right and up about the light axis, where the texel grid lies: least_aligned (csmlab's: the world axis least aligned with the light as up) | world_y (a look-at with world +Y up: three.js, Godot, Bevy, Stride, MJP, DirectX) (csmlab.geometry.LIGHT_BASIS_METHODS)."""
     depth_range: str = "scene"
-    """Box depth: scene (near side pushed to the scene bounds) | slice (the slice's own range, less pancake) | sphere (the slice corners' centroid sphere ± radius, less pancake: Godot, Stride)."""
+    """Box depth: scene (near side pushed to the scene bounds) | slice (the slice's own range, less pancake) | sphere (the slice corners' centroid sphere ± radius, less pancake: Godot, Stride) | light_camera (light_near to light_far in front of a light pancake metres from the slice: three.js)."""
     pancake: float = 0.0
-    """depth_range = slice or sphere: metres the near side is pulled toward the light beyond the slice (Godot pancake_size)."""
+    """depth_range = slice, sphere or light_camera: metres the near side (light_camera: the light) is pulled toward the light beyond the slice (Godot pancake_size, three.js lightMargin)."""
+    light_near: float = 1.0
+    """depth_range = light_camera: metres in front of the light where its camera's depth range starts (three.js lightNear)."""
+    light_far: float = 2000.0
+    """depth_range = light_camera: metres in front of the light where its camera's depth range ends (three.js lightFar)."""
     depth_clamp: bool = True
-    """depth_range = slice or sphere: casters nearer than the near side are flattened onto it (pancaking) rather than clipped."""
+    """depth_range = slice, sphere or light_camera: casters nearer than the near side are flattened onto it (pancaking) rather than clipped."""
     fade_out: float = 0.0
     """Fraction of the shadow distance at its end over which the shadow fades to lit (Unreal, Unity, Godot 1 - fade_start)."""
     fade: str = "linear"
@@ -241,6 +245,8 @@ class ShadowSettings:
              "a ratio of at least 1 and at most 100", self.distribution_exponent)
         need(self.first_cascade_far > 0, "first_cascade_far", "a positive distance in metres", self.first_cascade_far)
         need(self.pancake >= 0, "pancake", "a non-negative distance in metres", self.pancake)
+        need(0.0 <= self.light_near < self.light_far, "light_near", f"a distance in metres in [0, light_far = "
+             f"{self.light_far})", self.light_near)
         need(isinstance(self.depth_clamp, bool), "depth_clamp", "true or false", self.depth_clamp)
         need(self.cull in CULL_METHODS, "cull", f"one of {list(CULL_METHODS)}", self.cull)
         need(0.0 <= self.fade_out <= 1.0, "fade_out", "a fraction in [0, 1]", self.fade_out)
@@ -328,10 +334,14 @@ APPLIES: dict[str, Applies] = {
                     'stabilization = "exact" (what its fixed box snaps to whole texels)'),
     "extent_hysteresis": Applies(lambda *, stabilization: stabilization == "none",
                                  'stabilization = "none" (a stabilized box already has a fixed extent)'),
-    "pancake": Applies(lambda *, depth_range: depth_range in ("slice", "sphere"),
-                       'depth_range = "slice" or "sphere" (the pull of its near side toward the light)'),
-    "depth_clamp": Applies(lambda *, depth_range: depth_range in ("slice", "sphere"),
-                           'depth_range = "slice" or "sphere" (casters nearer than its near side)'),
+    "pancake": Applies(lambda *, depth_range: depth_range in ("slice", "sphere", "light_camera"),
+                       'depth_range = "slice", "sphere" or "light_camera" (the pull of its near side toward the light)'),
+    "light_near": Applies(lambda *, depth_range: depth_range == "light_camera",
+                          'depth_range = "light_camera" (where its camera\'s range starts)'),
+    "light_far": Applies(lambda *, depth_range: depth_range == "light_camera",
+                         'depth_range = "light_camera" (where its camera\'s range ends)'),
+    "depth_clamp": Applies(lambda *, depth_range: depth_range in ("slice", "sphere", "light_camera"),
+                           'depth_range = "slice", "sphere" or "light_camera" (casters nearer than its near side)'),
     "transition": Applies(lambda *, blend_band: blend_band > 0, "blend_band > 0 (where its bands lie)"),
     "blend_curve": Applies(lambda *, blend_band: blend_band > 0, "blend_band > 0 (the weight over its bands)"),
     "fade": Applies(lambda *, fade_out: fade_out > 0, "fade_out > 0 (the shape of the far fade)"),

@@ -32,6 +32,8 @@ CASES = {
     "extent_hysteresis": ("0.2", {"stabilization": '"none"'}),
     "pancake": ("5.0", {"depth_range": '"slice"'}),
     "depth_clamp": ("false", {"depth_range": '"slice"'}),
+    "light_near": ("2.0", {"depth_range": '"light_camera"'}),
+    "light_far": ("900.0", {"depth_range": '"light_camera"'}),
     "hysteresis": ("0.2", {"bounds": '"sdsm"'}),
     "hold": ('"stepped"', {"bounds": '"sdsm"'}),
     "transition": ('"forward"', {"blend_band": "0.1"}),

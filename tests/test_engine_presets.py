@@ -103,13 +103,17 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     ("engines/filament", dict(cascades=1, split="practical", lambda_=0.5, stabilization="none",
                               filter="pcf_castano", filter_size=3)),
     # CascadeShadowConfigBuilder::default(): 4, 0.1, 150, first bound 10, overlap 0.2;
-    # ShadowFilteringMethod::Gaussian = sample_shadow_map_castano_thirteen, weights (4 - 3s, 7, 1 + 3s) over 5 texels.
+    # ShadowFilteringMethod::Gaussian = sample_shadow_map_castano_thirteen, weights (4 - 3s, 7, 1 + 3s) over 5 texels;
+    # calculate_cascade: texel cascade_diameter / cascade_texture_size, the centre floored to it.
     ("engines/bevy", dict(cascades=4, split="geometric", first_cascade_far=10.0, shadow_distance=150.0,
-                          blend_band=0.2, transition="far_bound", extent="diagonal", snap="centre",
+                          blend_band=0.2, transition="far_bound", extent="diagonal", snap="centre_full",
                           filter="pcf_castano", filter_size=5)),
-    # CSM.js: cascades 3, mode 'practical', lightMargin 200, fade false; renderer default PCFShadowMap.
+    # CSM.js: cascades 3, mode 'practical', lightMargin 200, lightNear 1, lightFar 2000, fade false; renderer
+    # default PCFShadowMap; CSMFrustum.split lerps the slices; lookAt(+Y); unrounded diagonal, texel width / size.
     ("engines/threejs_csm", dict(cascades=3, split="practical", lambda_=0.5, pancake=200.0, fade_out=0.0,
-                                 extent="diagonal", filter="pcf_vogel", vogel_taps=5, vogel_radius=1.0,
+                                 fit="cascade_lerp", depth_range="light_camera", light_near=1.0, light_far=2000.0,
+                                 light_basis="world_y", snap="centre_full",
+                                 extent="diagonal_unrounded", filter="pcf_vogel", vogel_taps=5, vogel_radius=1.0,
                                  poisson_rotation="pixel")),
     # LightDirectionalShadowMap: FourCascades, PSSMFactor 0.5, StabilizationMode ProjectionSnapping,
     # DepthRange.IsAutomatic true (held: DepthIncreaseThreshold 1.1, DepthDecreaseThreshold 2.0),

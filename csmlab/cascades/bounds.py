@@ -28,6 +28,14 @@ Light depth, :data:`DEPTH_RANGE_METHODS` (``[shadow] depth_range``), the box's e
   ``LightDirectionalShadowMapRenderer``: the shadow camera ``r`` behind the sphere's centre, near 0,
   far ``2r``). Always at least the corners' range. Godot's radius is also widened by ``T / (T - 2)``
   (one texel, < 0.1 % at 2048), which this range leaves out.
+- ``light_camera`` — a light camera ``pancake`` metres toward the light from the slice's corner
+  nearest the light, clipping at ``light_near`` and ``light_far`` metres in front of it (three.js
+  ``CSM.update()``: ``_center.z = _bbox.max.z + lightMargin``, the shadow camera's ``near =
+  lightNear`` 1 and ``far = lightFar`` 2000, ``CSM`` constructor): the range is ``[s − pancake +
+  light_near, s − pancake + light_far]``, ``s`` the slice's nearest light depth, whatever the slice's
+  depth. Casters in front of it are clamped or clipped (``depth_clamp``); a caster beyond the far side
+  is still rasterized (a unorm format stores it at the far side, as the engine's cleared map holds
+  where it clips the caster).
 """
 
 from __future__ import annotations
@@ -99,9 +107,10 @@ class DepthRange:
     ----------
     description : str
     box_depth : callable
-        ``box_depth(slice_depth, scene_depth, *, pancake, corners) -> (near, far)``: the box's near and
+        ``box_depth(slice_depth, scene_depth, *, pancake, ...) -> (near, far)``: the box's near and
         far light depth in metres from the light depths of the slice's corners and of the scene's
-        bounds (and the corners' light-space positions ``(8, 3)``).
+        bounds; it declares what else it reads of ``corners`` (the corners' light-space positions
+        ``(8, 3)``), ``light_near`` and ``light_far``.
     cuts_casters : bool
         The box's near side may lie behind casters: they are flattened onto it (``depth_clamp``,
         pancaking) or clipped away. False: every caster lies behind the near side.
@@ -112,6 +121,14 @@ class DepthRange:
     cuts_casters: bool
 
 
+def light_camera_box_depth(slice_depth: np.ndarray, scene_depth: np.ndarray, *, pancake: float, light_near: float,
+                           light_far: float) -> tuple[float, float]:
+    """``light_camera``: ``light_near`` to ``light_far`` metres in front of a light ``pancake`` metres toward the
+    light from the slice's nearest light depth (three.js CSM)."""
+    light = float(slice_depth.min()) - pancake
+    return light + light_near, light + light_far
+
+
 DEPTH_RANGE_METHODS: dict[str, DepthRange] = {
     "scene": DepthRange("box near side pushed toward the light to the scene bounds (every caster captured)",
                         scene_box_depth, cuts_casters=False),
@@ -120,6 +137,9 @@ DEPTH_RANGE_METHODS: dict[str, DepthRange] = {
     "sphere": DepthRange("box depth from the sphere about the slice corners' centroid (centre ± radius), near side "
                          "pulled `pancake` metres toward the light (Godot 4, Stride)", sphere_box_depth,
                          cuts_casters=True),
+    "light_camera": DepthRange("a light camera `pancake` metres toward the light from the slice, clipping at "
+                               "`light_near` and `light_far` in front of it (three.js CSM)", light_camera_box_depth,
+                               cuts_casters=True),
 }
 """Light-depth ranges of a cascade's box, by name."""
 

@@ -17,7 +17,7 @@ from csmlab.cascades.fit import slice_intervals
 from csmlab.cascades.splits import split_distances
 from csmlab.cascades.stabilize import SliceFootprint, stabilize
 from csmlab.geometry import LIGHT_BASIS_METHODS, frustum_slice_corners, slice_bounding_sphere
-from csmlab.registry import check_name, dispatch
+from csmlab.registry import check_name, dispatch, parameters
 from csmlab.settings import ShadowSettings
 
 __all__ = ["Cascade", "CascadeSet", "build_cascades", "radius_rounded_up", "tight_extents"]
@@ -190,8 +190,11 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
         texel, origin = stabilize(footprint, method=settings.stabilization, resolution=resolution,
                                   margin=margin, levels=settings.levels, quantized_base=settings.quantized_base,
                                   snap=settings.snap, held_extent=None if held_extents is None else held_extents[i])
-        depth_near, depth_far = DEPTH_RANGE_METHODS[settings.depth_range].box_depth(
-            corners[:, 2], scene_light[:, 2], pancake=settings.pancake, corners=corners)
+        box_depth = DEPTH_RANGE_METHODS[settings.depth_range].box_depth
+        offered = dict(pancake=settings.pancake, corners=corners, light_near=settings.light_near,
+                       light_far=settings.light_far)
+        depth_near, depth_far = box_depth(corners[:, 2], scene_light[:, 2],
+                                          **{k: v for k, v in offered.items() if k in parameters(box_depth)})
         cascades.append(Cascade(
             split_near=float(splits[i]), split_far=float(splits[i + 1]), slice_near=float(z0), slice_far=float(z1),
             texel_size=texel, origin=origin, resolution=resolution, depth_near=depth_near,

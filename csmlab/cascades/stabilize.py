@@ -171,9 +171,26 @@ def snap_nearest2(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[
     return texel, 2.0 * np.floor((fp.centre - (fp.radius + t)) / (2.0 * texel) + 0.5) - margin
 
 
+def snap_centre_full(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[np.ndarray, np.ndarray]:
+    """The box's centre floored to whole texels of ``t = 2r / R``: the whole map is the box, no margin kept inside.
+
+    three.js (``CSM.update()``: ``texelWidth = (right − left) / shadowMapSize``, ``_center.x =
+    Math.floor(_center.x / texelWidth) · texelWidth``, the camera ``±width / 2`` about it) and Bevy
+    (``cascade.rs`` ``calculate_cascade``: ``cascade_texel_size = cascade_diameter / cascade_texture_size``,
+    the centre floored to it). The box spans ``[k - h, k - h + R)`` texels with ``k = floor(c / t)`` and
+    ``h = floor(R / 2)``; ``margin`` plays no part, so a filter's taps may leave the box near its edge,
+    where the lookup then selects no cascade for the point (csmlab never clamps a tap), while the
+    engines read the clamped edge.
+    """
+    t = 2.0 * fp.radius / resolution
+    texel = np.array([t, t])
+    return texel, np.floor(fp.centre / texel) - resolution // 2
+
+
 SNAP_METHODS: dict[str, Callable[..., tuple[np.ndarray, np.ndarray]]] = {
     "origin": snap_origin,
     "centre": snap_centre,
+    "centre_full": snap_centre_full,
     "view": snap_view,
     "nearest2": snap_nearest2,
     "centre_nearest": snap_centre_nearest,
