@@ -41,7 +41,7 @@ class ShadowSettings:
     fit: str = "cascade"
     """Fit: cascade (slice [z_i, z_i+1]) | cascade_lerp (its ends lerped from near to far: n + (z_i/f)(f − n), three.js) | scene (slice [near, z_i+1])."""
     stabilization: str = "exact"
-    """none | exact | quantized."""
+    """none | exact | quantized | tight_snapped (the tight box padded for the filter, snapped to texels of its own size every frame: DirectX CSM11 fit to cascade)."""
     levels: int = 64
     """quantized: number of extent steps of the base extent."""
     quantized_base: str = "sphere"

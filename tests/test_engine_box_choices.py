@@ -1,5 +1,5 @@
 """The engines' box choices, each against its engine's formula written out: three.js's lerped slices, unrounded
-diagonal, full-map centre snap and light camera; Bevy's full-map centre snap."""
+diagonal, full-map centre snap and light camera; Bevy's full-map centre snap; DirectX CSM11's fit to cascade."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from csmlab.cascades import build_cascades
 from csmlab.cascades.bounds import DEPTH_RANGE_METHODS
 from csmlab.cascades.extent import extent_diagonal, extent_diagonal_unrounded
 from csmlab.cascades.fit import slice_intervals
-from csmlab.cascades.stabilize import SliceFootprint, snap_centre_full
+from csmlab.cascades.stabilize import SliceFootprint, snap_centre_full, stabilize_tight_snapped
 from csmlab.geometry import frustum_slice_corners, rotation_looking_at
 from csmlab.light import direction_from_angles
 from csmlab.settings import ShadowSettings
@@ -89,3 +89,24 @@ def test_the_threejs_box_choices_build_world_locked_boxes_of_the_same_size_every
         for ca, cb in zip(a.cascades, b.cascades):
             np.testing.assert_array_equal(ca.texel_size, cb.texel_size)
             assert np.all(cb.origin == np.round(cb.origin))
+
+
+def test_tight_snapped_is_directx_fit_to_cascade_with_the_light_moved_in_texel_steps():
+    """CascadedShadowsManager::InitFrame, FIT_TO_CASCADES: vBoarderOffset = (max − min) · 0.5 ·
+    (m_iPCFBlurSize · 2 + 1) / m_iBufferSize; vWorldUnitsPerTexel = (max − min) / m_iBufferSize after padding;
+    m_bMoveLightTexelSize: min = floor(min / t) · t, max = floor(max / t) · t."""
+    rng = np.random.default_rng(4)
+    blur, size = 3, 1024
+    for _ in range(100):
+        lo = rng.uniform(-3e3, 3e3, 2)
+        hi = lo + rng.uniform(0.5, 400.0, 2)
+        border = (hi - lo) * 0.5 * (blur * 2 + 1) / size
+        dx_min, dx_max = lo - border, hi + border
+        t = (dx_max - dx_min) / size
+        dx_min, dx_max = np.floor(dx_min / t) * t, np.floor(dx_max / t) * t
+        fp = SliceFootprint(lo=lo, hi=hi, centre=0.5 * (lo + hi), radius=1.0, frustum_extent=np.array([1.0, 1.0]))
+        texel, origin = stabilize_tight_snapped(fp, resolution=size, margin=blur)
+        np.testing.assert_allclose(texel, t, rtol=1e-12)
+        np.testing.assert_allclose(origin * texel, dx_min, rtol=0, atol=1e-9 * np.abs(dx_min).max())
+        np.testing.assert_allclose((origin + size) * texel, dx_max, rtol=0, atol=1e-6 * np.abs(dx_max).max())
+        assert np.all(origin * texel <= lo) and np.all((origin + size) * texel >= hi)

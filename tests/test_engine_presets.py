@@ -135,7 +135,8 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     ("seeds/nvidia_sdk", dict(split="practical", lambda_=0.75, stabilization="none")),
     # Seed 002/004: "create a kernel (such as a Gaussian) for an N × N grid ... The CascadedShadowMaps11 sample
     # uses this approach"; VarianceShadows11 "use[s] texture arrays instead of a texture atlas" (CSM11: an atlas).
-    ("seeds/dx_csm11_cascade", dict(fit="cascade", selection="interval", extent="diagonal",
+    # CascadedShadowsManager::InitFrame FIT_TO_CASCADES with m_bMoveLightTexelSize: tight, padded, floored per frame.
+    ("seeds/dx_csm11_cascade", dict(fit="cascade", selection="interval", stabilization="tight_snapped",
                                     filter="pcf_bilinear_box", filter_size=3,
                                     storage="atlas", atlas_layout="1x4")),
     ("seeds/dx_csm11_scene", dict(fit="scene", selection="map", blend_band=0.0, cascades=3,

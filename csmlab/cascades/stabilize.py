@@ -26,7 +26,8 @@ import numpy as np
 from csmlab.registry import check_name, dispatch
 
 __all__ = ["QUANTIZED_BASES", "SNAP_METHODS", "STABILIZATION_METHODS", "SliceFootprint", "check_resolution",
-           "held_extents", "stabilize", "stabilize_exact", "stabilize_none", "stabilize_quantized"]
+           "held_extents", "stabilize", "stabilize_exact", "stabilize_none", "stabilize_quantized",
+           "stabilize_tight_snapped"]
 
 
 @dataclass(frozen=True)
@@ -236,10 +237,29 @@ def stabilize_quantized(fp: SliceFootprint, *, resolution: int, margin: int, lev
     return texel, origin
 
 
+def stabilize_tight_snapped(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[np.ndarray, np.ndarray]:
+    """Tight box padded for the filter and snapped to texels of its own size, every frame (DirectX CSM11 fit to cascade).
+
+    ``CascadedShadowsManager::InitFrame`` with ``FIT_TO_CASCADES`` and ``m_bMoveLightTexelSize``: the
+    light-space AABB of the slice's corners is widened on each side by half of ``(2 · m_iPCFBlurSize +
+    1) / m_iBufferSize`` of its size, the world units per texel are that padded size over the buffer
+    size, and both ends are floored to them. Here the padding is ``(2m + 1) / R`` of the extent with
+    ``m`` the filter's margin (DirectX's 3×3 PCF: m = 3, 7 texels as the sample's blur size 3 gives),
+    ``t = padded / R`` per axis and the box ``[floor(lo / t), floor(lo / t) + R)`` texels (the floored
+    maximum lies exactly R texels further, the padded size being R texels). The texel size follows
+    the slice's light-space extent, so it changes whenever the camera turns: the sample's shimmer.
+    """
+    tight = np.maximum(fp.hi - fp.lo, 1e-9)
+    padded = tight * (1.0 + (2 * margin + 1) / resolution)
+    texel = padded / resolution
+    return texel, np.floor((fp.lo - 0.5 * (padded - tight)) / texel)
+
+
 STABILIZATION_METHODS: dict[str, Callable[..., tuple[np.ndarray, np.ndarray]]] = {
     "none": stabilize_none,
     "exact": stabilize_exact,
     "quantized": stabilize_quantized,
+    "tight_snapped": stabilize_tight_snapped,
 }
 """Stabilization methods by name: ``f(footprint, *, resolution, margin, levels, quantized_base, snap)``."""
 
