@@ -42,7 +42,7 @@ from csmlab.kernels.moments import blur_moments, moment_lookup, moment_maps, mom
 from csmlab.kernels.pcf import weighted_pcf
 from csmlab.kernels.shadow import (receiver_coordinates, select_cascades, shadow_lookup, shadow_lookup_world,
                                    split_sphere_cascades)
-from csmlab.lookup_choices import FILTER_METHODS, Filter
+from csmlab.lookup_choices import FILTER_METHODS, OUTSIDE_METHODS, Filter
 from csmlab.quads import Quads, quad_derivatives
 from csmlab.registry import check_name
 from csmlab.settings import ShadowSettings
@@ -187,6 +187,9 @@ def _selection(cascades: CascadeSet, settings: ShadowSettings, *, radius: int) -
     (:func:`csmlab.cascades.fit.transition_bands`), and each band starts at ``band_start``.
     """
     select, start = transition_bands(cascades.splits, blend_band=settings.blend_band, transition=settings.transition)
+    if check_name(settings.outside, OUTSIDE_METHODS, field="outside") == "last":
+        # The last cascade's interval runs on past the last split (Stride, MJP).
+        select[-1] = np.inf
     return dict(splits=select, texel_area=np.array([np.prod(c.texel_size) for c in cascades.cascades]),
                 selection=settings.selection, blend_band=settings.blend_band, band_start=start,
                 blend_curve=BLEND_CURVES[check_name(settings.blend_curve, BLEND_CURVES, field="blend_curve")][0],
@@ -402,6 +405,9 @@ def _shadow_of_points(found: tuple, receivers: Receivers, view_depth: np.ndarray
     cascade = np.full(view_depth.size, -1, dtype=np.int8)
     blend = np.zeros(view_depth.size, dtype=bool)
     lit[index], cascade[index], blend[index] = found
+    if settings.outside == "lit":
+        # Bevy returns 1.0 for a point no cascade holds.
+        lit[index] = np.where(cascade[index] < 0, np.float32(1.0), lit[index])
     if settings.fade_out > 0.0:
         radial = None
         if FADE_METHODS[check_name(settings.fade, FADE_METHODS, field="fade")].radial:

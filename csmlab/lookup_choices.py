@@ -32,7 +32,7 @@ import numpy as np
 from csmlab.registry import check_name, parameters
 
 __all__ = ["BLEND_LINEAR", "BLEND_SMOOTHSTEP", "BOX_BILINEAR", "BOX_TAPS", "CASTANO_SIZES", "NORMAL_NONE", "NORMAL_OFFSET_SCALES", "NORMAL_ONE_MINUS_COS",
-           "NORMAL_ONE_MINUS_COS_LATERAL", "NORMAL_SIN", "FAMILIES", "FILTER_METHODS", "Filter", "MOMENT_EVSM2",
+           "NORMAL_ONE_MINUS_COS_LATERAL", "NORMAL_SIN", "FAMILIES", "FILTER_METHODS", "Filter", "MOMENT_EVSM2", "OUTSIDE_METHODS",
            "MOMENT_EVSM4", "MOMENT_VSM", "PCF_BILINEAR_BOX", "PCF_CASTANO", "PCF_GAUSSIAN", "PCF_PCSS", "PCF_POISSON",
            "PCF_TENT", "PCF_TENT_BILINEAR", "PCF_VOGEL", "SELECTION_METHODS", "SELECT_BEST_RESOLUTION",
            "SELECT_INTERVAL", "SELECT_MAP", "SELECT_SPHERE", "Selection", "family_code", "family_filters", "poisson_disk", "vogel_disk"]
@@ -133,6 +133,16 @@ SELECTION_METHODS: dict[str, Selection] = {s.name: s for s in (
               "getCascadeWeights_splitSpheres, URP ComputeCascadeIndex)"),
 )}
 """Cascade selection methods by name."""
+
+OUTSIDE_METHODS: dict[str, str] = {
+    "none": "no cascade: no shadow value, the point left out of the measures (csmlab's own)",
+    "lit": "shaded as lit, S = 1 (Bevy shadows.wesl fetch_directional_shadow: cascade_index >= num_cascades, or a "
+           "point outside the cascade's box, returns 1.0)",
+    "last": "the interval selection keeps the last cascade beyond the last split (Stride ShadowMapReceiverDirectional: "
+            "the index stops at TCascadeCount - 1; MJP Mesh.hlsl ShadowVisibility: cascadeIdx starts at "
+            "NumCascades - 1)",
+}
+"""What a point that no cascade's selection holds is given, by name (``[shadow] outside``)."""
 
 FAMILIES: dict[str, str] = {
     "box": "equal or bilinear weights over whole texels, run by the selection kernel itself (csmlab.kernels.shadow)",

@@ -48,6 +48,8 @@ class ShadowSettings:
     """quantized: base extent, sphere (slice bounding-sphere diameter) | frustum (whole frustum box)."""
     selection: str = "interval"
     """Cascade selection: interval | map | best_resolution | sphere (the first split sphere holding the point: Unity)."""
+    outside: str = "none"
+    """A point no cascade holds: none (no shadow value, left out of the measures) | lit (S = 1: Bevy) | last (interval selection keeps the last cascade beyond the last split: Stride, MJP) (csmlab.lookup_choices.OUTSIDE_METHODS)."""
     filter: str = "pcf"
     """Filter: none | pcf | pcf_bilinear | pcf_gaussian | pcf_tent | pcf_poisson | pcf_vogel | pcf_castano | pcf_tent_bilinear | pcf_bilinear_box | pcss | vsm | evsm2 | evsm4 (csmlab.filters)."""
     filter_size: int = 3

@@ -287,7 +287,7 @@ def shadow_method_registries() -> dict:
     """The registry of every ``[shadow]`` field that names a method, by field (``csmlab list`` prints them)."""
     from csmlab.cascades import (BOUNDS_METHODS, DEPTH_RANGE_METHODS, EXTENT_METHODS, FIT_METHODS, SNAP_METHODS,
                                  SPLIT_METHODS, STABILIZATION_METHODS)
-    from csmlab.lookup_choices import FILTER_METHODS, SELECTION_METHODS
+    from csmlab.lookup_choices import FILTER_METHODS, OUTSIDE_METHODS, SELECTION_METHODS
     from csmlab.cascades.bounds import HOLD_METHODS
     from csmlab.cascades.fit import BLEND_CURVES, TRANSITION_METHODS
     from csmlab.culling import CULL_METHODS
@@ -301,7 +301,7 @@ def shadow_method_registries() -> dict:
             "depth_range": DEPTH_RANGE_METHODS, "bounds": BOUNDS_METHODS, "engine_precision": PRECISION_METHODS,
             "transition": TRANSITION_METHODS, "hold": HOLD_METHODS, "blend_curve": BLEND_CURVES, "fade": FADE_METHODS,
             "cull": CULL_METHODS, "light_basis": LIGHT_BASIS_METHODS,
-            "depth_quantization": DEPTH_QUANTIZATION_METHODS}
+            "depth_quantization": DEPTH_QUANTIZATION_METHODS, "outside": OUTSIDE_METHODS}
 
 
 def _checked_settings(settings: ShadowSettings, *, where_of, located: _Located,
