@@ -139,7 +139,7 @@ class ShadowSettings:
     extent: str = "sphere"
     """exact, and quantized with quantized_base = sphere: the fixed box diameter, sphere (slice bounding sphere) | diagonal (ceil of the slice's largest diagonal, Bevy) | diagonal_unrounded (the same unrounded: three.js) | centroid (sphere about the corners' centroid: Godot, Stride) | body_diagonal (the body diagonal alone, unrounded: DirectX CSM11 fit to scene)."""
     snap: str = "origin"
-    """exact: what is snapped to whole texels, origin (box corner: Valient, DirectX, Unreal) | centre (box centre: Stride projection snapping) | centre_full (box centre, texel D/R with no filter margin inside: Bevy, three.js) | view (centre in 4-texel steps: Stride view snapping) | nearest2 (edges rounded to the nearest 2-texel unit: Godot) | centre_nearest (box centre rounded to the nearest texel: Stride projection snapping)."""
+    """exact: what is snapped to whole texels, origin (box corner: Valient, DirectX, Unreal) | centre (box centre floored, the filter margins kept inside) | centre_full (box centre, texel D/R with no filter margin inside: Bevy, three.js) | view (centre in 4-texel steps: Stride view snapping) | nearest2 (edges rounded to the nearest 2-texel unit: Godot) | centre_nearest (box centre rounded to the nearest texel: Stride projection snapping)."""
     light_basis: str = "least_aligned"
     """Light space's right and up about the light axis, where the texel grid lies: least_aligned (csmlab's: the world axis least aligned with the light as up) | world_y (a look-at with world +Y up: three.js, Godot, Bevy, Stride, MJP, DirectX) (csmlab.geometry.LIGHT_BASIS_METHODS)."""
     depth_range: str = "scene"

@@ -107,7 +107,7 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     # calculate_cascade: texel cascade_diameter / cascade_texture_size, the centre floored to it.
     ("engines/bevy", dict(cascades=4, split="geometric", first_cascade_far=10.0, shadow_distance=150.0,
                           blend_band=0.2, transition="far_bound", extent="diagonal", snap="centre_full",
-                          filter="pcf_castano", filter_size=5)),
+                          outside="lit", filter="pcf_castano", filter_size=5)),
     # CSM.js: cascades 3, mode 'practical', lightMargin 200, lightNear 1, lightFar 2000, fade false; renderer
     # default PCFShadowMap; CSMFrustum.split lerps the slices; lookAt(+Y); unrounded diagonal, texel width / size.
     ("engines/threejs_csm", dict(cascades=3, split="practical", lambda_=0.5, pancake=200.0, fade_out=0.0,
@@ -121,13 +121,13 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     ("engines/stride", dict(cascades=4, lambda_=0.5, bounds="sdsm", hold="stepped", stabilization="exact",
                             extent="centroid", snap="centre_nearest", blend_band=0.2, blend_curve="smoothstep",
                             depth_range="sphere", depth_clamp=True,
-                            transition="backward", filter="pcf_castano", filter_size=5,
+                            transition="backward", filter="pcf_castano", filter_size=5, outside="last",
                             storage="atlas")),
     # TheRealMJP/Shadows AppSettings.cs: SplitDistance0..3 0.05/0.15/0.5/1.0, StabilizeCascades = false,
     # ShadowMode FixedSizePCF with FixedFilterSize Filter2x2, DepthBufferFormat DB32Float.
     ("engines/mjp", dict(cascades=4, split="manual_range", splits=(0.05, 0.15, 0.5, 1.0), shadow_distance=400.0,
                          depth_range="slice", depth_clamp=True, pancake=0.0, stabilization="none",
-                         filter="pcf_bilinear",
+                         filter="pcf_bilinear", outside="last",
                          depth_format="float32")),
     # Seed 001: m_cascadeEnd = {zNear, 25.0, 90.0, zFar}; slice AABB, its own depth only.
     ("seeds/ogldev49", dict(cascades=3, splits=(25.0, 90.0, 200.0), stabilization="none", depth_range="slice",

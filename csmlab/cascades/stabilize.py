@@ -110,9 +110,9 @@ def snap_origin(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[np
 
 
 def snap_centre(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[np.ndarray, np.ndarray]:
-    """The box's centre floored to whole texels and the box laid around it (Bevy, three.js; Stride view snapping).
+    """The box's centre floored to whole texels and the box laid around it, the filter margins kept inside.
 
-    With ``h = floor(R / 2)`` the box spans ``[k - h, k - h + R)`` texels around the snapped centre
+    Bevy's and three.js's own box is :func:`snap_centre_full` (texel D/R, no margin). With ``h = floor(R / 2)`` the box spans ``[k - h, k - h + R)`` texels around the snapped centre
     ``k = floor(c / t)``; ``t = 2r / (2 (h - m - 1))`` keeps the sphere and the margins inside on
     both sides whatever ``c - k t ∈ [0, t)`` is.
     """
