@@ -37,7 +37,8 @@ Each condition below is one row of :data:`_CONDITIONS`; the promise holds when a
    turns with the camera, and a mipmapped moment lookup (``mips``) takes its level of detail and
    probes from the pixel quad's derivatives, which change with the camera and with the cascades of
    neighbouring pixels.
-5. **A world-locked depth**: ``depth_range = "scene"`` (a ``slice`` box's near side follows the
+5. **A world-locked depth**: ``depth_range = "scene"`` or ``"scene_clipped"`` (every caster in the
+   box's x/y range lies inside either, and stored depths do not depend on it; a ``slice`` box's near side follows the
    camera, and casters nearer than it are clamped onto it or clipped) in a depth format of
    :data:`WORLD_LOCKED_DEPTH_FORMATS` (quantized over the scene's fixed light-space span in
    power-of-two steps, :mod:`csmlab.storage`), and a unorm format quantized that way
@@ -169,7 +170,7 @@ _CONDITIONS = (
                lambda s, w: f"engine_precision = {s.engine_precision!r}: the light view is rounded at each box's "
                             "centre, so a whole-texel move can tip a fixed-point rounding"),
     _Condition(lambda s, w: not _screen_reads(s), lambda s, w: _screen_reads_text(s)),
-    _Condition(lambda s, w: s.depth_range == "scene",
+    _Condition(lambda s, w: s.depth_range in ("scene", "scene_clipped"),
                lambda s, w: f"depth_range = {s.depth_range!r}: the box's near side follows the camera, and casters "
                             "in front of it are clamped or clipped there"),
     _Condition(lambda s, w: s.depth_format in WORLD_LOCKED_DEPTH_FORMATS,

@@ -143,7 +143,7 @@ class ShadowSettings:
     light_basis: str = "least_aligned"
     """Light space's right and up about the light axis, where the texel grid lies: least_aligned (csmlab's: the world axis least aligned with the light as up) | world_y (a look-at with world +Y up: three.js, Godot, Bevy, Stride, MJP, DirectX) (csmlab.geometry.LIGHT_BASIS_METHODS)."""
     depth_range: str = "scene"
-    """Box depth: scene (near side pushed to the scene bounds) | slice (the slice's own range, less pancake) | sphere (the slice corners' centroid sphere ± radius, less pancake: Godot, Stride) | light_camera (light_near to light_far in front of a light pancake metres from the slice: three.js)."""
+    """Box depth: scene (near side pushed to the scene bounds) | slice (the slice's own range, less pancake) | sphere (the slice corners' centroid sphere ± radius, less pancake: Godot, Stride) | light_camera (light_near to light_far in front of a light pancake metres from the slice: three.js) | scene_clipped (the scene's bounding box clipped to the cascade's box on x and y: DirectX CSM11)."""
     pancake: float = 0.0
     """depth_range = slice, sphere or light_camera: metres the near side (light_camera: the light) is pulled toward the light beyond the slice (Godot pancake_size, three.js lightMargin)."""
     light_near: float = 1.0

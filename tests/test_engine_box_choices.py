@@ -12,7 +12,7 @@ from csmlab.cascades.bounds import DEPTH_RANGE_METHODS
 from csmlab.cascades.extent import extent_diagonal, extent_diagonal_unrounded
 from csmlab.cascades.fit import slice_intervals
 from csmlab.cascades.stabilize import SliceFootprint, snap_centre_full, stabilize_tight_snapped
-from csmlab.geometry import frustum_slice_corners, rotation_looking_at
+from csmlab.geometry import frustum_slice_corners, light_basis_world_y, rotation_looking_at
 from csmlab.light import direction_from_angles
 from csmlab.settings import ShadowSettings
 
@@ -110,3 +110,54 @@ def test_tight_snapped_is_directx_fit_to_cascade_with_the_light_moved_in_texel_s
         np.testing.assert_allclose(origin * texel, dx_min, rtol=0, atol=1e-9 * np.abs(dx_min).max())
         np.testing.assert_allclose((origin + size) * texel, dx_max, rtol=0, atol=1e-6 * np.abs(dx_max).max())
         assert np.all(origin * texel <= lo) and np.all((origin + size) * texel >= hi)
+
+
+def _clipped_polygon(polygon, axis, bound, keep_below):
+    """Sutherland–Hodgman: the part of ``polygon`` (list of light-space points) on one side of ``p[axis] = bound``."""
+    out = []
+    for k, p in enumerate(polygon):
+        q = polygon[(k + 1) % len(polygon)]
+        p_in = p[axis] <= bound if keep_below else p[axis] >= bound
+        q_in = q[axis] <= bound if keep_below else q[axis] >= bound
+        if p_in:
+            out.append(p)
+        if p_in != q_in:
+            out.append(p + (bound - p[axis]) / (q[axis] - p[axis]) * (q - p))
+    return out
+
+
+def compute_near_and_far(aabb_light, lo, hi):
+    """DirectX CascadedShadowsManager::ComputeNearAndFar: the AABB's 12 triangles (iAABBTriIndexes) clipped
+    against the ortho box's min/max x and y, near and far the min and max z of what is left."""
+    indexes = [0, 1, 2, 1, 2, 3, 4, 5, 6, 5, 6, 7, 0, 2, 4, 2, 4, 6, 1, 3, 5, 3, 5, 7, 0, 1, 4, 1, 4, 5, 2, 3, 6, 3, 6, 7]
+    near, far = np.inf, -np.inf
+    for t in range(12):
+        polygon = [aabb_light[i] for i in indexes[3 * t:3 * t + 3]]
+        for axis, bound, below in ((0, lo[0], False), (0, hi[0], True), (1, lo[1], False), (1, hi[1], True)):
+            polygon = _clipped_polygon(polygon, axis, bound, below) if polygon else polygon
+        for p in polygon:
+            near, far = min(near, p[2]), max(far, p[2])
+    return near, far
+
+
+def test_scene_clipped_is_directx_compute_near_and_far():
+    rng = np.random.default_rng(8)
+    for _ in range(60):
+        d = direction_from_angles(elevation_deg=rng.uniform(5, 89), azimuth_deg=rng.uniform(0, 360))
+        basis = np.stack([*light_basis_world_y(d)[:2], d])
+        lo_w = rng.uniform(-100, 0, 3)
+        hi_w = lo_w + rng.uniform(5, 200, 3)
+        # DirectX's vSceneAABBPointsLightSpace: corners in the order of its index list (x fastest, then y, then z).
+        corners = np.array([[(hi_w if k & 1 else lo_w)[0], (hi_w if k & 2 else lo_w)[1], (hi_w if k & 4 else lo_w)[2]]
+                            for k in range(8)])
+        light = corners @ basis.T
+        centre = light[:, :2].mean(axis=0) + rng.uniform(-60, 60, 2)
+        half = rng.uniform(2, 80, 2)
+        lo, hi = centre - half, centre + half
+        expected = compute_near_and_far(light, lo, hi)
+        got = DEPTH_RANGE_METHODS["scene_clipped"].box_depth(light[:, 2], light[:, 2], scene_corners=corners,
+                                                             basis=basis, box_lo=lo, box_hi=hi)
+        if np.isfinite(expected[0]):
+            np.testing.assert_allclose(got, expected, rtol=0, atol=1e-9)
+        else:
+            assert got == (light[:, 2].min(), light[:, 2].max())

@@ -192,7 +192,8 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
                                   snap=settings.snap, held_extent=None if held_extents is None else held_extents[i])
         box_depth = DEPTH_RANGE_METHODS[settings.depth_range].box_depth
         offered = dict(pancake=settings.pancake, corners=corners, light_near=settings.light_near,
-                       light_far=settings.light_far)
+                       light_far=settings.light_far, scene_corners=scene_corners, basis=basis,
+                       box_lo=origin * texel, box_hi=(origin + resolution) * texel)
         depth_near, depth_far = box_depth(corners[:, 2], scene_light[:, 2],
                                           **{k: v for k, v in offered.items() if k in parameters(box_depth)})
         cascades.append(Cascade(
