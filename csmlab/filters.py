@@ -42,8 +42,9 @@ from csmlab.frame import ShadowLookup, ShadowMaps
 from csmlab.kernels.moments import blur_moments, moment_lookup, moment_maps, moment_mip_chain, moment_mip_lookup
 from csmlab.kernels.pages import page_lookup
 from csmlab.kernels.pcf import weighted_pcf
-from csmlab.kernels.shadow import receiver_coordinates, select_cascades, shadow_lookup, shadow_lookup_world
-from csmlab.lookup_choices import FILTER_METHODS, Filter
+from csmlab.kernels.shadow import (receiver_coordinates, select_cascades, shadow_lookup, shadow_lookup_world,
+                                   split_sphere_cascades)
+from csmlab.lookup_choices import FILTER_METHODS, OUTSIDE_METHODS, Filter
 from csmlab.quads import Quads, quad_derivatives
 from csmlab.registry import check_name
 from csmlab.settings import ShadowSettings
@@ -132,8 +133,10 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
                            reads=reads)
     _check_maps(maps, reads)
     radius = record.radius_of(settings)
-    found = FAMILY_LOOKUPS[record.family](maps, receivers, record=record, radius=radius,
-                                          selection=_selection(maps.cascades, settings, radius=radius),
+    selection = _selection(maps.cascades, settings, radius=radius)
+    if settings.selection == "sphere":
+        selection["sphere_cascade"] = _sphere_cascades(maps.cascades, receivers.points[receivers.index], device=device)
+    found = FAMILY_LOOKUPS[record.family](maps, receivers, record=record, radius=radius, selection=selection,
                                           settings=settings, device=device)
     return _shadow_of_points(found, receivers, np.asarray(view_depth, dtype=np.float64), settings=settings,
                              far=float(maps.cascades.splits[-1]), eye=maps.cascades.eye)
@@ -226,11 +229,20 @@ def _selection(cascades: CascadeSet, settings: ShadowSettings, *, radius: int) -
     (:func:`csmlab.cascades.fit.transition_bands`), and each band starts at ``band_start``.
     """
     select, start = transition_bands(cascades.splits, blend_band=settings.blend_band, transition=settings.transition)
+    if check_name(settings.outside, OUTSIDE_METHODS, field="outside") == "last":
+        # The last cascade's interval runs on past the last split (Stride, MJP).
+        select[-1] = np.inf
     return dict(splits=select, texel_area=np.array([np.prod(c.texel_size) for c in cascades.cascades]),
                 selection=settings.selection, blend_band=settings.blend_band, band_start=start,
                 blend_curve=BLEND_CURVES[check_name(settings.blend_curve, BLEND_CURVES, field="blend_curve")][0],
                 bits=settings.subtexel_bits,
                 margin=max(cascades.margin_texels, radius))
+
+
+def _sphere_cascades(cascades: CascadeSet, points: np.ndarray, *, device: str) -> np.ndarray:
+    """``selection = "sphere"``: each point's first cascade whose split sphere holds it, −1 where none."""
+    return split_sphere_cascades(points, centres=np.stack([c.sphere_centre for c in cascades.cascades]),
+                                 radii=np.array([c.sphere_radius for c in cascades.cascades]), device=device)
 
 
 def _conversion(cascades: CascadeSet, settings: ShadowSettings) -> dict:
@@ -407,8 +419,11 @@ def _quad_footprint(maps: ShadowMaps, receivers: Receivers, coords: np.ndarray, 
                                                    np.arange(len(lane_points)), settings=settings, device=device)
     flat = _selectable(lane_coords, cascades, margin=selection["margin"], bits=settings.subtexel_bits,
                        resolution=maps.depth.shape[1])
+    lanes = dict(selection)
+    if "sphere_cascade" in selection:
+        lanes["sphere_cascade"] = _sphere_cascades(cascades, lane_points, device=device)
     lane_chosen, _, _ = select_cascades(maps.depth, flat, lane_depth, receivers.quad_view_depth.reshape(-1),
-                                        radius=0, **selection, device=device)
+                                        radius=0, **lanes, device=device)
     lane_cascade = lane_chosen.astype(np.int64).reshape(n, 4)
     lane_cascade[np.arange(n), receivers.quads.slot.astype(np.int64)] = chosen
     unit = 2**settings.subtexel_bits
@@ -436,6 +451,9 @@ def _shadow_of_points(found: tuple, receivers: Receivers, view_depth: np.ndarray
     cascade = np.full(view_depth.size, -1, dtype=np.int8)
     blend = np.zeros(view_depth.size, dtype=bool)
     lit[index], cascade[index], blend[index] = found
+    if settings.outside == "lit":
+        # Bevy returns 1.0 for a point no cascade holds.
+        lit[index] = np.where(cascade[index] < 0, np.float32(1.0), lit[index])
     if settings.fade_out > 0.0:
         radial = None
         if FADE_METHODS[check_name(settings.fade, FADE_METHODS, field="fade")].radial:

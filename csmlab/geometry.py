@@ -9,6 +9,7 @@ Everything here is plain NumPy in float64; the Warp kernels only ever see the re
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,7 +17,9 @@ import numpy as np
 __all__ = [
     "BoundingSphere",
     "frustum_slice_corners",
+    "LIGHT_BASIS_METHODS",
     "light_basis",
+    "light_basis_world_y",
     "normalized",
     "orthographic",
     "perspective",
@@ -215,6 +218,42 @@ def light_basis(direction) -> np.ndarray:
     right /= np.linalg.norm(right)
     up = np.cross(d, right)
     return np.stack([right, up, d])
+
+
+def light_basis_world_y(direction) -> np.ndarray:
+    """Light-space rotation ``(3, 3)``, rows (right, up, d), of a look-at along ``d`` with world +Y as up.
+
+    The engines' own light camera: three.js ``CSM.update()`` (``Matrix4.lookAt(origin, lightDirection,
+    +Y)``: x = +Y × z with z = −d), Stride ``LightDirectionalShadowMapRenderer`` (``side = Y × d``, the
+    view ``LookAtRH``), MJP's Shadows and DirectX CascadedShadowMaps11 (``XMMatrixLookAtLH`` with up +Y
+    in their left-handed worlds), and Godot and Bevy, whose light node looks along its −Z: a node
+    posed without roll has its +X horizontal and its +Y in the vertical plane through ``d``. In
+    csmlab's right-handed world every one of them is the camera's view space: ``right = d × Y``
+    normalized, ``up = right × d`` (the component of +Y across ``d``), and light depth along ``d``
+    (= −z of the look-at), so ``right × up = −d``. The texel grid then turns with the light's
+    azimuth only, never about the light axis. A light along ±Y, where ``d × Y`` vanishes, takes
+    right = +X, as three.js's ``lookAt`` does (it nudges z by 1e-4 along +Z).
+
+    Raises
+    ------
+    ValueError
+        If ``direction`` has zero length or a non-finite component.
+    """
+    d = normalized(direction, name="light direction")
+    right = np.cross(d, np.array([0.0, 1.0, 0.0]))
+    length = np.linalg.norm(right)
+    right = np.array([1.0, 0.0, 0.0]) if length < 1e-9 else right / length
+    up = np.cross(right, d)
+    up /= np.linalg.norm(up)
+    return np.stack([right, up, d])
+
+
+LIGHT_BASIS_METHODS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    "least_aligned": light_basis,
+    "world_y": light_basis_world_y,
+}
+"""Light-space bases by name (``[shadow] light_basis``): ``f(direction) -> (3, 3)`` rows (right, up, d).
+Each depends on ``d`` only, so a box snapped in it keeps world-locked texels."""
 
 
 def frustum_slice_corners(

@@ -17,8 +17,9 @@ Each condition below is one row of :data:`_CONDITIONS`; the promise holds when a
    texel index, so rounding to nearest rather than down changes only when the box steps; so does
    ``centre_nearest``, Stride's centre rounded to the nearest texel). The
    ``centroid`` extent (Godot, Stride) is fixed like ``sphere``: its centre's depth and its radius
-   are closed forms of the projection and the slice depths; so is ``body_diagonal`` (DirectX CSM11's
-   fit to scene) like ``diagonal``.
+   are closed forms of the projection and the slice depths; so are ``body_diagonal`` (DirectX CSM11's
+   fit to scene) and ``diagonal_unrounded`` (three.js) like ``diagonal``, and ``centre_full`` (the
+   whole map as the box, texel D/R) snaps by whole texels like ``centre``.
 3. **Float64 texel math** (``engine_precision``): csmlab's global texel coordinates depend on the
    world point and the texel size only, and the box origin is an integer shift, so the rule holds
    at any distance from the world origin (up to the fixed-point clip of :mod:`csmlab.texels`,
@@ -37,10 +38,13 @@ Each condition below is one row of :data:`_CONDITIONS`; the promise holds when a
    turns with the camera, and a mipmapped moment lookup (``mips``) takes its level of detail and
    probes from the pixel quad's derivatives, which change with the camera and with the cascades of
    neighbouring pixels.
-5. **A world-locked depth**: ``depth_range = "scene"`` (a ``slice`` box's near side follows the
+5. **A world-locked depth**: ``depth_range = "scene"`` or ``"scene_clipped"`` (every caster in the
+   box's x/y range lies inside either, and stored depths do not depend on it; a ``slice`` box's near side follows the
    camera, and casters nearer than it are clamped onto it or clipped) in a depth format of
    :data:`WORLD_LOCKED_DEPTH_FORMATS` (quantized over the scene's fixed light-space span in
-   power-of-two steps, :mod:`csmlab.storage`).
+   power-of-two steps, :mod:`csmlab.storage`), and a unorm format quantized that way
+   (``depth_quantization = "scene"``): ``"cascade"`` divides each box's own near/far, which moves
+   with the slice wherever the slice reaches past the scene's bounds.
 
 A **virtual clipmap** (``shadow_map = "virtual_clipmap"``, :mod:`csmlab.clipmaps`) has no boxes to
 stabilize: its levels are the global texel grids of fixed texel sizes, placed on whole pages, its
@@ -79,11 +83,11 @@ __all__ = ["FIXED_EXTENTS", "FLICKER_SAME_ZERO", "Promise", "SCREEN_READS", "WHO
 FLICKER_SAME_ZERO = "flicker_same_zero"
 """The name of the one invariant: ``flicker_same`` is exactly 0.0."""
 
-FIXED_EXTENTS = ("sphere", "diagonal", "centroid", "body_diagonal")
+FIXED_EXTENTS = ("sphere", "diagonal", "centroid", "body_diagonal", "diagonal_unrounded")
 """``extent`` choices whose box size depends on the projection and the slice depths only
 (:mod:`csmlab.cascades.extent`); a new one promises nothing until it is listed here."""
 
-WHOLE_TEXEL_SNAPS = ("origin", "centre", "view", "nearest2", "centre_nearest")
+WHOLE_TEXEL_SNAPS = ("origin", "centre", "view", "nearest2", "centre_nearest", "centre_full")
 """``snap`` choices that move an exact box by whole texels (:data:`csmlab.cascades.stabilize.SNAP_METHODS`)."""
 
 WORLD_LOCKED_DEPTH_FORMATS = ("float32", "unorm24", "unorm16")
@@ -182,12 +186,15 @@ _CONDITIONS = (
                             "each box's centre, so a whole-texel move can tip a fixed-point rounding",
                cascades=True),
     _Condition(lambda s, w: not _screen_reads(s), lambda s, w: _screen_reads_text(s)),
-    _Condition(lambda s, w: s.depth_range == "scene",
+    _Condition(lambda s, w: s.depth_range in ("scene", "scene_clipped"),
                lambda s, w: f"depth_range = {s.depth_range!r}: the box's near side follows the camera, and casters "
                             "in front of it are clamped or clipped there",
                cascades=True),
     _Condition(lambda s, w: s.depth_format in WORLD_LOCKED_DEPTH_FORMATS,
                lambda s, w: f"depth_format = {s.depth_format!r} is not known to be world-locked"),
+    _Condition(lambda s, w: s.depth_format == "float32" or s.depth_quantization == "scene",
+               lambda s, w: f"depth_quantization = {s.depth_quantization!r}: each box's levels divide its own "
+                            "near/far, which may follow the camera"),
 )
 
 _KEPT = ("exact boxes of fixed extent on whole texels, float64 texel math, no screen-space input and a "

@@ -32,10 +32,10 @@ import numpy as np
 from csmlab.registry import check_name, parameters
 
 __all__ = ["BLEND_LINEAR", "BLEND_SMOOTHSTEP", "BOX_BILINEAR", "BOX_TAPS", "CASTANO_SIZES", "NORMAL_NONE", "NORMAL_OFFSET_SCALES", "NORMAL_ONE_MINUS_COS",
-           "NORMAL_ONE_MINUS_COS_LATERAL", "NORMAL_SIN", "FAMILIES", "FILTER_METHODS", "Filter", "MOMENT_EVSM2",
+           "NORMAL_ONE_MINUS_COS_LATERAL", "NORMAL_SIN", "FAMILIES", "FILTER_METHODS", "Filter", "MOMENT_EVSM2", "OUTSIDE_METHODS",
            "MOMENT_EVSM4", "MOMENT_MSM", "MOMENT_VSM", "PCF_BILINEAR_BOX", "PCF_CASTANO", "PCF_GAUSSIAN", "PCF_PCSS", "PCF_POISSON",
            "PCF_TENT", "PCF_TENT_BILINEAR", "PCF_VOGEL", "SELECTION_METHODS", "SELECT_BEST_RESOLUTION",
-           "SELECT_INTERVAL", "SELECT_MAP", "Selection", "family_code", "family_filters", "poisson_disk", "vogel_disk"]
+           "SELECT_INTERVAL", "SELECT_MAP", "SELECT_SPHERE", "Selection", "family_code", "family_filters", "poisson_disk", "vogel_disk"]
 
 SELECT_INTERVAL = 0
 """Selection code: the cascade whose split interval holds the view depth."""
@@ -43,6 +43,8 @@ SELECT_MAP = 1
 """Selection code: the first cascade whose box holds the point inside its margins."""
 SELECT_BEST_RESOLUTION = 2
 """Selection code: of the boxes that hold the point, the one with the smallest texels."""
+SELECT_SPHERE = 3
+"""Selection code: the first cascade whose split sphere holds the point (Unity)."""
 
 BLEND_LINEAR = 0
 """Blend-curve code: the next cascade's weight rises linearly over the band."""
@@ -129,8 +131,20 @@ SELECTION_METHODS: dict[str, Selection] = {s.name: s for s in (
     Selection("map", SELECT_MAP, "the first cascade whose box holds the point, less the margin"),
     Selection("best_resolution", SELECT_BEST_RESOLUTION,
               "of the boxes that hold the point, the one with the smallest texels (seed 003)"),
+    Selection("sphere", SELECT_SPHERE, "the first cascade whose split sphere holds the point (Unity built-in Stable Fit "
+              "getCascadeWeights_splitSpheres, URP ComputeCascadeIndex)"),
 )}
 """Cascade selection methods by name."""
+
+OUTSIDE_METHODS: dict[str, str] = {
+    "none": "no cascade: no shadow value, the point left out of the measures (csmlab's own)",
+    "lit": "shaded as lit, S = 1 (Bevy shadows.wesl fetch_directional_shadow: cascade_index >= num_cascades, or a "
+           "point outside the cascade's box, returns 1.0)",
+    "last": "the interval selection keeps the last cascade beyond the last split (Stride ShadowMapReceiverDirectional: "
+            "the index stops at TCascadeCount - 1; MJP Mesh.hlsl ShadowVisibility: cascadeIdx starts at "
+            "NumCascades - 1)",
+}
+"""What a point that no cascade's selection holds is given, by name (``[shadow] outside``)."""
 
 FAMILIES: dict[str, str] = {
     "box": "equal or bilinear weights over whole texels, run by the selection kernel itself (csmlab.kernels.shadow)",

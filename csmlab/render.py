@@ -32,10 +32,11 @@ from csmlab.kernels.reference import hard_shadow
 from csmlab.kernels.threads import checked_threads
 from csmlab.kernels.visibility import MeshBVH, camera_hits, mesh_bvh
 from csmlab.quads import quad_lanes
+from csmlab.registry import dispatch
 from csmlab.scene.core import Scene
 from csmlab.scrolling import RasterizedMaps, scroll_plan
 from csmlab.settings import ShadowSettings
-from csmlab.storage import polygon_offset_unit, stored_depth
+from csmlab.storage import DEPTH_QUANTIZATION_METHODS, polygon_offset_unit, stored_depth
 from csmlab.texels import (fixed_point_coordinates, fixed_point_origin, light_depth, light_plane_coordinates,
                            uses_global_grid, vertex_depth)
 
@@ -192,7 +193,10 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
         near = np.array([c.depth_near - cascades.zref for c in cascades.cascades], dtype=np.float32)
         depth = np.maximum(depth, near[:, None, None])
     span = float(np.ptp(cascades.to_light(dscene.corners)[:, 2]))
-    depth = stored_depth(depth, span=span, depth_format=settings.depth_format)
+    depth = dispatch(DEPTH_QUANTIZATION_METHODS, settings.depth_quantization, depth, field="depth_quantization",
+                     depth_format=settings.depth_format, offered=dict(
+                         span=span, near=[c.depth_near - cascades.zref for c in cascades.cascades],
+                         far=[c.depth_far - cascades.zref for c in cascades.cascades]))
     moments, mips = filter_inputs(depth, cascades, span=span, settings=settings, device=dscene.device)
     return ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=texels, moments=moments, depth_span=span,
                       mips=mips, raster=raster)

@@ -66,15 +66,17 @@ class ShadowSettings:
     shadow_distance: float = 200.0
     """View depth in metres that the last cascade ends at (clamped to the camera's far plane)."""
     fit: str = "cascade"
-    """Fit: cascade (slice [z_i, z_i+1]) | scene (slice [near, z_i+1])."""
+    """Fit: cascade (slice [z_i, z_i+1]) | cascade_lerp (its ends lerped from near to far: n + (z_i/f)(f − n), three.js) | scene (slice [near, z_i+1])."""
     stabilization: str = "exact"
-    """none | exact | quantized."""
+    """none | exact | quantized | tight_snapped (the tight box padded for the filter, snapped to texels of its own size every frame: DirectX CSM11 fit to cascade)."""
     levels: int = 64
     """quantized: number of extent steps of the base extent."""
     quantized_base: str = "sphere"
     """quantized: base extent, sphere (slice bounding-sphere diameter) | frustum (whole frustum box)."""
     selection: str = "interval"
-    """Cascade selection: interval | map | best_resolution."""
+    """Cascade selection: interval | map | best_resolution | sphere (the first split sphere holding the point: Unity)."""
+    outside: str = "none"
+    """A point no cascade holds: none (no shadow value, left out of the measures) | lit (S = 1: Bevy) | last (interval selection keeps the last cascade beyond the last split: Stride, MJP) (csmlab.lookup_choices.OUTSIDE_METHODS)."""
     filter: str = "pcf"
     """Filter: none | pcf | pcf_bilinear | pcf_gaussian | pcf_tent | pcf_poisson | pcf_vogel | pcf_castano | pcf_tent_bilinear | pcf_bilinear_box | pcss | vsm | evsm2 | evsm4 | msm (csmlab.filters)."""
     filter_size: int = 3
@@ -114,7 +116,9 @@ class ShadowSettings:
     depth_bytes: int = 0
     """Bytes per stored depth texel (memory cost only); 0: what depth_format allocates (2, 4, 4)."""
     depth_format: str = "float32"
-    """Stored depth: float32 | unorm24 | unorm16, quantized over the scene's light-space depth range (csmlab.storage)."""
+    """Stored depth: float32 | unorm24 | unorm16, quantized over depth_quantization's range (csmlab.storage)."""
+    depth_quantization: str = "scene"
+    """depth_format = unorm24 or unorm16: the range its levels divide, scene (the scene's light-space depth span, in power-of-two steps) | cascade (each box's own near/far, as engines store it) (csmlab.storage.DEPTH_QUANTIZATION_METHODS)."""
     storage: str = "array"
     """Texture the cascades live in: array (C slices) | atlas (one texture, atlas_layout)."""
     atlas_layout: str = "2x2"
@@ -170,15 +174,21 @@ class ShadowSettings:
     first_cascade_far: float = 10.0
     """split = geometric: far end of the first cascade in metres, the rest geometric (Bevy's first_cascade_far_bound)."""
     extent: str = "sphere"
-    """exact, and quantized with quantized_base = sphere: the fixed box diameter, sphere (slice bounding sphere) | diagonal (ceil of the slice's largest diagonal, Bevy, three.js) | centroid (sphere about the corners' centroid: Godot, Stride) | body_diagonal (the body diagonal alone, unrounded: DirectX CSM11 fit to scene)."""
+    """exact, and quantized with quantized_base = sphere: the fixed box diameter, sphere (slice bounding sphere) | diagonal (ceil of the slice's largest diagonal, Bevy) | diagonal_unrounded (the same unrounded: three.js) | centroid (sphere about the corners' centroid: Godot, Stride) | body_diagonal (the body diagonal alone, unrounded: DirectX CSM11 fit to scene)."""
     snap: str = "origin"
-    """exact: what is snapped to whole texels, origin (box corner: Valient, DirectX, Unreal) | centre (box centre: Bevy, three.js, Stride projection snapping) | view (centre in 4-texel steps: Stride view snapping) | nearest2 (edges rounded to the nearest 2-texel unit: Godot) | centre_nearest (box centre rounded to the nearest texel: Stride projection snapping)."""
+    """exact: what is snapped to whole texels, origin (box corner: Valient, DirectX, Unreal) | centre (box centre floored, the filter margins kept inside) | centre_full (box centre, texel D/R with no filter margin inside: Bevy, three.js) | view (centre in 4-texel steps: Stride view snapping) | nearest2 (edges rounded to the nearest 2-texel unit: Godot) | centre_nearest (box centre rounded to the nearest texel: Stride projection snapping)."""
+    light_basis: str = "least_aligned"
+    """Light space's right and up about the light axis, where the texel grid lies: least_aligned (csmlab's: the world axis least aligned with the light as up) | world_y (a look-at with world +Y up: three.js, Godot, Bevy, Stride, MJP, DirectX) (csmlab.geometry.LIGHT_BASIS_METHODS)."""
     depth_range: str = "scene"
-    """Box depth: scene (near side pushed to the scene bounds) | slice (the slice's own range, less pancake) | sphere (the slice corners' centroid sphere ± radius, less pancake: Godot, Stride)."""
+    """Box depth: scene (near side pushed to the scene bounds) | slice (the slice's own range, less pancake) | sphere (the slice corners' centroid sphere ± radius, less pancake: Godot, Stride) | light_camera (light_near to light_far in front of a light pancake metres from the slice: three.js) | scene_clipped (the scene's bounding box clipped to the cascade's box on x and y: DirectX CSM11)."""
     pancake: float = 0.0
-    """depth_range = slice or sphere: metres the near side is pulled toward the light beyond the slice (Godot pancake_size)."""
+    """depth_range = slice, sphere or light_camera: metres the near side (light_camera: the light) is pulled toward the light beyond the slice (Godot pancake_size, three.js lightMargin)."""
+    light_near: float = 1.0
+    """depth_range = light_camera: metres in front of the light where its camera's depth range starts (three.js lightNear)."""
+    light_far: float = 2000.0
+    """depth_range = light_camera: metres in front of the light where its camera's depth range ends (three.js lightFar)."""
     depth_clamp: bool = True
-    """depth_range = slice or sphere: casters nearer than the near side are flattened onto it (pancaking) rather than clipped."""
+    """depth_range = slice, sphere or light_camera: casters nearer than the near side are flattened onto it (pancaking) rather than clipped."""
     fade_out: float = 0.0
     """Fraction of the shadow distance at its end over which the shadow fades to lit (Unreal, Unity, Godot 1 - fade_start)."""
     fade: str = "linear"
@@ -313,6 +323,8 @@ class ShadowSettings:
              "a ratio of at least 1 and at most 100", self.distribution_exponent)
         need(self.first_cascade_far > 0, "first_cascade_far", "a positive distance in metres", self.first_cascade_far)
         need(self.pancake >= 0, "pancake", "a non-negative distance in metres", self.pancake)
+        need(0.0 <= self.light_near < self.light_far, "light_near", f"a distance in metres in [0, light_far = "
+             f"{self.light_far})", self.light_near)
         need(isinstance(self.depth_clamp, bool), "depth_clamp", "true or false", self.depth_clamp)
         need(self.cull in CULL_METHODS, "cull", f"one of {list(CULL_METHODS)}", self.cull)
         need(0.0 <= self.fade_out <= 1.0, "fade_out", "a fraction in [0, 1]", self.fade_out)
@@ -442,16 +454,22 @@ APPLIES: dict[str, Applies] = {
                                'engine_precision = "camera_relative" (how often its origin is rebased)'),
     "vertex_snap": Applies(lambda *, engine_precision: engine_precision == "float64",
                            'engine_precision = "float64" (a float32 pipeline snaps its window position)'),
-    "pancake": Applies(lambda *, depth_range: depth_range in ("slice", "sphere"),
-                       'depth_range = "slice" or "sphere" (the pull of its near side toward the light)'),
-    "depth_clamp": Applies(lambda *, depth_range: depth_range in ("slice", "sphere"),
-                           'depth_range = "slice" or "sphere" (casters nearer than its near side)'),
+    "pancake": Applies(lambda *, depth_range: depth_range in ("slice", "sphere", "light_camera"),
+                       'depth_range = "slice", "sphere" or "light_camera" (the pull of its near side toward the light)'),
+    "light_near": Applies(lambda *, depth_range: depth_range == "light_camera",
+                          'depth_range = "light_camera" (where its camera\'s range starts)'),
+    "light_far": Applies(lambda *, depth_range: depth_range == "light_camera",
+                         'depth_range = "light_camera" (where its camera\'s range ends)'),
+    "depth_clamp": Applies(lambda *, depth_range: depth_range in ("slice", "sphere", "light_camera"),
+                           'depth_range = "slice", "sphere" or "light_camera" (casters nearer than its near side)'),
     "transition": Applies(lambda *, blend_band: blend_band > 0, "blend_band > 0 (where its bands lie)"),
     "blend_curve": Applies(lambda *, blend_band: blend_band > 0, "blend_band > 0 (the weight over its bands)"),
     "fade": Applies(lambda *, fade_out: fade_out > 0, "fade_out > 0 (the shape of the far fade)"),
     "hysteresis": Applies(lambda *, bounds, hold: bounds == "sdsm" and hold == "fraction",
                           'bounds = "sdsm" with hold = "fraction" (the hold of its visible range)'),
     "hold": Applies(lambda *, bounds: bounds == "sdsm", 'bounds = "sdsm" (how its visible range is held)'),
+    "depth_quantization": Applies(lambda *, depth_format: depth_format != "float32",
+                                  'depth_format = "unorm24" or "unorm16" (the range its levels divide)'),
     "atlas_layout": Applies(lambda *, storage: storage == "atlas", 'storage = "atlas" (the tiles of the atlas)'),
     "filter_size": _filters(lambda f: f == "pcf" or (_family(f) == "weighted" and f != "pcf_vogel"), "taps per side"),
     "filter_sigma": Applies(lambda *, filter, filter_width_m: filter == "pcf_gaussian" and filter_width_m == 0,

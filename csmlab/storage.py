@@ -12,6 +12,15 @@ metres, so each stored value ``round(z / step) · step`` is exact in float32 and
 move changes no level: ``exact`` keeps its zero same-cascade flicker (docs/design.md, "Exact zero").
 The power-of-two step costs up to one bit against a step of exactly ``span / (2^b − 1)``.
 
+That is ``depth_quantization = "scene"`` (:data:`DEPTH_QUANTIZATION_METHODS`). Engines quantize each
+cascade's map over its *own* light camera's near/far instead — ``"cascade"``
+(:func:`cascade_stored_depth`): level ``round((z − near_c) / step_c)`` with ``step_c = (far_c −
+near_c) / (2^b − 1)``, the D16/D24 conversion of a depth normalized to the box (Godot's
+directional atlas, ``16_bits``; URP's 16-bit shadowmap tiles; Filament's DEPTH16; three.js's
+DEPTH_COMPONENT24 per light camera). A near cascade's box is shallow, so its levels are finer than
+the scene's; a box whose near/far follows the camera moves its levels with it, so it promises no
+zero flicker (:mod:`csmlab.invariants`).
+
 Memory (:func:`memory_bytes`): a texture ``array`` holds C slices of the largest cascade's size;
 an ``atlas`` holds a grid of equal tiles of that size (:data:`ATLAS_LAYOUTS`), empty tiles included.
 
@@ -25,14 +34,15 @@ References
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
 from csmlab.registry import check_name
 from csmlab.settings import ShadowSettings
 
-__all__ = ["ATLAS_LAYOUTS", "DEPTH_FORMATS", "MOMENT_BYTES", "depth_step", "memory_bytes", "polygon_offset_unit",
-           "stored_depth", "texel_bytes"]
+__all__ = ["ATLAS_LAYOUTS", "DEPTH_FORMATS", "DEPTH_QUANTIZATION_METHODS", "MOMENT_BYTES", "cascade_stored_depth",
+           "depth_step", "memory_bytes", "polygon_offset_unit", "stored_depth", "texel_bytes"]
 
 DEPTH_FORMATS: dict[str, tuple[int | None, int]] = {"float32": (None, 4), "unorm24": (24, 4), "unorm16": (16, 2)}
 """Depth formats by name: (bits of the unorm level or None for float, bytes per texel as allocated; D24 pads to 4)."""
@@ -97,6 +107,64 @@ def stored_depth(depth, *, span: float, depth_format: str) -> np.ndarray:
     finite = np.isfinite(maps)
     levels = np.clip(np.rint(maps.astype(np.float64) / step), 0.0, top)
     return np.where(finite, levels * step, maps).astype(np.float32)
+
+
+def cascade_stored_depth(depth, *, near, far, depth_format: str) -> np.ndarray:
+    """Depth maps quantized over each cascade's own near/far, as an engine's unorm depth buffer stores them.
+
+    Parameters
+    ----------
+    depth : array_like, shape (C, R, R), float32
+        Rasterized depth ``d·X − zref``, metres; +inf where empty.
+    near, far : array_like, shape (C,)
+        Each cascade's box near and far side in the same metres (``depth_near − zref``, ``depth_far − zref``).
+    depth_format : str
+        A key of :data:`DEPTH_FORMATS`.
+
+    Returns
+    -------
+    ndarray, shape (C, R, R), float32
+        ``near_c + round((z − near_c) / step_c) · step_c`` with ``step_c = (far_c − near_c) / (2^b − 1)``
+        (half to even, as a float-to-unorm conversion rounds to nearest), clamped to levels
+        ``0 … 2^b − 1`` (a caster beyond the far side stores the far side, as the cleared buffer
+        does where the engine clips it); empty texels stay +inf. ``float32``: unchanged.
+
+    Raises
+    ------
+    ValueError
+        On ``near``/``far`` of another length than the maps' cascades or a box with ``far <= near``.
+    """
+    maps = np.asarray(depth, dtype=np.float32)
+    bits = DEPTH_FORMATS[check_name(depth_format, DEPTH_FORMATS, field="depth_format")][0]
+    if bits is None:
+        return maps
+    lo = np.asarray(near, dtype=np.float64).reshape(-1, 1, 1)
+    hi = np.asarray(far, dtype=np.float64).reshape(-1, 1, 1)
+    if lo.shape[0] != maps.shape[0] or hi.shape[0] != maps.shape[0] or not np.all(hi > lo):
+        raise ValueError(f"near, far: expected {maps.shape[0]} boxes with far > near, got {lo.ravel()}, {hi.ravel()}")
+    top = float(2**bits - 1)
+    step = (hi - lo) / top
+    finite = np.isfinite(maps)
+    levels = np.clip(np.rint((maps.astype(np.float64) - lo) / step), 0.0, top)
+    return np.where(finite, lo + levels * step, maps).astype(np.float32)
+
+
+def _scene_quantized(depth, *, span: float, depth_format: str) -> np.ndarray:
+    return stored_depth(depth, span=span, depth_format=depth_format)
+
+
+def _cascade_quantized(depth, *, near, far, depth_format: str) -> np.ndarray:
+    return cascade_stored_depth(depth, near=near, far=far, depth_format=depth_format)
+
+
+DEPTH_QUANTIZATION_METHODS: dict[str, Callable[..., np.ndarray]] = {
+    "scene": _scene_quantized,
+    "cascade": _cascade_quantized,
+}
+"""The range a unorm depth format's levels divide, by name (``[shadow] depth_quantization``):
+``scene`` (the scene's fixed light-space span in power-of-two steps, :func:`stored_depth`) or
+``cascade`` (each box's own near/far, :func:`cascade_stored_depth`). Each is
+``f(depth, *, depth_format, span | near, far) -> stored maps``."""
 
 
 MOMENT_BYTES: dict[str, int] = {"vsm": 8, "evsm2": 8, "evsm4": 16}

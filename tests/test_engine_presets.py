@@ -72,19 +72,22 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
                          transition="forward", fade_out=0.1,
                          shadow_distance=200.0, stabilization="exact")),
     # Unity QualitySettings: shadowCascade4Split (0.067, 0.2, 0.467), shadowDistance 150.
-    # Built-in: Internal-ScreenSpaceShadows frag_pcf5x5 -> UnitySampleShadowmap_PCF5x5Tent; one 2×2 shadowmap.
+    # Built-in: Internal-ScreenSpaceShadows frag_pcf5x5 -> UnitySampleShadowmap_PCF5x5Tent; one 2×2 shadowmap;
+    # getCascadeWeights_splitSpheres: the first split sphere holding the point.
     ("engines/unity_builtin_stable", dict(cascades=4, splits=(0.067, 0.2, 0.467, 1.0), shadow_distance=150.0,
                                           fade="radial",
-                                          stabilization="exact", selection="map", filter="pcf_tent_bilinear",
+                                          stabilization="exact", selection="sphere", filter="pcf_tent_bilinear",
                                           filter_size=7,
                                           storage="atlas", atlas_layout="2x2")),
     ("engines/unity_builtin_close", dict(cascades=4, splits=(0.067, 0.2, 0.467, 1.0), stabilization="none",
                                          filter="pcf_tent_bilinear", filter_size=7, storage="atlas")),
     # UniversalRenderPipelineAsset: m_ShadowDistance 50, m_Cascade4Split (0.067, 0.2, 0.467), m_CascadeBorder 0.2;
-    # m_SoftShadowQuality Medium = SampleShadow_ComputeSamples_Tent_5x5; 2×2 atlas; k_ShadowmapBufferBits = 16.
+    # m_SoftShadowQuality Medium = SampleShadow_ComputeSamples_Tent_5x5; 2×2 atlas; k_ShadowmapBufferBits = 16,
+    # each tile rendered with its slice's projection (RenderShadowSlice); ComputeCascadeIndex: split spheres.
     ("engines/unity_urp", dict(shadow_distance=50.0, splits=(0.067, 0.2, 0.467, 1.0), fade_out=0.2,
-                               fade="squared_radial", filter="pcf_bilinear",
-                               storage="atlas", atlas_layout="2x2", depth_format="unorm16")),
+                               fade="squared_radial", filter="pcf_bilinear", selection="sphere",
+                               storage="atlas", atlas_layout="2x2", depth_format="unorm16",
+                               depth_quantization="cascade")),
     # HDRP 10.10.1 DefaultSettingsVolumeProfile.asset: maxShadowDistance 150, splits 0.05/0.15/0.3; HDShadowInitParameters
     # Medium → SampleShadow_PCF_Tent_7x7, Depth32; the light's shadow resolution 512, 4 cascades as 2×2 atlas tiles.
     ("engines/unity_hdrp", dict(cascades=4, splits=(0.05, 0.15, 0.3, 1.0), shadow_distance=150.0, selection="map",
@@ -92,13 +95,14 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
                                 storage="atlas", atlas_layout="2x2", depth_format="float32", resolution=512)),
     # DirectionalLight3D: splits 0.1/0.2/0.5, max distance 100, fade_start 0.8, pancake_size 20, blend off;
     # soft_shadow_filter_quality 2 (SOFT_LOW): directional_soft_shadow_samples = 4, quality radius 2.0, a
-    # Vogel disk rotated per pixel; directional_shadow/16_bits = true; 4 splits as quadrants of one atlas.
+    # Vogel disk rotated per pixel; directional_shadow/16_bits = true, each split over its own z range; 4 splits
+    # as quadrants of one atlas; the light node's basis (a roll-free node: a look-at with +Y up).
     ("engines/godot4", dict(split="manual_range", splits=(0.1, 0.2, 0.5, 1.0), shadow_distance=100.0, fade_out=0.2,
                             fade="smoothstep", extent="centroid", snap="nearest2", pancake=20.0,
                             depth_range="sphere", depth_clamp=True, blend_band=0.0, filter="pcf_vogel",
                             vogel_taps=4, vogel_radius=2.0, vogel_angle=2.4, vogel_scale="first_split",
-                            poisson_rotation="pixel", storage="atlas",
-                            depth_format="unorm16")),
+                            poisson_rotation="pixel", storage="atlas", light_basis="world_y",
+                            depth_format="unorm16", depth_quantization="cascade")),
     # ShadowOptions: shadowCascades 1, practical splits lambda 0.5, stable false, lispsm true with
     # shadowNearHint 1 and shadowFarHint 100; focus_shadowcasters; ShadowType::PCF =
     # ShadowSample_PCF_Low, "hardware assisted PCF + 3x3 gaussian filter" (Castaño 2013).
@@ -106,13 +110,17 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
                               focus="scene", warp="lispsm", lispsm_near_hint=1.0, lispsm_far_hint=100.0,
                               filter="pcf_castano", filter_size=3)),
     # CascadeShadowConfigBuilder::default(): 4, 0.1, 150, first bound 10, overlap 0.2;
-    # ShadowFilteringMethod::Gaussian = sample_shadow_map_castano_thirteen, weights (4 - 3s, 7, 1 + 3s) over 5 texels.
+    # ShadowFilteringMethod::Gaussian = sample_shadow_map_castano_thirteen, weights (4 - 3s, 7, 1 + 3s) over 5 texels;
+    # calculate_cascade: texel cascade_diameter / cascade_texture_size, the centre floored to it.
     ("engines/bevy", dict(cascades=4, split="geometric", first_cascade_far=10.0, shadow_distance=150.0,
-                          blend_band=0.2, transition="far_bound", extent="diagonal", snap="centre",
-                          filter="pcf_castano", filter_size=5)),
-    # CSM.js: cascades 3, mode 'practical', lightMargin 200, fade false; renderer default PCFShadowMap.
+                          blend_band=0.2, transition="far_bound", extent="diagonal", snap="centre_full",
+                          outside="lit", filter="pcf_castano", filter_size=5)),
+    # CSM.js: cascades 3, mode 'practical', lightMargin 200, lightNear 1, lightFar 2000, fade false; renderer
+    # default PCFShadowMap; CSMFrustum.split lerps the slices; lookAt(+Y); unrounded diagonal, texel width / size.
     ("engines/threejs_csm", dict(cascades=3, split="practical", lambda_=0.5, pancake=200.0, fade_out=0.0,
-                                 extent="diagonal", filter="pcf_vogel", vogel_taps=5, vogel_radius=1.0,
+                                 fit="cascade_lerp", depth_range="light_camera", light_near=1.0, light_far=2000.0,
+                                 light_basis="world_y", snap="centre_full",
+                                 extent="diagonal_unrounded", filter="pcf_vogel", vogel_taps=5, vogel_radius=1.0,
                                  poisson_rotation="pixel")),
     # LightDirectionalShadowMap: FourCascades, PSSMFactor 0.5, StabilizationMode ProjectionSnapping,
     # DepthRange.IsAutomatic true (held: DepthIncreaseThreshold 1.1, DepthDecreaseThreshold 2.0),
@@ -120,13 +128,13 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     ("engines/stride", dict(cascades=4, lambda_=0.5, bounds="sdsm", hold="stepped", stabilization="exact",
                             extent="centroid", snap="centre_nearest", blend_band=0.2, blend_curve="smoothstep",
                             depth_range="sphere", depth_clamp=True,
-                            transition="backward", filter="pcf_castano", filter_size=5,
+                            transition="backward", filter="pcf_castano", filter_size=5, outside="last",
                             storage="atlas")),
     # TheRealMJP/Shadows AppSettings.cs: SplitDistance0..3 0.05/0.15/0.5/1.0, StabilizeCascades = false,
     # ShadowMode FixedSizePCF with FixedFilterSize Filter2x2, DepthBufferFormat DB32Float.
     ("engines/mjp", dict(cascades=4, split="manual_range", splits=(0.05, 0.15, 0.5, 1.0), shadow_distance=400.0,
                          depth_range="slice", depth_clamp=True, pancake=0.0, stabilization="none",
-                         filter="pcf_bilinear",
+                         filter="pcf_bilinear", outside="last",
                          depth_format="float32")),
     # Seed 001: m_cascadeEnd = {zNear, 25.0, 90.0, zFar}; slice AABB, its own depth only.
     ("seeds/ogldev49", dict(cascades=3, splits=(25.0, 90.0, 200.0), stabilization="none", depth_range="slice",
@@ -134,7 +142,8 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     ("seeds/nvidia_sdk", dict(split="practical", lambda_=0.75, stabilization="none")),
     # Seed 002/004: "create a kernel (such as a Gaussian) for an N × N grid ... The CascadedShadowMaps11 sample
     # uses this approach"; VarianceShadows11 "use[s] texture arrays instead of a texture atlas" (CSM11: an atlas).
-    ("seeds/dx_csm11_cascade", dict(fit="cascade", selection="interval", extent="diagonal",
+    # CascadedShadowsManager::InitFrame FIT_TO_CASCADES with m_bMoveLightTexelSize: tight, padded, floored per frame.
+    ("seeds/dx_csm11_cascade", dict(fit="cascade", selection="interval", stabilization="tight_snapped",
                                     filter="pcf_bilinear_box", filter_size=3,
                                     storage="atlas", atlas_layout="1x4")),
     ("seeds/dx_csm11_scene", dict(fit="scene", selection="map", blend_band=0.0, cascades=3,

@@ -81,16 +81,16 @@ def test_split_depths_equal_the_addons_breaks_times_its_far(compared):
 
 
 def test_light_axis_and_light_position_depth(compared):
-    """Both light spaces share the light axis (three.js's +Z points toward the light), and csmlab's box near
-    side (slice depth − pancake 200) lies where three.js puts the light: lightMargin = 200 m toward the light
-    from the slice's corner nearest the light (up to the ≤ 0.1 m by which three.js's slice boundaries lie
-    further than csmlab's, see the xfails)."""
-    _, d, cases = compared
+    """Both light spaces share the light axis (three.js's +Z points toward the light), and csmlab's light camera
+    (depth_range = "light_camera": slice depth − pancake 200) lies where three.js puts the light: lightMargin =
+    200 m toward the light from the slice's corner nearest the light, its range starting light_near = 1 m
+    in front of it."""
+    settings, d, cases = compared
     for _, ours, theirs in cases:
         np.testing.assert_allclose(theirs["light_axes"][2], -ours.direction, atol=1e-12)
         for ours_c, theirs_c in zip(ours.cascades, theirs["cascades"]):
             light_depth = float(np.dot(theirs_c["position"], d))
-            assert abs(ours_c.depth_near - light_depth) <= 0.1
+            assert ours_c.depth_near - settings.light_near == pytest.approx(light_depth, abs=1e-6)
 
 
 def test_box_size_within_two_percent_of_the_addons(compared):
@@ -104,11 +104,9 @@ def test_box_size_within_two_percent_of_the_addons(compared):
             assert abs(ours_c.extent[0] / width - 1.0) <= 0.02
 
 
-@pytest.mark.xfail(strict=True, reason="csmlab's extent = \"diagonal\" ceils the diagonal to whole metres and "
-                   "measures it on slices ending at b·far, while three.js's CSMFrustum.split lerps the near- and "
-                   "far-plane vertices (slice ends at near + b·(far − near)) and keeps the diagonal unrounded; and "
-                   "csmlab's snap = \"centre\" texel is D/(R − 2m − 2) (filter margins kept inside), three.js's D/R")
 def test_box_size_equals_the_addons(compared):
+    """fit = "cascade_lerp" (CSMFrustum.split's lerped slice ends), extent = "diagonal_unrounded" and
+    snap = "centre_full" (texel D/R, the whole map the box): the addon's width and texel."""
     _, _, cases = compared
     for _, ours, theirs in cases:
         for ours_c, theirs_c in zip(ours.cascades, theirs["cascades"]):
@@ -117,21 +115,16 @@ def test_box_size_equals_the_addons(compared):
             np.testing.assert_allclose(ours_c.texel_size, [width / 2048, width / 2048], rtol=1e-9)
 
 
-@pytest.mark.xfail(strict=True, reason="per-engine light basis not modelled: csmlab's light space takes the "
-                   "world axis least aligned with the light as up (geometry.light_basis), three.js's CSM.update() "
-                   "uses Matrix4.lookAt(origin, lightDirection, world +Y), so the texel grid is turned about the "
-                   "light axis")
 def test_light_space_basis_equals_the_addons(compared):
+    """light_basis = "world_y": the rows of CSM.update()'s Matrix4.lookAt(origin, lightDirection, +Y)."""
     _, _, cases = compared
     for _, ours, theirs in cases:
         np.testing.assert_allclose(ours.basis[0], theirs["light_axes"][0], atol=1e-9)
         np.testing.assert_allclose(ours.basis[1], theirs["light_axes"][1], atol=1e-9)
 
 
-@pytest.mark.xfail(strict=True, reason="the box centre lies on another texel grid: csmlab's basis (not world "
-                   "+Y up), its texel D/(R − 2m − 2) of a ceiled diagonal, and slices ending at b·far (three.js: "
-                   "floor(centre / (D/R)) in the lookAt(+Y) basis, D unrounded, slices lerped from near to far)")
 def test_box_centre_equals_the_addons(compared):
+    """light_basis = "world_y" and snap = "centre_full": the centre floored to texels of D/R on the addon's grid."""
     _, d, cases = compared
     for _, ours, theirs in cases:
         for ours_c, theirs_c in zip(ours.cascades, theirs["cascades"]):
@@ -142,11 +135,8 @@ def test_box_centre_equals_the_addons(compared):
             np.testing.assert_allclose(ours_world, theirs_world, atol=1e-6)
 
 
-@pytest.mark.xfail(strict=True, reason="the shadow camera's depth range is not modelled: three.js clips at "
-                   "lightNear = 1 m and lightFar = 2000 m from a light lightMargin = 200 m toward the light from "
-                   "the slice, csmlab's depth_range = \"slice\" with pancake = 200 spans from 200 m in front of "
-                   "the slice to the slice's far corner")
 def test_depth_range_equals_the_addons(compared):
+    """depth_range = "light_camera": lightNear = 1 m to lightFar = 2000 m in front of the light."""
     _, d, cases = compared
     for _, ours, theirs in cases:
         for ours_c, theirs_c in zip(ours.cascades, theirs["cascades"]):

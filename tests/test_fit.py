@@ -28,7 +28,7 @@ def test_blend_band_starts_later_cascades_earlier_by_a_fraction_of_the_previous_
 
 
 def test_unknown_fit_lists_the_known_ones():
-    with pytest.raises(ValueError, match=r"fit: expected one of \['cascade', 'scene'\]"):
+    with pytest.raises(ValueError, match=r"fit: expected one of \['cascade', 'cascade_lerp', 'scene'\]"):
         slice_intervals(SPLITS, method="tight")
 
 

@@ -161,7 +161,7 @@ def test_selection_for_a_filter_keeps_its_taps_inside_the_box(device):
 
 def test_unknown_names_list_the_valid_ones():
     args = (np.zeros((1, 8, 8), np.float32), np.zeros((1, 1, 2), np.int64), np.zeros((1, 1), np.float32), np.ones(1))
-    with pytest.raises(ValueError, match=r"selection: expected one of \['best_resolution', 'interval', 'map'\]"):
+    with pytest.raises(ValueError, match=r"selection: expected one of \['best_resolution', 'interval', 'map', 'sphere'\]"):
         lookup(*args, splits=np.array([0.0, 2.0]), selection="nearest")
     with pytest.raises(ValueError, match=r"filter: expected one of \['none', 'pcf', 'pcf_bilinear'\]"):
         lookup(*args, splits=np.array([0.0, 2.0]), filter="gaussian")
@@ -170,7 +170,7 @@ def test_unknown_names_list_the_valid_ones():
     with pytest.raises(ValueError, match="radius: expected a non-negative integer"):
         shadow_lookup(*args, splits=np.array([0.0, 2.0]), texel_area=np.ones(1), selection="interval", filter="pcf",
                       radius=-1, margin=1, blend_band=0.0, bits=BITS)
-    assert sorted(SELECTION_METHODS) == ["best_resolution", "interval", "map"]
+    assert sorted(SELECTION_METHODS) == ["best_resolution", "interval", "map", "sphere"]
     assert sorted(family_filters("box")) == ["none", "pcf", "pcf_bilinear"]
 
 
@@ -286,7 +286,7 @@ def test_receiver_coordinates_on_the_device_equal_the_host_receiver_lookup_bit_f
 @pytest.mark.parametrize("selection", sorted(SELECTION_METHODS))
 def test_world_receivers_look_up_the_same_bits_as_converted_ones(selection, device):
     """shadow_lookup_world converts each receiver where it reads it; receiver_coordinates + shadow_lookup gives the same."""
-    from csmlab.kernels.shadow import receiver_coordinates, shadow_lookup_world
+    from csmlab.kernels.shadow import receiver_coordinates, shadow_lookup_world, split_sphere_cascades
 
     rng = np.random.default_rng(11)
     size, count = 32, 3
@@ -317,6 +317,11 @@ def test_world_receivers_look_up_the_same_bits_as_converted_ones(selection, devi
                                                    ("pcf", 5, 0.0, False), ("pcf_bilinear", 1, 0.2, True)):
         common = dict(splits=splits, texel_area=np.prod(texel, axis=1), selection=selection, filter=filter,
                       radius=radius(filter, filter_size), margin=2, blend_band=blend_band, bits=BITS, device=device)
+        if selection == "sphere":
+            # A split sphere about the boxes' centre per cascade, as wide as 0.4 of its box.
+            common["sphere_cascade"] = split_sphere_cascades(
+                points[receivers], centres=np.tile(np.append(centre, 0.0) @ basis, (count, 1)),
+                radii=0.4 * size * texel.max(axis=1), device=device)
         converted = shadow_lookup(maps, coords, receiver_depth, view_depth, receiver_slope=slope if plane else None,
                                   **common)
         world = shadow_lookup_world(maps, points, normals, view_depth, receivers=receivers,

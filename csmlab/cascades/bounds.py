@@ -28,6 +28,19 @@ Light depth, :data:`DEPTH_RANGE_METHODS` (``[shadow] depth_range``), the box's e
   ``LightDirectionalShadowMapRenderer``: the shadow camera ``r`` behind the sphere's centre, near 0,
   far ``2r``). Always at least the corners' range. Godot's radius is also widened by ``T / (T - 2)``
   (one texel, < 0.1 % at 2048), which this range leaves out.
+- ``scene_clipped`` — the light-depth range of the scene's bounding box clipped to the cascade's
+  box on x and y (DirectX CascadedShadowMaps11 ``FIT_NEARFAR_SCENE_AABB``:
+  ``CascadedShadowsManager::ComputeNearAndFar`` clips the AABB's 12 triangles against the box's four
+  sides and takes the clipped vertices' minimum and maximum light depth). Every caster in the box's
+  x/y range lies inside it, as with ``scene``; where the box misses the scene's box, the scene's range.
+- ``light_camera`` — a light camera ``pancake`` metres toward the light from the slice's corner
+  nearest the light, clipping at ``light_near`` and ``light_far`` metres in front of it (three.js
+  ``CSM.update()``: ``_center.z = _bbox.max.z + lightMargin``, the shadow camera's ``near =
+  lightNear`` 1 and ``far = lightFar`` 2000, ``CSM`` constructor): the range is ``[s − pancake +
+  light_near, s − pancake + light_far]``, ``s`` the slice's nearest light depth, whatever the slice's
+  depth. Casters in front of it are clamped or clipped (``depth_clamp``); a caster beyond the far side
+  is still rasterized (a unorm format stores it at the far side, as the engine's cleared map holds
+  where it clips the caster).
 """
 
 from __future__ import annotations
@@ -40,7 +53,7 @@ import numpy as np
 from csmlab.registry import check_name
 
 __all__ = ["BOUNDS_METHODS", "Bounds", "DEPTH_RANGE_METHODS", "DepthRange", "HOLD_METHODS", "Hold",
-           "held_depth_ranges", "scene_box_depth", "slice_box_depth", "split_range", "stepped_depth_ranges",
+           "held_depth_ranges", "scene_box_depth", "scene_clipped_box_depth", "slice_box_depth", "split_range", "stepped_depth_ranges",
            "visible_depth_range"]
 
 
@@ -99,9 +112,10 @@ class DepthRange:
     ----------
     description : str
     box_depth : callable
-        ``box_depth(slice_depth, scene_depth, *, pancake, corners) -> (near, far)``: the box's near and
+        ``box_depth(slice_depth, scene_depth, *, pancake, ...) -> (near, far)``: the box's near and
         far light depth in metres from the light depths of the slice's corners and of the scene's
-        bounds (and the corners' light-space positions ``(8, 3)``).
+        bounds; it declares what else it reads of ``corners`` (the corners' light-space positions
+        ``(8, 3)``), ``light_near`` and ``light_far``.
     cuts_casters : bool
         The box's near side may lie behind casters: they are flattened onto it (``depth_clamp``,
         pancaking) or clipped away. False: every caster lies behind the near side.
@@ -112,6 +126,62 @@ class DepthRange:
     cuts_casters: bool
 
 
+def scene_clipped_box_depth(slice_depth: np.ndarray, scene_depth: np.ndarray, *, scene_corners: np.ndarray,
+                            basis: np.ndarray, box_lo: np.ndarray, box_hi: np.ndarray) -> tuple[float, float]:
+    """``scene_clipped``: the light-depth range of the scene's world AABB inside the box's x/y prism (DirectX CSM11).
+
+    The AABB of ``scene_corners`` ``(K, 3)`` (world metres) cut by ``box_lo <= (x, y) <= box_hi`` in
+    light space (rows of ``basis`` ``(3, 3)``) is a convex polytope; its extreme light depths lie at
+    its vertices: the AABB's corners inside the prism, its edges' crossings of the prism's four
+    walls, and the prism's four edges (lines along ``d``) where they pass through the AABB. The same
+    range as clipping the AABB's triangles (``ComputeNearAndFar``).
+    """
+    world = np.asarray(scene_corners, dtype=np.float64).reshape(-1, 3)
+    lo_w, hi_w = world.min(axis=0), world.max(axis=0)
+    corners = np.array([[x, y, z] for x in (lo_w[0], hi_w[0]) for y in (lo_w[1], hi_w[1]) for z in (lo_w[2], hi_w[2])])
+    lo, hi = np.asarray(box_lo, dtype=np.float64), np.asarray(box_hi, dtype=np.float64)
+    slack = 1e-9 * max(1.0, float(np.max(np.abs(np.concatenate([lo, hi])))))
+    # AABB edges: corner pairs differing in one coordinate (corner index bits 2, 1, 0 = x, y, z).
+    edges = np.array([(a, a | bit) for bit in (4, 2, 1) for a in range(8) if not a & bit])
+    light = corners @ basis.T
+    p0, p1 = light[edges[:, 0]], light[edges[:, 1]]
+    candidates = [light]
+    for axis in (0, 1):
+        for wall in (lo[axis], hi[axis]):
+            span = p1[:, axis] - p0[:, axis]
+            crossing = span != 0.0
+            t = np.where(crossing, (wall - p0[:, axis]) / np.where(crossing, span, 1.0), -1.0)
+            on = crossing & (t >= 0.0) & (t <= 1.0)
+            candidates.append(p0[on] + t[on, None] * (p1[on] - p0[on]))
+    points = np.concatenate(candidates)
+    inside = np.all((points[:, :2] >= lo - slack) & (points[:, :2] <= hi + slack), axis=1)
+    depths = list(points[inside, 2])
+    # The prism's edges: the lines x·right + y·up + s·d, s their light depth, through the AABB (slabs).
+    for x in (lo[0], hi[0]):
+        for y in (lo[1], hi[1]):
+            origin, d = x * basis[0] + y * basis[1], basis[2]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                a, b = (lo_w - origin) / d, (hi_w - origin) / d
+            flat = d == 0.0
+            if np.any(flat & ((origin < lo_w) | (origin > hi_w))):
+                continue
+            enter = np.max(np.where(flat, -np.inf, np.minimum(a, b)))
+            leave = np.min(np.where(flat, np.inf, np.maximum(a, b)))
+            if enter <= leave:
+                depths += [float(enter), float(leave)]
+    if not depths:
+        return scene_box_depth(slice_depth, scene_depth, pancake=0.0)
+    return float(min(depths)), float(max(depths))
+
+
+def light_camera_box_depth(slice_depth: np.ndarray, scene_depth: np.ndarray, *, pancake: float, light_near: float,
+                           light_far: float) -> tuple[float, float]:
+    """``light_camera``: ``light_near`` to ``light_far`` metres in front of a light ``pancake`` metres toward the
+    light from the slice's nearest light depth (three.js CSM)."""
+    light = float(slice_depth.min()) - pancake
+    return light + light_near, light + light_far
+
+
 DEPTH_RANGE_METHODS: dict[str, DepthRange] = {
     "scene": DepthRange("box near side pushed toward the light to the scene bounds (every caster captured)",
                         scene_box_depth, cuts_casters=False),
@@ -120,6 +190,11 @@ DEPTH_RANGE_METHODS: dict[str, DepthRange] = {
     "sphere": DepthRange("box depth from the sphere about the slice corners' centroid (centre ± radius), near side "
                          "pulled `pancake` metres toward the light (Godot 4, Stride)", sphere_box_depth,
                          cuts_casters=True),
+    "scene_clipped": DepthRange("the scene's bounding box clipped to the cascade's box on x and y, its light-depth "
+                                "range (DirectX CSM11 ComputeNearAndFar)", scene_clipped_box_depth, cuts_casters=False),
+    "light_camera": DepthRange("a light camera `pancake` metres toward the light from the slice, clipping at "
+                               "`light_near` and `light_far` in front of it (three.js CSM)", light_camera_box_depth,
+                               cuts_casters=True),
 }
 """Light-depth ranges of a cascade's box, by name."""
 

@@ -18,8 +18,8 @@ from csmlab.cascades.focus import focused_volume
 from csmlab.cascades.splits import split_distances
 from csmlab.cascades.stabilize import SliceFootprint, stabilize
 from csmlab.cascades.warp import Warp, cascade_warp
-from csmlab.geometry import frustum_slice_corners, light_basis
-from csmlab.registry import check_name, dispatch
+from csmlab.geometry import LIGHT_BASIS_METHODS, frustum_slice_corners, slice_bounding_sphere
+from csmlab.registry import check_name, dispatch, parameters
 from csmlab.settings import ShadowSettings
 
 __all__ = ["Cascade", "CascadeSet", "build_cascades", "radius_rounded_up", "tight_extents"]
@@ -48,6 +48,11 @@ class Cascade:
         Depth range in metres along the light direction (``dot(X, d)``, not relative to zref).
     warp : Warp, optional
         The perspective warp of ``warp = "lispsm"`` (:mod:`csmlab.cascades.warp`); None: orthographic.
+    sphere_centre : ndarray, shape (3,), optional
+        World centre in metres of the fitted slice's smallest bounding sphere: the split sphere of
+        ``selection = "sphere"`` (Unity's culling sphere).
+    sphere_radius : float
+        Its radius in metres, rounded up as the ``sphere`` extent's (0 where not built).
     """
 
     split_near: float
@@ -60,6 +65,8 @@ class Cascade:
     depth_near: float
     depth_far: float
     warp: Warp | None = None
+    sphere_centre: np.ndarray | None = None
+    sphere_radius: float = 0.0
 
     @property
     def homography(self) -> np.ndarray:
@@ -93,7 +100,8 @@ class CascadeSet:
     Attributes
     ----------
     basis : ndarray, shape (3, 3)
-        Rows (right, up, d): world to light space; depends on the light direction only.
+        Rows (right, up, d): world to light space; depends on the light direction only
+        (``settings.light_basis``, :data:`csmlab.geometry.LIGHT_BASIS_METHODS`).
     zref : float
         Depth offset in metres subtracted from ``dot(X, d)`` before storing (fixed per light and
         scene, never per box, so a moved box stores the same depths).
@@ -160,7 +168,7 @@ def tight_extents(*, pose: CameraPose, light_direction, settings: ShadowSettings
 
     What :func:`csmlab.cascades.stabilize.held_extents` holds over a path for extent hysteresis.
     """
-    basis = light_basis(light_direction)
+    basis = dispatch(LIGHT_BASIS_METHODS, settings.light_basis, field="light_basis", direction=light_direction)
     _, _, _, intervals = _slices(pose, settings, visible_depth)
     out = []
     for z0, z1 in intervals:
@@ -195,7 +203,7 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
     CascadeSet
     """
     settings.validated()
-    basis = light_basis(light_direction)
+    basis = dispatch(LIGHT_BASIS_METHODS, settings.light_basis, field="light_basis", direction=light_direction)
     scene_light = np.asarray(scene_corners, dtype=np.float64).reshape(-1, 3) @ basis.T
     near, far, splits, intervals = _slices(pose, settings, visible_depth)
     frustum_light = _slice_light_corners(pose, basis, near, far)
@@ -217,8 +225,12 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
         texel, origin = stabilize(footprint, method=settings.stabilization, resolution=resolution,
                                   margin=margin, levels=settings.levels, quantized_base=settings.quantized_base,
                                   snap=settings.snap, held_extent=None if held_extents is None else held_extents[i])
-        depth_near, depth_far = DEPTH_RANGE_METHODS[settings.depth_range].box_depth(
-            corners[:, 2], scene_light[:, 2], pancake=settings.pancake, corners=corners)
+        box_depth = DEPTH_RANGE_METHODS[settings.depth_range].box_depth
+        offered = dict(pancake=settings.pancake, corners=corners, light_near=settings.light_near,
+                       light_far=settings.light_far, scene_corners=scene_corners, basis=basis,
+                       box_lo=origin * texel, box_hi=(origin + resolution) * texel)
+        depth_near, depth_far = box_depth(corners[:, 2], scene_light[:, 2],
+                                          **{k: v for k, v in offered.items() if k in parameters(box_depth)})
         warp = cascade_warp(settings.warp, basis=basis, volume=volume, pose=pose, resolution=resolution,
                             margin=margin, z_near=z0, z_far=z1, near_hint=settings.lispsm_near_hint,
                             far_hint=settings.lispsm_far_hint)
@@ -227,10 +239,21 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
         cascades.append(Cascade(
             split_near=float(splits[i]), split_far=float(splits[i + 1]), slice_near=float(z0), slice_far=float(z1),
             texel_size=texel, origin=origin, resolution=resolution, depth_near=depth_near,
-            depth_far=depth_far, warp=warp,
+            depth_far=depth_far, warp=warp, **_split_sphere(pose, z0, z1),
         ))
     return CascadeSet(basis=basis, zref=float(scene_light[:, 2].min()), splits=splits, cascades=tuple(cascades),
                       margin_texels=margin, eye=np.array(pose.position, dtype=np.float64))
+
+
+def _split_sphere(pose: CameraPose, z0: float, z1: float) -> dict:
+    """``sphere_centre`` (world, metres) and ``sphere_radius`` of the slice ``[z0, z1]``'s smallest bounding sphere.
+
+    Unity's split spheres are native (``ComputeDirectionalShadowMatricesAndCullingPrimitives``'s
+    culling sphere, unverified): csmlab takes the sphere its ``sphere`` extent sizes the box by.
+    """
+    sphere = slice_bounding_sphere(fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, z_near=z0, z_far=z1)
+    return dict(sphere_centre=np.asarray(pose.position, dtype=np.float64) + pose.forward * sphere.centre_depth,
+                sphere_radius=radius_rounded_up(sphere.radius))
 
 
 def _slice_light_corners(pose: CameraPose, basis: np.ndarray, z0: float, z1: float) -> np.ndarray:

@@ -10,6 +10,9 @@ size is bit-identical from frame to frame. Engines take it from different shapes
   far-plane diagonal, rounded up to whole metres, centred on the slice's light-space AABB (Bevy
   ``bevy_light/src/cascade.rs`` ``calculate_cascade``; three.js ``examples/jsm/csm/CSM.js``
   ``updateShadowBounds``, which skips the rounding).
+- ``diagonal_unrounded`` — ``diagonal`` without the rounding: the larger of the body and far-plane
+  diagonals as they are (three.js ``CSM._updateShadowBounds``: ``squaredBBWidth =
+  point1.distanceTo(point2)``, far vertex 0 to far vertex 2 or near vertex 2, whichever is farther).
 - ``body_diagonal`` — the slice's body diagonal alone, near corner 0 to far corner 6, not rounded,
   centred on the slice's light-space AABB (DirectX SDK CascadedShadowMaps11,
   ``CascadedShadowsManager::InitFrame``, FIT_TO_SCENE: ``vDiagonal = vFrustumPoints[0] -
@@ -39,7 +42,8 @@ import numpy as np
 from csmlab.camera import CameraPose
 from csmlab.geometry import slice_bounding_sphere
 
-__all__ = ["EXTENT_METHODS", "extent_body_diagonal", "extent_centroid", "extent_diagonal", "extent_sphere", "radius_rounded_up"]
+__all__ = ["EXTENT_METHODS", "extent_body_diagonal", "extent_centroid", "extent_diagonal", "extent_diagonal_unrounded",
+           "extent_sphere", "radius_rounded_up"]
 
 
 def radius_rounded_up(radius: float, *, bits: int = 12) -> float:
@@ -74,6 +78,21 @@ def extent_diagonal(*, pose: CameraPose, basis: np.ndarray, z_near: float, z_far
     return 0.5 * (lo + hi), 0.5 * diameter
 
 
+def extent_diagonal_unrounded(*, pose: CameraPose, basis: np.ndarray, z_near: float, z_far: float,
+                              corners: np.ndarray) -> tuple[np.ndarray, float]:
+    """Centre x/y ``(2,)`` of the slice's light-space AABB and half of ``max(body, far diagonal)`` metres, unrounded.
+
+    :func:`extent_diagonal`'s diagonals as three.js sizes its box (``CSM._updateShadowBounds``), a
+    closed form of the projection and the slice depths, so bit-stable from frame to frame.
+    """
+    ty = np.tan(np.radians(pose.fov_y_deg) / 2.0)
+    tx = ty * pose.aspect
+    xn, yn, xf, yf = z_near * tx, z_near * ty, z_far * tx, z_far * ty
+    body = np.sqrt((xn + xf) ** 2 + (yn + yf) ** 2 + (z_far - z_near) ** 2)
+    lo, hi = corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)
+    return 0.5 * (lo + hi), 0.5 * float(max(body, 2.0 * np.hypot(xf, yf)))
+
+
 def extent_body_diagonal(*, pose: CameraPose, basis: np.ndarray, z_near: float, z_far: float,
                          corners: np.ndarray) -> tuple[np.ndarray, float]:
     """Centre x/y ``(2,)`` of the slice's light-space AABB and half its body diagonal (DirectX CSM11 fit to scene).
@@ -106,6 +125,7 @@ def extent_centroid(*, pose: CameraPose, basis: np.ndarray, z_near: float, z_far
 EXTENT_METHODS: dict[str, Callable[..., tuple[np.ndarray, float]]] = {
     "sphere": extent_sphere,
     "diagonal": extent_diagonal,
+    "diagonal_unrounded": extent_diagonal_unrounded,
     "centroid": extent_centroid,
     "body_diagonal": extent_body_diagonal,
 }

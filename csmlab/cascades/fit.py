@@ -20,13 +20,30 @@ import numpy as np
 from csmlab.lookup_choices import BLEND_LINEAR, BLEND_SMOOTHSTEP
 from csmlab.registry import check_name
 
-__all__ = ["BLEND_CURVES", "TRANSITION_METHODS", "FIT_METHODS", "Transition", "fit_cascade", "fit_scene", "slice_intervals",
+__all__ = ["BLEND_CURVES", "TRANSITION_METHODS", "FIT_METHODS", "Transition", "fit_cascade", "fit_cascade_lerp", "fit_scene",
+           "slice_intervals",
            "transition_bands"]
 
 
 def fit_cascade(splits: np.ndarray, i: int) -> tuple[float, float]:
     """View-depth interval of cascade ``i``'s own slice."""
     return float(splits[i]), float(splits[i + 1])
+
+
+def fit_cascade_lerp(splits: np.ndarray, i: int) -> tuple[float, float]:
+    """Cascade ``i``'s slice with its ends lerped from the near plane: ``n + b (f - n)`` with ``b = z / f``.
+
+    three.js (``CSMFrustum.split``): each cascade's near and far vertices are
+    ``lerpVectors(near_j, far_j, breaks[i])``, the breaks being the splits as fractions of the far end
+    (``CSM._getBreaks``), the first cascade starting at the near plane and the last ending at the far.
+    Each slice ends ``n (1 - b)`` beyond the split the selection switches at.
+    """
+    near, far = float(splits[0]), float(splits[-1])
+
+    def end(k: int) -> float:
+        return near if k == 0 else far if k == len(splits) - 1 else near + float(splits[k]) / far * (far - near)
+
+    return end(i), end(i + 1)
 
 
 def fit_scene(splits: np.ndarray, i: int) -> tuple[float, float]:
@@ -36,6 +53,7 @@ def fit_scene(splits: np.ndarray, i: int) -> tuple[float, float]:
 
 FIT_METHODS: dict[str, Callable[[np.ndarray, int], tuple[float, float]]] = {
     "cascade": fit_cascade,
+    "cascade_lerp": fit_cascade_lerp,
     "scene": fit_scene,
 }
 """Fit modes by name."""

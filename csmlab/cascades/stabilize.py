@@ -26,7 +26,8 @@ import numpy as np
 from csmlab.registry import check_name, dispatch
 
 __all__ = ["QUANTIZED_BASES", "SNAP_METHODS", "STABILIZATION_METHODS", "SliceFootprint", "check_resolution",
-           "held_extents", "stabilize", "stabilize_exact", "stabilize_none", "stabilize_quantized"]
+           "held_extents", "stabilize", "stabilize_exact", "stabilize_none", "stabilize_quantized",
+           "stabilize_tight_snapped"]
 
 
 @dataclass(frozen=True)
@@ -109,9 +110,9 @@ def snap_origin(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[np
 
 
 def snap_centre(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[np.ndarray, np.ndarray]:
-    """The box's centre floored to whole texels and the box laid around it (Bevy, three.js; Stride view snapping).
+    """The box's centre floored to whole texels and the box laid around it, the filter margins kept inside.
 
-    With ``h = floor(R / 2)`` the box spans ``[k - h, k - h + R)`` texels around the snapped centre
+    Bevy's and three.js's own box is :func:`snap_centre_full` (texel D/R, no margin). With ``h = floor(R / 2)`` the box spans ``[k - h, k - h + R)`` texels around the snapped centre
     ``k = floor(c / t)``; ``t = 2r / (2 (h - m - 1))`` keeps the sphere and the margins inside on
     both sides whatever ``c - k t ∈ [0, t)`` is.
     """
@@ -171,9 +172,26 @@ def snap_nearest2(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[
     return texel, 2.0 * np.floor((fp.centre - (fp.radius + t)) / (2.0 * texel) + 0.5) - margin
 
 
+def snap_centre_full(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[np.ndarray, np.ndarray]:
+    """The box's centre floored to whole texels of ``t = 2r / R``: the whole map is the box, no margin kept inside.
+
+    three.js (``CSM.update()``: ``texelWidth = (right − left) / shadowMapSize``, ``_center.x =
+    Math.floor(_center.x / texelWidth) · texelWidth``, the camera ``±width / 2`` about it) and Bevy
+    (``cascade.rs`` ``calculate_cascade``: ``cascade_texel_size = cascade_diameter / cascade_texture_size``,
+    the centre floored to it). The box spans ``[k - h, k - h + R)`` texels with ``k = floor(c / t)`` and
+    ``h = floor(R / 2)``; ``margin`` plays no part, so a filter's taps may leave the box near its edge,
+    where the lookup then selects no cascade for the point (csmlab never clamps a tap), while the
+    engines read the clamped edge.
+    """
+    t = 2.0 * fp.radius / resolution
+    texel = np.array([t, t])
+    return texel, np.floor(fp.centre / texel) - resolution // 2
+
+
 SNAP_METHODS: dict[str, Callable[..., tuple[np.ndarray, np.ndarray]]] = {
     "origin": snap_origin,
     "centre": snap_centre,
+    "centre_full": snap_centre_full,
     "view": snap_view,
     "nearest2": snap_nearest2,
     "centre_nearest": snap_centre_nearest,
@@ -219,10 +237,29 @@ def stabilize_quantized(fp: SliceFootprint, *, resolution: int, margin: int, lev
     return texel, origin
 
 
+def stabilize_tight_snapped(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[np.ndarray, np.ndarray]:
+    """Tight box padded for the filter and snapped to texels of its own size, every frame (DirectX CSM11 fit to cascade).
+
+    ``CascadedShadowsManager::InitFrame`` with ``FIT_TO_CASCADES`` and ``m_bMoveLightTexelSize``: the
+    light-space AABB of the slice's corners is widened on each side by half of ``(2 · m_iPCFBlurSize +
+    1) / m_iBufferSize`` of its size, the world units per texel are that padded size over the buffer
+    size, and both ends are floored to them. Here the padding is ``(2m + 1) / R`` of the extent with
+    ``m`` the filter's margin (DirectX's 3×3 PCF: m = 3, 7 texels as the sample's blur size 3 gives),
+    ``t = padded / R`` per axis and the box ``[floor(lo / t), floor(lo / t) + R)`` texels (the floored
+    maximum lies exactly R texels further, the padded size being R texels). The texel size follows
+    the slice's light-space extent, so it changes whenever the camera turns: the sample's shimmer.
+    """
+    tight = np.maximum(fp.hi - fp.lo, 1e-9)
+    padded = tight * (1.0 + (2 * margin + 1) / resolution)
+    texel = padded / resolution
+    return texel, np.floor((fp.lo - 0.5 * (padded - tight)) / texel)
+
+
 STABILIZATION_METHODS: dict[str, Callable[..., tuple[np.ndarray, np.ndarray]]] = {
     "none": stabilize_none,
     "exact": stabilize_exact,
     "quantized": stabilize_quantized,
+    "tight_snapped": stabilize_tight_snapped,
 }
 """Stabilization methods by name: ``f(footprint, *, resolution, margin, levels, quantized_base, snap)``."""
 

@@ -297,11 +297,13 @@ def shadow_method_registries() -> dict:
     """The registry of every ``[shadow]`` field that names a method, by field (``csmlab list`` prints them)."""
     from csmlab.cascades import (BOUNDS_METHODS, DEPTH_RANGE_METHODS, EXTENT_METHODS, FIT_METHODS, SNAP_METHODS,
                                  SPLIT_METHODS, STABILIZATION_METHODS)
-    from csmlab.lookup_choices import FILTER_METHODS, SELECTION_METHODS
+    from csmlab.lookup_choices import FILTER_METHODS, OUTSIDE_METHODS, SELECTION_METHODS
     from csmlab.cascades.bounds import HOLD_METHODS
     from csmlab.cascades.fit import BLEND_CURVES, TRANSITION_METHODS
     from csmlab.culling import CULL_METHODS
     from csmlab.fades import FADE_METHODS
+    from csmlab.geometry import LIGHT_BASIS_METHODS
+    from csmlab.storage import DEPTH_QUANTIZATION_METHODS
     from csmlab.texels import PRECISION_METHODS, VERTEX_SNAPS
     from csmlab.cascades.focus import FOCUS_METHODS
     from csmlab.cascades.warp import WARP_METHODS
@@ -310,7 +312,9 @@ def shadow_method_registries() -> dict:
             "selection": SELECTION_METHODS, "filter": FILTER_METHODS, "extent": EXTENT_METHODS, "snap": SNAP_METHODS,
             "depth_range": DEPTH_RANGE_METHODS, "bounds": BOUNDS_METHODS, "engine_precision": PRECISION_METHODS,
             "transition": TRANSITION_METHODS, "hold": HOLD_METHODS, "blend_curve": BLEND_CURVES, "fade": FADE_METHODS,
-            "cull": CULL_METHODS, "focus": FOCUS_METHODS, "warp": WARP_METHODS, "vertex_snap": VERTEX_SNAPS}
+            "cull": CULL_METHODS, "focus": FOCUS_METHODS, "warp": WARP_METHODS, "vertex_snap": VERTEX_SNAPS,
+            "light_basis": LIGHT_BASIS_METHODS, "depth_quantization": DEPTH_QUANTIZATION_METHODS,
+            "outside": OUTSIDE_METHODS}
 
 
 def _checked_settings(settings: ShadowSettings, *, where_of, located: _Located,

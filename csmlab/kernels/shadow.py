@@ -14,6 +14,9 @@ Selection methods (:data:`csmlab.lookup_choices.SELECTION_METHODS`):
 - ``map`` — the first cascade whose box, less ``margin`` texels on each side, contains the point.
 - ``best_resolution`` — among those containing cascades, the one with the smallest texel area
   (Zhang et al., seed 003, "optimized cascade selection"); the first on ties.
+- ``sphere`` — the first cascade whose split sphere holds the world point, ``|X − c_i|² < r_i²``
+  (Unity: built-in ``getCascadeWeights_splitSpheres``, URP ``ComputeCascadeIndex``), found per
+  receiver by :func:`split_sphere_cascades` and handed to the lookup as ``sphere_cascade``.
 
 Every selection also requires the selected box to hold all of the filter's taps, so clamping never
 changes a tap; a point that no cascade holds gets cascade −1 (S is NaN there).
@@ -49,10 +52,11 @@ import warp as wp
 from csmlab.kernels import checked_device
 from csmlab.lookup_choices import (BLEND_SMOOTHSTEP, BOX_BILINEAR, BOX_TAPS, NORMAL_NONE, NORMAL_OFFSET_SCALES,
                                    NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN, SELECT_BEST_RESOLUTION, SELECT_INTERVAL,
-                                   SELECT_MAP, SELECTION_METHODS, family_code)
+                                   SELECT_MAP, SELECT_SPHERE, SELECTION_METHODS, family_code)
 from csmlab.registry import check_name
 
-__all__ = ["receiver_coordinates", "select_cascades", "shadow_lookup", "shadow_lookup_world", "world_receivers"]
+__all__ = ["receiver_coordinates", "select_cascades", "shadow_lookup", "shadow_lookup_world", "split_sphere_cascades",
+           "world_receivers"]
 
 wp.set_module_options({"fuse_fp": False})
 
@@ -238,6 +242,7 @@ def shadow_lookup_kernel(
     view_depth: wp.array(dtype=wp.float64),
     splits: wp.array(dtype=wp.float64),
     texel_area: wp.array(dtype=wp.float64),
+    sphere_cascade: wp.array(dtype=wp.int32),
     unit: wp.int64,
     selection: int,
     filter_code: int,
@@ -267,9 +272,11 @@ def shadow_lookup_kernel(
     y = wp.int64(0)
     receiver = wp.float32(0.0)
     slope = wp.vec2d()
-    if selection == SELECT_INTERVAL:
+    if selection == SELECT_INTERVAL or selection == SELECT_SPHERE:
+        if selection == SELECT_SPHERE:
+            chosen = int(sphere_cascade[k])
         c = int(0)
-        while c < count:
+        while c < count and selection == SELECT_INTERVAL:
             if z >= splits[c] and z < splits[c + 1]:
                 chosen = c
             c += 1
@@ -326,7 +333,7 @@ wp.overload(shadow_lookup_kernel, {"receivers": WorldReceivers})
 
 def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_area, selection: str,
                   filter: str, radius: int, margin: int, blend_band: float, bits: int,
-                  receiver_slope=None, band_start=None, blend_curve: int = 0,
+                  receiver_slope=None, band_start=None, blend_curve: int = 0, sphere_cascade=None,
                   device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Lit fraction S and selected cascade at receiver points under a box filter.
 
@@ -370,6 +377,9 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
         Receiver-plane depth change per texel along x and y, metres
         (:func:`csmlab.texels.receiver_lookup`); each tap compares the plane's depth at its texel
         centre. None compares the receiver's own depth at every tap.
+    sphere_cascade : array_like, shape (N,), int32, optional
+        ``sphere``: each receiver's first split sphere holding it, −1 where none
+        (:func:`split_sphere_cascades`); required there, ignored by the other selections.
     device : str
         ``"cpu"`` or ``"cuda"``.
 
@@ -394,13 +404,13 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
     lit, cascade, blend, _ = _launch(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
                                      selection=selection, code=code, radius=radius, reach=radius, margin=margin,
                                      blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
-                                     bits=bits, weights=False, device=device)
+                                     sphere_cascade=sphere_cascade, bits=bits, weights=False, device=device)
     return lit, cascade.astype(np.int8), blend
 
 
 def select_cascades(depth, coords, receiver_depth, view_depth, *, splits, texel_area, selection: str, radius: int,
                     margin: int, blend_band: float, bits: int, band_start=None, blend_curve: int = 0,
-                    device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                    sphere_cascade=None, device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The cascade selection of :func:`shadow_lookup` for a filter that runs after it, and its blend band.
 
     The same kernel and rules: a box is selected only where it holds every tap of a filter
@@ -409,7 +419,7 @@ def select_cascades(depth, coords, receiver_depth, view_depth, *, splits, texel_
 
     Parameters
     ----------
-    depth, coords, receiver_depth, view_depth, splits, texel_area, selection, margin, blend_band, bits, device
+    depth, coords, receiver_depth, view_depth, splits, texel_area, selection, margin, blend_band, bits, sphere_cascade, device
         As :func:`shadow_lookup`.
     radius : int
         Texels the filter's taps reach beyond the one holding the point.
@@ -428,14 +438,14 @@ def select_cascades(depth, coords, receiver_depth, view_depth, *, splits, texel_
     _, cascade, blend, weight = _launch(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
                                         selection=selection, code=BOX_TAPS, radius=0, reach=radius, margin=margin,
                                         blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
-                                     bits=bits, weights=True, device=device)
+                                        sphere_cascade=sphere_cascade, bits=bits, weights=True, device=device)
     return cascade, weight, blend
 
 
 def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis, texel_size, origin_fixed, zref: float,
                         normal_offset: float, bias_constant, bias_slope: float, receiver_plane_bias: bool,
                         splits, normal_scale: str = "none", plane_offset=0.0, normal_offset_m: float = 0.0, texel_area, selection: str, filter: str, radius: int, margin: int,
-                        blend_band: float, bits: int, band_start=None, blend_curve: int = 0,
+                        blend_band: float, bits: int, band_start=None, blend_curve: int = 0, sphere_cascade=None,
                         device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`shadow_lookup` of world receivers, each taken into a cascade's fixed point where the lookup reads it.
 
@@ -445,8 +455,8 @@ def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis,
 
     Parameters
     ----------
-    depth, view_depth, splits, texel_area, selection, filter, radius, margin, blend_band, bits, device
-        As :func:`shadow_lookup`; ``view_depth`` ``(N,)`` one per receiver.
+    depth, view_depth, splits, texel_area, selection, filter, radius, margin, blend_band, bits, sphere_cascade, device
+        As :func:`shadow_lookup`; ``view_depth`` and ``sphere_cascade`` ``(N,)`` one per receiver.
     points, normals, receivers, basis, texel_size, origin_fixed, zref, normal_offset, bias_constant, bias_slope
         As :func:`receiver_coordinates`.
     receiver_plane_bias : bool
@@ -470,7 +480,7 @@ def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis,
     lit, cascade, blend, _ = _launch(depth, world, view_depth, splits=splits, texel_area=texel_area,
                                      selection=selection, code=code, radius=radius, reach=radius, margin=margin,
                                      blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
-                                     bits=bits, weights=False, device=device)
+                                     sphere_cascade=sphere_cascade, bits=bits, weights=False, device=device)
     return lit, cascade.astype(np.int8), blend
 
 
@@ -495,7 +505,7 @@ def _fixed_receivers(depth, coords, receiver_depth, view_depth, receiver_slope, 
 
 def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str, code: int, radius: int, reach: int,
             margin: int, blend_band: float, bits: int, weights: bool, device: str, band_start=None,
-            blend_curve: int = 0) -> tuple:
+            blend_curve: int = 0, sphere_cascade=None) -> tuple:
     """Launch :func:`shadow_lookup_kernel` over ``receivers`` (a :class:`FixedReceivers` or :class:`WorldReceivers`).
 
     ``code`` and ``radius`` are the box filter run at the selected cascade, ``reach`` the taps a
@@ -522,6 +532,14 @@ def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str,
     if start.shape != (count,):
         raise ValueError(f"band_start: expected shape ({count},), got {start.shape}")
     n = vd.shape[0]
+    if selected.code == SELECT_SPHERE:
+        if sphere_cascade is None or np.shape(sphere_cascade) != (n,):
+            raise ValueError(f"sphere_cascade: selection = \"sphere\" needs each receiver's split sphere ({n},) "
+                             f"(split_sphere_cascades), got {None if sphere_cascade is None else np.shape(sphere_cascade)}")
+        spheres = np.ascontiguousarray(sphere_cascade, dtype=np.int32)
+    else:
+        # The other selections read no sphere: one element stands in for the array.
+        spheres = np.full(1, -1, dtype=np.int32)
     if n == 0:
         return np.zeros(0, np.float32), np.zeros(0, np.int32), np.zeros(0, bool), np.zeros(0) if weights else None
     lit = wp.empty(n, dtype=wp.float32, device=device)
@@ -538,6 +556,7 @@ def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str,
             wp.array(vd, dtype=wp.float64, device=device, copy=False),
             wp.array(z, dtype=wp.float64, device=device, copy=False),
             wp.array(area, dtype=wp.float64, device=device, copy=False),
+            wp.array(spheres, dtype=wp.int32, device=device, copy=False),
             wp.int64(2**bits),
             selected.code,
             code,
@@ -684,3 +703,56 @@ def world_receivers(points, normals, *, receivers, basis, texel_size, origin_fix
     world.normal_scale = NORMAL_OFFSET_SCALES[check_name(normal_scale, NORMAL_OFFSET_SCALES,
                                                          field="normal_offset_scale")]
     return world
+
+
+@wp.kernel
+def split_sphere_kernel(points: wp.array(dtype=wp.vec3d), centres: wp.array(dtype=wp.vec3d),
+                        radii_squared: wp.array(dtype=wp.float64), first: wp.array(dtype=wp.int32)):
+    k = wp.tid()
+    p = points[k]
+    first[k] = -1
+    c = int(centres.shape[0]) - 1
+    # Scanning down leaves the first sphere holding the point, as Unity's weights.yzw -= weights.xyz does.
+    while c >= 0:
+        v = p - centres[c]
+        if wp.dot(v, v) < radii_squared[c]:
+            first[k] = c
+        c -= 1
+
+
+def split_sphere_cascades(points, *, centres, radii, device: str = "cpu") -> np.ndarray:
+    """The first cascade whose split sphere holds each point: Unity's sphere selection.
+
+    Unity built-in (``getCascadeWeights_splitSpheres``, Internal-ScreenSpaceShadows.shader) and URP
+    (``ComputeCascadeIndex``, Shadows.hlsl) compare ``dot(X − c_i, X − c_i) < r_i²`` for every
+    cascade and keep the first that holds the point.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3), float64
+        World positions, metres (a NaN point lies in no sphere).
+    centres : array_like, shape (C, 3), float64
+        Each cascade's split-sphere centre, world metres.
+    radii : array_like, shape (C,), float64
+        Their radii, metres.
+    device : str
+        ``"cpu"`` or ``"cuda"``.
+
+    Returns
+    -------
+    ndarray, shape (N,), int32
+        The first cascade ``i`` with ``|X − c_i|² < r_i²``; −1 where none.
+    """
+    device = checked_device(device)
+    p = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+    c = np.ascontiguousarray(np.asarray(centres, dtype=np.float64).reshape(-1, 3))
+    r = np.asarray(radii, dtype=np.float64).reshape(-1)
+    if r.shape[0] != c.shape[0]:
+        raise ValueError(f"centres, radii: expected one radius per centre, got {c.shape[0]} and {r.shape[0]}")
+    first = wp.empty(p.shape[0], dtype=wp.int32, device=device)
+    if p.shape[0]:
+        wp.launch(split_sphere_kernel, dim=p.shape[0],
+                  inputs=(wp.array(p, dtype=wp.vec3d, device=device), wp.array(c, dtype=wp.vec3d, device=device),
+                          wp.array(np.ascontiguousarray(r * r), dtype=wp.float64, device=device)),
+                  outputs=(first,), device=device)
+    return first.numpy()
