@@ -65,7 +65,7 @@ STABILIZATION = {"None": ("none", None), "ProjectionSnapping": ("exact", "centre
 PCF_SIZES = {"Filter3x3": 3, "Filter5x5": 5}
 """LightShadowMapFilterTypePcfSize → pcf_castano's filter_size (Filter7x7 has no csmlab kernel)."""
 BLEND_BAND = 0.2
-"""IsBlendingCascades: the fraction of the previous cascade each one reaches back (ShadowMapReceiverDirectional.sdsl)."""
+"""IsBlendingCascades: the fraction of the previous cascade each one reaches back (ShadowMapReceiverDirectional)."""
 ATLAS_SIZE = 4096
 """ShadowMapRenderer's atlas side (ReferenceShadowSize · 2^(XLarge − 3) · 2): the normal offset's texel."""
 DEFAULT_NEAR = 0.1
@@ -267,7 +267,8 @@ def _read_depth_range(depth: dict, reading: Reading, path, where: str, *, near: 
     if "IsBlendingCascades" in depth:
         blending = depth["IsBlendingCascades"]
         if not isinstance(blending, bool):
-            raise InputError(f"expected true or false, got {blending!r}", file=path, field=f"{where}.IsBlendingCascades")
+            raise InputError(f"expected true or false, got {blending!r}", file=path,
+                             field=f"{where}.IsBlendingCascades")
         reading.set("blend_band", BLEND_BAND if blending else 0.0, file=path, key=f"{where}.IsBlendingCascades",
                     raw=blending)
 
@@ -299,7 +300,7 @@ def _read_partition(partition, depth: dict, reading: Reading, path, where: str, 
         farthest = number(depth.get("ManualMaxDistance", 50.0), file=path, key=f"{where}.DepthRange.ManualMaxDistance",
                           above=0.0)
         reading.set("shadow_distance", near + ends[-1] * (near + farthest), file=path, key=key,
-                    raw=f"{shown} of near plane {near:g} + ManualMaxDistance {farthest:g}")
+                    raw=f"near plane {near:g} + {ends[-1]:g} · (near plane + ManualMaxDistance {farthest:g})")
     else:
         reading.lack(file=path, key=key, value=shown,
                      why="Stride ends cascade i at min + s_i · max of the held visible range, csmlab's manual_range "

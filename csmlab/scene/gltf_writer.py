@@ -1,4 +1,4 @@
-"""Writing glTF 2.0 levels with pygltflib: meshes, node trees, instancing, alpha-masked materials, a sun and animated cameras.
+"""Writing glTF 2.0 levels with pygltflib: meshes, node trees, instancing, masked materials, a sun and animated cameras.
 
 The writer of csmlab's own glTF files — the test fixtures, the shipped ``data/gltf/level.glb``
 (``data/gltf/make_level.py``) and the benchmark's 3M-triangle level (``benchmarks/bench_gltf_level.py``)
