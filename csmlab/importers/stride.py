@@ -43,6 +43,7 @@ import yaml
 from csmlab.engine_export import split_boundaries
 from csmlab.errors import InputError
 from csmlab.importers.reading import Imported, Reading, engine_settings, number, read_text
+from csmlab.lookup_choices import FILTER_METHODS
 from csmlab.settings import ShadowSettings
 
 __all__ = ["DEFAULT_NEAR", "FIELDS", "PRESET", "read_stride", "write_stride"]
@@ -333,6 +334,9 @@ def write_stride(settings: ShadowSettings, *, near: float, far: float) -> tuple[
     shadow = ["Enabled: true"]
     if settings.filter == "pcf_castano" and settings.filter_size in PCF_SIZES.values():
         shadow += [f"Filter: !{PCF}", f"    FilterSize: Filter{settings.filter_size}x{settings.filter_size}"]
+    elif FILTER_METHODS[settings.filter].hard:
+        lacking.append(f"filter = {settings.filter!r} (Stride's least filter is one bilinear comparison, "
+                       f"pcf_bilinear: no Filter written)")
     elif settings.filter != "pcf_bilinear":
         written = 3 if settings.filter_size <= 3 else 5
         lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Stride filters with one "
