@@ -27,6 +27,8 @@ Sources of the engine names
   ``DirectionalLightShadowMap { size }``, ``ShadowFilteringMethod``.
 - three.js ``CSM`` (examples/jsm/csm): ``cascades``, ``maxFar``, ``mode`` (``practical`` mixes with
   λ = 0.5), ``customSplitsCallback``, ``shadowMapSize``, ``fade``.
+- Stride: a ``.sdscene``'s ``LightDirectionalShadowMap`` (``CascadeCount``, ``Size``, ``StabilizationMode``,
+  ``DepthRange``, ``PartitionMode``, ``Filter``, ``BiasParameters``), csmlab.importers.stride.
 """
 
 from __future__ import annotations
@@ -57,7 +59,8 @@ class Snippet:
     title : str
         Where it goes in the engine.
     language : str
-        ``ini``, ``csharp``, ``gdscript``, ``rust`` or ``javascript`` (the file suffix).
+        ``ini``, ``csharp``, ``gdscript``, ``rust``, ``javascript``, ``yaml``, ``json`` or ``sdscene`` (Stride's
+        asset YAML): csmlab.tune picks the file suffix by it.
     text : str
         The snippet.
     lacking : tuple of str
@@ -368,6 +371,20 @@ def export_filament(settings: ShadowSettings, *, near: float, far: float) -> Sni
                    tuple(lacking))
 
 
+def export_stride(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
+    """Stride: the directional light's ``LightDirectionalShadowMap`` in a scene asset (``.sdscene``)."""
+    from csmlab.importers.stride import write_stride
+
+    # Stride has its own automatic depth range (bounds = sdsm), None / ProjectionSnapping / ViewSnapping and
+    # a DepthBias and NormalOffsetScale that csmlab.importers.stride maps: write_stride names what differs.
+    lacking = [item for item in _common_lacking(settings, stable="exact")
+               if not item.startswith(("stabilization", "bounds", "bias_constant"))]
+    files, more = write_stride(settings, near=near, far=far)
+    (text,) = files.values()
+    return Snippet("stride", "Stride: the directional light's shadow map in the scene (.sdscene)", "sdscene", text,
+                   tuple(lacking + more))
+
+
 EXPORT_METHODS: dict[str, Callable[..., Snippet]] = {
     "ue5": export_ue5,
     "unity_urp": export_unity_urp,
@@ -376,6 +393,7 @@ EXPORT_METHODS: dict[str, Callable[..., Snippet]] = {
     "bevy": export_bevy,
     "threejs_csm": export_threejs_csm,
     "filament": export_filament,
+    "stride": export_stride,
 }
 """Exporters by engine name (the names of their presets in ``configs/engines``)."""
 

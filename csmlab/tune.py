@@ -659,7 +659,8 @@ def tune(experiment: Experiment, *, out_dir, space: dict | None = None, objectiv
 
 
 _SUFFIXES = {"ini": ("ini", ";"), "csharp": ("cs", "//"), "gdscript": ("txt", "#"), "rust": ("rs", "//"),
-             "javascript": ("js", "//"), "yaml": ("asset", "#"), "json": ("txt", "//")}
+             "javascript": ("js", "//"), "yaml": ("asset", "#"), "json": ("txt", "//"),
+             "sdscene": ("sdscene", "#")}
 
 
 def write_outputs(result: TuneResult, out_dir, *, near: float, far: float) -> Path:

@@ -176,3 +176,38 @@ def test_each_engine_names_a_band_or_fade_of_another_shape():
                                                      engine="bevy").lacking)
     assert not any("fade =" in i for i in export(band.replace(fade="smoothstep"), near=NEAR, far=FAR,
                                                  engine="godot4").lacking)
+
+
+def _stride_cascade_ends(text: str, *, near: float) -> np.ndarray:
+    """Where Stride ends each cascade for an exported scene with a manual depth range: LightDirectionalShadowMapRenderer
+    .ComputeCascadeSplits (stride3d/stride @34c7f40f) written out again from the C# source."""
+    def member(name, default=None):
+        found = re.search(rf"^\s*{name}: (\S+)$", text, re.M)
+        return default if found is None else found.group(1)
+
+    count = {"OneCascade": 1, "TwoCascades": 2, "FourCascades": 4}[member("CascadeCount", "FourCascades")]
+    assert member("IsAutomatic") == "false"
+    lo, hi = near + float(member("ManualMinDistance", 0.0)), near + float(member("ManualMaxDistance", 50.0))
+    if "PartitionLogarithmic" in text:
+        log_ratio = min(max(1.0 - float(member("PSSMFactor", 0.5)), 0.0), 1.0)
+        distrib = np.arange(1, count + 1) / count
+        return (lo + (hi - lo) * distrib) * (1.0 - log_ratio) + lo * (hi / lo) ** distrib * log_ratio
+    used = {1: [1], 2: [1, 3], 4: [0, 1, 2, 3]}[count]
+    return np.array([lo + float(member(f"SplitDistance{k}")) * hi for k in used])
+
+
+@pytest.mark.parametrize("settings", [
+    ShadowSettings(cascades=4, split="practical", lambda_=0.8, shadow_distance=120.0),
+    ShadowSettings(cascades=2, split="exponent", distribution_exponent=2.5, shadow_distance=90.0),
+    ShadowSettings(cascades=4, split="manual", splits=(5.0, 15.0, 40.0, 100.0), shadow_distance=100.0),
+    ShadowSettings(cascades=1, split="uniform", shadow_distance=30.0),
+])
+def test_stride_places_the_exported_cascades_where_csmlab_does(settings):
+    snippet = export(settings, near=NEAR, far=FAR, engine="stride")
+    assert not any(item.startswith(("split", "cascades", "shadow_distance")) for item in snippet.lacking)
+    np.testing.assert_allclose(_stride_cascade_ends(snippet.text, near=NEAR),
+                               split_distances(near=NEAR, far=settings.shadow_distance, count=settings.cascades,
+                                               method=settings.split, lambda_=settings.lambda_,
+                                               splits=settings.splits,
+                                               distribution_exponent=settings.distribution_exponent)[1:],
+                               rtol=1e-9)

@@ -37,10 +37,11 @@ FIXTURES = {
     "filament": ["filament/settings.json"],
     "threejs_csm": ["threejs_csm/csm.json"],
     "bevy": ["bevy/sun.scn.ron"],
+    "stride": ["stride/MainScene.sdscene"],
 }
 PRESETS = [("godot4", "godot4"), ("unity_urp", "unity_urp"), ("unity_builtin", "unity_builtin_close"),
            ("unity_builtin", "unity_builtin_stable"), ("ue5", "ue5"), ("filament", "filament"),
-           ("threejs_csm", "threejs_csm"), ("bevy", "bevy")]
+           ("threejs_csm", "threejs_csm"), ("bevy", "bevy"), ("stride", "stride")]
 
 
 def _fixture(engine: str) -> list[Path]:
@@ -200,6 +201,41 @@ def test_filament_three_js_and_bevy_fixtures():
     assert (b.filter, b.resolution, b.blend_band) == ("pcf_bilinear", 4096, 0.2)
 
 
+def test_stride_scene_reads_the_enabled_suns_shadow_map():
+    imported = import_settings(_fixture("stride"), engine="stride")
+    s = imported.settings
+    # The Moon's light is disabled; the Sun's TwoCascades, XLarge (1024 · 2), ViewSnapping, a PCF of the
+    # default Filter3x3, no blending.
+    assert (s.cascades, s.resolution, s.stabilization, s.snap) == (2, 2048, "exact", "view")
+    assert (s.filter, s.filter_size, s.blend_band) == ("pcf_castano", 3, 0.0)
+    # Manual range from the camera's 0.5 m near plane: cascades end at 0.5 + s · (0.5 + 60) for s = 0.2, 0.9.
+    assert (s.bounds, s.split) == ("frustum", "manual_range")
+    np.testing.assert_allclose(s.splits, (0.2 / 0.9, 1.0), rtol=1e-12)
+    assert s.shadow_distance == pytest.approx(0.5 + 0.9 * 60.5)
+    assert s.bias_depth_range == 0.001 and s.normal_offset_m == pytest.approx(2 * 4.0 / 4096)
+    # Untouched by the file: the preset's.
+    assert (s.extent, s.depth_range, s.storage) == ("centroid", "sphere", "atlas")
+    assert "Sun.Shadow.StabilizationMode" in imported.origins["snap"]
+    assert not imported.unmodelled
+
+
+def test_stride_members_without_a_csmlab_knob_are_listed_and_a_null_filter_is_one_bilinear_compare(tmp_path):
+    text = (DATA / "stride/MainScene.sdscene").read_text()
+    for old, new in (("IsAutomatic: false", "IsAutomatic: false\n" + " " * 36 + "ManualMinDistance: 2.0"),
+                     ("ComputeTransmittance: false\n                                BiasParameters:\n",
+                      "ComputeTransmittance: true\n                                BiasParameters:\n"),
+                     ("Filter: !LightShadowMapFilterTypePcf {}\n" + " " * 32, "")):
+        assert old in text
+        text = text.replace(old, new, 1)
+    path = tmp_path / "changed.sdscene"
+    path.write_text(text)
+    imported = import_settings([path], engine="stride")
+    assert imported.settings.filter == "pcf_bilinear"
+    listed = " ".join(imported.unmodelled)
+    assert "Sun.Shadow.DepthRange.ManualMinDistance = 2.0" in listed
+    assert "Sun.Shadow.ComputeTransmittance = True" in listed
+
+
 @pytest.mark.parametrize("engine,text,name,key", [
     ("godot4", '{"cascades": 3}', "sun.tscn", "gd_scene"),
     ("godot4", "[gd_scene format=3]\n\n[node name=\"Sun\" type=\"DirectionalLight3D\"]\n"
@@ -218,6 +254,14 @@ def test_filament_three_js_and_bevy_fixtures():
     ("bevy", "(resources: {}, entities: {1: (components: {\"a::B\": ()})})", "scene.scn.ron", "CascadeShadowConfig"),
     ("bevy", "(entities: {1: (components: {\"bevy_light::cascade::CascadeShadowConfig\": (bounds: [5.0, 2.0])})})",
      "scene.scn.ron", "CascadeShadowConfig.bounds"),
+    ("stride", "!PrefabAsset\nId: 1\n", "level.sdscene", "Hierarchy.Parts"),
+    ("stride", "Hierarchy:\n    Parts: []\n", "level.sdscene", "!SceneAsset"),
+    ("stride", "!SceneAsset\nHierarchy:\n    Parts:\n        -   Entity:\n                Name: Sun\n"
+               "                Components:\n                    ab: !LightComponent\n"
+               "                        Type: !LightDirectional\n                            Shadow:\n"
+               "                                CascadeCount: ThreeCascades\n", "level.sdscene",
+     "Sun.Shadow.CascadeCount"),
+    ("stride", "!SceneAsset\nHierarchy:\n    Parts: []\n", "level.sdscene", "LightDirectional"),
 ])
 def test_a_malformed_or_foreign_file_names_the_file_and_key(engine, text, name, key, tmp_path):
     path = tmp_path / name
@@ -278,6 +322,9 @@ REAL = {
                                                               "resolution": 4096, "storage": "array"}),
     "unity_urp": (["unity_urp/SamplesPipelineAsset.asset"], {"splits": (0.16, 0.32, 0.64, 1.0), "fade_out": 0.1}),
     "unity_builtin": (["unity_builtin/QualitySettings.asset"], {"cascades": 4, "shadow_distance": 150.0}),
+    # VRSandbox's sun: XLarge, a manual depth range of 20 m past the camera's default 0.1 m near plane.
+    "stride": (["stride/VRSandbox.sdscene"], {"bounds": "frustum", "shadow_distance": 20.1, "resolution": 2048,
+                                              "bias_depth_range": 0.001, "filter_size": 5}),
 }
 """Files the engines wrote (tests/data/engines/README.md: repository, commit, path), and values they hold."""
 

@@ -1,6 +1,6 @@
 """glTF levels: triangles placed by the node tree and EXT_mesh_gpu_instancing, and the sun.
 
-Fixtures are written here by :class:`csmlab.scene.gltf_writer.GltfBuilder` (boxes of known size);
+Fixtures are written here by :class:`csmlab.scene.gltf_writer.GltfBuilder` (boxes of known size, masked cards);
 oracles are the boxes' corners moved by hand-composed transforms (a 90° turn, a translation, a
 mirror), their enclosed volume, and the sun's −Z axis turned by a known rotation. The real
 Khronos sample assets under tests/data/gltf/vendor/ (git-ignored, see its README) are read when
@@ -189,3 +189,50 @@ def test_a_non_unit_node_rotation_names_the_node(tmp_path):
     with pytest.raises(InputError, match="expected a unit quaternion") as info:
         load_mesh(b.save(tmp_path / "rotation.glb", roots=[node]))
     assert info.value.field == "nodes[0].rotation"
+
+
+def _png(rgba) -> bytes:
+    from io import BytesIO
+
+    from PIL import Image
+
+    out = BytesIO()
+    Image.fromarray(rgba, "RGBA").save(out, format="PNG")
+    return out.getvalue()
+
+
+def test_every_instance_of_a_masked_mesh_keeps_its_mask_and_uv(tmp_path):
+    rng = np.random.default_rng(7)
+    rgba = rng.integers(0, 256, size=(4, 8, 4), dtype=np.uint8)
+    b = GltfBuilder()
+    material = b.add_masked_material(_png(rgba), cutoff=0.25, alpha_factor=0.5)
+    card = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 1.0, 0.0], [0.0, 1.0, 0.0]])  # facing +Z
+    uv = np.array([[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]])  # v down the image: the top edge is v = 0
+    masked = b.add_node(mesh=b.add_mesh(card, [[0, 1, 2], [0, 2, 3]], uv=uv, material=material), instances={
+        "TRANSLATION": [[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [20.0, 0.0, 0.0]],
+        "ROTATION": [[0, 0, 0, 1], HALF_TURN_Y, [0, 0, 0, 1]],
+        "SCALE": [[1.0, 1.0, 1.0], [1.0, 1.0, 1.0], [-1.0, 1.0, 1.0]]})
+    opaque = b.add_node(mesh=_unit_box(b), translation=(0.0, 0.0, 30.0))
+    scene = load_mesh(b.save(tmp_path / "cards.glb", roots=[masked, opaque]))
+    (mask,) = scene.alpha
+    np.testing.assert_allclose(mask.alpha, rgba[..., 3] / 255.0 * 0.5, atol=1e-6)
+    assert mask.cutoff == pytest.approx(0.25)
+    # Each instance's corners placed by hand: as is; turned 90° about +Y ((x, y, z) → (z, y, −x)); mirrored in x.
+    placed = [card, card[:, [2, 1, 0]] * [1, 1, -1] + [10, 0, 0], card * [-1, 1, 1] + [20, 0, 0]]
+    card_triangles = scene.vertex_mask[scene.triangles[:, 0]] == 0
+    assert card_triangles.sum() == 6 and np.all(scene.vertex_mask[scene.triangles[~card_triangles]] == -1)
+    corners = np.unique(scene.triangles[card_triangles])
+    for instance, expected in enumerate(placed):
+        for corner, position in enumerate(expected):
+            (at,) = corners[np.all(np.abs(scene.vertices[corners] - position) < 1e-6, axis=1)]
+            assert scene.vertex_mask[at] == 0, (instance, corner)
+            np.testing.assert_array_equal(scene.uv[at], uv[corner])
+
+
+def test_a_mask_cutoff_of_zero_names_the_materials_field(tmp_path):
+    b = GltfBuilder()
+    material = b.add_masked_material(_png(np.full((2, 2, 4), 255, np.uint8)), cutoff=0.0)
+    node = b.add_node(mesh=b.add_mesh(*box(), uv=np.zeros((8, 2)), material=material))
+    with pytest.raises(InputError, match=r"expected a number in \(0, 1\]") as info:
+        load_mesh(b.save(tmp_path / "cutoff.glb", roots=[node]))
+    assert info.value.field == "materials[0].alphaCutoff"

@@ -14,7 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from csmlab.importers import bevy, filament, godot4, threejs_csm, ue5, unity_builtin, unity_urp
+from csmlab.importers import bevy, filament, godot4, stride, threejs_csm, ue5, unity_builtin, unity_urp
 from csmlab.importers.reading import Imported, engine_settings, toml_name
 from csmlab.registry import check_name
 from csmlab.settings import APPLIES, ShadowSettings
@@ -67,6 +67,8 @@ IMPORT_METHODS: dict[str, EngineFiles] = {
                                _fixed(threejs_csm.PRESET), "the CSM options as JSON"),
     "bevy": EngineFiles(bevy.read_bevy, bevy.write_bevy, bevy.FIELDS, _fixed(bevy.PRESET),
                         "a .scn.ron scene with CascadeShadowConfig and the DirectionalLight"),
+    "stride": EngineFiles(stride.read_stride, stride.write_stride, stride.FIELDS, _fixed(stride.PRESET),
+                          "a .sdscene with a LightComponent of Type !LightDirectional"),
 }
 """Importers by engine name (the exporters' names, csmlab.engine_export.EXPORT_METHODS)."""
 

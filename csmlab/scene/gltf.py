@@ -14,8 +14,17 @@ triangle here is put where the glTF 2.0 specification puts it (§3.5.3 "Transfor
   clockwise seen from the front (§3.7.2.1): their index order is reversed, so that csmlab's
   counter-clockwise rule and per-triangle normals stay outward.
 
-Only triangle primitives (modes 4, 5, 6) are read; points and lines are left out. Materials,
-textures and normals are not read (the albedo is one colour, as for the other mesh formats).
+Only triangle primitives (modes 4, 5, 6) are read; points and lines are left out. Normals are not
+read (they come from the winding) and neither are colours (the albedo is one colour, as for the
+other mesh formats). The one material property read is the alpha test (§3.9.4 "Alpha Coverage"):
+a primitive whose material has ``alphaMode = "MASK"`` becomes alpha-tested triangles
+(:class:`~csmlab.scene.core.AlphaMask`) — coverage is ``pbrMetallicRoughness.baseColorFactor[3]``
+times the ``baseColorTexture``'s alpha channel (read by :func:`csmlab.scene.alpha_files.alpha_mask_of_image`
+from a file beside the glTF, a ``data:`` URI or a buffer view), opaque where coverage ≥
+``alphaCutoff`` (0.5 by default), sampled at the primitive's ``TEXCOORD_n`` (``n`` the texture's
+``texCoord``; glTF's v already runs down the image, as :class:`~csmlab.scene.core.AlphaMask` does).
+Every primitive has vertices of its own in every placement, so an instanced or mirrored copy keeps
+its texture coordinates and its mask.
 
 The sun is a ``KHR_lights_punctual`` light of type ``directional`` attached to a node of the scene:
 it shines along that node's world −Z axis (the extension's "lights point along −Z").
@@ -37,8 +46,10 @@ import numpy as np
 
 from csmlab.errors import InputError
 from csmlab.geometry import quat_to_matrix
+from csmlab.scene.alpha_files import alpha_mask_of_image
+from csmlab.scene.core import AlphaMask
 
-__all__ = ["GltfFile", "Sun", "gltf_scene_triangles", "read_gltf", "sun_of", "trs_matrices"]
+__all__ = ["GltfFile", "Sun", "gltf_scene_triangles", "material_mask", "read_gltf", "sun_of", "trs_matrices"]
 
 _COMPONENTS: dict[int, np.dtype] = {
     5120: np.dtype("<i1"), 5121: np.dtype("<u1"), 5122: np.dtype("<i2"), 5123: np.dtype("<u2"),
@@ -53,6 +64,8 @@ INSTANCING = "EXT_mesh_gpu_instancing"
 LIGHTS = "KHR_lights_punctual"
 UNIT_TOLERANCE = 1e-3
 """A node or key quaternion with ``| |q| − 1 |`` beyond this is broken, not rounding."""
+DEFAULT_ALPHA_CUTOFF = 0.5
+"""A ``MASK`` material's ``alphaCutoff`` when the file gives none (§5.19 "material")."""
 
 
 @dataclass(frozen=True)
@@ -142,26 +155,32 @@ class GltfFile:
         return np.ascontiguousarray(rows).view(dtype).reshape(count, width)
 
 
+def _uri_bytes(uri: str, path: Path, *, key: str) -> tuple[bytes, Path]:
+    """The bytes a buffer's or image's ``uri`` names (a base64 data URI or a file beside ``path``) and their source.
+
+    The source is the file read, or ``path`` itself for a data URI.
+    """
+    if uri.startswith("data:"):
+        try:
+            return base64.b64decode(uri.partition(",")[2], validate=True), path
+        except ValueError:
+            raise InputError("expected a base64 data URI", file=path, field=key) from None
+    source = path.parent / unquote(uri)
+    if not source.is_file():
+        raise InputError(f"expected the file {source} beside the glTF file, found nothing", file=path, field=key)
+    return source.read_bytes(), source
+
+
 def _buffer_bytes(document, index: int, path: Path) -> bytes:
     """The bytes of ``buffers[index]``: the GLB chunk, a base64 data URI or a file beside ``path``."""
-    buffer = document.buffers[index]
-    uri = buffer.uri
+    uri = document.buffers[index].uri
     if uri is None:
         blob = document.binary_blob()
         if blob is None:
             raise InputError("expected the GLB binary chunk for a buffer without uri, found none", file=path,
                              field=f"buffers[{index}]")
         return bytes(blob)
-    if uri.startswith("data:"):
-        try:
-            return base64.b64decode(uri.partition(",")[2], validate=True)
-        except ValueError:
-            raise InputError("expected a base64 data URI", file=path, field=f"buffers[{index}].uri") from None
-    source = path.parent / unquote(uri)
-    if not source.is_file():
-        raise InputError(f"expected the buffer file {source} beside the glTF file, found nothing", file=path,
-                         field=f"buffers[{index}].uri")
-    return source.read_bytes()
+    return _uri_bytes(uri, path, key=f"buffers[{index}].uri")[0]
 
 
 def read_gltf(file) -> GltfFile:
@@ -311,8 +330,29 @@ def _instance_matrices(gltf: GltfFile, index: int) -> np.ndarray:
                         arrays.get("SCALE", np.ones((count, 3))))
 
 
-def _primitive_triangles(gltf: GltfFile, mesh_index: int, p: int) -> tuple[np.ndarray, np.ndarray] | None:
-    """Positions ``(V, 3)`` and triangles ``(T, 3)`` of ``meshes[mesh_index].primitives[p]``; None for points, lines."""
+@dataclass(frozen=True)
+class _Primitive:
+    """One triangle primitive of a mesh in its mesh's coordinates.
+
+    Attributes
+    ----------
+    points : ndarray, shape (V, 3), float64
+    triangles : ndarray, shape (T, 3), int64
+        Indices into ``points``, as the file winds them.
+    material : int
+        The ``MASK`` material's index, −1 for an opaque primitive.
+    uv : ndarray, shape (V, 2), float64, or None
+        The mask's texture coordinates (None for an opaque primitive).
+    """
+
+    points: np.ndarray
+    triangles: np.ndarray
+    material: int
+    uv: np.ndarray | None
+
+
+def _primitive(gltf: GltfFile, mesh_index: int, p: int) -> _Primitive | None:
+    """``meshes[mesh_index].primitives[p]`` with its ``MASK`` material's coordinates; None for points, lines."""
     primitive = gltf.document.meshes[mesh_index].primitives[p]
     key = f"meshes[{mesh_index}].primitives[{p}]"
     mode = 4 if primitive.mode is None else primitive.mode
@@ -343,27 +383,124 @@ def _primitive_triangles(gltf: GltfFile, mesh_index: int, p: int) -> tuple[np.nd
         k = np.arange(max(indices.size - 2, 0))
         hub = np.full(k.shape, indices[0] if indices.size else 0)
         triangles = np.stack([hub, indices[k + 1], indices[k + 2]], axis=1)
-    return points, triangles
+    material = _masked_material(gltf, primitive.material, key=f"{key}.material")
+    if material < 0:
+        return _Primitive(points, triangles, -1, None)
+    return _Primitive(points, triangles, material, _mask_coordinates(gltf, primitive, material, points.shape[0],
+                                                                     key=key))
 
 
-def gltf_scene_triangles(gltf: GltfFile) -> tuple[np.ndarray, np.ndarray]:
-    """Every triangle of the default scene in world coordinates (file units, file axes).
+def _masked_material(gltf: GltfFile, material, *, key: str) -> int:
+    """``material`` if it is an ``alphaMode = "MASK"`` material, else −1 (no material, ``OPAQUE``, ``BLEND``)."""
+    if material is None:
+        return -1
+    materials = gltf.document.materials
+    if not isinstance(material, int) or not 0 <= material < len(materials):
+        raise gltf.error(key, f"expected a material index in [0, {len(materials)}), got {material!r}")
+    return material if materials[material].alphaMode == "MASK" else -1
+
+
+def _base_colour_texture(gltf: GltfFile, material: int):
+    """``materials[material].pbrMetallicRoughness.baseColorTexture`` (a TextureInfo), or None."""
+    pbr = gltf.document.materials[material].pbrMetallicRoughness
+    return None if pbr is None else pbr.baseColorTexture
+
+
+def _mask_coordinates(gltf: GltfFile, primitive, material: int, count: int, *, key: str) -> np.ndarray:
+    """The ``TEXCOORD_n`` ``(count, 2)`` a ``MASK`` material's base colour texture is sampled at (zeros without one)."""
+    texture = _base_colour_texture(gltf, material)
+    if texture is None:
+        return np.zeros((count, 2))
+    name = f"TEXCOORD_{texture.texCoord or 0}"
+    accessor = getattr(primitive.attributes, name, None)
+    if accessor is None:
+        raise gltf.error(f"{key}.attributes", f"expected {name}, the coordinates of alpha-masked "
+                                              f"materials[{material}]'s baseColorTexture, found none")
+    uv = gltf.accessor(accessor, key=f"{key}.attributes.{name}")
+    if uv.shape != (count, 2):
+        raise gltf.error(f"{key}.attributes.{name}", f"expected {count} VEC2 coordinates (one per POSITION), "
+                                                     f"got shape {uv.shape}")
+    return uv
+
+
+def material_mask(gltf: GltfFile, material: int) -> AlphaMask:
+    """The :class:`~csmlab.scene.core.AlphaMask` of ``MASK`` material ``material``: its base colour's alpha and cutoff.
+
+    Coverage ``(H, W)`` is ``baseColorFactor[3]`` times the ``baseColorTexture`` image's alpha
+    (``(1, 1)`` of the factor alone without a texture), row 0 the image's top row (v = 0).
+
+    Raises
+    ------
+    InputError
+        Naming ``materials[i].alphaCutoff`` or ``.pbrMetallicRoughness.baseColorFactor`` out of
+        range, a bad ``textures[j]`` or ``images[k]`` reference, or the image (its file, or the glTF
+        file that embeds it) that Pillow cannot read.
+    """
+    entry = gltf.document.materials[material]
+    key = f"materials[{material}]"
+    cutoff = DEFAULT_ALPHA_CUTOFF if entry.alphaCutoff is None else entry.alphaCutoff
+    if isinstance(cutoff, bool) or not isinstance(cutoff, (int, float)) or not 0.0 < cutoff <= 1.0:
+        raise gltf.error(f"{key}.alphaCutoff", f"expected a number in (0, 1] (csmlab cuts where coverage ≥ it), "
+                                               f"got {entry.alphaCutoff!r}")
+    pbr = entry.pbrMetallicRoughness
+    factor = np.asarray(pbr.baseColorFactor if pbr is not None and pbr.baseColorFactor is not None
+                        else (1.0, 1.0, 1.0, 1.0), dtype=np.float64)
+    if factor.shape != (4,) or not np.all((factor >= 0.0) & (factor <= 1.0)):
+        raise gltf.error(f"{key}.pbrMetallicRoughness.baseColorFactor",
+                         f"expected 4 numbers in [0, 1], got {pbr.baseColorFactor!r}")
+    texture = _base_colour_texture(gltf, material)
+    if texture is None:
+        return AlphaMask(np.full((1, 1), factor[3], np.float32), float(cutoff), source=f"{gltf.path} {key}")
+    data, source, image_key = _texture_image(gltf, texture.index, key=f"{key}.pbrMetallicRoughness.baseColorTexture")
+    mask = alpha_mask_of_image(data, cutoff=float(cutoff), source=source, field=image_key)
+    return AlphaMask(mask.alpha * np.float32(factor[3]), float(cutoff), source=mask.source)
+
+
+def _texture_image(gltf: GltfFile, texture, *, key: str) -> tuple[bytes, Path, str]:
+    """The encoded bytes of ``textures[texture]``'s image, the file they came from and the image's glTF key."""
+    document = gltf.document
+    if not isinstance(texture, int) or not 0 <= texture < len(document.textures):
+        raise gltf.error(f"{key}.index", f"expected a texture index in [0, {len(document.textures)}), got {texture!r}")
+    image = document.textures[texture].source
+    if not isinstance(image, int) or not 0 <= image < len(document.images):
+        raise gltf.error(f"textures[{texture}].source", f"expected an image index in [0, {len(document.images)}), "
+                                                        f"got {image!r}")
+    entry = document.images[image]
+    image_key = f"images[{image}]"
+    if entry.uri is not None:
+        data, source = _uri_bytes(entry.uri, gltf.path, key=f"{image_key}.uri")
+        return data, source, image_key
+    view = entry.bufferView
+    if not isinstance(view, int) or not 0 <= view < len(document.bufferViews):
+        raise gltf.error(image_key, f"expected a uri or a bufferView index in [0, {len(document.bufferViews)}), "
+                                    f"got {view!r}")
+    length = document.bufferViews[view].byteLength or 0
+    return gltf._view(view, 0, np.dtype(np.uint8), 1, length, where=image_key).tobytes(), gltf.path, image_key
+
+
+def gltf_scene_triangles(gltf: GltfFile) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Every triangle of the default scene in world coordinates (file units, file axes), with its alpha masks.
 
     Returns
     -------
     points : ndarray, shape (V, 3), float64
     triangles : ndarray, shape (T, 3), int64
         Counter-clockwise seen from the front in world space (mirrored instances reversed).
+    masks : dict
+        Empty when no primitive of the scene has a ``MASK`` material; else the
+        :class:`~csmlab.scene.core.Scene` fields ``uv`` ``(V, 2)`` float64, ``vertex_mask`` ``(V,)``
+        int32 (−1 opaque) and ``alpha`` (one :class:`~csmlab.scene.core.AlphaMask` per ``MASK``
+        material drawn, by material index).
 
     Raises
     ------
     InputError
-        On a broken reference or accessor (naming its glTF key), or a scene with no triangle.
+        On a broken reference, accessor or mask image (naming its glTF key), or a scene with no triangle.
     """
     document = gltf.document
     world = world_matrices(gltf)
-    cache: dict[int, list] = {}
-    points_out, triangles_out, offset = [], [], 0
+    cache: dict[int, list[_Primitive]] = {}
+    points_out, triangles_out, parts, offset = [], [], [], 0
     for index, matrix in world.items():
         mesh = document.nodes[index].mesh
         if mesh is None:
@@ -373,20 +510,43 @@ def gltf_scene_triangles(gltf: GltfFile) -> tuple[np.ndarray, np.ndarray]:
                                                      f"got {mesh!r}")
         if mesh not in cache:
             cache[mesh] = [part for p in range(len(document.meshes[mesh].primitives))
-                           if (part := _primitive_triangles(gltf, mesh, p)) is not None]
+                           if (part := _primitive(gltf, mesh, p)) is not None]
         placements = matrix @ _instance_matrices(gltf, index)
         mirrored = np.linalg.det(placements[:, :3, :3]) < 0
-        for points, triangles in cache[mesh]:
+        for part in cache[mesh]:
             # (I, V, 3): every instance's copy of the points; a batched matmul, several times einsum's speed.
-            placed = np.matmul(points, placements[:, :3, :3].transpose(0, 2, 1)) + placements[:, None, :3, 3]
-            wound = np.where(mirrored[:, None, None], triangles[None, :, ::-1], triangles[None])
-            shift = offset + points.shape[0] * np.arange(placements.shape[0])
+            placed = np.matmul(part.points, placements[:, :3, :3].transpose(0, 2, 1)) + placements[:, None, :3, 3]
+            wound = np.where(mirrored[:, None, None], part.triangles[None, :, ::-1], part.triangles[None])
+            shift = offset + part.points.shape[0] * np.arange(placements.shape[0])
             points_out.append(placed.reshape(-1, 3))
             triangles_out.append((wound + shift[:, None, None]).reshape(-1, 3))
+            parts.append((part, placements.shape[0]))
             offset += placed.shape[0] * placed.shape[1]
     if not triangles_out or sum(t.shape[0] for t in triangles_out) == 0:
         raise gltf.error("meshes", "expected at least one triangle primitive on a node of the scene, found none")
-    return np.concatenate(points_out), np.concatenate(triangles_out)
+    return np.concatenate(points_out), np.concatenate(triangles_out), _scene_masks(gltf, parts)
+
+
+def _scene_masks(gltf: GltfFile, parts: list[tuple[_Primitive, int]]) -> dict:
+    """``uv``, ``vertex_mask`` and ``alpha`` of the placed primitives ``(primitive, instances)``, in output order.
+
+    Each instance's copy of a masked primitive repeats its coordinates: placements move points, not
+    texture coordinates. Empty when none is masked.
+    """
+    used = sorted({part.material for part, _ in parts if part.material >= 0})
+    if not used:
+        return {}
+    uv, vertex_mask = [], []
+    for part, instances in parts:
+        count = part.points.shape[0] * instances
+        if part.material < 0:
+            uv.append(np.zeros((count, 2)))
+            vertex_mask.append(np.full(count, -1, np.int32))
+        else:
+            uv.append(np.tile(part.uv, (instances, 1)))
+            vertex_mask.append(np.full(count, used.index(part.material), np.int32))
+    return dict(uv=np.concatenate(uv), vertex_mask=np.concatenate(vertex_mask),
+                alpha=tuple(material_mask(gltf, material) for material in used))
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""Writing glTF 2.0 levels with pygltflib: meshes, node trees, instancing, a sun and animated cameras.
+"""Writing glTF 2.0 levels with pygltflib: meshes, node trees, instancing, masked materials, a sun and animated cameras.
 
 The writer of csmlab's own glTF files — the test fixtures, the shipped ``data/gltf/level.glb``
 (``data/gltf/make_level.py``) and the benchmark's 3M-triangle level (``benchmarks/bench_gltf_level.py``)
@@ -19,7 +19,7 @@ from csmlab.scene.gltf import INSTANCING, LIGHTS
 __all__ = ["GltfBuilder", "box", "ground"]
 
 _FLOAT, _UINT32 = 5126, 5125
-_TYPES = {1: "SCALAR", 3: "VEC3", 4: "VEC4"}
+_TYPES = {1: "SCALAR", 2: "VEC2", 3: "VEC3", 4: "VEC4"}
 
 
 def _listed(values) -> list[float] | None:
@@ -58,13 +58,34 @@ class GltfBuilder:
         self.document.accessors.append(accessor)
         return len(self.document.accessors) - 1
 
-    def add_mesh(self, positions, triangles, *, name: str = "") -> int:
-        """A mesh of one triangle primitive: ``positions`` ``(V, 3)``, ``triangles`` ``(T, 3)`` counter-clockwise."""
+    def add_mesh(self, positions, triangles, *, name: str = "", uv=None, material: int | None = None) -> int:
+        """A mesh of one triangle primitive: ``positions`` ``(V, 3)``, ``triangles`` ``(T, 3)`` counter-clockwise.
+
+        ``uv`` ``(V, 2)`` becomes ``TEXCOORD_0`` (v down the image); ``material`` is an index from
+        :meth:`add_masked_material`.
+        """
         primitive = self._g.Primitive(attributes=self._g.Attributes(
-            POSITION=self._accessor(positions, component=_FLOAT, minmax=True)),
-            indices=self._accessor(np.asarray(triangles).reshape(-1), component=_UINT32), mode=4)
+            POSITION=self._accessor(positions, component=_FLOAT, minmax=True),
+            TEXCOORD_0=None if uv is None else self._accessor(uv, component=_FLOAT)),
+            indices=self._accessor(np.asarray(triangles).reshape(-1), component=_UINT32), mode=4, material=material)
         self.document.meshes.append(self._g.Mesh(name=name or None, primitives=[primitive]))
         return len(self.document.meshes) - 1
+
+    def add_masked_material(self, png: bytes, *, cutoff: float = 0.5, alpha_factor: float = 1.0) -> int:
+        """An ``alphaMode = "MASK"`` material: ``png`` (encoded bytes, kept in the buffer) as its base colour texture.
+
+        ``cutoff`` is its ``alphaCutoff``, ``alpha_factor`` its ``baseColorFactor``'s alpha.
+        """
+        self._blob.extend(b"\0" * (-len(self._blob) % 4))
+        self.document.bufferViews.append(self._g.BufferView(buffer=0, byteOffset=len(self._blob), byteLength=len(png)))
+        self._blob.extend(png)
+        self.document.images.append(self._g.Image(bufferView=len(self.document.bufferViews) - 1, mimeType="image/png"))
+        self.document.textures.append(self._g.Texture(source=len(self.document.images) - 1))
+        self.document.materials.append(self._g.Material(
+            alphaMode="MASK", alphaCutoff=cutoff, doubleSided=True, pbrMetallicRoughness=self._g.PbrMetallicRoughness(
+                baseColorFactor=[1.0, 1.0, 1.0, alpha_factor],
+                baseColorTexture=self._g.TextureInfo(index=len(self.document.textures) - 1))))
+        return len(self.document.materials) - 1
 
     def add_camera(self, *, name: str, yfov_rad: float, znear: float, zfar: float | None = None,
                    aspect: float | None = None) -> int:

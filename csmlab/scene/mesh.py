@@ -2,7 +2,8 @@
 
 Formats: Wavefront OBJ, PLY, STL, legacy VTK (``.vtk``), VTK XML (``.vtp``, ``.vtu``) as far as
 VTK's readers go, and glTF 2.0 (``.gltf``, ``.glb``) through :mod:`csmlab.scene.gltf` (pygltflib),
-which places every mesh by the node hierarchy and ``EXT_mesh_gpu_instancing``. Whatever a VTK
+which places every mesh by the node hierarchy and ``EXT_mesh_gpu_instancing`` and reads its
+``alphaMode = "MASK"`` materials. Whatever a VTK
 file holds — polygons, triangle strips, volume cells — becomes its outer surface, triangulated;
 lines and points are ignored. Normals are recomputed per triangle from the winding (counter-clockwise seen
 from outside), never taken from the file.
@@ -12,8 +13,8 @@ triangles (:class:`~csmlab.scene.core.AlphaMask`, cutoff 0.5: OBJ has none of it
 alpha channel (or luminance) read by :func:`csmlab.scene.alpha_files.read_alpha_mask`, the
 material's texture coordinates (``vt``, which VTK keeps per material), ``v`` turned to run down the
 image (OBJ's origin is the image's bottom-left). Each masked triangle gets vertices of its own.
-A glTF file with ``alphaMode = "MASK"`` materials is read by :mod:`csmlab.scene.gltf` instead of
-VTK (whose reader keeps no material).
+A glTF file's ``alphaMode = "MASK"`` materials become alpha-tested triangles the same way, read by
+:mod:`csmlab.scene.gltf` (VTK's reader keeps no material).
 
 A broken file stops here with an :class:`~csmlab.errors.InputError` naming the file and what was
 expected. VTK reports failures in three ways — an exception, an error or warning event (with an
@@ -36,7 +37,6 @@ from csmlab.registry import check_name
 from csmlab.scene.alpha_files import read_alpha_mask
 from csmlab.scene.core import Scene
 from csmlab.scene.gltf import gltf_scene_triangles, read_gltf
-from csmlab.scene.gltf_masked import has_masked_materials, read_masked_gltf
 from csmlab.scene.shapes import height_field, scene_from_parts
 
 __all__ = ["GLTF_SUFFIXES", "GROUND_ALBEDO", "GROUND_SIZE_FACTOR", "MESH_FORMATS", "UP_AXES", "load_mesh"]
@@ -53,7 +53,7 @@ MESH_FORMATS: dict[str, str] = {
 }
 """File suffixes :func:`load_mesh` accepts, with the format each names."""
 GLTF_SUFFIXES = (".gltf", ".glb")
-"""Suffixes read by :mod:`csmlab.scene.gltf` (node transforms, instancing) instead of VTK."""
+"""Suffixes read by :mod:`csmlab.scene.gltf` (node transforms, instancing, alpha masks) instead of VTK."""
 
 UP_AXES: dict[str, np.ndarray] = {
     "y": np.eye(3),
@@ -303,11 +303,8 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
     if fmt is None:
         raise InputError(f"expected a mesh file ending in one of {', '.join(MESH_FORMATS)}, "
                          f"got {path.suffix or 'no suffix'!r}", file=path, field="file")
-    if path.suffix.lower() in GLTF_SUFFIXES and has_masked_materials(path):
-        points, triangles, masks = read_masked_gltf(path)
-    elif path.suffix.lower() in GLTF_SUFFIXES:
-        points, triangles = gltf_scene_triangles(read_gltf(path))
-        masks = {}
+    if path.suffix.lower() in GLTF_SUFFIXES:
+        points, triangles, masks = gltf_scene_triangles(read_gltf(path))
     else:
         points, triangles, masks = _vtk_mesh(path, fmt)
     points = (points * scale_value) @ UP_AXES[up].T
