@@ -176,3 +176,32 @@ def test_bad_taa_values_exit_2_naming_the_field(tmp_path, text, field):
     assert result.returncode == 2
     assert field in result.stderr and "bad.toml" in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("method", ["raster", "ray"])
+def test_a_jittered_camera_hits_the_ground_where_the_moved_pixel_ray_meets_it(method):
+    # plane_box's ground (y = 0) under a camera looking down at it: pixel (row, col) with jitter (x, y)
+    # must hit the ground where the ray through (col + ½ + x, row + ½ + y) meets y = 0, in closed form;
+    # the box hides a few pixels, which are left out.
+    from csmlab.kernels.visibility import camera_hits, mesh_bvh
+
+    scene = make_scene("plane_box", plane_size=200.0, box_size=2.0)
+    bvh = mesh_bvh(scene.vertices, scene.triangles)
+    eye = np.array([3.0, 12.0, 9.0])
+    width, height, jitter = 40, 24, (0.3125, -0.4375)
+    rotation = CameraPose(position=eye, orientation=rotation_looking_at(np.array([-2.0, 0.0, -6.0]) - eye),
+                          aspect=width / height, far=400.0).rotation
+    hits = camera_hits(bvh, position=eye, rotation=rotation, fov_y_deg=60.0, aspect=width / height, far=400.0,
+                       width=width, height=height, method=method, jitter=jitter)
+    tan_y = np.tan(np.radians(30.0))
+    rows, cols = np.indices((height, width), dtype=np.float64)
+    x = (cols + 0.5 + jitter[0] - width / 2.0) * (2.0 * tan_y * (width / height) / width)
+    y = (height / 2.0 - rows - 0.5 - jitter[1]) * (2.0 * tan_y / height)
+    direction = rotation[:, 0] * x[..., None] + rotation[:, 1] * y[..., None] - rotation[:, 2]
+    ground = eye - direction * (eye[1] / direction[..., 1])[..., None]
+    on_ground = np.abs(hits.position[..., 1]) < 1e-6
+    assert on_ground.sum() > 0.9 * width * height
+    np.testing.assert_allclose(hits.position[on_ground], ground[on_ground], atol=1e-4)
+    unjittered = camera_hits(bvh, position=eye, rotation=rotation, fov_y_deg=60.0, aspect=width / height, far=400.0,
+                             width=width, height=height, method=method)
+    assert np.max(np.abs(unjittered.position[on_ground] - ground[on_ground])) > 1e-3
