@@ -235,3 +235,25 @@ def test_a_moving_sun_is_not_counted_as_flicker_after_taa():
         previous, previous_view = frame, view
     assert np.mean(own) > 0.0
     assert np.mean(error) < 0.25 * np.mean(own)
+
+
+def test_a_taa_run_does_not_depend_on_chunk_frames_and_fills_the_taa_columns_from_frame_1(tmp_path):
+    # The history runs from frame 0: a run with [taa] is one unit of work whatever chunk_frames says, so
+    # chunk_frames = 1 (which would restart a history at every frame) gives the same metrics.csv bytes.
+    import csv
+
+    from csmlab.config import load_experiment
+    from csmlab.experiment import run_experiment
+
+    outputs = []
+    for chunk in (1, 5):
+        path = tmp_path / f"chunk{chunk}.toml"
+        path.write_text(f'extends = ["scenes/terrain", "paths/walk", "methods/exact", "methods/none"]\n'
+                        f"chunk_frames = {chunk}\n[scene]\nresolution = 24\ntrees = 20\nring_trees = 20\n"
+                        "[camera]\nframes = 4\nwidth = 32\nheight = 18\n[shadow]\nresolution = 64\n"
+                        "[taa]\nenabled = true\n", encoding="utf-8")
+        run_experiment(load_experiment(path), out_dir=tmp_path / f"run{chunk}")
+        outputs.append((tmp_path / f"run{chunk}" / "metrics.csv").read_bytes())
+    assert outputs[0] == outputs[1]
+    rows = list(csv.DictReader(outputs[0].decode().splitlines()))
+    assert [row["flicker_taa"] == "" for row in rows] == [True, False, False, False] * 2
