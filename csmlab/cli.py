@@ -70,13 +70,16 @@ def _summary_table(summary: dict) -> Table:
     swept = list(summary["points"]) != ["base"]
     if swept:
         table.add_column("point")
-    for metric in HEADLINE:
-        table.add_column(f"{metric.name}\n{escape(metric.unit)}", justify="right")
     rows = ([(m, p, v) for p, by_method in summary["points"].items() for m, v in by_method.items()] if swept
             else [(m, None, v) for m, v in summary["methods"].items()])
+    # A column measured only under some setting (the *_taa columns without [taa]) is left out where empty.
+    shown = [metric for metric in HEADLINE
+             if not metric.name.endswith("_taa") or any(values.get(metric.name) is not None for *_, values in rows)]
+    for metric in shown:
+        table.add_column(f"{metric.name}\n{escape(metric.unit)}", justify="right")
     for method, point, values in rows:
         labels = (escape(method), escape(point)) if swept else (escape(method),)
-        table.add_row(*labels, *(metric.shown(values.get(metric.name)) for metric in HEADLINE))
+        table.add_row(*labels, *(metric.shown(values.get(metric.name)) for metric in shown))
     return table
 
 

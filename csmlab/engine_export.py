@@ -157,7 +157,7 @@ def _hard(settings: ShadowSettings) -> bool:
 
 def _vogel_is(settings: ShadowSettings, **fields) -> bool:
     """``settings`` run ``pcf_vogel`` rotated per pixel with ``fields`` (an engine's disk)."""
-    return settings.filter == "pcf_vogel" and settings.poisson_rotation == "pixel" and all(
+    return settings.filter == "pcf_vogel" and settings.poisson_rotation in ("pixel", "pixel_taa") and all(
         getattr(settings, name) == value for name, value in fields.items())
 
 

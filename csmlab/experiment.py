@@ -94,6 +94,9 @@ class Job:
     threads : int
         CPU threads each worker's kernels may use at once (:class:`csmlab.render.DeviceScene`): the
         cores the processes leave over.
+    taa : TaaConfig or None
+        Temporal anti-aliasing (``[taa]``, :mod:`csmlab.metrics.taa`) when enabled: the frames are
+        jittered and every method's S and the reference resolved; None: off.
     """
 
     workload: Workload
@@ -104,6 +107,7 @@ class Job:
     held_depths: dict = dataclasses.field(default_factory=dict)
     held_extents: dict = dataclasses.field(default_factory=dict)
     threads: int = 1
+    taa: object = None
 
 
 @dataclass(frozen=True)
@@ -348,6 +352,7 @@ def run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
 
 def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
     from csmlab.metrics import measure_frame
+    from csmlab.metrics.taa import halton_jitter, resolve_view
     from csmlab.render import render_shadow, render_view
     from csmlab.report.capture import capture_frame
     from csmlab.report.pixels import world_grid
@@ -357,6 +362,9 @@ def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
     scene = _prepared_scene(job)
     grid = world_grid(workload.path.positions, reach=max(v.settings.shadow_distance for v in job.variants))
     rows, timings, captures, previous = [], [], {}, {}
+    taa = job.taa
+    # TAA's histories: each variant's resolve of S and the reference's, with the view they follow.
+    history, reference_history, previous_view = {}, None, None
     for index in range(max(start - 1, 0), stop):
         pose = workload.path.pose(index)
         counted = index >= start
@@ -364,11 +372,18 @@ def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
         # read the cascades and depth maps, not its reference or shadow.
         view = render_view(scene, pose, workload.light.direction(index), width=workload.width,
                            height=workload.height, index=index, reference=counted,
-                           previous_light_direction=workload.light.direction(index - 1) if index else None)
+                           previous_light_direction=workload.light.direction(index - 1) if index else None,
+                           jitter=None if taa is None else halton_jitter(index, phases=taa.phases))
         if index in workload.restarts:
             previous = {}
+            history, reference_history, previous_view = {}, None, None
         if counted:
             timings += [results.TimingRow(index, "", "", stage, seconds) for stage, seconds in view.timings.items()]
+        if taa is not None and counted:
+            began = time.perf_counter()
+            reference_history = resolve_view(view.reference, view, previous_view, reference_history, taa=taa,
+                                             device=job.device)
+            timings.append(results.TimingRow(index, "", "", "taa_reference", time.perf_counter() - began))
         for variant in job.variants:
             key = (variant.method, variant.point)
             held = job.held_depths.get(key)
@@ -378,8 +393,15 @@ def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
                                   held_extents=None if extents is None else extents[index], lookup=counted,
                                   scroll_from=previous[key].maps if key in previous else None)
             if counted:
+                resolved = None
+                if taa is not None:
+                    began = time.perf_counter()
+                    history[key] = resolve_view(frame.shadow.lit, view, previous_view, history.get(key), taa=taa,
+                                                device=job.device)
+                    timings.append(results.TimingRow(index, *key, "taa", time.perf_counter() - began))
+                    resolved = (history[key], reference_history)
                 began = time.perf_counter()
-                measures = measure_frame(frame, previous.get(key), device=job.device)
+                measures = measure_frame(frame, previous.get(key), device=job.device, taa=resolved)
                 measured = time.perf_counter() - began
                 rows.append(results.MetricRow(index, float(pose.time_s), variant.method, variant.point,
                                               measures.values))
@@ -389,6 +411,7 @@ def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
                     capture_frame(frame, measures, snapshot=index in job.snapshot_frames, grid=grid,
                                   images=index in job.image_frames))
             previous[key] = frame
+        previous_view = view
     packed = {key: pickle.dumps(kept, protocol=pickle.HIGHEST_PROTOCOL) for key, kept in captures.items()}
     return ChunkResult(start=start, stop=stop, rows=rows, timings=timings, captures=packed)
 
@@ -510,7 +533,8 @@ def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, executor: 
     out = results.prepare_output(out_dir, resolved_toml=experiment_toml(experiment), run_key=chunk_key,
                                  resume=resume)
     variants = tuple(experiment.variants())
-    ranges = chunk_ranges(frames, experiment.chunk_frames)
+    # TAA's history runs from the first frame: one chunk, so that no number depends on a cut.
+    ranges = chunk_ranges(frames, frames if experiment.taa.enabled else experiment.chunk_frames)
     # Finished chunks live on disk, not here: the parent's memory does not grow with the path.
     done = {r for r in ranges if resume and results.load_chunk(out, *r, run_key=chunk_key) is not None}
     resumed = len(done)
@@ -527,7 +551,8 @@ def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, executor: 
     threads = 1 if executor == "dask" else max(1, (os.cpu_count() or 1) // processes)
     job = Job(workload=workload, variants=variants, snapshot_frames=_snapshot_frames(experiment, frames),
               device=device, image_frames=image_frames(frames), held_depths=held_depths,
-              held_extents=_held_extents(workload, variants, held_depths, device=device), threads=threads)
+              held_extents=_held_extents(workload, variants, held_depths, device=device), threads=threads,
+              taa=experiment.taa if experiment.taa.enabled else None)
     order = [(v.method, v.point) for v in variants]
     for chunk, result in execute(run_chunk, todo, shared=job, executor=executor, jobs=jobs, address=address):
         parts = {_captures_part(rank): result.captures[key] for rank, key in enumerate(order)

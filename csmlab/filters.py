@@ -29,6 +29,7 @@ frame in the cascade pass (:func:`filter_inputs`).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,7 +51,7 @@ from csmlab.registry import check_name
 from csmlab.settings import ShadowSettings
 from csmlab.texels import fixed_point_origin, receiver_lookup, uses_global_grid
 
-__all__ = ["FAMILY_LOOKUPS", "Receivers", "clipmap_radius", "filter_inputs", "interleaved_gradient_noise", "lookup_shadow", "screen_pixels",
+__all__ = ["FAMILY_LOOKUPS", "Receivers", "clipmap_radius", "filter_inputs", "interleaved_gradient_noise", "lookup_shadow", "noise_frame", "screen_pixels",
            "texel_coordinates", "uses_pixels"]
 
 
@@ -75,6 +76,8 @@ class Receivers:
         Each receiver's 2×2 pixel quad (``position`` ``(N, 4, 3)``), where the filter reads mips.
     quad_view_depth : ndarray, shape (N, 4), float64, or None
         The quad lanes' view depths under the selecting camera.
+    noise_frame : int
+        The frame term of a per-pixel rotation's noise (:func:`noise_frame`); 0: the same every frame.
     """
 
     points: np.ndarray
@@ -84,10 +87,12 @@ class Receivers:
     pixels: np.ndarray | None = None
     quads: Quads | None = None
     quad_view_depth: np.ndarray | None = None
+    noise_frame: int = 0
 
 
 def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: ShadowSettings,
-                  pixels=None, quads: Quads | None = None, quad_view_depth=None, device: str = "cpu") -> ShadowLookup:
+                  pixels=None, quads: Quads | None = None, quad_view_depth=None, noise_frame: int = 0,
+                  device: str = "cpu") -> ShadowLookup:
     """One method's shadow at receiver points: the filter's record, receivers, selection, the filter, fade.
 
     Parameters
@@ -111,6 +116,8 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
         ``view_depth`` plus ``(4, 3)``.
     quad_view_depth : array_like, shape (..., 4), optional
         The lanes' view depths under the camera whose cascade selection is wanted.
+    noise_frame : int
+        Frame term of a per-pixel rotation's noise (:func:`noise_frame` of the frame shaded).
     device : str
         ``"cpu"`` or ``"cuda"``.
 
@@ -129,8 +136,9 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
         return _clipmap_lookup(maps, points=points, normals=normals, settings=settings, device=device)
     record = FILTER_METHODS[check_name(settings.filter, FILTER_METHODS, field="filter")]
     reads = record.reads_of(settings)
-    receivers = _receivers(points, normals, view_depth, pixels=pixels, quads=quads, quad_view_depth=quad_view_depth,
-                           reads=reads)
+    receivers = dataclasses.replace(
+        _receivers(points, normals, view_depth, pixels=pixels, quads=quads, quad_view_depth=quad_view_depth,
+                   reads=reads), noise_frame=int(noise_frame))
     _check_maps(maps, reads)
     radius = record.radius_of(settings)
     selection = _selection(maps.cascades, settings, radius=radius)
@@ -368,7 +376,8 @@ def _weighted_lookup(maps: ShadowMaps, receivers: Receivers, *, record: Filter, 
     coords, depth, slope = _fixed_receivers(maps, receivers, selection=selection, settings=settings, device=device)
     chosen, weight, band = select_cascades(maps.depth, coords, depth, receivers.view_depth, radius=radius,
                                            **selection, device=device)
-    angle = None if receivers.pixels is None else 2.0 * np.pi * interleaved_gradient_noise(receivers.pixels)
+    angle = None if receivers.pixels is None else 2.0 * np.pi * interleaved_gradient_noise(
+        receivers.pixels, frame=receivers.noise_frame)
     texel = np.array([float(np.max(c.texel_size)) for c in maps.cascades.cascades])
     lit = weighted_pcf(maps.depth, coords, depth, cascade=chosen, filter=record.name,
                        width=record.width_of(texel, settings, maps.cascades.splits[1:]), radius=radius,
@@ -510,25 +519,41 @@ def uses_pixels(settings: ShadowSettings) -> bool:
     return "pixels" in FILTER_METHODS[check_name(settings.filter, FILTER_METHODS, field="filter")].reads_of(settings)
 
 
-def interleaved_gradient_noise(pixels) -> np.ndarray:
+def noise_frame(settings: ShadowSettings, *, frame: int, taa: bool) -> int:
+    """The frame term of the rotation noise of frame ``frame`` under ``settings.poisson_rotation``.
+
+    ``frame mod 64`` for ``pixel_frame``, and for ``pixel_taa`` where ``taa`` (the view is
+    rendered for temporal anti-aliasing, ``View.jitter`` set); 0 otherwise (the same noise every
+    frame). Bevy takes ``frame_count % 64`` (utils.wesl ``interleaved_gradient_noise``, @4805ca7).
+    """
+    if settings.poisson_rotation == "pixel_frame" or (settings.poisson_rotation == "pixel_taa" and taa):
+        return int(frame) % 64
+    return 0
+
+
+def interleaved_gradient_noise(pixels, *, frame: int = 0) -> np.ndarray:
     """Jimenez's interleaved gradient noise in [0, 1) at integer pixel positions ``(..., 2)`` (x, y).
 
     ``fract(52.9829189 · fract(0.06711056 x + 0.00583715 y))`` (Jimenez, "Next Generation
     Post Processing in Call of Duty: Advanced Warfare", SIGGRAPH 2014): the per-pixel rotation
-    engines give a Poisson disk before temporal anti-aliasing.
+    engines give a Poisson disk before temporal anti-aliasing. ``frame`` (:func:`noise_frame`)
+    moves the pixel by ``5.588238 · frame`` along both axes first, as Bevy's temporal filter does,
+    so that the pattern changes every frame and TAA averages the rotations.
     """
-    p = np.floor(np.asarray(pixels, dtype=np.float64))
+    p = np.floor(np.asarray(pixels, dtype=np.float64)) + 5.588238 * frame
     inner = 0.06711056 * p[..., 0] + 0.00583715 * p[..., 1]
     inner -= np.floor(inner)
     out = 52.9829189 * inner
     return out - np.floor(out)
 
 
-def screen_pixels(pose: CameraPose, points, *, width: int, height: int) -> np.ndarray:
+def screen_pixels(pose: CameraPose, points, *, width: int, height: int, jitter=None) -> np.ndarray:
     """Pixel positions ``(..., 2)`` (x = column, y = row, row 0 at the top) of world points ``(..., 3)`` under ``pose``.
 
     Where the camera of frame t−1 saw frame t's points: the screen-space noise of a per-pixel
-    rotation moves with the camera, not with the world.
+    rotation moves with the camera, not with the world. ``jitter`` ``(x, y)`` in pixels: the
+    frame's sub-pixel camera jitter (``View.jitter``; pixel ``(col, row)`` sampled the image point
+    ``(col + ½ + x, row + ½ + y)``), so the point lies at its pixel of the jittered image.
     """
     local = (np.asarray(points, dtype=np.float64) - pose.position) @ pose.rotation
     depth = -local[..., 2]
@@ -536,4 +561,6 @@ def screen_pixels(pose: CameraPose, points, *, width: int, height: int) -> np.nd
     with np.errstate(invalid="ignore", divide="ignore"):
         x = (local[..., 0] / (depth * tan_y * pose.aspect) + 1.0) * 0.5 * width
         y = (1.0 - local[..., 1] / (depth * tan_y)) * 0.5 * height
+    if jitter is not None:
+        x, y = x - jitter[0], y - jitter[1]
     return np.stack([x, y], axis=-1)

@@ -100,6 +100,10 @@ class View:
     previous_reference : ndarray, shape (H, W), float32, or None
         R_{t−1} at this view's points: the ray-traced hard shadow under ``previous_light_direction``
         (1 lit, 0 shadowed, NaN on a miss); None when the light did not move or was not given.
+    jitter : tuple of float, or None
+        The sub-pixel camera jitter ``(x, y)`` in pixels (x right, y down) this view was rendered
+        with for temporal anti-aliasing (:mod:`csmlab.metrics.taa`): pixel ``(row, col)`` saw the
+        image point ``(col + ½ + x, row + ½ + y)``; None without TAA.
     derived : dict
         Quantities of this view alone computed for the metrics, by :meth:`shared`; not part of
         the view's identity.
@@ -113,6 +117,7 @@ class View:
     timings: dict = field(default_factory=dict)
     previous_light_direction: np.ndarray | None = None
     previous_reference: np.ndarray | None = None
+    jitter: tuple[float, float] | None = None
     derived: dict = field(default_factory=dict, init=False, compare=False, repr=False)
 
     def shared(self, key: tuple, compute: Callable[[], Any]) -> Any:

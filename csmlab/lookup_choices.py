@@ -31,7 +31,7 @@ import numpy as np
 
 from csmlab.registry import check_name, parameters
 
-__all__ = ["BLEND_LINEAR", "BLEND_SMOOTHSTEP", "BOX_BILINEAR", "BOX_TAPS", "CASTANO_SIZES", "NORMAL_NONE", "NORMAL_OFFSET_SCALES", "NORMAL_ONE_MINUS_COS",
+__all__ = ["BLEND_LINEAR", "BLEND_SMOOTHSTEP", "BOX_BILINEAR", "BOX_TAPS", "CASTANO_SIZES", "NORMAL_NONE", "NORMAL_OFFSET_SCALES", "NORMAL_ONE_MINUS_COS", "ROTATIONS",
            "NORMAL_ONE_MINUS_COS_LATERAL", "NORMAL_SIN", "FAMILIES", "FILTER_METHODS", "Filter", "MOMENT_EVSM2", "OUTSIDE_METHODS",
            "MOMENT_EVSM4", "MOMENT_MSM", "MOMENT_VSM", "PCF_BILINEAR_BOX", "PCF_CASTANO", "PCF_GAUSSIAN", "PCF_PCSS", "PCF_POISSON",
            "PCF_TENT", "PCF_TENT_BILINEAR", "PCF_VOGEL", "SELECTION_METHODS", "SELECT_BEST_RESOLUTION",
@@ -365,9 +365,16 @@ def _castano_reach(*, filter_size: int) -> int:
     return filter_size // 2 + 1
 
 
+ROTATIONS = ("none", "pixel", "pixel_frame", "pixel_taa")
+"""The rotations of a Poisson or Vogel disk (``poisson_rotation``): none; per screen pixel by interleaved
+gradient noise; per pixel and per frame (the noise's pixel offset by 5.588238 · (frame mod 64), Bevy's
+``interleaved_gradient_noise(frag_coord, frame_count)``, utils.wesl @4805ca7); per pixel and, under
+``[taa]``, per frame (Godot's ``taa_frame_count`` term, 0 without TAA)."""
+
+
 def _poisson_reads(*, poisson_rotation: str) -> frozenset:
     # Rotated per pixel, the disk turns with each receiver's pixel (screen-space noise).
-    return frozenset({"depth", "pixels"} if poisson_rotation == "pixel" else {"depth"})
+    return frozenset({"depth"} if poisson_rotation == "none" else {"depth", "pixels"})
 
 
 def _moment_reads(*, moment_mips: bool) -> frozenset:

@@ -22,7 +22,7 @@ from csmlab.culling import culled_triangles
 from csmlab.cascades import CascadeSet, build_cascades
 from csmlab.cascades.bounds import BOUNDS_METHODS, DEPTH_RANGE_METHODS, visible_depth_range
 from csmlab.cascades.warp import warped_texels
-from csmlab.filters import clipmap_radius, filter_inputs, lookup_shadow
+from csmlab.filters import clipmap_radius, filter_inputs, lookup_shadow, noise_frame
 from csmlab.frame import Frame, GBuffer, ShadowMaps, View
 from csmlab.geometry import light_basis, normalized
 from csmlab.kernels.raster import (BANDS_PER_THREAD, LightSpaceMesh, banded_regions, light_space_mesh,
@@ -85,7 +85,7 @@ def prepare_scene(scene: Scene, *, device: str = "cpu", threads: int = 1) -> Dev
 
 
 def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width: int, height: int,
-                index: int = 0, previous_light_direction=None, reference: bool = True) -> View:
+                index: int = 0, previous_light_direction=None, reference: bool = True, jitter=None) -> View:
     """The G-buffer and the ray-traced reference of one camera and light (shared by all methods).
 
     Parameters
@@ -106,6 +106,9 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
         Cast the reference. False leaves ``View.reference`` None: a frame rendered only as the
         previous frame of the temporal metrics (a chunk's first, :mod:`csmlab.experiment`) needs
         its cascades, not its reference.
+    jitter : tuple of float, optional
+        Sub-pixel camera jitter ``(x, y)`` in pixels for temporal anti-aliasing (``View.jitter``);
+        None: pixel centres, no TAA.
 
     Returns
     -------
@@ -115,7 +118,8 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
     d = normalized(light_direction, name="light direction")
     start = time.perf_counter()
     hits = camera_hits(dscene.bvh, position=pose.position, rotation=pose.rotation, fov_y_deg=pose.fov_y_deg,
-                       aspect=pose.aspect, far=pose.far, width=width, height=height, threads=dscene.threads)
+                       aspect=pose.aspect, far=pose.far, width=width, height=height, threads=dscene.threads,
+                       jitter=(0.0, 0.0) if jitter is None else jitter)
     valid = hits.triangle >= 0
     albedo = np.where(valid[..., None], dscene.scene.albedo[np.maximum(hits.triangle, 0)], np.float32(0.0))
     gbuffer = GBuffer(hits=hits, albedo=albedo.astype(np.float32))
@@ -136,7 +140,8 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
     else:
         before = None
     return View(index=index, pose=pose, light_direction=d, gbuffer=gbuffer, reference=cast, timings=timings,
-                previous_light_direction=before, previous_reference=previous)
+                previous_light_direction=before, previous_reference=previous,
+                jitter=None if jitter is None else (float(jitter[0]), float(jitter[1])))
 
 
 def _scene_in_light_space(dscene: DeviceScene, cascades: CascadeSet, cull: str = "none") -> LightSpaceMesh:
@@ -538,7 +543,9 @@ def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
         quads = quad_lanes(view.pose, g.position, g.normal, width=g.shape[1], height=g.shape[0])
         quad_view_depth = view.pose.view_depth(quads.position)
     shadow = lookup_shadow(maps, points=g.position, normals=g.normal, view_depth=g.view_depth, settings=settings,
-                           quads=quads, quad_view_depth=quad_view_depth, device=dscene.device)
+                           quads=quads, quad_view_depth=quad_view_depth,
+                           noise_frame=noise_frame(settings, frame=view.index, taa=view.jitter is not None),
+                           device=dscene.device)
     timings["shadow"] = time.perf_counter() - start
     return Frame(view=view, settings=settings, maps=maps, shadow=shadow, timings=timings)
 

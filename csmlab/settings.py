@@ -12,7 +12,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, fields, replace
 
 from csmlab.culling import CULL_METHODS
-from csmlab.lookup_choices import CASTANO_SIZES, FILTER_METHODS, NORMAL_OFFSET_SCALES
+from csmlab.lookup_choices import CASTANO_SIZES, FILTER_METHODS, NORMAL_OFFSET_SCALES, ROTATIONS
 from csmlab.registry import check_name, parameters
 
 __all__ = ["APPLIES", "CLIPMAP_FILTERS", "SHADOW_MAP_METHODS", "Applies", "ShadowSettings"]
@@ -134,7 +134,7 @@ class ShadowSettings:
     poisson_seed: int = 1
     """pcf_poisson: seed of the disk's (deterministic) construction."""
     poisson_rotation: str = "none"
-    """pcf_poisson, pcf_vogel: none (one disk everywhere) | pixel (rotated per screen pixel by interleaved gradient noise)."""
+    """pcf_poisson, pcf_vogel: none (one disk everywhere) | pixel (rotated per screen pixel by interleaved gradient noise) | pixel_frame (per pixel and per frame: the noise's pixel offset by 5.588238 · (frame mod 64), Bevy's ShadowFilteringMethod::Temporal) | pixel_taa (pixel_frame under [taa], pixel without it: Godot's taa_frame_count term) (csmlab.filters.ROTATIONS)."""
     cull: str = "none"
     """Faces the depth pass drops, judged in the light's view as OpenGL's glCullFace (counter-clockwise fronts): none (both rasterized) | back (keeps the faces turned toward the light) | front (keeps those turned away: three.js's shadowSide = BackSide) (csmlab.culling.CULL_METHODS)."""
     vogel_taps: int = 5
@@ -283,7 +283,7 @@ class ShadowSettings:
              "an integer in 1..256", self.poisson_taps)
         need(isinstance(self.poisson_seed, int) and self.poisson_seed >= 0, "poisson_seed", "a non-negative integer",
              self.poisson_seed)
-        need(self.poisson_rotation in ("none", "pixel"), "poisson_rotation", "none or pixel", self.poisson_rotation)
+        need(self.poisson_rotation in ROTATIONS, "poisson_rotation", f"one of {list(ROTATIONS)}", self.poisson_rotation)
         need(self.filter != "pcf_castano" or self.filter_size in CASTANO_SIZES, "filter_size",
              "3 or 5 with filter = \"pcf_castano\" (Castaño's 3×3 and 5×5 kernels)", self.filter_size)
         need(isinstance(self.vogel_taps, int) and 1 <= self.vogel_taps <= 64, "vogel_taps", "an integer in 1..64",

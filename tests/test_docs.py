@@ -61,13 +61,14 @@ def _record_fields(record) -> set[str]:
 
 
 def test_the_design_documents_every_experiment_field():
-    from csmlab.config.records import CameraConfig, LightConfig, ReportConfig, SceneConfig, TuneConfig
+    from csmlab.config.records import CameraConfig, LightConfig, ReportConfig, SceneConfig, TaaConfig, TuneConfig
     from csmlab.settings import ShadowSettings
 
     words = _words(_design().split("### Experiment file (TOML)", 1)[1].split("### Results directory", 1)[0])
     missing = {table: sorted(_record_fields(record) - words)
                for table, record in [("scene", SceneConfig), ("camera", CameraConfig), ("light", LightConfig),
-                                     ("shadow", ShadowSettings), ("report", ReportConfig), ("tune", TuneConfig)]}
+                                     ("shadow", ShadowSettings), ("report", ReportConfig), ("tune", TuneConfig),
+                                     ("taa", TaaConfig)]}
     missing = {table: names for table, names in missing.items() if names}
     assert not missing, f"docs/design.md, 'Experiment file (TOML)', lacks: {missing}"
 

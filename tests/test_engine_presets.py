@@ -95,13 +95,14 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
                                 storage="atlas", atlas_layout="2x2", depth_format="float32", resolution=512)),
     # DirectionalLight3D: splits 0.1/0.2/0.5, max distance 100, fade_start 0.8, pancake_size 20, blend off;
     # soft_shadow_filter_quality 2 (SOFT_LOW): directional_soft_shadow_samples = 4, quality radius 2.0, a
-    # Vogel disk rotated per pixel; directional_shadow/16_bits = true, each split over its own z range; 4 splits
-    # as quadrants of one atlas; the light node's basis (a roll-free node: a look-at with +Y up).
+    # Vogel disk rotated per pixel (and per frame under TAA: taa_frame_count); directional_shadow/16_bits = true,
+    # each split over its own z range; 4 splits as quadrants of one atlas; the light node's basis (a roll-free
+    # node: a look-at with +Y up).
     ("engines/godot4", dict(split="manual_range", splits=(0.1, 0.2, 0.5, 1.0), shadow_distance=100.0, fade_out=0.2,
                             fade="smoothstep", extent="centroid", snap="nearest2", pancake=20.0,
                             depth_range="sphere", depth_clamp=True, blend_band=0.0, filter="pcf_vogel",
                             vogel_taps=4, vogel_radius=2.0, vogel_angle=2.4, vogel_scale="first_split",
-                            poisson_rotation="pixel", storage="atlas", light_basis="world_y",
+                            poisson_rotation="pixel_taa", storage="atlas", light_basis="world_y",
                             depth_format="unorm16", depth_quantization="cascade")),
     # ShadowOptions: shadowCascades 1, practical splits lambda 0.5, stable false, lispsm true with
     # shadowNearHint 1 and shadowFarHint 100; focus_shadowcasters; ShadowType::PCF =
@@ -180,7 +181,7 @@ def test_snapping_presets_are_flicker_free_and_refitting_ones_are_not(tmp_path, 
     if method.settings.stabilization == "none":
         assert values["flicker_same"] > 0.0
         return
-    rotated = method.settings.filter in ("pcf_poisson", "pcf_vogel") and method.settings.poisson_rotation == "pixel"
+    rotated = method.settings.filter in ("pcf_poisson", "pcf_vogel") and method.settings.poisson_rotation != "none"
     float32 = method.settings.engine_precision != "float64"
     if rotated:
         assert values["flicker_same"] > 0.0
@@ -553,7 +554,7 @@ def test_dx_csm11_has_the_samples_three_partitions_and_no_blend(tmp_path, preset
 FILTER_AND_BIAS = {
     # name: (filter fields, bias fields) — csmlab's field values as each engine's source sets them.
     "engines/godot4": ({"filter": "pcf_vogel", "vogel_taps": 4, "vogel_radius": 2.0, "vogel_angle": 2.4,
-                        "vogel_scale": "first_split", "poisson_rotation": "pixel"},
+                        "vogel_scale": "first_split", "poisson_rotation": "pixel_taa"},
                        {"bias_depth_range": 0.1 / 100.0 * 2.0, "bias_slope": 0.0, "normal_offset": 2.0,
                         "normal_offset_scale": "one_minus_cos_lateral", "receiver_plane_bias": False}),
     "engines/threejs_csm": ({"filter": "pcf_vogel", "vogel_taps": 5, "vogel_radius": 1.0,

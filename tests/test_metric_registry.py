@@ -29,7 +29,8 @@ def test_metric_columns_keep_the_design_order_with_per_cascade_columns():
     extensions = ("pages_marked", "pages_rendered", "pool_bytes")  # a virtual clipmap's pages, after the cost
     assert columns[columns.index("texels_rasterized") + 1:] == extensions + tuple(
         f"{k}_c{c}" for c in range(2) for k in rho_keys)
-    extensions += ("ref_seam_error",)  # columns added after docs/design.md's list
+    extensions += ("ref_seam_error", "flicker_taa", "flicker_same_taa", "flicker_changed_taa", "flip_rate_taa",
+                   "flip_same_taa", "flip_changed_taa")  # columns added after docs/design.md's list
     assert set(extensions) <= set(columns)
     assert len(set(columns)) == len(columns) == len(DESIGN_COLUMNS) + len(extensions) + 2 + 2 * len(rho_keys)
     with pytest.raises(ValueError, match="positive integer"):
@@ -38,7 +39,9 @@ def test_metric_columns_keep_the_design_order_with_per_cascade_columns():
 
 def test_temporal_columns_are_the_ones_measured_between_frames():
     assert temporal_columns() == ("flicker", "flicker_same", "flicker_changed", "flip_rate", "flip_same",
-                                  "flip_changed", "de2000_mean", "de2000_p99", "de2000_frac_jnd", "ssim", "flip")
+                                  "flip_changed", "flicker_taa", "flicker_same_taa", "flicker_changed_taa",
+                                  "flip_rate_taa", "flip_same_taa", "flip_changed_taa", "de2000_mean", "de2000_p99",
+                                  "de2000_frac_jnd", "ssim", "flip")
 
 
 def test_per_cascade_columns_resolve_to_their_metric_and_nothing_else_does():

@@ -22,7 +22,7 @@ from csmlab.config.document import config_hash, experiment_document, workload_ha
 from csmlab.config.presets import (CONFIGS_DIR, EXPERIMENTS_DIR, PROJECT_DIR, find_experiment, list_experiments,
                                    list_presets)
 from csmlab.config.records import (CameraConfig, Experiment, LightConfig, Method, ReportConfig, SceneConfig,
-                                   TuneConfig, Variant, sweep_points)
+                                   TaaConfig, TuneConfig, Variant, sweep_points)
 from csmlab.config.toml_writer import experiment_toml, field_docs, method_preset_toml
 from csmlab.config.validate import load_experiment, load_tolerances, parse_size, shadow_method_registries
 
@@ -36,6 +36,7 @@ __all__ = [
     "Method",
     "ReportConfig",
     "SceneConfig",
+    "TaaConfig",
     "TuneConfig",
     "Variant",
     "config_hash",

@@ -73,6 +73,9 @@ def experiment_document(experiment: Experiment) -> dict:
     report = _section_document(experiment.report)
     if report:
         document["report"] = report
+    if experiment.taa.enabled:
+        # Only when on: an experiment without TAA keeps the document (and the hashes) it had.
+        document["taa"] = _section_document(experiment.taa)
     return document
 
 

@@ -160,6 +160,37 @@ class ReportConfig(_Checked):
     """Frames kept at full resolution (frames past the end are skipped); unset: three spread over the run."""
 
 
+TAA_CLAMPS = ("ycocg_minmax", "variance", "none")
+"""The ``[taa]`` neighbourhood clamps (:mod:`csmlab.kernels.taa`)."""
+
+
+@dataclass(frozen=True)
+class TaaConfig(_Checked):
+    """``[taa]``: temporal anti-aliasing over every method's shadow and the reference (:mod:`csmlab.metrics.taa`).
+
+    Off by default; on, every frame is rendered with a sub-pixel camera jitter, each method's S and
+    the ray-traced R go through the same resolve, and the ``*_taa`` columns are filled. The
+    history runs over the whole path, so the run is one unit of work (``chunk_frames`` is not
+    used) and every variant's frames run in order in one process.
+    """
+
+    enabled: bool = False
+    """Resolve every frame with TAA (the ``*_taa`` columns); false leaves them empty and the frames unjittered."""
+    phases: int = field(default=8, metadata=_expect(lambda x: isinstance(x, int) and 1 <= x <= 256,
+                                                    "an integer in 1..256"))
+    """Jitter phases: the camera's sub-pixel offset of frame t is Halton (2, 3) point ``1 + t mod phases``, less ½."""
+    alpha: float = field(default=0.1, metadata=_expect(lambda x: 0.0 < x <= 1.0, "a blend weight in (0, 1]"))
+    """Weight of the current frame in the exponential blend ``h + α (c − h)`` (1: no history)."""
+    clamp: str = field(default="ycocg_minmax", metadata=_expect(lambda x: x in TAA_CLAMPS,
+                                                                 f"one of {list(TAA_CLAMPS)}"))
+    """Neighbourhood clamp of the history: ycocg_minmax (the 3×3 box of the current frame: for csmlab's grey
+    signals the luma's min and max) | variance (μ ± γσ of the 3×3, Salvi's variance clipping) | none."""
+    gamma: float = field(default=1.0, metadata=_expect(lambda x: 0.0 < x <= 10.0, "a number in (0, 10]"))
+    """variance: half-width of the clip box in standard deviations."""
+    depth_tolerance: float = field(default=0.05, metadata=_expect(lambda x: 0.0 < x < 1.0, "a fraction in (0, 1)"))
+    """Disocclusion: a history tap counts where frame t−1's depth there is within this fraction of the point's depth."""
+
+
 @dataclass(frozen=True)
 class TuneConfig(_Checked):
     """``[tune]``: what ``csmlab tune`` searches and under which budgets (command-line options win).
@@ -246,6 +277,8 @@ class Experiment:
         Frames per unit of work.
     tune : TuneConfig
         What ``csmlab tune`` searches (the ``[tune]`` table).
+    taa : TaaConfig
+        Temporal anti-aliasing (the ``[taa]`` table).
     """
 
     name: str
@@ -262,6 +295,7 @@ class Experiment:
     report: ReportConfig
     chunk_frames: int
     tune: TuneConfig = TuneConfig()
+    taa: TaaConfig = TaaConfig()
 
     def points(self) -> list[tuple[str, dict]]:
         """Sweep points ``(label, {field: value})`` (:func:`sweep_points`)."""
@@ -281,7 +315,7 @@ class Experiment:
 
 
 _TOP_FIELDS = ("name", "description", "extends", "chunk_frames", "scene", "camera", "light", "shadow", "methods",
-               "sweep", "regress", "report", "tune")
+               "sweep", "regress", "report", "tune", "taa")
 _DOCS_TOP = {
     "name": "Names the results folder reports/<name>/; defaults to the file's stem.",
     "description": "One line on what the experiment shows.",

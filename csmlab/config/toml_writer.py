@@ -9,7 +9,8 @@ import math
 import textwrap
 
 from csmlab.config.document import _settings_document, experiment_document
-from csmlab.config.records import (_DOCS_TOP, CameraConfig, Experiment, LightConfig, ReportConfig, SceneConfig)
+from csmlab.config.records import (_DOCS_TOP, CameraConfig, Experiment, LightConfig, ReportConfig, SceneConfig,
+                                   TaaConfig)
 from csmlab.settings import APPLIES, ShadowSettings
 
 
@@ -62,14 +63,14 @@ def experiment_toml(experiment: Experiment, *, comments: bool = True) -> str:
     document = experiment_document(experiment)
     sections = {"scene": field_docs(SceneConfig), "camera": field_docs(CameraConfig),
                 "light": field_docs(LightConfig), "shadow": field_docs(ShadowSettings),
-                "report": field_docs(ReportConfig)}
+                "report": field_docs(ReportConfig), "taa": field_docs(TaaConfig)}
     top = {k: v for k, v in document.items() if not isinstance(v, (dict, list))}
     lines = [f"# {experiment.source}", *_toml_table(top, _DOCS_TOP, comments=comments), ""]
     for key in ("scene", "camera", "light", "shadow"):
         lines += [f"[{key}]", *_toml_table(document[key], sections[key], comments=comments), ""]
     for method in document["methods"]:
         lines += ["[[methods]]", *_toml_table(method, sections["shadow"], comments=comments), ""]
-    for key in ("sweep", "regress", "report"):
+    for key in ("sweep", "regress", "report", "taa"):
         if key in document:
             lines += [f"[{key}]", *_toml_table(document[key], sections.get(key, {}), comments=comments), ""]
     return "\n".join(lines)

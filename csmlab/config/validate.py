@@ -19,7 +19,7 @@ from pathlib import Path
 
 from csmlab.config.locate import _Located
 from csmlab.config.presets import _METHOD_NAME, _merged, _read_toml
-from csmlab.config.records import (_TOP_FIELDS, CameraConfig, Experiment, LightConfig, Method, ReportConfig,
+from csmlab.config.records import (_TOP_FIELDS, CameraConfig, Experiment, LightConfig, Method, ReportConfig, TaaConfig,
                                    SceneConfig, TuneConfig, _positive, _record_fields, sweep_points)
 from csmlab.config.toml_writer import _toml_value
 from csmlab.errors import InputError
@@ -629,5 +629,6 @@ def load_experiment(path, *, frames: int | None = None) -> Experiment:
         report=_record(ReportConfig, merged.get("report", {}), where="report", located=located),
         chunk_frames=chunk_frames,
         tune=_tune(merged.get("tune", {}), methods, located, camera),
+        taa=_record(TaaConfig, merged.get("taa", {}), where="taa", located=located),
     )
     return experiment if frames is None else experiment.with_frames(frames)

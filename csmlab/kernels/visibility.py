@@ -657,6 +657,26 @@ def _pinhole(bvh: MeshBVH, position, rotation, fov_y_deg: float, aspect: float, 
             float(2.0 * tan_y * aspect / width), float(2.0 * tan_y / height))
 
 
+def _jittered(camera: tuple, jitter) -> tuple[tuple, tuple]:
+    """``camera`` for the coverage pass and for the hits pass, each moved by a sub-pixel ``jitter`` ``(x, y)``.
+
+    A jittered pixel's ray is ``forward + (x_c + j_x·step_x)·right + (y_c − j_y·step_y)·up`` (``x_c, y_c``
+    its centre's image-plane point, rows growing down): the hits pass gets the forward axis tilted
+    by ``j_x·step_x·right − j_y·step_y·up`` (still of unit forward component, so a ray's parameter
+    stays its view depth); the coverage pass the right and up axes sheared by ``−j_x·step_x·forward``
+    and ``+j_y·step_y·forward``, so that a centre covered in the sheared camera space is the
+    jittered ray's. A zero jitter returns ``camera`` itself for both.
+    """
+    jx, jy = (float(v) for v in jitter)
+    if jx == 0.0 and jy == 0.0:
+        return camera, camera
+    eye, right, up, forward, step_x, step_y = camera
+    r, u, f = (np.array([float(v) for v in axis]) for axis in (right, up, forward))
+    tilted = wp.vec3d(*(f + (jx * step_x) * r - (jy * step_y) * u))
+    sheared = (eye, wp.vec3d(*(r - (jx * step_x) * f)), wp.vec3d(*(u + (jy * step_y) * f)), forward, step_x, step_y)
+    return sheared, (eye, right, up, tilted, step_x, step_y)
+
+
 def _pinhole_camera(bvh: MeshBVH, camera: tuple, *, far: float, frustum=None) -> PinholeCamera:
     """The :class:`PinholeCamera` of :func:`_pinhole`'s ``camera``, clipped at ``far`` (and :data:`NEAR_FRACTION` of it)
     with the raster's padded ``frustum`` (unset for the ray cast, which reads none)."""
@@ -684,7 +704,7 @@ def _hits_record(bvh: MeshBVH, shape: tuple[int, int], pool: LaunchPool, kernel,
 
 
 def camera_hits_ray(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspect: float, far: float, width: int,
-                    height: int, threads: int = 1) -> CameraHits:
+                    height: int, threads: int = 1, jitter=(0.0, 0.0)) -> CameraHits:
     """:func:`camera_hits` by one BVH ray per pixel centre: the hit triangle found in float32.
 
     ``max_t = far·|d|``: hits beyond view depth ``far`` (to float32 rounding) are not found. This is
@@ -699,7 +719,8 @@ def camera_hits_ray(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspec
     if bvh.masked:
         raise ValueError("method: the ray method finds only the nearest triangle and cannot see through alpha "
                          "masks; expected \"raster\" for a masked scene")
-    pinhole = _pinhole_camera(bvh, _pinhole(bvh, position, rotation, fov_y_deg, aspect, far, width, height), far=far)
+    _, rays = _jittered(_pinhole(bvh, position, rotation, fov_y_deg, aspect, far, width, height), jitter)
+    pinhole = _pinhole_camera(bvh, rays, far=far)
     threads = checked_threads(threads, bvh.device)
     with LaunchPool(threads, kernels=(camera_hits_kernel,), device=bvh.device) as pool:
         return _hits_record(bvh, (height, width), pool, camera_hits_kernel,
@@ -707,7 +728,7 @@ def camera_hits_ray(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspec
 
 
 def camera_hits_raster(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspect: float, far: float, width: int,
-                       height: int, threads: int = 1, atomic: bool | None = None) -> CameraHits:
+                       height: int, threads: int = 1, atomic: bool | None = None, jitter=(0.0, 0.0)) -> CameraHits:
     """:func:`camera_hits` by perspective rasterization of every triangle: coverage and depth in float64.
 
     Parameters
@@ -747,8 +768,9 @@ def camera_hits_raster(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, as
     The minimum of ``(t, triangle)`` pairs does not depend on how they are grouped, so every
     ``threads`` gives the same pixels, bit for bit.
     """
-    camera = _pinhole(bvh, position, rotation, fov_y_deg, aspect, far, width, height)
-    eye, right, up, forward, step_x, step_y = camera
+    unjittered = _pinhole(bvh, position, rotation, fov_y_deg, aspect, far, width, height)
+    camera, rays = _jittered(unjittered, jitter)
+    eye, right, up, forward, step_x, step_y = unjittered
     device = bvh.device
     threads = checked_threads(threads, device)
     atomic = device != "cpu" if atomic is None else bool(atomic)
@@ -756,6 +778,7 @@ def camera_hits_raster(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, as
     frustum = wp.vec4d(-(0.5 * width + 1.0) * step_x, (0.5 * width + 1.0) * step_x,
                        -(0.5 * height + 1.0) * step_y, (0.5 * height + 1.0) * step_y)
     pinhole = _pinhole_camera(bvh, camera, far=far, frustum=frustum)
+    hits_pinhole = pinhole if rays is camera else _pinhole_camera(bvh, rays, far=far, frustum=frustum)
     vertex_count = bvh.vertices.shape[0]
     view = CameraSpaceVertices()
     view.camera = device_empty(vertex_count, wp.vec3d, device)
@@ -791,7 +814,7 @@ def camera_hits_raster(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, as
                   for lo, hi in split_range(vertex_count, threads)])
         pool.run([functools.partial(rasterize, k) for k in range(parts)])
         return _hits_record(bvh, (height, width), pool, raster_hits_kernel,
-                            (bvh.vertices, bvh.triangles, nearest, depth, pinhole))
+                            (bvh.vertices, bvh.triangles, nearest, depth, hits_pinhole))
 
 
 VISIBILITY_METHODS = {"raster": camera_hits_raster, "ray": camera_hits_ray}
@@ -799,7 +822,7 @@ VISIBILITY_METHODS = {"raster": camera_hits_raster, "ray": camera_hits_ray}
 
 
 def camera_hits(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspect: float, far: float, width: int,
-                height: int, method: str = "raster", threads: int = 1) -> CameraHits:
+                height: int, method: str = "raster", threads: int = 1, jitter=(0.0, 0.0)) -> CameraHits:
     """First hit of the ray through every pixel centre of a pinhole camera.
 
     Parameters
@@ -824,6 +847,9 @@ def camera_hits(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspect: f
     threads : int
         Concurrent CPU launches (:mod:`csmlab.kernels.threads`), each writing its own part of the
         outputs; the result is the same, bit for bit, for every value. Ignored on CUDA.
+    jitter : tuple of float
+        Sub-pixel camera jitter ``(x, y)`` in pixels (x right, y down): pixel ``(row, col)`` takes
+        the ray through ``(col + ½ + x, row + ½ + y)`` (temporal anti-aliasing, :mod:`csmlab.metrics.taa`).
 
     Returns
     -------
@@ -839,4 +865,4 @@ def camera_hits(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, aspect: f
     """
     return VISIBILITY_METHODS[check_name(method, VISIBILITY_METHODS, field="method")](
         bvh, position=position, rotation=rotation, fov_y_deg=fov_y_deg, aspect=aspect, far=far, width=width,
-        height=height, threads=threads)
+        height=height, threads=threads, jitter=jitter)

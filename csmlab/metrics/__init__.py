@@ -23,6 +23,7 @@ from csmlab.metrics.cost import cost_summary
 from csmlab.metrics.perceptual import perceptual_maps, perceptual_summary
 from csmlab.metrics.reference import bias_errors, reference_maps, reference_summary, seam_error
 from csmlab.metrics.shading import shaded_rgb, view_shading_terms
+from csmlab.metrics.taa import TAA_COLUMNS, taa_summary
 from csmlab.metrics.temporal import temporal_maps, temporal_summary
 
 __all__ = ["FrameMeasures", "measure_frame", "metric_columns"]
@@ -58,7 +59,7 @@ def _mean_utilization(share: np.ndarray) -> float:
 
 
 def measure_frame(frame: Frame, previous: Frame | None = None, *, ambient: float = 0.25,
-                  device: str = "cpu") -> FrameMeasures:
+                  device: str = "cpu", taa: tuple | None = None) -> FrameMeasures:
     """Every metric of ``frame``; the temporal and perceptual ones against ``previous``.
 
     Parameters
@@ -71,6 +72,9 @@ def measure_frame(frame: Frame, previous: Frame | None = None, *, ambient: float
         Ambient term of the shading used by the perceptual metrics, in units of the direct light.
     device : str
         Warp device for the footprint kernel and the lookup of frame t−1's maps.
+    taa : tuple of TaaResolve, optional
+        Frame t's TAA resolves of the method's S and of R (:mod:`csmlab.metrics.taa`): the
+        ``*_taa`` columns (empty without them, and at the first frame).
 
     Returns
     -------
@@ -90,7 +94,8 @@ def measure_frame(frame: Frame, previous: Frame | None = None, *, ambient: float
     errors = reference_maps(frame)
     values = {**aliasing_summary(alias, cascades=cascades), "utilization": _mean_utilization(share),
               **{f"utilization_c{c}": float(u) for c, u in enumerate(share)},
-              **reference_summary(errors), **bias_errors(frame, errors), **seam_error(frame), **cost_summary(frame)}
+              **reference_summary(errors), **bias_errors(frame, errors), **seam_error(frame), **cost_summary(frame),
+              **dict.fromkeys(TAA_COLUMNS, float("nan"))}
     g = frame.view.gbuffer
     if previous is None:
         values.update(dict.fromkeys(temporal_columns(), float("nan")))
@@ -105,6 +110,8 @@ def measure_frame(frame: Frame, previous: Frame | None = None, *, ambient: float
         perceptual = perceptual_maps(frame, temporal.previous_lit, ambient=ambient)
         values.update(temporal_summary(temporal))
         values.update(perceptual_summary(perceptual, device=device))
+        if taa is not None:
+            values.update(taa_summary(*taa, temporal))
         shaded, change, de2000 = perceptual.shaded, np.abs(temporal.change), perceptual.de2000
         flipped = temporal.flipped
     pixels = {"rho": alias.rho, "dS": change, "shaded": shaded, "ref_diff": errors.diff, "de2000": de2000,

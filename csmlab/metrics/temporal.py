@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from csmlab.camera import CameraPose
-from csmlab.filters import screen_pixels, uses_pixels
+from csmlab.filters import noise_frame, screen_pixels, uses_pixels
 from csmlab.frame import Frame
 from csmlab.metric_registry import finite_mean
 from csmlab.quads import quad_lanes
@@ -107,9 +107,13 @@ def temporal_maps(frame: Frame, previous: Frame, *, device: str = "cpu") -> Temp
         quad_view_depth = previous.view.pose.view_depth(quads.position)
     earlier = lookup_shadow(previous.maps, points=points, normals=normals, view_depth=earlier_depth,
                             settings=previous.settings,
-                            pixels=(screen_pixels(previous.view.pose, points, width=g.shape[1], height=g.shape[0])
+                            pixels=(screen_pixels(previous.view.pose, points, width=g.shape[1], height=g.shape[0],
+                                                  jitter=previous.view.jitter)
                                     if uses_pixels(previous.settings) else None),
-                            quads=quads, quad_view_depth=quad_view_depth, device=device)
+                            quads=quads, quad_view_depth=quad_view_depth,
+                            noise_frame=noise_frame(previous.settings, frame=previous.view.index,
+                                                    taa=previous.view.jitter is not None),
+                            device=device)
     previous_lit = np.full(g.shape, np.nan, dtype=np.float32)
     previous_lit[visible] = earlier.lit
     previous_cascade = np.full(g.shape, -1, dtype=np.int64)
