@@ -7,9 +7,10 @@ import pytest
 
 from csmlab.camera import CameraPose
 from csmlab.cascades import build_cascades
-from csmlab.config import load_experiment
+from csmlab.config import Variant, load_experiment
 from csmlab.errors import InputError
 from csmlab.geometry import normalized, rotation_looking_at
+from csmlab.invariants import summary_invariants
 from csmlab.light import LightPath, direction_from_angles
 from csmlab.metric_registry import DERIVED, metric_values, run_value
 from csmlab.metrics.temporal import temporal_maps, temporal_summary
@@ -134,6 +135,18 @@ def test_cascades_are_identical_for_every_fov_below_the_minimum_and_those_of_a_c
     np.testing.assert_array_equal(np.array(boxes(70.0, floored)), np.array(boxes(70.0, own)))
     assert shadow_fov_deg(30.0, policy="min_fov", min_fov_deg=55.0) == 55.0
     assert shadow_fov_deg(30.0, policy="camera", min_fov_deg=55.0) == 30.0
+
+
+def test_exact_promises_zero_same_cascade_flicker_on_a_zoom_only_below_its_minimum_fov():
+    zoom = np.geomspace(60.0, 15.0, 5)
+    variants = [Variant("own", "base", ShadowSettings()),
+                Variant("floored", "base", ShadowSettings(zoom_policy="min_fov", min_fov_deg=60.0)),
+                Variant("low_floor", "base", ShadowSettings(zoom_policy="min_fov", min_fov_deg=30.0))]
+    promised = {method: points["base"]["flicker_same_zero"]["promised"]
+                for method, points in summary_invariants(variants, light_static=True, fov_y_deg=zoom).items()}
+    assert promised == {"own": False, "floored": True, "low_floor": False}
+    moving_sun = summary_invariants(variants[1:2], light_static=False, fov_y_deg=zoom)
+    assert not moving_sun["floored"]["base"]["flicker_same_zero"]["promised"]
 
 
 def test_the_largest_frame_flicker_is_a_peak_over_frames_not_a_mean():
