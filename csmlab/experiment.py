@@ -35,9 +35,10 @@ from csmlab.geometry import normalized
 from csmlab.light import LightPath, direction_from_angles
 from csmlab.paths.timing import TimingReport
 from csmlab.scene.core import Scene
+from csmlab.shadow_policies import shadow_light_direction
 
 __all__ = ["IMAGE_FRAMES", "ChunkResult", "Job", "RunResult", "Workload", "build_workload", "check_device",
-           "chunk_ranges", "image_frames", "run_chunk", "run_experiment"]
+           "chunk_ranges", "image_frames", "run_chunk", "run_experiment", "shadow_light"]
 
 
 @dataclass(frozen=True)
@@ -391,7 +392,8 @@ def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
             frame = render_shadow(scene, view, variant.settings,
                                   visible_depth=None if held is None else tuple(held[index]),
                                   held_extents=None if extents is None else extents[index], lookup=counted,
-                                  scroll_from=previous[key].maps if key in previous else None)
+                                  scroll_from=previous[key].maps if key in previous else None,
+                                  light_direction=shadow_light(workload, variant.settings, index))
             if counted:
                 resolved = None
                 if taa is not None:
@@ -414,6 +416,18 @@ def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
         previous_view = view
     packed = {key: pickle.dumps(kept, protocol=pickle.HIGHEST_PROTOCOL) for key, kept in captures.items()}
     return ChunkResult(start=start, stop=stop, rows=rows, timings=timings, captures=packed)
+
+
+def shadow_light(workload: Workload, settings, index: int) -> np.ndarray:
+    """The unit light direction ``(3,)`` frame ``index``'s shadow maps are built with under ``settings.sun_policy``.
+
+    Taken from the whole sun path (:func:`csmlab.shadow_policies.shadow_light_direction`), so that no
+    chunk depends on where the path was cut, and normalized as :func:`csmlab.render.render_view`
+    normalizes the view's light: with ``every_frame`` it is the view's light bit for bit.
+    """
+    return normalized(shadow_light_direction(workload.light.directions, index, policy=settings.sun_policy,
+                                             update_frames=settings.sun_update_frames,
+                                             step_deg=settings.sun_step_deg), name="light direction")
 
 
 def _held_depths(workload: Workload, variants, *, device: str) -> dict:
@@ -461,7 +475,7 @@ def _held_extents(workload: Workload, variants, held_depths: dict, *, device: st
                 ranges = [visible_depth(scene, workload.path.pose(i), width=workload.width, height=workload.height)
                           for i in range(len(workload.path))]
             depths = ranges
-        extents = [tight_extents(pose=workload.path.pose(i), light_direction=workload.light.direction(i),
+        extents = [tight_extents(pose=workload.path.pose(i), light_direction=shadow_light(workload, v.settings, i),
                                  settings=v.settings, visible_depth=None if depths is None else depths[i])
                    for i in range(len(workload.path))]
         out[(v.method, v.point)] = held_extents(extents, hysteresis=v.settings.extent_hysteresis)

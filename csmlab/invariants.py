@@ -10,7 +10,7 @@ Each condition below is one row of :data:`_CONDITIONS`; the promise holds when a
    to steps of the camera's footprint and ``none`` follows it, so their texel sizes change) with a
    *fixed extent* — ``bounds = "frustum"`` (SDSM moves the splits with the visible depth range),
    a camera whose field of view never changes (each slice's extent follows it; a zoom path
-   changes it every frame) and an extent of :data:`FIXED_EXTENTS` — and the box snapped to whole
+   changes it every frame), or one that stays below a ``zoom_policy = "min_fov"`` floor, and an extent of :data:`FIXED_EXTENTS` — and the box snapped to whole
    texels (:data:`WHOLE_TEXEL_SNAPS`: every snap of :mod:`csmlab.cascades.stabilize` moves the
    box by whole texels, ``view`` in steps of four, ``nearest2`` — Godot's edges rounded to the
    nearest 2-texel unit — in steps of two: its texel size is the fixed radius's, its origin a whole
@@ -75,6 +75,7 @@ import numpy as np
 
 from csmlab.lookup_choices import FILTER_METHODS
 from csmlab.settings import ShadowSettings
+from csmlab.shadow_policies import shadow_fov_deg
 
 __all__ = ["FIXED_EXTENTS", "FLICKER_SAME_ZERO", "Promise", "SCREEN_READS", "WHOLE_TEXEL_SNAPS",
            "WORLD_LOCKED_DEPTH_FORMATS", "WORLD_LOCKED_READS", "WorkloadFacts", "promised_invariants",
@@ -112,7 +113,8 @@ class WorkloadFacts:
     light_static : bool
         The light's direction is the same in every frame.
     fov_fixed : bool
-        The camera's field of view is the same in every frame.
+        The field of view the cascades are fitted to is the same in every frame: the camera's, or
+        under ``zoom_policy = "min_fov"`` the floored one (:func:`csmlab.shadow_policies.shadow_fov_deg`).
     """
 
     light_static: bool
@@ -237,12 +239,14 @@ def summary_invariants(variants, *, light_static: bool, fov_y_deg) -> dict[str, 
     light_static : bool
         The light's direction is the same in every frame.
     fov_y_deg : array_like, shape (N,)
-        The camera's field of view in every frame, degrees.
+        The camera's field of view in every frame, degrees (each method's zoom policy then floors it).
     """
     fov = np.asarray(fov_y_deg, dtype=np.float64)
-    workload = WorkloadFacts(light_static=bool(light_static), fov_fixed=bool(np.all(fov == fov[0])))
     out: dict[str, dict[str, dict]] = {}
     for variant in variants:
+        s = variant.settings
+        fitted = np.array([shadow_fov_deg(f, policy=s.zoom_policy, min_fov_deg=s.min_fov_deg) for f in fov])
+        workload = WorkloadFacts(light_static=bool(light_static), fov_fixed=bool(np.all(fitted == fitted[0])))
         promises = promised_invariants(variant.settings, workload=workload)
         out.setdefault(variant.method, {})[variant.point] = {name: p.as_dict() for name, p in promises.items()}
     return out

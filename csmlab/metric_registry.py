@@ -34,7 +34,7 @@ import numpy as np
 
 __all__ = ["BETTER", "BETTER_TEXT", "CASCADE_PLACES", "DERIVED", "HEADLINE", "METRICS", "PLOTS", "Metric", "best_mask",
            "finite_mean", "format_number", "is_metric_column", "is_per_cascade", "metric_columns", "metric_named",
-           "metric_of", "metric_values", "number_or_none", "temporal_columns"]
+           "metric_of", "metric_values", "number_or_none", "run_value", "temporal_columns"]
 
 
 def _distance_from_one(value: float) -> float:
@@ -100,6 +100,9 @@ class Metric:
         The label of its per-frame curve on the report's Explore page; empty: no curve.
     sum_of : tuple of str
         A derived metric (:data:`DERIVED`): the per-frame sum of these columns.
+    peak_of : str
+        A derived metric (:data:`DERIVED`): the largest single-frame value of this column over a run
+        (:func:`run_value`), where the others are means over frames.
     """
 
     name: str
@@ -115,6 +118,7 @@ class Metric:
     glance: str = ""
     curve: str = ""
     sum_of: tuple[str, ...] = ()
+    peak_of: str = ""
 
     def __post_init__(self):
         if self.better not in BETTER:
@@ -206,9 +210,12 @@ DERIVED: dict[str, Metric] = {m.name: m for m in (
     Metric("ref_error", "vs. reference", "% pixels wrong", "lower", (1e-4, 0.05), scale=100.0,
            glance="Closest to the ray-traced shadow", curve="vs. reference (% of pixels)",
            sum_of=("ref_false_shadow", "ref_false_light")),
+    Metric("flicker_peak", "largest frame flicker", _DS, "lower", (1e-6, 0.05), temporal=True, peak_of="flicker"),
 )}
 """Metrics computed from columns, never columns themselves: ``ref_error``, the fraction of pixels whose
-shadow state differs from the reference either way (false shadow + false light)."""
+shadow state differs from the reference either way (false shadow + false light); ``flicker_peak``, the
+largest single-frame flicker of a run (the pop of a sun policy's update, which a mean over frames
+spreads thin)."""
 
 HEADLINE: tuple[Metric, ...] = tuple(m for m in METRICS.values() if m.headline)
 """The metrics a summary table leads with, in column order."""
@@ -256,14 +263,31 @@ def metric_values(name: str, columns) -> np.ndarray | None:
     name : str
     columns : mapping
         Column name → ``(N,)`` float64 array (``metrics.csv`` rows of one method × point, or all of them);
-        a column is returned as it is, a derived metric summed in the order of ``sum_of``.
+        a column is returned as it is, a derived metric summed in the order of ``sum_of``, a peak its
+        column (whose largest value :func:`run_value` takes).
     """
     if name not in DERIVED:
         return columns[name] if name in columns else None
+    peak = DERIVED[name].peak_of
+    if peak:
+        return columns[peak] if peak in columns else None
     parts = DERIVED[name].sum_of
     if not all(part in columns for part in parts):
         return None
     return sum((columns[part] for part in parts[1:]), start=columns[parts[0]])
+
+
+def run_value(name: str, values) -> float:
+    """A run's value of metric ``name`` from its per-frame values ``(N,)`` (:func:`metric_values`).
+
+    The largest finite value for a peak (``peak_of``), else the mean of the finite ones
+    (:func:`finite_mean`); NaN when there is none.
+    """
+    if name in DERIVED and DERIVED[name].peak_of:
+        values = np.asarray(values, dtype=np.float64)
+        finite = values[np.isfinite(values)]
+        return float(finite.max()) if finite.size else math.nan
+    return finite_mean(values)
 
 
 def is_per_cascade(column: str) -> bool:

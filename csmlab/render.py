@@ -439,13 +439,14 @@ def clipped_casters(depth: np.ndarray, triangles: np.ndarray, *, near: float) ->
 
 
 def virtual_shadow_maps(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
-                        previous: ShadowMaps | None = None) -> ShadowMaps:
+                        previous: ShadowMaps | None = None, light_direction=None) -> ShadowMaps:
     """A virtual clipmap's resident pages for one view (``shadow_map = "virtual_clipmap"``, :mod:`csmlab.clipmaps`).
 
     The levels are placed around the camera, every visible pixel of the view's G-buffer marks the
     pages under its taps at its level, and the pages the pool keeps are taken from ``previous`` (the
     same method's previous maps) where it holds them under the same light, the others rasterized,
-    each as a map of its own (:func:`_rasterized_pages`).
+    each as a map of its own (:func:`_rasterized_pages`). ``light_direction`` ``(3,)``: the shadow's
+    light (a sun policy's, :mod:`csmlab.shadow_policies`); None: the view's.
 
     Returns
     -------
@@ -455,11 +456,12 @@ def virtual_shadow_maps(dscene: DeviceScene, view: View, settings: ShadowSetting
         frame (the cache misses: the work the frame did).
     """
     g = view.gbuffer
-    basis = light_basis(view.light_direction)
+    d = view.light_direction if light_direction is None else normalized(light_direction, name="light direction")
+    basis = light_basis(d)
     # The depth offset as build_cascades takes it, bit for bit: the scene's light-space mesh is kept per
     # (basis, zref), so cascades and a clipmap of one light share it.
     scene_depth = (np.asarray(dscene.corners, dtype=np.float64).reshape(-1, 3) @ basis.T)[:, 2]
-    clip = clipmap_levels(eye=view.pose.position, light_direction=view.light_direction,
+    clip = clipmap_levels(eye=view.pose.position, light_direction=d,
                           zref=float(scene_depth.min()), footprint=footprint_scale(view.pose, height=g.shape[0]),
                           settings=settings)
     cascades = clipmap_cascades(clip, scene_depth=(float(scene_depth.min()), float(scene_depth.max())),
@@ -508,7 +510,7 @@ def _rasterized_pages(dscene: DeviceScene, cascades: CascadeSet, texel: np.ndarr
 
 def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
                   visible_depth: tuple[float, float] | None = None, held_extents=None, lookup: bool = True,
-                  scroll_from: ShadowMaps | None = None) -> Frame:
+                  scroll_from: ShadowMaps | None = None, light_direction=None) -> Frame:
     """One shadow method on a shared view: cascades → depth maps → lookup at every pixel.
 
     With ``bounds = "sdsm"`` the splits divide ``visible_depth`` when given (the held range of an
@@ -519,6 +521,9 @@ def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
     the boxes still cover are copied instead of rasterized (:mod:`csmlab.scrolling`; the same maps).
     With ``shadow_map = "virtual_clipmap"`` the maps are a clipmap's pages (:func:`virtual_shadow_maps`),
     ``scroll_from`` its page cache, and the split, fit and stabilization fields are not read.
+    ``light_direction`` ``(3,)``: the light the shadow maps are built with when a sun policy holds or
+    quantizes it (:func:`csmlab.shadow_policies.shadow_light_direction`); None: the view's, which the
+    shading and the reference use.
 
     Returns
     -------
@@ -529,11 +534,12 @@ def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
     settings = settings.validated()
     start = time.perf_counter()
     if settings.shadow_map == "virtual_clipmap":
-        maps = virtual_shadow_maps(dscene, view, settings, previous=scroll_from)
+        maps = virtual_shadow_maps(dscene, view, settings, previous=scroll_from, light_direction=light_direction)
         timings = {"raster": time.perf_counter() - start}
     else:
         maps, timings = _cascaded_shadow_maps(dscene, view, settings, visible_depth=visible_depth,
-                                              held_extents=held_extents, scroll_from=scroll_from)
+                                              held_extents=held_extents, scroll_from=scroll_from,
+                                              light_direction=light_direction)
     if not lookup:
         return Frame(view=view, settings=settings, maps=maps, shadow=None, timings=timings)
     start = time.perf_counter()
@@ -551,12 +557,13 @@ def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
 
 
 def _cascaded_shadow_maps(dscene: DeviceScene, view: View, settings: ShadowSettings, *, visible_depth, held_extents,
-                          scroll_from: ShadowMaps | None) -> tuple[ShadowMaps, dict]:
+                          scroll_from: ShadowMaps | None, light_direction=None) -> tuple[ShadowMaps, dict]:
     """:func:`render_shadow`'s cascades and depth maps, and the seconds of each (``cascades``, ``raster``)."""
     start = time.perf_counter()
     if BOUNDS_METHODS[settings.bounds].visible and visible_depth is None:
         visible_depth = visible_depth_range(view.gbuffer.view_depth)
-    cascades = build_cascades(pose=view.pose, light_direction=view.light_direction,
+    cascades = build_cascades(pose=view.pose,
+                              light_direction=view.light_direction if light_direction is None else light_direction,
                               scene_corners=dscene.corners, settings=settings, visible_depth=visible_depth,
                               held_extents=held_extents)
     timings = {"cascades": time.perf_counter() - start}

@@ -14,6 +14,7 @@ from dataclasses import dataclass, fields, replace
 from csmlab.culling import CULL_METHODS
 from csmlab.lookup_choices import CASTANO_SIZES, FILTER_METHODS, NORMAL_OFFSET_SCALES, ROTATIONS
 from csmlab.registry import check_name, parameters
+from csmlab.shadow_policies import SUN_POLICIES, ZOOM_POLICIES
 
 __all__ = ["APPLIES", "CLIPMAP_FILTERS", "SHADOW_MAP_METHODS", "Applies", "ShadowSettings"]
 
@@ -65,6 +66,16 @@ class ShadowSettings:
     """manual: far end of each cascade, metres, or fractions of shadow_distance when all ≤ 1; manual_range: fractions of the range from the near plane to shadow_distance (Godot, MJP)."""
     shadow_distance: float = 200.0
     """View depth in metres that the last cascade ends at (clamped to the camera's far plane)."""
+    zoom_policy: str = "camera"
+    """cascades: the field of view the cascades are fitted to, camera (the camera's own) | min_fov (max(fov, min_fov_deg) while the camera renders at its own: Godot's directional_shadow_min_fov) (csmlab.shadow_policies.ZOOM_POLICIES)."""
+    min_fov_deg: float = 60.0
+    """zoom_policy = min_fov: the smallest vertical field of view in degrees the cascades are fitted to."""
+    sun_policy: str = "every_frame"
+    """The light direction the shadow maps are built with, every_frame (the true sun) | every_n (the sun of every sun_update_frames-th frame, held in between) | quantized (the sun's elevation and azimuth rounded to sun_step_deg); shading and reference keep the true sun (csmlab.shadow_policies.SUN_POLICIES)."""
+    sun_update_frames: int = 4
+    """sun_policy = every_n: frames between updates of the shadow's light direction."""
+    sun_step_deg: float = 1.0
+    """sun_policy = quantized: the angular step in degrees the sun's elevation and azimuth are rounded to."""
     fit: str = "cascade"
     """Fit: cascade (slice [z_i, z_i+1]) | cascade_lerp (its ends lerped from near to far: n + (z_i/f)(f − n), three.js) | scene (slice [near, z_i+1])."""
     stabilization: str = "exact"
@@ -252,6 +263,14 @@ class ShadowSettings:
              "fractions of shadow_distance ending at 1.0 (the last cascade ends at the shadow distance)",
              list(self.splits))
         need(self.shadow_distance > 0, "shadow_distance", "a positive distance in metres", self.shadow_distance)
+        need(self.zoom_policy in ZOOM_POLICIES, "zoom_policy", f"one of {list(ZOOM_POLICIES)}", self.zoom_policy)
+        need(math.isfinite(self.min_fov_deg) and 0.0 < self.min_fov_deg < 180.0, "min_fov_deg",
+             "a field of view in (0, 180) degrees", self.min_fov_deg)
+        need(self.sun_policy in SUN_POLICIES, "sun_policy", f"one of {list(SUN_POLICIES)}", self.sun_policy)
+        need(isinstance(self.sun_update_frames, int) and self.sun_update_frames >= 1, "sun_update_frames",
+             "a positive whole number of frames", self.sun_update_frames)
+        need(math.isfinite(self.sun_step_deg) and 0.0 < self.sun_step_deg <= 90.0, "sun_step_deg",
+             "an angle in (0, 90] degrees", self.sun_step_deg)
         need(isinstance(self.levels, int) and self.levels >= 1, "levels", "a positive integer", self.levels)
         need(self.quantized_base in ("sphere", "frustum"), "quantized_base", "sphere or frustum", self.quantized_base)
         need(isinstance(self.filter_size, int) and 1 <= self.filter_size <= 63 and self.filter_size % 2 == 1,
@@ -444,6 +463,14 @@ APPLIES: dict[str, Applies] = {
                                  'stabilization = "none" with warp = "none" and focus = "slice" (a stabilized box '
                                  'already has a fixed extent; a warped map is focused every frame; the held extent '
                                  'is the slice\'s)'),
+    "zoom_policy": Applies(lambda *, shadow_map: shadow_map == "cascades",
+                           'shadow_map = "cascades" (a virtual clipmap\'s levels do not follow the slices)'),
+    "min_fov_deg": Applies(lambda *, shadow_map, zoom_policy: shadow_map == "cascades" and zoom_policy == "min_fov",
+                           'zoom_policy = "min_fov" with shadow_map = "cascades" (the field of view it floors)'),
+    "sun_update_frames": Applies(lambda *, sun_policy: sun_policy == "every_n",
+                                 'sun_policy = "every_n" (the frames between updates)'),
+    "sun_step_deg": Applies(lambda *, sun_policy: sun_policy == "quantized",
+                            'sun_policy = "quantized" (the step the sun\'s angles are rounded to)'),
     "focus": Applies(lambda *, stabilization: stabilization == "none",
                      'stabilization = "none" (what its tight box covers)'),
     "lispsm_near_hint": Applies(lambda *, warp, stabilization: warp == "lispsm" and stabilization == "none",

@@ -29,6 +29,10 @@ CASES = {
     "quantized_base": ('"frustum"', {"stabilization": '"quantized"'}),
     "extent": ('"diagonal"', {}),
     "snap": ('"centre"', {}),
+    "zoom_policy": ('"min_fov"', {}),
+    "min_fov_deg": ("70.0", {"zoom_policy": '"min_fov"'}),
+    "sun_update_frames": ("8", {"sun_policy": '"every_n"'}),
+    "sun_step_deg": ("2.0", {"sun_policy": '"quantized"'}),
     "extent_hysteresis": ("0.2", {"stabilization": '"none"'}),
     "focus": ('"scene"', {"stabilization": '"none"'}),
     "lispsm_near_hint": ("2.0", {"stabilization": '"none"', "warp": '"lispsm"'}),
@@ -78,7 +82,8 @@ CASES = {
 # Where each does not apply: the defaults, but for the fields that the defaults make apply.
 NOT_THERE = {"lambda": {"split": '"log"'}, "extent": {"stabilization": '"none"'}, "snap": {"stabilization": '"none"'},
              "filter_size": {"filter": '"pcf_bilinear"'},
-             "vertex_snap": {"engine_precision": '"float32"'}}
+             "vertex_snap": {"engine_precision": '"float32"'},
+             "zoom_policy": {"shadow_map": '"virtual_clipmap"'}}
 
 
 def load(tmp_path, text: str):

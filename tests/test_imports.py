@@ -24,7 +24,8 @@ PACKAGE = Path(__file__).resolve().parent.parent / "csmlab"
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("foundations", ("csmlab", "csmlab.errors", "csmlab.files", "csmlab.registry", "csmlab.geometry",
                      "csmlab.metric_registry")),
-    ("settings", ("csmlab.lookup_choices", "csmlab.culling", "csmlab.fades", "csmlab.settings")),
+    ("settings", ("csmlab.lookup_choices", "csmlab.culling", "csmlab.fades", "csmlab.shadow_policies",
+                  "csmlab.settings")),
     ("kernels", ("csmlab.kernels",)),
     ("world", ("csmlab.camera", "csmlab.light", "csmlab.scene", "csmlab.paths", "csmlab.cascades", "csmlab.texels",
                "csmlab.quads", "csmlab.storage", "csmlab.scrolling", "csmlab.clipmaps", "csmlab.frame")),

@@ -6,7 +6,7 @@ is all the Warp kernels need to know of where each cascade lies.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -21,8 +21,9 @@ from csmlab.cascades.warp import Warp, cascade_warp
 from csmlab.geometry import LIGHT_BASIS_METHODS, frustum_slice_corners, slice_bounding_sphere
 from csmlab.registry import check_name, dispatch, parameters
 from csmlab.settings import ShadowSettings
+from csmlab.shadow_policies import shadow_fov_deg
 
-__all__ = ["Cascade", "CascadeSet", "build_cascades", "radius_rounded_up", "tight_extents"]
+__all__ = ["Cascade", "CascadeSet", "build_cascades", "fitted_pose", "radius_rounded_up", "tight_extents"]
 
 
 @dataclass(frozen=True)
@@ -162,12 +163,24 @@ def _slices(pose: CameraPose, settings: ShadowSettings, visible_depth) -> tuple:
                                               transition=settings.transition)
 
 
+def fitted_pose(pose: CameraPose, settings: ShadowSettings) -> CameraPose:
+    """The camera the cascades are fitted to: ``pose`` with the field of view of ``settings.zoom_policy``.
+
+    The camera renders at its own field of view; with ``zoom_policy = "min_fov"`` its slices, boxes
+    and splits are those of a camera at ``max(fov, min_fov_deg)`` (same position, orientation,
+    aspect and clip distances: :mod:`csmlab.shadow_policies`).
+    """
+    fov = shadow_fov_deg(pose.fov_y_deg, policy=settings.zoom_policy, min_fov_deg=settings.min_fov_deg)
+    return pose if fov == pose.fov_y_deg else replace(pose, fov_y_deg=fov)
+
+
 def tight_extents(*, pose: CameraPose, light_direction, settings: ShadowSettings,
                   visible_depth: tuple[float, float] | None = None) -> np.ndarray:
     """Light-space x/y extent ``(C, 2)`` in metres of each cascade's slice: the size of a tight (``none``) box.
 
     What :func:`csmlab.cascades.stabilize.held_extents` holds over a path for extent hysteresis.
     """
+    pose = fitted_pose(pose, settings)
     basis = dispatch(LIGHT_BASIS_METHODS, settings.light_basis, field="light_basis", direction=light_direction)
     _, _, _, intervals = _slices(pose, settings, visible_depth)
     out = []
@@ -184,7 +197,8 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
     Parameters
     ----------
     pose : CameraPose
-        The camera.
+        The camera; the cascades are fitted to :func:`fitted_pose` (its field of view under
+        ``settings.zoom_policy``).
     light_direction : array_like, shape (3,)
         From the light toward the scene; need not be unit length, must not be zero.
     scene_corners : array_like, shape (K, 3)
@@ -203,6 +217,7 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
     CascadeSet
     """
     settings.validated()
+    pose = fitted_pose(pose, settings)
     basis = dispatch(LIGHT_BASIS_METHODS, settings.light_basis, field="light_basis", direction=light_direction)
     scene_light = np.asarray(scene_corners, dtype=np.float64).reshape(-1, 3) @ basis.T
     near, far, splits, intervals = _slices(pose, settings, visible_depth)

@@ -12,14 +12,17 @@ each also split into *same cascade* (both frames select the same cascade and nei
 swimming from re-rasterization) and *cascade changed* (the selections differ, or the point lies
 in a blend band in either frame, where the blend weight follows the camera).
 
-When the light moved between t−1 and t (``view.light_direction`` differs), the reference's own
-change is subtracted: ``ΔS − ΔR`` with ``ΔR = R_t(X) − R_{t−1}(X)``, and a flip is a change of
+When the shadow's light moved between t−1 and t (the direction its maps were built with,
+``maps.cascades.direction``, differs: the view's light every frame, or a sun policy's, held between
+updates or quantized, :mod:`csmlab.shadow_policies`), the reference's own change is subtracted: ``ΔS − ΔR`` with ``ΔR = R_t(X) − R_{t−1}(X)``, and a flip is a change of
 state that differs from the reference's change of state. R_{t−1}(X) is cast afresh: a shadow ray
 from frame t's point X toward frame t−1's light (``View.previous_reference``, from
 :func:`csmlab.render.render_view` given ``previous_light_direction``). When the camera did not move
 either, frame t−1's reference image is the same cast (the same pixel sees the same point) and is
 used as it is. No value is reprojected from frame t−1's image, so the subtraction is exact: where
-the shadow maps agree with the reference in both frames, the change is exactly 0.
+the shadow maps agree with the reference in both frames, the change is exactly 0. A shadow held
+still while the true sun moves (a sun policy between updates) changes by nothing, and its flicker is
+exactly 0 there; at an update its pop is what it changed beyond the reference's one-frame change.
 
 Exact stabilization must give exactly 0.0 same-cascade flicker under a static light.
 """
@@ -58,7 +61,7 @@ class TemporalMaps:
     same_cascade : ndarray, shape (H, W), bool
         Counted pixels whose cascade is the same in both frames, outside any blend band.
     light_moved : bool
-        The light direction differs between the two frames.
+        The shadow's light direction (its maps') differs between the two frames.
     """
 
     previous_lit: np.ndarray
@@ -126,7 +129,7 @@ def temporal_maps(frame: Frame, previous: Frame, *, device: str = "cpu") -> Temp
     change = lit.astype(np.float64) - previous_lit.astype(np.float64)
     state_change = (lit > 0.5).astype(np.int8) - (previous_lit > 0.5).astype(np.int8)
     flipped = state_change != 0
-    light_moved = not np.array_equal(frame.view.light_direction, previous.view.light_direction)
+    light_moved = not np.array_equal(frame.maps.cascades.direction, previous.maps.cascades.direction)
     if light_moved:
         reference = frame.view.reference
         previous_reference = previous_reference_at(frame, previous)

@@ -1,6 +1,6 @@
 """The report's summary tables: headline metrics per method × sweep point, the best of each column marked.
 
-Values are means over frames, NaN cells (frame 0's temporal metrics) left out, read from
+Values are means over frames (a peak, ``flicker_peak``, the largest frame's), NaN cells (frame 0's temporal metrics) left out, read from
 ``metrics.csv``; time per frame comes from ``timings.csv``. Labels, units, display factors and
 which way is better come from :data:`csmlab.metric_registry.METRICS` (and ``DERIVED``): lowest flicker, highest
 utilization, median ρ closest to the 1:1 ideal (smallest ``|ln ρ|``).
@@ -13,7 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from csmlab.metric_registry import HEADLINE as HEADLINE_METRICS
-from csmlab.metric_registry import DERIVED, METRICS, Metric, best_mask, finite_mean, format_number, metric_of, metric_values
+from csmlab.metric_registry import (DERIVED, METRICS, Metric, best_mask, finite_mean, format_number, metric_of,
+                                    metric_values, run_value)
 from csmlab.report.tables import Columns
 from csmlab.results import KEY_COLUMNS
 
@@ -55,10 +56,11 @@ HEADLINE = (
     # The bias's share of that error, beside it rather than among the headline metrics' column order.
     Headline.of(METRICS["acne"]),
     Headline.of(METRICS["peter_panning"]),
+    Headline.of(DERIVED["flicker_peak"]),
     Headline("time_ms", "time", "ms / frame", "lower"),
 )
 """The summary table's columns, in order: the registry's headline metrics, then the error against the
-reference (derived) with its acne and peter-panning, then the time per frame."""
+reference (derived) with its acne and peter-panning, the largest frame flicker (derived), then the time per frame."""
 
 
 @dataclass(frozen=True)
@@ -121,7 +123,7 @@ def _headline_mean(key: str, rows: Columns, timings: Columns | None, method: str
     if key == "time_ms":
         return _time_per_frame_ms(timings, method, point)
     values = metric_values(key, rows)
-    return np.nan if values is None else finite_mean(values)
+    return np.nan if values is None else run_value(key, values)
 
 
 def _time_per_frame_ms(timings: Columns | None, method: str, point: str) -> float:
