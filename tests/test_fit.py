@@ -122,3 +122,14 @@ def test_centre_nearest_snap_rounds_the_centre_to_the_nearest_texel():
         np.testing.assert_array_equal(origin + resolution // 2, np.floor(np.array([c, -c]) / texel + 0.5))
         lo, hi = origin * texel, (origin + resolution) * texel
         assert np.all(lo + margin * texel <= np.array([c, -c]) - radius) and np.all(hi - margin * texel >= np.array([c, -c]) + radius)
+
+
+def test_transition_bands_hand_back_a_copy_of_the_splits():
+    """The lookup opens the last interval (outside = "last") on what it gets: the cascades' splits must not change."""
+    from csmlab.cascades.fit import transition_bands
+
+    splits = np.array([0.1, 10.0, 40.0, 200.0])
+    for transition in ("backward", "far_bound", "forward"):
+        select, _ = transition_bands(splits, blend_band=0.2, transition=transition)
+        select[-1] = np.inf
+        np.testing.assert_array_equal(splits, [0.1, 10.0, 40.0, 200.0])

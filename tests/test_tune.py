@@ -209,7 +209,7 @@ def test_parse_size_refuses_what_is_not_a_size(text):
 
 
 @pytest.mark.parametrize("table, match", [
-    ('stabilization = ["exakt"]', r"tune.stabilization: expected one of \['exact', 'none', 'quantized'\], got 'exakt' \(did you mean 'exact'\?\)"),
+    ('stabilization = ["exakt"]', r"tune.stabilization: expected one of \['exact', 'none', 'quantized', 'tight_snapped'\], got 'exakt' \(did you mean 'exact'\?\)"),
     ("lambda = { min = 0.9, max = 0.3 }", "tune.lambda: expected min < max"),
     ('split = { min = 1, max = 2 }', "tune.split: expected a list of choices"),
     ('memory_budget = "lots"', "tune.memory_budget: expected a positive size"),

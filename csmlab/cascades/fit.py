@@ -125,7 +125,8 @@ def transition_bands(splits, *, blend_band: float, transition: str = "backward")
     select, start = TRANSITION_METHODS[transition].bands(z, float(blend_band))
     start = np.asarray(start, dtype=np.float64).copy()
     start[-1] = np.inf
-    return np.asarray(select, dtype=np.float64), start
+    # A copy: a band scheme may hand back the splits themselves, which the caller may change.
+    return np.array(select, dtype=np.float64), start
 
 
 def slice_intervals(splits: np.ndarray, *, method: str, blend_band: float = 0.0,
