@@ -83,7 +83,7 @@ def test_every_file_the_report_references_exists_and_none_is_remote(tiny_run):
     assert any(r.startswith("figures/view3d__") for r in references)
     assert {"explore/plotly.min.js", "explore/data.js", "explore/kept.js", "explore/explore.js"} <= set(references)
     assert sorted(p.name for p in (tiny_run.parent / "explore" / "frames").iterdir()) == [
-        "f00000.js", "f00001.js", "f00002.js"]
+        f"f{f:05d}{tail}" for f in range(3) for tail in (".js", "__exact__base.webp", "__none__base.webp")]
 
 
 def _results_copy(source: Path, copy: Path) -> Path:
@@ -348,7 +348,8 @@ def test_a_small_budget_thins_the_viewer_frames_and_the_page_says_so(tiny_run, t
     copy = tmp_path / "thin"
     shutil.copytree(tiny_run.parent, copy)
     page = write_report(copy, budget_bytes=1)
-    assert sorted(p.name for p in (copy / "explore" / "frames").iterdir()) == ["f00000.js"]
+    assert sorted(p.name for p in (copy / "explore" / "frames").iterdir()) == [
+        "f00000.js", "f00000__exact__base.webp", "f00000__none__base.webp"]
     assert (copy / "explore" / "kept.js").read_text() == "window.csmlabKept = [0];\n"
     text = page.read_text(encoding="utf-8")
     assert "holds every 3rd frame (1 of 3)" in text

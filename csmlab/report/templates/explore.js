@@ -1,6 +1,6 @@
 // The interactive part of the csmlab report (see csmlab/report/explore.py for the files it reads).
 // Runs from file:// with no server: the run's data comes in <script> files, value planes are
-// inflated with the browser's DecompressionStream, plots are Plotly's (bundled beside this file).
+// lossless WebP images decoded by the browser, plots are Plotly's (bundled beside this file).
 (function () {
   "use strict";
   const run = window.csmlabRun;
@@ -39,20 +39,31 @@
   function cascadeColour(c) { return rgb(colours.categories[c % colours.categories.length]); }
 
   // ---- frame files -------------------------------------------------------------------------
-  async function inflate(b64) {
-    const bytes = Uint8Array.from(atob(b64), (ch) => ch.charCodeAt(0));
-    const stream = new Blob([bytes]).stream().pipeThrough(new DecompressionStream("deflate"));
-    return new Uint8Array(await new Response(stream).arrayBuffer());
+  // A value plane is a lossless greyscale WebP data URI: decoded from its own bytes (a canvas stays
+  // readable, where an image from a file:// address would taint it), without colour conversion or
+  // premultiplication, its red channel is the plane's bytes.
+  const reader = document.createElement("canvas").getContext("2d", { willReadFrequently: true });
+
+  async function planeBytes(uri) {
+    const bytes = Uint8Array.from(atob(uri.slice(uri.indexOf(",") + 1)), (ch) => ch.charCodeAt(0));
+    const bitmap = await createImageBitmap(new Blob([bytes], { type: "image/webp" }),
+                                           { colorSpaceConversion: "none", premultiplyAlpha: "none" });
+    reader.canvas.width = bitmap.width;
+    reader.canvas.height = bitmap.height;
+    reader.drawImage(bitmap, 0, 0);
+    bitmap.close();
+    const rgba = reader.getImageData(0, 0, run.width, run.height).data;
+    const plane = new Uint8Array(run.width * run.height);
+    for (let k = 0; k < plane.length; k++) plane[k] = rgba[4 * k];
+    return plane;
   }
 
   async function decode(body) {
-    const n = run.width * run.height;
     const out = {};
     for (const stem of Object.keys(body)) {
       const v = body[stem];
-      const bytes = await inflate(v.planes);
       const planes = {};
-      run.planes.forEach((name, k) => { planes[name] = bytes.subarray(k * n, (k + 1) * n); });
+      for (let k = 0; k < run.planes.length; k++) planes[run.planes[k]] = await planeBytes(v.planes[k]);
       out[stem] = { img: v.img, planes, camera: v.camera, frustum: v.frustum, boxes: v.boxes };
     }
     return out;
