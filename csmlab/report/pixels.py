@@ -225,7 +225,8 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid) -> dict:
         ``reference`` uint8 (the ray-traced shadow: 1 lit, 0 shadowed, 255 no surface),
         ``ref_diff`` int8 (+1 false shadow, -1 false light), ``shaded`` (h, w, 3) uint8 sRGB
         (0 where undefined), ``reference_shaded`` the same of the view through the ray-traced
-        shadow (when ``pixels`` has it; the same for every method of a view), ``valid`` bool;
+        shadow (when ``pixels`` has it), 0 where the method's S is undefined (beyond its shadow
+        distance too), so that the two sequences differ by the shadow alone; ``valid`` bool;
         ``grid`` (the ``grid`` argument); ``stride`` int; ``camera_position`` (3,), ``light_direction`` (3,), ``frustum_corners``
         and ``box_corners`` (C, 8, 3), world metres;
         ``cells`` (K,) int64 flat indices of the ground cells that counted pixels fall in, with
@@ -272,7 +273,7 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid) -> dict:
         "reference": per_view.reference,
         "ref_diff": np.asarray(pixels["ref_diff"])[take].astype(np.int8),
         "shaded": srgb,
-        **({"reference_shaded": view.shared(("reference_srgb", k), lambda: _srgb_u8(pixels["reference_shaded"], take))}
+        **({"reference_shaded": _reference_srgb(view, pixels["reference_shaded"], k, defined=np.isfinite(lit))}
            if "reference_shaded" in pixels else {}),
         "valid": per_view.valid,
         "camera_position": np.asarray(view.pose.position, dtype=np.float64),
@@ -297,6 +298,14 @@ def _srgb_u8(linear, take) -> np.ndarray:
     defined = (finite[..., 0] & finite[..., 1] & finite[..., 2])[..., None]
     srgb = srgb_from_linear(np.where(defined, rgb, 0.0))  # 0 where undefined: sRGB(0) = 0
     return np.rint(srgb * 255.0).astype(np.uint8)
+
+
+def _reference_srgb(view: View, linear, stride: int, *, defined) -> np.ndarray:
+    """:func:`_srgb_u8` of the view's reference shading at every ``stride``-th pixel (encoded once per view), 0 where
+    not ``defined`` ``(h, w)``."""
+    take = (slice(None, None, stride), slice(None, None, stride))
+    srgb = view.shared(("reference_srgb", stride), lambda: _srgb_u8(linear, take))
+    return np.where(defined[..., None], srgb, np.uint8(0))
 
 
 _PER_FRAME = ("lit", "dS", "cascade", "rho", "reference", "ref_diff", "shaded", "valid", "camera_position",
