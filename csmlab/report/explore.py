@@ -9,9 +9,12 @@ report's pictures are drawn)::
     explore/plotly.min.js      Plotly's bundle, copied from the installed ``plotly`` package
     explore/explore.js         the page's script (``templates/explore.js``)
     explore/data.js            the run: variants, frames, per-frame curves, colour tables,
-                               world maps, ρ histograms, casters (``window.csmlabRun = …``)
-    explore/frames/f<frame>.js one per kept frame (``csmlabFrame(…)``): per variant its value planes
-                               as lossless WebP data URIs, the cascade geometry, and the name of
+                               world maps (over the cells the run saw), ρ histograms, casters
+                               (``window.csmlabRun = …``)
+    explore/frames/f<frame>.js one per kept frame (``csmlabFrame(…)``): its value planes as lossless
+                               WebP data URIs, each distinct plane once (the ray-traced reference
+                               is every variant's); per variant the indices of its planes, the
+                               cascade geometry, and the name of
     explore/frames/f<frame>__<method>__<point>.webp
                                its shaded view (lossy WebP, shown by an ``<img>`` element)
 
@@ -257,6 +260,7 @@ def _run_data(present, records, frames, metrics, casters) -> str:
     rho_lut = rho_image(decode_rho(codes)[None, :])[0]
     dS_lut = change_image(codes[None, :] / 254.0)[0]
     first = records[0]
+    seen_z, seen_x = _counted_extent([r["world_counted"] for r in records])
     variants = []
     for ((method, point), label), record in zip(present, records):
         rows = metrics.of(method, point)
@@ -267,10 +271,10 @@ def _run_data(present, records, frames, metrics, casters) -> str:
             if column is not None:
                 curves[metric.name] = _rounded([column[by_frame[f]] * metric.scale if f in by_frame else np.nan
                                                 for f in frames], 6)
-        counted = record["world_counted"].astype(np.float64)
+        counted = record["world_counted"][seen_z, seen_x].astype(np.float64)
         with np.errstate(invalid="ignore", divide="ignore"):
-            mean_dS = np.where(counted > 0, record["world_dS"] / counted, np.nan)
-            flip_rate = np.where(counted > 0, 100.0 * record["world_flips"] / counted, np.nan)
+            mean_dS = np.where(counted > 0, record["world_dS"][seen_z, seen_x] / counted, np.nan)
+            flip_rate = np.where(counted > 0, 100.0 * record["world_flips"][seen_z, seen_x] / counted, np.nan)
         index = {int(f): k for k, f in enumerate(record["frame"])}
         variants.append({
             "stem": capture_stem(method, point), "method": method, "point": point, "label": label,
@@ -281,7 +285,6 @@ def _run_data(present, records, frames, metrics, casters) -> str:
             "rho_hist": record["rho_hist"].astype(np.int64).tolist(),
         })
     times = {int(f): float(t) for f, t in zip(first["frame"], first["time_s"])}
-    nz, nx = first["world_counted"].shape
     cell = float(first["world_cell"])
     origin = first["world_origin"]
     run = {
@@ -296,14 +299,27 @@ def _run_data(present, records, frames, metrics, casters) -> str:
         "colours": {"rho": rho_lut.tolist(), "dS": dS_lut.tolist(), "categories": _u8_colours(CATEGORY_COLOURS),
                     "false_shadow": _u8_colours(FALSE_SHADOW), "false_light": _u8_colours(FALSE_LIGHT),
                     "no_surface": _u8_colours(NO_SURFACE)},
-        "world": {"x": _rounded(origin[0] + cell * (np.arange(nx) + 0.5), 2),
-                  "z": _rounded(origin[1] + cell * (np.arange(nz) + 0.5), 2), "cell": round(cell, 4)},
+        "world": {"x": _rounded(origin[0] + cell * (np.arange(seen_x.start, seen_x.stop) + 0.5), 2),
+                  "z": _rounded(origin[1] + cell * (np.arange(seen_z.start, seen_z.stop) + 0.5), 2), "cell": round(cell, 4)},
         "rho_centres": _rounded(np.exp2(0.5 * (first["rho_edges"][:-1] + first["rho_edges"][1:])), 5),
         "casters": _rounded(casters, 2),
         "box_edges": BOX_EDGES.tolist(), "frustum_edges": FRUSTUM_EDGES.tolist(),
         "variants": variants,
     }
     return json.dumps(run, separators=(",", ":"), allow_nan=False)
+
+
+def _counted_extent(counts: list[np.ndarray]) -> tuple[slice, slice]:
+    """The rows and columns ``(nz, nx)`` of the world grid that some pixel of some variant fell in.
+
+    The world maps are written over this rectangle only: a walk sees a few per cent of its scene's
+    grid, and the uncounted cells, written as ``null``, made most of ``data.js``.
+    """
+    hit = np.logical_or.reduce([np.asarray(c) > 0 for c in counts])
+    if not hit.any():
+        return slice(0, hit.shape[0]), slice(0, hit.shape[1])
+    rows, cols = np.flatnonzero(hit.any(axis=1)), np.flatnonzero(hit.any(axis=0))
+    return slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1)
 
 
 def _fps(times: list[float]) -> float:
@@ -313,11 +329,12 @@ def _fps(times: list[float]) -> float:
 
 
 def _frame_file(frame: int, present, records) -> dict[str, bytes]:
-    """The files of one frame: ``f<frame>.js`` (``csmlabFrame(frame, {stem: {img, planes, camera, frustum,
-    boxes}})``) and each variant's shaded view ``f<frame>__<stem>.webp``."""
+    """The files of one frame: ``f<frame>.js`` (``csmlabFrame(frame, {planes: [data URI, …], variants: {stem:
+    {img, planes (indices, in PLANES order), camera, frustum, boxes}}})``) and each variant's shaded view
+    ``f<frame>__<stem>.webp``."""
     from PIL import Image
 
-    files, body = {}, {}
+    files, variants, planes = {}, {}, {}
     for ((method, point), _), record in zip(present, records):
         stem = capture_stem(method, point)
         k = int(np.flatnonzero(record["frame"] == frame)[0])
@@ -328,13 +345,14 @@ def _frame_file(frame: int, present, records) -> dict[str, bytes]:
         Image.fromarray(np.ascontiguousarray(shaded, dtype=np.uint8)).save(buffer, **_WEBP)
         image = f"f{frame:05d}__{stem}.webp"
         files[image] = buffer.getvalue()
-        body[stem] = {
+        variants[stem] = {
             "img": f"explore/frames/{image}",
-            "planes": [plane_webp(record[name][k]) for name in PLANES],
+            "planes": [planes.setdefault(plane_webp(record[name][k]), len(planes)) for name in PLANES],
             "camera": _rounded(record["camera_position"][k], 3),
             "frustum": _rounded(record["frustum_corners"][k], 3),
             "boxes": _rounded(record["box_corners"][k], 3),
         }
+    body = {"planes": list(planes), "variants": variants}
     files[f"f{frame:05d}.js"] = f"csmlabFrame({frame},{json.dumps(body, separators=(',', ':'))});\n".encode("ascii")
     return files
 

@@ -59,11 +59,13 @@
   }
 
   async function decode(body) {
+    const distinct = [];
+    for (const uri of body.planes) distinct.push(await planeBytes(uri));
     const out = {};
-    for (const stem of Object.keys(body)) {
-      const v = body[stem];
+    for (const stem of Object.keys(body.variants)) {
+      const v = body.variants[stem];
       const planes = {};
-      for (let k = 0; k < run.planes.length; k++) planes[run.planes[k]] = await planeBytes(v.planes[k]);
+      run.planes.forEach((name, k) => { planes[name] = distinct[v.planes[k]]; });
       out[stem] = { img: v.img, planes, camera: v.camera, frustum: v.frustum, boxes: v.boxes };
     }
     return out;
