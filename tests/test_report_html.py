@@ -444,3 +444,20 @@ def test_the_summary_says_how_to_install_the_video_metric_until_a_run_is_scored(
     table = text.split('id="jod"', 1)[1].split("</table>", 1)[0]
     assert "JOD, shaded" in table and "9.43" in table and "8.10" in table
     assert table.index(">exact<") < table.index(">none<")
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.int8])
+def test_a_value_plane_is_stored_byte_for_byte(dtype):
+    import base64
+    import io
+
+    from PIL import Image
+
+    from csmlab.report.explore import plane_webp
+
+    rng = np.random.default_rng(7)
+    plane = rng.integers(np.iinfo(dtype).min, np.iinfo(dtype).max, size=(37, 53), endpoint=True).astype(dtype)
+    text = plane_webp(plane)
+    assert not set(text) & set("\"\\'\n")
+    decoded = np.asarray(Image.open(io.BytesIO(base64.b85decode(text))).convert("RGB"))
+    assert np.array_equal(decoded[..., 0], plane.view(np.uint8))

@@ -39,13 +39,31 @@
   function cascadeColour(c) { return rgb(colours.categories[c % colours.categories.length]); }
 
   // ---- frame files -------------------------------------------------------------------------
-  // A value plane is a lossless greyscale WebP data URI: decoded from its own bytes (a canvas stays
+  // A value plane is a lossless greyscale WebP in base85: decoded from its own bytes (a canvas stays
   // readable, where an image from a file:// address would taint it), without colour conversion or
   // premultiplication, its red channel is the plane's bytes.
   const reader = document.createElement("canvas").getContext("2d", { willReadFrequently: true });
 
-  async function planeBytes(uri) {
-    const bytes = Uint8Array.from(atob(uri.slice(uri.indexOf(",") + 1)), (ch) => ch.charCodeAt(0));
+  const B85 = "0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz!#$%&()*+-;<=>?@^_`{|}~";
+  const B85_VALUE = new Uint8Array(128);
+  for (let k = 0; k < B85.length; k++) B85_VALUE[B85.charCodeAt(k)] = k;
+
+  // Python's base64.b85decode: 5 characters per 4 bytes, big-endian; a last group of r characters,
+  // padded with the largest digit, gives its first r - 1 bytes.
+  function base85(text) {
+    const n = text.length;
+    const out = new Uint8Array(Math.floor(n / 5) * 4 + (n % 5 ? n % 5 - 1 : 0));
+    let o = 0;
+    for (let g = 0; g < n; g += 5) {
+      let v = 0;
+      for (let c = g; c < g + 5; c++) v = v * 85 + (c < n ? B85_VALUE[text.charCodeAt(c)] : 84);
+      for (let shift = 24; shift >= 0 && o < out.length; shift -= 8) out[o++] = Math.floor(v / 2 ** shift) % 256;
+    }
+    return out;
+  }
+
+  async function planeBytes(text) {
+    const bytes = base85(text);
     const bitmap = await createImageBitmap(new Blob([bytes], { type: "image/webp" }),
                                            { colorSpaceConversion: "none", premultiplyAlpha: "none" });
     reader.canvas.width = bitmap.width;
