@@ -29,9 +29,10 @@ the canvas readable, where one loaded from a ``file://`` address would not. The 
 only shown, so it is a file of its own, with no text encoding. Scripts are loaded with
 ``<script>`` elements, which browsers allow from ``file://`` where ``fetch`` is refused.
 
-Measured on ``engines.toml`` at 24 frames (13 variants, 320×180 records): a frame's files take
-411 KB where the single script of zlib and base64 took 562 KB, and ``data.js`` 0.35 MB where it
-took 5.9 MB.
+Measured on ``engines.toml`` (13 variants, 120 frames, 320×180 records): a frame's files take
+416 KB (at 24 frames, 411 KB where the single script of zlib and base64 took 562 KB), ``data.js``
+0.43 MB (5.9 MB at 24 frames before the world maps kept only the cells the run saw), and the
+viewer keeps every 2nd frame (60 of 120) in a 59.5 MiB report.
 
 The folder is kept under a size budget of the report, the files ``index.html`` loads (:func:`report_size`:
 the run's records — ``*.npz``, the CSV, JSON and TOML files at the top — are the report's input, not
