@@ -161,6 +161,27 @@ def report(results_dir: Path = typer.Argument(..., help="A results directory of 
     _out().print(f"report: {write_report(results_dir)}")
 
 
+@app.command()
+def jod(results_dir: Path = typer.Argument(..., help="A results directory of csmlab run."),
+        display: str = typer.Option("standard_fhd", "--display", help="ColorVideoVDP's display model.")) -> None:
+    """Score each method's sequence with ColorVideoVDP (JOD) against the ray-traced one; redraw the report."""
+    from csmlab.report import write_report
+    from csmlab.report.video_quality import cvvdp_missing, write_jod
+
+    missing = cvvdp_missing()
+    if missing:
+        raise _bad_input(InputError(missing, field="jod"))
+    try:
+        scores = write_jod(results_dir, display=display)
+    except ValueError as exc:
+        raise _bad_input(exc) from None
+    console = _out()
+    for name, by_stem in scores["sequences"].items():
+        for stem, value in by_stem.items():
+            console.print(f"{name}  {escape(stem)}  JOD {value:.3f}")
+    console.print(f"report: {write_report(results_dir)}")
+
+
 def _regress_table(result) -> Table:
     table = Table(title=escape(f"regress against {result.baseline} (per-cascade metrics shown when they fail)"),
                   title_justify="left")

@@ -83,7 +83,7 @@ def test_every_file_the_report_references_exists_and_none_is_remote(tiny_run):
     assert any(r.startswith("figures/view3d__") for r in references)
     assert {"explore/plotly.min.js", "explore/data.js", "explore/kept.js", "explore/explore.js"} <= set(references)
     assert sorted(p.name for p in (tiny_run.parent / "explore" / "frames").iterdir()) == [
-        "f00000.js", "f00001.js", "f00002.js"]
+        f"f{f:05d}{tail}" for f in range(3) for tail in (".js", "__exact__base.webp", "__none__base.webp")]
 
 
 def _results_copy(source: Path, copy: Path) -> Path:
@@ -348,7 +348,8 @@ def test_a_small_budget_thins_the_viewer_frames_and_the_page_says_so(tiny_run, t
     copy = tmp_path / "thin"
     shutil.copytree(tiny_run.parent, copy)
     page = write_report(copy, budget_bytes=1)
-    assert sorted(p.name for p in (copy / "explore" / "frames").iterdir()) == ["f00000.js"]
+    assert sorted(p.name for p in (copy / "explore" / "frames").iterdir()) == [
+        "f00000.js", "f00000__exact__base.webp", "f00000__none__base.webp"]
     assert (copy / "explore" / "kept.js").read_text() == "window.csmlabKept = [0];\n"
     text = page.read_text(encoding="utf-8")
     assert "holds every 3rd frame (1 of 3)" in text
@@ -394,3 +395,69 @@ def test_sweep_report_plots_metrics_against_the_parameter_and_the_pareto_front(t
     assert all((page.parent / r).is_file() for r in references)
     text = page.read_text(encoding="utf-8")
     assert "Regression" in text and "verdict-regression" in text and "verdict-fail" in text
+
+
+def test_the_runs_records_do_not_count_against_the_report_budget(tiny_run, tmp_path):
+    from csmlab.report.explore import report_size
+
+    copy = tmp_path / "records"
+    shutil.copytree(tiny_run.parent, copy)
+    budget = report_size(copy) + 2 ** 20
+    # Records twice the budget: the report alone fits, so every frame keeps its files.
+    (copy / "pixels" / "padding.npz").write_bytes(bytes(2 * budget))
+    write_report(copy, budget_bytes=budget)
+    assert (copy / "explore" / "kept.js").read_text() == "window.csmlabKept = [0, 1, 2];\n"
+    assert report_size(copy) <= budget
+
+
+def test_the_reference_sequence_equals_the_shaded_one_where_the_method_agrees_with_the_ray_traced_shadow(tiny_run):
+    for method in ("exact", "none"):
+        record = np.load(tiny_run.parent / "pixels" / f"{method}__base.npz")
+        lit, reference = record["lit"].astype(int), record["reference"]
+        shaded, reference_shaded = record["shaded"].astype(int), record["reference_shaded"].astype(int)
+        defined = (reference != report_pixels.NO_VALUE) & (lit != report_pixels.NO_VALUE)
+        agrees = defined & (lit == 254 * (reference == 1))
+        assert agrees.sum() > 1000
+        assert np.array_equal(shaded[agrees], reference_shaded[agrees])
+        assert (reference_shaded[defined].sum(axis=-1) > 0).all()
+        # Less light than the reference is darker, more is brighter: by the direct light, where it reaches the surface.
+        darker = defined & (lit < 254 * (reference == 1))
+        brighter = defined & (lit > 254 * (reference == 1))
+        assert (reference_shaded[darker] >= shaded[darker]).all() and (shaded[brighter] >= reference_shaded[brighter]).all()
+        # Where the method has no shadow (beyond its shadow distance), the reference is blanked as the method is.
+        assert (reference_shaded[lit == report_pixels.NO_VALUE] == 0).all()
+
+
+def test_the_summary_says_how_to_install_the_video_metric_until_a_run_is_scored(tiny_run, tmp_path):
+    from csmlab.report.video_quality import INSTALL
+
+    assert 'id="jod-missing"' in tiny_run.read_text(encoding="utf-8")
+    assert INSTALL.split()[0] in tiny_run.read_text(encoding="utf-8")
+    copy = tmp_path / "scored"
+    shutil.copytree(tiny_run.parent, copy)
+    summary = json.loads((copy / "summary.json").read_text())
+    summary["jod"] = {"display": "standard_fhd", "metric": "ColorVideoVDP 0.5.7",
+                      "sequences": {"shaded": {"exact__base": 9.4321, "none__base": 8.1}}}
+    (copy / "summary.json").write_text(json.dumps(summary))
+    text = write_report(copy).read_text(encoding="utf-8")
+    assert 'id="jod-missing"' not in text
+    table = text.split('id="jod"', 1)[1].split("</table>", 1)[0]
+    assert "JOD, shaded" in table and "9.43" in table and "8.10" in table
+    assert table.index(">exact<") < table.index(">none<")
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.int8])
+def test_a_value_plane_is_stored_byte_for_byte(dtype):
+    import base64
+    import io
+
+    from PIL import Image
+
+    from csmlab.report.explore import plane_webp
+
+    rng = np.random.default_rng(7)
+    plane = rng.integers(np.iinfo(dtype).min, np.iinfo(dtype).max, size=(37, 53), endpoint=True).astype(dtype)
+    text = plane_webp(plane)
+    assert not set(text) & set("\"\\'\n")
+    decoded = np.asarray(Image.open(io.BytesIO(base64.b85decode(text))).convert("RGB"))
+    assert np.array_equal(decoded[..., 0], plane.view(np.uint8))

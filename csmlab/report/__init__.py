@@ -38,6 +38,7 @@ from csmlab.report.picture_pool import PicturePool
 from csmlab.report.summary_table import full_table, headline_table
 from csmlab.report.sweep import sweep_means, sweep_points
 from csmlab.report.tables import ResultFiles, read_results
+from csmlab.report.video_quality import INSTALL
 from csmlab.report.view3d import view3d_figure
 
 __all__ = ["write_report"]
@@ -104,6 +105,7 @@ def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES, worker: bool | No
         "full_rows": full_rows,
         "has_cascades": results.cascades is not None,
         "regress": _regress(results.regress),
+        "jod": _jod(results.summary, groups),
         "curves": "figures/curves.png",
         "cost": cost,
         "anim_width": ANIM_WIDTH,
@@ -139,6 +141,19 @@ def _explore(explore: dict | None) -> dict | None:
         return None
     return {**explore, "cell": f"{explore['cell']:.2g}", "size_mib": f"{explore['size'] / 2 ** 20:.1f}",
             "budget_mib": f"{explore['budget'] / 2 ** 20:.0f}"}
+
+
+def _jod(summary: dict, groups: list[tuple[str, str]]) -> dict:
+    """The page's ColorVideoVDP table from ``summary["jod"]`` (:mod:`csmlab.report.video_quality`), in results
+    order; with no scores, how to install the metric and score the run."""
+    jod = summary.get("jod") or {}
+    sequences = jod.get("sequences", {})
+    rows = [{"method": m, "point": p,
+             "cells": [f"{sequences[n][capture_stem(m, p)]:.2f}" if capture_stem(m, p) in sequences[n] else "—"
+                       for n in sequences]}
+            for m, p in groups if any(capture_stem(m, p) in by_stem for by_stem in sequences.values())]
+    return {"rows": rows, "sequences": list(sequences), "metric": jod.get("metric", ""),
+            "display": jod.get("display", ""), "install": INSTALL}
 
 
 def _header(results: ResultFiles) -> dict:

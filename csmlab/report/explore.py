@@ -9,19 +9,36 @@ report's pictures are drawn)::
     explore/plotly.min.js      Plotly's bundle, copied from the installed ``plotly`` package
     explore/explore.js         the page's script (``templates/explore.js``)
     explore/data.js            the run: variants, frames, per-frame curves, colour tables,
-                               world maps, ρ histograms, casters (``window.csmlabRun = …``)
-    explore/frames/f<frame>.js one per kept frame (``csmlabFrame(…)``): per variant the shaded
-                               view as a WebP data URI, the value planes, the cascade geometry
+                               world maps (over the cells the run saw), ρ histograms, casters
+                               (``window.csmlabRun = …``)
+    explore/frames/f<frame>.js one per kept frame (``csmlabFrame(…)``): its value planes as lossless
+                               WebP images in base85 text, each distinct plane once (the ray-traced
+                               reference is every variant's); per variant the indices of its
+                               planes, the cascade geometry, and the name of
+    explore/frames/f<frame>__<method>__<point>.webp
+                               its shaded view (lossy WebP, shown by an ``<img>`` element)
 
 A frame's value planes are the record's uint8 arrays ``lit, dS, cascade, rho, reference,
-ref_diff`` (each ``h × w``, row-major, int8 ones as their two's-complement bytes) concatenated,
-zlib-compressed and base64-encoded; the page inflates them with the browser's
-``DecompressionStream``. Scripts are loaded with ``<script>`` elements, which browsers allow
-from ``file://`` where ``fetch`` is refused.
+ref_diff`` (each ``h × w``, row-major, int8 ones as their two's-complement bytes), each a
+greyscale lossless WebP image: the exact bytes, at the precision the read-out shows (S and |ΔS| to
+1/254, ρ to 1/16 octave, :func:`csmlab.report.pixels.frame_pixels`), about a quarter smaller than
+the planes zlib-compressed together. The page decodes each from its bytes (base85: a quarter
+longer, where base64 is a third) with ``createImageBitmap`` (no colour conversion, no
+premultiplication) and reads it back from a canvas: an image made from the page's own bytes leaves
+the canvas readable, where one loaded from a ``file://`` address would not. The shaded view is
+only shown, so it is a file of its own, with no text encoding. Scripts are loaded with
+``<script>`` elements, which browsers allow from ``file://`` where ``fetch`` is refused.
 
-The folder is kept under a size budget: when the frame files would take the results directory
-past ``budget_bytes``, only every k-th frame gets one (the smallest k that fits) and the page says
-so; the per-frame curves keep every frame.
+Measured on ``engines.toml`` (13 variants, 120 frames, 320×180 records): a frame's files take
+416 KB (at 24 frames, 411 KB where the single script of zlib and base64 took 562 KB), ``data.js``
+0.43 MB (5.9 MB at 24 frames before the world maps kept only the cells the run saw), and the
+viewer keeps every 2nd frame (60 of 120) in a 59.5 MiB report.
+
+The folder is kept under a size budget of the report, the files ``index.html`` loads (:func:`report_size`:
+the run's records — ``*.npz``, the CSV, JSON and TOML files at the top — are the report's input, not
+part of it): when the frame files would take the report past ``budget_bytes``, only every k-th
+frame gets them (the smallest k that fits) and the page says so; the per-frame curves keep every
+frame.
 """
 
 from __future__ import annotations
@@ -32,7 +49,6 @@ import json
 import math
 import shutil
 import zipfile
-import zlib
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -47,15 +63,19 @@ from csmlab.report.images import (CATEGORY_COLOURS, FALSE_LIGHT, FALSE_SHADOW, N
 from csmlab.report.pixels import NO_VALUE, RHO_STEPS, decode_rho
 from csmlab.report.view3d import BOX_EDGES, FRUSTUM_EDGES
 
-__all__ = ["BUDGET_BYTES", "CURVES", "PLANES", "ExploreFiles", "explore_files", "write_explore"]
+__all__ = ["BUDGET_BYTES", "CURVES", "PLANES", "ExploreFiles", "explore_files", "plane_webp", "report_size",
+           "write_explore"]
 
 BUDGET_BYTES = 60 * 2 ** 20
-"""Default size budget of a results directory with its report: 60 MiB."""
+"""Default size budget of a report (:func:`report_size`): 60 MiB."""
 PLANES = ("lit", "dS", "cascade", "rho", "reference", "ref_diff")
 """The value planes of a frame file, in order."""
 CURVES = tuple(metric_named(name) for name in ("flicker", "flip_rate", "rho_median", "ref_error"))
 """Per-frame curves of the page, in order: registered metrics (``ref_error`` derived), each with its ``curve`` label."""
 _WEBP = {"format": "WEBP", "quality": 86, "method": 2}
+_PLANE_WEBP = {"format": "WEBP", "lossless": True, "quality": 50, "method": 4}
+"""Lossless WebP of a value plane: method 4 of 6 keeps its size within 1 % of method 6 at a third of the time."""
+_RECORDS = (".npz", ".csv", ".json", ".toml")
 _INDEX_RESERVE = 256 * 2 ** 10
 _ENCODING_THREADS = 2
 _REQUIRED = ("frame", "time_s", "stride", *PLANES, "shaded", "valid", "camera_position", "frustum_corners",
@@ -73,8 +93,9 @@ class ExploreFiles:
         Frames every variant recorded, increasing.
     run : str
         The JSON of ``data.js`` (``window.csmlabRun``).
-    payloads : list of bytes
-        The frame file of each of ``frames`` (``csmlabFrame(…)``).
+    payloads : list of dict
+        The files of each of ``frames``: name in ``explore/frames/`` → bytes (its ``csmlabFrame(…)``
+        script and its variants' shaded views).
     stride : int
         Frame pixels per record pixel along a row or column.
     cell : float
@@ -83,7 +104,7 @@ class ExploreFiles:
 
     frames: list[int]
     run: str
-    payloads: list[bytes]
+    payloads: list[dict[str, bytes]]
     stride: int
     cell: float
 
@@ -119,7 +140,7 @@ def explore_files(out_dir, *, groups: list[tuple[str, str]], labels: list[str], 
     records = [_read_record(out / "pixels" / f"{capture_stem(*g)}.npz") for g, _ in present]
     frames = sorted(set.intersection(*(set(r["frame"].tolist()) for r in records)))
     run = _run_data(present, records, frames, metrics, _casters(out / "casters.npz"))
-    # WebP and zlib let go of the GIL while they encode: two threads keep a second core busy with them.
+    # WebP lets go of the GIL while it encodes: two threads keep a second core busy with it.
     with ThreadPoolExecutor(max_workers=_ENCODING_THREADS) as threads:
         payloads = list(threads.map(lambda f: _frame_file(f, present, records), frames))
     return ExploreFiles(frames=frames, run=run, payloads=payloads, stride=int(records[0]["stride"]),
@@ -136,13 +157,13 @@ def write_explore(out_dir, files: ExploreFiles | None, *, budget_bytes: int = BU
     files : ExploreFiles or None
         :func:`explore_files` of the directory; None removes the folder.
     budget_bytes : int, keyword-only
-        Largest size of the results directory once the folder is written.
+        Largest size of the report (:func:`report_size`) once the folder is written.
 
     Returns
     -------
     dict or None
         ``frames`` (frames in the run), ``kept`` (frames with a frame file), ``step``, ``stride`` (and as
-        an ordinal, ``stride_ordinal``), ``cell`` (world cell side, metres), ``size`` (bytes of the directory but ``index.html``) and ``budget``, ``note`` (the thinning, or None); None when ``files`` is None.
+        an ordinal, ``stride_ordinal``), ``cell`` (world cell side, metres), ``size`` (:func:`report_size` but ``index.html``) and ``budget``, ``note`` (the thinning, or None); None when ``files`` is None.
     """
     out = Path(out_dir)
     folder = out / "explore"
@@ -152,13 +173,14 @@ def write_explore(out_dir, files: ExploreFiles | None, *, budget_bytes: int = BU
     (folder / "frames").mkdir(parents=True)
     _copy_assets(folder)
     (folder / "data.js").write_text(f"window.csmlabRun = {files.run};\n", encoding="utf-8")
-    fixed = _tree_size(out) + _INDEX_RESERVE
-    step = _thinning([len(p) for p in files.payloads], budget_bytes - fixed)
+    fixed = report_size(out) + _INDEX_RESERVE
+    step = _thinning([sum(map(len, p.values())) for p in files.payloads], budget_bytes - fixed)
     kept = files.frames[::step]
-    for f, payload in zip(kept, files.payloads[::step]):
-        (folder / "frames" / f"f{f:05d}.js").write_bytes(payload)
+    for payload in files.payloads[::step]:
+        for name, data in payload.items():
+            (folder / "frames" / name).write_bytes(data)
     (folder / "kept.js").write_text(f"window.csmlabKept = {json.dumps(kept)};\n", encoding="utf-8")
-    size = _tree_size(out)
+    size = report_size(out)
     frames = len(files.frames)
     note = None
     if step > 1:
@@ -182,8 +204,16 @@ def _thinning(sizes: list[int], available: int) -> int:
     return max(len(sizes), 1)
 
 
-def _tree_size(folder: Path) -> int:
-    return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
+def report_size(out_dir) -> int:
+    """Bytes of the report in a results directory: every file but the run's records.
+
+    The records — ``*.npz`` anywhere (``pixels/``, ``snapshots/``, ``anim/``, ``casters.npz``) and
+    the ``.csv``, ``.json`` and ``.toml`` files at the top — are what the report is made from, kept
+    to remake it; ``index.html`` with its figures, animations and ``explore/`` is what a reader opens.
+    """
+    out = Path(out_dir)
+    return sum(p.stat().st_size for p in out.rglob("*")
+               if p.is_file() and p.suffix != ".npz" and not (p.parent == out and p.suffix in _RECORDS))
 
 
 def _read_record(path: Path) -> dict:
@@ -235,6 +265,7 @@ def _run_data(present, records, frames, metrics, casters) -> str:
     rho_lut = rho_image(decode_rho(codes)[None, :])[0]
     dS_lut = change_image(codes[None, :] / 254.0)[0]
     first = records[0]
+    seen_z, seen_x = _counted_extent([r["world_counted"] for r in records])
     variants = []
     for ((method, point), label), record in zip(present, records):
         rows = metrics.of(method, point)
@@ -245,10 +276,10 @@ def _run_data(present, records, frames, metrics, casters) -> str:
             if column is not None:
                 curves[metric.name] = _rounded([column[by_frame[f]] * metric.scale if f in by_frame else np.nan
                                                 for f in frames], 6)
-        counted = record["world_counted"].astype(np.float64)
+        counted = record["world_counted"][seen_z, seen_x].astype(np.float64)
         with np.errstate(invalid="ignore", divide="ignore"):
-            mean_dS = np.where(counted > 0, record["world_dS"] / counted, np.nan)
-            flip_rate = np.where(counted > 0, 100.0 * record["world_flips"] / counted, np.nan)
+            mean_dS = np.where(counted > 0, record["world_dS"][seen_z, seen_x] / counted, np.nan)
+            flip_rate = np.where(counted > 0, 100.0 * record["world_flips"][seen_z, seen_x] / counted, np.nan)
         index = {int(f): k for k, f in enumerate(record["frame"])}
         variants.append({
             "stem": capture_stem(method, point), "method": method, "point": point, "label": label,
@@ -259,7 +290,6 @@ def _run_data(present, records, frames, metrics, casters) -> str:
             "rho_hist": record["rho_hist"].astype(np.int64).tolist(),
         })
     times = {int(f): float(t) for f, t in zip(first["frame"], first["time_s"])}
-    nz, nx = first["world_counted"].shape
     cell = float(first["world_cell"])
     origin = first["world_origin"]
     run = {
@@ -274,8 +304,8 @@ def _run_data(present, records, frames, metrics, casters) -> str:
         "colours": {"rho": rho_lut.tolist(), "dS": dS_lut.tolist(), "categories": _u8_colours(CATEGORY_COLOURS),
                     "false_shadow": _u8_colours(FALSE_SHADOW), "false_light": _u8_colours(FALSE_LIGHT),
                     "no_surface": _u8_colours(NO_SURFACE)},
-        "world": {"x": _rounded(origin[0] + cell * (np.arange(nx) + 0.5), 2),
-                  "z": _rounded(origin[1] + cell * (np.arange(nz) + 0.5), 2), "cell": round(cell, 4)},
+        "world": {"x": _rounded(origin[0] + cell * (np.arange(seen_x.start, seen_x.stop) + 0.5), 2),
+                  "z": _rounded(origin[1] + cell * (np.arange(seen_z.start, seen_z.stop) + 0.5), 2), "cell": round(cell, 4)},
         "rho_centres": _rounded(np.exp2(0.5 * (first["rho_edges"][:-1] + first["rho_edges"][1:])), 5),
         "casters": _rounded(casters, 2),
         "box_edges": BOX_EDGES.tolist(), "frustum_edges": FRUSTUM_EDGES.tolist(),
@@ -284,30 +314,62 @@ def _run_data(present, records, frames, metrics, casters) -> str:
     return json.dumps(run, separators=(",", ":"), allow_nan=False)
 
 
+def _counted_extent(counts: list[np.ndarray]) -> tuple[slice, slice]:
+    """The rows and columns ``(nz, nx)`` of the world grid that some pixel of some variant fell in.
+
+    The world maps are written over this rectangle only: a walk sees a few per cent of its scene's
+    grid, and the uncounted cells, written as ``null``, made most of ``data.js``.
+    """
+    hit = np.logical_or.reduce([np.asarray(c) > 0 for c in counts])
+    if not hit.any():
+        return slice(0, hit.shape[0]), slice(0, hit.shape[1])
+    rows, cols = np.flatnonzero(hit.any(axis=1)), np.flatnonzero(hit.any(axis=0))
+    return slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1)
+
+
 def _fps(times: list[float]) -> float:
     steps = np.diff(np.asarray(times, dtype=np.float64))
     steps = steps[np.isfinite(steps) & (steps > 0)]
     return round(float(1.0 / np.median(steps)), 3) if steps.size else 30.0
 
 
-def _frame_file(frame: int, present, records) -> bytes:
-    """The JavaScript of one frame file: ``csmlabFrame(frame, {stem: {img, planes, camera, frustum, boxes}})``."""
+def _frame_file(frame: int, present, records) -> dict[str, bytes]:
+    """The files of one frame: ``f<frame>.js`` (``csmlabFrame(frame, {planes: [base85 WebP, …], variants: {stem:
+    {img, planes (indices, in PLANES order), camera, frustum, boxes}}})``) and each variant's shaded view
+    ``f<frame>__<stem>.webp``."""
     from PIL import Image
 
-    body = {}
+    files, variants, planes = {}, {}, {}
     for ((method, point), _), record in zip(present, records):
+        stem = capture_stem(method, point)
         k = int(np.flatnonzero(record["frame"] == frame)[0])
         lit = record["lit"][k]
         defined = (lit != NO_VALUE)[..., None]
         shaded = np.where(defined, record["shaded"][k], np.array(_u8_colours(NO_SURFACE), dtype=np.uint8))
         buffer = io.BytesIO()
         Image.fromarray(np.ascontiguousarray(shaded, dtype=np.uint8)).save(buffer, **_WEBP)
-        planes = b"".join(np.ascontiguousarray(record[name][k]).view(np.uint8).tobytes() for name in PLANES)
-        body[capture_stem(method, point)] = {
-            "img": "data:image/webp;base64," + base64.b64encode(buffer.getvalue()).decode("ascii"),
-            "planes": base64.b64encode(zlib.compress(planes, 6)).decode("ascii"),
+        image = f"f{frame:05d}__{stem}.webp"
+        files[image] = buffer.getvalue()
+        variants[stem] = {
+            "img": f"explore/frames/{image}",
+            "planes": [planes.setdefault(plane_webp(record[name][k]), len(planes)) for name in PLANES],
             "camera": _rounded(record["camera_position"][k], 3),
             "frustum": _rounded(record["frustum_corners"][k], 3),
             "boxes": _rounded(record["box_corners"][k], 3),
         }
-    return f"csmlabFrame({frame},{json.dumps(body, separators=(',', ':'))});\n".encode("ascii")
+    body = {"planes": list(planes), "variants": variants}
+    files[f"f{frame:05d}.js"] = f"csmlabFrame({frame},{json.dumps(body, separators=(',', ':'))});\n".encode("ascii")
+    return files
+
+
+def plane_webp(plane) -> str:
+    """A value plane ``(h, w)`` uint8 or int8 (as its two's-complement bytes) as a lossless greyscale WebP, in base85.
+
+    Base85 (RFC 1924's alphabet, :func:`base64.b85encode` without padding: none of its characters
+    needs escaping in a JavaScript string) is 25 % longer than the bytes where base64 is a third.
+    """
+    from PIL import Image
+
+    buffer = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(plane).view(np.uint8)).save(buffer, **_PLANE_WEBP)
+    return base64.b85encode(buffer.getvalue()).decode("ascii")

@@ -1,7 +1,7 @@
 """A second process for the report's pictures, so that a report uses both cores of a small machine.
 
 Most of a report's time goes to pictures that need nothing from each other: the snapshot strips
-(matplotlib), the 3D view (VTK) and the interactive folder's frame files (WebP and zlib). A
+(matplotlib), the 3D view (VTK) and the interactive folder's frame files (WebP). A
 :class:`PicturePool` hands pictures to one spawned worker process while this process makes the
 rest, then draws here every picture the worker has not started, so that neither process waits
 while the other has work queued. A spawned worker imports csmlab, matplotlib and, for the 3D view,

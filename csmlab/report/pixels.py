@@ -224,7 +224,9 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid) -> dict:
         int8 (-1 none), ``rho`` uint8 (texels per pixel coded by :func:`code_rho`, ±2.2 %),
         ``reference`` uint8 (the ray-traced shadow: 1 lit, 0 shadowed, 255 no surface),
         ``ref_diff`` int8 (+1 false shadow, -1 false light), ``shaded`` (h, w, 3) uint8 sRGB
-        (0 where undefined), ``valid`` bool;
+        (0 where undefined), ``reference_shaded`` the same of the view through the ray-traced
+        shadow (when ``pixels`` has it), 0 where the method's S is undefined (beyond its shadow
+        distance too), so that the two sequences differ by the shadow alone; ``valid`` bool;
         ``grid`` (the ``grid`` argument); ``stride`` int; ``camera_position`` (3,), ``light_direction`` (3,), ``frustum_corners``
         and ``box_corners`` (C, 8, 3), world metres;
         ``cells`` (K,) int64 flat indices of the ground cells that counted pixels fall in, with
@@ -233,18 +235,12 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid) -> dict:
         selected cascade. The view-only part (:func:`view_pixels`) is computed once per view and
         grid, by the first method of the view.
     """
-    from csmlab.report.images import srgb_from_linear
-
     view = frame.view
     per_view = view.shared(("view_pixels", grid), lambda: view_pixels(view, grid=grid))
     k = per_view.stride
     take = (slice(None, None, k), slice(None, None, k))
     lit = np.where(per_view.valid, frame.shadow.lit[take], np.nan)
-    shaded = np.asarray(pixels["shaded"], dtype=np.float64)[take]
-    finite = np.isfinite(shaded)
-    # Three column tests: np.all over a length-3 last axis is several times slower.
-    defined = (finite[..., 0] & finite[..., 1] & finite[..., 2])[..., None]
-    srgb = srgb_from_linear(np.where(defined, shaded, 0.0))  # 0 where undefined: sRGB(0) = 0
+    srgb = _srgb_u8(pixels["shaded"], take)
     dS = np.asarray(pixels["dS"], dtype=np.float64)
     cells = per_view.cells
     keep = np.isfinite(dS) & (cells >= 0)
@@ -276,7 +272,9 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid) -> dict:
         "rho": code_rho(rho[take]),
         "reference": per_view.reference,
         "ref_diff": np.asarray(pixels["ref_diff"])[take].astype(np.int8),
-        "shaded": np.rint(srgb * 255.0).astype(np.uint8),
+        "shaded": srgb,
+        **({"reference_shaded": _reference_srgb(view, pixels["reference_shaded"], k, defined=np.isfinite(lit))}
+           if "reference_shaded" in pixels else {}),
         "valid": per_view.valid,
         "camera_position": np.asarray(view.pose.position, dtype=np.float64),
         "light_direction": np.asarray(view.light_direction, dtype=np.float64),
@@ -290,8 +288,30 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid) -> dict:
     }
 
 
+def _srgb_u8(linear, take) -> np.ndarray:
+    """uint8 sRGB ``(h, w, 3)`` of linear RGB ``(H, W, 3)`` at the pixels ``take``, 0 where undefined."""
+    from csmlab.report.images import srgb_from_linear
+
+    rgb = np.asarray(linear, dtype=np.float64)[take]
+    finite = np.isfinite(rgb)
+    # Three column tests: np.all over a length-3 last axis is several times slower.
+    defined = (finite[..., 0] & finite[..., 1] & finite[..., 2])[..., None]
+    srgb = srgb_from_linear(np.where(defined, rgb, 0.0))  # 0 where undefined: sRGB(0) = 0
+    return np.rint(srgb * 255.0).astype(np.uint8)
+
+
+def _reference_srgb(view: View, linear, stride: int, *, defined) -> np.ndarray:
+    """:func:`_srgb_u8` of the view's reference shading at every ``stride``-th pixel (encoded once per view), 0 where
+    not ``defined`` ``(h, w)``."""
+    take = (slice(None, None, stride), slice(None, None, stride))
+    srgb = view.shared(("reference_srgb", stride), lambda: _srgb_u8(linear, take))
+    return np.where(defined[..., None], srgb, np.uint8(0))
+
+
 _PER_FRAME = ("lit", "dS", "cascade", "rho", "reference", "ref_diff", "shaded", "valid", "camera_position",
               "light_direction", "frustum_corners", "box_corners")
+_PER_FRAME_WHEN_KEPT = ("reference_shaded",)
+"""Per-frame arrays a record holds only when every frame has them (a view without its ray-traced reference has none)."""
 
 
 def stack_pixels(records: list[dict]) -> dict:
@@ -300,7 +320,8 @@ def stack_pixels(records: list[dict]) -> dict:
     Returns
     -------
     dict
-        Each per-frame array of :func:`frame_pixels` stacked along a new first axis (N, …);
+        Each per-frame array of :func:`frame_pixels` stacked along a new first axis (N, …) (``reference_shaded``
+        when every record has it);
         ``stride``; the world grid ``world_origin`` (2,) (x, z metres), ``world_cell`` (metres),
         ``world_dS`` (nz, nx) float64 summed |ΔS|, ``world_counted`` and ``world_flips`` (nz, nx)
         int64 over every frame; ``rho_edges`` and ``rho_hist`` (C, bins) int64 summed.
@@ -323,6 +344,8 @@ def stack_pixels(records: list[dict]) -> dict:
         flips[r["cells"]] += r["cell_flips"]
     return {
         **{name: np.stack([r[name] for r in records]) for name in _PER_FRAME},
+        **{name: np.stack([r[name] for r in records]) for name in _PER_FRAME_WHEN_KEPT
+           if all(name in r for r in records)},
         "stride": np.int64(records[0]["stride"]),
         "world_origin": np.array([grid.x0, grid.z0]),
         "world_cell": np.float64(grid.cell),

@@ -1,6 +1,6 @@
 // The interactive part of the csmlab report (see csmlab/report/explore.py for the files it reads).
 // Runs from file:// with no server: the run's data comes in <script> files, value planes are
-// inflated with the browser's DecompressionStream, plots are Plotly's (bundled beside this file).
+// lossless WebP images decoded by the browser, plots are Plotly's (bundled beside this file).
 (function () {
   "use strict";
   const run = window.csmlabRun;
@@ -39,20 +39,51 @@
   function cascadeColour(c) { return rgb(colours.categories[c % colours.categories.length]); }
 
   // ---- frame files -------------------------------------------------------------------------
-  async function inflate(b64) {
-    const bytes = Uint8Array.from(atob(b64), (ch) => ch.charCodeAt(0));
-    const stream = new Blob([bytes]).stream().pipeThrough(new DecompressionStream("deflate"));
-    return new Uint8Array(await new Response(stream).arrayBuffer());
+  // A value plane is a lossless greyscale WebP in base85: decoded from its own bytes (a canvas stays
+  // readable, where an image from a file:// address would taint it), without colour conversion or
+  // premultiplication, its red channel is the plane's bytes.
+  const reader = document.createElement("canvas").getContext("2d", { willReadFrequently: true });
+
+  const B85 = "0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz!#$%&()*+-;<=>?@^_`{|}~";
+  const B85_VALUE = new Uint8Array(128);
+  for (let k = 0; k < B85.length; k++) B85_VALUE[B85.charCodeAt(k)] = k;
+
+  // Python's base64.b85decode: 5 characters per 4 bytes, big-endian; a last group of r characters,
+  // padded with the largest digit, gives its first r - 1 bytes.
+  function base85(text) {
+    const n = text.length;
+    const out = new Uint8Array(Math.floor(n / 5) * 4 + (n % 5 ? n % 5 - 1 : 0));
+    let o = 0;
+    for (let g = 0; g < n; g += 5) {
+      let v = 0;
+      for (let c = g; c < g + 5; c++) v = v * 85 + (c < n ? B85_VALUE[text.charCodeAt(c)] : 84);
+      for (let shift = 24; shift >= 0 && o < out.length; shift -= 8) out[o++] = Math.floor(v / 2 ** shift) % 256;
+    }
+    return out;
+  }
+
+  async function planeBytes(text) {
+    const bytes = base85(text);
+    const bitmap = await createImageBitmap(new Blob([bytes], { type: "image/webp" }),
+                                           { colorSpaceConversion: "none", premultiplyAlpha: "none" });
+    reader.canvas.width = bitmap.width;
+    reader.canvas.height = bitmap.height;
+    reader.drawImage(bitmap, 0, 0);
+    bitmap.close();
+    const rgba = reader.getImageData(0, 0, run.width, run.height).data;
+    const plane = new Uint8Array(run.width * run.height);
+    for (let k = 0; k < plane.length; k++) plane[k] = rgba[4 * k];
+    return plane;
   }
 
   async function decode(body) {
-    const n = run.width * run.height;
+    const distinct = [];
+    for (const uri of body.planes) distinct.push(await planeBytes(uri));
     const out = {};
-    for (const stem of Object.keys(body)) {
-      const v = body[stem];
-      const bytes = await inflate(v.planes);
+    for (const stem of Object.keys(body.variants)) {
+      const v = body.variants[stem];
       const planes = {};
-      run.planes.forEach((name, k) => { planes[name] = bytes.subarray(k * n, (k + 1) * n); });
+      run.planes.forEach((name, k) => { planes[name] = distinct[v.planes[k]]; });
       out[stem] = { img: v.img, planes, camera: v.camera, frustum: v.frustum, boxes: v.boxes };
     }
     return out;
