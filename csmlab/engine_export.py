@@ -45,7 +45,7 @@ from csmlab.registry import dispatch
 from csmlab.settings import ShadowSettings
 
 __all__ = ["BEVY_EXACT", "BEVY_FILTERING", "EXPORT_METHODS", "GODOT_SOFT_LOW", "Snippet", "THREEJS_PCF", "UE5_FILTER",
-           "URP_FILTER", "export", "split_boundaries", "ue_split_fractions"]
+           "URP_FILTER", "export", "hard_filter", "split_boundaries", "ue_split_fractions"]
 
 
 @dataclass(frozen=True)
@@ -149,7 +149,7 @@ def _g(value: float) -> str:
     return f"{value:.4g}"
 
 
-def _hard(settings: ShadowSettings) -> bool:
+def hard_filter(settings: ShadowSettings) -> bool:
     """The filter is one depth test (its record's ``hard``) or one hardware 2×2 comparison (``pcf_bilinear``):
     what engines call no soft shadows (URP's soft shadows off, Godot's Hard, both a linear comparison sampler)."""
     return FILTER_METHODS[settings.filter].hard or settings.filter == "pcf_bilinear"
@@ -223,7 +223,7 @@ def export_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> Sn
                        f"{atlas} written for {wanted})")
     if settings.blend_band > 0:
         lacking.append(f"blend_band = {settings.blend_band} (URP blends no cascades; cascadeBorder fades the last)")
-    if not _hard(settings) and (settings.filter, settings.filter_size) != URP_FILTER:
+    if not hard_filter(settings) and (settings.filter, settings.filter_size) != URP_FILTER:
         lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (URP's soft shadows are "
                        f"fixed tents of bilinear taps: Medium {URP_FILTER[0]} {URP_FILTER[1]})")
     fractions = _fractions(settings.replace(cascades=cascades), near, far)
@@ -238,7 +238,7 @@ def export_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> Sn
         lines.append(f"asset.cascade4Split = new Vector3({', '.join(_g(f) + 'f' for f in fractions)});")
     lines += [f"asset.mainLightShadowmapResolution = {atlas};  // atlas: {atlas // (1 if cascades == 1 else 2)}² "
               f"per cascade",
-              f"asset.supportsSoftShadows = {'false' if _hard(settings) else 'true'};"]
+              f"asset.supportsSoftShadows = {'false' if hard_filter(settings) else 'true'};"]
     return Snippet("unity_urp", "Unity URP: UniversalRenderPipelineAsset", "csharp", "\n".join(lines) + "\n",
                    tuple(lacking))
 
@@ -264,10 +264,10 @@ def export_godot4(settings: ShadowSettings, *, near: float, far: float) -> Snipp
               f"rendering/lights_and_shadows/directional_shadow/size = {atlas}  "
               f"# {_size(settings)}² per split (2 splits: half the atlas each)",
               "rendering/lights_and_shadows/directional_shadow/soft_shadow_filter_quality = "
-              f"{0 if _hard(settings) else 2}  # 2: Soft Low, 4 Vogel taps of 2 texels"]
+              f"{0 if hard_filter(settings) else 2}  # 2: Soft Low, 4 Vogel taps of 2 texels"]
     if settings.blend_band > 0:
         lacking.append(f"blend_band = {settings.blend_band} (Godot blends splits over a fixed band)")
-    if not _hard(settings) and not _vogel_is(settings, **GODOT_SOFT_LOW):
+    if not hard_filter(settings) and not _vogel_is(settings, **GODOT_SOFT_LOW):
         lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Godot filters with its "
                        f"own soft-shadow kernel: Soft Low is pcf_vogel {GODOT_SOFT_LOW})")
     return Snippet("godot4", "Godot 4: DirectionalLight3D and project settings", "gdscript", "\n".join(lines) + "\n",

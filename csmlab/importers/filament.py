@@ -16,7 +16,7 @@ import json
 
 from csmlab.engine_export import split_boundaries
 from csmlab.errors import InputError
-from csmlab.importers.reading import Imported, Reading, engine_settings, number, read_text
+from csmlab.importers.reading import Imported, Reading, engine_settings, json_document, number
 from csmlab.settings import ShadowSettings
 
 __all__ = ["FIELDS", "PRESET", "read_filament", "write_filament"]
@@ -58,10 +58,7 @@ def read_filament(paths) -> Imported:
     reading = Reading("filament", PRESET)
     base = reading.base
     for path in paths:
-        try:
-            document = json.loads(read_text(path))
-        except json.JSONDecodeError as exc:
-            raise InputError(f"expected JSON, got {exc.msg}", file=path, line=exc.lineno) from None
+        document = json_document(path)
         if not isinstance(document, dict):
             raise InputError("expected a JSON object of viewer settings", file=path, field="lighting")
         options, where = _options(document, path)

@@ -18,7 +18,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from csmlab.engine_export import _hard, split_boundaries
+from csmlab.engine_export import hard_filter, split_boundaries
 from csmlab.errors import InputError
 from csmlab.importers.reading import Imported, Reading, engine_settings, number, read_text
 from csmlab.settings import ShadowSettings
@@ -238,7 +238,7 @@ def write_godot4(settings: ShadowSettings, *, near: float, far: float) -> tuple[
     mode = {v: k for k, v in _MODES.items()}[cascades]
     project = ["; Engine configuration file.", "config_version=5", "", "[rendering]", "",
                f"lights_and_shadows/directional_shadow/size={size * (1 if cascades == 1 else 2)}",
-               f"lights_and_shadows/directional_shadow/soft_shadow_filter_quality={0 if _hard(settings) else 2}",
+               f"lights_and_shadows/directional_shadow/soft_shadow_filter_quality={0 if hard_filter(settings) else 2}",
                f"lights_and_shadows/directional_shadow/16_bits={'true' if settings.depth_format == 'unorm16' else 'false'}"]
     light = ['[gd_scene format=3]', '', '[node name="DirectionalLight3D" type="DirectionalLight3D"]',
              "shadow_enabled = true",

@@ -9,6 +9,7 @@ remembering the file and key it came from. Engine settings csmlab has no knob fo
 from __future__ import annotations
 
 import functools
+import json
 import math
 import tempfile
 from dataclasses import dataclass, field
@@ -17,7 +18,7 @@ from pathlib import Path
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
 
-__all__ = ["Imported", "Reading", "engine_settings", "number", "read_text", "toml_name"]
+__all__ = ["Imported", "Reading", "engine_settings", "json_document", "number", "read_text", "toml_name"]
 
 
 @functools.cache
@@ -48,6 +49,14 @@ def read_text(path) -> str:
         raise InputError(f"expected a readable file, got {exc.strerror or exc}", file=path) from None
     except UnicodeDecodeError as exc:
         raise InputError(f"expected UTF-8 text, got {exc.reason}", file=path) from None
+
+
+def json_document(path):
+    """The JSON value of ``path``; InputError naming the file (and the line) when it cannot be read or parsed."""
+    try:
+        return json.loads(read_text(path))
+    except json.JSONDecodeError as exc:
+        raise InputError(f"expected JSON, got {exc.msg}", file=path, line=exc.lineno) from None
 
 
 def number(value, *, file, key: str, integer: bool = False, minimum: float | None = None,

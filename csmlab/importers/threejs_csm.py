@@ -14,7 +14,7 @@ import json
 
 from csmlab.engine_export import THREEJS_PCF, split_boundaries
 from csmlab.errors import InputError
-from csmlab.importers.reading import Imported, Reading, number, read_text
+from csmlab.importers.reading import Imported, Reading, json_document, number
 from csmlab.lookup_choices import FILTER_METHODS
 from csmlab.settings import ShadowSettings
 
@@ -44,10 +44,7 @@ def read_threejs_csm(paths) -> Imported:
     reading = Reading("threejs_csm", PRESET)
     base = reading.base
     for path in paths:
-        try:
-            options = json.loads(read_text(path))
-        except json.JSONDecodeError as exc:
-            raise InputError(f"expected JSON, got {exc.msg}", file=path, line=exc.lineno) from None
+        options = json_document(path)
         known = {"cascades", "maxFar", "mode", "shadowMapSize", "shadowBias", "lightNear", "lightFar", "lightMargin",
                  "fade", "customSplits", "shadowMapType", "shadowRadius"}
         if not isinstance(options, dict) or not set(options) & known:

@@ -12,7 +12,7 @@ level's ``shadowProjection`` picks the preset (0 Close Fit: ``configs/engines/un
 
 from __future__ import annotations
 
-from csmlab.engine_export import _hard, split_boundaries
+from csmlab.engine_export import hard_filter, split_boundaries
 from csmlab.errors import InputError
 from csmlab.importers.reading import Imported, Reading, engine_settings, number
 from csmlab.importers.unity_yaml import unity_objects, unity_text
@@ -139,7 +139,7 @@ def write_unity_builtin(settings: ShadowSettings, *, near: float, far: float) ->
                        f"{top >> (_VERY_HIGH - steps)} written)")
     four = fractions if cascades == 4 else list(engine_settings(preset).splits[:3])
     level = ["  - serializedVersion: 2", "    name: csmlab",
-             f"    shadows: {1 if _hard(settings) else 2}", f"    shadowResolution: {steps}",
+             f"    shadows: {1 if hard_filter(settings) else 2}", f"    shadowResolution: {steps}",
              f"    shadowProjection: {1 if preset == PRESETS[1] else 0}", f"    shadowCascades: {cascades}",
              f"    shadowDistance: {float(z[-1])!r}",
              f"    shadowCascade2Split: {fractions[0] if cascades == 2 else 1 / 3!r}",

@@ -12,7 +12,7 @@ default, ``configs/engines/unity_urp.toml``'s value.
 
 from __future__ import annotations
 
-from csmlab.engine_export import URP_FILTER, _hard, split_boundaries
+from csmlab.engine_export import URP_FILTER, hard_filter, split_boundaries
 from csmlab.errors import InputError
 from csmlab.importers.reading import Imported, Reading, engine_settings, number
 from csmlab.importers.unity_yaml import unity_objects, unity_text
@@ -137,7 +137,7 @@ def write_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> tup
     lacking = []
     if settings.depth_format != "unorm16":
         lacking.append(f"depth_format = {settings.depth_format!r} (URP's shadowmap is 16-bit)")
-    soft = not _hard(settings)
+    soft = not hard_filter(settings)
     fields = ["m_Name: UniversalRP", "m_MainLightShadowsSupported: 1", f"m_MainLightShadowmapResolution: {atlas}",
               f"m_ShadowDistance: {float(z[-1])!r}", f"m_ShadowCascadeCount: {cascades}",
               f"m_Cascade2Split: {splits[2][0]!r}",

@@ -29,7 +29,7 @@ from csmlab.errors import InputError
 from csmlab.files import write_atomic
 from csmlab.geometry import quat_from_matrix, quat_to_matrix
 from csmlab.paths.recorded import RecordedPoses, require_poses, text_lines
-from csmlab.paths.tabular import _json_number, _located_json
+from csmlab.paths.tabular import json_number, located_json
 
 __all__ = ["ROTATION_TOLERANCE", "read_nerfstudio", "write_nerfstudio"]
 
@@ -41,7 +41,7 @@ def _number(document, key: str, *, file, positive: bool = True) -> float:
     if key not in document:
         raise InputError(f"expected the key {key!r} (nerfstudio camera path)", file=file,
                          line=getattr(document, "line", 1), field=key)
-    value = _json_number(document[key], file=file, line=document.line, field=key)
+    value = json_number(document[key], file=file, line=document.line, field=key)
     if not np.isfinite(value) or (positive and value <= 0):
         raise InputError(f"expected a finite {'positive ' if positive else ''}number, got {value!r}", file=file,
                          line=document.line, field=key)
@@ -65,7 +65,7 @@ def read_nerfstudio(file) -> RecordedPoses:
         ``camera_to_world`` that is not 16 numbers or not a rigid transform, an empty path.
     """
     lines = text_lines(file)
-    document = _located_json("\n".join(lines), file=file)
+    document = located_json("\n".join(lines), file=file)
     if not isinstance(document, dict) or not isinstance(document.get("camera_path"), list):
         raise InputError("expected an object with a 'camera_path' list (nerfstudio camera path)", file=file,
                          line=getattr(document, "line", 1), field="camera_path")
@@ -86,7 +86,7 @@ def read_nerfstudio(file) -> RecordedPoses:
         if not isinstance(values, list) or len(values) != 16:
             raise InputError(f"expected camera_path[{k}].camera_to_world: 16 numbers (4×4, row-major), got "
                              f"{values!r}", file=file, line=pose.line, field="camera_to_world")
-        matrices[k] = np.reshape([_json_number(v, file=file, line=pose.line, field="camera_to_world")
+        matrices[k] = np.reshape([json_number(v, file=file, line=pose.line, field="camera_to_world")
                                   for v in values], (4, 4))
         fov[k] = _number(pose, "fov", file=file)
         bad = (not np.all(np.isfinite(matrices[k])) or not np.allclose(matrices[k, 3], [0, 0, 0, 1])

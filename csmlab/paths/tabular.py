@@ -55,7 +55,7 @@ from csmlab.paths.recorded import (
     unit_quaternions,
 )
 
-__all__ = ["read_csv", "read_json", "write_csv", "write_json"]
+__all__ = ["json_number", "located_json", "read_csv", "read_json", "write_csv", "write_json"]
 
 POSITION = ("time", "x", "y", "z")
 QUATERNION = ("qx", "qy", "qz", "qw")
@@ -146,7 +146,7 @@ class _LocatedDict(dict):
     line: int
 
 
-def _located_json(text: str, *, file):
+def located_json(text: str, *, file):
     """Decode ``text``, giving every JSON object a ``.line``; syntax errors become located InputErrors."""
     line_starts = [0] + [match.end() for match in re.finditer("\n", text)]
     decoder = json.JSONDecoder()
@@ -165,7 +165,7 @@ def _located_json(text: str, *, file):
         raise InputError(f"expected valid JSON: {err.msg}", file=file, line=err.lineno) from None
 
 
-def _json_number(value, *, file, line: int, field: str) -> float:
+def json_number(value, *, file, line: int, field: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise InputError(f"expected a number, got {value!r}", file=file, line=line, field=field)
     return float(value)
@@ -177,7 +177,7 @@ def read_json(file) -> RecordedPoses:
     text = "\n".join(lines)
     if not text.strip():
         require_poses([], file=file, line_count=len(lines))
-    document = _located_json(text, file=file)
+    document = located_json(text, file=file)
     if not isinstance(document, dict) or set(document) != {"poses"} or not isinstance(document["poses"], list):
         found = sorted(document) if isinstance(document, dict) else type(document).__name__
         raise InputError(f"expected an object with one key 'poses' holding a list, got {found}", file=file,
@@ -200,7 +200,7 @@ def read_json(file) -> RecordedPoses:
             if name not in pose:
                 raise InputError(f"missing field: expected {' '.join(fields)}", file=file, line=pose.line,
                                  field=name)
-        rows.append((pose.line, [_json_number(pose[n], file=file, line=pose.line, field=n) for n in fields]))
+        rows.append((pose.line, [json_number(pose[n], file=file, line=pose.line, field=n) for n in fields]))
     values, numbers = numeric_table(rows, file=file, fields=fields)
     return _recorded(values, numbers, fields, file=file, header_line=first.line)
 
