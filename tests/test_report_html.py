@@ -446,8 +446,9 @@ def test_the_summary_says_how_to_install_the_video_metric_until_a_run_is_scored(
     assert table.index(">exact<") < table.index(">none<")
 
 
+@pytest.mark.parametrize("encoding", ["fast", "compact"])
 @pytest.mark.parametrize("dtype", [np.uint8, np.int8])
-def test_a_value_plane_is_stored_byte_for_byte(dtype):
+def test_a_value_plane_is_stored_byte_for_byte(dtype, encoding):
     import base64
     import io
 
@@ -457,7 +458,7 @@ def test_a_value_plane_is_stored_byte_for_byte(dtype):
 
     rng = np.random.default_rng(7)
     plane = rng.integers(np.iinfo(dtype).min, np.iinfo(dtype).max, size=(37, 53), endpoint=True).astype(dtype)
-    text = plane_webp(plane)
+    text = plane_webp(plane, encoding=encoding)
     assert not set(text) & set("\"\\'\n")
     decoded = np.asarray(Image.open(io.BytesIO(base64.b85decode(text))).convert("RGB"))
     assert np.array_equal(decoded[..., 0], plane.view(np.uint8))

@@ -92,8 +92,8 @@ def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES, worker: bool | No
         animations = _animations(results, groups, pool)
         strips = _strips(out, snapshots, strip_frames, pool)
         single = len(points) == 1
-        explore = explore_files(out, groups=groups, labels=[m if single else f"{m} @ {p}" for m, p in groups],
-                                metrics=results.metrics)
+        labels = [m if single else f"{m} @ {p}" for m, p in groups]
+        explore = explore_files(out, groups=groups, labels=labels, metrics=results.metrics, encoding="fast")
         pool.finish()
     context = {
         **_header(results),
@@ -116,7 +116,12 @@ def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES, worker: bool | No
         **sweep,
     }
     # The interactive part last, so that it knows the size of everything else.
-    context["explore"] = _explore(write_explore(out, explore, budget_bytes=budget_bytes))
+    written = write_explore(out, explore, budget_bytes=budget_bytes)
+    if written is not None and written["step"] > 1:
+        # Not every frame fits as fast-encoded planes: the compact ones keep as many frames as can be kept.
+        written = write_explore(out, explore_files(out, groups=groups, labels=labels, metrics=results.metrics,
+                                                   encoding="compact"), budget_bytes=budget_bytes)
+    context["explore"] = _explore(written)
     return write_atomic(out / "index.html", render_report_html(context))
 
 
