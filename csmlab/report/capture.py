@@ -37,7 +37,8 @@ becoming ``_``):
 ``pixels/<method>__<point>.npz``
     Every frame's per-pixel record for the interactive page, when the run kept one: the arrays
     of :func:`csmlab.report.pixels.stack_pixels` (values sampled every ``stride``-th pixel,
-    per-frame cascade geometry, whole-run world-cell sums and ρ histograms) with ``frame`` (N,)
+    per-frame cascade geometry, whole-run world-cell sums and ρ histograms; with ``[taa]`` on, the
+    after-TAA planes of :func:`csmlab.report.pixels.taa_pixels` too) with ``frame`` (N,)
     int64 and ``time_s`` (N,) float64.
 ``casters.npz``
     ``points`` (P, 3) float32: centroids of an even sample of the scene's triangles (world

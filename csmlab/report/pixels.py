@@ -393,7 +393,7 @@ def stack_pixels(records: list[dict]) -> dict:
     -------
     dict
         Each per-frame array of :func:`frame_pixels` stacked along a new first axis (N, …) (``reference_shaded``
-        when every record has it);
+        and the after-TAA ones of :func:`taa_pixels` when every record has them);
         ``stride``; the world grid ``world_origin`` (2,) (x, z metres), ``world_cell`` (metres),
         ``world_dS`` (nz, nx) float64 summed |ΔS|, ``world_counted`` and ``world_flips`` (nz, nx)
         int64 over every frame; ``rho_edges`` and ``rho_hist`` (C, bins) int64 summed.
