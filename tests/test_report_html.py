@@ -645,3 +645,17 @@ def test_the_explore_page_shows_the_after_taa_maps_and_values_only_for_a_taa_run
     for key in ("dS_taa", "lit_taa", "reference_taa", "dS", "lit"):
         assert read(key) == f"{record[key][frame_index][j, i] / 254:.3f}", key
     assert _errors(browser) == [] and _remote(_requests(browser)) == []
+
+
+def test_a_taa_runs_summary_shows_the_jod_before_and_after_taa_side_by_side(tiny_taa_run, tmp_path):
+    copy = tmp_path / "scored"
+    shutil.copytree(tiny_taa_run.parent, copy)
+    summary = json.loads((copy / "summary.json").read_text())
+    summary["jod"] = {"display": "standard_fhd", "metric": "ColorVideoVDP 0.5.7",
+                      "sequences": {"shaded": {"exact__base": 9.4321, "none__base": 8.1},
+                                    "after_taa": {"exact__base": 9.61, "none__base": 8.75}}}
+    (copy / "summary.json").write_text(json.dumps(summary))
+    table = write_report(copy).read_text(encoding="utf-8").split('id="jod"', 1)[1].split("</table>", 1)[0]
+    assert table.index("JOD, shaded") < table.index("JOD, after_taa")
+    none = table.split(">none<", 1)[1]
+    assert none.index("8.10") < none.index("8.75")
