@@ -411,7 +411,7 @@ def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
                 timings.append(results.TimingRow(index, *key, "metrics", measured))
                 captures.setdefault(key, []).append(
                     capture_frame(frame, measures, snapshot=index in job.snapshot_frames, grid=grid,
-                                  images=index in job.image_frames))
+                                  images=index in job.image_frames, taa=resolved))
             previous[key] = frame
         previous_view = view
     packed = {key: pickle.dumps(kept, protocol=pickle.HIGHEST_PROTOCOL) for key, kept in captures.items()}

@@ -462,3 +462,200 @@ def test_a_value_plane_is_stored_byte_for_byte(dtype, encoding):
     assert not set(text) & set("\"\\'\n")
     decoded = np.asarray(Image.open(io.BytesIO(base64.b85decode(text))).convert("RGB"))
     assert np.array_equal(decoded[..., 0], plane.view(np.uint8))
+
+
+# ---- the report of a run with [taa] on: the after-TAA planes, maps, curve, JOD pair and settings ----------------
+# The fence: its slats' shadows change under the jittered walk, where the plane and box of TINY's first frames do not.
+TINY_TAA = TINY.replace('name = "tiny"', 'name = "tiny_taa"').replace("scenes/plane_box", "scenes/fence").replace(
+    "width = 96\nheight = 54", "width = 64\nheight = 36").replace("resolution = 128", "resolution = 64") + """
+[taa]
+enabled = true
+phases = 4
+alpha = 0.2
+"""
+TAA_KEYS = ("lit_taa", "dS_taa", "reference_taa", "shaded_taa", "reference_shaded_taa")
+TINY_TAA_VIEW_WIDTH = 32
+"""Half the tiny TAA run's width: its records keep every 2nd pixel of each row and column."""
+
+
+@pytest.fixture(scope="module")
+def tiny_taa_run(tmp_path_factory):
+    """The tiny run with ``[taa]`` on (3 frames, 64×36), and its report."""
+    root = tmp_path_factory.mktemp("report_taa")
+    (root / "tiny_taa.toml").write_text(TINY_TAA)
+    out = root / "tiny_taa"
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(report_pixels, "VIEW_WIDTH", TINY_TAA_VIEW_WIDTH)
+        run_experiment(load_experiment(root / "tiny_taa.toml"), out_dir=out)
+    return write_report(out)
+
+
+def _resolves_anew(toml: Path, *, method: str):
+    """The oracle of the after-TAA planes: each frame of ``method`` rendered with its jitter and its S and R resolved
+    by :func:`csmlab.metrics.taa.resolve_view` in frame order here (not read back), with the before-TAA change."""
+    from csmlab.metrics import measure_frame
+    from csmlab.metrics.taa import halton_jitter, resolve_view
+    from csmlab.render import prepare_scene, render_shadow, render_view
+
+    experiment = load_experiment(toml)
+    workload = build_workload(experiment)
+    settings = next(v.settings for v in experiment.variants() if v.method == method)
+    scene = prepare_scene(workload.scene)
+    taa = experiment.taa
+    out, previous, shadow, reference = [], None, None, None
+    for index in range(len(workload.path.positions)):
+        light = workload.light.direction(index)
+        view = render_view(scene, workload.path.pose(index), light, width=workload.width, height=workload.height,
+                           index=index, previous_light_direction=workload.light.direction(index - 1) if index else None,
+                           jitter=halton_jitter(index, phases=taa.phases))
+        frame = render_shadow(scene, view, settings)
+        reference = resolve_view(view.reference, view, previous and previous.view, reference, taa=taa)
+        shadow = resolve_view(frame.shadow.lit, view, previous and previous.view, shadow, taa=taa)
+        out.append((frame, shadow, reference, measure_frame(frame, previous).pixels))
+        previous = frame
+    return out
+
+
+def test_a_taa_runs_record_holds_the_after_taa_planes_and_they_decode_to_the_resolves(tiny_taa_run):
+    from csmlab.metrics.shading import shaded_rgb, srgb_encoded
+
+    stride, step = 2, 0.5 / 254 + 1e-9  # the record's pixels; its precision, ±1/508
+    record = np.load(tiny_taa_run.parent / "pixels" / "none__base.npz")
+    assert set(TAA_KEYS) <= set(record.files)
+    take = (slice(None, None, stride), slice(None, None, stride))
+    changes = 0
+    for k, (frame, shadow, reference, pixels) in enumerate(
+            _resolves_anew(tiny_taa_run.parent.parent / "tiny_taa.toml", method="none")):
+        valid = frame.view.gbuffer.valid[take]
+        s, r = shadow.out[take].astype(np.float64), reference.out[take].astype(np.float64)
+        lit_taa = _decoded(record["lit_taa"][k])
+        assert np.array_equal(np.isnan(lit_taa), ~(valid & np.isfinite(s)))
+        np.testing.assert_allclose(lit_taa[valid], s[valid], atol=step, rtol=0)
+        np.testing.assert_allclose(_decoded(record["reference_taa"][k])[valid], r[valid], atol=step, rtol=0)
+        change = np.abs((s - shadow.reprojected[take]) - (r - reference.reprojected[take]))
+        change[~np.isfinite(pixels["dS"][take])] = np.nan
+        dS_taa = _decoded(record["dS_taa"][k])
+        assert np.array_equal(np.isnan(dS_taa), np.isnan(change))
+        np.testing.assert_allclose(dS_taa[~np.isnan(change)], np.minimum(change[~np.isnan(change)], 1.0), atol=step,
+                                   rtol=0)
+        changes += int(np.count_nonzero(dS_taa > 0))
+        # The views through T^S and T^R, shaded as the run shades S, to the sRGB code.
+        g = frame.view.gbuffer
+        for name, resolved in (("shaded_taa", shadow), ("reference_shaded_taa", reference)):
+            lit = np.where(g.valid & np.isfinite(shadow.out), resolved.out, np.nan)
+            expected = np.rint(srgb_encoded(np.nan_to_num(shaded_rgb(
+                g.albedo, g.normal, lit, light_direction=frame.view.light_direction, ambient=0.25)))[take] * 255)
+            assert np.abs(record[name][k].astype(int) - expected).max() <= 1, name
+        if k == 0:
+            # The first frame has no history: the resolve is its input, the shaded view after TAA the one before it.
+            assert np.isnan(dS_taa).all()
+            assert np.array_equal(record["shaded_taa"][0], record["shaded"][0])
+            assert np.array_equal(record["reference_shaded_taa"][0], record["reference_shaded"][0])
+    assert changes > 0, "a walk with a jittered camera changes something after TAA"
+
+
+def _decoded(coded: np.ndarray) -> np.ndarray:
+    """A uint8 plane of the record as float64 values, NaN where it has none (written here from the record's coding)."""
+    return np.where(coded == 255, np.nan, coded.astype(np.float64) / 254.0)
+
+
+def test_a_run_without_taa_keeps_no_taa_keys_files_maps_or_curve(tiny_run):
+    out = tiny_run.parent
+    for path in (out / "pixels").glob("*.npz"):
+        assert not set(TAA_KEYS) & set(np.load(path).files), path
+    assert not list((out / "explore" / "frames").glob("*__taa.webp"))
+    data = (out / "explore" / "data.js").read_text()
+    assert '"taa"' not in data and "_taa" not in data
+    frame = (out / "explore" / "frames" / "f00001.js").read_text()
+    assert "img_taa" not in frame
+    assert 'id="taa-settings"' not in tiny_run.read_text(encoding="utf-8")
+
+
+def test_a_taa_runs_explore_offers_the_after_taa_planes_views_and_curve(tiny_taa_run):
+    out = tiny_taa_run.parent
+    run = json.loads((out / "explore" / "data.js").read_text().removeprefix("window.csmlabRun = ").rstrip(";\n"))
+    assert run["taa"] is True and run["planes"][-3:] == ["lit_taa", "dS_taa", "reference_taa"]
+    assert [c["key"] for c in run["curves"]][:2] == ["flicker", "flicker_taa"]
+    from csmlab.report.tables import read_results
+
+    metrics = read_results(out).metrics
+    for v in run["variants"]:
+        flicker = metrics.of(v["method"], v["point"])["flicker_taa"]
+        assert v["curves"]["flicker_taa"][1:] == [round(float(x), 6) for x in flicker[1:]]
+    for f in range(3):
+        body = json.loads((out / "explore" / "frames" / f"f{f:05d}.js").read_text().split(",", 1)[1].rsplit(");", 1)[0])
+        for stem, v in body["variants"].items():
+            assert v["img_taa"] == f"explore/frames/f{f:05d}__{stem}__taa.webp"
+            assert (out / v["img_taa"]).is_file() and len(v["planes"]) == len(run["planes"])
+    text = tiny_taa_run.read_text(encoding="utf-8")
+    assert 'id="taa-settings"' in text and "4 jitter phases" in text and "α = 0.2" in text and "ycocg_minmax" in text
+
+
+def test_only_a_taa_run_offers_the_after_taa_sequence_to_the_video_metric(tiny_run, tiny_taa_run):
+    from csmlab.report.video_quality import SEQUENCES, record_sequences
+
+    assert SEQUENCES["after_taa"] == ("shaded_taa", "reference_shaded_taa")
+    assert record_sequences(tiny_run.parent, sequence="after_taa") == {}
+    assert set(record_sequences(tiny_run.parent, sequence="shaded")) == {"exact__base", "none__base"}
+    for name in SEQUENCES:
+        fed = record_sequences(tiny_taa_run.parent, sequence=name)
+        assert set(fed) == {"exact__base", "none__base"}
+        for stem, (test, reference, fps) in fed.items():
+            record = np.load(tiny_taa_run.parent / "pixels" / f"{stem}.npz")
+            assert test.shape == reference.shape == (3, 18, 32, 3) and test.dtype == reference.dtype == np.uint8
+            assert np.array_equal(test, record[SEQUENCES[name][0]])
+            assert np.array_equal(reference, record[SEQUENCES[name][1]])
+            assert fps == pytest.approx(1.0 / np.median(np.diff(record["time_s"])))
+    # After TAA the sequences differ from the ones before it (frame 0 aside, where the resolve is its input).
+    before, after = (record_sequences(tiny_taa_run.parent, sequence=n)["none__base"][0] for n in ("shaded", "after_taa"))
+    assert np.array_equal(before[0], after[0]) and not np.array_equal(before[1:], after[1:])
+
+
+def test_the_explore_page_shows_the_after_taa_maps_and_values_only_for_a_taa_run(tiny_run, tiny_taa_run, browser):
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    _open(browser, tiny_run)
+    _wait(browser, lambda: _shown_frame(browser) == "0", what="frame 0 of the run without TAA")
+    assert browser.find_elements("css selector", "[data-map=dS_taa], [data-map=shaded_taa], td[data-key=lit_taa]") == []
+
+    stride, frame_index, method = 2, 2, "none"
+    record = np.load(tiny_taa_run.parent / "pixels" / f"{method}__base.npz")
+    _open(browser, tiny_taa_run)
+    _wait(browser, lambda: _shown_frame(browser) == "0", what="frame 0")
+    _move_slider(browser, frame_index)
+    _wait(browser, lambda: _shown_frame(browser) == str(frame_index), what=f"frame {frame_index}")
+    titles = [e.text for e in browser.find_elements("css selector", "#explore-viewer .vtitle")]
+    assert titles[:2] == ["shaded view", "shaded after TAA"] and "|ΔS| after TAA (less R's)" in titles
+    image = browser.execute_script(
+        f"const i = document.querySelector('.vcell[data-map=shaded_taa][data-stem={method}__base] img');"
+        "return [i.getAttribute('src'), i.complete, i.naturalWidth]")
+    assert image == [f"explore/frames/f{frame_index:05d}__{method}__base__taa.webp", True, 32]
+    cell = browser.find_element("css selector", f".vcell[data-map=dS_taa][data-stem={method}__base]")
+    box = cell.rect
+    dS_taa = record["dS_taa"][frame_index]
+    h, w = dS_taa.shape
+    j, i = np.unravel_index(np.argmax(np.where(dS_taa == 255, -1, dS_taa.astype(int))), dS_taa.shape)
+    ActionChains(browser).move_to_element_with_offset(cell, int(round((i + 0.5) * box["width"] / w - box["width"] / 2)),
+                                                      int(round((j + 0.5) * box["height"] / h - box["height"] / 2))).perform()
+    assert f"pixel x = {stride * i}, y = {stride * j}" in browser.find_element("id", "explore-where").text
+
+    def read(key: str) -> str:
+        return browser.find_element("css selector", f"#explore-readout tr[data-stem={method}__base] td[data-key={key}]").text
+
+    for key in ("dS_taa", "lit_taa", "reference_taa", "dS", "lit"):
+        assert read(key) == f"{record[key][frame_index][j, i] / 254:.3f}", key
+    assert _errors(browser) == [] and _remote(_requests(browser)) == []
+
+
+def test_a_taa_runs_summary_shows_the_jod_before_and_after_taa_side_by_side(tiny_taa_run, tmp_path):
+    copy = tmp_path / "scored"
+    shutil.copytree(tiny_taa_run.parent, copy)
+    summary = json.loads((copy / "summary.json").read_text())
+    summary["jod"] = {"display": "standard_fhd", "metric": "ColorVideoVDP 0.5.7",
+                      "sequences": {"shaded": {"exact__base": 9.4321, "none__base": 8.1},
+                                    "after_taa": {"exact__base": 9.61, "none__base": 8.75}}}
+    (copy / "summary.json").write_text(json.dumps(summary))
+    table = write_report(copy).read_text(encoding="utf-8").split('id="jod"', 1)[1].split("</table>", 1)[0]
+    assert table.index("JOD, shaded") < table.index("JOD, after_taa")
+    none = table.split(">none<", 1)[1]
+    assert none.index("8.10") < none.index("8.75")

@@ -174,7 +174,17 @@ def _header(results: ResultFiles) -> dict:
         "light": _describe(config.get("light", {}), ("elevation_deg", "azimuth_deg", "direction")),
         "config_text": json.dumps(config, indent=2, sort_keys=True),
         "recording": summary.get("recording"),
+        "taa": _taa(config.get("taa") or {}),
     }
+
+
+def _taa(taa: dict) -> str | None:
+    """The summary's line on temporal anti-aliasing (``[taa]``) when the run had it on; None otherwise."""
+    if not taa.get("enabled"):
+        return None
+    clamp = f"{taa.get('clamp', '?')} clamp" + (f" (γ = {taa['gamma']})" if taa.get("clamp") == "variance" else "")
+    return (f"{taa.get('phases', '?')} jitter phases (Halton 2, 3), α = {taa.get('alpha', '?')}, {clamp}, "
+            f"disocclusion depth tolerance {taa.get('depth_tolerance', '?')}")
 
 
 def _describe(section: dict, keys: tuple[str, ...]) -> str:

@@ -37,7 +37,8 @@ becoming ``_``):
 ``pixels/<method>__<point>.npz``
     Every frame's per-pixel record for the interactive page, when the run kept one: the arrays
     of :func:`csmlab.report.pixels.stack_pixels` (values sampled every ``stride``-th pixel,
-    per-frame cascade geometry, whole-run world-cell sums and ρ histograms) with ``frame`` (N,)
+    per-frame cascade geometry, whole-run world-cell sums and ρ histograms; with ``[taa]`` on, the
+    after-TAA planes of :func:`csmlab.report.pixels.taa_pixels` too) with ``frame`` (N,)
     int64 and ``time_s`` (N,) float64.
 ``casters.npz``
     ``points`` (P, 3) float32: centroids of an even sample of the scene's triangles (world
@@ -151,7 +152,7 @@ def default_snapshot_frames(n_frames: int) -> list[int]:
 
 
 def capture_frame(frame: Frame, measures: "FrameMeasures", *, snapshot: bool,
-                  grid: WorldGrid | None = None, images: bool = True) -> Capture:
+                  grid: WorldGrid | None = None, images: bool = True, taa: tuple | None = None) -> Capture:
     """The report's record of one frame of one method.
 
     Parameters
@@ -170,6 +171,9 @@ def capture_frame(frame: Frame, measures: "FrameMeasures", *, snapshot: bool,
     images : bool
         Keep the animation frame and the per-pixel record; False keeps the cascade rows (and the
         snapshot, when asked) only.
+    taa : tuple of TaaResolve, optional
+        Frame t's TAA resolves of the method's S and of R, when the run has ``[taa]`` on: the
+        per-pixel record also keeps the after-TAA planes (:func:`csmlab.report.pixels.taa_pixels`).
 
     Returns
     -------
@@ -185,7 +189,7 @@ def capture_frame(frame: Frame, measures: "FrameMeasures", *, snapshot: bool,
         shadow=_coded_u8(_block_mean(frame.shadow.lit)) if images else None,
         dS=_coded_u8(_block_max(np.abs(pixels["dS"]))) if images else None,
         snapshot=_snapshot(frame, pixels) if snapshot else None,
-        pixels=frame_pixels(frame, pixels, grid=grid) if images and grid is not None else None,
+        pixels=frame_pixels(frame, pixels, grid=grid, taa=taa) if images and grid is not None else None,
     )
 
 

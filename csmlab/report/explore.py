@@ -19,7 +19,10 @@ report's pictures are drawn)::
                                its shaded view (lossy WebP, shown by an ``<img>`` element)
 
 A frame's value planes are the record's uint8 arrays ``lit, dS, cascade, rho, reference,
-ref_diff`` (each ``h × w``, row-major, int8 ones as their two's-complement bytes), each a
+ref_diff`` — and, in a run with ``[taa]`` on whose records hold them, the after-TAA ones
+``lit_taa, dS_taa, reference_taa`` (:data:`TAA_PLANES`) with a second shaded view per variant,
+``f<frame>__<method>__<point>__taa.webp``, of the view through S after TAA — (each ``h × w``,
+row-major, int8 ones as their two's-complement bytes), each a
 greyscale lossless WebP image: the exact bytes, at the precision the read-out shows (S and |ΔS| to
 1/254, ρ to 1/16 octave, :func:`csmlab.report.pixels.frame_pixels`), about a quarter smaller than
 the planes zlib-compressed together. The page decodes each from its bytes (base85: a quarter
@@ -33,6 +36,12 @@ Measured on ``engines.toml`` (13 variants, 120 frames, 320×180 records): a fram
 416 KB (at 24 frames, 411 KB where the single script of zlib and base64 took 562 KB), ``data.js``
 0.43 MB (5.9 MB at 24 frames before the world maps kept only the cells the run saw), and the
 viewer keeps every 2nd frame (60 of 120) in a 59.5 MiB report.
+
+With ``[taa]`` on (``taa.toml --frames 6``: 11 variants, 320×180 records) a frame's files take 829 KB
+``fast`` (596 KB ``compact``) where the same records without the after-TAA planes take 529 KB (362 KB): the
+three planes add about 290 KB, the second shaded view 67 KB. At 120 frames these sizes come to 72 MB even
+compact, past the budget: by them (not measured at that length), such a run's viewer keeps every 2nd frame
+where the same run without TAA would keep every frame (43 MB).
 
 The report encodes the planes ``fast`` first (:data:`PLANE_ENCODINGS`) and, only when they would not
 all fit in the budget, again ``compact``: a run the size of the default one keeps every frame
@@ -68,8 +77,8 @@ from csmlab.report.images import (CATEGORY_COLOURS, FALSE_LIGHT, FALSE_SHADOW, N
 from csmlab.report.pixels import NO_VALUE, RHO_STEPS, decode_rho
 from csmlab.report.view3d import BOX_EDGES, FRUSTUM_EDGES
 
-__all__ = ["BUDGET_BYTES", "CURVES", "PLANES", "PLANE_ENCODINGS", "ExploreFiles", "explore_files", "plane_webp", "report_size",
-           "write_explore"]
+__all__ = ["BUDGET_BYTES", "CURVES", "PLANES", "PLANE_ENCODINGS", "TAA_CURVES", "TAA_PLANES", "ExploreFiles",
+           "explore_files", "plane_webp", "report_size", "write_explore"]
 
 BUDGET_BYTES = 60 * 2 ** 20
 """Default size budget of a report (:func:`report_size`): 60 MiB."""
@@ -77,6 +86,11 @@ PLANES = ("lit", "dS", "cascade", "rho", "reference", "ref_diff")
 """The value planes of a frame file, in order."""
 CURVES = tuple(metric_named(name) for name in ("flicker", "flip_rate", "rho_median", "ref_error"))
 """Per-frame curves of the page, in order: registered metrics (``ref_error`` derived), each with its ``curve`` label."""
+TAA_PLANES = ("lit_taa", "dS_taa", "reference_taa")
+"""The after-TAA value planes (:func:`csmlab.report.pixels.taa_pixels`), after :data:`PLANES` in a frame file
+whose run's records all hold them (with ``shaded_taa``); a run without them has the page it had before."""
+TAA_CURVES = (metric_named("flicker_taa"),)
+"""Per-frame curves added after ``flicker`` when the records hold the after-TAA planes."""
 _WEBP = {"format": "WEBP", "quality": 86, "method": 2}
 PLANE_ENCODINGS = {
     "fast": {"format": "WEBP", "lossless": True, "quality": 0, "method": 0},
@@ -153,10 +167,11 @@ def explore_files(out_dir, *, groups: list[tuple[str, str]], labels: list[str], 
         return None
     records = [_read_record(out / "pixels" / f"{capture_stem(*g)}.npz") for g, _ in present]
     frames = sorted(set.intersection(*(set(r["frame"].tolist()) for r in records)))
-    run = _run_data(present, records, frames, metrics, _casters(out / "casters.npz"))
+    taa = all(name in r for r in records for name in (*TAA_PLANES, "shaded_taa"))
+    run = _run_data(present, records, frames, metrics, _casters(out / "casters.npz"), taa=taa)
     # WebP lets go of the GIL while it encodes: two threads keep a second core busy with it.
     with ThreadPoolExecutor(max_workers=_ENCODING_THREADS) as threads:
-        payloads = list(threads.map(lambda f: _frame_file(f, present, records, encoding=encoding), frames))
+        payloads = list(threads.map(lambda f: _frame_file(f, present, records, encoding=encoding, taa=taa), frames))
     return ExploreFiles(frames=frames, run=run, payloads=payloads, stride=int(records[0]["stride"]),
                         cell=float(records[0]["world_cell"]))
 
@@ -274,7 +289,9 @@ def _u8_colours(rgb) -> list:
     return np.rint(np.clip(np.asarray(rgb, dtype=np.float64), 0, 1) * 255).astype(int).tolist()
 
 
-def _run_data(present, records, frames, metrics, casters) -> str:
+def _run_data(present, records, frames, metrics, casters, *, taa: bool) -> str:
+    """``data.js``'s JSON; with ``taa``, also the after-TAA planes, their curve and ``"taa": true``."""
+    curves_shown = (CURVES[0], *TAA_CURVES, *CURVES[1:]) if taa else CURVES
     codes = np.arange(255)
     rho_lut = rho_image(decode_rho(codes)[None, :])[0]
     dS_lut = change_image(codes[None, :] / 254.0)[0]
@@ -285,7 +302,7 @@ def _run_data(present, records, frames, metrics, casters) -> str:
         rows = metrics.of(method, point)
         by_frame = {int(f): k for k, f in enumerate(rows["frame"])}
         curves = {}
-        for metric in CURVES:
+        for metric in curves_shown:
             column = metric_values(metric.name, rows)
             if column is not None:
                 curves[metric.name] = _rounded([column[by_frame[f]] * metric.scale if f in by_frame else np.nan
@@ -313,8 +330,9 @@ def _run_data(present, records, frames, metrics, casters) -> str:
         "width": int(first["lit"].shape[2]), "height": int(first["lit"].shape[1]),
         "stride": int(first["stride"]),
         "cascades": int(first["box_corners"].shape[1]),
-        "planes": list(PLANES), "no_value": NO_VALUE, "rho_steps": RHO_STEPS,
-        "curves": [{"key": m.name, "label": m.curve} for m in CURVES],
+        "planes": [*PLANES, *(TAA_PLANES if taa else ())], "no_value": NO_VALUE, "rho_steps": RHO_STEPS,
+        **({"taa": True} if taa else {}),
+        "curves": [{"key": m.name, "label": m.curve} for m in curves_shown],
         "colours": {"rho": rho_lut.tolist(), "dS": dS_lut.tolist(), "categories": _u8_colours(CATEGORY_COLOURS),
                     "false_shadow": _u8_colours(FALSE_SHADOW), "false_light": _u8_colours(FALSE_LIGHT),
                     "no_surface": _u8_colours(NO_SURFACE)},
@@ -347,13 +365,12 @@ def _fps(times: list[float]) -> float:
     return round(float(1.0 / np.median(steps)), 3) if steps.size else 30.0
 
 
-def _frame_file(frame: int, present, records, *, encoding: str) -> dict[str, bytes]:
+def _frame_file(frame: int, present, records, *, encoding: str, taa: bool = False) -> dict[str, bytes]:
     """The files of one frame: ``f<frame>.js`` (``csmlabFrame(frame, {planes: [base85 WebP, …], variants: {stem:
     {img, planes (indices, in PLANES order), camera, frustum, boxes}}})``) and each variant's shaded view
     ``f<frame>__<stem>.webp``. A plane equal to one already in the frame (the reference's, in every variant)
-    is encoded once."""
-    from PIL import Image
-
+    is encoded once. With ``taa``, each variant's planes go on with :data:`TAA_PLANES` and it has ``img_taa``,
+    its view shaded through S after TAA, ``f<frame>__<stem>__taa.webp``."""
     files, variants, indices, planes = {}, {}, {}, []
 
     def plane_index(plane: np.ndarray) -> int:
@@ -366,23 +383,32 @@ def _frame_file(frame: int, present, records, *, encoding: str) -> dict[str, byt
     for ((method, point), _), record in zip(present, records):
         stem = capture_stem(method, point)
         k = int(np.flatnonzero(record["frame"] == frame)[0])
-        lit = record["lit"][k]
-        defined = (lit != NO_VALUE)[..., None]
-        shaded = np.where(defined, record["shaded"][k], np.array(_u8_colours(NO_SURFACE), dtype=np.uint8))
-        buffer = io.BytesIO()
-        Image.fromarray(np.ascontiguousarray(shaded, dtype=np.uint8)).save(buffer, **_WEBP)
         image = f"f{frame:05d}__{stem}.webp"
-        files[image] = buffer.getvalue()
+        files[image] = _shaded_webp(record["shaded"][k], defined=record["lit"][k] != NO_VALUE)
         variants[stem] = {
             "img": f"explore/frames/{image}",
-            "planes": [plane_index(record[name][k]) for name in PLANES],
+            "planes": [plane_index(record[name][k]) for name in (*PLANES, *(TAA_PLANES if taa else ()))],
             "camera": _rounded(record["camera_position"][k], 3),
             "frustum": _rounded(record["frustum_corners"][k], 3),
             "boxes": _rounded(record["box_corners"][k], 3),
         }
+        if taa:
+            image = f"f{frame:05d}__{stem}__taa.webp"
+            files[image] = _shaded_webp(record["shaded_taa"][k], defined=record["lit_taa"][k] != NO_VALUE)
+            variants[stem]["img_taa"] = f"explore/frames/{image}"
     body = {"planes": planes, "variants": variants}
     files[f"f{frame:05d}.js"] = f"csmlabFrame({frame},{json.dumps(body, separators=(',', ':'))});\n".encode("ascii")
     return files
+
+
+def _shaded_webp(shaded, *, defined) -> bytes:
+    """A shaded view ``(h, w, 3)`` uint8 sRGB as lossy WebP, the no-surface colour where not ``defined`` ``(h, w)``."""
+    from PIL import Image
+
+    shaded = np.where(defined[..., None], shaded, np.array(_u8_colours(NO_SURFACE), dtype=np.uint8))
+    buffer = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(shaded, dtype=np.uint8)).save(buffer, **_WEBP)
+    return buffer.getvalue()
 
 
 def plane_webp(plane, *, encoding: str = "compact") -> str:

@@ -26,6 +26,7 @@ __all__ = [
     "NO_VALUE",
     "RHO_EDGES",
     "RHO_STEPS",
+    "SHADING_AMBIENT",
     "VIEW_WIDTH",
     "ViewPixels",
     "WORLD_CELLS",
@@ -36,6 +37,7 @@ __all__ = [
     "frame_pixels",
     "frustum_corners",
     "stack_pixels",
+    "taa_pixels",
     "view_pixels",
     "world_grid",
 ]
@@ -50,6 +52,9 @@ NO_VALUE = 255
 """The code of "no value" in the uint8 planes."""
 RHO_STEPS = 16
 """Codes per octave of the stored ρ (:func:`code_rho`)."""
+SHADING_AMBIENT = 0.25
+"""Ambient term of the run's shading (:func:`csmlab.metrics.measure_frame`'s default, the one runs use), in units of
+the direct light: the after-TAA views are shaded with it (:func:`taa_pixels`)."""
 
 
 @dataclass(frozen=True)
@@ -203,7 +208,8 @@ def view_pixels(view: View, *, grid: WorldGrid) -> ViewPixels:
                       reference=np.where(np.isfinite(reference), reference > 0.5, NO_VALUE).astype(np.uint8))
 
 
-def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid) -> dict:
+def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid, taa: tuple | None = None,
+                 ambient: float = SHADING_AMBIENT) -> dict:
     """The per-frame record of one method: sampled per-pixel values, 3D geometry, world-cell sums.
 
     Parameters
@@ -215,6 +221,12 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid) -> dict:
         ``ref_diff`` and ``flipped`` (H, W).
     grid : WorldGrid, keyword-only
         The run's ground cells.
+    taa : tuple of TaaResolve, keyword-only, optional
+        Frame t's TAA resolves of the method's S and of R (:mod:`csmlab.metrics.taa`), when the run
+        has ``[taa]`` on: the record then holds the after-TAA planes (:func:`taa_pixels`).
+    ambient : float, keyword-only
+        The ambient term ``pixels["shaded"]`` was shaded with, in units of the direct light: the
+        after-TAA views are shaded the same way.
 
     Returns
     -------
@@ -233,7 +245,7 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid) -> dict:
         ``cell_dS`` (K,) float64 sum of |ΔS|, ``cell_counted`` and ``cell_flips`` (K,) int64, at
         full resolution; ``rho_hist`` (C, len(RHO_EDGES) - 1) int64: pixels per log2 ρ bin and
         selected cascade. The view-only part (:func:`view_pixels`) is computed once per view and
-        grid, by the first method of the view.
+        grid, by the first method of the view. With ``taa``, also the keys of :func:`taa_pixels`.
     """
     view = frame.view
     per_view = view.shared(("view_pixels", grid), lambda: view_pixels(view, grid=grid))
@@ -285,6 +297,64 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid) -> dict:
         "cell_counted": counts[touched].astype(np.int64),
         "cell_flips": flips[touched].astype(np.int64),
         "rho_hist": hist,
+        **({} if taa is None else taa_pixels(frame, pixels, *taa, stride=k, ambient=ambient)),
+    }
+
+
+def taa_pixels(frame: Frame, pixels: dict, shadow, reference, *, stride: int, ambient: float) -> dict:
+    """The after-TAA part of :func:`frame_pixels`: the resolved S and R and the change of their difference.
+
+    Parameters
+    ----------
+    frame : Frame
+        The rendered frame, ``(H, W)`` pixels.
+    pixels : dict
+        ``measures.pixels``: its ``dS`` (H, W), NaN where the change before TAA is not counted.
+    shadow, reference : TaaResolve
+        Frame t's resolves of the method's S and of R (``out`` and ``reprojected``, (H, W)).
+    stride : int, keyword-only
+        Pixel stride of the record.
+    ambient : float, keyword-only
+        Ambient term of the shading, in units of the direct light.
+
+    Returns
+    -------
+    dict
+        At pixels ``(stride·i, stride·j)``: ``lit_taa`` uint8 T^S_t, ``reference_taa`` uint8 T^R_t
+        (the same for every method of a view) and ``dS_taa`` uint8 ``|(T^S_t − T^S_{t−1}(X)) −
+        (T^R_t − T^R_{t−1}(X))|``, the change whose mean over the counted pixels is ``flicker_taa``
+        (:func:`csmlab.metrics.taa.taa_summary`), clipped to 1 — all ``round(254 · v)``, 255 no
+        value (no surface; for ``dS_taa`` also not counted before TAA or history dropped in either
+        resolve, and the first frame); ``shaded_taa`` and ``reference_shaded_taa`` (h, w, 3) uint8
+        sRGB of the view shaded through T^S and T^R as ``shaded`` is through S
+        (:func:`csmlab.metrics.shading.shaded_rgb`), 0 where T^S is undefined.
+    """
+    from csmlab.metrics.shading import ShadingTerms, shaded_rgb, view_shading_terms
+
+    take = (slice(None, None, stride), slice(None, None, stride))
+    s, s0 = (np.asarray(a, dtype=np.float64)[take] for a in (shadow.out, shadow.reprojected))
+    r, r0 = (np.asarray(a, dtype=np.float64)[take] for a in (reference.out, reference.reprojected))
+    counted = np.isfinite(np.asarray(pixels["dS"], dtype=np.float64)[take])
+    with np.errstate(invalid="ignore"):
+        change = np.where(counted, np.abs((s - s0) - (r - r0)), np.nan)
+    view = frame.view
+    full = view_shading_terms(view)
+    terms = ShadingTerms(albedo=full.albedo[take], cosine=full.cosine[take])
+    g = view.gbuffer
+    valid = np.asarray(g.valid)[take]
+
+    def srgb(lit) -> np.ndarray:
+        linear = shaded_rgb(terms.albedo, np.asarray(g.normal)[take], np.where(valid, lit, np.nan),
+                            light_direction=view.light_direction, ambient=ambient, terms=terms)
+        return _srgb_u8(linear, (slice(None), slice(None)))
+
+    defined = valid & np.isfinite(s)
+    return {
+        "lit_taa": _coded(np.where(valid, s, np.nan)),
+        "dS_taa": _coded(change),
+        "reference_taa": _coded(np.where(valid, r, np.nan)),
+        "shaded_taa": srgb(s),
+        "reference_shaded_taa": np.where(defined[..., None], srgb(r), np.uint8(0)),
     }
 
 
@@ -310,8 +380,10 @@ def _reference_srgb(view: View, linear, stride: int, *, defined) -> np.ndarray:
 
 _PER_FRAME = ("lit", "dS", "cascade", "rho", "reference", "ref_diff", "shaded", "valid", "camera_position",
               "light_direction", "frustum_corners", "box_corners")
-_PER_FRAME_WHEN_KEPT = ("reference_shaded",)
-"""Per-frame arrays a record holds only when every frame has them (a view without its ray-traced reference has none)."""
+_PER_FRAME_WHEN_KEPT = ("reference_shaded", "lit_taa", "dS_taa", "reference_taa", "shaded_taa",
+                        "reference_shaded_taa")
+"""Per-frame arrays a record holds only when every frame has them (a view without its ray-traced reference has
+none; a run without ``[taa]`` has no after-TAA ones)."""
 
 
 def stack_pixels(records: list[dict]) -> dict:
@@ -321,7 +393,7 @@ def stack_pixels(records: list[dict]) -> dict:
     -------
     dict
         Each per-frame array of :func:`frame_pixels` stacked along a new first axis (N, …) (``reference_shaded``
-        when every record has it);
+        and the after-TAA ones of :func:`taa_pixels` when every record has them);
         ``stride``; the world grid ``world_origin`` (2,) (x, z metres), ``world_cell`` (metres),
         ``world_dS`` (nz, nx) float64 summed |ΔS|, ``world_counted`` and ``world_flips`` (nz, nx)
         int64 over every frame; ``rho_edges`` and ``rho_hist`` (C, bins) int64 summed.

@@ -27,17 +27,19 @@ from csmlab.errors import InputError
 from csmlab.files import write_atomic
 from csmlab.report.capture import read_npz
 
-__all__ = ["DISPLAY", "INSTALL", "SEQUENCES", "cvvdp_missing", "jod_of_sequences", "jod_scores", "write_jod"]
+__all__ = ["DISPLAY", "INSTALL", "SEQUENCES", "cvvdp_missing", "jod_of_sequences", "jod_scores", "record_sequences",
+           "write_jod"]
 
 SEQUENCES = {
     "shaded": ("shaded", "reference_shaded"),
+    "after_taa": ("shaded_taa", "reference_shaded_taa"),
 }
 """Input sequences by name: the record arrays ``(test, reference)``, each ``(N, h, w, 3)`` uint8 sRGB.
 
-``shaded`` is the method's shadow as rendered, against the ray-traced shadow of the same views. A
-temporal stage registers its own pair here (e.g. ``"after_taa": ("shaded_taa", "reference_shaded_taa")``,
-the method's and the reference's sequences both through the same TAA), and :func:`write_jod`
-scores every pair the records hold.
+``shaded`` is the method's shadow as rendered, against the ray-traced shadow of the same views.
+``after_taa`` is the same pair after temporal anti-aliasing, the method's S and the reference R
+each through the same TAA (:func:`csmlab.report.pixels.taa_pixels`; only a run with ``[taa]`` on
+holds it). :func:`write_jod` scores every pair the records hold.
 """
 DISPLAY = "standard_fhd"
 """ColorVideoVDP's display model: a 24-inch 1920×1080 sRGB office monitor, 200 cd/m², seen from 60 cm."""
@@ -128,10 +130,36 @@ def jod_scores(out_dir, *, sequence: str = "shaded", display: str = DISPLAY) -> 
     RuntimeError
         If ColorVideoVDP cannot run here.
     """
+    return {stem: jod_of_sequences(test, reference, fps=fps, display=display)
+            for stem, (test, reference, fps) in record_sequences(out_dir, sequence=sequence).items()}
+
+
+def record_sequences(out_dir, *, sequence: str = "shaded") -> dict[str, tuple[np.ndarray, np.ndarray, float]]:
+    """What :func:`jod_scores` feeds ColorVideoVDP: each record's ``sequence`` pair and its frame rate.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        A results directory with per-pixel records (``pixels/*.npz``).
+    sequence : str, keyword-only
+        A name in :data:`SEQUENCES`.
+
+    Returns
+    -------
+    dict
+        Record stem (``<method>__<point>``) → ``(test, reference, fps)``: the two ``(N, h, w, 3)`` uint8
+        sRGB arrays and frames per second (the median step of the record's ``time_s``), for each record
+        holding both arrays, in file-name order.
+
+    Raises
+    ------
+    InputError
+        If ``sequence`` is not a name of :data:`SEQUENCES` or a record is unreadable.
+    """
     if sequence not in SEQUENCES:
         raise InputError(f"expected one of {', '.join(SEQUENCES)}, got {sequence!r}", field="sequence")
     test_name, reference_name = SEQUENCES[sequence]
-    scores = {}
+    pairs = {}
     for path in sorted(Path(out_dir, "pixels").glob("*.npz")):
         try:
             record = read_npz(path)
@@ -139,9 +167,8 @@ def jod_scores(out_dir, *, sequence: str = "shaded", display: str = DISPLAY) -> 
             raise InputError(f"expected a csmlab pixel record (.npz), got an unreadable file: {error}",
                              file=path) from None
         if test_name in record and reference_name in record:
-            scores[path.stem] = jod_of_sequences(record[test_name], record[reference_name],
-                                                 fps=_frame_rate(record["time_s"]), display=display)
-    return scores
+            pairs[path.stem] = (record[test_name], record[reference_name], _frame_rate(record["time_s"]))
+    return pairs
 
 
 def write_jod(out_dir, *, display: str = DISPLAY) -> dict:

@@ -12,6 +12,12 @@
     ["dS", "|ΔS| since previous frame"],
     ["ref", "vs. ray-traced reference"],
   ];
+  // A run with [taa] on: each view after TAA beside the one before it.
+  if (run.taa) {
+    MAPS.splice(1, 0, ["shaded_taa", "shaded after TAA"]);
+    MAPS.splice(MAPS.findIndex((m) => m[0] === "dS") + 1, 0, ["dS_taa", "|ΔS| after TAA (less R's)"]);
+  }
+  const DRAWN_ALONE = new Set(["rho", "dS", "dS_taa"]);
   const CACHE_FRAMES = 48;
   const CASCADE_ALPHA = Math.round(0.45 * 255);
   const DIFF_DARKEN = Math.round(0.65 * 255);
@@ -84,7 +90,7 @@
       const v = body.variants[stem];
       const planes = {};
       run.planes.forEach((name, k) => { planes[name] = distinct[v.planes[k]]; });
-      out[stem] = { img: v.img, planes, camera: v.camera, frustum: v.frustum, boxes: v.boxes };
+      out[stem] = { img: v.img, img_taa: v.img_taa, planes, camera: v.camera, frustum: v.frustum, boxes: v.boxes };
     }
     return out;
   }
@@ -180,12 +186,12 @@
         cell.dataset.map = key;
         cell.dataset.stem = v.stem;
         // The shaded view under the cascade tint and the reference overlay; ρ and |ΔS| are drawn alone.
-        const img = key === "rho" || key === "dS" ? null : document.createElement("img");
+        const img = DRAWN_ALONE.has(key) ? null : document.createElement("img");
         if (img) img.alt = `${v.label} ${key}`;
         const canvas = document.createElement("canvas");
         canvas.width = run.width;
         canvas.height = run.height;
-        canvas.hidden = key === "shaded";
+        canvas.hidden = key === "shaded" || key === "shaded_taa";
         const mark = document.createElement("div");
         mark.className = "vmark";
         cell.append(...(img ? [img] : []), canvas, mark);
@@ -229,7 +235,7 @@
       const d = data[stem];
       if (!d) return;
       const p = d.planes;
-      if (img) img.src = d.img;
+      if (img) img.src = key === "shaded_taa" ? d.img_taa : d.img;
       if (key === "cascade") {
         paint(canvas, (k, px, o) => {
           const c = p.cascade[k];
@@ -237,8 +243,8 @@
           const col = colours.categories[c % colours.categories.length];
           px[o] = col[0]; px[o + 1] = col[1]; px[o + 2] = col[2]; px[o + 3] = CASCADE_ALPHA;
         });
-      } else if (key === "rho" || key === "dS") {
-        const lut = colours[key];
+      } else if (DRAWN_ALONE.has(key)) {
+        const lut = key === "rho" ? colours.rho : colours.dS;
         paint(canvas, (k, px, o) => {
           const code = p[key][k];
           const col = code === none ? colours.no_surface : lut[code];
@@ -326,7 +332,11 @@
     where.textContent = `pixel x = ${i * s}, y = ${j * s} of the frame` +
       (s === 1 ? "" : ` (shown pixel ${i}, ${j}; one pixel in ${s} along each row and column kept)`);
     const header = document.createElement("tr");
-    ["method", "cascade", "ρ (texels/px)", "|ΔS|", "lit fraction S", "reference", "vs. reference"].forEach((h) => {
+    const heads = run.taa
+      ? ["method", "cascade", "ρ (texels/px)", "|ΔS|", "|ΔS| after TAA (less R's)", "lit fraction S", "S after TAA",
+         "reference", "reference after TAA", "vs. reference"]
+      : ["method", "cascade", "ρ (texels/px)", "|ΔS|", "lit fraction S", "reference", "vs. reference"];
+    heads.forEach((h) => {
       const th = document.createElement("th");
       th.textContent = h;
       header.append(th);
@@ -340,8 +350,11 @@
         cascade: p.cascade[k] === 255 ? "none" : String(p.cascade[k]),
         rho: rho(p.rho[k]),
         dS: fraction(p.dS[k]),
+        ...(run.taa ? { dS_taa: fraction(p.dS_taa[k]) } : {}),
         lit: fraction(p.lit[k]),
+        ...(run.taa ? { lit_taa: fraction(p.lit_taa[k]) } : {}),
         reference: REFERENCE[p.reference[k]] || "—",
+        ...(run.taa ? { reference_taa: fraction(p.reference_taa[k]) } : {}),
         ref_diff: p.lit[k] === run.no_value ? "—" : VERDICT[p.ref_diff[k]],
       };
       const tr = document.createElement("tr");
@@ -380,9 +393,10 @@
         });
       });
     });
+    const rows = Math.ceil(run.curves.length / 2);
     const layout = {
-      grid: { rows: 2, columns: 2, pattern: "independent" },
-      height: 520, margin: { t: 30, r: 10, b: 40, l: 60 }, hovermode: "closest",
+      grid: { rows, columns: 2, pattern: "independent" },
+      height: 260 * rows, margin: { t: 30, r: 10, b: 40, l: 60 }, hovermode: "closest",
       legend: { orientation: "h", y: 1.08 }, shapes: [], annotations: [],
     };
     run.curves.forEach((curve, c) => {
