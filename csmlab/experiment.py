@@ -155,7 +155,7 @@ class ChunkResult:
     rows: list
     timings: list
     captures: dict
-    ranks: tuple = ()
+    ranks: tuple
 
 
 @dataclass(frozen=True)
@@ -357,10 +357,10 @@ def units_of_work(frames: int, variants: int, *, chunk_frames: int, taa: bool, s
         every frame, of some of the variants.
     split : bool
         With TAA, one unit per variant (for several processes: the executor hands the next variant
-        to whichever process is free, which balances variants of very different cost — an engine's
-        float32 path takes several times exact's — with no cost model, while the view each unit
-        renders again is ~1 % of a variant's work in ``experiments/taa.toml``); otherwise one unit of
-        them all (one process: the view once).
+        to whichever process is free, which balances variants of very different cost — in
+        ``experiments/taa.toml`` godot4 took 5–7× exact's time — with no cost model; the price is the
+        view each unit renders again, 0.1 s a frame there against 1.2 s of a variant's, so ~8 % more
+        work in all); otherwise one unit of them all (one process: the view once).
     kept : iterable of Unit
         Units found on disk (:func:`csmlab.results.kept_chunks`); without TAA those of this run's
         chunks are reused, with TAA any of every frame whose variants no unit taken before holds
