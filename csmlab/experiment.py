@@ -1,11 +1,14 @@
 """Runs an experiment: frames × methods × sweep points → the results files.
 
-The unit of work is a chunk of consecutive frames of one workload (scene, camera path, light).
-Per frame the view (camera visibility and the ray-traced reference) is rendered once and shared by
-every method and sweep point; each of these variants then renders its shadow and is measured, the
-temporal metrics against the same variant's previous frame. A chunk starts one frame early and drops
-that frame's rows, so no number depends on where the path was cut, on how many processes ran it, or
-on whether the run was interrupted and resumed.
+The unit of work (:class:`Unit`) is a chunk of consecutive frames of one workload (scene, camera
+path, light) for a set of its variants (methods × sweep points). Per frame the unit renders the view
+(camera visibility and the ray-traced reference) once and shares it by its variants; each of these
+then renders its shadow and is measured, the temporal metrics against the same variant's previous
+frame. Without TAA a unit is a chunk of frames of every variant; a chunk starts one frame early and
+drops that frame's rows. With TAA every frame depends on the history of all before it, so a unit is
+every frame of some of the variants (:func:`units_of_work`), and each unit resolves the reference's
+history itself. Either way no number depends on where the path was cut, on how many processes ran
+it, or on whether the run was interrupted and resumed.
 
 The parent process builds the workload (and so checks every input file) before any work, hands it
 to the executor once per worker, stores each finished chunk on disk (for ``--resume``, and so that
@@ -23,6 +26,7 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -37,8 +41,8 @@ from csmlab.paths.timing import TimingReport
 from csmlab.scene.core import Scene
 from csmlab.shadow_policies import shadow_light_direction
 
-__all__ = ["IMAGE_FRAMES", "ChunkResult", "Job", "RunResult", "Workload", "build_workload", "check_device",
-           "chunk_ranges", "image_frames", "run_chunk", "run_experiment", "shadow_light"]
+__all__ = ["IMAGE_FRAMES", "ChunkResult", "Job", "RunResult", "Unit", "Workload", "build_workload", "check_device",
+           "chunk_ranges", "image_frames", "run_chunk", "run_experiment", "shadow_light", "units_of_work"]
 
 
 @dataclass(frozen=True)
@@ -111,21 +115,39 @@ class Job:
     taa: object = None
 
 
+class Unit(NamedTuple):
+    """A worker's unit of work: frames ``[start, stop)`` of the variants of results ranks ``ranks``.
+
+    Attributes
+    ----------
+    start, stop : int
+    ranks : tuple of int
+        Increasing indices into :attr:`Job.variants`. The unit holding rank 0 records the view's
+        timings, so that they are recorded once per frame however the variants were split.
+    """
+
+    start: int
+    stop: int
+    ranks: tuple[int, ...]
+
+
 @dataclass(frozen=True)
 class ChunkResult:
-    """The results of frames ``[start, stop)``.
+    """The results of a :class:`Unit`: frames ``[start, stop)`` of the variants of ``ranks``.
 
     Attributes
     ----------
     start, stop : int
     rows : list of MetricRow
-        One per frame × variant.
+        One per frame × variant of the unit.
     timings : list of TimingRow
-        Wall-clock seconds; the view's stages have empty method and point.
+        Wall-clock seconds; the view's stages have empty method and point (only in the unit of rank 0).
     captures : dict of (method, point) to bytes
         The report's per-frame records (:func:`csmlab.report.capture.capture_frame`), in frame order,
         one pickled list per variant: the parent stores each as a part of the chunk's file
         (:func:`csmlab.results.save_chunk`) and reads back one variant's at a time.
+    ranks : tuple of int
+        The unit's variants, results ranks (:attr:`Unit.ranks`).
     """
 
     start: int
@@ -133,6 +155,7 @@ class ChunkResult:
     rows: list
     timings: list
     captures: dict
+    ranks: tuple
 
 
 @dataclass(frozen=True)
@@ -145,7 +168,7 @@ class RunResult:
     frames : int
         Frames in the workload.
     chunks_run, chunks_resumed : int
-        Chunks computed now and chunks taken from an interrupted run.
+        Units of work (:class:`Unit`) computed now and units taken from an interrupted run.
     seconds : float
         Wall-clock time of the run.
     summary : dict
@@ -319,6 +342,50 @@ def chunk_ranges(frames: int, chunk_frames: int) -> list[tuple[int, int]]:
     return [(start, min(start + chunk_frames, frames)) for start in range(0, frames, chunk_frames)]
 
 
+def units_of_work(frames: int, variants: int, *, chunk_frames: int, taa: bool, split: bool,
+                  kept=()) -> tuple[list[Unit], list[Unit]]:
+    """The units a run needs, ``(done, todo)``: those ``kept`` from an interrupted run it reuses, and the rest.
+
+    Parameters
+    ----------
+    frames, variants : int
+        Frames in the workload; variants (methods × sweep points) in results order.
+    chunk_frames : int
+        Frames per unit without TAA.
+    taa : bool
+        ``[taa] enabled``: a frame's history depends on every frame before it, so a unit covers
+        every frame, of some of the variants.
+    split : bool
+        With TAA, one unit per variant (for several processes: the executor hands the next variant
+        to whichever process is free, which balances variants of very different cost — in
+        ``experiments/taa.toml`` godot4 took 5–7× exact's time — with no cost model; the price is the
+        view each unit renders again, 0.1 s a frame there against 1.2 s of a variant's, so ~8 % more
+        work in all); otherwise one unit of them all (one process: the view once).
+    kept : iterable of Unit
+        Units found on disk (:func:`csmlab.results.kept_chunks`); without TAA those of this run's
+        chunks are reused, with TAA any of every frame whose variants no unit taken before holds
+        (a run resumed with another ``--jobs`` reuses what the first finished).
+
+    Returns
+    -------
+    done, todo : list of Unit
+    """
+    everyone = tuple(range(variants))
+    if not taa:
+        planned = [Unit(start, stop, everyone) for start, stop in chunk_ranges(frames, chunk_frames)]
+        kept = set(kept)
+        return [u for u in planned if u in kept], [u for u in planned if u not in kept]
+    done, covered = [], set()
+    for unit in sorted(kept):
+        if (unit.start, unit.stop) == (0, frames) and unit.ranks and covered.isdisjoint(unit.ranks):
+            done.append(unit)
+            covered.update(unit.ranks)
+    left = tuple(rank for rank in everyone if rank not in covered)
+    if split:
+        return done, [Unit(0, frames, (rank,)) for rank in left]
+    return done, [Unit(0, frames, left)] if left else []
+
+
 _PREPARED: dict = {}
 
 
@@ -335,8 +402,8 @@ def _prepared_scene(job: Job):
     return _PREPARED[key]
 
 
-def run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
-    """Render and measure frames ``[start, stop)`` of every variant (a worker's unit of work).
+def run_chunk(job: Job, chunk: Unit) -> ChunkResult:
+    """Render and measure frames ``[start, stop)`` of the unit's variants (a worker's unit of work).
 
     Frame ``start - 1`` is rendered too, as the previous frame of ``start``, and gives no rows.
     """
@@ -351,14 +418,17 @@ def run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
         return _run_chunk(job, chunk)
 
 
-def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
+def _run_chunk(job: Job, chunk: Unit) -> ChunkResult:
     from csmlab.metrics import measure_frame
     from csmlab.metrics.taa import halton_jitter, resolve_view
     from csmlab.render import render_shadow, render_view
     from csmlab.report.capture import capture_frame
     from csmlab.report.pixels import world_grid
 
-    start, stop = chunk
+    start, stop, ranks = chunk
+    variants = [job.variants[rank] for rank in ranks]
+    # Every unit renders the view; the one of rank 0 times it, once per frame for the whole run.
+    times_view = 0 in ranks
     workload = job.workload
     scene = _prepared_scene(job)
     grid = world_grid(workload.path.positions, reach=max(v.settings.shadow_distance for v in job.variants))
@@ -378,14 +448,15 @@ def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
         if index in workload.restarts:
             previous = {}
             history, reference_history, previous_view = {}, None, None
-        if counted:
+        if counted and times_view:
             timings += [results.TimingRow(index, "", "", stage, seconds) for stage, seconds in view.timings.items()]
         if taa is not None and counted:
             began = time.perf_counter()
             reference_history = resolve_view(view.reference, view, previous_view, reference_history, taa=taa,
                                              device=job.device)
-            timings.append(results.TimingRow(index, "", "", "taa_reference", time.perf_counter() - began))
-        for variant in job.variants:
+            if times_view:
+                timings.append(results.TimingRow(index, "", "", "taa_reference", time.perf_counter() - began))
+        for variant in variants:
             key = (variant.method, variant.point)
             held = job.held_depths.get(key)
             extents = job.held_extents.get(key)
@@ -415,7 +486,7 @@ def _run_chunk(job: Job, chunk: tuple[int, int]) -> ChunkResult:
             previous[key] = frame
         previous_view = view
     packed = {key: pickle.dumps(kept, protocol=pickle.HIGHEST_PROTOCOL) for key, kept in captures.items()}
-    return ChunkResult(start=start, stop=stop, rows=rows, timings=timings, captures=packed)
+    return ChunkResult(start=start, stop=stop, rows=rows, timings=timings, captures=packed, ranks=tuple(ranks))
 
 
 def shadow_light(workload: Workload, settings, index: int) -> np.ndarray:
@@ -524,9 +595,10 @@ def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, executor: 
     device : str
         ``cpu`` or ``cuda``.
     resume : bool
-        Keep the chunks an interrupted run of the same config left in ``out_dir``.
+        Keep the units of work an interrupted run of the same config left in ``out_dir``.
     progress : callable, optional
-        ``progress(frames_done, frames_total)``, called before the first chunk and after each.
+        ``progress(frames_done, frames_total)``, called before the first unit and after each;
+        ``frames_done`` is the frames' worth of work done (frames × variants done ÷ variants, whole).
 
     Returns
     -------
@@ -547,16 +619,18 @@ def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, executor: 
     out = results.prepare_output(out_dir, resolved_toml=experiment_toml(experiment), run_key=chunk_key,
                                  resume=resume)
     variants = tuple(experiment.variants())
-    # TAA's history runs from the first frame: one chunk, so that no number depends on a cut.
-    ranges = chunk_ranges(frames, frames if experiment.taa.enabled else experiment.chunk_frames)
-    # Finished chunks live on disk, not here: the parent's memory does not grow with the path.
-    done = {r for r in ranges if resume and results.load_chunk(out, *r, run_key=chunk_key) is not None}
+    # TAA's history runs from the first frame: a unit is every frame of some variants, so that no
+    # number depends on a cut. Finished units live on disk, not here: the parent's memory does not
+    # grow with the path.
+    kept = [Unit(*unit) for unit in results.kept_chunks(out, run_key=chunk_key)] if resume else []
+    done, todo = units_of_work(frames, len(variants), chunk_frames=experiment.chunk_frames,
+                               taa=experiment.taa.enabled, split=jobs > 1, kept=kept)
+    units = sorted(done + todo)
     resumed = len(done)
-    todo = [r for r in ranges if r not in done]
 
     def report_progress() -> None:
         if progress is not None:
-            progress(sum(stop - start for start, stop in done), frames)
+            progress(sum((u.stop - u.start) * len(u.ranks) for u in done) // len(variants), frames)
 
     report_progress()
     held_depths = _held_depths(workload, variants, device=device)
@@ -572,9 +646,9 @@ def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, executor: 
         parts = {_captures_part(rank): result.captures[key] for rank, key in enumerate(order)
                  if key in result.captures}
         results.save_chunk(out, dataclasses.replace(result, captures={}), run_key=chunk_key, parts=parts)
-        done.add(chunk)
+        done.append(chunk)
         report_progress()
-    summary = _write_results(out, experiment, job, ranges, run_key=chunk_key, config_hash=hash_)
+    summary = _write_results(out, experiment, job, units, run_key=chunk_key, config_hash=hash_)
     results.clear_chunks(out)
     return RunResult(out_dir=out, frames=frames, chunks_run=len(todo), chunks_resumed=resumed,
                      seconds=time.perf_counter() - began, summary=summary)
@@ -585,7 +659,7 @@ def _captures_part(rank: int) -> str:
     return f"captures{rank}"
 
 
-def _write_results(out: Path, experiment: Experiment, job: Job, ranges: list[tuple[int, int]], *, run_key: str,
+def _write_results(out: Path, experiment: Experiment, job: Job, units: list[Unit], *, run_key: str,
                    config_hash: str) -> dict:
     from csmlab.invariants import summary_invariants
     from csmlab.metric_registry import metric_columns
@@ -594,33 +668,41 @@ def _write_results(out: Path, experiment: Experiment, job: Job, ranges: list[tup
     columns = metric_columns(max(v.settings.map_count for v in job.variants))
     order = {(v.method, v.point): rank for rank, v in enumerate(job.variants)}
 
-    def chunks():
-        for start, stop in ranges:
-            yield results.load_chunk(out, start, stop, run_key=run_key)
+    def chunks(rank: int):
+        """The units holding variant ``rank``, in frame order."""
+        for unit in units:
+            if rank in unit.ranks:
+                yield results.load_chunk(out, *unit, run_key=run_key)
 
-    # One variant at a time, read back from the chunks on disk chunk by chunk: its rows (written,
+    # One variant at a time, read back from the units on disk unit by unit: its rows (written,
     # then kept as arrays for the summary) and its captures, so that nothing of a long path is
     # whole in memory.
     arrays = {}
 
     def variant_rows():
-        for variant in job.variants:
+        for rank, variant in enumerate(job.variants):
             key = (variant.method, variant.point)
             parts = []
-            for chunk in chunks():
+            for chunk in chunks(rank):
                 rows = [row for row in chunk.rows if (row.method, row.point) == key]
                 parts.append(results.metric_arrays(rows, columns=columns))
                 yield rows
             arrays[key] = {name: np.concatenate([part[name] for part in parts]) for name in parts[0]}
 
+    def frame_timings():
+        """The timings of each frame range, every unit of it together (write_timings sorts a block)."""
+        for start, stop in sorted({(unit.start, unit.stop) for unit in units}):
+            yield [row for unit in units if (unit.start, unit.stop) == (start, stop)
+                   for row in results.load_chunk(out, *unit, run_key=run_key).timings]
+
     results.write_metrics(out / "metrics.csv", variant_rows(), columns=columns)
-    results.write_timings(out / "timings.csv", (chunk.timings for chunk in chunks()), order=order)
+    results.write_timings(out / "timings.csv", frame_timings(), order=order)
 
     def write_variant(rank: int) -> None:
         variant = job.variants[rank]
         captures = []
-        for start, stop in ranges:
-            packed = results.load_chunk_part(out, start, stop, _captures_part(rank))
+        for unit in units:
+            packed = results.load_chunk_part(out, *unit, _captures_part(rank)) if rank in unit.ranks else None
             captures += [] if packed is None else pickle.loads(packed)
         write_captures(out, method=variant.method, point=variant.point, captures=captures)
 

@@ -28,8 +28,10 @@ Files in a results directory (docs/design.md, "Interfaces"):
     many, where, how long, and the rules applied). Written last: a directory without it holds no
     finished run.
 ``.chunks/``
-    Finished chunks of a run in progress (pickles, each with the config hash and device it belongs
-    to), so that ``--resume`` redoes only what is missing. Removed when the run finishes.
+    Finished units of work of a run in progress (pickles, each with the config hash and device it
+    belongs to), so that ``--resume`` redoes only what is missing. A unit is a range of frames of
+    a set of variants (results ranks): its file is named by both, so units of different variant
+    sets never take each other's place. Removed when the run finishes.
 
 Every file is written to a temporary name and renamed into place (``os.replace``), so a reader never
 sees half a file.
@@ -38,6 +40,7 @@ sees half a file.
 from __future__ import annotations
 
 import csv
+import hashlib
 import importlib.metadata
 import io
 import json
@@ -64,6 +67,7 @@ __all__ = [
     "clear_chunks",
     "environment",
     "format_value",
+    "kept_chunks",
     "load_chunk",
     "load_chunk_part",
     "metric_arrays",
@@ -345,44 +349,69 @@ def prepare_output(out_dir, *, resolved_toml: str, run_key: str, resume: bool) -
     return out
 
 
-def _chunk_path(out_dir, start: int, stop: int, part: str = "") -> Path:
+def _chunk_path(out_dir, start: int, stop: int, ranks: tuple[int, ...], part: str = "") -> Path:
+    # The variant set by a digest: a list of ranks can outgrow a file name (a sweep of hundreds of
+    # points); the payload holds the ranks themselves, checked on reading.
+    variants = hashlib.sha256(",".join(map(str, ranks)).encode()).hexdigest()[:16]
     suffix = f".{part}.bin" if part else ".pkl"
-    return Path(out_dir) / _CHUNKS / f"chunk_{start:07d}_{stop:07d}{suffix}"
+    return Path(out_dir) / _CHUNKS / f"chunk_{start:07d}_{stop:07d}_{variants}{suffix}"
 
 
 def save_chunk(out_dir, result, *, run_key: str, parts: dict[str, bytes] | None = None) -> Path:
-    """Keep one finished chunk (an object with ``start`` and ``stop``) for ``--resume``.
+    """Keep one finished unit of work for ``--resume``: an object with ``start``, ``stop`` and ``ranks``.
 
+    ``ranks`` (tuple of int) are the results ranks of the variants it holds, frames ``[start, stop)``.
     ``parts`` (name to bytes) are kept beside it, each in a file of its own, so that a reader who
     needs one of them (:func:`load_chunk_part`) does not read the others; they are written first,
     so a chunk that :func:`load_chunk` finds has all of its parts.
     """
+    ranks = tuple(result.ranks)
     for name, data in (parts or {}).items():
-        write_atomic(_chunk_path(out_dir, result.start, result.stop, name), data)
-    payload = pickle.dumps({"run_key": run_key, "result": result}, protocol=pickle.HIGHEST_PROTOCOL)
-    return write_atomic(_chunk_path(out_dir, result.start, result.stop), payload)
+        write_atomic(_chunk_path(out_dir, result.start, result.stop, ranks, name), data)
+    payload = pickle.dumps({"run_key": run_key, "start": result.start, "stop": result.stop, "ranks": ranks,
+                            "result": result}, protocol=pickle.HIGHEST_PROTOCOL)
+    return write_atomic(_chunk_path(out_dir, result.start, result.stop, ranks), payload)
 
 
-def load_chunk_part(out_dir, start: int, stop: int, name: str) -> bytes | None:
-    """The part ``name`` kept with chunk ``[start, stop)`` (:func:`save_chunk`); None when there is none."""
-    path = _chunk_path(out_dir, start, stop, name)
+def load_chunk_part(out_dir, start: int, stop: int, ranks: tuple[int, ...], name: str) -> bytes | None:
+    """The part ``name`` kept with the unit of frames ``[start, stop)`` and variants ``ranks``; None when there is none."""
+    path = _chunk_path(out_dir, start, stop, tuple(ranks), name)
     return path.read_bytes() if path.is_file() else None
 
 
-def load_chunk(out_dir, start: int, stop: int, *, run_key: str):
-    """The kept chunk ``[start, stop)`` of ``run_key``; None when there is none, it is unreadable or of another run.
-
-    One chunk at a time: a run keeps its finished chunks here rather than in memory, so that a long
-    path's results are streamed to disk and read back chunk by chunk.
-    """
-    path = _chunk_path(out_dir, start, stop)
-    if not path.is_file():
-        return None
+def _chunk_payload(path: Path) -> dict | None:
     try:
         payload = pickle.loads(path.read_bytes())
-    except (pickle.UnpicklingError, EOFError, AttributeError, ImportError):
+    except (OSError, pickle.UnpicklingError, EOFError, AttributeError, ImportError):
         return None
-    return payload["result"] if payload.get("run_key") == run_key else None
+    return payload if isinstance(payload, dict) else None
+
+
+def load_chunk(out_dir, start: int, stop: int, ranks: tuple[int, ...], *, run_key: str):
+    """The kept unit of frames ``[start, stop)`` and variants ``ranks`` of ``run_key``.
+
+    None when there is none, it is unreadable or of another run. One unit at a time: a run keeps
+    its finished units here rather than in memory, so that a long path's results are streamed to
+    disk and read back unit by unit.
+    """
+    ranks = tuple(ranks)
+    payload = _chunk_payload(_chunk_path(out_dir, start, stop, ranks))
+    if payload is None or payload.get("run_key") != run_key or payload.get("ranks") != ranks:
+        return None
+    return payload["result"]
+
+
+def kept_chunks(out_dir, *, run_key: str) -> list[tuple[int, int, tuple[int, ...]]]:
+    """``(start, stop, ranks)`` of every readable unit of ``run_key`` kept in ``out_dir``, sorted.
+
+    What a resumed run may reuse: it picks the units that fit its plan (:func:`load_chunk` reads one).
+    """
+    found = []
+    for path in (Path(out_dir) / _CHUNKS).glob("chunk_*.pkl"):
+        payload = _chunk_payload(path)
+        if payload is not None and payload.get("run_key") == run_key and "ranks" in payload:
+            found.append((payload["start"], payload["stop"], payload["ranks"]))
+    return sorted(found)
 
 
 def clear_chunks(out_dir) -> None:

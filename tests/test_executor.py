@@ -37,9 +37,13 @@ shadow_distance = 40.0
 """
 
 
-def run(tmp_path, name: str, **options):
+# With TAA a unit is every frame of one variant: the executors run the variants side by side.
+TINY_TAA = TINY.replace("frames = 6", "frames = 3") + "\n[taa]\nenabled = true\nphases = 4\n"
+
+
+def run(tmp_path, name: str, text: str = TINY, **options):
     path = tmp_path / "tiny.toml"
-    path.write_text(TINY)
+    path.write_text(text)
     return run_experiment(load_experiment(path), out_dir=tmp_path / name, **options)
 
 
@@ -54,6 +58,22 @@ def test_process_pool_gives_the_inprocess_csv(inprocess, tmp_path):
     result = run(tmp_path, "pool", executor="pool", jobs=2)
     assert result.chunks_run == 3
     assert (tmp_path / "pool" / "metrics.csv").read_bytes() == inprocess.read_bytes()
+
+
+@pytest.fixture(scope="module")
+def inprocess_taa(tmp_path_factory):
+    out = tmp_path_factory.mktemp("inprocess_taa")
+    run(out, "out", TINY_TAA)
+    return out / "out"
+
+
+@pytest.mark.parametrize("options", [dict(executor="pool"), dict(executor="dask", address="local")],
+                         ids=["pool", "dask"])
+def test_taa_variants_on_two_workers_give_the_inprocess_files(inprocess_taa, tmp_path, options):
+    result = run(tmp_path, "taa", TINY_TAA, jobs=2, **options)
+    assert result.chunks_run == 3
+    for name in ("metrics.csv", "summary.json", "pixels/exact__base.npz", "pixels/none__base.npz"):
+        assert (tmp_path / "taa" / name).read_bytes() == (inprocess_taa / name).read_bytes()
 
 
 def test_dask_local_workers_keep_glibcs_adaptive_mmap_threshold():

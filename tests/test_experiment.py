@@ -11,7 +11,7 @@ import pytest
 
 from csmlab.config import load_experiment
 from csmlab.errors import InputError
-from csmlab.experiment import build_workload, check_device, chunk_ranges, run_experiment
+from csmlab.experiment import Unit, build_workload, check_device, chunk_ranges, run_experiment, units_of_work
 
 TINY = """
 name = "tiny"
@@ -124,6 +124,78 @@ def test_interrupted_run_resumed_equals_an_uninterrupted_one(reference, tmp_path
         assert (out / name).read_bytes() == (uninterrupted / name).read_bytes()
 
 
+# Four variants of different cost (unity_urp takes the host path) through TAA, 4 frames.
+TINY_TAA = TINY.replace('extends = ["methods/exact", "methods/none"]',
+                        'extends = ["methods/exact", "methods/quantized", "methods/none", "engines/unity_urp"]'
+                        ).replace("frames = 6", "frames = 4") + "\n[taa]\nenabled = true\nphases = 4\n"
+
+
+@pytest.fixture(scope="module")
+def taa_one_unit(tmp_path_factory):
+    """The TAA run as one unit of every variant (one process): the order of a run before the split."""
+    return run_tiny(tmp_path_factory.mktemp("taa"), "one_unit", TINY_TAA)
+
+
+def result_files(out) -> dict:
+    """Every results file but the wall-clock ones (timings, the cost figure, the page that shows them) and the
+    resolved config (which names the experiment file)."""
+    skipped = {"timings.csv", "index.html", "cost.png", "config.resolved.toml"}
+    return {p.relative_to(out): p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file() and p.name not in skipped}
+
+
+def timing_keys(out) -> list:
+    with open(out / "timings.csv", newline="") as f:
+        return [(r["frame"], r["method"], r["point"], r["stage"]) for r in csv.DictReader(f)]
+
+
+def test_taa_split_by_variant_gives_the_one_unit_run_byte_for_byte(taa_one_unit, tmp_path):
+    one, one_out = taa_one_unit
+    split, split_out = run_tiny(tmp_path, "split", TINY_TAA, jobs=2)  # in this process, one unit per variant
+    assert (one.chunks_run, split.chunks_run) == (1, 4)
+    files = result_files(one_out)
+    assert {"metrics.csv", "summary.json"} <= {str(p) for p in files}
+    assert any(str(p).startswith("pixels") for p in files) and any(str(p).startswith("anim") for p in files)
+    assert result_files(split_out) == files
+    # The view is rendered by every unit and timed by one: the same rows, once per frame.
+    keys = timing_keys(split_out)
+    assert keys == timing_keys(one_out)
+    assert [k for k in keys if k[1] == ""] == [(str(f), "", "", s) for f in range(4)
+                                               for s in ("visibility", "reference", "taa_reference")]
+
+
+def test_taa_run_resumed_with_other_jobs_reuses_its_finished_units(taa_one_unit, tmp_path):
+    _, uninterrupted = taa_one_unit
+
+    def stop_after_first_unit(done, total):
+        if done > 0:
+            raise Interrupted
+
+    # Units of one variant each: the first finished is a quarter of the work, one frame's worth.
+    with pytest.raises(Interrupted):
+        run_tiny(tmp_path, "taa", TINY_TAA, jobs=2, progress=stop_after_first_unit)
+    out = tmp_path / "taa"
+    assert len(list((out / ".chunks").glob("chunk_*.pkl"))) == 1
+    result, _ = run_tiny(tmp_path, "taa", TINY_TAA, resume=True)  # one process: the other three in one unit
+    assert (result.chunks_resumed, result.chunks_run) == (1, 1)
+    assert result_files(out) == result_files(uninterrupted)
+
+
+def test_taa_units_cover_every_variant_once_and_reuse_only_disjoint_kept_units():
+    assert units_of_work(5, 3, chunk_frames=2, taa=False, split=True) == (
+        [], [Unit(0, 2, (0, 1, 2)), Unit(2, 4, (0, 1, 2)), Unit(4, 5, (0, 1, 2))])
+    assert units_of_work(5, 3, chunk_frames=2, taa=False, split=False, kept=[Unit(2, 4, (0, 1, 2))])[0] == [
+        Unit(2, 4, (0, 1, 2))]
+    assert units_of_work(5, 3, chunk_frames=2, taa=True, split=True) == (
+        [], [Unit(0, 5, (0,)), Unit(0, 5, (1,)), Unit(0, 5, (2,))])
+    assert units_of_work(5, 3, chunk_frames=2, taa=True, split=False) == ([], [Unit(0, 5, (0, 1, 2))])
+    # Kept: a unit of another frame count (ignored), two overlapping ones (the first taken).
+    kept = [Unit(0, 4, (1,)), Unit(0, 5, (0, 2)), Unit(0, 5, (2,))]
+    assert units_of_work(5, 3, chunk_frames=2, taa=True, split=True, kept=kept) == (
+        [Unit(0, 5, (0, 2))], [Unit(0, 5, (1,))])
+    assert units_of_work(5, 3, chunk_frames=2, taa=True, split=False, kept=[Unit(0, 5, (0, 1, 2))]) == (
+        [Unit(0, 5, (0, 1, 2))], [])
+
+
 def test_sweep_gives_rows_and_summaries_per_point(tmp_path):
     text = TINY.replace("frames = 6", "frames = 2") + "[sweep]\nresolution = [64, 128]\n"
     result, out = run_tiny(tmp_path, "sweep", text)
@@ -185,7 +257,7 @@ def test_a_chunk_runs_with_one_thread_in_every_library_pool(monkeypatch):
 
     outside = threads()
     monkeypatch.setattr(experiment, "_run_chunk", lambda job, chunk: threadpool_info())
-    pools = experiment.run_chunk(None, (0, 1))
+    pools = experiment.run_chunk(None, Unit(0, 1, (0,)))
     assert {"openmp", "blas"} <= {pool["user_api"] for pool in pools}
     assert all(pool["num_threads"] == 1 for pool in pools)
     assert threads() == outside  # the caller's own settings come back afterwards

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from csmlab.errors import InputError
-from csmlab.results import (MetricRow, clear_chunks, format_value, load_chunk, metric_arrays, prepare_output, read_metrics,
-                            read_summary, save_chunk, summarize, write_atomic, write_metrics)
+from csmlab.results import (MetricRow, clear_chunks, format_value, kept_chunks, load_chunk, load_chunk_part, metric_arrays,
+                            prepare_output, read_metrics, read_summary, save_chunk, summarize, write_atomic,
+                            write_metrics)
 
 
 def test_cells_round_trip_every_float_exactly():
@@ -57,16 +58,32 @@ class _Chunk:
     start: int
     stop: int
     payload: str
+    ranks: tuple = (0, 1)
 
 
 def test_chunks_are_kept_per_config_and_cleared(tmp_path):
     prepare_output(tmp_path, resolved_toml="x", run_key="aaa", resume=False)
     save_chunk(tmp_path, _Chunk(0, 3, "first"), run_key="aaa")
     save_chunk(tmp_path, _Chunk(3, 6, "second"), run_key="bbb")
-    assert load_chunk(tmp_path, 0, 3, run_key="aaa").payload == "first"
-    assert load_chunk(tmp_path, 3, 6, run_key="aaa") is None and load_chunk(tmp_path, 6, 9, run_key="aaa") is None
+    assert load_chunk(tmp_path, 0, 3, (0, 1), run_key="aaa").payload == "first"
+    assert load_chunk(tmp_path, 3, 6, (0, 1), run_key="aaa") is None
+    assert load_chunk(tmp_path, 6, 9, (0, 1), run_key="aaa") is None
+    assert kept_chunks(tmp_path, run_key="aaa") == [(0, 3, (0, 1))]
     clear_chunks(tmp_path)
-    assert load_chunk(tmp_path, 0, 3, run_key="aaa") is None
+    assert load_chunk(tmp_path, 0, 3, (0, 1), run_key="aaa") is None
+
+
+def test_units_of_the_same_frames_and_other_variants_never_take_each_others_place(tmp_path):
+    prepare_output(tmp_path, resolved_toml="x", run_key="aaa", resume=False)
+    for ranks, payload in (((0, 2), "even"), ((1,), "one"), ((0, 1, 2), "all")):
+        save_chunk(tmp_path, _Chunk(0, 4, payload, ranks), run_key="aaa", parts={"captures0": payload.encode()})
+    assert [load_chunk(tmp_path, 0, 4, r, run_key="aaa").payload for r in ((0, 2), (1,), (0, 1, 2))] == [
+        "even", "one", "all"]
+    assert all(load_chunk(tmp_path, 0, 4, r, run_key="aaa") is None for r in ((2,), (0,), (1, 2)))
+    assert load_chunk_part(tmp_path, 0, 4, (1,), "captures0") == b"one"
+    assert load_chunk_part(tmp_path, 0, 4, (2,), "captures0") is None
+    assert kept_chunks(tmp_path, run_key="aaa") == [(0, 4, (0, 1, 2)), (0, 4, (0, 2)), (0, 4, (1,))]
+    assert kept_chunks(tmp_path, run_key="bbb") == []
 
 
 def test_a_new_run_removes_finished_files_and_stale_chunks(tmp_path):
@@ -76,7 +93,7 @@ def test_a_new_run_removes_finished_files_and_stale_chunks(tmp_path):
         (tmp_path / name).write_text("old")
     prepare_output(tmp_path, resolved_toml="y", run_key="aaa", resume=False)
     assert not any((tmp_path / n).exists() for n in ("summary.json", "metrics.csv", "index.html"))
-    assert load_chunk(tmp_path, 0, 3, run_key="aaa") is None
+    assert load_chunk(tmp_path, 0, 3, (0, 1), run_key="aaa") is None
     assert (tmp_path / "config.resolved.toml").read_text() == "y"
 
 

@@ -170,8 +170,9 @@ class TaaConfig(_Checked):
 
     Off by default; on, every frame is rendered with a sub-pixel camera jitter, each method's S and
     the ray-traced R go through the same resolve, and the ``*_taa`` columns are filled. The
-    history runs over the whole path, so the run is one unit of work (``chunk_frames`` is not
-    used) and every variant's frames run in order in one process.
+    history runs over the whole path, so the run is split by variant, not by frame
+    (``chunk_frames`` is not used; :func:`csmlab.experiment.units_of_work`): every variant's frames
+    run in order in one process.
     """
 
     enabled: bool = False
