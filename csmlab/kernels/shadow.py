@@ -117,25 +117,99 @@ def bilinear_tap(depth: wp.array3d(dtype=wp.float32), c: int, qx: wp.int64, qy: 
 
 @wp.func
 def lit_fraction(depth: wp.array3d(dtype=wp.float32), c: int, x: wp.int64, y: wp.int64, receiver: wp.float32,
-                 slope: wp.vec2d, unit: wp.int64, filter_code: int, radius: int) -> wp.float64:
-    """S of a receiver at fixed point ``(x, y)`` in cascade c: bilinear (``BOX_BILINEAR``), else a box of ``radius``."""
-    inverse_span = wp.float64(1.0) / wp.float64(wp.int64(2) * unit)
+                 slope: wp.vec2d, bits: int, inverse_span: wp.float64, filter_code: int, radius: int) -> wp.float64:
+    """S of a receiver at fixed point ``(x, y)`` in cascade c: bilinear (``BOX_BILINEAR``), else a box of ``radius``.
+
+    ``bits`` sub-texel bits (``unit = 2**bits``), ``inverse_span`` ``1 / (2·unit)``, as in :func:`tap`.
+    """
+    unit = wp.int64(1) << wp.int64(bits)
     if filter_code == BOX_BILINEAR:
         return bilinear_tap(depth, c, x, y, receiver, slope, x, y, unit, inverse_span)
     # BOX_TAPS: the (2r + 1)² texels centred on the one that contains the point (r = 0: none).
-    i = x // unit
-    j = y // unit
+    count = int(0)
+    if radius == 1:
+        count = box_count_3x3(depth, c, x, y, receiver, slope, bits, inverse_span)
+    else:
+        count = box_count(depth, c, x, y, receiver, slope, bits, inverse_span, radius)
+    return wp.float64(count) / wp.float64((2 * radius + 1) * (2 * radius + 1))
+
+
+@wp.func
+def box_count(depth: wp.array3d(dtype=wp.float32), c: int, x: wp.int64, y: wp.int64, receiver: wp.float32,
+              slope: wp.vec2d, bits: int, inverse_span: wp.float64, radius: int) -> int:
+    """How many of the (2r + 1)² texels centred on the one holding fixed point ``(x, y)`` pass :func:`tap`.
+
+    The same comparisons as :func:`tap` at each texel, with what does not change from tap to tap
+    done once: ``x // unit`` is a shift (``unit = 2**bits``), the texel centre's offset from the
+    point steps by the exact integer ``2·unit``, the plane's x term is shared along a column, and
+    the taps lie inside the box (the selection's ``reach``), so no index is clamped. The count is
+    an integer, so the visiting order is free.
+
+    A flat receiver (zero slope) takes the plane's arithmetic too: ``float32(d + 0·di + 0·dj)``
+    is ``d`` for every float32 ``d`` (a signed zero aside, which compares alike), so it passes
+    exactly where :func:`tap`'s unmoved ``receiver`` does, and no tap branches on the slope.
+    """
+    shift = wp.int64(bits)
+    unit = wp.int64(1) << shift
+    step = wp.int64(2) * unit
+    r = wp.int64(radius)
+    i = x >> shift
+    j = y >> shift
+    # (2i' + 1)·unit − 2x at the first column and row, tap's integers in tap's order.
+    ex = (wp.int64(2) * (i - r) + wp.int64(1)) * unit - wp.int64(2) * x
+    ey0 = (wp.int64(2) * (j - r) + wp.int64(1)) * unit - wp.int64(2) * y
+    near = wp.float64(receiver)
     count = int(0)
     # `while` loops: a range known only at run time costs Warp's CPU code several times more per step.
-    dj = -radius
-    while dj <= radius:
-        di = -radius
-        while di <= radius:
-            count += tap(depth, c, i + wp.int64(di), j + wp.int64(dj), receiver, slope, x, y, unit, inverse_span)
-            di += 1
-        dj += 1
-    side = 2 * radius + 1
-    return wp.float64(count) / wp.float64(side * side)
+    ii = int(i - r)
+    last = int(i + r)
+    while ii <= last:
+        column = near + slope[0] * (wp.float64(ex) * inverse_span)
+        ey = ey0
+        jj = int(j - r)
+        top = int(j + r)
+        while jj <= top:
+            if wp.float32(column + slope[1] * (wp.float64(ey) * inverse_span)) <= depth[c, jj, ii]:
+                count += 1
+            ey += step
+            jj += 1
+        ex += step
+        ii += 1
+    return count
+
+
+@wp.func
+def box_count_3x3(depth: wp.array3d(dtype=wp.float32), c: int, x: wp.int64, y: wp.int64, receiver: wp.float32,
+                  slope: wp.vec2d, bits: int, inverse_span: wp.float64) -> int:
+    """:func:`box_count` of radius 1 (PCF 3×3), its loops unrolled: the three column and three row terms of
+    the plane are each computed once and the nine taps are straight-line code."""
+    shift = wp.int64(bits)
+    unit = wp.int64(1) << shift
+    step = wp.int64(2) * unit
+    i = x >> shift
+    j = y >> shift
+    ex = (wp.int64(2) * (i - wp.int64(1)) + wp.int64(1)) * unit - wp.int64(2) * x
+    ey = (wp.int64(2) * (j - wp.int64(1)) + wp.int64(1)) * unit - wp.int64(2) * y
+    near = wp.float64(receiver)
+    c0 = near + slope[0] * (wp.float64(ex) * inverse_span)
+    c1 = near + slope[0] * (wp.float64(ex + step) * inverse_span)
+    c2 = near + slope[0] * (wp.float64(ex + wp.int64(2) * step) * inverse_span)
+    r0 = slope[1] * (wp.float64(ey) * inverse_span)
+    r1 = slope[1] * (wp.float64(ey + step) * inverse_span)
+    r2 = slope[1] * (wp.float64(ey + wp.int64(2) * step) * inverse_span)
+    ii = int(i)
+    jj = int(j)
+    count = int(0)
+    count += wp.where(wp.float32(c0 + r0) <= depth[c, jj - 1, ii - 1], 1, 0)
+    count += wp.where(wp.float32(c1 + r0) <= depth[c, jj - 1, ii], 1, 0)
+    count += wp.where(wp.float32(c2 + r0) <= depth[c, jj - 1, ii + 1], 1, 0)
+    count += wp.where(wp.float32(c0 + r1) <= depth[c, jj, ii - 1], 1, 0)
+    count += wp.where(wp.float32(c1 + r1) <= depth[c, jj, ii], 1, 0)
+    count += wp.where(wp.float32(c2 + r1) <= depth[c, jj, ii + 1], 1, 0)
+    count += wp.where(wp.float32(c0 + r2) <= depth[c, jj + 1, ii - 1], 1, 0)
+    count += wp.where(wp.float32(c1 + r2) <= depth[c, jj + 1, ii], 1, 0)
+    count += wp.where(wp.float32(c2 + r2) <= depth[c, jj + 1, ii + 1], 1, 0)
+    return count
 
 
 @wp.func
@@ -243,7 +317,7 @@ def shadow_lookup_kernel(
     splits: wp.array(dtype=wp.float64),
     texel_area: wp.array(dtype=wp.float64),
     sphere_cascade: wp.array(dtype=wp.int32),
-    unit: wp.int64,
+    bits: int,
     selection: int,
     filter_code: int,
     radius: int,
@@ -258,6 +332,8 @@ def shadow_lookup_kernel(
     blend_weight: wp.array(dtype=wp.float64),
 ):
     k = wp.tid()
+    unit = wp.int64(1) << wp.int64(bits)
+    inverse_span = wp.float64(1.0) / wp.float64(wp.int64(2) * unit)
     count = depth.shape[0]
     size = wp.int64(depth.shape[1])
     # A box holds a point for sampling when every tap (`reach` texels around it) is inside it, and
@@ -306,7 +382,7 @@ def shadow_lookup_kernel(
     if chosen < 0:
         lit[k] = 0.0
         return
-    s = lit_fraction(depth, chosen, x, y, receiver, slope, unit, filter_code, radius)
+    s = lit_fraction(depth, chosen, x, y, receiver, slope, bits, inverse_span, filter_code, radius)
     nxt = chosen + 1
     if nxt < count:
         # The band of cascade `chosen` runs from band_start[chosen] (+inf: none) to where the
@@ -319,8 +395,8 @@ def shadow_lookup_kernel(
                 w = (z - start) / (z1 - start)
                 if blend_curve == BLEND_SMOOTHSTEP:
                     w = w * w * (wp.float64(3.0) - wp.float64(2.0) * w)
-                s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, nxt, xn, yn, rn, sn, unit, filter_code,
-                                                                 radius)
+                s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, nxt, xn, yn, rn, sn, bits, inverse_span,
+                                                                 filter_code, radius)
                 blend[k] = 1
                 if keep_weight != 0:
                     blend_weight[k] = w
@@ -557,7 +633,7 @@ def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str,
             wp.array(z, dtype=wp.float64, device=device, copy=False),
             wp.array(area, dtype=wp.float64, device=device, copy=False),
             wp.array(spheres, dtype=wp.int32, device=device, copy=False),
-            wp.int64(2**bits),
+            int(bits),
             selected.code,
             code,
             int(radius),
@@ -580,7 +656,8 @@ def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str,
 def fixed_point(u: wp.float64, to_fixed: wp.float64, limit: wp.float64) -> wp.int64:
     """``u`` metres in ``2**-bits`` texels, rounded half to even; NaN maps to ``-limit`` (far outside every box)."""
     v = wp.rint(wp.clamp(u * to_fixed, -limit, limit))
-    if wp.isnan(v):
+    # v != v is isnan(v) without the call Warp's CPU code makes for wp.isnan.
+    if v != v:
         v = -limit
     return wp.int64(v)
 
