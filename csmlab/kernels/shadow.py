@@ -3,10 +3,11 @@
 Receivers arrive either converted — int64 fixed-point coordinates in ``2**-bits`` texels of each
 cascade (already moved along their normal), a biased float32 depth and a receiver-plane slope per
 cascade (:func:`csmlab.texels.receiver_lookup`, :func:`receiver_coordinates`) — or as world points
-and normals (:func:`shadow_lookup_world`) that the lookup converts itself, with the same function
-(:func:`receiver_at`), into the cascades it reads only. Filter taps come from the integer texel index and the
-fixed-point remainder — exactly representable — never from float texel centres, so a box moved by
-whole texels gives bit-identical results at fixed receivers.
+and normals (:func:`shadow_lookup_world`) that the lookup converts itself, with the same functions
+(:func:`receiver_light` once, :func:`receiver_in` per cascade), into the cascades it reads only.
+Filter taps come from the integer texel index and the fixed-point remainder — exactly
+representable — never from float texel centres, so a box moved by whole texels gives
+bit-identical results at fixed receivers.
 
 Selection methods (:data:`csmlab.lookup_choices.SELECTION_METHODS`):
 
@@ -19,7 +20,8 @@ Selection methods (:data:`csmlab.lookup_choices.SELECTION_METHODS`):
   receiver by :func:`split_sphere_cascades` and handed to the lookup as ``sphere_cascade``.
 
 Every selection also requires the selected box to hold all of the filter's taps, so clamping never
-changes a tap; a point that no cascade holds gets cascade −1 (S is NaN there).
+changes a tap (the box filters' :func:`box_count` reads them unclamped); a point that no cascade
+holds gets cascade −1 (S is NaN there).
 
 The box filters (the ``box`` family of :data:`csmlab.lookup_choices.FILTER_METHODS`), S = lit
 fraction in [0, 1], run here with the selection; :func:`select_cascades` makes the same selection
@@ -254,40 +256,79 @@ class WorldReceivers:
     plane_offset: wp.array(dtype=wp.float64)
 
 
+@wp.struct
+class LightReceiver:
+    """A world receiver in the light's basis (metres): what :func:`receiver_in` needs whatever the cascade.
+
+    ``cos`` is the cosine of the normal's angle to the light, ``tan`` its tangent capped at
+    ``max_tan`` (NaN turned from the light), ``plane_x, plane_y`` the tangent plane's depth change
+    per metre along x and y (0 turned from the light).
+    """
+
+    px: wp.float64
+    py: wp.float64
+    pz: wp.float64
+    nx: wp.float64
+    ny: wp.float64
+    nz: wp.float64
+    cos: wp.float64
+    tan: wp.float64
+    plane_x: wp.float64
+    plane_y: wp.float64
+
+
 @wp.func
-def receiver_at(r: FixedReceivers, c: int, k: int):
+def receiver_light(r: FixedReceivers, k: int) -> LightReceiver:
+    """Converted receivers need nothing from the light's basis."""
+    return LightReceiver()
+
+
+@wp.func
+def receiver_light(r: WorldReceivers, k: int) -> LightReceiver:  # noqa: F811  (a Warp overload, by receiver type)
+    """Receiver k's point and normal in the light's basis and its normal's slope: computed once per receiver,
+    however many cascades the selection converts it into (:func:`receiver_in`)."""
+    zero = wp.float64(0.0)
+    point = r.points[r.index[k]]
+    normal = wp.vec3d(r.normals[r.index[k]])
+    light = LightReceiver()
+    light.px = light_space(point, r.basis, 0)
+    light.py = light_space(point, r.basis, 1)
+    light.pz = light_space(point, r.basis, 2)
+    light.nx = light_space(normal, r.basis, 0)
+    light.ny = light_space(normal, r.basis, 1)
+    light.nz = light_space(normal, r.basis, 2)
+    cos = -light.nz
+    light.cos = cos
+    light.tan = wp.float64(wp.nan)
+    light.plane_x = zero
+    light.plane_y = zero
+    if cos > zero:
+        light.tan = wp.min(wp.sqrt(wp.max(wp.float64(1.0) - cos * cos, zero)) / cos, r.max_tan)
+        light.plane_x = light.nx / cos
+        light.plane_y = light.ny / cos
+    return light
+
+
+@wp.func
+def receiver_in(r: FixedReceivers, light: LightReceiver, c: int, k: int):
     """Receiver k in cascade c: fixed-point ``x, y``, biased depth and receiver-plane slope."""
     return r.coords[c, k, 0], r.coords[c, k, 1], r.depth[c, k], r.slope[c, k]
 
 
 @wp.func
-def receiver_at(r: WorldReceivers, c: int, k: int):  # noqa: F811  (a Warp overload, by receiver type)
-    """Receiver k in cascade c: fixed-point ``x, y``, biased depth and receiver-plane slope.
+def receiver_in(r: WorldReceivers, light: LightReceiver, c: int, k: int):  # noqa: F811  (a Warp overload)
+    """Receiver k, ``light`` its :func:`receiver_light`, in cascade c: fixed-point ``x, y``, biased depth and
+    receiver-plane slope.
 
     csmlab.texels.receiver_lookup's operations in its order, one at a time (Warp emits one
     statement per operation, so no multiply-add is fused): the same bits as the host.
     """
     zero = wp.float64(0.0)
-    point = r.points[r.index[k]]
-    normal = wp.vec3d(r.normals[r.index[k]])
-    px = light_space(point, r.basis, 0)
-    py = light_space(point, r.basis, 1)
-    pz = light_space(point, r.basis, 2)
-    nx = light_space(normal, r.basis, 0)
-    ny = light_space(normal, r.basis, 1)
-    nz = light_space(normal, r.basis, 2)
-    cos = -nz
-    tan = wp.float64(wp.nan)
-    plane_x = zero
-    plane_y = zero
-    if cos > zero:
-        tan = wp.min(wp.sqrt(wp.max(wp.float64(1.0) - cos * cos, zero)) / cos, r.max_tan)
-        plane_x = nx / cos
-        plane_y = ny / cos
+    cos = light.cos
     slope = wp.vec2d(zero, zero)
     if r.planar != 0:
-        slope = wp.vec2d(wp.clamp(plane_x, -r.max_tan, r.max_tan) * r.texel_size[c, 0],
-                         wp.clamp(plane_y, -r.max_tan, r.max_tan) * r.texel_size[c, 1])
+        slope = wp.vec2d(wp.clamp(light.plane_x, -r.max_tan, r.max_tan) * r.texel_size[c, 0],
+                         wp.clamp(light.plane_y, -r.max_tan, r.max_tan) * r.texel_size[c, 1])
     moved = r.offset[c]
     along = wp.float64(1.0)
     if r.normal_scale != NORMAL_NONE:
@@ -298,15 +339,15 @@ def receiver_at(r: WorldReceivers, c: int, k: int):  # noqa: F811  (a Warp overl
             moved = moved * (wp.float64(1.0) - wp.max(cos, zero))
         if r.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
             along = zero
-    x = fixed_point(nx * moved + px, r.to_fixed[c, 0], r.limit) - r.origin_fixed[c, 0]
-    y = fixed_point(ny * moved + py, r.to_fixed[c, 1], r.limit) - r.origin_fixed[c, 1]
-    bias = r.bias_constant[c] + r.slope_bias[c] * tan
+    x = fixed_point(light.nx * moved + light.px, r.to_fixed[c, 0], r.limit) - r.origin_fixed[c, 0]
+    y = fixed_point(light.ny * moved + light.py, r.to_fixed[c, 1], r.limit) - r.origin_fixed[c, 1]
+    bias = r.bias_constant[c] + r.slope_bias[c] * light.tan
     if r.plane_offset[c] > zero:
         # MJP's static receiver-plane offset: the plane's depth change over a texel in x and one in y, capped.
-        sx = wp.clamp(plane_x, -r.max_tan, r.max_tan) * r.texel_size[c, 0]
-        sy = wp.clamp(plane_y, -r.max_tan, r.max_tan) * r.texel_size[c, 1]
+        sx = wp.clamp(light.plane_x, -r.max_tan, r.max_tan) * r.texel_size[c, 0]
+        sy = wp.clamp(light.plane_y, -r.max_tan, r.max_tan) * r.texel_size[c, 1]
         bias = bias + wp.min(wp.abs(sx) + wp.abs(sy), r.plane_offset[c])
-    return x, y, wp.float32(pz + along * moved * nz - r.zref - bias), slope
+    return x, y, wp.float32(light.pz + along * moved * light.nz - r.zref - bias), slope
 
 
 @wp.kernel
@@ -343,6 +384,8 @@ def shadow_lookup_kernel(
     select_lo = wp.int64(margin) * unit
     select_hi = (size - wp.int64(margin)) * unit
     z = view_depth[k]
+    # The receiver in the light's basis once, whichever cascades the selection and the blend read.
+    light = receiver_light(receivers, k)
     chosen = int(-1)
     x = wp.int64(0)
     y = wp.int64(0)
@@ -357,14 +400,14 @@ def shadow_lookup_kernel(
                 chosen = c
             c += 1
         if chosen >= 0:
-            x, y, receiver, slope = receiver_at(receivers, chosen, k)
+            x, y, receiver, slope = receiver_in(receivers, light, chosen, k)
             if not holds(x, y, tap_lo, tap_hi):
                 chosen = -1
     else:
         best = wp.float64(wp.inf)
         c = int(0)
         while c < count:
-            xc, yc, rc, sc = receiver_at(receivers, c, k)
+            xc, yc, rc, sc = receiver_in(receivers, light, c, k)
             if holds(xc, yc, select_lo, select_hi):
                 if (selection == SELECT_MAP and chosen < 0) or (selection == SELECT_BEST_RESOLUTION
                                                                  and texel_area[c] < best):
@@ -390,7 +433,7 @@ def shadow_lookup_kernel(
         z1 = splits[nxt]
         start = band_start[chosen]
         if z >= start and z < z1:
-            xn, yn, rn, sn = receiver_at(receivers, nxt, k)
+            xn, yn, rn, sn = receiver_in(receivers, light, nxt, k)
             if holds(xn, yn, tap_lo, tap_hi):
                 w = (z - start) / (z1 - start)
                 if blend_curve == BLEND_SMOOTHSTEP:
@@ -526,7 +569,7 @@ def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis,
     """:func:`shadow_lookup` of world receivers, each taken into a cascade's fixed point where the lookup reads it.
 
     The same results, bit for bit, as :func:`receiver_coordinates` followed by :func:`shadow_lookup`
-    (one conversion, :func:`receiver_at`, serves both) without the ``(C, N)`` arrays of every
+    (one conversion, :func:`receiver_in`, serves both) without the ``(C, N)`` arrays of every
     receiver in every cascade: a receiver is converted into the cascades its selection tests only.
 
     Parameters
@@ -591,6 +634,9 @@ def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str,
     selected = SELECTION_METHODS[check_name(selection, SELECTION_METHODS, field="selection")]
     if not (isinstance(reach, (int, np.integer)) and reach >= 0):
         raise ValueError(f"radius: expected a non-negative integer, got {reach!r}")
+    if reach < radius:
+        # box_count reads the taps unclamped: the selected box must hold every one of them.
+        raise ValueError(f"radius: the taps a selected box holds ({reach}) must reach the filter's ({radius})")
     maps = np.ascontiguousarray(depth, dtype=np.float32)
     vd = np.ascontiguousarray(view_depth, dtype=np.float64)
     z = np.ascontiguousarray(splits, dtype=np.float64)
@@ -676,9 +722,10 @@ def receiver_coordinates_kernel(
     slope: wp.array3d(dtype=wp.float64),
 ):
     k = wp.tid()
+    light = receiver_light(receivers, k)
     c = int(0)
     while c < coords.shape[0]:
-        x, y, d, s = receiver_at(receivers, c, k)
+        x, y, d, s = receiver_in(receivers, light, c, k)
         coords[c, k, 0] = x
         coords[c, k, 1] = y
         depth[c, k] = d
