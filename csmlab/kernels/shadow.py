@@ -3,10 +3,11 @@
 Receivers arrive either converted — int64 fixed-point coordinates in ``2**-bits`` texels of each
 cascade (already moved along their normal), a biased float32 depth and a receiver-plane slope per
 cascade (:func:`csmlab.texels.receiver_lookup`, :func:`receiver_coordinates`) — or as world points
-and normals (:func:`shadow_lookup_world`) that the lookup converts itself, with the same function
-(:func:`receiver_at`), into the cascades it reads only. Filter taps come from the integer texel index and the
-fixed-point remainder — exactly representable — never from float texel centres, so a box moved by
-whole texels gives bit-identical results at fixed receivers.
+and normals (:func:`shadow_lookup_world`) that the lookup converts itself, with the same functions
+(:func:`receiver_light` once, :func:`receiver_in` per cascade), into the cascades it reads only.
+Filter taps come from the integer texel index and the fixed-point remainder — exactly
+representable — never from float texel centres, so a box moved by whole texels gives
+bit-identical results at fixed receivers.
 
 Selection methods (:data:`csmlab.lookup_choices.SELECTION_METHODS`):
 
@@ -19,7 +20,8 @@ Selection methods (:data:`csmlab.lookup_choices.SELECTION_METHODS`):
   receiver by :func:`split_sphere_cascades` and handed to the lookup as ``sphere_cascade``.
 
 Every selection also requires the selected box to hold all of the filter's taps, so clamping never
-changes a tap; a point that no cascade holds gets cascade −1 (S is NaN there).
+changes a tap (the box filters' :func:`box_count` reads them unclamped); a point that no cascade
+holds gets cascade −1 (S is NaN there).
 
 The box filters (the ``box`` family of :data:`csmlab.lookup_choices.FILTER_METHODS`), S = lit
 fraction in [0, 1], run here with the selection; :func:`select_cascades` makes the same selection
@@ -117,25 +119,99 @@ def bilinear_tap(depth: wp.array3d(dtype=wp.float32), c: int, qx: wp.int64, qy: 
 
 @wp.func
 def lit_fraction(depth: wp.array3d(dtype=wp.float32), c: int, x: wp.int64, y: wp.int64, receiver: wp.float32,
-                 slope: wp.vec2d, unit: wp.int64, filter_code: int, radius: int) -> wp.float64:
-    """S of a receiver at fixed point ``(x, y)`` in cascade c: bilinear (``BOX_BILINEAR``), else a box of ``radius``."""
-    inverse_span = wp.float64(1.0) / wp.float64(wp.int64(2) * unit)
+                 slope: wp.vec2d, bits: int, inverse_span: wp.float64, filter_code: int, radius: int) -> wp.float64:
+    """S of a receiver at fixed point ``(x, y)`` in cascade c: bilinear (``BOX_BILINEAR``), else a box of ``radius``.
+
+    ``bits`` sub-texel bits (``unit = 2**bits``), ``inverse_span`` ``1 / (2·unit)``, as in :func:`tap`.
+    """
+    unit = wp.int64(1) << wp.int64(bits)
     if filter_code == BOX_BILINEAR:
         return bilinear_tap(depth, c, x, y, receiver, slope, x, y, unit, inverse_span)
     # BOX_TAPS: the (2r + 1)² texels centred on the one that contains the point (r = 0: none).
-    i = x // unit
-    j = y // unit
+    count = int(0)
+    if radius == 1:
+        count = box_count_3x3(depth, c, x, y, receiver, slope, bits, inverse_span)
+    else:
+        count = box_count(depth, c, x, y, receiver, slope, bits, inverse_span, radius)
+    return wp.float64(count) / wp.float64((2 * radius + 1) * (2 * radius + 1))
+
+
+@wp.func
+def box_count(depth: wp.array3d(dtype=wp.float32), c: int, x: wp.int64, y: wp.int64, receiver: wp.float32,
+              slope: wp.vec2d, bits: int, inverse_span: wp.float64, radius: int) -> int:
+    """How many of the (2r + 1)² texels centred on the one holding fixed point ``(x, y)`` pass :func:`tap`.
+
+    The same comparisons as :func:`tap` at each texel, with what does not change from tap to tap
+    done once: ``x // unit`` is a shift (``unit = 2**bits``), the texel centre's offset from the
+    point steps by the exact integer ``2·unit``, the plane's x term is shared along a column, and
+    the taps lie inside the box (the selection's ``reach``), so no index is clamped. The count is
+    an integer, so the visiting order is free.
+
+    A flat receiver (zero slope) takes the plane's arithmetic too: ``float32(d + 0·di + 0·dj)``
+    is ``d`` for every float32 ``d`` (a signed zero aside, which compares alike), so it passes
+    exactly where :func:`tap`'s unmoved ``receiver`` does, and no tap branches on the slope.
+    """
+    shift = wp.int64(bits)
+    unit = wp.int64(1) << shift
+    step = wp.int64(2) * unit
+    r = wp.int64(radius)
+    i = x >> shift
+    j = y >> shift
+    # (2i' + 1)·unit − 2x at the first column and row, tap's integers in tap's order.
+    ex = (wp.int64(2) * (i - r) + wp.int64(1)) * unit - wp.int64(2) * x
+    ey0 = (wp.int64(2) * (j - r) + wp.int64(1)) * unit - wp.int64(2) * y
+    near = wp.float64(receiver)
     count = int(0)
     # `while` loops: a range known only at run time costs Warp's CPU code several times more per step.
-    dj = -radius
-    while dj <= radius:
-        di = -radius
-        while di <= radius:
-            count += tap(depth, c, i + wp.int64(di), j + wp.int64(dj), receiver, slope, x, y, unit, inverse_span)
-            di += 1
-        dj += 1
-    side = 2 * radius + 1
-    return wp.float64(count) / wp.float64(side * side)
+    ii = int(i - r)
+    last = int(i + r)
+    while ii <= last:
+        column = near + slope[0] * (wp.float64(ex) * inverse_span)
+        ey = ey0
+        jj = int(j - r)
+        top = int(j + r)
+        while jj <= top:
+            if wp.float32(column + slope[1] * (wp.float64(ey) * inverse_span)) <= depth[c, jj, ii]:
+                count += 1
+            ey += step
+            jj += 1
+        ex += step
+        ii += 1
+    return count
+
+
+@wp.func
+def box_count_3x3(depth: wp.array3d(dtype=wp.float32), c: int, x: wp.int64, y: wp.int64, receiver: wp.float32,
+                  slope: wp.vec2d, bits: int, inverse_span: wp.float64) -> int:
+    """:func:`box_count` of radius 1 (PCF 3×3), its loops unrolled: the three column and three row terms of
+    the plane are each computed once and the nine taps are straight-line code."""
+    shift = wp.int64(bits)
+    unit = wp.int64(1) << shift
+    step = wp.int64(2) * unit
+    i = x >> shift
+    j = y >> shift
+    ex = (wp.int64(2) * (i - wp.int64(1)) + wp.int64(1)) * unit - wp.int64(2) * x
+    ey = (wp.int64(2) * (j - wp.int64(1)) + wp.int64(1)) * unit - wp.int64(2) * y
+    near = wp.float64(receiver)
+    c0 = near + slope[0] * (wp.float64(ex) * inverse_span)
+    c1 = near + slope[0] * (wp.float64(ex + step) * inverse_span)
+    c2 = near + slope[0] * (wp.float64(ex + wp.int64(2) * step) * inverse_span)
+    r0 = slope[1] * (wp.float64(ey) * inverse_span)
+    r1 = slope[1] * (wp.float64(ey + step) * inverse_span)
+    r2 = slope[1] * (wp.float64(ey + wp.int64(2) * step) * inverse_span)
+    ii = int(i)
+    jj = int(j)
+    count = int(0)
+    count += wp.where(wp.float32(c0 + r0) <= depth[c, jj - 1, ii - 1], 1, 0)
+    count += wp.where(wp.float32(c1 + r0) <= depth[c, jj - 1, ii], 1, 0)
+    count += wp.where(wp.float32(c2 + r0) <= depth[c, jj - 1, ii + 1], 1, 0)
+    count += wp.where(wp.float32(c0 + r1) <= depth[c, jj, ii - 1], 1, 0)
+    count += wp.where(wp.float32(c1 + r1) <= depth[c, jj, ii], 1, 0)
+    count += wp.where(wp.float32(c2 + r1) <= depth[c, jj, ii + 1], 1, 0)
+    count += wp.where(wp.float32(c0 + r2) <= depth[c, jj + 1, ii - 1], 1, 0)
+    count += wp.where(wp.float32(c1 + r2) <= depth[c, jj + 1, ii], 1, 0)
+    count += wp.where(wp.float32(c2 + r2) <= depth[c, jj + 1, ii + 1], 1, 0)
+    return count
 
 
 @wp.func
@@ -180,40 +256,79 @@ class WorldReceivers:
     plane_offset: wp.array(dtype=wp.float64)
 
 
+@wp.struct
+class LightReceiver:
+    """A world receiver in the light's basis (metres): what :func:`receiver_in` needs whatever the cascade.
+
+    ``cos`` is the cosine of the normal's angle to the light, ``tan`` its tangent capped at
+    ``max_tan`` (NaN turned from the light), ``plane_x, plane_y`` the tangent plane's depth change
+    per metre along x and y (0 turned from the light).
+    """
+
+    px: wp.float64
+    py: wp.float64
+    pz: wp.float64
+    nx: wp.float64
+    ny: wp.float64
+    nz: wp.float64
+    cos: wp.float64
+    tan: wp.float64
+    plane_x: wp.float64
+    plane_y: wp.float64
+
+
 @wp.func
-def receiver_at(r: FixedReceivers, c: int, k: int):
+def receiver_light(r: FixedReceivers, k: int) -> LightReceiver:
+    """Converted receivers need nothing from the light's basis."""
+    return LightReceiver()
+
+
+@wp.func
+def receiver_light(r: WorldReceivers, k: int) -> LightReceiver:  # noqa: F811  (a Warp overload, by receiver type)
+    """Receiver k's point and normal in the light's basis and its normal's slope: computed once per receiver,
+    however many cascades the selection converts it into (:func:`receiver_in`)."""
+    zero = wp.float64(0.0)
+    point = r.points[r.index[k]]
+    normal = wp.vec3d(r.normals[r.index[k]])
+    light = LightReceiver()
+    light.px = light_space(point, r.basis, 0)
+    light.py = light_space(point, r.basis, 1)
+    light.pz = light_space(point, r.basis, 2)
+    light.nx = light_space(normal, r.basis, 0)
+    light.ny = light_space(normal, r.basis, 1)
+    light.nz = light_space(normal, r.basis, 2)
+    cos = -light.nz
+    light.cos = cos
+    light.tan = wp.float64(wp.nan)
+    light.plane_x = zero
+    light.plane_y = zero
+    if cos > zero:
+        light.tan = wp.min(wp.sqrt(wp.max(wp.float64(1.0) - cos * cos, zero)) / cos, r.max_tan)
+        light.plane_x = light.nx / cos
+        light.plane_y = light.ny / cos
+    return light
+
+
+@wp.func
+def receiver_in(r: FixedReceivers, light: LightReceiver, c: int, k: int):
     """Receiver k in cascade c: fixed-point ``x, y``, biased depth and receiver-plane slope."""
     return r.coords[c, k, 0], r.coords[c, k, 1], r.depth[c, k], r.slope[c, k]
 
 
 @wp.func
-def receiver_at(r: WorldReceivers, c: int, k: int):  # noqa: F811  (a Warp overload, by receiver type)
-    """Receiver k in cascade c: fixed-point ``x, y``, biased depth and receiver-plane slope.
+def receiver_in(r: WorldReceivers, light: LightReceiver, c: int, k: int):  # noqa: F811  (a Warp overload)
+    """Receiver k, ``light`` its :func:`receiver_light`, in cascade c: fixed-point ``x, y``, biased depth and
+    receiver-plane slope.
 
     csmlab.texels.receiver_lookup's operations in its order, one at a time (Warp emits one
     statement per operation, so no multiply-add is fused): the same bits as the host.
     """
     zero = wp.float64(0.0)
-    point = r.points[r.index[k]]
-    normal = wp.vec3d(r.normals[r.index[k]])
-    px = light_space(point, r.basis, 0)
-    py = light_space(point, r.basis, 1)
-    pz = light_space(point, r.basis, 2)
-    nx = light_space(normal, r.basis, 0)
-    ny = light_space(normal, r.basis, 1)
-    nz = light_space(normal, r.basis, 2)
-    cos = -nz
-    tan = wp.float64(wp.nan)
-    plane_x = zero
-    plane_y = zero
-    if cos > zero:
-        tan = wp.min(wp.sqrt(wp.max(wp.float64(1.0) - cos * cos, zero)) / cos, r.max_tan)
-        plane_x = nx / cos
-        plane_y = ny / cos
+    cos = light.cos
     slope = wp.vec2d(zero, zero)
     if r.planar != 0:
-        slope = wp.vec2d(wp.clamp(plane_x, -r.max_tan, r.max_tan) * r.texel_size[c, 0],
-                         wp.clamp(plane_y, -r.max_tan, r.max_tan) * r.texel_size[c, 1])
+        slope = wp.vec2d(wp.clamp(light.plane_x, -r.max_tan, r.max_tan) * r.texel_size[c, 0],
+                         wp.clamp(light.plane_y, -r.max_tan, r.max_tan) * r.texel_size[c, 1])
     moved = r.offset[c]
     along = wp.float64(1.0)
     if r.normal_scale != NORMAL_NONE:
@@ -224,15 +339,15 @@ def receiver_at(r: WorldReceivers, c: int, k: int):  # noqa: F811  (a Warp overl
             moved = moved * (wp.float64(1.0) - wp.max(cos, zero))
         if r.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
             along = zero
-    x = fixed_point(nx * moved + px, r.to_fixed[c, 0], r.limit) - r.origin_fixed[c, 0]
-    y = fixed_point(ny * moved + py, r.to_fixed[c, 1], r.limit) - r.origin_fixed[c, 1]
-    bias = r.bias_constant[c] + r.slope_bias[c] * tan
+    x = fixed_point(light.nx * moved + light.px, r.to_fixed[c, 0], r.limit) - r.origin_fixed[c, 0]
+    y = fixed_point(light.ny * moved + light.py, r.to_fixed[c, 1], r.limit) - r.origin_fixed[c, 1]
+    bias = r.bias_constant[c] + r.slope_bias[c] * light.tan
     if r.plane_offset[c] > zero:
         # MJP's static receiver-plane offset: the plane's depth change over a texel in x and one in y, capped.
-        sx = wp.clamp(plane_x, -r.max_tan, r.max_tan) * r.texel_size[c, 0]
-        sy = wp.clamp(plane_y, -r.max_tan, r.max_tan) * r.texel_size[c, 1]
+        sx = wp.clamp(light.plane_x, -r.max_tan, r.max_tan) * r.texel_size[c, 0]
+        sy = wp.clamp(light.plane_y, -r.max_tan, r.max_tan) * r.texel_size[c, 1]
         bias = bias + wp.min(wp.abs(sx) + wp.abs(sy), r.plane_offset[c])
-    return x, y, wp.float32(pz + along * moved * nz - r.zref - bias), slope
+    return x, y, wp.float32(light.pz + along * moved * light.nz - r.zref - bias), slope
 
 
 @wp.kernel
@@ -243,7 +358,7 @@ def shadow_lookup_kernel(
     splits: wp.array(dtype=wp.float64),
     texel_area: wp.array(dtype=wp.float64),
     sphere_cascade: wp.array(dtype=wp.int32),
-    unit: wp.int64,
+    bits: int,
     selection: int,
     filter_code: int,
     radius: int,
@@ -258,6 +373,8 @@ def shadow_lookup_kernel(
     blend_weight: wp.array(dtype=wp.float64),
 ):
     k = wp.tid()
+    unit = wp.int64(1) << wp.int64(bits)
+    inverse_span = wp.float64(1.0) / wp.float64(wp.int64(2) * unit)
     count = depth.shape[0]
     size = wp.int64(depth.shape[1])
     # A box holds a point for sampling when every tap (`reach` texels around it) is inside it, and
@@ -267,6 +384,8 @@ def shadow_lookup_kernel(
     select_lo = wp.int64(margin) * unit
     select_hi = (size - wp.int64(margin)) * unit
     z = view_depth[k]
+    # The receiver in the light's basis once, whichever cascades the selection and the blend read.
+    light = receiver_light(receivers, k)
     chosen = int(-1)
     x = wp.int64(0)
     y = wp.int64(0)
@@ -281,14 +400,14 @@ def shadow_lookup_kernel(
                 chosen = c
             c += 1
         if chosen >= 0:
-            x, y, receiver, slope = receiver_at(receivers, chosen, k)
+            x, y, receiver, slope = receiver_in(receivers, light, chosen, k)
             if not holds(x, y, tap_lo, tap_hi):
                 chosen = -1
     else:
         best = wp.float64(wp.inf)
         c = int(0)
         while c < count:
-            xc, yc, rc, sc = receiver_at(receivers, c, k)
+            xc, yc, rc, sc = receiver_in(receivers, light, c, k)
             if holds(xc, yc, select_lo, select_hi):
                 if (selection == SELECT_MAP and chosen < 0) or (selection == SELECT_BEST_RESOLUTION
                                                                  and texel_area[c] < best):
@@ -306,7 +425,7 @@ def shadow_lookup_kernel(
     if chosen < 0:
         lit[k] = 0.0
         return
-    s = lit_fraction(depth, chosen, x, y, receiver, slope, unit, filter_code, radius)
+    s = lit_fraction(depth, chosen, x, y, receiver, slope, bits, inverse_span, filter_code, radius)
     nxt = chosen + 1
     if nxt < count:
         # The band of cascade `chosen` runs from band_start[chosen] (+inf: none) to where the
@@ -314,13 +433,13 @@ def shadow_lookup_kernel(
         z1 = splits[nxt]
         start = band_start[chosen]
         if z >= start and z < z1:
-            xn, yn, rn, sn = receiver_at(receivers, nxt, k)
+            xn, yn, rn, sn = receiver_in(receivers, light, nxt, k)
             if holds(xn, yn, tap_lo, tap_hi):
                 w = (z - start) / (z1 - start)
                 if blend_curve == BLEND_SMOOTHSTEP:
                     w = w * w * (wp.float64(3.0) - wp.float64(2.0) * w)
-                s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, nxt, xn, yn, rn, sn, unit, filter_code,
-                                                                 radius)
+                s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, nxt, xn, yn, rn, sn, bits, inverse_span,
+                                                                 filter_code, radius)
                 blend[k] = 1
                 if keep_weight != 0:
                     blend_weight[k] = w
@@ -450,7 +569,7 @@ def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis,
     """:func:`shadow_lookup` of world receivers, each taken into a cascade's fixed point where the lookup reads it.
 
     The same results, bit for bit, as :func:`receiver_coordinates` followed by :func:`shadow_lookup`
-    (one conversion, :func:`receiver_at`, serves both) without the ``(C, N)`` arrays of every
+    (one conversion, :func:`receiver_in`, serves both) without the ``(C, N)`` arrays of every
     receiver in every cascade: a receiver is converted into the cascades its selection tests only.
 
     Parameters
@@ -515,6 +634,9 @@ def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str,
     selected = SELECTION_METHODS[check_name(selection, SELECTION_METHODS, field="selection")]
     if not (isinstance(reach, (int, np.integer)) and reach >= 0):
         raise ValueError(f"radius: expected a non-negative integer, got {reach!r}")
+    if reach < radius:
+        # box_count reads the taps unclamped: the selected box must hold every one of them.
+        raise ValueError(f"radius: the taps a selected box holds ({reach}) must reach the filter's ({radius})")
     maps = np.ascontiguousarray(depth, dtype=np.float32)
     vd = np.ascontiguousarray(view_depth, dtype=np.float64)
     z = np.ascontiguousarray(splits, dtype=np.float64)
@@ -557,7 +679,7 @@ def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str,
             wp.array(z, dtype=wp.float64, device=device, copy=False),
             wp.array(area, dtype=wp.float64, device=device, copy=False),
             wp.array(spheres, dtype=wp.int32, device=device, copy=False),
-            wp.int64(2**bits),
+            int(bits),
             selected.code,
             code,
             int(radius),
@@ -580,7 +702,8 @@ def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str,
 def fixed_point(u: wp.float64, to_fixed: wp.float64, limit: wp.float64) -> wp.int64:
     """``u`` metres in ``2**-bits`` texels, rounded half to even; NaN maps to ``-limit`` (far outside every box)."""
     v = wp.rint(wp.clamp(u * to_fixed, -limit, limit))
-    if wp.isnan(v):
+    # v != v is isnan(v) without the call Warp's CPU code makes for wp.isnan.
+    if v != v:
         v = -limit
     return wp.int64(v)
 
@@ -599,9 +722,10 @@ def receiver_coordinates_kernel(
     slope: wp.array3d(dtype=wp.float64),
 ):
     k = wp.tid()
+    light = receiver_light(receivers, k)
     c = int(0)
     while c < coords.shape[0]:
-        x, y, d, s = receiver_at(receivers, c, k)
+        x, y, d, s = receiver_in(receivers, light, c, k)
         coords[c, k, 0] = x
         coords[c, k, 1] = y
         depth[c, k] = d
