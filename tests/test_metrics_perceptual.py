@@ -8,7 +8,7 @@ from csmlab.cascades import build_cascades
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.kernels.visibility import CameraHits
 from csmlab.geometry import rotation_looking_at
-from csmlab.metrics.perceptual import (FLIP_METHODS, JND_CIEDE2000, changed_windows,
+from csmlab.metrics.perceptual import (FLIP_METHODS, JND_CIEDE2000, PerceptualMaps, changed_windows,
                                        delta_e_2000, flip_map, lab_from_linear_srgb, perceptual_maps,
                                        perceptual_summary, ssim_map)
 from csmlab.metrics.shading import shaded_rgb, shading_terms
@@ -90,6 +90,26 @@ def test_identical_evaluations_give_zero_delta_e_unit_ssim_and_zero_flip():
     assert summary["de2000_mean"] == 0.0 and summary["de2000_p99"] == 0.0 and summary["de2000_frac_jnd"] == 0.0
     assert summary["ssim"] == pytest.approx(1.0, abs=1e-12)
     assert summary["flip"] == 0.0
+
+
+@pytest.mark.parametrize("changed_fraction", [0.0, 0.005, 0.3])
+def test_delta_e_statistics_are_numpy_mean_percentile_and_fraction_of_the_compared_pixels(changed_fraction):
+    # The 99th percentile partitions the compared values in place: the mean and the fraction must
+    # still be the sums in image order, and the percentile NumPy's, exactly.
+    rng = np.random.default_rng(21)
+    shape = (40, 56)
+    compared = rng.random(shape) < 0.9
+    de2000 = np.where(rng.random(shape) < changed_fraction, rng.gamma(0.8, 1.5, shape), 0.0)
+    de2000[~compared] = np.nan
+    lit = np.ones(shape, np.float32)
+    shaded = np.full(shape + (3,), 0.5)
+    maps = PerceptualMaps(lit=lit, previous_lit=lit, shaded=shaded, previous_shaded=shaded, de2000=de2000,
+                          compared=compared)
+    summary = perceptual_summary(maps)
+    values = de2000[compared]
+    assert summary["de2000_mean"] == float(np.mean(values, dtype=np.float64))
+    assert summary["de2000_p99"] == float(np.percentile(values, 99.0))
+    assert summary["de2000_frac_jnd"] == float(np.mean(values > JND_CIEDE2000))
 
 
 def test_shadowed_block_gives_the_grey_lightness_difference_on_its_pixels_only():

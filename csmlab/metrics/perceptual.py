@@ -361,10 +361,12 @@ def perceptual_summary(maps: PerceptualMaps, *, device: str = "cpu") -> dict[str
     if not np.any(compared):
         return dict.fromkeys(("de2000_mean", "de2000_p99", "de2000_frac_jnd", "ssim", "flip"), float("nan"))
     de = maps.de2000[compared]
+    mean, frac_jnd = finite_mean(de), finite_mean((de > JND_CIEDE2000).astype(np.float64))
+    # ``de`` is a copy: partitioned in place (after the sums, whose order it would change), not copied again.
     out = {
-        "de2000_mean": finite_mean(de),
-        "de2000_p99": float(np.percentile(de, 99.0)),
-        "de2000_frac_jnd": finite_mean((de > JND_CIEDE2000).astype(np.float64)),
+        "de2000_mean": mean,
+        "de2000_p99": float(np.percentile(de, 99.0, overwrite_input=True)),
+        "de2000_frac_jnd": frac_jnd,
     }
     # Filled (uncompared pixels equal in both), the images differ exactly where a compared pixel's S changed.
     changed = compared & (maps.lit != maps.previous_lit)
