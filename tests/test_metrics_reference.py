@@ -141,6 +141,20 @@ def test_error_of_an_8192_cascade_on_plane_box_is_small_and_rises_as_resolution_
     assert np.all(np.diff(errors) > 0), errors
 
 
+@pytest.mark.parametrize("shape", [(17, 23), (1, 9), (9, 1), (2, 2)])
+def test_split_boundary_pixels_are_those_with_another_cascade_among_their_8_neighbours_by_brute_force(shape):
+    from csmlab.metrics.reference import split_boundary_pixels
+
+    rng = np.random.default_rng(sum(shape))
+    cascade = rng.integers(-1, 3, size=shape)
+    expected = np.zeros(shape, dtype=bool)
+    for i in range(shape[0]):
+        for j in range(shape[1]):
+            neighbours = cascade[max(i - 1, 0):i + 2, max(j - 1, 0):j + 2]
+            expected[i, j] = cascade[i, j] >= 0 and np.any((neighbours >= 0) & (neighbours != cascade[i, j]))
+    np.testing.assert_array_equal(split_boundary_pixels(cascade), expected)
+
+
 def test_split_boundary_pixels_are_both_sides_of_a_cascade_change_and_the_seam_error_is_their_mean_error():
     from types import SimpleNamespace
 

@@ -300,9 +300,9 @@ def _flip_evaluator(reference: np.ndarray, test: np.ndarray) -> np.ndarray:
     return np.asarray(error)[..., 0]
 
 
-def _flip_warp(reference: np.ndarray, test: np.ndarray, *, device: str = "cpu") -> np.ndarray:
-    """:func:`csmlab.kernels.flip.flip_error_map` on a Warp device."""
-    return flip_error_map(reference, test, device=device)
+def _flip_warp(reference: np.ndarray, test: np.ndarray, *, device: str = "cpu", reach=None) -> np.ndarray:
+    """:func:`csmlab.kernels.flip.flip_error_map` on a Warp device (``reach`` of the linear images, when known)."""
+    return flip_error_map(reference, test, device=device, reach=reach)
 
 
 FLIP_METHODS = {"warp": _flip_warp, "flip-evaluator": _flip_evaluator}
@@ -323,8 +323,9 @@ def flip_map(reference, test, *, changed=None, compared=None, method: str = "war
     skip, pixel by pixel, what lies out of a change's reach.
     """
     def encoded(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        return dispatch(FLIP_METHODS, method, *_encoded_where_read(a, b), field="flip method",
-                        offered={"device": device})
+        reference, test, reach = _encoded_where_read(a, b)
+        return dispatch(FLIP_METHODS, method, reference, test, field="flip method",
+                        offered={"device": device, "reach": reach})
 
     images, evaluate = _with_compared((np.asarray(reference, dtype=np.float64), np.asarray(test, dtype=np.float64)),
                                       compared, encoded)
@@ -334,16 +335,19 @@ def flip_map(reference, test, *, changed=None, compared=None, method: str = "war
                      fill=0.0, dtype=np.float32)
 
 
-def _encoded_where_read(reference: np.ndarray, test: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _encoded_where_read(reference: np.ndarray, test: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Both linear images ``(H, W, 3)`` sRGB-encoded as float32 where ꟻLIP reads them for a pixel
-    that may differ, and 0 in both elsewhere: the same error map as both encoded whole."""
+    that may differ, and 0 in both elsewhere: the same error map as both encoded whole. And the
+    :func:`csmlab.kernels.flip.flip_reach` ``(H, W)`` uint8 of the linear images' differences, a
+    superset of the encoded ones' (two colours may encode alike), so that ꟻLIP need not grow it again."""
     differs = pixels_differ(reference, test)
-    read = flip_reach(differs, radius=FLIP_SUPPORT) > 0
+    reach = flip_reach(differs, radius=FLIP_SUPPORT)
+    read = reach > 0
     out_test = np.zeros(test.shape, dtype=np.float32)
     out_test[read] = srgb_encoded(test[read])
     out_reference = out_test.copy()
     out_reference[differs] = srgb_encoded(reference[differs])
-    return out_reference, out_test
+    return out_reference, out_test, reach
 
 
 def perceptual_summary(maps: PerceptualMaps, *, device: str = "cpu") -> dict[str, float]:
