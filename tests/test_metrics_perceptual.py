@@ -82,6 +82,22 @@ def test_shaded_rgb_is_albedo_times_ambient_plus_lit_cosine():
         shaded_rgb(albedo, normal, lit, light_direction=LIGHT_DOWN, ambient=-0.1)
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_shaded_rgb_is_the_float64_formula_bit_for_bit(dtype):
+    # albedo · (ambient + S · cos), S widened to float64 first: the values the perceptual metrics
+    # and the report were pinned with.
+    rng = np.random.default_rng(17)
+    albedo = rng.random((9, 11, 3))
+    normal = rng.normal(size=(9, 11, 3))
+    normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+    lit = rng.random((9, 11)).astype(dtype)
+    lit[2, 3] = np.nan
+    terms = shading_terms(albedo, normal, light_direction=[0.3, -1.0, 0.2])
+    expected = terms.albedo * (0.25 + lit.astype(np.float64) * terms.cosine)[..., None]
+    rgb = shaded_rgb(albedo, normal, lit, light_direction=[0.3, -1.0, 0.2], ambient=0.25, terms=terms)
+    assert rgb.dtype == np.float64 and rgb.tobytes() == expected.tobytes()
+
+
 def test_identical_evaluations_give_zero_delta_e_unit_ssim_and_zero_flip():
     rng = np.random.default_rng(4)
     lit = rng.random((48, 64)).astype(np.float32)

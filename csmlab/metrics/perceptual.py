@@ -137,7 +137,7 @@ def perceptual_maps(frame: Frame, previous_lit, *, ambient: float) -> Perceptual
     PerceptualMaps
     """
     g = frame.view.gbuffer
-    lit = np.where(g.valid, frame.shadow.lit, np.nan).astype(np.float32)
+    lit = np.where(g.valid, frame.shadow.lit, np.nan).astype(np.float32, copy=False)
     previous_lit = np.asarray(previous_lit, dtype=np.float32)
     if previous_lit.shape != lit.shape:
         raise ValueError(f"previous_lit: expected shape {lit.shape}, got {previous_lit.shape}")
