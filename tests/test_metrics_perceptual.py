@@ -277,6 +277,26 @@ def test_shading_with_the_views_shared_terms_equals_shading_from_scratch():
         shaded_rgb(albedo, normal, lit, light_direction=[0.3, -1.0, 0.2], ambient=0.25))
 
 
+@pytest.mark.parametrize("channels", [(), (3,)])
+def test_filled_pair_is_nan_to_num_of_current_and_previous_where_compared(channels):
+    from csmlab.metrics.perceptual import _filled_pair
+
+    rng = np.random.default_rng(23)
+    current = rng.random((12, 15) + channels)
+    previous = rng.random((12, 15) + channels)
+    current[rng.random(current.shape) < 0.2] = np.nan
+    compared = rng.random((12, 15)) < 0.7
+    for infinities in (False, True):
+        if infinities:
+            current[0, 0], current[1, 1] = np.inf, -np.inf
+        filled_current, filled_previous = _filled_pair(current, previous, compared)
+        expected = np.nan_to_num(current, nan=0.0)
+        mask = compared if not channels else compared[..., None]
+        assert filled_current.tobytes() == expected.tobytes()
+        assert filled_previous.tobytes() == np.where(mask, previous, expected).tobytes()
+        assert not np.shares_memory(filled_current, current)
+
+
 def test_filling_uncompared_pixels_window_by_window_equals_filling_the_whole_images():
     from csmlab.metrics.perceptual import _filled_pair
 

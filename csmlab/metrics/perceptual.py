@@ -157,7 +157,12 @@ def perceptual_maps(frame: Frame, previous_lit, *, ambient: float) -> Perceptual
 def _filled_pair(current: np.ndarray, previous: np.ndarray, compared: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Both images with every uncompared pixel set to the same value in each (current's, else 0)."""
     mask = compared if current.ndim == compared.ndim else compared[..., None]
-    a = np.nan_to_num(current, nan=0.0)
+    # nan_to_num's values (NaN → 0, ±inf → the largest finite) in fewer passes: the images hold NaN
+    # where S is undefined but no infinity, which is looked for once.
+    a = np.array(current, copy=True)
+    np.copyto(a, 0.0, where=np.isnan(a))
+    if np.isinf(a).any():
+        a = np.nan_to_num(a)
     return a, np.where(mask, previous, a)
 
 
@@ -354,11 +359,13 @@ def _encoded_where_read(reference: np.ndarray, test: np.ndarray) -> tuple[np.nda
     superset of the encoded ones' (two colours may encode alike), so that ꟻLIP need not grow it again."""
     differs = pixels_differ(reference, test)
     reach = flip_reach(differs, radius=FLIP_SUPPORT)
-    read = reach > 0
+    # Pixels as rows of (N, 3): each index list found once serves the gather and the scatter.
+    read = np.flatnonzero(reach)
     out_test = np.zeros(test.shape, dtype=np.float32)
-    out_test[read] = srgb_encoded(test[read])
+    out_test.reshape(-1, 3)[read] = srgb_encoded(test.reshape(-1, 3)[read])
     out_reference = out_test.copy()
-    out_reference[differs] = srgb_encoded(reference[differs])
+    changed = np.flatnonzero(differs)
+    out_reference.reshape(-1, 3)[changed] = srgb_encoded(reference.reshape(-1, 3)[changed])
     return out_reference, out_test, reach
 
 
