@@ -320,7 +320,9 @@ def finite_mean(values) -> float:
     values = np.asarray(values)
     if values.dtype.kind != "f":
         values = values.astype(np.float64)
-    finite = values[np.isfinite(values)]
+    finite = np.isfinite(values)
+    # All finite (the usual case): the same entries in the same order, without copying them out.
+    finite = values if finite.all() else values[finite]
     return float(np.mean(finite, dtype=np.float64)) if finite.size else math.nan
 
 

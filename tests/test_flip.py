@@ -183,6 +183,24 @@ def test_a_few_changed_pixels_match_flip_evaluator_and_are_zero_out_of_reach(spo
     assert np.count_nonzero(error) > 100
 
 
+@pytest.mark.parametrize("extra", [0.0, 0.01, 0.3])
+def test_a_reach_grown_from_more_pixels_than_differ_gives_the_same_map_bit_for_bit(extra, device):
+    # The caller's reach (from the linear images, a superset of the encoded ones' differences)
+    # only makes the passes compute more: where inputs agree they give the values they skip.
+    rng = np.random.default_rng(31)
+    reference = rng.random((40, 64, 3)).astype(np.float32)
+    test = reference.copy()
+    for i, j in [(5, 7), (20, 30), (39, 63)]:
+        test[i, j] = rng.random(3)
+    differs = pixels_differ(reference, test)
+    marked = differs | (rng.random(differs.shape) < extra)
+    reach = flip_reach(marked, radius=max(flip_filter_radii()))
+    expected, _ = _assert_matches_oracle(reference, test, device=device)
+    np.testing.assert_array_equal(flip_error_map(reference, test, reach=reach, device=device), expected)
+    with pytest.raises(ValueError, match="reach: expected the images' shape"):
+        flip_error_map(reference, test, reach=reach[:-1], device=device)
+
+
 @pytest.mark.parametrize("reference, test, match", [
     (np.zeros((4, 4)), np.zeros((4, 4)), "reference: expected an \\(H, W, 3\\)"),
     (np.zeros((4, 4, 3)), np.zeros((4, 4, 4)), "test: expected an \\(H, W, 3\\)"),

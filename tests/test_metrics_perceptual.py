@@ -8,7 +8,7 @@ from csmlab.cascades import build_cascades
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.kernels.visibility import CameraHits
 from csmlab.geometry import rotation_looking_at
-from csmlab.metrics.perceptual import (FLIP_METHODS, JND_CIEDE2000, changed_windows,
+from csmlab.metrics.perceptual import (FLIP_METHODS, JND_CIEDE2000, PerceptualMaps, changed_windows,
                                        delta_e_2000, flip_map, lab_from_linear_srgb, perceptual_maps,
                                        perceptual_summary, ssim_map)
 from csmlab.metrics.shading import shaded_rgb, shading_terms
@@ -82,6 +82,22 @@ def test_shaded_rgb_is_albedo_times_ambient_plus_lit_cosine():
         shaded_rgb(albedo, normal, lit, light_direction=LIGHT_DOWN, ambient=-0.1)
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_shaded_rgb_is_the_float64_formula_bit_for_bit(dtype):
+    # albedo · (ambient + S · cos), S widened to float64 first: the values the perceptual metrics
+    # and the report were pinned with.
+    rng = np.random.default_rng(17)
+    albedo = rng.random((9, 11, 3))
+    normal = rng.normal(size=(9, 11, 3))
+    normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+    lit = rng.random((9, 11)).astype(dtype)
+    lit[2, 3] = np.nan
+    terms = shading_terms(albedo, normal, light_direction=[0.3, -1.0, 0.2])
+    expected = terms.albedo * (0.25 + lit.astype(np.float64) * terms.cosine)[..., None]
+    rgb = shaded_rgb(albedo, normal, lit, light_direction=[0.3, -1.0, 0.2], ambient=0.25, terms=terms)
+    assert rgb.dtype == np.float64 and rgb.tobytes() == expected.tobytes()
+
+
 def test_identical_evaluations_give_zero_delta_e_unit_ssim_and_zero_flip():
     rng = np.random.default_rng(4)
     lit = rng.random((48, 64)).astype(np.float32)
@@ -90,6 +106,26 @@ def test_identical_evaluations_give_zero_delta_e_unit_ssim_and_zero_flip():
     assert summary["de2000_mean"] == 0.0 and summary["de2000_p99"] == 0.0 and summary["de2000_frac_jnd"] == 0.0
     assert summary["ssim"] == pytest.approx(1.0, abs=1e-12)
     assert summary["flip"] == 0.0
+
+
+@pytest.mark.parametrize("changed_fraction", [0.0, 0.005, 0.3])
+def test_delta_e_statistics_are_numpy_mean_percentile_and_fraction_of_the_compared_pixels(changed_fraction):
+    # The 99th percentile partitions the compared values in place: the mean and the fraction must
+    # still be the sums in image order, and the percentile NumPy's, exactly.
+    rng = np.random.default_rng(21)
+    shape = (40, 56)
+    compared = rng.random(shape) < 0.9
+    de2000 = np.where(rng.random(shape) < changed_fraction, rng.gamma(0.8, 1.5, shape), 0.0)
+    de2000[~compared] = np.nan
+    lit = np.ones(shape, np.float32)
+    shaded = np.full(shape + (3,), 0.5)
+    maps = PerceptualMaps(lit=lit, previous_lit=lit, shaded=shaded, previous_shaded=shaded, de2000=de2000,
+                          compared=compared)
+    summary = perceptual_summary(maps)
+    values = de2000[compared]
+    assert summary["de2000_mean"] == float(np.mean(values, dtype=np.float64))
+    assert summary["de2000_p99"] == float(np.percentile(values, 99.0))
+    assert summary["de2000_frac_jnd"] == float(np.mean(values > JND_CIEDE2000))
 
 
 def test_shadowed_block_gives_the_grey_lightness_difference_on_its_pixels_only():
@@ -239,6 +275,26 @@ def test_shading_with_the_views_shared_terms_equals_shading_from_scratch():
     np.testing.assert_array_equal(
         shaded_rgb(albedo, normal, lit, light_direction=[0.3, -1.0, 0.2], ambient=0.25, terms=terms),
         shaded_rgb(albedo, normal, lit, light_direction=[0.3, -1.0, 0.2], ambient=0.25))
+
+
+@pytest.mark.parametrize("channels", [(), (3,)])
+def test_filled_pair_is_nan_to_num_of_current_and_previous_where_compared(channels):
+    from csmlab.metrics.perceptual import _filled_pair
+
+    rng = np.random.default_rng(23)
+    current = rng.random((12, 15) + channels)
+    previous = rng.random((12, 15) + channels)
+    current[rng.random(current.shape) < 0.2] = np.nan
+    compared = rng.random((12, 15)) < 0.7
+    for infinities in (False, True):
+        if infinities:
+            current[0, 0], current[1, 1] = np.inf, -np.inf
+        filled_current, filled_previous = _filled_pair(current, previous, compared)
+        expected = np.nan_to_num(current, nan=0.0)
+        mask = compared if not channels else compared[..., None]
+        assert filled_current.tobytes() == expected.tobytes()
+        assert filled_previous.tobytes() == np.where(mask, previous, expected).tobytes()
+        assert not np.shares_memory(filled_current, current)
 
 
 def test_filling_uncompared_pixels_window_by_window_equals_filling_the_whole_images():

@@ -8,8 +8,8 @@ from csmlab.cascades import build_cascades
 from csmlab.frame import Frame, GBuffer, ShadowLookup, ShadowMaps, View
 from csmlab.kernels.visibility import CameraHits
 from csmlab.geometry import rotation_looking_at
-from csmlab.metrics.reference import (bias_errors, boundary_pixels, mean_boundary_distance, reference_maps,
-                                     reference_summary)
+from csmlab.metrics.reference import (bias_errors, boundary_pixels, mean_boundary_distance, reference_boundary,
+                                     reference_maps, reference_summary)
 from csmlab.render import prepare_scene, render_shadow, render_view
 from csmlab.scene import make_scene
 from csmlab.settings import ShadowSettings
@@ -95,6 +95,21 @@ def test_mean_boundary_distance_matches_all_pairs_brute_force():
     assert mean_boundary_distance(a, b) == mean_boundary_distance(b, a)
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_mean_boundary_distance_of_mostly_shared_boundaries_equals_all_pairs_exactly(seed):
+    # Shared pixels are not queried (0 from the other set): the mean must still be the all-pairs
+    # one bit for bit, each distance √(integer) summed in the same order.
+    rng = np.random.default_rng(seed)
+    a = rng.random((48, 64)) < 0.05
+    b = a.copy()
+    b[rng.random(b.shape) < 0.02] ^= True
+    b[:, :3] = False
+    assert (a & b).sum() > 0.8 * a.sum()
+    assert mean_boundary_distance(a, b) == _brute_force_mean_distance(a, b)
+    assert mean_boundary_distance(b, a) == _brute_force_mean_distance(b, a)
+    assert mean_boundary_distance(a, a) == 0.0
+
+
 def test_mean_boundary_distance_of_empty_sets():
     empty = np.zeros((6, 6), bool)
     one = empty.copy()
@@ -124,6 +139,20 @@ def test_error_of_an_8192_cascade_on_plane_box_is_small_and_rises_as_resolution_
         errors.append(summary["ref_false_shadow"] + summary["ref_false_light"])
     assert errors[0] < 0.005
     assert np.all(np.diff(errors) > 0), errors
+
+
+@pytest.mark.parametrize("shape", [(17, 23), (1, 9), (9, 1), (2, 2)])
+def test_split_boundary_pixels_are_those_with_another_cascade_among_their_8_neighbours_by_brute_force(shape):
+    from csmlab.metrics.reference import split_boundary_pixels
+
+    rng = np.random.default_rng(sum(shape))
+    cascade = rng.integers(-1, 3, size=shape)
+    expected = np.zeros(shape, dtype=bool)
+    for i in range(shape[0]):
+        for j in range(shape[1]):
+            neighbours = cascade[max(i - 1, 0):i + 2, max(j - 1, 0):j + 2]
+            expected[i, j] = cascade[i, j] >= 0 and np.any((neighbours >= 0) & (neighbours != cascade[i, j]))
+    np.testing.assert_array_equal(split_boundary_pixels(cascade), expected)
 
 
 def test_split_boundary_pixels_are_both_sides_of_a_cascade_change_and_the_seam_error_is_their_mean_error():
@@ -219,6 +248,28 @@ def test_a_negative_bias_is_acne_on_every_lit_surface_and_no_peter_panning():
     assert surely_counted > 0.5 * np.count_nonzero(lit_ground)
     assert surely_counted / compared <= errors["acne"] <= np.count_nonzero(lit_ground) / compared
     assert errors["peter_panning"] == 0.0
+
+
+@pytest.mark.parametrize("bias_constant", [3.5, -0.05, 0.01])
+def test_bias_errors_count_the_wrong_pixels_farther_than_the_band_from_every_boundary_point_by_all_pairs(
+        bias_constant):
+    # Wrong pixels that are boundary points themselves are not queried (0 away): the counts must be
+    # those of every wrong pixel's distance to every boundary point (at 0.01 m every wrong pixel is one).
+    dscene, view = _slab_view()
+    frame = render_shadow(dscene, view, _bias_only(bias_constant))
+    maps = reference_maps(frame)
+    errors = bias_errors(frame, maps)
+    boundary = reference_boundary(maps.reference_shadowed, maps.compared)
+    wrong = maps.diff != 0
+    assert (wrong & boundary).any()
+    light_xy = view.gbuffer.position @ frame.maps.cascades.basis[:2].T
+    distance = np.linalg.norm(light_xy[wrong][:, None, :] - light_xy[boundary][None, :, :], axis=-1).min(axis=1)
+    band = frame.maps.cascades.margin_texels * float(np.max(frame.maps.cascades.cascades[0].texel_size))
+    outside = np.zeros_like(wrong)
+    outside[wrong] = distance > band
+    compared = maps.compared.sum()
+    assert errors["acne"] == np.count_nonzero(outside & (maps.diff == 1)) / compared
+    assert errors["peter_panning"] == np.count_nonzero(outside & (maps.diff == -1)) / compared
 
 
 def _sloped_plane_view():

@@ -486,7 +486,7 @@ def _checked_image(name: str, image) -> np.ndarray:
 
 
 def flip_error_map(reference, test, *, pixels_per_degree: float = FLIP_DEFAULT_PPD,
-                   device: str = "cpu") -> np.ndarray:
+                   device: str = "cpu", reach=None) -> np.ndarray:
     """LDR-ꟻLIP error of ``test`` against ``reference``, per pixel, as ``flip_evaluator`` computes it.
 
     Parameters
@@ -498,6 +498,11 @@ def flip_error_map(reference, test, *, pixels_per_degree: float = FLIP_DEFAULT_P
         ꟻLIP's own, :data:`FLIP_DEFAULT_PPD` ≈ 67.02.
     device : str
         Warp device, ``"cpu"`` or ``"cuda"``.
+    reach : array_like, shape (H, W), uint8, optional
+        :func:`flip_reach` of a superset of the pixels where the images differ, with the radius
+        ``max(flip_filter_radii(pixels_per_degree=...))``, when the caller has it (from the
+        images it encoded these from): the same error map, as a pass computed where the inputs
+        agree gives the values it would have skipped. By default the images are compared here.
 
     Returns
     -------
@@ -510,7 +515,7 @@ def flip_error_map(reference, test, *, pixels_per_degree: float = FLIP_DEFAULT_P
     ------
     ValueError
         On a shape other than (H, W, 3), differing shapes, values outside [0, 1] or not finite,
-        a non-positive ``pixels_per_degree``, or an unusable device.
+        a non-positive ``pixels_per_degree``, a ``reach`` of another shape, or an unusable device.
     """
     device = checked_device(device)
     reference = _checked_image("reference", reference)
@@ -523,8 +528,12 @@ def flip_error_map(reference, test, *, pixels_per_degree: float = FLIP_DEFAULT_P
     spatial_radius, feature_radius, spatial, feature, cmax = _filters(ppd, device)
     height, width = reference.shape[:2]
     pair = (2, height, width)
-    reach = wp.array(flip_reach(pixels_differ(reference, test), radius=max(spatial_radius, feature_radius)),
-                     dtype=wp.uint8, device=device)
+    if reach is None:
+        reach = flip_reach(pixels_differ(reference, test), radius=max(spatial_radius, feature_radius))
+    reach = np.asarray(reach, dtype=np.uint8)
+    if reach.shape != (height, width):
+        raise ValueError(f"reach: expected the images' shape {(height, width)}, got {reach.shape}")
+    reach = wp.array(reach, dtype=wp.uint8, device=device)
     srgb = wp.array(np.stack((reference, test)), dtype=wp.vec3, device=device)
     ycxcz = wp.empty(pair, dtype=wp.vec3, device=device)
     luma = wp.empty(pair, dtype=float, device=device)

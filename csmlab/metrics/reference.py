@@ -108,17 +108,20 @@ def bias_errors(frame: Frame, maps: ReferenceMaps) -> dict[str, float]:
     if count == 0:
         return dict.fromkeys(("acne", "peter_panning"), float("nan"))
     wrong = (maps.diff != 0) & ~_fading(frame)
-    outside = wrong.copy()
     boundary = reference_boundary(maps.reference_shadowed, maps.compared)
-    if wrong.any() and boundary.any():
+    # A wrong pixel that is itself a boundary point is 0 from the boundary, inside the band: only
+    # the others are queried (with no boundary in view, every wrong pixel is outside).
+    outside = wrong & ~boundary
+    query = outside.copy() if boundary.any() else np.zeros_like(wrong)
+    if query.any():
         cascades = frame.maps.cascades
         # Light-space x/y of the positions: the plane the map is indexed in, where resolution errors live.
         light_xy = cascades.to_light(frame.view.gbuffer.position)[..., :2]
         texel = np.array([float(np.max(c.texel_size)) for c in cascades.cascades])
-        selected = frame.shadow.cascade[wrong].astype(np.int64)
+        selected = frame.shadow.cascade[query].astype(np.int64)
         band = cascades.margin_texels * texel[selected]
-        distance = cKDTree(light_xy[boundary]).query(light_xy[wrong])[0]
-        outside[wrong] = distance > band
+        distance = cKDTree(light_xy[boundary]).query(light_xy[query])[0]
+        outside[query] = distance > band
     return {
         "acne": float(np.count_nonzero(outside & (maps.diff == 1))) / count,
         "peter_panning": float(np.count_nonzero(outside & (maps.diff == -1))) / count,
@@ -159,9 +162,17 @@ def mean_boundary_distance(a, b) -> float:
         return float("nan")
     # Nearest-neighbour queries between the two pixel sets (a k-d tree of each), not a distance
     # transform of the whole image per set: the same exact distances, √(integer), from the
-    # boundaries' few thousand pixels instead of every pixel of the image.
+    # boundaries' few thousand pixels instead of every pixel of the image. A pixel in both sets is
+    # 0 from the other: only the others are queried (a method's boundary mostly lies on the
+    # reference's — nine in ten pixels of the default walk), and every distance keeps its place in
+    # the array that is averaged, so that the sum is taken in the same order.
     pa, pb = np.argwhere(a), np.argwhere(b)
-    distances = np.concatenate([cKDTree(pb).query(pa)[0], cKDTree(pa).query(pb)[0]])
+    distances = np.zeros(len(pa) + len(pb), dtype=np.float64)
+    only_a, only_b = ~b[a], ~a[b]
+    if only_a.any():
+        distances[:len(pa)][only_a] = cKDTree(pb).query(pa[only_a])[0]
+    if only_b.any():
+        distances[len(pa):][only_b] = cKDTree(pa).query(pb[only_b])[0]
     return float(np.mean(distances, dtype=np.float64))
 
 
@@ -188,14 +199,18 @@ def split_boundary_pixels(cascade) -> np.ndarray:
     if c.size and (c.min() < -1 or c.max() > np.iinfo(np.int16).max):
         raise ValueError(f"cascade: expected indices in -1..{np.iinfo(np.int16).max}, got {c.min()}..{c.max()}")
     c = c.astype(np.int16)
-    padded = np.pad(c, 1, constant_values=-1)
     height, width = c.shape
     out = np.zeros(c.shape, dtype=bool)
-    for dy in range(3):
-        for dx in range(3):
-            other = padded[dy:dy + height, dx:dx + width]
-            out |= (other >= 0) & (other != c)
-    return out & (c >= 0)
+    # Being 8-neighbours of another cascade is symmetric: each of the 4 neighbour directions is
+    # compared once and marks both pixels of a pair that differ, instead of 8 shifted comparisons.
+    for dy, dx in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        rows = slice(0, height - dy)
+        first, second = (slice(0, width - dx), slice(dx, width)) if dx >= 0 else (slice(-dx, width), slice(0, width + dx))
+        a, b = c[rows, first], c[dy:, second]
+        pair = (a >= 0) & (b >= 0) & (a != b)
+        out[rows, first] |= pair
+        out[dy:, second] |= pair
+    return out
 
 
 def seam_error(frame: Frame) -> dict[str, float]:

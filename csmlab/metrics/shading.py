@@ -73,7 +73,10 @@ def shaded_rgb(albedo, normal, lit, *, light_direction, ambient: float,
         raise ValueError(f"ambient: expected a non-negative fraction of the direct light, got {ambient}")
     if terms is None:
         terms = shading_terms(albedo, normal, light_direction=light_direction)
-    irradiance = ambient + np.asarray(lit, dtype=np.float64) * terms.cosine
+    # S · cos in float64 (a float32 S widens exactly, in the loop rather than as a copy), then the
+    # ambient added in place: the same products and sums (addition commutes), two temporaries fewer.
+    irradiance = np.multiply(np.asarray(lit), terms.cosine, dtype=np.float64)
+    irradiance += ambient
     return terms.albedo * irradiance[..., None]
 
 
