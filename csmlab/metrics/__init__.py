@@ -22,7 +22,7 @@ from csmlab.metrics.aliasing import aliasing_maps, aliasing_summary, utilization
 from csmlab.metrics.cost import cost_summary
 from csmlab.metrics.perceptual import perceptual_maps, perceptual_summary
 from csmlab.metrics.reference import bias_errors, reference_maps, reference_summary, seam_error
-from csmlab.metrics.shading import shaded_rgb, view_shading_terms
+from csmlab.metrics.shading import AMBIENT, shaded_rgb, view_shading_terms
 from csmlab.metrics.taa import TAA_COLUMNS, taa_summary
 from csmlab.metrics.temporal import temporal_maps, temporal_summary
 
@@ -60,7 +60,7 @@ def _mean_utilization(share: np.ndarray) -> float:
     return float(np.nanmean(share)) if np.isfinite(share).any() else float("nan")
 
 
-def measure_frame(frame: Frame, previous: Frame | None = None, *, ambient: float = 0.25,
+def measure_frame(frame: Frame, previous: Frame | None = None, *, ambient: float = AMBIENT,
                   device: str = "cpu", taa: tuple | None = None) -> FrameMeasures:
     """Every metric of ``frame``; the temporal and perceptual ones against ``previous``.
 

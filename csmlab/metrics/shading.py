@@ -13,7 +13,11 @@ import numpy as np
 
 from csmlab.geometry import normalized
 
-__all__ = ["ShadingTerms", "shaded_rgb", "shading_terms", "srgb_encoded", "view_shading_terms"]
+AMBIENT = 0.25
+"""The ambient term of a run's shading, in units of the direct light: the perceptual metrics
+(:func:`csmlab.metrics.measure_frame`) and the report's shaded views (before and after TAA) use it."""
+
+__all__ = ["AMBIENT", "ShadingTerms", "shaded_rgb", "shading_terms", "srgb_encoded", "view_shading_terms"]
 
 
 @dataclass(frozen=True)

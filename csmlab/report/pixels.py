@@ -26,7 +26,6 @@ __all__ = [
     "NO_VALUE",
     "RHO_EDGES",
     "RHO_STEPS",
-    "SHADING_AMBIENT",
     "VIEW_WIDTH",
     "ViewPixels",
     "WORLD_CELLS",
@@ -52,9 +51,6 @@ NO_VALUE = 255
 """The code of "no value" in the uint8 planes."""
 RHO_STEPS = 16
 """Codes per octave of the stored ρ (:func:`code_rho`)."""
-SHADING_AMBIENT = 0.25
-"""Ambient term of the run's shading (:func:`csmlab.metrics.measure_frame`'s default, the one runs use), in units of
-the direct light: the after-TAA views are shaded with it (:func:`taa_pixels`)."""
 
 
 @dataclass(frozen=True)
@@ -209,7 +205,7 @@ def view_pixels(view: View, *, grid: WorldGrid) -> ViewPixels:
 
 
 def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid, taa: tuple | None = None,
-                 ambient: float = SHADING_AMBIENT) -> dict:
+                 ambient: float | None = None) -> dict:
     """The per-frame record of one method: sampled per-pixel values, 3D geometry, world-cell sums.
 
     Parameters
@@ -224,9 +220,10 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid, taa: tuple | No
     taa : tuple of TaaResolve, keyword-only, optional
         Frame t's TAA resolves of the method's S and of R (:mod:`csmlab.metrics.taa`), when the run
         has ``[taa]`` on: the record then holds the after-TAA planes (:func:`taa_pixels`).
-    ambient : float, keyword-only
+    ambient : float, keyword-only, optional
         The ambient term ``pixels["shaded"]`` was shaded with, in units of the direct light: the
-        after-TAA views are shaded the same way.
+        after-TAA views are shaded the same way. None: :data:`csmlab.metrics.shading.AMBIENT`, the
+        one runs use.
 
     Returns
     -------
@@ -301,7 +298,7 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid, taa: tuple | No
     }
 
 
-def taa_pixels(frame: Frame, pixels: dict, shadow, reference, *, stride: int, ambient: float) -> dict:
+def taa_pixels(frame: Frame, pixels: dict, shadow, reference, *, stride: int, ambient: float | None = None) -> dict:
     """The after-TAA part of :func:`frame_pixels`: the resolved S and R and the change of their difference.
 
     Parameters
@@ -314,8 +311,9 @@ def taa_pixels(frame: Frame, pixels: dict, shadow, reference, *, stride: int, am
         Frame t's resolves of the method's S and of R (``out`` and ``reprojected``, (H, W)).
     stride : int, keyword-only
         Pixel stride of the record.
-    ambient : float, keyword-only
-        Ambient term of the shading, in units of the direct light.
+    ambient : float, keyword-only, optional
+        Ambient term of the shading, in units of the direct light; None:
+        :data:`csmlab.metrics.shading.AMBIENT`.
 
     Returns
     -------
@@ -329,7 +327,9 @@ def taa_pixels(frame: Frame, pixels: dict, shadow, reference, *, stride: int, am
         sRGB of the view shaded through T^S and T^R as ``shaded`` is through S
         (:func:`csmlab.metrics.shading.shaded_rgb`), 0 where T^S is undefined.
     """
-    from csmlab.metrics.shading import ShadingTerms, shaded_rgb, view_shading_terms
+    from csmlab.metrics.shading import AMBIENT, ShadingTerms, shaded_rgb, view_shading_terms
+
+    ambient = AMBIENT if ambient is None else ambient
 
     take = (slice(None, None, stride), slice(None, None, stride))
     s, s0 = (np.asarray(a, dtype=np.float64)[take] for a in (shadow.out, shadow.reprojected))
