@@ -446,6 +446,18 @@ def test_the_summary_says_how_to_install_the_video_metric_until_a_run_is_scored(
     assert table.index(">exact<") < table.index(">none<")
 
 
+@pytest.mark.parametrize("length", [0, 1, 2, 3, 4, 5, 8, 1023, 4096])
+def test_base85_is_the_standard_librarys_text(length):
+    import base64
+
+    from csmlab.report.explore import base85
+
+    data = np.random.default_rng(length).integers(0, 256, size=length, dtype=np.uint8).tobytes()
+    edges = bytes([255] * length)
+    assert base85(data) == base64.b85encode(data).decode("ascii")
+    assert base85(edges) == base64.b85encode(edges).decode("ascii")
+
+
 @pytest.mark.parametrize("encoding", ["fast", "compact"])
 @pytest.mark.parametrize("dtype", [np.uint8, np.int8])
 def test_a_value_plane_is_stored_byte_for_byte(dtype, encoding):
