@@ -39,9 +39,10 @@ viewer keeps every 2nd frame (60 of 120) in a 59.5 MiB report.
 
 With ``[taa]`` on (``taa.toml --frames 6``: 11 variants, 320×180 records) a frame's files take 829 KB
 ``fast`` (596 KB ``compact``) where the same records without the after-TAA planes take 529 KB (362 KB): the
-three planes add about 290 KB, the second shaded view 67 KB. At 120 frames these sizes come to 72 MB even
-compact, past the budget: by them (not measured at that length), such a run's viewer keeps every 2nd frame
-where the same run without TAA would keep every frame (43 MB).
+three planes add about 290 KB, the second shaded view 67 KB. Measured on the whole ``taa.toml`` (13 variants,
+120 frames): 770 KB a frame compact, and the rest of the report takes 39 MiB of the 60 (13 GIF animations
+23.6 MiB, the strips and figures 11 MiB, Plotly 4.6 MiB), so the viewer keeps every 4th frame (30 of 120) in
+a 58.1 MiB report.
 
 The report encodes the planes ``fast`` first (:data:`PLANE_ENCODINGS`) and, only when they would not
 all fit in the budget, again ``compact``: a run the size of the default one keeps every frame
