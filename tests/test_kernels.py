@@ -34,7 +34,7 @@ def test_checked_device_refuses_names_warp_does_not_know():
     assert checked_device("cpu") == "cpu"
 
 
-KERNEL_MODULES = ["flip", "footprint", "moments", "pages", "pcf", "raster.kernels", "reference", "shadow", "taa", "usage", "visibility"]
+KERNEL_MODULES = ["flip", "footprint", "moments", "pages", "pcf", "raster.kernels", "reference", "shadow", "ssim", "taa", "usage", "visibility"]
 """csmlab's Warp modules: each module under csmlab.kernels (packages included) that defines kernels."""
 
 

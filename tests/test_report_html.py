@@ -45,16 +45,21 @@ TINY_VIEW_WIDTH = 48
 """Half the tiny run's width: its per-pixel records keep every 2nd pixel of each row and column."""
 
 
+def _tiny_report(tmp_path_factory, name: str, text: str, *, view_width: int) -> Path:
+    """Run the experiment ``text`` with the real runner (in this process), records ``view_width`` wide; its report."""
+    root = tmp_path_factory.mktemp(name)
+    (root / f"{name}.toml").write_text(text)
+    out = root / name
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(report_pixels, "VIEW_WIDTH", view_width)
+        run_experiment(load_experiment(root / f"{name}.toml"), out_dir=out)
+    return write_report(out)
+
+
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):
     """A 3-frame, 2-method run of the real runner (in this process), and its report."""
-    root = tmp_path_factory.mktemp("report")
-    (root / "tiny.toml").write_text(TINY)
-    out = root / "tiny"
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(report_pixels, "VIEW_WIDTH", TINY_VIEW_WIDTH)
-        run_experiment(load_experiment(root / "tiny.toml"), out_dir=out)
-    return write_report(out)
+    return _tiny_report(tmp_path_factory, "tiny", TINY, view_width=TINY_VIEW_WIDTH)
 
 
 class _References(HTMLParser):
@@ -493,13 +498,7 @@ TINY_TAA_VIEW_WIDTH = 32
 @pytest.fixture(scope="module")
 def tiny_taa_run(tmp_path_factory):
     """The tiny run with ``[taa]`` on (3 frames, 64×36), and its report."""
-    root = tmp_path_factory.mktemp("report_taa")
-    (root / "tiny_taa.toml").write_text(TINY_TAA)
-    out = root / "tiny_taa"
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(report_pixels, "VIEW_WIDTH", TINY_TAA_VIEW_WIDTH)
-        run_experiment(load_experiment(root / "tiny_taa.toml"), out_dir=out)
-    return write_report(out)
+    return _tiny_report(tmp_path_factory, "tiny_taa", TINY_TAA, view_width=TINY_TAA_VIEW_WIDTH)
 
 
 def _resolves_anew(toml: Path, *, method: str):
