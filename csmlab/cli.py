@@ -139,7 +139,7 @@ def run(
     console.print(_summary_table(result.summary))
     for line in timing_lines(result.summary.get("recording")):
         console.print(line)
-    resumed = f", {result.chunks_resumed} chunk(s) resumed" if result.chunks_resumed else ""
+    resumed = f", {result.chunks_resumed} unit(s) of work resumed" if result.chunks_resumed else ""
     where = (f"dask at {address}" if executor == "dask" and address != "local"
              else f"{executor}, {workers} process(es)")
     console.print(f"{result.frames} frames × {len(loaded.variants())} method/point(s) in {result.seconds:.1f} s "

@@ -447,7 +447,7 @@ def test_the_summary_says_how_to_install_the_video_metric_until_a_run_is_scored(
     text = write_report(copy).read_text(encoding="utf-8")
     assert 'id="jod-missing"' not in text
     table = text.split('id="jod"', 1)[1].split("</table>", 1)[0]
-    assert "JOD, shaded" in table and "9.43" in table and "8.10" in table
+    assert "JOD, as rendered" in table and "9.43" in table and "8.10" in table
     assert table.index(">exact<") < table.index(">none<")
 
 
@@ -667,6 +667,6 @@ def test_a_taa_runs_summary_shows_the_jod_before_and_after_taa_side_by_side(tiny
                                     "after_taa": {"exact__base": 9.61, "none__base": 8.75}}}
     (copy / "summary.json").write_text(json.dumps(summary))
     table = write_report(copy).read_text(encoding="utf-8").split('id="jod"', 1)[1].split("</table>", 1)[0]
-    assert table.index("JOD, shaded") < table.index("JOD, after_taa")
+    assert table.index("JOD, as rendered") < table.index("JOD, after TAA")
     none = table.split(">none<", 1)[1]
     assert none.index("8.10") < none.index("8.75")

@@ -38,7 +38,7 @@ from csmlab.report.picture_pool import PicturePool
 from csmlab.report.summary_table import full_table, headline_table
 from csmlab.report.sweep import sweep_means, sweep_points
 from csmlab.report.tables import ResultFiles, read_results
-from csmlab.report.video_quality import INSTALL
+from csmlab.report.video_quality import INSTALL, SEQUENCE_LABELS
 from csmlab.report.view3d import view3d_figure
 
 __all__ = ["write_report"]
@@ -157,7 +157,7 @@ def _jod(summary: dict, groups: list[tuple[str, str]]) -> dict:
              "cells": [f"{sequences[n][capture_stem(m, p)]:.2f}" if capture_stem(m, p) in sequences[n] else "—"
                        for n in sequences]}
             for m, p in groups if any(capture_stem(m, p) in by_stem for by_stem in sequences.values())]
-    return {"rows": rows, "sequences": list(sequences), "metric": jod.get("metric", ""),
+    return {"rows": rows, "sequences": [SEQUENCE_LABELS.get(n, n) for n in sequences], "metric": jod.get("metric", ""),
             "display": jod.get("display", ""), "install": INSTALL}
 
 

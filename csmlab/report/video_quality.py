@@ -27,7 +27,7 @@ from csmlab.errors import InputError
 from csmlab.files import write_atomic
 from csmlab.report.capture import read_npz
 
-__all__ = ["DISPLAY", "INSTALL", "SEQUENCES", "cvvdp_missing", "jod_of_sequences", "jod_scores", "record_sequences",
+__all__ = ["DISPLAY", "INSTALL", "SEQUENCES", "SEQUENCE_LABELS", "cvvdp_missing", "jod_of_sequences", "jod_scores", "record_sequences",
            "write_jod"]
 
 SEQUENCES = {
@@ -41,6 +41,10 @@ SEQUENCES = {
 each through the same TAA (:func:`csmlab.report.pixels.taa_pixels`; only a run with ``[taa]`` on
 holds it). :func:`write_jod` scores every pair the records hold.
 """
+
+SEQUENCE_LABELS = {"shaded": "as rendered", "after_taa": "after TAA"}
+"""How the report names each of :data:`SEQUENCES` in its JOD table."""
+
 DISPLAY = "standard_fhd"
 """ColorVideoVDP's display model: a 24-inch 1920×1080 sRGB office monitor, 200 cd/m², seen from 60 cm."""
 INSTALL = "pip install -e .[video]  (PyTorch's CPU build and cvvdp)"
