@@ -72,7 +72,6 @@ data scaled so that one unit is about one JND under reference viewing conditions
 ``colour.difference.JND_CIE1976``)."""
 
 _SRGB = colour.RGB_COLOURSPACES["sRGB"]
-_SSIM_SIGMA = SSIM_SIGMA
 _SSIM_MIN_SIDE = 11
 
 SSIM_SUPPORT: int = SSIM_RADIUS
@@ -252,7 +251,7 @@ def _windowed(evaluate, images: tuple, windows, *, shape: tuple[int, int], fill:
 
 
 def _ssim_full(previous: np.ndarray, current: np.ndarray) -> np.ndarray:
-    _, full = structural_similarity(previous, current, data_range=1.0, gaussian_weights=True, sigma=_SSIM_SIGMA,
+    _, full = structural_similarity(previous, current, data_range=1.0, gaussian_weights=True, sigma=SSIM_SIGMA,
                                     use_sample_covariance=False, full=True)
     return full
 
