@@ -35,14 +35,15 @@ only shown, so it is a file of its own, with no text encoding. Scripts are loade
 Measured on ``engines.toml`` (13 variants, 120 frames, 320×180 records): a frame's files take
 416 KB (at 24 frames, 411 KB where the single script of zlib and base64 took 562 KB), ``data.js``
 0.43 MB (5.9 MB at 24 frames before the world maps kept only the cells the run saw), and the
-viewer keeps every 2nd frame (60 of 120) in a 59.5 MiB report.
+viewer keeps every 2nd frame (60 of 120) in a 59.5 MiB report (its strips then PNG, 6 MiB more than as WebP,
+estimated from ``taa.toml``'s).
 
 With ``[taa]`` on (``taa.toml --frames 6``: 11 variants, 320×180 records) a frame's files take 829 KB
 ``fast`` (596 KB ``compact``) where the same records without the after-TAA planes take 529 KB (362 KB): the
 three planes add about 290 KB, the second shaded view 67 KB. Measured on the whole ``taa.toml`` (13 variants,
 120 frames): 770 KB a frame compact, and the rest of the report takes 39 MiB of the 60 (13 GIF animations
-23.6 MiB, the strips and figures 11 MiB, Plotly 4.6 MiB), so the viewer keeps every 4th frame (30 of 120) in
-a 58.1 MiB report.
+23.6 MiB, the strips and figures 11 MiB, Plotly 4.6 MiB), so with the animations counted before its frames
+the viewer kept every 4th frame (30 of 120) in a 58.1 MiB report (the order below changed that).
 
 The report encodes the planes ``fast`` first (:data:`PLANE_ENCODINGS`) and, only when they would leave
 frames or the animations out of the budget, again ``compact``: a run the size of the default one keeps
