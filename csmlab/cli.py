@@ -133,7 +133,7 @@ def run(
     finally:
         bar.stop()
     began = time.perf_counter()
-    index = write_report(out_dir)
+    written = write_report(out_dir)
     report_seconds = time.perf_counter() - began
     console = _out()
     console.print(_summary_table(result.summary))
@@ -145,7 +145,7 @@ def run(
     console.print(f"{result.frames} frames × {len(loaded.variants())} method/point(s) in {result.seconds:.1f} s "
                   f"({where}, {device}{resumed}); report in {report_seconds:.1f} s")
     console.print(f"results: {out_dir}/metrics.csv, {out_dir}/summary.json")
-    console.print(f"report:  {index}")
+    console.print(f"report:  {_report_line(written)}")
 
 
 @app.command()
@@ -158,7 +158,12 @@ def report(results_dir: Path = typer.Argument(..., help="A results directory of 
         read_summary(results_dir)
     except ValueError as exc:
         raise _bad_input(exc) from None
-    _out().print(f"report: {write_report(results_dir)}")
+    _out().print(f"report: {_report_line(write_report(results_dir))}")
+
+
+def _report_line(written) -> str:
+    """The page of a :class:`csmlab.report.WrittenReport`, and what its size budget kept when it has Explore."""
+    return escape(str(written.page) if written.kept is None else f"{written.page} ({written.kept})")
 
 
 @app.command()
@@ -179,7 +184,7 @@ def jod(results_dir: Path = typer.Argument(..., help="A results directory of csm
     for name, by_stem in scores["sequences"].items():
         for stem, value in by_stem.items():
             console.print(f"{name}  {escape(stem)}  JOD {value:.3f}")
-    console.print(f"report: {write_report(results_dir)}")
+    console.print(f"report: {_report_line(write_report(results_dir))}")
 
 
 def _regress_table(result) -> Table:

@@ -48,6 +48,8 @@ def test_run_writes_results_report_and_prints_the_summary_table(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert list(summary["methods"]) == ["exact", "none"]
     assert "flicker_same" in outcome.stdout and "exact" in outcome.stdout and "index.html" in outcome.stdout
+    # The report line says what the report's size budget kept: at this size, everything.
+    assert "index.html (Explore holds every frame (3 of 3); animations kept)" in " ".join(outcome.stdout.split())
 
 
 def test_list_names_scenes_paths_formats_methods_presets_and_experiments():

@@ -308,7 +308,7 @@ def test_report_draws_methods_with_different_cascade_counts(tmp_path):
     from csmlab.report import write_report
 
     _run(tmp_path, extends=["engines/filament", "engines/ue5", "methods/exact"], frames=2)
-    index = write_report(tmp_path / "out")
+    index = write_report(tmp_path / "out").page
     assert index.is_file() and any((tmp_path / "out" / "figures").glob("*stabilization*"))
 
 

@@ -53,7 +53,7 @@ def _tiny_report(tmp_path_factory, name: str, text: str, *, view_width: int) -> 
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(report_pixels, "VIEW_WIDTH", view_width)
         run_experiment(load_experiment(root / f"{name}.toml"), out_dir=out)
-    return write_report(out)
+    return write_report(out).page
 
 
 @pytest.fixture(scope="module")
@@ -107,12 +107,12 @@ def _results_copy(source: Path, copy: Path) -> Path:
 def test_report_is_regenerated_byte_for_byte_from_the_results_files_alone(tiny_run, tmp_path, worker):
     source = tiny_run.parent
     copy = _results_copy(source, tmp_path / "copy")
-    page = write_report(copy, worker=worker)
+    page = write_report(copy, worker=worker).page
     assert page.read_bytes() == tiny_run.read_bytes()
     made = sorted(p.relative_to(copy).as_posix() for p in copy.rglob("*") if p.is_file())
     assert made == sorted(p.relative_to(source).as_posix() for p in source.rglob("*") if p.is_file())
     for name in made:
-        if name.endswith((".png", ".gif", ".js")) and "view3d" not in name:
+        if name.endswith((".png", ".webp", ".gif", ".js")) and "view3d" not in name:
             assert (copy / name).read_bytes() == (source / name).read_bytes(), name
 
 
@@ -352,12 +352,92 @@ def test_clicking_a_point_of_a_curve_moves_the_slider_to_its_frame(tiny_run, bro
 def test_a_small_budget_thins_the_viewer_frames_and_the_page_says_so(tiny_run, tmp_path):
     copy = tmp_path / "thin"
     shutil.copytree(tiny_run.parent, copy)
-    page = write_report(copy, budget_bytes=1)
+    written = write_report(copy, budget_bytes=1)
     assert sorted(p.name for p in (copy / "explore" / "frames").iterdir()) == [
         "f00000.js", "f00000__exact__base.webp", "f00000__none__base.webp"]
     assert (copy / "explore" / "kept.js").read_text() == "window.csmlabKept = [0];\n"
-    text = page.read_text(encoding="utf-8")
+    text = written.page.read_text(encoding="utf-8")
     assert "holds every 3rd frame (1 of 3)" in text
+    assert written.kept == "Explore holds every 3rd frame (1 of 3); animations left out"
+
+
+def test_a_run_the_size_of_its_budget_keeps_every_frame_and_animation_and_says_nothing_is_left_out(tiny_run):
+    text = tiny_run.read_text(encoding="utf-8")
+    assert (tiny_run.parent / "explore" / "kept.js").read_text() == "window.csmlabKept = [0, 1, 2];\n"
+    assert sorted(p.name for p in (tiny_run.parent / "anim").glob("*.gif")) == ["exact__base.gif", "none__base.gif"]
+    assert 'id="explore-note"' not in text and 'id="animations-note"' not in text
+    assert 'id="animations"' in text
+
+
+@pytest.mark.parametrize(("sizes", "available", "animation_bytes", "plan"), [
+    ([10] * 6, 100, 20, (1, True)),   # 60 + 20 fit
+    ([10] * 6, 60, 20, (2, True)),    # every 2nd frame (30), then the animations (20); the other 30 do not fit in 10
+    ([10] * 6, 45, 20, (2, False)),   # every 2nd frame; the animations do not fit in 15, nor the other frames
+    ([10] * 6, 60, 40, (1, False)),   # every 2nd frame; the animations do not fit in 30; the other frames do
+    ([10] * 6, 25, 5, (3, True)),     # every 2nd frame does not fit, every 3rd (20) does: 5 left, room no frame can use
+    ([10] * 6, 25, 6, (3, False)),
+    ([10] * 6, 5, 0, (6, True)),      # nothing fits: the first frame alone; no animations to leave out
+    ([10], 5, 5, (1, False)),         # one frame: it is every frame
+])
+def test_the_budget_plans_every_2nd_frame_then_the_animations_then_the_other_frames(sizes, available, animation_bytes,
+                                                                                    plan):
+    from csmlab.report.explore import budget_plan
+
+    assert budget_plan(sizes, available, animation_bytes=animation_bytes) == plan
+
+
+def _budget_parts(tiny_run) -> dict:
+    """Bytes of the tiny run's report by part, its frames as the report encodes them when something is left out."""
+    from csmlab.report.explore import explore_files, report_size
+    from csmlab.report.tables import read_results
+
+    out = tiny_run.parent
+    metrics = read_results(out).metrics
+    groups = metrics.groups()
+    compact = explore_files(out, groups=groups, labels=[m for m, _ in groups], metrics=metrics, encoding="compact")
+    sizes = [sum(map(len, payload.values())) for payload in compact.payloads]
+    frames = sum(p.stat().st_size for p in (out / "explore" / "frames").iterdir())
+    animations = sum(p.stat().st_size for p in (out / "anim").glob("*.gif"))
+    return {"rest": report_size(out) - frames - animations, "sizes": sizes, "animations": animations}
+
+
+def test_the_animations_are_left_out_before_the_viewers_every_2nd_frame_and_the_page_says_so(tiny_run, tmp_path):
+    from csmlab.report.explore import _INDEX_RESERVE, report_size
+
+    parts = _budget_parts(tiny_run)
+    sizes = parts["sizes"]
+    # Room for frames 0 and 2 and less than half of either the animations or frame 1: neither fits.
+    slack = min(parts["animations"], sizes[1]) // 2
+    budget = parts["rest"] + _INDEX_RESERVE + sizes[0] + sizes[2] + slack
+    copy = tmp_path / "no_animations"
+    shutil.copytree(tiny_run.parent, copy)
+    written = write_report(copy, budget_bytes=budget)
+    assert (copy / "explore" / "kept.js").read_text() == "window.csmlabKept = [0, 2];\n"
+    assert not list((copy / "anim").glob("*.gif"))
+    assert report_size(copy) <= budget
+    text = written.page.read_text(encoding="utf-8")
+    assert "anim/" not in text
+    assert ("Animations left out to keep every 2nd frame in Explore under the "
+            f"{budget / 2 ** 20:.3g} MiB budget: play the frames there.") in text
+    assert "holds every 2nd frame (2 of 3); the curves keep every frame, and the animations are left out" in text
+    assert written.kept == "Explore holds every 2nd frame (2 of 3); animations left out"
+
+
+def test_the_animations_come_before_the_viewers_other_frames(tiny_run, tmp_path):
+    from csmlab.report.explore import _INDEX_RESERVE
+
+    parts = _budget_parts(tiny_run)
+    sizes = parts["sizes"]
+    # Room for frames 0 and 2, the animations, and half of frame 1.
+    budget = parts["rest"] + _INDEX_RESERVE + sizes[0] + sizes[2] + parts["animations"] + sizes[1] // 2
+    copy = tmp_path / "animations"
+    shutil.copytree(tiny_run.parent, copy)
+    written = write_report(copy, budget_bytes=budget)
+    assert (copy / "explore" / "kept.js").read_text() == "window.csmlabKept = [0, 2];\n"
+    assert sorted(p.name for p in (copy / "anim").glob("*.gif")) == ["exact__base.gif", "none__base.gif"]
+    text = written.page.read_text(encoding="utf-8")
+    assert 'id="animations-note"' not in text and "anim/exact__base.gif" in text
+    assert written.kept == "Explore holds every 2nd frame (2 of 3); animations kept"
 
 
 def test_a_broken_pixel_record_is_reported_naming_the_file(tiny_run, tmp_path):
@@ -394,7 +474,7 @@ def _fabricated_sweep(out: Path) -> None:
 
 def test_sweep_report_plots_metrics_against_the_parameter_and_the_pareto_front(tmp_path):
     _fabricated_sweep(tmp_path / "sweep")
-    page = write_report(tmp_path / "sweep")
+    page = write_report(tmp_path / "sweep").page
     references = _references(page)
     assert {"figures/sweep__resolution.png", "figures/pareto.png", "figures/curves.png"} <= set(references)
     assert all((page.parent / r).is_file() for r in references)
@@ -444,7 +524,7 @@ def test_the_summary_says_how_to_install_the_video_metric_until_a_run_is_scored(
     summary["jod"] = {"display": "standard_fhd", "metric": "ColorVideoVDP 0.5.7",
                       "sequences": {"shaded": {"exact__base": 9.4321, "none__base": 8.1}}}
     (copy / "summary.json").write_text(json.dumps(summary))
-    text = write_report(copy).read_text(encoding="utf-8")
+    text = write_report(copy).page.read_text(encoding="utf-8")
     assert 'id="jod-missing"' not in text
     table = text.split('id="jod"', 1)[1].split("</table>", 1)[0]
     assert "JOD, as rendered" in table and "9.43" in table and "8.10" in table
@@ -666,7 +746,7 @@ def test_a_taa_runs_summary_shows_the_jod_before_and_after_taa_side_by_side(tiny
                       "sequences": {"shaded": {"exact__base": 9.4321, "none__base": 8.1},
                                     "after_taa": {"exact__base": 9.61, "none__base": 8.75}}}
     (copy / "summary.json").write_text(json.dumps(summary))
-    table = write_report(copy).read_text(encoding="utf-8").split('id="jod"', 1)[1].split("</table>", 1)[0]
+    table = write_report(copy).page.read_text(encoding="utf-8").split('id="jod"', 1)[1].split("</table>", 1)[0]
     assert table.index("JOD, as rendered") < table.index("JOD, after TAA")
     none = table.split(">none<", 1)[1]
     assert none.index("8.10") < none.index("8.75")

@@ -1,4 +1,4 @@
-"""The snapshot strips and the PNG writer of the report's figures."""
+"""The snapshot strips and the PNG and WebP writer of the report's figures."""
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -46,3 +46,35 @@ def test_a_saved_figure_is_an_rgb_png_of_the_figure_size_and_the_same_bytes_twic
     assert (tmp_path / "a.png").read_bytes() == (tmp_path / "b.png").read_bytes()
     pixels = np.asarray(image)
     assert pixels[0, 0].tolist() == [255, 255, 255] and pixels.min() < 100
+
+
+def _smooth_snapshot(shift: int, *, height=90, width=160) -> dict:
+    """A snapshot like a rendered one: smooth shading with a shadowed block, cascades in bands, ρ a gradient."""
+    y, x = np.mgrid[0:height, 0:width] / np.array([height, width])[:, None, None]
+    shadow = (np.abs(x - 0.3 - shift / width) < 0.15) & (y > 0.5)
+    shaded = np.stack([0.3 + 0.4 * x, 0.5 + 0.2 * y, 0.2 + 0.1 * x * y], axis=-1) * np.where(shadow, 0.3, 1.0)[..., None]
+    valid = y > 0.2
+    return {"valid": valid, "cascade": np.where(valid, np.minimum(3 * (y - 0.2) / 0.8, 2), -1).astype(np.int8),
+            "shaded": np.where(valid[..., None], shaded, np.nan).astype(np.float32),
+            "rho": np.where(valid, 2.0 ** (4 * y - 2), np.nan).astype(np.float32),
+            "dS": np.where(valid, np.where(shadow, 0.0, 0.02) + 0.5 * (np.abs(x - 0.45) < 0.01), np.nan).astype(np.float32),
+            "ref_diff": np.where(shadow & (x < 0.2), 1, 0).astype(np.int8)}
+
+
+def test_a_figure_saved_as_webp_is_a_lossy_webp_of_the_png_pixels_within_its_quality_and_the_same_bytes_twice(
+        tmp_path):
+    """A strip as ``.webp``: the pixels of the same strip as lossless PNG (the oracle), within the error of quality 90,
+    in a fraction of the bytes. PSNR bound: 38.6 dB measured on taa.toml's strip of 13 methods, at frame 60."""
+    labels = ["exact", "none"]
+    strips = [[_smooth_snapshot(10 * m) for m in range(2)]]
+    snapshot_strip_figures([(strips[0], tmp_path / "strip.png", "frame 1")], labels)
+    snapshot_strip_figures([(strips[0], tmp_path / "strip.webp", "frame 1")], labels)
+    snapshot_strip_figures([(strips[0], tmp_path / "again.webp", "frame 1")], labels)
+    webp = Image.open(tmp_path / "strip.webp")
+    assert webp.format == "WEBP" and webp.mode == "RGB"
+    png = np.asarray(Image.open(tmp_path / "strip.png"), dtype=np.float64)
+    lossy = np.asarray(webp, dtype=np.float64)
+    assert lossy.shape == png.shape and not np.array_equal(lossy, png)
+    assert 10 * np.log10(255 ** 2 / np.mean((lossy - png) ** 2)) > 35
+    assert (tmp_path / "strip.webp").stat().st_size < (tmp_path / "strip.png").stat().st_size
+    assert (tmp_path / "strip.webp").read_bytes() == (tmp_path / "again.webp").read_bytes()

@@ -7,10 +7,16 @@ and writes ``index.html`` with its figures beside it::
 
     index.html
     figures/curves.png  figures/cost.png  figures/stabilization__<point>.png
-    figures/strip__<point>__f<frame>.png  figures/view3d__f<frame>.png
+    figures/strip__<point>__f<frame>.webp  figures/view3d__f<frame>.png
     figures/sweep__<parameter>.png  figures/pareto.png
     anim/<method>__<point>.gif
     explore/…   the interactive part (:mod:`csmlab.report.explore`), when the run kept per-pixel records
+
+The strips are lossy WebP (:data:`csmlab.report.png.PICTURE_WEBP`): pictures of pictures, a quarter of their
+size as PNG; the plots and the 3D view stay PNG (sharp lines on white, smaller as PNG). The report stays under
+a size budget planned in an order (:func:`csmlab.report.explore.budget_plan`): everything else, the
+interactive part's every 2nd frame, the animations, its other frames; what it leaves out the page says, and
+:class:`WrittenReport` carries for the command line.
 
 The same results give the same ``index.html``, byte for byte, so ``csmlab report DIR``
 reproduces what ``csmlab run`` wrote.
@@ -20,6 +26,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -41,18 +48,36 @@ from csmlab.report.tables import ResultFiles, read_results
 from csmlab.report.video_quality import INSTALL, SEQUENCE_LABELS
 from csmlab.report.view3d import view3d_figure
 
-__all__ = ["write_report"]
+__all__ = ["WrittenReport", "write_report"]
 
-def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES, worker: bool | None = None) -> Path:
-    """Write ``index.html`` and its figures into a results directory; return the page's path.
+
+@dataclass(frozen=True)
+class WrittenReport:
+    """What :func:`write_report` wrote.
+
+    Attributes
+    ----------
+    page : Path
+        ``index.html``.
+    kept : str or None
+        What the size budget kept of the interactive part and the animations
+        (``Explore holds every 2nd frame (60 of 120); animations left out``); None without an interactive part.
+    """
+
+    page: Path
+    kept: str | None
+
+
+def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES, worker: bool | None = None) -> WrittenReport:
+    """Write ``index.html`` and its figures into a results directory; return the page's path and what it kept.
 
     Parameters
     ----------
     out_dir : str or Path
         A directory holding at least ``summary.json`` and ``metrics.csv``.
     budget_bytes : int, keyword-only
-        Size budget of the directory with its report: the interactive part thins its frames to stay
-        under it (:func:`csmlab.report.explore.write_explore`).
+        Size budget of the directory with its report: the interactive part thins its frames, and leaves the
+        animations out, to stay under it (:func:`csmlab.report.explore.budget_plan`).
     worker : bool or None, keyword-only
         Draw the pictures (strips, 3D view, plots, animations) in a second process while this one
         makes the interactive part's files, and here those the worker has not started by then
@@ -61,8 +86,8 @@ def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES, worker: bool | No
 
     Returns
     -------
-    Path
-        ``out_dir / "index.html"``.
+    WrittenReport
+        ``out_dir / "index.html"`` and what the budget kept.
 
     Raises
     ------
@@ -71,6 +96,7 @@ def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES, worker: bool | No
     """
     results = read_results(out_dir)
     out = results.directory
+    _remove_pictures(out)
     (out / "figures").mkdir(exist_ok=True)
     groups = results.metrics.groups()
     points = list(dict.fromkeys(p for _, p in groups))
@@ -95,6 +121,10 @@ def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES, worker: bool | No
         labels = [m if single else f"{m} @ {p}" for m, p in groups]
         explore = explore_files(out, groups=groups, labels=labels, metrics=results.metrics, encoding="fast")
         pool.finish()
+    # The interactive part once every picture is on disk, so that it knows the size of everything else.
+    written = write_explore(out, explore, budget_bytes=budget_bytes, animations=[out / a["src"] for a in animations],
+                            compact=lambda: explore_files(out, groups=groups, labels=labels, metrics=results.metrics,
+                                                          encoding="compact"))
     context = {
         **_header(results),
         "groups": groups,
@@ -109,20 +139,16 @@ def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES, worker: bool | No
         "curves": "figures/curves.png",
         "cost": cost,
         "anim_width": ANIM_WIDTH,
-        "animations": animations,
+        "animations": animations if written is None or written["animations"] else [],
+        "animations_note": None if written is None else written["animations_note"],
         "strips": strips,
         "stabilization": stabilization,
         "view3d": _view3d_shown(view3d),
         **sweep,
     }
-    # The interactive part last, so that it knows the size of everything else.
-    written = write_explore(out, explore, budget_bytes=budget_bytes)
-    if written is not None and written["step"] > 1:
-        # Not every frame fits as fast-encoded planes: the compact ones keep as many frames as can be kept.
-        written = write_explore(out, explore_files(out, groups=groups, labels=labels, metrics=results.metrics,
-                                                   encoding="compact"), budget_bytes=budget_bytes)
     context["explore"] = _explore(written)
-    return write_atomic(out / "index.html", render_report_html(context))
+    return WrittenReport(page=write_atomic(out / "index.html", render_report_html(context)),
+                         kept=None if written is None else written["kept_text"])
 
 
 _WORKER_PIXELS = 200_000
@@ -131,6 +157,15 @@ _WORKER_PIXELS = 200_000
 Measured on 2 cores, one method along 240 frames: at 320×180 (230,400 pixels) the report took
 2.9–3.1 s with the worker, 3.3–3.4 s without; at 640×360, 2.7–2.8 s against 3.3–3.6 s.
 """
+
+
+def _remove_pictures(out: Path) -> None:
+    """Remove what an earlier report drew (``figures/``, ``anim/*.gif``): a picture this one does not draw again
+    — a strip as PNG, now WebP; an animation the budget leaves out — would outlive its link and count against the
+    budget."""
+    shutil.rmtree(out / "figures", ignore_errors=True)
+    for gif in (out / "anim").glob("*.gif"):
+        gif.unlink()
 
 
 def _cores() -> int:
@@ -295,7 +330,7 @@ def _strips(directory: Path, snapshots: dict, strip_frames: dict, pool: PictureP
         drawn = []
         for frame in frames:
             snaps = snapshots[point][frame]
-            name = f"figures/strip__{safe_name(point)}__f{frame}.png"
+            name = f"figures/strip__{safe_name(point)}__f{frame}.webp"
             title = _frame_title(frame, snaps) + (f", point {point}" if len(strip_frames) > 1 else "")
             drawn.append(([s.path for s in snaps], directory / name, title))
             strips.append({"src": name, "title": title})

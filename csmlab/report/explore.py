@@ -35,24 +35,34 @@ only shown, so it is a file of its own, with no text encoding. Scripts are loade
 Measured on ``engines.toml`` (13 variants, 120 frames, 320×180 records): a frame's files take
 416 KB (at 24 frames, 411 KB where the single script of zlib and base64 took 562 KB), ``data.js``
 0.43 MB (5.9 MB at 24 frames before the world maps kept only the cells the run saw), and the
-viewer keeps every 2nd frame (60 of 120) in a 59.5 MiB report.
+viewer keeps every 2nd frame (60 of 120) in a 59.5 MiB report (its strips then PNG, 6 MiB more than as WebP,
+estimated from ``taa.toml``'s).
 
 With ``[taa]`` on (``taa.toml --frames 6``: 11 variants, 320×180 records) a frame's files take 829 KB
 ``fast`` (596 KB ``compact``) where the same records without the after-TAA planes take 529 KB (362 KB): the
 three planes add about 290 KB, the second shaded view 67 KB. Measured on the whole ``taa.toml`` (13 variants,
 120 frames): 770 KB a frame compact, and the rest of the report takes 39 MiB of the 60 (13 GIF animations
-23.6 MiB, the strips and figures 11 MiB, Plotly 4.6 MiB), so the viewer keeps every 4th frame (30 of 120) in
-a 58.1 MiB report.
+23.6 MiB, the strips and figures 11 MiB, Plotly 4.6 MiB), so with the animations counted before its frames
+the viewer kept every 4th frame (30 of 120) in a 58.1 MiB report (the order below changed that).
 
-The report encodes the planes ``fast`` first (:data:`PLANE_ENCODINGS`) and, only when they would not
-all fit in the budget, again ``compact``: a run the size of the default one keeps every frame
-either way and is spared three quarters of the encoding time.
+The report encodes the planes ``fast`` first (:data:`PLANE_ENCODINGS`) and, only when they would leave
+frames or the animations out of the budget, again ``compact``: a run the size of the default one keeps
+every frame and animation either way and is spared three quarters of the encoding time.
 
 The folder is kept under a size budget of the report, the files ``index.html`` loads (:func:`report_size`:
 the run's records — ``*.npz``, the CSV, JSON and TOML files at the top — are the report's input, not
-part of it): when the frame files would take the report past ``budget_bytes``, only every k-th
-frame gets them (the smallest k that fits) and the page says so; the per-frame curves keep every
-frame.
+part of it). The budget is planned in an order (:func:`budget_plan`): everything else the report writes
+(tables, figures, strips, Plotly, ``data.js``); then the frame files of every 2nd frame (the smallest
+step k ≥ 2 whose every k-th frame fits); then the GIF animations, whole or not at all; then the other
+frames (every frame, if that fits too). What is left out — the viewer's frames beyond every k-th, the
+animations — the page says (the ``note``, and one line where the animations would be), and so does
+``csmlab``'s report line; the per-frame curves keep every frame.
+
+The order puts the viewer before the animations: it plays the same frames (and more maps) at full
+resolution. Measured on ``taa.toml`` (13 variants, 120 frames; ``csmlab report`` of its results): with the
+animations (23.6 MiB) planned first, the viewer kept every 4th frame (30 of 120) in 58.1 MiB; planned after
+the viewer's every 2nd frame, and with the strips as WebP (8.7 → 2.0 MB), it keeps every 2nd frame (60 of
+120, 41.4 MiB of frame files) in 50.1 MiB, and the animations, 23.6 MiB where under 10 MiB were left, are left out.
 """
 
 from __future__ import annotations
@@ -62,6 +72,7 @@ import json
 import math
 import shutil
 import zipfile
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -78,10 +89,12 @@ from csmlab.report.pixels import NO_VALUE, RHO_STEPS, decode_rho
 from csmlab.report.view3d import BOX_EDGES, FRUSTUM_EDGES
 
 __all__ = ["BUDGET_BYTES", "CURVES", "PLANES", "PLANE_ENCODINGS", "TAA_CURVES", "TAA_PLANES", "ExploreFiles",
-           "explore_files", "plane_webp", "report_size", "write_explore"]
+           "FIRST_STEP", "budget_plan", "explore_files", "plane_webp", "report_size", "write_explore"]
 
 BUDGET_BYTES = 60 * 2 ** 20
 """Default size budget of a report (:func:`report_size`): 60 MiB."""
+FIRST_STEP = 2
+"""The viewer's frame step that the budget plans before the animations (:func:`budget_plan`): every 2nd frame."""
 PLANES = ("lit", "dS", "cascade", "rho", "reference", "ref_diff")
 """The value planes of a frame file, in order."""
 CURVES = tuple(metric_named(name) for name in ("flicker", "flip_rate", "rho_median", "ref_error"))
@@ -176,7 +189,8 @@ def explore_files(out_dir, *, groups: list[tuple[str, str]], labels: list[str], 
                         cell=float(records[0]["world_cell"]))
 
 
-def write_explore(out_dir, files: ExploreFiles | None, *, budget_bytes: int = BUDGET_BYTES) -> dict | None:
+def write_explore(out_dir, files: ExploreFiles | None, *, budget_bytes: int = BUDGET_BYTES,
+                  animations: Sequence[Path] = (), compact: Callable[[], ExploreFiles] | None = None) -> dict | None:
     """Write the ``explore/`` folder of a results directory; return what the page's template needs.
 
     Parameters
@@ -187,12 +201,22 @@ def write_explore(out_dir, files: ExploreFiles | None, *, budget_bytes: int = BU
         :func:`explore_files` of the directory; None removes the folder.
     budget_bytes : int, keyword-only
         Largest size of the report (:func:`report_size`) once the folder is written.
+    animations : sequence of Path, keyword-only
+        The report's animations, already written: planned after the viewer's every 2nd frame and before
+        its other frames (:func:`budget_plan`), and removed when they do not fit. With ``files`` None
+        they stay.
+    compact : callable or None, keyword-only
+        Makes the same files with their planes encoded ``compact`` (:data:`PLANE_ENCODINGS`): called, and its
+        files written instead, only when ``files`` would leave frames or the animations out.
 
     Returns
     -------
     dict or None
         ``frames`` (frames in the run), ``kept`` (frames with a frame file), ``step``, ``stride`` (and as
-        an ordinal, ``stride_ordinal``), ``cell`` (world cell side, metres), ``size`` (:func:`report_size` but ``index.html``) and ``budget``, ``note`` (the thinning, or None); None when ``files`` is None.
+        an ordinal, ``stride_ordinal``), ``cell`` (world cell side, metres), ``size`` (:func:`report_size` but
+        ``index.html``) and ``budget``, ``animations`` (whether they were kept), ``note`` (what the budget
+        left out, or None), ``animations_note`` (the line shown where left-out animations would be, or None)
+        and ``kept_text`` (what was kept, for the command line); None when ``files`` is None.
     """
     out = Path(out_dir)
     folder = out / "explore"
@@ -202,8 +226,15 @@ def write_explore(out_dir, files: ExploreFiles | None, *, budget_bytes: int = BU
     (folder / "frames").mkdir(parents=True)
     _copy_assets(folder)
     (folder / "data.js").write_text(f"window.csmlabRun = {files.run};\n", encoding="utf-8")
-    fixed = report_size(out) + _INDEX_RESERVE
-    step = _thinning([sum(map(len, p.values())) for p in files.payloads], budget_bytes - fixed)
+    animation_bytes = sum(Path(p).stat().st_size for p in animations)
+    available = budget_bytes - (report_size(out) - animation_bytes + _INDEX_RESERVE)
+    step, kept_animations = budget_plan(_frame_sizes(files), available, animation_bytes=animation_bytes)
+    if (step > 1 or not kept_animations) and compact is not None:
+        files = compact()
+        step, kept_animations = budget_plan(_frame_sizes(files), available, animation_bytes=animation_bytes)
+    if not kept_animations:
+        for path in animations:
+            Path(path).unlink()
     kept = files.frames[::step]
     for payload in files.payloads[::step]:
         for name, data in payload.items():
@@ -211,13 +242,59 @@ def write_explore(out_dir, files: ExploreFiles | None, *, budget_bytes: int = BU
     (folder / "kept.js").write_text(f"window.csmlabKept = {json.dumps(kept)};\n", encoding="utf-8")
     size = report_size(out)
     frames = len(files.frames)
-    note = None
+    budget_mib = f"{budget_bytes / 2 ** 20:.3g} MiB"
+    left_out = []
     if step > 1:
-        note = (f"To keep this report under its size budget of {budget_bytes / 2 ** 20:.0f} MiB, the frame viewer "
-                f"holds every {_ordinal(step)} frame ({len(kept)} of {frames}); the curves keep every frame.")
+        left_out.append(f"the frame viewer holds every {_ordinal(step)} frame ({len(kept)} of {frames}); the curves "
+                        f"keep every frame")
+    if not kept_animations:
+        left_out.append("the animations are left out (play the frames here)")
+    note = f"To keep this report under its size budget of {budget_mib}, {', and '.join(left_out)}." if left_out else None
+    every = "every frame" if step == 1 else f"every {_ordinal(step)} frame"
+    animations_note = None if kept_animations else (
+        f"Animations left out to keep {every} in Explore under the {budget_mib} budget: play the frames there.")
+    kept_text = (f"Explore holds {every} ({len(kept)} of {frames})"
+                 + ("" if not animations else "; animations kept" if kept_animations else "; animations left out"))
     return {"frames": frames, "kept": len(kept), "step": step, "stride": files.stride,
             "stride_ordinal": _ordinal(files.stride), "cell": files.cell, "size": size, "budget": budget_bytes,
-            "note": note}
+            "animations": kept_animations, "note": note, "animations_note": animations_note, "kept_text": kept_text}
+
+
+def _frame_sizes(files: ExploreFiles) -> list[int]:
+    return [sum(map(len, payload.values())) for payload in files.payloads]
+
+
+def budget_plan(sizes: Sequence[int], available: int, *, animation_bytes: int) -> tuple[int, bool]:
+    """The viewer's frame step and whether the animations are kept, planned in the report's order.
+
+    First the frame files of every :data:`FIRST_STEP`-th frame (or, where they do not fit, of every k-th,
+    the smallest k that fits), then the animations if they fit in what is left, then every frame if
+    the other frames fit in what the animations leave.
+
+    Parameters
+    ----------
+    sizes : sequence of int
+        Bytes of each frame's files, in frame order.
+    available : int
+        Bytes of the budget left once everything else of the report is written, the animations not counted.
+    animation_bytes : int, keyword-only
+        Bytes of the animations, kept whole or left out.
+
+    Returns
+    -------
+    step : int
+        Every ``step``-th frame, from the first, keeps its files (every frame but the first dropped at worst).
+    animations : bool
+        Whether the animations are kept (always, when they take no bytes).
+    """
+    step = _thinning(sizes, available, first=min(FIRST_STEP, max(len(sizes), 1)))
+    left = available - sum(sizes[::step])
+    animations = animation_bytes <= max(left, 0)
+    if animations:
+        left -= animation_bytes
+    if step == FIRST_STEP and sum(sizes) - sum(sizes[::step]) <= left:
+        step = 1
+    return step, animations
 
 
 def _ordinal(n: int) -> str:
@@ -225,9 +302,10 @@ def _ordinal(n: int) -> str:
     return f"{n}{suffix}"
 
 
-def _thinning(sizes: list[int], available: int) -> int:
-    """The smallest frame step whose frame files fit in ``available`` bytes (every frame but the first dropped at worst)."""
-    for step in range(1, len(sizes) + 1):
+def _thinning(sizes: Sequence[int], available: int, *, first: int = 1) -> int:
+    """The smallest frame step from ``first`` whose frame files fit in ``available`` bytes (every frame but the first
+    dropped at worst)."""
+    for step in range(first, len(sizes) + 1):
         if sum(sizes[::step]) <= available:
             return step
     return max(len(sizes), 1)

@@ -160,7 +160,7 @@ def _reference_diff(base: np.ndarray, ref_diff) -> np.ndarray:
 
 
 def snapshot_strip_figures(strips: list[tuple[list[dict], object, str]], labels: list[str]) -> None:
-    """Write a PNG per snapshot frame: a row per snapshot (method) of shaded, cascades, ρ, |ΔS| and reference error.
+    """Write a picture per snapshot frame: a row per snapshot (method) of shaded, cascades, ρ, |ΔS| and reference error.
 
     A last, short row holds each column's colour bar or legend; the cascade legend runs to the
     highest cascade any of the frames selects. The frames share one figure, built and laid out for the
@@ -171,7 +171,8 @@ def snapshot_strip_figures(strips: list[tuple[list[dict], object, str]], labels:
     ----------
     strips : list of (snapshots, path, title)
         Per frame: snapshot arrays as :mod:`csmlab.report.capture` stores them, one per method, all of
-        one image size; the PNG to write; the figure title (frame and time).
+        one image size; the ``.png``, or lossy ``.webp``, to write (:func:`csmlab.report.png.save_figure`); the
+        figure title (frame and time).
     labels : list of str
         Row labels (method names), one per snapshot of a frame.
 
