@@ -28,6 +28,24 @@ def test_device_empty_holds_what_a_kernel_writes(device):
     np.testing.assert_array_equal(array.numpy(), np.stack([index, 2 * index, 3 * index], axis=1))
 
 
+class _NotTheDeviceAskedFor:
+    """Stands in for Warp's default device: any use of it is a failure."""
+
+    def __getattr__(self, name):
+        raise AssertionError(f"Warp's default device was used (its {name!r} read), not the device asked for")
+
+
+def test_device_empty_is_on_the_device_asked_for_whatever_warps_default(device, monkeypatch):
+    # Where a GPU is present Warp's default device is cuda:0: an array for a CPU kernel made there
+    # held a GPU pointer, and the CPU launch writing through it segfaulted (the lent H200 machine).
+    wp.init()
+    monkeypatch.setattr(wp._src.context.runtime, "default_device", _NotTheDeviceAskedFor())
+    array = device_empty((3, 4), wp.vec3d, device)
+    assert array.device == wp.get_device(device)
+    wp.launch(_fill_with_index, dim=12, outputs=(array.flatten(),), device=device)
+    assert array.numpy()[2, 3, 2] == 33.0
+
+
 def test_checked_device_refuses_names_warp_does_not_know():
     with pytest.raises(ValueError, match="device"):
         checked_device("tpu")

@@ -6,6 +6,10 @@ geometry the rasterizer is defined on). It works in light space, where the line 
 (i, j) is x = i + ½, y = j + ½ (texels) and the hit's third coordinate is the stored depth.
 """
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 import warp as wp
@@ -763,3 +767,38 @@ def test_a_caster_offset_pushes_a_sloped_plane_by_its_constant_and_slope_times_i
                                         bits=BITS, caster_constant=[constant], caster_slope=slope, device=device)
     np.testing.assert_array_equal(culled, depth)
     assert counts.sum() == count
+
+
+_RUN_PAST_THE_EDGE = '''
+import sys
+import warp as wp
+wp.config.quiet = True
+wp.config.mode = "debug"
+wp.config.kernel_cache_dir = sys.argv[1]
+from csmlab.kernels.raster.kernels import walk_run
+
+@wp.kernel
+def walk(depth: wp.array3d(dtype=wp.float32), hi: int, count: wp.array(dtype=wp.int32)):
+    one = wp.float64(1.0)
+    zero = wp.float64(0.0)
+    count[0] = walk_run(depth, 0, 1, 0, hi, one, one, one, zero, zero, zero, zero, zero, zero, one, one, one, one)
+
+depth = wp.full((1, 2, 4), 9.0, dtype=wp.float32, device="cpu")
+count = wp.zeros(1, dtype=wp.int32, device="cpu")
+for hi in (3, int(sys.argv[2])):
+    wp.launch(walk, dim=1, inputs=(depth, hi), outputs=(count,), device="cpu")
+    print("walked", count.numpy()[0], flush=True)
+'''
+
+
+@pytest.mark.parametrize("hi, walked", [(3, ["walked 4", "walked 4"]), (4, ["walked 4"])])
+def test_a_native_run_past_the_maps_edge_trips_warps_debug_mode(tmp_path, hi, walked):
+    # walk_run and keep_nearer address texels through raw pointers, which Warp's debug-mode bounds
+    # checks do not see: their own asserts must stop a run past the row's last texel (hi = 4 of 4).
+    script = tmp_path / "run_past_the_edge.py"
+    script.write_text(_RUN_PAST_THE_EDGE)
+    done = subprocess.run([sys.executable, str(script), str(tmp_path / "kernels"), str(hi)], capture_output=True,
+                          text=True, timeout=300, env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
+    assert [line for line in done.stdout.splitlines() if line.startswith("walked")] == walked
+    assert (done.returncode == 0) == (hi == 3), done.stderr[-2000:]
+    assert ("Assertion failed" in done.stdout + done.stderr) == (hi == 4)

@@ -1,5 +1,8 @@
 """Splitting Warp CPU launches over threads: ranges that partition, tasks that all run, errors that surface."""
 
+import os
+import subprocess
+import sys
 import threading
 
 import pytest
@@ -77,3 +80,37 @@ def test_taken_in_turn_every_item_runs_once_and_the_threads_take_them_in_order(t
     assert sorted(started, key=str) == sorted([5, None, 3, 0, 8, 1, 2], key=str)
     if threads == 1:
         assert started == [5, None, 3, 0, 8, 1, 2]
+
+
+_DEBUG_LAUNCHES = '''
+import sys
+import numpy as np
+import warp as wp
+wp.config.quiet = True
+wp.config.mode = "debug"
+wp.config.kernel_cache_dir = sys.argv[1]
+from csmlab.kernels.threads import LaunchPool
+
+@wp.kernel
+def add_one(a: wp.array(dtype=wp.float32)):
+    i = wp.tid()
+    a[i] = a[i] + 1.0
+
+arrays = [wp.zeros(100000, dtype=wp.float32, device="cpu") for _ in range(4)]
+with LaunchPool(4, kernels=(add_one,), device="cpu") as pool:
+    for _ in range(300):
+        pool.run([lambda a=a: wp.launch(add_one, dim=a.shape[0], inputs=(a,), device="cpu") for a in arrays])
+print(sorted({float(v) for a in arrays for v in np.unique(a.numpy())}))
+'''
+
+
+def test_launches_of_one_module_built_in_warp_debug_mode_survive_a_pool_of_threads(tmp_path):
+    # Concurrent debug-mode launches of one module read Warp's shared tile-storage pointer after
+    # another launch reset it (threads.py's docstring): the process died of a segfault within
+    # 300 rounds of four overlapping launches. A subprocess, so that a crash is this test's failure.
+    script = tmp_path / "debug_launches.py"
+    script.write_text(_DEBUG_LAUNCHES)
+    done = subprocess.run([sys.executable, str(script), str(tmp_path / "kernels")], capture_output=True, text=True,
+                          timeout=300, env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip().splitlines()[-1] == "[300.0]"

@@ -52,13 +52,17 @@ def device_empty(shape, dtype, device: str) -> wp.array:
     On the CPU its memory is NumPy's, which gives arrays of a few MiB transparent huge pages: a
     kernel's first writes then fault in 2 MiB at a time, not 4 KiB (Warp's own allocation costs a
     fresh page fault per 4 KiB, a large share of a kernel that writes a big output once).
+    The wrapper names the CPU: Warp's default device is ``cuda:0`` wherever a GPU is present, and an
+    array left to the default would be a GPU copy, whose pointer a CPU kernel writes through and
+    crashes (a segfault, no error: Warp's launches do not check where their arrays live by default).
     """
     if not wp.get_device(device).is_cpu:
         return wp.empty(shape, dtype=dtype, device=device)
     shape = (shape,) if isinstance(shape, int) else tuple(shape)
     scalar = getattr(dtype, "_wp_scalar_type_", dtype)
     lanes = tuple(getattr(dtype, "_shape_", ()))
-    return wp.array(np.empty(shape + lanes, dtype=wp.dtype_to_numpy(scalar)), dtype=dtype, copy=False)
+    return wp.array(np.empty(shape + lanes, dtype=wp.dtype_to_numpy(scalar)), dtype=dtype, device=device,
+                    copy=False)
 
 
 CUDA_DRIVER_WARNING = "Warp CUDA warning: Could not find or load the NVIDIA CUDA driver"

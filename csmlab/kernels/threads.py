@@ -6,6 +6,14 @@ cores at once. Warp's CPU atomics are atomic only within one launch, so the wrap
 their work here give every concurrent launch its own part of the outputs — a band of rows, a
 range of receivers, or a private buffer merged afterwards — and the result does not depend on how
 many threads ran it. On CUDA one launch already fills the device: ``threads`` is ignored there.
+
+Warp's debug mode (``wp.config.mode = "debug"``, bounds-checked indexing) is the exception: each
+CPU launch parks its stack-allocated tile storage in one static pointer per module (Warp's
+``native/tile.h``, ``tile_shared_storage_t``, x86-64 with ``enable_tiles_in_stack_memory``) and
+restores the previous value on return, and only debug builds read through it on return (the
+``check()`` assertion) — concurrent launches of one module then read a pointer another launch
+has reset to null or left dangling, and crash. :class:`LaunchPool` runs such launches one after
+another instead, with the same results.
 """
 
 from __future__ import annotations
@@ -54,20 +62,23 @@ class LaunchPool:
         Checked by :func:`checked_threads`.
     kernels : sequence of wp.Kernel
         Kernels the tasks launch: their modules are loaded on ``device`` before any task runs, as
-        Warp's loading on first launch is not meant to run from two threads at once.
+        Warp's loading on first launch is not meant to run from two threads at once. If Warp is in
+        debug mode, or any of their modules is, every group runs on the calling thread (the
+        module's docstring).
     device : str
     """
 
     def __init__(self, threads: int, *, kernels: Sequence = (), device: str = "cpu"):
         self.threads = threads
-        if threads > 1:
+        self._concurrent = threads > 1 and not _debug_build(kernels)
+        if self._concurrent:
             for module in {id(k.module): k.module for k in kernels}.values():
                 # The variant a launch on ``device`` loads (one thread per block on the CPU).
                 wp.load_module(module, device=device)
         self._pool = None
 
     def __enter__(self) -> LaunchPool:
-        if self.threads > 1:
+        if self._concurrent:
             self._pool = ThreadPoolExecutor(self.threads - 1, thread_name_prefix="csmlab-launch")
         return self
 
@@ -111,6 +122,12 @@ class LaunchPool:
                 job(item)
 
         self.run([work] * min(self.threads, len(items)))
+
+
+def _debug_build(kernels: Sequence) -> bool:
+    """Whether Warp builds any of ``kernels``' modules (or, with none given, every module) in debug mode."""
+    modes = {k.module.options.get("mode") or wp.config.mode for k in kernels} or {wp.config.mode}
+    return "debug" in modes
 
 
 _NONE_LEFT = object()

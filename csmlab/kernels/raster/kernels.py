@@ -256,6 +256,8 @@ _KEEP_NEARER = """
 #if defined(__CUDA_ARCH__)
     if (covered) wp::atomic_min(&wp::index(depth, c, j, i), z);
 #else
+    // Raw addressing skips Warp's debug-mode bounds checks: these asserts stand in for them (debug builds only).
+    assert(c >= 0 && c < depth.shape[0] && j >= 0 && j < depth.shape[1] && i >= 0 && i < depth.shape[2]);
     float* texel = reinterpret_cast<float*>(reinterpret_cast<char*>(depth.data) + c * size_t(depth.strides[0])
                                             + j * size_t(depth.strides[1]) + i * size_t(depth.strides[2]));
     const float held = *texel;
@@ -310,6 +312,9 @@ for (int k = 0; k < n; ++k) {
 #else
 {
 #pragma clang fp contract(off)
+    // Raw addressing skips Warp's debug-mode bounds checks: these asserts stand in for them (debug builds only).
+    assert(n <= 0 || depth.shape[0] == 0 || (c >= 0 && c < depth.shape[0] && j >= 0 && j < depth.shape[1] && lo >= 0
+                                             && hi < depth.shape[2] && depth.strides[2] == sizeof(float)));
     float* row = reinterpret_cast<float*>(reinterpret_cast<char*>(depth.data) + c * size_t(depth.strides[0])
                                           + j * size_t(depth.strides[1])) + lo;
     const bool store = depth.shape[0] > 0;
