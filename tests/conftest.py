@@ -8,6 +8,10 @@ CUDA device where one is present — so a run on a GPU machine covers the whole 
 import pytest
 import warp as wp
 
+# An array on one device handed to a launch on another is an error, not a kernel writing through a
+# foreign pointer (Warp's default, RELAXED, checks nothing: a CPU launch given a CUDA array segfaults).
+wp.config.launch_array_access_mode = wp.config.LaunchArrayAccessMode.STRICT
+
 DEVICES = ["cpu"] + (["cuda:0"] if wp.get_cuda_device_count() > 0 else [])
 """The Warp devices this machine offers, in the order tests run on them."""
 
