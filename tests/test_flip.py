@@ -1,18 +1,23 @@
 """The Warp LDR-ꟻLIP against NVIDIA's ``flip_evaluator`` (the C++ it follows) on random, flat, edged,
 rendered and tiny images, and with a few changed pixels (the passes skip what lies out of their
-reach); identical images give exactly 0; bad input is refused."""
+reach); identical images give exactly 0; bad input is refused; its exp and pow correctly rounded
+on every device."""
 
 import flip_evaluator
 import numpy as np
 import pytest
+import warp as wp
 
 from csmlab.camera import CameraPose
 from csmlab.geometry import rotation_looking_at
-from csmlab.kernels.flip import FLIP_DEFAULT_PPD, flip_error_map, flip_filter_radii, flip_reach, pixels_differ
+from csmlab.kernels.flip import (FLIP_DEFAULT_PPD, exp_rounded, flip_error_map, flip_filter_radii, flip_reach,
+                                pixels_differ, pow_rounded)
 from csmlab.metrics.shading import shaded_rgb, srgb_encoded
 from csmlab.render import render_frame
 from csmlab.scene import make_scene
 from csmlab.settings import ShadowSettings
+
+wp.set_module_options({"fuse_fp": False})
 
 # The brief's bounds: per pixel, and of the mean error relative to the oracle's mean. Measured: the
 # two differ in at most a few pixels by one float32 ulp (different libm powf/expf).
@@ -221,3 +226,30 @@ def test_bad_viewing_distance_and_device_are_refused():
     with pytest.raises(ValueError, match="device"):
         flip_error_map(image, image, device="tpu")
 
+
+
+@wp.kernel
+def _rounded_kernel(x: wp.array(dtype=float), y: wp.array(dtype=float), exp_out: wp.array(dtype=float),
+                    pow_out: wp.array(dtype=float)):
+    k = wp.tid()
+    exp_out[k] = exp_rounded(x[k])
+    pow_out[k] = pow_rounded(wp.abs(x[k]), y[k])
+
+
+def test_exp_and_pow_are_float64_math_rounded_once_to_float32(device):
+    # The oracle is NumPy's float64 exp and pow rounded to float32; the inputs span what the kernels
+    # pass: the Gaussians' exponents (≤ 0), and bases in [0, 2) — sRGB, CIELAB's f(t), HyAB and
+    # feature differences — raised to 2.4, 1/3, qc = 0.7, qf = 0.5 and 1 − feature in [0, 1].
+    rng = np.random.default_rng(12)
+    x = np.concatenate([-rng.uniform(0.0, 60.0, 3000), rng.uniform(0.0, 2.0, 3000), np.geomspace(1e-30, 1.0, 2000),
+                        [0.0, 1.0, 0.5, 2.0]]).astype(np.float32)
+    exponents = np.array([2.4, 1.0 / 3.0, 0.7, 0.5, 1.0, 0.0], np.float32)
+    y = np.where(np.arange(x.size) % 2 == 0, exponents[np.arange(x.size) % exponents.size],
+                 rng.uniform(0.0, 1.0, x.size)).astype(np.float32)
+    exp_out = wp.empty(x.size, dtype=float, device=device)
+    pow_out = wp.empty(x.size, dtype=float, device=device)
+    wp.launch(_rounded_kernel, dim=x.size, inputs=(wp.array(x, device=device), wp.array(y, device=device)),
+              outputs=(exp_out, pow_out), device=device)
+    x64 = x.astype(np.float64)
+    np.testing.assert_array_equal(exp_out.numpy(), np.exp(x64).astype(np.float32))
+    np.testing.assert_array_equal(pow_out.numpy(), np.power(np.abs(x64), y.astype(np.float64)).astype(np.float32))

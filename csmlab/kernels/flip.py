@@ -25,9 +25,11 @@ the full computation gives, bit for bit, at a fraction of its cost when few pixe
 
 Every convolution clamps its taps to the image's edge and sums them in the C++ order (taps from
 −r to r, rows first), all in float32 with the C++ constants rounded as the compiler rounds them and
-floating-point contraction off (``fuse_fp``), so the result differs from the C++ only where the
-two libms' ``powf``/``expf`` do (a few float32 ulps). The filter weights and ``cmax`` are computed
-once per (ppd, device) by ``filter_weights_kernel`` with the same functions.
+floating-point contraction off (``fuse_fp``). ``exp`` and ``pow`` are evaluated in float64 and
+rounded once (:func:`exp_rounded`, :func:`pow_rounded`): correctly rounded, so the CPU and CUDA give
+the same bits, and the result differs from the C++ only where its C library's ``expf``/``powf``
+are not correctly rounded (glibc: ~0.06 % of inputs, by one float32 ulp). The filter weights and
+``cmax`` are computed once per (ppd, device) by ``filter_weights_kernel`` with the same functions.
 
 References
 ----------
@@ -67,7 +69,6 @@ def _constant(value) -> wp.constant:
 QC = _constant(0.7)
 PC = _constant(0.4)
 PT = _constant(0.95)
-QF = _constant(0.5)
 _DELTA = _F(6.0) / _F(29.0)
 LAB_DELTA_CUBE = _constant(_DELTA * (_DELTA * _DELTA))
 LAB_FACTOR = _constant(_F(1.0) / (_F(3.0) * (_DELTA * _DELTA)))
@@ -162,12 +163,31 @@ def flip_reach(differs, *, radius: int) -> np.ndarray:
     return reach
 
 
+# Why float64: CUDA's float32 expf and powf are not correctly rounded (on an H200 wp.exp was off
+# by up to 1.83 ulp, wrong on 30 % of inputs; wp.pow by up to 0.87 ulp, wrong on 5.9 %), and
+# ꟻLIP's powers amplify an ulp (a rendered 640×360 frame: 9.9e-05 from flip_evaluator on CUDA).
+# Evaluated in float64 (within a float64 ulp or two on both devices) and rounded once, the result
+# is the correctly rounded float32 but where the exact value lies within that of a float32
+# rounding midpoint (~1e-9 of inputs): the devices agree. The C++'s expf and powf (glibc 2.36
+# here) are within 0.502 ulp, so this differs from them on ~0.06 % of inputs, by one ulp.
+@wp.func
+def exp_rounded(x: float) -> float:
+    """``e^x`` correctly rounded to float32 (evaluated in float64): the same bits on every device."""
+    return wp.float32(wp.exp(wp.float64(x)))
+
+
+@wp.func
+def pow_rounded(x: float, y: float) -> float:
+    """``x^y`` correctly rounded to float32 (evaluated in float64): the same bits on every device."""
+    return wp.float32(wp.pow(wp.float64(x), wp.float64(y)))
+
+
 @wp.func
 def linear_from_srgb(c: float) -> float:
     """``color3::sRGBToLinearRGB`` of one channel."""
     if c <= 0.04045:
         return c / 12.92
-    return wp.pow((c + 0.055) / 1.055, 2.4)
+    return pow_rounded((c + 0.055) / 1.055, 2.4)
 
 
 @wp.func
@@ -203,7 +223,7 @@ def xyz_from_ycxcz(c: wp.vec3) -> wp.vec3:
 @wp.func
 def lab_f(t: float) -> float:
     if t > LAB_DELTA_CUBE:
-        return wp.pow(t, ONE_THIRD)
+        return pow_rounded(t, ONE_THIRD)
     return LAB_FACTOR * t + LAB_TERM
 
 
@@ -232,13 +252,13 @@ def hyab(a: wp.vec3, b: wp.vec3) -> float:
 @wp.func
 def gaussian(x2: float, a: float, b: float) -> float:
     """The CSF Gaussian ``a · sqrt(π / b) · exp(−π² x² / b)``."""
-    return a * wp.sqrt(PI / b) * wp.exp(-PI_SQ * x2 / b)
+    return a * wp.sqrt(PI / b) * exp_rounded(-PI_SQ * x2 / b)
 
 
 @wp.func
 def gaussian_sqrt(x2: float, a: float, b: float) -> float:
     """``GaussianSqrt``: one separable factor of a Cz Gaussian, ``sqrt(a · sqrt(π / b)) · exp(−π² x² / b)``."""
-    return wp.sqrt(a * wp.sqrt(PI / b)) * wp.exp(-PI_SQ * x2 / b)
+    return wp.sqrt(a * wp.sqrt(PI / b)) * exp_rounded(-PI_SQ * x2 / b)
 
 
 @wp.kernel
@@ -277,7 +297,7 @@ def filter_weights_kernel(
     ddg_positive = float(0.0)
     for x in range(2 * feature_radius + 1):
         xx = float(x - feature_radius)
-        g = wp.exp(-(xx * xx) / (2.0 * std_dev * std_dev))
+        g = exp_rounded(-(xx * xx) / (2.0 * std_dev * std_dev))
         g_sum += g
         dg = -xx * g
         if dg > 0.0:
@@ -303,7 +323,7 @@ def filter_weights_kernel(
     # computeMaxDistance: HyAB between Hunt-adjusted green and blue, raised to qc.
     green = hunt_adjusted(lab_from_xyz(apply3(RGB_TO_XYZ, wp.vec3(0.0, 1.0, 0.0))))
     blue = hunt_adjusted(lab_from_xyz(apply3(RGB_TO_XYZ, wp.vec3(0.0, 0.0, 1.0))))
-    cmax[0] = wp.pow(hyab(green, blue), QC)
+    cmax[0] = pow_rounded(hyab(green, blue), QC)
 
 
 @wp.func
@@ -333,8 +353,10 @@ def flip_error(color_difference: float, reference_features: wp.vec2, test_featur
     """``color_difference^(1 − feature difference)``, the feature difference ``(max(|Δedge|, |Δpoint|)/√2)^qf``."""
     edge = wp.abs(reference_features[0] - test_features[0])
     point = wp.abs(reference_features[1] - test_features[1])
-    feature = wp.pow(INV_SQRT2 * wp.max(edge, point), QF)
-    return wp.pow(color_difference, 1.0 - feature)
+    # x^qf with qf = 0.5: the square root, correctly rounded on every device like pow_rounded's
+    # result, without its float64 pow.
+    feature = wp.sqrt(INV_SQRT2 * wp.max(edge, point))
+    return pow_rounded(color_difference, 1.0 - feature)
 
 
 @wp.func
@@ -457,7 +479,7 @@ def columns_kernel(
                                                    feature, feature_radius)
     test_lab, test_features = columns_of(spatial_rows, feature_rows, 1, i, j, spatial, spatial_radius, feature,
                                          feature_radius)
-    color_difference = redistributed(wp.pow(hyab(reference_lab, test_lab), QC), cmax[0])
+    color_difference = redistributed(pow_rounded(hyab(reference_lab, test_lab), QC), cmax[0])
     error[i, j] = flip_error(color_difference, reference_features, test_features)
 
 
