@@ -230,26 +230,28 @@ def test_bad_viewing_distance_and_device_are_refused():
 
 @wp.kernel
 def _rounded_kernel(x: wp.array(dtype=float), y: wp.array(dtype=float), exp_out: wp.array(dtype=float),
-                    pow_out: wp.array(dtype=float)):
+                    pow_out: wp.array(dtype=float), sqrt_out: wp.array(dtype=float)):
     k = wp.tid()
     exp_out[k] = exp_rounded(x[k])
     pow_out[k] = pow_rounded(wp.abs(x[k]), y[k])
+    sqrt_out[k] = wp.sqrt(wp.abs(x[k]))
 
 
 def test_exp_and_pow_are_float64_math_rounded_once_to_float32(device):
     # The oracle is NumPy's float64 exp and pow rounded to float32; the inputs span what the kernels
     # pass: the Gaussians' exponents (≤ 0), and bases in [0, 2) — sRGB, CIELAB's f(t), HyAB and
-    # feature differences — raised to 2.4, 1/3, qc = 0.7, qf = 0.5 and 1 − feature in [0, 1].
+    # feature differences — raised to 2.4, 1/3, qc = 0.7, qf = 0.5 and 1 − feature in [0, 1]. The
+    # feature's x^qf is computed as sqrt(x): the same correctly rounded value.
     rng = np.random.default_rng(12)
     x = np.concatenate([-rng.uniform(0.0, 60.0, 3000), rng.uniform(0.0, 2.0, 3000), np.geomspace(1e-30, 1.0, 2000),
                         [0.0, 1.0, 0.5, 2.0]]).astype(np.float32)
     exponents = np.array([2.4, 1.0 / 3.0, 0.7, 0.5, 1.0, 0.0], np.float32)
     y = np.where(np.arange(x.size) % 2 == 0, exponents[np.arange(x.size) % exponents.size],
                  rng.uniform(0.0, 1.0, x.size)).astype(np.float32)
-    exp_out = wp.empty(x.size, dtype=float, device=device)
-    pow_out = wp.empty(x.size, dtype=float, device=device)
+    exp_out, pow_out, sqrt_out = (wp.empty(x.size, dtype=float, device=device) for _ in range(3))
     wp.launch(_rounded_kernel, dim=x.size, inputs=(wp.array(x, device=device), wp.array(y, device=device)),
-              outputs=(exp_out, pow_out), device=device)
-    x64 = x.astype(np.float64)
-    np.testing.assert_array_equal(exp_out.numpy(), np.exp(x64).astype(np.float32))
-    np.testing.assert_array_equal(pow_out.numpy(), np.power(np.abs(x64), y.astype(np.float64)).astype(np.float32))
+              outputs=(exp_out, pow_out, sqrt_out), device=device)
+    x64 = np.abs(x.astype(np.float64))
+    np.testing.assert_array_equal(exp_out.numpy(), np.exp(x.astype(np.float64)).astype(np.float32))
+    np.testing.assert_array_equal(pow_out.numpy(), np.power(x64, y.astype(np.float64)).astype(np.float32))
+    np.testing.assert_array_equal(sqrt_out.numpy(), np.power(x64, 0.5).astype(np.float32))
