@@ -25,10 +25,11 @@ the full computation gives, bit for bit, at a fraction of its cost when few pixe
 
 Every convolution clamps its taps to the image's edge and sums them in the C++ order (taps from
 −r to r, rows first), all in float32 with the C++ constants rounded as the compiler rounds them and
-floating-point contraction off (``fuse_fp``). ``exp`` and ``pow`` are evaluated in float64 and
-rounded once (:func:`exp_rounded`, :func:`pow_rounded`): correctly rounded, so the CPU and CUDA give
-the same bits, and the result differs from the C++ only where its C library's ``expf``/``powf``
-are not correctly rounded (glibc: ~0.06 % of inputs, by one float32 ulp). The filter weights and
+floating-point contraction off (``fuse_fp``), and ``exp`` and ``pow`` are the C library's
+(:func:`libm_exp`, :func:`libm_pow`): on the CPU the map is the C++'s to within a few float32 ulps
+(5.6e-09 on a rendered frame). On CUDA, whose float32 ``expf`` and ``powf`` are not correctly
+rounded, the two are evaluated in float64 and rounded once, the value the CPU's C library gives on
+all but ~0.06 % of inputs. The filter weights and
 ``cmax`` are computed once per (ppd, device) by ``filter_weights_kernel`` with the same functions.
 
 References
@@ -69,6 +70,7 @@ def _constant(value) -> wp.constant:
 QC = _constant(0.7)
 PC = _constant(0.4)
 PT = _constant(0.95)
+QF = _constant(0.5)
 _DELTA = _F(6.0) / _F(29.0)
 LAB_DELTA_CUBE = _constant(_DELTA * (_DELTA * _DELTA))
 LAB_FACTOR = _constant(_F(1.0) / (_F(3.0) * (_DELTA * _DELTA)))
@@ -163,24 +165,40 @@ def flip_reach(differs, *, radius: int) -> np.ndarray:
     return reach
 
 
-# Why float64: CUDA's float32 expf and powf are not correctly rounded (on an H200 wp.exp was off
-# by up to 1.83 ulp, wrong on 30 % of inputs; wp.pow by up to 0.87 ulp, wrong on 5.9 %), and
-# ꟻLIP's powers amplify an ulp (a rendered 640×360 frame: 9.9e-05 from flip_evaluator on CUDA).
-# Evaluated in float64 (within a float64 ulp or two on both devices) and rounded once, the result
-# is the correctly rounded float32 but where the exact value lies within that of a float32
-# rounding midpoint (~1e-9 of inputs): the devices agree (an H200's float64 exp and pow rounded
-# to float32 equalled NumPy's on 20M inputs). The C++'s expf and powf (glibc 2.36 here) are
-# within 0.502 ulp, so this differs from them on ~0.06 % of inputs, by one ulp.
-@wp.func
-def exp_rounded(x: float) -> float:
-    """``e^x`` correctly rounded to float32 (evaluated in float64): the same bits on every device."""
-    return wp.float32(wp.exp(wp.float64(x)))
+# CUDA's float32 expf and powf are not correctly rounded (an H200: wp.exp up to 1.83 ulp off and
+# wrong on 30 % of inputs, wp.pow up to 0.87 ulp and 5.9 %), and ꟻLIP's powers amplify an ulp
+# (a 640×360 rendered frame: 9.9e-05 from flip_evaluator). On CUDA these evaluate in float64 and
+# round once: the correctly rounded value (an H200's float64 exp and pow rounded to float32 equalled
+# NumPy's on 20M inputs), which is also what the CPU's C library gives on all but ~0.06 % of inputs
+# (glibc, within 0.502 ulp). On the CPU they stay the C library's expf and powf: flip_evaluator's
+# own, so the CPU follows the C++ bit for bit at no cost (float64 there cost 25 % of the kernel).
+_LIBM_EXP = """
+#if defined(__CUDA_ARCH__)
+    return static_cast<float>(wp::exp(static_cast<double>(x)));
+#else
+    return wp::exp(x);
+#endif
+"""
+
+_LIBM_POW = """
+#if defined(__CUDA_ARCH__)
+    return static_cast<float>(wp::pow(static_cast<double>(x), static_cast<double>(y)));
+#else
+    return wp::pow(x, y);
+#endif
+"""
 
 
-@wp.func
-def pow_rounded(x: float, y: float) -> float:
-    """``x^y`` correctly rounded to float32 (evaluated in float64): the same bits on every device."""
-    return wp.float32(wp.pow(wp.float64(x), wp.float64(y)))
+@wp.func_native(_LIBM_EXP)
+def libm_exp(x: float) -> float:
+    """``e^x`` in float32 as the CPU's C library gives it (``expf``); on CUDA, correctly rounded (float64 rounded once)."""
+    ...
+
+
+@wp.func_native(_LIBM_POW)
+def libm_pow(x: float, y: float) -> float:
+    """``x^y`` in float32 as the CPU's C library gives it (``powf``); on CUDA, correctly rounded (float64 rounded once)."""
+    ...
 
 
 @wp.func
@@ -188,7 +206,7 @@ def linear_from_srgb(c: float) -> float:
     """``color3::sRGBToLinearRGB`` of one channel."""
     if c <= 0.04045:
         return c / 12.92
-    return pow_rounded((c + 0.055) / 1.055, 2.4)
+    return libm_pow((c + 0.055) / 1.055, 2.4)
 
 
 @wp.func
@@ -224,7 +242,7 @@ def xyz_from_ycxcz(c: wp.vec3) -> wp.vec3:
 @wp.func
 def lab_f(t: float) -> float:
     if t > LAB_DELTA_CUBE:
-        return pow_rounded(t, ONE_THIRD)
+        return libm_pow(t, ONE_THIRD)
     return LAB_FACTOR * t + LAB_TERM
 
 
@@ -253,13 +271,13 @@ def hyab(a: wp.vec3, b: wp.vec3) -> float:
 @wp.func
 def gaussian(x2: float, a: float, b: float) -> float:
     """The CSF Gaussian ``a · sqrt(π / b) · exp(−π² x² / b)``."""
-    return a * wp.sqrt(PI / b) * exp_rounded(-PI_SQ * x2 / b)
+    return a * wp.sqrt(PI / b) * libm_exp(-PI_SQ * x2 / b)
 
 
 @wp.func
 def gaussian_sqrt(x2: float, a: float, b: float) -> float:
     """``GaussianSqrt``: one separable factor of a Cz Gaussian, ``sqrt(a · sqrt(π / b)) · exp(−π² x² / b)``."""
-    return wp.sqrt(a * wp.sqrt(PI / b)) * exp_rounded(-PI_SQ * x2 / b)
+    return wp.sqrt(a * wp.sqrt(PI / b)) * libm_exp(-PI_SQ * x2 / b)
 
 
 @wp.kernel
@@ -298,7 +316,7 @@ def filter_weights_kernel(
     ddg_positive = float(0.0)
     for x in range(2 * feature_radius + 1):
         xx = float(x - feature_radius)
-        g = exp_rounded(-(xx * xx) / (2.0 * std_dev * std_dev))
+        g = libm_exp(-(xx * xx) / (2.0 * std_dev * std_dev))
         g_sum += g
         dg = -xx * g
         if dg > 0.0:
@@ -324,7 +342,7 @@ def filter_weights_kernel(
     # computeMaxDistance: HyAB between Hunt-adjusted green and blue, raised to qc.
     green = hunt_adjusted(lab_from_xyz(apply3(RGB_TO_XYZ, wp.vec3(0.0, 1.0, 0.0))))
     blue = hunt_adjusted(lab_from_xyz(apply3(RGB_TO_XYZ, wp.vec3(0.0, 0.0, 1.0))))
-    cmax[0] = pow_rounded(hyab(green, blue), QC)
+    cmax[0] = libm_pow(hyab(green, blue), QC)
 
 
 @wp.func
@@ -354,10 +372,8 @@ def flip_error(color_difference: float, reference_features: wp.vec2, test_featur
     """``color_difference^(1 − feature difference)``, the feature difference ``(max(|Δedge|, |Δpoint|)/√2)^qf``."""
     edge = wp.abs(reference_features[0] - test_features[0])
     point = wp.abs(reference_features[1] - test_features[1])
-    # x^qf with qf = 0.5: the square root, correctly rounded on every device like pow_rounded's
-    # result, without its float64 pow.
-    feature = wp.sqrt(INV_SQRT2 * wp.max(edge, point))
-    return pow_rounded(color_difference, 1.0 - feature)
+    feature = libm_pow(INV_SQRT2 * wp.max(edge, point), QF)
+    return libm_pow(color_difference, 1.0 - feature)
 
 
 @wp.func
@@ -480,7 +496,7 @@ def columns_kernel(
                                                    feature, feature_radius)
     test_lab, test_features = columns_of(spatial_rows, feature_rows, 1, i, j, spatial, spatial_radius, feature,
                                          feature_radius)
-    color_difference = redistributed(pow_rounded(hyab(reference_lab, test_lab), QC), cmax[0])
+    color_difference = redistributed(libm_pow(hyab(reference_lab, test_lab), QC), cmax[0])
     error[i, j] = flip_error(color_difference, reference_features, test_features)
 
 
