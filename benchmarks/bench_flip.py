@@ -7,7 +7,9 @@ pixels scattered over the image (like ``none``, whose windows cover most of the 
 the pixels where the shadow moved when the light turned slightly (edges: like ``quantized``), and
 at a few dozen of those (like ``exact``). Prints, per method, the best of ``--repeats`` timed runs in
 milliseconds of :func:`csmlab.metrics.perceptual.flip_map` on the whole image and on the changed
-windows, ns per pixel of the whole image, and the largest difference from ``flip-evaluator``.
+windows, ns per pixel of the whole image, and the largest difference from ``flip-evaluator``; on
+a GPU also how many pixels of the warp method's whole-image map differ from the CPU's (few expected: exp
+and pow are the C library's on the CPU and correctly rounded on CUDA, see :func:`csmlab.kernels.flip.libm_pow`: they differ on ~0.06 % of inputs).
 Every thread pool (ꟻLIP's OpenMP, NumPy's BLAS) is held to one thread, as in a csmlab run.
 """
 
@@ -87,6 +89,11 @@ def main() -> None:
                         for a, b, c in cases.values()]
             print(f"{method:16s} {whole * 1e3:9.1f} {whole / pixels * 1e9:6.0f} "
                   + " ".join(f"{t * 1e3:12.2f}" for t in windowed) + f"  {np.abs(error - oracle).max():.2e}")
+        if device != "cpu":
+            on_device = flip_map(previous, current, method="warp", device=device)
+            on_cpu = flip_map(previous, current, method="warp", device="cpu")
+            print(f"warp on {device} vs the CPU: {np.count_nonzero(on_device != on_cpu)} of {pixels} pixels differ, "
+                  f"max |Δ| {np.abs(on_device - on_cpu).max():.2e}")
 
 if __name__ == "__main__":
     main()

@@ -1,18 +1,26 @@
 """The Warp LDR-ꟻLIP against NVIDIA's ``flip_evaluator`` (the C++ it follows) on random, flat, edged,
 rendered and tiny images, and with a few changed pixels (the passes skip what lies out of their
-reach); identical images give exactly 0; bad input is refused."""
+reach); identical images give exactly 0; bad input is refused; its exp and pow are the C library's
+on the CPU and correctly rounded on CUDA."""
+
+import ctypes
+import ctypes.util
 
 import flip_evaluator
 import numpy as np
 import pytest
+import warp as wp
 
 from csmlab.camera import CameraPose
 from csmlab.geometry import rotation_looking_at
-from csmlab.kernels.flip import FLIP_DEFAULT_PPD, flip_error_map, flip_filter_radii, flip_reach, pixels_differ
+from csmlab.kernels.flip import (FLIP_DEFAULT_PPD, flip_error_map, flip_filter_radii, flip_reach, libm_exp, libm_pow,
+                                pixels_differ)
 from csmlab.metrics.shading import shaded_rgb, srgb_encoded
 from csmlab.render import render_frame
 from csmlab.scene import make_scene
 from csmlab.settings import ShadowSettings
+
+wp.set_module_options({"fuse_fp": False})
 
 # The brief's bounds: per pixel, and of the mean error relative to the oracle's mean. Measured: the
 # two differ in at most a few pixels by one float32 ulp (different libm powf/expf).
@@ -221,3 +229,47 @@ def test_bad_viewing_distance_and_device_are_refused():
     with pytest.raises(ValueError, match="device"):
         flip_error_map(image, image, device="tpu")
 
+
+
+@wp.kernel
+def _libm_kernel(x: wp.array(dtype=float), y: wp.array(dtype=float), exp_out: wp.array(dtype=float),
+                 pow_out: wp.array(dtype=float)):
+    k = wp.tid()
+    exp_out[k] = libm_exp(x[k])
+    pow_out[k] = libm_pow(wp.abs(x[k]), y[k])
+
+
+def _c_library():
+    libm = ctypes.CDLL(ctypes.util.find_library("m"))
+    for name, arity in (("expf", 1), ("powf", 2)):
+        getattr(libm, name).restype = ctypes.c_float
+        getattr(libm, name).argtypes = [ctypes.c_float] * arity
+    return libm
+
+
+def test_exp_and_pow_are_the_c_librarys_on_the_cpu_and_correctly_rounded_on_cuda(device):
+    # The inputs span what the kernels pass: the Gaussians' exponents (≤ 0), and bases in [0, 2) —
+    # sRGB, CIELAB's f(t), HyAB and feature differences — raised to 2.4, 1/3, qc = 0.7, qf = 0.5
+    # and 1 − feature in [0, 1]. Oracles: the C library's expf and powf (flip_evaluator's own) on
+    # the CPU; NumPy's float64 exp and pow rounded to float32 on CUDA; within one ulp of that on both.
+    rng = np.random.default_rng(12)
+    x = np.concatenate([-rng.uniform(0.0, 60.0, 3000), rng.uniform(0.0, 2.0, 3000), np.geomspace(1e-30, 1.0, 2000),
+                        [0.0, 1.0, 0.5, 2.0]]).astype(np.float32)
+    exponents = np.array([2.4, 1.0 / 3.0, 0.7, 0.5, 1.0, 0.0], np.float32)
+    y = np.where(np.arange(x.size) % 2 == 0, exponents[np.arange(x.size) % exponents.size],
+                 rng.uniform(0.0, 1.0, x.size)).astype(np.float32)
+    exp_out, pow_out = (wp.empty(x.size, dtype=float, device=device) for _ in range(2))
+    wp.launch(_libm_kernel, dim=x.size, inputs=(wp.array(x, device=device), wp.array(y, device=device)),
+              outputs=(exp_out, pow_out), device=device)
+    rounded_exp = np.exp(x.astype(np.float64)).astype(np.float32)
+    rounded_pow = np.power(np.abs(x.astype(np.float64)), y.astype(np.float64)).astype(np.float32)
+    for got, rounded in ((exp_out.numpy(), rounded_exp), (pow_out.numpy(), rounded_pow)):
+        np.testing.assert_array_max_ulp(got, rounded, maxulp=1)
+    if wp.get_device(device).is_cpu:
+        libm = _c_library()
+        np.testing.assert_array_equal(exp_out.numpy(), np.array([libm.expf(v) for v in x.tolist()], np.float32))
+        np.testing.assert_array_equal(pow_out.numpy(), np.array([libm.powf(abs(a), b) for a, b in zip(x.tolist(), y.tolist())],
+                                                                np.float32))
+    else:
+        np.testing.assert_array_equal(exp_out.numpy(), rounded_exp)
+        np.testing.assert_array_equal(pow_out.numpy(), rounded_pow)

@@ -71,7 +71,7 @@ def test_the_list_of_kernel_modules_is_every_module_that_defines_kernels():
 
 
 FMA_FROM_LIBRARIES = {
-    "flip": "libdevice's expf, powf and cbrtf",
+    "flip": "libdevice's float64 exp and pow",
     "moments": "libdevice's exp and log",
     "pcf": "libdevice's exp",
     "reference": "Warp's BVH ray query (wp.mesh_query_ray_anyhit)",
@@ -105,10 +105,11 @@ def test_every_kernel_module_compiles_for_a_gpu_and_rounds_there_as_on_the_cpu(n
     (:data:`FMA_FROM_LIBRARIES`).
 
     The compilation catches what only the CUDA build sees — the native snippets' ``__CUDA_ARCH__``
-    branches, device-only builtins — where no GPU is lent. Warp's CPU build targets a generic
-    x86-64, which has no fused multiply-add, so it rounds every product and every sum; NVRTC
-    contracts ``a * b + c`` into one ``fma`` (one rounding) unless told not to, and then depths,
-    edge functions and lookups differ in their last bits between the devices.
+    branches, device-only builtins — where no GPU is lent. With ``fuse_fp`` off Warp's CPU build
+    (clang, ``-march=native``) rounds every product and every sum; NVRTC contracts ``a * b + c``
+    into one ``fma`` (one rounding) unless told not to, and then depths, edge functions and lookups
+    differ in their last bits between the devices (on an H200 the CPU and CUDA depth maps, hits and
+    shadows were bit for bit the same).
     """
     fused = _fma_count(name, tmp_path / "built")
     if name in FMA_FROM_LIBRARIES:

@@ -21,7 +21,7 @@ import warp as wp
 
 __all__ = ["AlphaTextures", "MaskedMesh", "alpha_passes", "masked_mesh", "no_masks"]
 
-# Products and sums rounded one by one, as Warp's CPU build (generic x86-64, no FMA) rounds them.
+# Products and sums rounded one by one on both devices (clang and NVRTC may otherwise contract them).
 wp.set_module_options({"fuse_fp": False})
 
 

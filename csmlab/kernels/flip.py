@@ -25,9 +25,12 @@ the full computation gives, bit for bit, at a fraction of its cost when few pixe
 
 Every convolution clamps its taps to the image's edge and sums them in the C++ order (taps from
 −r to r, rows first), all in float32 with the C++ constants rounded as the compiler rounds them and
-floating-point contraction off (``fuse_fp``), so the result differs from the C++ only where the
-two libms' ``powf``/``expf`` do (a few float32 ulps). The filter weights and ``cmax`` are computed
-once per (ppd, device) by ``filter_weights_kernel`` with the same functions.
+floating-point contraction off (``fuse_fp``), and ``exp`` and ``pow`` are the C library's
+(:func:`libm_exp`, :func:`libm_pow`): on the CPU the map is the C++'s to within a few float32 ulps
+(5.6e-09 on a rendered frame). On CUDA, whose float32 ``expf`` and ``powf`` are not correctly
+rounded, the two are evaluated in float64 and rounded once, the value the CPU's C library gives on
+all but ~0.06 % of inputs. The filter weights and
+``cmax`` are computed once per (ppd, device) by ``filter_weights_kernel`` with the same functions.
 
 References
 ----------
@@ -162,12 +165,48 @@ def flip_reach(differs, *, radius: int) -> np.ndarray:
     return reach
 
 
+# CUDA's float32 expf and powf are not correctly rounded (an H200: wp.exp up to 1.83 ulp off and
+# wrong on 30 % of inputs, wp.pow up to 0.87 ulp and 5.9 %), and ꟻLIP's powers amplify an ulp
+# (a 640×360 rendered frame: 9.9e-05 from flip_evaluator). On CUDA these evaluate in float64 and
+# round once: the correctly rounded value (an H200's float64 exp and pow rounded to float32 equalled
+# NumPy's on 20M inputs), which is also what the CPU's C library gives on all but ~0.06 % of inputs
+# (glibc, within 0.502 ulp). On the CPU they stay the C library's expf and powf: flip_evaluator's
+# own, so the CPU follows the C++ bit for bit at no cost (float64 there cost 25 % of the kernel).
+_LIBM_EXP = """
+#if defined(__CUDA_ARCH__)
+    return static_cast<float>(wp::exp(static_cast<double>(x)));
+#else
+    return wp::exp(x);
+#endif
+"""
+
+_LIBM_POW = """
+#if defined(__CUDA_ARCH__)
+    return static_cast<float>(wp::pow(static_cast<double>(x), static_cast<double>(y)));
+#else
+    return wp::pow(x, y);
+#endif
+"""
+
+
+@wp.func_native(_LIBM_EXP)
+def libm_exp(x: float) -> float:
+    """``e^x`` in float32 as the CPU's C library gives it (``expf``); on CUDA, correctly rounded (float64 rounded once)."""
+    ...
+
+
+@wp.func_native(_LIBM_POW)
+def libm_pow(x: float, y: float) -> float:
+    """``x^y`` in float32 as the CPU's C library gives it (``powf``); on CUDA, correctly rounded (float64 rounded once)."""
+    ...
+
+
 @wp.func
 def linear_from_srgb(c: float) -> float:
     """``color3::sRGBToLinearRGB`` of one channel."""
     if c <= 0.04045:
         return c / 12.92
-    return wp.pow((c + 0.055) / 1.055, 2.4)
+    return libm_pow((c + 0.055) / 1.055, 2.4)
 
 
 @wp.func
@@ -203,7 +242,7 @@ def xyz_from_ycxcz(c: wp.vec3) -> wp.vec3:
 @wp.func
 def lab_f(t: float) -> float:
     if t > LAB_DELTA_CUBE:
-        return wp.pow(t, ONE_THIRD)
+        return libm_pow(t, ONE_THIRD)
     return LAB_FACTOR * t + LAB_TERM
 
 
@@ -232,13 +271,13 @@ def hyab(a: wp.vec3, b: wp.vec3) -> float:
 @wp.func
 def gaussian(x2: float, a: float, b: float) -> float:
     """The CSF Gaussian ``a · sqrt(π / b) · exp(−π² x² / b)``."""
-    return a * wp.sqrt(PI / b) * wp.exp(-PI_SQ * x2 / b)
+    return a * wp.sqrt(PI / b) * libm_exp(-PI_SQ * x2 / b)
 
 
 @wp.func
 def gaussian_sqrt(x2: float, a: float, b: float) -> float:
     """``GaussianSqrt``: one separable factor of a Cz Gaussian, ``sqrt(a · sqrt(π / b)) · exp(−π² x² / b)``."""
-    return wp.sqrt(a * wp.sqrt(PI / b)) * wp.exp(-PI_SQ * x2 / b)
+    return wp.sqrt(a * wp.sqrt(PI / b)) * libm_exp(-PI_SQ * x2 / b)
 
 
 @wp.kernel
@@ -277,7 +316,7 @@ def filter_weights_kernel(
     ddg_positive = float(0.0)
     for x in range(2 * feature_radius + 1):
         xx = float(x - feature_radius)
-        g = wp.exp(-(xx * xx) / (2.0 * std_dev * std_dev))
+        g = libm_exp(-(xx * xx) / (2.0 * std_dev * std_dev))
         g_sum += g
         dg = -xx * g
         if dg > 0.0:
@@ -303,7 +342,7 @@ def filter_weights_kernel(
     # computeMaxDistance: HyAB between Hunt-adjusted green and blue, raised to qc.
     green = hunt_adjusted(lab_from_xyz(apply3(RGB_TO_XYZ, wp.vec3(0.0, 1.0, 0.0))))
     blue = hunt_adjusted(lab_from_xyz(apply3(RGB_TO_XYZ, wp.vec3(0.0, 0.0, 1.0))))
-    cmax[0] = wp.pow(hyab(green, blue), QC)
+    cmax[0] = libm_pow(hyab(green, blue), QC)
 
 
 @wp.func
@@ -333,8 +372,8 @@ def flip_error(color_difference: float, reference_features: wp.vec2, test_featur
     """``color_difference^(1 − feature difference)``, the feature difference ``(max(|Δedge|, |Δpoint|)/√2)^qf``."""
     edge = wp.abs(reference_features[0] - test_features[0])
     point = wp.abs(reference_features[1] - test_features[1])
-    feature = wp.pow(INV_SQRT2 * wp.max(edge, point), QF)
-    return wp.pow(color_difference, 1.0 - feature)
+    feature = libm_pow(INV_SQRT2 * wp.max(edge, point), QF)
+    return libm_pow(color_difference, 1.0 - feature)
 
 
 @wp.func
@@ -457,7 +496,7 @@ def columns_kernel(
                                                    feature, feature_radius)
     test_lab, test_features = columns_of(spatial_rows, feature_rows, 1, i, j, spatial, spatial_radius, feature,
                                          feature_radius)
-    color_difference = redistributed(wp.pow(hyab(reference_lab, test_lab), QC), cmax[0])
+    color_difference = redistributed(libm_pow(hyab(reference_lab, test_lab), QC), cmax[0])
     error[i, j] = flip_error(color_difference, reference_features, test_features)
 
 

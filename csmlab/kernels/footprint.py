@@ -41,7 +41,7 @@ from csmlab.kernels import checked_device
 
 __all__ = ["surface_differentials", "texel_footprint", "warped_texel_footprint"]
 
-# Products and sums rounded one by one, as Warp's CPU build (generic x86-64, no FMA) rounds them: a
+# Products and sums rounded one by one on both devices (clang and NVRTC may otherwise contract them): a
 # CUDA build may not contract them into fused multiply-adds, or its bits differ from the CPU's.
 wp.set_module_options({"fuse_fp": False})
 

@@ -56,7 +56,7 @@ from csmlab.registry import check_name
 __all__ = ["CHUNK", "COARSE_RAYS_PER_CELL", "MASKED_HITS", "RAYS_PER_CELL", "RAY_OFFSET", "RECEIVER_BLOCK",
            "REFERENCE_METHODS", "hard_shadow", "hard_shadow_irregular", "hard_shadow_ray"]
 
-# Products and sums rounded one by one, as Warp's CPU build (generic x86-64, no FMA) rounds them: a
+# Products and sums rounded one by one on both devices (clang and NVRTC may otherwise contract them): a
 # CUDA build may not contract them into fused multiply-adds, or its bits differ from the CPU's.
 wp.set_module_options({"fuse_fp": False})
 

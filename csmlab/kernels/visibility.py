@@ -50,7 +50,7 @@ from csmlab.registry import check_name
 __all__ = ["CHUNK", "CameraHits", "MeshBVH", "NEAR_FRACTION", "VISIBILITY_METHODS", "camera_hits",
            "camera_hits_raster", "camera_hits_ray", "chunks_in_view", "mesh_bvh"]
 
-# Products and sums rounded one by one, as Warp's CPU build (generic x86-64, no FMA) rounds them: a
+# Products and sums rounded one by one on both devices (clang and NVRTC may otherwise contract them): a
 # CUDA build may not contract them into fused multiply-adds, or its bits differ from the CPU's.
 wp.set_module_options({"fuse_fp": False})
 

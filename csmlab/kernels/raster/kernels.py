@@ -31,7 +31,7 @@ __all__ = ["ONE_CENTRE", "SOLVED_COLUMNS", "STEPPED_EXTENT", "Boxes", "CasterOff
            "LightMesh", "TrianglePaths", "VertexPass", "caster_offset", "fixed_point_vertices_kernel",
            "rasterize_chunks_kernel", "rasterize_depth_kernel", "triangle_paths", "vec2l"]
 
-# Products and sums rounded one by one, as Warp's CPU build (generic x86-64, no FMA) rounds them: a
+# Products and sums rounded one by one on both devices (clang and NVRTC may otherwise contract them): a
 # CUDA build may not contract them into fused multiply-adds, or its bits differ from the CPU's.
 wp.set_module_options({"fuse_fp": False})
 
