@@ -402,10 +402,20 @@ def _prepared_scene(job: Job):
     return _PREPARED[key]
 
 
+_UNIT_END: dict = {}
+"""The last unit this process ran without TAA, under ``"last"``: ``(job, stop, ranks, frames)``, its
+variants' frames ``stop − 1`` by ``(method, point)``. The next unit of the same job and variants that
+starts at ``stop`` takes them as its previous frames instead of rendering frame ``stop − 1`` again
+(:func:`csmlab.executor.run_pool` hands a process consecutive units). They are the frames a fresh
+start renders, bit for bit: scrolled depth maps are the maps rasterized whole (:mod:`csmlab.scrolling`),
+and the temporal metrics read of a previous frame its maps, camera and settings only."""
+
+
 def run_chunk(job: Job, chunk: Unit) -> ChunkResult:
     """Render and measure frames ``[start, stop)`` of the unit's variants (a worker's unit of work).
 
-    Frame ``start - 1`` is rendered too, as the previous frame of ``start``, and gives no rows.
+    Frame ``start - 1`` is rendered too, as the previous frame of ``start``, and gives no rows —
+    unless the unit this process ran last ended there (:data:`_UNIT_END`).
     """
     from threadpoolctl import threadpool_limits
 
@@ -436,7 +446,11 @@ def _run_chunk(job: Job, chunk: Unit) -> ChunkResult:
     taa = job.taa
     # TAA's histories: each variant's resolve of S and the reference's, with the view they follow.
     history, reference_history, previous_view = {}, None, None
-    for index in range(max(start - 1, 0), stop):
+    first = max(start - 1, 0)
+    last = _UNIT_END.pop("last", None)
+    if taa is None and start > 0 and last is not None and last[0] is job and last[1:3] == (start, tuple(ranks)):
+        previous, first = last[3], start
+    for index in range(first, stop):
         pose = workload.path.pose(index)
         counted = index >= start
         # Frame start − 1 is only the previous frame of frame start: of it the temporal metrics
@@ -485,6 +499,8 @@ def _run_chunk(job: Job, chunk: Unit) -> ChunkResult:
                                   images=index in job.image_frames, taa=resolved))
             previous[key] = frame
         previous_view = view
+    if taa is None:
+        _UNIT_END["last"] = (job, stop, tuple(ranks), previous)
     packed = {key: pickle.dumps(kept, protocol=pickle.HIGHEST_PROTOCOL) for key, kept in captures.items()}
     return ChunkResult(start=start, stop=stop, rows=rows, timings=timings, captures=packed, ranks=tuple(ranks))
 
