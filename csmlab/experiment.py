@@ -356,8 +356,8 @@ def units_of_work(frames: int, variants: int, *, chunk_frames: int, taa: bool, s
         ``[taa] enabled``: a frame's history depends on every frame before it, so a unit covers
         every frame, of some of the variants.
     split : bool
-        With TAA, one unit per variant (for several processes: the executor hands the next variant
-        to whichever process is free, which balances variants of very different cost — in
+        With TAA, one unit per variant (for several processes: a process that is free takes over
+        variants another has not started, which balances variants of very different cost — in
         ``experiments/taa.toml`` godot4 took 5–7× exact's time — with no cost model; the price is the
         view each unit renders again, 0.1 s a frame there against 1.2 s of a variant's, so ~8 % more
         work in all); otherwise one unit of them all (one process: the view once).
