@@ -7,10 +7,7 @@ light (:func:`csmlab.metrics.shading.shaded_rgb`), so that only the shadow diffe
 in both images (frame t's value where it has one, 0 elsewhere) so that they add no difference,
 and are left out of every mean.
 
-- ΔE2000: linear sRGB (D65) → CIE XYZ → CIELAB (D65 white) → CIEDE2000, colour-science's
-  (``RGB_to_XYZ``, ``XYZ_to_Lab``, ``delta_E_CIE2000`` of colour 0.4.7) operation for operation in
-  NumPy: the same bits, tested against colour-science itself, without importing it (0.9 s of every
-  worker process's start, most of it its ``colour.plotting`` and Matplotlib).
+- ΔE2000: linear sRGB (D65) → CIE XYZ → CIELAB (D65 white) → CIEDE2000, all by colour-science.
   Mean, 99th percentile, and the fraction of compared pixels above :data:`JND_CIEDE2000`.
 - SSIM: scikit-image's ``structural_similarity`` between the two shadow images S (not the shaded
   images: the shadow is what the method controls), ``data_range=1`` since S ∈ [0, 1], with the
@@ -51,6 +48,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import colour
 import flip_evaluator
 import numpy as np
 from scipy.ndimage import maximum_filter
@@ -73,17 +71,7 @@ data scaled so that one unit is about one JND under reference viewing conditions
 2001); ΔE00 > 1 is the usual "visible" criterion (CIE 1976's ΔE*ab counterpart is 2.3,
 ``colour.difference.JND_CIE1976``)."""
 
-_SRGB_TO_XYZ = np.array([[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722], [0.0193, 0.1192, 0.9505]])
-"""colour-science's ``RGB_COLOURSPACES["sRGB"].matrix_RGB_to_XYZ``: IEC 61966-2-1's, as published."""
-_D65_XY = np.array([0.3127, 0.3290])
-"""colour-science's sRGB whitepoint, CIE xy chromaticity of D65 (IEC 61966-2-1)."""
-_CAT02_D65_TO_D65 = np.array([float.fromhex(h) for h in (
-    "0x1.0000000000000p+0", "-0x1.0dd094bc0dcfep-55", "-0x1.78c6065482c3cp-56",
-    "0x1.582086c931e20p-56", "0x1.0000000000000p+0", "-0x1.62efd39788700p-61",
-    "-0x1.5ff938767bca7p-60", "-0x1.91b594c4cc8b4p-61", "0x1.0000000000000p+0")]).reshape(3, 3)
-"""The chromatic adaptation colour-science's ``RGB_to_XYZ`` applies by default (CAT02, from the sRGB
-whitepoint to the same whitepoint): the identity, but for the float64 rounding of ``inv(M) · M``
-(``matrix_chromatic_adaptation_VonKries``), which can move a product's last bit — kept exactly."""
+_SRGB = colour.RGB_COLOURSPACES["sRGB"]
 _SSIM_MIN_SIDE = 11
 
 SSIM_SUPPORT: int = SSIM_RADIUS
@@ -119,85 +107,16 @@ class PerceptualMaps:
     compared: np.ndarray
 
 
-def _vecmul(m: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """colour-science's ``vecmul``: the matrix ``(3, 3)`` times each vector ``(..., 3)``, by ``matmul``."""
-    return np.matmul(m, v[..., None]).squeeze(-1)
-
-
-def _lightness_function(y: np.ndarray, y_n) -> np.ndarray:
-    """colour-science's ``intermediate_lightness_function_CIE1976``: f(Y / Y_n)."""
-    y_y_n = y / y_n
-    return np.where(y_y_n > (24 / 116) ** 3, _spow(y_y_n, 1 / 3), 841 / 108 * y_y_n + 16 / 116)
-
-
-def _spow(a: np.ndarray, p: float) -> np.ndarray:
-    """colour-science's ``spow``: ``sign(a) · |a|^p``."""
-    return np.sign(a) * np.abs(a) ** p
-
-
 def lab_from_linear_srgb(rgb) -> np.ndarray:
-    """CIELAB ``(..., 3)`` (L* in [0, 100], D65 white) of linear sRGB ``(..., 3)`` (Y = 1 for white).
-
-    colour-science's ``XYZ_to_Lab(RGB_to_XYZ(rgb, "sRGB"), whitepoint)`` step for step, the same bits.
-    """
-    xyz = _vecmul(_CAT02_D65_TO_D65, _vecmul(_SRGB_TO_XYZ, np.asarray(rgb, dtype=np.float64)))
-    x_w, y_w = _D65_XY
-    y_y = 1.0 / y_w
-    f_x = _lightness_function(xyz[..., 0], x_w * y_y)
-    f_y = _lightness_function(xyz[..., 1], 1.0)
-    f_z = _lightness_function(xyz[..., 2], (1 - (x_w + y_w)) * y_y)
-    return np.stack([116 * f_y - 16, 500 * (f_x - f_y), 200 * (f_y - f_z)], axis=-1)
+    """CIELAB ``(..., 3)`` (L* in [0, 100], D65 white) of linear sRGB ``(..., 3)`` (Y = 1 for white)."""
+    xyz = colour.RGB_to_XYZ(np.asarray(rgb, dtype=np.float64), _SRGB, apply_cctf_decoding=False)
+    return colour.XYZ_to_Lab(xyz, _SRGB.whitepoint)
 
 
 def delta_e_2000(lab_a, lab_b) -> np.ndarray:
-    """CIEDE2000 colour difference ``(...)`` of two CIELAB arrays ``(..., 3)``.
-
-    colour-science's ``delta_E_CIE2000`` (``textiles=False``) step for step, the same bits; the
-    variables are Sharma, Wu and Dalal's (2005).
-    """
-    lab_1 = np.asarray(lab_a, dtype=np.float64)
-    lab_2 = np.asarray(lab_b, dtype=np.float64)
-    L_1, a_1, b_1 = lab_1[..., 0], lab_1[..., 1], lab_1[..., 2]
-    L_2, a_2, b_2 = lab_2[..., 0], lab_2[..., 1], lab_2[..., 2]
-    C_1_ab = np.hypot(a_1, b_1)
-    C_2_ab = np.hypot(a_2, b_2)
-    C_bar_ab = (C_1_ab + C_2_ab) / 2
-    C_bar_ab_7 = C_bar_ab**7
-    G = 0.5 * (1 - np.sqrt(C_bar_ab_7 / (C_bar_ab_7 + 25**7)))
-    a_p_1 = (1 + G) * a_1
-    a_p_2 = (1 + G) * a_2
-    C_p_1 = np.hypot(a_p_1, b_1)
-    C_p_2 = np.hypot(a_p_2, b_2)
-    h_p_1 = np.where(np.logical_and(b_1 == 0, a_p_1 == 0), 0, np.degrees(np.arctan2(b_1, a_p_1)) % 360)
-    h_p_2 = np.where(np.logical_and(b_2 == 0, a_p_2 == 0), 0, np.degrees(np.arctan2(b_2, a_p_2)) % 360)
-    delta_L_p = L_2 - L_1
-    delta_C_p = C_p_2 - C_p_1
-    h_p_2_s_1 = h_p_2 - h_p_1
-    C_p_1_m_2 = C_p_1 * C_p_2
-    delta_h_p = np.select([C_p_1_m_2 == 0, np.fabs(h_p_2_s_1) <= 180, h_p_2_s_1 > 180, h_p_2_s_1 < -180],
-                          [0, h_p_2_s_1, h_p_2_s_1 - 360, h_p_2_s_1 + 360])
-    delta_H_p = 2 * np.sqrt(C_p_1_m_2) * np.sin(np.deg2rad(delta_h_p / 2))
-    L_bar_p = (L_1 + L_2) / 2
-    C_bar_p = (C_p_1 + C_p_2) / 2
-    a_h_p_1_s_2 = np.fabs(h_p_1 - h_p_2)
-    h_p_1_a_2 = h_p_1 + h_p_2
-    h_bar_p = np.select([C_p_1_m_2 == 0, a_h_p_1_s_2 <= 180, np.logical_and(a_h_p_1_s_2 > 180, h_p_1_a_2 < 360),
-                         np.logical_and(a_h_p_1_s_2 > 180, h_p_1_a_2 >= 360)],
-                        [h_p_1_a_2, h_p_1_a_2 / 2, (h_p_1_a_2 + 360) / 2, (h_p_1_a_2 - 360) / 2])
-    T = (1 - 0.17 * np.cos(np.deg2rad(h_bar_p - 30)) + 0.24 * np.cos(np.deg2rad(2 * h_bar_p))
-         + 0.32 * np.cos(np.deg2rad(3 * h_bar_p + 6)) - 0.2 * np.cos(np.deg2rad(4 * h_bar_p - 63)))
-    delta_theta = 30 * np.exp(-(((h_bar_p - 275) / 25) ** 2))
-    C_bar_p_7 = C_bar_p**7
-    R_C = 2 * np.sqrt(C_bar_p_7 / (C_bar_p_7 + 25**7))
-    L_bar_p_2 = (L_bar_p - 50) ** 2
-    S_L = 1 + 0.015 * L_bar_p_2 / np.sqrt(20 + L_bar_p_2)
-    S_C = 1 + 0.045 * C_bar_p
-    S_H = 1 + 0.015 * C_bar_p * T
-    R_T = -np.sin(np.deg2rad(2 * delta_theta)) * R_C
-    k_L, k_C, k_H = 1, 1, 1
-    return np.asarray(np.sqrt((delta_L_p / (k_L * S_L)) ** 2 + (delta_C_p / (k_C * S_C)) ** 2
-                              + (delta_H_p / (k_H * S_H)) ** 2
-                              + R_T * (delta_C_p / (k_C * S_C)) * (delta_H_p / (k_H * S_H))), dtype=np.float64)
+    """CIEDE2000 colour difference ``(...)`` of two CIELAB arrays ``(..., 3)``, by colour-science."""
+    return np.asarray(colour.delta_E(np.asarray(lab_a, dtype=np.float64), np.asarray(lab_b, dtype=np.float64),
+                                     method="CIE 2000"), dtype=np.float64)
 
 
 def perceptual_maps(frame: Frame, previous_lit, *, ambient: float) -> PerceptualMaps:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import colour
 import numpy as np
 
 from csmlab.geometry import normalized
@@ -91,10 +92,5 @@ def view_shading_terms(view) -> ShadingTerms:
 
 
 def srgb_encoded(rgb) -> np.ndarray:
-    """sRGB-encoded display values ``(..., 3)`` in [0, 1] of linear RGB, clipped to the display range first.
-
-    colour-science's ``cctf_encoding(..., function="sRGB")`` (``eotf_inverse_sRGB``, IEC 61966-2-1)
-    step for step, the same bits, without importing colour-science in every worker process.
-    """
-    linear = np.clip(np.asarray(rgb, dtype=np.float64), 0.0, 1.0)
-    return np.where(linear <= 0.0031308, linear * 12.92, 1.055 * (np.sign(linear) * np.abs(linear) ** (1 / 2.4)) - 0.055)
+    """sRGB-encoded display values ``(..., 3)`` in [0, 1] of linear RGB, clipped to the display range first."""
+    return np.asarray(colour.cctf_encoding(np.clip(np.asarray(rgb, dtype=np.float64), 0.0, 1.0), function="sRGB"))
