@@ -26,7 +26,7 @@ from csmlab.errors import InputError
 from csmlab.registry import dispatch
 
 __all__ = ["EXECUTORS", "execute", "executor_for", "freeze_objects_at_exit", "run_dask", "run_inprocess", "run_pool",
-           "start_worker"]
+           "start_worker", "task_runs"]
 
 _SHARED = None
 
@@ -79,8 +79,12 @@ def _call_with_shared(fn: Callable, task):
 def run_pool(fn: Callable, tasks: list, *, shared, jobs: int, address: str | None = None) -> Iterator:
     """Run the tasks on ``jobs`` local processes (spawned), ``shared`` installed once per process.
 
-    Stopping the iteration early (an exception in the caller, Ctrl-C) cancels the tasks not yet
-    started and waits for the running ones.
+    Each process takes a run of consecutive tasks in list order (the tasks cut into ``jobs`` runs),
+    one at a time; a process whose run is done takes over the second half of the longest run left.
+    A task then mostly follows its own predecessor in the same process, which a task may use: a
+    chunk of frames starts from the previous chunk's last frame, kept in the process, instead of
+    rendering it again (:func:`csmlab.experiment.run_chunk`). Stopping the iteration early (an
+    exception in the caller, Ctrl-C) cancels the tasks not yet started and waits for the running ones.
     """
     if len(tasks) <= 1 or jobs <= 1:
         # One task gains nothing from a process of its own, and spawning one costs seconds.
@@ -91,17 +95,44 @@ def run_pool(fn: Callable, tasks: list, *, shared, jobs: int, address: str | Non
     # while this process writes them, and unpickling the shared objects in that stream imports
     # their modules (seconds) with this process blocked on the pipe — one process after another.
     packed = pickle.dumps(shared, protocol=pickle.HIGHEST_PROTOCOL)
-    with ProcessPoolExecutor(max_workers=max(1, min(jobs, len(tasks))), mp_context=context,
-                             initializer=_install_shared, initargs=(packed,)) as pool:
-        pending = {pool.submit(_call_with_shared, fn, task): task for task in tasks}
-        try:
-            while pending:
-                done, _ = wait(pending, return_when=FIRST_COMPLETED)
-                for future in done:
-                    yield pending.pop(future), future.result()
-        finally:
-            for future in pending:
-                future.cancel()
+    count = max(1, min(jobs, len(tasks)))
+    runs = task_runs(len(tasks), count)
+    # One single-process pool per process, so that the next task of a run goes to its process.
+    lanes = [ProcessPoolExecutor(max_workers=1, mp_context=context, initializer=_install_shared, initargs=(packed,))
+             for _ in range(count)]
+    running = {}
+
+    def feed(lane: int) -> None:
+        if not runs[lane]:
+            longest = max(range(count), key=lambda other: len(runs[other]))
+            half = len(runs[longest]) // 2 or len(runs[longest])
+            runs[lane] = runs[longest][-half:]
+            del runs[longest][-half:]
+        if runs[lane]:
+            index = runs[lane].pop(0)
+            running[lanes[lane].submit(_call_with_shared, fn, tasks[index])] = (lane, index)
+
+    try:
+        for lane in range(count):
+            feed(lane)
+        while running:
+            done, _ = wait(running, return_when=FIRST_COMPLETED)
+            for future in done:
+                lane, index = running.pop(future)
+                result = future.result()
+                feed(lane)
+                yield tasks[index], result
+    finally:
+        for future in running:
+            future.cancel()
+        for lane in lanes:
+            lane.shutdown(wait=True, cancel_futures=True)
+
+
+def task_runs(tasks: int, processes: int) -> list[list[int]]:
+    """Task indices ``0 … tasks − 1`` cut into ``processes`` runs of consecutive indices, as even as can be."""
+    bounds = [round(k * tasks / processes) for k in range(processes + 1)]
+    return [list(range(bounds[k], bounds[k + 1])) for k in range(processes)]
 
 
 def _local_worker_config() -> dict:

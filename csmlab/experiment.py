@@ -356,8 +356,8 @@ def units_of_work(frames: int, variants: int, *, chunk_frames: int, taa: bool, s
         ``[taa] enabled``: a frame's history depends on every frame before it, so a unit covers
         every frame, of some of the variants.
     split : bool
-        With TAA, one unit per variant (for several processes: the executor hands the next variant
-        to whichever process is free, which balances variants of very different cost — in
+        With TAA, one unit per variant (for several processes: a process that is free takes over
+        variants another has not started, which balances variants of very different cost — in
         ``experiments/taa.toml`` godot4 took 5–7× exact's time — with no cost model; the price is the
         view each unit renders again, 0.1 s a frame there against 1.2 s of a variant's, so ~8 % more
         work in all); otherwise one unit of them all (one process: the view once).
@@ -402,10 +402,20 @@ def _prepared_scene(job: Job):
     return _PREPARED[key]
 
 
+_UNIT_END: dict = {}
+"""The last unit this process ran without TAA, under ``"last"``: ``(job, stop, ranks, frames)``, its
+variants' frames ``stop − 1`` by ``(method, point)``. The next unit of the same job and variants that
+starts at ``stop`` takes them as its previous frames instead of rendering frame ``stop − 1`` again
+(:func:`csmlab.executor.run_pool` hands a process consecutive units). They are the frames a fresh
+start renders, bit for bit: scrolled depth maps are the maps rasterized whole (:mod:`csmlab.scrolling`),
+and the temporal metrics read of a previous frame its maps, camera and settings only."""
+
+
 def run_chunk(job: Job, chunk: Unit) -> ChunkResult:
     """Render and measure frames ``[start, stop)`` of the unit's variants (a worker's unit of work).
 
-    Frame ``start - 1`` is rendered too, as the previous frame of ``start``, and gives no rows.
+    Frame ``start - 1`` is rendered too, as the previous frame of ``start``, and gives no rows —
+    unless the unit this process ran last ended there (:data:`_UNIT_END`).
     """
     from threadpoolctl import threadpool_limits
 
@@ -436,7 +446,11 @@ def _run_chunk(job: Job, chunk: Unit) -> ChunkResult:
     taa = job.taa
     # TAA's histories: each variant's resolve of S and the reference's, with the view they follow.
     history, reference_history, previous_view = {}, None, None
-    for index in range(max(start - 1, 0), stop):
+    first = max(start - 1, 0)
+    last = _UNIT_END.pop("last", None)
+    if taa is None and start > 0 and last is not None and last[0] is job and last[1:3] == (start, tuple(ranks)):
+        previous, first = last[3], start
+    for index in range(first, stop):
         pose = workload.path.pose(index)
         counted = index >= start
         # Frame start − 1 is only the previous frame of frame start: of it the temporal metrics
@@ -485,6 +499,8 @@ def _run_chunk(job: Job, chunk: Unit) -> ChunkResult:
                                   images=index in job.image_frames, taa=resolved))
             previous[key] = frame
         previous_view = view
+    if taa is None:
+        _UNIT_END["last"] = (job, stop, tuple(ranks), previous)
     packed = {key: pickle.dumps(kept, protocol=pickle.HIGHEST_PROTOCOL) for key, kept in captures.items()}
     return ChunkResult(start=start, stop=stop, rows=rows, timings=timings, captures=packed, ranks=tuple(ranks))
 

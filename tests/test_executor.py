@@ -10,7 +10,7 @@ import pytest
 
 from csmlab.config import load_experiment
 from csmlab.errors import InputError
-from csmlab.executor import EXECUTORS, execute, executor_for
+from csmlab.executor import EXECUTORS, execute, executor_for, task_runs
 from csmlab.experiment import run_experiment
 
 TINY = """
@@ -94,6 +94,27 @@ def test_dask_local_cluster_gives_the_inprocess_csv(inprocess, tmp_path):
 
 def _add(shared, task):
     return shared + task
+
+
+def test_task_runs_cut_the_tasks_into_consecutive_runs_of_near_equal_length():
+    for tasks in range(0, 14):
+        for processes in range(1, 5):
+            runs = task_runs(tasks, processes)
+            assert len(runs) == processes and sum(runs, []) == list(range(tasks))
+            assert max(map(len, runs)) - min(map(len, runs)) <= 1
+
+
+def _pid_of(shared, task):
+    return task, os.getpid()
+
+
+def test_the_pool_starts_each_process_on_a_run_of_its_own_and_runs_every_task_once():
+    order = [result for _, result in execute(_pid_of, range(8), shared=None, executor="pool", jobs=2)]
+    assert sorted(task for task, _ in order) == list(range(8))
+    first = {}
+    for task, pid in order:
+        first.setdefault(pid, task)
+    assert sorted(first.values()) == [0, 4]
 
 
 def test_inprocess_executor_hands_shared_data_to_every_task():

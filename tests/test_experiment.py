@@ -99,6 +99,25 @@ def test_chunk_boundaries_do_not_change_a_number(reference, tmp_path):
     assert (whole / "metrics.csv").read_bytes() == (chunked / "metrics.csv").read_bytes()
 
 
+class _Forgetful(dict):
+    """A process memory of units that keeps nothing: every unit renders its previous frame again."""
+
+    def __setitem__(self, key, value):
+        pass
+
+
+def test_a_unit_starting_from_the_previous_units_last_frames_gives_the_files_of_one_rendering_them_again(
+        reference, tmp_path, monkeypatch):
+    import csmlab.experiment
+
+    _, kept = reference
+    monkeypatch.setattr(csmlab.experiment, "_UNIT_END", _Forgetful())
+    _, fresh = run_tiny(tmp_path, "fresh")
+    for name in ("metrics.csv", "cascades.csv", "pixels/exact__base.npz", "pixels/none__base.npz",
+                 "anim/none__base.npz"):
+        assert (fresh / name).read_bytes() == (kept / name).read_bytes(), name
+
+
 class Interrupted(Exception):
     pass
 

@@ -277,6 +277,19 @@ def test_shading_with_the_views_shared_terms_equals_shading_from_scratch():
         shaded_rgb(albedo, normal, lit, light_direction=[0.3, -1.0, 0.2], ambient=0.25))
 
 
+def test_previous_shading_shaded_only_where_s_differs_equals_shading_the_whole_image_bit_for_bit():
+    rng = np.random.default_rng(5)
+    current = np.where(rng.random((24, 32)) < 0.1, np.nan, rng.random((24, 32))).astype(np.float32)
+    previous = current.copy()
+    previous[rng.random(current.shape) < 0.05] = np.nan
+    previous[3:9, 4:20] = rng.random((6, 16))
+    frame = _grey_frame(current)
+    g = frame.view.gbuffer
+    maps = perceptual_maps(frame, previous, ambient=0.25)
+    whole = shaded_rgb(g.albedo, g.normal, previous, light_direction=LIGHT_DOWN, ambient=0.25)
+    assert maps.previous_shaded.tobytes() == whole.tobytes()
+
+
 @pytest.mark.parametrize("channels", [(), (3,)])
 def test_filled_pair_is_nan_to_num_of_current_and_previous_where_compared(channels):
     from csmlab.metrics.perceptual import _filled_pair

@@ -116,7 +116,9 @@ def bias_errors(frame: Frame, maps: ReferenceMaps) -> dict[str, float]:
     if query.any():
         cascades = frame.maps.cascades
         # Light-space x/y of the positions: the plane the map is indexed in, where resolution errors live.
-        light_xy = cascades.to_light(frame.view.gbuffer.position)[..., :2]
+        # The same for every method whose maps share the light's basis: taken once per view and basis.
+        light_xy = frame.view.shared(("light_xy", cascades.basis.tobytes()),
+                                     lambda: cascades.to_light(frame.view.gbuffer.position)[..., :2])
         texel = np.array([float(np.max(c.texel_size)) for c in cascades.cascades])
         selected = frame.shadow.cascade[query].astype(np.int64)
         band = cascades.margin_texels * texel[selected]
