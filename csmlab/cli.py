@@ -145,7 +145,7 @@ def run(
     console.print(f"{result.frames} frames × {len(loaded.variants())} method/point(s) in {result.seconds:.1f} s "
                   f"({where}, {device}{resumed}); report in {report_seconds:.1f} s")
     console.print(f"results: {out_dir}/metrics.csv, {out_dir}/summary.json")
-    console.print(f"report:  {_report_line(written)}")
+    console.print(_report_lines(written, label="report:  "))
 
 
 @app.command()
@@ -158,12 +158,14 @@ def report(results_dir: Path = typer.Argument(..., help="A results directory of 
         read_summary(results_dir)
     except ValueError as exc:
         raise _bad_input(exc) from None
-    _out().print(f"report: {_report_line(write_report(results_dir))}")
+    _out().print(_report_lines(write_report(results_dir), label="report: "))
 
 
-def _report_line(written) -> str:
-    """The page of a :class:`csmlab.report.WrittenReport`, and what its size budget kept when it has Explore."""
-    return escape(str(written.page) if written.kept is None else f"{written.page} ({written.kept})")
+def _report_lines(written, *, label: str) -> str:
+    """``label`` and the page of a :class:`csmlab.report.WrittenReport` (the line scripts read the path
+    from, as before), then, when it has Explore, a line of what its size budget kept."""
+    page = f"{label}{escape(str(written.page))}"
+    return page if written.kept is None else f"{page}\nbudget:  {escape(written.kept)}"
 
 
 @app.command()
@@ -184,7 +186,7 @@ def jod(results_dir: Path = typer.Argument(..., help="A results directory of csm
     for name, by_stem in scores["sequences"].items():
         for stem, value in by_stem.items():
             console.print(f"{name}  {escape(stem)}  JOD {value:.3f}")
-    console.print(f"report: {_report_line(write_report(results_dir))}")
+    console.print(_report_lines(write_report(results_dir), label="report: "))
 
 
 def _regress_table(result) -> Table:

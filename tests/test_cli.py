@@ -49,7 +49,9 @@ def test_run_writes_results_report_and_prints_the_summary_table(tmp_path):
     assert list(summary["methods"]) == ["exact", "none"]
     assert "flicker_same" in outcome.stdout and "exact" in outcome.stdout and "index.html" in outcome.stdout
     # The report line says what the report's size budget kept: at this size, everything.
-    assert "index.html (Explore holds every frame (3 of 3); animations kept)" in " ".join(outcome.stdout.split())
+    lines = outcome.stdout.splitlines()
+    assert any(line.startswith("report:") and line.rstrip().endswith("index.html") for line in lines)
+    assert "budget: Explore holds every frame (3 of 3); animations kept" in " ".join(outcome.stdout.split())
 
 
 def test_list_names_scenes_paths_formats_methods_presets_and_experiments():
