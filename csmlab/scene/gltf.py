@@ -48,6 +48,8 @@ from csmlab.errors import InputError
 from csmlab.geometry import quat_to_matrix
 from csmlab.scene.alpha_files import alpha_mask_of_image
 from csmlab.scene.core import AlphaMask
+from csmlab.scene.gltf_compression import decompressed
+from csmlab.scene.gltf_materials import texture_coordinate_set, transformed_uv
 
 __all__ = ["GltfFile", "Sun", "gltf_scene_triangles", "material_mask", "read_gltf", "sun_of", "trs_matrices"]
 
@@ -209,7 +211,8 @@ def read_gltf(file) -> GltfFile:
                          field="file") from None
     if document is None or not str(getattr(document.asset, "version", "")).startswith("2."):
         raise InputError("expected a glTF 2.0 file with asset.version \"2.0\"", file=path, field="asset.version")
-    buffers = tuple(_buffer_bytes(document, i, path) for i in range(len(document.buffers)))
+    # Draco and meshopt geometry decoded into plain views and accessors (csmlab.scene.gltf_compression).
+    document, buffers = decompressed(document, path, lambda i: _buffer_bytes(document, i, path))
     return GltfFile(path=path, document=document, buffers=buffers)
 
 
@@ -411,7 +414,7 @@ def _mask_coordinates(gltf: GltfFile, primitive, material: int, count: int, *, k
     texture = _base_colour_texture(gltf, material)
     if texture is None:
         return np.zeros((count, 2))
-    name = f"TEXCOORD_{texture.texCoord or 0}"
+    name = f"TEXCOORD_{texture_coordinate_set(texture)}"
     accessor = getattr(primitive.attributes, name, None)
     if accessor is None:
         raise gltf.error(f"{key}.attributes", f"expected {name}, the coordinates of alpha-masked "
@@ -420,7 +423,12 @@ def _mask_coordinates(gltf: GltfFile, primitive, material: int, count: int, *, k
     if uv.shape != (count, 2):
         raise gltf.error(f"{key}.attributes.{name}", f"expected {count} VEC2 coordinates (one per POSITION), "
                                                      f"got shape {uv.shape}")
-    return uv
+    texture_key = f"materials[{material}].pbrMetallicRoughness.baseColorTexture"
+    try:
+        return transformed_uv(uv, texture, key=texture_key)  # KHR_texture_transform (csmlab.scene.gltf_materials)
+    except ValueError as exc:
+        field, _, message = str(exc).partition(": ")
+        raise gltf.error(field, message) from None
 
 
 def material_mask(gltf: GltfFile, material: int) -> AlphaMask:
