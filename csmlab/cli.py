@@ -103,6 +103,7 @@ def run(
     from csmlab.experiment import run_experiment
     from csmlab.paths.timing import timing_lines
     from csmlab.paths.view_check import findings_line
+    from csmlab.scene.gltf_materials import blend_line
     from csmlab.report import write_report
 
     try:
@@ -140,9 +141,9 @@ def run(
     console.print(_summary_table(result.summary))
     for line in timing_lines(result.summary.get("recording")):
         console.print(line)
-    views = findings_line(result.summary.get("view_check"))
-    if views:
-        _err().print(f"csmlab: warning: {escape(views)}")
+    for line in (findings_line(result.summary.get("view_check")), blend_line(result.summary.get("blend_materials"))):
+        if line:
+            _err().print(f"csmlab: warning: {escape(line)}")
     resumed = f", {result.chunks_resumed} unit(s) of work resumed" if result.chunks_resumed else ""
     where = (f"dask at {address}" if executor == "dask" and address != "local"
              else f"{executor}, {workers} process(es)")

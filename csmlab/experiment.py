@@ -67,6 +67,9 @@ class Workload:
         Frames that follow a cut tracking gap: no temporal metrics (the camera jumped).
     views : ViewFindings or None
         The check of every frame's view (``[camera] view_check``); None when it is off.
+    blend : dict or None
+        The level's glTF ``alphaMode = "BLEND"`` materials and the rule they were read by
+        (:func:`csmlab.scene.gltf_materials.blend_note`); None without any.
     """
 
     scene: Scene
@@ -78,6 +81,7 @@ class Workload:
     timing: TimingReport | None = None
     restarts: frozenset = frozenset()
     views: ViewFindings | None = None
+    blend: dict | None = None
 
 
 @dataclass(frozen=True)
@@ -362,7 +366,19 @@ def build_workload(experiment: Experiment) -> Workload:
                          field="camera.view_check")
     return Workload(scene=scene, path=path, light=_light_path(experiment, len(path)),
                     width=_image_width(experiment.camera, path), height=experiment.camera.height,
-                    key=workload_hash(experiment, frames=len(path)), timing=timing, restarts=restarts, views=views)
+                    key=workload_hash(experiment, frames=len(path)), timing=timing, restarts=restarts, views=views,
+                    blend=_blend_note(experiment))
+
+
+def _blend_note(experiment: Experiment) -> dict | None:
+    """The glTF files' ``BLEND`` materials (a run warns about them); None for a procedural scene or none."""
+    from csmlab.scene.gltf_materials import blend_note
+
+    scene = experiment.scene
+    if scene.kind != "mesh":
+        return None
+    files = [f for f in (scene.file, *(p.file for p in scene.parts)) if f]
+    return blend_note(files, scene.blend_casters)
 
 
 def _image_width(camera, path: CameraPath) -> int:
@@ -780,5 +796,7 @@ def _write_results(out: Path, experiment: Experiment, job: Job, units: list[Unit
         summary["recording"] = job.workload.timing.as_dict()
     if job.workload.views is not None:
         summary["view_check"] = job.workload.views.as_dict()
+    if job.workload.blend is not None:
+        summary["blend_materials"] = job.workload.blend
     results.write_summary(out / "summary.json", **summary)
     return results.read_summary(out)

@@ -35,6 +35,7 @@ import numpy as np
 from csmlab.files import write_atomic
 from csmlab.metric_registry import format_number, metric_named
 from csmlab.paths.view_check import findings_line
+from csmlab.scene.gltf_materials import blend_line
 from csmlab.report.animation import write_animation
 from csmlab.report.capture import ANIM_WIDTH, capture_stem, read_npz, safe_name
 from csmlab.report.explore import BUDGET_BYTES, explore_files, write_explore
@@ -212,6 +213,7 @@ def _header(results: ResultFiles) -> dict:
         "recording": summary.get("recording"),
         "taa": _taa(config.get("taa") or {}),
         "view_check": findings_line(summary.get("view_check")),
+        "blend": blend_line(summary.get("blend_materials")),
     }
 
 

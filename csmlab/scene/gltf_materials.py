@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["BLEND_CASTERS", "TEXTURE_TRANSFORM", "apply_blend_rule", "blend_materials", "texture_coordinate_set",
-           "transformed_uv"]
+__all__ = ["BLEND_CASTERS", "TEXTURE_TRANSFORM", "apply_blend_rule", "blend_line", "blend_materials", "blend_note",
+           "texture_coordinate_set", "transformed_uv"]
 
 TEXTURE_TRANSFORM = "KHR_texture_transform"
 BLEND_CASTERS = ("opaque", "masked")
@@ -87,3 +87,27 @@ def apply_blend_rule(document, rule: str) -> None:
     for material in document.materials or []:
         if material.alphaMode == "BLEND":
             material.alphaMode = "MASK"
+
+
+def blend_note(files, rule: str) -> dict | None:
+    """``{"rule": rule, "materials": ["file: name", …]}`` for the ``BLEND`` materials of the glTF ``files``; None without any.
+
+    What ``summary.json`` keeps under ``blend_materials`` and :func:`blend_line` words.
+    """
+    from pathlib import Path
+
+    from csmlab.scene.gltf import read_gltf
+
+    names = [f"{Path(file).name}: {name}" for file in dict.fromkeys(files)
+             if Path(file).suffix.lower() in (".gltf", ".glb") for name in blend_materials(read_gltf(file).document)]
+    return {"rule": rule, "materials": names} if names else None
+
+
+def blend_line(note: dict | None) -> str | None:
+    """The one-line warning of a :func:`blend_note` (from ``summary.json``); None without one."""
+    if not note or not note.get("materials"):
+        return None
+    rule = note.get("rule", "opaque")
+    how = "cast solid" if rule == "opaque" else "cast alpha-tested at their alphaCutoff"
+    return (f"{len(note['materials'])} alphaMode BLEND material(s) {how} ([scene] blend_casters = \"{rule}\"; "
+            f"docs/engines.md says what each engine does): {', '.join(note['materials'])}")
