@@ -95,3 +95,32 @@ def test_parts_are_refused_on_a_procedural_scene_and_bad_transforms_name_their_f
     bad = '[[scene.parts]]\nfile = "house.obj"\ntranslation = [1.0, 2.0]\n'
     with pytest.raises(InputError, match=r"scene\.parts\[0\]\.translation"):
         load_experiment(_experiment(tmp_path, bad))
+
+
+ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
+
+
+def test_the_shipped_terrain_window_is_what_its_script_writes(tmp_path):
+    from importlib.util import module_from_spec, spec_from_file_location
+
+    spec = spec_from_file_location("make_patch", ROOT / "data" / "meshes" / "make_jacksboro_patch.py")
+    module = module_from_spec(spec)
+    spec.loader.exec_module(module)
+    written = module.write_patch(tmp_path / "patch.obj")
+    assert written.read_bytes() == (ROOT / "data" / "meshes" / "jacksboro_patch.obj").read_bytes()
+
+
+def test_the_level_of_parts_gets_a_walk_on_its_ground_and_the_unfitted_walk_is_flagged_under_it():
+    from csmlab.config import find_experiment
+    from csmlab.paths import make_path
+    from csmlab.paths.view_check import check_views
+    from csmlab.scene.level import Level
+
+    workload = build_workload(load_experiment(find_experiment("level_parts"), frames=12))
+    assert len(load_experiment(find_experiment("level_parts")).scene.parts) == 6
+    level = Level.of(workload.scene)
+    ground = level.ground_heights(workload.path.positions[:, 0], workload.path.positions[:, 2])
+    np.testing.assert_allclose(workload.path.positions[:, 1] - ground, 1.7, atol=0.031)  # eye height ± head bob
+    assert workload.views.clean
+    unfitted = check_views(level, make_path("walk", frames=12))
+    assert unfitted.below_ground == tuple(range(12))
