@@ -114,3 +114,20 @@ def test_a_level_fitted_path_stands_on_the_mesh_level_and_passes_the_check(tmp_p
 
 def test_view_check_off_runs_no_check(tmp_path):
     assert build_workload(load_experiment(_plane_experiment(tmp_path, "off"))).views is None
+
+
+def test_show_loads_and_checks_the_scene_camera_and_light(tmp_path):
+    from typer.testing import CliRunner
+
+    from csmlab.cli import app
+
+    outcome = CliRunner().invoke(app, ["show", str(_plane_experiment(tmp_path, "warn"))])
+    assert outcome.exit_code == 0
+    assert "# view check (4 frames): camera below the ground in frame(s) 0–3" in outcome.stdout
+    assert "# scene: plane.obj, 2 triangles" in outcome.stdout
+    refused = CliRunner().invoke(app, ["show", str(_plane_experiment(tmp_path, "refuse"))])
+    assert refused.exit_code == 2 and "camera.view_check" in refused.stderr
+    experiment = _plane_experiment(tmp_path, "warn")
+    (tmp_path / "plane.obj").write_text("v 0 0 0\nv 1 0 0\nf 1 2 3\n")  # a face naming a vertex it lacks
+    broken = CliRunner().invoke(app, ["show", str(experiment)])
+    assert broken.exit_code == 2 and "plane.obj" in broken.stderr and "Traceback" not in broken.output
