@@ -131,3 +131,14 @@ def test_show_loads_and_checks_the_scene_camera_and_light(tmp_path):
     (tmp_path / "plane.obj").write_text("v 0 0 0\nv 1 0 0\nf 1 2 3\n")  # a face naming a vertex it lacks
     broken = CliRunner().invoke(app, ["show", str(experiment)])
     assert broken.exit_code == 2 and "plane.obj" in broken.stderr and "Traceback" not in broken.output
+
+
+def test_a_long_path_is_checked_in_batches_with_the_same_findings(monkeypatch):
+    import csmlab.paths.view_check as view_check
+
+    level = _box_level(inward=False)
+    positions = [[0.0, 2.0, 0.0] if i % 7 < 3 else [0.0, 2.0, 30.0] for i in range(40)]
+    whole = check_views(level, _path(positions))
+    monkeypatch.setattr(view_check, "FRAMES_PER_CAST", 6)
+    assert check_views(level, _path(positions)) == whole
+    assert whole.inside_geometry == tuple(i for i in range(40) if i % 7 < 3)

@@ -20,6 +20,7 @@ warns, refuses (exit 2, for CI) or skips the check; :func:`findings_line` is the
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,7 +29,7 @@ from csmlab.camera import CameraPath
 from csmlab.geometry import quat_to_matrix
 from csmlab.scene.level import BACK, FRONT, MISS, Level
 
-__all__ = ["CHECKS", "GRID_COLUMNS", "MOST", "ViewFindings", "check_views", "findings_line",
+__all__ = ["CHECKS", "FRAMES_PER_CAST", "GRID_COLUMNS", "MOST", "ViewFindings", "check_views", "findings_line",
            "frame_ranges"]
 
 GRID_COLUMNS = 32
@@ -36,6 +37,9 @@ GRID_COLUMNS = 32
 
 MOST = 0.5
 """Share of the view rays above which a frame is flagged."""
+
+FRAMES_PER_CAST = 256
+"""Frames whose view rays go to the BVH at once (bounds the memory of a 10,000-frame path's check)."""
 
 CHECKS = {
     "inside_geometry": "camera inside geometry",
@@ -125,15 +129,11 @@ def check_views(level: Level, path: CameraPath) -> ViewFindings:
     """
     n = len(path)
     rows = max(2, int(round(GRID_COLUMNS / path.aspect)))
-    directions = _view_directions(path, rows)
-    k = directions.shape[1]
-    view = level.first_hits(np.repeat(path.positions, k, axis=0), directions.reshape(-1, 3))
-    facing = view.facing.reshape(n, k)
-    # View depth of a hit: its distance times the cosine to the view axis (the grid's ray to its centre).
-    forward = -quat_to_matrix(path.orientations)[:, :, 2]
-    depth = view.distance.reshape(n, k) * np.einsum("nki,ni->nk", directions, forward)
-    inside = np.mean(facing == BACK, axis=1) > MOST
-    clipped = np.mean((facing != MISS) & (depth < path.near), axis=1) > MOST
+    inside = np.zeros(n, dtype=bool)
+    clipped = np.zeros(n, dtype=bool)
+    for start in range(0, n, FRAMES_PER_CAST):
+        frames = slice(start, min(start + FRAMES_PER_CAST, n))
+        inside[frames], clipped[frames] = _view_flags(level, path, frames, rows)
     up = np.broadcast_to([0.0, 1.0, 0.0], (n, 3))
     above = level.first_hits(path.positions, up)
     below = level.first_hits(path.positions, -up)
@@ -141,6 +141,20 @@ def check_views(level: Level, path: CameraPath) -> ViewFindings:
     ground_below = (below.facing == FRONT) & (below.normal[:, 1] > 0.0)
     return ViewFindings(frames=n, inside_geometry=_frames(inside), below_ground=_frames(under_a_ground & ~ground_below),
                         near_clipped=_frames(clipped))
+
+
+def _view_flags(level: Level, path: CameraPath, frames: slice, rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """Inside-geometry and near-clipped flags ``(F,)`` of the path's ``frames`` from their grids of view rays."""
+    part = dataclasses.replace(path, times=path.times[frames], positions=path.positions[frames],
+                               orientations=path.orientations[frames], fov_y_deg=path.fov_y_deg[frames])
+    directions = _view_directions(part, rows)
+    f, k = directions.shape[:2]
+    view = level.first_hits(np.repeat(part.positions, k, axis=0), directions.reshape(-1, 3))
+    facing = view.facing.reshape(f, k)
+    # View depth of a hit: its distance times the cosine to the view axis.
+    forward = -quat_to_matrix(part.orientations)[:, :, 2]
+    depth = view.distance.reshape(f, k) * np.einsum("nki,ni->nk", directions, forward)
+    return np.mean(facing == BACK, axis=1) > MOST, np.mean((facing != MISS) & (depth < path.near), axis=1) > MOST
 
 
 def _frames(mask: np.ndarray) -> tuple[int, ...]:
