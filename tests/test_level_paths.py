@@ -144,3 +144,34 @@ def test_a_height_field_for_another_generator_is_refused_naming_it():
         make_path("walk", frames=3, orbit_height=2.0)
     with pytest.raises(ValueError, match="unknown parameter"):
         make_path("walk", frames=3, level=_sloped_level(), height_above=2.0)
+
+
+def _experiment(tmp_path, camera: str):
+    path = tmp_path / "x.toml"
+    path.write_text(f'[scene]\nkind = "plane_box"\n[camera]\n{camera}\nframes = 3\nwidth = 32\nheight = 18\n'
+                    '[[methods]]\nname = "exact"\n')
+    return path
+
+
+def test_orbit_height_is_a_camera_field_the_image_height_keeps_its_name(tmp_path):
+    from csmlab.config import load_experiment
+    from csmlab.experiment import build_workload
+
+    workload = build_workload(load_experiment(_experiment(tmp_path, 'path = "orbit"\norbit_height = 7.5')))
+    np.testing.assert_array_equal(workload.path.positions[:, 1], 7.5)
+    assert workload.height == 18
+
+
+@pytest.mark.parametrize("camera, field", [
+    ('path = "walk"\norbit_height = 2.0', "camera.orbit_height"),
+    ('path = "orbit"\nflight_height = 2.0', "camera.flight_height"),
+    ('file = "run.txt"\nformat = "tum"\nfit_level = true', "camera.fit_level"),
+    ('path = "walk"\nview_check = "loud"', "camera.view_check")])
+def test_the_level_fields_are_refused_where_they_do_not_apply(tmp_path, camera, field):
+    from csmlab.config import load_experiment
+    from csmlab.errors import InputError
+
+    (tmp_path / "run.txt").write_text("0 0 1.7 0 0 0 0 1\n1 0 1.7 -1 0 0 0 1\n")
+    with pytest.raises(InputError) as caught:
+        load_experiment(_experiment(tmp_path, camera))
+    assert caught.value.field == field
