@@ -22,8 +22,8 @@ from csmlab.engines.reading import Imported
 from csmlab.lookup_choices import FILTER_METHODS
 from csmlab.settings import ShadowSettings
 
-__all__ = ["Engine", "EngineFiles", "Snippet", "common_lacking", "fixed_preset", "four_digits", "hard_filter",
-           "largest_resolution", "shape_lacking", "vogel_is"]
+__all__ = ["Engine", "EngineFiles", "Snippet", "blend_lacking", "common_lacking", "fixed_preset", "four_digits",
+           "hard_filter", "largest_resolution", "one_file", "shape_lacking", "vogel_is"]
 
 
 @dataclass(frozen=True)
@@ -69,6 +69,12 @@ def shape_lacking(settings: ShadowSettings, *, transition: str | None = None, bl
     if fade is not None and settings.fade_out > 0 and settings.fade != fade:
         lacking.append(f"fade = {settings.fade!r} (the engine's fade is {fade!r})")
     return lacking
+
+
+def blend_lacking(settings: ShadowSettings, why: str) -> list[str]:
+    """``blend_band`` named as lacking, with ``why``, where the setting blends cascades and the engine does not
+    blend them as csmlab does."""
+    return [f"blend_band = {settings.blend_band} ({why})"] if settings.blend_band > 0 else []
 
 
 def common_lacking(settings: ShadowSettings, *, stable: str) -> list[str]:
@@ -166,6 +172,14 @@ class Engine:
     name: str
     export: Callable[..., Snippet]
     files: EngineFiles | None = None
+
+
+def one_file(write: Callable[..., tuple], settings: ShadowSettings, *, near: float, far: float) -> tuple[str, list]:
+    """The text of the one file ``write`` writes for ``settings`` (an engine whose snippet is its own file), and
+    the knobs it names as lacking."""
+    files, lacking = write(settings, near=near, far=far)
+    (text,) = files.values()
+    return text, lacking
 
 
 def fixed_preset(name: str) -> Callable[[ShadowSettings], str]:

@@ -17,7 +17,8 @@ from __future__ import annotations
 import json
 
 from csmlab.cascades.splits import fractions_of_range, split_boundaries
-from csmlab.engines.common import Engine, EngineFiles, Snippet, common_lacking, fixed_preset, largest_resolution
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, blend_lacking, common_lacking, fixed_preset,
+                                   largest_resolution, one_file)
 from csmlab.engines.reading import Imported, Reading, engine_settings, json_document, number
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
@@ -141,10 +142,8 @@ def export_filament(settings: ShadowSettings, *, near: float, far: float) -> Sni
     lacking = [item for item in lacking if not item.startswith(("stabilization", "bias_constant"))]
     if settings.stabilization not in ("none", "exact"):
         lacking.append(f"stabilization = {settings.stabilization!r} (Filament's stable is on or off)")
-    if settings.blend_band > 0:
-        lacking.append(f"blend_band = {settings.blend_band} (Filament blends no cascades)")
-    files, _ = write_filament(settings, near=near, far=far)
-    (text,) = files.values()
+    lacking += blend_lacking(settings, "Filament blends no cascades")
+    text, _ = one_file(write_filament, settings, near=near, far=far)
     return Snippet("filament", "Filament: the viewer's settings JSON (LightManager::ShadowOptions)", "json", text,
                    tuple(lacking))
 

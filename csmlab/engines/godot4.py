@@ -23,8 +23,8 @@ import re
 from pathlib import Path
 
 from csmlab.cascades.splits import count_one_two_or_four, fractions_of_range, split_boundaries
-from csmlab.engines.common import (Engine, EngineFiles, Snippet, common_lacking, fixed_preset, four_digits, hard_filter,
-                                   largest_resolution, shape_lacking, vogel_is)
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, blend_lacking, common_lacking, fixed_preset,
+                                   four_digits, hard_filter, largest_resolution, shape_lacking, vogel_is)
 from csmlab.engines.reading import Imported, Reading, engine_settings, number, read_text
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
@@ -292,8 +292,7 @@ def export_godot4(settings: ShadowSettings, *, near: float, far: float) -> Snipp
               f"# {largest_resolution(settings)}² per split (2 splits: half the atlas each)",
               "rendering/lights_and_shadows/directional_shadow/soft_shadow_filter_quality = "
               f"{0 if hard_filter(settings) else 2}  # 2: Soft Low, 4 Vogel taps of 2 texels"]
-    if settings.blend_band > 0:
-        lacking.append(f"blend_band = {settings.blend_band} (Godot blends splits over a fixed band)")
+    lacking += blend_lacking(settings, "Godot blends splits over a fixed band")
     if not hard_filter(settings) and not vogel_is(settings, **GODOT_SOFT_LOW):
         lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Godot filters with its "
                        f"own soft-shadow kernel: Soft Low is pcf_vogel {GODOT_SOFT_LOW})")

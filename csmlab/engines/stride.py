@@ -44,7 +44,8 @@ import uuid
 import yaml
 
 from csmlab.cascades.splits import split_boundaries
-from csmlab.engines.common import Engine, EngineFiles, Snippet, common_lacking, fixed_preset, largest_resolution
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, common_lacking, fixed_preset, largest_resolution,
+                                   one_file)
 from csmlab.engines.reading import Imported, Reading, engine_settings, number, read_text
 from csmlab.errors import InputError
 from csmlab.lookup_choices import FILTER_METHODS
@@ -473,8 +474,7 @@ def export_stride(settings: ShadowSettings, *, near: float, far: float) -> Snipp
     # a DepthBias and NormalOffsetScale that csmlab.engines.stride maps: write_stride names what differs.
     lacking = [item for item in common_lacking(settings, stable="exact")
                if not item.startswith(("stabilization", "bounds", "bias_constant"))]
-    files, more = write_stride(settings, near=near, far=far)
-    (text,) = files.values()
+    text, more = one_file(write_stride, settings, near=near, far=far)
     return Snippet("stride", "Stride: the directional light's shadow map in the scene (.sdscene)", "sdscene", text,
                    tuple(lacking + more))
 

@@ -16,8 +16,8 @@ from __future__ import annotations
 import json
 
 from csmlab.cascades.splits import fractions_of_far, split_boundaries
-from csmlab.engines.common import (Engine, EngineFiles, Snippet, common_lacking, fixed_preset, four_digits,
-                                   largest_resolution, vogel_is)
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, blend_lacking, common_lacking, fixed_preset,
+                                   four_digits, largest_resolution, vogel_is)
 from csmlab.engines.reading import Imported, Reading, json_document, number
 from csmlab.errors import InputError
 from csmlab.lookup_choices import FILTER_METHODS
@@ -164,8 +164,7 @@ def export_threejs_csm(settings: ShadowSettings, *, near: float, far: float) -> 
               f"csm.fade = {'true' if settings.blend_band > 0 else 'false'};",
               "renderer.shadowMap.type = THREE." + ("BasicShadowMap" if FILTER_METHODS[settings.filter].hard
                                                     else "PCFShadowMap") + ";"]
-    if settings.blend_band > 0:
-        lacking.append(f"blend_band = {settings.blend_band} (CSM's fade has a fixed width)")
+    lacking += blend_lacking(settings, "CSM's fade has a fixed width")
     if settings.filter != "none" and not vogel_is(settings, **THREEJS_PCF):
         lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (three.js picks its PCF "
                        f"kernel from shadowMap.type: PCFShadowMap is pcf_vogel {THREEJS_PCF}, radius = shadow.radius)")

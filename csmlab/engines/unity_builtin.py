@@ -15,8 +15,8 @@ The snippet (export_unity_builtin) is the quality level as write_unity_builtin w
 from __future__ import annotations
 
 from csmlab.cascades.splits import count_one_two_or_four, fractions_of_far, split_boundaries
-from csmlab.engines.common import (Engine, EngineFiles, Snippet, common_lacking, hard_filter, largest_resolution,
-                                   shape_lacking)
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, blend_lacking, common_lacking, hard_filter,
+                                   largest_resolution, one_file, shape_lacking)
 from csmlab.engines.reading import Imported, Reading, engine_settings, number
 from csmlab.engines.unity_yaml import unity_objects, unity_text
 from csmlab.errors import InputError
@@ -157,10 +157,8 @@ def write_unity_builtin(settings: ShadowSettings, *, near: float, far: float) ->
 def export_unity_builtin(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     """Unity's built-in pipeline: a quality level of ``ProjectSettings/QualitySettings.asset``."""
     lacking = common_lacking(settings, stable="exact") + shape_lacking(settings, fade="radial")
-    if settings.blend_band > 0:
-        lacking.append(f"blend_band = {settings.blend_band} (the built-in pipeline blends no cascades)")
-    files, _ = write_unity_builtin(settings, near=near, far=far)
-    (text,) = files.values()
+    lacking += blend_lacking(settings, "the built-in pipeline blends no cascades")
+    text, _ = one_file(write_unity_builtin, settings, near=near, far=far)
     return Snippet("unity_builtin", "Unity built-in pipeline: ProjectSettings/QualitySettings.asset", "yaml", text,
                    tuple(lacking))
 

@@ -17,8 +17,8 @@ The snippet (export_unity_urp) names: ``UniversalRenderPipelineAsset.shadowDista
 from __future__ import annotations
 
 from csmlab.cascades.splits import fractions_of_far, split_boundaries
-from csmlab.engines.common import (Engine, EngineFiles, Snippet, common_lacking, fixed_preset, four_digits, hard_filter,
-                                   largest_resolution, shape_lacking)
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, blend_lacking, common_lacking, fixed_preset,
+                                   four_digits, hard_filter, largest_resolution, shape_lacking)
 from csmlab.engines.reading import Imported, Reading, engine_settings, number
 from csmlab.engines.unity_yaml import unity_objects, unity_text
 from csmlab.errors import InputError
@@ -171,8 +171,7 @@ def export_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> Sn
     if atlas != wanted:
         lacking.append(f"resolution = {largest_resolution(settings)} per cascade (URP's atlas is a power of two in "
                        f"256..8192: {atlas} written for {wanted})")
-    if settings.blend_band > 0:
-        lacking.append(f"blend_band = {settings.blend_band} (URP blends no cascades; cascadeBorder fades the last)")
+    lacking += blend_lacking(settings, "URP blends no cascades; cascadeBorder fades the last")
     if not hard_filter(settings) and (settings.filter, settings.filter_size) != URP_FILTER:
         lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (URP's soft shadows are "
                        f"fixed tents of bilinear taps: Medium {URP_FILTER[0]} {URP_FILTER[1]})")
