@@ -20,13 +20,24 @@ from engine_cases import DATA, FAR, NEAR, ROOT, VENDOR, differences, numbers, ro
 
 from csmlab.cascades.splits import split_distances
 from csmlab.config import load_experiment
-from csmlab.engines import EXPORT_METHODS, IMPORT_METHODS, export, import_settings
+from csmlab.engines import ENGINES, EXPORT_METHODS, IMPORT_METHODS, export, import_settings
 from csmlab.engines.reading import engine_settings
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
 
 PRESETS = [(engine, preset) for engine, record in IMPORT_METHODS.items() for preset in record.presets]
 """Every engine with its files and each preset they are written against."""
+
+
+def test_every_engine_module_is_registered_under_its_own_name_with_its_presets():
+    # A module declaring an ENGINE that csmlab/engines/__init__.py leaves out of ENGINES would be tested by nothing.
+    declared = {path.stem for path in (ROOT / "csmlab" / "engines").glob("*.py") if "\nENGINE = " in path.read_text()}
+    assert declared == set(ENGINES)
+    for name, engine in ENGINES.items():
+        assert engine.name == name and engine.export.__module__ == f"csmlab.engines.{name}"
+        presets = engine.files.presets if engine.files is not None else ()
+        assert all((ROOT / "configs" / "engines" / f"{preset}.toml").is_file() for preset in presets), name
+        assert all(engine.files.preset(engine_settings(preset)) == preset for preset in presets), name
 
 
 def test_every_importer_has_an_exporter_and_its_files():
