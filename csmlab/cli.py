@@ -296,7 +296,7 @@ def _about(obj) -> str:
 def list_names() -> None:
     """List scenes, camera paths, file formats, conventions, methods, presets, experiments and importers."""
     from csmlab.config import list_experiments, list_presets, shadow_method_registries
-    from csmlab.importers import IMPORT_METHODS
+    from csmlab.engines import IMPORT_METHODS
     from csmlab.paths import CONVENTIONS, PATH_FORMATS, PATH_GENERATORS
     from csmlab.scene import SCENE_KINDS
 
@@ -429,7 +429,7 @@ def import_(
     import tempfile
 
     from csmlab.config import load_experiment
-    from csmlab.importers import import_settings, preset_toml
+    from csmlab.engines import import_settings, preset_toml
     from csmlab.files import write_atomic
 
     try:

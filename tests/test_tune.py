@@ -173,7 +173,7 @@ def test_engine_presets_are_measured_on_the_same_frames_and_fitted_to_the_budget
     assert recommended.settings == result.recommended.settings
     # Each engine's own files come back through csmlab import (tests/test_importers.py checks field by field),
     # the map size too unless the snippet says the engine cannot hold it.
-    from csmlab.importers import IMPORT_METHODS, import_settings
+    from csmlab.engines import IMPORT_METHODS, import_settings
 
     for engine in IMPORT_METHODS:
         back = import_settings(sorted((tmp_path / "exports" / engine).iterdir()), engine=engine).settings
