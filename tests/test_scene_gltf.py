@@ -153,7 +153,7 @@ def test_a_child_index_out_of_range_is_refused(tmp_path):
     node = b.add_node(mesh=_unit_box(b), children=[7])
     with pytest.raises(InputError) as info:
         load_mesh(b.save(tmp_path / "child.glb", roots=[node]))
-    assert info.value.field == "nodes[0].children"
+    assert info.value.field == "nodes[0].children[0]"
 
 
 def test_vendor_cameras_sample_loads_its_turned_square():
