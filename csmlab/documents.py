@@ -30,13 +30,13 @@ import numpy as np
 
 from csmlab.errors import InputError
 
-__all__ = ["MAX_FRAMES", "MAX_IMAGE_TEXELS", "MAX_JSON_DEPTH", "MAX_TRIANGLES", "Value", "described",
+__all__ = ["MAX_FRAMES", "MAX_IMAGE_TEXELS", "MAX_JSON_DEPTH", "MAX_TRIANGLES", "Value", "described", "found_at", "is_file",
            "json_document", "json_value", "read_text", "within_limit"]
 
 MAX_JSON_DEPTH = 64
 """Deepest nesting of JSON objects and lists a document may have (glTF needs 7, nerfstudio 4)."""
-MAX_IMAGE_TEXELS = 16384 * 16384
-"""Most texels (width × height) an image may claim: a 16K texture; Pillow's own bomb check is 89 Mtexels."""
+MAX_IMAGE_TEXELS = 8192 * 8192
+"""Most texels (width × height) an image may claim: an 8K texture, below Pillow's own bomb warning (89 Mtexels)."""
 MAX_TRIANGLES = 20_000_000
 """Most triangles a scene may hold, every instance counted (about 2 GB of float64 corners and indices)."""
 MAX_FRAMES = 10_000_000
@@ -92,22 +92,25 @@ class Value:
     line : int, optional
         The 1-based line of the value (or of the object holding it) when the document was read
         with lines (:func:`json_document` with ``lines=True``).
+    what : str, optional
+        What the key holds, as :meth:`at` stated it: the default "expected …" of the reads below.
     """
 
-    __slots__ = ("file", "key", "line", "raw")
+    __slots__ = ("file", "key", "line", "raw", "what")
 
-    def __init__(self, value, *, file, key: str = "", line: int | None = None):
+    def __init__(self, value, *, file, key: str = "", line: int | None = None, what: str | None = None):
         self.raw = value
         self.file = file
         self.key = key
         self.line = getattr(value, "line", line)
+        self.what = what
 
     def __repr__(self) -> str:
         return f"Value({self.file}: {self.key or '<document>'} = {described(self.raw)})"
 
     def error(self, expected: str, *, got: bool = True) -> InputError:
-        """An InputError at this value: ``expected`` and, with ``got``, what was found."""
-        detail = f"expected {expected}, got {described(self.raw)}" if got else expected
+        """An InputError at this value: ``expected {expected}`` and, with ``got``, what was found."""
+        detail = f"expected {expected}, got {described(self.raw)}" if got else f"expected {expected}"
         return InputError(detail, file=self.file, line=self.line, field=self.key or None)
 
     # -- containers ------------------------------------------------------------------------------
@@ -120,10 +123,10 @@ class Value:
     def is_object(self) -> bool:
         return isinstance(self.raw, dict)
 
-    def mapping(self, what: str = "an object") -> Value:
+    def mapping(self, what: str | None = None) -> Value:
         """This value, checked to be a JSON object."""
         if not isinstance(self.raw, dict):
-            raise self.error(what)
+            raise self.error(what or self.what or "an object")
         return self
 
     def keys(self) -> list[str]:
@@ -134,12 +137,13 @@ class Value:
         """Whether this object has ``name`` with a value other than null."""
         return self.mapping().raw.get(name) is not None
 
-    def at(self, name: str, what: str = "a value") -> Value:
+    def at(self, name: str, what: str | None = None) -> Value:
         """Key ``name`` of this object; InputError when it is missing or null (``what``: what it should hold)."""
         raw = self.mapping().raw
-        child = Value(raw.get(name), file=self.file, key=self._child_key(name), line=self.line)
+        child = Value(raw.get(name), file=self.file, key=self._child_key(name), line=self.line, what=what)
         if child.raw is None:
-            raise child.error(what, got=False) if name not in raw else child.error(what)
+            what = what or "a value"
+            raise child.error(f"{what}, got no key {name!r}", got=False) if name not in raw else child.error(what)
         return child
 
     def get(self, name: str) -> Value | None:
@@ -147,10 +151,10 @@ class Value:
         raw = self.mapping().raw.get(name)
         return None if raw is None else Value(raw, file=self.file, key=self._child_key(name), line=self.line)
 
-    def items(self, what: str = "a list") -> list[Value]:
+    def items(self, what: str | None = None) -> list[Value]:
         """The entries of this list."""
         if not isinstance(self.raw, list):
-            raise self.error(what)
+            raise self.error(what or self.what or "a list")
         return [Value(item, file=self.file, key=self._child_key(i), line=self.line) for i, item in enumerate(self.raw)]
 
     def fields(self) -> list[tuple[str, Value]]:
@@ -171,7 +175,7 @@ class Value:
         raw = self.raw
         bounds = [f"≥ {minimum:g}" if minimum is not None else "", f"≤ {maximum:g}" if maximum is not None else "",
                   f"> {above:g}" if above is not None else "", f"< {below:g}" if below is not None else ""]
-        expected = what or " ".join(["a finite number"] + [b for b in bounds if b])
+        expected = what or self.what or " ".join(["a finite number"] + [b for b in bounds if b])
         if isinstance(raw, bool) or not isinstance(raw, (int, float)):
             raise self.error(expected)
         try:
@@ -187,6 +191,7 @@ class Value:
     def integer(self, *, minimum: int | None = None, below: int | None = None, what: str | None = None) -> int:
         """This value as an int in ``[minimum, below)`` (a JSON integer; ``2.0`` and ``true`` are not)."""
         raw = self.raw
+        what = what or self.what
         if what is None:
             what = "an integer" + (f" ≥ {minimum}" if minimum is not None else "") + (
                 f" < {below}" if below is not None else "")
@@ -201,7 +206,8 @@ class Value:
 
     def text(self, choices=None, what: str | None = None) -> str:
         """This value as a string (one of ``choices`` when given)."""
-        expected = what or ("one of " + ", ".join(repr(c) for c in choices) if choices is not None else "a string")
+        expected = what or ("one of " + ", ".join(repr(c) for c in choices) if choices is not None
+                            else self.what or "a string")
         if not isinstance(self.raw, str) or (choices is not None and self.raw not in choices):
             raise self.error(expected)
         return self.raw
@@ -215,7 +221,8 @@ class Value:
     def numbers(self, count: int | None = None, what: str | None = None) -> np.ndarray:
         """This value as a list of finite numbers, float64 ``(count,)`` (any length when ``count`` is None)."""
         raw = self.raw
-        expected = what or (f"a list of {count} finite numbers" if count is not None else "a list of finite numbers")
+        expected = what or self.what or (f"a list of {count} finite numbers" if count is not None
+                                         else "a list of finite numbers")
         if not isinstance(raw, list) or (count is not None and len(raw) != count) or any(
                 isinstance(v, bool) or not isinstance(v, (int, float)) for v in raw):
             raise self.error(expected)
@@ -226,6 +233,26 @@ class Value:
         if not np.all(np.isfinite(values)):
             raise self.error(expected)
         return values
+
+
+def is_file(path) -> bool:
+    """Whether ``path`` names a regular file; False, not an exception, for a name no file can have.
+
+    A document may name any file (an MTL's ``map_d``, a glTF ``uri``): a name too long for the file
+    system or holding a NUL byte is a file that is not there.
+    """
+    try:
+        return Path(path).is_file()
+    except (OSError, ValueError):
+        return False
+
+
+def found_at(path) -> str:
+    """What is at ``path``, as an error message says it: ``a directory``, ``a file`` or ``nothing``."""
+    try:
+        return "a directory" if Path(path).is_dir() else "a file" if Path(path).is_file() else "nothing"
+    except (OSError, ValueError):
+        return "nothing (a name no file can have)"
 
 
 def read_text(path) -> str:

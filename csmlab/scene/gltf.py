@@ -53,7 +53,7 @@ from urllib.parse import unquote
 
 import numpy as np
 
-from csmlab.documents import MAX_TRIANGLES, Value, json_value, within_limit
+from csmlab.documents import MAX_TRIANGLES, Value, is_file, json_value, within_limit
 from csmlab.errors import InputError
 from csmlab.geometry import quat_to_matrix
 from csmlab.scene.alpha_files import alpha_mask_of_image
@@ -212,13 +212,12 @@ def _uri_bytes(uri: Value, path: Path) -> tuple[bytes, Path]:
         except ValueError:
             raise uri.error("a base64 data URI", got=False) from None
     source = path.parent / unquote(text)
+    if not is_file(source):
+        raise InputError(f"expected the file {source} beside the glTF file, found nothing", file=path, field=uri.key)
     try:
-        if not source.is_file():
-            raise InputError(f"expected the file {source} beside the glTF file, found nothing", file=path,
-                             field=uri.key)
         return source.read_bytes(), source
-    except (OSError, ValueError) as exc:  # a name too long, a NUL in it, a folder without permission
-        raise InputError(f"expected a readable file beside the glTF file, got {exc}", file=path,
+    except OSError as exc:
+        raise InputError(f"expected a readable file beside the glTF file, got {exc.strerror or exc}", file=path,
                          field=uri.key) from None
 
 

@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from csmlab.documents import MAX_TRIANGLES, is_file, within_limit
 from csmlab.errors import InputError
 from csmlab.registry import check_name
 from csmlab.scene.alpha_files import read_alpha_mask
@@ -166,6 +167,7 @@ def _surface_triangles(data, path: Path) -> tuple[np.ndarray, np.ndarray, np.nda
     with _quiet_vtk():
         triangulated = surface.triangulate()
     faces = np.asarray(triangulated.faces, dtype=np.int64)
+    within_limit(faces.size // 4, MAX_TRIANGLES, what="triangles", file=path, field="triangles")
     if faces.size == 0:
         raise InputError(f"expected at least one polygon (triangle, quad, …); the file holds {data.n_points} "
                          f"vertices and {data.n_cells} cells, none of them a surface", file=path, field="triangles")
@@ -182,7 +184,7 @@ def _obj_materials(path: Path) -> tuple[list[str], dict[str, Path]]:
     leaves its materials without maps, as viewers draw them.
     """
     faces, maps, current = [], {}, ""
-    for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
+    for line in _lenient_text(path).splitlines():
         words = line.split()
         if not words:
             continue
@@ -193,16 +195,24 @@ def _obj_materials(path: Path) -> tuple[list[str], dict[str, Path]]:
         elif words[0] == "mtllib":
             for name in words[1:]:
                 library = path.parent / name
-                if not library.is_file():
+                if not is_file(library):
                     continue
                 material = ""
-                for entry in library.read_text(encoding="utf-8", errors="replace").splitlines():
+                for entry in _lenient_text(library).splitlines():
                     parts = entry.split()
                     if parts and parts[0] == "newmtl":
                         material = " ".join(parts[1:])
                     elif parts and parts[0] == "map_d" and len(parts) > 1:
                         maps[material] = library.parent / parts[-1]
     return faces, maps
+
+
+def _lenient_text(path: Path) -> str:
+    """The text of an OBJ or MTL file, undecodable bytes replaced (names in them only have to match each other)."""
+    try:
+        return path.read_bytes().decode("utf-8", errors="replace")
+    except OSError as exc:
+        raise InputError(f"expected a readable file, got {exc.strerror or exc}", file=path) from None
 
 
 def _obj_masks(cell_count: int, path: Path, points: np.ndarray, triangles: np.ndarray, cells: np.ndarray,
