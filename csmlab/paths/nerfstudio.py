@@ -25,7 +25,7 @@ import json
 
 import numpy as np
 
-from csmlab.documents import MAX_FRAMES, Value, json_value, within_limit
+from csmlab.documents import Value, json_value
 from csmlab.errors import InputError
 from csmlab.files import write_atomic
 from csmlab.geometry import quat_from_matrix, quat_to_matrix
@@ -81,7 +81,6 @@ def read_nerfstudio(file) -> RecordedPoses:
     poses = document.at("camera_path", "a list of poses (nerfstudio camera path)").items(
         "a list of poses (nerfstudio camera path)")
     require_poses(poses, file=file, line_count=len(lines))
-    within_limit(len(poses), MAX_FRAMES, what="poses", file=file, field="camera_path")
     seconds = _positive(document, "seconds")
     aspect = _positive(document, "render_width") / _positive(document, "render_height")
     if not np.isfinite(aspect) or aspect <= 0.0:

@@ -38,7 +38,7 @@ from typing import Sequence
 
 import numpy as np
 
-from csmlab.documents import MAX_FRAMES, json_value, within_limit
+from csmlab.documents import json_value
 from csmlab.errors import InputError
 from csmlab.files import write_atomic
 from csmlab.paths.conventions import orientation_from_yaw_pitch_roll
@@ -153,7 +153,6 @@ def read_json(file) -> RecordedPoses:
                              got=False)
     poses = document.at("poses", "a list of poses").items("a list of poses")
     require_poses(poses, file=file, line_count=len(lines))
-    within_limit(len(poses), MAX_FRAMES, what="poses", file=file, field="poses")
     first = poses[0].mapping("a pose: an object of numbers")
     fields = _schema(first.keys(), file=file, line=first.line)
     rows = []
