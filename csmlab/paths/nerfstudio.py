@@ -46,9 +46,10 @@ def _pose_matrix(pose: Value) -> np.ndarray:
     """``pose.camera_to_world`` ``(4, 4)``, checked to be a rigid transform."""
     field = pose.at("camera_to_world", "16 numbers (4×4, row-major)")
     matrix = field.numbers(16, what="16 finite numbers (4×4, row-major)").reshape(4, 4)
-    bad = (not np.allclose(matrix[3], [0, 0, 0, 1])
-           or np.abs(matrix[:3, :3].T @ matrix[:3, :3] - np.eye(3)).max() > ROTATION_TOLERANCE
-           or np.linalg.det(matrix[:3, :3]) <= 0)
+    with np.errstate(over="ignore", invalid="ignore"):  # a huge entry gives inf or NaN: not a rotation
+        bad = (not np.allclose(matrix[3], [0, 0, 0, 1])
+               or not np.abs(matrix[:3, :3].T @ matrix[:3, :3] - np.eye(3)).max() <= ROTATION_TOLERANCE
+               or not np.linalg.det(matrix[:3, :3]) > 0)
     if bad:
         raise field.error("a rotation (orthonormal, det +1) and translation with last row 0 0 0 1")
     return matrix

@@ -174,7 +174,8 @@ def unit_quaternions(q, lines: np.ndarray, *, file, field: str = "quaternion") -
         At the first line whose quaternion is zero or further from unit length.
     """
     q = np.asarray(q, dtype=np.float64)
-    length = np.linalg.norm(q, axis=1)
+    with np.errstate(over="ignore", invalid="ignore"):  # |q| of a huge component is inf: refused below
+        length = np.linalg.norm(q, axis=1)
     bad = np.abs(length - 1.0) > QUATERNION_TOLERANCE
     if np.any(bad):
         k = int(np.argmax(bad))

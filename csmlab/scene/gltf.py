@@ -142,7 +142,8 @@ class GltfFile:
         else:
             values = self._view(view, 0 if offset is None else offset.integer(minimum=0), dtype, width, count,
                                 where=where)
-        values = values.astype(np.float64)
+        with np.errstate(invalid="ignore"):  # a signalling NaN in the buffer: refused below, as every NaN
+            values = values.astype(np.float64)
         sparse = accessor.get("sparse")
         if sparse is not None:
             values = self._sparse(sparse.mapping(), values, dtype, width, where=where)

@@ -173,7 +173,9 @@ def _surface_triangles(data, path: Path) -> tuple[np.ndarray, np.ndarray, np.nda
                          f"vertices and {data.n_cells} cells, none of them a surface", file=path, field="triangles")
     return (np.asarray(triangulated.points, dtype=np.float64), faces.reshape(-1, 4)[:, 1:],
             np.asarray(triangulated.cell_data["csmlab_cell"], dtype=np.int64),
-            {name: np.asarray(triangulated.point_data[name]) for name in triangulated.point_data.keys()})
+            # VTK may keep an unnamed array (a name of None): only named ones can be a material's coordinates.
+            {name: np.asarray(triangulated.point_data[name]) for name in triangulated.point_data.keys()
+             if isinstance(name, str)})
 
 
 def _obj_materials(path: Path) -> tuple[list[str], dict[str, Path]]:
@@ -242,6 +244,9 @@ def _obj_masks(cell_count: int, path: Path, points: np.ndarray, triangles: np.nd
             raise InputError(f"expected texture coordinates (vt) on the faces of material {name!r}, which has a map_d",
                              file=path, field="vt")
         coordinates = np.asarray(point_arrays[name], dtype=np.float64)
+        if not np.all(np.isfinite(coordinates[np.unique(triangles[rows])])):
+            raise InputError(f"expected finite texture coordinates (vt) on the faces of material {name!r}, found NaN "
+                             f"or infinity", file=path, line=_line_of_first_non_finite(path), field="vt")
         slots = points.shape[0] + 3 * np.searchsorted(masked, rows)[:, None] + np.arange(3)
         corner = triangles[rows]
         uv[slots] = np.stack([coordinates[corner, 0], 1.0 - coordinates[corner, 1]], axis=-1)
