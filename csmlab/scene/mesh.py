@@ -1,7 +1,7 @@
 """Mesh import: a user's level geometry read through PyVista/VTK and checked before use.
 
 Formats: Wavefront OBJ, PLY, STL, legacy VTK (``.vtk``), VTK XML (``.vtp``, ``.vtu``) as far as
-VTK's readers go, and glTF 2.0 (``.gltf``, ``.glb``) through :mod:`csmlab.scene.gltf` (pygltflib),
+VTK's readers go, and glTF 2.0 (``.gltf``, ``.glb``) through :mod:`csmlab.scene.gltf` (its own parse),
 which places every mesh by the node hierarchy and ``EXT_mesh_gpu_instancing`` and reads its
 ``alphaMode = "MASK"`` materials. Whatever a VTK
 file holds — polygons, triangle strips, volume cells — becomes its outer surface, triangulated;
@@ -293,7 +293,7 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
     ------
     InputError
         Naming the file and the field: ``file`` (missing, not a file, unknown suffix, unreadable
-        by VTK or pygltflib, no vertices), a glTF key (a broken accessor, node or reference),
+        by VTK or as glTF, no vertices), a glTF key (a broken accessor, node or reference),
         ``triangles`` (no polygon, or only zero-area ones), ``vertices``
         (NaN or infinite coordinates).
     ValueError
