@@ -11,8 +11,9 @@ where it has a number or a ``null`` anywhere is a located message, never an ``At
 
 The limits a file may ask for (docs/design.md, "Inputs") live here too, beside the loaders that
 enforce the first of them: :data:`MAX_JSON_DEPTH` (nesting), :data:`MAX_IMAGE_TEXELS` (an image's
-width × height), :data:`MAX_TRIANGLES` (a scene's triangles, instances counted) and
-:data:`MAX_FRAMES` (the poses a path may produce). Each is far above what a real level, texture
+width × height), :data:`MAX_TRIANGLES` (a scene's triangles, instances counted),
+:data:`MAX_COORDINATE` (how far a vertex may lie) and :data:`MAX_FRAMES` (the poses a path may
+produce). Each is far above what a real level, texture
 or path needs and far below what a machine cannot hold.
 """
 
@@ -30,8 +31,8 @@ import numpy as np
 
 from csmlab.errors import InputError
 
-__all__ = ["MAX_FRAMES", "MAX_IMAGE_TEXELS", "MAX_JSON_DEPTH", "MAX_TRIANGLES", "Value", "described", "found_at", "is_file",
-           "json_document", "json_value", "read_text", "within_limit"]
+__all__ = ["MAX_COORDINATE", "MAX_FRAMES", "MAX_IMAGE_TEXELS", "MAX_JSON_DEPTH", "MAX_TRIANGLES", "Value",
+           "described", "found_at", "is_file", "json_document", "json_value", "read_text", "within_limit"]
 
 MAX_JSON_DEPTH = 64
 """Deepest nesting of JSON objects and lists a document may have (glTF needs 7, nerfstudio 4)."""
@@ -39,6 +40,9 @@ MAX_IMAGE_TEXELS = 8192 * 8192
 """Most texels (width × height) an image may claim: an 8K texture, below Pillow's own bomb warning (89 Mtexels)."""
 MAX_TRIANGLES = 20_000_000
 """Most triangles a scene may hold, every instance counted (about 2 GB of float64 corners and indices)."""
+MAX_COORDINATE = 1e12
+"""Farthest a mesh vertex may lie from the origin, in metres after ``scale`` (ten times the Sun's distance):
+beyond, normals and bounds overflow float64 arithmetic, long before float32 rendering means anything."""
 MAX_FRAMES = 10_000_000
 """Most poses a camera path may produce (about 46 hours at 60 Hz)."""
 

@@ -178,7 +178,8 @@ BROKEN = [
                            ' "qx": 0, "qy": 0, "qz": 0, "qw": 1}\n]}\n', {}, 2, "poses[0].x"),
     ("json-syntax", "a.json", '{"poses": [\n {"time": 0,,}\n]}\n', {}, 2, None),
     ("json-missing-field", "a.json", '{"poses": [\n {"time": 0, "x": 0, "y": 0, "z": 0, "qx": 0, "qy": 0,'
-                                     ' "qz": 0, "qw": 1},\n {"time": 1, "x": 0, "y": 0, "z": 0}\n]}\n', {}, 3, "poses[1].qx"),
+                                     ' "qz": 0, "qw": 1},\n {"time": 1, "x": 0, "y": 0, "z": 0}\n]}\n', {}, 3,
+     "poses[1].qx"),
     ("json-pose-not-an-object", "a.json", '{"poses": [\n {"time": 0, "x": 0, "y": 0, "z": 0, "qx": 0, "qy": 0,'
                                           ' "qz": 0, "qw": 1},\n [1, 2]\n]}\n', {}, 1, "poses[1]"),
     ("json-too-deep", "a.json", '{"poses": ' + "[" * 100 + "]" * 100 + "}", {}, 1, None),

@@ -12,7 +12,6 @@ from html.parser import HTMLParser
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from csmlab.config import load_experiment
 from csmlab.experiment import run_experiment

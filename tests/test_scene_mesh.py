@@ -154,3 +154,23 @@ def test_an_mtl_naming_a_map_no_file_system_can_hold_is_a_missing_map(tmp_path):
     with pytest.raises(InputError, match="expected an existing image file") as info:
         load_mesh(tmp_path / "card.obj")
     assert info.value.field == "map_d"
+
+
+def test_an_obj_face_naming_a_vertex_the_file_lacks_is_refused_at_its_line(tmp_path):
+    (tmp_path / "gap.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n")
+    with pytest.raises(InputError, match="expected v references in \\[1, 3\\].*got '4'") as info:
+        load_mesh(tmp_path / "gap.obj")
+    assert (info.value.line, info.value.field) == (4, "f")
+    (tmp_path / "relative.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf -3/1 -2/-1 -1/1\n")
+    assert load_mesh(tmp_path / "relative.obj").triangle_count == 1
+
+
+def test_a_vertex_beyond_the_coordinate_limit_is_refused_not_overflowed(tmp_path):
+    import warnings
+
+    (tmp_path / "far.obj").write_text("v 0 0 0\nv 1e300 0 0\nv 0 1 0\nf 1 2 3\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        with pytest.raises(InputError, match="within 1e\\+12 m of the origin.*vertex 2") as info:
+            load_mesh(tmp_path / "far.obj", scale=1e10)
+    assert info.value.field == "vertices"

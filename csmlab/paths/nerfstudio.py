@@ -26,7 +26,6 @@ import json
 import numpy as np
 
 from csmlab.documents import Value, json_value
-from csmlab.errors import InputError
 from csmlab.files import write_atomic
 from csmlab.geometry import quat_from_matrix, quat_to_matrix
 from csmlab.paths.recorded import RecordedPoses, require_poses, text_lines

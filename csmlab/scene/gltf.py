@@ -120,7 +120,7 @@ class GltfFile:
         return index, entries[index].mapping()
 
     def accessor(self, reference: Value) -> np.ndarray:
-        """The accessor ``reference`` (an index) names, as float64 ``(count, width)`` (normalized integers scaled to [−1, 1]).
+        """The accessor ``reference`` (an index) names, float64 ``(count, width)`` (normalized integers in [−1, 1]).
 
         Sparse accessors are applied.
         """
@@ -466,7 +466,7 @@ def _primitive(gltf: GltfFile, mesh: Value, p: int) -> _Primitive | None:
 
 
 def _masked_material(gltf: GltfFile, reference: Value | None) -> int:
-    """The material ``reference`` names if it is an ``alphaMode = "MASK"`` material, else −1 (none, ``OPAQUE``, ``BLEND``)."""
+    """The index of the material ``reference`` names if its ``alphaMode`` is ``"MASK"``, else −1 (none, opaque, blend)."""
     if reference is None:
         return -1
     index, material = gltf.entry(reference, "materials")
@@ -530,7 +530,7 @@ def material_mask(gltf: GltfFile, material: int) -> AlphaMask:
 
 
 def _texture_image(gltf: GltfFile, reference: Value) -> tuple[bytes, Path, str]:
-    """The encoded bytes of the image of the texture ``reference`` names, the file they came from and the image's key."""
+    """The encoded image of the texture ``reference`` names: its bytes, the file they came from, the image's key."""
     _, texture = gltf.entry(reference, "textures")
     image, entry = gltf.entry(texture.at("source", "an image index"), "images")
     image_key = f"images[{image}]"

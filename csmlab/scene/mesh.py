@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from csmlab.documents import MAX_TRIANGLES, is_file, within_limit
+from csmlab.documents import MAX_COORDINATE, MAX_TRIANGLES, is_file, within_limit
 from csmlab.errors import InputError
 from csmlab.registry import check_name
 from csmlab.scene.alpha_files import read_alpha_mask
@@ -176,6 +176,40 @@ def _surface_triangles(data, path: Path) -> tuple[np.ndarray, np.ndarray, np.nda
             # VTK may keep an unnamed array (a name of None): only named ones can be a material's coordinates.
             {name: np.asarray(triangulated.point_data[name]) for name in triangulated.point_data.keys()
              if isinstance(name, str)})
+
+
+def _check_obj_references(path: Path) -> None:
+    """Refuse an OBJ face naming a vertex (``v``) or texture coordinate (``vt``) the file does not hold.
+
+    VTK's reader does not check them: an index past the end reads memory that is not the file's
+    (seen by the fuzzer as coordinates of 1e300 one run and none the next). A positive index counts
+    from the file's first ``v`` (``vt``), a negative one back from the last before the face (OBJ's
+    relative form).
+    """
+    totals = {"v": 0, "vt": 0}
+    lines = _lenient_text(path).splitlines()
+    for line in lines:
+        words = line.split(maxsplit=1)
+        if words and words[0] in totals:
+            totals[words[0]] += 1
+    seen = {"v": 0, "vt": 0}
+    for number, line in enumerate(lines, start=1):
+        words = line.split()
+        if words and words[0] in seen:
+            seen[words[0]] += 1
+        if not words or words[0] != "f":
+            continue
+        for word in words[1:]:
+            for kind, reference in zip(("v", "vt"), word.split("/")[:2]):
+                if kind == "vt" and reference == "":
+                    continue
+                try:
+                    index = int(reference)
+                except ValueError:
+                    index = 0
+                if not (0 < index <= totals[kind] or -seen[kind] <= index < 0):
+                    raise InputError(f"expected {kind} references in [1, {totals[kind]}] (or back from -1 to "
+                                     f"-{seen[kind]}), got {word!r}", file=path, line=number, field="f")
 
 
 def _obj_materials(path: Path) -> tuple[list[str], dict[str, Path]]:
@@ -322,7 +356,14 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
         points, triangles, masks = gltf_scene_triangles(read_gltf(path))
     else:
         points, triangles, masks = _vtk_mesh(path, fmt)
-    points = (points * scale_value) @ UP_AXES[up].T
+    with np.errstate(over="ignore", invalid="ignore"):  # a coordinate scaled past float64: refused below
+        points = (points * scale_value) @ UP_AXES[up].T
+    far = ~np.all(np.abs(points) <= MAX_COORDINATE, axis=1)
+    if np.any(far):
+        at = int(np.argmax(far))
+        raise InputError(f"expected vertices within {MAX_COORDINATE:g} m of the origin (docs/design.md, \"Inputs\"), "
+                         f"vertex {at + 1} in reading order lies at {np.abs(points[at]).max():.3g} m", file=path,
+                         field="vertices")
     try:
         scene = Scene.from_triangles(points, triangles, albedo=colour, name=path.name)
     except ValueError as exc:
@@ -335,6 +376,8 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
 
 def _vtk_mesh(path: Path, fmt: str) -> tuple[np.ndarray, np.ndarray, dict]:
     """Points, triangles and (an OBJ's ``map_d``) masks of a mesh file read through VTK."""
+    if fmt == MESH_FORMATS[".obj"]:
+        _check_obj_references(path)
     data = _read_dataset(path, fmt)
     points, triangles, cells, point_arrays = _surface_triangles(data, path)
     masks = {}
