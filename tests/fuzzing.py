@@ -175,7 +175,8 @@ def glb_variants(data: bytes):
 
 
 def _refusal_names_a_file(error: InputError, folder: Path) -> bool:
-    return error.file is not None and Path(error.file).resolve().parent == folder.resolve()
+    """Whether ``error`` names a file of ``folder`` (a name a variant made up, NUL bytes and all, counts)."""
+    return error.file is not None and os.path.dirname(os.path.normpath(error.file)) == os.path.normpath(folder)
 
 
 def fuzz_reader(read, files: dict[str, bytes], target: str, variants, *, examples: int = 40) -> Counter:

@@ -186,6 +186,16 @@ def test_variants_a_deeper_search_found_load_or_exit_2(tmp_path):
     assert broken != cornell
     _fuzzed("found: OBJ, an undecodable material name", load_mesh, {"c.obj": broken}, "c.obj",
             st.sampled_from([broken]), examples=1, both=False)
+    card = {"card.obj": CARD_OBJ.encode(), "leaf.png": LEAF}
+    mtl = CARD_MTL.replace("map_d leaf.png", "map_d \x00").encode()
+    counts = _fuzzed("found: MTL, a map_d named by a NUL byte", lambda p: load_mesh(p.parent / "card.obj"),
+                     {**card, "card.mtl": mtl}, "card.mtl", st.sampled_from([mtl]), examples=1, both=False)
+    assert counts == {"refused": 1}
+    times = b"0\n-0\n" + b"".join(b"%d\n" % k for k in range(1, 29))  # one per pose of the 30
+    counts = _fuzzed("found: KITTI times file, a repeated time", lambda p: read_path(
+        p.parent / "poses.txt", format="kitti", times_file=p), {"poses.txt": (PATHS / "kitti_00_head.txt").read_bytes()},
+        "times.txt", st.sampled_from([times]), examples=1, both=False)
+    assert counts == {"refused": 1}
     snan = _gltf_with_signalling_nan(tmp_path)
     counts = _fuzzed("found: glTF, a signalling NaN", load_mesh, {"s.glb": snan}, "s.glb", st.sampled_from([snan]),
                      examples=1, both=False)
