@@ -44,7 +44,7 @@ MAX_COORDINATE = 1e12
 """Farthest a mesh vertex may lie from the origin, in metres after ``scale`` (ten times the Sun's distance):
 beyond, normals and bounds overflow float64 arithmetic, long before float32 rendering means anything."""
 MAX_FRAMES = 10_000_000
-"""Most poses a camera path may produce (about 46 hours at 60 Hz)."""
+"""Most poses a camera-path file may hold, or its span give at the path's fps (about 46 hours at 60 Hz)."""
 
 _STRING = re.compile(r'"(?:[^"\\]|\\.)*"', re.DOTALL)
 _SHOWN = 60

@@ -269,3 +269,20 @@ def test_recording_excerpts_read_with_their_counts_and_durations(name, kwargs, u
 def test_real_recordings_read_with_their_counts_and_durations(name, kwargs, unit):
     path = _check_recording(REAL_DATA, name, kwargs, unit)
     assert 25.0 < path.times[-1] - path.times[0] < 100.0
+
+
+def test_a_path_spanning_more_frames_than_the_limit_is_refused_before_resampling(tmp_path):
+    file = tmp_path / "long.txt"
+    file.write_text("0 0 0 0 0 0 0 1\n1e12 0 0 1 0 0 0 1\n")
+    with pytest.raises(InputError, match="at most 10,000,000 frames at 30 fps .*1e\\+12 s.*got 30,000,000,000,001"):
+        read_path(file, format="tum", fps=30.0)
+
+
+def test_stamps_near_the_float_limit_raise_no_overflow_warning(tmp_path):
+    import warnings
+
+    file = tmp_path / "far.csv"
+    file.write_text("time,x,y,z,qx,qy,qz,qw\n0,0,0,0,0,0,0,1\n1,0,0,0,0,0,0,1\n1e308,0,0,0,0,0,0,1\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        assert read_path(file).times[-1] == 1e308
