@@ -69,7 +69,7 @@ class Workload:
         The check of every frame's view (``[camera] view_check``); None when it is off.
     blend : dict or None
         The level's glTF ``alphaMode = "BLEND"`` materials and the rule they were read by
-        (:func:`csmlab.scene.gltf_materials.blend_note`); None without any.
+        (``summary.json``'s ``blend_materials``); None without any.
     """
 
     scene: Scene
@@ -371,14 +371,18 @@ def build_workload(experiment: Experiment) -> Workload:
 
 
 def _blend_note(experiment: Experiment) -> dict | None:
-    """The glTF files' ``BLEND`` materials (a run warns about them); None for a procedural scene or none."""
-    from csmlab.scene.gltf_materials import blend_note
+    """``{"rule": …, "materials": ["file: name", …]}``: the glTF files' ``BLEND`` materials (a run warns about them,
+    :func:`csmlab.scene.gltf_materials.blend_line`); None for a procedural scene or a level without any."""
+    from csmlab.scene.gltf import read_gltf
+    from csmlab.scene.gltf_materials import blend_materials
 
     scene = experiment.scene
     if scene.kind != "mesh":
         return None
-    files = [f for f in (scene.file, *(p.file for p in scene.parts)) if f]
-    return blend_note(files, scene.blend_casters)
+    files = dict.fromkeys(f for f in (scene.file, *(p.file for p in scene.parts)) if f)
+    names = [f"{Path(file).name}: {name}" for file in files if Path(file).suffix.lower() in (".gltf", ".glb")
+             for name in blend_materials(read_gltf(file).document)]
+    return {"rule": scene.blend_casters, "materials": names} if names else None
 
 
 def _image_width(camera, path: CameraPath) -> int:

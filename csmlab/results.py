@@ -28,7 +28,7 @@ Files in a results directory (docs/design.md, "Interfaces"):
     many, where, how long, and the rules applied). ``view_check`` (unless ``[camera] view_check = "off"``,
     :meth:`csmlab.paths.view_check.ViewFindings.as_dict`): frames checked and, for each check, the
     flagged frames as ``[first, last]`` ranges. ``blend_materials`` (a glTF level with ``alphaMode = "BLEND"``
-    materials, :func:`csmlab.scene.gltf_materials.blend_note`): the rule they were read by and their names.
+    materials, :func:`csmlab.experiment.build_workload`): the rule they were read by and their names.
     Written last: a directory without it holds no
     finished run.
 ``.chunks/``

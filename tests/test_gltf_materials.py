@@ -14,6 +14,8 @@ import pytest
 from PIL import Image
 
 from csmlab.config import load_experiment
+from csmlab.documents import Value
+from csmlab.errors import InputError
 from csmlab.experiment import build_workload
 from csmlab.scene.gltf import gltf_scene_triangles, read_gltf
 from csmlab.scene.gltf_materials import TEXTURE_TRANSFORM, blend_line, transformed_uv
@@ -32,10 +34,9 @@ def _glsl_matrix(offset, rotation, scale) -> np.ndarray:
     return translation @ turn @ scaling
 
 
-class _Info:
-    def __init__(self, transform):
-        self.extensions = {TEXTURE_TRANSFORM: transform}
-        self.texCoord = 0
+def _info(transform) -> Value:
+    """A textureInfo object with the transform, as the reader sees it."""
+    return Value({"index": 0, "extensions": {TEXTURE_TRANSFORM: transform}}, file="level.gltf", key="tex")
 
 
 def test_texture_transform_is_the_extensions_glsl_matrix():
@@ -43,13 +44,14 @@ def test_texture_transform_is_the_extensions_glsl_matrix():
     transform = {"offset": [0.25, -0.5], "rotation": 0.392699, "scale": [1.5, 0.75]}
     expected = (_glsl_matrix(transform["offset"], transform["rotation"], transform["scale"])
                 @ np.c_[uv, np.ones(len(uv))].T).T[:, :2]
-    np.testing.assert_allclose(transformed_uv(uv, _Info(transform)), expected, atol=1e-12)
-    np.testing.assert_array_equal(transformed_uv(uv, _Info({})), uv)
+    np.testing.assert_allclose(transformed_uv(uv, _info(transform)), expected, atol=1e-12)
+    np.testing.assert_array_equal(transformed_uv(uv, _info({})), uv)
 
 
 def test_a_bad_transform_is_refused_naming_the_key():
-    with pytest.raises(ValueError, match=r"tex\.extensions\.KHR_texture_transform\.scale: expected 2 finite numbers"):
-        transformed_uv(np.zeros((1, 2)), _Info({"scale": [1.0]}), key="tex")
+    with pytest.raises(InputError) as caught:
+        transformed_uv(np.zeros((1, 2)), _info({"scale": [1.0]}))
+    assert caught.value.field == "tex.extensions.KHR_texture_transform.scale"
 
 
 def _half_mask_png() -> bytes:

@@ -17,7 +17,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["BLEND_CASTERS", "TEXTURE_TRANSFORM", "apply_blend_rule", "blend_line", "blend_materials", "blend_note",
+from csmlab.documents import Value
+
+__all__ = ["BLEND_CASTERS", "TEXTURE_TRANSFORM", "apply_blend_rule", "blend_line", "blend_materials",
            "texture_coordinate_set", "transformed_uv"]
 
 TEXTURE_TRANSFORM = "KHR_texture_transform"
@@ -25,55 +27,59 @@ BLEND_CASTERS = ("opaque", "masked")
 """``[scene] blend_casters``: how ``alphaMode = "BLEND"`` triangles cast (and block the reference's rays)."""
 
 
-def _transform(texture_info) -> dict:
-    return ((getattr(texture_info, "extensions", None) or {}).get(TEXTURE_TRANSFORM)) or {}
+def _transform(texture: Value) -> Value | None:
+    extensions = texture.get("extensions")
+    transform = None if extensions is None else extensions.mapping().get(TEXTURE_TRANSFORM)
+    return None if transform is None else transform.mapping()
 
 
-def texture_coordinate_set(texture_info) -> int:
-    """The ``TEXCOORD_n`` set a texture is sampled with: ``KHR_texture_transform``'s ``texCoord``, else its own."""
-    override = _transform(texture_info).get("texCoord")
-    return int(override) if isinstance(override, int) else int(getattr(texture_info, "texCoord", None) or 0)
+def texture_coordinate_set(texture: Value) -> int:
+    """The ``TEXCOORD_n`` set a textureInfo is sampled with: ``KHR_texture_transform``'s ``texCoord``, else its own."""
+    transform = _transform(texture)
+    override = None if transform is None else transform.get("texCoord")
+    own = texture.get("texCoord") if override is None else override
+    return 0 if own is None else own.integer(minimum=0)
 
 
-def transformed_uv(uv, texture_info, *, key: str = "texture") -> np.ndarray:
-    """``uv`` ``(V, 2)`` under the texture info's ``KHR_texture_transform`` (unchanged without one).
+def transformed_uv(uv, texture: Value) -> np.ndarray:
+    """``uv`` ``(V, 2)`` under the textureInfo's ``KHR_texture_transform`` (unchanged without one).
 
     Raises
     ------
-    ValueError
-        On a non-numeric or mis-sized ``offset``, ``rotation`` or ``scale``, naming it under ``key``.
+    InputError
+        On a non-numeric or mis-sized ``offset``, ``rotation`` or ``scale``, naming its key.
     """
-    transform = _transform(texture_info)
     uv = np.asarray(uv, dtype=np.float64)
-    if not transform:
+    transform = _transform(texture)
+    if transform is None:
         return uv
-    values = {}
-    for name, default, size in (("offset", (0.0, 0.0), 2), ("scale", (1.0, 1.0), 2), ("rotation", 0.0, None)):
-        value = np.asarray(transform.get(name, default), dtype=object)
-        ok = value.shape == ((size,) if size else ()) and all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) for v in value.reshape(-1))
-        if not ok:
-            raise ValueError(f"{key}.extensions.{TEXTURE_TRANSFORM}.{name}: expected "
-                             f"{f'{size} finite numbers' if size else 'a finite number of radians'}, "
-                             f"got {transform.get(name)!r}")
-        values[name] = value.astype(np.float64)
-    c, s = np.cos(values["rotation"]), np.sin(values["rotation"])
-    scaled = uv * values["scale"]
+    offset, rotation, scale = (transform.get(name) for name in ("offset", "rotation", "scale"))
+    offset = np.zeros(2) if offset is None else offset.numbers(2)
+    scale = np.ones(2) if scale is None else scale.numbers(2)
+    angle = 0.0 if rotation is None else rotation.number()
+    c, s = np.cos(angle), np.sin(angle)
+    scaled = uv * scale
     rotated = np.stack([c * scaled[:, 0] - s * scaled[:, 1], s * scaled[:, 0] + c * scaled[:, 1]], axis=1)
-    return rotated + values["offset"]
+    return rotated + offset
 
 
-def blend_materials(document) -> list[str]:
+def _blended(document: Value) -> list[int]:
+    """Indices of the ``BLEND`` materials the file's meshes use, ascending."""
+    used = {primitive.raw.get("material") for mesh in document.list_at("meshes") if mesh.is_object()
+            for primitive in mesh.list_at("primitives") if primitive.is_object()}
+    materials = document.list_at("materials")
+    return [i for i in sorted(u for u in used if isinstance(u, int) and not isinstance(u, bool))
+            if 0 <= i < len(materials) and materials[i].is_object() and materials[i].raw.get("alphaMode") == "BLEND"]
+
+
+def blend_materials(document: Value) -> list[str]:
     """Names (``materials[i]`` where unnamed) of the ``BLEND`` materials the file's meshes use, in material order."""
-    used = {primitive.material for mesh in (document.meshes or []) for primitive in mesh.primitives
-            if isinstance(primitive.material, int)}
-    materials = document.materials or []
-    return [materials[i].name or f"materials[{i}]" for i in sorted(used)
-            if 0 <= i < len(materials) and materials[i].alphaMode == "BLEND"]
+    materials = document.list_at("materials")
+    return [str(materials[i].raw.get("name") or f"materials[{i}]") for i in _blended(document)]
 
 
-def apply_blend_rule(document, rule: str) -> None:
-    """Turn ``BLEND`` materials to ``MASK`` for ``rule = "masked"`` (in place); ``opaque`` leaves them (read as solid).
+def apply_blend_rule(document: Value, rule: str) -> None:
+    """Turn the used ``BLEND`` materials to ``MASK`` for ``rule = "masked"`` (in the raw JSON); ``opaque`` leaves them.
 
     Raises
     ------
@@ -84,27 +90,14 @@ def apply_blend_rule(document, rule: str) -> None:
         raise ValueError(f"blend_casters: expected one of {list(BLEND_CASTERS)}, got {rule!r}")
     if rule != "masked":
         return
-    for material in document.materials or []:
-        if material.alphaMode == "BLEND":
-            material.alphaMode = "MASK"
-
-
-def blend_note(files, rule: str) -> dict | None:
-    """``{"rule": rule, "materials": ["file: name", …]}`` for the ``BLEND`` materials of the glTF ``files``; None without any.
-
-    What ``summary.json`` keeps under ``blend_materials`` and :func:`blend_line` words.
-    """
-    from pathlib import Path
-
-    from csmlab.scene.gltf import read_gltf
-
-    names = [f"{Path(file).name}: {name}" for file in dict.fromkeys(files)
-             if Path(file).suffix.lower() in (".gltf", ".glb") for name in blend_materials(read_gltf(file).document)]
-    return {"rule": rule, "materials": names} if names else None
+    materials = document.list_at("materials")
+    for i in _blended(document):
+        materials[i].raw["alphaMode"] = "MASK"
 
 
 def blend_line(note: dict | None) -> str | None:
-    """The one-line warning of a :func:`blend_note` (from ``summary.json``); None without one."""
+    """The one-line warning of ``summary.json``'s ``blend_materials`` (:func:`csmlab.experiment.build_workload`); None
+    without one."""
     if not note or not note.get("materials"):
         return None
     rule = note.get("rule", "opaque")
