@@ -384,9 +384,9 @@ def _rasterize_tiles(mesh: LightSpaceMesh, grid: TileGrid, tile_count: int, rows
                      covered: wp.array, threads: int, device: str) -> None:
     """The four passes of the module's docstring over the pairs of ``rows`` into ``maps`` and ``covered`` (per tile)."""
     light = TiledMesh()
-    light.xy = wp.array(mesh.xy, dtype=wp.vec2d, device=device)
-    light.depth = wp.array(mesh.depth, dtype=wp.float64, device=device)
-    light.triangles = wp.array(mesh.triangles, dtype=wp.int32, device=device)
+    light.xy = wp.array(mesh.xy, dtype=wp.vec2d, device=device, copy=False)
+    light.depth = wp.array(mesh.depth, dtype=wp.float64, device=device, copy=False)
+    light.triangles = wp.array(mesh.triangles, dtype=wp.int32, device=device, copy=False)
     masks = masked_mesh(mesh.uv, mesh.vertex_mask, mesh.alpha, device=device)
     light.vertex_mask = masks.vertex_mask
     fixed = _fixed_point(bits)
