@@ -23,12 +23,13 @@ import numpy as np
 
 from csmlab.cascades import CascadeSet
 from csmlab.cascades.warp import warped_texel_jacobian, warped_texels
+from csmlab.kernels.engine import EngineBoxes, engine_boxes
 from csmlab.lookup_choices import NORMAL_NONE, NORMAL_OFFSET_SCALES, NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN
 from csmlab.registry import check_name
 
 __all__ = ["PRECISION_METHODS", "Precision", "VERTEX_SNAPS", "engine_matrix", "engine_origin", "engine_positions",
            "fixed_point_coordinates", "fixed_point_origin", "light_depth", "light_plane_coordinates", "receiver_lookup",
-           "texel_coordinates", "uses_global_grid", "vertex_depth", "window_depth_metres", "window_positions"]
+           "texel_coordinates", "uses_global_grid", "vertex_depth", "window_boxes", "window_depth_metres", "window_positions"]
 
 
 @dataclass(frozen=True)
@@ -483,3 +484,29 @@ def _warped_texel_steps(homography: np.ndarray, light_xy: np.ndarray,
     texel = np.maximum(np.hypot(along_i[:, 0], along_i[:, 1]), np.hypot(along_j[:, 0], along_j[:, 1]))
     step = np.column_stack([np.sum(plane_slope * along_i, axis=1), np.sum(plane_slope * along_j, axis=1)])
     return texel, step
+
+
+def window_boxes(cascades: CascadeSet, *, bits: int, precision: str = "float64", snap: str = "world",
+                 rebase_distance: float = 0.0, device: str = "cpu") -> EngineBoxes:
+    """The cascades as the window-space kernels read them (:mod:`csmlab.kernels.engine`), on ``device``.
+
+    For an engine's float32 ``precision``: each cascade's :func:`engine_matrix` (built here on the
+    host, as an engine builds it), relative to :func:`engine_origin`, and the depth range that
+    :func:`window_depth_metres` maps window depth to. For ``snap = "window"`` in float64: each
+    cascade's texel size and box origin. Not for warped cascades, nor for the global grid
+    (:func:`uses_global_grid`), which other kernels finish themselves.
+    """
+    if any(c.warp is not None for c in cascades.cascades):
+        raise ValueError("cascades: expected no warped cascade (window_boxes serves the unwarped window space)")
+    if uses_global_grid(precision=precision, snap=snap):
+        raise ValueError(f"precision, snap: expected a window-space pipeline, got {precision!r} with {snap!r}")
+    if not PRECISION_METHODS[precision].global_grid:
+        origin = engine_origin(cascades.eye, precision=precision, rebase_distance=rebase_distance)
+        return engine_boxes(mode="float32", bits=bits, device=device,
+                            matrices=np.stack([engine_matrix(cascades, c, origin=origin) for c in range(len(cascades))]),
+                            resolution=[c.resolution for c in cascades.cascades], origin=origin,
+                            depth_near=[c.depth_near - cascades.zref for c in cascades.cascades],
+                            depth_span=[c.depth_far - c.depth_near for c in cascades.cascades])
+    return engine_boxes(mode="float64", bits=bits, device=device,
+                        texel_size=np.stack([c.texel_size for c in cascades.cascades]),
+                        corner=np.stack([c.origin for c in cascades.cascades]))
