@@ -25,7 +25,7 @@ from csmlab.cascades.warp import warped_texels
 from csmlab.filters import clipmap_radius, filter_inputs, lookup_shadow, noise_frame
 from csmlab.frame import Frame, GBuffer, ShadowMaps, View
 from csmlab.geometry import light_basis, normalized
-from csmlab.kernels.engine import window_vertices
+from csmlab.kernels.engine import warped_vertices, window_vertices
 from csmlab.kernels.raster import (BANDS_PER_THREAD, LightSpaceMesh, banded_regions, converted_region_chunks,
                                   light_space_mesh, rasterize_cascades, rasterize_depth, region_chunks,
                                   whole_map_regions, z_ordered)
@@ -196,7 +196,7 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
     raster = None
     cut = DEPTH_RANGE_METHODS[settings.depth_range].cuts_casters
     if cascades.warped:
-        depth, texels = host_depth_maps(dscene, cascades, settings)
+        depth, texels = _warped_window_depth_maps(dscene, cascades, settings)
     elif uses_global_grid(precision=settings.engine_precision, snap=settings.vertex_snap) \
             and not (cut and not settings.depth_clamp):
         depth, texels, raster = _culled_depth_maps(dscene, cascades, settings,
@@ -423,11 +423,81 @@ def warped_depth_map(cascades: CascadeSet, index: int, vertices: np.ndarray, dep
                         device=device) if masked else None
     per_w, count = rasterize_depth(points[None], attributes[:, 2] / w, kept, resolution=cascade.resolution,
                                    bits=bits, masks=masks, caster_slope=caster_slope, device=device)
-    centre = np.arange(cascade.resolution, dtype=np.float64) + 0.5
+    return _unwarped_depth(per_w[0], h, caster_constant), count
+
+
+def _unwarped_depth(per_w: np.ndarray, homography: np.ndarray, caster_constant: float) -> np.ndarray:
+    """``(R, R)`` float32 light depths in metres of a warped map's interpolated ``z / w`` ``(R, R)``, pushed away
+    from the light by ``caster_constant`` metres: each texel's value times its centre's ``w``."""
+    centre = np.arange(per_w.shape[0], dtype=np.float64) + 0.5
     i, j = np.meshgrid(centre, centre)
-    inverse = np.linalg.inv(h)
+    inverse = np.linalg.inv(homography)
     w_centre = 1.0 / (inverse[2, 0] * i + inverse[2, 1] * j + inverse[2, 2])
-    return (per_w[0].astype(np.float64) * w_centre + caster_constant).astype(np.float32), count
+    return (per_w.astype(np.float64) * w_centre + caster_constant).astype(np.float32)
+
+
+def _warped_window_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
+                              settings: ShadowSettings) -> tuple[np.ndarray, int]:
+    """``(C, R, R)`` depth maps and texels rasterized of perspective-warped cascades (``warp``) on the kernels' path.
+
+    :func:`warped_depth_map`'s maps and counts bit for bit: the scene's light-space mesh clipped at
+    half the warp's near distance (:func:`clipped_triangles`, on the host: few triangles cross it),
+    its vertices taken through the homography on the device (:func:`csmlab.kernels.engine.warped_vertices`),
+    and the map rasterized cut into bands for the threads, only the chunks that reach a band
+    (:func:`csmlab.kernels.raster.converted_region_chunks`). An unwarped cascade of the set takes
+    :func:`_window_depth_maps`' or the scrolling path's arithmetic, cascade by cascade as the host does.
+    """
+    bits = settings.subtexel_bits
+    mesh = _scene_in_light_space(dscene, cascades, settings.cull)
+    sizes = [c.resolution for c in cascades.cascades]
+    maps = np.full((len(sizes), max(sizes), max(sizes)), np.inf, dtype=np.float32)
+    offsets = caster_offsets(cascades, settings)
+    triangles = mesh.triangles
+    texels = 0
+    for c, cascade in enumerate(cascades.cascades):
+        kept = triangles
+        if DEPTH_RANGE_METHODS[settings.depth_range].cuts_casters and not settings.depth_clamp:
+            kept = clipped_casters(mesh.depth, triangles, near=cascade.depth_near - cascades.zref)
+        if kept.shape[0] == 0:
+            continue
+        if cascade.warp is None:
+            one = CascadeSet(basis=cascades.basis, zref=cascades.zref, splits=cascades.splits[c:c + 2],
+                             cascades=(cascade,), margin_texels=cascades.margin_texels, eye=cascades.eye)
+            depth, count = _window_depth_maps(dscene, one, settings)
+        else:
+            depth, count = _warped_map(dscene, mesh, kept, cascade, bits=bits, caster_constant=float(offsets[c]),
+                                       caster_slope=settings.caster_bias_slope)
+        maps[c, :sizes[c], :sizes[c]] = depth[0] if depth.ndim == 3 else depth
+        texels += count
+    return maps, texels
+
+
+def _warped_map(dscene: DeviceScene, mesh: LightSpaceMesh, triangles: np.ndarray, cascade, *, bits: int,
+                caster_constant: float, caster_slope: float) -> tuple[np.ndarray, int]:
+    """``(R, R)`` depth map and texels rasterized of one warped cascade from the mesh's ``triangles`` ``(T, 3)``."""
+    h = cascade.warp.homography
+    xy = mesh.xy
+    w = xy[:, 0] * h[2, 0] + xy[:, 1] * h[2, 1] + h[2, 2]
+    near = 0.5 * (cascade.warp.n_opt if np.isfinite(cascade.warp.n_opt) else 1.0)
+    masked = mesh.vertex_mask is not None
+    columns = [xy, mesh.depth, w] + ([mesh.uv, mesh.vertex_mask.astype(np.float64)] if masked else [])
+    attributes, kept = clipped_triangles(np.column_stack(columns), triangles, column=3, threshold=near)
+    if kept.shape[0] == 0:
+        return np.full((cascade.resolution,) * 2, np.inf, dtype=np.float32), 0
+    points, per_w = warped_vertices(h, attributes[:, :2], attributes[:, 2], bits=bits, device=dscene.device)
+    # A triangle's three vertices share its mask, so the interpolated mask column is that mask exactly.
+    masks = dict(uv=attributes[:, 4:6], vertex_mask=attributes[:, 6].astype(np.int32), alpha=mesh.alpha) if masked \
+        else {}
+    clipped = light_space_mesh(attributes[:, :2], attributes[:, 2], kept, **masks)
+    regions = whole_map_regions([cascade.resolution])
+    if dscene.threads > 1:
+        regions = banded_regions(regions, parts=BANDS_PER_THREAD * dscene.threads, axis=mesh.bounds.narrow_axis)
+    chunks = converted_region_chunks(points[None], kept, regions=regions, bits=bits, device=dscene.device)
+    per_w_map, count = rasterize_cascades(clipped, texel_size=np.ones((1, 2)), origin=np.zeros((1, 2), np.int64),
+                                          resolution=cascade.resolution, bits=bits, regions=regions, chunks=chunks,
+                                          points=points[None], vertex_depth=per_w[None], caster_slope=caster_slope,
+                                          threads=dscene.threads, device=dscene.device)
+    return _unwarped_depth(per_w_map[0], h, caster_constant), int(count.sum())
 
 
 def clipped_triangles(attributes: np.ndarray, triangles: np.ndarray, *, column: int,

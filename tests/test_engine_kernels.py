@@ -5,8 +5,8 @@ The oracle is the host's statement of each engine's float32 arithmetic (:mod:`cs
 :func:`~csmlab.texels.receiver_lookup`) and its whole-map, one-cascade-at-a-time rasterization
 (:func:`csmlab.render.host_depth_maps`). The kernels (:mod:`csmlab.kernels.engine`, the chunked and
 banded rasterizer) must give the same integers, depths and counts on the shipped scenes: terrain
-(every engine preset), foliage (alpha-tested casters) and terrain 10⁶ m from the origin (where
-float32 rounds at 6 cm, so any difference in operation order shows).
+(every engine preset, Filament's LiSPSM warp), foliage (alpha-tested casters) and terrain 10⁶ m from
+the origin (where float32 rounds at 6 cm, so any difference in operation order shows).
 """
 
 from __future__ import annotations
@@ -22,7 +22,8 @@ from csmlab.cascades import build_cascades
 from csmlab.cascades.bounds import visible_depth_range
 from csmlab.config import load_experiment
 from csmlab.experiment import build_workload
-from csmlab.kernels.engine import window_receivers, window_vertices
+from csmlab.cascades.warp import warped_texels
+from csmlab.kernels.engine import warped_vertices, window_receivers, window_vertices
 from csmlab.kernels.raster import (converted_region_chunks, light_space_mesh, rasterize_cascades, region_chunks,
                                   whole_map_regions)
 from csmlab.texels import fixed_point_coordinates, receiver_lookup, vertex_depth, window_boxes
@@ -216,3 +217,32 @@ def test_converted_vertices_of_the_wrong_shape_name_the_argument():
         rasterize_cascades(mesh, points=np.zeros((1, 30, 2), np.int64), vertex_depth=np.zeros((1, 29)), **how)
     with pytest.raises(ValueError, match="near"):
         rasterize_cascades(mesh, near=[0.0, 1.0], **how)
+
+
+@pytest.mark.parametrize("experiment, frame, changes", [
+    ("terrain", 5, {}),
+    ("terrain", 9, {"cull": "back", "depth_range": "slice", "depth_clamp": False, "cascades": 3}),
+    ("foliage", 2, {}),
+])
+def test_warped_cascades_maps_equal_the_host_pipelines(experiment, frame, changes, request):
+    """Filament's LiSPSM (``warp = "lispsm"``): clipped at the warp's near plane, through the homography on the
+    device, rasterized in bands; the host's :func:`csmlab.render.warped_depth_map` maps and counts bit for bit."""
+    case = request.getfixturevalue(experiment)
+    settings, _, cascades = _frame(case, "filament", frame, **changes)
+    assert cascades.warped
+    host, host_texels = render.host_depth_maps(case.dscene, cascades, settings)
+    kernels, texels = render._warped_window_depth_maps(case.dscene, cascades, settings)
+    assert _same_bits(kernels, host)
+    assert texels == host_texels > 0
+
+
+def test_warped_vertices_are_the_hosts_homography_texels_and_depth_over_w():
+    rng = np.random.default_rng(14)
+    homography = np.array([[3.1, 0.4, 40.0], [0.2, 2.7, 11.0], [0.001, 0.03, 1.5]])
+    xy = rng.uniform(-20.0, 20.0, (2000, 2))
+    depth = rng.uniform(-5.0, 5.0, 2000)
+    points, per_w = warped_vertices(homography, xy, depth, bits=8)
+    texels, w = warped_texels(homography, xy)
+    assert np.all(w > 0)
+    assert np.array_equal(points, 2 * np.rint(np.clip(texels * 256.0, -2.0**50, 2.0**50)).astype(np.int64))
+    assert _same_bits(per_w, depth / w)

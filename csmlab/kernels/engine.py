@@ -10,7 +10,9 @@ coordinates (``vertex_snap = "window"``) is the same pass with float64 light-spa
 - :func:`window_vertices`: every vertex in every cascade's doubled fixed point and its depth in
   metres, what :func:`csmlab.kernels.raster.rasterize_cascades` takes as converted vertices;
 - :func:`window_receivers`: receivers' fixed point, biased depth and receiver-plane slope, what
-  :func:`csmlab.kernels.shadow.shadow_lookup` reads.
+  :func:`csmlab.kernels.shadow.shadow_lookup` reads;
+- :func:`warped_vertices`: vertices through a perspective-warped cascade's homography (``warp``,
+  :mod:`csmlab.cascades.warp`), in float64 as the host's :func:`csmlab.render.warped_depth_map`.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 from csmlab.lookup_choices import NORMAL_NONE, NORMAL_OFFSET_SCALES, NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN
 from csmlab.registry import check_name
 
-__all__ = ["EngineBoxes", "engine_boxes", "window_receivers", "window_vertices"]
+__all__ = ["EngineBoxes", "engine_boxes", "warped_vertices", "window_receivers", "window_vertices"]
 
 # Products and sums rounded one by one on both devices, as NumPy rounds them.
 wp.set_module_options({"fuse_fp": False})
@@ -449,3 +451,71 @@ def window_receivers(boxes: EngineBoxes, points, normals, *, basis, texel_size, 
         wp.launch(window_receivers_kernel, dim=shape[1], inputs=(r, boxes), outputs=(coords, depth, slope),
                   device=device)
     return coords.numpy(), depth.numpy(), slope.numpy()
+
+
+@wp.kernel
+def warped_vertices_kernel(
+    light_xy: wp.array(dtype=wp.vec2d),
+    depth: wp.array(dtype=wp.float64),
+    homography: wp.mat33d,
+    scale: wp.float64,
+    limit: wp.float64,
+    points: wp.array(dtype=vec2l),
+    per_w: wp.array(dtype=wp.float64),
+):
+    """Vertex v through a warped cascade's homography: doubled fixed point and ``depth / w``.
+
+    :func:`csmlab.cascades.warp.warped_texels`' sums in its order, ``((x·H0 + y·H1) + H2)``, each
+    coordinate divided by ``w``, then :func:`csmlab.render.warped_depth_map`'s
+    ``rint(clip(texel · 2**bits))``.
+    """
+    v = wp.tid()
+    q = light_xy[v]
+    h = homography
+    w = (q[0] * h[2, 0] + q[1] * h[2, 1]) + h[2, 2]
+    i = (q[0] * h[0, 0] + q[1] * h[0, 1]) + h[0, 2]
+    j = (q[0] * h[1, 0] + q[1] * h[1, 1]) + h[1, 2]
+    two = wp.int64(2)
+    points[v] = vec2l(two * snapped((i / w) * scale, limit), two * snapped((j / w) * scale, limit))
+    per_w[v] = depth[v] / w
+
+
+def warped_vertices(homography, light_xy, depth, *, bits: int, device: str = "cpu") -> tuple[np.ndarray, np.ndarray]:
+    """Vertices of a warped cascade in its doubled fixed point, and their light depth over ``w``.
+
+    Parameters
+    ----------
+    homography : array_like, shape (3, 3), float64
+        Light-space x/y metres to the warped map's homogeneous texels (:mod:`csmlab.cascades.warp`).
+    light_xy : array_like, shape (V, 2), float64
+        Light-space x/y, metres.
+    depth : array_like, shape (V,), float64
+        ``d·X − zref``, metres.
+    bits : int
+    device : str
+
+    Returns
+    -------
+    points : ndarray, shape (V, 2), int64
+        Twice ``rint(clip(texel · 2**bits, ±2**50))`` of :func:`csmlab.cascades.warp.warped_texels`'
+        texels (NaN maps to ``-2**50``), bit for bit.
+    per_w : ndarray, shape (V,), float64
+        ``depth / w``: affine across a triangle's warped image, what the rasterizer interpolates.
+    """
+    device = checked_device(device)
+    h = np.asarray(homography, dtype=np.float64)
+    xy = np.ascontiguousarray(light_xy, dtype=np.float64)
+    z = np.ascontiguousarray(depth, dtype=np.float64)
+    if h.shape != (3, 3) or xy.ndim != 2 or xy.shape[1] != 2 or z.shape != (xy.shape[0],):
+        raise ValueError(f"homography, light_xy, depth: expected shapes (3, 3), (V, 2), (V,); got {h.shape}, "
+                         f"{xy.shape}, {z.shape}")
+    if not (isinstance(bits, (int, np.integer)) and 0 <= bits <= 16):
+        raise ValueError(f"bits: expected an integer in 0..16, got {bits!r}")
+    points = device_empty(xy.shape[0], vec2l, device)
+    per_w = device_empty(xy.shape[0], wp.float64, device)
+    if xy.shape[0]:
+        wp.launch(warped_vertices_kernel, dim=xy.shape[0],
+                  inputs=(wp.array(xy, dtype=wp.vec2d, device=device, copy=False),
+                          wp.array(z, dtype=wp.float64, device=device, copy=False), wp.mat33d(*h.reshape(-1)),
+                          float(2**int(bits)), float(2**50)), outputs=(points, per_w), device=device)
+    return points.numpy().view(np.int64).reshape(-1, 2), per_w.numpy()
