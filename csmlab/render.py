@@ -331,10 +331,10 @@ def host_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
     depth, ``engine_precision``; snapping of the window position, ``vertex_snap``), casters clipped at
     a slice's near side without pancaking (``depth_range`` that cuts casters, ``depth_clamp = false``)
     by :func:`clipped_casters`, each cascade's whole map rasterized over every triangle on one thread.
-    The tests' oracle for the kernels' path (:func:`_window_depth_maps`, which gives the same maps and
-    counts bit for bit); the production path only of perspective-warped cascades (``warp``,
-    :func:`warped_depth_map`). Faces are culled as on the other paths (``settings.cull``, once per
-    call, by ``d`` alone).
+    Perspective-warped cascades (``warp``) by :func:`warped_depth_map`. Not a production path: the
+    tests' oracle for the kernels' (:func:`_window_depth_maps`, :func:`_warped_window_depth_maps`,
+    which give the same maps and counts bit for bit). Faces are culled as on the other paths
+    (``settings.cull``, once per call, by ``d`` alone).
     """
     bits = settings.subtexel_bits
     vertices = dscene.scene.vertices
