@@ -207,7 +207,9 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
         # Pancaking is a per-fragment clamp max(z, near); the stored minimum of clamped fragments
         # is the clamped minimum, so clamping the map is exact.
         near = np.array([c.depth_near - cascades.zref for c in cascades.cascades], dtype=np.float32)
-        depth = np.maximum(depth, near[:, None, None])
+        # In place where the maps are this call's own (not kept read-only for the next frame's scrolling):
+        # a fresh (C, R, R) array costs its page faults, more than the comparisons.
+        depth = np.maximum(depth, near[:, None, None], out=depth if depth.flags.writeable else None)
     span = float(np.ptp(cascades.to_light(dscene.corners)[:, 2]))
     depth = dispatch(DEPTH_QUANTIZATION_METHODS, settings.depth_quantization, depth, field="depth_quantization",
                      depth_format=settings.depth_format, offered=dict(
