@@ -1,4 +1,4 @@
-"""Per engine preset: the raster and shadow-lookup stages in the preset's own precision against the same preset in float64.
+"""Per engine preset: the raster and shadow lookup in the preset's own precision against the same preset in float64.
 
     .venv/bin/python benchmarks/bench_engines.py [--device cpu|cuda] [--frames 6] [--threads 1]
         [--presets ue5,godot4,...] [--resolution R] [--clock wall|cpu]
@@ -80,8 +80,8 @@ def main() -> None:
     methods = [m for m in experiment.methods if m.settings.shadow_map != "virtual_clipmap"
                and (not chosen or m.name in chosen)]
     print(f"experiments/engines.toml: {workload.scene.triangle_count:,} triangles, view {workload.width}x"
-          f"{workload.height}; device {args.device}, {args.threads} thread(s); mean {args.clock} ms/frame over frames 1.."
-          f"{args.frames - 1} (frame 0 warms up)")
+          f"{workload.height}; device {args.device}, {args.threads} thread(s); mean {args.clock} ms/frame over "
+          f"frames 1..{args.frames - 1} (frame 0 warms up)")
     print(f"{'preset':<22} {'precision':<16} {'R':>5} {'raster':>9} {'f64':>9} {'ratio':>6} {'shadow':>9} {'f64':>9} "
           f"{'ratio':>6}")
     for method in methods:

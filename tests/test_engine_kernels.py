@@ -101,7 +101,8 @@ def test_alpha_tested_casters_give_the_host_pipelines_maps_on_foliage(foliage, n
     _assert_maps_equal_the_host(foliage, name, 2)
 
 
-@pytest.mark.parametrize("name", ["exact_float32", "none_float32", "exact_camera_relative", "quantized_camera_relative"])
+@pytest.mark.parametrize("name", ["exact_float32", "none_float32", "exact_camera_relative",
+                                  "quantized_camera_relative"])
 def test_maps_equal_the_host_pipelines_far_from_the_origin(far, name):
     _assert_maps_equal_the_host(far, name, 4)
 
@@ -151,7 +152,8 @@ def test_window_receivers_equal_the_hosts_receiver_lookup(name, experiment, chan
     rows = np.flatnonzero(g.valid.reshape(-1))
     kernels = filters.texel_coordinates(cascades, points, normals, rows, settings=settings, device="cpu")
     host = receiver_lookup(cascades, points[rows], normals[rows], bits=settings.subtexel_bits,
-                           normal_offset=settings.normal_offset, bias_constant=filters._cascade_bias(cascades, settings),
+                           normal_offset=settings.normal_offset,
+                           bias_constant=filters._cascade_bias(cascades, settings),
                            bias_slope=settings.bias_slope, normal_scale=settings.normal_offset_scale,
                            plane_offset=filters._plane_offset(cascades, settings),
                            normal_offset_m=settings.normal_offset_m, precision=settings.engine_precision,
@@ -246,3 +248,28 @@ def test_warped_vertices_are_the_hosts_homography_texels_and_depth_over_w():
     assert np.all(w > 0)
     assert np.array_equal(points, 2 * np.rint(np.clip(texels * 256.0, -2.0**50, 2.0**50)).astype(np.int64))
     assert _same_bits(per_w, depth / w)
+
+
+@pytest.mark.parametrize("experiment, changes", [
+    ("terrain", {}),
+    ("terrain", {"bias_slope": 2.0, "normal_offset": 1.0, "normal_offset_scale": "sin"}),
+    ("terrain", {"bias_slope": 1.0, "receiver_plane_offset": 0.01, "normal_offset": 0.5, "normal_offset_m": 0.02,
+                 "normal_offset_scale": "one_minus_cos_lateral", "cascades": 3}),
+    ("foliage", {"normal_offset_scale": "one_minus_cos", "normal_offset": 2.0, "subtexel_bits": 4}),
+])
+def test_warped_receivers_equal_the_hosts_receiver_lookup(experiment, changes, request):
+    """Filament's receivers through the homography (texel size from the Jacobian's inverse, NumPy's ``hypot``)."""
+    case = request.getfixturevalue(experiment)
+    settings, view, cascades = _frame(case, "filament", 6, **changes)
+    assert all(c.warp is not None for c in cascades.cascades)
+    g = view.gbuffer
+    points, normals = g.position.reshape(-1, 3), g.normal.reshape(-1, 3)
+    rows = np.flatnonzero(g.valid.reshape(-1))
+    kernels = filters.texel_coordinates(cascades, points, normals, rows, settings=settings, device="cpu")
+    host = receiver_lookup(cascades, points[rows], normals[rows], bits=settings.subtexel_bits,
+                           normal_offset=settings.normal_offset,
+                           bias_constant=filters._cascade_bias(cascades, settings), bias_slope=settings.bias_slope,
+                           normal_scale=settings.normal_offset_scale,
+                           plane_offset=filters._plane_offset(cascades, settings),
+                           normal_offset_m=settings.normal_offset_m)
+    assert all(_same_bits(a, b) for a, b in zip(kernels, host))

@@ -11,8 +11,9 @@ coordinates (``vertex_snap = "window"``) is the same pass with float64 light-spa
   metres, what :func:`csmlab.kernels.raster.rasterize_cascades` takes as converted vertices;
 - :func:`window_receivers`: receivers' fixed point, biased depth and receiver-plane slope, what
   :func:`csmlab.kernels.shadow.shadow_lookup` reads;
-- :func:`warped_vertices`: vertices through a perspective-warped cascade's homography (``warp``,
-  :mod:`csmlab.cascades.warp`), in float64 as the host's :func:`csmlab.render.warped_depth_map`.
+- :func:`warped_vertices`, :func:`warped_receivers`: vertices and receivers through a
+  perspective-warped cascade's homography (``warp``, :mod:`csmlab.cascades.warp`), in float64 as
+  the host's :func:`csmlab.render.warped_depth_map` and :func:`csmlab.texels.receiver_lookup`.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 from csmlab.lookup_choices import NORMAL_NONE, NORMAL_OFFSET_SCALES, NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN
 from csmlab.registry import check_name
 
-__all__ = ["EngineBoxes", "engine_boxes", "warped_vertices", "window_receivers", "window_vertices"]
+__all__ = ["EngineBoxes", "engine_boxes", "warped_receivers", "warped_vertices", "window_receivers", "window_vertices"]
 
 # Products and sums rounded one by one on both devices, as NumPy rounds them.
 wp.set_module_options({"fuse_fp": False})
@@ -141,7 +142,8 @@ def snapped(u: wp.float64, limit: wp.float64) -> wp.int64:
 
 @wp.func
 def clip_row(m: mat34f, row: int, x: wp.float32, y: wp.float32, z: wp.float32) -> wp.float32:
-    """Clip coordinate ``row`` of a float32 position: ``((m0·x + m1·y) + m2·z) + m3``, as :func:`csmlab.texels.window_positions`."""
+    """Clip coordinate ``row`` of a float32 position: ``((m0·x + m1·y) + m2·z) + m3``
+    (:func:`csmlab.texels.window_positions`)."""
     return ((x * m[row, 0] + y * m[row, 1]) + z * m[row, 2]) + m[row, 3]
 
 
@@ -278,16 +280,22 @@ class EngineReceivers:
     texel_size: wp.array(dtype=wp.vec2d)
     offset: wp.array(dtype=wp.float64)
     slope_bias: wp.array(dtype=wp.float64)
+    bias_slope: wp.float64
     bias_constant: wp.array(dtype=wp.float64)
     plane_offset: wp.array(dtype=wp.float64)
     zref: wp.float64
     max_tan: wp.float64
     normal_scale: int
+    scale: wp.float64
+    """``2**bits`` (the warped receivers' snap; the window boxes hold their own)."""
+    limit: wp.float64
+    """The clip of fixed-point values, ±2**50."""
 
 
 @wp.func
 def light_space(v: wp.vec3d, basis: wp.mat33d, row: int) -> wp.float64:
-    """Component ``row`` of ``v`` in the light basis, summed as ``csmlab.texels._light_space``: ``(x·r_x + z·r_z) + y·r_y``."""
+    """Component ``row`` of ``v`` in the light basis, summed as ``csmlab.texels._light_space``:
+    ``(x·r_x + z·r_z) + y·r_y``."""
     return (v[0] * basis[row, 0] + v[2] * basis[row, 2]) + v[1] * basis[row, 1]
 
 
@@ -410,6 +418,18 @@ def window_receivers(boxes: EngineBoxes, points, normals, *, basis, texel_size, 
         As :func:`csmlab.texels.receiver_lookup` of ``points[receivers]``, ``normals[receivers]``.
     """
     device = checked_device(device)
+    count = boxes.matrix.shape[0] if boxes.mode == WINDOW_FLOAT32 else boxes.texel_size.shape[0]
+    r = _engine_receivers(points, normals, basis=basis, texel_size=texel_size, zref=zref, normal_offset=normal_offset,
+                          bias_constant=bias_constant, bias_slope=bias_slope, receivers=receivers,
+                          normal_scale=normal_scale, plane_offset=plane_offset, normal_offset_m=normal_offset_m,
+                          cascades=count, device=device)
+    return _launched(window_receivers_kernel, (r, boxes), count, r.index.shape[0], device)
+
+
+def _engine_receivers(points, normals, *, basis, texel_size, zref: float, normal_offset: float, bias_constant,
+                      bias_slope: float, receivers, normal_scale: str, plane_offset, normal_offset_m: float,
+                      cascades: int, device: str) -> EngineReceivers:
+    """The :class:`EngineReceivers` of :func:`window_receivers`' arguments for ``cascades`` cascades, checked."""
     p = np.ascontiguousarray(points, dtype=np.float64)
     n = np.ascontiguousarray(normals, dtype=np.float32)
     rows = np.ascontiguousarray(basis, dtype=np.float64)
@@ -418,9 +438,9 @@ def window_receivers(boxes: EngineBoxes, points, normals, *, basis, texel_size, 
             or size.shape[1] != 2:
         raise ValueError(f"points, normals, basis, texel_size: expected shapes (M, 3), (M, 3), (3, 3), (C, 2); got "
                          f"{p.shape}, {n.shape}, {rows.shape}, {size.shape}")
-    count = boxes.matrix.shape[0] if boxes.mode == WINDOW_FLOAT32 else boxes.texel_size.shape[0]
+    count = cascades
     if size.shape[0] != count:
-        raise ValueError(f"texel_size: expected one row per cascade of boxes ({count}), got {size.shape[0]}")
+        raise ValueError(f"texel_size: expected one row per cascade ({count}), got {size.shape[0]}")
     index = np.arange(p.shape[0], dtype=np.int32) if receivers is None else np.ascontiguousarray(receivers, np.int32)
     if index.ndim != 1 or (index.size and (index.min() < 0 or index.max() >= p.shape[0])):
         raise ValueError(f"receivers: expected row indices in [0, {p.shape[0]}), got shape {index.shape}")
@@ -436,20 +456,28 @@ def window_receivers(boxes: EngineBoxes, points, normals, *, basis, texel_size, 
     r.texel_size = wp.array(size, dtype=wp.vec2d, device=device)
     r.offset = wp.array(offset, dtype=wp.float64, device=device)
     r.slope_bias = wp.array(bias_slope * texel, dtype=wp.float64, device=device)
+    r.bias_slope = float(bias_slope)
     r.bias_constant = wp.array(np.broadcast_to(np.asarray(bias_constant, dtype=np.float64), (count,)).copy(),
                                dtype=wp.float64, device=device)
     r.plane_offset = wp.array(np.broadcast_to(np.asarray(plane_offset, dtype=np.float64), (count,)).copy(),
                               dtype=wp.float64, device=device)
     r.zref = float(zref)
+    r.limit = float(2**50)
+    r.scale = 1.0
     r.max_tan = 10.0
     r.normal_scale = NORMAL_OFFSET_SCALES[check_name(normal_scale, NORMAL_OFFSET_SCALES, field="normal_offset_scale")]
-    shape = (count, index.shape[0])
+    return r
+
+
+def _launched(kernel, inputs: tuple, cascades: int, receivers: int,
+              device: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``kernel`` launched a thread per receiver: its coordinates ``(C, N, 2)``, depths ``(C, N)`` and slopes ``(C, N, 2)``."""
+    shape = (cascades, receivers)
     coords = device_empty(shape + (2,), wp.int64, device)
     depth = device_empty(shape, wp.float32, device)
     slope = device_empty(shape + (2,), wp.float64, device)
-    if shape[1] and count:
-        wp.launch(window_receivers_kernel, dim=shape[1], inputs=(r, boxes), outputs=(coords, depth, slope),
-                  device=device)
+    if receivers and cascades:
+        wp.launch(kernel, dim=receivers, inputs=inputs, outputs=(coords, depth, slope), device=device)
     return coords.numpy(), depth.numpy(), slope.numpy()
 
 
@@ -519,3 +547,153 @@ def warped_vertices(homography, light_xy, depth, *, bits: int, device: str = "cp
                           wp.array(z, dtype=wp.float64, device=device, copy=False), wp.mat33d(*h.reshape(-1)),
                           float(2**int(bits)), float(2**50)), outputs=(points, per_w), device=device)
     return points.numpy().view(np.int64).reshape(-1, 2), per_w.numpy()
+
+
+_HYPOT = """
+#if defined(__CUDA_ARCH__)
+return ::hypot(x, y);
+#else
+return __builtin_hypot(x, y);
+#endif
+"""
+
+
+@wp.func_native(_HYPOT)
+def hypot(x: wp.float64, y: wp.float64) -> wp.float64:
+    """The C library's ``hypot`` (Warp has none): on the CPU the one NumPy's ``np.hypot`` calls, the same bits."""
+    ...
+
+
+@wp.func
+def homogeneous(q0: wp.float64, q1: wp.float64, h: wp.mat33d, row: int) -> wp.float64:
+    """Row ``row`` of the homography at light-space ``(q0, q1)``: ``(q0·H0 + q1·H1) + H2``, as
+    :func:`csmlab.cascades.warp.warped_texels` sums it."""
+    return (q0 * h[row, 0] + q1 * h[row, 1]) + h[row, 2]
+
+
+@wp.func
+def numpy_maximum(a: wp.float64, b: wp.float64) -> wp.float64:
+    """``np.maximum(a, b)``: NaN if either is NaN (``wp.max`` would drop it)."""
+    if a >= b or a != a:
+        return a
+    return b
+
+
+@wp.kernel
+def warped_receivers_kernel(
+    r: EngineReceivers,
+    homographies: wp.array(dtype=wp.mat33d),
+    coords: wp.array3d(dtype=wp.int64),
+    depth: wp.array2d(dtype=wp.float32),
+    slope: wp.array3d(dtype=wp.float64),
+):
+    """Receiver k in every warped cascade: :func:`csmlab.texels.receiver_lookup`'s warped branch in its order."""
+    k = wp.tid()
+    zero = wp.float64(0.0)
+    one = wp.float64(1.0)
+    point = r.points[r.index[k]]
+    normal = wp.vec3d(r.normals[r.index[k]])
+    px = light_space(point, r.basis, 0)
+    py = light_space(point, r.basis, 1)
+    pz = light_space(point, r.basis, 2)
+    nx = light_space(normal, r.basis, 0)
+    ny = light_space(normal, r.basis, 1)
+    nz = light_space(normal, r.basis, 2)
+    cos = -nz
+    tan = wp.float64(wp.nan)
+    plane_x = zero
+    plane_y = zero
+    if cos > zero:
+        tan = wp.min(wp.sqrt(wp.max(one - cos * cos, zero)) / cos, r.max_tan)
+        plane_x = nx / cos
+        plane_y = ny / cos
+    plane_x = wp.clamp(plane_x, -r.max_tan, r.max_tan)
+    plane_y = wp.clamp(plane_y, -r.max_tan, r.max_tan)
+    factor = one
+    if r.normal_scale == NORMAL_SIN:
+        factor = wp.sqrt(wp.max(one - cos * cos, zero))
+    elif r.normal_scale != NORMAL_NONE:
+        factor = one - wp.max(cos, zero)
+    along = one
+    if r.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
+        along = zero
+    c = int(0)
+    while c < coords.shape[0]:
+        h = homographies[c]
+        offset = r.offset[c]
+        if r.normal_scale != NORMAL_NONE:
+            offset = offset * factor
+        moved = wp.vec3d(point[0] + normal[0] * offset, point[1] + normal[1] * offset, point[2] + normal[2] * offset)
+        mx = light_space(moved, r.basis, 0)
+        my = light_space(moved, r.basis, 1)
+        w = homogeneous(mx, my, h, 2)
+        x = wp.int64(-r.limit)
+        y = wp.int64(-r.limit)
+        if w > zero:
+            x = snapped((homogeneous(mx, my, h, 0) / w) * r.scale, r.limit)
+            y = snapped((homogeneous(mx, my, h, 1) / w) * r.scale, r.limit)
+        coords[c, k, 0] = x
+        coords[c, k, 1] = y
+        # The texel's larger side and the plane's change per texel step, from the inverse of the homography's
+        # Jacobian at the receiver (csmlab.texels._warped_texel_steps).
+        w0 = homogeneous(px, py, h, 2)
+        t0 = homogeneous(px, py, h, 0) / w0
+        t1 = homogeneous(px, py, h, 1) / w0
+        j00 = (h[0, 0] - t0 * h[2, 0]) / w0
+        j01 = (h[0, 1] - t0 * h[2, 1]) / w0
+        j10 = (h[1, 0] - t1 * h[2, 0]) / w0
+        j11 = (h[1, 1] - t1 * h[2, 1]) / w0
+        det = j00 * j11 - j01 * j10
+        ai0 = j11 / det
+        ai1 = -j10 / det
+        aj0 = -j01 / det
+        aj1 = j00 / det
+        texel = numpy_maximum(hypot(ai0, ai1), hypot(aj0, aj1))
+        sx = plane_x * ai0 + plane_y * ai1
+        sy = plane_x * aj0 + plane_y * aj1
+        bias = r.bias_constant[c] + r.bias_slope * texel * tan
+        if r.plane_offset[c] > zero:
+            bias = bias + wp.min(wp.abs(sx) + wp.abs(sy), r.plane_offset[c])
+        depth[c, k] = wp.float32(((pz + along * offset * nz) - r.zref) - bias)
+        slope[c, k, 0] = sx
+        slope[c, k, 1] = sy
+        c += 1
+
+
+def warped_receivers(homographies, points, normals, *, basis, texel_size, zref: float, bits: int,
+                     normal_offset: float, bias_constant, bias_slope: float, receivers=None, normal_scale: str = "none",
+                     plane_offset=0.0, normal_offset_m: float = 0.0,
+                     device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`csmlab.texels.receiver_lookup` of perspective-warped cascades (``warp``) on the device, bit for bit on
+    the CPU (on a GPU the texel size takes CUDA's ``hypot``).
+
+    Parameters
+    ----------
+    homographies : array_like, shape (C, 3, 3), float64
+        Each cascade's homography, light-space x/y metres to homogeneous texels (:mod:`csmlab.cascades.warp`).
+    points, normals, basis, texel_size, zref, normal_offset, bias_constant, bias_slope, receivers, normal_scale,
+    plane_offset, normal_offset_m
+        As :func:`window_receivers`; ``texel_size`` ``(C, 2)`` the warps' nominal texels (the normal offset's unit).
+    bits : int
+        Sub-texel bits.
+    device : str
+
+    Returns
+    -------
+    coordinates : ndarray, shape (C, N, 2), int64
+    depth : ndarray, shape (C, N), float32
+    slope : ndarray, shape (C, N, 2), float64
+    """
+    device = checked_device(device)
+    h = np.ascontiguousarray(homographies, dtype=np.float64)
+    if h.ndim != 3 or h.shape[1:] != (3, 3):
+        raise ValueError(f"homographies: expected shape (C, 3, 3), got {h.shape}")
+    if not (isinstance(bits, (int, np.integer)) and 0 <= bits <= 16):
+        raise ValueError(f"bits: expected an integer in 0..16, got {bits!r}")
+    r = _engine_receivers(points, normals, basis=basis, texel_size=texel_size, zref=zref, normal_offset=normal_offset,
+                          bias_constant=bias_constant, bias_slope=bias_slope, receivers=receivers,
+                          normal_scale=normal_scale, plane_offset=plane_offset, normal_offset_m=normal_offset_m,
+                          cascades=h.shape[0], device=device)
+    r.scale = float(2**int(bits))
+    return _launched(warped_receivers_kernel, (r, wp.array(h, dtype=wp.mat33d, device=device)), h.shape[0],
+                     r.index.shape[0], device)

@@ -849,7 +849,7 @@ def chunk_rectangles_kernel(
     lo: wp.array2d(dtype=vec2l),
     hi: wp.array2d(dtype=vec2l),
 ):
-    """``lo[c, k]``, ``hi[c, k]``: the rectangle, in cascade c's doubled fixed point ``points[c]``, of chunk k's vertices.
+    """``lo[c, k]``, ``hi[c, k]``: the rectangle of chunk k's vertices in cascade c's doubled fixed point ``points[c]``.
 
     A thread per cascade and chunk (``2**chunk_bits`` consecutive triangles, the last one shorter).
     """
