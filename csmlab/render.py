@@ -43,9 +43,8 @@ from csmlab.texels import (fixed_point_coordinates, fixed_point_origin, light_de
                            uses_global_grid, vertex_depth, window_boxes)
 
 __all__ = ["DeviceScene", "caster_offsets", "clipped_casters", "clipped_triangles", "host_depth_maps", "lookup_shadow",
-           "prepare_scene",
-           "render_frame", "render_shadow", "render_view", "shadow_maps", "virtual_shadow_maps", "visible_depth",
-           "warped_depth_map"]
+           "prepare_scene", "render_frame", "render_shadow", "render_view", "shadow_maps", "virtual_shadow_maps",
+           "visible_depth", "warped_depth_map"]
 
 
 @dataclass(frozen=True)
@@ -324,8 +323,7 @@ def _window_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
     return depth, int(texels.sum())
 
 
-def host_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
-                             settings: ShadowSettings) -> tuple[np.ndarray, int]:
+def host_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings) -> tuple[np.ndarray, int]:
     """``(C, R, R)`` depth maps and texels rasterized, vertices snapped on the host cascade by cascade.
 
     The reference NumPy pipeline, stated as plainly as the engines do it: every vertex converted by

@@ -26,7 +26,8 @@ The package by job:
 - :mod:`~csmlab.kernels.raster.regions` — region planning (NumPy): whole maps, bands per thread,
   the chunks of triangles that meet a region;
 - :mod:`~csmlab.kernels.raster.schedule` — the NumPy-in/NumPy-out wrappers: checks, uploads,
-  the vertex pass and the regions' launches taken in turn by the threads.
+  the vertex pass (or vertices converted elsewhere, :mod:`csmlab.kernels.engine`, with the chunks
+  their own rectangles choose) and the regions' launches taken in turn by the threads.
 
 References
 ----------

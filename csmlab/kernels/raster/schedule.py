@@ -272,8 +272,10 @@ def converted_region_chunks(points, triangles, *, regions, bits: int, device: st
     tri = np.ascontiguousarray(triangles, dtype=np.int32)
     areas = np.asarray(regions, dtype=np.int64).reshape(-1, 5)
     unit = 1 << _checked_bits(bits)
-    if pts.ndim != 3 or pts.shape[2] != 2 or tri.ndim != 2 or tri.shape[1] != 3:
-        raise ValueError(f"points, triangles: expected shapes (C, V, 2), (T, 3); got {pts.shape}, {tri.shape}")
+    if pts.ndim != 3 or pts.shape[2] != 2 or tri.ndim != 2 or tri.shape[1] != 3 \
+            or (tri.size and (tri.min() < 0 or tri.max() >= pts.shape[1])):
+        raise ValueError(f"points, triangles: expected shapes (C, V, 2), (T, 3) and indices in [0, V); got "
+                         f"{pts.shape}, {tri.shape}")
     count = -(-tri.shape[0] // (1 << CHUNK_BITS))
     rows = [np.zeros((0, 2), np.int32)]
     if count == 0:
