@@ -19,6 +19,9 @@ import warp as wp
 from csmlab.kernels import device_empty
 from csmlab.kernels.visibility import MeshBVH
 
+# Products and sums rounded one by one on every device, so CUDA finds the hits the CPU finds.
+wp.set_module_options({"fuse_fp": False})
+
 __all__ = ["RayHits", "ray_hits"]
 
 
