@@ -163,7 +163,7 @@ def write_bevy(settings: ShadowSettings, *, near: float, far: float) -> tuple[di
 def export_bevy(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     """Bevy: the CascadeShadowConfigBuilder, and the exact bounds as a CascadeShadowConfig."""
     z = split_boundaries(settings, near=near, far=far)
-    lacking = common_lacking(settings, stable="exact") + shape_lacking(settings, transition="far_bound")
+    lacking = common_lacking(settings, stable="exact", carried=FIELDS) + shape_lacking(settings, transition="far_bound")
     filtering = BEVY_FILTERING.get(settings.filter)
     if settings.filter not in BEVY_EXACT or BEVY_EXACT[settings.filter] not in (None, settings.filter_size):
         lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Bevy filters with "

@@ -138,7 +138,7 @@ def write_filament(settings: ShadowSettings, *, near: float, far: float) -> tupl
 
 def export_filament(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     """Filament: the sun's ``LightManager::ShadowOptions`` in the viewer's settings JSON."""
-    lacking = common_lacking(settings, stable="none")
+    lacking = common_lacking(settings, stable="none", carried=FIELDS)
     lacking = [item for item in lacking if not item.startswith(("stabilization", "bias_constant"))]
     if settings.stabilization not in ("none", "exact"):
         lacking.append(f"stabilization = {settings.stabilization!r} (Filament's stable is on or off)")

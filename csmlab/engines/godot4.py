@@ -272,7 +272,7 @@ def _soft_low_radius() -> float:
 
 def export_godot4(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     """Godot 4: DirectionalLight3D properties and the directional shadow atlas size."""
-    lacking = common_lacking(settings, stable="exact") + shape_lacking(settings, fade="smoothstep")
+    lacking = common_lacking(settings, stable="exact", carried=FIELDS) + shape_lacking(settings, fade="smoothstep")
     modes = {1: 0, 2: 1, 4: 2}
     cascades = count_one_two_or_four(settings.cascades)
     if cascades != settings.cascades:

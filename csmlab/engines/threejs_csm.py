@@ -147,7 +147,7 @@ def write_threejs_csm(settings: ShadowSettings, *, near: float, far: float) -> t
 
 def export_threejs_csm(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     """three.js CSM (examples/jsm/csm/CSM.js) options."""
-    lacking = common_lacking(settings, stable="exact")
+    lacking = common_lacking(settings, stable="exact", carried=FIELDS)
     mode = _csm_mode(settings)
     lines = ["const csm = new CSM({",
              f"  maxFar: {four_digits(min(settings.shadow_distance, far))},",

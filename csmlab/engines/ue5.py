@@ -211,7 +211,8 @@ def export_ue5(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     z = split_boundaries(settings, near=near, far=far)
     exponent, error = _nearest_exponent(z, settings.cascades)
     error_m = error * (z[-1] - z[0])
-    lacking = common_lacking(settings, stable="exact") + shape_lacking(settings, transition="forward", fade="linear")
+    lacking = common_lacking(settings, stable="exact", carried=FIELDS) + shape_lacking(settings, transition="forward",
+                                                                                      fade="linear")
     if error_m > 0.01:
         lacking.append(f"split distances {[round(float(v), 2) for v in z[1:-1]]} m: Unreal's exponent spacing "
                        f"misses them by up to {error_m:.2f} m")

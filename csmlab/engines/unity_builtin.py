@@ -156,7 +156,7 @@ def write_unity_builtin(settings: ShadowSettings, *, near: float, far: float) ->
 
 def export_unity_builtin(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     """Unity's built-in pipeline: a quality level of ``ProjectSettings/QualitySettings.asset``."""
-    lacking = common_lacking(settings, stable="exact") + shape_lacking(settings, fade="radial")
+    lacking = common_lacking(settings, stable="exact", carried=FIELDS) + shape_lacking(settings, fade="radial")
     lacking += blend_lacking(settings, "the built-in pipeline blends no cascades")
     text, _ = one_file(write_unity_builtin, settings, near=near, far=far)
     return Snippet("unity_builtin", "Unity built-in pipeline: ProjectSettings/QualitySettings.asset", "yaml", text,

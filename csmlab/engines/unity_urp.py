@@ -161,7 +161,7 @@ def write_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> tup
 
 def export_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     """Unity URP: the pipeline asset's shadow fields, set from a script."""
-    lacking = common_lacking(settings, stable="exact") + shape_lacking(settings, fade="squared_radial")
+    lacking = common_lacking(settings, stable="exact", carried=FIELDS) + shape_lacking(settings, fade="squared_radial")
     cascades = min(settings.cascades, 4)
     if settings.cascades > 4:
         lacking.append(f"cascades = {settings.cascades} (URP has at most 4)")
