@@ -19,14 +19,15 @@ from __future__ import annotations
 import numpy as np
 
 from csmlab.cascades.splits import split_boundaries
-from csmlab.engines.common import (Engine, EngineFiles, Snippet, common_lacking, fixed_preset, largest_resolution,
-                                   shape_lacking)
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, common_lacking, fixed_preset,
+                                   largest_resolution, shape_lacking)
 from csmlab.engines.reading import Imported, Reading, number, read_text
 from csmlab.engines.ron import parse_ron
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
 
-__all__ = ["BEVY_EXACT", "BEVY_FILTERING", "ENGINE", "FIELDS", "PRESET", "export_bevy", "read_bevy", "write_bevy"]
+__all__ = ["BEVY_EXACT", "BEVY_FILTERING", "ENGINE", "FIELDS", "PRESET", "TUNE_SPACE", "export_bevy", "read_bevy",
+           "settled_bevy", "write_bevy"]
 
 PRESET = "bevy"
 """The engine preset holding Bevy's defaults."""
@@ -187,7 +188,28 @@ def export_bevy(settings: ShadowSettings, *, near: float, far: float) -> Snippet
                    tuple(lacking))
 
 
+def settled_bevy(settings: ShadowSettings) -> ShadowSettings:
+    """``settings`` with the bounds one cascade gives: a single far bound, the shadow distance (split ``manual``,
+    as :func:`read_bevy` reads one bound)."""
+    return settings.replace(split="manual", splits=(1.0,)) if settings.cascades == 1 else settings
+
+
+TUNE_SPACE = TuneSpace({
+    # CascadeShadowConfigBuilder: num_cascades (at most 4 per light), first_cascade_far_bound, maximum_distance
+    # (beyond the first bound's largest), overlap_proportion; DirectionalLight's shadow_depth_bias and
+    # shadow_normal_bias; DirectionalLightShadowMap.size; ShadowFilteringMethod Gaussian or Hardware2x2.
+    "cascades": ("choice", (1, 2, 3, 4)),
+    "first_cascade_far": ("range", 1.0, 20.0, False, None),
+    "shadow_distance": ("range", 30.0, 1000.0, True, None),
+    "blend_band": ("range", 0.0, 0.5, False, None),
+    "bias_constant": ("range", 0.0, 0.2, False, None),
+    "normal_offset": ("range", 0.0, 5.0, False, None),
+    "resolution": ("choice", (512, 1024, 2048, 4096)),
+    "filter": ("choice", ("pcf_castano", "pcf_bilinear")),
+}, settle=settled_bevy)
+"""What a tune of the Bevy preset may try: CascadeShadowConfig's, the light's and the shadow map's own settings."""
+
 ENGINE = Engine("bevy", export_bevy, EngineFiles(
     read=read_bevy, write=write_bevy, fields=FIELDS, preset=fixed_preset(PRESET), presets=(PRESET,),
-    files="a .scn.ron scene with CascadeShadowConfig and the DirectionalLight"))
+    files="a .scn.ron scene with CascadeShadowConfig and the DirectionalLight"), tune=TUNE_SPACE)
 """What the registries of csmlab.engines take from this module."""

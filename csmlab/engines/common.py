@@ -26,7 +26,7 @@ from csmlab.settings import ShadowSettings
 
 __all__ = ["Engine", "EngineFiles", "Snippet", "TuneSpace", "blend_lacking", "common_lacking", "describe_spec",
            "fixed_preset", "four_digits", "hard_filter", "largest_resolution", "named_fields", "one_file",
-           "shape_lacking", "the_engines_own", "vogel_is"]
+           "shape_lacking", "storage_lacking", "the_engines_own", "vogel_is"]
 
 
 @dataclass(frozen=True)
@@ -121,6 +121,14 @@ def the_engines_own(item: str, settings: ShadowSettings, preset: ShadowSettings)
     names = [("lambda_" if name == "lambda" else name) for name in named_fields(item)]
     return bool(names) and all(hasattr(settings, name) and getattr(settings, name) == getattr(preset, name)
                                for name in names)
+
+
+def storage_lacking(settings: ShadowSettings, *, cascades: int, atlas: str) -> list[str]:
+    """``storage`` named as lacking where it is not what an engine whose one cascade takes the whole map, and whose
+    ``cascades`` (the count written) otherwise share ``atlas`` (its preset's storage), stores."""
+    stored = "array" if cascades == 1 else atlas
+    return [] if settings.storage == stored else [
+        f"storage = {settings.storage!r} (the engine stores {cascades} cascade(s) as {stored!r})"]
 
 
 def largest_resolution(settings: ShadowSettings) -> int:

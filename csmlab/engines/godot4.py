@@ -23,21 +23,22 @@ import re
 from pathlib import Path
 
 from csmlab.cascades.splits import count_one_two_or_four, fractions_of_range, split_boundaries
-from csmlab.engines.common import (Engine, EngineFiles, Snippet, blend_lacking, common_lacking, fixed_preset,
-                                   four_digits, hard_filter, largest_resolution, shape_lacking, vogel_is)
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, blend_lacking, common_lacking,
+                                   fixed_preset, four_digits, hard_filter, largest_resolution, shape_lacking,
+                                   storage_lacking, vogel_is)
 from csmlab.engines.reading import Imported, Reading, engine_settings, number, read_text
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
 
-__all__ = ["ENGINE", "FIELDS", "GODOT_SOFT_LOW", "PRESET", "config_sections", "export_godot4", "read_godot4",
-           "write_godot4"]
+__all__ = ["ENGINE", "FIELDS", "GODOT_SOFT_LOW", "PRESET", "TUNE_SPACE", "config_sections", "export_godot4",
+           "read_godot4", "settled_godot4", "write_godot4"]
 
 PRESET = "godot4"
 """The engine preset holding Godot's defaults."""
 
 FIELDS = frozenset({"cascades", "split", "splits", "shadow_distance", "fade_out", "pancake", "bias_depth_range",
-                    "normal_offset", "vogel_radius", "cull", "resolution", "filter", "depth_format"})
-"""The csmlab fields Godot's files carry."""
+                    "normal_offset", "vogel_radius", "cull", "resolution", "filter", "depth_format", "storage"})
+"""The csmlab fields Godot's files carry (storage: one split fills the atlas, directional_shadow_mode = 0)."""
 
 GODOT_SOFT_LOW = {"vogel_taps": 4, "vogel_radius": 2.0, "vogel_angle": 2.4, "vogel_scale": "first_split"}
 """Godot 4's Soft Low (soft_shadow_filter_quality = 2) as csmlab's ``pcf_vogel`` fields (configs/engines/godot4.toml)."""
@@ -245,6 +246,7 @@ def write_godot4(settings: ShadowSettings, *, near: float, far: float) -> tuple[
         lacking.append("cull = 'none' (Godot culls the material's back faces, or its front ones reversed)")
     if settings.depth_format not in ("unorm16", "float32"):
         lacking.append(f"depth_format = {settings.depth_format!r} (Godot's shadow atlas is 16-bit or 32-bit float)")
+    lacking += storage_lacking(settings, cascades=cascades, atlas=engine_settings(PRESET).storage)
     mode = {v: k for k, v in _MODES.items()}[cascades]
     project = ["; Engine configuration file.", "config_version=5", "", "[rendering]", "",
                f"lights_and_shadows/directional_shadow/size={size * (1 if cascades == 1 else 2)}",
@@ -300,7 +302,39 @@ def export_godot4(settings: ShadowSettings, *, near: float, far: float) -> Snipp
                    tuple(lacking))
 
 
+def settled_godot4(settings: ShadowSettings) -> ShadowSettings:
+    """``settings`` with the fields Godot derives from its split mode: ``directional_shadow_split_1..C-1`` at the
+    setting's own first fractions, or the preset's where it has fewer (Godot's 2 splits use split_1 only), and one
+    split filling the atlas (storage ``array``, the preset's atlas otherwise, as :func:`read_godot4` reads them)."""
+    base = engine_settings(PRESET)
+    storage = "array" if settings.cascades == 1 else base.storage
+    if len(settings.splits) == settings.cascades:
+        return settings.replace(storage=storage)
+    kept = settings.splits if len(settings.splits) > settings.cascades else base.splits
+    return settings.replace(split="manual_range", splits=(*kept[:settings.cascades - 1], 1.0), storage=storage)
+
+
+TUNE_SPACE = TuneSpace({
+    # DirectionalLight3D.directional_shadow_mode: orthogonal (1), PSSM 2 or 4 splits.
+    "cascades": ("choice", (1, 2, 4)),
+    # Per split: project setting directional_shadow/size (a power of two) halved for 2 or 4 splits.
+    "resolution": ("choice", (512, 1024, 2048, 4096)),
+    # The property ranges of the DirectionalLight3D and Light3D class references (the inspector's sliders).
+    "shadow_distance": ("range", 1.0, 8192.0, True, None),
+    "fade_out": ("range", 0.0, 1.0, False, None),
+    "pancake": ("range", 0.0, 1024.0, False, None),
+    "bias_depth_range": ("range", 0.0, 10.0 * SHADOW_BIAS_SCALE, False, None),
+    "normal_offset": ("range", 0.0, 10.0, False, None),
+    # shadow_blur 0.1 to 8: csmlab's disk radius is (0, 16] texels.
+    "vogel_radius": ("range", 0.1 * GODOT_SOFT_LOW["vogel_radius"], 16.0, False, None),
+    # soft_shadow_filter_quality Hard (0) or Soft Low (2); shadow_reverse_cull_face; directional_shadow/16_bits.
+    "filter": ("choice", ("pcf_vogel", "pcf_bilinear")),
+    "cull": ("choice", ("back", "front")),
+    "depth_format": ("choice", ("unorm16", "float32")),
+}, settle=settled_godot4)
+"""What a tune of the Godot preset may try: the DirectionalLight3D's and the project's own settings."""
+
 ENGINE = Engine("godot4", export_godot4, EngineFiles(
     read=read_godot4, write=write_godot4, fields=FIELDS, preset=fixed_preset(PRESET), presets=(PRESET,),
-    files="project.godot and/or a .tscn with a DirectionalLight3D"))
+    files="project.godot and/or a .tscn with a DirectionalLight3D"), tune=TUNE_SPACE)
 """What the registries of csmlab.engines take from this module."""
