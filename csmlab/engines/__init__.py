@@ -77,15 +77,13 @@ def export(settings: ShadowSettings, *, near: float, far: float, engine: str) ->
     return replace(snippet, lacking=lacking, files=tuple(files.items()))
 
 
-def tune_space(method: str, extends) -> tuple[str, TuneSpace] | None:
+def tune_space(method: str) -> tuple[str, TuneSpace] | None:
     """The engine whose preset ``method`` is, and its tune space; None for a method of no engine's preset.
 
     A method is an engine preset's when it bears the name of a preset an engine's files are written against
-    (:attr:`EngineFiles.presets`) and the experiment ``extends`` that preset (``engines/<name>`` or a path to
-    ``<name>.toml``): ``[[methods]]`` merge by name, so the experiment's entry of that name changes the preset.
+    (:attr:`EngineFiles.presets`, ``configs/engines/<name>.toml``): ``[[methods]]`` merge by name, so an
+    experiment that extends the preset (directly or through another preset) and changes its entry keeps the name.
     """
-    if method not in {Path(str(entry)).with_suffix("").name for entry in extends}:
-        return None
     return next(((name, engine.tune) for name, engine in ENGINES.items() if engine.files is not None
                  and engine.tune is not None and method in engine.files.presets), None)
 
