@@ -20,7 +20,10 @@ project setting ``rendering/lights_and_shadows/directional_shadow/size`` (the at
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
 
 from csmlab.cascades.splits import count_one_two_or_four, fractions_of_range, split_boundaries
 from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, blend_lacking, common_lacking,
@@ -30,8 +33,8 @@ from csmlab.engines.reading import Imported, Reading, engine_settings, number, r
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
 
-__all__ = ["ENGINE", "FIELDS", "GODOT_SOFT_LOW", "PRESET", "TUNE_SPACE", "config_sections", "export_godot4",
-           "read_godot4", "settled_godot4", "write_godot4"]
+__all__ = ["ENGINE", "FIELDS", "GODOT_SOFT_LOW", "PRESET", "TUNE_SPACE", "SceneInstance", "config_sections",
+           "export_godot4", "gltf_instances", "read_godot4", "settled_godot4", "write_godot4"]
 
 PRESET = "godot4"
 """The engine preset holding Godot's defaults."""
@@ -338,3 +341,140 @@ ENGINE = Engine("godot4", export_godot4, EngineFiles(
     read=read_godot4, write=write_godot4, fields=FIELDS, preset=fixed_preset(PRESET), presets=(PRESET,),
     files="project.godot and/or a .tscn with a DirectionalLight3D"), tune=TUNE_SPACE)
 """What the registries of csmlab.engines take from this module."""
+
+
+# --- a level's glTF instances ------------------------------------------------------------------------------
+
+_INSTANCE = re.compile(r'\binstance\s*=\s*ExtResource\(\s*"?([^")\s]+)"?\s*\)')
+_TRANSFORM = re.compile(r"^\s*Transform(?:3D)?\((?P<numbers>[^()]*)\)\s*$")
+_GLTF = (".glb", ".gltf")
+_TEXT_SCENE = ".tscn"
+
+
+@dataclass(frozen=True)
+class SceneInstance:
+    """One glTF file a Godot scene instances, where the scene places it.
+
+    Attributes
+    ----------
+    file : Path
+        The glTF file (``.glb`` or ``.gltf``), absolute.
+    transform : numpy.ndarray
+        ``(4, 4)`` float64: the file's coordinates to the scene's, metres, acting on column vectors (the last row
+        ``0, 0, 0, 1``): the product of the node's and its ancestors' ``transform``, the root's included.
+    node : str
+        The instancing node's path from the root (``Street/Lamp2``; through an instanced ``.tscn``, that
+        scene's node path after its own), as messages name it.
+    """
+
+    file: Path
+    transform: np.ndarray
+    node: str
+
+
+def gltf_instances(path) -> list[SceneInstance]:
+    """The glTF files a Godot ``.tscn`` instances, each with the transform that places it, in file order.
+
+    Every node with ``instance=ExtResource(…)`` of a ``.glb`` or ``.gltf`` is one record; an instanced
+    ``.tscn`` contributes its own glTF instances, placed by the instancing node. A node with
+    ``visible = false`` hides its subtree (Godot neither draws it nor casts its shadows). ``res://`` paths
+    resolve from the folder holding ``project.godot`` (searched upward from the scene), others from the
+    scene's folder. Godot writes a ``Transform3D`` as the basis's rows, then the origin (variant_parser.cpp).
+
+    Raises
+    ------
+    InputError
+        A file that is no Godot scene, a node whose parent or resource is missing, a transform that is not 12
+        numbers, an instanced file that does not exist or is neither glTF nor a text scene, or scenes that
+        instance each other (file, line and node named).
+    """
+    return _instances(Path(path).resolve(), np.eye(4), None, prefix="", chain=())
+
+
+def _instances(path: Path, placed: np.ndarray, root: np.ndarray | None, *, prefix: str,
+               chain: tuple) -> list[SceneInstance]:
+    """The glTF instances of the scene ``path`` whose root's parent is at ``placed`` ``(4, 4)``; ``root``, the
+    instancing node's own transform, replaces the root's (the instancing node is the root: its ``transform``
+    property overrides the scene's), None where it sets none."""
+    if path in chain:
+        raise InputError(f"expected scenes that do not instance each other, got {' → '.join(map(str, chain))} → "
+                         f"{path}", file=chain[-1], field="instance")
+    text = read_text(path)
+    if not text.lstrip().startswith("[gd_scene"):
+        raise InputError("expected a Godot scene ([gd_scene …] on the first line)", file=path, field="gd_scene")
+    lines = text.splitlines()
+    resources, world, hidden, found = {}, {}, set(), []
+    for kind, attrs, keys, line in config_sections(path):
+        if kind == "ext_resource":
+            resources[str(attrs.get("id"))] = (attrs.get("path"), line)
+        if kind != "node":
+            continue
+        name, parent = str(attrs.get("name", "")), attrs.get("parent")
+        node = "." if parent is None else (name if parent == "." else f"{parent}/{name}")
+        if parent is not None and parent not in world:
+            raise InputError(f"expected the parent node {parent!r} before node {name!r}, found none", file=path,
+                             line=line, field=f"{node}.parent")
+        local = _transform(keys.get("transform"), file=path, line=line, node=node)
+        if parent is None and root is not None:
+            local = root
+        above = placed if parent is None else world[parent]
+        world[node] = above @ local
+        if keys.get("visible") is False or parent in hidden:
+            hidden.add(node)
+        instance = _INSTANCE.search(lines[line - 1])
+        if instance is None or node in hidden:
+            continue
+        target = _resource_file(resources, instance.group(1), scene=path, line=line, node=node)
+        shown = f"{prefix}{node}"
+        if target.suffix.lower() in _GLTF:
+            found.append(SceneInstance(file=target, transform=world[node], node=shown))
+        else:
+            own = None if keys.get("transform") is None else local
+            found += _instances(target, above, own, prefix=f"{shown}/", chain=(*chain, path))
+    return found
+
+
+def _transform(value, *, file, line: int, node: str) -> np.ndarray:
+    """A node's ``transform = Transform3D(xx, xy, xz, yx, yy, yz, zx, zy, zz, ox, oy, oz)`` as a ``(4, 4)`` matrix
+    (the identity where the node has none): the basis's rows, then the origin."""
+    if value is None:
+        return np.eye(4)
+    match = _TRANSFORM.match(str(value))
+    numbers = [] if match is None else [part.strip() for part in match.group("numbers").split(",")]
+    try:
+        parsed = [float(v) for v in numbers]
+    except ValueError:
+        parsed = []
+    if len(parsed) != 12 or not all(np.isfinite(parsed)):
+        raise InputError(f"expected Transform3D( of 12 numbers: the basis's rows, then the origin), got "
+                         f"{str(value)[:80]!r}", file=file, line=line, field=f"{node}.transform")
+    matrix = np.eye(4)
+    matrix[:3, :3] = np.reshape(parsed[:9], (3, 3))
+    matrix[:3, 3] = parsed[9:]
+    return matrix
+
+
+def _resource_file(resources: dict, key: str, *, scene: Path, line: int, node: str) -> Path:
+    """The file of ext_resource ``key`` that ``node`` instances: existing, and glTF or a text scene."""
+    if key not in resources:
+        raise InputError(f"expected an [ext_resource] with id {key!r} for node {node!r}, found none", file=scene,
+                         line=line, field=f"{node}.instance")
+    written, declared = resources[key]
+    if not isinstance(written, str) or not written:
+        raise InputError(f"expected a path on the [ext_resource] with id {key!r} (a uid alone is not resolved)",
+                         file=scene, line=declared, field="ext_resource.path")
+    if written.startswith("res://"):
+        root = next((folder for folder in scene.parents if (folder / "project.godot").is_file()), None)
+        if root is None:
+            raise InputError(f"expected project.godot in a folder above the scene to resolve {written!r}, found "
+                             "none", file=scene, line=declared, field="ext_resource.path")
+        target = root / written[len("res://"):]
+    else:
+        target = scene.parent / written
+    if target.suffix.lower() not in (*_GLTF, _TEXT_SCENE):
+        raise InputError(f"expected node {node!r} to instance a glTF file (.glb, .gltf) or a text scene (.tscn), "
+                         f"got {written!r}", file=scene, line=line, field=f"{node}.instance")
+    if not target.is_file():
+        raise InputError(f"expected the file node {node!r} instances, {written!r}, at {target}, found none",
+                         file=scene, line=line, field=f"{node}.instance")
+    return target.resolve()
