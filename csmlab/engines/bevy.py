@@ -181,7 +181,9 @@ def export_bevy(settings: ShadowSettings, *, near: float, far: float) -> Snippet
              "// csmlab's bounds exactly:",
              f"let config = CascadeShadowConfig {{ bounds: vec![{bounds}], overlap_proportion: "
              f"{settings.blend_band:.3f}, minimum_distance: {z[0]:.3f} }};",
-             f"app.insert_resource(DirectionalLightShadowMap {{ size: {largest_resolution(settings)} }});"]
+             f"app.insert_resource(DirectionalLightShadowMap {{ size: {largest_resolution(settings)} }});",
+             f"// on the sun: DirectionalLight {{ shadow_depth_bias: {settings.bias_constant:.6g}, "
+             f"shadow_normal_bias: {settings.normal_offset:.6g}, .. }}"]
     if filtering:
         lines.append(f"// on the camera: ShadowFilteringMethod::{filtering}")
     return Snippet("bevy", "Bevy: CascadeShadowConfig and DirectionalLightShadowMap", "rust", "\n".join(lines) + "\n",

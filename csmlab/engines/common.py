@@ -22,7 +22,7 @@ from csmlab.cascades.bounds import BOUNDS_METHODS
 from csmlab.engines.reading import Imported
 from csmlab.errors import InputError
 from csmlab.lookup_choices import FILTER_METHODS
-from csmlab.settings import ShadowSettings
+from csmlab.settings import APPLIES, ShadowSettings
 
 __all__ = ["Engine", "EngineFiles", "Snippet", "TuneSpace", "blend_lacking", "common_lacking", "describe_spec",
            "fixed_preset", "four_digits", "hard_filter", "largest_resolution", "named_fields", "one_file",
@@ -116,11 +116,14 @@ def named_fields(item: str) -> list[str]:
 
 
 def the_engines_own(item: str, settings: ShadowSettings, preset: ShadowSettings) -> bool:
-    """Whether every field lacking line ``item`` names holds ``preset``'s value in ``settings``: the engine does
-    that itself, so its files reproduce it without a setting."""
-    names = [("lambda_" if name == "lambda" else name) for name in named_fields(item)]
-    return bool(names) and all(hasattr(settings, name) and getattr(settings, name) == getattr(preset, name)
-                               for name in names)
+    """Whether every field lacking line ``item`` names holds ``preset``'s value in ``settings``, a value that
+    applies to the preset (:data:`~csmlab.settings.APPLIES`): the engine does that itself, so its files reproduce
+    it without a setting."""
+    names = named_fields(item)
+    attributes = ["lambda_" if name == "lambda" else name for name in names]
+    return bool(names) and all(
+        hasattr(settings, attribute) and getattr(settings, attribute) == getattr(preset, attribute)
+        and (name not in APPLIES or APPLIES[name].holds(preset)) for name, attribute in zip(names, attributes))
 
 
 def storage_lacking(settings: ShadowSettings, *, cascades: int, atlas: str) -> list[str]:

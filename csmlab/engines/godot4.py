@@ -292,13 +292,23 @@ def export_godot4(settings: ShadowSettings, *, near: float, far: float) -> Snipp
              f"directional_shadow_max_distance = {four_digits(min(settings.shadow_distance, far))}"]
     lines += [f"directional_shadow_split_{i + 1} = {four_digits(f)}" for i, f in enumerate(fractions)]
     lines += [f"directional_shadow_blend_splits = {'true' if settings.blend_band > 0 else 'false'}",
+              f"directional_shadow_fade_start = {four_digits(1.0 - settings.fade_out)}",
+              f"directional_shadow_pancake_size = {four_digits(settings.pancake)}",
+              f"shadow_bias = {four_digits(settings.bias_depth_range / SHADOW_BIAS_SCALE)}",
+              f"shadow_normal_bias = {four_digits(settings.normal_offset)}",
+              f"shadow_blur = {four_digits(settings.vogel_radius / _soft_low_radius())}",
+              f"shadow_reverse_cull_face = {'true' if settings.cull == 'front' else 'false'}",
               "# Project Settings",
               f"rendering/lights_and_shadows/directional_shadow/size = {atlas}  "
-              f"# {largest_resolution(settings)}² per split (2 splits: half the atlas each)",
+              f"# {largest_resolution(settings)}² per split (2 or 4 splits: half the atlas side each)",
               "rendering/lights_and_shadows/directional_shadow/soft_shadow_filter_quality = "
-              f"{0 if hard_filter(settings) else 2}  # 2: Soft Low, 4 Vogel taps of 2 texels"]
+              f"{0 if hard_filter(settings) else 2}  # 2: Soft Low, 4 Vogel taps of 2 texels × shadow_blur",
+              "rendering/lights_and_shadows/directional_shadow/16_bits = "
+              f"{'true' if settings.depth_format == 'unorm16' else 'false'}"]
     lacking += blend_lacking(settings, "Godot blends splits over a fixed band")
-    if not hard_filter(settings) and not vogel_is(settings, **GODOT_SOFT_LOW):
+    # shadow_blur scales Soft Low's disk (the files carry vogel_radius): any radius is Godot's own kernel.
+    disk = {name: value for name, value in GODOT_SOFT_LOW.items() if name != "vogel_radius"}
+    if not hard_filter(settings) and not vogel_is(settings, **disk):
         lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Godot filters with its "
                        f"own soft-shadow kernel: Soft Low is pcf_vogel {GODOT_SOFT_LOW})")
     return Snippet("godot4", "Godot 4: DirectionalLight3D and project settings", "gdscript", "\n".join(lines) + "\n",

@@ -156,7 +156,11 @@ def export_threejs_csm(settings: ShadowSettings, *, near: float, far: float) -> 
     if mode == "custom":
         fractions = ", ".join(four_digits(f) for f in fractions_of_far(split_boundaries(settings, near=near, far=far)))
         lines.append(f"  customSplitsCallback: (cascades, near, far, breaks) => breaks.push({fractions}, 1),")
-    lines += [f"  shadowMapSize: {largest_resolution(settings)},", "  camera, parent: scene, lightDirection,", "});"]
+    light_near, light_far, _ = CSM_LIGHT_RANGE
+    lines += [f"  shadowMapSize: {largest_resolution(settings)},",
+              f"  lightMargin: {four_digits(settings.pancake)},",
+              f"  shadowBias: {-settings.bias_constant / (light_far - light_near):.6g},  // of lightFar − lightNear",
+              "  camera, parent: scene, lightDirection,", "});"]
     if vogel_is(settings, **THREEJS_PCF) and settings.vogel_radius != 1.0:
         radius = four_digits(settings.vogel_radius)
         lines.append(f"csm.lights.forEach((light) => {{ light.shadow.radius = {radius}; }});")

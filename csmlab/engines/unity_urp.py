@@ -189,7 +189,10 @@ def export_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> Sn
         lines.append(f"asset.cascade4Split = new Vector3({', '.join(four_digits(f) + 'f' for f in fractions)});")
     lines += [f"asset.mainLightShadowmapResolution = {atlas};  // atlas: {atlas // (1 if cascades == 1 else 2)}² "
               f"per cascade",
-              f"asset.supportsSoftShadows = {'false' if hard_filter(settings) else 'true'};"]
+              f"asset.supportsSoftShadows = {'false' if hard_filter(settings) else 'true'};",
+              f"asset.cascadeBorder = {four_digits(settings.fade_out)}f;",
+              f"asset.shadowDepthBias = {four_digits(settings.bias_texels)}f;",
+              f"asset.shadowNormalBias = {four_digits(settings.normal_offset)}f;"]
     return Snippet("unity_urp", "Unity URP: UniversalRenderPipelineAsset", "csharp", "\n".join(lines) + "\n",
                    tuple(lacking))
 

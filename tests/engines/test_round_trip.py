@@ -107,3 +107,28 @@ def test_each_choice_of_the_tune_space_comes_back(engine, preset, tmp_path):
             back, lacking = back_through_files(settings, engine, tmp_path)
             assert lacking == (), (name, value)
             assert changed_fields(settings, back) == [], (name, value)
+
+
+def test_a_knob_at_the_engines_own_value_is_not_lacking_and_one_away_from_it_is():
+    urp = engine_settings("unity_urp")  # URP selects cascades by sphere, as its preset says
+    assert not any(item.startswith("selection") for item in export(urp, near=NEAR, far=FAR, engine="unity_urp").lacking)
+    interval = export(urp.replace(selection="interval"), near=NEAR, far=FAR, engine="unity_urp").lacking
+    assert any(item.startswith("selection = 'interval'") for item in interval)
+    # levels equals the preset's default, but the preset does not quantize: it is named with the stabilization.
+    quantized = export(engine_settings("godot4").replace(stabilization="quantized"), near=NEAR, far=FAR,
+                       engine="godot4").lacking
+    assert any(item.startswith("stabilization = 'quantized'") for item in quantized)
+    assert any(item.startswith("levels =") for item in quantized)
+
+
+@pytest.mark.parametrize("engine", sorted(ENGINES))
+def test_the_snippet_to_paste_writes_every_field_of_the_tune_space(engine):
+    # Not only the engine's files: the snippet a person pastes changes with each field a tune may change.
+    space = ENGINES[engine].tune
+    base = engine_settings(ENGINES[engine].files.presets[0])
+    before = export(base, near=NEAR, far=FAR, engine=engine).text
+    for name, spec in space.fields.items():
+        attribute = "lambda_" if name == "lambda" else name
+        other = next(v for v in (spec[1] if spec[0] == "choice" else spec[1:3]) if v != getattr(base, attribute))
+        after = export(space.settle(base.replace(**{attribute: other})), near=NEAR, far=FAR, engine=engine).text
+        assert after != before, (name, other)
