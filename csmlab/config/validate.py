@@ -18,7 +18,7 @@ from dataclasses import fields
 from pathlib import Path
 
 from csmlab.config.locate import _Located
-from csmlab.config.presets import _METHOD_NAME, _merged, _read_toml
+from csmlab.config.presets import _METHOD_NAME, CONFIGS_DIR, _merged, _read_toml
 from csmlab.config.records import (_TOP_FIELDS, CameraConfig, Experiment, LightConfig, Method, ReportConfig, TaaConfig,
                                    SceneConfig, TuneConfig, _positive, _record_fields, sweep_points)
 from csmlab.config.toml_writer import _toml_value
@@ -469,10 +469,7 @@ def _regress(table, located: _Located) -> dict:
 
 
 def _tune(table, methods: tuple[Method, ...], located: _Located, camera: CameraConfig) -> TuneConfig:
-    """``[tune]``: its options, and every other key a ``[shadow]`` field with choices or a range.
-
-    A tuned method that is an engine preset is checked as the engine settles each candidate
-    (:func:`csmlab.engines.tune_space`: Godot's splits follow its cascade count)."""
+    """``[tune]``: its options, and every other key a ``[shadow]`` field with choices or a range."""
     from csmlab.metric_registry import metric_columns
 
     if not isinstance(table, dict):
@@ -510,27 +507,21 @@ def _tune(table, methods: tuple[Method, ...], located: _Located, camera: CameraC
         raise located.error("tune.method", f"expected one of the experiment's methods {names}, got "
                                            f"{values['method']!r}")
     tuned = next(m for m in methods if m.name == (values.get("method") or names[0]))
-    settle = _engine_settle(tuned.name) if space else (lambda settings: settings)
-    for key, spec in space:
+    # An engine preset's method is checked by csmlab tune, which first sets the fields the engine derives from a
+    # candidate (Godot's splits for its cascade count: csmlab.engines' tune spaces, which config does not import).
+    engine_preset = (CONFIGS_DIR / "engines" / f"{tuned.name}.toml").is_file()
+    for key, spec in [] if engine_preset else space:
         for value in (spec[1] if spec[0] == "choice" else spec[1:3]):
-            _checked_settings(settle(tuned.settings.replace(**{key: value})), located=located, camera=camera,
+            _checked_settings(tuned.settings.replace(**{key: value}), located=located, camera=camera,
                               where_of=lambda f, k=key: f"tune.{k}" if f == k else f"methods.{tuned.name}.{f}")
     deciding = {name for rule in APPLIES.values() for name in parameters(rule.test)}
     grid = [[(key, value) for value in (spec[1] if spec[0] == "choice" else spec[1:3])]
             for key, spec in space if key in deciding]
-    candidates = [settle(tuned.settings.replace(**dict(point))) for point in itertools.product(*grid)]
+    candidates = [tuned.settings.replace(**dict(point)) for point in itertools.product(*grid)]
     for key, _ in space:
         _refuse_where_it_never_applies(key, candidates, where=f"tune.{key}", located=located,
                                        everywhere=f" in every candidate of {tuned.name}")
     return _validated(TuneConfig(space=tuple(space), **values), where_of=lambda name: f"tune.{name}", located=located)
-
-
-def _engine_settle(method: str):
-    """How ``method``'s candidates are settled: its engine's rule when it is an engine preset, else as they are."""
-    from csmlab.engines import tune_space
-
-    owner = tune_space(method)
-    return owner[1].settle if owner is not None else (lambda settings: settings)
 
 
 def _tune_spec(value, kind, *, where: str, located: _Located) -> tuple:

@@ -83,6 +83,7 @@ def tune_space(method: str) -> tuple[str, TuneSpace] | None:
     A method is an engine preset's when it bears the name of a preset an engine's files are written against
     (:attr:`EngineFiles.presets`, ``configs/engines/<name>.toml``): ``[[methods]]`` merge by name, so an
     experiment that extends the preset (directly or through another preset) and changes its entry keeps the name.
+    (csmlab.config leaves the ``[tune]`` values of such a method to :func:`csmlab.tune.tune`, which settles them.)
     """
     return next(((name, engine.tune) for name, engine in ENGINES.items() if engine.files is not None
                  and engine.tune is not None and method in engine.files.presets), None)
