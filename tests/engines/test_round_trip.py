@@ -12,6 +12,7 @@ import pytest
 
 from csmlab.engines import ENGINES, export, import_settings
 from csmlab.engines.reading import engine_settings, toml_name
+from csmlab.errors import InputError
 from csmlab.settings import APPLIES, ShadowSettings
 
 NEAR, FAR = 0.1, 10000.0
@@ -132,3 +133,16 @@ def test_the_snippet_to_paste_writes_every_field_of_the_tune_space(engine):
         other = next(v for v in (spec[1] if spec[0] == "choice" else spec[1:3]) if v != getattr(base, attribute))
         after = export(space.settle(base.replace(**{attribute: other})), near=NEAR, far=FAR, engine=engine).text
         assert after != before, (name, other)
+
+
+def test_a_tune_space_cuts_a_users_space_to_the_values_the_engine_can_take():
+    godot = ENGINES["godot4"].tune
+    cut = godot.restricted({"cascades": ("choice", (1, 2, 3, 4)), "resolution": ("range", 600, 5000, False, None),
+                            "shadow_distance": ("range", 0.5, 50.0, True, None)}, engine="godot4", method="godot4")
+    assert cut == {"cascades": ("choice", (1, 2, 4)), "resolution": ("choice", (1024, 2048, 4096)),
+                   "shadow_distance": ("range", 1.0, 50.0, True, None)}
+    assert godot.restricted({}, engine="godot4", method="godot4") == godot.fields
+    with pytest.raises(InputError, match=r"expected cascades values godot4 can take \(1, 2, 4\), got 3"):
+        godot.restricted({"cascades": ("choice", (3,))}, engine="godot4", method="godot4")
+    with pytest.raises(InputError, match="godot4 has no setting for 'warp'"):
+        godot.restricted({"warp": ("choice", ("lispsm",))}, engine="godot4", method="godot4")
