@@ -249,7 +249,8 @@ def _within(spec: tuple, legal: tuple) -> tuple | None:
         values = tuple(v for v in spec[1] if isinstance(v, (int, float)) and lo <= v <= hi)
         return ("choice", values) if values else None
     low, high = max(spec[1], lo), min(spec[2], hi)
-    return ("range", low, high, spec[3], spec[4]) if low < high else None
+    # The engine's step (Unreal's exponent to the 0.01 its snippet prints) holds unless the user's is set.
+    return ("range", low, high, spec[3], spec[4] if spec[4] is not None else legal[4]) if low < high else None
 
 
 def describe_spec(spec: tuple) -> str:
