@@ -452,6 +452,17 @@ def _infeasible_message(candidates, budgets: Budgets, goals) -> tuple[str, str]:
                            f"for every candidate within the budgets (a 1-frame run has no temporal metrics)")
 
 
+def _candidate_settings(settings: ShadowSettings, settle, camera) -> ShadowSettings:
+    """``settings`` settled (its engine's derived fields) and checked as a run would check them: the fields' ranges,
+    and the splits over ``camera``'s near and far planes (a split list of another count, a first far end beyond the
+    shadow). Raises ValueError naming the field."""
+    from csmlab.cascades.splits import split_boundaries
+
+    settings = settle(settings).validated()
+    split_boundaries(settings, near=camera.near, far=camera.far)
+    return settings
+
+
 def _describe(candidate: Candidate) -> str:
     return ", ".join(f"{k}={v}" for k, v in candidate.params.items()) or "as the experiment has it"
 
@@ -518,6 +529,13 @@ def tune(experiment: Experiment, *, out_dir, space: dict | None = None, objectiv
     if chosen not in names:
         raise InputError(f"expected one of the experiment's methods {names}, got {chosen!r}", field="--method")
     space = {**dict(config.space), **(space or {})}
+    from csmlab.engines import tune_space
+
+    owner = tune_space(chosen)
+    if owner is not None:
+        # An engine preset is tuned in the engine's own space: values its files hold, derived fields settled.
+        space = owner[1].restricted(space, engine=owner[0], method=chosen)
+    settle = owner[1].settle if owner is not None else (lambda settings: settings)
     if not space:
         raise InputError("expected a search space: a [tune] table of [shadow] fields or --param FIELD=LO:HI|A,B,C",
                          file=experiment.source, field="tune")
@@ -543,9 +561,9 @@ def tune(experiment: Experiment, *, out_dir, space: dict | None = None, objectiv
     for field, spec in space.items():
         for value in (spec[1] if spec[0] == "choice" else spec[1:3]):
             try:
-                base.settings.replace(**{field: value}).validated()
+                _candidate_settings(base.settings.replace(**{field: value}), settle, experiment.camera)
             except ValueError as exc:
-                raise InputError(str(exc), field=f"--param {field}") from None
+                raise InputError(f"method {chosen}, {field} = {value!r}: {exc}", field=f"--param {field}") from None
     preset_paths = engine_presets() if presets is None else [Path(p) for p in presets]
     preset_settings = {Path(p).stem: _preset_settings(experiment, p) for p in preset_paths}
 
@@ -623,10 +641,10 @@ def tune(experiment: Experiment, *, out_dir, space: dict | None = None, objectiv
         for offset, params in enumerate(points):
             label = f"trial {number + offset}"
             try:
-                settings = base.settings.replace(**params).validated()
+                settings = _candidate_settings(base.settings.replace(**params), settle, experiment.camera)
             except ValueError as exc:
-                raise InputError(f"a candidate of the search space is not a valid setting: {exc}",
-                                 field="--param") from None
+                tried = ", ".join(f"{k}={v!r}" for k, v in params.items())
+                raise InputError(f"{label}, method {chosen}: {exc} (the candidate: {tried})", field="--param") from None
             over = memory_budget is not None and shadow_memory_bytes(settings) > memory_budget
             (skipped if over else named)[label] = (params, settings)
         results = evaluate({label: s for label, (_, s) in named.items()})

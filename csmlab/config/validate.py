@@ -18,7 +18,7 @@ from dataclasses import fields
 from pathlib import Path
 
 from csmlab.config.locate import _Located
-from csmlab.config.presets import _METHOD_NAME, _merged, _read_toml
+from csmlab.config.presets import _METHOD_NAME, CONFIGS_DIR, _merged, _read_toml
 from csmlab.config.records import (_TOP_FIELDS, CameraConfig, Experiment, LightConfig, Method, ReportConfig, TaaConfig,
                                    SceneConfig, ScenePart, TuneConfig, _positive, _record_fields, sweep_points)
 from csmlab.config.toml_writer import _toml_value
@@ -534,7 +534,10 @@ def _tune(table, methods: tuple[Method, ...], located: _Located, camera: CameraC
         raise located.error("tune.method", f"expected one of the experiment's methods {names}, got "
                                            f"{values['method']!r}")
     tuned = next(m for m in methods if m.name == (values.get("method") or names[0]))
-    for key, spec in space:
+    # An engine preset's method is checked by csmlab tune, which first sets the fields the engine derives from a
+    # candidate (Godot's splits for its cascade count: csmlab.engines' tune spaces, which config does not import).
+    engine_preset = (CONFIGS_DIR / "engines" / f"{tuned.name}.toml").is_file()
+    for key, spec in [] if engine_preset else space:
         for value in (spec[1] if spec[0] == "choice" else spec[1:3]):
             _checked_settings(tuned.settings.replace(**{key: value}), located=located, camera=camera,
                               where_of=lambda f, k=key: f"tune.{k}" if f == k else f"methods.{tuned.name}.{f}")

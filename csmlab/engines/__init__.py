@@ -24,13 +24,13 @@ from dataclasses import replace
 from pathlib import Path
 
 from csmlab.engines import bevy, filament, godot4, stride, threejs_csm, ue5, unity_builtin, unity_urp
-from csmlab.engines.common import Engine, EngineFiles, Snippet
+from csmlab.engines.common import Engine, EngineFiles, Snippet, TuneSpace, the_engines_own
 from csmlab.engines.reading import Imported, engine_settings, toml_name
 from csmlab.registry import check_name, dispatch
 from csmlab.settings import APPLIES, ShadowSettings
 
-__all__ = ["ENGINES", "EXPORT_METHODS", "IMPORT_METHODS", "Engine", "EngineFiles", "Imported", "Snippet",
-           "engine_files", "export", "import_settings", "preset_toml"]
+__all__ = ["ENGINES", "EXPORT_METHODS", "IMPORT_METHODS", "Engine", "EngineFiles", "Imported", "Snippet", "TuneSpace",
+           "engine_files", "export", "import_settings", "preset_toml", "tune_space"]
 
 ENGINES: dict[str, Engine] = {module.ENGINE.name: module.ENGINE for module in (
     ue5, unity_urp, unity_builtin, godot4, bevy, threejs_csm, filament, stride)}
@@ -57,7 +57,8 @@ def export(settings: ShadowSettings, *, near: float, far: float, engine: str) ->
         A key of :data:`EXPORT_METHODS`.
 
     An engine with an importer (:data:`IMPORT_METHODS`) also gets its own files, and every
-    knob they cannot hold is added to ``lacking``.
+    knob they cannot hold is added to ``lacking``; a knob at the value of the engine preset the files are
+    written against is the engine's own behaviour and is not lacking.
 
     Raises
     ------
@@ -70,7 +71,22 @@ def export(settings: ShadowSettings, *, near: float, far: float, engine: str) ->
     files, more = engine_files(settings, near=near, far=far, engine=engine)
     named = " ".join(snippet.lacking)
     extra = tuple(item for item in more if f"{item.split(' =', 1)[0]} =" not in named)
-    return replace(snippet, lacking=snippet.lacking + extra, files=tuple(files.items()))
+    # A knob at the value of the preset the files are written against is the engine's own behaviour: not lacking.
+    preset = engine_settings(IMPORT_METHODS[engine].preset(settings))
+    lacking = tuple(item for item in snippet.lacking + extra if not the_engines_own(item, settings, preset))
+    return replace(snippet, lacking=lacking, files=tuple(files.items()))
+
+
+def tune_space(method: str) -> tuple[str, TuneSpace] | None:
+    """The engine whose preset ``method`` is, and its tune space; None for a method of no engine's preset.
+
+    A method is an engine preset's when it bears the name of a preset an engine's files are written against
+    (:attr:`EngineFiles.presets`, ``configs/engines/<name>.toml``): ``[[methods]]`` merge by name, so an
+    experiment that extends the preset (directly or through another preset) and changes its entry keeps the name.
+    (csmlab.config leaves the ``[tune]`` values of such a method to :func:`csmlab.tune.tune`, which settles them.)
+    """
+    return next(((name, engine.tune) for name, engine in ENGINES.items() if engine.files is not None
+                 and engine.tune is not None and method in engine.files.presets), None)
 
 
 def import_settings(paths, *, engine: str) -> Imported:

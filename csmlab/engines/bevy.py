@@ -19,14 +19,15 @@ from __future__ import annotations
 import numpy as np
 
 from csmlab.cascades.splits import split_boundaries
-from csmlab.engines.common import (Engine, EngineFiles, Snippet, common_lacking, fixed_preset, largest_resolution,
-                                   shape_lacking)
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, common_lacking, fixed_preset,
+                                   largest_resolution, shape_lacking)
 from csmlab.engines.reading import Imported, Reading, number, read_text
 from csmlab.engines.ron import parse_ron
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
 
-__all__ = ["BEVY_EXACT", "BEVY_FILTERING", "ENGINE", "FIELDS", "PRESET", "export_bevy", "read_bevy", "write_bevy"]
+__all__ = ["BEVY_EXACT", "BEVY_FILTERING", "ENGINE", "FIELDS", "PRESET", "TUNE_SPACE", "export_bevy", "read_bevy",
+           "settled_bevy", "write_bevy"]
 
 PRESET = "bevy"
 """The engine preset holding Bevy's defaults."""
@@ -163,7 +164,7 @@ def write_bevy(settings: ShadowSettings, *, near: float, far: float) -> tuple[di
 def export_bevy(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     """Bevy: the CascadeShadowConfigBuilder, and the exact bounds as a CascadeShadowConfig."""
     z = split_boundaries(settings, near=near, far=far)
-    lacking = common_lacking(settings, stable="exact") + shape_lacking(settings, transition="far_bound")
+    lacking = common_lacking(settings, stable="exact", carried=FIELDS) + shape_lacking(settings, transition="far_bound")
     filtering = BEVY_FILTERING.get(settings.filter)
     if settings.filter not in BEVY_EXACT or BEVY_EXACT[settings.filter] not in (None, settings.filter_size):
         lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Bevy filters with "
@@ -180,14 +181,37 @@ def export_bevy(settings: ShadowSettings, *, near: float, far: float) -> Snippet
              "// csmlab's bounds exactly:",
              f"let config = CascadeShadowConfig {{ bounds: vec![{bounds}], overlap_proportion: "
              f"{settings.blend_band:.3f}, minimum_distance: {z[0]:.3f} }};",
-             f"app.insert_resource(DirectionalLightShadowMap {{ size: {largest_resolution(settings)} }});"]
+             f"app.insert_resource(DirectionalLightShadowMap {{ size: {largest_resolution(settings)} }});",
+             f"// on the sun: DirectionalLight {{ shadow_depth_bias: {settings.bias_constant:.6g}, "
+             f"shadow_normal_bias: {settings.normal_offset:.6g}, .. }}"]
     if filtering:
         lines.append(f"// on the camera: ShadowFilteringMethod::{filtering}")
     return Snippet("bevy", "Bevy: CascadeShadowConfig and DirectionalLightShadowMap", "rust", "\n".join(lines) + "\n",
                    tuple(lacking))
 
 
+def settled_bevy(settings: ShadowSettings) -> ShadowSettings:
+    """``settings`` with the bounds one cascade gives: a single far bound, the shadow distance (split ``manual``,
+    as :func:`read_bevy` reads one bound)."""
+    return settings.replace(split="manual", splits=(1.0,)) if settings.cascades == 1 else settings
+
+
+TUNE_SPACE = TuneSpace({
+    # CascadeShadowConfigBuilder: num_cascades (at most 4 per light), first_cascade_far_bound, maximum_distance
+    # (beyond the first bound's largest), overlap_proportion; DirectionalLight's shadow_depth_bias and
+    # shadow_normal_bias; DirectionalLightShadowMap.size; ShadowFilteringMethod Gaussian or Hardware2x2.
+    "cascades": ("choice", (1, 2, 3, 4)),
+    "first_cascade_far": ("range", 1.0, 20.0, False, None),
+    "shadow_distance": ("range", 30.0, 1000.0, True, None),
+    "blend_band": ("range", 0.0, 0.5, False, None),
+    "bias_constant": ("range", 0.0, 0.2, False, None),
+    "normal_offset": ("range", 0.0, 5.0, False, None),
+    "resolution": ("choice", (512, 1024, 2048, 4096)),
+    "filter": ("choice", ("pcf_castano", "pcf_bilinear")),
+}, settle=settled_bevy)
+"""What a tune of the Bevy preset may try: CascadeShadowConfig's, the light's and the shadow map's own settings."""
+
 ENGINE = Engine("bevy", export_bevy, EngineFiles(
     read=read_bevy, write=write_bevy, fields=FIELDS, preset=fixed_preset(PRESET), presets=(PRESET,),
-    files="a .scn.ron scene with CascadeShadowConfig and the DirectionalLight"))
+    files="a .scn.ron scene with CascadeShadowConfig and the DirectionalLight"), tune=TUNE_SPACE)
 """What the registries of csmlab.engines take from this module."""

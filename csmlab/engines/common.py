@@ -14,16 +14,19 @@ split control is a distribution exponent — the exponent whose splits come clos
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from dataclasses import dataclass
 
 from csmlab.cascades.bounds import BOUNDS_METHODS
 from csmlab.engines.reading import Imported
+from csmlab.errors import InputError
 from csmlab.lookup_choices import FILTER_METHODS
-from csmlab.settings import ShadowSettings
+from csmlab.settings import APPLIES, ShadowSettings
 
-__all__ = ["Engine", "EngineFiles", "Snippet", "blend_lacking", "common_lacking", "fixed_preset", "four_digits",
-           "hard_filter", "largest_resolution", "one_file", "shape_lacking", "vogel_is"]
+__all__ = ["Engine", "EngineFiles", "Snippet", "TuneSpace", "blend_lacking", "common_lacking", "describe_spec",
+           "fixed_preset", "four_digits", "hard_filter", "largest_resolution", "named_fields", "one_file",
+           "shape_lacking", "storage_lacking", "the_engines_own", "vogel_is"]
 
 
 @dataclass(frozen=True)
@@ -77,9 +80,10 @@ def blend_lacking(settings: ShadowSettings, why: str) -> list[str]:
     return [f"blend_band = {settings.blend_band} ({why})"] if settings.blend_band > 0 else []
 
 
-def common_lacking(settings: ShadowSettings, *, stable: str) -> list[str]:
+def common_lacking(settings: ShadowSettings, *, stable: str, carried=frozenset()) -> list[str]:
     """Knobs no exporter maps: stabilization other than the engine's own, fit, selection, per-cascade
-    resolution, splits over the visible depth range, depth format, bias units."""
+    resolution, splits over the visible depth range, depth format, bias units (of the bias fields the engine's
+    files do not carry: ``carried``, its :attr:`EngineFiles.fields`)."""
     lacking = []
     if settings.stabilization != stable:
         lacking.append(f"stabilization = {settings.stabilization!r} (the engine always stabilizes its own way, "
@@ -99,9 +103,35 @@ def common_lacking(settings: ShadowSettings, *, stable: str) -> list[str]:
                        f"depth readback)")
     if settings.depth_format != "float32":
         lacking.append(f"depth_format = {settings.depth_format!r} (set the shadow map's depth format in the engine)")
-    lacking.append(f"bias_constant = {settings.bias_constant}, bias_slope = {settings.bias_slope}, normal_offset = "
-                   f"{settings.normal_offset} (engine bias units differ: tune by eye)")
+    biases = [f"{name} = {getattr(settings, name)}" for name in ("bias_constant", "bias_slope", "normal_offset")
+              if name not in carried]
+    if biases:
+        lacking.append(f"{', '.join(biases)} (engine bias units differ: tune by eye)")
     return lacking
+
+
+def named_fields(item: str) -> list[str]:
+    """The fields a lacking line names: ``a = 1, b = 2 (why)`` → ``[a, b]``."""
+    return re.findall(r"(?:^|, )([a-z_]+) = ", item.split(" (", 1)[0])
+
+
+def the_engines_own(item: str, settings: ShadowSettings, preset: ShadowSettings) -> bool:
+    """Whether every field lacking line ``item`` names holds ``preset``'s value in ``settings``, a value that
+    applies to the preset (:data:`~csmlab.settings.APPLIES`): the engine does that itself, so its files reproduce
+    it without a setting."""
+    names = named_fields(item)
+    attributes = ["lambda_" if name == "lambda" else name for name in names]
+    return bool(names) and all(
+        hasattr(settings, attribute) and getattr(settings, attribute) == getattr(preset, attribute)
+        and (name not in APPLIES or APPLIES[name].holds(preset)) for name, attribute in zip(names, attributes))
+
+
+def storage_lacking(settings: ShadowSettings, *, cascades: int, atlas: str) -> list[str]:
+    """``storage`` named as lacking where it is not what an engine whose one cascade takes the whole map, and whose
+    ``cascades`` (the count written) otherwise share ``atlas`` (its preset's storage), stores."""
+    stored = "array" if cascades == 1 else atlas
+    return [] if settings.storage == stored else [
+        f"storage = {settings.storage!r} (the engine stores {cascades} cascade(s) as {stored!r})"]
 
 
 def largest_resolution(settings: ShadowSettings) -> int:
@@ -155,6 +185,79 @@ class EngineFiles:
     presets: tuple[str, ...]
 
 
+def _as_is(settings: ShadowSettings) -> ShadowSettings:
+    return settings
+
+
+@dataclass(frozen=True)
+class TuneSpace:
+    """The settings an engine can express, as ``csmlab tune`` searches them: a tune of the engine's preset
+    offers these values only, and its exporter writes every one of them to the engine's own files.
+
+    Attributes
+    ----------
+    fields : dict
+        TOML field name → ``("choice", values)`` or ``("range", lo, hi, log, step)`` (the form of
+        :attr:`csmlab.config.TuneConfig.space`): the engine's legal values (a range: its slider's).
+    settle : callable
+        ``settle(settings) -> settings``: the fields the engine derives from the tuned ones, set as the engine
+        sets them (Godot's split fractions for its cascade count; identity where none are derived).
+    """
+
+    fields: dict
+    settle: Callable[[ShadowSettings], ShadowSettings] = _as_is
+
+    def restricted(self, space: dict, *, engine: str, method: str) -> dict:
+        """``space`` (field → spec) cut to what the engine can express; the engine's whole space when empty.
+
+        A range is clipped to the engine's (a range over the engine's choices keeps the choices inside it); a
+        choice keeps the engine's values.
+
+        Raises
+        ------
+        InputError
+            For a field the engine has no setting for, or a spec with no value the engine can take:
+            the method, the field and the engine's values named.
+        """
+        if not space:
+            return dict(self.fields)
+        out = {}
+        for field, spec in space.items():
+            legal = self.fields.get(field)
+            if legal is None:
+                raise InputError(f"method {method} extends the {engine} preset, whose tune space is the engine's "
+                                 f"own: {engine} has no setting for {field!r} (its tunable fields: "
+                                 f"{', '.join(self.fields)})", field=f"tune.{field}")
+            kept = _within(spec, legal)
+            if kept is None:
+                raise InputError(f"method {method} extends the {engine} preset: expected {field} values {engine} can "
+                                 f"take ({describe_spec(legal)}), got {describe_spec(spec)}", field=f"tune.{field}")
+            out[field] = kept
+        return out
+
+
+def _within(spec: tuple, legal: tuple) -> tuple | None:
+    """The part of ``spec`` inside ``legal`` (both ``("choice", …)`` or ``("range", …)``), None when empty."""
+    if legal[0] == "choice":
+        if spec[0] == "choice":
+            values = tuple(v for v in spec[1] if v in legal[1])
+        else:
+            values = tuple(v for v in legal[1] if spec[1] <= v <= spec[2])
+        return ("choice", values) if values else None
+    lo, hi = legal[1], legal[2]
+    if spec[0] == "choice":
+        values = tuple(v for v in spec[1] if isinstance(v, (int, float)) and lo <= v <= hi)
+        return ("choice", values) if values else None
+    low, high = max(spec[1], lo), min(spec[2], hi)
+    # The engine's step (Unreal's exponent to the 0.01 its snippet prints) holds unless the user's is set.
+    return ("range", low, high, spec[3], spec[4] if spec[4] is not None else legal[4]) if low < high else None
+
+
+def describe_spec(spec: tuple) -> str:
+    """A search-space spec as a person reads it: ``1, 2, 4`` or ``0.0 to 10.0``."""
+    return ", ".join(map(str, spec[1])) if spec[0] == "choice" else f"{spec[1]} to {spec[2]}"
+
+
 @dataclass(frozen=True)
 class Engine:
     """Everything the registries of :mod:`csmlab.engines` take from one engine module.
@@ -167,11 +270,14 @@ class Engine:
         ``export(settings, *, near, far) -> Snippet``.
     files : EngineFiles or None
         Its own files, read and written (``csmlab import``); None for an engine without an importer.
+    tune : TuneSpace or None
+        What a tune of its preset may try: the engine's own settings (:func:`csmlab.engines.tune_space`).
     """
 
     name: str
     export: Callable[..., Snippet]
     files: EngineFiles | None = None
+    tune: TuneSpace | None = None
 
 
 def one_file(write: Callable[..., tuple], settings: ShadowSettings, *, near: float, far: float) -> tuple[str, list]:

@@ -17,13 +17,13 @@ from __future__ import annotations
 import json
 
 from csmlab.cascades.splits import fractions_of_range, split_boundaries
-from csmlab.engines.common import (Engine, EngineFiles, Snippet, blend_lacking, common_lacking, fixed_preset,
-                                   largest_resolution, one_file)
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, blend_lacking, common_lacking,
+                                   fixed_preset, largest_resolution, one_file)
 from csmlab.engines.reading import Imported, Reading, engine_settings, json_document, number
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
 
-__all__ = ["ENGINE", "FIELDS", "PRESET", "export_filament", "read_filament", "write_filament"]
+__all__ = ["ENGINE", "FIELDS", "PRESET", "TUNE_SPACE", "export_filament", "read_filament", "write_filament"]
 
 PRESET = "filament"
 """The engine preset holding Filament's defaults."""
@@ -130,7 +130,7 @@ def write_filament(settings: ShadowSettings, *, near: float, far: float) -> tupl
     options.update({"shadowFar": float(z[-1]), "stable": settings.stabilization != "none",
                     "constantBias": settings.bias_constant, "normalBias": settings.normal_offset / NORMAL_BIAS_SCALE,
                     "polygonOffsetConstant": settings.bias_depth_range * DEPTH16_STEPS,
-                    "polygonOffsetSlope": settings.bias_slope, "lispsm": False})
+                    "polygonOffsetSlope": settings.bias_slope, "lispsm": settings.warp == "lispsm"})
     document = {"view": {"shadowType": "PCF"},
                 "lighting": {"enableShadows": True, "sunlight": {"castShadows": True, "shadowOptions": options}}}
     return {"settings.json": json.dumps(document, indent=4) + "\n"}, lacking
@@ -138,7 +138,7 @@ def write_filament(settings: ShadowSettings, *, near: float, far: float) -> tupl
 
 def export_filament(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     """Filament: the sun's ``LightManager::ShadowOptions`` in the viewer's settings JSON."""
-    lacking = common_lacking(settings, stable="none")
+    lacking = common_lacking(settings, stable="none", carried=FIELDS)
     lacking = [item for item in lacking if not item.startswith(("stabilization", "bias_constant"))]
     if settings.stabilization not in ("none", "exact"):
         lacking.append(f"stabilization = {settings.stabilization!r} (Filament's stable is on or off)")
@@ -148,7 +148,19 @@ def export_filament(settings: ShadowSettings, *, near: float, far: float) -> Sni
                    tuple(lacking))
 
 
+TUNE_SPACE = TuneSpace({
+    # ShadowOptions: shadowCascades 1 to 4 (split positions Filament's own, practical λ 0.5), shadowFar,
+    # constantBias, normalBias (in half texels), mapSize. Not stable: Filament turns LiSPSM off in stable mode,
+    # and its reader does not yet take the warp from the file.
+    "cascades": ("choice", (1, 2, 3, 4)),
+    "shadow_distance": ("range", 10.0, 1000.0, True, None),
+    "bias_constant": ("range", 0.0, 0.01, False, None),
+    "normal_offset": ("range", 0.0, 3.0 * NORMAL_BIAS_SCALE, False, None),
+    "resolution": ("choice", (512, 1024, 2048, 4096)),
+})
+"""What a tune of the Filament preset may try: the sun's own ShadowOptions."""
+
 ENGINE = Engine("filament", export_filament, EngineFiles(
     read=read_filament, write=write_filament, fields=FIELDS, preset=fixed_preset(PRESET), presets=(PRESET,),
-    files="the viewer's settings JSON"))
+    files="the viewer's settings JSON"), tune=TUNE_SPACE)
 """What the registries of csmlab.engines take from this module."""

@@ -20,24 +20,28 @@ project setting ``rendering/lights_and_shadows/directional_shadow/size`` (the at
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from csmlab.cascades.splits import count_one_two_or_four, fractions_of_range, split_boundaries
-from csmlab.engines.common import (Engine, EngineFiles, Snippet, blend_lacking, common_lacking, fixed_preset,
-                                   four_digits, hard_filter, largest_resolution, shape_lacking, vogel_is)
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, blend_lacking, common_lacking,
+                                   fixed_preset, four_digits, hard_filter, largest_resolution, shape_lacking,
+                                   storage_lacking, vogel_is)
 from csmlab.engines.reading import Imported, Reading, engine_settings, number, read_text
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
 
-__all__ = ["ENGINE", "FIELDS", "GODOT_SOFT_LOW", "PRESET", "config_sections", "export_godot4", "read_godot4",
-           "write_godot4"]
+__all__ = ["ENGINE", "FIELDS", "GODOT_SOFT_LOW", "PRESET", "TUNE_SPACE", "SceneInstance", "config_sections",
+           "export_godot4", "gltf_instances", "read_godot4", "settled_godot4", "write_godot4"]
 
 PRESET = "godot4"
 """The engine preset holding Godot's defaults."""
 
 FIELDS = frozenset({"cascades", "split", "splits", "shadow_distance", "fade_out", "pancake", "bias_depth_range",
-                    "normal_offset", "vogel_radius", "cull", "resolution", "filter", "depth_format"})
-"""The csmlab fields Godot's files carry."""
+                    "normal_offset", "vogel_radius", "cull", "resolution", "filter", "depth_format", "storage"})
+"""The csmlab fields Godot's files carry (storage: one split fills the atlas, directional_shadow_mode = 0)."""
 
 GODOT_SOFT_LOW = {"vogel_taps": 4, "vogel_radius": 2.0, "vogel_angle": 2.4, "vogel_scale": "first_split"}
 """Godot 4's Soft Low (soft_shadow_filter_quality = 2) as csmlab's ``pcf_vogel`` fields (configs/engines/godot4.toml)."""
@@ -245,6 +249,7 @@ def write_godot4(settings: ShadowSettings, *, near: float, far: float) -> tuple[
         lacking.append("cull = 'none' (Godot culls the material's back faces, or its front ones reversed)")
     if settings.depth_format not in ("unorm16", "float32"):
         lacking.append(f"depth_format = {settings.depth_format!r} (Godot's shadow atlas is 16-bit or 32-bit float)")
+    lacking += storage_lacking(settings, cascades=cascades, atlas=engine_settings(PRESET).storage)
     mode = {v: k for k, v in _MODES.items()}[cascades]
     project = ["; Engine configuration file.", "config_version=5", "", "[rendering]", "",
                f"lights_and_shadows/directional_shadow/size={size * (1 if cascades == 1 else 2)}",
@@ -272,7 +277,7 @@ def _soft_low_radius() -> float:
 
 def export_godot4(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     """Godot 4: DirectionalLight3D properties and the directional shadow atlas size."""
-    lacking = common_lacking(settings, stable="exact") + shape_lacking(settings, fade="smoothstep")
+    lacking = common_lacking(settings, stable="exact", carried=FIELDS) + shape_lacking(settings, fade="smoothstep")
     modes = {1: 0, 2: 1, 4: 2}
     cascades = count_one_two_or_four(settings.cascades)
     if cascades != settings.cascades:
@@ -287,20 +292,199 @@ def export_godot4(settings: ShadowSettings, *, near: float, far: float) -> Snipp
              f"directional_shadow_max_distance = {four_digits(min(settings.shadow_distance, far))}"]
     lines += [f"directional_shadow_split_{i + 1} = {four_digits(f)}" for i, f in enumerate(fractions)]
     lines += [f"directional_shadow_blend_splits = {'true' if settings.blend_band > 0 else 'false'}",
+              f"directional_shadow_fade_start = {four_digits(1.0 - settings.fade_out)}",
+              f"directional_shadow_pancake_size = {four_digits(settings.pancake)}",
+              f"shadow_bias = {four_digits(settings.bias_depth_range / SHADOW_BIAS_SCALE)}",
+              f"shadow_normal_bias = {four_digits(settings.normal_offset)}",
+              f"shadow_blur = {four_digits(settings.vogel_radius / _soft_low_radius())}",
+              f"shadow_reverse_cull_face = {'true' if settings.cull == 'front' else 'false'}",
               "# Project Settings",
               f"rendering/lights_and_shadows/directional_shadow/size = {atlas}  "
-              f"# {largest_resolution(settings)}² per split (2 splits: half the atlas each)",
+              f"# {largest_resolution(settings)}² per split (2 or 4 splits: half the atlas side each)",
               "rendering/lights_and_shadows/directional_shadow/soft_shadow_filter_quality = "
-              f"{0 if hard_filter(settings) else 2}  # 2: Soft Low, 4 Vogel taps of 2 texels"]
+              f"{0 if hard_filter(settings) else 2}  # 2: Soft Low, 4 Vogel taps of 2 texels × shadow_blur",
+              "rendering/lights_and_shadows/directional_shadow/16_bits = "
+              f"{'true' if settings.depth_format == 'unorm16' else 'false'}"]
     lacking += blend_lacking(settings, "Godot blends splits over a fixed band")
-    if not hard_filter(settings) and not vogel_is(settings, **GODOT_SOFT_LOW):
+    # shadow_blur scales Soft Low's disk (the files carry vogel_radius): any radius is Godot's own kernel.
+    disk = {name: value for name, value in GODOT_SOFT_LOW.items() if name != "vogel_radius"}
+    if not hard_filter(settings) and not vogel_is(settings, **disk):
         lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Godot filters with its "
                        f"own soft-shadow kernel: Soft Low is pcf_vogel {GODOT_SOFT_LOW})")
     return Snippet("godot4", "Godot 4: DirectionalLight3D and project settings", "gdscript", "\n".join(lines) + "\n",
                    tuple(lacking))
 
 
+def settled_godot4(settings: ShadowSettings) -> ShadowSettings:
+    """``settings`` with the fields Godot derives from its split mode: ``directional_shadow_split_1..C-1`` at the
+    setting's own first fractions, or the preset's where it has fewer (Godot's 2 splits use split_1 only), and one
+    split filling the atlas (storage ``array``, the preset's atlas otherwise, as :func:`read_godot4` reads them)."""
+    base = engine_settings(PRESET)
+    storage = "array" if settings.cascades == 1 else base.storage
+    if len(settings.splits) == settings.cascades:
+        return settings.replace(storage=storage)
+    kept = settings.splits if len(settings.splits) > settings.cascades else base.splits
+    return settings.replace(split="manual_range", splits=(*kept[:settings.cascades - 1], 1.0), storage=storage)
+
+
+TUNE_SPACE = TuneSpace({
+    # DirectionalLight3D.directional_shadow_mode: orthogonal (1), PSSM 2 or 4 splits.
+    "cascades": ("choice", (1, 2, 4)),
+    # Per split: project setting directional_shadow/size (a power of two) halved for 2 or 4 splits.
+    "resolution": ("choice", (512, 1024, 2048, 4096)),
+    # The property ranges of the DirectionalLight3D and Light3D class references (the inspector's sliders).
+    "shadow_distance": ("range", 1.0, 8192.0, True, None),
+    "fade_out": ("range", 0.0, 1.0, False, None),
+    "pancake": ("range", 0.0, 1024.0, False, None),
+    "bias_depth_range": ("range", 0.0, 10.0 * SHADOW_BIAS_SCALE, False, None),
+    "normal_offset": ("range", 0.0, 10.0, False, None),
+    # shadow_blur 0.1 to 8: csmlab's disk radius is (0, 16] texels.
+    "vogel_radius": ("range", 0.1 * GODOT_SOFT_LOW["vogel_radius"], 16.0, False, None),
+    # soft_shadow_filter_quality Hard (0) or Soft Low (2); shadow_reverse_cull_face; directional_shadow/16_bits.
+    "filter": ("choice", ("pcf_vogel", "pcf_bilinear")),
+    "cull": ("choice", ("back", "front")),
+    "depth_format": ("choice", ("unorm16", "float32")),
+}, settle=settled_godot4)
+"""What a tune of the Godot preset may try: the DirectionalLight3D's and the project's own settings."""
+
 ENGINE = Engine("godot4", export_godot4, EngineFiles(
     read=read_godot4, write=write_godot4, fields=FIELDS, preset=fixed_preset(PRESET), presets=(PRESET,),
-    files="project.godot and/or a .tscn with a DirectionalLight3D"))
+    files="project.godot and/or a .tscn with a DirectionalLight3D"), tune=TUNE_SPACE)
 """What the registries of csmlab.engines take from this module."""
+
+
+# --- a level's glTF instances ------------------------------------------------------------------------------
+
+_INSTANCE = re.compile(r'\binstance\s*=\s*ExtResource\(\s*"?([^")\s]+)"?\s*\)')
+_TRANSFORM = re.compile(r"^\s*Transform(?:3D)?\((?P<numbers>[^()]*)\)\s*$")
+_GLTF = (".glb", ".gltf")
+_TEXT_SCENE = ".tscn"
+
+
+@dataclass(frozen=True)
+class SceneInstance:
+    """One glTF file a Godot scene instances, where the scene places it.
+
+    Attributes
+    ----------
+    file : Path
+        The glTF file (``.glb`` or ``.gltf``), absolute.
+    transform : numpy.ndarray
+        ``(4, 4)`` float64: the file's coordinates to the scene's, metres, acting on column vectors (the last row
+        ``0, 0, 0, 1``): the product of the node's and its ancestors' ``transform``, the root's included.
+    node : str
+        The instancing node's path from the root (``Street/Lamp2``; through an instanced ``.tscn``, that
+        scene's node path after its own), as messages name it.
+    """
+
+    file: Path
+    transform: np.ndarray
+    node: str
+
+
+def gltf_instances(path) -> list[SceneInstance]:
+    """The glTF files a Godot ``.tscn`` instances, each with the transform that places it, in file order.
+
+    Every node with ``instance=ExtResource(…)`` of a ``.glb`` or ``.gltf`` is one record; an instanced
+    ``.tscn`` contributes its own glTF instances, placed by the instancing node. A node with
+    ``visible = false`` hides its subtree (Godot neither draws it nor casts its shadows). ``res://`` paths
+    resolve from the folder holding ``project.godot`` (searched upward from the scene), others from the
+    scene's folder. Godot writes a ``Transform3D`` as the basis's rows, then the origin (variant_parser.cpp).
+
+    Raises
+    ------
+    InputError
+        A file that is no Godot scene, a node whose parent or resource is missing, a transform that is not 12
+        numbers, an instanced file that does not exist or is neither glTF nor a text scene, or scenes that
+        instance each other (file, line and node named).
+    """
+    return _instances(Path(path).resolve(), np.eye(4), None, prefix="", chain=())
+
+
+def _instances(path: Path, placed: np.ndarray, root: np.ndarray | None, *, prefix: str,
+               chain: tuple) -> list[SceneInstance]:
+    """The glTF instances of the scene ``path`` whose root's parent is at ``placed`` ``(4, 4)``; ``root``, the
+    instancing node's own transform, replaces the root's (the instancing node is the root: its ``transform``
+    property overrides the scene's), None where it sets none."""
+    if path in chain:
+        raise InputError(f"expected scenes that do not instance each other, got {' → '.join(map(str, chain))} → "
+                         f"{path}", file=chain[-1], field="instance")
+    text = read_text(path)
+    if not text.lstrip().startswith("[gd_scene"):
+        raise InputError("expected a Godot scene ([gd_scene …] on the first line)", file=path, field="gd_scene")
+    lines = text.splitlines()
+    resources, world, hidden, found = {}, {}, set(), []
+    for kind, attrs, keys, line in config_sections(path):
+        if kind == "ext_resource":
+            resources[str(attrs.get("id"))] = (attrs.get("path"), line)
+        if kind != "node":
+            continue
+        name, parent = str(attrs.get("name", "")), attrs.get("parent")
+        node = "." if parent is None else (name if parent == "." else f"{parent}/{name}")
+        if parent is not None and parent not in world:
+            raise InputError(f"expected the parent node {parent!r} before node {name!r}, found none", file=path,
+                             line=line, field=f"{node}.parent")
+        local = _transform(keys.get("transform"), file=path, line=line, node=node)
+        if parent is None and root is not None:
+            local = root
+        above = placed if parent is None else world[parent]
+        world[node] = above @ local
+        if keys.get("visible") is False or parent in hidden:
+            hidden.add(node)
+        instance = _INSTANCE.search(lines[line - 1])
+        if instance is None or node in hidden:
+            continue
+        target = _resource_file(resources, instance.group(1), scene=path, line=line, node=node)
+        shown = f"{prefix}{node}"
+        if target.suffix.lower() in _GLTF:
+            found.append(SceneInstance(file=target, transform=world[node], node=shown))
+        else:
+            own = None if keys.get("transform") is None else local
+            found += _instances(target, above, own, prefix=f"{shown}/", chain=(*chain, path))
+    return found
+
+
+def _transform(value, *, file, line: int, node: str) -> np.ndarray:
+    """A node's ``transform = Transform3D(xx, xy, xz, yx, yy, yz, zx, zy, zz, ox, oy, oz)`` as a ``(4, 4)`` matrix
+    (the identity where the node has none): the basis's rows, then the origin."""
+    if value is None:
+        return np.eye(4)
+    match = _TRANSFORM.match(str(value))
+    numbers = [] if match is None else [part.strip() for part in match.group("numbers").split(",")]
+    try:
+        parsed = [float(v) for v in numbers]
+    except ValueError:
+        parsed = []
+    if len(parsed) != 12 or not all(np.isfinite(parsed)):
+        raise InputError(f"expected Transform3D( of 12 numbers: the basis's rows, then the origin), got "
+                         f"{str(value)[:80]!r}", file=file, line=line, field=f"{node}.transform")
+    matrix = np.eye(4)
+    matrix[:3, :3] = np.reshape(parsed[:9], (3, 3))
+    matrix[:3, 3] = parsed[9:]
+    return matrix
+
+
+def _resource_file(resources: dict, key: str, *, scene: Path, line: int, node: str) -> Path:
+    """The file of ext_resource ``key`` that ``node`` instances: existing, and glTF or a text scene."""
+    if key not in resources:
+        raise InputError(f"expected an [ext_resource] with id {key!r} for node {node!r}, found none", file=scene,
+                         line=line, field=f"{node}.instance")
+    written, declared = resources[key]
+    if not isinstance(written, str) or not written:
+        raise InputError(f"expected a path on the [ext_resource] with id {key!r} (a uid alone is not resolved)",
+                         file=scene, line=declared, field="ext_resource.path")
+    if written.startswith("res://"):
+        root = next((folder for folder in scene.parents if (folder / "project.godot").is_file()), None)
+        if root is None:
+            raise InputError(f"expected project.godot in a folder above the scene to resolve {written!r}, found "
+                             "none", file=scene, line=declared, field="ext_resource.path")
+        target = root / written[len("res://"):]
+    else:
+        target = scene.parent / written
+    if target.suffix.lower() not in (*_GLTF, _TEXT_SCENE):
+        raise InputError(f"expected node {node!r} to instance a glTF file (.glb, .gltf) or a text scene (.tscn), "
+                         f"got {written!r}", file=scene, line=line, field=f"{node}.instance")
+    if not target.is_file():
+        raise InputError(f"expected the file node {node!r} instances, {written!r}, at {target}, found none",
+                         file=scene, line=line, field=f"{node}.instance")
+    return target.resolve()

@@ -44,14 +44,14 @@ import uuid
 import yaml
 
 from csmlab.cascades.splits import split_boundaries
-from csmlab.engines.common import (Engine, EngineFiles, Snippet, common_lacking, fixed_preset, largest_resolution,
-                                   one_file)
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, common_lacking, fixed_preset,
+                                   largest_resolution, one_file)
 from csmlab.engines.reading import Imported, Reading, engine_settings, number, read_text
 from csmlab.errors import InputError
 from csmlab.lookup_choices import FILTER_METHODS
 from csmlab.settings import ShadowSettings
 
-__all__ = ["DEFAULT_NEAR", "ENGINE", "FIELDS", "PRESET", "export_stride", "read_stride", "write_stride"]
+__all__ = ["DEFAULT_NEAR", "ENGINE", "FIELDS", "PRESET", "TUNE_SPACE", "export_stride", "read_stride", "write_stride"]
 
 PRESET = "stride"
 """The engine preset holding Stride's defaults."""
@@ -479,7 +479,22 @@ def export_stride(settings: ShadowSettings, *, near: float, far: float) -> Snipp
                    tuple(lacking + more))
 
 
+TUNE_SPACE = TuneSpace({
+    # LightDirectionalShadowMap: CascadeCount, Size (128 · 2^k), PCF FilterSize 3×3 or 5×5, StabilizationMode
+    # None or ProjectionSnapping, IsBlendingCascades, PartitionLogarithmic's PSSMFactor (λ = 1 − factor),
+    # BiasParameters DepthBias and NormalOffsetScale (metres: normal_offset_m). The depth range stays automatic.
+    "cascades": ("choice", tuple(CASCADE_COUNTS.values())),
+    "resolution": ("choice", tuple(SIZES.values())),
+    "filter_size": ("choice", tuple(PCF_SIZES.values())),
+    "stabilization": ("choice", ("none", "exact")),
+    "blend_band": ("choice", (0.0, BLEND_BAND)),
+    "lambda": ("range", 0.0, 1.0, False, None),
+    "bias_depth_range": ("range", 0.0, 0.1, False, None),
+    "normal_offset_m": ("range", 0.0, 0.05, False, None),
+})
+"""What a tune of the Stride preset may try: the directional light's shadow map settings."""
+
 ENGINE = Engine("stride", export_stride, EngineFiles(
     read=read_stride, write=write_stride, fields=FIELDS, preset=fixed_preset(PRESET), presets=(PRESET,),
-    files="a .sdscene with a LightComponent of Type !LightDirectional"))
+    files="a .sdscene with a LightComponent of Type !LightDirectional"), tune=TUNE_SPACE)
 """What the registries of csmlab.engines take from this module."""

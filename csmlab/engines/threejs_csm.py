@@ -16,15 +16,15 @@ from __future__ import annotations
 import json
 
 from csmlab.cascades.splits import fractions_of_far, split_boundaries
-from csmlab.engines.common import (Engine, EngineFiles, Snippet, blend_lacking, common_lacking, fixed_preset,
-                                   four_digits, largest_resolution, vogel_is)
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, blend_lacking, common_lacking,
+                                   fixed_preset, four_digits, largest_resolution, vogel_is)
 from csmlab.engines.reading import Imported, Reading, json_document, number
 from csmlab.errors import InputError
 from csmlab.lookup_choices import FILTER_METHODS
 from csmlab.settings import ShadowSettings
 
-__all__ = ["CSM_LIGHT_RANGE", "ENGINE", "FIELDS", "PRESET", "THREEJS_PCF", "export_threejs_csm", "read_threejs_csm",
-           "write_threejs_csm"]
+__all__ = ["CSM_LIGHT_RANGE", "ENGINE", "FIELDS", "PRESET", "THREEJS_PCF", "TUNE_SPACE", "export_threejs_csm",
+           "read_threejs_csm", "write_threejs_csm"]
 
 PRESET = "threejs_csm"
 """The engine preset holding the CSM addon's defaults."""
@@ -147,7 +147,7 @@ def write_threejs_csm(settings: ShadowSettings, *, near: float, far: float) -> t
 
 def export_threejs_csm(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     """three.js CSM (examples/jsm/csm/CSM.js) options."""
-    lacking = common_lacking(settings, stable="exact")
+    lacking = common_lacking(settings, stable="exact", carried=FIELDS)
     mode = _csm_mode(settings)
     lines = ["const csm = new CSM({",
              f"  maxFar: {four_digits(min(settings.shadow_distance, far))},",
@@ -156,7 +156,11 @@ def export_threejs_csm(settings: ShadowSettings, *, near: float, far: float) -> 
     if mode == "custom":
         fractions = ", ".join(four_digits(f) for f in fractions_of_far(split_boundaries(settings, near=near, far=far)))
         lines.append(f"  customSplitsCallback: (cascades, near, far, breaks) => breaks.push({fractions}, 1),")
-    lines += [f"  shadowMapSize: {largest_resolution(settings)},", "  camera, parent: scene, lightDirection,", "});"]
+    light_near, light_far, _ = CSM_LIGHT_RANGE
+    lines += [f"  shadowMapSize: {largest_resolution(settings)},",
+              f"  lightMargin: {four_digits(settings.pancake)},",
+              f"  shadowBias: {-settings.bias_constant / (light_far - light_near):.6g},  // of lightFar − lightNear",
+              "  camera, parent: scene, lightDirection,", "});"]
     if vogel_is(settings, **THREEJS_PCF) and settings.vogel_radius != 1.0:
         radius = four_digits(settings.vogel_radius)
         lines.append(f"csm.lights.forEach((light) => {{ light.shadow.radius = {radius}; }});")
@@ -171,7 +175,22 @@ def export_threejs_csm(settings: ShadowSettings, *, near: float, far: float) -> 
     return Snippet("threejs_csm", "three.js: CSM options", "javascript", "\n".join(lines) + "\n", tuple(lacking))
 
 
+TUNE_SPACE = TuneSpace({
+    # CSM options: cascades, mode (uniform, logarithmic, or practical at CSM's λ 0.5), maxFar, shadowMapSize,
+    # lightMargin, shadowBias (a fraction of lightFar − lightNear); renderer.shadowMap.type BasicShadowMap or
+    # PCFShadowMap and LightShadow.radius (csmlab's disk radius is at most 16 texels).
+    "cascades": ("choice", (1, 2, 3, 4, 5, 6)),
+    "split": ("choice", ("uniform", "log", "practical")),
+    "shadow_distance": ("range", 10.0, 2000.0, True, None),
+    "resolution": ("choice", (512, 1024, 2048, 4096)),
+    "pancake": ("range", 0.0, 500.0, False, None),
+    "bias_constant": ("range", -0.01, 0.01, False, None),
+    "filter": ("choice", ("pcf_vogel", "none")),
+    "vogel_radius": ("range", 0.1, 16.0, False, None),
+})
+"""What a tune of the three.js preset may try: the CSM addon's options and the renderer's shadow map type."""
+
 ENGINE = Engine("threejs_csm", export_threejs_csm, EngineFiles(
     read=read_threejs_csm, write=write_threejs_csm, fields=FIELDS, preset=fixed_preset(PRESET), presets=(PRESET,),
-    files="the CSM options as JSON"))
+    files="the CSM options as JSON"), tune=TUNE_SPACE)
 """What the registries of csmlab.engines take from this module."""

@@ -25,13 +25,13 @@ from pathlib import Path
 import numpy as np
 
 from csmlab.cascades.splits import split_boundaries, ue_split_fractions
-from csmlab.engines.common import (Engine, EngineFiles, Snippet, common_lacking, fixed_preset, four_digits,
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, common_lacking, fixed_preset, four_digits,
                                    largest_resolution, shape_lacking)
 from csmlab.engines.reading import Imported, Reading, number, read_text
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
 
-__all__ = ["ENGINE", "FIELDS", "PRESET", "UE5_FILTER", "export_ue5", "read_ue5", "write_ue5"]
+__all__ = ["ENGINE", "FIELDS", "PRESET", "TUNE_SPACE", "UE5_FILTER", "export_ue5", "read_ue5", "write_ue5"]
 
 PRESET = "ue5"
 """The engine preset holding Unreal's defaults."""
@@ -209,9 +209,12 @@ def write_ue5(settings: ShadowSettings, *, near: float, far: float) -> tuple[dic
 def export_ue5(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     """UE5: cvars for an ini file, directional light properties as comments (distances in cm)."""
     z = split_boundaries(settings, near=near, far=far)
-    exponent, error = _nearest_exponent(z, settings.cascades)
+    # An exponent split is Unreal's own: written as it is, it misses nothing.
+    exponent, error = ((settings.distribution_exponent, 0.0) if settings.split == "exponent"
+                       else _nearest_exponent(z, settings.cascades))
     error_m = error * (z[-1] - z[0])
-    lacking = common_lacking(settings, stable="exact") + shape_lacking(settings, transition="forward", fade="linear")
+    lacking = common_lacking(settings, stable="exact", carried=FIELDS) + shape_lacking(settings, transition="forward",
+                                                                                      fade="linear")
     if error_m > 0.01:
         lacking.append(f"split distances {[round(float(v), 2) for v in z[1:-1]]} m: Unreal's exponent spacing "
                        f"misses them by up to {error_m:.2f} m")
@@ -236,7 +239,21 @@ def export_ue5(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
                    tuple(lacking))
 
 
+TUNE_SPACE = TuneSpace({
+    # DirectionalLightComponent: DynamicShadowCascades 1 to 10, CascadeDistributionExponent 1 to 4,
+    # DynamicShadowDistanceMovableLight (from 5 m), CascadeTransitionFraction 0 to 0.3,
+    # ShadowDistanceFadeoutFraction 0 to 1 (the component's UI ranges; the exponent to the 0.01 the snippet
+    # prints); r.Shadow.MaxCSMResolution.
+    "cascades": ("choice", tuple(range(1, 11))),
+    "distribution_exponent": ("range", 1.0, 4.0, False, 0.01),
+    "shadow_distance": ("range", 5.0, 2000.0, True, None),
+    "blend_band": ("range", 0.0, 0.3, False, None),
+    "fade_out": ("range", 0.0, 1.0, False, None),
+    "resolution": ("choice", (512, 1024, 2048, 4096)),
+})
+"""What a tune of the Unreal preset may try: the directional light's and the cvars' own cascade settings."""
+
 ENGINE = Engine("ue5", export_ue5, EngineFiles(
     read=read_ue5, write=write_ue5, fields=FIELDS, preset=fixed_preset(PRESET), presets=(PRESET,),
-    files="DefaultEngine.ini, DefaultScalability.ini and/or a DirectionalLight's T3D text"))
+    files="DefaultEngine.ini, DefaultScalability.ini and/or a DirectionalLight's T3D text"), tune=TUNE_SPACE)
 """What the registries of csmlab.engines take from this module."""

@@ -15,21 +15,22 @@ The snippet (export_unity_builtin) is the quality level as write_unity_builtin w
 from __future__ import annotations
 
 from csmlab.cascades.splits import count_one_two_or_four, fractions_of_far, split_boundaries
-from csmlab.engines.common import (Engine, EngineFiles, Snippet, blend_lacking, common_lacking, hard_filter,
-                                   largest_resolution, one_file, shape_lacking)
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, blend_lacking, common_lacking, hard_filter,
+                                   largest_resolution, one_file, shape_lacking, storage_lacking)
 from csmlab.engines.reading import Imported, Reading, engine_settings, number
 from csmlab.engines.unity_yaml import unity_objects, unity_text
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
 
-__all__ = ["ENGINE", "FIELDS", "PRESETS", "export_unity_builtin", "preset_of", "read_unity_builtin",
-           "write_unity_builtin"]
+__all__ = ["ENGINE", "FIELDS", "PRESETS", "TUNE_SPACE", "export_unity_builtin", "preset_of", "read_unity_builtin",
+           "settled_unity_builtin", "write_unity_builtin"]
 
 PRESETS = {0: "unity_builtin_close", 1: "unity_builtin_stable"}
 """The engine preset by ShadowProjection (CloseFit 0, StableFit 1, Unity's default)."""
 
-FIELDS = frozenset({"cascades", "split", "splits", "shadow_distance", "stabilization", "resolution", "filter"})
-"""The csmlab fields a quality level carries."""
+FIELDS = frozenset({"cascades", "split", "splits", "shadow_distance", "stabilization", "resolution", "filter",
+                    "storage"})
+"""The csmlab fields a quality level carries (storage: one cascade takes the whole shadowmap)."""
 
 _VERY_HIGH = 3
 """ShadowResolution.VeryHigh: the presets' resolution."""
@@ -142,6 +143,7 @@ def write_unity_builtin(settings: ShadowSettings, *, near: float, far: float) ->
     if top >> (_VERY_HIGH - steps) != size:
         lacking.append(f"resolution = {size} (Unity's levels give {top} >> k at 640 px: "
                        f"{top >> (_VERY_HIGH - steps)} written)")
+    lacking += storage_lacking(settings, cascades=cascades, atlas=engine_settings(preset).storage)
     four = fractions if cascades == 4 else list(engine_settings(preset).splits[:3])
     level = ["  - serializedVersion: 2", "    name: csmlab",
              f"    shadows: {1 if hard_filter(settings) else 2}", f"    shadowResolution: {steps}",
@@ -156,14 +158,43 @@ def write_unity_builtin(settings: ShadowSettings, *, near: float, far: float) ->
 
 def export_unity_builtin(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     """Unity's built-in pipeline: a quality level of ``ProjectSettings/QualitySettings.asset``."""
-    lacking = common_lacking(settings, stable="exact") + shape_lacking(settings, fade="radial")
+    lacking = common_lacking(settings, stable="exact", carried=FIELDS) + shape_lacking(settings, fade="radial")
     lacking += blend_lacking(settings, "the built-in pipeline blends no cascades")
     text, _ = one_file(write_unity_builtin, settings, near=near, far=far)
     return Snippet("unity_builtin", "Unity built-in pipeline: ProjectSettings/QualitySettings.asset", "yaml", text,
                    tuple(lacking))
 
 
+_TWO_SPLIT = 1 / 3
+"""QualitySettings.shadowCascade2Split's default."""
+
+
+def settled_unity_builtin(settings: ShadowSettings) -> ShadowSettings:
+    """``settings`` with the fields a quality level derives from the tuned ones: for another cascade count,
+    that count's split field at Unity's default (shadowCascade2Split; 4: the preset's shadowCascade4Split), one
+    cascade taking the whole shadowmap (storage ``array``); soft shadows as the preset filters them."""
+    base = engine_settings(preset_of(settings))
+    count = settings.cascades
+    if len(settings.splits) != count:
+        fractions = {1: (), 2: (_TWO_SPLIT,), 4: base.splits[:-1]}[count]
+        settings = settings.replace(split="manual", splits=(*fractions, 1.0))
+    if not hard_filter(settings):
+        settings = settings.replace(filter=base.filter, filter_size=base.filter_size)
+    return settings.replace(storage="array" if count == 1 else base.storage)
+
+
+TUNE_SPACE = TuneSpace({
+    # shadowCascades No, Two or Four Cascades; shadowResolution Low to Very High (the preset's size >> 3..0).
+    "cascades": ("choice", (1, 2, 4)),
+    "resolution": ("choice", (256, 512, 1024, 2048)),
+    # shadowDistance (from 5 m: the first of 4 default splits, 0.067 of it, beyond a camera's near plane).
+    "shadow_distance": ("range", 5.0, 1000.0, True, None),
+    # shadows Hard Only (one hardware comparison) or Hard and Soft (the preset's tent).
+    "filter": ("choice", ("pcf_bilinear", "pcf_tent_bilinear")),
+}, settle=settled_unity_builtin)
+"""What a tune of a built-in pipeline preset may try: a quality level's own shadow settings."""
+
 ENGINE = Engine("unity_builtin", export_unity_builtin, EngineFiles(
     read=read_unity_builtin, write=write_unity_builtin, fields=FIELDS, preset=preset_of,
-    presets=tuple(PRESETS.values()), files="ProjectSettings/QualitySettings.asset"))
+    presets=tuple(PRESETS.values()), files="ProjectSettings/QualitySettings.asset"), tune=TUNE_SPACE)
 """What the registries of csmlab.engines take from this module."""

@@ -17,21 +17,22 @@ The snippet (export_unity_urp) names: ``UniversalRenderPipelineAsset.shadowDista
 from __future__ import annotations
 
 from csmlab.cascades.splits import fractions_of_far, split_boundaries
-from csmlab.engines.common import (Engine, EngineFiles, Snippet, blend_lacking, common_lacking, fixed_preset,
-                                   four_digits, hard_filter, largest_resolution, shape_lacking)
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, blend_lacking, common_lacking, fixed_preset,
+                                   four_digits, hard_filter, largest_resolution, shape_lacking, storage_lacking)
 from csmlab.engines.reading import Imported, Reading, engine_settings, number
 from csmlab.engines.unity_yaml import unity_objects, unity_text
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
 
-__all__ = ["ENGINE", "FIELDS", "PRESET", "URP_FILTER", "export_unity_urp", "read_unity_urp", "write_unity_urp"]
+__all__ = ["ENGINE", "FIELDS", "PRESET", "TUNE_SPACE", "URP_FILTER", "export_unity_urp", "read_unity_urp",
+           "settled_unity_urp", "write_unity_urp"]
 
 PRESET = "unity_urp"
 """The engine preset holding URP's defaults."""
 
 FIELDS = frozenset({"cascades", "split", "splits", "shadow_distance", "fade_out", "bias_texels", "normal_offset",
-                    "resolution", "filter", "filter_size"})
-"""The csmlab fields the URP asset carries."""
+                    "resolution", "filter", "filter_size", "storage"})
+"""The csmlab fields the URP asset carries (storage: one cascade takes the whole shadowmap)."""
 
 URP_FILTER = ("pcf_tent_bilinear", 5)
 """The filter and size of URP's soft shadows at the asset's Medium quality (SampleShadow_ComputeSamples_Tent_5x5);
@@ -147,6 +148,7 @@ def write_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> tup
     lacking = []
     if settings.depth_format != "unorm16":
         lacking.append(f"depth_format = {settings.depth_format!r} (URP's shadowmap is 16-bit)")
+    lacking += storage_lacking(settings, cascades=cascades, atlas=engine_settings(PRESET).storage)
     soft = not hard_filter(settings)
     fields = ["m_Name: UniversalRP", "m_MainLightShadowsSupported: 1", f"m_MainLightShadowmapResolution: {atlas}",
               f"m_ShadowDistance: {float(z[-1])!r}", f"m_ShadowCascadeCount: {cascades}",
@@ -161,7 +163,7 @@ def write_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> tup
 
 def export_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     """Unity URP: the pipeline asset's shadow fields, set from a script."""
-    lacking = common_lacking(settings, stable="exact") + shape_lacking(settings, fade="squared_radial")
+    lacking = common_lacking(settings, stable="exact", carried=FIELDS) + shape_lacking(settings, fade="squared_radial")
     cascades = min(settings.cascades, 4)
     if settings.cascades > 4:
         lacking.append(f"cascades = {settings.cascades} (URP has at most 4)")
@@ -187,12 +189,44 @@ def export_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> Sn
         lines.append(f"asset.cascade4Split = new Vector3({', '.join(four_digits(f) + 'f' for f in fractions)});")
     lines += [f"asset.mainLightShadowmapResolution = {atlas};  // atlas: {atlas // (1 if cascades == 1 else 2)}² "
               f"per cascade",
-              f"asset.supportsSoftShadows = {'false' if hard_filter(settings) else 'true'};"]
+              f"asset.supportsSoftShadows = {'false' if hard_filter(settings) else 'true'};",
+              f"asset.cascadeBorder = {four_digits(settings.fade_out)}f;",
+              f"asset.shadowDepthBias = {four_digits(settings.bias_texels)}f;",
+              f"asset.shadowNormalBias = {four_digits(settings.normal_offset)}f;"]
     return Snippet("unity_urp", "Unity URP: UniversalRenderPipelineAsset", "csharp", "\n".join(lines) + "\n",
                    tuple(lacking))
 
 
+def settled_unity_urp(settings: ShadowSettings) -> ShadowSettings:
+    """``settings`` with the fields URP derives from the tuned ones: for another cascade count, the asset's split
+    field of that count at URP's default (m_Cascade2Split, m_Cascade3Split; 4: the preset's), one cascade taking
+    the whole shadowmap (storage ``array``); soft shadows at Medium (URP_FILTER's 5×5 tent)."""
+    base = engine_settings(PRESET)
+    count = settings.cascades
+    if len(settings.splits) != count:
+        fractions = base.splits[:-1] if count == 4 else _FEWER_SPLITS.get(count, ())
+        settings = settings.replace(split="manual", splits=(*fractions, 1.0))
+    if settings.filter == URP_FILTER[0]:
+        settings = settings.replace(filter_size=URP_FILTER[1])
+    return settings.replace(storage="array" if count == 1 else base.storage)
+
+
+TUNE_SPACE = TuneSpace({
+    # m_ShadowCascadeCount 1 to 4; m_MainLightShadowmapResolution 256 to 8192 (per cascade: halved for 2 or more).
+    "cascades": ("choice", (1, 2, 3, 4)),
+    "resolution": ("choice", (256, 512, 1024, 2048, 4096)),
+    # The asset inspector's sliders: m_ShadowDistance (from 5 m, so that the first of 4 default splits, 0.067 of
+    # it, lies beyond a camera's near plane), m_CascadeBorder, m_ShadowDepthBias, m_ShadowNormalBias.
+    "shadow_distance": ("range", 5.0, 1000.0, True, None),
+    "fade_out": ("range", 0.0, 1.0, False, None),
+    "bias_texels": ("range", 0.0, 10.0, False, None),
+    "normal_offset": ("range", 0.0, 10.0, False, None),
+    # m_SoftShadowsSupported off (one hardware comparison) or on at Medium.
+    "filter": ("choice", ("pcf_bilinear", URP_FILTER[0])),
+}, settle=settled_unity_urp)
+"""What a tune of the URP preset may try: the pipeline asset's own shadow settings."""
+
 ENGINE = Engine("unity_urp", export_unity_urp, EngineFiles(
     read=read_unity_urp, write=write_unity_urp, fields=FIELDS, preset=fixed_preset(PRESET), presets=(PRESET,),
-    files="a UniversalRenderPipelineAsset .asset"))
+    files="a UniversalRenderPipelineAsset .asset"), tune=TUNE_SPACE)
 """What the registries of csmlab.engines take from this module."""
