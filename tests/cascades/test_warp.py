@@ -1,8 +1,6 @@
 """LiSPSM (csmlab.cascades.warp): Wimmer et al.'s n_opt, the perspective's texel density, the ortho
 fallback, and lookups, depth maps and ρ through the warped projection against independent oracles."""
 
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,8 +15,7 @@ from csmlab.render import clipped_triangles, prepare_scene, render_frame, shadow
 from csmlab.settings import ShadowSettings
 from csmlab.texels import receiver_lookup, texel_coordinates
 
-sys.path.insert(0, str(Path(__file__).parent))
-from test_render import BOXES, scene_of  # noqa: E402  (the end-to-end test scene)
+from tests.test_render import BOXES, scene_of  # the end-to-end test scene
 
 DOWN = np.array([0.0, -1.0, 0.0])
 SCENE_CORNERS = np.array([[x, y, z] for x in (-200, 200) for y in (-5, 30) for z in (-200, 200)], dtype=float)

@@ -16,7 +16,7 @@ import tomllib
 
 import numpy as np
 import pytest
-from engine_cases import DATA, FAR, NEAR, ROOT, VENDOR, differences, numbers, round_trip
+from tests.engines.engine_cases import DATA, FAR, NEAR, ROOT, VENDOR, differences, numbers, round_trip
 
 from csmlab.cascades.splits import split_distances
 from csmlab.config import load_experiment

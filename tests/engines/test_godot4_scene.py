@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from engine_cases import DATA
+from tests.engines.engine_cases import DATA
 
 from csmlab.engines.godot4 import gltf_instances
 from csmlab.errors import InputError

@@ -10,8 +10,9 @@ import typer.main
 import yaml
 
 from csmlab.cli import app
+from tests.locations import ROOT
 
-README = Path(__file__).resolve().parent.parent / "README.md"
+README = ROOT / "README.md"
 
 
 def _ci_job() -> dict:

@@ -10,11 +10,10 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import re
-from pathlib import Path
 
 import pytest
+from tests.locations import ROOT
 
-ROOT = Path(__file__).resolve().parent.parent
 DESIGN = ROOT / "docs" / "design.md"
 DOCS = sorted((ROOT / "docs").glob("*.md"))
 

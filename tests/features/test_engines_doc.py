@@ -10,15 +10,14 @@ from __future__ import annotations
 
 import re
 import tomllib
-from pathlib import Path
 
 import pytest
 
 from csmlab.config import find_experiment, load_experiment
 from csmlab.metrics.cost import shadow_memory_bytes
 from csmlab.settings import ShadowSettings
+from tests.locations import ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "engines.md"
 PRESETS = sorted(f"{kind}/{p.stem}" for kind in ("engines", "seeds") for p in (ROOT / "configs" / kind).glob("*.toml"))
 STATUSES = ("source", "docs", "third-party", "seed text", "unverified", "approximation")

@@ -1,4 +1,4 @@
-"""csmlab's depth pass and float32 emulations against a real OpenGL float32 pipeline (tests/gl_pipeline.py).
+"""csmlab's depth pass and float32 emulations against a real OpenGL float32 pipeline (tests/features/gl_pipeline.py).
 
 One short walk over a small terrain, 8 frames, a hard shadow (``filter = "none"``: one depth compare,
 the one the GL pipeline's ``sampler2DShadow`` makes, of the receiver's own biased depth: no
@@ -22,7 +22,7 @@ from csmlab.experiment import build_workload
 from csmlab.metrics.temporal import temporal_maps
 from csmlab.render import prepare_scene, render_shadow, render_view
 
-from gl_pipeline import GLPipeline, GLUnavailable, gl_context
+from tests.features.gl_pipeline import GLPipeline, GLUnavailable, gl_context
 
 FRAMES = 8
 

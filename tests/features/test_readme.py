@@ -5,7 +5,7 @@
   package by its name in that package's entry — every preset of ``configs/``, every file of
   ``docs/`` and ``benchmarks/``; and everything it names exists.
 - The experiments table lists every ``experiments/*.toml`` with its ``description``, generated:
-  ``python tests/test_readme.py`` prints the table to paste when an experiment is added.
+  ``python -m tests.features.test_readme`` prints the table to paste when an experiment is added.
 - README's minimal experiment is ``experiments/minimal.toml`` byte for byte, and it runs as a user
   runs it (``csmlab run``, at a tiny size here) without Warp's CUDA-driver warning.
 """
@@ -19,8 +19,8 @@ import tomllib
 from pathlib import Path
 
 import pytest
+from tests.locations import ROOT
 
-ROOT = Path(__file__).resolve().parent.parent
 README = ROOT / "README.md"
 PACKAGE = ROOT / "csmlab"
 
@@ -159,7 +159,7 @@ def test_the_house_names_every_file_of(house, folder, pattern):
 
 def test_the_experiments_table_lists_every_experiment_with_its_description():
     table = experiments_table()
-    assert table in _readme(), f"README's experiments table should read (python tests/test_readme.py):\n{table}"
+    assert table in _readme(), f"README's experiments table should read (python -m tests.features.test_readme):\n{table}"
 
 
 def test_every_experiment_and_preset_has_a_description():

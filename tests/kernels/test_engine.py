@@ -12,7 +12,6 @@ the origin (where float32 rounds at 6 cm, so any difference in operation order s
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -27,8 +26,8 @@ from csmlab.kernels.engine import warped_vertices, window_receivers, window_vert
 from csmlab.kernels.raster import (converted_region_chunks, light_space_mesh, rasterize_cascades, region_chunks,
                                   whole_map_regions)
 from csmlab.texels import fixed_point_coordinates, receiver_lookup, vertex_depth, window_boxes
+from tests.locations import ROOT
 
-ROOT = Path(__file__).resolve().parent.parent
 RESOLUTION = 128
 """Map side the presets are shrunk to: small maps, the same arithmetic."""
 

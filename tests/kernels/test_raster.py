@@ -429,7 +429,7 @@ def test_a_light_space_mesh_refuses_vertices_that_are_not_finite_and_indices_out
 @pytest.mark.skipif(wp.get_cuda_device_count() == 0, reason="no CUDA device")
 def test_cpu_and_cuda_rasterize_the_same_depth_bit_for_bit():
     """Every path on both devices (tiny, small, large and oversized triangles): the same maps and counts, bit for bit
-    (the CUDA build fuses no multiply-add: tests/test_kernels.py)."""
+    (the CUDA build fuses no multiply-add: tests/kernels/test_kernels.py)."""
     rng = np.random.default_rng(5)
     cs = cascade_set(direction=OBLIQUE, origins=[(3.0, 4.0), (-50.0, 20.0)], texel=0.0731, resolution=128)
     soups = [triangle_soup(rng, cs, count=2000, lo=-60, hi=190, size=size) for size in (0.6, 12.0)]

@@ -15,9 +15,10 @@ import pytest
 from csmlab.errors import InputError
 from csmlab.geometry import quat_to_matrix
 from csmlab.paths import PATH_FORMATS, guess_format, make_path, read_path, write_path
+from tests.locations import ROOT, TEST_DATA
 
-DATA = Path(__file__).parent / "data" / "paths"
-REAL_DATA = Path(__file__).resolve().parents[1] / "data" / "paths"
+DATA = TEST_DATA / "paths"
+REAL_DATA = ROOT / "data" / "paths"
 
 
 def _forward(path) -> np.ndarray:

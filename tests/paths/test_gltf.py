@@ -8,7 +8,6 @@ AnimatedTriangle under tests/data/gltf/vendor/ (git-ignored) is read when presen
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,8 +18,9 @@ from csmlab.paths import read_path
 from csmlab.paths.gltf import read_gltf_camera, sample_channel
 from csmlab.scene.gltf import read_gltf
 from csmlab.scene.gltf_writer import GltfBuilder
+from tests.locations import TEST_DATA
 
-VENDOR = Path(__file__).parent / "data" / "gltf" / "vendor"
+VENDOR = TEST_DATA / "gltf" / "vendor"
 
 
 def _about_y(deg: float) -> list[float]:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,8 +15,9 @@ from csmlab.paths import read_path
 from csmlab.paths.formats import read_recording
 from csmlab.paths.recorded import RecordedPoses
 from csmlab.paths.timing import find_gaps, frames_outside_gaps, resolve_duplicates
+from tests.locations import ROOT
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "paths"
+DATA = ROOT / "data" / "paths"
 TUM_GROUND_TRUTH = DATA / "tum_freiburg1_xyz_groundtruth.txt"
 EUROC = DATA / "euroc_v102_groundtruth_50hz.csv"
 

@@ -4,7 +4,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from test_report_capture import _frame
+from tests.report.test_capture import _frame
 
 from csmlab.report.pixels import (
     NO_VALUE,

@@ -18,8 +18,9 @@ from csmlab.errors import InputError
 from csmlab.scene import load_mesh
 from csmlab.scene.gltf import read_gltf, sun_of
 from csmlab.scene.gltf_writer import GltfBuilder, box
+from tests.locations import TEST_DATA
 
-VENDOR = Path(__file__).parent / "data" / "gltf" / "vendor"
+VENDOR = TEST_DATA / "gltf" / "vendor"
 HALF_TURN_Y = [0.0, np.sin(np.pi / 4), 0.0, np.cos(np.pi / 4)]  # 90° about +Y: (x, y, z) → (z, y, −x)
 
 

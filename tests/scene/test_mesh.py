@@ -1,7 +1,6 @@
 """Mesh import against the fixtures' own text: triangle counts, bounds and enclosed volumes worked out
 by hand from tests/data/meshes/*, the documented scale and up-axis maps, and every broken-file class."""
 
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -9,9 +8,10 @@ import pytest
 from csmlab.errors import InputError
 from csmlab.scene import load_mesh, make_scene
 from csmlab.scene.alpha_files import read_alpha_mask
+from tests.locations import ROOT, TEST_DATA
 
-MESHES = Path(__file__).parent / "data" / "meshes"
-REAL_DATA = Path(__file__).resolve().parents[1] / "data" / "meshes"
+MESHES = TEST_DATA / "meshes"
+REAL_DATA = ROOT / "data" / "meshes"
 
 
 def _signed_volume(scene) -> float:

@@ -16,6 +16,7 @@ from csmlab.experiment import build_workload
 from csmlab.scene.core import Scene
 from csmlab.scene.gltf_writer import box, ground
 from csmlab.scene.parts import PartPlacement, load_parts, rotation_from_degrees
+from tests.locations import ROOT
 
 
 def _obj(path, points, triangles):
@@ -97,7 +98,6 @@ def test_parts_are_refused_on_a_procedural_scene_and_bad_transforms_name_their_f
         load_experiment(_experiment(tmp_path, bad))
 
 
-ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
 
 
 def test_the_shipped_terrain_window_is_what_its_script_writes(tmp_path):
