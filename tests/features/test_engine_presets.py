@@ -164,6 +164,7 @@ def test_preset_holds_its_sources_defaults(tmp_path, preset, defaults):
         assert getattr(method.settings, field) == value, field
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("preset", PRESETS)
 def test_snapping_presets_are_flicker_free_and_refitting_ones_are_not(tmp_path, preset):
     """A translating camera (dolly) under a static light: same-cascade flicker 0.0 exactly iff the box is snapped.
@@ -303,6 +304,7 @@ def test_fade_out_reaches_lit_at_the_shadow_distance():
     np.testing.assert_array_equal(fading, [False, False, True, True])
 
 
+@pytest.mark.slow
 def test_report_draws_methods_with_different_cascade_counts(tmp_path):
     """Filament's one cascade beside Unreal's three and the base four: every figure is written."""
     from csmlab.report import write_report

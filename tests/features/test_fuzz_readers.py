@@ -27,6 +27,8 @@ from csmlab.scene.gltf_writer import GltfBuilder, box
 from tests.features.fuzzing import byte_variants, fuzz_reader, glb_variants, json_variants, text_variants
 from tests.locations import ROOT
 
+pytestmark = [pytest.mark.fuzz, pytest.mark.slow]
+
 PATHS = ROOT / "tests" / "data" / "paths"
 EXAMPLES = int(os.environ.get("CSMLAB_FUZZ_EXAMPLES", "40"))
 """Variants per reader: 40 runs the module in about 20 s; ``CSMLAB_FUZZ_EXAMPLES=1000`` searches deeper."""

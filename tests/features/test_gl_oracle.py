@@ -24,6 +24,8 @@ from csmlab.render import prepare_scene, render_shadow, render_view
 
 from tests.features.gl_pipeline import GLPipeline, GLUnavailable, gl_context
 
+pytestmark = [pytest.mark.gl, pytest.mark.slow]
+
 FRAMES = 8
 
 WALK = """

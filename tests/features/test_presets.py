@@ -62,6 +62,7 @@ def test_preset_resolves_to_the_values_it_sets(tmp_path, preset):
     assert checked > 0, f"{preset} sets nothing"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(list_experiments()))
 def test_experiment_runs_at_tiny_size(tmp_path, name):
     source = find_experiment(name)

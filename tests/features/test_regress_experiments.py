@@ -14,6 +14,8 @@ from csmlab.config import find_experiment, list_experiments, load_experiment
 from csmlab.experiment import run_experiment
 from csmlab.regress import regress, write_baseline
 
+pytestmark = pytest.mark.slow
+
 TINY = """
 extends = ["{path}"]
 

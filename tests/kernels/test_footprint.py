@@ -62,6 +62,7 @@ def test_texel_footprint_rejects_a_cascade_index_beyond_the_axes(device):
         texel_footprint(dpdx, dpdy, cascade, texel_axes=axes[:, :1], device=device)
 
 
+@pytest.mark.cuda
 @CUDA
 def test_texel_footprint_cuda_matches_cpu():
     dpdx, dpdy, cascade, axes = _random_case(5, height=90, width=160)
@@ -71,6 +72,7 @@ def test_texel_footprint_cuda_matches_cpu():
         np.testing.assert_allclose(b, a, rtol=1e-5, atol=1e-6)
 
 
+@pytest.mark.cuda
 @CUDA
 def test_surface_differentials_cuda_matches_cpu():
     rng = np.random.default_rng(9)

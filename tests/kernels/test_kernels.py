@@ -100,6 +100,8 @@ def _fma_count(name: str, module_dir, *, fuse_fp=None) -> int:
     return len(re.findall(r"\bfma\.", paths[0].read_text()))
 
 
+@pytest.mark.slow
+@pytest.mark.compile
 @pytest.mark.skipif(wp.get_cuda_toolkit_version() is None, reason="this Warp has no CUDA compiler (NVRTC)")
 @pytest.mark.parametrize("name", KERNEL_MODULES)
 def test_every_kernel_module_compiles_for_a_gpu_and_rounds_there_as_on_the_cpu(name, tmp_path):

@@ -426,6 +426,7 @@ def test_a_light_space_mesh_refuses_vertices_that_are_not_finite_and_indices_out
         rasterize_cascades(light_space_mesh(xy, z, [[0, 1, 2]]), depth=strided, **box)
 
 
+@pytest.mark.cuda
 @pytest.mark.skipif(wp.get_cuda_device_count() == 0, reason="no CUDA device")
 def test_cpu_and_cuda_rasterize_the_same_depth_bit_for_bit():
     """Every path on both devices (tiny, small, large and oversized triangles): the same maps and counts, bit for bit

@@ -332,6 +332,7 @@ def test_threads_must_be_a_positive_integer(threads, device):
                         normals=np.tile(UP, (4, 1)), light_direction=[0, -1, 0], method=method, threads=threads)
 
 
+@pytest.mark.cuda
 @pytest.mark.skipif(wp.get_cuda_device_count() == 0, reason="no CUDA device")
 def test_cpu_and_cuda_cast_the_same_irregular_shadow_bit_for_bit():
     """The float64 irregular z-buffer decides every receiver alike on both devices (no fused multiply-add on either)."""

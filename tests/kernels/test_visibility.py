@@ -126,6 +126,7 @@ def test_nothing_beyond_the_far_plane_is_hit(method, device):
     assert np.any(hits.triangle >= 0) and np.any(hits.triangle < 0)
 
 
+@pytest.mark.cuda
 @pytest.mark.skipif(wp.get_cuda_device_count() == 0, reason="no CUDA device")
 @pytest.mark.parametrize("method", METHODS)
 def test_cpu_and_cuda_see_the_same_hits(method):

@@ -103,6 +103,7 @@ def _results_copy(source: Path, copy: Path) -> Path:
     return copy
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("worker", [None, True], ids=["pictures-here", "pictures-in-a-worker-process"])
 def test_report_is_regenerated_byte_for_byte_from_the_results_files_alone(tiny_run, tmp_path, worker):
     source = tiny_run.parent
@@ -222,6 +223,7 @@ def test_browser_checks_catch_a_missing_image_a_console_error_and_a_remote_reque
     assert _remote(_requests(browser)) == ["http://127.0.0.1:9/elsewhere.png"]
 
 
+@pytest.mark.slow
 def test_report_opens_in_headless_chromium_with_every_image_no_console_error_and_no_remote_request(
         tiny_run, browser, tmp_path):
     _open(browser, tiny_run)
@@ -243,6 +245,7 @@ def test_report_opens_in_headless_chromium_with_every_image_no_console_error_and
     assert np.std(pixels[..., :3]) > 20, "a blank screenshot"
 
 
+@pytest.mark.slow
 def test_moving_the_slider_changes_the_shown_frame(tiny_run, browser):
     _open(browser, tiny_run)
     _wait(browser, lambda: _shown_frame(browser) == "0", what="frame 0")
@@ -255,6 +258,7 @@ def test_moving_the_slider_changes_the_shown_frame(tiny_run, browser):
     assert _errors(browser) == [] and _remote(_requests(browser)) == []
 
 
+@pytest.mark.slow
 def test_unticking_a_method_hides_it_from_the_viewer_and_the_read_out(tiny_run, browser):
     from selenium.webdriver.common.action_chains import ActionChains
 
@@ -292,6 +296,7 @@ def _telling_pixels(rho, dS, lit, cascade, *, stride: int) -> list[tuple[int, in
     return chosen
 
 
+@pytest.mark.slow
 def test_hovering_a_pixel_reads_the_values_the_metrics_per_pixel_arrays_hold(tiny_run, browser):
     from selenium.webdriver.common.action_chains import ActionChains
 
@@ -330,6 +335,7 @@ def test_hovering_a_pixel_reads_the_values_the_metrics_per_pixel_arrays_hold(tin
     assert _errors(browser) == []
 
 
+@pytest.mark.slow
 def test_clicking_a_point_of_a_curve_moves_the_slider_to_its_frame(tiny_run, browser):
     from selenium.webdriver.common.action_chains import ActionChains
 
@@ -349,6 +355,7 @@ def test_clicking_a_point_of_a_curve_moves_the_slider_to_its_frame(tiny_run, bro
     assert _errors(browser) == []
 
 
+@pytest.mark.slow
 def test_a_small_budget_thins_the_viewer_frames_and_the_page_says_so(tiny_run, tmp_path):
     copy = tmp_path / "thin"
     shutil.copytree(tiny_run.parent, copy)
@@ -401,6 +408,7 @@ def _budget_parts(tiny_run) -> dict:
     return {"rest": report_size(out) - frames - animations, "sizes": sizes, "animations": animations}
 
 
+@pytest.mark.slow
 def test_the_animations_are_left_out_before_the_viewers_every_2nd_frame_and_the_page_says_so(tiny_run, tmp_path):
     from csmlab.report.explore import _INDEX_RESERVE, report_size
 
@@ -423,6 +431,7 @@ def test_the_animations_are_left_out_before_the_viewers_every_2nd_frame_and_the_
     assert written.kept == "Explore holds every 2nd frame (2 of 3); animations left out"
 
 
+@pytest.mark.slow
 def test_the_animations_come_before_the_viewers_other_frames(tiny_run, tmp_path):
     from csmlab.report.explore import _INDEX_RESERVE
 
@@ -482,6 +491,7 @@ def test_sweep_report_plots_metrics_against_the_parameter_and_the_pareto_front(t
     assert "Regression" in text and "verdict-regression" in text and "verdict-fail" in text
 
 
+@pytest.mark.slow
 def test_the_runs_records_do_not_count_against_the_report_budget(tiny_run, tmp_path):
     from csmlab.report.explore import report_size
 
@@ -513,6 +523,7 @@ def test_the_reference_sequence_equals_the_shaded_one_where_the_method_agrees_wi
         assert (reference_shaded[lit == report_pixels.NO_VALUE] == 0).all()
 
 
+@pytest.mark.slow
 def test_the_summary_says_how_to_install_the_video_metric_until_a_run_is_scored(tiny_run, tmp_path):
     from csmlab.report.video_quality import INSTALL
 
@@ -607,6 +618,7 @@ def _resolves_anew(toml: Path, *, method: str):
     return out
 
 
+@pytest.mark.slow
 def test_a_taa_runs_record_holds_the_after_taa_planes_and_they_decode_to_the_resolves(tiny_taa_run):
     from csmlab.metrics.shading import shaded_rgb, srgb_encoded
 
@@ -702,6 +714,7 @@ def test_only_a_taa_run_offers_the_after_taa_sequence_to_the_video_metric(tiny_r
     assert np.array_equal(before[0], after[0]) and not np.array_equal(before[1:], after[1:])
 
 
+@pytest.mark.slow
 def test_the_explore_page_shows_the_after_taa_maps_and_values_only_for_a_taa_run(tiny_run, tiny_taa_run, browser):
     from selenium.webdriver.common.action_chains import ActionChains
 
@@ -738,6 +751,7 @@ def test_the_explore_page_shows_the_after_taa_maps_and_values_only_for_a_taa_run
     assert _errors(browser) == [] and _remote(_requests(browser)) == []
 
 
+@pytest.mark.slow
 def test_a_taa_runs_summary_shows_the_jod_before_and_after_taa_side_by_side(tiny_taa_run, tmp_path):
     copy = tmp_path / "scored"
     shutil.copytree(tiny_taa_run.parent, copy)

@@ -12,11 +12,14 @@ from html.parser import HTMLParser
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from csmlab.config import load_experiment
 from csmlab.experiment import run_experiment
 from csmlab.report import write_report
 from csmlab.report.images import snapshot_strip_figures
+
+pytestmark = pytest.mark.slow
 
 PLANE_BOX = 'kind = "plane_box"'
 FAR_MESH = 'kind = "mesh"\nfile = "far.obj"'
