@@ -191,6 +191,7 @@ resolution = 64
 """
 
 
+@pytest.mark.slow
 def test_the_minimal_experiment_runs_on_the_cpu_without_warps_cuda_warning(tmp_path):
     # As a user runs it: the command line, a pool of two worker processes, each of which starts Warp.
     path = tmp_path / "minimal_tiny.toml"

@@ -155,6 +155,7 @@ def test_anchor_first_keeps_millimetres_of_utm_coordinates(tmp_path):
     np.testing.assert_allclose(path.positions, expected, rtol=0, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_real_files_with_repeats_and_gaps_run_end_to_end_with_default_settings(tmp_path):
     file = _tum_with_repeats_and_gaps(tmp_path)
     experiment = tmp_path / "tum.toml"
