@@ -1,5 +1,9 @@
 """What every importer shares: the engine's defaults, typed values from a file, and the record of each field's origin.
 
+Every importer reads its files through :class:`Entry`, a :class:`csmlab.documents.Value` whose numbers may be
+spelled as text (an ini's ``2048``, a ConfigFile's ``0.5``): each read states what it expects at its key and
+anything else is an InputError ``FILE[:LINE]: KEY: expected …, got …`` (the CLI's exit 2).
+
 An importer starts from the engine's preset (``configs/engines/<preset>.toml``, read here: the one place
 the engine's defaults live), and every value it finds in the engine's files replaces the preset's,
 remembering the file and key it came from. Engine settings csmlab has no knob for are recorded as
@@ -9,16 +13,16 @@ remembering the file and key it came from. Engine settings csmlab has no knob fo
 from __future__ import annotations
 
 import functools
-import json
 import math
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from csmlab.errors import InputError
+from csmlab import documents
+from csmlab.documents import Value, read_text
 from csmlab.settings import ShadowSettings
 
-__all__ = ["Imported", "Reading", "engine_settings", "json_document", "number", "read_text", "toml_name"]
+__all__ = ["Entry", "Imported", "Reading", "engine_settings", "json_document", "number", "read_text", "toml_name"]
 
 
 @functools.cache
@@ -41,40 +45,86 @@ def toml_name(attribute: str) -> str:
     return "lambda" if attribute == "lambda_" else attribute
 
 
-def read_text(path) -> str:
-    """The UTF-8 text of ``path``; InputError naming the file when it cannot be read."""
-    try:
-        return Path(path).read_text(encoding="utf-8-sig")
-    except OSError as exc:
-        raise InputError(f"expected a readable file, got {exc.strerror or exc}", file=path) from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"expected UTF-8 text, got {exc.reason}", file=path) from None
+class Entry(Value):
+    """A value of an engine's file, read by what it is expected to be (:class:`csmlab.documents.Value`).
+
+    Its members are Entries too. Numbers may be spelled as text, as the engines' text formats write them
+    (an ini's ``2048``, a C# ``0.5f``), and an integer may be written as a float without a fraction (``4.0``);
+    anything else where a number is expected, a list where a member set is, a string where a list is, is an
+    InputError naming the file, the key and what was found.
+    """
+
+    __slots__ = ()
+
+    @classmethod
+    def of(cls, value: Value) -> Entry:
+        """``value`` (a :class:`~csmlab.documents.Value`) as an Entry."""
+        return cls(value.raw, file=value.file, key=value.key, line=value.line, what=value.what)
+
+    def at(self, name: str, what: str | None = None) -> Entry:
+        return Entry.of(super().at(name, what))
+
+    def get(self, name: str) -> Entry | None:
+        found = super().get(name)
+        return None if found is None else Entry.of(found)
+
+    def items(self, what: str | None = None) -> list[Entry]:
+        return [Entry.of(item) for item in super().items(what)]
+
+    def fields(self) -> list[tuple[str, Entry]]:
+        return [(name, Entry.of(value)) for name, value in super().fields()]
+
+    def member(self, name: str) -> Entry | None:
+        """Key ``name`` of this object, null included (a read of it then says so), or None when the key is absent."""
+        raw = self.mapping().raw
+        if name not in raw:
+            return None
+        return Entry(raw[name], file=self.file, key=self._child_key(name), line=self.line)
+
+    def _spelled(self) -> Value:
+        """This value, the number it spells when it is the text of one."""
+        if not isinstance(self.raw, str):
+            return self
+        try:
+            parsed = float(self.raw.strip().rstrip("fF"))
+        except ValueError:
+            return self
+        return Value(parsed, file=self.file, key=self.key, line=self.line, what=self.what)
+
+    def number(self, *, minimum: float | None = None, maximum: float | None = None, above: float | None = None,
+               below: float | None = None, what: str | None = None) -> float:
+        """This value as a finite float within the bounds given: a number, or the text of one."""
+        return Value.number(self._spelled(), minimum=minimum, maximum=maximum, above=above, below=below, what=what)
+
+    def integer(self, *, minimum: int | None = None, below: int | None = None, what: str | None = None) -> int:
+        """This value as an int in ``[minimum, below)``: an integer, a float without a fraction, or the text of one."""
+        spelled = self._spelled()
+        if isinstance(spelled.raw, float) and math.isfinite(spelled.raw) and spelled.raw == int(spelled.raw):
+            spelled = Value(int(spelled.raw), file=self.file, key=self.key, line=self.line, what=self.what)
+        return Value.integer(spelled, minimum=minimum, below=below, what=what)
+
+    def choice(self, choices: dict, what: str | None = None):
+        """``choices[value]`` for this value, a key of ``choices`` (a word or a number)."""
+        raw = self.raw
+        if isinstance(raw, (str, int, float)) and not isinstance(raw, bool) and raw in choices:
+            return choices[raw]
+        raise self.error(what or "one of " + ", ".join(repr(c) for c in choices))
 
 
-def json_document(path):
-    """The JSON value of ``path``; InputError naming the file (and the line) when it cannot be read or parsed."""
-    try:
-        return json.loads(read_text(path))
-    except json.JSONDecodeError as exc:
-        raise InputError(f"expected JSON, got {exc.msg}", file=path, line=exc.lineno) from None
+def json_document(path) -> Entry:
+    """The JSON document in file ``path`` as an :class:`Entry`, every object with its line
+    (:func:`csmlab.documents.json_document`: nesting deeper than ``MAX_JSON_DEPTH`` refused)."""
+    return Entry.of(documents.json_document(path, lines=True))
 
 
 def number(value, *, file, key: str, integer: bool = False, minimum: float | None = None,
            above: float | None = None) -> float | int:
-    """``value`` (a number or its text) as a float or an int, checked; InputError naming ``file`` and ``key``."""
-    kind = "an integer" if integer else "a number"
-    bounds = (f" of at least {minimum:g}" if minimum is not None else "") + (f" above {above:g}" if above is not None
-                                                                              else "")
-    try:
-        if isinstance(value, bool):
-            raise ValueError
-        parsed = float(value.strip().rstrip("fF")) if isinstance(value, str) else float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"expected {kind}{bounds}, got {value!r}", file=file, field=key) from None
-    if (not math.isfinite(parsed) or (integer and parsed != int(parsed)) or (minimum is not None and parsed < minimum)
-            or (above is not None and parsed <= above)):
-        raise InputError(f"expected {kind}{bounds}, got {value!r}", file=file, field=key)
-    return int(parsed) if integer else parsed
+    """``value`` (a number or its text) read as :class:`Entry` reads it at ``key`` of ``file``."""
+    entry = Entry(value, file=file, key=key)
+    if integer:
+        return entry.integer(minimum=None if minimum is None else math.ceil(minimum)) if above is None else \
+            entry.integer(minimum=math.floor(above) + 1)
+    return entry.number(minimum=minimum, above=above)
 
 
 @dataclass(frozen=True)
