@@ -18,11 +18,15 @@ import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import yaml
+
 from csmlab import documents
 from csmlab.documents import Value, read_text
+from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
 
-__all__ = ["Entry", "Imported", "Reading", "engine_settings", "json_document", "number", "read_text", "toml_name"]
+__all__ = ["Entry", "Imported", "Located", "LocatingLoader", "Reading", "engine_settings", "json_document", "number",
+           "read_text", "toml_name", "yaml_document"]
 
 
 @functools.cache
@@ -81,6 +85,11 @@ class Entry(Value):
             return None
         return Entry(raw[name], file=self.file, key=self._child_key(name), line=self.line)
 
+    @property
+    def tag(self) -> str:
+        """The YAML tag of this mapping (:class:`Located`), ``""`` for an untagged value."""
+        return getattr(self.raw, "tag", "")
+
     def _spelled(self) -> Value:
         """This value, the number it spells when it is the text of one."""
         if not isinstance(self.raw, str):
@@ -109,6 +118,46 @@ class Entry(Value):
         if isinstance(raw, (str, int, float)) and not isinstance(raw, bool) and raw in choices:
             return choices[raw]
         raise self.error(what or "one of " + ", ".join(repr(c) for c in choices))
+
+
+class Located(dict):
+    """A parsed mapping that remembers the 1-based line it starts on and, in tagged YAML, its tag (Stride's
+    ``!LightComponent`` is ``tag = "LightComponent"``): an :class:`Entry` of it names that line."""
+
+    line: int | None = None
+    tag: str = ""
+
+
+class LocatingLoader(yaml.SafeLoader):
+    """PyYAML's safe loader whose mappings are :class:`Located` at their first line."""
+
+    def construct_located(self, node):
+        mapping = Located()
+        mapping.line = node.start_mark.line + 1
+        yield mapping
+        mapping.update(self.construct_mapping(node))
+
+
+LocatingLoader.add_constructor("tag:yaml.org,2002:map", LocatingLoader.construct_located)
+
+
+def yaml_document(text: str, *, file, loader=LocatingLoader, what: str = "YAML", every: bool = False):
+    """The YAML document ``text`` of ``file`` (with ``every``, the list of its documents) read by ``loader``.
+
+    Raises
+    ------
+    InputError
+        YAML that does not parse, or a value PyYAML cannot build (a date that is no date, nesting
+        deeper than Python recurses), named with the file and, where PyYAML knows it, the line.
+    """
+    try:
+        return list(yaml.load_all(text, Loader=loader)) if every else yaml.load(text, Loader=loader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        raise InputError(f"expected {what}, got {getattr(exc, 'problem', None) or exc}", file=file,
+                         line=None if mark is None else mark.line + 1) from None
+    except (ValueError, TypeError, RecursionError) as exc:  # a timestamp out of range, nesting past the stack
+        raise InputError(f"expected {what}, got {type(exc).__name__}: {str(exc)[:80]}", file=file) from None
 
 
 def json_document(path) -> Entry:
