@@ -26,7 +26,7 @@ from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
 
 __all__ = ["Entry", "Imported", "Located", "LocatingLoader", "Reading", "engine_settings", "json_document", "number",
-           "read_text", "toml_name", "yaml_document"]
+           "one_line", "read_text", "toml_name", "yaml_document"]
 
 
 @functools.cache
@@ -176,6 +176,17 @@ def number(value, *, file, key: str, integer: bool = False, minimum: float | Non
     return entry.number(minimum=minimum, above=above)
 
 
+_SHOWN = 200
+"""Characters of a file's value an origin or an unmodelled line shows before it is cut."""
+
+
+def one_line(text: str) -> str:
+    """``text`` as one line of a TOML comment: control characters (a line break in a file's string) escaped, cut to
+    :data:`_SHOWN` characters."""
+    text = "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+    return text if len(text) <= _SHOWN else text[:_SHOWN] + "…"
+
+
 @dataclass(frozen=True)
 class Imported:
     """An engine's shadow settings as csmlab settings.
@@ -221,11 +232,11 @@ class Reading:
         """Set ``attribute`` to ``value``, read from ``key`` of ``file`` (``raw``: the value as the file spells it)."""
         self.values[attribute] = value
         shown = value if raw is None else raw
-        self.origins[attribute] = f"{Path(file).name}: {key} = {shown}"
+        self.origins[attribute] = one_line(f"{Path(file).name}: {key} = {shown}")
 
     def lack(self, *, file, key: str, value, why: str) -> None:
         """Record that ``key = value`` of ``file`` has no csmlab knob, and ``why``."""
-        self.unmodelled.append(f"{Path(file).name}: {key} = {value} ({why})")
+        self.unmodelled.append(one_line(f"{Path(file).name}: {key} = {value}") + f" ({why})")
 
     def result(self) -> Imported:
         return Imported(self.engine, self.preset, self.base.replace(**self.values), dict(self.origins),
