@@ -25,7 +25,7 @@ from csmlab.documents import Value, read_text
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
 
-__all__ = ["Entry", "Imported", "Located", "LocatingLoader", "Reading", "engine_settings", "json_document", "number",
+__all__ = ["Entry", "Imported", "Located", "LocatingLoader", "Reading", "engine_settings", "json_document",
            "one_line", "read_text", "toml_name", "yaml_document"]
 
 
@@ -164,16 +164,6 @@ def json_document(path) -> Entry:
     """The JSON document in file ``path`` as an :class:`Entry`, every object with its line
     (:func:`csmlab.documents.json_document`: nesting deeper than ``MAX_JSON_DEPTH`` refused)."""
     return Entry.of(documents.json_document(path, lines=True))
-
-
-def number(value, *, file, key: str, integer: bool = False, minimum: float | None = None,
-           above: float | None = None) -> float | int:
-    """``value`` (a number or its text) read as :class:`Entry` reads it at ``key`` of ``file``."""
-    entry = Entry(value, file=file, key=key)
-    if integer:
-        return entry.integer(minimum=None if minimum is None else math.ceil(minimum)) if above is None else \
-            entry.integer(minimum=math.floor(above) + 1)
-    return entry.number(minimum=minimum, above=above)
 
 
 _SHOWN = 200
