@@ -77,11 +77,14 @@ def read_bevy(paths) -> Imported:
         if entities is None or not entities.is_object():
             raise InputError("expected a Bevy scene: ( resources: {…}, entities: {…} )", file=path, field="entities",
                              line=scene.line)
-        components = Entry(Located(), file=path, key="components", line=entities.line)
+        merged = Located()
+        merged.line, merged.key_lines = entities.line, {}
         for _, entity in entities.fields():
             found = entity.mapping("an entity: ( components: {…} )").get("components")
             for key, value in [] if found is None else found.mapping("components by type path").fields():
-                components.raw.setdefault(key, value.raw)
+                if key not in merged:
+                    merged[key], merged.key_lines[key] = value.raw, value.line
+        components = Entry(merged, file=path, key="components", line=entities.line)
         config = _by_type(components, "CascadeShadowConfig")
         light = _by_type(components, "DirectionalLight")
         if config is None and light is None:

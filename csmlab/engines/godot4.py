@@ -76,7 +76,7 @@ def _open(value: str) -> bool:
 
 def _located(line: int) -> Located:
     keys = Located()
-    keys.line = line
+    keys.line, keys.key_lines = line, {}
     return keys
 
 
@@ -103,6 +103,7 @@ def config_sections(path) -> list[tuple[str, dict, dict, int]]:
         if "=" not in line:
             raise InputError(f"expected key = value or a [section] header, got {line[:60]!r}", file=path, line=i)
         key, value = (part.strip() for part in line.split("=", 1))
+        sections[-1][2].key_lines[key] = i
         while _open(value) and i < len(lines):
             value += "\n" + lines[i]
             i += 1
@@ -119,7 +120,7 @@ def _project(path, reading: Reading) -> None:
     for key, value in rendering.items():
         if not f"rendering/{key}".startswith(_PROJECT):
             continue
-        entry = Entry(value, file=path, key=f"rendering/{key}", line=rendering.line)
+        entry = Entry(value, file=path, key=f"rendering/{key}", line=rendering.key_lines.get(key, rendering.line))
         name = entry.key[len(_PROJECT):]
         if name == "size":
             reading.pending["atlas"] = (entry.integer(minimum=1), entry.key, path)

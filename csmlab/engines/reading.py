@@ -25,7 +25,7 @@ from csmlab.documents import Value, read_text
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
 
-__all__ = ["Entry", "Imported", "Located", "LocatingLoader", "Reading", "engine_settings", "json_document",
+__all__ = ["Entry", "Imported", "Located", "LocatingLoader", "located_mapping", "Reading", "engine_settings", "json_document",
            "one_line", "read_text", "toml_name", "yaml_document"]
 
 
@@ -65,25 +65,37 @@ class Entry(Value):
         """``value`` (a :class:`~csmlab.documents.Value`) as an Entry."""
         return cls(value.raw, file=value.file, key=value.key, line=value.line, what=value.what)
 
-    def at(self, name: str, what: str | None = None) -> Entry:
-        return Entry.of(super().at(name, what))
+    def _line_of(self, name) -> int | None:
+        """The line of key ``name`` of this mapping where the parser kept it (:attr:`Located.key_lines`), else the
+        mapping's."""
+        lines = getattr(self.raw, "key_lines", None)
+        return lines.get(name, self.line) if lines else self.line
 
-    def get(self, name: str) -> Entry | None:
-        found = super().get(name)
-        return None if found is None else Entry.of(found)
+    def member(self, name) -> Entry | None:
+        """Key ``name`` of this object, null included (a read of it then says so), or None when the key is absent."""
+        raw = self.mapping().raw
+        if name not in raw:
+            return None
+        return Entry(raw[name], file=self.file, key=self._child_key(name), line=self._line_of(name))
+
+    def at(self, name: str, what: str | None = None) -> Entry:
+        child = self.member(name)
+        if child is None:
+            return Entry.of(super().at(name, what))  # raises: no key ``name``
+        child.what = what
+        if child.raw is None:
+            raise child.error(what or "a value")
+        return child
+
+    def get(self, name) -> Entry | None:
+        child = self.member(name)
+        return None if child is None or child.raw is None else child
 
     def items(self, what: str | None = None) -> list[Entry]:
         return [Entry.of(item) for item in super().items(what)]
 
     def fields(self) -> list[tuple[str, Entry]]:
-        return [(name, Entry.of(value)) for name, value in super().fields()]
-
-    def member(self, name: str) -> Entry | None:
-        """Key ``name`` of this object, null included (a read of it then says so), or None when the key is absent."""
-        raw = self.mapping().raw
-        if name not in raw:
-            return None
-        return Entry(raw[name], file=self.file, key=self._child_key(name), line=self.line)
+        return [(name, self.member(name)) for name in self.mapping().raw]
 
     @property
     def tag(self) -> str:
@@ -126,14 +138,26 @@ class Located(dict):
 
     line: int | None = None
     tag: str = ""
+    key_lines: dict | None = None
+    """The 1-based line of each key, where the parser knows it."""
+
+
+def located_mapping(node: yaml.MappingNode, items=()) -> Located:
+    """A :class:`Located` of YAML mapping ``node``'s line and its keys' lines (a key's ``*`` override mark dropped)."""
+    mapping = Located(items)
+    mapping.line = node.start_mark.line + 1
+    mapping.key_lines = {}
+    for key, _ in node.value:
+        if isinstance(key, yaml.ScalarNode):
+            mapping.key_lines[key.value] = mapping.key_lines[key.value.rstrip("*")] = key.start_mark.line + 1
+    return mapping
 
 
 class LocatingLoader(yaml.SafeLoader):
-    """PyYAML's safe loader whose mappings are :class:`Located` at their first line."""
+    """PyYAML's safe loader whose mappings are :class:`Located` at their lines."""
 
     def construct_located(self, node):
-        mapping = Located()
-        mapping.line = node.start_mark.line + 1
+        mapping = located_mapping(node)
         yield mapping
         mapping.update(self.construct_mapping(node))
 

@@ -83,7 +83,7 @@ def parse_ron(text: str, *, file=None):
 
     def located(line: int) -> Located:
         mapping = Located()
-        mapping.line = line
+        mapping.line, mapping.key_lines = line, {}
         return mapping
 
     def parenthesised(depth):
@@ -93,8 +93,9 @@ def parse_ron(text: str, *, file=None):
         if kind == "ident" and after == ":":
             fields = located(line)
             while peek()[1] != ")":
-                name = take()[1]
+                _, name, at = take()
                 take(":")
+                fields.key_lines[name] = at
                 fields[name] = value(depth + 1)
                 if peek()[1] != ")":
                     take(",")
@@ -129,9 +130,12 @@ def parse_ron(text: str, *, file=None):
             take("{")
             mapping = located(line)
             while peek()[1] != "}":
+                at = peek()[2]
                 key = value(depth + 1)
+                key = key if not isinstance(key, (list, dict)) else str(key)
                 take(":")
-                mapping[key if not isinstance(key, (list, dict)) else str(key)] = value(depth + 1)
+                mapping.key_lines[key] = at
+                mapping[key] = value(depth + 1)
                 if peek()[1] != "}":
                     take(",")
             take("}")

@@ -47,8 +47,8 @@ from csmlab.cascades.splits import split_boundaries
 from csmlab.engines.common import (Engine, EngineFiles, Snippet, common_lacking, fixed_preset, largest_resolution,
                                    one_file)
 from csmlab.documents import described
-from csmlab.engines.reading import (Entry, Imported, Located, LocatingLoader, Reading, engine_settings, read_text,
-                                    yaml_document)
+from csmlab.engines.reading import (Entry, Imported, Located, LocatingLoader, Reading, engine_settings,
+                                    located_mapping, read_text, yaml_document)
 from csmlab.errors import InputError
 from csmlab.lookup_choices import FILTER_METHODS
 from csmlab.settings import ShadowSettings
@@ -101,8 +101,8 @@ class _StrideLoader(LocatingLoader):
 
 def _construct_tagged(loader: _StrideLoader, suffix: str, node):
     if isinstance(node, yaml.MappingNode):
-        value = Located(loader.construct_mapping(node, deep=True))
-        value.line, value.tag = node.start_mark.line + 1, suffix
+        value = located_mapping(node, loader.construct_mapping(node, deep=True))
+        value.tag = suffix
         return value
     if isinstance(node, yaml.SequenceNode):
         return loader.construct_sequence(node, deep=True)
