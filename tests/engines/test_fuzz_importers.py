@@ -299,3 +299,82 @@ def test_the_fuzzers_trees_write_back_the_files_they_came_from(tmp_path):
         original = import_settings([folder / n for n in names], engine=engine).settings
         (folder / target).write_text(write(tree), encoding="utf-8")
         assert import_settings([folder / n for n in names], engine=engine).settings == original, (engine, target)
+
+
+# -- through the CLI ---------------------------------------------------------------------------------------------
+
+def _csmlab_import(engine: str, files, out: Path):
+    from typer.testing import CliRunner
+
+    from csmlab.cli import app
+
+    return CliRunner().invoke(app, ["import", engine, *map(str, files), "--out", str(out)])
+
+
+def _replaced_in(engine: str, name: str, old: str, new: str) -> str:
+    text = _fixture(engine, name)
+    assert old in text, (engine, name, old)
+    return text.replace(old, new)
+
+
+BAD = [
+    # The classes of issue 42: a list where the format has a member set or a word, a bad RON escape, deep JSON.
+    ("unity_urp", "urp.asset", lambda: _replaced_in("unity_urp", "UniversalRP-HighQuality.asset",
+                                                     "m_Cascade3Split: {x: 0.1, y: 0.3}", "m_Cascade3Split: [0.1, 0.3]"),
+     "urp.asset:40: m_Cascade3Split: expected {x: …, y: …}, got a list of 2 item(s)"),
+    ("threejs_csm", "csm.json", lambda: '{"cascades": 3, "mode": ["practical"]}',
+     "csm.json:1: mode: expected one of 'uniform', 'logarithmic', 'practical', 'custom', got a list of 1 item(s)"),
+    ("bevy", "sun.scn.ron", lambda: _replaced_in("bevy", "sun.scn.ron", '"Sun"', '"Sun\\q"'),
+     "sun.scn.ron:10: expected a string escape"),
+    ("bevy", "sun.scn.ron", lambda: _replaced_in("bevy", "sun.scn.ron", '"bevy_ecs::name::Name": "Camera",\n'
+                                                 '        "bevy_light::ShadowFilteringMethod": Hardware2x2,\n      }',
+                                                 '"Camera", Hardware2x2]').replace("components: {\n        \"Camera\"",
+                                                                                   "components: [\n        \"Camera\""),
+     "sun.scn.ron:37: entities[4294967297].components: expected components by type path, got a list of 2 item(s)"),
+    ("stride", "scene.sdscene", lambda: _replaced_in(
+        "stride", "MainScene.sdscene", "BiasParameters:\n" + " " * 36 + "DepthBias: 0.001\n" + " " * 36
+        + "NormalOffsetScale: 4.0", "BiasParameters: [0.001, 4.0]"),
+     "scene.sdscene:74: Sun.Shadow.BiasParameters: expected the BiasParameters members, got a list of 2 item(s)"),
+    ("filament", "settings.json", lambda: "[" * 100_000, "settings.json:1: expected JSON nested at most 64 deep"),
+    ("ue5", "DefaultEngine.ini", lambda: "[SystemSettings]\nr.Shadow.MaxCSMResolution\n",
+     "DefaultEngine.ini: [SystemSettings] r.Shadow.MaxCSMResolution: expected an integer ≥ 1, got null"),
+]
+"""``(engine, file name, its text, what the one line of exit 2 says after the folder)``."""
+
+
+@pytest.mark.parametrize("engine, name, text, message", BAD, ids=[f"{e}-{m.split(':')[0]}" for e, _, _, m in BAD])
+def test_cli_import_of_a_wrongly_shaped_file_exits_2_naming_file_line_and_key(engine, name, text, message, tmp_path):
+    path = tmp_path / name
+    path.write_text(text(), encoding="utf-8")
+    outcome = _csmlab_import(engine, [path], tmp_path / "out.toml")
+    assert outcome.exit_code == 2, outcome.output
+    assert outcome.output.startswith(f"csmlab: error: {tmp_path / message}") and outcome.output.count("\n") == 1, \
+        outcome.output
+    assert not (tmp_path / "out.toml").exists()
+
+
+def test_cli_import_of_fuzzed_engine_files_exits_0_or_2_with_one_line_naming_the_file():
+    # What the importers let through, csmlab's own checks then refuse (a resolution above 16384, …): the CLI names
+    # the engine's file for those too, and writes a preset only for a file it takes.
+    def read_with_the_cli(engine: str, names):
+        def read(path: Path) -> None:
+            out = path.parent / "fuzzed.toml"
+            out.unlink(missing_ok=True)
+            outcome = _csmlab_import(engine, [path.parent / name for name in names], out)
+            if outcome.exit_code == 2 and outcome.output.count("\n") == 1 and str(path.parent) in outcome.output:
+                assert not out.exists()
+                raise InputError(outcome.output, file=path)
+            assert outcome.exit_code == 0 and out.is_file(), (outcome.exit_code, outcome.output, outcome.exception)
+
+        return read
+
+    examples = max(EXAMPLES // 4, 4)
+    for engine, names, target in CASES[:8]:
+        files = _engine_files(engine, names)
+        tree, write = _tree_and_writer(engine, target, files[target].decode("utf-8"))
+        counts = fuzz_reader(read_with_the_cli(engine, names), files, target,
+                             json_variants(tree, encode=_written(write)), examples=examples)
+        TRIED[f"csmlab import {engine} {target}"] = sum(counts.values())
+        print(f"fuzz csmlab import {engine} {target}: {sum(counts.values())} variants, {counts['loaded']} imported, "
+              f"{counts['refused']} refused (exit 2)")
+        assert sum(counts.values()) >= examples // 2
