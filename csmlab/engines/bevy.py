@@ -75,8 +75,8 @@ def read_bevy(paths) -> Imported:
         scene = Entry(parse_ron(read_text(path), file=path), file=path)
         entities = scene.get("entities") if scene.is_object() else None
         if entities is None or not entities.is_object():
-            raise InputError("expected a Bevy scene: ( resources: {…}, entities: {…} )", file=path, field="entities",
-                             line=scene.line)
+            raise InputError("expected a Bevy scene: ( resources: {…}, entities: {…} )", file=path,
+                             field="entities", line=scene.line)
         merged = Located()
         merged.line, merged.key_lines = entities.line, {}
         for _, entity in entities.fields():

@@ -25,8 +25,8 @@ from csmlab.documents import Value, read_text
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
 
-__all__ = ["Entry", "Imported", "Located", "LocatingLoader", "located_mapping", "Reading", "engine_settings", "json_document",
-           "one_line", "read_text", "toml_name", "yaml_document"]
+__all__ = ["Entry", "Imported", "Located", "LocatingLoader", "Reading", "engine_settings", "json_document",
+           "located_mapping", "one_line", "read_text", "toml_name", "yaml_document"]
 
 
 @functools.cache

@@ -200,7 +200,7 @@ def read_stride(paths) -> Imported:
     path = paths[0]
     reading = Reading("stride", PRESET)
     components = _components(_asset(path))
-    name, shadow = _sun(components, path)
+    _, shadow = _sun(components, path)
     enabled = shadow.member("Enabled")
     if enabled is None or not enabled.boolean():
         reading.lack(file=path, key=f"{shadow.key}.Enabled", value=False,

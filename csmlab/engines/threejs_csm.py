@@ -114,8 +114,8 @@ def read_threejs_csm(paths) -> Imported:
             reading.set("vogel_radius", entry.number(above=0.0), file=path, key="shadowRadius")
         for key, entry in sorted(options.fields(), key=lambda field: field[0]):
             if key not in known:
-                reading.lack(file=path, key=key, value=json.dumps(entry.raw),
-                             why="the light is the experiment's [light]" if key.startswith("light") else "no csmlab knob")
+                why = "the light is the experiment's [light]" if key.startswith("light") else "no csmlab knob"
+                reading.lack(file=path, key=key, value=json.dumps(entry.raw), why=why)
     return reading.result()
 
 

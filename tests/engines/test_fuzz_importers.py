@@ -29,7 +29,6 @@ from pathlib import Path
 import pytest
 import yaml
 from engine_cases import DATA
-from hypothesis import strategies as st
 
 from csmlab.engines import import_settings, preset_toml
 from csmlab.errors import InputError
@@ -320,7 +319,8 @@ def _replaced_in(engine: str, name: str, old: str, new: str) -> str:
 BAD = [
     # The classes of issue 42: a list where the format has a member set or a word, a bad RON escape, deep JSON.
     ("unity_urp", "urp.asset", lambda: _replaced_in("unity_urp", "UniversalRP-HighQuality.asset",
-                                                     "m_Cascade3Split: {x: 0.1, y: 0.3}", "m_Cascade3Split: [0.1, 0.3]"),
+                                                     "m_Cascade3Split: {x: 0.1, y: 0.3}",
+                                                     "m_Cascade3Split: [0.1, 0.3]"),
      "urp.asset:40: m_Cascade3Split: expected {x: …, y: …}, got a list of 2 item(s)"),
     ("threejs_csm", "csm.json", lambda: '{"cascades": 3, "mode": ["practical"]}',
      "csm.json:1: mode: expected one of 'uniform', 'logarithmic', 'practical', 'custom', got a list of 1 item(s)"),
