@@ -115,10 +115,11 @@ def read_unity_builtin(paths) -> Imported:
             reading.set("filter", "pcf_bilinear", file=path, key=entry.key, raw=1)
     for unmodelled in _UNMODELLED:
         entry = level.member(unmodelled)
-        if entry is not None and not (unmodelled == "shadowCascade2Split" and cascades == 2):
-            reading.lack(file=path, key=entry.key, value=entry.raw,
-                         why="not used by this level's cascades" if unmodelled == "shadowCascade2Split"
-                         else "no csmlab knob")
+        if entry is None or (unmodelled == "shadowCascade2Split" and cascades == 2):
+            continue
+        entry.number()  # a number, checked: shown as written
+        reading.lack(file=path, key=entry.key, value=entry.raw,
+                     why="not used by this level's cascades" if unmodelled == "shadowCascade2Split" else "no csmlab knob")
     return reading.result()
 
 

@@ -126,7 +126,8 @@ def read_unity_urp(paths) -> Imported:
                                  "soft shadows off, is kept")
         for key, why in _UNMODELLED.items():
             entry = fields.member(key)
-            if entry is not None and not (key == "m_MainLightShadowsSupported" and entry.raw == 1):
+            # Each a number, checked, then shown as written.
+            if entry is not None and not (entry.number() == 1 and key == "m_MainLightShadowsSupported"):
                 reading.lack(file=path, key=key, value=entry.raw, why=why)
     return reading.result()
 

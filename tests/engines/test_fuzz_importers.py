@@ -378,3 +378,33 @@ def test_cli_import_of_fuzzed_engine_files_exits_0_or_2_with_one_line_naming_the
         print(f"fuzz csmlab import {engine} {target}: {sum(counts.values())} variants, {counts['loaded']} imported, "
               f"{counts['refused']} refused (exit 2)")
         assert sum(counts.values()) >= examples // 2
+
+
+def _laughs(indent: str, last: str) -> str:
+    """YAML anchors of 9⁹ strings by reference (``billion laughs``), the last one's alias at key ``last``."""
+    lines = [f"{indent}m_Laugh0: &l0 [{', '.join(['lol'] * 9)}]"]
+    lines += [f"{indent}m_Laugh{k}: &l{k} [{', '.join([f'*l{k - 1}'] * 9)}]" for k in range(1, 9)]
+    return "\n".join(lines + [f"{indent}{last}: *l8"]) + "\n"
+
+
+YAML_CASES = [
+    ("unity_urp", "UniversalRP-HighQuality.asset", "  m_CascadeBorder: 0.1\n",
+     "  m_CascadeBorder: 0.1\n" + _laughs("  ", "m_ShadowType"),
+     "m_ShadowType: expected a finite number, got a list of 9 item(s)"),
+    ("unity_urp", "UniversalRP-HighQuality.asset", "  m_ShadowDistance: 100\n", "  m_ShadowDistance: 2001-13-01\n",
+     "expected valid YAML, got ValueError: month must be in 1..12"),
+    ("stride", "MainScene.sdscene", "Tags: []\n", "Tags: " + "[" * 5000 + "]" * 5000 + "\n",
+     "expected Stride asset YAML, got RecursionError"),
+    ("stride", "MainScene.sdscene", " " * 36 + "DepthBias: 0.001\n",
+     _laughs(" " * 36, "DepthBias"), "Sun.Shadow.BiasParameters.DepthBias: expected a finite number ≥ 0, got a list"),
+]
+"""What PyYAML builds that JSON cannot hold: aliases to 9⁹ strings, a date that is none, nesting past Python's stack."""
+
+
+@pytest.mark.parametrize("engine, name, old, new, message", YAML_CASES, ids=[m.split(":")[0] for *_, m in YAML_CASES])
+def test_yaml_that_pyyaml_builds_oddly_exits_2_naming_the_file(engine, name, old, new, message, tmp_path):
+    path = tmp_path / name
+    path.write_text(_replaced_in(engine, name, old, new), encoding="utf-8")
+    with pytest.raises(InputError) as caught:
+        import_settings([path], engine=engine)
+    assert caught.value.file == str(path) and message in str(caught.value), str(caught.value)
