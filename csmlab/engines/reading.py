@@ -79,6 +79,7 @@ class Entry(Value):
         return Entry(raw[name], file=self.file, key=self._child_key(name), line=self._line_of(name))
 
     def at(self, name: str, what: str | None = None) -> Entry:
+        """Key ``name`` of this object; InputError at its line when it is missing or null (``what``: what it holds)."""
         child = self.member(name)
         if child is None:
             return Entry.of(super().at(name, what))  # raises: no key ``name``
@@ -88,13 +89,16 @@ class Entry(Value):
         return child
 
     def get(self, name) -> Entry | None:
+        """Key ``name`` of this object, or None when it is missing or null."""
         child = self.member(name)
         return None if child is None or child.raw is None else child
 
     def items(self, what: str | None = None) -> list[Entry]:
+        """The entries of this list."""
         return [Entry.of(item) for item in super().items(what)]
 
     def fields(self) -> list[tuple[str, Entry]]:
+        """``(key, value)`` of every member of this object, in file order, each at its key's line."""
         return [(name, self.member(name)) for name in self.mapping().raw]
 
     @property

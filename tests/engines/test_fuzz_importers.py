@@ -408,3 +408,19 @@ def test_yaml_that_pyyaml_builds_oddly_exits_2_naming_the_file(engine, name, old
     with pytest.raises(InputError) as caught:
         import_settings([path], engine=engine)
     assert caught.value.file == str(path) and message in str(caught.value), str(caught.value)
+
+
+def test_an_entry_reads_numbers_as_text_formats_spell_them_and_names_the_line_of_its_key():
+    from csmlab.engines.reading import Entry, yaml_document
+
+    document = Entry(yaml_document("a:\n  size: '2048'\n  scale: 0.5f\n  count: 4.0\n  word: big\n  list: [1]\n",
+                                   file="f.asset"), file="f.asset")
+    members = document.at("a")
+    assert members.at("size").integer(minimum=1) == 2048 and members.at("scale").number() == 0.5
+    assert members.at("count").integer() == 4
+    with pytest.raises(InputError, match=r"^f\.asset:5: a\.word: expected a finite number, got the string 'big'$"):
+        members.at("word").number()
+    with pytest.raises(InputError, match=r"^f\.asset:6: a\.list: expected one of 'x', got a list of 1 item\(s\)$"):
+        members.at("list").choice({"x": 1})
+    with pytest.raises(InputError, match=r"^f\.asset:4: a\.count: expected an integer ≥ 5, got 4"):
+        members.at("count").integer(minimum=5)
