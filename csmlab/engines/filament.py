@@ -19,8 +19,7 @@ import json
 from csmlab.cascades.splits import fractions_of_range, split_boundaries
 from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, blend_lacking, common_lacking,
                                    fixed_preset, largest_resolution, one_file)
-from csmlab.engines.reading import Imported, Reading, engine_settings, json_document, number
-from csmlab.errors import InputError
+from csmlab.engines.reading import Entry, Imported, Reading, engine_settings, json_document
 from csmlab.settings import ShadowSettings
 
 __all__ = ["ENGINE", "FIELDS", "PRESET", "TUNE_SPACE", "export_filament", "read_filament", "write_filament"]
@@ -38,17 +37,15 @@ NORMAL_BIAS_SCALE = 0.5
 """ShadowMapManager: normalBias = 0.5 · ShadowOptions.normalBias · texel ("a half-texel size")."""
 
 
-def _options(document: dict, path) -> tuple[dict, str]:
-    lighting = document.get("lighting")
-    if not isinstance(lighting, dict):
-        raise InputError("expected a Filament viewer settings object with a lighting section", file=path,
-                         field="lighting")
+def _options(document: Entry) -> Entry:
+    """The sun's ShadowOptions (an empty object at their key when the settings have none)."""
+    lighting = document.at("lighting", "a Filament viewer settings object with a lighting section").mapping()
     sun = lighting.get("sunlight")
-    if isinstance(sun, dict) and isinstance(sun.get("shadowOptions"), dict):
-        return sun["shadowOptions"], "lighting.sunlight.shadowOptions"
-    if isinstance(lighting.get("shadowOptions"), dict):
-        return lighting["shadowOptions"], "lighting.shadowOptions"
-    return {}, "lighting.sunlight.shadowOptions"
+    if sun is not None and sun.mapping().get("shadowOptions") is not None:
+        return sun.at("shadowOptions").mapping()
+    if lighting.get("shadowOptions") is not None:
+        return lighting.at("shadowOptions").mapping()
+    return Entry({}, file=document.file, key="lighting.sunlight.shadowOptions", line=lighting.line)
 
 
 def read_filament(paths) -> Imported:
@@ -62,56 +59,46 @@ def read_filament(paths) -> Imported:
     reading = Reading("filament", PRESET)
     base = reading.base
     for path in paths:
-        document = json_document(path)
-        if not isinstance(document, dict):
-            raise InputError("expected a JSON object of viewer settings", file=path, field="lighting")
-        options, where = _options(document, path)
+        document = json_document(path).mapping("a JSON object of viewer settings")
+        options = _options(document)
         cascades = base.cascades
-        if "shadowCascades" in options:
-            cascades = number(options["shadowCascades"], file=path, key=f"{where}.shadowCascades", integer=True,
-                              minimum=1)
-            if cascades > 4:
-                raise InputError(f"expected 1 to 4 cascades, got {cascades}", file=path, field=f"{where}.shadowCascades")
-            reading.set("cascades", cascades, file=path, key=f"{where}.shadowCascades")
-        if "cascadeSplitPositions" in options:
-            key = f"{where}.cascadeSplitPositions"
-            positions = options["cascadeSplitPositions"]
-            if not isinstance(positions, list) or len(positions) < cascades - 1:
-                raise InputError(f"expected a list of at least {cascades - 1} fractions, got {positions!r}", file=path,
-                                 field=key)
-            fractions = [number(v, file=path, key=key, above=0.0) for v in positions[:cascades - 1]] + [1.0]
+        if (entry := options.member("shadowCascades")) is not None:
+            cascades = entry.integer(minimum=1, below=5, what="1 to 4 cascades")
+            reading.set("cascades", cascades, file=path, key=entry.key)
+        if (positions := options.member("cascadeSplitPositions")) is not None:
+            entries = positions.items(f"a list of at least {cascades - 1} fractions")
+            if len(entries) < cascades - 1:
+                raise positions.error(f"a list of at least {cascades - 1} fractions")
+            fractions = [entry.number(above=0.0) for entry in entries[:cascades - 1]] + [1.0]
             if any(b <= a for a, b in zip(fractions, fractions[1:])):
-                raise InputError(f"expected increasing fractions below 1, got {positions}", file=path, field=key)
-            reading.set("split", "manual_range", file=path, key=key, raw=positions)
-            reading.set("splits", tuple(fractions), file=path, key=key, raw=positions)
-        if "shadowFar" in options:
-            far = number(options["shadowFar"], file=path, key=f"{where}.shadowFar", minimum=0.0)
+                raise positions.error("increasing fractions below 1")
+            reading.set("split", "manual_range", file=path, key=positions.key, raw=positions.raw)
+            reading.set("splits", tuple(fractions), file=path, key=positions.key, raw=positions.raw)
+        if (entry := options.member("shadowFar")) is not None:
+            far = entry.number(minimum=0.0)
             if far > 0:
-                reading.set("shadow_distance", far, file=path, key=f"{where}.shadowFar")
-        if "stable" in options:
-            stable = options["stable"]
-            if not isinstance(stable, bool):
-                raise InputError(f"expected true or false, got {stable!r}", file=path, field=f"{where}.stable")
-            reading.set("stabilization", "exact" if stable else "none", file=path, key=f"{where}.stable", raw=stable)
+                reading.set("shadow_distance", far, file=path, key=entry.key)
+        if (entry := options.member("stable")) is not None:
+            stable = entry.boolean()
+            reading.set("stabilization", "exact" if stable else "none", file=path, key=entry.key, raw=stable)
         scaled = {"constantBias": ("bias_constant", 1.0), "normalBias": ("normal_offset", NORMAL_BIAS_SCALE),
                   "polygonOffsetSlope": ("bias_slope", 1.0),
                   "polygonOffsetConstant": ("bias_depth_range", 1.0 / DEPTH16_STEPS)}
         for key, (attribute, scale) in scaled.items():
-            if key in options:
-                value = number(options[key], file=path, key=f"{where}.{key}", minimum=0.0)
-                reading.set(attribute, value * scale, file=path, key=f"{where}.{key}", raw=options[key])
-        if "mapSize" in options:
-            reading.set("resolution", number(options["mapSize"], file=path, key=f"{where}.mapSize", integer=True,
-                                             minimum=1), file=path, key=f"{where}.mapSize")
+            if (entry := options.member(key)) is not None:
+                reading.set(attribute, entry.number(minimum=0.0) * scale, file=path, key=entry.key, raw=entry.raw)
+        if (entry := options.member("mapSize")) is not None:
+            reading.set("resolution", entry.integer(minimum=1), file=path, key=entry.key)
         for key in ("lispsm", "shadowNearHint", "shadowFarHint", "screenSpaceContactShadows", "vsm",
                     "shadowBulbRadius", "transform", "maxShadowDistance", "stepCount"):
-            if key in options and not (key in ("lispsm", "screenSpaceContactShadows") and options[key] is False):
-                reading.lack(file=path, key=f"{where}.{key}", value=json.dumps(options[key]),
+            entry = options.member(key)
+            if entry is not None and not (key in ("lispsm", "screenSpaceContactShadows") and entry.raw is False):
+                reading.lack(file=path, key=entry.key, value=json.dumps(entry.raw),
                              why="LiSPSM warp" if key == "lispsm" else "no csmlab knob")
-        shadow_type = document.get("view", {}).get("shadowType", "PCF") if isinstance(document.get("view"), dict) \
-            else "PCF"
-        if shadow_type != "PCF":
-            reading.lack(file=path, key="view.shadowType", value=shadow_type,
+        view = document.get("view")
+        shadow_type = view.mapping().member("shadowType") if view is not None else None
+        if shadow_type is not None and shadow_type.text() != "PCF":
+            reading.lack(file=path, key=shadow_type.key, value=shadow_type.raw,
                          why="csmlab models PCF (PCF_LOW); the preset's pcf_castano 3 is kept")
     return reading.result()
 

@@ -29,7 +29,7 @@ from csmlab.cascades.splits import count_one_two_or_four, fractions_of_range, sp
 from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, blend_lacking, common_lacking,
                                    fixed_preset, four_digits, hard_filter, largest_resolution, shape_lacking,
                                    storage_lacking, vogel_is)
-from csmlab.engines.reading import Imported, Reading, engine_settings, number, read_text
+from csmlab.engines.reading import Entry, Imported, Located, Reading, engine_settings, read_text
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
 
@@ -78,13 +78,20 @@ def _open(value: str) -> bool:
     return '"' in unquoted or sum(unquoted.count(o) - unquoted.count(c) for o, c in ("()", "[]", "{}")) > 0
 
 
+def _located(line: int) -> Located:
+    keys = Located()
+    keys.line, keys.key_lines = line, {}
+    return keys
+
+
 def config_sections(path) -> list[tuple[str, dict, dict, int]]:
     """The sections of a Godot ConfigFile: ``(kind, header attributes, {key: value}, header line)`` in file order.
 
     Lines before the first header form the section of kind ``""``; a value whose brackets are still
-    open continues on the next lines.
+    open continues on the next lines. Each ``{key: value}`` is :class:`~csmlab.engines.reading.Located` at its
+    header's line, for an :class:`~csmlab.engines.reading.Entry` of it.
     """
-    sections = [("", {}, {}, 0)]
+    sections = [("", {}, _located(1), 0)]
     lines = read_text(path).splitlines()
     i = 0
     while i < len(lines):
@@ -95,11 +102,12 @@ def config_sections(path) -> list[tuple[str, dict, dict, int]]:
         header = _HEADER.match(line)
         if header:
             attrs = {k: _value(v) for k, v in _ATTR.findall(header.group("attrs"))}
-            sections.append((header.group("kind"), attrs, {}, i))
+            sections.append((header.group("kind"), attrs, _located(i), i))
             continue
         if "=" not in line:
             raise InputError(f"expected key = value or a [section] header, got {line[:60]!r}", file=path, line=i)
         key, value = (part.strip() for part in line.split("=", 1))
+        sections[-1][2].key_lines[key] = i
         while _open(value) and i < len(lines):
             value += "\n" + lines[i]
             i += 1
@@ -112,26 +120,27 @@ def _project(path, reading: Reading) -> None:
     if "config_version" not in sections[0][2]:
         raise InputError("expected a Godot project file (config_version at the top), found none", file=path,
                          field="config_version")
-    rendering = next((keys for kind, _, keys, _ in sections[1:] if kind == "rendering"), {})
-    settings = {f"rendering/{k}": v for k, v in rendering.items() if f"rendering/{k}".startswith(_PROJECT)}
-    for key, value in settings.items():
-        name = key[len(_PROJECT):]
+    rendering = next((keys for kind, _, keys, _ in sections[1:] if kind == "rendering"), _located(1))
+    for key, value in rendering.items():
+        if not f"rendering/{key}".startswith(_PROJECT):
+            continue
+        entry = Entry(value, file=path, key=f"rendering/{key}", line=rendering.key_lines.get(key, rendering.line))
+        name = entry.key[len(_PROJECT):]
         if name == "size":
-            size = number(value, file=path, key=key, integer=True, minimum=1)
-            reading.pending["atlas"] = (size, key)
+            reading.pending["atlas"] = (entry.integer(minimum=1), entry.key, path)
         elif name == "soft_shadow_filter_quality":
-            quality = number(value, file=path, key=key, integer=True, minimum=0)
+            quality = entry.integer(minimum=0)
             if quality == 0:
-                reading.set("filter", "pcf_bilinear", file=path, key=key, raw=value)
+                reading.set("filter", "pcf_bilinear", file=path, key=entry.key, raw=value)
             elif quality != 2:
-                reading.lack(file=path, key=key, value=value, why="csmlab models Hard (0) and Soft Low (2); the "
-                             "preset's Soft Low is kept")
+                reading.lack(file=path, key=entry.key, value=value, why="csmlab models Hard (0) and Soft Low (2); "
+                             "the preset's Soft Low is kept")
         elif name == "16_bits":
-            if not isinstance(value, bool):
-                raise InputError(f"expected true or false, got {value!r}", file=path, field=key)
-            reading.set("depth_format", "unorm16" if value else "float32", file=path, key=key, raw=str(value).lower())
+            wide = entry.boolean()
+            reading.set("depth_format", "unorm16" if wide else "float32", file=path, key=entry.key,
+                        raw=str(wide).lower())
         else:
-            reading.lack(file=path, key=key, value=value, why="no csmlab knob")
+            reading.lack(file=path, key=entry.key, value=value, why="no csmlab knob")
 
 
 def _light(path, reading: Reading) -> None:
@@ -140,34 +149,37 @@ def _light(path, reading: Reading) -> None:
     sections = config_sections(path)
     if len(sections) < 2 or sections[1][0] not in ("gd_scene", "gd_resource"):
         raise InputError("expected a Godot scene ([gd_scene …] on the first line)", file=path, field="gd_scene")
-    lights = [(attrs, keys) for kind, attrs, keys, _ in sections if kind == "node"
-              and attrs.get("type") == "DirectionalLight3D"]
+    lights = [Entry(keys, file=path, key=str(attrs.get("name", "DirectionalLight3D"))) for kind, attrs, keys, _
+              in sections if kind == "node" and attrs.get("type") == "DirectionalLight3D"]
     if not lights:
         raise InputError("expected a node of type DirectionalLight3D, found none", file=path,
                          field="DirectionalLight3D")
-    attrs, keys = next(((a, k) for a, k in lights if k.get("shadow_enabled") is True), lights[0])
-    prefix = f"{attrs.get('name', 'DirectionalLight3D')}."
+    shadowed = [light for light in lights if _flag(light, "shadow_enabled")]
+    light = (shadowed or lights)[0]
+    prefix = f"{light.key}."
     base = reading.base
-    if keys.get("shadow_enabled") is not True:
-        reading.lack(file=path, key=prefix + "shadow_enabled", value=keys.get("shadow_enabled", False),
+    if not shadowed:
+        enabled = light.member("shadow_enabled")
+        reading.lack(file=path, key=prefix + "shadow_enabled", value=False if enabled is None else enabled.raw,
                      why="the light casts no shadow in Godot; csmlab measures its shadows anyway")
     mode_key = "directional_shadow_mode"
     cascades = base.cascades
-    if mode_key in keys:
-        mode = number(keys[mode_key], file=path, key=prefix + mode_key, integer=True, minimum=0)
+    mode_entry = light.member(mode_key)
+    if mode_entry is not None:
+        mode = mode_entry.integer(minimum=0)
         if mode not in _MODES:
-            raise InputError(f"expected 0, 1 or 2, got {mode}", file=path, field=prefix + mode_key)
+            raise mode_entry.error("0, 1 or 2")
         cascades = _MODES[mode]
         reading.set("cascades", cascades, file=path, key=prefix + mode_key, raw=mode)
-    split_keys = [f"directional_shadow_split_{i}" for i in range(1, cascades)]
-    if mode_key in keys or any(k in keys for k in split_keys):
-        fractions = [number(keys[k], file=path, key=prefix + k, above=0.0) if k in keys else base.splits[i]
-                     for i, k in enumerate(split_keys)] + [1.0]
+    split_entries = [light.member(f"directional_shadow_split_{i}") for i in range(1, cascades)]
+    if mode_entry is not None or any(e is not None for e in split_entries):
+        fractions = [e.number(above=0.0) if e is not None else base.splits[i]
+                     for i, e in enumerate(split_entries)] + [1.0]
         if any(b <= a for a, b in zip(fractions, fractions[1:])):
             raise InputError(f"expected increasing splits below 1, got {fractions[:-1]}", file=path,
-                             field=prefix + "directional_shadow_split_1")
-        found = [prefix + k for k in split_keys if k in keys] or [prefix + mode_key]
-        raw = fractions[:-1] if any(k in keys for k in split_keys) else keys.get(mode_key)
+                             field=prefix + "directional_shadow_split_1", line=light.line)
+        found = [e.key for e in split_entries if e is not None] or [prefix + mode_key]
+        raw = fractions[:-1] if any(e is not None for e in split_entries) else mode_entry.raw
         reading.set("split", "manual_range", file=path, key=", ".join(found), raw=raw)
         reading.set("splits", tuple(fractions), file=path, key=", ".join(found), raw=raw)
     plain = {"directional_shadow_max_distance": ("shadow_distance", 1.0, 0.0),
@@ -176,32 +188,33 @@ def _light(path, reading: Reading) -> None:
              "shadow_bias": ("bias_depth_range", SHADOW_BIAS_SCALE, None),
              "shadow_blur": ("vogel_radius", base.vogel_radius, 0.0)}
     for key, (attribute, scale, above) in plain.items():
-        if key in keys:
-            value = number(keys[key], file=path, key=prefix + key, above=above, minimum=None if above is not None
-                           else 0.0)
-            reading.set(attribute, value * scale, file=path, key=prefix + key, raw=keys[key])
-    if "directional_shadow_fade_start" in keys:
-        start = number(keys["directional_shadow_fade_start"], file=path, key=prefix + "directional_shadow_fade_start",
-                       minimum=0.0)
-        if start > 1.0:
-            raise InputError(f"expected a fraction in [0, 1], got {start}", file=path,
-                             field=prefix + "directional_shadow_fade_start")
+        if (entry := light.member(key)) is not None:
+            value = entry.number(above=above) if above is not None else entry.number(minimum=0.0)
+            reading.set(attribute, value * scale, file=path, key=entry.key, raw=entry.raw)
+    if (entry := light.member("directional_shadow_fade_start")) is not None:
+        start = entry.number(minimum=0.0, maximum=1.0, what="a fraction in [0, 1]")
         # Rounded to 12 digits: 1 - 0.8 is 0.19999999999999996 in binary, Godot's fade_start is a float32.
-        reading.set("fade_out", round(1.0 - start, 12), file=path, key=prefix + "directional_shadow_fade_start", raw=start)
-    if "shadow_reverse_cull_face" in keys:
-        reading.set("cull", "front" if keys["shadow_reverse_cull_face"] is True else "back", file=path,
-                    key=prefix + "shadow_reverse_cull_face", raw=keys["shadow_reverse_cull_face"])
-    if keys.get("directional_shadow_blend_splits") is True:
+        reading.set("fade_out", round(1.0 - start, 12), file=path, key=entry.key, raw=start)
+    if (entry := light.member("shadow_reverse_cull_face")) is not None:
+        reversed_ = entry.boolean()
+        reading.set("cull", "front" if reversed_ else "back", file=path, key=entry.key, raw=reversed_)
+    if _flag(light, "directional_shadow_blend_splits"):
         reading.lack(file=path, key=prefix + "directional_shadow_blend_splits", value=True,
                      why="Godot blends splits over a band of its own; csmlab's blend_band keeps the preset's 0")
-    angular = keys.get("light_angular_distance", 0)
-    if angular not in (0, 0.0):
-        reading.lack(file=path, key=prefix + "light_angular_distance", value=angular,
+    angular = light.member("light_angular_distance")
+    if angular is not None and angular.number() != 0.0:
+        reading.lack(file=path, key=angular.key, value=angular.raw,
                      why="a nonzero angle turns on Godot's PCSS penumbra, not modelled; the Soft Low disk is kept")
     for key in ("shadow_opacity", "shadow_transmittance_bias", "directional_shadow_fade_start.mobile",
                 "shadow_caster_mask"):
-        if key in keys:
-            reading.lack(file=path, key=prefix + key, value=keys[key], why="no csmlab knob")
+        if (entry := light.member(key)) is not None:
+            reading.lack(file=path, key=entry.key, value=entry.raw, why="no csmlab knob")
+
+
+def _flag(light: Entry, key: str) -> bool:
+    """Light property ``key``, true or false (false when the scene leaves it out: Godot's default)."""
+    entry = light.member(key)
+    return entry is not None and entry.boolean()
 
 
 def read_godot4(paths) -> Imported:
@@ -222,10 +235,10 @@ def read_godot4(paths) -> Imported:
         else:
             raise InputError("expected project.godot or a .tscn scene", file=path, field="file")
     if "atlas" in reading.pending:
-        size, key = reading.pending["atlas"]
+        size, key, project = reading.pending["atlas"]
         cascades = reading.values.get("cascades", reading.base.cascades)
         # get_directional_light_shadow_size: 2 or 4 splits share the atlas, each split half its side.
-        reading.set("resolution", size if cascades == 1 else size // 2, file="project.godot", key=key, raw=size)
+        reading.set("resolution", size if cascades == 1 else size // 2, file=project, key=key, raw=size)
     elif reading.values.get("cascades", reading.base.cascades) == 1:
         # One split takes the whole default atlas, twice the side of the preset's 4-split tile.
         reading.set("resolution", 2 * reading.base.resolution, file=reading.origins["cascades"].split(":")[0],
