@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from csmlab.camera import CameraPose
-from csmlab.cascades.bounds import DEPTH_RANGE_METHODS, split_range
+from csmlab.cascades.bounds import DEPTH_RANGE_METHODS, shadow_end, split_range
 from csmlab.cascades.extent import EXTENT_METHODS, radius_rounded_up
 from csmlab.cascades.fit import slice_intervals
 from csmlab.cascades.focus import focused_volume
@@ -153,8 +153,9 @@ class CascadeSet:
 
 def _slices(pose: CameraPose, settings: ShadowSettings, visible_depth) -> tuple:
     """``(near, far, splits, intervals)`` of one frame: the range the splits divide, the splits, the fitted slices."""
-    near, far = split_range(near=pose.near, far=min(settings.shadow_distance, pose.far), visible=visible_depth,
-                            method=settings.bounds)
+    end = shadow_end(method=settings.shadow_distance_from, shadow_distance=settings.shadow_distance,
+                     max_shadow_distance=settings.max_shadow_distance, camera_far=pose.far, visible=visible_depth)
+    near, far = split_range(near=pose.near, far=end, visible=visible_depth, method=settings.bounds)
     splits = split_distances(near=near, far=far, count=settings.cascades, method=settings.split,
                              lambda_=settings.lambda_, splits=settings.splits,
                              distribution_exponent=settings.distribution_exponent,
