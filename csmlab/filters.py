@@ -236,7 +236,8 @@ def _selection(cascades: CascadeSet, settings: ShadowSettings, *, radius: int) -
     The interval selection switches cascade where ``transition`` puts the end of each band
     (:func:`csmlab.cascades.fit.transition_bands`), and each band starts at ``band_start``.
     """
-    select, start = transition_bands(cascades.splits, blend_band=settings.blend_band, transition=settings.transition)
+    select, start = transition_bands(cascades.switch_depths, blend_band=settings.blend_band,
+                                     transition=settings.transition)
     if check_name(settings.outside, OUTSIDE_METHODS, field="outside") == "last":
         # The last cascade's interval runs on past the last split (Stride, MJP).
         select[-1] = np.inf

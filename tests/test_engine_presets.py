@@ -122,7 +122,7 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
                                  fit="cascade_lerp", depth_range="light_camera", light_near=1.0, light_far=2000.0,
                                  light_basis="world_y", snap="centre_full",
                                  extent="diagonal_unrounded", filter="pcf_vogel", vogel_taps=5, vogel_radius=1.0,
-                                 poisson_rotation="pixel")),
+                                 poisson_rotation="pixel", outside="lit")),
     # LightDirectionalShadowMap: FourCascades, PSSMFactor 0.5, StabilizationMode ProjectionSnapping,
     # DepthRange.IsAutomatic true (held: DepthIncreaseThreshold 1.1, DepthDecreaseThreshold 2.0),
     # IsBlendingCascades true (overlap 0.2); PCF 5×5 in the shadow atlas.
@@ -133,7 +133,8 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
                             storage="atlas")),
     # TheRealMJP/Shadows AppSettings.cs: SplitDistance0..3 0.05/0.15/0.5/1.0, StabilizeCascades = false,
     # ShadowMode FixedSizePCF with FixedFilterSize Filter2x2, DepthBufferFormat DB32Float.
-    ("engines/mjp", dict(cascades=4, split="manual_range", splits=(0.05, 0.15, 0.5, 1.0), shadow_distance=400.0,
+    ("engines/mjp", dict(cascades=4, split="manual_range", splits=(0.05, 0.15, 0.5, 1.0),
+                         shadow_distance_from="camera_far", max_shadow_distance=0.0,
                          depth_range="slice", depth_clamp=True, pancake=0.0, stabilization="none",
                          filter="pcf_bilinear", outside="last",
                          depth_format="float32")),
