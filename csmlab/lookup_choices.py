@@ -80,7 +80,8 @@ NORMAL_ONE_MINUS_COS = 1
 NORMAL_SIN = 2
 """Normal-offset code: times ``sin θ`` (Filament, Unity built-in)."""
 NORMAL_ONE_MINUS_COS_LATERAL = 3
-"""Normal-offset code: times ``1 − max(0, cos θ)``, its component along the light removed (Godot 4)."""
+"""Normal-offset code: times ``1 − max(0, −cos θ)`` (1 on every lit face), its component along the light removed
+(Godot 4)."""
 
 NORMAL_OFFSET_SCALES: dict[str, int] = {"none": NORMAL_NONE, "one_minus_cos": NORMAL_ONE_MINUS_COS, "sin": NORMAL_SIN,
                                         "one_minus_cos_lateral": NORMAL_ONE_MINUS_COS_LATERAL}
@@ -90,9 +91,13 @@ NORMAL_OFFSET_SCALES: dict[str, int] = {"none": NORMAL_NONE, "one_minus_cos": NO
 Unity URP ``ApplyShadowBias`` (``1 − saturate(dot(L, N))``), Stride ``GetShadowPositionOffset``
 (``saturate(1 − N·L)``), MJP ``GetShadowPosOffset``; ``sin``: Filament
 ``computeLightSpacePosition`` (``n · sinθ · b``), Unity built-in ``UnityClipSpaceShadowCasterPos``
-(``sqrt(1 − cos²)``); ``one_minus_cos_lateral``: Godot 4 (``N · (1 − max(0, dot(light_dir, −N)))``,
-then ``normal_bias −= light_dir · dot(light_dir, normal_bias)``), which moves the receiver across
-the light only, never along it.
+(``sqrt(1 − cos²)``); ``one_minus_cos_lateral``: Godot 4 (``scene_forward_clustered.glsl``
+``light_process``: ``base_normal_bias = N · (1 − max(0, dot(light_dir, −N)))``, then
+``normal_bias −= light_dir · dot(light_dir, normal_bias)``), which moves the receiver across the light
+only, never along it. Godot's ``light_dir`` points *toward* the light (``light_storage.cpp``
+``update_light_buffers``: the light's +Z, ``basis.xform(Vector3(0, 0, 1))``), so ``dot(light_dir, −N)
+= −cos θ`` and every lit face takes the whole offset: ``sin θ`` of it across the light (1.53 texels
+of Godot's 2 on flat ground under a 40° sun).
 """
 
 CASTANO_SIZES = (3, 5)

@@ -140,3 +140,27 @@ def test_a_bad_shadow_distance_names_its_field(tmp_path, text, field):
     with pytest.raises(InputError) as caught:
         load_experiment(path)
     assert caught.value.field == field and caught.value.file == str(path)
+
+
+def test_godots_normal_offset_moves_a_lit_ground_receiver_its_whole_bias_across_the_light():
+    """scene_forward_clustered.glsl: base_normal_bias = N (1 − max(0, dot(light_dir, −N))), light_dir toward the
+    light (light_storage.cpp: the light's +Z), then its part along light_dir removed; on flat ground under a 40°
+    sun that is 2 texels · sin(50°) = 1.53 texels across the light (the depth unchanged)."""
+    from csmlab.cascades import Cascade, CascadeSet
+    from csmlab.geometry import light_basis
+    from csmlab.texels import receiver_lookup
+
+    elevation = np.radians(40.0)
+    d = np.array([np.cos(elevation), -np.sin(elevation), 0.0])
+    texel, bits = 0.5, 12
+    cascade = Cascade(split_near=0.1, split_far=50.0, slice_near=0.1, slice_far=50.0, texel_size=np.array([texel] * 2),
+                      origin=np.array([-64.0, -64.0]), resolution=256, depth_near=-1e3, depth_far=1e3)
+    cs = CascadeSet(basis=light_basis(d), zref=-10.0, splits=np.array([0.1, 50.0]), cascades=(cascade,),
+                    margin_texels=2)
+    point, up = np.array([[1.0, 0.0, 2.0]]), np.array([[0.0, 1.0, 0.0]])
+    args = dict(bits=bits, bias_constant=0.0, bias_slope=0.0, normal_scale="one_minus_cos_lateral")
+    moved, depth, _ = receiver_lookup(cs, point, up, normal_offset=2.0, **args)
+    still, still_depth, _ = receiver_lookup(cs, point, up, normal_offset=0.0, **args)
+    lateral = np.hypot(*((moved - still)[0, 0] / 2.0**bits))
+    assert lateral == pytest.approx(2.0 * np.sin(np.radians(50.0)), abs=2.0**-bits * 2)
+    assert depth[0, 0] == still_depth[0, 0]

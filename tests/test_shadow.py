@@ -364,7 +364,8 @@ def test_bias_models_scale_the_constant_bias_per_cascade_as_the_engines_do():
 def test_normal_offset_scales_are_the_engines_on_host_and_device_bit_for_bit(scale, device):
     """The receiver moved by normal_offset texels along its normal, times the engine's angle term:
     URP ApplyShadowBias / Stride GetShadowPositionOffset ``(1 − saturate(N·L))``, Filament computeLightSpacePosition
-    ``sinθ``, Godot 4 ``N (1 − max(0, dot(light_dir, −N)))`` less its component along the light (the depth kept)."""
+    ``sinθ``, Godot 4 ``N (1 − max(0, dot(light_dir, −N)))`` (light_dir toward the light) less its component along
+    the light (the depth kept)."""
     from csmlab.cascades import Cascade, CascadeSet
     from csmlab.geometry import light_basis
     from csmlab.kernels.shadow import receiver_coordinates
@@ -393,8 +394,10 @@ def test_normal_offset_scales_are_the_engines_on_host_and_device_bit_for_bit(sca
     n = normals.astype(np.float64) @ cs.basis.T
     p = points @ cs.basis.T
     cos = -n[:, 2]
+    # Godot's light_dir points toward the light (light_storage.cpp: the light's +Z), in light space (0, 0, −1).
+    godot_light_dir = np.array([0.0, 0.0, -1.0])
     k = {"none": np.ones_like(cos), "one_minus_cos": 1.0 - np.clip(cos, 0.0, 1.0), "sin": np.sqrt(1.0 - cos**2),
-         "one_minus_cos_lateral": 1.0 - np.maximum(cos, 0.0)}[scale]
+         "one_minus_cos_lateral": 1.0 - np.maximum(0.0, (-n) @ godot_light_dir)}[scale]
     moved = p + (k * (offset * texel + metres))[:, None] * n
     if scale == "one_minus_cos_lateral":
         moved[:, 2] = p[:, 2]                              # normal_bias -= light_dir · dot(light_dir, normal_bias)
