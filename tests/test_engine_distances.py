@@ -164,3 +164,44 @@ def test_godots_normal_offset_moves_a_lit_ground_receiver_its_whole_bias_across_
     lateral = np.hypot(*((moved - still)[0, 0] / 2.0**bits))
     assert lateral == pytest.approx(2.0 * np.sin(np.radians(50.0)), abs=2.0**-bits * 2)
     assert depth[0, 0] == still_depth[0, 0]
+
+
+def test_godots_soft_shadow_levels_are_its_vogel_disks():
+    """RendererSceneRenderRD::directional_soft_shadow_filter_set_quality: (samples, quality radius) per level;
+    get_vogel_disk: r = sqrt(i + 0.5) / sqrt(n), θ = 2.4 i; soft_shadow_scale = shadow_blur · quality radius."""
+    from csmlab.lookup_choices import godot_soft_shadow_fields, vogel_disk
+
+    godot = {0: (0, 1.0), 1: (1, 1.5), 2: (4, 2.0), 3: (8, 2.0), 4: (16, 3.0), 5: (32, 4.0)}
+    assert godot_soft_shadow_fields(0) == {"filter": "pcf_bilinear"}
+    for quality, (samples, radius) in godot.items():
+        if samples == 0:
+            continue
+        fields = godot_soft_shadow_fields(quality, blur=1.5)
+        settings = ShadowSettings(**fields).validated()
+        assert (settings.filter, settings.vogel_taps, settings.vogel_radius) == ("pcf_vogel", samples, radius * 1.5)
+        i = np.arange(samples)
+        kernel = np.column_stack([np.cos(i * 2.4), np.sin(i * 2.4)]) * (np.sqrt(i + 0.5) / np.sqrt(samples))[:, None]
+        np.testing.assert_allclose(vogel_disk(settings.vogel_taps, angle=settings.vogel_angle), kernel, atol=1e-15)
+    with pytest.raises(ValueError, match="soft_shadow_filter_quality"):
+        godot_soft_shadow_fields(6)
+
+
+@pytest.mark.parametrize("far", FARS)
+def test_godots_blend_splits_mix_the_next_split_in_over_its_last_tenth(far):
+    """scene_forward_clustered.glsl light_process with blend_splits: in split i, pssm_blend =
+    smoothstep(z_i+1 − 0.1 z_i+1, z_i+1, depth_z), none in the last split."""
+    from csmlab.cascades.fit import GODOT_BLEND_SPLITS, transition_bands
+
+    settings = ShadowSettings(split="manual_range", splits=(0.1, 0.2, 0.5, 1.0), shadow_distance=far,
+                              **GODOT_BLEND_SPLITS).validated()
+    z = build_cascades(pose=_pose(far), light_direction=LIGHT, scene_corners=SCENE, settings=settings).splits
+    select, start = transition_bands(z, blend_band=settings.blend_band, transition=settings.transition)
+    np.testing.assert_array_equal(select, z)
+    np.testing.assert_allclose(start[:-1], z[1:-1] - 0.1 * z[1:-1], rtol=1e-15)
+    assert start[-1] == np.inf
+    for i in range(3):
+        depth = np.linspace(start[i], z[i + 1], 7)
+        t = np.clip((depth - (z[i + 1] - z[i + 1] * 0.1)) / (z[i + 1] * 0.1), 0.0, 1.0)
+        godot = t * t * (3.0 - 2.0 * t)
+        w = (depth - start[i]) / (select[i + 1] - start[i])
+        np.testing.assert_allclose(w * w * (3.0 - 2.0 * w), godot, atol=1e-12)    # csmlab's smoothstep curve

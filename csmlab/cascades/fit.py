@@ -21,7 +21,7 @@ from csmlab.lookup_choices import BLEND_LINEAR, BLEND_SMOOTHSTEP
 from csmlab.registry import check_name
 
 __all__ = ["BLEND_CURVES", "TRANSITION_METHODS", "FIT_METHODS", "Transition", "fit_cascade", "fit_cascade_lerp", "fit_scene",
-           "selection_depths", "slice_intervals", "transition_bands"]
+           "GODOT_BLEND_SPLITS", "selection_depths", "slice_intervals", "transition_bands"]
 
 
 def fit_cascade(splits: np.ndarray, i: int) -> tuple[float, float]:
@@ -164,3 +164,12 @@ def slice_intervals(splits: np.ndarray, *, method: str, blend_band: float = 0.0,
         if i > 0:
             out[i, 0] = min(out[i, 0], start[i - 1])
     return out
+
+
+GODOT_BLEND_SPLITS: dict = {"blend_band": 0.1, "transition": "far_bound", "blend_curve": "smoothstep"}
+"""Godot 4's ``directional_shadow_blend_splits = true`` as ``[shadow]`` fields (``scene_forward_clustered.glsl``
+``light_process``, Forward+ 4.2+): in split i a second lookup in split i + 1 mixed in with weight
+``smoothstep(z_i+1 − 0.1 · z_i+1, z_i+1, depth_z)`` (``shadow_split_offsets``), none in the last split: the band
+from ``(1 − 0.1) z_i+1`` to ``z_i+1`` (``far_bound``), a smoothstep of the linear weight. With blend splits on, the
+Vogel radius is not scaled by the first split (``blur_factor + (1 − blur_factor) · blend_splits`` = 1:
+``vogel_scale = "none"``)."""
