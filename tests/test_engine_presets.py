@@ -85,12 +85,14 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     # m_SoftShadowQuality Medium = SampleShadow_ComputeSamples_Tent_5x5; 2×2 atlas; k_ShadowmapBufferBits = 16,
     # each tile rendered with its slice's projection (RenderShadowSlice); ComputeCascadeIndex: split spheres.
     ("engines/unity_urp", dict(shadow_distance=50.0, splits=(0.067, 0.2, 0.467, 1.0), fade_out=0.2,
-                               fade="squared_radial", filter="pcf_bilinear", selection="sphere",
+                               fade="squared_radial", filter="pcf_bilinear", selection="sphere", cull="back",
                                storage="atlas", atlas_layout="2x2", depth_format="unorm16",
                                depth_quantization="cascade")),
     # HDRP 10.10.1 DefaultSettingsVolumeProfile.asset: maxShadowDistance 150, splits 0.05/0.15/0.3; HDShadowInitParameters
     # Medium → SampleShadow_PCF_Tent_7x7, Depth32; the light's shadow resolution 512, 4 cascades as 2×2 atlas tiles.
-    ("engines/unity_hdrp", dict(cascades=4, splits=(0.05, 0.15, 0.3, 1.0), shadow_distance=150.0, selection="map",
+    # EvalShadow_GetSplitIndex: the first culling sphere holding the point; Lit's ShadowCaster pass culls back faces.
+    ("engines/unity_hdrp", dict(cascades=4, splits=(0.05, 0.15, 0.3, 1.0), shadow_distance=150.0, selection="sphere",
+                                cull="back",
                                 blend_band=0.0, fade_out=0.0, filter="pcf_tent_bilinear", filter_size=7,
                                 storage="atlas", atlas_layout="2x2", depth_format="float32", resolution=512)),
     # DirectionalLight3D: splits 0.1/0.2/0.5, max distance 100, fade_start 0.8, pancake_size 20, blend off;
@@ -580,7 +582,8 @@ FILTER_AND_BIAS = {
                            "caster_bias_units": 1.0, "caster_bias_slope": 2.5, "normal_offset": 1.0,
                            "normal_offset_scale": "one_minus_cos", "receiver_plane_bias": False}),
     "engines/unity_hdrp": ({"filter": "pcf_tent_bilinear", "filter_size": 7},
-                           {"bias_depth_range": 1.0 / 2**16, "bias_slope": 2.5, "normal_offset": 0.75,
+                           {"bias_depth_range": 1.0 / 2**16, "bias_slope": 0.0, "caster_bias_units": 1.0,
+                            "caster_bias_slope": 2.5, "normal_offset": 0.75,
                             "normal_offset_scale": "none", "receiver_plane_bias": False}),
     "engines/unity_builtin_stable": ({"filter": "pcf_tent_bilinear", "filter_size": 7},
                                      {"bias_slope": 0.0, "caster_bias_units": 1.0, "caster_bias_slope": 1.0,
