@@ -205,3 +205,13 @@ def test_godots_blend_splits_mix_the_next_split_in_over_its_last_tenth(far):
         godot = t * t * (3.0 - 2.0 * t)
         w = (depth - start[i]) / (select[i + 1] - start[i])
         np.testing.assert_allclose(w * w * (3.0 - 2.0 * w), godot, atol=1e-12)    # csmlab's smoothstep curve
+
+
+@pytest.mark.parametrize("far", FARS)
+def test_unity_builtin_splits_are_the_stored_fractions_of_its_150_m(tmp_path, far):
+    """QualitySettings.asset: shadowCascade4Split (0.06666667, 0.2, 0.46666667) of shadowDistance 150 (1/15, 3/15,
+    7/15 in float32): the splits at 10 m, 30 m and 70 m to within float32's rounding, whatever the far plane."""
+    settings = _preset(tmp_path, "unity_builtin_close", camera_far=far)
+    cascades = build_cascades(pose=_pose(far), light_direction=LIGHT, scene_corners=SCENE, settings=settings)
+    np.testing.assert_allclose(cascades.splits[1:], np.float32([1 / 15, 3 / 15, 7 / 15, 1.0]) * 150.0, rtol=1e-7)
+    np.testing.assert_allclose(cascades.splits[1:], [10.0, 30.0, 70.0, 150.0], atol=1e-5)

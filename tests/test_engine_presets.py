@@ -71,15 +71,15 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     ("engines/ue5", dict(cascades=3, split="exponent", distribution_exponent=3.0, blend_band=0.1,
                          transition="forward", fade_out=0.1,
                          shadow_distance=200.0, stabilization="exact")),
-    # Unity QualitySettings: shadowCascade4Split (0.067, 0.2, 0.467), shadowDistance 150.
+    # Unity QualitySettings: shadowCascade4Split (0.06666667, 0.2, 0.46666667), shadowDistance 150.
     # Built-in: Internal-ScreenSpaceShadows frag_pcf5x5 -> UnitySampleShadowmap_PCF5x5Tent; one 2×2 shadowmap;
     # getCascadeWeights_splitSpheres: the first split sphere holding the point.
-    ("engines/unity_builtin_stable", dict(cascades=4, splits=(0.067, 0.2, 0.467, 1.0), shadow_distance=150.0,
+    ("engines/unity_builtin_stable", dict(cascades=4, splits=(0.06666667, 0.2, 0.46666667, 1.0), shadow_distance=150.0,
                                           fade="radial",
                                           stabilization="exact", selection="sphere", filter="pcf_tent_bilinear",
                                           filter_size=7,
                                           storage="atlas", atlas_layout="2x2")),
-    ("engines/unity_builtin_close", dict(cascades=4, splits=(0.067, 0.2, 0.467, 1.0), stabilization="none",
+    ("engines/unity_builtin_close", dict(cascades=4, splits=(0.06666667, 0.2, 0.46666667, 1.0), stabilization="none",
                                          filter="pcf_tent_bilinear", filter_size=7, storage="atlas")),
     # UniversalRenderPipelineAsset: m_ShadowDistance 50, m_Cascade4Split (0.067, 0.2, 0.467), m_CascadeBorder 0.2;
     # m_SoftShadowQuality Medium = SampleShadow_ComputeSamples_Tent_5x5; 2×2 atlas; k_ShadowmapBufferBits = 16,
