@@ -191,6 +191,9 @@ SELECTION_METHODS: dict[str, Selection] = {s.name: s for s in (
               "of the boxes that hold the point, the one with the smallest texels (seed 003)"),
     Selection("sphere", SELECT_SPHERE, "the first cascade whose split sphere holds the point (Unity built-in Stable Fit "
               "getCascadeWeights_splitSpheres, URP ComputeCascadeIndex)"),
+    Selection("sphere_dither", SELECT_SPHERE, "the first cascade whose split sphere holds the point, the next one where "
+              "the pixel's interleaved gradient noise is at most its border weight (Unity HDRP EvalShadow_GetSplitIndex, "
+              "EvalShadow_CascadedDepth_Dither_SplitIndex; cascade_borders, csmlab.cascades.borders)"),
 )}
 """Cascade selection methods by name."""
 

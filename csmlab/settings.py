@@ -89,7 +89,9 @@ class ShadowSettings:
     quantized_base: str = "sphere"
     """quantized: base extent, sphere (slice bounding-sphere diameter) | frustum (whole frustum box)."""
     selection: str = "interval"
-    """Cascade selection: interval | map | best_resolution | sphere (the first split sphere holding the point: Unity)."""
+    """Cascade selection: interval | map | best_resolution | sphere (the first split sphere holding the point: Unity) | sphere_dither (sphere, the next cascade dithered in over each sphere's border: Unity HDRP)."""
+    cascade_borders: tuple[float, ...] = ()
+    """selection = sphere_dither: each cascade's border as a fraction of its split sphere's squared radius, one per cascade, the last 0 (HDRP cascadeShadowBorder0..3; its fade to lit is fade_out); empty: no border."""
     outside: str = "none"
     """A point no cascade holds: none (no shadow value, left out of the measures) | lit (S = 1: Bevy) | last (interval selection keeps the last cascade beyond the last split: Stride, MJP) (csmlab.lookup_choices.OUTSIDE_METHODS)."""
     filter: str = "pcf"
@@ -270,6 +272,11 @@ class ShadowSettings:
         need(self.shadow_distance_from != "farthest_visible" or self.bounds == "sdsm", "shadow_distance_from",
              'fixed or camera_far with bounds = "frustum" (farthest_visible reads the visible range of bounds = '
              '"sdsm")', self.shadow_distance_from)
+        need(not self.cascade_borders or (len(self.cascade_borders) == self.cascades
+                                          and all(0.0 <= b <= 1.0 for b in self.cascade_borders)
+                                          and self.cascade_borders[-1] == 0.0), "cascade_borders",
+             f"{self.cascades} fractions in [0, 1] (one per cascade), the last 0 (the last cascade's fade to lit is "
+             f"fade_out), or an empty list", list(self.cascade_borders))
         need(math.isfinite(self.max_shadow_distance) and self.max_shadow_distance >= 0.0, "max_shadow_distance",
              "a non-negative distance in metres (0: no cap)", self.max_shadow_distance)
         need(self.zoom_policy in ZOOM_POLICIES, "zoom_policy", f"one of {list(ZOOM_POLICIES)}", self.zoom_policy)
@@ -464,6 +471,8 @@ APPLIES: dict[str, Applies] = {
     "max_shadow_distance": Applies(lambda *, shadow_distance_from: shadow_distance_from != "fixed",
                                    'shadow_distance_from = "camera_far" or "farthest_visible" (the cap on where '
                                    'they end)'),
+    "cascade_borders": Applies(lambda *, selection: selection == "sphere_dither",
+                               'selection = "sphere_dither" (the borders it dithers over)'),
     "levels": Applies(lambda *, stabilization: stabilization == "quantized",
                       'stabilization = "quantized" (the steps an extent is rounded up to)'),
     "quantized_base": Applies(lambda *, stabilization: stabilization == "quantized",

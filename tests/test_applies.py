@@ -27,6 +27,7 @@ CASES = {
     "first_cascade_far": ("5.0", {"split": '"geometric"'}),
     "shadow_distance": ("150.0", {}),
     "max_shadow_distance": ("100000.0", {"shadow_distance_from": '"camera_far"'}),
+    "cascade_borders": ("[0.1, 0.05, 0.0, 0.0]", {"selection": '"sphere_dither"'}),
     "levels": ("16", {"stabilization": '"quantized"'}),
     "quantized_base": ('"frustum"', {"stabilization": '"quantized"'}),
     "extent": ('"diagonal"', {}),

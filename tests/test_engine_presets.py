@@ -91,7 +91,8 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     # HDRP 10.10.1 DefaultSettingsVolumeProfile.asset: maxShadowDistance 150, splits 0.05/0.15/0.3; HDShadowInitParameters
     # Medium → SampleShadow_PCF_Tent_7x7, Depth32; the light's shadow resolution 512, 4 cascades as 2×2 atlas tiles.
     # EvalShadow_GetSplitIndex: the first culling sphere holding the point; Lit's ShadowCaster pass culls back faces.
-    ("engines/unity_hdrp", dict(cascades=4, splits=(0.05, 0.15, 0.3, 1.0), shadow_distance=150.0, selection="sphere",
+    ("engines/unity_hdrp", dict(cascades=4, splits=(0.05, 0.15, 0.3, 1.0), shadow_distance=150.0,
+                                selection="sphere_dither", cascade_borders=(0.13333334, 0.06666666, 0.0, 0.0),
                                 cull="back",
                                 blend_band=0.0, fade_out=0.0, filter="pcf_tent_bilinear", filter_size=7,
                                 storage="atlas", atlas_layout="2x2", depth_format="float32", resolution=512)),
