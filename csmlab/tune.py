@@ -669,7 +669,7 @@ def write_outputs(result: TuneResult, out_dir, *, near: float, far: float) -> Pa
 
     ``near`` and ``far`` are the camera's planes, metres (where the exported splits start and end).
     """
-    from csmlab.engine_export import EXPORT_METHODS, export
+    from csmlab.engines import EXPORT_METHODS, export
     from csmlab.report.tune_page import write_tune_report
 
     out_dir = Path(out_dir)

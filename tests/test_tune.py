@@ -171,9 +171,9 @@ def test_engine_presets_are_measured_on_the_same_frames_and_fitted_to_the_budget
     assert (tmp_path / "recommended.toml").is_file() and (tmp_path / "exports" / "ue5.ini").is_file()
     recommended = load_experiment_with(tmp_path / "recommended.toml", tmp_path)
     assert recommended.settings == result.recommended.settings
-    # Each engine's own files come back through csmlab import (tests/test_importers.py checks field by field),
+    # Each engine's own files come back through csmlab import (tests/engines/ checks field by field),
     # the map size too unless the snippet says the engine cannot hold it.
-    from csmlab.importers import IMPORT_METHODS, import_settings
+    from csmlab.engines import IMPORT_METHODS, import_settings
 
     for engine in IMPORT_METHODS:
         back = import_settings(sorted((tmp_path / "exports" / engine).iterdir()), engine=engine).settings

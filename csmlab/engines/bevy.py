@@ -8,19 +8,25 @@ CascadeShadowConfig``, ``…::DirectionalLight``, the ``DirectionalLightShadowMa
 ``shadow_normal_bias`` (normal_offset, texels), ``size`` (resolution) and the filtering method
 (``Hardware2x2``: pcf_bilinear; ``Gaussian``: the preset's Castaño 5×5) map to csmlab fields; what the
 scene leaves out keeps ``configs/engines/bevy.toml``.
+
+The snippet (export_bevy) names: ``CascadeShadowConfigBuilder { num_cascades, minimum_distance, maximum_distance,
+first_cascade_far_bound, overlap_proportion }``, ``CascadeShadowConfig { bounds, … }``,
+``DirectionalLightShadowMap { size }``, ``ShadowFilteringMethod``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from csmlab.engine_export import BEVY_FILTERING, split_boundaries
+from csmlab.cascades.splits import split_boundaries
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, common_lacking, fixed_preset, largest_resolution,
+                                   shape_lacking)
+from csmlab.engines.reading import Imported, Reading, number, read_text
+from csmlab.engines.ron import parse_ron
 from csmlab.errors import InputError
-from csmlab.importers.reading import Imported, Reading, number, read_text
-from csmlab.importers.ron import parse_ron
 from csmlab.settings import ShadowSettings
 
-__all__ = ["FIELDS", "PRESET", "read_bevy", "write_bevy"]
+__all__ = ["BEVY_EXACT", "BEVY_FILTERING", "ENGINE", "FIELDS", "PRESET", "export_bevy", "read_bevy", "write_bevy"]
 
 PRESET = "bevy"
 """The engine preset holding Bevy's defaults."""
@@ -28,6 +34,18 @@ PRESET = "bevy"
 FIELDS = frozenset({"cascades", "split", "splits", "first_cascade_far", "shadow_distance", "blend_band",
                     "bias_constant", "normal_offset", "resolution", "filter", "filter_size"})
 """The csmlab fields a scene carries."""
+
+BEVY_FILTERING: dict[str, str] = {"pcf_bilinear": "Hardware2x2", "pcf": "Gaussian", "pcf_gaussian": "Gaussian",
+                                  "pcf_tent": "Gaussian", "pcf_castano": "Gaussian", "pcf_tent_bilinear": "Gaussian",
+                                  "pcf_bilinear_box": "Gaussian"}
+"""Bevy's nearest ``ShadowFilteringMethod`` by csmlab filter (a key of csmlab.lookup_choices.FILTER_METHODS).
+
+Bevy's Gaussian is Castaño's 5×5 of 9 bilinear taps, ``sample_shadow_map_castano_thirteen``
+(csmlab's ``pcf_castano`` 5, configs/engines/bevy.toml); a filter not here gets no method.
+"""
+
+BEVY_EXACT: dict[str, int | None] = {"pcf_bilinear": None, "pcf_castano": 5}
+"""The filters Bevy runs as csmlab does, with the filter_size that matches (None: any); the others are lacking."""
 
 
 def _by_type(table: dict, name: str):
@@ -112,7 +130,7 @@ def write_bevy(settings: ShadowSettings, *, near: float, far: float) -> tuple[di
     text = f"""(
   resources: {{
     "bevy_light::directional_light::DirectionalLightShadowMap": (
-      size: {max(settings.cascade_resolutions or (settings.resolution,))},
+      size: {largest_resolution(settings)},
     ),
   }},
   entities: {{
@@ -140,3 +158,36 @@ def write_bevy(settings: ShadowSettings, *, near: float, far: float) -> tuple[di
 )
 """
     return {"scene.scn.ron": text}, []
+
+
+def export_bevy(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
+    """Bevy: the CascadeShadowConfigBuilder, and the exact bounds as a CascadeShadowConfig."""
+    z = split_boundaries(settings, near=near, far=far)
+    lacking = common_lacking(settings, stable="exact") + shape_lacking(settings, transition="far_bound")
+    filtering = BEVY_FILTERING.get(settings.filter)
+    if settings.filter not in BEVY_EXACT or BEVY_EXACT[settings.filter] not in (None, settings.filter_size):
+        lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Bevy filters with "
+                       f"Hardware2x2, Gaussian or Temporal)")
+    bounds = ", ".join(f"{v:.3f}" for v in z[1:])
+    lines = ["// The builder spaces the cascades after the first geometrically:",
+             "let config: CascadeShadowConfig = CascadeShadowConfigBuilder {",
+             f"    num_cascades: {settings.cascades},",
+             f"    minimum_distance: {z[0]:.3f},",
+             f"    maximum_distance: {z[-1]:.3f},",
+             f"    first_cascade_far_bound: {z[1]:.3f},",
+             f"    overlap_proportion: {settings.blend_band:.3f},",
+             "}.build();",
+             "// csmlab's bounds exactly:",
+             f"let config = CascadeShadowConfig {{ bounds: vec![{bounds}], overlap_proportion: "
+             f"{settings.blend_band:.3f}, minimum_distance: {z[0]:.3f} }};",
+             f"app.insert_resource(DirectionalLightShadowMap {{ size: {largest_resolution(settings)} }});"]
+    if filtering:
+        lines.append(f"// on the camera: ShadowFilteringMethod::{filtering}")
+    return Snippet("bevy", "Bevy: CascadeShadowConfig and DirectionalLightShadowMap", "rust", "\n".join(lines) + "\n",
+                   tuple(lacking))
+
+
+ENGINE = Engine("bevy", export_bevy, EngineFiles(
+    read=read_bevy, write=write_bevy, fields=FIELDS, preset=fixed_preset(PRESET), presets=(PRESET,),
+    files="a .scn.ron scene with CascadeShadowConfig and the DirectionalLight"))
+"""What the registries of csmlab.engines take from this module."""

@@ -8,17 +8,23 @@ distance: split = "manual"), ``m_ShadowDistance``, ``m_CascadeBorder`` (fade_out
 each, ``ShadowUtils.GetMaxTileResolutionInAtlas``), ``m_SoftShadowsSupported`` and ``m_SoftShadowQuality``
 (off: one hardware 2×2 compare, pcf_bilinear; Medium: Tent 5×5). A field the asset lacks keeps the
 default, ``configs/engines/unity_urp.toml``'s value.
+
+The snippet (export_unity_urp) names: ``UniversalRenderPipelineAsset.shadowDistance``, ``shadowCascadeCount``,
+``cascade2Split``, ``cascade3Split``, ``cascade4Split`` (fractions of the shadow distance),
+``mainLightShadowmapResolution`` (the atlas: one cascade takes all of it, two to four a quarter tile each).
 """
 
 from __future__ import annotations
 
-from csmlab.engine_export import URP_FILTER, hard_filter, split_boundaries
+from csmlab.cascades.splits import fractions_of_far, split_boundaries
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, blend_lacking, common_lacking, fixed_preset,
+                                   four_digits, hard_filter, largest_resolution, shape_lacking)
+from csmlab.engines.reading import Imported, Reading, engine_settings, number
+from csmlab.engines.unity_yaml import unity_objects, unity_text
 from csmlab.errors import InputError
-from csmlab.importers.reading import Imported, Reading, engine_settings, number
-from csmlab.importers.unity_yaml import unity_objects, unity_text
 from csmlab.settings import ShadowSettings
 
-__all__ = ["FIELDS", "PRESET", "read_unity_urp", "write_unity_urp"]
+__all__ = ["ENGINE", "FIELDS", "PRESET", "URP_FILTER", "export_unity_urp", "read_unity_urp", "write_unity_urp"]
 
 PRESET = "unity_urp"
 """The engine preset holding URP's defaults."""
@@ -26,6 +32,10 @@ PRESET = "unity_urp"
 FIELDS = frozenset({"cascades", "split", "splits", "shadow_distance", "fade_out", "bias_texels", "normal_offset",
                     "resolution", "filter", "filter_size"})
 """The csmlab fields the URP asset carries."""
+
+URP_FILTER = ("pcf_tent_bilinear", 5)
+"""The filter and size of URP's soft shadows at the asset's Medium quality (SampleShadow_ComputeSamples_Tent_5x5);
+another soft filter is lacking (soft shadows off: pcf_bilinear)."""
 
 _FEWER_SPLITS = {2: (0.25,), 3: (0.1, 0.3)}
 """URP's m_Cascade2Split and m_Cascade3Split defaults (UniversalRenderPipelineAsset.cs); 4 cascades: the preset's."""
@@ -127,10 +137,10 @@ def read_unity_urp(paths) -> Imported:
 def write_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> tuple[dict, list]:
     """``settings`` as a ``UniversalRenderPipelineAsset`` asset text, and the knobs it cannot hold."""
     cascades = min(settings.cascades, 4)
-    wanted = max(settings.cascade_resolutions or (settings.resolution,)) * (1 if cascades == 1 else 2)
+    wanted = largest_resolution(settings) * (1 if cascades == 1 else 2)
     atlas = 1 << max(8, min(13, wanted.bit_length() - 1))
     z = split_boundaries(settings.replace(cascades=cascades), near=near, far=far)
-    fractions = [float(v / z[-1]) for v in z[1:-1]]
+    fractions = fractions_of_far(z)
     splits = {**_FEWER_SPLITS, 4: engine_settings(PRESET).splits[:3]}
     if cascades > 1:
         splits[cascades] = fractions
@@ -147,3 +157,42 @@ def write_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> tup
               f"m_ShadowNormalBias: {settings.normal_offset!r}", f"m_SoftShadowsSupported: {int(soft)}",
               f"m_SoftShadowQuality: {_SOFT_MEDIUM}"]
     return {"UniversalRP.asset": unity_text(114, "MonoBehaviour", fields)}, lacking
+
+
+def export_unity_urp(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
+    """Unity URP: the pipeline asset's shadow fields, set from a script."""
+    lacking = common_lacking(settings, stable="exact") + shape_lacking(settings, fade="squared_radial")
+    cascades = min(settings.cascades, 4)
+    if settings.cascades > 4:
+        lacking.append(f"cascades = {settings.cascades} (URP has at most 4)")
+    wanted = largest_resolution(settings) * (1 if cascades == 1 else 2)
+    # The asset's resolution is one of 256 … 8192 (powers of two): the largest that is not bigger.
+    atlas = 1 << max(8, min(13, wanted.bit_length() - 1))
+    if atlas != wanted:
+        lacking.append(f"resolution = {largest_resolution(settings)} per cascade (URP's atlas is a power of two in "
+                       f"256..8192: {atlas} written for {wanted})")
+    lacking += blend_lacking(settings, "URP blends no cascades; cascadeBorder fades the last")
+    if not hard_filter(settings) and (settings.filter, settings.filter_size) != URP_FILTER:
+        lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (URP's soft shadows are "
+                       f"fixed tents of bilinear taps: Medium {URP_FILTER[0]} {URP_FILTER[1]})")
+    fractions = fractions_of_far(split_boundaries(settings.replace(cascades=cascades), near=near, far=far))
+    lines = ["// UniversalRenderPipelineAsset asset = …;",
+             f"asset.shadowDistance = {four_digits(min(settings.shadow_distance, far))}f;",
+             f"asset.shadowCascadeCount = {cascades};"]
+    if cascades == 2:
+        lines.append(f"asset.cascade2Split = {four_digits(fractions[0])}f;")
+    elif cascades == 3:
+        lines.append(f"asset.cascade3Split = new Vector2({', '.join(four_digits(f) + 'f' for f in fractions)});")
+    elif cascades == 4:
+        lines.append(f"asset.cascade4Split = new Vector3({', '.join(four_digits(f) + 'f' for f in fractions)});")
+    lines += [f"asset.mainLightShadowmapResolution = {atlas};  // atlas: {atlas // (1 if cascades == 1 else 2)}² "
+              f"per cascade",
+              f"asset.supportsSoftShadows = {'false' if hard_filter(settings) else 'true'};"]
+    return Snippet("unity_urp", "Unity URP: UniversalRenderPipelineAsset", "csharp", "\n".join(lines) + "\n",
+                   tuple(lacking))
+
+
+ENGINE = Engine("unity_urp", export_unity_urp, EngineFiles(
+    read=read_unity_urp, write=write_unity_urp, fields=FIELDS, preset=fixed_preset(PRESET), presets=(PRESET,),
+    files="a UniversalRenderPipelineAsset .asset"))
+"""What the registries of csmlab.engines take from this module."""

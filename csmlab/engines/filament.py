@@ -8,18 +8,22 @@ libs/viewer/src/Settings.cpp ``parse(…, LightManager::ShadowOptions*)``). ``ma
 light), ``normalBias`` (ShadowMapManager halves it: normal_offset = 0.5 · normalBias texels),
 ``polygonOffsetSlope`` and ``polygonOffsetConstant`` (DEPTH16 steps: bias_depth_range = constant / 2^16)
 map to csmlab fields; missing keys keep ``configs/engines/filament.toml``.
+
+The snippet (export_filament) is the viewer's settings JSON as write_filament writes it.
 """
 
 from __future__ import annotations
 
 import json
 
-from csmlab.engine_export import split_boundaries
+from csmlab.cascades.splits import fractions_of_range, split_boundaries
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, blend_lacking, common_lacking, fixed_preset,
+                                   largest_resolution, one_file)
+from csmlab.engines.reading import Imported, Reading, engine_settings, json_document, number
 from csmlab.errors import InputError
-from csmlab.importers.reading import Imported, Reading, engine_settings, json_document, number
 from csmlab.settings import ShadowSettings
 
-__all__ = ["FIELDS", "PRESET", "read_filament", "write_filament"]
+__all__ = ["ENGINE", "FIELDS", "PRESET", "export_filament", "read_filament", "write_filament"]
 
 PRESET = "filament"
 """The engine preset holding Filament's defaults."""
@@ -120,9 +124,9 @@ def write_filament(settings: ShadowSettings, *, near: float, far: float) -> tupl
     if settings.cascades > 4:
         lacking.append(f"cascades = {settings.cascades} (Filament has at most 4; 4 written)")
     base = engine_settings(PRESET)
-    options = {"mapSize": max(settings.cascade_resolutions or (settings.resolution,)), "shadowCascades": cascades}
+    options = {"mapSize": largest_resolution(settings), "shadowCascades": cascades}
     if (settings.split, settings.lambda_) != (base.split, base.lambda_):
-        options["cascadeSplitPositions"] = [float((v - z[0]) / (z[-1] - z[0])) for v in z[1:-1]]
+        options["cascadeSplitPositions"] = fractions_of_range(z)
     options.update({"shadowFar": float(z[-1]), "stable": settings.stabilization != "none",
                     "constantBias": settings.bias_constant, "normalBias": settings.normal_offset / NORMAL_BIAS_SCALE,
                     "polygonOffsetConstant": settings.bias_depth_range * DEPTH16_STEPS,
@@ -130,3 +134,21 @@ def write_filament(settings: ShadowSettings, *, near: float, far: float) -> tupl
     document = {"view": {"shadowType": "PCF"},
                 "lighting": {"enableShadows": True, "sunlight": {"castShadows": True, "shadowOptions": options}}}
     return {"settings.json": json.dumps(document, indent=4) + "\n"}, lacking
+
+
+def export_filament(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
+    """Filament: the sun's ``LightManager::ShadowOptions`` in the viewer's settings JSON."""
+    lacking = common_lacking(settings, stable="none")
+    lacking = [item for item in lacking if not item.startswith(("stabilization", "bias_constant"))]
+    if settings.stabilization not in ("none", "exact"):
+        lacking.append(f"stabilization = {settings.stabilization!r} (Filament's stable is on or off)")
+    lacking += blend_lacking(settings, "Filament blends no cascades")
+    text, _ = one_file(write_filament, settings, near=near, far=far)
+    return Snippet("filament", "Filament: the viewer's settings JSON (LightManager::ShadowOptions)", "json", text,
+                   tuple(lacking))
+
+
+ENGINE = Engine("filament", export_filament, EngineFiles(
+    read=read_filament, write=write_filament, fields=FIELDS, preset=fixed_preset(PRESET), presets=(PRESET,),
+    files="the viewer's settings JSON"))
+"""What the registries of csmlab.engines take from this module."""

@@ -32,6 +32,9 @@ A member the file leaves out is the engine's: Stride writes only members that di
 ``[DefaultValue]``, and those defaults are configs/engines/stride.toml's, except the absent ``Filter``
 (null) which is set here. ``ManualMinDistance`` ≠ 0, ``Filter7x7``, ``ComputeTransmittance`` and
 ``Debug`` have no csmlab knob and are listed as unmodelled.
+
+The snippet (export_stride) is the scene asset's ``LightDirectionalShadowMap`` (``CascadeCount``, ``Size``,
+``StabilizationMode``, ``DepthRange``, ``PartitionMode``, ``Filter``, ``BiasParameters``) as write_stride writes it.
 """
 
 from __future__ import annotations
@@ -40,13 +43,15 @@ import uuid
 
 import yaml
 
-from csmlab.engine_export import split_boundaries
+from csmlab.cascades.splits import split_boundaries
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, common_lacking, fixed_preset, largest_resolution,
+                                   one_file)
+from csmlab.engines.reading import Imported, Reading, engine_settings, number, read_text
 from csmlab.errors import InputError
-from csmlab.importers.reading import Imported, Reading, engine_settings, number, read_text
 from csmlab.lookup_choices import FILTER_METHODS
 from csmlab.settings import ShadowSettings
 
-__all__ = ["DEFAULT_NEAR", "FIELDS", "PRESET", "read_stride", "write_stride"]
+__all__ = ["DEFAULT_NEAR", "ENGINE", "FIELDS", "PRESET", "export_stride", "read_stride", "write_stride"]
 
 PRESET = "stride"
 """The engine preset holding Stride's defaults."""
@@ -326,7 +331,7 @@ def write_stride(settings: ShadowSettings, *, near: float, far: float) -> tuple[
     cascades = settings.cascades if settings.cascades in MANUAL_SPLITS else (2 if settings.cascades < 4 else 4)
     if cascades != settings.cascades:
         lacking.append(f"cascades = {settings.cascades} (Stride has 1, 2 or 4 cascades; {cascades} written)")
-    wanted = max(settings.cascade_resolutions or (settings.resolution,))
+    wanted = largest_resolution(settings)
     size = max((n for n, side in SIZES.items() if side <= wanted), key=SIZES.get, default="XSmall")
     if SIZES[size] != wanted:
         lacking.append(f"resolution = {wanted} (Stride's Size gives 128 · 2^k up to 2048; {size}, {SIZES[size]}, "
@@ -461,3 +466,20 @@ def _scene_text(shadow: list[str], *, near: float, far: float) -> str:
         f"{pad}        Intensity: 20.0",
     ]
     return "\n".join(lines) + "\n"
+
+
+def export_stride(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
+    """Stride: the directional light's ``LightDirectionalShadowMap`` in a scene asset (``.sdscene``)."""
+    # Stride has its own automatic depth range (bounds = sdsm), None / ProjectionSnapping / ViewSnapping and
+    # a DepthBias and NormalOffsetScale that csmlab.engines.stride maps: write_stride names what differs.
+    lacking = [item for item in common_lacking(settings, stable="exact")
+               if not item.startswith(("stabilization", "bounds", "bias_constant"))]
+    text, more = one_file(write_stride, settings, near=near, far=far)
+    return Snippet("stride", "Stride: the directional light's shadow map in the scene (.sdscene)", "sdscene", text,
+                   tuple(lacking + more))
+
+
+ENGINE = Engine("stride", export_stride, EngineFiles(
+    read=read_stride, write=write_stride, fields=FIELDS, preset=fixed_preset(PRESET), presets=(PRESET,),
+    files="a .sdscene with a LightComponent of Type !LightDirectional"))
+"""What the registries of csmlab.engines take from this module."""

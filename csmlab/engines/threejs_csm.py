@@ -6,19 +6,25 @@ Keys are the constructor's ``data`` fields — ``cascades``, ``maxFar``, ``mode`
 ``customSplitsCallback`` pushes, fractions of ``maxFar``: the callback itself is code), and the
 renderer's ``shadowMapType`` and each light's ``shadowRadius`` (LightShadow.radius). Missing keys keep
 ``configs/engines/threejs_csm.toml``.
+
+The snippet (export_threejs_csm) names the ``CSM`` options (examples/jsm/csm): ``cascades``, ``maxFar``, ``mode``
+(``practical`` mixes with λ = 0.5), ``customSplitsCallback``, ``shadowMapSize``, ``fade``.
 """
 
 from __future__ import annotations
 
 import json
 
-from csmlab.engine_export import THREEJS_PCF, split_boundaries
+from csmlab.cascades.splits import fractions_of_far, split_boundaries
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, blend_lacking, common_lacking, fixed_preset,
+                                   four_digits, largest_resolution, vogel_is)
+from csmlab.engines.reading import Imported, Reading, json_document, number
 from csmlab.errors import InputError
-from csmlab.importers.reading import Imported, Reading, json_document, number
 from csmlab.lookup_choices import FILTER_METHODS
 from csmlab.settings import ShadowSettings
 
-__all__ = ["CSM_LIGHT_RANGE", "FIELDS", "PRESET", "read_threejs_csm", "write_threejs_csm"]
+__all__ = ["CSM_LIGHT_RANGE", "ENGINE", "FIELDS", "PRESET", "THREEJS_PCF", "export_threejs_csm", "read_threejs_csm",
+           "write_threejs_csm"]
 
 PRESET = "threejs_csm"
 """The engine preset holding the CSM addon's defaults."""
@@ -26,6 +32,9 @@ PRESET = "threejs_csm"
 FIELDS = frozenset({"cascades", "split", "splits", "lambda_", "shadow_distance", "resolution", "pancake",
                     "bias_constant", "filter", "vogel_radius"})
 """The csmlab fields the options carry."""
+
+THREEJS_PCF = {"vogel_taps": 5, "vogel_angle": 2.399963229728653, "vogel_scale": "none"}
+"""three.js r182+ PCFShadowMap as csmlab's ``pcf_vogel`` fields, its radius LightShadow.radius (configs/engines/threejs_csm.toml)."""
 
 CSM_LIGHT_RANGE = (1.0, 2000.0, 1e-6)
 """CSM.js constructor defaults lightNear, lightFar and shadowBias: the bias is a fraction of that depth range."""
@@ -109,16 +118,22 @@ def read_threejs_csm(paths) -> Imported:
     return reading.result()
 
 
+def _csm_mode(settings: ShadowSettings) -> str:
+    """CSM's ``mode`` for ``settings``' split scheme: its own name where CSM has it (``practical`` only at
+    λ = 0.5), else ``custom``."""
+    return {"uniform": "uniform", "log": "logarithmic"}.get(settings.split, "practical" if (
+        settings.split == "practical" and settings.lambda_ == 0.5) else "custom")
+
+
 def write_threejs_csm(settings: ShadowSettings, *, near: float, far: float) -> tuple[dict, list]:
     """``settings`` as CSM options JSON, and the knobs it cannot hold."""
     z = split_boundaries(settings, near=near, far=far)
-    mode = {"uniform": "uniform", "log": "logarithmic"}.get(settings.split, "practical" if (
-        settings.split == "practical" and settings.lambda_ == 0.5) else "custom")
+    mode = _csm_mode(settings)
     light_near, light_far, _ = CSM_LIGHT_RANGE
     options = {"cascades": settings.cascades, "maxFar": float(z[-1]), "mode": mode}
     if mode == "custom":
         options["customSplits"] = [float(v / z[-1]) for v in z[1:]]
-    options.update({"shadowMapSize": max(settings.cascade_resolutions or (settings.resolution,)),
+    options.update({"shadowMapSize": largest_resolution(settings),
                     "lightMargin": settings.pancake, "lightNear": light_near, "lightFar": light_far,
                     "shadowBias": -settings.bias_constant / (light_far - light_near), "fade": settings.blend_band > 0,
                     "shadowMapType": "BasicShadowMap" if FILTER_METHODS[settings.filter].hard else "PCFShadowMap",
@@ -128,3 +143,35 @@ def write_threejs_csm(settings: ShadowSettings, *, near: float, far: float) -> t
             getattr(settings, k) != v for k, v in THREEJS_PCF.items())):
         lacking.append(f"filter = {settings.filter!r} (three.js's PCFShadowMap is pcf_vogel {THREEJS_PCF})")
     return {"csm.json": json.dumps(options, indent=2) + "\n"}, lacking
+
+
+def export_threejs_csm(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
+    """three.js CSM (examples/jsm/csm/CSM.js) options."""
+    lacking = common_lacking(settings, stable="exact")
+    mode = _csm_mode(settings)
+    lines = ["const csm = new CSM({",
+             f"  maxFar: {four_digits(min(settings.shadow_distance, far))},",
+             f"  cascades: {settings.cascades},",
+             f"  mode: '{mode}',"]
+    if mode == "custom":
+        fractions = ", ".join(four_digits(f) for f in fractions_of_far(split_boundaries(settings, near=near, far=far)))
+        lines.append(f"  customSplitsCallback: (cascades, near, far, breaks) => breaks.push({fractions}, 1),")
+    lines += [f"  shadowMapSize: {largest_resolution(settings)},", "  camera, parent: scene, lightDirection,", "});"]
+    if vogel_is(settings, **THREEJS_PCF) and settings.vogel_radius != 1.0:
+        radius = four_digits(settings.vogel_radius)
+        lines.append(f"csm.lights.forEach((light) => {{ light.shadow.radius = {radius}; }});")
+    lines += [
+              f"csm.fade = {'true' if settings.blend_band > 0 else 'false'};",
+              "renderer.shadowMap.type = THREE." + ("BasicShadowMap" if FILTER_METHODS[settings.filter].hard
+                                                    else "PCFShadowMap") + ";"]
+    lacking += blend_lacking(settings, "CSM's fade has a fixed width")
+    if settings.filter != "none" and not vogel_is(settings, **THREEJS_PCF):
+        lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (three.js picks its PCF "
+                       f"kernel from shadowMap.type: PCFShadowMap is pcf_vogel {THREEJS_PCF}, radius = shadow.radius)")
+    return Snippet("threejs_csm", "three.js: CSM options", "javascript", "\n".join(lines) + "\n", tuple(lacking))
+
+
+ENGINE = Engine("threejs_csm", export_threejs_csm, EngineFiles(
+    read=read_threejs_csm, write=write_threejs_csm, fields=FIELDS, preset=fixed_preset(PRESET), presets=(PRESET,),
+    files="the CSM options as JSON"))
+"""What the registries of csmlab.engines take from this module."""

@@ -11,6 +11,10 @@ Sources: DirectionalLight3D and Light3D class references; ``light_storage.cpp``
 soft_shadow_scale`` with soft_shadow_scale 2: ``bias_depth_range = shadow_bias · 0.02``; ``shadow_normal_bias``
 texels); ``RendererSceneRenderRD::directional_soft_shadow_filter_set_quality`` (Soft Low: 4 taps, radius 2.0,
 × ``shadow_blur``); ``RendererSceneCull::get_directional_light_shadow_size`` (2 or 4 splits: half the atlas).
+
+The snippet (export_godot4) names: ``DirectionalLight3D.directional_shadow_mode`` (orthogonal, 2 or 4 splits),
+``directional_shadow_max_distance``, ``directional_shadow_split_1..3``, ``directional_shadow_blend_splits``;
+project setting ``rendering/lights_and_shadows/directional_shadow/size`` (the atlas).
 """
 
 from __future__ import annotations
@@ -18,12 +22,15 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from csmlab.engine_export import hard_filter, split_boundaries
+from csmlab.cascades.splits import count_one_two_or_four, fractions_of_range, split_boundaries
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, blend_lacking, common_lacking, fixed_preset,
+                                   four_digits, hard_filter, largest_resolution, shape_lacking, vogel_is)
+from csmlab.engines.reading import Imported, Reading, engine_settings, number, read_text
 from csmlab.errors import InputError
-from csmlab.importers.reading import Imported, Reading, engine_settings, number, read_text
 from csmlab.settings import ShadowSettings
 
-__all__ = ["FIELDS", "PRESET", "config_sections", "read_godot4", "write_godot4"]
+__all__ = ["ENGINE", "FIELDS", "GODOT_SOFT_LOW", "PRESET", "config_sections", "export_godot4", "read_godot4",
+           "write_godot4"]
 
 PRESET = "godot4"
 """The engine preset holding Godot's defaults."""
@@ -31,6 +38,9 @@ PRESET = "godot4"
 FIELDS = frozenset({"cascades", "split", "splits", "shadow_distance", "fade_out", "pancake", "bias_depth_range",
                     "normal_offset", "vogel_radius", "cull", "resolution", "filter", "depth_format"})
 """The csmlab fields Godot's files carry."""
+
+GODOT_SOFT_LOW = {"vogel_taps": 4, "vogel_radius": 2.0, "vogel_angle": 2.4, "vogel_scale": "first_split"}
+"""Godot 4's Soft Low (soft_shadow_filter_quality = 2) as csmlab's ``pcf_vogel`` fields (configs/engines/godot4.toml)."""
 
 SHADOW_BIAS_SCALE = 0.02
 """bias_depth_range per unit of Light3D.shadow_bias: / 100 × soft_shadow_scale 2.0 (light_storage.cpp)."""
@@ -227,10 +237,10 @@ def read_godot4(paths) -> Imported:
 def write_godot4(settings: ShadowSettings, *, near: float, far: float) -> tuple[dict, list]:
     """``settings`` as ``project.godot`` and ``light.tscn`` texts, and the knobs they cannot hold."""
     lacking = []
-    cascades = settings.cascades if settings.cascades in _MODES.values() else (2 if settings.cascades < 4 else 4)
+    cascades = count_one_two_or_four(settings.cascades)
     z = split_boundaries(settings.replace(cascades=cascades), near=near, far=far)
-    fractions = [float((v - z[0]) / (z[-1] - z[0])) for v in z[1:-1]]
-    size = max(settings.cascade_resolutions or (settings.resolution,))
+    fractions = fractions_of_range(z)
+    size = largest_resolution(settings)
     if settings.cull == "none":
         lacking.append("cull = 'none' (Godot culls the material's back faces, or its front ones reversed)")
     if settings.depth_format not in ("unorm16", "float32"):
@@ -258,3 +268,39 @@ def write_godot4(settings: ShadowSettings, *, near: float, far: float) -> tuple[
 def _soft_low_radius() -> float:
     """Soft Low's disk radius in texels at shadow_blur 1: the preset's vogel_radius."""
     return engine_settings(PRESET).vogel_radius
+
+
+def export_godot4(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
+    """Godot 4: DirectionalLight3D properties and the directional shadow atlas size."""
+    lacking = common_lacking(settings, stable="exact") + shape_lacking(settings, fade="smoothstep")
+    modes = {1: 0, 2: 1, 4: 2}
+    cascades = count_one_two_or_four(settings.cascades)
+    if cascades != settings.cascades:
+        lacking.append(f"cascades = {settings.cascades} (Godot has 1, 2 or 4 splits; {cascades} written)")
+    # Godot places each split at min_distance + split · (max_distance - min_distance) from the camera's near
+    # plane (RendererSceneCull::_light_instance_setup_directional_shadow): fractions of the range, not of far.
+    z = split_boundaries(settings.replace(cascades=cascades), near=near, far=far)
+    fractions = fractions_of_range(z)
+    atlas = largest_resolution(settings) * (1 if cascades == 1 else 2)
+    lines = ["# DirectionalLight3D",
+             f"directional_shadow_mode = {modes[cascades]}",
+             f"directional_shadow_max_distance = {four_digits(min(settings.shadow_distance, far))}"]
+    lines += [f"directional_shadow_split_{i + 1} = {four_digits(f)}" for i, f in enumerate(fractions)]
+    lines += [f"directional_shadow_blend_splits = {'true' if settings.blend_band > 0 else 'false'}",
+              "# Project Settings",
+              f"rendering/lights_and_shadows/directional_shadow/size = {atlas}  "
+              f"# {largest_resolution(settings)}² per split (2 splits: half the atlas each)",
+              "rendering/lights_and_shadows/directional_shadow/soft_shadow_filter_quality = "
+              f"{0 if hard_filter(settings) else 2}  # 2: Soft Low, 4 Vogel taps of 2 texels"]
+    lacking += blend_lacking(settings, "Godot blends splits over a fixed band")
+    if not hard_filter(settings) and not vogel_is(settings, **GODOT_SOFT_LOW):
+        lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Godot filters with its "
+                       f"own soft-shadow kernel: Soft Low is pcf_vogel {GODOT_SOFT_LOW})")
+    return Snippet("godot4", "Godot 4: DirectionalLight3D and project settings", "gdscript", "\n".join(lines) + "\n",
+                   tuple(lacking))
+
+
+ENGINE = Engine("godot4", export_godot4, EngineFiles(
+    read=read_godot4, write=write_godot4, fields=FIELDS, preset=fixed_preset(PRESET), presets=(PRESET,),
+    files="project.godot and/or a .tscn with a DirectionalLight3D"))
+"""What the registries of csmlab.engines take from this module."""

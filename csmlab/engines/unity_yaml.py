@@ -11,7 +11,7 @@ import re
 import yaml
 
 from csmlab.errors import InputError
-from csmlab.importers.reading import read_text
+from csmlab.engines.reading import read_text
 
 __all__ = ["unity_objects", "unity_text"]
 

@@ -8,17 +8,22 @@ level's ``shadowProjection`` picks the preset (0 Close Fit: ``configs/engines/un
 (0 Low … 3 Very High) set the fields. The shadow map's size follows the screen (Manual
 "shadow-resolution-birp": each level down halves it); the presets' resolution is Very High's at
 640 px wide, the lower levels are read as halvings of it.
+
+The snippet (export_unity_builtin) is the quality level as write_unity_builtin writes it.
 """
 
 from __future__ import annotations
 
-from csmlab.engine_export import hard_filter, split_boundaries
+from csmlab.cascades.splits import count_one_two_or_four, fractions_of_far, split_boundaries
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, blend_lacking, common_lacking, hard_filter,
+                                   largest_resolution, one_file, shape_lacking)
+from csmlab.engines.reading import Imported, Reading, engine_settings, number
+from csmlab.engines.unity_yaml import unity_objects, unity_text
 from csmlab.errors import InputError
-from csmlab.importers.reading import Imported, Reading, engine_settings, number
-from csmlab.importers.unity_yaml import unity_objects, unity_text
 from csmlab.settings import ShadowSettings
 
-__all__ = ["FIELDS", "PRESETS", "preset_of", "read_unity_builtin", "write_unity_builtin"]
+__all__ = ["ENGINE", "FIELDS", "PRESETS", "export_unity_builtin", "preset_of", "read_unity_builtin",
+           "write_unity_builtin"]
 
 PRESETS = {0: "unity_builtin_close", 1: "unity_builtin_stable"}
 """The engine preset by ShadowProjection (CloseFit 0, StableFit 1, Unity's default)."""
@@ -124,15 +129,15 @@ def read_unity_builtin(paths) -> Imported:
 
 def write_unity_builtin(settings: ShadowSettings, *, near: float, far: float) -> tuple[dict, list]:
     """``settings`` as a ``QualitySettings.asset`` with one level, and the knobs it cannot hold."""
-    cascades = settings.cascades if settings.cascades in (1, 2, 4) else (2 if settings.cascades < 4 else 4)
+    cascades = count_one_two_or_four(settings.cascades)
     lacking = []
     if cascades != settings.cascades:
         lacking.append(f"cascades = {settings.cascades} (Unity's built-in pipeline has 1, 2 or 4; {cascades} written)")
     z = split_boundaries(settings.replace(cascades=cascades), near=near, far=far)
-    fractions = [float(v / z[-1]) for v in z[1:-1]]
+    fractions = fractions_of_far(z)
     preset = preset_of(settings)
     top = engine_settings(preset).resolution
-    size = max(settings.cascade_resolutions or (settings.resolution,))
+    size = largest_resolution(settings)
     steps = next((s for s in range(_VERY_HIGH, -1, -1) if top >> (_VERY_HIGH - s) <= size), 0)
     if top >> (_VERY_HIGH - steps) != size:
         lacking.append(f"resolution = {size} (Unity's levels give {top} >> k at 640 px: "
@@ -147,3 +152,18 @@ def write_unity_builtin(settings: ShadowSettings, *, near: float, far: float) ->
     text = unity_text(47, "QualitySettings", ["m_ObjectHideFlags: 0", "serializedVersion: 5", "m_CurrentQuality: 0",
                                               "m_QualitySettings:", *level])
     return {"QualitySettings.asset": text}, lacking
+
+
+def export_unity_builtin(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
+    """Unity's built-in pipeline: a quality level of ``ProjectSettings/QualitySettings.asset``."""
+    lacking = common_lacking(settings, stable="exact") + shape_lacking(settings, fade="radial")
+    lacking += blend_lacking(settings, "the built-in pipeline blends no cascades")
+    text, _ = one_file(write_unity_builtin, settings, near=near, far=far)
+    return Snippet("unity_builtin", "Unity built-in pipeline: ProjectSettings/QualitySettings.asset", "yaml", text,
+                   tuple(lacking))
+
+
+ENGINE = Engine("unity_builtin", export_unity_builtin, EngineFiles(
+    read=read_unity_builtin, write=write_unity_builtin, fields=FIELDS, preset=preset_of,
+    presets=tuple(PRESETS.values()), files="ProjectSettings/QualitySettings.asset"))
+"""What the registries of csmlab.engines take from this module."""

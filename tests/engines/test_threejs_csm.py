@@ -1,4 +1,5 @@
-"""three.js's own CSM addon run beside csmlab's ``threejs_csm`` preset on the same camera poses.
+"""three.js's CSM addon: its options JSON read (csmlab.engines.threejs_csm), and the addon itself run beside
+csmlab's ``threejs_csm`` preset on the same camera poses.
 
 tests/data/threejs_csm/csm_driver.mjs runs the addon's ``CSM.js`` and ``CSMFrustum.js`` (from
 tests/data/threejs_csm/vendor/ or an npm install of ``three``, see the README there) under Node with the addon's constructor defaults
@@ -13,29 +14,33 @@ from __future__ import annotations
 import json
 import shutil
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
+from engine_cases import DATA, ROOT
 
 from csmlab.cascades import build_cascades
 from csmlab.config import find_experiment, load_experiment
+from csmlab.engines import import_settings
 from csmlab.light import direction_from_angles
 from csmlab.paths.generators import make_path
 
-DATA = Path(__file__).parent / "data" / "threejs_csm"
-DRIVER = DATA / "csm_driver.mjs"
-ADDON = next((folder for folder in (DATA / "vendor", DATA / "node_modules/three/examples/jsm/csm",
-                                    Path(__file__).parents[1] / "node_modules/three/examples/jsm/csm")
+FILES = [DATA / "threejs_csm/csm.json"]
+"""The hand-written fixture (tests/data/engines/README.md)."""
+
+ADDON_DATA = ROOT / "tests" / "data" / "threejs_csm"
+DRIVER = ADDON_DATA / "csm_driver.mjs"
+ADDON = next((folder for folder in (ADDON_DATA / "vendor", ADDON_DATA / "node_modules/three/examples/jsm/csm",
+                                    ROOT / "node_modules/three/examples/jsm/csm")
               if (folder / "CSM.js").is_file() and (folder / "CSMFrustum.js").is_file()), None)
 NODE = shutil.which("node")
 
-pytestmark = [
-    pytest.mark.skipif(NODE is None, reason="node is not installed: three.js's CSM addon cannot run"),
-    pytest.mark.skipif(ADDON is None, reason="three.js's CSM.js and CSMFrustum.js are neither in "
-                       "tests/data/threejs_csm/vendor/ nor in an npm install of three (see "
-                       "tests/data/threejs_csm/README.md)"),
-]
+needs_the_addon = pytest.mark.skipif(
+    NODE is None or ADDON is None,
+    reason="node is not installed: three.js's CSM addon cannot run" if NODE is None else
+    "three.js's CSM.js and CSMFrustum.js are neither in tests/data/threejs_csm/vendor/ nor in an npm install of "
+    "three (see tests/data/threejs_csm/README.md)")
+"""The mark of every test that runs three.js's own addon (the options test at the end needs neither)."""
 
 FRAMES = (0, 30, 60, 90, 119)
 
@@ -63,6 +68,7 @@ def compared():
     return settings, d, list(zip(poses, ours, theirs))
 
 
+@needs_the_addon
 def test_cascade_count_and_map_size_are_the_addons_defaults(compared):
     settings, _, cases = compared
     for _, ours, theirs in cases:
@@ -71,6 +77,7 @@ def test_cascade_count_and_map_size_are_the_addons_defaults(compared):
     assert settings.resolution == 2048
 
 
+@needs_the_addon
 def test_split_depths_equal_the_addons_breaks_times_its_far(compared):
     """three.js's breaks are fractions of min(camera.far, maxFar) (_getBreaks, practicalSplit λ 0.5)."""
     _, _, cases = compared
@@ -80,6 +87,7 @@ def test_split_depths_equal_the_addons_breaks_times_its_far(compared):
         np.testing.assert_allclose(ours.splits[1:], expected, rtol=1e-12, atol=0)
 
 
+@needs_the_addon
 def test_light_axis_and_light_position_depth(compared):
     """Both light spaces share the light axis (three.js's +Z points toward the light), and csmlab's light camera
     (depth_range = "light_camera": slice depth − pancake 200) lies where three.js puts the light: lightMargin =
@@ -93,6 +101,7 @@ def test_light_axis_and_light_position_depth(compared):
             assert ours_c.depth_near - settings.light_near == pytest.approx(light_depth, abs=1e-6)
 
 
+@needs_the_addon
 def test_box_size_within_two_percent_of_the_addons(compared):
     """The box is sized by the larger of the far-plane and body diagonals in both (_updateShadowBounds)."""
     _, _, cases = compared
@@ -104,6 +113,7 @@ def test_box_size_within_two_percent_of_the_addons(compared):
             assert abs(ours_c.extent[0] / width - 1.0) <= 0.02
 
 
+@needs_the_addon
 def test_box_size_equals_the_addons(compared):
     """fit = "cascade_lerp" (CSMFrustum.split's lerped slice ends), extent = "diagonal_unrounded" and
     snap = "centre_full" (texel D/R, the whole map the box): the addon's width and texel."""
@@ -115,6 +125,7 @@ def test_box_size_equals_the_addons(compared):
             np.testing.assert_allclose(ours_c.texel_size, [width / 2048, width / 2048], rtol=1e-9)
 
 
+@needs_the_addon
 def test_light_space_basis_equals_the_addons(compared):
     """light_basis = "world_y": the rows of CSM.update()'s Matrix4.lookAt(origin, lightDirection, +Y)."""
     _, _, cases = compared
@@ -123,6 +134,7 @@ def test_light_space_basis_equals_the_addons(compared):
         np.testing.assert_allclose(ours.basis[1], theirs["light_axes"][1], atol=1e-9)
 
 
+@needs_the_addon
 def test_box_centre_equals_the_addons(compared):
     """light_basis = "world_y" and snap = "centre_full": the centre floored to texels of D/R on the addon's grid."""
     _, d, cases = compared
@@ -135,6 +147,7 @@ def test_box_centre_equals_the_addons(compared):
             np.testing.assert_allclose(ours_world, theirs_world, atol=1e-6)
 
 
+@needs_the_addon
 def test_depth_range_equals_the_addons(compared):
     """depth_range = "light_camera": lightNear = 1 m to lightFar = 2000 m in front of the light."""
     _, d, cases = compared
@@ -143,3 +156,10 @@ def test_depth_range_equals_the_addons(compared):
             light_depth = float(np.dot(theirs_c["position"], d))
             assert ours_c.depth_near == pytest.approx(light_depth + theirs_c["near"], abs=1e-6)
             assert ours_c.depth_far == pytest.approx(light_depth + theirs_c["far"], abs=1e-6)
+
+
+def test_three_js_options_read_practical_splits_and_the_bias_in_metres():
+    t = import_settings(FILES, engine="threejs_csm").settings
+    # shadowBias left at CSM's 1e-6 of lightFar - lightNear = 4999 m, away from the light.
+    assert (t.cascades, t.resolution, t.pancake, t.split, t.lambda_) == (4, 1024, 100.0, "practical", 0.5)
+    assert t.bias_constant == pytest.approx(-0.004999)

@@ -84,7 +84,7 @@ class Imported:
     Attributes
     ----------
     engine : str
-        A key of :data:`csmlab.importers.IMPORT_METHODS`.
+        A key of :data:`csmlab.engines.IMPORT_METHODS`.
     preset : str
         The engine preset the defaults came from (``configs/engines/<preset>.toml``).
     settings : ShadowSettings

@@ -9,6 +9,11 @@ with N = ``sg.ShadowQuality`` (default 3, Epic). The light is the editor's clipb
 ``CascadeTransitionFraction`` (blend_band, × ``r.Shadow.CSM.TransitionScale``),
 ``ShadowDistanceFadeoutFraction`` (fade_out), ``r.Shadow.MaxCSMResolution`` (resolution). Missing values
 keep ``configs/engines/ue5.toml`` (T3D holds only properties changed from the defaults).
+
+The snippet (export_ue5) names: console variables ``r.Shadow.CSM.MaxCascades``, ``r.Shadow.MaxCSMResolution``;
+directional light properties ``DynamicShadowCascades``, ``DynamicShadowDistanceMovableLight`` (cm),
+``CascadeDistributionExponent`` (split i at the geometric sum of exponent powers, ``ComputeAccumulatedScale``
+in the renderer), ``CascadeTransitionFraction``, ``ShadowDistanceFadeoutFraction``.
 """
 
 from __future__ import annotations
@@ -19,12 +24,14 @@ from pathlib import Path
 
 import numpy as np
 
-from csmlab.engine_export import split_boundaries, ue_split_fractions
+from csmlab.cascades.splits import split_boundaries, ue_split_fractions
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, common_lacking, fixed_preset, four_digits,
+                                   largest_resolution, shape_lacking)
+from csmlab.engines.reading import Imported, Reading, number, read_text
 from csmlab.errors import InputError
-from csmlab.importers.reading import Imported, Reading, number, read_text
 from csmlab.settings import ShadowSettings
 
-__all__ = ["FIELDS", "PRESET", "read_ue5", "write_ue5"]
+__all__ = ["ENGINE", "FIELDS", "PRESET", "UE5_FILTER", "export_ue5", "read_ue5", "write_ue5"]
 
 PRESET = "ue5"
 """The engine preset holding Unreal's defaults."""
@@ -32,6 +39,9 @@ PRESET = "ue5"
 FIELDS = frozenset({"cascades", "split", "distribution_exponent", "shadow_distance", "blend_band", "fade_out",
                     "resolution"})
 """The csmlab fields the ini files and the light carry."""
+
+UE5_FILTER = ("pcf", 3)
+"""The csmlab filter and size Unreal's shadow filtering matches (r.Shadow.FilterMethod=0); others are lacking."""
 
 _DEFAULT_SHADOW_QUALITY = 3
 """sg.ShadowQuality's default level (Epic)."""
@@ -159,17 +169,24 @@ def read_ue5(paths) -> Imported:
     return reading.result()
 
 
+def _nearest_exponent(boundaries: np.ndarray, count: int) -> tuple[float, float]:
+    """The CascadeDistributionExponent in 1 … 10 (steps of 0.01) whose splits come closest to ``boundaries``
+    ``(count + 1,)``, and its largest miss as a fraction of the range (Unreal's only split control)."""
+    wanted = (boundaries - boundaries[0]) / (boundaries[-1] - boundaries[0])
+    exponents = np.arange(1.0, 10.0001, 0.01)
+    errors = [np.abs(ue_split_fractions(e, count) - wanted).max() for e in exponents]
+    best = int(np.argmin(errors))
+    return float(exponents[best]), errors[best]
+
+
 def write_ue5(settings: ShadowSettings, *, near: float, far: float) -> tuple[dict, list]:
     """``settings`` as ``DefaultEngine.ini`` and a DirectionalLight's T3D text, and the knobs they cannot hold."""
     z = split_boundaries(settings, near=near, far=far)
     if settings.split == "exponent":
         exponent = settings.distribution_exponent
     else:
-        wanted = (z - z[0]) / (z[-1] - z[0])
-        exponents = np.arange(1.0, 10.0001, 0.01)
-        exponent = float(exponents[int(np.argmin([np.abs(ue_split_fractions(e, settings.cascades) - wanted).max()
-                                                  for e in exponents]))])
-    size = max(settings.cascade_resolutions or (settings.resolution,))
+        exponent, _ = _nearest_exponent(z, settings.cascades)
+    size = largest_resolution(settings)
     ini = ["[/Script/Engine.RendererSettings]", "r.Shadow.Virtual.Enable=0", "",
            "[SystemSettings]", f"r.Shadow.CSM.MaxCascades={settings.cascades}", f"r.Shadow.MaxCSMResolution={size}",
            "r.Shadow.FilterMethod=0"]
@@ -187,3 +204,39 @@ def write_ue5(settings: ShadowSettings, *, near: float, far: float) -> tuple[dic
            '         LightComponent="LightComponent0"',
            "      End Actor", "   End Level", "End Map"]
     return {"DefaultEngine.ini": "\n".join(ini) + "\n", "DirectionalLight.t3d": "\n".join(t3d) + "\n"}, []
+
+
+def export_ue5(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
+    """UE5: cvars for an ini file, directional light properties as comments (distances in cm)."""
+    z = split_boundaries(settings, near=near, far=far)
+    exponent, error = _nearest_exponent(z, settings.cascades)
+    error_m = error * (z[-1] - z[0])
+    lacking = common_lacking(settings, stable="exact") + shape_lacking(settings, transition="forward", fade="linear")
+    if error_m > 0.01:
+        lacking.append(f"split distances {[round(float(v), 2) for v in z[1:-1]]} m: Unreal's exponent spacing "
+                       f"misses them by up to {error_m:.2f} m")
+    if (settings.filter, settings.filter_size) != UE5_FILTER:
+        lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Unreal's PCF kernel "
+                       f"follows r.ShadowQuality)")
+    text = "\n".join([
+        "; DefaultEngine.ini (or ConsoleVariables.ini)",
+        "[SystemSettings]",
+        f"r.Shadow.CSM.MaxCascades={settings.cascades}",
+        f"r.Shadow.MaxCSMResolution={largest_resolution(settings)}",
+        "r.Shadow.FilterMethod=0",
+        "",
+        "; DirectionalLight > Cascaded Shadow Maps",
+        f";   DynamicShadowCascades={settings.cascades}",
+        f";   DynamicShadowDistanceMovableLight={z[-1] * 100.0:.0f}    ; cm",
+        f";   CascadeDistributionExponent={exponent:.2f}",
+        f";   CascadeTransitionFraction={four_digits(settings.blend_band)}",
+        f";   ShadowDistanceFadeoutFraction={four_digits(settings.fade_out)}",
+    ])
+    return Snippet("ue5", "Unreal Engine 5: console variables and directional light", "ini", text + "\n",
+                   tuple(lacking))
+
+
+ENGINE = Engine("ue5", export_ue5, EngineFiles(
+    read=read_ue5, write=write_ue5, fields=FIELDS, preset=fixed_preset(PRESET), presets=(PRESET,),
+    files="DefaultEngine.ini, DefaultScalability.ini and/or a DirectionalLight's T3D text"))
+"""What the registries of csmlab.engines take from this module."""
