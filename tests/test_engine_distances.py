@@ -215,3 +215,25 @@ def test_unity_builtin_splits_are_the_stored_fractions_of_its_150_m(tmp_path, fa
     cascades = build_cascades(pose=_pose(far), light_direction=LIGHT, scene_corners=SCENE, settings=settings)
     np.testing.assert_allclose(cascades.splits[1:], np.float32([1 / 15, 3 / 15, 7 / 15, 1.0]) * 150.0, rtol=1e-7)
     np.testing.assert_allclose(cascades.splits[1:], [10.0, 30.0, 70.0, 150.0], atol=1e-5)
+
+
+@pytest.mark.parametrize("far", FARS)
+def test_filament_ends_its_one_cascade_at_the_camera_far_plane(tmp_path, far):
+    """ShadowMapManager: shadowFar = 0 keeps the camera's far plane (cameraInfo.zf replaced only when > 0)."""
+    settings = _preset(tmp_path, "filament", camera_far=far)
+    assert shadow_end(method=settings.shadow_distance_from, shadow_distance=settings.shadow_distance,
+                      max_shadow_distance=settings.max_shadow_distance, camera_far=far) == far
+
+
+@pytest.mark.parametrize("far", FARS)
+def test_stride_splits_its_held_visible_range_uncapped(tmp_path, far):
+    """LightDirectionalShadowMapRenderer.ComputeCascadeSplits (IsAutomatic): PSSM 0.5 over [minDistance,
+    maxDistance] of the visible objects, no distance cap: a view reaching 0.95 of the far plane keeps it all."""
+    settings = _preset(tmp_path, "stride", camera_far=far)
+    visible = (2.0, 0.95 * far)
+    cascades = build_cascades(pose=_pose(far), light_direction=LIGHT, scene_corners=SCENE, settings=settings,
+                              visible_depth=visible)
+    n, f = visible
+    i = np.arange(1, 5) / 4
+    stride = 0.5 * (n * (f / n) ** i) + 0.5 * (n + (f - n) * i)          # lerp(uniform, log, 1 − PSSMFactor 0.5)
+    np.testing.assert_allclose(cascades.splits[1:], stride, rtol=1e-12)

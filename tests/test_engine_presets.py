@@ -111,6 +111,7 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     # shadowNearHint 1 and shadowFarHint 100; focus_shadowcasters; ShadowType::PCF =
     # ShadowSample_PCF_Low, "hardware assisted PCF + 3x3 gaussian filter" (Castaño 2013).
     ("engines/filament", dict(cascades=1, split="practical", lambda_=0.5, stabilization="none",
+                              shadow_distance_from="camera_far",
                               focus="scene", warp="lispsm", lispsm_near_hint=1.0, lispsm_far_hint=100.0,
                               filter="pcf_castano", filter_size=3)),
     # CascadeShadowConfigBuilder::default(): 4, 0.1, 150, first bound 10, overlap 0.2;
@@ -130,6 +131,7 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     # DepthRange.IsAutomatic true (held: DepthIncreaseThreshold 1.1, DepthDecreaseThreshold 2.0),
     # IsBlendingCascades true (overlap 0.2); PCF 5×5 in the shadow atlas.
     ("engines/stride", dict(cascades=4, lambda_=0.5, bounds="sdsm", hold="stepped", stabilization="exact",
+                            shadow_distance_from="farthest_visible",
                             extent="centroid", snap="centre_nearest", blend_band=0.2, blend_curve="smoothstep",
                             depth_range="sphere", depth_clamp=True,
                             transition="backward", filter="pcf_castano", filter_size=5, outside="last",

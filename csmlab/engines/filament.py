@@ -4,10 +4,11 @@ The sun's ``LightManager::ShadowOptions`` sit at ``lighting.sunlight.shadowOptio
 ``lighting.shadowOptions``) and ``view.shadowType`` picks the filter (google/filament @000e151b,
 libs/viewer/src/Settings.cpp ``parse(…, LightManager::ShadowOptions*)``). ``mapSize`` (resolution),
 ``shadowCascades``, ``cascadeSplitPositions`` (fractions of the range from the near plane: split =
-"manual_range"), ``shadowFar`` (0: the camera's far plane), ``stable``, ``constantBias`` (metres toward the
-light), ``normalBias`` (ShadowMapManager halves it: normal_offset = 0.5 · normalBias texels),
-``polygonOffsetSlope`` and ``polygonOffsetConstant`` (DEPTH16 steps: bias_depth_range = constant / 2^16)
-map to csmlab fields; missing keys keep ``configs/engines/filament.toml``.
+"manual_range"), ``shadowFar`` (0: the camera's far plane, ``shadow_distance = "camera_far"``), ``stable``,
+``lispsm`` (ignored when stable: warp), ``shadowNearHint``/``shadowFarHint``, ``constantBias`` (metres toward
+the light), ``normalBias`` (ShadowMapManager halves it: normal_offset = 0.5 · normalBias texels),
+``polygonOffsetSlope`` and ``polygonOffsetConstant`` (the casters' raster offset: caster_bias_slope and
+caster_bias_units, in DEPTH16 steps) map to csmlab fields; missing keys keep ``configs/engines/filament.toml``.
 
 The snippet (export_filament) is the viewer's settings JSON as write_filament writes it.
 """
@@ -28,12 +29,11 @@ __all__ = ["ENGINE", "FIELDS", "PRESET", "export_filament", "read_filament", "wr
 PRESET = "filament"
 """The engine preset holding Filament's defaults."""
 
-FIELDS = frozenset({"cascades", "split", "splits", "lambda_", "shadow_distance", "stabilization", "bias_constant",
-                    "normal_offset", "bias_slope", "bias_depth_range", "resolution"})
+FIELDS = frozenset({"cascades", "split", "splits", "lambda_", "shadow_distance", "shadow_distance_from",
+                    "stabilization", "warp", "lispsm_near_hint", "lispsm_far_hint", "bias_constant", "normal_offset",
+                    "caster_bias_units", "caster_bias_slope", "resolution"})
 """The csmlab fields the settings JSON carries."""
 
-DEPTH16_STEPS = 65536.0
-"""polygonOffsetConstant's unit: one step of the DEPTH16 shadow map."""
 NORMAL_BIAS_SCALE = 0.5
 """ShadowMapManager: normalBias = 0.5 · ShadowOptions.normalBias · texel ("a half-texel size")."""
 
@@ -85,17 +85,16 @@ def read_filament(paths) -> Imported:
             reading.set("split", "manual_range", file=path, key=key, raw=positions)
             reading.set("splits", tuple(fractions), file=path, key=key, raw=positions)
         if "shadowFar" in options:
+            # ShadowMapManager: shadowFar > 0 replaces the camera's far plane (cameraInfo.zf); 0 keeps it.
             far = number(options["shadowFar"], file=path, key=f"{where}.shadowFar", minimum=0.0)
             if far > 0:
                 reading.set("shadow_distance", far, file=path, key=f"{where}.shadowFar")
-        if "stable" in options:
-            stable = options["stable"]
-            if not isinstance(stable, bool):
-                raise InputError(f"expected true or false, got {stable!r}", file=path, field=f"{where}.stable")
-            reading.set("stabilization", "exact" if stable else "none", file=path, key=f"{where}.stable", raw=stable)
+            reading.set("shadow_distance_from", "fixed" if far > 0 else "camera_far", file=path,
+                        key=f"{where}.shadowFar", raw=options["shadowFar"])
+        _warp(options, where, path, reading)
         scaled = {"constantBias": ("bias_constant", 1.0), "normalBias": ("normal_offset", NORMAL_BIAS_SCALE),
-                  "polygonOffsetSlope": ("bias_slope", 1.0),
-                  "polygonOffsetConstant": ("bias_depth_range", 1.0 / DEPTH16_STEPS)}
+                  "polygonOffsetSlope": ("caster_bias_slope", 1.0),
+                  "polygonOffsetConstant": ("caster_bias_units", 1.0)}
         for key, (attribute, scale) in scaled.items():
             if key in options:
                 value = number(options[key], file=path, key=f"{where}.{key}", minimum=0.0)
@@ -103,17 +102,40 @@ def read_filament(paths) -> Imported:
         if "mapSize" in options:
             reading.set("resolution", number(options["mapSize"], file=path, key=f"{where}.mapSize", integer=True,
                                              minimum=1), file=path, key=f"{where}.mapSize")
-        for key in ("lispsm", "shadowNearHint", "shadowFarHint", "screenSpaceContactShadows", "vsm",
-                    "shadowBulbRadius", "transform", "maxShadowDistance", "stepCount"):
-            if key in options and not (key in ("lispsm", "screenSpaceContactShadows") and options[key] is False):
-                reading.lack(file=path, key=f"{where}.{key}", value=json.dumps(options[key]),
-                             why="LiSPSM warp" if key == "lispsm" else "no csmlab knob")
+        for key, attribute in (("shadowNearHint", "lispsm_near_hint"), ("shadowFarHint", "lispsm_far_hint")):
+            if key in options:
+                reading.set(attribute, number(options[key], file=path, key=f"{where}.{key}", minimum=0.0),
+                            file=path, key=f"{where}.{key}")
+        for key in ("screenSpaceContactShadows", "vsm", "shadowBulbRadius", "transform", "maxShadowDistance",
+                    "stepCount"):
+            if key in options and not (key == "screenSpaceContactShadows" and options[key] is False):
+                reading.lack(file=path, key=f"{where}.{key}", value=json.dumps(options[key]), why="no csmlab knob")
         shadow_type = document.get("view", {}).get("shadowType", "PCF") if isinstance(document.get("view"), dict) \
             else "PCF"
         if shadow_type != "PCF":
             reading.lack(file=path, key="view.shadowType", value=shadow_type,
                          why="csmlab models PCF (PCF_LOW); the preset's pcf_castano 3 is kept")
     return reading.result()
+
+
+def _warp(options: dict, where: str, path, reading: Reading) -> None:
+    """``stable`` → stabilization and ``lispsm`` → warp: Filament warps only a map that is not stable
+    (ShadowMap::updateDirectional: "We can't use LISPSM in stable mode"), so lispsm = true with stable = true is
+    an orthographic stable map."""
+    base = reading.base
+    stable, lispsm = base.stabilization != "none", base.warp == "lispsm"
+    for key in ("stable", "lispsm"):
+        if key in options and not isinstance(options[key], bool):
+            raise InputError(f"expected true or false, got {options[key]!r}", file=path, field=f"{where}.{key}")
+    if "stable" in options:
+        stable = options["stable"]
+        reading.set("stabilization", "exact" if stable else "none", file=path, key=f"{where}.stable", raw=stable)
+    if "lispsm" in options:
+        lispsm = options["lispsm"]
+    if "stable" in options or "lispsm" in options:
+        key = f"{where}.lispsm" if "lispsm" in options else f"{where}.stable"
+        reading.set("warp", "lispsm" if lispsm and not stable else "none", file=path, key=key,
+                    raw=json.dumps(options.get("lispsm", lispsm)))
 
 
 def write_filament(settings: ShadowSettings, *, near: float, far: float) -> tuple[dict, list]:
@@ -127,10 +149,16 @@ def write_filament(settings: ShadowSettings, *, near: float, far: float) -> tupl
     options = {"mapSize": largest_resolution(settings), "shadowCascades": cascades}
     if (settings.split, settings.lambda_) != (base.split, base.lambda_):
         options["cascadeSplitPositions"] = fractions_of_range(z)
-    options.update({"shadowFar": float(z[-1]), "stable": settings.stabilization != "none",
+    camera_far = settings.shadow_distance_from == "camera_far" and settings.max_shadow_distance == 0.0
+    if settings.shadow_distance_from == "farthest_visible":
+        lacking.append("shadow_distance_from = 'farthest_visible' (Filament ends at shadowFar or the camera's far "
+                       "plane: the end under this camera is written)")
+    options.update({"shadowFar": 0.0 if camera_far else float(z[-1]), "stable": settings.stabilization != "none",
                     "constantBias": settings.bias_constant, "normalBias": settings.normal_offset / NORMAL_BIAS_SCALE,
-                    "polygonOffsetConstant": settings.bias_depth_range * DEPTH16_STEPS,
-                    "polygonOffsetSlope": settings.bias_slope, "lispsm": False})
+                    "polygonOffsetConstant": settings.caster_bias_units,
+                    "polygonOffsetSlope": settings.caster_bias_slope, "lispsm": settings.warp == "lispsm"})
+    if settings.warp == "lispsm":
+        options.update({"shadowNearHint": settings.lispsm_near_hint, "shadowFarHint": settings.lispsm_far_hint})
     document = {"view": {"shadowType": "PCF"},
                 "lighting": {"enableShadows": True, "sunlight": {"castShadows": True, "shadowOptions": options}}}
     return {"settings.json": json.dumps(document, indent=4) + "\n"}, lacking
