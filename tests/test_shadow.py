@@ -161,7 +161,8 @@ def test_selection_for_a_filter_keeps_its_taps_inside_the_box(device):
 
 def test_unknown_names_list_the_valid_ones():
     args = (np.zeros((1, 8, 8), np.float32), np.zeros((1, 1, 2), np.int64), np.zeros((1, 1), np.float32), np.ones(1))
-    with pytest.raises(ValueError, match=r"selection: expected one of \['best_resolution', 'interval', 'map', 'sphere'\]"):
+    with pytest.raises(ValueError, match=r"selection: expected one of \['best_resolution', 'interval', 'map', 'sphere', "
+                                         r"'sphere_dither'\]"):
         lookup(*args, splits=np.array([0.0, 2.0]), selection="nearest")
     with pytest.raises(ValueError, match=r"filter: expected one of \['none', 'pcf', 'pcf_bilinear'\]"):
         lookup(*args, splits=np.array([0.0, 2.0]), filter="gaussian")
@@ -170,7 +171,7 @@ def test_unknown_names_list_the_valid_ones():
     with pytest.raises(ValueError, match="radius: expected a non-negative integer"):
         shadow_lookup(*args, splits=np.array([0.0, 2.0]), texel_area=np.ones(1), selection="interval", filter="pcf",
                       radius=-1, margin=1, blend_band=0.0, bits=BITS)
-    assert sorted(SELECTION_METHODS) == ["best_resolution", "interval", "map", "sphere"]
+    assert sorted(SELECTION_METHODS) == ["best_resolution", "interval", "map", "sphere", "sphere_dither"]
     assert sorted(family_filters("box")) == ["none", "pcf", "pcf_bilinear"]
 
 
@@ -317,8 +318,9 @@ def test_world_receivers_look_up_the_same_bits_as_converted_ones(selection, devi
                                                    ("pcf", 5, 0.0, False), ("pcf_bilinear", 1, 0.2, True)):
         common = dict(splits=splits, texel_area=np.prod(texel, axis=1), selection=selection, filter=filter,
                       radius=radius(filter, filter_size), margin=2, blend_band=blend_band, bits=BITS, device=device)
-        if selection == "sphere":
-            # A split sphere about the boxes' centre per cascade, as wide as 0.4 of its box.
+        if selection in ("sphere", "sphere_dither"):
+            # A split sphere about the boxes' centre per cascade, as wide as 0.4 of its box (sphere_dither: the
+            # kernel reads the cascade csmlab.cascades.borders chose, as for sphere).
             common["sphere_cascade"] = split_sphere_cascades(
                 points[receivers], centres=np.tile(np.append(centre, 0.0) @ basis, (count, 1)),
                 radii=0.4 * size * texel.max(axis=1), device=device)
