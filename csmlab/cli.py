@@ -167,6 +167,8 @@ def run(
     from csmlab.executor import executor_for
     from csmlab.experiment import check_device, run_experiment
     from csmlab.paths.timing import timing_lines
+    from csmlab.paths.view_check import findings_line
+    from csmlab.scene.gltf_materials import blend_line
     from csmlab.report import write_report
 
     try:
@@ -206,6 +208,9 @@ def run(
     console.print(_summary_table(result.summary))
     for line in timing_lines(result.summary.get("recording")):
         console.print(line)
+    for line in (findings_line(result.summary.get("view_check")), blend_line(result.summary.get("blend_materials"))):
+        if line:
+            _err().print(f"csmlab: warning: {escape(line)}")
     resumed = f", {result.chunks_resumed} unit(s) of work resumed" if result.chunks_resumed else ""
     where = (f"dask at {address}" if executor == "dask" and address != "local"
              else f"{executor}, {workers} process(es)")
@@ -389,16 +394,51 @@ def list_names() -> None:
 @app.command()
 def show(experiment: Optional[str] = typer.Argument(None, help="Experiment file or built-in name; default: the "
                                                                "default experiment.")) -> None:
-    """Print an experiment resolved: presets merged, every field with its documentation, and its hashes."""
+    """Print an experiment resolved: presets merged, every field with its documentation, and its hashes; then its
+    scene, camera path and light as loaded and checked (a bad mesh, path or sun stops here, not at run)."""
     from csmlab.config import config_hash, experiment_toml, find_experiment, load_experiment
+    from csmlab.experiment import build_workload
 
     try:
         loaded = load_experiment(find_experiment(experiment))
         hash_ = config_hash(loaded)
+        workload = build_workload(loaded)
     except ValueError as exc:
         raise _bad_input(exc) from None
     typer.echo(experiment_toml(loaded))
     typer.echo(f"# config hash {hash_}; {len(loaded.variants())} method/point(s)")
+    for line in _workload_lines(loaded, workload):
+        typer.echo(f"# {line}")
+
+
+def _workload_lines(loaded, workload) -> list[str]:
+    """What ``csmlab show`` says of the loaded scene, camera path, light and their checks (comment lines)."""
+    from csmlab.experiment import fits_level
+    from csmlab.paths.view_check import findings_line
+    from csmlab.scene.gltf_materials import blend_line
+
+    scene, path, light = workload.scene, workload.path, loaded.light
+    lo, hi = scene.bounds
+    masked = f", {int((scene.vertex_mask[scene.triangles[:, 0]] >= 0).sum())} alpha-tested" if scene.masked else ""
+    how = ("fitted to the level" if fits_level(loaded) else "as generated") if loaded.camera.path else "from the file"
+    source = loaded.camera.path or Path(loaded.camera.file).name
+    if light.from_scene:
+        sun = "the scene file's sun (KHR_lights_punctual)"
+    elif light.direction is not None:
+        sun = "direction"
+    else:
+        sun = "sun angles" + ("" if light.is_static else ", moving")
+    lines = [
+        f"scene: {scene.name}, {scene.triangle_count} triangles{masked}, bounds "
+        f"({lo[0]:.4g}, {lo[1]:.4g}, {lo[2]:.4g}) to ({hi[0]:.4g}, {hi[1]:.4g}, {hi[2]:.4g}) m",
+        f"camera: {len(path)} frames of {source} ({how}), {workload.width}×{workload.height}, first eye at "
+        f"({path.positions[0, 0]:.4g}, {path.positions[0, 1]:.4g}, {path.positions[0, 2]:.4g}) m",
+        "light: {} → ({:.4f}, {:.4f}, {:.4f}) at frame 0".format(sun, *workload.light.direction(0)),
+        findings_line(None if workload.views is None else workload.views.as_dict())
+        or ("view check: off" if workload.views is None else f"view check: all {len(path)} views fit the scene"),
+    ]
+    blend = blend_line(workload.blend)
+    return lines + ([blend] if blend else [])
 
 
 @app.command()

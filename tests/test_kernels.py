@@ -52,7 +52,8 @@ def test_checked_device_refuses_names_warp_does_not_know():
     assert checked_device("cpu") == "cpu"
 
 
-KERNEL_MODULES = ["flip", "footprint", "moments", "pages", "pcf", "raster.kernels", "reference", "shadow", "ssim", "taa", "usage", "visibility"]
+KERNEL_MODULES = ["flip", "footprint", "moments", "pages", "pcf", "raster.kernels", "raster.tiled", "reference", "shadow", "ssim", "taa",
+                  "usage", "visibility"]
 """csmlab's Warp modules: each module under csmlab.kernels (packages included) that defines kernels."""
 
 

@@ -58,6 +58,8 @@ from csmlab.errors import InputError
 from csmlab.geometry import quat_to_matrix
 from csmlab.scene.alpha_files import alpha_mask_of_image
 from csmlab.scene.core import AlphaMask
+from csmlab.scene.gltf_compression import decompressed
+from csmlab.scene.gltf_materials import texture_coordinate_set, transformed_uv
 
 __all__ = ["GltfFile", "Sun", "gltf_scene_triangles", "material_mask", "read_gltf", "sun_of", "trs_matrices"]
 
@@ -285,8 +287,9 @@ def read_gltf(file) -> GltfFile:
     version = document.at("asset", "an object with the glTF version").mapping().at("version", "\"2.0\"")
     if not version.text(what="\"2.0\" (glTF 2.0)").startswith("2."):
         raise version.error("\"2.0\" (glTF 2.0)")
+    # Draco and meshopt geometry decoded into plain views and accessors (csmlab.scene.gltf_compression).
+    buffers = decompressed(document, lambda i: _buffer_bytes(document.list_at("buffers")[i], blob, path))
     sections = {name: document.list_at(name) for name in SECTIONS if document.has(name)}
-    buffers = tuple(_buffer_bytes(buffer, blob, path) for buffer in sections.get("buffers", []))
     return GltfFile(path=path, document=document, buffers=buffers, sections=sections)
 
 
@@ -486,8 +489,7 @@ def _mask_coordinates(gltf: GltfFile, attributes: Value, material: int, count: i
     texture = _base_colour_texture(gltf, material)
     if texture is None:
         return np.zeros((count, 2))
-    coordinate_set = texture.get("texCoord")
-    name = f"TEXCOORD_{0 if coordinate_set is None else coordinate_set.integer(minimum=0)}"
+    name = f"TEXCOORD_{texture_coordinate_set(texture)}"
     if not attributes.has(name):
         raise attributes.error(f"{name}, the coordinates of alpha-masked materials[{material}]'s baseColorTexture, "
                                f"found none", got=False)
@@ -495,7 +497,7 @@ def _mask_coordinates(gltf: GltfFile, attributes: Value, material: int, count: i
     if uv.shape != (count, 2):
         raise gltf.error(f"{attributes.key}.{name}", f"expected {count} VEC2 coordinates (one per POSITION), "
                                                      f"got shape {uv.shape}")
-    return uv
+    return transformed_uv(uv, texture)  # KHR_texture_transform (csmlab.scene.gltf_materials)
 
 
 def material_mask(gltf: GltfFile, material: int) -> AlphaMask:

@@ -38,6 +38,7 @@ from csmlab.registry import check_name
 from csmlab.scene.alpha_files import read_alpha_mask
 from csmlab.scene.core import Scene
 from csmlab.scene.gltf import gltf_scene_triangles, read_gltf
+from csmlab.scene.gltf_materials import BLEND_CASTERS, apply_blend_rule
 from csmlab.scene.shapes import height_field, scene_from_parts
 
 __all__ = ["GLTF_SUFFIXES", "GROUND_ALBEDO", "GROUND_SIZE_FACTOR", "MESH_FORMATS", "UP_AXES", "load_mesh"]
@@ -299,7 +300,8 @@ def _ground_under(scene: Scene) -> Scene:
     return scene_from_parts([plane], name="ground")
 
 
-def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, albedo=(0.6, 0.6, 0.6)) -> Scene:
+def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, albedo=(0.6, 0.6, 0.6),
+              blend_casters: str = "opaque") -> Scene:
     """Read a mesh file (OBJ, PLY, STL, VTK, glTF) into a Scene in csmlab's world: metres, Y up.
 
     Parameters
@@ -317,6 +319,9 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
         bounding-box side, so a lone object casts a visible shadow. Its triangles come last.
     albedo : (float, float, float)
         Linear RGB in [0, 1] for every triangle of the mesh (file colours are not read).
+    blend_casters : {"opaque", "masked"}
+        glTF: ``alphaMode = "BLEND"`` materials read solid or alpha-tested
+        (:func:`csmlab.scene.gltf_materials.apply_blend_rule`).
 
     Returns
     -------
@@ -342,6 +347,7 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
     if not np.isfinite(scale_value) or scale_value <= 0.0:
         raise ValueError(f"scale: expected a finite number > 0 (metres per file unit), got {scale!r}")
     check_name(up, UP_AXES, field="up")
+    check_name(blend_casters, BLEND_CASTERS, field="blend_casters")
     colour = np.asarray(albedo, dtype=np.float64)
     if colour.shape != (3,) or not np.all((colour >= 0.0) & (colour <= 1.0)):
         raise ValueError(f"albedo: expected three linear RGB values in [0, 1], got {albedo!r}")
@@ -353,7 +359,9 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
         raise InputError(f"expected a mesh file ending in one of {', '.join(MESH_FORMATS)}, "
                          f"got {path.suffix or 'no suffix'!r}", file=path, field="file")
     if path.suffix.lower() in GLTF_SUFFIXES:
-        points, triangles, masks = gltf_scene_triangles(read_gltf(path))
+        gltf = read_gltf(path)
+        apply_blend_rule(gltf.document, blend_casters)
+        points, triangles, masks = gltf_scene_triangles(gltf)
     else:
         points, triangles, masks = _vtk_mesh(path, fmt)
     with np.errstate(over="ignore", invalid="ignore"):  # a coordinate scaled past float64: refused below
