@@ -65,7 +65,11 @@ class ShadowSettings:
     splits: tuple[float, ...] = ()
     """manual: far end of each cascade, metres, or fractions of shadow_distance when all ≤ 1; manual_range: fractions of the range from the near plane to shadow_distance (Godot, MJP)."""
     shadow_distance: float = 200.0
-    """View depth in metres that the last cascade ends at (clamped to the camera's far plane)."""
+    """View depth in metres that the last cascade ends at (clamped to the camera's far plane), with shadow_distance_from = fixed."""
+    shadow_distance_from: str = "fixed"
+    """Where the last cascade ends: fixed (shadow_distance) | camera_far (the camera's far plane of each frame: three.js, Filament, MJP) | farthest_visible (the farthest visible point, bounds = sdsm: Stride); TOML also takes shadow_distance = "camera_far" or "farthest_visible" (csmlab.cascades.bounds.SHADOW_DISTANCE_METHODS)."""
+    max_shadow_distance: float = 0.0
+    """shadow_distance_from = camera_far or farthest_visible: the engine's cap in metres (three.js maxFar 100000); 0: none."""
     zoom_policy: str = "camera"
     """cascades: the field of view the cascades are fitted to, camera (the camera's own) | min_fov (max(fov, min_fov_deg) while the camera renders at its own: Godot's directional_shadow_min_fov) (csmlab.shadow_policies.ZOOM_POLICIES)."""
     min_fov_deg: float = 60.0
@@ -85,7 +89,9 @@ class ShadowSettings:
     quantized_base: str = "sphere"
     """quantized: base extent, sphere (slice bounding-sphere diameter) | frustum (whole frustum box)."""
     selection: str = "interval"
-    """Cascade selection: interval | map | best_resolution | sphere (the first split sphere holding the point: Unity)."""
+    """Cascade selection: interval | map | best_resolution | sphere (the first split sphere holding the point: Unity) | sphere_dither (sphere, the next cascade dithered in over each sphere's border: Unity HDRP)."""
+    cascade_borders: tuple[float, ...] = ()
+    """selection = sphere_dither: each cascade's border as a fraction of its split sphere's squared radius, one per cascade, the last 0 (HDRP cascadeShadowBorder0..3; its fade to lit is fade_out); empty: no border."""
     outside: str = "none"
     """A point no cascade holds: none (no shadow value, left out of the measures) | lit (S = 1: Bevy) | last (interval selection keeps the last cascade beyond the last split: Stride, MJP) (csmlab.lookup_choices.OUTSIDE_METHODS)."""
     filter: str = "pcf"
@@ -263,6 +269,16 @@ class ShadowSettings:
              "fractions of shadow_distance ending at 1.0 (the last cascade ends at the shadow distance)",
              list(self.splits))
         need(self.shadow_distance > 0, "shadow_distance", "a positive distance in metres", self.shadow_distance)
+        need(self.shadow_distance_from != "farthest_visible" or self.bounds == "sdsm", "shadow_distance_from",
+             'fixed or camera_far with bounds = "frustum" (farthest_visible reads the visible range of bounds = '
+             '"sdsm")', self.shadow_distance_from)
+        need(not self.cascade_borders or (len(self.cascade_borders) == self.cascades
+                                          and all(0.0 <= b <= 1.0 for b in self.cascade_borders)
+                                          and self.cascade_borders[-1] == 0.0), "cascade_borders",
+             f"{self.cascades} fractions in [0, 1] (one per cascade), the last 0 (the last cascade's fade to lit is "
+             f"fade_out), or an empty list", list(self.cascade_borders))
+        need(math.isfinite(self.max_shadow_distance) and self.max_shadow_distance >= 0.0, "max_shadow_distance",
+             "a non-negative distance in metres (0: no cap)", self.max_shadow_distance)
         need(self.zoom_policy in ZOOM_POLICIES, "zoom_policy", f"one of {list(ZOOM_POLICIES)}", self.zoom_policy)
         need(math.isfinite(self.min_fov_deg) and 0.0 < self.min_fov_deg < 180.0, "min_fov_deg",
              "a field of view in (0, 180) degrees", self.min_fov_deg)
@@ -449,6 +465,14 @@ APPLIES: dict[str, Applies] = {
     "distribution_exponent": Applies(lambda *, split: split == "exponent",
                                      'split = "exponent" (the depth ratio of consecutive cascades)'),
     "first_cascade_far": Applies(lambda *, split: split == "geometric", 'split = "geometric" (the first far end)'),
+    "shadow_distance": Applies(lambda *, shadow_distance_from: shadow_distance_from == "fixed",
+                               'shadow_distance_from = "fixed" (a number of metres; "camera_far" and '
+                               '"farthest_visible" end each frame where the camera or its view ends)'),
+    "max_shadow_distance": Applies(lambda *, shadow_distance_from: shadow_distance_from != "fixed",
+                                   'shadow_distance_from = "camera_far" or "farthest_visible" (the cap on where '
+                                   'they end)'),
+    "cascade_borders": Applies(lambda *, selection: selection == "sphere_dither",
+                               'selection = "sphere_dither" (the borders it dithers over)'),
     "levels": Applies(lambda *, stabilization: stabilization == "quantized",
                       'stabilization = "quantized" (the steps an extent is rounded up to)'),
     "quantized_base": Applies(lambda *, stabilization: stabilization == "quantized",

@@ -4,10 +4,11 @@ The sun's ``LightManager::ShadowOptions`` sit at ``lighting.sunlight.shadowOptio
 ``lighting.shadowOptions``) and ``view.shadowType`` picks the filter (google/filament @000e151b,
 libs/viewer/src/Settings.cpp ``parse(…, LightManager::ShadowOptions*)``). ``mapSize`` (resolution),
 ``shadowCascades``, ``cascadeSplitPositions`` (fractions of the range from the near plane: split =
-"manual_range"), ``shadowFar`` (0: the camera's far plane), ``stable``, ``constantBias`` (metres toward the
-light), ``normalBias`` (ShadowMapManager halves it: normal_offset = 0.5 · normalBias texels),
-``polygonOffsetSlope`` and ``polygonOffsetConstant`` (DEPTH16 steps: bias_depth_range = constant / 2^16)
-map to csmlab fields; missing keys keep ``configs/engines/filament.toml``.
+"manual_range"), ``shadowFar`` (0: the camera's far plane, ``shadow_distance = "camera_far"``), ``stable``,
+``lispsm`` (ignored when stable: warp), ``shadowNearHint``/``shadowFarHint``, ``constantBias`` (metres toward
+the light), ``normalBias`` (ShadowMapManager halves it: normal_offset = 0.5 · normalBias texels),
+``polygonOffsetSlope`` and ``polygonOffsetConstant`` (the casters' raster offset: caster_bias_slope and
+caster_bias_units, in DEPTH16 steps) map to csmlab fields; missing keys keep ``configs/engines/filament.toml``.
 
 The snippet (export_filament) is the viewer's settings JSON as write_filament writes it.
 """
@@ -27,12 +28,11 @@ __all__ = ["ENGINE", "FIELDS", "PRESET", "TUNE_SPACE", "export_filament", "read_
 PRESET = "filament"
 """The engine preset holding Filament's defaults."""
 
-FIELDS = frozenset({"cascades", "split", "splits", "lambda_", "shadow_distance", "stabilization", "bias_constant",
-                    "normal_offset", "bias_slope", "bias_depth_range", "resolution"})
+FIELDS = frozenset({"cascades", "split", "splits", "lambda_", "shadow_distance", "shadow_distance_from",
+                    "stabilization", "warp", "lispsm_near_hint", "lispsm_far_hint", "bias_constant", "normal_offset",
+                    "caster_bias_units", "caster_bias_slope", "resolution"})
 """The csmlab fields the settings JSON carries."""
 
-DEPTH16_STEPS = 65536.0
-"""polygonOffsetConstant's unit: one step of the DEPTH16 shadow map."""
 NORMAL_BIAS_SCALE = 0.5
 """ShadowMapManager: normalBias = 0.5 · ShadowOptions.normalBias · texel ("a half-texel size")."""
 
@@ -75,32 +75,53 @@ def read_filament(paths) -> Imported:
             reading.set("split", "manual_range", file=path, key=positions.key, raw=positions.raw)
             reading.set("splits", tuple(fractions), file=path, key=positions.key, raw=positions.raw)
         if (entry := options.member("shadowFar")) is not None:
+            # ShadowMapManager: shadowFar > 0 replaces the camera's far plane (cameraInfo.zf); 0 keeps it.
             far = entry.number(minimum=0.0)
             if far > 0:
                 reading.set("shadow_distance", far, file=path, key=entry.key)
-        if (entry := options.member("stable")) is not None:
-            stable = entry.boolean()
-            reading.set("stabilization", "exact" if stable else "none", file=path, key=entry.key, raw=stable)
+            reading.set("shadow_distance_from", "fixed" if far > 0 else "camera_far", file=path, key=entry.key,
+                        raw=entry.raw)
+        _warp(options, path, reading)
         scaled = {"constantBias": ("bias_constant", 1.0), "normalBias": ("normal_offset", NORMAL_BIAS_SCALE),
-                  "polygonOffsetSlope": ("bias_slope", 1.0),
-                  "polygonOffsetConstant": ("bias_depth_range", 1.0 / DEPTH16_STEPS)}
+                  "polygonOffsetSlope": ("caster_bias_slope", 1.0),
+                  "polygonOffsetConstant": ("caster_bias_units", 1.0)}
         for key, (attribute, scale) in scaled.items():
             if (entry := options.member(key)) is not None:
                 reading.set(attribute, entry.number(minimum=0.0) * scale, file=path, key=entry.key, raw=entry.raw)
         if (entry := options.member("mapSize")) is not None:
             reading.set("resolution", entry.integer(minimum=1), file=path, key=entry.key)
-        for key in ("lispsm", "shadowNearHint", "shadowFarHint", "screenSpaceContactShadows", "vsm",
-                    "shadowBulbRadius", "transform", "maxShadowDistance", "stepCount"):
+        for key, attribute in (("shadowNearHint", "lispsm_near_hint"), ("shadowFarHint", "lispsm_far_hint")):
+            if (entry := options.member(key)) is not None:
+                reading.set(attribute, entry.number(minimum=0.0), file=path, key=entry.key)
+        for key in ("screenSpaceContactShadows", "vsm", "shadowBulbRadius", "transform", "maxShadowDistance",
+                    "stepCount"):
             entry = options.member(key)
-            if entry is not None and not (key in ("lispsm", "screenSpaceContactShadows") and entry.raw is False):
-                reading.lack(file=path, key=entry.key, value=json.dumps(entry.raw),
-                             why="LiSPSM warp" if key == "lispsm" else "no csmlab knob")
+            if entry is not None and not (key == "screenSpaceContactShadows" and entry.raw is False):
+                reading.lack(file=path, key=entry.key, value=json.dumps(entry.raw), why="no csmlab knob")
         view = document.get("view")
         shadow_type = view.mapping().member("shadowType") if view is not None else None
         if shadow_type is not None and shadow_type.text() != "PCF":
             reading.lack(file=path, key=shadow_type.key, value=shadow_type.raw,
                          why="csmlab models PCF (PCF_LOW); the preset's pcf_castano 3 is kept")
     return reading.result()
+
+
+def _warp(options, path, reading: Reading) -> None:
+    """``stable`` → stabilization and ``lispsm`` → warp: Filament warps only a map that is not stable
+    (ShadowMap::updateDirectional: "We can't use LISPSM in stable mode"), so lispsm = true with stable = true is
+    an orthographic stable map."""
+    base = reading.base
+    stable, lispsm = base.stabilization != "none", base.warp == "lispsm"
+    stable_entry, lispsm_entry = options.member("stable"), options.member("lispsm")
+    if stable_entry is not None:
+        stable = stable_entry.boolean()
+        reading.set("stabilization", "exact" if stable else "none", file=path, key=stable_entry.key, raw=stable)
+    if lispsm_entry is not None:
+        lispsm = lispsm_entry.boolean()
+    if stable_entry is not None or lispsm_entry is not None:
+        key = (lispsm_entry or stable_entry).key
+        reading.set("warp", "lispsm" if lispsm and not stable else "none", file=path, key=key,
+                    raw=json.dumps(lispsm))
 
 
 def write_filament(settings: ShadowSettings, *, near: float, far: float) -> tuple[dict, list]:
@@ -114,10 +135,16 @@ def write_filament(settings: ShadowSettings, *, near: float, far: float) -> tupl
     options = {"mapSize": largest_resolution(settings), "shadowCascades": cascades}
     if (settings.split, settings.lambda_) != (base.split, base.lambda_):
         options["cascadeSplitPositions"] = fractions_of_range(z)
-    options.update({"shadowFar": float(z[-1]), "stable": settings.stabilization != "none",
+    camera_far = settings.shadow_distance_from == "camera_far" and settings.max_shadow_distance == 0.0
+    if settings.shadow_distance_from == "farthest_visible":
+        lacking.append("shadow_distance_from = 'farthest_visible' (Filament ends at shadowFar or the camera's far "
+                       "plane: the end under this camera is written)")
+    options.update({"shadowFar": 0.0 if camera_far else float(z[-1]), "stable": settings.stabilization != "none",
                     "constantBias": settings.bias_constant, "normalBias": settings.normal_offset / NORMAL_BIAS_SCALE,
-                    "polygonOffsetConstant": settings.bias_depth_range * DEPTH16_STEPS,
-                    "polygonOffsetSlope": settings.bias_slope, "lispsm": settings.warp == "lispsm"})
+                    "polygonOffsetConstant": settings.caster_bias_units,
+                    "polygonOffsetSlope": settings.caster_bias_slope, "lispsm": settings.warp == "lispsm"})
+    if settings.warp == "lispsm":
+        options.update({"shadowNearHint": settings.lispsm_near_hint, "shadowFarHint": settings.lispsm_far_hint})
     document = {"view": {"shadowType": "PCF"},
                 "lighting": {"enableShadows": True, "sunlight": {"castShadows": True, "shadowOptions": options}}}
     return {"settings.json": json.dumps(document, indent=4) + "\n"}, lacking

@@ -9,8 +9,10 @@ settings map to csmlab fields; a property the file leaves out keeps Godot's defa
 Sources: DirectionalLight3D and Light3D class references; ``light_storage.cpp``
 ``LightStorage::update_light_buffers`` (``shadow_bias / 100 · bias_scale``, ``bias_scale = depth range ·
 soft_shadow_scale`` with soft_shadow_scale 2: ``bias_depth_range = shadow_bias · 0.02``; ``shadow_normal_bias``
-texels); ``RendererSceneRenderRD::directional_soft_shadow_filter_set_quality`` (Soft Low: 4 taps, radius 2.0,
-× ``shadow_blur``); ``RendererSceneCull::get_directional_light_shadow_size`` (2 or 4 splits: half the atlas).
+texels); ``RendererSceneRenderRD::directional_soft_shadow_filter_set_quality`` (Hard … Ultra: 0 to 32 taps at a
+quality radius, × ``shadow_blur``: csmlab.lookup_choices.GODOT_SOFT_SHADOW_QUALITIES); ``scene_forward_clustered.glsl``
+``light_process`` (``directional_shadow_blend_splits``: csmlab.cascades.fit.GODOT_BLEND_SPLITS);
+``RendererSceneCull::get_directional_light_shadow_size`` (2 or 4 splits: half the atlas).
 
 The snippet (export_godot4) names: ``DirectionalLight3D.directional_shadow_mode`` (orthogonal, 2 or 4 splits),
 ``directional_shadow_max_distance``, ``directional_shadow_split_1..3``, ``directional_shadow_blend_splits``;
@@ -25,12 +27,14 @@ from pathlib import Path
 
 import numpy as np
 
+from csmlab.cascades.fit import GODOT_BLEND_SPLITS
 from csmlab.cascades.splits import count_one_two_or_four, fractions_of_range, split_boundaries
-from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, blend_lacking, common_lacking,
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, common_lacking,
                                    fixed_preset, four_digits, hard_filter, largest_resolution, shape_lacking,
                                    storage_lacking, vogel_is)
 from csmlab.engines.reading import Entry, Imported, Located, Reading, engine_settings, read_text
 from csmlab.errors import InputError
+from csmlab.lookup_choices import GODOT_SOFT_SHADOW_QUALITIES, godot_soft_shadow_fields
 from csmlab.settings import ShadowSettings
 
 __all__ = ["ENGINE", "FIELDS", "GODOT_SOFT_LOW", "PRESET", "TUNE_SPACE", "SceneInstance", "config_sections",
@@ -40,11 +44,14 @@ PRESET = "godot4"
 """The engine preset holding Godot's defaults."""
 
 FIELDS = frozenset({"cascades", "split", "splits", "shadow_distance", "fade_out", "pancake", "bias_depth_range",
-                    "normal_offset", "vogel_radius", "cull", "resolution", "filter", "depth_format", "storage"})
+                    "normal_offset", "vogel_taps", "vogel_radius", "vogel_angle", "vogel_scale", "cull", "resolution",
+                    "filter", "depth_format", "blend_band", "transition", "blend_curve", "storage"})
 """The csmlab fields Godot's files carry (storage: one split fills the atlas, directional_shadow_mode = 0)."""
 
 GODOT_SOFT_LOW = {"vogel_taps": 4, "vogel_radius": 2.0, "vogel_angle": 2.4, "vogel_scale": "first_split"}
 """Godot 4's Soft Low (soft_shadow_filter_quality = 2) as csmlab's ``pcf_vogel`` fields (configs/engines/godot4.toml)."""
+GODOT_SOFT_LOW_LEVEL = 2
+"""The project setting's default level, Soft Low (the preset's filter)."""
 
 SHADOW_BIAS_SCALE = 0.02
 """bias_depth_range per unit of Light3D.shadow_bias: / 100 × soft_shadow_scale 2.0 (light_storage.cpp)."""
@@ -130,11 +137,9 @@ def _project(path, reading: Reading) -> None:
             reading.pending["atlas"] = (entry.integer(minimum=1), entry.key, path)
         elif name == "soft_shadow_filter_quality":
             quality = entry.integer(minimum=0)
-            if quality == 0:
-                reading.set("filter", "pcf_bilinear", file=path, key=entry.key, raw=value)
-            elif quality != 2:
-                reading.lack(file=path, key=entry.key, value=value, why="csmlab models Hard (0) and Soft Low (2); "
-                             "the preset's Soft Low is kept")
+            if quality not in GODOT_SOFT_SHADOW_QUALITIES:
+                raise entry.error("0 (Hard) to 5 (Soft Ultra)")
+            reading.pending["quality"] = (quality, f"{Path(path).name}: {entry.key} = {value}")
         elif name == "16_bits":
             wide = entry.boolean()
             reading.set("depth_format", "unorm16" if wide else "float32", file=path, key=entry.key,
@@ -185,8 +190,9 @@ def _light(path, reading: Reading) -> None:
     plain = {"directional_shadow_max_distance": ("shadow_distance", 1.0, 0.0),
              "directional_shadow_pancake_size": ("pancake", 1.0, None),
              "shadow_normal_bias": ("normal_offset", 1.0, None),
-             "shadow_bias": ("bias_depth_range", SHADOW_BIAS_SCALE, None),
-             "shadow_blur": ("vogel_radius", base.vogel_radius, 0.0)}
+             "shadow_bias": ("bias_depth_range", SHADOW_BIAS_SCALE, None)}
+    if (entry := light.member("shadow_blur")) is not None:
+        reading.pending["blur"] = (entry.number(above=0.0), f"{Path(path).name}: {entry.key} = {entry.raw}")
     for key, (attribute, scale, above) in plain.items():
         if (entry := light.member(key)) is not None:
             value = entry.number(above=above) if above is not None else entry.number(minimum=0.0)
@@ -198,9 +204,9 @@ def _light(path, reading: Reading) -> None:
     if (entry := light.member("shadow_reverse_cull_face")) is not None:
         reversed_ = entry.boolean()
         reading.set("cull", "front" if reversed_ else "back", file=path, key=entry.key, raw=reversed_)
-    if _flag(light, "directional_shadow_blend_splits"):
-        reading.lack(file=path, key=prefix + "directional_shadow_blend_splits", value=True,
-                     why="Godot blends splits over a band of its own; csmlab's blend_band keeps the preset's 0")
+    if (entry := light.member("directional_shadow_blend_splits")) is not None:
+        blend = entry.boolean()
+        reading.pending["blend"] = (blend, f"{Path(path).name}: {entry.key} = {str(blend).lower()}")
     angular = light.member("light_angular_distance")
     if angular is not None and angular.number() != 0.0:
         reading.lack(file=path, key=angular.key, value=angular.raw,
@@ -234,6 +240,7 @@ def read_godot4(paths) -> Imported:
             _light(path, reading)
         else:
             raise InputError("expected project.godot or a .tscn scene", file=path, field="file")
+    _soft_shadows(reading)
     if "atlas" in reading.pending:
         size, key, project = reading.pending["atlas"]
         cascades = reading.values.get("cascades", reading.base.cascades)
@@ -251,9 +258,52 @@ def read_godot4(paths) -> Imported:
     return reading.result()
 
 
+def _soft_shadows(reading: Reading) -> None:
+    """The filter of the project's soft-shadow level and the light's blur, and the light's blend splits, once every
+    file is read: the level's Vogel disk has its quality radius × shadow_blur texels
+    (csmlab.lookup_choices.godot_soft_shadow_fields), and blending splits drops the first-split blur scaling
+    (csmlab.cascades.fit.GODOT_BLEND_SPLITS)."""
+    origins = {}
+    if "quality" in reading.pending or "blur" in reading.pending:
+        quality, said_quality = reading.pending.get("quality", (GODOT_SOFT_LOW_LEVEL, None))
+        blur, said_blur = reading.pending.get("blur", (1.0, None))
+        origin = "; ".join(o for o in (said_quality, said_blur) if o)
+        origins.update({name: (value, origin) for name, value in godot_soft_shadow_fields(quality, blur=blur).items()})
+    if "blend" in reading.pending:
+        blend, origin = reading.pending["blend"]
+        fields = {**GODOT_BLEND_SPLITS, "vogel_scale": "none"} if blend else {
+            "blend_band": 0.0, "vogel_scale": GODOT_SOFT_LOW["vogel_scale"]}
+        origins.update({name: (value, origin) for name, value in fields.items()})
+    for name, (value, origin) in origins.items():
+        reading.values[name] = value
+        reading.origins[name] = origin
+
+
+def _soft_level(settings: ShadowSettings) -> tuple[int, float, list]:
+    """The soft_shadow_filter_quality and shadow_blur that give ``settings``' filter, and what the files cannot hold
+    of its filter and blend (Godot's blend splits are GODOT_BLEND_SPLITS, its disk unscaled under them)."""
+    lacking = []
+    differing = [k for k, v in GODOT_BLEND_SPLITS.items() if getattr(settings, k) != v]
+    if settings.blend_band > 0 and differing:
+        lacking.append(", ".join(f"{k} = {getattr(settings, k)!r}" for k in differing) +
+                       f" (Godot blends splits over the last tenth of each: {GODOT_BLEND_SPLITS})")
+    if hard_filter(settings):
+        return 0, 1.0, lacking
+    scale = "none" if settings.blend_band > 0 else GODOT_SOFT_LOW["vogel_scale"]
+    if settings.filter == "pcf_vogel" and settings.vogel_scale != scale:
+        lacking.append(f"vogel_scale = {settings.vogel_scale!r} (Godot scales its disk by the first split unless it "
+                       f"blends splits: {scale!r} here)")
+    for quality, level in GODOT_SOFT_SHADOW_QUALITIES.items():
+        if level.samples and vogel_is(settings, vogel_taps=level.samples, vogel_angle=2.4):
+            return quality, settings.vogel_radius / level.radius, lacking
+    return GODOT_SOFT_LOW_LEVEL, 1.0, lacking + [
+        f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Godot filters with its own soft-shadow "
+        f"kernel: pcf_vogel at golden angle 2.4 with 1, 4, 8, 16 or 32 taps; Soft Low written)"]
+
+
 def write_godot4(settings: ShadowSettings, *, near: float, far: float) -> tuple[dict, list]:
     """``settings`` as ``project.godot`` and ``light.tscn`` texts, and the knobs they cannot hold."""
-    lacking = []
+    quality, blur, lacking = _soft_level(settings)
     cascades = count_one_two_or_four(settings.cascades)
     z = split_boundaries(settings.replace(cascades=cascades), near=near, far=far)
     fractions = fractions_of_range(z)
@@ -266,13 +316,13 @@ def write_godot4(settings: ShadowSettings, *, near: float, far: float) -> tuple[
     mode = {v: k for k, v in _MODES.items()}[cascades]
     project = ["; Engine configuration file.", "config_version=5", "", "[rendering]", "",
                f"lights_and_shadows/directional_shadow/size={size * (1 if cascades == 1 else 2)}",
-               f"lights_and_shadows/directional_shadow/soft_shadow_filter_quality={0 if hard_filter(settings) else 2}",
+               f"lights_and_shadows/directional_shadow/soft_shadow_filter_quality={quality}",
                f"lights_and_shadows/directional_shadow/16_bits={'true' if settings.depth_format == 'unorm16' else 'false'}"]
     light = ['[gd_scene format=3]', '', '[node name="DirectionalLight3D" type="DirectionalLight3D"]',
              "shadow_enabled = true",
              f"shadow_bias = {settings.bias_depth_range / SHADOW_BIAS_SCALE!r}",
              f"shadow_normal_bias = {settings.normal_offset!r}",
-             f"shadow_blur = {settings.vogel_radius / _soft_low_radius()!r}",
+             f"shadow_blur = {blur!r}",
              f"shadow_reverse_cull_face = {'true' if settings.cull == 'front' else 'false'}",
              f"directional_shadow_mode = {mode}",
              *(f"directional_shadow_split_{i + 1} = {f!r}" for i, f in enumerate(fractions)),
@@ -283,14 +333,11 @@ def write_godot4(settings: ShadowSettings, *, near: float, far: float) -> tuple[
     return {"project.godot": "\n".join(project) + "\n", "light.tscn": "\n".join(light) + "\n"}, lacking
 
 
-def _soft_low_radius() -> float:
-    """Soft Low's disk radius in texels at shadow_blur 1: the preset's vogel_radius."""
-    return engine_settings(PRESET).vogel_radius
-
-
 def export_godot4(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     """Godot 4: DirectionalLight3D properties and the directional shadow atlas size."""
-    lacking = common_lacking(settings, stable="exact", carried=FIELDS) + shape_lacking(settings, fade="smoothstep")
+    quality, blur, soft_lacking = _soft_level(settings)
+    lacking = (common_lacking(settings, stable="exact", carried=FIELDS) + shape_lacking(settings, fade="smoothstep")
+               + soft_lacking)
     modes = {1: 0, 2: 1, 4: 2}
     cascades = count_one_two_or_four(settings.cascades)
     if cascades != settings.cascades:
@@ -309,21 +356,15 @@ def export_godot4(settings: ShadowSettings, *, near: float, far: float) -> Snipp
               f"directional_shadow_pancake_size = {four_digits(settings.pancake)}",
               f"shadow_bias = {four_digits(settings.bias_depth_range / SHADOW_BIAS_SCALE)}",
               f"shadow_normal_bias = {four_digits(settings.normal_offset)}",
-              f"shadow_blur = {four_digits(settings.vogel_radius / _soft_low_radius())}",
+              f"shadow_blur = {four_digits(blur)}",
               f"shadow_reverse_cull_face = {'true' if settings.cull == 'front' else 'false'}",
               "# Project Settings",
               f"rendering/lights_and_shadows/directional_shadow/size = {atlas}  "
               f"# {largest_resolution(settings)}² per split (2 or 4 splits: half the atlas side each)",
               "rendering/lights_and_shadows/directional_shadow/soft_shadow_filter_quality = "
-              f"{0 if hard_filter(settings) else 2}  # 2: Soft Low, 4 Vogel taps of 2 texels × shadow_blur",
+              f"{quality}  # {GODOT_SOFT_SHADOW_QUALITIES[quality].name}",
               "rendering/lights_and_shadows/directional_shadow/16_bits = "
               f"{'true' if settings.depth_format == 'unorm16' else 'false'}"]
-    lacking += blend_lacking(settings, "Godot blends splits over a fixed band")
-    # shadow_blur scales Soft Low's disk (the files carry vogel_radius): any radius is Godot's own kernel.
-    disk = {name: value for name, value in GODOT_SOFT_LOW.items() if name != "vogel_radius"}
-    if not hard_filter(settings) and not vogel_is(settings, **disk):
-        lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Godot filters with its "
-                       f"own soft-shadow kernel: Soft Low is pcf_vogel {GODOT_SOFT_LOW})")
     return Snippet("godot4", "Godot 4: DirectionalLight3D and project settings", "gdscript", "\n".join(lines) + "\n",
                    tuple(lacking))
 

@@ -43,6 +43,7 @@ import uuid
 
 import yaml
 
+from csmlab.cascades.bounds import shadow_end
 from csmlab.cascades.splits import split_boundaries
 from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, common_lacking, fixed_preset,
                                    largest_resolution, one_file)
@@ -58,8 +59,8 @@ __all__ = ["DEFAULT_NEAR", "ENGINE", "FIELDS", "PRESET", "TUNE_SPACE", "export_s
 PRESET = "stride"
 """The engine preset holding Stride's defaults."""
 
-FIELDS = frozenset({"cascades", "resolution", "stabilization", "snap", "bounds", "hold", "shadow_distance", "split",
-                    "lambda_", "splits", "blend_band", "filter", "filter_size", "bias_depth_range",
+FIELDS = frozenset({"cascades", "resolution", "stabilization", "snap", "bounds", "hold", "shadow_distance",
+                    "shadow_distance_from", "split", "lambda_", "splits", "blend_band", "filter", "filter_size", "bias_depth_range",
                     "normal_offset_m"})
 """The csmlab fields a LightDirectionalShadowMap carries."""
 
@@ -259,6 +260,9 @@ def _read_depth_range(depth: Entry, reading: Reading, *, automatic: bool, near: 
     path, where = depth.file, depth.key
     if depth.member("IsAutomatic") is not None:
         reading.set("bounds", "sdsm" if automatic else "frustum", file=path, key=f"{where}.IsAutomatic", raw=automatic)
+        # Automatic: the farthest visible object ends the range, uncapped; manual: near + ManualMaxDistance.
+        reading.set("shadow_distance_from", "farthest_visible" if automatic else "fixed", file=path,
+                    key=f"{where}.IsAutomatic", raw=automatic)
         if automatic:
             reading.set("hold", "stepped", file=path, key=f"{where}.IsAutomatic", raw=automatic)
     if not automatic:
@@ -381,14 +385,20 @@ def _depth_and_partition(settings: ShadowSettings, lacking: list, *, near: float
     automatic = settings.bounds == "sdsm"
     if automatic and settings.hold != "stepped":
         lacking.append(f"hold = {settings.hold!r} (Stride holds the visible range in steps: 'stepped')")
-    if automatic and settings.shadow_distance != engine_settings(PRESET).shadow_distance:
-        lacking.append(f"shadow_distance = {settings.shadow_distance} (Stride's automatic depth range ends at the "
-                       f"visible maximum: no distance is written)")
+    if automatic and settings.shadow_distance_from != "farthest_visible":
+        lacking.append(f"shadow_distance_from = {settings.shadow_distance_from!r}, shadow_distance = "
+                       f"{settings.shadow_distance} (Stride's automatic depth range ends at the farthest visible "
+                       f"object: no distance is written)")
     if not automatic:
-        if settings.shadow_distance > far:
+        end = shadow_end(method=settings.shadow_distance_from, shadow_distance=settings.shadow_distance,
+                         max_shadow_distance=settings.max_shadow_distance, camera_far=far)
+        if settings.shadow_distance_from != "fixed":
+            lacking.append(f"shadow_distance_from = {settings.shadow_distance_from!r} (Stride's manual depth range "
+                           f"is fixed: the end under this camera, {end:g} m, written)")
+        elif settings.shadow_distance > far:
             lacking.append(f"shadow_distance = {settings.shadow_distance} (beyond the camera's far plane, {far:g} m, "
                            f"written)")
-        depth += ["IsAutomatic: false", f"ManualMaxDistance: {_float(min(settings.shadow_distance, far) - near)}"]
+        depth += ["IsAutomatic: false", f"ManualMaxDistance: {_float(end - near)}"]
     if settings.blend_band == 0.0:
         depth.append("IsBlendingCascades: false")
     elif settings.blend_band != BLEND_BAND:

@@ -1,6 +1,7 @@
 """three.js: the CSM addon's constructor options (examples/jsm/csm/CSM.js) as JSON, read and written.
 
-Keys are the constructor's ``data`` fields — ``cascades``, ``maxFar``, ``mode`` (``uniform``,
+Keys are the constructor's ``data`` fields — ``cascades``, ``maxFar`` (the cap on the camera's far plane:
+``shadow_distance = "camera_far"``, ``max_shadow_distance``), ``mode`` (``uniform``,
 ``logarithmic``, ``practical`` (λ 0.5), ``custom``), ``shadowMapSize``, ``shadowBias``, ``lightNear``,
 ``lightFar``, ``lightMargin`` — plus ``fade`` (the property), ``customSplits`` (the breaks
 ``customSplitsCallback`` pushes, fractions of ``maxFar``: the callback itself is code), and the
@@ -16,6 +17,7 @@ from __future__ import annotations
 import json
 import math
 
+from csmlab.cascades.bounds import shadow_end
 from csmlab.cascades.splits import fractions_of_far, split_boundaries
 from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, blend_lacking, common_lacking,
                                    fixed_preset, four_digits, largest_resolution, vogel_is)
@@ -29,12 +31,15 @@ __all__ = ["CSM_LIGHT_RANGE", "ENGINE", "FIELDS", "PRESET", "THREEJS_PCF", "TUNE
 PRESET = "threejs_csm"
 """The engine preset holding the CSM addon's defaults."""
 
-FIELDS = frozenset({"cascades", "split", "splits", "lambda_", "shadow_distance", "resolution", "pancake",
-                    "bias_constant", "filter", "vogel_radius"})
+FIELDS = frozenset({"cascades", "split", "splits", "lambda_", "shadow_distance", "shadow_distance_from",
+                    "max_shadow_distance", "resolution", "pancake", "bias_constant", "filter", "vogel_radius"})
 """The csmlab fields the options carry."""
 
 THREEJS_PCF = {"vogel_taps": 5, "vogel_angle": 2.399963229728653, "vogel_scale": "none"}
 """three.js r182+ PCFShadowMap as csmlab's ``pcf_vogel`` fields, its radius LightShadow.radius (configs/engines/threejs_csm.toml)."""
+
+MAX_FAR = 100000.0
+"""CSM.js constructor default maxFar (``data.maxFar || 100000``)."""
 
 CSM_LIGHT_RANGE = (1.0, 2000.0, 1e-6)
 """CSM.js constructor defaults lightNear, lightFar and shadowBias: the bias is a fraction of that depth range."""
@@ -63,7 +68,9 @@ def read_threejs_csm(paths) -> Imported:
             cascades = entry.integer(minimum=1)
             reading.set("cascades", cascades, file=path, key="cascades")
         if (entry := options.member("maxFar")) is not None:
-            reading.set("shadow_distance", entry.number(above=0.0), file=path, key="maxFar")
+            # getBreaks: far = Math.min(camera.far, this.maxFar): the camera's far plane, capped at maxFar.
+            reading.set("max_shadow_distance", entry.number(above=0.0), file=path, key="maxFar")
+            reading.set("shadow_distance_from", "camera_far", file=path, key="maxFar", raw=entry.raw)
         mode = options.member("mode")
         if mode is not None:
             mode_name = mode.text([*_MODES, "custom"])
@@ -126,12 +133,28 @@ def _csm_mode(settings: ShadowSettings) -> str:
         settings.split == "practical" and settings.lambda_ == 0.5) else "custom")
 
 
+def _max_far(settings: ShadowSettings, *, far: float) -> tuple[float, list]:
+    """CSM's ``maxFar`` for ``settings`` and what it cannot hold: three.js ends at ``min(camera.far, maxFar)``, so
+    a fixed distance is written as the cap (the same end under a camera whose far plane is ``far``)."""
+    if settings.shadow_distance_from == "camera_far":
+        cap = settings.max_shadow_distance
+        return (cap, []) if cap > 0 else (MAX_FAR, [f"max_shadow_distance = 0.0 (no cap; three.js caps the camera's "
+                                                   f"far plane at maxFar, {MAX_FAR:g} written)"])
+    lacking = [f"shadow_distance = {settings.shadow_distance!r}, shadow_distance_from = "
+               f"{settings.shadow_distance_from!r} (three.js ends at min(camera.far, maxFar): the end under this "
+               f"camera is written as maxFar)"]
+    end = shadow_end(method=settings.shadow_distance_from, shadow_distance=settings.shadow_distance,
+                     max_shadow_distance=settings.max_shadow_distance, camera_far=far)
+    return end, lacking
+
+
 def write_threejs_csm(settings: ShadowSettings, *, near: float, far: float) -> tuple[dict, list]:
     """``settings`` as CSM options JSON, and the knobs it cannot hold."""
     z = split_boundaries(settings, near=near, far=far)
     mode = _csm_mode(settings)
     light_near, light_far, _ = CSM_LIGHT_RANGE
-    options = {"cascades": settings.cascades, "maxFar": float(z[-1]), "mode": mode}
+    max_far, lacking = _max_far(settings, far=far)
+    options = {"cascades": settings.cascades, "maxFar": max_far, "mode": mode}
     if mode == "custom":
         options["customSplits"] = [float(v / z[-1]) for v in z[1:]]
     options.update({"shadowMapSize": largest_resolution(settings),
@@ -139,7 +162,6 @@ def write_threejs_csm(settings: ShadowSettings, *, near: float, far: float) -> t
                     "shadowBias": -settings.bias_constant / (light_far - light_near), "fade": settings.blend_band > 0,
                     "shadowMapType": "BasicShadowMap" if FILTER_METHODS[settings.filter].hard else "PCFShadowMap",
                     "shadowRadius": settings.vogel_radius})
-    lacking = []
     if settings.filter not in ("none", "pcf_vogel") or (settings.filter == "pcf_vogel" and any(
             getattr(settings, k) != v for k, v in THREEJS_PCF.items())):
         lacking.append(f"filter = {settings.filter!r} (three.js's PCFShadowMap is pcf_vogel {THREEJS_PCF})")
@@ -150,8 +172,10 @@ def export_threejs_csm(settings: ShadowSettings, *, near: float, far: float) -> 
     """three.js CSM (examples/jsm/csm/CSM.js) options."""
     lacking = common_lacking(settings, stable="exact", carried=FIELDS)
     mode = _csm_mode(settings)
+    max_far, far_lacking = _max_far(settings, far=far)
+    lacking += far_lacking
     lines = ["const csm = new CSM({",
-             f"  maxFar: {four_digits(min(settings.shadow_distance, far))},",
+             f"  maxFar: {four_digits(max_far)},",
              f"  cascades: {settings.cascades},",
              f"  mode: '{mode}',"]
     if mode == "custom":
