@@ -23,7 +23,8 @@ from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, blen
 from csmlab.engines.reading import Entry, Imported, Reading, engine_settings, json_document
 from csmlab.settings import ShadowSettings
 
-__all__ = ["ENGINE", "FIELDS", "PRESET", "TUNE_SPACE", "export_filament", "read_filament", "write_filament"]
+__all__ = ["ENGINE", "FIELDS", "PRESET", "TUNE_SPACE", "export_filament", "read_filament", "settled_filament",
+           "write_filament"]
 
 PRESET = "filament"
 """The engine preset holding Filament's defaults."""
@@ -162,6 +163,16 @@ def export_filament(settings: ShadowSettings, *, near: float, far: float) -> Sni
                    tuple(lacking))
 
 
+def settled_filament(settings: ShadowSettings) -> ShadowSettings:
+    """``settings`` with the distance Filament derives from ``shadowFar``: a tuned ``shadow_distance`` is a
+    ``shadowFar`` above 0, which replaces the camera's far plane (ShadowMapManager), so it ends the shadow as a
+    fixed distance; the preset's own distance stays the camera's far plane (``shadowFar = 0``)."""
+    if settings.shadow_distance_from == "camera_far" and \
+            settings.shadow_distance != engine_settings(PRESET).shadow_distance:
+        return settings.replace(shadow_distance_from="fixed")
+    return settings
+
+
 TUNE_SPACE = TuneSpace({
     # ShadowOptions: shadowCascades 1 to 4 (split positions Filament's own, practical λ 0.5), shadowFar,
     # constantBias, normalBias (in half texels), mapSize. Not stable: Filament turns LiSPSM off in stable mode,
@@ -171,7 +182,7 @@ TUNE_SPACE = TuneSpace({
     "bias_constant": ("range", 0.0, 0.01, False, None),
     "normal_offset": ("range", 0.0, 3.0 * NORMAL_BIAS_SCALE, False, None),
     "resolution": ("choice", (512, 1024, 2048, 4096)),
-})
+}, settle=settled_filament)
 """What a tune of the Filament preset may try: the sun's own ShadowOptions."""
 
 ENGINE = Engine("filament", export_filament, EngineFiles(

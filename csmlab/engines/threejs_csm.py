@@ -201,12 +201,13 @@ def export_threejs_csm(settings: ShadowSettings, *, near: float, far: float) -> 
 
 
 TUNE_SPACE = TuneSpace({
-    # CSM options: cascades, mode (uniform, logarithmic, or practical at CSM's λ 0.5), maxFar, shadowMapSize,
+    # CSM options: cascades, mode (uniform, logarithmic, or practical at CSM's λ 0.5), maxFar (the cap on the
+    # camera's far plane: max_shadow_distance), shadowMapSize,
     # lightMargin, shadowBias (a fraction of lightFar − lightNear); renderer.shadowMap.type BasicShadowMap or
     # PCFShadowMap and LightShadow.radius (csmlab's disk radius is at most 16 texels).
     "cascades": ("choice", (1, 2, 3, 4, 5, 6)),
     "split": ("choice", ("uniform", "log", "practical")),
-    "shadow_distance": ("range", 10.0, 2000.0, True, None),
+    "max_shadow_distance": ("range", 10.0, 2000.0, True, None),
     "resolution": ("choice", (512, 1024, 2048, 4096)),
     "pancake": ("range", 0.0, 500.0, False, None),
     "bias_constant": ("range", -0.01, 0.01, False, None),
