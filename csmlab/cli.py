@@ -541,21 +541,27 @@ def import_(
     name: Optional[str] = typer.Option(None, "--name", help="The method's name; default the file's stem."),
 ) -> None:
     """Read an engine's shadow settings from its own files as a method preset: each field commented with the file
-    and key it came from, the engine settings csmlab cannot model listed."""
+    and key it came from, the engine settings csmlab cannot model listed. A Godot scene that instances glTF files
+    also gives the level (``[scene]`` parts placed by the nodes' transforms, and a walk in it): the file then runs;
+    instances csmlab cannot read are listed as not imported."""
     import tempfile
 
     from csmlab.config import load_experiment
-    from csmlab.engines import import_settings, preset_toml
+    from csmlab.engines import import_settings, level_instances, level_toml, preset_toml
     from csmlab.files import write_atomic
 
     try:
         method = _method_name(name, "--name") if name is not None else _method_name(out.stem, "--out")
         _output_file(out, "--out")
         imported = import_settings(files, engine=engine)
-        text = preset_toml(imported, name=method, files=files)
+        instances, not_imported = level_instances(files, engine=engine)
+        preset = preset_toml(imported, name=method, files=files) + "".join(
+            f"# not imported: {' '.join(line.split())}\n" for line in not_imported)
+        text = preset + level_toml(instances, out=out)
         with tempfile.TemporaryDirectory() as folder:
             # The preset must load as csmlab loads it: a value the engine allows but csmlab refuses is bad input.
-            (Path(folder) / "preset.toml").write_text(text, encoding="utf-8")
+            probe = preset + level_toml(instances, out=Path(folder) / "preset.toml")
+            (Path(folder) / "preset.toml").write_text(probe, encoding="utf-8")
             (Path(folder) / "probe.toml").write_text('extends = ["preset.toml"]\n[camera]\npath = "walk"\n',
                                                       encoding="utf-8")
             try:
@@ -575,6 +581,11 @@ def import_(
                   f"{len(imported.unmodelled)} setting(s) not modelled → {out}")
     for item in imported.unmodelled:
         console.print(f"  not modelled: {escape(item)}")
+    if instances:
+        console.print(escape(f"  level: {len(instances)} glTF instance(s) as [[scene.parts]], a walk in it as "
+                             "[camera]"))
+    for line in not_imported:
+        console.print(f"  not imported: {escape(line)}")
 
 
 def _tune_table(result) -> Table:

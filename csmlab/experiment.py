@@ -228,7 +228,7 @@ def _scene(experiment: Experiment) -> Scene:
             from csmlab.scene.parts import PartPlacement, load_parts
 
             placements = [PartPlacement(file=p.file, translation=p.translation, rotation_deg=p.rotation_deg,
-                                        scale=p.scale) for p in config.parts]
+                                        scale=p.scale, matrix=p.matrix) for p in config.parts]
             scene = load_parts(placements, file=config.file, scale=config.scale, up=config.up, ground=config.ground,
                                blend_casters=config.blend_casters, name=Path(experiment.source).stem)
         elif config.kind == "mesh":

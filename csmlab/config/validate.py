@@ -65,6 +65,8 @@ def _type_name(kind) -> str:
     args = typing.get_args(kind)
     if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
         return f"a list of {_type_name(args[0]).removeprefix('a ').removeprefix('an ')}s"
+    if origin is tuple and all(typing.get_origin(a) is tuple for a in args):
+        return f"a list of {len(args)} {_type_name(args[0]).replace('a list', 'lists', 1)}"
     if origin is tuple:
         return f"a list of {len(args)} numbers"
     if type(None) in args:
@@ -206,10 +208,14 @@ def _scene_parts(parts, located: _Located) -> tuple[ScenePart, ...]:
     """``[[scene.parts]]``: each a :class:`ScenePart` with its file made absolute and checked."""
     if not isinstance(parts, list) or not all(isinstance(p, dict) for p in parts):
         raise located.error("scene.parts", f"expected [[scene.parts]] tables (file, translation, rotation_deg, "
-                                           f"scale), got {parts!r}")
+                                           f"scale or matrix), got {parts!r}")
     out = []
     for i, table in enumerate(parts):
         where = f"scene.parts[{i}]"
+        both = [key for key in ("translation", "rotation_deg", "scale") if key in table]
+        if "matrix" in table and both:
+            raise located.error(f"{where}.matrix", f"expected either matrix or translation, rotation_deg and scale, "
+                                                   f"got matrix and {', '.join(both)}")
         part = _record(ScenePart, table, where=where, located=located)
         if not part.file:
             raise located.error(f"{where}.file", "expected the part's mesh file, got none")

@@ -38,7 +38,7 @@ from csmlab.lookup_choices import GODOT_SOFT_SHADOW_QUALITIES, godot_soft_shadow
 from csmlab.settings import ShadowSettings
 
 __all__ = ["ENGINE", "FIELDS", "GODOT_SOFT_LOW", "PRESET", "TUNE_SPACE", "SceneInstance", "config_sections",
-           "export_godot4", "gltf_instances", "read_godot4", "settled_godot4", "write_godot4"]
+           "export_godot4", "gltf_instances", "level_instances", "read_godot4", "settled_godot4", "write_godot4"]
 
 PRESET = "godot4"
 """The engine preset holding Godot's defaults."""
@@ -436,7 +436,16 @@ class SceneInstance:
     node: str
 
 
-def gltf_instances(path) -> list[SceneInstance]:
+class _UnreadableInstance(InputError):
+    """An instanced file csmlab cannot read — another format, absent, or named by uid alone: refused by
+    :func:`gltf_instances`, or listed with ``why`` where its caller collects them (:func:`level_instances`)."""
+
+    def __init__(self, message: str, *, why: str, **where):
+        super().__init__(message, **where)
+        self.why = why
+
+
+def gltf_instances(path, *, skipped: list | None = None) -> list[SceneInstance]:
     """The glTF files a Godot ``.tscn`` instances, each with the transform that places it, in file order.
 
     Every node with ``instance=ExtResource(…)`` of a ``.glb`` or ``.gltf`` is one record; an instanced
@@ -445,18 +454,21 @@ def gltf_instances(path) -> list[SceneInstance]:
     resolve from the folder holding ``project.godot`` (searched upward from the scene), others from the
     scene's folder. Godot writes a ``Transform3D`` as the basis's rows, then the origin (variant_parser.cpp).
 
+    ``skipped``, when given, collects one line ``"<node> (<file>): <why>"`` for each instance of a file csmlab cannot
+    read (another format, absent, or named by uid alone) in place of refusing it.
+
     Raises
     ------
     InputError
         A file that is no Godot scene, a node whose parent or resource is missing, a transform that is not 12
-        numbers, an instanced file that does not exist or is neither glTF nor a text scene, or scenes that
-        instance each other (file, line and node named).
+        numbers, an instanced file that does not exist or is neither glTF nor a text scene (unless ``skipped``
+        collects those), or scenes that instance each other (file, line and node named).
     """
-    return _instances(Path(path).resolve(), np.eye(4), None, prefix="", chain=())
+    return _instances(Path(path).resolve(), np.eye(4), None, prefix="", chain=(), skipped=skipped)
 
 
 def _instances(path: Path, placed: np.ndarray, root: np.ndarray | None, *, prefix: str,
-               chain: tuple) -> list[SceneInstance]:
+               chain: tuple, skipped: list | None) -> list[SceneInstance]:
     """The glTF instances of the scene ``path`` whose root's parent is at ``placed`` ``(4, 4)``; ``root``, the
     instancing node's own transform, replaces the root's (the instancing node is the root: its ``transform``
     property overrides the scene's), None where it sets none."""
@@ -488,13 +500,19 @@ def _instances(path: Path, placed: np.ndarray, root: np.ndarray | None, *, prefi
         instance = _INSTANCE.search(lines[line - 1])
         if instance is None or node in hidden:
             continue
-        target = _resource_file(resources, instance.group(1), scene=path, line=line, node=node)
         shown = f"{prefix}{node}"
+        try:
+            target = _resource_file(resources, instance.group(1), scene=path, line=line, node=node)
+        except _UnreadableInstance as exc:
+            if skipped is None:
+                raise
+            skipped.append(f"{shown} ({resources[instance.group(1)][0] or instance.group(1)}): {exc.why}")
+            continue
         if target.suffix.lower() in _GLTF:
             found.append(SceneInstance(file=target, transform=world[node], node=shown))
         else:
             own = None if keys.get("transform") is None else local
-            found += _instances(target, above, own, prefix=f"{shown}/", chain=(*chain, path))
+            found += _instances(target, above, own, prefix=f"{shown}/", chain=(*chain, path), skipped=skipped)
     return found
 
 
@@ -525,8 +543,9 @@ def _resource_file(resources: dict, key: str, *, scene: Path, line: int, node: s
                          line=line, field=f"{node}.instance")
     written, declared = resources[key]
     if not isinstance(written, str) or not written:
-        raise InputError(f"expected a path on the [ext_resource] with id {key!r} (a uid alone is not resolved)",
-                         file=scene, line=declared, field="ext_resource.path")
+        raise _UnreadableInstance(f"expected a path on the [ext_resource] with id {key!r} (a uid alone is not "
+                                  "resolved)", why="its [ext_resource] has a uid and no path; csmlab does not "
+                                  "resolve uids", file=scene, line=declared, field="ext_resource.path")
     if written.startswith("res://"):
         root = next((folder for folder in scene.parents if (folder / "project.godot").is_file()), None)
         if root is None:
@@ -536,9 +555,38 @@ def _resource_file(resources: dict, key: str, *, scene: Path, line: int, node: s
     else:
         target = scene.parent / written
     if target.suffix.lower() not in (*_GLTF, _TEXT_SCENE):
-        raise InputError(f"expected node {node!r} to instance a glTF file (.glb, .gltf) or a text scene (.tscn), "
-                         f"got {written!r}", file=scene, line=line, field=f"{node}.instance")
+        raise _UnreadableInstance(f"expected node {node!r} to instance a glTF file (.glb, .gltf) or a text scene "
+                                  f"(.tscn), got {written!r}",
+                                  why=f"csmlab reads glTF (.glb, .gltf) and text scenes (.tscn), not "
+                                      f"{target.suffix or 'a file without a suffix'}: export it as glTF 2.0",
+                                  file=scene, line=line, field=f"{node}.instance")
     if not target.is_file():
-        raise InputError(f"expected the file node {node!r} instances, {written!r}, at {target}, found none",
-                         file=scene, line=line, field=f"{node}.instance")
+        raise _UnreadableInstance(f"expected the file node {node!r} instances, {written!r}, at {target}, found none",
+                                  why=f"no file at {target}", file=scene, line=line, field=f"{node}.instance")
     return target.resolve()
+
+
+def level_instances(paths) -> tuple[list[SceneInstance], list[str]]:
+    """The glTF instances of the ``.tscn``/``.escn`` scenes among ``paths`` (``csmlab import godot4``'s files) that a
+    ``[[scene.parts]]`` entry can place, and one line ``"<node> (<file>): <why>"`` for each instance that cannot be:
+    a file csmlab cannot read (:func:`gltf_instances`' ``skipped``), or a transform that flattens it (a scale of 0:
+    Godot draws nothing of it; :func:`csmlab.scene.parts.matrix_fault`).
+
+    Raises
+    ------
+    InputError
+        A scene :func:`gltf_instances` refuses for its structure (file, line and node named).
+    """
+    from csmlab.scene.parts import matrix_fault
+
+    placed, skipped = [], []
+    for path in paths:
+        if Path(path).suffix not in (".tscn", ".escn"):
+            continue
+        for instance in gltf_instances(path, skipped=skipped):
+            if matrix_fault(instance.transform):
+                skipped.append(f"{instance.node} ({instance.file.name}): its transform flattens it (a scale of 0); "
+                               "Godot draws nothing of it")
+            else:
+                placed.append(instance)
+    return placed, skipped
