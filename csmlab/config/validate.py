@@ -307,6 +307,7 @@ def shadow_method_registries() -> dict:
     from csmlab.texels import PRECISION_METHODS, VERTEX_SNAPS
     from csmlab.cascades.focus import FOCUS_METHODS
     from csmlab.cascades.warp import WARP_METHODS
+    from csmlab.shadow_policies import SUN_POLICIES, ZOOM_POLICIES
 
     return {"split": SPLIT_METHODS, "fit": FIT_METHODS, "stabilization": STABILIZATION_METHODS,
             "selection": SELECTION_METHODS, "filter": FILTER_METHODS, "extent": EXTENT_METHODS, "snap": SNAP_METHODS,
@@ -314,7 +315,7 @@ def shadow_method_registries() -> dict:
             "transition": TRANSITION_METHODS, "hold": HOLD_METHODS, "blend_curve": BLEND_CURVES, "fade": FADE_METHODS,
             "cull": CULL_METHODS, "focus": FOCUS_METHODS, "warp": WARP_METHODS, "vertex_snap": VERTEX_SNAPS,
             "light_basis": LIGHT_BASIS_METHODS, "depth_quantization": DEPTH_QUANTIZATION_METHODS,
-            "outside": OUTSIDE_METHODS}
+            "outside": OUTSIDE_METHODS, "zoom_policy": ZOOM_POLICIES, "sun_policy": SUN_POLICIES}
 
 
 def _checked_settings(settings: ShadowSettings, *, where_of, located: _Located,
