@@ -565,7 +565,7 @@ def load_tolerances(path) -> dict:
     return _regress(table, _Located(origins, path))
 
 
-def load_experiment(path, *, frames: int | None = None) -> Experiment:
+def load_experiment(path, *, frames: int | None = None, then_extends=()) -> Experiment:
     """Read, merge and validate an experiment file.
 
     Parameters
@@ -574,6 +574,9 @@ def load_experiment(path, *, frames: int | None = None) -> Experiment:
         The experiment TOML file.
     frames : int, optional
         Overrides ``camera.frames`` (the ``--frames`` option).
+    then_extends : sequence of path, optional
+        Preset files merged after the experiment, in memory, as a file with ``extends = [path, *then_extends]``
+        would merge them (:func:`csmlab.tune` reads an engine preset's method on an experiment so).
 
     Returns
     -------
@@ -589,7 +592,7 @@ def load_experiment(path, *, frames: int | None = None) -> Experiment:
         message names the file, the line where found, the field and what was expected.
     """
     path = Path(path).resolve()
-    merged, origins = _merged(path)
+    merged, origins = _merged(path, then_extends=tuple(Path(p).resolve() for p in then_extends))
     located = _Located(origins, path)
     for key in merged:
         if key not in _TOP_FIELDS:
