@@ -17,7 +17,7 @@ from csmlab.registry import check_name, parameters
 from csmlab.shadow_policies import SUN_POLICIES, ZOOM_POLICIES
 
 __all__ = ["APPLIES", "CLIPMAP_FILTERS", "SETTING_GROUPS", "SHADOW_MAP_METHODS", "Applies", "SettingGroup",
-           "ShadowSettings", "setting_group"]
+           "ShadowSettings"]
 
 SHADOW_MAP_METHODS: dict[str, str] = {
     "cascades": "cascaded shadow maps: one stabilized box per split of the view depth (csmlab.cascades)",
@@ -706,17 +706,3 @@ APPLIES: dict[str, Applies] = {key: group.rule(key) for group in SETTING_GROUPS 
                                if group.rule(key) is not None}
 """The ``[shadow]`` fields that take effect only with some settings (TOML names), and where; every other
 field takes effect in every method. The config loader refuses a field written where it does not apply."""
-
-
-def setting_group(key: str) -> SettingGroup:
-    """The group holding the ``[shadow]`` field ``key`` (TOML name).
-
-    Raises
-    ------
-    KeyError
-        For a name that is no field.
-    """
-    for group in SETTING_GROUPS:
-        if key in group.fields:
-            return group
-    raise KeyError(key)
