@@ -294,7 +294,8 @@ def _about(obj) -> str:
 
 @app.command("list")
 def list_names() -> None:
-    """List scenes, camera paths, file formats, conventions, methods, presets, experiments and importers."""
+    """List scenes, camera paths, file formats, conventions, settings by group, methods, presets, experiments and
+    importers."""
     from dataclasses import fields
 
     from csmlab.config import TaaConfig, list_experiments, list_presets, shadow_method_registries
