@@ -9,6 +9,7 @@ what was expected, never a traceback.
 
 from __future__ import annotations
 
+import os
 import re
 import sys
 import time
@@ -52,6 +53,70 @@ def _bad_input(error: ValueError) -> typer.Exit:
     """Print ``error`` as the one line of a bad input and return the exit to raise (code 2)."""
     typer.echo(f"csmlab: error: {error}", err=True)
     return typer.Exit(code=2)
+
+
+def _output_file(path: Path, option: str) -> Path:
+    """``path`` if a file can be written there: not a folder, in an existing writable folder; nothing is created.
+
+    Raises
+    ------
+    InputError
+        Naming ``option`` (``--out``): a folder where a file is expected, a missing parent folder, an
+        unwritable folder or file.
+    """
+    if path.is_dir():
+        raise InputError("expected a file to write, got an existing folder", file=path, field=option)
+    parent = path.parent
+    if not parent.is_dir():
+        raise InputError(f"expected a file in an existing folder, but {parent} "
+                         + ("is a file" if parent.exists() else "does not exist"), file=path, field=option)
+    if not os.access(parent, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise InputError("expected a file this user can write, got " + ("a read-only file" if path.exists()
+                                                                         else f"the read-only folder {parent}"),
+                         file=path, field=option)
+    return path
+
+
+def _output_folder(path: Path, option: str) -> Path:
+    """``path`` if results can be written there: an existing writable folder, or a new one under an existing
+    writable folder (missing folders between are created as before); nothing is created here.
+
+    Raises
+    ------
+    InputError
+        Naming ``option`` (``--out``): an existing file where a folder is expected, a file on the way,
+        an unwritable folder.
+    """
+    if path.exists() and not path.is_dir():
+        raise InputError("expected a folder for the results, got an existing file", file=path, field=option)
+    existing = path
+    while not existing.exists():
+        if existing.parent == existing:
+            break
+        existing = existing.parent
+    if not existing.is_dir():
+        raise InputError(f"expected a folder for the results, but {existing} on its way is a file", file=path,
+                         field=option)
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise InputError(f"expected a folder this user can write, got the read-only folder {existing}", file=path,
+                         field=option)
+    return path
+
+
+def _count(value: int | None, option: str, *, minimum: int = 1) -> int | None:
+    """``value`` (None: the default) if it is at least ``minimum``; InputError naming ``option`` otherwise."""
+    if value is not None and value < minimum:
+        raise InputError(f"expected an integer of at least {minimum}, got {value}", field=option)
+    return value
+
+
+def _method_name(name: str, option: str) -> str:
+    """``name`` if it is a method name (letters, digits and ``_.+-``); InputError naming ``option`` otherwise."""
+    from csmlab.config.presets import _METHOD_NAME
+
+    if not _METHOD_NAME.match(name):
+        raise InputError(f"expected a method name of letters, digits and _.+-, got {name!r}", field=option)
+    return name
 
 
 def _number(value) -> str:
@@ -100,16 +165,20 @@ def run(
     """Run an experiment: every frame × method × sweep point → metrics.csv, summary.json, the report."""
     from csmlab.config import find_experiment, load_experiment
     from csmlab.executor import executor_for
-    from csmlab.experiment import run_experiment
+    from csmlab.experiment import check_device, run_experiment
     from csmlab.paths.timing import timing_lines
+    from csmlab.paths.view_check import findings_line
+    from csmlab.scene.gltf_materials import blend_line
     from csmlab.report import write_report
 
     try:
+        _count(frames, "--frames")
         loaded = load_experiment(find_experiment(experiment), frames=frames)
-        executor, workers, address = executor_for(jobs=jobs, scheduler=scheduler)
+        executor, workers, address = executor_for(jobs=_count(jobs, "--jobs"), scheduler=scheduler)
+        check_device(device)
+        out_dir = _output_folder(out if out is not None else Path("reports") / loaded.name, "--out")
     except ValueError as exc:
         raise _bad_input(exc) from None
-    out_dir = out if out is not None else Path("reports") / loaded.name
     bar = Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("frames"),
                    TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), console=_err(), transient=True)
     tasks = []
@@ -139,6 +208,9 @@ def run(
     console.print(_summary_table(result.summary))
     for line in timing_lines(result.summary.get("recording")):
         console.print(line)
+    for line in (findings_line(result.summary.get("view_check")), blend_line(result.summary.get("blend_materials"))):
+        if line:
+            _err().print(f"csmlab: warning: {escape(line)}")
     resumed = f", {result.chunks_resumed} unit(s) of work resumed" if result.chunks_resumed else ""
     where = (f"dask at {address}" if executor == "dask" and address != "local"
              else f"{executor}, {workers} process(es)")
@@ -224,6 +296,9 @@ def regress(
     from csmlab.verdict import write_junit, write_markdown
 
     try:
+        for path, option in ((junit, "--junit"), (markdown, "--markdown")):
+            if path is not None:
+                _output_file(path, option)
         overrides = load_tolerances(tolerances) if tolerances is not None else None
         result = compare_with_baseline(results_dir, baseline, tolerances=overrides)
         if junit is not None:
@@ -253,7 +328,7 @@ def baseline(
     from csmlab.regress import write_baseline
 
     try:
-        path = write_baseline(results_dir, out)
+        path = write_baseline(results_dir, _output_file(out, "--out"))
     except ValueError as exc:
         raise _bad_input(exc) from None
     _out().print(f"baseline: {path}")
@@ -271,7 +346,7 @@ def compare(
 
     out_dir = out if out is not None else Path("reports") / "compare" / f"{run_a.name}-vs-{run_b.name}"
     try:
-        page = write_comparison_report(run_a, run_b, out_dir)
+        page = write_comparison_report(run_a, run_b, _output_folder(out_dir, "--out"))
     except ValueError as exc:
         raise _bad_input(exc) from None
     _out().print(f"comparison: {page}")
@@ -300,7 +375,7 @@ def list_names() -> None:
 
     from csmlab.config import TaaConfig, list_experiments, list_presets, shadow_method_registries
     from csmlab.config.records import TAA_CLAMPS
-    from csmlab.importers import IMPORT_METHODS
+    from csmlab.engines import IMPORT_METHODS
     from csmlab.paths import CONVENTIONS, PATH_FORMATS, PATH_GENERATORS
     from csmlab.scene import SCENE_KINDS
     from csmlab.settings import SETTING_GROUPS
@@ -329,16 +404,51 @@ def list_names() -> None:
 @app.command()
 def show(experiment: Optional[str] = typer.Argument(None, help="Experiment file or built-in name; default: the "
                                                                "default experiment.")) -> None:
-    """Print an experiment resolved: presets merged, every field with its documentation, and its hashes."""
+    """Print an experiment resolved: presets merged, every field with its documentation, and its hashes; then its
+    scene, camera path and light as loaded and checked (a bad mesh, path or sun stops here, not at run)."""
     from csmlab.config import config_hash, experiment_toml, find_experiment, load_experiment
+    from csmlab.experiment import build_workload
 
     try:
         loaded = load_experiment(find_experiment(experiment))
         hash_ = config_hash(loaded)
+        workload = build_workload(loaded)
     except ValueError as exc:
         raise _bad_input(exc) from None
     typer.echo(experiment_toml(loaded))
     typer.echo(f"# config hash {hash_}; {len(loaded.variants())} method/point(s)")
+    for line in _workload_lines(loaded, workload):
+        typer.echo(f"# {line}")
+
+
+def _workload_lines(loaded, workload) -> list[str]:
+    """What ``csmlab show`` says of the loaded scene, camera path, light and their checks (comment lines)."""
+    from csmlab.experiment import fits_level
+    from csmlab.paths.view_check import findings_line
+    from csmlab.scene.gltf_materials import blend_line
+
+    scene, path, light = workload.scene, workload.path, loaded.light
+    lo, hi = scene.bounds
+    masked = f", {int((scene.vertex_mask[scene.triangles[:, 0]] >= 0).sum())} alpha-tested" if scene.masked else ""
+    how = ("fitted to the level" if fits_level(loaded) else "as generated") if loaded.camera.path else "from the file"
+    source = loaded.camera.path or Path(loaded.camera.file).name
+    if light.from_scene:
+        sun = "the scene file's sun (KHR_lights_punctual)"
+    elif light.direction is not None:
+        sun = "direction"
+    else:
+        sun = "sun angles" + ("" if light.is_static else ", moving")
+    lines = [
+        f"scene: {scene.name}, {scene.triangle_count} triangles{masked}, bounds "
+        f"({lo[0]:.4g}, {lo[1]:.4g}, {lo[2]:.4g}) to ({hi[0]:.4g}, {hi[1]:.4g}, {hi[2]:.4g}) m",
+        f"camera: {len(path)} frames of {source} ({how}), {workload.width}×{workload.height}, first eye at "
+        f"({path.positions[0, 0]:.4g}, {path.positions[0, 1]:.4g}, {path.positions[0, 2]:.4g}) m",
+        "light: {} → ({:.4f}, {:.4f}, {:.4f}) at frame 0".format(sun, *workload.light.direction(0)),
+        findings_line(None if workload.views is None else workload.views.as_dict())
+        or ("view check: off" if workload.views is None else f"view check: all {len(path)} views fit the scene"),
+    ]
+    blend = blend_line(workload.blend)
+    return lines + ([blend] if blend else [])
 
 
 @app.command()
@@ -375,9 +485,15 @@ def tune(
     from csmlab.executor import executor_for
     from csmlab.tune import InfeasibleBudget, engine_presets, parse_space, tune as run_tuning
 
+    from csmlab.experiment import check_device
+
     try:
+        _count(frames, "--frames")
+        _count(trials, "--trials")
+        _count(batch, "--batch")
         loaded = load_experiment(find_experiment(experiment), frames=frames)
-        executor, workers, address = executor_for(jobs=jobs, scheduler=scheduler)
+        executor, workers, address = executor_for(jobs=_count(jobs, "--jobs"), scheduler=scheduler)
+        check_device(device)
         base = next((m.settings for m in loaded.methods if m.name == method), loaded.methods[0].settings)
         space = parse_space(param or [], settings=base)
         try:
@@ -390,7 +506,7 @@ def tune(
         except ValueError:
             raise InputError(f'expected a non-negative number or "best-preset", got {max_flicker!r}',
                              field="--max-flicker") from None
-        out_dir = out if out is not None else Path("reports") / loaded.name / "tune"
+        out_dir = _output_folder(out if out is not None else Path("reports") / loaded.name / "tune", "--out")
         if presets is not None and not presets.is_dir():
             raise InputError("expected a folder of method presets (*.toml), got no such folder", file=presets,
                              field="--presets")
@@ -439,12 +555,14 @@ def import_(
     import tempfile
 
     from csmlab.config import load_experiment
-    from csmlab.importers import import_settings, preset_toml
+    from csmlab.engines import import_settings, preset_toml
     from csmlab.files import write_atomic
 
     try:
+        method = _method_name(name, "--name") if name is not None else _method_name(out.stem, "--out")
+        _output_file(out, "--out")
         imported = import_settings(files, engine=engine)
-        text = preset_toml(imported, name=name or out.stem, files=files)
+        text = preset_toml(imported, name=method, files=files)
         with tempfile.TemporaryDirectory() as folder:
             # The preset must load as csmlab loads it: a value the engine allows but csmlab refuses is bad input.
             (Path(folder) / "preset.toml").write_text(text, encoding="utf-8")
@@ -456,8 +574,8 @@ def import_(
                 # Name the engine's file and key the refused value came from (origins: "file name: key = value").
                 field = (exc.field or "").rsplit(".", 1)[-1]
                 origin = imported.origins.get("lambda_" if field == "lambda" else field, "")
-                name, _, key = origin.partition(": ")
-                raise InputError(exc.detail, file=next((f for f in files if f.name == name), files[0]),
+                source, _, key = origin.partition(": ")
+                raise InputError(exc.detail, file=next((f for f in files if f.name == source), files[0]),
                                  field=key.split(" = ", 1)[0] or field) from None
     except ValueError as exc:
         raise _bad_input(exc) from None

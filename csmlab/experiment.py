@@ -38,6 +38,7 @@ from csmlab.executor import execute
 from csmlab.geometry import normalized
 from csmlab.light import LightPath, direction_from_angles
 from csmlab.paths.timing import TimingReport
+from csmlab.paths.view_check import ViewFindings
 from csmlab.scene.core import Scene
 from csmlab.shadow_policies import shadow_light_direction
 
@@ -64,6 +65,11 @@ class Workload:
         A recorded path's repeated time stamps and tracking gaps; None for a generated path.
     restarts : frozenset of int
         Frames that follow a cut tracking gap: no temporal metrics (the camera jumped).
+    views : ViewFindings or None
+        The check of every frame's view (``[camera] view_check``); None when it is off.
+    blend : dict or None
+        The level's glTF ``alphaMode = "BLEND"`` materials and the rule they were read by
+        (``summary.json``'s ``blend_materials``); None without any.
     """
 
     scene: Scene
@@ -74,6 +80,8 @@ class Workload:
     key: str
     timing: TimingReport | None = None
     restarts: frozenset = frozenset()
+    views: ViewFindings | None = None
+    blend: dict | None = None
 
 
 @dataclass(frozen=True)
@@ -216,8 +224,16 @@ def _scene(experiment: Experiment) -> Scene:
 
     config = experiment.scene
     try:
-        if config.kind == "mesh":
-            scene = make_scene("mesh", file=config.file, scale=config.scale, up=config.up, ground=config.ground)
+        if config.kind == "mesh" and config.parts:
+            from csmlab.scene.parts import PartPlacement, load_parts
+
+            placements = [PartPlacement(file=p.file, translation=p.translation, rotation_deg=p.rotation_deg,
+                                        scale=p.scale) for p in config.parts]
+            scene = load_parts(placements, file=config.file, scale=config.scale, up=config.up, ground=config.ground,
+                               blend_casters=config.blend_casters, name=Path(experiment.source).stem)
+        elif config.kind == "mesh":
+            scene = make_scene("mesh", file=config.file, scale=config.scale, up=config.up, ground=config.ground,
+                               blend_casters=config.blend_casters)
         else:
             scene = make_scene(config.kind, seed=config.seed, **config.params)
         return _moved_scene(scene, config.offset)
@@ -264,8 +280,20 @@ def _first_light_direction(experiment: Experiment):
     return direction_from_angles(elevation_deg=light.elevation_deg, azimuth_deg=light.azimuth_deg)
 
 
-def _camera_path(experiment: Experiment, light_direction) -> tuple[CameraPath, TimingReport | None, frozenset]:
-    """The camera path, a recorded file's timing report (else None) and the frames that restart after a cut."""
+def fits_level(experiment: Experiment) -> bool:
+    """Whether the generated path is placed in the scene's level (``[camera] fit_level``; unset: a mesh scene)."""
+    camera = experiment.camera
+    if not camera.path:
+        return False
+    return experiment.scene.kind == "mesh" if camera.fit_level is None else camera.fit_level
+
+
+def _camera_path(experiment: Experiment, light_direction, level) -> tuple[CameraPath, TimingReport | None, frozenset]:
+    """The camera path, a recorded file's timing report (else None) and the frames that restart after a cut.
+
+    ``level`` (:class:`csmlab.scene.level.Level`, the scene moved by ``[scene] offset``) places a
+    generated path in it; None leaves it in csmlab's own layout, moved by the offset afterwards.
+    """
     from csmlab.paths import make_path
     from csmlab.paths.formats import read_recording
 
@@ -273,10 +301,12 @@ def _camera_path(experiment: Experiment, light_direction) -> tuple[CameraPath, T
     projection = {"fov_y_deg": camera.fov_y_deg, "aspect": camera.aspect, "near": camera.near, "far": camera.far}
     if camera.path:
         try:
-            return make_path(camera.path, frames=camera.frames, fps=camera.fps, seed=camera.seed,
-                             light_direction=light_direction, **projection, **camera.params), None, frozenset()
+            path = make_path(camera.path, frames=camera.frames, fps=camera.fps, seed=camera.seed,
+                             light_direction=light_direction, level=level, orbit_height=camera.orbit_height,
+                             flight_height=camera.flight_height, **projection, **camera.params)
         except ValueError as exc:
             raise _located(exc, file=experiment.source, field="camera") from None
+        return path, None, frozenset()
     try:
         recording = read_recording(
             camera.file, format=camera.format or None, convention=camera.convention or None, scale=camera.scale,
@@ -319,11 +349,40 @@ def build_workload(experiment: Experiment) -> Workload:
     InputError
         From a scene, mesh or camera-path file, naming the file and what was expected.
     """
-    path, timing, restarts = _camera_path(experiment, _first_light_direction(experiment))
-    path = _moved_path(path, experiment.scene.offset)
-    return Workload(scene=_scene(experiment), path=path, light=_light_path(experiment, len(path)),
+    from csmlab.paths.view_check import check_views, findings_line
+    from csmlab.scene.level import Level
+
+    scene = _scene(experiment)
+    check = experiment.camera.view_check
+    level = Level.of(scene) if fits_level(experiment) or check != "off" else None
+    path, timing, restarts = _camera_path(experiment, _first_light_direction(experiment),
+                                          level if fits_level(experiment) else None)
+    if not fits_level(experiment):
+        path = _moved_path(path, experiment.scene.offset)
+    views = None if check == "off" else check_views(level, path)
+    if check == "refuse" and not views.clean:
+        raise InputError(f"refused: {findings_line(views.as_dict())}; expected every view to fit the scene "
+                         f"(view_check = \"warn\" runs it and names the frames)", file=experiment.source,
+                         field="camera.view_check")
+    return Workload(scene=scene, path=path, light=_light_path(experiment, len(path)),
                     width=_image_width(experiment.camera, path), height=experiment.camera.height,
-                    key=workload_hash(experiment, frames=len(path)), timing=timing, restarts=restarts)
+                    key=workload_hash(experiment, frames=len(path)), timing=timing, restarts=restarts, views=views,
+                    blend=_blend_note(experiment))
+
+
+def _blend_note(experiment: Experiment) -> dict | None:
+    """``{"rule": …, "materials": ["file: name", …]}``: the glTF files' ``BLEND`` materials (a run warns about them,
+    :func:`csmlab.scene.gltf_materials.blend_line`); None for a procedural scene or a level without any."""
+    from csmlab.scene.gltf import read_gltf
+    from csmlab.scene.gltf_materials import blend_materials
+
+    scene = experiment.scene
+    if scene.kind != "mesh":
+        return None
+    files = dict.fromkeys(f for f in (scene.file, *(p.file for p in scene.parts)) if f)
+    names = [f"{Path(file).name}: {name}" for file in files if Path(file).suffix.lower() in (".gltf", ".glb")
+             for name in blend_materials(read_gltf(file).document)]
+    return {"rule": scene.blend_casters, "materials": names} if names else None
 
 
 def _image_width(camera, path: CameraPath) -> int:
@@ -739,5 +798,9 @@ def _write_results(out: Path, experiment: Experiment, job: Job, units: list[Unit
                    methods=methods, points=points)
     if job.workload.timing is not None:
         summary["recording"] = job.workload.timing.as_dict()
+    if job.workload.views is not None:
+        summary["view_check"] = job.workload.views.as_dict()
+    if job.workload.blend is not None:
+        summary["blend_materials"] = job.workload.blend
     results.write_summary(out / "summary.json", **summary)
     return results.read_summary(out)

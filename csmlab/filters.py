@@ -49,7 +49,8 @@ from csmlab.lookup_choices import FILTER_METHODS, OUTSIDE_METHODS, Filter
 from csmlab.quads import Quads, quad_derivatives
 from csmlab.registry import check_name
 from csmlab.settings import ShadowSettings
-from csmlab.texels import fixed_point_origin, receiver_lookup, uses_global_grid
+from csmlab.kernels.engine import warped_receivers, window_receivers
+from csmlab.texels import fixed_point_origin, receiver_lookup, uses_global_grid, window_boxes
 
 __all__ = ["FAMILY_LOOKUPS", "Receivers", "clipmap_radius", "filter_inputs", "interleaved_gradient_noise", "lookup_shadow", "noise_frame", "screen_pixels",
            "texel_coordinates", "uses_pixels"]
@@ -293,10 +294,12 @@ def texel_coordinates(cascades: CascadeSet, points: np.ndarray, normals: np.ndar
                       settings: ShadowSettings, device: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Step 3: ``points[rows]`` in every cascade's fixed point, moved along ``normals[rows]``.
 
-    :func:`csmlab.texels.receiver_lookup`: on the device where the cascades' grid is the global one
-    (float64, world-locked snapping: the same bits), on the host for an engine's float32 pipeline
-    (``engine_precision``), window-space snapping (``vertex_snap``) and warped cascades (``warp``: a
-    homography per cascade).
+    :func:`csmlab.texels.receiver_lookup`, bit for bit: on the device where the cascades' grid is the
+    global one (float64, world-locked snapping), on the device in window space for an engine's float32
+    pipeline (``engine_precision``) and window-space snapping (``vertex_snap``,
+    :func:`csmlab.kernels.engine.window_receivers`) and through the homographies of warped cascades
+    (``warp``, :func:`csmlab.kernels.engine.warped_receivers`); on the host only for a set that mixes
+    warped and unwarped cascades.
 
     Returns
     -------
@@ -311,6 +314,15 @@ def texel_coordinates(cascades: CascadeSet, points: np.ndarray, normals: np.ndar
     if uses_global_grid(precision=settings.engine_precision, snap=settings.vertex_snap) and not cascades.warped:
         return receiver_coordinates(points, normals, receivers=rows, bits=bits, **_conversion(cascades, settings),
                                     device=device)
+    conversion = _conversion(cascades, settings)
+    del conversion["origin_fixed"]
+    if not cascades.warped:
+        boxes = window_boxes(cascades, bits=bits, precision=settings.engine_precision, snap=settings.vertex_snap,
+                             rebase_distance=settings.rebase_distance, device=device)
+        return window_receivers(boxes, points, normals, receivers=rows, **conversion, device=device)
+    if all(c.warp is not None for c in cascades.cascades):
+        return warped_receivers(np.stack([c.warp.homography for c in cascades.cascades]), points, normals,
+                                receivers=rows, bits=bits, **conversion, device=device)
     return receiver_lookup(cascades, points[rows], normals[rows], bits=bits, normal_offset=settings.normal_offset,
                            bias_constant=_cascade_bias(cascades, settings), bias_slope=settings.bias_slope,
                            normal_scale=settings.normal_offset_scale, plane_offset=_plane_offset(cascades, settings),

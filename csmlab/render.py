@@ -25,8 +25,10 @@ from csmlab.cascades.warp import warped_texels
 from csmlab.filters import clipmap_radius, filter_inputs, lookup_shadow, noise_frame
 from csmlab.frame import Frame, GBuffer, ShadowMaps, View
 from csmlab.geometry import light_basis, normalized
-from csmlab.kernels.raster import (BANDS_PER_THREAD, LightSpaceMesh, banded_regions, light_space_mesh,
-                                  rasterize_cascades, rasterize_depth, region_chunks, whole_map_regions, z_ordered)
+from csmlab.kernels.engine import warped_vertices, window_vertices
+from csmlab.kernels.raster import (BANDS_PER_THREAD, LightSpaceMesh, banded_regions, converted_region_chunks,
+                                  light_space_mesh, rasterize_cascades, rasterize_depth, region_chunks,
+                                  whole_map_regions, z_ordered)
 from csmlab.kernels.alpha import masked_mesh
 from csmlab.kernels.reference import hard_shadow
 from csmlab.kernels.threads import checked_threads
@@ -38,11 +40,11 @@ from csmlab.scrolling import RasterizedMaps, scroll_plan
 from csmlab.settings import ShadowSettings
 from csmlab.storage import DEPTH_QUANTIZATION_METHODS, polygon_offset_unit, stored_depth
 from csmlab.texels import (fixed_point_coordinates, fixed_point_origin, light_depth, light_plane_coordinates,
-                           uses_global_grid, vertex_depth)
+                           uses_global_grid, vertex_depth, window_boxes)
 
-__all__ = ["DeviceScene", "caster_offsets", "clipped_casters", "clipped_triangles", "lookup_shadow", "prepare_scene",
-           "render_frame", "render_shadow", "render_view", "shadow_maps", "virtual_shadow_maps", "visible_depth",
-           "warped_depth_map"]
+__all__ = ["DeviceScene", "caster_offsets", "clipped_casters", "clipped_triangles", "host_depth_maps", "lookup_shadow",
+           "prepare_scene", "render_frame", "render_shadow", "render_view", "shadow_maps", "virtual_shadow_maps",
+           "visible_depth", "warped_depth_map"]
 
 
 @dataclass(frozen=True)
@@ -63,6 +65,9 @@ class DeviceScene:
         The scene in the light space of the last light direction seen (what the cascade pass
         needs of every vertex and triangle, which a static light leaves unchanged from frame to
         frame), keyed by the light basis, its depth offset and the face cull (``settings.cull``).
+    ordered_vertices : dict
+        Beside each mesh of ``light_space``, under the same key: the scene's float64 world vertices
+        ``(V, 3)`` in that mesh's vertex order (what an engine's float32 pipeline transforms).
     threads : int
         CPU threads a frame's kernels may use at once (one Warp CPU launch runs on one thread):
         1 where processes already share out the cores (:mod:`csmlab.executor`).
@@ -74,6 +79,7 @@ class DeviceScene:
     corners: np.ndarray = field(compare=False, repr=False)
     light_space: dict = field(default_factory=dict, compare=False, repr=False)
     threads: int = 1
+    ordered_vertices: dict = field(default_factory=dict, compare=False, repr=False)
 
 
 def prepare_scene(scene: Scene, *, device: str = "cpu", threads: int = 1) -> DeviceScene:
@@ -160,11 +166,13 @@ def _scene_in_light_space(dscene: DeviceScene, cascades: CascadeSet, cull: str =
         order, triangles = z_ordered(xy, culled_triangles(vertices, dscene.scene.triangles, cascades.direction, cull))
         for other in [k for k in dscene.light_space if k[:2] != light]:
             del dscene.light_space[other]
+            dscene.ordered_vertices.pop(other, None)
         scene = dscene.scene
         masks = {} if scene.vertex_mask is None else dict(uv=scene.uv[order], vertex_mask=scene.vertex_mask[order],
                                                           alpha=scene.alpha)
         dscene.light_space[key] = light_space_mesh(xy[order], light_depth(cascades, vertices)[order], triangles,
                                                    **masks)
+        dscene.ordered_vertices[key] = np.ascontiguousarray(vertices[order], dtype=np.float64)
     return dscene.light_space[key]
 
 
@@ -186,17 +194,21 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
     """
     raster = None
     cut = DEPTH_RANGE_METHODS[settings.depth_range].cuts_casters
-    if uses_global_grid(precision=settings.engine_precision, snap=settings.vertex_snap) and not cascades.warped \
+    if cascades.warped:
+        depth, texels = _warped_window_depth_maps(dscene, cascades, settings)
+    elif uses_global_grid(precision=settings.engine_precision, snap=settings.vertex_snap) \
             and not (cut and not settings.depth_clamp):
         depth, texels, raster = _culled_depth_maps(dscene, cascades, settings,
                                                    previous=None if scroll_from is None else scroll_from.raster)
     else:
-        depth, texels = _host_snapped_depth_maps(dscene, cascades, settings)
+        depth, texels = _window_depth_maps(dscene, cascades, settings)
     if cut and settings.depth_clamp:
         # Pancaking is a per-fragment clamp max(z, near); the stored minimum of clamped fragments
         # is the clamped minimum, so clamping the map is exact.
         near = np.array([c.depth_near - cascades.zref for c in cascades.cascades], dtype=np.float32)
-        depth = np.maximum(depth, near[:, None, None])
+        # In place where the maps are this call's own (not kept read-only for the next frame's scrolling):
+        # a fresh (C, R, R) array costs its page faults, more than the comparisons.
+        depth = np.maximum(depth, near[:, None, None], out=depth if depth.flags.writeable else None)
     span = float(np.ptp(cascades.to_light(dscene.corners)[:, 2]))
     depth = dispatch(DEPTH_QUANTIZATION_METHODS, settings.depth_quantization, depth, field="depth_quantization",
                      depth_format=settings.depth_format, offered=dict(
@@ -269,16 +281,60 @@ def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
     return depth, int(per_cascade.sum()), raster
 
 
-def _host_snapped_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
-                             settings: ShadowSettings) -> tuple[np.ndarray, int]:
+def _window_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings) -> tuple[np.ndarray, int]:
+    """``(C, R, R)`` depth maps and texels rasterized of unwarped cascades the scrolling path does not model.
+
+    An engine's float32 pipeline (``engine_precision``), window-space snapping (``vertex_snap``),
+    and casters clipped at a slice's near side without pancaking (``depth_range`` that cuts casters,
+    ``depth_clamp = false``): the scene's light-space mesh (:func:`_scene_in_light_space`) taken into
+    every cascade's window space on the device (:func:`csmlab.kernels.engine.window_vertices`) where
+    the pipeline is not the global grid's, then rasterized whole map by map, cut into bands for the
+    threads, only the chunks that reach a region (:func:`csmlab.kernels.raster.converted_region_chunks`,
+    or :func:`~csmlab.kernels.raster.region_chunks` on the global grid). The same maps and counts,
+    bit for bit, as the host's :func:`host_depth_maps` (the tests' oracle); no scrolling (the
+    float32 roundings change as a box moves).
+    """
+    bits = settings.subtexel_bits
+    mesh = _scene_in_light_space(dscene, cascades, settings.cull)
+    sizes = [c.resolution for c in cascades.cascades]
+    regions = whole_map_regions(sizes)
+    if dscene.threads > 1:
+        regions = banded_regions(regions, parts=BANDS_PER_THREAD * dscene.threads, axis=mesh.bounds.narrow_axis)
+    texel_size = np.stack([c.texel_size for c in cascades.cascades])
+    origin_fixed = np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))])
+    how = dict(caster_constant=caster_offsets(cascades, settings), caster_slope=settings.caster_bias_slope,
+               threads=dscene.threads, device=dscene.device)
+    if DEPTH_RANGE_METHODS[settings.depth_range].cuts_casters and not settings.depth_clamp:
+        how["near"] = np.array([c.depth_near - cascades.zref for c in cascades.cascades])
+    if uses_global_grid(precision=settings.engine_precision, snap=settings.vertex_snap):
+        chunks = region_chunks(mesh.bounds, texel_size=texel_size,
+                               origin=np.stack([c.origin for c in cascades.cascades]), regions=regions)
+    else:
+        boxes = window_boxes(cascades, bits=bits, precision=settings.engine_precision, snap=settings.vertex_snap,
+                             rebase_distance=settings.rebase_distance, device=dscene.device)
+        key = (cascades.basis.tobytes(), cascades.zref, settings.cull)
+        how["points"], how["vertex_depth"] = window_vertices(boxes, positions=dscene.ordered_vertices[key],
+                                                             light_xy=mesh.xy, light_depth=mesh.depth,
+                                                             threads=dscene.threads, device=dscene.device)
+        chunks = converted_region_chunks(how["points"], mesh.triangles, regions=regions, bits=bits,
+                                         device=dscene.device)
+    depth, texels = rasterize_cascades(mesh, texel_size=texel_size, origin=origin_fixed, resolution=max(sizes),
+                                       bits=bits, regions=regions, chunks=chunks, **how)
+    return depth, int(texels.sum())
+
+
+def host_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings) -> tuple[np.ndarray, int]:
     """``(C, R, R)`` depth maps and texels rasterized, vertices snapped on the host cascade by cascade.
 
-    The path for what the culled kernels do not model: an engine's float32 pipeline, its depth
-    per cascade from the float32 window depth (``engine_precision``, :mod:`csmlab.texels`), snapping
-    of the window position (``vertex_snap``), casters clipped at a slice's near side without
-    pancaking (``depth_range = "slice"``, ``depth_clamp = false``) and perspective-warped cascades
-    (``warp``, :func:`warped_depth_map`). Faces are culled as on the other path (``settings.cull``,
-    once per call, by ``d`` alone).
+    The reference NumPy pipeline, stated as plainly as the engines do it: every vertex converted by
+    :mod:`csmlab.texels` (an engine's float32 pipeline, its depth per cascade from the float32 window
+    depth, ``engine_precision``; snapping of the window position, ``vertex_snap``), casters clipped at
+    a slice's near side without pancaking (``depth_range`` that cuts casters, ``depth_clamp = false``)
+    by :func:`clipped_casters`, each cascade's whole map rasterized over every triangle on one thread.
+    Perspective-warped cascades (``warp``) by :func:`warped_depth_map`. Not a production path: the
+    tests' oracle for the kernels' (:func:`_window_depth_maps`, :func:`_warped_window_depth_maps`,
+    which give the same maps and counts bit for bit). Faces are culled as on the other paths
+    (``settings.cull``, once per call, by ``d`` alone).
     """
     bits = settings.subtexel_bits
     vertices = dscene.scene.vertices
@@ -367,11 +423,81 @@ def warped_depth_map(cascades: CascadeSet, index: int, vertices: np.ndarray, dep
                         device=device) if masked else None
     per_w, count = rasterize_depth(points[None], attributes[:, 2] / w, kept, resolution=cascade.resolution,
                                    bits=bits, masks=masks, caster_slope=caster_slope, device=device)
-    centre = np.arange(cascade.resolution, dtype=np.float64) + 0.5
+    return _unwarped_depth(per_w[0], h, caster_constant), count
+
+
+def _unwarped_depth(per_w: np.ndarray, homography: np.ndarray, caster_constant: float) -> np.ndarray:
+    """``(R, R)`` float32 light depths in metres of a warped map's interpolated ``z / w`` ``(R, R)``, pushed away
+    from the light by ``caster_constant`` metres: each texel's value times its centre's ``w``."""
+    centre = np.arange(per_w.shape[0], dtype=np.float64) + 0.5
     i, j = np.meshgrid(centre, centre)
-    inverse = np.linalg.inv(h)
+    inverse = np.linalg.inv(homography)
     w_centre = 1.0 / (inverse[2, 0] * i + inverse[2, 1] * j + inverse[2, 2])
-    return (per_w[0].astype(np.float64) * w_centre + caster_constant).astype(np.float32), count
+    return (per_w.astype(np.float64) * w_centre + caster_constant).astype(np.float32)
+
+
+def _warped_window_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
+                              settings: ShadowSettings) -> tuple[np.ndarray, int]:
+    """``(C, R, R)`` depth maps and texels rasterized of perspective-warped cascades (``warp``) on the kernels' path.
+
+    :func:`warped_depth_map`'s maps and counts bit for bit: the scene's light-space mesh clipped at
+    half the warp's near distance (:func:`clipped_triangles`, on the host: few triangles cross it),
+    its vertices taken through the homography on the device (:func:`csmlab.kernels.engine.warped_vertices`),
+    and the map rasterized cut into bands for the threads, only the chunks that reach a band
+    (:func:`csmlab.kernels.raster.converted_region_chunks`). An unwarped cascade of the set takes
+    :func:`_window_depth_maps`' or the scrolling path's arithmetic, cascade by cascade as the host does.
+    """
+    bits = settings.subtexel_bits
+    mesh = _scene_in_light_space(dscene, cascades, settings.cull)
+    sizes = [c.resolution for c in cascades.cascades]
+    maps = np.full((len(sizes), max(sizes), max(sizes)), np.inf, dtype=np.float32)
+    offsets = caster_offsets(cascades, settings)
+    triangles = mesh.triangles
+    texels = 0
+    for c, cascade in enumerate(cascades.cascades):
+        kept = triangles
+        if DEPTH_RANGE_METHODS[settings.depth_range].cuts_casters and not settings.depth_clamp:
+            kept = clipped_casters(mesh.depth, triangles, near=cascade.depth_near - cascades.zref)
+        if kept.shape[0] == 0:
+            continue
+        if cascade.warp is None:
+            one = CascadeSet(basis=cascades.basis, zref=cascades.zref, splits=cascades.splits[c:c + 2],
+                             cascades=(cascade,), margin_texels=cascades.margin_texels, eye=cascades.eye)
+            depth, count = _window_depth_maps(dscene, one, settings)
+        else:
+            depth, count = _warped_map(dscene, mesh, kept, cascade, bits=bits, caster_constant=float(offsets[c]),
+                                       caster_slope=settings.caster_bias_slope)
+        maps[c, :sizes[c], :sizes[c]] = depth[0] if depth.ndim == 3 else depth
+        texels += count
+    return maps, texels
+
+
+def _warped_map(dscene: DeviceScene, mesh: LightSpaceMesh, triangles: np.ndarray, cascade, *, bits: int,
+                caster_constant: float, caster_slope: float) -> tuple[np.ndarray, int]:
+    """``(R, R)`` depth map and texels rasterized of one warped cascade from the mesh's ``triangles`` ``(T, 3)``."""
+    h = cascade.warp.homography
+    xy = mesh.xy
+    w = xy[:, 0] * h[2, 0] + xy[:, 1] * h[2, 1] + h[2, 2]
+    near = 0.5 * (cascade.warp.n_opt if np.isfinite(cascade.warp.n_opt) else 1.0)
+    masked = mesh.vertex_mask is not None
+    columns = [xy, mesh.depth, w] + ([mesh.uv, mesh.vertex_mask.astype(np.float64)] if masked else [])
+    attributes, kept = clipped_triangles(np.column_stack(columns), triangles, column=3, threshold=near)
+    if kept.shape[0] == 0:
+        return np.full((cascade.resolution,) * 2, np.inf, dtype=np.float32), 0
+    points, per_w = warped_vertices(h, attributes[:, :2], attributes[:, 2], bits=bits, device=dscene.device)
+    # A triangle's three vertices share its mask, so the interpolated mask column is that mask exactly.
+    masks = dict(uv=attributes[:, 4:6], vertex_mask=attributes[:, 6].astype(np.int32), alpha=mesh.alpha) if masked \
+        else {}
+    clipped = light_space_mesh(attributes[:, :2], attributes[:, 2], kept, **masks)
+    regions = whole_map_regions([cascade.resolution])
+    if dscene.threads > 1:
+        regions = banded_regions(regions, parts=BANDS_PER_THREAD * dscene.threads, axis=mesh.bounds.narrow_axis)
+    chunks = converted_region_chunks(points[None], kept, regions=regions, bits=bits, device=dscene.device)
+    per_w_map, count = rasterize_cascades(clipped, texel_size=np.ones((1, 2)), origin=np.zeros((1, 2), np.int64),
+                                          resolution=cascade.resolution, bits=bits, regions=regions, chunks=chunks,
+                                          points=points[None], vertex_depth=per_w[None], caster_slope=caster_slope,
+                                          threads=dscene.threads, device=dscene.device)
+    return _unwarped_depth(per_w_map[0], h, caster_constant), int(count.sum())
 
 
 def clipped_triangles(attributes: np.ndarray, triangles: np.ndarray, *, column: int,

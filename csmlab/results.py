@@ -25,7 +25,11 @@ Files in a results directory (docs/design.md, "Interfaces"):
     ``points[P][M][metric]`` the mean over frames at sweep point P; each with ``frames``. A metric with
     no value in any frame is ``null``. A recorded camera path adds ``recording``
     (:meth:`csmlab.paths.timing.TimingReport.as_dict`: repeated time stamps and tracking gaps, how
-    many, where, how long, and the rules applied). Written last: a directory without it holds no
+    many, where, how long, and the rules applied). ``view_check`` (unless ``[camera] view_check = "off"``,
+    :meth:`csmlab.paths.view_check.ViewFindings.as_dict`): frames checked and, for each check, the
+    flagged frames as ``[first, last]`` ranges. ``blend_materials`` (a glTF level with ``alphaMode = "BLEND"``
+    materials, :func:`csmlab.experiment.build_workload`): the rule they were read by and their names.
+    Written last: a directory without it holds no
     finished run.
 ``.chunks/``
     Finished units of work of a run in progress (pickles, each with the config hash and device it
@@ -269,9 +273,12 @@ def json_text(document: dict) -> str:
 
 def write_summary(path, *, name: str, config_hash: str, workload_hash: str, device: str, frames: int,
                   config: dict, light_moves: bool, point_fields: dict, stabilization: dict, invariants: dict,
-                  methods: dict, points: dict, recording: dict | None = None) -> Path:
-    """Write ``summary.json`` (fields in the module docstring; ``recording`` only for a recorded path)."""
-    extra = {} if recording is None else {"recording": recording}
+                  methods: dict, points: dict, recording: dict | None = None, view_check: dict | None = None,
+                  blend_materials: dict | None = None) -> Path:
+    """Write ``summary.json`` (fields in the module docstring; ``recording`` only for a recorded path,
+    ``view_check`` only when the check ran, ``blend_materials`` only for a level that has them)."""
+    extra = {key: value for key, value in (("recording", recording), ("view_check", view_check),
+                                           ("blend_materials", blend_materials)) if value is not None}
     return write_atomic(path, json_text({
         "name": name,
         "config_hash": config_hash,

@@ -38,6 +38,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from csmlab.kernels.depth_storage import unorm_stored_depth
 from csmlab.registry import check_name
 from csmlab.settings import ShadowSettings
 
@@ -103,10 +104,8 @@ def stored_depth(depth, *, span: float, depth_format: str) -> np.ndarray:
     step = depth_step(span, depth_format=depth_format)
     if step == 0.0:
         return maps
-    top = float(2 ** DEPTH_FORMATS[depth_format][0] - 1)
-    finite = np.isfinite(maps)
-    levels = np.clip(np.rint(maps.astype(np.float64) / step), 0.0, top)
-    return np.where(finite, levels * step, maps).astype(np.float32)
+    rows = maps.reshape(1, -1, maps.shape[-1]) if maps.ndim else maps.reshape(1, 1, 1)
+    return unorm_stored_depth(rows, step=step, top=float(2 ** DEPTH_FORMATS[depth_format][0] - 1)).reshape(maps.shape)
 
 
 def cascade_stored_depth(depth, *, near, far, depth_format: str) -> np.ndarray:
@@ -143,10 +142,7 @@ def cascade_stored_depth(depth, *, near, far, depth_format: str) -> np.ndarray:
     if lo.shape[0] != maps.shape[0] or hi.shape[0] != maps.shape[0] or not np.all(hi > lo):
         raise ValueError(f"near, far: expected {maps.shape[0]} boxes with far > near, got {lo.ravel()}, {hi.ravel()}")
     top = float(2**bits - 1)
-    step = (hi - lo) / top
-    finite = np.isfinite(maps)
-    levels = np.clip(np.rint((maps.astype(np.float64) - lo) / step), 0.0, top)
-    return np.where(finite, lo + levels * step, maps).astype(np.float32)
+    return unorm_stored_depth(maps, lo=lo.ravel(), step=((hi - lo) / top).ravel(), top=top)
 
 
 def _scene_quantized(depth, *, span: float, depth_format: str) -> np.ndarray:

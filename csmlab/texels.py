@@ -2,7 +2,12 @@
 
 Everything here is host NumPy and feeds the Warp kernels (docs/design.md, "Exact zero by
 construction"); csmlab's own conversion is float64, and :data:`PRECISION_METHODS` also emulates an
-engine's float32 pipeline (its matrices, positions, window coordinates and depths). A world point X
+engine's float32 pipeline (its matrices, positions, window coordinates and depths). The per-point
+conversions (:func:`fixed_point_coordinates`, :func:`vertex_depth`, :func:`window_positions`,
+:func:`receiver_lookup`) are the statement the kernels repeat bit for bit (:mod:`csmlab.kernels.raster`,
+:func:`csmlab.kernels.shadow.receiver_coordinates`, :mod:`csmlab.kernels.engine`) and the tests'
+oracle; a run calls one of them itself only for the receivers of a set that mixes warped and unwarped
+cascades (:func:`receiver_lookup`). A world point X
 has light-space coordinates ``(right·X, up·X)`` in metres; divided by a cascade's texel size they
 become *global* texel units, which depend on the light direction and the texel size only — never on
 where the box lies. Snapped to ``2**bits`` steps per texel they
@@ -23,12 +28,14 @@ import numpy as np
 
 from csmlab.cascades import CascadeSet
 from csmlab.cascades.warp import warped_texel_jacobian, warped_texels
+from csmlab.kernels.engine import EngineBoxes, engine_boxes
 from csmlab.lookup_choices import NORMAL_NONE, NORMAL_OFFSET_SCALES, NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN
 from csmlab.registry import check_name
 
 __all__ = ["PRECISION_METHODS", "Precision", "VERTEX_SNAPS", "engine_matrix", "engine_origin", "engine_positions",
            "fixed_point_coordinates", "fixed_point_origin", "light_depth", "light_plane_coordinates", "receiver_lookup",
-           "texel_coordinates", "uses_global_grid", "vertex_depth", "window_depth_metres", "window_positions"]
+           "texel_coordinates", "uses_global_grid", "vertex_depth", "window_boxes", "window_depth_metres",
+           "window_positions"]
 
 
 @dataclass(frozen=True)
@@ -43,7 +50,8 @@ class Precision:
         kernel handed light-space coordinates finishes the conversion itself with the same bits
         (the depth pass, :mod:`csmlab.kernels.raster`; the receivers,
         :func:`csmlab.kernels.shadow.receiver_coordinates`). False: an engine's float32 pipeline,
-        which only the host functions here emulate (:func:`engine_matrix`, :func:`window_positions`).
+        stated here in NumPy (:func:`engine_matrix`, :func:`window_positions`) and run by the
+        window-space kernels with the same bits (:mod:`csmlab.kernels.engine`, :func:`window_boxes`).
     camera_relative : bool
         The float32 positions and matrices are taken relative to an origin rebased near the camera
         (:func:`engine_origin`), not to the world origin.
@@ -94,7 +102,8 @@ give the same bits, since the window position is then the global one less an int
 
 
 def uses_global_grid(*, precision: str, snap: str) -> bool:
-    """The kernels may finish the conversion themselves (float64 and world-locked snapping); else the host converts."""
+    """The global grid's kernels may finish the conversion themselves (float64 and world-locked snapping); else the
+    window-space ones (:mod:`csmlab.kernels.engine`) convert from the host's matrices (:func:`window_boxes`)."""
     return (PRECISION_METHODS[check_name(precision, PRECISION_METHODS, field="engine_precision")].global_grid
             and check_name(snap, VERTEX_SNAPS, field="vertex_snap") == "world")
 
@@ -483,3 +492,29 @@ def _warped_texel_steps(homography: np.ndarray, light_xy: np.ndarray,
     texel = np.maximum(np.hypot(along_i[:, 0], along_i[:, 1]), np.hypot(along_j[:, 0], along_j[:, 1]))
     step = np.column_stack([np.sum(plane_slope * along_i, axis=1), np.sum(plane_slope * along_j, axis=1)])
     return texel, step
+
+
+def window_boxes(cascades: CascadeSet, *, bits: int, precision: str = "float64", snap: str = "world",
+                 rebase_distance: float = 0.0, device: str = "cpu") -> EngineBoxes:
+    """The cascades as the window-space kernels read them (:mod:`csmlab.kernels.engine`), on ``device``.
+
+    For an engine's float32 ``precision``: each cascade's :func:`engine_matrix` (built here on the
+    host, as an engine builds it), relative to :func:`engine_origin`, and the depth range that
+    :func:`window_depth_metres` maps window depth to. For ``snap = "window"`` in float64: each
+    cascade's texel size and box origin. Not for warped cascades, nor for the global grid
+    (:func:`uses_global_grid`), which other kernels finish themselves.
+    """
+    if any(c.warp is not None for c in cascades.cascades):
+        raise ValueError("cascades: expected no warped cascade (window_boxes serves the unwarped window space)")
+    if uses_global_grid(precision=precision, snap=snap):
+        raise ValueError(f"precision, snap: expected a window-space pipeline, got {precision!r} with {snap!r}")
+    if not PRECISION_METHODS[precision].global_grid:
+        origin = engine_origin(cascades.eye, precision=precision, rebase_distance=rebase_distance)
+        matrices = np.stack([engine_matrix(cascades, c, origin=origin) for c in range(len(cascades))])
+        return engine_boxes(mode="float32", bits=bits, device=device, matrices=matrices,
+                            resolution=[c.resolution for c in cascades.cascades], origin=origin,
+                            depth_near=[c.depth_near - cascades.zref for c in cascades.cascades],
+                            depth_span=[c.depth_far - c.depth_near for c in cascades.cascades])
+    return engine_boxes(mode="float64", bits=bits, device=device,
+                        texel_size=np.stack([c.texel_size for c in cascades.cascades]),
+                        corner=np.stack([c.origin for c in cascades.cascades]))

@@ -48,7 +48,8 @@ import numpy as np
 
 import csmlab
 from csmlab import config
-from csmlab.config import CONFIGS_DIR, Experiment, Method, ReportConfig, load_experiment, workload_hash
+from csmlab.config import (CONFIGS_DIR, CameraConfig, Experiment, Method, ReportConfig, load_experiment,
+                           workload_hash)
 from csmlab.errors import InputError
 from csmlab.experiment import run_experiment
 from csmlab.metrics.cost import shadow_memory_bytes
@@ -449,6 +450,17 @@ def _infeasible_message(candidates, budgets: Budgets, goals) -> tuple[str, str]:
                            f"for every candidate within the budgets (a 1-frame run has no temporal metrics)")
 
 
+def _candidate_settings(settings: ShadowSettings, settle, camera) -> ShadowSettings:
+    """``settings`` settled (its engine's derived fields) and checked as a run would check them: the fields' ranges,
+    and the splits over ``camera``'s near and far planes (a split list of another count, a first far end beyond the
+    shadow). Raises ValueError naming the field."""
+    from csmlab.cascades.splits import split_boundaries
+
+    settings = settle(settings).validated()
+    split_boundaries(settings, near=camera.near, far=camera.far)
+    return settings
+
+
 def _describe(candidate: Candidate) -> str:
     return ", ".join(f"{k}={v}" for k, v in candidate.params.items()) or "as the experiment has it"
 
@@ -531,6 +543,11 @@ class TuneOptions:
         Engine preset name (its file's stem) → its method's settings on the experiment's ``[shadow]``.
     run_options : dict
         ``jobs``, ``executor``, ``address``, ``device`` for :func:`csmlab.experiment.run_experiment`.
+    settle : callable
+        ``settle(settings) -> settings``: an engine's derived fields set (the method an engine owns,
+        :func:`csmlab.engines.tune_space`); the identity for any other method.
+    camera : CameraConfig
+        The experiment's camera: its planes check each candidate's splits.
     """
 
     method: str
@@ -545,6 +562,8 @@ class TuneOptions:
     flicker_metric: str
     presets: dict[str, ShadowSettings]
     run_options: dict
+    settle: Callable[[ShadowSettings], ShadowSettings]
+    camera: CameraConfig
 
     @property
     def device(self) -> str:
@@ -586,6 +605,13 @@ def resolved_options(experiment: Experiment, request: TuneRequest) -> TuneOption
     if chosen not in names:
         raise InputError(f"expected one of the experiment's methods {names}, got {chosen!r}", field="--method")
     space = {**dict(table.space), **(request.space or {})}
+    from csmlab.engines import tune_space
+
+    owner = tune_space(chosen)
+    if owner is not None:
+        # An engine preset is tuned in the engine's own space: values its files hold, derived fields settled.
+        space = owner[1].restricted(space, engine=owner[0], method=chosen)
+    settle = owner[1].settle if owner is not None else _unsettled
     if not space:
         raise InputError("expected a search space: a [tune] table of [shadow] fields or --param FIELD=LO:HI|A,B,C",
                          file=experiment.source, field="tune")
@@ -606,26 +632,33 @@ def resolved_options(experiment: Experiment, request: TuneRequest) -> TuneOption
         raise InputError(f"expected at least 2 frames to measure flicker, got {experiment.camera.frames}",
                          field="--max-flicker")
     start = next(m for m in experiment.methods if m.name == chosen).settings
-    _check_space(space, start)
+    _check_space(space, start, settle=settle, camera=experiment.camera, method=chosen)
     paths = engine_presets() if request.presets is None else [Path(p) for p in request.presets]
     return TuneOptions(method=chosen, start=start, space=space, goals=goals, trials=trials, batch=request.batch,
                        seed=request.seed if request.seed is not None else (table.seed or 0),
                        memory_budget=request.memory_budget if request.memory_budget is not None
                        else table.memory_budget,
                        max_flicker=max_flicker, flicker_metric=flicker_metric,
-                       presets={p.stem: _preset_settings(experiment, p) for p in paths},
+                       presets={p.stem: _preset_settings(experiment, p) for p in paths}, settle=settle,
+                       camera=experiment.camera,
                        run_options=dict(jobs=request.jobs, executor=request.executor, address=request.address,
                                         device=request.device))
 
 
-def _check_space(space: dict, start: ShadowSettings) -> None:
-    """Every choice and range bound of ``space`` must make ``start`` a valid setting; else an InputError."""
+def _unsettled(settings: ShadowSettings) -> ShadowSettings:
+    """A method no engine owns: its settings as they are."""
+    return settings
+
+
+def _check_space(space: dict, start: ShadowSettings, *, settle, camera, method: str) -> None:
+    """Every choice and range bound of ``space`` must make ``start``, settled, a valid setting over ``camera``
+    (:func:`_candidate_settings`); else an InputError naming the method, field and value."""
     for field, spec in space.items():
         for value in (spec[1] if spec[0] == "choice" else spec[1:3]):
             try:
-                start.replace(**{field: value}).validated()
+                _candidate_settings(start.replace(**{field: value}), settle, camera)
             except ValueError as exc:
-                raise InputError(str(exc), field=f"--param {field}") from None
+                raise InputError(f"method {method}, {field} = {value!r}: {exc}", field=f"--param {field}") from None
 
 
 def reference_settings(options: TuneOptions) -> dict[str, ShadowSettings]:
@@ -702,8 +735,8 @@ def search(options: TuneOptions, evaluate: Callable[[dict], dict], judge: Callab
         size = min(options.batch, total - number)
         asked = [None] * size if study is None else [study.ask(distributions) for _ in range(size)]
         points = grid[number:number + size] if grid is not None else [dict(t.params) for t in asked]
-        labelled = {f"trial {number + offset}": (params, _candidate_settings(options, params))
-                    for offset, params in enumerate(points)}
+        labels = [f"trial {number + offset}" for offset in range(size)]
+        labelled = {label: (params, _trial_settings(options, label, params)) for label, params in zip(labels, points)}
         results = evaluate({label: s for label, (_, s) in labelled.items() if not _over_memory(options, s)})
         for trial, (label, (params, settings)) in zip(asked, labelled.items()):
             values, computed = results.get(label, (None, False))
@@ -734,11 +767,13 @@ def _study(options: TuneOptions, name: str):
     return study
 
 
-def _candidate_settings(options: TuneOptions, params: dict) -> ShadowSettings:
+def _trial_settings(options: TuneOptions, label: str, params: dict) -> ShadowSettings:
+    """The start with a trial's ``params``, settled and checked (:func:`_candidate_settings`); else an InputError."""
     try:
-        return options.start.replace(**params).validated()
+        return _candidate_settings(options.start.replace(**params), options.settle, options.camera)
     except ValueError as exc:
-        raise InputError(f"a candidate of the search space is not a valid setting: {exc}", field="--param") from None
+        tried = ", ".join(f"{k}={v!r}" for k, v in params.items())
+        raise InputError(f"{label}, method {options.method}: {exc} (the candidate: {tried})", field="--param") from None
 
 
 def _over_memory(options: TuneOptions, settings: ShadowSettings) -> bool:
@@ -847,7 +882,7 @@ def write_outputs(result: TuneResult, out_dir, *, near: float, far: float) -> Pa
 
     ``near`` and ``far`` are the camera's planes, metres (where the exported splits start and end).
     """
-    from csmlab.engine_export import EXPORT_METHODS, export
+    from csmlab.engines import EXPORT_METHODS, export
     from csmlab.report.tune_page import write_tune_report
 
     out_dir = Path(out_dir)

@@ -6,6 +6,7 @@ import json
 import subprocess
 import sys
 import tomllib
+from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
@@ -173,3 +174,61 @@ def test_help_keeps_the_toml_table_names_that_rich_would_read_as_markup():
     assert result.exit_code == 0
     text = " ".join(result.output.split())
     assert "its [tune] table" in text and "A [shadow] field to search" in text
+
+
+# --- options validated as options: the option is named, and nothing is written ------------------
+
+BEVY = Path(__file__).parent / "data" / "engines" / "bevy" / "sun.scn.ron"
+
+
+def _tree(folder: Path) -> list[tuple[str, int]]:
+    """Every path under ``folder`` with its size (folders 0): what a refused command must leave as it was."""
+    return sorted((str(p.relative_to(folder)), p.stat().st_size if p.is_file() else 0) for p in folder.rglob("*"))
+
+
+@pytest.mark.parametrize("option, value, words", [
+    ("--frames", "0", "at least 1, got 0"),
+    ("--jobs", "-2", "at least 1"),
+    ("--device", "gpu0", "cpu, cuda or cuda:N"),
+])
+def test_a_bad_run_option_exits_2_naming_the_option_and_writes_nothing(tmp_path, option, value, words):
+    (tmp_path / "exp.toml").write_text(TINY)
+    before = _tree(tmp_path)
+    outcome = invoke("run", tmp_path / "exp.toml", "--out", tmp_path / "out", option, value)
+    assert outcome.exit_code == 2 and f"{option}: expected" in outcome.stderr and words in outcome.stderr
+    assert len(outcome.stderr.strip().splitlines()) == 1 and _tree(tmp_path) == before
+
+
+def test_run_out_naming_an_existing_file_exits_2_and_leaves_it(tmp_path):
+    (tmp_path / "exp.toml").write_text(TINY)
+    (tmp_path / "taken").write_text("mine\n")
+    outcome = invoke("run", tmp_path / "exp.toml", "--out", tmp_path / "taken")
+    assert outcome.exit_code == 2 and "--out: expected a folder for the results, got an existing file" in outcome.stderr
+    assert (tmp_path / "taken").read_text() == "mine\n"
+
+
+@pytest.mark.parametrize("setup, target, words", [
+    (lambda t: (t / "folder").mkdir(), "folder", "expected a file to write, got an existing folder"),
+    (lambda t: None, "missing/preset.toml", "does not exist"),
+    (lambda t: (t / "locked").mkdir(mode=0o500), "locked/preset.toml", "read-only folder"),
+])
+def test_import_out_that_cannot_be_a_file_exits_2_naming_out_and_touches_nothing(tmp_path, setup, target, words):
+    import os
+
+    setup(tmp_path)
+    if target.startswith("locked") and os.access(tmp_path / "locked", os.W_OK):
+        pytest.skip("this user writes into read-only folders (root)")
+    before = _tree(tmp_path)
+    outcome = invoke("import", "bevy", BEVY, "--out", tmp_path / target)
+    assert outcome.exit_code == 2, outcome.output
+    assert "--out: " in outcome.stderr and words in outcome.stderr and "Traceback" not in outcome.output
+    assert _tree(tmp_path) == before
+
+
+def test_a_bad_name_is_blamed_on_the_name_option_not_the_input_file(tmp_path):
+    outcome = invoke("import", "bevy", BEVY, "--out", tmp_path / "sun.toml", "--name", "my sun")
+    assert outcome.exit_code == 2
+    assert "--name: expected a method name" in outcome.stderr and str(BEVY) not in outcome.stderr
+    assert not (tmp_path / "sun.toml").exists()
+    default = invoke("import", "bevy", BEVY, "--out", tmp_path / "my sun.toml")
+    assert default.exit_code == 2 and "--out: expected a method name" in default.stderr

@@ -93,3 +93,30 @@ def test_the_cascade_pass_stores_each_map_over_its_own_box(device):
     np.testing.assert_array_equal(scene_wide.depth, stored_depth(exact.depth, span=exact.depth_span,
                                                                  depth_format="unorm16"))
     assert not np.array_equal(cascade.depth, scene_wide.depth)
+
+
+def _numpy_levels(maps, *, lo, step, top):
+    """The quantization in NumPy's float64 arithmetic, as csmlab.storage stated it before its kernel: the oracle."""
+    levels = np.clip(np.rint((maps.astype(np.float64) - lo) / step), 0.0, top)
+    return np.where(np.isfinite(maps), lo + levels * step, maps).astype(np.float32)
+
+
+@pytest.mark.parametrize("depth_format", ["unorm16", "unorm24"])
+def test_the_quantization_kernel_gives_numpys_bits_beyond_the_range_at_signed_zeros_and_on_empty_texels(depth_format):
+    rng = np.random.default_rng(9)
+    z = rng.uniform(-30.0, 400.0, (3, 40, 33)).astype(np.float32)
+    z[:, 0] = np.inf
+    z[:, 1, :4] = [-0.0, 0.0, np.nan, -np.inf]
+    z[:, 2] = rng.uniform(-1e-4, 1e-4, 33)
+    near = np.array([-5.0, 0.0, 12.3])
+    far = np.array([80.0, 200.0, 99.9])
+    top = float(2 ** {"unorm16": 16, "unorm24": 24}[depth_format] - 1)
+    per_cascade = cascade_stored_depth(z, near=near, far=far, depth_format=depth_format)
+    expected = _numpy_levels(z, lo=near[:, None, None], step=((far - near) / top)[:, None, None], top=top)
+    assert np.array_equal(per_cascade.view(np.uint32), expected.view(np.uint32))
+    step = depth_step(350.0, depth_format=depth_format)
+    levels = np.clip(np.rint(z.astype(np.float64) / step), 0.0, top)
+    scene = np.where(np.isfinite(z), levels * step, z).astype(np.float32)
+    assert np.array_equal(stored_depth(z, span=350.0, depth_format=depth_format).view(np.uint32), scene.view(np.uint32))
+    assert np.signbit(stored_depth(z, span=350.0, depth_format=depth_format)[0, 1, 0])
+    assert np.array_equal(stored_depth(z[1, 2], span=350.0, depth_format=depth_format), scene[1, 2])

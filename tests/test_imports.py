@@ -7,7 +7,9 @@ records a run writes and reads, the judgement and the reports sit between the me
 experiment. Every import statement counts, at module level or inside a function, including those
 under ``if TYPE_CHECKING``. A module belongs to the entry naming it or its closest package, so a new
 module inside a listed package (``csmlab.kernels.*``, ``csmlab.report.*``) needs no new entry; a new
-top-level module fails :func:`test_every_module_has_a_layer` until it is placed here.
+top-level module fails :func:`test_every_module_has_a_layer` until it is placed here. Within a layer
+imports may point either way, but never round: :func:`test_no_module_imports_itself_through_others`
+reads the whole graph, module by module, for a circle.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parent.parent / "csmlab"
 
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("foundations", ("csmlab", "csmlab.errors", "csmlab.files", "csmlab.registry", "csmlab.geometry",
+    ("foundations", ("csmlab", "csmlab.errors", "csmlab.files", "csmlab.documents", "csmlab.registry", "csmlab.geometry",
                      "csmlab.metric_registry")),
     ("settings", ("csmlab.lookup_choices", "csmlab.culling", "csmlab.fades", "csmlab.shadow_policies",
                   "csmlab.settings")),
@@ -31,8 +33,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
                "csmlab.quads", "csmlab.storage", "csmlab.scrolling", "csmlab.clipmaps", "csmlab.frame")),
     ("lookup and render", ("csmlab.filters", "csmlab.render")),
     ("metrics", ("csmlab.metrics",)),
-    ("run records", ("csmlab.config", "csmlab.results", "csmlab.executor", "csmlab.engine_export",
-                     "csmlab.importers", "csmlab.invariants")),
+    ("run records", ("csmlab.config", "csmlab.results", "csmlab.executor", "csmlab.engines", "csmlab.invariants")),
     ("judgement and reports", ("csmlab.regress", "csmlab.compare", "csmlab.verdict", "csmlab.report")),
     ("experiment", ("csmlab.experiment",)),
     ("tune", ("csmlab.tune",)),
@@ -97,6 +98,73 @@ def test_every_import_points_to_the_same_or_a_lower_layer():
                 upward.append(f"{path.relative_to(PACKAGE.parent)}:{line}: {module} ({LAYERS[own][0]}) imports "
                               f"{imported} ({LAYERS[target][0]})")
     assert not upward, "imports that run upward:\n" + "\n".join(upward)
+
+
+def import_graph(modules: dict[str, Path]) -> dict[str, set[str]]:
+    """``{module: the csmlab modules it imports}``, every import at any depth, each import naming the module it
+    loads (a package by its ``__init__``)."""
+    return {module: {imported for _, imported in imports_of(module, path, modules) if imported in modules}
+            for module, path in modules.items()}
+
+
+def import_circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The circles of ``graph``: each strongly connected set of two or more modules (or one importing itself),
+    sorted (Tarjan's algorithm, iterative)."""
+    index, low, on_stack, stack, circles = {}, {}, set(), [], []
+    for root in sorted(graph):
+        if root in index:
+            continue
+        work = [(root, iter(sorted(graph[root])))]
+        index[root] = low[root] = len(index)
+        stack.append(root)
+        on_stack.add(root)
+        while work:
+            node, successors = work[-1]
+            for successor in successors:
+                if successor not in index:
+                    index[successor] = low[successor] = len(index)
+                    stack.append(successor)
+                    on_stack.add(successor)
+                    work.append((successor, iter(sorted(graph[successor]))))
+                    break
+                if successor in on_stack:
+                    low[node] = min(low[node], index[successor])
+            else:
+                work.pop()
+                if work:
+                    low[work[-1][0]] = min(low[work[-1][0]], low[node])
+                if low[node] == index[node]:
+                    component = []
+                    while True:
+                        member = stack.pop()
+                        on_stack.discard(member)
+                        component.append(member)
+                        if member == node:
+                            break
+                    if len(component) > 1 or node in graph[node]:
+                        circles.append(sorted(component))
+    return sorted(circles)
+
+
+def test_no_module_imports_itself_through_others():
+    circles = import_circles(import_graph(module_names()))
+    assert not circles, "import circles (each a set of modules that import one another round):\n" + "\n".join(
+        " ↔ ".join(circle) for circle in circles)
+
+
+def test_the_circle_check_finds_a_circle_through_a_function_level_import(tmp_path):
+    package = tmp_path / "csmlab"
+    (package / "engines").mkdir(parents=True)
+    (package / "engines" / "__init__.py").write_text("from csmlab.engines import godot4\n")
+    (package / "engines" / "godot4.py").write_text("from csmlab.engine_export import split_boundaries\n")
+    (package / "engine_export.py").write_text("def export():\n    from csmlab.engines import godot4\n")
+    (package / "settings.py").write_text("from csmlab.registry import check_name\n")
+    modules = {"csmlab.engines": package / "engines" / "__init__.py",
+               "csmlab.engines.godot4": package / "engines" / "godot4.py",
+               "csmlab.engine_export": package / "engine_export.py", "csmlab.settings": package / "settings.py"}
+    assert import_circles(import_graph(modules)) == [["csmlab.engine_export", "csmlab.engines.godot4"]]
+    assert import_circles({"a": {"b"}, "b": {"c"}, "c": set()}) == []
+    assert import_circles({"a": {"a"}}) == [["a"]]
 
 
 def test_the_layer_check_sees_function_level_and_relative_imports(tmp_path):

@@ -52,7 +52,8 @@ def test_checked_device_refuses_names_warp_does_not_know():
     assert checked_device("cpu") == "cpu"
 
 
-KERNEL_MODULES = ["flip", "footprint", "moments", "pages", "pcf", "raster.kernels", "reference", "shadow", "ssim", "taa", "usage", "visibility"]
+KERNEL_MODULES = ["depth_storage", "engine", "flip", "footprint", "moments", "pages", "pcf", "raster.kernels",
+                  "raster.tiled", "rays", "reference", "shadow", "ssim", "taa", "usage", "visibility"]
 """csmlab's Warp modules: each module under csmlab.kernels (packages included) that defines kernels."""
 
 
@@ -71,9 +72,11 @@ def test_the_list_of_kernel_modules_is_every_module_that_defines_kernels():
 
 
 FMA_FROM_LIBRARIES = {
+    "engine": "libdevice's hypot (a warped cascade's receivers; the CPU calls the C library's)",
     "flip": "libdevice's float64 exp and pow",
     "moments": "libdevice's exp and log",
     "pcf": "libdevice's exp",
+    "rays": "Warp's BVH ray query (wp.mesh_query_ray)",
     "reference": "Warp's BVH ray query (wp.mesh_query_ray_anyhit)",
     "visibility": "Warp's BVH ray query (wp.mesh_query_ray)",
 }

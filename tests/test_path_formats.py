@@ -154,7 +154,7 @@ BROKEN = [
     ("unknown-csv-column", "a.csv", "time,x,y,z,qx,qy,qz,qw,fov\n0,0,0,0,0,0,0,1,60\n", {}, 1, "fov"),
     ("non-numeric", "a.txt", TUM_OK + "2.0 0 abc 0 0 0 0 1\n", {}, 2, "ty"),
     ("non-numeric-json", "a.json", '{"poses": [\n {"time": 0, "x": 0, "y": "one", "z": 0,'
-                                   ' "qx": 0, "qy": 0, "qz": 0, "qw": 1}\n]}\n', {}, 2, "y"),
+                                   ' "qx": 0, "qy": 0, "qz": 0, "qw": 1}\n]}\n', {}, 2, "poses[0].y"),
     ("zero-quaternion", "a.txt", "# c\n" + TUM_OK + "2.0 0 0 0 0 0 0 0\n", {}, 3, "qx qy qz qw"),
     ("unnormalised-quaternion", "a.txt", TUM_OK + "2.0 0 0 0 0 0 0 1.01\n", {}, 2, "qx qy qz qw"),
     ("unnormalised-euroc", "a.csv", "#timestamp,x,y,z,qw,qx,qy,qz\n5,0,0,0,0.5,0,0,0\n", {}, 2,
@@ -175,10 +175,14 @@ BROKEN = [
     ("empty-json-poses", "a.json", '{"poses": []}\n', {}, 1, None),
     ("nan", "a.txt", TUM_OK + "2.0 0 nan 0 0 0 0 1\n", {}, 2, "ty"),
     ("nan-json", "a.json", '{"poses": [\n {"time": 0, "x": NaN, "y": 0, "z": 0,'
-                           ' "qx": 0, "qy": 0, "qz": 0, "qw": 1}\n]}\n', {}, 2, "x"),
+                           ' "qx": 0, "qy": 0, "qz": 0, "qw": 1}\n]}\n', {}, 2, "poses[0].x"),
     ("json-syntax", "a.json", '{"poses": [\n {"time": 0,,}\n]}\n', {}, 2, None),
     ("json-missing-field", "a.json", '{"poses": [\n {"time": 0, "x": 0, "y": 0, "z": 0, "qx": 0, "qy": 0,'
-                                     ' "qz": 0, "qw": 1},\n {"time": 1, "x": 0, "y": 0, "z": 0}\n]}\n', {}, 3, "qx"),
+                                     ' "qz": 0, "qw": 1},\n {"time": 1, "x": 0, "y": 0, "z": 0}\n]}\n', {}, 3,
+     "poses[1].qx"),
+    ("json-pose-not-an-object", "a.json", '{"poses": [\n {"time": 0, "x": 0, "y": 0, "z": 0, "qx": 0, "qy": 0,'
+                                          ' "qz": 0, "qw": 1},\n [1, 2]\n]}\n', {}, 1, "poses[1]"),
+    ("json-too-deep", "a.json", '{"poses": ' + "[" * 100 + "]" * 100 + "}", {}, 1, None),
     ("fov-out-of-range", "a.csv", "time,x,y,z,yaw,pitch,roll,fov_y_deg\n0,0,0,0,0,0,0,180\n", {}, 2, "fov_y_deg"),
     ("angles-in-other-convention", "a.csv", "# hi\ntime,x,y,z,yaw,pitch,roll\n0,0,0,0,0,0,0\n",
      {"convention": "unity"}, 2, "yaw"),
@@ -265,3 +269,20 @@ def test_recording_excerpts_read_with_their_counts_and_durations(name, kwargs, u
 def test_real_recordings_read_with_their_counts_and_durations(name, kwargs, unit):
     path = _check_recording(REAL_DATA, name, kwargs, unit)
     assert 25.0 < path.times[-1] - path.times[0] < 100.0
+
+
+def test_a_path_spanning_more_frames_than_the_limit_is_refused_before_resampling(tmp_path):
+    file = tmp_path / "long.txt"
+    file.write_text("0 0 0 0 0 0 0 1\n1e12 0 0 1 0 0 0 1\n")
+    with pytest.raises(InputError, match="at most 10,000,000 frames at 30 fps .*1e\\+12 s.*got 30,000,000,000,001"):
+        read_path(file, format="tum", fps=30.0)
+
+
+def test_stamps_near_the_float_limit_raise_no_overflow_warning(tmp_path):
+    import warnings
+
+    file = tmp_path / "far.csv"
+    file.write_text("time,x,y,z,qx,qy,qz,qw\n0,0,0,0,0,0,0,1\n1,0,0,0,0,0,0,1\n1e308,0,0,0,0,0,0,1\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        assert read_path(file).times[-1] == 1e308

@@ -13,7 +13,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def _registries():
     from csmlab.cascades import EXTENT_METHODS, FIT_METHODS, SNAP_METHODS, SPLIT_METHODS, STABILIZATION_METHODS
-    from csmlab.engine_export import EXPORT_METHODS
+    from csmlab.engines import EXPORT_METHODS
     from csmlab.executor import EXECUTORS
     from csmlab.paths import PATH_GENERATORS
     from csmlab.scene import SCENE_KINDS

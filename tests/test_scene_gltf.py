@@ -153,7 +153,7 @@ def test_a_child_index_out_of_range_is_refused(tmp_path):
     node = b.add_node(mesh=_unit_box(b), children=[7])
     with pytest.raises(InputError) as info:
         load_mesh(b.save(tmp_path / "child.glb", roots=[node]))
-    assert info.value.field == "nodes[0].children"
+    assert info.value.field == "nodes[0].children[0]"
 
 
 def test_vendor_cameras_sample_loads_its_turned_square():
@@ -236,3 +236,77 @@ def test_a_mask_cutoff_of_zero_names_the_materials_field(tmp_path):
     with pytest.raises(InputError, match=r"expected a number in \(0, 1\]") as info:
         load_mesh(b.save(tmp_path / "cutoff.glb", roots=[node]))
     assert info.value.field == "materials[0].alphaCutoff"
+
+
+def _edited_gltf(tmp_path, edit) -> Path:
+    """A box with a sun on a node, saved as JSON glTF, then ``edit`` applied to its parsed JSON."""
+    import json
+
+    b = GltfBuilder()
+    file = b.save(tmp_path / "edited.gltf", roots=[b.add_node(mesh=_unit_box(b)),
+                                                   b.add_node(light=b.add_light(name="sun"))])
+    document = json.loads(file.read_text())
+    edit(document)
+    file.write_text(json.dumps(document))
+    return file
+
+
+@pytest.mark.parametrize("edit, field, match", [
+    (lambda d: d["extensions"].__setitem__("KHR_lights_punctual", [1, 2]), "extensions.KHR_lights_punctual",
+     "expected an object, got a list"),
+    (lambda d: d["extensions"]["KHR_lights_punctual"].__setitem__("lights", "sun"),
+     "extensions.KHR_lights_punctual.lights", "expected a list, got the string 'sun'"),
+    (lambda d: d["extensions"]["KHR_lights_punctual"]["lights"].__setitem__(0, 7),
+     "extensions.KHR_lights_punctual.lights[0]", "expected an object, got 7"),
+    (lambda d: d["nodes"][1]["extensions"]["KHR_lights_punctual"].__setitem__("light", "0"),
+     "nodes[1].extensions.KHR_lights_punctual.light", "expected an index into lights in \\[0, 1\\), got the string"),
+    (lambda d: d["extensions"]["KHR_lights_punctual"]["lights"][0].__setitem__("type", None),
+     "extensions.KHR_lights_punctual.lights[0].type", "expected a light type, got null"),
+])
+def test_a_lights_extension_of_the_wrong_shape_names_its_key(tmp_path, edit, field, match):
+    file = _edited_gltf(tmp_path, edit)
+    with pytest.raises(InputError, match=match) as info:
+        sun_of(read_gltf(file))
+    assert info.value.field == field and info.value.file == str(file)
+
+
+@pytest.mark.parametrize("edit, field, match", [
+    (lambda d: d["nodes"][0].__setitem__("extensions", {"EXT_mesh_gpu_instancing": {"attributes": "T"}}),
+     "nodes[0].extensions.EXT_mesh_gpu_instancing.attributes",
+     "expected TRANSLATION, ROTATION and/or SCALE accessors, got the string 'T'"),
+    (lambda d: d["nodes"][0].__setitem__("extensions", {"EXT_mesh_gpu_instancing": []}),
+     "nodes[0].extensions.EXT_mesh_gpu_instancing", "expected an object, got a list"),
+    (lambda d: d["nodes"][0].__setitem__("translation", {"x": 1}), "nodes[0].translation",
+     "expected 3 finite numbers, got an object"),
+    (lambda d: d["meshes"][0]["primitives"][0].__setitem__("attributes", [0]), "meshes[0].primitives[0].attributes",
+     "expected an object of vertex attributes, got a list"),
+    (lambda d: d["accessors"][0].__setitem__("count", 1e30), "accessors[0].count",
+     "expected an element count, got 1e\\+30"),
+    (lambda d: d["accessors"][0].__setitem__("count", 10 ** 12), "accessors[0].count", "expected at most"),
+    (lambda d: d.__setitem__("nodes", {"0": {}}), "nodes", "expected a list, got an object"),
+    (lambda d: d.__setitem__("asset", {"version": 2}), "asset.version", "expected \"2.0\" \\(glTF 2.0\\), got 2"),
+])
+def test_a_level_of_the_wrong_shape_names_its_key(tmp_path, edit, field, match):
+    file = _edited_gltf(tmp_path, edit)
+    with pytest.raises(InputError, match=match) as info:
+        load_mesh(file)
+    assert info.value.field == field and info.value.file == str(file)
+
+
+def test_a_pathologically_nested_gltf_is_refused_not_recursed_into(tmp_path):
+    file = _edited_gltf(tmp_path, lambda d: d.__setitem__("extras", [[[]]]))
+    file.write_text(file.read_text().replace("[[[]]]", "[" * 50_000 + "]" * 50_000))
+    with pytest.raises(InputError, match="nested at most 64 deep") as info:
+        load_mesh(file)
+    assert info.value.file == str(file)
+
+
+def test_instances_beyond_the_triangle_limit_are_refused_before_they_are_placed(tmp_path, monkeypatch):
+    import csmlab.scene.gltf as gltf_module
+
+    monkeypatch.setattr(gltf_module, "MAX_TRIANGLES", 30)
+    b = GltfBuilder()
+    node = b.add_node(mesh=_unit_box(b), instances={"TRANSLATION": [[float(i), 0.0, 0.0] for i in range(3)]})
+    with pytest.raises(InputError, match="expected at most 30 triangles in the scene .*, got 36") as info:
+        load_mesh(b.save(tmp_path / "many.glb", roots=[node]))
+    assert info.value.field == "nodes[0]"

@@ -8,6 +8,7 @@ import pytest
 
 from csmlab.errors import InputError
 from csmlab.scene import load_mesh, make_scene
+from csmlab.scene.alpha_files import read_alpha_mask
 
 MESHES = Path(__file__).parent / "data" / "meshes"
 REAL_DATA = Path(__file__).resolve().parents[1] / "data" / "meshes"
@@ -115,3 +116,61 @@ def test_a_directory_is_not_a_mesh_file():
 def test_bad_keywords_raise_value_error_naming_the_keyword(keywords, match):
     with pytest.raises(ValueError, match=match):
         load_mesh(MESHES / "pyramid.obj", **keywords)
+
+
+def _png_header(width: int, height: int) -> bytes:
+    """A PNG whose IHDR claims ``width × height`` RGBA texels and holds none (a decompression bomb's header)."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, body: bytes) -> bytes:
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 6, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(b"")) + chunk(b"IEND", b""))
+
+
+def test_an_obj_mask_claiming_30000_squared_texels_is_refused_before_decoding(tmp_path):
+    (tmp_path / "bomb.png").write_bytes(_png_header(30000, 30000))
+    (tmp_path / "card.mtl").write_text("newmtl leaf\nmap_d bomb.png\n")
+    (tmp_path / "card.obj").write_text("mtllib card.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+                                       "usemtl leaf\nf 1/1 2/2 3/3\n")
+    with pytest.raises(InputError, match="at most 67,108,864 texels .*900000000 pixels") as info:
+        load_mesh(tmp_path / "card.obj")
+    assert info.value.file == str(tmp_path / "bomb.png") and info.value.field == "map_d"
+
+
+def test_a_mask_claiming_more_texels_than_the_limit_but_fewer_than_pillows_is_refused(tmp_path):
+    (tmp_path / "big.png").write_bytes(_png_header(9000, 9000))
+    with pytest.raises(InputError, match="at most 67,108,864 texels .*9000 × 9000.*, got 81,000,000") as info:
+        read_alpha_mask(tmp_path / "big.png", field="alpha_mask")
+    assert info.value.file == str(tmp_path / "big.png") and info.value.field == "alpha_mask"
+
+
+def test_an_mtl_naming_a_map_no_file_system_can_hold_is_a_missing_map(tmp_path):
+    (tmp_path / "card.mtl").write_text("newmtl leaf\nmap_d " + "x" * 300 + ".png\n")
+    (tmp_path / "card.obj").write_text("mtllib card.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                                       "vt 0 0\nvt 1 0\nvt 0 1\nusemtl leaf\nf 1/1 2/2 3/3\n")
+    with pytest.raises(InputError, match="expected an existing image file") as info:
+        load_mesh(tmp_path / "card.obj")
+    assert info.value.field == "map_d"
+
+
+def test_an_obj_face_naming_a_vertex_the_file_lacks_is_refused_at_its_line(tmp_path):
+    (tmp_path / "gap.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n")
+    with pytest.raises(InputError, match="expected v references in \\[1, 3\\].*got '4'") as info:
+        load_mesh(tmp_path / "gap.obj")
+    assert (info.value.line, info.value.field) == (4, "f")
+    (tmp_path / "relative.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf -3/1 -2/-1 -1/1\n")
+    assert load_mesh(tmp_path / "relative.obj").triangle_count == 1
+
+
+def test_a_vertex_beyond_the_coordinate_limit_is_refused_not_overflowed(tmp_path):
+    import warnings
+
+    (tmp_path / "far.obj").write_text("v 0 0 0\nv 1e300 0 0\nv 0 1 0\nf 1 2 3\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        with pytest.raises(InputError, match="within 1e\\+12 m of the origin.*vertex 2") as info:
+            load_mesh(tmp_path / "far.obj", scale=1e10)
+    assert info.value.field == "vertices"

@@ -173,9 +173,9 @@ def test_engine_presets_are_measured_on_the_same_frames_and_fitted_to_the_budget
     assert (tmp_path / "recommended.toml").is_file() and (tmp_path / "exports" / "ue5.ini").is_file()
     recommended = load_experiment_with(tmp_path / "recommended.toml", tmp_path)
     assert recommended.settings == result.recommended.settings
-    # Each engine's own files come back through csmlab import (tests/test_importers.py checks field by field),
+    # Each engine's own files come back through csmlab import (tests/engines/ checks field by field),
     # the map size too unless the snippet says the engine cannot hold it.
-    from csmlab.importers import IMPORT_METHODS, import_settings
+    from csmlab.engines import IMPORT_METHODS, import_settings
 
     for engine in IMPORT_METHODS:
         back = import_settings(sorted((tmp_path / "exports" / engine).iterdir()), engine=engine).settings
@@ -319,6 +319,50 @@ def test_a_virtual_clipmap_preset_is_fitted_to_a_budget_by_its_page_pool():
     assert shadow_memory_bytes(fitted) == 16 * 2**20
     assert tune_module._fitted_label("ue5_vsm", fitted) == "ue5_vsm @ 256 pages"
     assert tune_module._fitted(vsm, 1) == vsm.replace(physical_pages=1)
+
+
+def test_a_candidate_that_is_no_valid_setting_is_refused_naming_the_trial_the_method_and_the_field(plain, tmp_path):
+    # Each value alone is valid (2 or 3 cascades with practical splits; manual splits of 2); 3 manual is not.
+    method = plain.methods[0]
+    split = dataclasses.replace(plain, methods=(dataclasses.replace(
+        method, settings=method.settings.replace(splits=(0.3, 1.0))),))
+    space = {"cascades": ("choice", (2, 3)), "split": ("choice", ("practical", "manual"))}
+    with pytest.raises(InputError) as caught:
+        tune(split, out_dir=tmp_path, trials=4, space=space, presets=[])
+    assert (f"trial 3, method {method.name}: splits: expected 3 far ends (one per cascade), got 2 (the candidate: "
+            f"cascades=3, split='manual')") in str(caught.value)
+
+
+GODOT = TINY.replace('extends = ["methods/none"]', 'extends = ["methods/none", "engines/godot4"]') + """
+[tune]
+method = "godot4"
+cascades = [1, 2, 3, 4]
+resolution = [256, 512, 1024]
+"""
+
+
+def test_a_tune_of_an_engine_preset_searches_the_engines_own_space_and_exports_whole(tmp_path):
+    from csmlab.engines import export
+
+    path = tmp_path / "godot.toml"
+    path.write_text(GODOT)
+    result = tune(load_experiment(path), out_dir=tmp_path / "out", trials=3, seed=2, presets=[])
+    # Godot has 1, 2 or 4 splits and an atlas of 512² tiles or larger: 3 cascades and 256² are not offered.
+    assert result.space == {"cascades": ("choice", (1, 2, 4)), "resolution": ("choice", (512, 1024))}
+    assert {t.params["cascades"] for t in result.trials} - {1, 2, 4} == set()
+    for trial in result.trials:
+        # The split fractions follow the cascade count as Godot's split mode takes them.
+        assert len(trial.settings.splits) == trial.settings.cascades
+        assert export(trial.settings, near=0.1, far=1000.0, engine="godot4").lacking == ()
+    assert "lacks:" not in (tmp_path / "out" / "exports" / "godot4.txt").read_text()
+
+
+def test_a_field_an_engine_has_no_setting_for_is_refused_in_a_tune_of_its_preset(tmp_path):
+    path = tmp_path / "godot.toml"
+    path.write_text(GODOT)
+    with pytest.raises(InputError, match="method godot4 extends the godot4 preset.*no setting for 'depth_range'"):
+        tune(load_experiment(path), out_dir=tmp_path / "out", space={"depth_range": ("choice", ("scene",))},
+             presets=[])
 
 
 # --- the phases one by one: resolve options, references, search, result, outputs ---------------------------

@@ -14,14 +14,18 @@ dispatches on ``method=``.
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
 from csmlab.registry import check_name, dispatch
 
-__all__ = ["SPLIT_METHODS", "split_distances", "splits_exponent", "splits_geometric", "splits_log", "splits_manual",
-           "splits_manual_range", "splits_practical", "splits_uniform"]
+if TYPE_CHECKING:
+    from csmlab.settings import ShadowSettings
+
+__all__ = ["SPLIT_METHODS", "count_one_two_or_four", "fractions_of_far", "fractions_of_range", "split_boundaries",
+           "split_distances", "splits_exponent", "splits_geometric", "splits_log", "splits_manual",
+           "splits_manual_range", "splits_practical", "splits_uniform", "ue_split_fractions"]
 
 
 def splits_uniform(*, near: float, far: float, count: int) -> np.ndarray:
@@ -156,3 +160,36 @@ def split_distances(*, near: float, far: float, count: int, method: str = "pract
                           "first_cascade_far": first_cascade_far})
     z[0], z[-1] = near, far
     return z
+
+
+def split_boundaries(settings: ShadowSettings, *, near: float, far: float) -> np.ndarray:
+    """Cascade boundaries ``(C + 1,)`` in metres of view depth, as the cascades are built: from the camera's
+    ``near`` to ``min(shadow_distance, far)``."""
+    return split_distances(near=near, far=min(settings.shadow_distance, far), count=settings.cascades,
+                           method=settings.split, lambda_=settings.lambda_, splits=settings.splits,
+                           distribution_exponent=settings.distribution_exponent,
+                           first_cascade_far=settings.first_cascade_far)
+
+
+def fractions_of_far(boundaries: np.ndarray) -> list[float]:
+    """The inner boundaries ``(C - 1,)`` of ``boundaries`` ``(C + 1,)`` as fractions of the last, ``z_i / z_C``:
+    the splits of engines that measure from the camera (Unity, three.js ``custom``)."""
+    return [float(v / boundaries[-1]) for v in boundaries[1:-1]]
+
+
+def fractions_of_range(boundaries: np.ndarray) -> list[float]:
+    """The inner boundaries ``(C - 1,)`` of ``boundaries`` ``(C + 1,)`` as fractions of the range from the first,
+    ``(z_i - z_0) / (z_C - z_0)``: the splits of engines that measure from the near plane (Godot, Filament)."""
+    return [float((v - boundaries[0]) / (boundaries[-1] - boundaries[0])) for v in boundaries[1:-1]]
+
+
+def ue_split_fractions(exponent: float, count: int) -> np.ndarray:
+    """Unreal's split fractions ``(count + 1,)`` of the shadow range: ``Σ_{k<i} e^k / Σ_{k<C} e^k``."""
+    powers = float(exponent) ** np.arange(count, dtype=np.float64)
+    return np.concatenate([[0.0], np.cumsum(powers) / powers.sum()])
+
+
+def count_one_two_or_four(count: int) -> int:
+    """The cascade count an engine offering 1, 2 or 4 cascades takes for ``count``: itself when offered, 3 → 2,
+    above 4 → 4 (Godot's split modes, Unity built-in's shadowCascades)."""
+    return count if count in (1, 2, 4) else (2 if count < 4 else 4)

@@ -41,6 +41,16 @@ def experiment_document(experiment: Experiment) -> dict:
     fields hold absolute paths. Loading this document as a TOML file gives the same experiment.
     """
     scene = _section_document(experiment.scene)
+    if experiment.scene.parts:
+        scene["parts"] = [_section_document(part) for part in experiment.scene.parts]
+    else:
+        # Without parts: an experiment keeps the document (and the hashes) it had.
+        scene.pop("parts")
+    if experiment.scene.blend_casters == "opaque":
+        # The default (as before the field): an experiment that does not set it keeps its hashes.
+        scene.pop("blend_casters")
+    if experiment.scene.kind == "mesh" and not experiment.scene.file:
+        scene.pop("file")
     if experiment.scene.kind != "mesh":
         for key in ("file", "scale", "up", "ground"):
             scene.pop(key)
@@ -53,6 +63,9 @@ def experiment_document(experiment: Experiment) -> dict:
         camera.pop(key, None)
     if not experiment.camera.camera:
         camera.pop("camera", None)
+    if experiment.camera.view_check == "warn":
+        # The default: an experiment that does not set it keeps the document (and the hashes) it had.
+        camera.pop("view_check")
     light = _section_document(experiment.light)
     if not experiment.light.from_scene:
         light.pop("from_scene")
@@ -89,7 +102,8 @@ def _hashed(document: dict) -> str:
 
 def _content_addressed(section: dict) -> dict:
     """A section with its file fields replaced by the files' content digests (hashes don't depend on where)."""
-    return {k: (_file_digest(v) if k in ("file", "times_file") and v else v) for k, v in section.items()}
+    return {k: (_file_digest(v) if k in ("file", "times_file") and v
+                else [_content_addressed(part) for part in v] if k == "parts" else v) for k, v in section.items()}
 
 
 def config_hash(experiment: Experiment) -> str:

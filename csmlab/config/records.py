@@ -24,6 +24,10 @@ def _positive(x) -> bool:
     return x > 0 and math.isfinite(x)
 
 
+VIEW_CHECK_MODES = ("warn", "refuse", "off")
+"""``[camera] view_check`` (:mod:`csmlab.paths.view_check`)."""
+
+
 class _Checked:
     """A record whose fields declare their range checks in ``metadata`` (:func:`_expect`).
 
@@ -45,6 +49,20 @@ class _Checked:
 
 
 @dataclass(frozen=True)
+class ScenePart(_Checked):
+    """One ``[[scene.parts]]`` entry: a mesh file placed in the level (csmlab.scene.parts)."""
+
+    file: str = ""
+    """The part's mesh file (OBJ, PLY, STL, VTK, glTF), relative to the file that names it."""
+    translation: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Metres the part is moved by, last."""
+    rotation_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Turns about the world X, then Y, then Z axes through the part's origin, degrees (after ``scale``)."""
+    scale: float = field(default=1.0, metadata=_expect(_positive, "a positive factor"))
+    """The part's own uniform scale, after ``[scene] scale`` (metres per file unit) and ``up``."""
+
+
+@dataclass(frozen=True)
 class SceneConfig(_Checked):
     """``[scene]``: what the camera sees and the light shines on."""
 
@@ -62,6 +80,13 @@ class SceneConfig(_Checked):
     """mesh: add a ground plane under the mesh to receive its shadow."""
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     """Metres the whole world (scene and camera path) is moved by: a world far from the origin (10⁶ m)."""
+    blend_casters: str = field(default="opaque", metadata=_expect(lambda x: x in ("opaque", "masked"),
+                                                                   "one of ['opaque', 'masked']"))
+    """mesh, glTF: alphaMode BLEND materials cast (and are seen) solid (opaque) or alpha-tested at their alphaCutoff
+    (masked); docs/engines.md says what each engine does with them."""
+    parts: tuple[ScenePart, ...] = ()
+    """mesh: further files placed by transforms (``[[scene.parts]]``, :class:`ScenePart`): a level as engines export
+    it, several files; with or without ``file`` (placed as it is)."""
     params: dict = field(default_factory=dict)
     """Further keyword parameters of the procedural scene (its generator's signature lists them)."""
 
@@ -116,6 +141,19 @@ class CameraConfig(_Checked):
     """Near clip distance, metres."""
     far: float = field(default=400.0, metadata=_expect(_positive, "a positive distance in metres"))
     """Far clip distance, metres."""
+    fit_level: bool | None = None
+    """path: place the generated path in the scene's level — x, z from its bounds' centre, heights above its ground
+    found by ray casts (csmlab.paths.generators.fitted_path); unset: on for kind = "mesh", off for procedural scenes."""
+    orbit_height: float | None = None
+    """path = "orbit": the camera's height, metres: world y (default 3), or above the ground in a fitted level
+    (default half the radius). ``height`` is the image's."""
+    flight_height: float | None = None
+    """path = "flyover": the flight's height, metres: world y (default 40), or above the highest ground under the
+    track in a fitted level (default half the level's longer half-extent)."""
+    view_check: str = field(default="warn", metadata=_expect(lambda x: x in VIEW_CHECK_MODES,
+                                                              f"one of {list(VIEW_CHECK_MODES)}"))
+    """Check every frame's view against the scene (camera inside geometry, below the ground, near plane clipping most
+    of the view): warn (a line naming the frames, kept in summary.json and the report), refuse (exit 2, for CI), off."""
     params: dict = field(default_factory=dict)
     """Further keyword parameters of the path generator (its signature lists them)."""
 

@@ -18,9 +18,9 @@ from dataclasses import fields
 from pathlib import Path
 
 from csmlab.config.locate import _Located
-from csmlab.config.presets import _METHOD_NAME, _merged, _read_toml
+from csmlab.config.presets import _METHOD_NAME, CONFIGS_DIR, _merged, _read_toml
 from csmlab.config.records import (_TOP_FIELDS, CameraConfig, Experiment, LightConfig, Method, ReportConfig, TaaConfig,
-                                   SceneConfig, TuneConfig, _positive, _record_fields, sweep_points)
+                                   SceneConfig, ScenePart, TuneConfig, _positive, _record_fields, sweep_points)
 from csmlab.config.toml_writer import _toml_value
 from csmlab.errors import InputError
 from csmlab.registry import parameters, unknown_name_message
@@ -181,22 +181,41 @@ def _scene(table, located: _Located) -> SceneConfig:
         _registry_name(kind, SCENE_KINDS, where="scene.kind", located=located)
     generator = SCENE_KINDS.get(kind) if isinstance(kind, str) and kind != "mesh" else None
     accepted = parameters(generator) if generator is not None else ()
-    common = {"kind", "seed", "file", "scale", "up", "ground", "offset"}
+    common = {"kind", "seed", "file", "scale", "up", "ground", "offset", "parts", "blend_casters"}
     extra = [p for p in accepted if p not in common]
-    scene = _record(SceneConfig, table, where="scene", located=located, extra=extra)
+    parts = table.get("parts", []) if isinstance(table, dict) else []
+    scene = _record(SceneConfig, {k: v for k, v in table.items() if k != "parts"} if isinstance(table, dict) else table,
+                    where="scene", located=located, extra=extra)
     if scene.kind != "mesh":
-        for key in ("file", "scale", "up", "ground"):
+        for key in ("file", "scale", "up", "ground", "parts", "blend_casters"):
             if key in table:
                 raise located.error(f"scene.{key}",
                                     f"expected {key} only with kind = \"mesh\", got kind = {scene.kind!r}")
         return scene
-    if not scene.file:
-        raise located.error("scene.file", "expected a mesh file with kind = \"mesh\", got none")
+    placed = _scene_parts(parts, located)
+    if not scene.file and not placed:
+        raise located.error("scene.file", "expected a mesh file (or [[scene.parts]]) with kind = \"mesh\", got none")
     from csmlab.scene.mesh import UP_AXES
 
     _registry_name(scene.up, UP_AXES, where="scene.up", located=located)
-    return SceneConfig(**{**_record_fields(scene), "file": _existing_file(scene.file, where="scene.file",
-                                                                          located=located)})
+    file = _existing_file(scene.file, where="scene.file", located=located) if scene.file else ""
+    return SceneConfig(**{**_record_fields(scene), "file": file, "parts": placed})
+
+
+def _scene_parts(parts, located: _Located) -> tuple[ScenePart, ...]:
+    """``[[scene.parts]]``: each a :class:`ScenePart` with its file made absolute and checked."""
+    if not isinstance(parts, list) or not all(isinstance(p, dict) for p in parts):
+        raise located.error("scene.parts", f"expected [[scene.parts]] tables (file, translation, rotation_deg, "
+                                           f"scale), got {parts!r}")
+    out = []
+    for i, table in enumerate(parts):
+        where = f"scene.parts[{i}]"
+        part = _record(ScenePart, table, where=where, located=located)
+        if not part.file:
+            raise located.error(f"{where}.file", "expected the part's mesh file, got none")
+        out.append(ScenePart(**{**_record_fields(part),
+                                "file": _existing_file(part.file, where=f"{where}.file", located=located)}))
+    return tuple(out)
 
 
 def _camera(table, located: _Located) -> CameraConfig:
@@ -227,7 +246,15 @@ def _camera(table, located: _Located) -> CameraConfig:
             if key in table:
                 raise located.error(f"camera.{key}", f"expected {key} only with a recorded file, got path = "
                                                      f"{camera.path!r}")
+        for key, owner in (("orbit_height", "orbit"), ("flight_height", "flyover")):
+            if key in table and camera.path != owner:
+                raise located.error(f"camera.{key}", f"expected {key} only with path = {owner!r}, got path = "
+                                                     f"{camera.path!r}")
         return camera
+    for key in ("fit_level", "orbit_height", "flight_height"):
+        if key in table:
+            raise located.error(f"camera.{key}", f"expected {key} only with a path generator (path = ...), got "
+                                                 f"file = {camera.file!r}")
     if camera.params:
         key = next(iter(camera.params))
         raise _unknown("camera", key, [f.name for f in fields(CameraConfig) if f.name != "params"], located)
@@ -508,7 +535,10 @@ def _tune(table, methods: tuple[Method, ...], located: _Located, camera: CameraC
         raise located.error("tune.method", f"expected one of the experiment's methods {names}, got "
                                            f"{values['method']!r}")
     tuned = next(m for m in methods if m.name == (values.get("method") or names[0]))
-    for key, spec in space:
+    # An engine preset's method is checked by csmlab tune, which first sets the fields the engine derives from a
+    # candidate (Godot's splits for its cascade count: csmlab.engines' tune spaces, which config does not import).
+    engine_preset = (CONFIGS_DIR / "engines" / f"{tuned.name}.toml").is_file()
+    for key, spec in [] if engine_preset else space:
         for value in (spec[1] if spec[0] == "choice" else spec[1:3]):
             _checked_settings(tuned.settings.replace(**{key: value}), located=located, camera=camera,
                               where_of=lambda f, k=key: f"tune.{k}" if f == k else f"methods.{tuned.name}.{f}")

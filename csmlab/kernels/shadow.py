@@ -222,7 +222,8 @@ def holds(x: wp.int64, y: wp.int64, inset: wp.int64, top: wp.int64) -> bool:
 
 @wp.struct
 class FixedReceivers:
-    """Receivers already in every cascade's fixed point (:func:`receiver_coordinates`, or the host's float32 engine math)."""
+    """Receivers already in every cascade's fixed point (:func:`receiver_coordinates`, or an engine's window space:
+    :func:`csmlab.kernels.engine.window_receivers`)."""
 
     coords: wp.array3d(dtype=wp.int64)
     depth: wp.array2d(dtype=wp.float32)

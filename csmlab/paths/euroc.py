@@ -32,10 +32,14 @@ def _nanoseconds(rows, *, file) -> np.ndarray:
     stamps = []
     for number, tokens in rows:
         try:
-            stamps.append(int(tokens[0]))
+            stamp = int(tokens[0])
         except ValueError:
-            raise InputError(f"expected whole nanoseconds, got {tokens[0]!r}", file=file, line=number,
-                             field="timestamp") from None
+            stamp = None
+        if stamp is None or not -(2 ** 63) <= stamp < 2 ** 63:
+            shown = tokens[0] if len(tokens[0]) <= 40 else tokens[0][:40] + "…"
+            raise InputError(f"expected whole nanoseconds that fit 64 bits, got {shown!r}", file=file, line=number,
+                             field="timestamp")
+        stamps.append(stamp)
     return np.array(stamps, dtype=np.int64)
 
 

@@ -9,7 +9,6 @@ field, before any pose is returned.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -17,6 +16,7 @@ from typing import Callable
 import numpy as np
 
 from csmlab.camera import CameraPath
+from csmlab.documents import MAX_FRAMES, json_value, within_limit
 from csmlab.errors import InputError
 from csmlab.paths.conventions import convention_named, poses_from_opengl, poses_to_opengl
 from csmlab.paths.euroc import read_euroc, write_euroc
@@ -108,10 +108,10 @@ def guess_format(file) -> str:
     first = next((text.strip() for text in lines if text.strip()), "")
     if Path(file).suffix.lower() == ".json" or first.startswith("{"):
         try:
-            document = json.loads("\n".join(lines))
-        except ValueError:
-            return "json"  # its reader locates the syntax error
-        return "nerfstudio" if isinstance(document, dict) and "camera_path" in document else "json"
+            document = json_value("\n".join(lines), file=file)
+        except InputError:
+            return "json"  # its reader locates the syntax error (or the nesting too deep)
+        return "nerfstudio" if document.is_object() and document.has("camera_path") else "json"
     if first.lower().startswith("#timestamp"):
         return "euroc"
     rows = data_rows(lines)
@@ -282,6 +282,11 @@ def read_recording(file, *, format: str | None = None, camera: str = "", convent
                           max_gap=limit, gaps_rule=gaps, gaps=found)
     resample = fps is not None and (recorded.times is not None or times_file is not None)
     if resample:
+        with np.errstate(over="ignore"):  # a span of 1e308 s: counted as more frames than the limit
+            frames = float(path.times[-1] - path.times[0]) * fps + 1.0
+        within_limit(int(min(frames, 1e30)), MAX_FRAMES, what=f"frames at {fps:g} fps (the poses span "
+                     f"{float(path.times[-1] - path.times[0]):.6g} s)", file=times_file or file,
+                     field=recorded.time_field)
         path = path.resample(fps)
     restarts = np.empty(0)
     if gaps == "cut" and found:

@@ -22,11 +22,19 @@ Every generator takes ``frames`` (≥ 1) and ``fps`` (Hz) and returns frame ``i`
 it deterministic: the same arguments give bit-identical paths. Orientations come from csmlab's
 yaw/pitch/roll (:func:`~csmlab.paths.conventions.orientation_from_yaw_pitch_roll`), computed for
 all frames at once. :func:`make_path` dispatches on the name and sets the projection.
+
+A level that is not csmlab's own (a mesh or glTF file: its ground 5–12 m up, its centre anywhere)
+gets the same generators placed in it by :func:`fitted_path` (``make_path(..., level=)``,
+``[camera] fit_level``): coordinates from the level's centre, heights above its ground found by ray
+casts (:class:`csmlab.scene.level.Level`), the ring scaled to the level, an orbit about its centre
+at ``orbit_height`` and a flyover across it at ``flight_height`` above the terrain. Without a level
+every generator gives exactly the path it gave before.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import inspect
 from typing import Callable
 
 import numpy as np
@@ -34,12 +42,13 @@ import numpy as np
 from csmlab.camera import CameraPath
 from csmlab.geometry import normalized
 from csmlab.paths.conventions import orientation_from_yaw_pitch_roll
-from csmlab.registry import dispatch, parameters
+from csmlab.registry import check_name, dispatch, parameters
 
 __all__ = [
     "PATH_GENERATORS",
     "dolly_path",
     "dueling_path",
+    "fitted_path",
     "flyover_path",
     "jitter_path",
     "make_path",
@@ -376,8 +385,131 @@ PATH_GENERATORS: dict[str, Callable[..., CameraPath]] = {
 """Path generators by name; add an entry to register a new one."""
 
 
+LEVEL_RING_SHARE = 0.5
+"""In a fitted level, the ring's radius (walk, dueling, jitter, orbit; dolly's and zoom's chord) as a share
+of the level's smaller horizontal half-extent."""
+
+LEVEL_FIT_SAMPLES = 64
+"""Points along an orbit's circle or a flyover's track where the fitted height looks for the highest ground."""
+
+
+def _level_reach(level) -> float:
+    """The level's smaller horizontal half-extent in metres, or a twentieth of the larger for a level thin along one axis."""
+    half = np.asarray(level.half_extent, dtype=np.float64)
+    return max(float(half.min()), 0.05 * float(half.max()), 1e-3)
+
+
+def _ground(level, x, z) -> np.ndarray:
+    """Ground heights ``(N,)`` under ``(x, z)``; the level's lowest point where there is none."""
+    y = level.ground_heights(x, z)
+    return np.where(np.isnan(y), level.bounds[0, 1], y)
+
+
+def _fitted_orbit(level, *, frames, fps, params, orbit_height) -> CameraPath:
+    """:func:`orbit_path` about the level's centre, ``orbit_height`` above the highest ground under its circle."""
+    centre = level.centre
+    radius = params.pop("radius", LEVEL_RING_SHARE * _level_reach(level))
+    _positive(radius=radius)
+    offset = _point(params.pop("target", (0.0, 0.0, 0.0)), name="target")
+    tx, tz = centre[0] + offset[0], centre[2] + offset[2]
+    target = np.array([tx, _ground(level, [tx], [tz])[0] + offset[1], tz])
+    height = 0.5 * radius if orbit_height is None else orbit_height
+    _finite(orbit_height=height)
+    angle = np.linspace(0.0, 2.0 * np.pi, LEVEL_FIT_SAMPLES, endpoint=False)
+    ground = _ground(level, np.append(tx + radius * np.cos(angle), tx), np.append(tz - radius * np.sin(angle), tz))
+    return orbit_path(frames=frames, fps=fps, target=target, radius=radius, height=float(ground.max()) + height,
+                      **params)
+
+
+def _fitted_flyover(level, *, frames, fps, params, flight_height) -> CameraPath:
+    """:func:`flyover_path` across the level's longer horizontal axis through its centre, ``flight_height``
+    above the highest ground under the track, crossing the level over the run unless ``speed`` is given."""
+    t = _frame_times(frames, fps)
+    half = np.asarray(level.half_extent, dtype=np.float64)
+    along_x = half[0] >= half[1]
+    start = _point(params.pop("start", (-half[0], 0.0, 0.0) if along_x else (0.0, 0.0, half[1])), name="start")
+    heading = params.pop("heading_deg", -90.0 if along_x else 0.0)
+    speed = params.pop("speed", 2.0 * float(half.max()) / max(float(t[-1]), 1.0 / fps))
+    _finite(heading_deg=heading, speed=speed)
+    begin = level.centre[[0, 2]] + start[[0, 2]]
+    end = begin + speed * float(t[-1]) * _heading(heading)[[0, 2]]
+    track = begin + np.linspace(0.0, 1.0, LEVEL_FIT_SAMPLES)[:, None] * (end - begin)
+    height = 0.5 * float(half.max()) if flight_height is None else flight_height
+    _finite(flight_height=height)
+    altitude = float(_ground(level, track[:, 0], track[:, 1]).max()) + height
+    return flyover_path(frames=frames, fps=fps, start=(begin[0], altitude, begin[1]), heading_deg=heading, speed=speed,
+                        **params)
+
+
+def _ring_defaults(name: str, radius: float) -> dict:
+    """A fitted ground-level generator's placement of csmlab's ring (20 m; dolly's and zoom's chord at 19 m,
+    6 m along) scaled to the level's ring ``radius``; keywords the experiment gives win."""
+    if name in ("walk", "dueling"):
+        return {"radius": radius}
+    if name == "jitter":
+        return {"position": (radius, 1.7, 0.0)}
+    if name in ("dolly", "zoom"):
+        return {"start": (0.95 * radius, 1.7, 0.3 * radius)}
+    return {}
+
+
+def _fitted_on_ground(name, level, *, frames, fps, offered, params) -> CameraPath:
+    """A ground-level generator in the level's frame: x and z from its centre, y above the ground under the eye."""
+    defaults = _ring_defaults(name, LEVEL_RING_SHARE * _level_reach(level))
+    path = dispatch(PATH_GENERATORS, name, field="path", frames=frames, fps=fps, offered=offered,
+                    **{**defaults, **params})
+    x = path.positions[:, 0] + level.centre[0]
+    z = path.positions[:, 2] + level.centre[2]
+    positions = np.stack([x, _ground(level, x, z) + path.positions[:, 1], z], axis=1)
+    return dataclasses.replace(path, positions=positions)
+
+
+def fitted_path(name: str, level, *, frames: int, fps: float = 30.0, seed: int = 1, fov_y_deg: float = 60.0,
+                light_direction=None, orbit_height: float | None = None, flight_height: float | None = None,
+                **params) -> CameraPath:
+    """Generator ``name``'s path placed in ``level`` (``[camera] fit_level``), before the projection is set.
+
+    Every generator's coordinates are taken in the level's frame: x and z from the centre of its
+    bounds, y above the ground under the point (:meth:`csmlab.scene.level.Level.ground_heights`, the
+    level's lowest point where there is none). The ring that csmlab's own scenes keep clear at 20 m
+    becomes :data:`LEVEL_RING_SHARE` of the level's smaller half-extent (walk, dueling, jitter and
+    orbit radius, dolly's and zoom's start, scaled alike), and
+
+    * ``orbit`` circles the level's centre (on its ground, plus ``target``) ``orbit_height`` metres
+      above the highest ground under its circle (default half the radius), looking at it;
+    * ``flyover`` crosses the level along its longer horizontal axis through the centre (``start``
+      and ``heading_deg`` may move it; ``start``'s y is not used), ``flight_height`` metres above the
+      highest ground under its track (default half the longer half-extent), at the speed that
+      crosses the level over the run unless ``speed`` is given.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`PATH_GENERATORS`.
+    level : csmlab.scene.level.Level
+        Bounds and ground of the scene.
+    orbit_height, flight_height : float, optional
+        Metres above the ground (orbit, flyover).
+    frames, fps, seed, fov_y_deg, light_direction, **params
+        As :func:`make_path`.
+    """
+    offered = {"seed": seed, "light_direction": light_direction, "fov_y_deg": fov_y_deg}
+    unknown = sorted(set(params) - set(parameters(PATH_GENERATORS[check_name(name, PATH_GENERATORS, field="path")])))
+    if unknown:
+        raise ValueError(f"{name}: unknown parameter(s) {unknown}; expected some of "
+                         f"{sorted(parameters(PATH_GENERATORS[name]))}")
+    params = dict(params)
+    if name == "orbit":
+        orbit_height = params.pop("height", orbit_height)
+        return _fitted_orbit(level, frames=frames, fps=fps, params=params, orbit_height=orbit_height)
+    if name == "flyover":
+        return _fitted_flyover(level, frames=frames, fps=fps, params=params, flight_height=flight_height)
+    return _fitted_on_ground(name, level, frames=frames, fps=fps, offered=offered, params=params)
+
+
 def make_path(name: str, *, frames: int, fps: float = 30.0, seed: int = 1, fov_y_deg: float = 60.0,
               aspect: float = 16.0 / 9.0, near: float = 0.1, far: float = 400.0, light_direction=None,
+              level=None, orbit_height: float | None = None, flight_height: float | None = None,
               **params) -> CameraPath:
     """The camera path of generator ``name`` with the given projection.
 
@@ -394,6 +526,15 @@ def make_path(name: str, *, frames: int, fps: float = 30.0, seed: int = 1, fov_y
         Projection of every pose (degrees, width/height, metres, metres).
     light_direction : array_like, shape (3,), optional
         Passed to generators that use it (dueling, which requires it).
+    level : csmlab.scene.level.Level, optional
+        Place the path in this level (:func:`fitted_path`); None: csmlab's own layout, in world
+        coordinates.
+    orbit_height : float, optional
+        orbit: the camera's height in metres — world y without ``level`` (the generator's
+        ``height``), above the ground with it.
+    flight_height : float, optional
+        flyover: the flight's height in metres — world y without ``level`` (``start``'s y), above
+        the ground with it.
     **params
         The generator's own keyword parameters (see its docstring).
 
@@ -402,8 +543,23 @@ def make_path(name: str, *, frames: int, fps: float = 30.0, seed: int = 1, fov_y
     ValueError
         On an unknown name or parameter (listing the valid ones) or a bad value.
     """
-    path = dispatch(PATH_GENERATORS, name, field="path", frames=frames, fps=fps,
-                    offered={"seed": seed, "light_direction": light_direction, "fov_y_deg": fov_y_deg}, **params)
+    check_name(name, PATH_GENERATORS, field="path")
+    for field, value, owner in (("orbit_height", orbit_height, "orbit"), ("flight_height", flight_height, "flyover")):
+        if value is not None and name != owner:
+            raise ValueError(f"{field}: expected only with path = {owner!r}, got path = {name!r}")
+    if level is not None:
+        path = fitted_path(name, level, frames=frames, fps=fps, seed=seed, fov_y_deg=fov_y_deg,
+                           light_direction=light_direction, orbit_height=orbit_height, flight_height=flight_height,
+                           **params)
+    else:
+        if orbit_height is not None:
+            params["height"] = orbit_height
+        if flight_height is not None:
+            start = _point(params.get("start", inspect.signature(flyover_path).parameters["start"].default),
+                           name="start")
+            params["start"] = (start[0], flight_height, start[2])
+        path = dispatch(PATH_GENERATORS, name, field="path", frames=frames, fps=fps,
+                        offered={"seed": seed, "light_direction": light_direction, "fov_y_deg": fov_y_deg}, **params)
     # A generator that takes the field of view animates it (zoom); the others get it as it is.
     fov = path.fov_y_deg if "fov_y_deg" in parameters(PATH_GENERATORS[name]) else fov_y_deg
     return dataclasses.replace(path, fov_y_deg=fov, aspect=aspect, near=near, far=far)

@@ -26,7 +26,9 @@ the orientation (its rotation is the polar factor of the world matrix's 3×3 par
 
 Broken files stop with an :class:`~csmlab.errors.InputError` naming the file and the glTF key:
 no perspective camera (``cameras``), an unknown ``camera`` name (``camera``), no
-animation moving the camera (``animations``), keys that go back, non-unit quaternions, NaN.
+animation moving the camera (``animations``), keys that go back, non-unit quaternions, NaN, a key
+of a type the specification does not give it (read through :class:`csmlab.documents.Value`), or an
+animation longer than :data:`~csmlab.documents.MAX_FRAMES` frames at the path's rate.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from csmlab.documents import MAX_FRAMES, Value, within_limit
 from csmlab.geometry import quat_from_matrix, quat_slerp
 from csmlab.paths.recorded import RecordedPoses
 from csmlab.scene.gltf import UNIT_TOLERANCE, GltfFile, local_matrix, node_quaternion, read_gltf, scene_nodes, \
@@ -89,6 +92,8 @@ class GltfCamera:
         ``zfar`` in file units; None for an infinite projection.
     aspect : float or None
         ``aspectRatio`` (width / height); None when the file leaves it to the viewport.
+    camera_name : str
+        The camera's own name (``""`` when it has none).
     """
 
     node: int
@@ -98,6 +103,7 @@ class GltfCamera:
     near: float
     far: float | None
     aspect: float | None
+    camera_name: str = ""
 
 
 def camera_nodes(gltf: GltfFile) -> list[GltfCamera]:
@@ -111,43 +117,37 @@ def camera_nodes(gltf: GltfFile) -> list[GltfCamera]:
         On a bad camera index (``nodes[i].camera``), a camera neither perspective nor orthographic,
         or a bad ``yfov``/``znear``/``zfar``/``aspectRatio`` (``cameras[j]…``).
     """
-    document = gltf.document
     parents = {}
     found = []
     for index, parent in scene_nodes(gltf):
         parents[index] = parent
-        camera = document.nodes[index].camera
-        if camera is None:
+        node = gltf.section("nodes")[index]
+        if not node.has("camera"):
             continue
-        if not isinstance(camera, int) or not 0 <= camera < len(document.cameras):
-            raise gltf.error(f"nodes[{index}].camera", f"expected a camera index in [0, {len(document.cameras)}), "
-                                                       f"got {camera!r}")
-        spec = document.cameras[camera]
-        key = f"cameras[{camera}]"
-        if spec.type == "orthographic":
+        _, spec = gltf.entry(node.at("camera"), "cameras")
+        kind = spec.at("type", "a camera type").text(("perspective", "orthographic"))
+        if kind == "orthographic":
             continue
-        if spec.type != "perspective" or spec.perspective is None:
-            raise gltf.error(f"{key}.type", f"expected a perspective or orthographic camera, got {spec.type!r}")
-        p = spec.perspective
-        checks = (("yfov", p.yfov, lambda x: 0.0 < x < np.pi, "an angle in (0, π) radians"),
-                  ("znear", p.znear, lambda x: x > 0.0, "a positive distance"),
-                  ("zfar", p.zfar, lambda x: x is None or x > p.znear, "a distance beyond znear, or none"),
-                  ("aspectRatio", p.aspectRatio, lambda x: x is None or x > 0.0, "a positive width / height"))
-        for name, value, ok, text in checks:
-            if value is not None and not isinstance(value, (int, float)):
-                raise gltf.error(f"{key}.perspective.{name}", f"expected {text}, got {value!r}")
-            if (value is None and name in ("yfov", "znear")) or (value is not None and not np.isfinite(value)) \
-                    or not ok(value):
-                raise gltf.error(f"{key}.perspective.{name}", f"expected {text}, got {value!r}")
+        p = spec.at("perspective", "the perspective projection's object").mapping()
+        yfov = p.at("yfov", "an angle in (0, π) radians").number(above=0.0, below=np.pi,
+                                                                what="an angle in (0, π) radians")
+        znear = p.at("znear", "a positive distance").number(above=0.0, what="a positive distance")
+        zfar = None if not p.has("zfar") else p.at("zfar").number(above=znear, what="a distance beyond znear, or none")
+        aspect = None if not p.has("aspectRatio") else p.at("aspectRatio").number(
+            above=0.0, what="a positive width / height")
         chain = [index]
         while parents[chain[0]] is not None:
             chain.insert(0, parents[chain[0]])
-        found.append(GltfCamera(node=index, chain=tuple(chain),
-                                name=document.nodes[index].name or spec.name or f"nodes[{index}]",
-                                fov_y_deg=float(np.degrees(p.yfov)), near=float(p.znear),
-                                far=None if p.zfar is None else float(p.zfar),
-                                aspect=None if p.aspectRatio is None else float(p.aspectRatio)))
+        found.append(GltfCamera(node=index, chain=tuple(chain), name=_name(node) or _name(spec) or f"nodes[{index}]",
+                                fov_y_deg=float(np.degrees(yfov)), near=znear, far=zfar, aspect=aspect,
+                                camera_name=_name(spec)))
     return found
+
+
+def _name(entry: Value) -> str:
+    """``entry.name`` (a string), or ``""`` when it has none."""
+    name = entry.get("name")
+    return "" if name is None else name.text()
 
 
 def _chosen_camera(gltf: GltfFile, name: str) -> GltfCamera:
@@ -160,8 +160,7 @@ def _chosen_camera(gltf: GltfFile, name: str) -> GltfCamera:
             raise gltf.error("camera", f"expected camera = one of {[c.name for c in cameras]} (the file has "
                                        f"{len(cameras)} cameras), got none")
         return cameras[0]
-    document = gltf.document
-    chosen = [c for c in cameras if name in (c.name, document.cameras[document.nodes[c.node].camera].name)]
+    chosen = [c for c in cameras if name in (c.name, c.camera_name)]
     if len(chosen) != 1:
         what = "no camera" if not chosen else f"{len(chosen)} cameras"
         raise gltf.error("camera", f"expected the name of one camera node {[c.name for c in cameras]}, got {name!r} "
@@ -179,44 +178,43 @@ def animation_channels(gltf: GltfFile, nodes) -> dict[tuple[int, str], Channel]:
         times that do not increase, a wrong number of values, or non-unit rotation keys.
     """
     out: dict[tuple[int, str], Channel] = {}
-    for a, animation in enumerate(gltf.document.animations):
-        for c, channel in enumerate(animation.channels or []):
-            target = channel.target
-            if target is None or target.node not in nodes or target.path not in _WIDTH:
+    node_count = len(gltf.section("nodes"))
+    for animation in gltf.section("animations"):
+        samplers = animation.mapping().list_at("samplers")
+        for channel in animation.list_at("channels"):
+            target = channel.mapping().at("target", "an object naming the node and the property")
+            target_node = target.mapping().get("node")
+            node = None if target_node is None else target_node.index(node_count, "nodes")
+            path = target.at("path", "a property (translation, rotation, scale, weights)").text()
+            if node not in nodes or path not in _WIDTH:
                 continue
-            key = f"animations[{a}].channels[{c}]"
-            if (target.node, target.path) in out:
-                raise gltf.error(key, f"expected one channel animating nodes[{target.node}].{target.path}, found a "
-                                      f"second ({out[target.node, target.path].key} is the first)")
-            if not isinstance(channel.sampler, int) or not 0 <= channel.sampler < len(animation.samplers):
-                raise gltf.error(f"{key}.sampler", f"expected a sampler index in [0, {len(animation.samplers)}), "
-                                                   f"got {channel.sampler!r}")
-            sampler = animation.samplers[channel.sampler]
-            where = f"animations[{a}].samplers[{channel.sampler}]"
-            interpolation = sampler.interpolation or "LINEAR"
-            if interpolation not in INTERPOLATIONS:
-                raise gltf.error(f"{where}.interpolation", f"expected one of {list(INTERPOLATIONS)}, got "
-                                                           f"{interpolation!r}")
-            times = gltf.accessor(sampler.input, key=f"{where}.input")[:, 0]
-            values = gltf.accessor(sampler.output, key=f"{where}.output")
-            width = _WIDTH[target.path]
+            key = channel.key
+            if (node, path) in out:
+                raise gltf.error(key, f"expected one channel animating nodes[{node}].{path}, found a "
+                                      f"second ({out[node, path].key} is the first)")
+            sampler = samplers[channel.at("sampler", "a sampler index").index(len(samplers), "samplers")].mapping()
+            where = sampler.key
+            interpolation = sampler.get("interpolation")
+            interpolation = "LINEAR" if interpolation is None else interpolation.text(INTERPOLATIONS)
+            times = gltf.accessor(sampler.at("input", "an accessor index"))[:, 0]
+            values = gltf.accessor(sampler.at("output", "an accessor index"))
+            width = _WIDTH[path]
             per_key = 3 if interpolation == "CUBICSPLINE" else 1
             if times.size == 0 or np.any(np.diff(times) <= 0):
                 raise gltf.error(f"{where}.input", "expected at least one key time, strictly increasing")
             if values.shape != (times.size * per_key, width):
                 raise gltf.error(f"{where}.output", f"expected {times.size * per_key} values of {width} components "
-                                                    f"for {times.size} keys ({interpolation} {target.path}), got "
+                                                    f"for {times.size} keys ({interpolation} {path}), got "
                                                     f"{values.shape[0]} of {values.shape[1]}")
             values = values.reshape(times.size, per_key, width)
-            if target.path == "rotation":
+            if path == "rotation":
                 length = np.linalg.norm(values[:, per_key // 2], axis=1)
                 bad = np.abs(length - 1.0) > UNIT_TOLERANCE
                 if np.any(bad):
                     k = int(np.argmax(bad))
                     raise gltf.error(f"{where}.output", f"expected unit quaternions (x, y, z, w), key {k} at "
                                                         f"t = {times[k]:.6g} s has |q| = {length[k]:.6g}")
-            out[target.node, target.path] = Channel(times, values if per_key == 3 else values[:, 0], interpolation,
-                                                     key)
+            out[node, path] = Channel(times, values if per_key == 3 else values[:, 0], interpolation, key)
     return out
 
 
@@ -255,18 +253,19 @@ def sample_channel(times, values, interpolation: str, t, *, rotation: bool = Fal
 
 def _node_matrices(gltf: GltfFile, index: int, channels: dict, t: np.ndarray) -> np.ndarray:
     """Local matrices ``(N, 4, 4)`` of ``nodes[index]`` at times ``t``, its channels applied."""
-    node = gltf.document.nodes[index]
+    node = gltf.section("nodes")[index]
     moved = {path: channels[index, path] for path in _WIDTH if (index, path) in channels}
+    local = local_matrix(gltf, index)  # checks the node's own matrix, or translation, rotation and scale
     if not moved:
-        return np.broadcast_to(local_matrix(gltf, index), (t.size, 4, 4))
-    if node.matrix is not None:
+        return np.broadcast_to(local, (t.size, 4, 4))
+    if node.has("matrix"):
         raise gltf.error(f"nodes[{index}].matrix", "expected translation/rotation/scale on an animated node (the "
                                                    "specification forbids matrix there), got matrix")
-    local_matrix(gltf, index)  # checks the node's own translation, rotation and scale
-    base = {"translation": node.translation or (0.0, 0.0, 0.0), "rotation": node_quaternion(gltf, index),
-            "scale": node.scale or (1.0, 1.0, 1.0)}
+    translation, scale = node.get("translation"), node.get("scale")
+    base = {"translation": np.zeros(3) if translation is None else translation.numbers(3),
+            "rotation": node_quaternion(gltf, index), "scale": np.ones(3) if scale is None else scale.numbers(3)}
     trs = {path: (sample_channel(c.times, c.values, c.interpolation, t, rotation=path == "rotation")
-                  if (c := moved.get(path)) is not None else np.tile(np.asarray(base[path], float), (t.size, 1)))
+                  if (c := moved.get(path)) is not None else np.tile(base[path], (t.size, 1)))
            for path in _WIDTH}
     return trs_matrices(trs["translation"], trs["rotation"], trs["scale"])
 
@@ -306,7 +305,10 @@ def read_gltf_camera(file, *, camera: str = "", fps: float = 30.0) -> RecordedPo
                                        f"rotation or scale channel on its node or an ancestor), found none")
     start = min(float(c.times[0]) for c in channels.values())
     end = max(float(c.times[-1]) for c in channels.values())
-    t = start + np.arange(int(np.floor((end - start) * fps + 1e-9)) + 1) / fps
+    frames = (end - start) * fps + 1e-9
+    within_limit(int(min(frames, 1e30)) + 1, MAX_FRAMES, what=f"frames at {fps:g} fps", file=gltf.path,
+                 field="animations")
+    t = start + np.arange(int(np.floor(frames)) + 1) / fps
     world = np.broadcast_to(np.eye(4), (t.size, 4, 4))
     for index in chosen.chain:
         world = world @ _node_matrices(gltf, index, channels, t)

@@ -72,7 +72,14 @@ def read_kitti_times(file, *, count: int) -> np.ndarray:
         where = numbers[count] if found > count else numbers[-1]
         raise InputError(f"expected one time per pose ({count}), found {found}", file=file, line=int(where),
                          field="time")
-    return ordered_times(values[:, 0], numbers, file=file, field="time")
+    times = ordered_times(values[:, 0], numbers, file=file, field="time")
+    repeated = np.flatnonzero(np.diff(times) == 0)
+    if repeated.size:
+        k = int(repeated[0]) + 1
+        # Repeats are resolved by duplicate_times only where the pose file has the stamps (not KITTI).
+        raise InputError(f"expected times that strictly increase, got {float(times[k])!r} again (line "
+                         f"{int(numbers[k - 1])})", file=file, line=int(numbers[k]), field="time")
+    return times
 
 
 def write_kitti(poses: RecordedPoses, file) -> None:

@@ -25,11 +25,10 @@ import json
 
 import numpy as np
 
-from csmlab.errors import InputError
+from csmlab.documents import Value, json_value
 from csmlab.files import write_atomic
 from csmlab.geometry import quat_from_matrix, quat_to_matrix
 from csmlab.paths.recorded import RecordedPoses, require_poses, text_lines
-from csmlab.paths.tabular import json_number, located_json
 
 __all__ = ["ROTATION_TOLERANCE", "read_nerfstudio", "write_nerfstudio"]
 
@@ -37,15 +36,22 @@ ROTATION_TOLERANCE = 1e-3
 """Largest ``|Rᵀ R − I|`` entry of a ``camera_to_world`` rotation taken as rounding."""
 
 
-def _number(document, key: str, *, file, positive: bool = True) -> float:
-    if key not in document:
-        raise InputError(f"expected the key {key!r} (nerfstudio camera path)", file=file,
-                         line=getattr(document, "line", 1), field=key)
-    value = json_number(document[key], file=file, line=document.line, field=key)
-    if not np.isfinite(value) or (positive and value <= 0):
-        raise InputError(f"expected a finite {'positive ' if positive else ''}number, got {value!r}", file=file,
-                         line=document.line, field=key)
-    return value
+def _positive(document: Value, key: str) -> float:
+    return document.at(key, "a finite positive number (nerfstudio camera path)").number(
+        above=0.0, what="a finite positive number")
+
+
+def _pose_matrix(pose: Value) -> np.ndarray:
+    """``pose.camera_to_world`` ``(4, 4)``, checked to be a rigid transform."""
+    field = pose.at("camera_to_world", "16 numbers (4×4, row-major)")
+    matrix = field.numbers(16, what="16 finite numbers (4×4, row-major)").reshape(4, 4)
+    with np.errstate(over="ignore", invalid="ignore"):  # a huge entry gives inf or NaN: not a rotation
+        bad = (not np.allclose(matrix[3], [0, 0, 0, 1])
+               or not np.abs(matrix[:3, :3].T @ matrix[:3, :3] - np.eye(3)).max() <= ROTATION_TOLERANCE
+               or not np.linalg.det(matrix[:3, :3]) > 0)
+    if bad:
+        raise field.error("a rotation (orthonormal, det +1) and translation with last row 0 0 0 1")
+    return matrix
 
 
 def read_nerfstudio(file) -> RecordedPoses:
@@ -61,44 +67,31 @@ def read_nerfstudio(file) -> RecordedPoses:
     Raises
     ------
     InputError
-        Naming the file, the line and the key: a missing key, a number that is not finite, a
-        ``camera_to_world`` that is not 16 numbers or not a rigid transform, an empty path.
+        Naming the file, the line and the key (read through :class:`csmlab.documents.Value`): a
+        missing key, a value of the wrong type, a number that is not finite, a ``camera_to_world``
+        that is not 16 numbers or not a rigid transform, an empty path, more than
+        :data:`~csmlab.documents.MAX_FRAMES` poses.
     """
     lines = text_lines(file)
-    document = located_json("\n".join(lines), file=file)
-    if not isinstance(document, dict) or not isinstance(document.get("camera_path"), list):
-        raise InputError("expected an object with a 'camera_path' list (nerfstudio camera path)", file=file,
-                         line=getattr(document, "line", 1), field="camera_path")
-    if document.get("camera_type", "perspective") != "perspective":
-        raise InputError(f"expected camera_type 'perspective', got {document['camera_type']!r}", file=file,
-                         line=document.line, field="camera_type")
-    poses = document["camera_path"]
+    document = json_value("\n".join(lines), file=file, lines=True).mapping(
+        "an object with a 'camera_path' list (nerfstudio camera path)")
+    camera_type = document.get("camera_type")
+    if camera_type is not None:
+        camera_type.text(("perspective",))
+    poses = document.at("camera_path", "a list of poses (nerfstudio camera path)").items(
+        "a list of poses (nerfstudio camera path)")
     require_poses(poses, file=file, line_count=len(lines))
-    seconds = _number(document, "seconds", file=file)
-    aspect = _number(document, "render_width", file=file) / _number(document, "render_height", file=file)
+    seconds = _positive(document, "seconds")
+    aspect = _positive(document, "render_width") / _positive(document, "render_height")
+    if not np.isfinite(aspect) or aspect <= 0.0:
+        raise document.at("render_height").error("a render size whose width / height is a finite positive number")
     matrices, fov, numbers = np.empty((len(poses), 4, 4)), np.empty(len(poses)), []
     for k, pose in enumerate(poses):
-        if not isinstance(pose, dict):
-            raise InputError(f"expected camera_path[{k}] to be an object, got {pose!r}", file=file,
-                             line=document.line, field="camera_path")
+        pose.mapping("an object with camera_to_world and fov")
         numbers.append(pose.line)
-        values = pose.get("camera_to_world")
-        if not isinstance(values, list) or len(values) != 16:
-            raise InputError(f"expected camera_path[{k}].camera_to_world: 16 numbers (4×4, row-major), got "
-                             f"{values!r}", file=file, line=pose.line, field="camera_to_world")
-        matrices[k] = np.reshape([json_number(v, file=file, line=pose.line, field="camera_to_world")
-                                  for v in values], (4, 4))
-        fov[k] = _number(pose, "fov", file=file)
-        bad = (not np.all(np.isfinite(matrices[k])) or not np.allclose(matrices[k, 3], [0, 0, 0, 1])
-               or np.abs(matrices[k, :3, :3].T @ matrices[k, :3, :3] - np.eye(3)).max() > ROTATION_TOLERANCE
-               or np.linalg.det(matrices[k, :3, :3]) <= 0)
-        if bad:
-            raise InputError(f"expected camera_path[{k}].camera_to_world to be finite, a rotation (orthonormal, "
-                             f"det +1) and translation with last row 0 0 0 1, got {values!r}", file=file,
-                             line=pose.line, field="camera_to_world")
-        if not 0 < fov[k] < 180:
-            raise InputError(f"expected camera_path[{k}].fov in (0, 180) degrees, got {fov[k]!r}", file=file,
-                             line=pose.line, field="fov")
+        matrices[k] = _pose_matrix(pose)
+        fov[k] = pose.at("fov", "a vertical field of view in (0, 180) degrees").number(
+            above=0.0, below=180.0, what="a vertical field of view in (0, 180) degrees")
     u, _, vt = np.linalg.svd(matrices[:, :3, :3])
     return RecordedPoses(file=str(file), lines=np.asarray(numbers, dtype=np.int64),
                          times=np.arange(len(poses)) * (seconds / len(poses)), positions=matrices[:, :3, 3].copy(),

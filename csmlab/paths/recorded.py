@@ -14,6 +14,7 @@ from typing import Sequence
 
 import numpy as np
 
+from csmlab.documents import MAX_FRAMES, within_limit
 from csmlab.errors import InputError
 
 __all__ = [
@@ -106,10 +107,12 @@ def data_rows(lines: Sequence[str], *, delimiter: str | None = None, comment: st
 
 
 def require_poses(rows: Sequence, *, file, line_count: int) -> None:
-    """Refuse a file with no pose: located at its last line (line 1 when it has none)."""
+    """Refuse a file with no pose (located at its last line, line 1 when it has none) or with more than
+    :data:`~csmlab.documents.MAX_FRAMES`."""
     if not rows:
         raise InputError("expected at least one pose, found none (the file is empty or only comments)",
                          file=file, line=max(line_count, 1))
+    within_limit(len(rows), MAX_FRAMES, what="poses", file=file)
 
 
 def numeric_table(rows: Sequence[tuple[int, list[str]]], *, file, fields: Sequence[str],
@@ -171,7 +174,8 @@ def unit_quaternions(q, lines: np.ndarray, *, file, field: str = "quaternion") -
         At the first line whose quaternion is zero or further from unit length.
     """
     q = np.asarray(q, dtype=np.float64)
-    length = np.linalg.norm(q, axis=1)
+    with np.errstate(over="ignore", invalid="ignore"):  # |q| of a huge component is inf: refused below
+        length = np.linalg.norm(q, axis=1)
     bad = np.abs(length - 1.0) > QUATERNION_TOLERANCE
     if np.any(bad):
         k = int(np.argmax(bad))

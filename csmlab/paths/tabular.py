@@ -33,15 +33,12 @@ Errors name the line of the header (a missing column) or of the pose (its ``{`` 
 
 from __future__ import annotations
 
-import bisect
 import json
-import re
-from json.decoder import JSONObject
-from json.scanner import py_make_scanner
 from typing import Sequence
 
 import numpy as np
 
+from csmlab.documents import json_value
 from csmlab.errors import InputError
 from csmlab.files import write_atomic
 from csmlab.paths.conventions import orientation_from_yaw_pitch_roll
@@ -55,7 +52,7 @@ from csmlab.paths.recorded import (
     unit_quaternions,
 )
 
-__all__ = ["json_number", "located_json", "read_csv", "read_json", "write_csv", "write_json"]
+__all__ = ["read_csv", "read_json", "write_csv", "write_json"]
 
 POSITION = ("time", "x", "y", "z")
 QUATERNION = ("qx", "qy", "qz", "qw")
@@ -140,67 +137,33 @@ def read_csv(file) -> RecordedPoses:
     return _recorded(values, numbers, fields, file=file, header_line=header_line)
 
 
-class _LocatedDict(dict):
-    """A JSON object that remembers the 1-based line of its opening brace."""
-
-    line: int
-
-
-def located_json(text: str, *, file):
-    """Decode ``text``, giving every JSON object a ``.line``; syntax errors become located InputErrors."""
-    line_starts = [0] + [match.end() for match in re.finditer("\n", text)]
-    decoder = json.JSONDecoder()
-
-    def parse_object(s_and_end, *args):
-        obj, end = JSONObject(s_and_end, *args)
-        located = _LocatedDict(obj)
-        located.line = bisect.bisect_right(line_starts, s_and_end[1] - 1)
-        return located, end
-
-    decoder.parse_object = parse_object
-    decoder.scan_once = py_make_scanner(decoder)
-    try:
-        return decoder.decode(text)
-    except json.JSONDecodeError as err:
-        raise InputError(f"expected valid JSON: {err.msg}", file=file, line=err.lineno) from None
-
-
-def json_number(value, *, file, line: int, field: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise InputError(f"expected a number, got {value!r}", file=file, line=line, field=field)
-    return float(value)
-
-
 def read_json(file) -> RecordedPoses:
-    """Every pose of a csmlab JSON path file (schema in the module docstring), in the file's axes."""
+    """Every pose of a csmlab JSON path file (schema in the module docstring), in the file's axes.
+
+    The document is read through :class:`csmlab.documents.Value`: a value of the wrong type names
+    its pose and field (``poses[3].qw``) and the line of the pose's ``{``.
+    """
     lines = text_lines(file)
     text = "\n".join(lines)
     if not text.strip():
         require_poses([], file=file, line_count=len(lines))
-    document = located_json(text, file=file)
-    if not isinstance(document, dict) or set(document) != {"poses"} or not isinstance(document["poses"], list):
-        found = sorted(document) if isinstance(document, dict) else type(document).__name__
-        raise InputError(f"expected an object with one key 'poses' holding a list, got {found}", file=file,
-                         line=getattr(document, "line", 1), field="poses")
-    poses = document["poses"]
+    document = json_value(text, file=file, lines=True).mapping("an object with one key 'poses' holding a list")
+    if document.keys() != ["poses"]:
+        raise document.error(f"an object with one key 'poses' holding a list, got keys {sorted(document.keys())}",
+                             got=False)
+    poses = document.at("poses", "a list of poses").items("a list of poses")
     require_poses(poses, file=file, line_count=len(lines))
-    for k, pose in enumerate(poses):
-        if not isinstance(pose, dict):
-            raise InputError(f"expected pose {k} to be an object, got {pose!r}", file=file,
-                             line=document.line, field="poses")
-    first = poses[0]
-    fields = _schema(list(first), file=file, line=first.line)
+    first = poses[0].mapping("a pose: an object of numbers")
+    fields = _schema(first.keys(), file=file, line=first.line)
     rows = []
     for pose in poses:
-        for name in pose:
+        names = pose.mapping("a pose: an object of numbers").keys()
+        for name in names:
             if name not in fields:
                 raise InputError(f"unexpected field {name!r}: the first pose has {' '.join(fields)}", file=file,
                                  line=pose.line, field=name)
-        for name in fields:
-            if name not in pose:
-                raise InputError(f"missing field: expected {' '.join(fields)}", file=file, line=pose.line,
-                                 field=name)
-        rows.append((pose.line, [json_number(pose[n], file=file, line=pose.line, field=n) for n in fields]))
+        rows.append((pose.line, [pose.at(n, f"a number (the first pose has {' '.join(fields)})").number(
+            what="a finite number") for n in fields]))
     values, numbers = numeric_table(rows, file=file, fields=fields)
     return _recorded(values, numbers, fields, file=file, header_line=first.line)
 

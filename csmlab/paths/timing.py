@@ -253,8 +253,9 @@ def find_gaps(times, positions, lines, *, max_gap: float | None) -> tuple[float,
     t = np.asarray(times, dtype=np.float64)
     if t.shape[0] < 2:
         return float("inf") if max_gap is None else float(max_gap), ()
-    step = np.diff(t)
-    limit = float(GAP_FACTOR * np.median(step)) if max_gap is None else float(max_gap)
+    with np.errstate(over="ignore"):  # stamps near 1e308 s: steps and threshold become inf, no gap is found
+        step = np.diff(t)
+        limit = float(GAP_FACTOR * np.median(step)) if max_gap is None else float(max_gap)
     p = np.asarray(positions, dtype=np.float64)
     gaps = tuple(Gap(start_s=float(t[k]), end_s=float(t[k + 1]), lines=(int(lines[k]), int(lines[k + 1])),
                      jump_m=float(np.linalg.norm(p[k + 1] - p[k]))) for k in np.flatnonzero(step > limit).tolist())

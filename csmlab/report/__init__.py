@@ -34,6 +34,8 @@ import numpy as np
 
 from csmlab.files import write_atomic
 from csmlab.metric_registry import format_number, metric_named
+from csmlab.paths.view_check import findings_line
+from csmlab.scene.gltf_materials import blend_line
 from csmlab.report.animation import write_animation
 from csmlab.report.capture import ANIM_WIDTH, capture_stem, read_npz, safe_name
 from csmlab.report.explore import BUDGET_BYTES, explore_files, write_explore
@@ -206,11 +208,20 @@ def _header(results: ResultFiles) -> dict:
         "frames": len(np.unique(results.metrics["frame"])),
         "scene": _describe(config.get("scene", {}), ("kind", "file", "seed")),
         "camera": _describe(config.get("camera", {}), ("path", "file", "frames", "width", "height")),
-        "light": _describe(config.get("light", {}), ("elevation_deg", "azimuth_deg", "direction")),
+        "light": _light(config.get("light", {})),
         "config_text": json.dumps(config, indent=2, sort_keys=True),
         "recording": summary.get("recording"),
         "taa": _taa(config.get("taa") or {}),
+        "view_check": findings_line(summary.get("view_check")),
+        "blend": blend_line(summary.get("blend_materials")),
     }
+
+
+def _light(light: dict) -> str:
+    """The header's light: the scene file's sun when it comes from there, else its direction or angles."""
+    if light.get("from_scene"):
+        return "the scene file's sun (KHR_lights_punctual)"
+    return _describe(light, ("elevation_deg", "azimuth_deg", "direction"))
 
 
 def _taa(taa: dict) -> str | None:

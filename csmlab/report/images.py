@@ -163,7 +163,7 @@ def snapshot_strip_figures(strips: list[tuple[list[dict], object, str]], labels:
     """Write a picture per snapshot frame: a row per snapshot (method) of shaded, cascades, ρ, |ΔS| and reference error.
 
     A last, short row holds each column's colour bar or legend; the cascade legend runs to the
-    highest cascade any of the frames selects. The frames share one figure, built and laid out for the
+    highest cascade any of the frames selects (a note instead when no pixel falls in any cascade). The frames share one figure, built and laid out for the
     first; each further frame swaps in its images and title — the axes, colour bars and labels cost
     more to build and lay out than the images to paint.
 
@@ -189,7 +189,8 @@ def snapshot_strip_figures(strips: list[tuple[list[dict], object, str]], labels:
     panel_h = panel_w * height / width
     fig = Figure(figsize=(5 * panel_w + 0.5, rows * (panel_h + 0.3) + 1.5), dpi=100, layout="constrained")
     grid = fig.add_gridspec(rows + 1, 5, height_ratios=[panel_h + 0.3] * rows + [0.55])
-    cascades = int(max(s["cascade"].max() for snapshots, _, _ in strips for s in snapshots)) + 1
+    cascades = int(max((s["cascade"].max() for snapshots, _, _ in strips for s in snapshots if s["cascade"].size),
+                       default=-1)) + 1
     heading = fig.suptitle(strips[0][2])
     panels = None
     for snapshots, path, title in strips:
@@ -242,9 +243,14 @@ def _strip_keys(fig: Figure, grid, rows: int, *, cascades: int) -> None:
     keys = [fig.add_subplot(grid[rows, c]) for c in range(5)]
     for ax in (keys[0], keys[1], keys[4]):
         ax.axis("off")
-    keys[1].legend(handles=[Patch(color=CATEGORY_COLOURS[i % len(CATEGORY_COLOURS)], label=f"cascade {i}")
-                            for i in range(cascades)], loc="upper center", ncol=min(cascades, 4), fontsize=8,
-                   frameon=False)
+    if cascades:
+        keys[1].legend(handles=[Patch(color=CATEGORY_COLOURS[i % len(CATEGORY_COLOURS)], label=f"cascade {i}")
+                                for i in range(cascades)], loc="upper center", ncol=min(cascades, 4), fontsize=8,
+                       frameon=False)
+    else:
+        # No pixel of these frames falls in a cascade (the scene is outside every one): say so, not an empty key.
+        keys[1].text(0.5, 0.9, "no pixel in any cascade", ha="center", va="top", fontsize=8,
+                     transform=keys[1].transAxes)
     keys[4].legend(handles=[Patch(color=FALSE_SHADOW, label="false shadow"),
                             Patch(color=FALSE_LIGHT, label="false light")],
                    loc="upper center", ncol=2, fontsize=8, frameon=False)

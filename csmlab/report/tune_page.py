@@ -111,7 +111,7 @@ def write_tune_report(out_dir, result, *, snippets, preset_file: str) -> Path:
     ----------
     out_dir : path
     result : csmlab.tune.TuneResult
-    snippets : sequence of csmlab.engine_export.Snippet
+    snippets : sequence of csmlab.engines.common.Snippet
         Of the recommended setting (empty when there is none).
     preset_file : str
         The recommended setting's preset file name ("" when there is none).

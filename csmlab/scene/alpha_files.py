@@ -4,7 +4,9 @@
 image that has one (RGBA, LA, a palette with transparency), else its luminance (a grey ``map_d``
 mask), as values in [0, 1] with row 0 the image's top row (texture coordinate v = 0, glTF's
 convention). A file that is missing or that Pillow cannot read is bad input: an
-:class:`~csmlab.errors.InputError` naming the file and the field it came from.
+:class:`~csmlab.errors.InputError` naming the file and the field it came from; so is an image whose
+header claims more than :data:`~csmlab.documents.MAX_IMAGE_TEXELS` texels, refused before its
+texels are decoded (and Pillow's own decompression-bomb check, should it trip first).
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from csmlab.documents import MAX_IMAGE_TEXELS, found_at, is_file, within_limit
 from csmlab.errors import InputError
 from csmlab.scene.core import AlphaMask
 
@@ -38,10 +41,15 @@ def read_alpha_mask(file, *, cutoff: float = 0.5, field: str = "alpha_mask") -> 
         Naming the file and ``field``: missing, not an image Pillow can read, or empty.
     """
     path = Path(file)
-    if not path.is_file():
-        raise InputError("expected an existing image file with an alpha mask, found "
-                         + ("a directory" if path.is_dir() else "nothing"), file=path, field=field)
-    return alpha_mask_of_image(path.read_bytes(), cutoff=cutoff, source=path, field=field)
+    if not is_file(path):
+        raise InputError(f"expected an existing image file with an alpha mask, found {found_at(path)}", file=path,
+                         field=field)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"expected a readable image file, got {exc.strerror or exc}", file=path,
+                         field=field) from None
+    return alpha_mask_of_image(data, cutoff=cutoff, source=path, field=field)
 
 
 def alpha_mask_of_image(data: bytes, *, cutoff: float = 0.5, source, field: str = "alpha_mask") -> AlphaMask:
@@ -54,12 +62,20 @@ def alpha_mask_of_image(data: bytes, *, cutoff: float = 0.5, source, field: str 
     path = Path(source)
     try:
         with Image.open(BytesIO(data)) as image:
+            width, height = image.size
+            within_limit(width * height, MAX_IMAGE_TEXELS, what=f"texels (the image claims {width} × {height})",
+                         file=path, field=field)
             image.load()
             if "A" in image.getbands() or "transparency" in image.info:
                 coverage = np.asarray(image.convert("RGBA"), dtype=np.float32)[..., 3]
             else:
                 coverage = np.asarray(image.convert("L"), dtype=np.float32)
-    except (OSError, UnidentifiedImageError, ValueError) as exc:
+    except InputError:
+        raise
+    except Image.DecompressionBombError as exc:  # Pillow refuses the header before we see its size
+        raise InputError(f"expected at most {MAX_IMAGE_TEXELS:,} texels (docs/design.md, \"Inputs\"); Pillow: {exc}",
+                         file=path, field=field) from None
+    except (OSError, EOFError, SyntaxError, UnidentifiedImageError, ValueError) as exc:
         raise InputError(f"expected an image file with an alpha mask (PNG, TGA, …) that Pillow can read; "
                          f"reading failed: {exc}", file=path, field=field) from None
     if coverage.size == 0:

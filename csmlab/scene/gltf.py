@@ -1,4 +1,9 @@
-"""glTF 2.0 levels read through pygltflib: triangles placed by the node hierarchy, and the sun.
+"""glTF 2.0 levels: triangles placed by the node hierarchy, and the sun.
+
+The file (JSON, or the GLB container of §4.4) is parsed here and read through
+:class:`csmlab.documents.Value`, the typed accessor every reader uses: each key is read as what
+the specification says it holds, and anything else — a list where an object belongs, a string for
+an index, a null — stops with the file, the key and what was expected.
 
 VTK's glTF reader is not used for levels: a level's geometry is mostly placed by its nodes —
 nested transforms, meshes shared by several nodes, ``EXT_mesh_gpu_instancing`` — and every
@@ -30,24 +35,31 @@ The sun is a ``KHR_lights_punctual`` light of type ``directional`` attached to a
 it shines along that node's world −Z axis (the extension's "lights point along −Z").
 
 Every broken file stops with an :class:`~csmlab.errors.InputError` naming the file and the glTF
-key (``accessors[3]``, ``nodes[2].rotation``, ``KHR_lights_punctual``, …) and what was expected.
+key (``accessors[3]``, ``nodes[2].rotation``, ``KHR_lights_punctual``, …) and what was expected;
+so does a file asking for more than a machine holds: JSON nested deeper than
+:data:`~csmlab.documents.MAX_JSON_DEPTH`, an accessor of more than ``9 ×``
+:data:`~csmlab.documents.MAX_TRIANGLES` components, a scene of more than
+:data:`~csmlab.documents.MAX_TRIANGLES` triangles once its instances are placed.
 """
 
 from __future__ import annotations
 
 import base64
 import math
-import warnings
-from dataclasses import dataclass
+import struct
+from dataclasses import dataclass, field
 from pathlib import Path
 from urllib.parse import unquote
 
 import numpy as np
 
+from csmlab.documents import MAX_TRIANGLES, Value, is_file, json_value, within_limit
 from csmlab.errors import InputError
 from csmlab.geometry import quat_to_matrix
 from csmlab.scene.alpha_files import alpha_mask_of_image
 from csmlab.scene.core import AlphaMask
+from csmlab.scene.gltf_compression import decompressed
+from csmlab.scene.gltf_materials import texture_coordinate_set, transformed_uv
 
 __all__ = ["GltfFile", "Sun", "gltf_scene_triangles", "material_mask", "read_gltf", "sun_of", "trs_matrices"]
 
@@ -66,6 +78,12 @@ UNIT_TOLERANCE = 1e-3
 """A node or key quaternion with ``| |q| − 1 |`` beyond this is broken, not rounding."""
 DEFAULT_ALPHA_CUTOFF = 0.5
 """A ``MASK`` material's ``alphaCutoff`` when the file gives none (§5.19 "material")."""
+SECTIONS = ("accessors", "animations", "bufferViews", "buffers", "cameras", "images", "materials", "meshes", "nodes",
+            "samplers", "scenes", "skins", "textures")
+"""The top-level lists of a glTF document (§5.17 "glTF"), each read as a list when present."""
+_GLB_MAGIC = b"glTF"
+_GLB_JSON, _GLB_BIN = 0x4E4F534A, 0x004E4942
+"""GLB chunk types (§4.4.3): the JSON chunk and the binary buffer."""
 
 
 @dataclass(frozen=True)
@@ -76,78 +94,102 @@ class GltfFile:
     ----------
     path : Path
         The ``.gltf`` or ``.glb`` file (for error messages and relative buffer URIs).
-    document : pygltflib.GLTF2
-        The parsed JSON.
+    document : csmlab.documents.Value
+        The parsed JSON, read through its typed accessor.
     buffers : tuple of bytes
         Each ``buffers[i]``'s bytes (the GLB binary chunk, a data URI or a file beside ``path``).
+    sections : dict
+        Each of :data:`SECTIONS` present, as its list of :class:`~csmlab.documents.Value`.
     """
 
     path: Path
-    document: object
+    document: Value
     buffers: tuple
+    sections: dict = field(default_factory=dict)
 
     def error(self, key: str, expected: str) -> InputError:
         """An :class:`InputError` naming this file and the glTF ``key``."""
         return InputError(expected, file=self.path, field=key)
 
-    def accessor(self, index: int, *, key: str) -> np.ndarray:
-        """Accessor ``index`` as float64 ``(count, width)`` (normalized integers scaled to [−1, 1]).
+    def section(self, name: str) -> list[Value]:
+        """The entries of the top-level list ``name`` (``nodes``, ``accessors``, …); empty when absent."""
+        return self.sections.get(name, [])
 
-        ``key`` names who refers to it, for error messages. Sparse accessors are applied.
+    def entry(self, reference: Value, name: str) -> tuple[int, Value]:
+        """The index ``reference`` holds into section ``name``, and that entry (each checked to be an object)."""
+        entries = self.section(name)
+        index = reference.index(len(entries), name)
+        return index, entries[index].mapping()
+
+    def accessor(self, reference: Value) -> np.ndarray:
+        """The accessor ``reference`` (an index) names, float64 ``(count, width)`` (normalized integers in [−1, 1]).
+
+        Sparse accessors are applied.
         """
-        document = self.document
-        if not isinstance(index, int) or not 0 <= index < len(document.accessors):
-            raise self.error(key, f"expected an accessor index in [0, {len(document.accessors)}), got {index!r}")
-        accessor = document.accessors[index]
+        index, accessor = self.entry(reference, "accessors")
         where = f"accessors[{index}]"
-        dtype = _COMPONENTS.get(accessor.componentType)
-        width = _WIDTHS.get(accessor.type)
-        if dtype is None or width is None or not isinstance(accessor.count, int) or accessor.count < 0:
-            raise self.error(where, f"expected a componentType in {sorted(_COMPONENTS)}, a type in "
-                                    f"{list(_WIDTHS)} and a count >= 0, got {accessor.componentType!r}, "
-                                    f"{accessor.type!r}, {accessor.count!r}")
-        if accessor.bufferView is None:
-            values = np.zeros((accessor.count, width), dtype=dtype)
+        component = accessor.at("componentType", "a componentType").integer(
+            what=f"a componentType in {sorted(_COMPONENTS)}")
+        dtype = _COMPONENTS.get(component)
+        if dtype is None:
+            raise accessor.at("componentType").error(f"a componentType in {sorted(_COMPONENTS)}")
+        width = _WIDTHS[accessor.at("type", "an accessor type").text(_WIDTHS)]
+        count = accessor.at("count", "an element count").integer(minimum=0)
+        within_limit(count * width, MAX_TRIANGLES * 9, what="accessor components", file=self.path,
+                     field=f"{where}.count")
+        view = accessor.get("bufferView")
+        offset = accessor.get("byteOffset")
+        if view is None:
+            values = np.zeros((count, width), dtype=dtype)
         else:
-            values = self._view(accessor.bufferView, accessor.byteOffset or 0, dtype, width, accessor.count,
+            values = self._view(view, 0 if offset is None else offset.integer(minimum=0), dtype, width, count,
                                 where=where)
-        values = values.astype(np.float64)
-        if accessor.sparse is not None:
-            sparse = accessor.sparse
-            index_type = _COMPONENTS.get(sparse.indices.componentType)
-            if index_type is None or index_type.kind != "u":
-                raise self.error(f"{where}.sparse.indices", "expected an unsigned componentType, got "
-                                                            f"{sparse.indices.componentType!r}")
-            at = self._view(sparse.indices.bufferView, sparse.indices.byteOffset or 0, index_type, 1, sparse.count,
-                            where=f"{where}.sparse.indices")[:, 0].astype(np.int64)
-            if at.size and (at.min() < 0 or at.max() >= accessor.count):
-                raise self.error(f"{where}.sparse.indices", f"expected indices in [0, {accessor.count})")
-            values[at] = self._view(sparse.values.bufferView, sparse.values.byteOffset or 0, dtype, width,
-                                    sparse.count, where=f"{where}.sparse.values")
-        if accessor.normalized and accessor.componentType in _NORMALIZED_DIVISORS:
-            values = np.maximum(values / _NORMALIZED_DIVISORS[accessor.componentType], -1.0)
+        with np.errstate(invalid="ignore"):  # a signalling NaN in the buffer: refused below, as every NaN
+            values = values.astype(np.float64)
+        sparse = accessor.get("sparse")
+        if sparse is not None:
+            values = self._sparse(sparse.mapping(), values, dtype, width, where=where)
+        normalized = accessor.get("normalized")
+        if normalized is not None and normalized.boolean() and component in _NORMALIZED_DIVISORS:
+            values = np.maximum(values / _NORMALIZED_DIVISORS[component], -1.0)
         if not np.all(np.isfinite(values)):
             row = int(np.argmax(~np.all(np.isfinite(values), axis=1)))
             raise self.error(where, f"expected finite numbers, found NaN or infinity (element {row})")
         return values
 
-    def _view(self, view_index, offset: int, dtype: np.dtype, width: int, count: int, *, where: str) -> np.ndarray:
-        """``count`` elements of ``width`` components from buffer view ``view_index``, honouring its stride."""
-        views = self.document.bufferViews
-        if not isinstance(view_index, int) or not 0 <= view_index < len(views):
-            raise self.error(where, f"expected a bufferView index in [0, {len(views)}), got {view_index!r}")
-        view = views[view_index]
-        if not isinstance(view.buffer, int) or not 0 <= view.buffer < len(self.buffers):
-            raise self.error(f"bufferViews[{view_index}]", f"expected a buffer index in [0, {len(self.buffers)}), "
-                                                           f"got {view.buffer!r}")
+    def _sparse(self, sparse: Value, values: np.ndarray, dtype: np.dtype, width: int, *, where: str) -> np.ndarray:
+        """``values`` with the sparse accessor's substitutions (§3.6.2.3) applied."""
+        count = sparse.at("count", "a substitution count").integer(minimum=1, below=values.shape[0] + 1)
+        indices, substitutes = sparse.at("indices", "an object").mapping(), sparse.at("values", "an object").mapping()
+        index_type = _COMPONENTS.get(indices.at("componentType", "a componentType").integer())
+        if index_type is None or index_type.kind != "u":
+            raise indices.at("componentType").error("an unsigned componentType (5121, 5123 or 5125)")
+        at = self._view(indices.at("bufferView", "a bufferView index"), _offset(indices), index_type, 1, count,
+                        where=f"{where}.sparse.indices")[:, 0].astype(np.int64)
+        if at.size and (at.min() < 0 or at.max() >= values.shape[0]):
+            raise self.error(f"{where}.sparse.indices", f"expected indices in [0, {values.shape[0]})")
+        values[at] = self._view(substitutes.at("bufferView", "a bufferView index"), _offset(substitutes), dtype, width,
+                                count, where=f"{where}.sparse.values")
+        return values
+
+    def _view(self, reference: Value, offset: int, dtype: np.dtype, width: int, count: int, *,
+              where: str) -> np.ndarray:
+        """``count`` elements of ``width`` components from the buffer view ``reference`` names, honouring its stride."""
+        view_index, view = self.entry(reference, "bufferViews")
+        buffer = view.at("buffer", "a buffer index").index(len(self.buffers), "buffers")
         element = dtype.itemsize * width
-        stride = view.byteStride or element
-        start = (view.byteOffset or 0) + offset
+        stride_value = view.get("byteStride")
+        stride = element if stride_value is None else stride_value.integer(minimum=4, below=253)
+        view_offset = _offset(view)
+        length = view.at("byteLength", "a byte length").integer(minimum=1)
+        start = view_offset + offset
         need = start + (stride * (count - 1) + element if count else 0)
-        data = self.buffers[view.buffer]
-        if count and (need > (view.byteOffset or 0) + view.byteLength or need > len(data)):
+        data = self.buffers[buffer]
+        if count and (need > view_offset + length or need > len(data) or stride < element):
             raise self.error(where, f"expected {count} elements of {element} bytes inside bufferViews[{view_index}] "
                                     f"and its buffer, but they end at byte {need} of {len(data)}")
+        if not count:
+            return np.zeros((0, width), dtype=dtype)
         if stride == element:
             return np.frombuffer(data, dtype=dtype, count=count * width, offset=start).reshape(count, width)
         rows = np.lib.stride_tricks.as_strided(np.frombuffer(data, dtype=np.uint8, offset=start),
@@ -155,32 +197,68 @@ class GltfFile:
         return np.ascontiguousarray(rows).view(dtype).reshape(count, width)
 
 
-def _uri_bytes(uri: str, path: Path, *, key: str) -> tuple[bytes, Path]:
+def _offset(entry: Value) -> int:
+    """``entry.byteOffset`` (0 when absent), checked to be a non-negative integer."""
+    offset = entry.get("byteOffset")
+    return 0 if offset is None else offset.integer(minimum=0)
+
+
+def _uri_bytes(uri: Value, path: Path) -> tuple[bytes, Path]:
     """The bytes a buffer's or image's ``uri`` names (a base64 data URI or a file beside ``path``) and their source.
 
     The source is the file read, or ``path`` itself for a data URI.
     """
-    if uri.startswith("data:"):
+    text = uri.text(what="a URI string")
+    if text.startswith("data:"):
         try:
-            return base64.b64decode(uri.partition(",")[2], validate=True), path
+            return base64.b64decode(text.partition(",")[2], validate=True), path
         except ValueError:
-            raise InputError("expected a base64 data URI", file=path, field=key) from None
-    source = path.parent / unquote(uri)
-    if not source.is_file():
-        raise InputError(f"expected the file {source} beside the glTF file, found nothing", file=path, field=key)
-    return source.read_bytes(), source
+            raise uri.error("a base64 data URI", got=False) from None
+    source = path.parent / unquote(text)
+    if not is_file(source):
+        raise InputError(f"expected the file {source} beside the glTF file, found nothing", file=path, field=uri.key)
+    try:
+        return source.read_bytes(), source
+    except OSError as exc:
+        raise InputError(f"expected a readable file beside the glTF file, got {exc.strerror or exc}", file=path,
+                         field=uri.key) from None
 
 
-def _buffer_bytes(document, index: int, path: Path) -> bytes:
-    """The bytes of ``buffers[index]``: the GLB chunk, a base64 data URI or a file beside ``path``."""
-    uri = document.buffers[index].uri
+def _buffer_bytes(buffer: Value, blob: bytes | None, path: Path) -> bytes:
+    """The bytes of one ``buffers[i]``: the GLB chunk, a base64 data URI or a file beside ``path``."""
+    uri = buffer.mapping().get("uri")
     if uri is None:
-        blob = document.binary_blob()
         if blob is None:
-            raise InputError("expected the GLB binary chunk for a buffer without uri, found none", file=path,
-                             field=f"buffers[{index}]")
-        return bytes(blob)
-    return _uri_bytes(uri, path, key=f"buffers[{index}].uri")[0]
+            raise buffer.error("the GLB binary chunk for a buffer without uri, found none", got=False)
+        return blob
+    return _uri_bytes(uri, path)[0]
+
+
+def _glb_chunks(data: bytes, path: Path) -> tuple[str, bytes | None]:
+    """The JSON text and the binary chunk (None when absent) of a GLB file's bytes (§4.4)."""
+    if len(data) < 20:
+        raise InputError("expected a GLB header and a JSON chunk, got a file of only "
+                         f"{len(data)} bytes", file=path, field="file")
+    _, version, length = struct.unpack_from("<4sII", data)
+    if version != 2:
+        raise InputError(f"expected a GLB file of version 2, got version {version}", file=path, field="file")
+    end, at, chunks = min(length, len(data)), 12, []
+    while at + 8 <= end:
+        size, kind = struct.unpack_from("<II", data, at)
+        if at + 8 + size > end:
+            raise InputError(f"expected a GLB chunk of {size} bytes at byte {at}, the file ends at {end}", file=path,
+                             field="file")
+        chunks.append((kind, data[at + 8:at + 8 + size]))
+        at += 8 + size
+    if not chunks or chunks[0][0] != _GLB_JSON:
+        raise InputError("expected a GLB file whose first chunk is JSON", file=path, field="file")
+    try:
+        text = chunks[0][1].decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"expected a UTF-8 JSON chunk, got {exc.reason}", file=path, field="file") from None
+    # Unknown chunk types are skipped, as the specification tells readers to.
+    blob = next((chunk for kind, chunk in chunks[1:] if kind == _GLB_BIN), None)
+    return text, blob
 
 
 def read_gltf(file) -> GltfFile:
@@ -189,28 +267,30 @@ def read_gltf(file) -> GltfFile:
     Raises
     ------
     InputError
-        Field ``file``: missing, or not glTF 2.0 that pygltflib can parse; ``buffers[i]``: a buffer
-        that cannot be loaded.
+        Field ``file``: missing, not JSON or not a GLB container, nested too deep; ``asset.version``:
+        not glTF 2.0; a top-level key that is not a list; ``buffers[i]``: a buffer that cannot be loaded.
     """
-    import pygltflib
-
     path = Path(file)
     if not path.is_file():
         raise InputError("expected an existing glTF file, found " + ("a directory" if path.is_dir() else "nothing"),
                          file=path, field="file")
-    try:
-        with warnings.catch_warnings():
-            # The specification tells readers to skip unknown GLB chunks; pygltflib warns as it does.
-            warnings.simplefilter("ignore")
-            document = (pygltflib.GLTF2().load_binary(str(path)) if path.read_bytes()[:4] == b"glTF"
-                        else pygltflib.GLTF2().load_json(str(path)))
-    except Exception as exc:  # pygltflib raises JSON, struct, key and type errors on a broken file.
-        raise InputError(f"expected a glTF 2.0 file (JSON or binary GLB); parsing failed: {exc}", file=path,
-                         field="file") from None
-    if document is None or not str(getattr(document.asset, "version", "")).startswith("2."):
-        raise InputError("expected a glTF 2.0 file with asset.version \"2.0\"", file=path, field="asset.version")
-    buffers = tuple(_buffer_bytes(document, i, path) for i in range(len(document.buffers)))
-    return GltfFile(path=path, document=document, buffers=buffers)
+    data = path.read_bytes()
+    if data[:4] == _GLB_MAGIC:
+        text, blob = _glb_chunks(data, path)
+    else:
+        try:
+            text, blob = data.decode("utf-8-sig"), None
+        except UnicodeDecodeError as exc:
+            raise InputError(f"expected a glTF 2.0 file (JSON or binary GLB), got undecodable bytes ({exc.reason})",
+                             file=path, field="file") from None
+    document = json_value(text, file=path).mapping("a glTF 2.0 document (a JSON object)")
+    version = document.at("asset", "an object with the glTF version").mapping().at("version", "\"2.0\"")
+    if not version.text(what="\"2.0\" (glTF 2.0)").startswith("2."):
+        raise version.error("\"2.0\" (glTF 2.0)")
+    # Draco and meshopt geometry decoded into plain views and accessors (csmlab.scene.gltf_compression).
+    buffers = decompressed(document, lambda i: _buffer_bytes(document.list_at("buffers")[i], blob, path))
+    sections = {name: document.list_at(name) for name in SECTIONS if document.has(name)}
+    return GltfFile(path=path, document=document, buffers=buffers, sections=sections)
 
 
 def trs_matrices(translation, rotation, scale) -> np.ndarray:
@@ -225,45 +305,44 @@ def trs_matrices(translation, rotation, scale) -> np.ndarray:
 
 def node_quaternion(gltf: GltfFile, index: int) -> np.ndarray:
     """``nodes[index].rotation`` ``(4,)``, checked to be a unit quaternion and normalised."""
-    node = gltf.document.nodes[index]
-    q = np.asarray(node.rotation if node.rotation is not None else (0.0, 0.0, 0.0, 1.0), dtype=np.float64)
-    if q.shape != (4,) or not np.all(np.isfinite(q)) or abs(np.linalg.norm(q) - 1.0) > UNIT_TOLERANCE:
-        raise gltf.error(f"nodes[{index}].rotation", f"expected a unit quaternion (x, y, z, w), got {node.rotation!r}")
+    rotation = gltf.section("nodes")[index].get("rotation")
+    if rotation is None:
+        return np.array([0.0, 0.0, 0.0, 1.0])
+    q = rotation.numbers(4, what="a unit quaternion (x, y, z, w)")
+    if abs(np.linalg.norm(q) - 1.0) > UNIT_TOLERANCE:
+        raise rotation.error("a unit quaternion (x, y, z, w)")
     return q / np.linalg.norm(q)
 
 
 def local_matrix(gltf: GltfFile, index: int) -> np.ndarray:
     """``nodes[index]``'s local matrix ``(4, 4)``: its ``matrix`` (column-major) or ``T · R · S``."""
-    node = gltf.document.nodes[index]
-    if node.matrix is not None:
-        m = np.asarray(node.matrix, dtype=np.float64)
-        if m.shape != (16,) or not np.all(np.isfinite(m)):
-            raise gltf.error(f"nodes[{index}].matrix", f"expected 16 finite numbers, got {node.matrix!r}")
-        return m.reshape(4, 4).T
-    translation = np.asarray(node.translation if node.translation is not None else (0.0, 0.0, 0.0), dtype=np.float64)
-    scale = np.asarray(node.scale if node.scale is not None else (1.0, 1.0, 1.0), dtype=np.float64)
-    for name, value in (("translation", translation), ("scale", scale)):
-        if value.shape != (3,) or not np.all(np.isfinite(value)):
-            raise gltf.error(f"nodes[{index}].{name}", f"expected 3 finite numbers, got {getattr(node, name)!r}")
+    node = gltf.section("nodes")[index]
+    if node.has("matrix"):
+        return node.at("matrix").numbers(16, what="16 finite numbers").reshape(4, 4).T
+    translation, scale = node.get("translation"), node.get("scale")
+    translation = np.zeros(3) if translation is None else translation.numbers(3, what="3 finite numbers")
+    scale = np.ones(3) if scale is None else scale.numbers(3, what="3 finite numbers")
     return trs_matrices(translation[None], node_quaternion(gltf, index)[None], scale[None])[0]
 
 
 def scene_roots(gltf: GltfFile) -> list[int]:
     """Root node indices of the file's default scene (``scene``, else ``scenes[0]``, else every parentless node)."""
-    document = gltf.document
-    count = len(document.nodes)
-    if document.scenes:
-        chosen = document.scene if document.scene is not None else 0
-        if not isinstance(chosen, int) or not 0 <= chosen < len(document.scenes):
-            raise gltf.error("scene", f"expected a scene index in [0, {len(document.scenes)}), got {chosen!r}")
-        roots = list(document.scenes[chosen].nodes or [])
+    nodes = gltf.section("nodes")
+    count = len(nodes)
+    scenes = gltf.section("scenes")
+    if scenes:
+        chosen = gltf.document.get("scene")
+        scene = scenes[0] if chosen is None else scenes[chosen.index(len(scenes), "scenes")]
+        roots = scene.mapping().list_at("nodes")
     else:
-        children = {c for node in document.nodes for c in (node.children or [])}
-        roots = [i for i in range(count) if i not in children]
-    bad = [r for r in roots if not isinstance(r, int) or not 0 <= r < count]
-    if bad:
-        raise gltf.error("scenes", f"expected node indices in [0, {count}), got {bad[0]!r}")
-    return roots
+        children = {c for node in nodes for c in _children(node.mapping(), count)}
+        return [i for i in range(count) if i not in children]
+    return [root.index(count, "nodes") for root in roots]
+
+
+def _children(node: Value, count: int) -> list[int]:
+    """``node.children``, each checked to be a node index in ``[0, count)``."""
+    return [child.index(count, "nodes") for child in node.list_at("children")]
 
 
 def scene_nodes(gltf: GltfFile) -> list[tuple[int, int | None]]:
@@ -275,7 +354,7 @@ def scene_nodes(gltf: GltfFile) -> list[tuple[int, int | None]]:
         On a child index out of range or a node reached twice (a cycle or a shared child: the
         specification requires a strict tree).
     """
-    count = len(gltf.document.nodes)
+    nodes = gltf.section("nodes")
     order, seen = [], set()
     stack = [(root, None) for root in reversed(scene_roots(gltf))]
     while stack:
@@ -285,11 +364,7 @@ def scene_nodes(gltf: GltfFile) -> list[tuple[int, int | None]]:
                                                 "(a cycle or a node with two parents)")
         seen.add(index)
         order.append((index, parent))
-        children = gltf.document.nodes[index].children or []
-        bad = [c for c in children if not isinstance(c, int) or not 0 <= c < count]
-        if bad:
-            raise gltf.error(f"nodes[{index}].children", f"expected node indices in [0, {count}), got {bad[0]!r}")
-        stack.extend((child, index) for child in reversed(children))
+        stack.extend((child, index) for child in reversed(_children(nodes[index].mapping(), len(nodes))))
     return order
 
 
@@ -302,19 +377,24 @@ def world_matrices(gltf: GltfFile) -> dict[int, np.ndarray]:
     return world
 
 
+def _extension(entry: Value, name: str) -> Value | None:
+    """``entry.extensions[name]`` (an object), or None when the entry does not use the extension."""
+    extensions = entry.get("extensions")
+    return None if extensions is None else extensions.mapping().get(name)
+
+
 def _instance_matrices(gltf: GltfFile, index: int) -> np.ndarray:
     """``T · R · S`` ``(I, 4, 4)`` of ``nodes[index]``'s ``EXT_mesh_gpu_instancing`` instances; identity ``(1, 4, 4)`` without."""
-    extension = (gltf.document.nodes[index].extensions or {}).get(INSTANCING)
+    extension = _extension(gltf.section("nodes")[index], INSTANCING)
     if extension is None:
         return np.eye(4)[None]
-    key = f"nodes[{index}].extensions.{INSTANCING}.attributes"
-    attributes = extension.get("attributes") if isinstance(extension, dict) else None
-    if not isinstance(attributes, dict) or not attributes:
-        raise gltf.error(key, "expected TRANSLATION, ROTATION and/or SCALE accessors, got none")
-    arrays = {name: gltf.accessor(attributes[name], key=f"{key}.{name}")
-              for name in ("TRANSLATION", "ROTATION", "SCALE") if name in attributes}
-    counts = {a.shape[0] for a in arrays.values()}
+    attributes = extension.mapping().at("attributes", "TRANSLATION, ROTATION and/or SCALE accessors").mapping()
+    key = attributes.key
     widths = {"TRANSLATION": 3, "ROTATION": 4, "SCALE": 3}
+    arrays = {name: gltf.accessor(attributes.at(name)) for name in widths if attributes.has(name)}
+    if not arrays:
+        raise attributes.error("TRANSLATION, ROTATION and/or SCALE accessors")
+    counts = {a.shape[0] for a in arrays.values()}
     for name, array in arrays.items():
         if array.shape[1] != widths[name]:
             raise gltf.error(f"{key}.{name}", f"expected {widths[name]} components per instance, got {array.shape[1]}")
@@ -351,23 +431,22 @@ class _Primitive:
     uv: np.ndarray | None
 
 
-def _primitive(gltf: GltfFile, mesh_index: int, p: int) -> _Primitive | None:
-    """``meshes[mesh_index].primitives[p]`` with its ``MASK`` material's coordinates; None for points, lines."""
-    primitive = gltf.document.meshes[mesh_index].primitives[p]
-    key = f"meshes[{mesh_index}].primitives[{p}]"
-    mode = 4 if primitive.mode is None else primitive.mode
+def _primitive(gltf: GltfFile, mesh: Value, p: int) -> _Primitive | None:
+    """``mesh.primitives[p]`` with its ``MASK`` material's coordinates; None for points, lines."""
+    primitive = mesh.at("primitives", "a list of primitives").items()[p].mapping()
+    key = primitive.key
+    mode_value = primitive.get("mode")
+    mode = 4 if mode_value is None else mode_value.integer(minimum=0, below=7, what="a primitive mode in [0, 6]")
     if mode not in (4, 5, 6):
         return None
-    position = getattr(primitive.attributes, "POSITION", None)
-    if position is None:
-        raise gltf.error(f"{key}.attributes", "expected a POSITION attribute, found none")
-    points = gltf.accessor(position, key=f"{key}.attributes.POSITION")
+    attributes = primitive.at("attributes", "an object of vertex attributes").mapping()
+    points = gltf.accessor(attributes.at("POSITION", "a POSITION attribute"))
     if points.shape[1] != 3:
         raise gltf.error(f"{key}.attributes.POSITION", f"expected VEC3 positions, got {points.shape[1]} components")
-    if primitive.indices is None:
+    if not primitive.has("indices"):
         indices = np.arange(points.shape[0], dtype=np.int64)
     else:
-        indices = gltf.accessor(primitive.indices, key=f"{key}.indices")[:, 0].astype(np.int64)
+        indices = gltf.accessor(primitive.at("indices"))[:, 0].astype(np.int64)
     if indices.size and (indices.min() < 0 or indices.max() >= points.shape[0]):
         raise gltf.error(f"{key}.indices", f"expected vertex indices in [0, {points.shape[0]}), got "
                                            f"[{indices.min()}, {indices.max()}]")
@@ -383,44 +462,42 @@ def _primitive(gltf: GltfFile, mesh_index: int, p: int) -> _Primitive | None:
         k = np.arange(max(indices.size - 2, 0))
         hub = np.full(k.shape, indices[0] if indices.size else 0)
         triangles = np.stack([hub, indices[k + 1], indices[k + 2]], axis=1)
-    material = _masked_material(gltf, primitive.material, key=f"{key}.material")
+    material = _masked_material(gltf, primitive.get("material"))
     if material < 0:
         return _Primitive(points, triangles, -1, None)
-    return _Primitive(points, triangles, material, _mask_coordinates(gltf, primitive, material, points.shape[0],
-                                                                     key=key))
+    return _Primitive(points, triangles, material, _mask_coordinates(gltf, attributes, material, points.shape[0]))
 
 
-def _masked_material(gltf: GltfFile, material, *, key: str) -> int:
-    """``material`` if it is an ``alphaMode = "MASK"`` material, else −1 (no material, ``OPAQUE``, ``BLEND``)."""
-    if material is None:
+def _masked_material(gltf: GltfFile, reference: Value | None) -> int:
+    """The index of the material ``reference`` names if its ``alphaMode`` is ``"MASK"``, else −1 (none, opaque, blend)."""
+    if reference is None:
         return -1
-    materials = gltf.document.materials
-    if not isinstance(material, int) or not 0 <= material < len(materials):
-        raise gltf.error(key, f"expected a material index in [0, {len(materials)}), got {material!r}")
-    return material if materials[material].alphaMode == "MASK" else -1
+    index, material = gltf.entry(reference, "materials")
+    mode = material.get("alphaMode")
+    return index if mode is not None and mode.text(("OPAQUE", "MASK", "BLEND")) == "MASK" else -1
 
 
-def _base_colour_texture(gltf: GltfFile, material: int):
-    """``materials[material].pbrMetallicRoughness.baseColorTexture`` (a TextureInfo), or None."""
-    pbr = gltf.document.materials[material].pbrMetallicRoughness
-    return None if pbr is None else pbr.baseColorTexture
+def _base_colour_texture(gltf: GltfFile, material: int) -> Value | None:
+    """``materials[material].pbrMetallicRoughness.baseColorTexture`` (a textureInfo object), or None."""
+    pbr = gltf.section("materials")[material].get("pbrMetallicRoughness")
+    texture = None if pbr is None else pbr.mapping().get("baseColorTexture")
+    return None if texture is None else texture.mapping()
 
 
-def _mask_coordinates(gltf: GltfFile, primitive, material: int, count: int, *, key: str) -> np.ndarray:
+def _mask_coordinates(gltf: GltfFile, attributes: Value, material: int, count: int) -> np.ndarray:
     """The ``TEXCOORD_n`` ``(count, 2)`` a ``MASK`` material's base colour texture is sampled at (zeros without one)."""
     texture = _base_colour_texture(gltf, material)
     if texture is None:
         return np.zeros((count, 2))
-    name = f"TEXCOORD_{texture.texCoord or 0}"
-    accessor = getattr(primitive.attributes, name, None)
-    if accessor is None:
-        raise gltf.error(f"{key}.attributes", f"expected {name}, the coordinates of alpha-masked "
-                                              f"materials[{material}]'s baseColorTexture, found none")
-    uv = gltf.accessor(accessor, key=f"{key}.attributes.{name}")
+    name = f"TEXCOORD_{texture_coordinate_set(texture)}"
+    if not attributes.has(name):
+        raise attributes.error(f"{name}, the coordinates of alpha-masked materials[{material}]'s baseColorTexture, "
+                               f"found none", got=False)
+    uv = gltf.accessor(attributes.at(name))
     if uv.shape != (count, 2):
-        raise gltf.error(f"{key}.attributes.{name}", f"expected {count} VEC2 coordinates (one per POSITION), "
+        raise gltf.error(f"{attributes.key}.{name}", f"expected {count} VEC2 coordinates (one per POSITION), "
                                                      f"got shape {uv.shape}")
-    return uv
+    return transformed_uv(uv, texture)  # KHR_texture_transform (csmlab.scene.gltf_materials)
 
 
 def material_mask(gltf: GltfFile, material: int) -> AlphaMask:
@@ -436,45 +513,35 @@ def material_mask(gltf: GltfFile, material: int) -> AlphaMask:
         range, a bad ``textures[j]`` or ``images[k]`` reference, or the image (its file, or the glTF
         file that embeds it) that Pillow cannot read.
     """
-    entry = gltf.document.materials[material]
+    entry = gltf.section("materials")[material]
     key = f"materials[{material}]"
-    cutoff = DEFAULT_ALPHA_CUTOFF if entry.alphaCutoff is None else entry.alphaCutoff
-    if isinstance(cutoff, bool) or not isinstance(cutoff, (int, float)) or not 0.0 < cutoff <= 1.0:
-        raise gltf.error(f"{key}.alphaCutoff", f"expected a number in (0, 1] (csmlab cuts where coverage ≥ it), "
-                                               f"got {entry.alphaCutoff!r}")
-    pbr = entry.pbrMetallicRoughness
-    factor = np.asarray(pbr.baseColorFactor if pbr is not None and pbr.baseColorFactor is not None
-                        else (1.0, 1.0, 1.0, 1.0), dtype=np.float64)
-    if factor.shape != (4,) or not np.all((factor >= 0.0) & (factor <= 1.0)):
-        raise gltf.error(f"{key}.pbrMetallicRoughness.baseColorFactor",
-                         f"expected 4 numbers in [0, 1], got {pbr.baseColorFactor!r}")
+    cutoff_value = entry.get("alphaCutoff")
+    cutoff = DEFAULT_ALPHA_CUTOFF if cutoff_value is None else cutoff_value.number(
+        above=0.0, maximum=1.0, what="a number in (0, 1] (csmlab cuts where coverage ≥ it)")
+    pbr = entry.get("pbrMetallicRoughness")
+    factor_value = None if pbr is None else pbr.mapping().get("baseColorFactor")
+    factor = np.ones(4) if factor_value is None else factor_value.numbers(4, what="4 numbers in [0, 1]")
+    if not np.all((factor >= 0.0) & (factor <= 1.0)):
+        raise factor_value.error("4 numbers in [0, 1]")
     texture = _base_colour_texture(gltf, material)
     if texture is None:
         return AlphaMask(np.full((1, 1), factor[3], np.float32), float(cutoff), source=f"{gltf.path} {key}")
-    data, source, image_key = _texture_image(gltf, texture.index, key=f"{key}.pbrMetallicRoughness.baseColorTexture")
+    data, source, image_key = _texture_image(gltf, texture.at("index", "a texture index"))
     mask = alpha_mask_of_image(data, cutoff=float(cutoff), source=source, field=image_key)
     return AlphaMask(mask.alpha * np.float32(factor[3]), float(cutoff), source=mask.source)
 
 
-def _texture_image(gltf: GltfFile, texture, *, key: str) -> tuple[bytes, Path, str]:
-    """The encoded bytes of ``textures[texture]``'s image, the file they came from and the image's glTF key."""
-    document = gltf.document
-    if not isinstance(texture, int) or not 0 <= texture < len(document.textures):
-        raise gltf.error(f"{key}.index", f"expected a texture index in [0, {len(document.textures)}), got {texture!r}")
-    image = document.textures[texture].source
-    if not isinstance(image, int) or not 0 <= image < len(document.images):
-        raise gltf.error(f"textures[{texture}].source", f"expected an image index in [0, {len(document.images)}), "
-                                                        f"got {image!r}")
-    entry = document.images[image]
+def _texture_image(gltf: GltfFile, reference: Value) -> tuple[bytes, Path, str]:
+    """The encoded image of the texture ``reference`` names: its bytes, the file they came from, the image's key."""
+    _, texture = gltf.entry(reference, "textures")
+    image, entry = gltf.entry(texture.at("source", "an image index"), "images")
     image_key = f"images[{image}]"
-    if entry.uri is not None:
-        data, source = _uri_bytes(entry.uri, gltf.path, key=f"{image_key}.uri")
+    if entry.has("uri"):
+        data, source = _uri_bytes(entry.at("uri"), gltf.path)
         return data, source, image_key
-    view = entry.bufferView
-    if not isinstance(view, int) or not 0 <= view < len(document.bufferViews):
-        raise gltf.error(image_key, f"expected a uri or a bufferView index in [0, {len(document.bufferViews)}), "
-                                    f"got {view!r}")
-    length = document.bufferViews[view].byteLength or 0
+    view = entry.at("bufferView", "a uri or a bufferView index")
+    _, view_entry = gltf.entry(view, "bufferViews")
+    length = view_entry.at("byteLength", "a byte length").integer(minimum=1)
     return gltf._view(view, 0, np.dtype(np.uint8), 1, length, where=image_key).tobytes(), gltf.path, image_key
 
 
@@ -495,25 +562,31 @@ def gltf_scene_triangles(gltf: GltfFile) -> tuple[np.ndarray, np.ndarray, dict]:
     Raises
     ------
     InputError
-        On a broken reference, accessor or mask image (naming its glTF key), or a scene with no triangle.
+        On a broken reference, accessor or mask image (naming its glTF key), a scene with no
+        triangle, or more than :data:`~csmlab.documents.MAX_TRIANGLES` triangles placed.
     """
-    document = gltf.document
     world = world_matrices(gltf)
     cache: dict[int, list[_Primitive]] = {}
-    points_out, triangles_out, parts, offset = [], [], [], 0
+    placed_nodes, total = [], 0
     for index, matrix in world.items():
-        mesh = document.nodes[index].mesh
-        if mesh is None:
+        node = gltf.section("nodes")[index]
+        if not node.has("mesh"):
             continue
-        if not isinstance(mesh, int) or not 0 <= mesh < len(document.meshes):
-            raise gltf.error(f"nodes[{index}].mesh", f"expected a mesh index in [0, {len(document.meshes)}), "
-                                                     f"got {mesh!r}")
+        mesh, entry = gltf.entry(node.at("mesh"), "meshes")
         if mesh not in cache:
-            cache[mesh] = [part for p in range(len(document.meshes[mesh].primitives))
-                           if (part := _primitive(gltf, mesh, p)) is not None]
+            primitives = entry.at("primitives", "a list of primitives").items()
+            cache[mesh] = [part for p in range(len(primitives)) if (part := _primitive(gltf, entry, p)) is not None]
         placements = matrix @ _instance_matrices(gltf, index)
+        total += placements.shape[0] * sum(part.triangles.shape[0] for part in cache[mesh])
+        within_limit(total, MAX_TRIANGLES, what="triangles in the scene (instances counted)", file=gltf.path,
+                     field=f"nodes[{index}]")
+        placed_nodes.append((cache[mesh], placements))
+    if total == 0:
+        raise gltf.error("meshes", "expected at least one triangle primitive on a node of the scene, found none")
+    points_out, triangles_out, parts, offset = [], [], [], 0
+    for primitives, placements in placed_nodes:
         mirrored = np.linalg.det(placements[:, :3, :3]) < 0
-        for part in cache[mesh]:
+        for part in primitives:
             # (I, V, 3): every instance's copy of the points; a batched matmul, several times einsum's speed.
             placed = np.matmul(part.points, placements[:, :3, :3].transpose(0, 2, 1)) + placements[:, None, :3, 3]
             wound = np.where(mirrored[:, None, None], part.triangles[None, :, ::-1], part.triangles[None])
@@ -522,8 +595,6 @@ def gltf_scene_triangles(gltf: GltfFile) -> tuple[np.ndarray, np.ndarray, dict]:
             triangles_out.append((wound + shift[:, None, None]).reshape(-1, 3))
             parts.append((part, placements.shape[0]))
             offset += placed.shape[0] * placed.shape[1]
-    if not triangles_out or sum(t.shape[0] for t in triangles_out) == 0:
-        raise gltf.error("meshes", "expected at least one triangle primitive on a node of the scene, found none")
     return np.concatenate(points_out), np.concatenate(triangles_out), _scene_masks(gltf, parts)
 
 
@@ -572,29 +643,34 @@ def sun_of(gltf: GltfFile) -> Sun:
     ------
     InputError
         Field ``KHR_lights_punctual``: no directional light on a node of the scene, or more than one
-        (their names listed); ``nodes[i].extensions.KHR_lights_punctual.light``: a bad light index.
+        (their names listed); ``nodes[i].extensions.KHR_lights_punctual.light``: a bad light index;
+        ``extensions.KHR_lights_punctual.lights[j]``: a light that is not an object with a type.
     """
-    lights = ((gltf.document.extensions or {}).get(LIGHTS) or {}).get("lights") or []
+    document_lights = _extension(gltf.document, LIGHTS)
+    lights = [] if document_lights is None else document_lights.mapping().list_at("lights")
     found = []
     for index, matrix in world_matrices(gltf).items():
-        extension = (gltf.document.nodes[index].extensions or {}).get(LIGHTS)
+        node = gltf.section("nodes")[index]
+        extension = _extension(node, LIGHTS)
         if extension is None:
             continue
-        light = extension.get("light") if isinstance(extension, dict) else None
-        if not isinstance(light, int) or not 0 <= light < len(lights):
-            raise gltf.error(f"nodes[{index}].extensions.{LIGHTS}.light",
-                             f"expected a light index in [0, {len(lights)}), got {light!r}")
-        if lights[light].get("type") != "directional":
+        light = lights[extension.mapping().at("light", "a light index").index(len(lights), "lights")].mapping()
+        if light.at("type", "a light type").text(what="a light type (a string)") != "directional":
             continue
         axis = -matrix[:3, 2]
         length = float(np.linalg.norm(axis))
         if not math.isfinite(length) or length < 1e-12:
             raise gltf.error(f"nodes[{index}]", "expected a directional light's node to have a non-degenerate "
                                                 "world transform, its −Z axis has zero length")
-        found.append(Sun(direction=axis / length,
-                         name=lights[light].get("name") or gltf.document.nodes[index].name or f"nodes[{index}]"))
+        found.append(Sun(direction=axis / length, name=_name(light) or _name(node) or f"nodes[{index}]"))
     if len(found) != 1:
         names = ", ".join(s.name for s in found)
         raise gltf.error(LIGHTS, "expected one directional light on a node of the scene, found "
                                  + (f"{len(found)}: {names}" if found else "none"))
     return found[0]
+
+
+def _name(entry: Value) -> str:
+    """``entry.name`` (a string), or ``""`` when it has none."""
+    name = entry.get("name")
+    return "" if name is None else name.text()

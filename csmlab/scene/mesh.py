@@ -1,7 +1,7 @@
 """Mesh import: a user's level geometry read through PyVista/VTK and checked before use.
 
 Formats: Wavefront OBJ, PLY, STL, legacy VTK (``.vtk``), VTK XML (``.vtp``, ``.vtu``) as far as
-VTK's readers go, and glTF 2.0 (``.gltf``, ``.glb``) through :mod:`csmlab.scene.gltf` (pygltflib),
+VTK's readers go, and glTF 2.0 (``.gltf``, ``.glb``) through :mod:`csmlab.scene.gltf` (its own parse),
 which places every mesh by the node hierarchy and ``EXT_mesh_gpu_instancing`` and reads its
 ``alphaMode = "MASK"`` materials. Whatever a VTK
 file holds — polygons, triangle strips, volume cells — becomes its outer surface, triangulated;
@@ -32,11 +32,13 @@ from pathlib import Path
 
 import numpy as np
 
+from csmlab.documents import MAX_COORDINATE, MAX_TRIANGLES, is_file, within_limit
 from csmlab.errors import InputError
 from csmlab.registry import check_name
 from csmlab.scene.alpha_files import read_alpha_mask
 from csmlab.scene.core import Scene
 from csmlab.scene.gltf import gltf_scene_triangles, read_gltf
+from csmlab.scene.gltf_materials import BLEND_CASTERS, apply_blend_rule
 from csmlab.scene.shapes import height_field, scene_from_parts
 
 __all__ = ["GLTF_SUFFIXES", "GROUND_ALBEDO", "GROUND_SIZE_FACTOR", "MESH_FORMATS", "UP_AXES", "load_mesh"]
@@ -166,12 +168,49 @@ def _surface_triangles(data, path: Path) -> tuple[np.ndarray, np.ndarray, np.nda
     with _quiet_vtk():
         triangulated = surface.triangulate()
     faces = np.asarray(triangulated.faces, dtype=np.int64)
+    within_limit(faces.size // 4, MAX_TRIANGLES, what="triangles", file=path, field="triangles")
     if faces.size == 0:
         raise InputError(f"expected at least one polygon (triangle, quad, …); the file holds {data.n_points} "
                          f"vertices and {data.n_cells} cells, none of them a surface", file=path, field="triangles")
     return (np.asarray(triangulated.points, dtype=np.float64), faces.reshape(-1, 4)[:, 1:],
             np.asarray(triangulated.cell_data["csmlab_cell"], dtype=np.int64),
-            {name: np.asarray(triangulated.point_data[name]) for name in triangulated.point_data.keys()})
+            # VTK may keep an unnamed array (a name of None): only named ones can be a material's coordinates.
+            {name: np.asarray(triangulated.point_data[name]) for name in triangulated.point_data.keys()
+             if isinstance(name, str)})
+
+
+def _check_obj_references(path: Path) -> None:
+    """Refuse an OBJ face naming a vertex (``v``) or texture coordinate (``vt``) the file does not hold.
+
+    VTK's reader does not check them: an index past the end reads memory that is not the file's
+    (seen by the fuzzer as coordinates of 1e300 one run and none the next). A positive index counts
+    from the file's first ``v`` (``vt``), a negative one back from the last before the face (OBJ's
+    relative form).
+    """
+    totals = {"v": 0, "vt": 0}
+    lines = _lenient_text(path).splitlines()
+    for line in lines:
+        words = line.split(maxsplit=1)
+        if words and words[0] in totals:
+            totals[words[0]] += 1
+    seen = {"v": 0, "vt": 0}
+    for number, line in enumerate(lines, start=1):
+        words = line.split()
+        if words and words[0] in seen:
+            seen[words[0]] += 1
+        if not words or words[0] != "f":
+            continue
+        for word in words[1:]:
+            for kind, reference in zip(("v", "vt"), word.split("/")[:2]):
+                if kind == "vt" and reference == "":
+                    continue
+                try:
+                    index = int(reference)
+                except ValueError:
+                    index = 0
+                if not (0 < index <= totals[kind] or -seen[kind] <= index < 0):
+                    raise InputError(f"expected {kind} references in [1, {totals[kind]}] (or back from -1 to "
+                                     f"-{seen[kind]}), got {word!r}", file=path, line=number, field="f")
 
 
 def _obj_materials(path: Path) -> tuple[list[str], dict[str, Path]]:
@@ -182,7 +221,7 @@ def _obj_materials(path: Path) -> tuple[list[str], dict[str, Path]]:
     leaves its materials without maps, as viewers draw them.
     """
     faces, maps, current = [], {}, ""
-    for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
+    for line in _lenient_text(path).splitlines():
         words = line.split()
         if not words:
             continue
@@ -193,16 +232,24 @@ def _obj_materials(path: Path) -> tuple[list[str], dict[str, Path]]:
         elif words[0] == "mtllib":
             for name in words[1:]:
                 library = path.parent / name
-                if not library.is_file():
+                if not is_file(library):
                     continue
                 material = ""
-                for entry in library.read_text(encoding="utf-8", errors="replace").splitlines():
+                for entry in _lenient_text(library).splitlines():
                     parts = entry.split()
                     if parts and parts[0] == "newmtl":
                         material = " ".join(parts[1:])
                     elif parts and parts[0] == "map_d" and len(parts) > 1:
                         maps[material] = library.parent / parts[-1]
     return faces, maps
+
+
+def _lenient_text(path: Path) -> str:
+    """The text of an OBJ or MTL file, undecodable bytes replaced (names in them only have to match each other)."""
+    try:
+        return path.read_bytes().decode("utf-8", errors="replace")
+    except OSError as exc:
+        raise InputError(f"expected a readable file, got {exc.strerror or exc}", file=path) from None
 
 
 def _obj_masks(cell_count: int, path: Path, points: np.ndarray, triangles: np.ndarray, cells: np.ndarray,
@@ -232,6 +279,9 @@ def _obj_masks(cell_count: int, path: Path, points: np.ndarray, triangles: np.nd
             raise InputError(f"expected texture coordinates (vt) on the faces of material {name!r}, which has a map_d",
                              file=path, field="vt")
         coordinates = np.asarray(point_arrays[name], dtype=np.float64)
+        if not np.all(np.isfinite(coordinates[np.unique(triangles[rows])])):
+            raise InputError(f"expected finite texture coordinates (vt) on the faces of material {name!r}, found NaN "
+                             f"or infinity", file=path, line=_line_of_first_non_finite(path), field="vt")
         slots = points.shape[0] + 3 * np.searchsorted(masked, rows)[:, None] + np.arange(3)
         corner = triangles[rows]
         uv[slots] = np.stack([coordinates[corner, 0], 1.0 - coordinates[corner, 1]], axis=-1)
@@ -250,7 +300,8 @@ def _ground_under(scene: Scene) -> Scene:
     return scene_from_parts([plane], name="ground")
 
 
-def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, albedo=(0.6, 0.6, 0.6)) -> Scene:
+def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, albedo=(0.6, 0.6, 0.6),
+              blend_casters: str = "opaque") -> Scene:
     """Read a mesh file (OBJ, PLY, STL, VTK, glTF) into a Scene in csmlab's world: metres, Y up.
 
     Parameters
@@ -268,6 +319,9 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
         bounding-box side, so a lone object casts a visible shadow. Its triangles come last.
     albedo : (float, float, float)
         Linear RGB in [0, 1] for every triangle of the mesh (file colours are not read).
+    blend_casters : {"opaque", "masked"}
+        glTF: ``alphaMode = "BLEND"`` materials read solid or alpha-tested
+        (:func:`csmlab.scene.gltf_materials.apply_blend_rule`).
 
     Returns
     -------
@@ -278,7 +332,7 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
     ------
     InputError
         Naming the file and the field: ``file`` (missing, not a file, unknown suffix, unreadable
-        by VTK or pygltflib, no vertices), a glTF key (a broken accessor, node or reference),
+        by VTK or as glTF, no vertices), a glTF key (a broken accessor, node or reference),
         ``triangles`` (no polygon, or only zero-area ones), ``vertices``
         (NaN or infinite coordinates).
     ValueError
@@ -293,6 +347,7 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
     if not np.isfinite(scale_value) or scale_value <= 0.0:
         raise ValueError(f"scale: expected a finite number > 0 (metres per file unit), got {scale!r}")
     check_name(up, UP_AXES, field="up")
+    check_name(blend_casters, BLEND_CASTERS, field="blend_casters")
     colour = np.asarray(albedo, dtype=np.float64)
     if colour.shape != (3,) or not np.all((colour >= 0.0) & (colour <= 1.0)):
         raise ValueError(f"albedo: expected three linear RGB values in [0, 1], got {albedo!r}")
@@ -304,10 +359,19 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
         raise InputError(f"expected a mesh file ending in one of {', '.join(MESH_FORMATS)}, "
                          f"got {path.suffix or 'no suffix'!r}", file=path, field="file")
     if path.suffix.lower() in GLTF_SUFFIXES:
-        points, triangles, masks = gltf_scene_triangles(read_gltf(path))
+        gltf = read_gltf(path)
+        apply_blend_rule(gltf.document, blend_casters)
+        points, triangles, masks = gltf_scene_triangles(gltf)
     else:
         points, triangles, masks = _vtk_mesh(path, fmt)
-    points = (points * scale_value) @ UP_AXES[up].T
+    with np.errstate(over="ignore", invalid="ignore"):  # a coordinate scaled past float64: refused below
+        points = (points * scale_value) @ UP_AXES[up].T
+    far = ~np.all(np.abs(points) <= MAX_COORDINATE, axis=1)
+    if np.any(far):
+        at = int(np.argmax(far))
+        raise InputError(f"expected vertices within {MAX_COORDINATE:g} m of the origin (docs/design.md, \"Inputs\"), "
+                         f"vertex {at + 1} in reading order lies at {np.abs(points[at]).max():.3g} m", file=path,
+                         field="vertices")
     try:
         scene = Scene.from_triangles(points, triangles, albedo=colour, name=path.name)
     except ValueError as exc:
@@ -320,6 +384,8 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
 
 def _vtk_mesh(path: Path, fmt: str) -> tuple[np.ndarray, np.ndarray, dict]:
     """Points, triangles and (an OBJ's ``map_d``) masks of a mesh file read through VTK."""
+    if fmt == MESH_FORMATS[".obj"]:
+        _check_obj_references(path)
     data = _read_dataset(path, fmt)
     points, triangles, cells, point_arrays = _surface_triangles(data, path)
     masks = {}

@@ -26,7 +26,11 @@ The package by job:
 - :mod:`~csmlab.kernels.raster.regions` — region planning (NumPy): whole maps, bands per thread,
   the chunks of triangles that meet a region;
 - :mod:`~csmlab.kernels.raster.schedule` — the NumPy-in/NumPy-out wrappers: checks, uploads,
-  the vertex pass and the regions' launches taken in turn by the threads.
+  the vertex pass (or vertices converted elsewhere, :mod:`csmlab.kernels.engine`, with the chunks
+  their own rectangles choose) and the regions' launches taken in turn by the threads;
+- :mod:`~csmlab.kernels.raster.tiled` — the same maps rasterized as GPUs do: triangles binned to
+  tiles, a thread per texel of a tile;
+- :mod:`~csmlab.kernels.raster.dispatch` — which of the two a device gets (``rasterize_cascades``).
 
 References
 ----------
@@ -38,8 +42,10 @@ from csmlab.kernels.raster.kernels import TrianglePaths, triangle_paths
 from csmlab.kernels.raster.mesh import (CHUNK_BITS, LightSpaceMesh, TriangleBounds, light_space_mesh, triangle_bounds,
                                         z_ordered)
 from csmlab.kernels.raster.regions import BANDS_PER_THREAD, banded_regions, region_chunks, whole_map_regions
-from csmlab.kernels.raster.schedule import fixed_point_vertices, rasterize_cascades, rasterize_depth
+from csmlab.kernels.raster.schedule import converted_region_chunks, fixed_point_vertices, rasterize_depth
+from csmlab.kernels.raster.dispatch import rasterize_cascades
 
 __all__ = ["BANDS_PER_THREAD", "CHUNK_BITS", "LightSpaceMesh", "TriangleBounds", "TrianglePaths", "banded_regions",
+           "converted_region_chunks",
            "fixed_point_vertices", "light_space_mesh", "rasterize_cascades", "rasterize_depth", "region_chunks",
            "triangle_bounds", "triangle_paths", "whole_map_regions", "z_ordered"]

@@ -28,6 +28,7 @@ import warp as wp
 from csmlab.kernels.alpha import AlphaTextures, alpha_passes
 
 __all__ = ["ONE_CENTRE", "SOLVED_COLUMNS", "STEPPED_EXTENT", "Boxes", "CasterOffset", "ChunkRows", "FixedPoint",
+           "chunk_rectangles_kernel",
            "LightMesh", "TrianglePaths", "VertexPass", "caster_offset", "fixed_point_vertices_kernel",
            "rasterize_chunks_kernel", "rasterize_depth_kernel", "triangle_paths", "vec2l"]
 
@@ -156,12 +157,20 @@ class LightMesh:
 
 @wp.struct
 class VertexPass:
-    """The vertices the vertex pass converted (:func:`fixed_point_vertices_kernel`), and for which cascades."""
+    """The vertices the vertex pass converted (:func:`fixed_point_vertices_kernel`, or an engine's window-space pass,
+    :mod:`csmlab.kernels.engine`), for which cascades, and which casters each cascade keeps."""
 
     points: wp.array2d(dtype=vec2l)
     """``points[s, v]``: vertex v in doubled fixed point of the cascade of slot s."""
     slots: wp.array(dtype=wp.int32)
     """Each cascade's slot in ``points``, −1 where its vertices are converted triangle by triangle."""
+    depth: wp.array2d(dtype=wp.float64)
+    """``depth[s, v]``: vertex v's stored depth in the cascade of slot s, metres (an engine's float32 window
+    depth); zero rows: every cascade stores the mesh's own ``d·X − zref``."""
+    near: wp.array(dtype=wp.float64)
+    """Per cascade, the mesh depth (``d·X − zref``, metres) a triangle's farthest vertex must reach for the cascade
+    to keep it: casters wholly nearer than a slice's near side clipped away (:func:`csmlab.render.clipped_casters`);
+    zero-length: every cascade keeps every triangle."""
 
 
 @wp.struct
@@ -782,13 +791,20 @@ def rasterize_chunks_kernel(
     step = size / scale
     corner = boxes.origin_fixed[c]
     window = wp.vec4i(regions[g, 1], regions[g, 2], regions[g, 3], regions[g, 4])
+    own_depth = converted.depth.shape[0] > 0
+    cut = converted.near.shape[0] > 0
+    near = wp.float64(0.0)
+    if cut:
+        near = converted.near[c]
     n = wp.int64(0)
     while t < end:
         ia = triangles[t, 0]
         ib = triangles[t, 1]
         ic = triangles[t, 2]
-        keep = s >= 0
-        if not keep:
+        keep = True
+        if cut:
+            keep = wp.max(wp.max(vertex_depth[ia], vertex_depth[ib]), vertex_depth[ic]) >= near
+        if keep and s < 0:
             # Converted here: first drop, in metres, a triangle whose rectangle misses the region
             # widened by a texel, as region_chunks tests chunks (its neighbours in a chunk may not).
             ua = light_xy[ia]
@@ -803,6 +819,10 @@ def rasterize_chunks_kernel(
             za = vertex_depth[ia]
             zb = vertex_depth[ib]
             zc = vertex_depth[ic]
+            if own_depth:
+                za = converted.depth[s, ia]
+                zb = converted.depth[s, ib]
+                zc = converted.depth[s, ic]
             push = caster_offset(offset, c, a[0], a[1], b[0], b[1], p[0], p[1], za, zb, zc, fixed.unit)
             m = int(-1)
             if masked:
@@ -819,3 +839,30 @@ def rasterize_chunks_kernel(
     if n > wp.int64(0):
         wp.atomic_add(covered, g, n)
 
+
+
+@wp.kernel
+def chunk_rectangles_kernel(
+    points: wp.array2d(dtype=vec2l),
+    triangles: wp.array2d(dtype=wp.int32),
+    chunk_bits: int,
+    lo: wp.array2d(dtype=vec2l),
+    hi: wp.array2d(dtype=vec2l),
+):
+    """``lo[c, k]``, ``hi[c, k]``: the rectangle of chunk k's vertices in cascade c's doubled fixed point ``points[c]``.
+
+    A thread per cascade and chunk (``2**chunk_bits`` consecutive triangles, the last one shorter).
+    """
+    c, k = wp.tid()
+    t = k << chunk_bits
+    end = wp.min(t + (1 << chunk_bits), triangles.shape[0])
+    low = points[c, triangles[t, 0]]
+    high = low
+    while t < end:
+        for corner in range(3):
+            p = points[c, triangles[t, corner]]
+            low = vec2l(wp.min(low[0], p[0]), wp.min(low[1], p[1]))
+            high = vec2l(wp.max(high[0], p[0]), wp.max(high[1], p[1]))
+        t += 1
+    lo[c, k] = low
+    hi[c, k] = high

@@ -16,13 +16,13 @@ import warp as wp
 from csmlab.kernels import checked_device, device_empty
 from csmlab.kernels.alpha import MaskedMesh, masked_mesh, no_masks
 from csmlab.kernels.raster.kernels import (Boxes, CasterOffset, ChunkRows, FixedPoint, LightMesh, TrianglePaths,
-                                           VertexPass, fixed_point_vertices_kernel, rasterize_chunks_kernel,
-                                           rasterize_depth_kernel, triangle_paths, vec2l)
+                                           VertexPass, chunk_rectangles_kernel, fixed_point_vertices_kernel,
+                                           rasterize_chunks_kernel, rasterize_depth_kernel, triangle_paths, vec2l)
 from csmlab.kernels.raster.mesh import CHUNK_BITS, LightSpaceMesh
 from csmlab.kernels.raster.regions import empty_regions, whole_map_regions
 from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 
-__all__ = ["fixed_point_vertices", "rasterize_cascades", "rasterize_depth"]
+__all__ = ["converted_region_chunks", "fixed_point_vertices", "rasterize_cascades", "rasterize_depth"]
 
 
 def _checked_bits(bits) -> int:
@@ -243,9 +243,67 @@ _FIXED_LIMIT = float(2**50)
 """The clip of global fixed-point values (:mod:`csmlab.texels`)."""
 
 
+def converted_region_chunks(points, triangles, *, regions, bits: int, device: str = "cpu") -> np.ndarray:
+    """(region, chunk) rows whose chunk can cover a texel centre of the region, from converted vertices.
+
+    :func:`~csmlab.kernels.raster.regions.region_chunks` for vertices already in each cascade's
+    fixed point (an engine's window space, :func:`csmlab.kernels.engine.window_vertices`), where
+    light-space metres do not bound them: each chunk's rectangle is taken in the fixed point
+    itself, and a chunk is kept for a region when that rectangle reaches a texel centre of it.
+    Exact, no margin: a chunk left out holds no triangle whose bounding box holds a centre of the region.
+
+    Parameters
+    ----------
+    points : array_like, shape (C, V, 2), int64
+        Every vertex in every cascade's doubled fixed point (texel centres at odd multiples of ``2**bits``).
+    triangles : array_like, shape (T, 3), int32
+    regions : array_like, shape (G, 5), integer
+        Rows ``(c, i0, i1, j0, j1)`` (:func:`~csmlab.kernels.raster.regions.whole_map_regions`).
+    bits : int
+    device : str
+
+    Returns
+    -------
+    ndarray, shape (K, 2), int32
+        Sorted by region, then chunk.
+    """
+    device = checked_device(device)
+    pts = np.ascontiguousarray(points, dtype=np.int64)
+    tri = np.ascontiguousarray(triangles, dtype=np.int32)
+    areas = np.asarray(regions, dtype=np.int64).reshape(-1, 5)
+    unit = 1 << _checked_bits(bits)
+    if pts.ndim != 3 or pts.shape[2] != 2 or tri.ndim != 2 or tri.shape[1] != 3 \
+            or (tri.size and (tri.min() < 0 or tri.max() >= pts.shape[1])):
+        raise ValueError(f"points, triangles: expected shapes (C, V, 2), (T, 3) and indices in [0, V); got "
+                         f"{pts.shape}, {tri.shape}")
+    count = -(-tri.shape[0] // (1 << CHUNK_BITS))
+    rows = [np.zeros((0, 2), np.int32)]
+    if count == 0:
+        return rows[0]
+    shape = (pts.shape[0], count)
+    lo = device_empty(shape, vec2l, device)
+    hi = device_empty(shape, vec2l, device)
+    wp.launch(chunk_rectangles_kernel, dim=shape,
+              inputs=(wp.array(pts, dtype=vec2l, device=device),
+                      wp.array(tri, dtype=wp.int32, device=device, copy=False), CHUNK_BITS), outputs=(lo, hi),
+              device=device)
+    low = lo.numpy().view(np.int64).reshape(shape + (2,))
+    high = hi.numpy().view(np.int64).reshape(shape + (2,))
+    for g, (c, i0, i1, j0, j1) in enumerate(areas):
+        # Doubled units: texel i's centre lies at (2i + 1)·unit.
+        meeting = np.flatnonzero((high[c, :, 0] >= (2 * i0 + 1) * unit) & (low[c, :, 0] <= (2 * i1 - 1) * unit)
+                                 & (high[c, :, 1] >= (2 * j0 + 1) * unit) & (low[c, :, 1] <= (2 * j1 - 1) * unit))
+        pair = np.empty((meeting.size, 2), dtype=np.int32)
+        pair[:, 0] = g
+        pair[:, 1] = meeting
+        rows.append(pair)
+    return np.concatenate(rows)
+
+
 def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: int, bits: int,
                        regions=None, chunks=None, depth=None, count_only: bool = False, threads: int = 1,
                        paths: TrianglePaths | None = None, caster_constant=None, caster_slope: float = 0.0,
+                       points=None, vertex_depth=None, near=None,
                        device: str = "cpu") -> tuple[np.ndarray | None, np.ndarray]:
     """Depth maps of every cascade from light-space vertices: fixed point and rasterization on the device.
 
@@ -296,6 +354,16 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
     caster_constant : array_like, shape (C,), float64, optional
     caster_slope : float
         The polygon offset each triangle is stored with, as :func:`rasterize_depth`'s.
+    points : array_like, shape (C, V, 2), int64, optional
+        Every vertex already in every cascade's doubled fixed point (an engine's window space,
+        :func:`csmlab.kernels.engine.window_vertices`), within ±2**52; ``texel_size`` and ``origin``
+        then serve only the chunks' selection by the caller (pass ``chunks`` from
+        :func:`converted_region_chunks`). None: converted from ``mesh.xy`` here.
+    vertex_depth : array_like, shape (C, V), float64, optional
+        Every vertex's stored depth in every cascade, metres, finite; None: ``mesh.depth`` in all.
+    near : array_like, shape (C,), float64, optional
+        Cascade c keeps only the triangles whose largest ``mesh.depth`` reaches ``near[c]``
+        (:func:`csmlab.render.clipped_casters`); None: every triangle.
     device : str
 
     Returns
@@ -362,6 +430,9 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
     converted = np.flatnonzero(3 * (distinct.sum(axis=1) << CHUNK_BITS) > xy.shape[0]).astype(np.int32)
     slots = np.full(shape[0], -1, dtype=np.int32)
     slots[converted] = np.arange(converted.size, dtype=np.int32)
+    given = _converted_vertices(points, vertex_depth, near, shape[0], xy.shape[0])
+    if given[0] is not None:
+        slots = np.arange(shape[0], dtype=np.int32)
     # On the CPU each launch empties its own regions first (on two threads at once); a GPU gets
     # the maps emptied by the host before they are copied to it.
     on_cpu = wp.get_device(device).is_cpu
@@ -384,8 +455,11 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
     run_bits = CHUNK_BITS if on_cpu else 0
     with LaunchPool(parts, kernels=(rasterize_chunks_kernel, fixed_point_vertices_kernel), device=device) as pool:
         converted_here = VertexPass()
-        converted_here.points = _vertex_pass(pool, light.xy, boxes, converted, fixed, device=device)
+        converted_here.points = (_vertex_pass(pool, light.xy, boxes, converted, fixed, device=device)
+                                 if given[0] is None else wp.array(given[0], dtype=vec2l, device=device))
         converted_here.slots = wp.array(slots, dtype=wp.int32, device=device)
+        converted_here.depth = wp.array(given[1], dtype=wp.float64, device=device)
+        converted_here.near = wp.array(given[2], dtype=wp.float64, device=device)
 
         def rasterize_region(g: int) -> None:
             # Emptied just before it is rasterized, while its texels are still in the cache.
@@ -406,3 +480,29 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
         pool.take_in_turn(np.lexsort((-extent, -held)).tolist(), rasterize_region)
     return None if count_only else maps_on.numpy(), covered.numpy()
 
+
+
+def _converted_vertices(points, vertex_depth, near, cascades: int,
+                        vertices: int) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
+    """:func:`rasterize_cascades`'s ``points`` ``(C, V, 2)`` (None where not given), ``vertex_depth`` ``(C, V)`` (zero
+    rows where not given) and ``near`` ``(C,)`` (zero-length where not given), checked."""
+    pts = None
+    if points is not None:
+        pts = np.ascontiguousarray(points, dtype=np.int64)
+        if pts.shape != (cascades, vertices, 2) or np.any(np.abs(pts) > 2**52):
+            raise ValueError(f"points: expected doubled fixed-point vertices of shape {(cascades, vertices, 2)} "
+                             f"within ±2**52, got {pts.shape}")
+    z = np.zeros((0, 0), dtype=np.float64)
+    if vertex_depth is not None:
+        z = np.ascontiguousarray(vertex_depth, dtype=np.float64)
+        if z.shape != (cascades, vertices) or not np.all(np.isfinite(z)):
+            raise ValueError(f"vertex_depth: expected finite depths of shape {(cascades, vertices)} in metres, "
+                             f"got {z.shape}")
+        if pts is None:
+            raise ValueError("vertex_depth: expected with points (the depths of converted vertices)")
+    cut = np.zeros(0, dtype=np.float64)
+    if near is not None:
+        cut = np.ascontiguousarray(near, dtype=np.float64).reshape(-1)
+        if cut.shape != (cascades,) or np.any(np.isnan(cut)):
+            raise ValueError(f"near: expected {cascades} depths in metres, got {near!r}")
+    return pts, z, cut

@@ -1,0 +1,95 @@
+"""Depth maps as a unorm depth format stores them: one pass over the texels, NumPy's arithmetic bit for bit.
+
+:func:`csmlab.storage.stored_depth` and :func:`csmlab.storage.cascade_stored_depth` state the
+quantization (``lo + clip(rint((z − lo) / step), 0, top) · step``, float64, back to float32); the
+kernel here runs it texel by texel with the same roundings (``fuse_fp`` off) and the same clip as
+NumPy's (a level replaced by a bound only where strictly beyond it: −0 stays −0), in place of
+NumPy's ten passes over float64 temporaries of every texel.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from csmlab.kernels.threads import LaunchPool, split_range
+
+__all__ = ["unorm_stored_depth"]
+
+# Products and sums rounded one by one, as NumPy rounds them.
+wp.set_module_options({"fuse_fp": False})
+
+
+@wp.kernel
+def unorm_stored_depth_kernel(depth: wp.array3d(dtype=wp.float32), lo: wp.array(dtype=wp.float64),
+                              step: wp.array(dtype=wp.float64), top: wp.float64, offset: int, first: int,
+                              out: wp.array3d(dtype=wp.float32)):
+    """Row ``first + k`` of the maps (rows of every cascade in turn): each finite texel quantized, others kept."""
+    row = first + wp.tid()
+    c = row // depth.shape[1]
+    j = row - c * depth.shape[1]
+    low = lo[c]
+    size = step[c]
+    zero = wp.float64(0.0)
+    for i in range(depth.shape[2]):
+        z = depth[c, j, i]
+        kept = z
+        # Finite: z − z is 0 for every finite z, NaN for ±inf and NaN.
+        if z - z == wp.float32(0.0):
+            x = wp.float64(z)
+            if offset != 0:
+                x = x - low
+            level = wp.rint(x / size)
+            # As np.clip: a level is replaced only when strictly beyond a bound, so −0 stays −0.
+            if level < zero:
+                level = zero
+            if level > top:
+                level = top
+            stored = level * size
+            if offset != 0:
+                stored = low + stored
+            kept = wp.float32(stored)
+        out[c, j, i] = kept
+
+
+def unorm_stored_depth(depth: np.ndarray, *, step, top: float, lo=None, threads: int = 1) -> np.ndarray:
+    """``(C, R, R)`` float32 maps quantized to ``top + 1`` levels of ``step`` metres per cascade, on the CPU.
+
+    Parameters
+    ----------
+    depth : ndarray, shape (C, R, R), float32
+        Depth in metres; non-finite texels (empty: +inf) are kept as they are.
+    step : array_like, shape (C,), float64
+        Metres per level of each cascade.
+    top : float
+        The highest level, ``2**bits − 1``.
+    lo : array_like, shape (C,), float64, optional
+        Each cascade's level 0 in metres (``near + level · step``); None: levels from 0 m
+        (``level · step``, no sum: a level of −0 stays −0 as NumPy keeps it).
+    threads : int
+        CPU launches at once, each over its own rows.
+
+    Returns
+    -------
+    ndarray, shape (C, R, R), float32
+        :func:`csmlab.storage.cascade_stored_depth` (with ``lo``) or :func:`csmlab.storage.stored_depth`, bit for bit.
+    """
+    maps = np.ascontiguousarray(depth, dtype=np.float32)
+    if maps.ndim != 3:
+        raise ValueError(f"depth: expected maps of shape (C, R, R), got {maps.shape}")
+    count = maps.shape[0]
+    size = np.ascontiguousarray(np.broadcast_to(np.asarray(step, dtype=np.float64), (count,)))
+    low = np.zeros(count) if lo is None else np.ascontiguousarray(np.broadcast_to(np.asarray(lo, np.float64), (count,)))
+    out = np.empty_like(maps)
+    rows = count * maps.shape[1]
+    if rows == 0 or maps.shape[2] == 0:
+        return out
+    inputs = (wp.array(maps, dtype=wp.float32, device="cpu", copy=False),
+              wp.array(low, dtype=wp.float64, device="cpu"), wp.array(size, dtype=wp.float64, device="cpu"),
+              float(top), int(lo is not None))
+    result = wp.array(out, dtype=wp.float32, device="cpu", copy=False)
+    with LaunchPool(threads, kernels=(unorm_stored_depth_kernel,), device="cpu") as pool:
+        pool.run([lambda a=a, b=b: wp.launch(unorm_stored_depth_kernel, dim=b - a, inputs=(*inputs, a),
+                                             outputs=(result,), device="cpu")
+                  for a, b in split_range(rows, pool.threads)])
+    return out
