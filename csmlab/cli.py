@@ -369,11 +369,16 @@ def _about(obj) -> str:
 
 @app.command("list")
 def list_names() -> None:
-    """List scenes, camera paths, file formats, conventions, methods, presets, experiments and importers."""
-    from csmlab.config import list_experiments, list_presets, shadow_method_registries
+    """List scenes, camera paths, file formats, conventions, settings by group, methods, presets, experiments and
+    importers."""
+    from dataclasses import fields
+
+    from csmlab.config import TaaConfig, list_experiments, list_presets, shadow_method_registries
+    from csmlab.config.records import TAA_CLAMPS
     from csmlab.engines import IMPORT_METHODS
     from csmlab.paths import CONVENTIONS, PATH_FORMATS, PATH_GENERATORS
     from csmlab.scene import SCENE_KINDS
+    from csmlab.settings import SETTING_GROUPS
 
     console = _out()
     console.print(_names_table("scenes ([scene] kind)", [(k, _about(v)) for k, v in SCENE_KINDS.items()]))
@@ -383,8 +388,13 @@ def list_names() -> None:
                                [(k, _about(v)) for k, v in PATH_FORMATS.items()]))
     console.print(_names_table("camera conventions ([camera] convention)",
                                [(k, _about(v)) for k, v in CONVENTIONS.items()]))
-    console.print(_names_table("shadow methods ([shadow] and [[methods]] fields)", [
-        (field, ", ".join(registry)) for field, registry in shadow_method_registries().items()]))
+    console.print(_names_table("settings by group ([shadow] and [[methods]] fields; the [taa] table)", [
+        *((group.name, f"{group.title}{f' (only with {group.applies.when})' if group.applies else ''}: "
+                       f"{', '.join(group.fields)}") for group in SETTING_GROUPS),
+        ("[taa]", f"temporal anti-aliasing of every method: {', '.join(f.name for f in fields(TaaConfig))}")]))
+    console.print(_names_table("shadow methods ([shadow] and [[methods]] fields; the [taa] clamp)", [
+        *((field, ", ".join(registry)) for field, registry in shadow_method_registries().items()),
+        ("[taa] clamp", ", ".join(TAA_CLAMPS))]))
     console.print(_names_table("presets (extends = [...])", list_presets().items()))
     console.print(_names_table("experiments (csmlab run NAME)", list_experiments().items()))
     console.print(_names_table("engine files (csmlab import ENGINE FILE...)",

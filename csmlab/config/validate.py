@@ -360,6 +360,7 @@ def shadow_method_registries() -> dict:
     from csmlab.texels import PRECISION_METHODS, VERTEX_SNAPS
     from csmlab.cascades.focus import FOCUS_METHODS
     from csmlab.cascades.warp import WARP_METHODS
+    from csmlab.shadow_policies import SUN_POLICIES, ZOOM_POLICIES
 
     return {"split": SPLIT_METHODS, "fit": FIT_METHODS, "stabilization": STABILIZATION_METHODS,
             "selection": SELECTION_METHODS, "filter": FILTER_METHODS, "extent": EXTENT_METHODS, "snap": SNAP_METHODS,
@@ -367,7 +368,8 @@ def shadow_method_registries() -> dict:
             "transition": TRANSITION_METHODS, "hold": HOLD_METHODS, "blend_curve": BLEND_CURVES, "fade": FADE_METHODS,
             "cull": CULL_METHODS, "focus": FOCUS_METHODS, "warp": WARP_METHODS, "vertex_snap": VERTEX_SNAPS,
             "light_basis": LIGHT_BASIS_METHODS, "depth_quantization": DEPTH_QUANTIZATION_METHODS,
-            "outside": OUTSIDE_METHODS, "shadow_distance_from": SHADOW_DISTANCE_METHODS}
+            "outside": OUTSIDE_METHODS, "shadow_distance_from": SHADOW_DISTANCE_METHODS, "zoom_policy": ZOOM_POLICIES,
+            "sun_policy": SUN_POLICIES}
 
 
 def _checked_settings(settings: ShadowSettings, *, where_of, located: _Located,
@@ -637,7 +639,7 @@ def load_tolerances(path) -> dict:
     return _regress(table, _Located(origins, path))
 
 
-def load_experiment(path, *, frames: int | None = None) -> Experiment:
+def load_experiment(path, *, frames: int | None = None, then_extends=()) -> Experiment:
     """Read, merge and validate an experiment file.
 
     Parameters
@@ -646,6 +648,9 @@ def load_experiment(path, *, frames: int | None = None) -> Experiment:
         The experiment TOML file.
     frames : int, optional
         Overrides ``camera.frames`` (the ``--frames`` option).
+    then_extends : sequence of path, optional
+        Preset files merged after the experiment, in memory, as a file with ``extends = [path, *then_extends]``
+        would merge them (:func:`csmlab.tune` reads an engine preset's method on an experiment so).
 
     Returns
     -------
@@ -661,7 +666,7 @@ def load_experiment(path, *, frames: int | None = None) -> Experiment:
         message names the file, the line where found, the field and what was expected.
     """
     path = Path(path).resolve()
-    merged, origins = _merged(path)
+    merged, origins = _merged(path, then_extends=tuple(Path(p).resolve() for p in then_extends))
     located = _Located(origins, path)
     for key in merged:
         if key not in _TOP_FIELDS:
