@@ -18,5 +18,8 @@ if ! command -v chromium >/dev/null 2>&1 || ! command -v chromedriver >/dev/null
     echo "setup: not root, cannot install $apt_packages: the browser test of the report will be skipped" >&2
   fi
 fi
-.venv/bin/python -c "import warp; warp.init()" >/dev/null
+# Warp compiles a kernel module on its first launch and caches it: compiled here, once, so that the
+# first `csmlab run` loads every kernel instead of compiling them inside the run (csmlab.kernels.cache).
+echo "setup: compiling csmlab's Warp kernels into Warp's kernel cache (a minute or two, once)"
+.venv/bin/python -c "from csmlab.kernels.cache import build_kernel_cache; build_kernel_cache()" >/dev/null
 echo "csmlab is set up: run '.venv/bin/csmlab run'"

@@ -369,11 +369,16 @@ def _about(obj) -> str:
 
 @app.command("list")
 def list_names() -> None:
-    """List scenes, camera paths, file formats, conventions, methods, presets, experiments and importers."""
-    from csmlab.config import list_experiments, list_presets, shadow_method_registries
+    """List scenes, camera paths, file formats, conventions, settings by group, methods, presets, experiments and
+    importers."""
+    from dataclasses import fields
+
+    from csmlab.config import TaaConfig, list_experiments, list_presets, shadow_method_registries
+    from csmlab.config.records import TAA_CLAMPS
     from csmlab.engines import IMPORT_METHODS
     from csmlab.paths import CONVENTIONS, PATH_FORMATS, PATH_GENERATORS
     from csmlab.scene import SCENE_KINDS
+    from csmlab.settings import SETTING_GROUPS
 
     console = _out()
     console.print(_names_table("scenes ([scene] kind)", [(k, _about(v)) for k, v in SCENE_KINDS.items()]))
@@ -383,8 +388,13 @@ def list_names() -> None:
                                [(k, _about(v)) for k, v in PATH_FORMATS.items()]))
     console.print(_names_table("camera conventions ([camera] convention)",
                                [(k, _about(v)) for k, v in CONVENTIONS.items()]))
-    console.print(_names_table("shadow methods ([shadow] and [[methods]] fields)", [
-        (field, ", ".join(registry)) for field, registry in shadow_method_registries().items()]))
+    console.print(_names_table("settings by group ([shadow] and [[methods]] fields; the [taa] table)", [
+        *((group.name, f"{group.title}{f' (only with {group.applies.when})' if group.applies else ''}: "
+                       f"{', '.join(group.fields)}") for group in SETTING_GROUPS),
+        ("[taa]", f"temporal anti-aliasing of every method: {', '.join(f.name for f in fields(TaaConfig))}")]))
+    console.print(_names_table("shadow methods ([shadow] and [[methods]] fields; the [taa] clamp)", [
+        *((field, ", ".join(registry)) for field, registry in shadow_method_registries().items()),
+        ("[taa] clamp", ", ".join(TAA_CLAMPS))]))
     console.print(_names_table("presets (extends = [...])", list_presets().items()))
     console.print(_names_table("experiments (csmlab run NAME)", list_experiments().items()))
     console.print(_names_table("engine files (csmlab import ENGINE FILE...)",
@@ -541,21 +551,27 @@ def import_(
     name: Optional[str] = typer.Option(None, "--name", help="The method's name; default the file's stem."),
 ) -> None:
     """Read an engine's shadow settings from its own files as a method preset: each field commented with the file
-    and key it came from, the engine settings csmlab cannot model listed."""
+    and key it came from, the engine settings csmlab cannot model listed. A Godot scene that instances glTF files
+    also gives the level (``[scene]`` parts placed by the nodes' transforms, and a walk in it): the file then runs;
+    instances csmlab cannot read are listed as not imported."""
     import tempfile
 
     from csmlab.config import load_experiment
-    from csmlab.engines import import_settings, preset_toml
+    from csmlab.engines import import_settings, level_instances, level_toml, preset_toml
     from csmlab.files import write_atomic
 
     try:
         method = _method_name(name, "--name") if name is not None else _method_name(out.stem, "--out")
         _output_file(out, "--out")
         imported = import_settings(files, engine=engine)
-        text = preset_toml(imported, name=method, files=files)
+        instances, not_imported = level_instances(files, engine=engine)
+        preset = preset_toml(imported, name=method, files=files) + "".join(
+            f"# not imported: {' '.join(line.split())}\n" for line in not_imported)
+        text = preset + level_toml(instances, out=out)
         with tempfile.TemporaryDirectory() as folder:
             # The preset must load as csmlab loads it: a value the engine allows but csmlab refuses is bad input.
-            (Path(folder) / "preset.toml").write_text(text, encoding="utf-8")
+            probe = preset + level_toml(instances, out=Path(folder) / "preset.toml")
+            (Path(folder) / "preset.toml").write_text(probe, encoding="utf-8")
             (Path(folder) / "probe.toml").write_text('extends = ["preset.toml"]\n[camera]\npath = "walk"\n',
                                                       encoding="utf-8")
             try:
@@ -575,6 +591,11 @@ def import_(
                   f"{len(imported.unmodelled)} setting(s) not modelled → {out}")
     for item in imported.unmodelled:
         console.print(f"  not modelled: {escape(item)}")
+    if instances:
+        console.print(escape(f"  level: {len(instances)} glTF instance(s) as [[scene.parts]], a walk in it as "
+                             "[camera]"))
+    for line in not_imported:
+        console.print(f"  not imported: {escape(line)}")
 
 
 def _tune_table(result) -> Table:

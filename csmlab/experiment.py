@@ -32,6 +32,7 @@ import numpy as np
 
 from csmlab import results
 from csmlab.camera import CameraPath
+from csmlab.cascades.bounds import shadow_end
 from csmlab.config import Experiment, Variant, config_hash, experiment_document, experiment_toml, workload_hash
 from csmlab.errors import InputError
 from csmlab.executor import execute
@@ -228,7 +229,7 @@ def _scene(experiment: Experiment) -> Scene:
             from csmlab.scene.parts import PartPlacement, load_parts
 
             placements = [PartPlacement(file=p.file, translation=p.translation, rotation_deg=p.rotation_deg,
-                                        scale=p.scale) for p in config.parts]
+                                        scale=p.scale, matrix=p.matrix) for p in config.parts]
             scene = load_parts(placements, file=config.file, scale=config.scale, up=config.up, ground=config.ground,
                                blend_casters=config.blend_casters, name=Path(experiment.source).stem)
         elif config.kind == "mesh":
@@ -487,6 +488,16 @@ def run_chunk(job: Job, chunk: Unit) -> ChunkResult:
         return _run_chunk(job, chunk)
 
 
+def _shadow_reach(settings, *, camera_far: float) -> float:
+    """Metres from the camera the shadows of ``settings`` may reach in any frame: ``shadow_distance``, or for a
+    distance that follows the camera (``shadow_distance_from``) its end at the camera's far plane, the farthest
+    a visible point can lie."""
+    if settings.shadow_distance_from == "fixed":
+        return settings.shadow_distance
+    return shadow_end(method=settings.shadow_distance_from, shadow_distance=settings.shadow_distance,
+                      max_shadow_distance=settings.max_shadow_distance, camera_far=camera_far)
+
+
 def _run_chunk(job: Job, chunk: Unit) -> ChunkResult:
     from csmlab.metrics import measure_frame
     from csmlab.metrics.taa import halton_jitter, resolve_view
@@ -500,7 +511,8 @@ def _run_chunk(job: Job, chunk: Unit) -> ChunkResult:
     times_view = 0 in ranks
     workload = job.workload
     scene = _prepared_scene(job)
-    grid = world_grid(workload.path.positions, reach=max(v.settings.shadow_distance for v in job.variants))
+    grid = world_grid(workload.path.positions, reach=max(_shadow_reach(v.settings, camera_far=workload.path.far)
+                                                         for v in job.variants))
     rows, timings, captures, previous = [], [], {}, {}
     taa = job.taa
     # TAA's histories: each variant's resolve of S and the reference's, with the view they follow.

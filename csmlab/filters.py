@@ -37,6 +37,7 @@ import numpy as np
 from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet
 from csmlab.clipmaps import chosen_levels, light_space, wanted_levels
+from csmlab.cascades.borders import dithered_sphere_cascades
 from csmlab.cascades.fit import BLEND_CURVES, transition_bands
 from csmlab.fades import FADE_METHODS, faded
 from csmlab.frame import ShadowLookup, ShadowMaps
@@ -137,14 +138,19 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
         return _clipmap_lookup(maps, points=points, normals=normals, settings=settings, device=device)
     record = FILTER_METHODS[check_name(settings.filter, FILTER_METHODS, field="filter")]
     reads = record.reads_of(settings)
+    if settings.selection == "sphere_dither":
+        reads = reads | {"pixels"}
     receivers = dataclasses.replace(
         _receivers(points, normals, view_depth, pixels=pixels, quads=quads, quad_view_depth=quad_view_depth,
                    reads=reads), noise_frame=int(noise_frame))
     _check_maps(maps, reads)
     radius = record.radius_of(settings)
     selection = _selection(maps.cascades, settings, radius=radius)
-    if settings.selection == "sphere":
+    if settings.selection in ("sphere", "sphere_dither"):
         selection["sphere_cascade"] = _sphere_cascades(maps.cascades, receivers.points[receivers.index], device=device)
+    if settings.selection == "sphere_dither":
+        selection["sphere_cascade"] = _dithered_cascades(maps.cascades, receivers, selection["sphere_cascade"],
+                                                         settings=settings)
     found = FAMILY_LOOKUPS[record.family](maps, receivers, record=record, radius=radius, selection=selection,
                                           settings=settings, device=device)
     return _shadow_of_points(found, receivers, np.asarray(view_depth, dtype=np.float64), settings=settings,
@@ -237,7 +243,8 @@ def _selection(cascades: CascadeSet, settings: ShadowSettings, *, radius: int) -
     The interval selection switches cascade where ``transition`` puts the end of each band
     (:func:`csmlab.cascades.fit.transition_bands`), and each band starts at ``band_start``.
     """
-    select, start = transition_bands(cascades.splits, blend_band=settings.blend_band, transition=settings.transition)
+    select, start = transition_bands(cascades.switch_depths, blend_band=settings.blend_band,
+                                     transition=settings.transition)
     if check_name(settings.outside, OUTSIDE_METHODS, field="outside") == "last":
         # The last cascade's interval runs on past the last split (Stride, MJP).
         select[-1] = np.inf
@@ -252,6 +259,17 @@ def _sphere_cascades(cascades: CascadeSet, points: np.ndarray, *, device: str) -
     """``selection = "sphere"``: each point's first cascade whose split sphere holds it, −1 where none."""
     return split_sphere_cascades(points, centres=np.stack([c.sphere_centre for c in cascades.cascades]),
                                  radii=np.array([c.sphere_radius for c in cascades.cascades]), device=device)
+
+
+def _dithered_cascades(cascades: CascadeSet, receivers: Receivers, cascade: np.ndarray, *,
+                       settings: ShadowSettings) -> np.ndarray:
+    """``selection = "sphere_dither"``: each receiver's split sphere, or the next one over its border where its
+    pixel's noise is at most the border weight (:func:`csmlab.cascades.borders.dithered_sphere_cascades`)."""
+    borders = settings.cascade_borders or (0.0,) * len(cascades)
+    return dithered_sphere_cascades(
+        cascade, receivers.points[receivers.index], centres=np.stack([c.sphere_centre for c in cascades.cascades]),
+        radii=np.array([c.sphere_radius for c in cascades.cascades]), borders=borders, eye=cascades.eye,
+        noise=interleaved_gradient_noise(receivers.pixels, frame=receivers.noise_frame))
 
 
 def _conversion(cascades: CascadeSet, settings: ShadowSettings) -> dict:
@@ -527,8 +545,10 @@ def filter_inputs(depth, cascades: CascadeSet, *, span: float, settings: ShadowS
 
 
 def uses_pixels(settings: ShadowSettings) -> bool:
-    """Whether :func:`lookup_shadow` under ``settings`` reads each receiver's pixel (a per-pixel rotation)."""
-    return "pixels" in FILTER_METHODS[check_name(settings.filter, FILTER_METHODS, field="filter")].reads_of(settings)
+    """Whether :func:`lookup_shadow` under ``settings`` reads each receiver's pixel (a per-pixel rotation, or
+    ``selection = "sphere_dither"``'s noise)."""
+    return settings.selection == "sphere_dither" or "pixels" in FILTER_METHODS[
+        check_name(settings.filter, FILTER_METHODS, field="filter")].reads_of(settings)
 
 
 def noise_frame(settings: ShadowSettings, *, frame: int, taa: bool) -> int:

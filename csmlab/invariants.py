@@ -148,7 +148,11 @@ class Promise:
 
 def _screen_reads(settings: ShadowSettings) -> list[str]:
     """What the filter reads under ``settings`` beyond :data:`WORLD_LOCKED_READS`, sorted."""
-    return sorted(FILTER_METHODS[settings.filter].reads_of(settings) - set(WORLD_LOCKED_READS))
+    reads = FILTER_METHODS[settings.filter].reads_of(settings)
+    if settings.selection == "sphere_dither":
+        # HDRP's dithered borders pick a cascade by each pixel's noise.
+        reads = reads | {"pixels"}
+    return sorted(reads - set(WORLD_LOCKED_READS))
 
 
 def _screen_reads_text(settings: ShadowSettings) -> str:

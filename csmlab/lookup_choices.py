@@ -35,7 +35,8 @@ __all__ = ["BLEND_LINEAR", "BLEND_SMOOTHSTEP", "BOX_BILINEAR", "BOX_TAPS", "CAST
            "NORMAL_ONE_MINUS_COS_LATERAL", "NORMAL_SIN", "FAMILIES", "FILTER_METHODS", "Filter", "MOMENT_EVSM2", "OUTSIDE_METHODS",
            "MOMENT_EVSM4", "MOMENT_MSM", "MOMENT_VSM", "PCF_BILINEAR_BOX", "PCF_CASTANO", "PCF_GAUSSIAN", "PCF_PCSS", "PCF_POISSON",
            "PCF_TENT", "PCF_TENT_BILINEAR", "PCF_VOGEL", "SELECTION_METHODS", "SELECT_BEST_RESOLUTION",
-           "SELECT_INTERVAL", "SELECT_MAP", "SELECT_SPHERE", "Selection", "family_code", "family_filters", "poisson_disk", "vogel_disk"]
+           "SELECT_INTERVAL", "SELECT_MAP", "SELECT_SPHERE", "Selection", "family_code", "family_filters", "poisson_disk", "vogel_disk",
+           "GODOT_SOFT_SHADOW_QUALITIES", "GodotSoftShadowQuality", "godot_soft_shadow_fields"]
 
 SELECT_INTERVAL = 0
 """Selection code: the cascade whose split interval holds the view depth."""
@@ -80,7 +81,8 @@ NORMAL_ONE_MINUS_COS = 1
 NORMAL_SIN = 2
 """Normal-offset code: times ``sin θ`` (Filament, Unity built-in)."""
 NORMAL_ONE_MINUS_COS_LATERAL = 3
-"""Normal-offset code: times ``1 − max(0, cos θ)``, its component along the light removed (Godot 4)."""
+"""Normal-offset code: times ``1 − max(0, −cos θ)`` (1 on every lit face), its component along the light removed
+(Godot 4)."""
 
 NORMAL_OFFSET_SCALES: dict[str, int] = {"none": NORMAL_NONE, "one_minus_cos": NORMAL_ONE_MINUS_COS, "sin": NORMAL_SIN,
                                         "one_minus_cos_lateral": NORMAL_ONE_MINUS_COS_LATERAL}
@@ -90,13 +92,69 @@ NORMAL_OFFSET_SCALES: dict[str, int] = {"none": NORMAL_NONE, "one_minus_cos": NO
 Unity URP ``ApplyShadowBias`` (``1 − saturate(dot(L, N))``), Stride ``GetShadowPositionOffset``
 (``saturate(1 − N·L)``), MJP ``GetShadowPosOffset``; ``sin``: Filament
 ``computeLightSpacePosition`` (``n · sinθ · b``), Unity built-in ``UnityClipSpaceShadowCasterPos``
-(``sqrt(1 − cos²)``); ``one_minus_cos_lateral``: Godot 4 (``N · (1 − max(0, dot(light_dir, −N)))``,
-then ``normal_bias −= light_dir · dot(light_dir, normal_bias)``), which moves the receiver across
-the light only, never along it.
+(``sqrt(1 − cos²)``); ``one_minus_cos_lateral``: Godot 4 (``scene_forward_clustered.glsl``
+``light_process``: ``base_normal_bias = N · (1 − max(0, dot(light_dir, −N)))``, then
+``normal_bias −= light_dir · dot(light_dir, normal_bias)``), which moves the receiver across the light
+only, never along it. Godot's ``light_dir`` points *toward* the light (``light_storage.cpp``
+``update_light_buffers``: the light's +Z, ``basis.xform(Vector3(0, 0, 1))``), so ``dot(light_dir, −N)
+= −cos θ`` and every lit face takes the whole offset: ``sin θ`` of it across the light (1.53 texels
+of Godot's 2 on flat ground under a 40° sun).
 """
 
 CASTANO_SIZES = (3, 5)
 """The filter_size values of ``pcf_castano``: Castaño's 3×3 kernel (4 taps) and 5×5 kernel (9 taps)."""
+
+
+@dataclass(frozen=True)
+class GodotSoftShadowQuality:
+    """One level of Godot 4's ``rendering/lights_and_shadows/directional_shadow/soft_shadow_filter_quality``.
+
+    Attributes
+    ----------
+    name : str
+        The level as Godot's ``RS::ShadowQuality`` names it, lower case.
+    samples : int
+        ``directional_soft_shadow_samples``: Vogel-disk taps, each a hardware bilinear compare; 0 is one
+        compare at the point (``sample_directional_pcf_shadow``: "if only one sample is taken, take it
+        from the center").
+    radius : float
+        ``directional_shadow_quality_radius``: the disk's radius in texels per unit of the light's
+        ``shadow_blur`` (``soft_shadow_scale = shadow_blur · quality_radius`` for PCF).
+    """
+
+    name: str
+    samples: int
+    radius: float
+
+
+GODOT_SOFT_SHADOW_QUALITIES: dict[int, GodotSoftShadowQuality] = {
+    0: GodotSoftShadowQuality("hard", 0, 1.0), 1: GodotSoftShadowQuality("soft_very_low", 1, 1.5),
+    2: GodotSoftShadowQuality("soft_low", 4, 2.0), 3: GodotSoftShadowQuality("soft_medium", 8, 2.0),
+    4: GodotSoftShadowQuality("soft_high", 16, 3.0), 5: GodotSoftShadowQuality("soft_ultra", 32, 4.0)}
+"""Godot 4's directional soft-shadow levels by their project-setting value (``RendererSceneRenderRD::
+directional_soft_shadow_filter_set_quality``: samples and quality radius per ``RS::SHADOW_QUALITY_*``; the disk
+from ``get_vogel_disk``, golden angle 2.4, ``r = sqrt(i + 0.5) / sqrt(n)``)."""
+
+
+def godot_soft_shadow_fields(quality: int, *, blur: float = 1.0) -> dict:
+    """The ``[shadow]`` filter fields of Godot 4's soft-shadow level ``quality`` (0 Hard … 5 Ultra) and its light's
+    ``shadow_blur``: ``pcf_bilinear`` (one hardware compare) for Hard, else ``pcf_vogel`` with the level's taps and
+    radius × blur at Godot's golden angle 2.4 (:data:`GODOT_SOFT_SHADOW_QUALITIES`).
+
+    Raises
+    ------
+    ValueError
+        For a level that is not 0..5 or a blur that is not positive.
+    """
+    if quality not in GODOT_SOFT_SHADOW_QUALITIES or isinstance(quality, bool):
+        raise ValueError(f"soft_shadow_filter_quality: expected one of {sorted(GODOT_SOFT_SHADOW_QUALITIES)} (Hard … "
+                         f"Ultra), got {quality!r}")
+    if not blur > 0.0:
+        raise ValueError(f"shadow_blur: expected a positive blur, got {blur!r}")
+    level = GODOT_SOFT_SHADOW_QUALITIES[quality]
+    if level.samples == 0:
+        return {"filter": "pcf_bilinear"}
+    return {"filter": "pcf_vogel", "vogel_taps": level.samples, "vogel_radius": level.radius * blur, "vogel_angle": 2.4}
 
 MOMENT_VSM = 0
 """Moment family code: ``(z, z²)`` (:mod:`csmlab.kernels.moments`)."""
@@ -133,6 +191,9 @@ SELECTION_METHODS: dict[str, Selection] = {s.name: s for s in (
               "of the boxes that hold the point, the one with the smallest texels (seed 003)"),
     Selection("sphere", SELECT_SPHERE, "the first cascade whose split sphere holds the point (Unity built-in Stable Fit "
               "getCascadeWeights_splitSpheres, URP ComputeCascadeIndex)"),
+    Selection("sphere_dither", SELECT_SPHERE, "the first cascade whose split sphere holds the point, the next one where "
+              "the pixel's interleaved gradient noise is at most its border weight (Unity HDRP EvalShadow_GetSplitIndex, "
+              "EvalShadow_CascadedDepth_Dither_SplitIndex; cascade_borders, csmlab.cascades.borders)"),
 )}
 """Cascade selection methods by name."""
 

@@ -375,8 +375,8 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
         ``camera_relative``: metres between the origins it rebases to (0: at the camera).
     normal_scale : str
         A key of :data:`csmlab.lookup_choices.NORMAL_OFFSET_SCALES`: the offset times ``1 − max(0, cos θ)``
-        or ``sin θ`` per receiver, and with ``one_minus_cos_lateral`` across the light only (its
-        depth unchanged).
+        or ``sin θ`` per receiver, or with ``one_minus_cos_lateral`` times ``1 − max(0, −cos θ)`` across
+        the light only (its depth unchanged).
     normal_offset_m : float
         Metres added to the normal offset in every cascade (Stride's world-space offset).
     plane_offset : float or array_like, shape (C,)
@@ -426,6 +426,9 @@ def receiver_lookup(cascades: CascadeSet, points, normals, *, bits: int, normal_
     factor = None
     if code == NORMAL_SIN:
         factor = np.sqrt(np.maximum(1.0 - cos * cos, 0.0))
+    elif code == NORMAL_ONE_MINUS_COS_LATERAL:
+        # Godot's light_dir points toward the light: 1 − max(0, dot(light_dir, −N)) is 1 on every lit face.
+        factor = 1.0 - np.maximum(-cos, 0.0)
     elif code != NORMAL_NONE:
         factor = 1.0 - np.maximum(cos, 0.0)
     along = 0.0 if code == NORMAL_ONE_MINUS_COS_LATERAL else 1.0

@@ -40,7 +40,6 @@ import hashlib
 import itertools
 import json
 import math
-import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -49,7 +48,8 @@ import numpy as np
 
 import csmlab
 from csmlab import config
-from csmlab.config import CONFIGS_DIR, Experiment, Method, ReportConfig, load_experiment, workload_hash
+from csmlab.config import (CONFIGS_DIR, CameraConfig, Experiment, Method, ReportConfig, load_experiment,
+                           workload_hash)
 from csmlab.errors import InputError
 from csmlab.experiment import run_experiment
 from csmlab.metrics.cost import shadow_memory_bytes
@@ -58,8 +58,9 @@ from csmlab.results import json_text, read_json, write_atomic
 from csmlab.settings import ShadowSettings
 
 __all__ = ["ALIASING_AXIS", "DEFAULT_OBJECTIVES", "ENGINES_DIR", "Budgets", "Candidate", "InfeasibleBudget",
-           "TuneResult", "engine_presets", "objective_direction", "pareto_front", "parse_space",
-           "settings_document", "tune", "tune_document", "write_outputs"]
+           "TuneOptions", "TuneRequest", "TuneResult", "engine_presets", "flicker_limit", "objective_direction",
+           "pareto_front", "parse_space", "reference_settings", "resolved_options", "sampler_name", "search",
+           "settings_document", "tune", "tune_document", "tune_result", "write_outputs", "write_tune"]
 
 ENGINES_DIR = CONFIGS_DIR / "engines"
 """The engine presets every tune is compared with."""
@@ -278,13 +279,10 @@ def engine_presets(directory=None) -> list[Path]:
 
 
 def _preset_settings(experiment: Experiment, preset: Path) -> ShadowSettings:
-    """The settings of ``preset``'s method on ``experiment``'s ``[shadow]``, merged as ``extends`` merges them."""
+    """The settings of ``preset``'s method on ``experiment``'s ``[shadow]``, merged as ``extends`` merges them
+    (the experiment's file, then the preset: :func:`csmlab.config.load_experiment`'s ``then_extends``)."""
     preset = Path(preset).resolve()
-    with tempfile.TemporaryDirectory() as folder:
-        probe = Path(folder) / "preset_probe.toml"
-        probe.write_text(f"extends = [{json.dumps(str(Path(experiment.source).resolve()))}, "
-                         f"{json.dumps(str(preset))}]\n", encoding="utf-8")
-        merged = load_experiment(probe)
+    merged = load_experiment(experiment.source, then_extends=(preset,))
     method = next((m for m in merged.methods if m.name == preset.stem), None)
     if method is None:
         raise InputError(f"expected a [[methods]] entry named {preset.stem!r} (the file's name) in an engine preset, "
@@ -467,15 +465,353 @@ def _describe(candidate: Candidate) -> str:
     return ", ".join(f"{k}={v}" for k, v in candidate.params.items()) or "as the experiment has it"
 
 
-def tune(experiment: Experiment, *, out_dir, space: dict | None = None, objectives=None, trials: int | None = None,
-         method: str | None = None, seed: int | None = None, memory_budget: int | None = None,
-         max_flicker: float | str | None = None, flicker_metric: str | None = None, presets=None, batch: int = 4,
-         jobs: int = 1, executor: str = "inprocess", address: str | None = None, device: str = "cpu",
-         progress: Callable[[int, int, str], None] | None = None) -> TuneResult:
+@dataclass(frozen=True)
+class TuneRequest:
+    """What the caller of :func:`tune` asks for (the command line's options); ``None`` leaves an option to the
+    experiment's ``[tune]`` table, then to the defaults. :func:`resolved_options` checks and resolves it.
+
+    Attributes
+    ----------
+    space : dict, optional
+        Field → spec (:func:`parse_space`); merged over ``[tune]``'s, field by field.
+    objectives : sequence of str, optional
+        metrics.csv columns (means over frames); default ``rho_p05``.
+    trials : int, optional
+        Candidates of the search (an exhaustive grid may take fewer); default 20.
+    method : str, optional
+        A method of the experiment; default its first.
+    seed : int, optional
+        Sampler seed: the same seed repeats the search; default 0.
+    memory_budget : int, optional
+        Bytes of shadow-map memory.
+    max_flicker : float or "best-preset", optional
+        Limit of ``flicker_metric``; ``best-preset`` is the lowest among the engine presets within the
+        memory budget.
+    flicker_metric : str, optional
+        Default ``flicker``.
+    presets : sequence of path, optional
+        Engine presets to compare with; default :func:`engine_presets`.
+    batch : int
+        Candidates asked of the sampler, and run, together (they share each frame's view). A resumed
+        tune must use the same batch to replay the same candidates.
+    jobs, executor, address, device
+        Where each run's frames go (:func:`csmlab.experiment.run_experiment`).
+    """
+
+    space: dict | None = None
+    objectives: tuple[str, ...] | list[str] | None = None
+    trials: int | None = None
+    method: str | None = None
+    seed: int | None = None
+    memory_budget: int | None = None
+    max_flicker: float | str | None = None
+    flicker_metric: str | None = None
+    presets: tuple | list | None = None
+    batch: int = 4
+    jobs: int = 1
+    executor: str = "inprocess"
+    address: str | None = None
+    device: str = "cpu"
+
+
+@dataclass(frozen=True)
+class TuneOptions:
+    """One tune's options resolved: the request over the experiment's ``[tune]`` over the defaults, checked.
+
+    Attributes
+    ----------
+    method : str
+        The tuned method.
+    start : ShadowSettings
+        Its settings as the experiment has them: the search's starting point.
+    space : dict
+        Field → spec (:func:`parse_space`), every bound a valid setting of ``start``.
+    goals : tuple of (str, str)
+        Objective metric and which way it is better (:func:`objective_direction`).
+    trials : int
+        Candidates the search may run (at least 1).
+    batch : int
+        Candidates asked and run together (at least 1).
+    seed : int
+    memory_budget : int or None
+        Bytes.
+    max_flicker : float, "best-preset" or None
+        ``best-preset`` until the engine presets are measured (:func:`flicker_limit`).
+    flicker_metric : str
+        A metrics.csv column, lower is better.
+    presets : dict
+        Engine preset name (its file's stem) → its method's settings on the experiment's ``[shadow]``.
+    run_options : dict
+        ``jobs``, ``executor``, ``address``, ``device`` for :func:`csmlab.experiment.run_experiment`.
+    settle : callable
+        ``settle(settings) -> settings``: an engine's derived fields set (the method an engine owns,
+        :func:`csmlab.engines.tune_space`); the identity for any other method.
+    camera : CameraConfig
+        The experiment's camera: its planes check each candidate's splits.
+    """
+
+    method: str
+    start: ShadowSettings
+    space: dict
+    goals: tuple[tuple[str, str], ...]
+    trials: int
+    batch: int
+    seed: int
+    memory_budget: int | None
+    max_flicker: float | str | None
+    flicker_metric: str
+    presets: dict[str, ShadowSettings]
+    run_options: dict
+    settle: Callable[[ShadowSettings], ShadowSettings]
+    camera: CameraConfig
+
+    @property
+    def device(self) -> str:
+        """The device the candidates run on (part of every cache key)."""
+        return self.run_options["device"]
+
+
+@dataclass(frozen=True)
+class _Judge:
+    """Makes a :class:`Candidate` of a measured setting: its cache key, memory and budget violations."""
+
+    budgets: Budgets
+    cache: _Cache
+
+    def __call__(self, label: str, kind: str, params: dict, settings: ShadowSettings, values: dict | None,
+                 computed: bool) -> Candidate:
+        memory = shadow_memory_bytes(settings)
+        return Candidate(label=label, kind=kind, params=params, settings=settings, key=self.cache.key(settings),
+                         memory_bytes=memory, values=values, violations=self.budgets.violations(memory, values),
+                         computed=computed)
+
+
+# --- the phases of a tune ---------------------------------------------------------------------------
+
+
+def resolved_options(experiment: Experiment, request: TuneRequest) -> TuneOptions:
+    """Phase 1: ``request`` over the experiment's ``[tune]`` over the defaults, every option checked.
+
+    Raises
+    ------
+    InputError
+        Naming the option: an unknown method, no search space, an objective or flicker metric with no
+        better direction, fewer than 1 trial or candidate per batch, a bad flicker limit or fewer than 2
+        frames to measure flicker, a bound of the space that is no valid setting, a malformed engine preset.
+    """
+    table = experiment.tune
+    names = [m.name for m in experiment.methods]
+    chosen = request.method or table.method or names[0]
+    if chosen not in names:
+        raise InputError(f"expected one of the experiment's methods {names}, got {chosen!r}", field="--method")
+    space = {**dict(table.space), **(request.space or {})}
+    from csmlab.engines import tune_space
+
+    owner = tune_space(chosen)
+    if owner is not None:
+        # An engine preset is tuned in the engine's own space: values its files hold, derived fields settled.
+        space = owner[1].restricted(space, engine=owner[0], method=chosen)
+    settle = owner[1].settle if owner is not None else _unsettled
+    if not space:
+        raise InputError("expected a search space: a [tune] table of [shadow] fields or --param FIELD=LO:HI|A,B,C",
+                         file=experiment.source, field="tune")
+    goals = tuple((m, objective_direction(m)) for m in (request.objectives or table.objectives or DEFAULT_OBJECTIVES))
+    trials = request.trials if request.trials is not None else (table.trials or 20)
+    if trials < 1:
+        raise InputError(f"expected at least 1 trial, got {trials}", field="--trials")
+    if request.batch < 1:
+        raise InputError(f"expected at least 1 candidate per batch, got {request.batch}", field="--batch")
+    flicker_metric = request.flicker_metric or table.flicker_metric
+    if objective_direction(flicker_metric) != "lower":
+        raise InputError(f"expected a metric that is better lower, got {flicker_metric!r}", field="--flicker-metric")
+    max_flicker = request.max_flicker if request.max_flicker is not None else table.max_flicker
+    if max_flicker is not None and max_flicker != "best-preset" and not (
+            isinstance(max_flicker, (int, float)) and max_flicker >= 0):
+        raise InputError(f'expected a non-negative number or "best-preset", got {max_flicker!r}', field="--max-flicker")
+    if max_flicker is not None and experiment.camera.frames < 2:
+        raise InputError(f"expected at least 2 frames to measure flicker, got {experiment.camera.frames}",
+                         field="--max-flicker")
+    start = next(m for m in experiment.methods if m.name == chosen).settings
+    _check_space(space, start, settle=settle, camera=experiment.camera, method=chosen)
+    paths = engine_presets() if request.presets is None else [Path(p) for p in request.presets]
+    return TuneOptions(method=chosen, start=start, space=space, goals=goals, trials=trials, batch=request.batch,
+                       seed=request.seed if request.seed is not None else (table.seed or 0),
+                       memory_budget=request.memory_budget if request.memory_budget is not None
+                       else table.memory_budget,
+                       max_flicker=max_flicker, flicker_metric=flicker_metric,
+                       presets={p.stem: _preset_settings(experiment, p) for p in paths}, settle=settle,
+                       camera=experiment.camera,
+                       run_options=dict(jobs=request.jobs, executor=request.executor, address=request.address,
+                                        device=request.device))
+
+
+def _unsettled(settings: ShadowSettings) -> ShadowSettings:
+    """A method no engine owns: its settings as they are."""
+    return settings
+
+
+def _check_space(space: dict, start: ShadowSettings, *, settle, camera, method: str) -> None:
+    """Every choice and range bound of ``space`` must make ``start``, settled, a valid setting over ``camera``
+    (:func:`_candidate_settings`); else an InputError naming the method, field and value."""
+    for field, spec in space.items():
+        for value in (spec[1] if spec[0] == "choice" else spec[1:3]):
+            try:
+                _candidate_settings(start.replace(**{field: value}), settle, camera)
+            except ValueError as exc:
+                raise InputError(f"method {method}, {field} = {value!r}: {exc}", field=f"--param {field}") from None
+
+
+def reference_settings(options: TuneOptions) -> dict[str, ShadowSettings]:
+    """Phase 2a: the settings every tune is compared with, by label: ``start``, then each engine preset, fitted to
+    the memory budget where it is over it (``ue5 @ 512²``, :func:`_fitted`)."""
+    references = {"start": options.start}
+    for name, settings in options.presets.items():
+        fitted = _fitted(settings, options.memory_budget)
+        references[name if fitted == settings else _fitted_label(name, fitted)] = fitted
+    return references
+
+
+def flicker_limit(options: TuneOptions, references: dict[str, ShadowSettings],
+                  measured: dict[str, tuple[dict, bool]]) -> float | None:
+    """Phase 2b: the flicker limit; ``best-preset`` resolved to the lowest ``flicker_metric`` among the measured
+    engine presets within the memory budget.
+
+    Raises
+    ------
+    InputError
+        ``best-preset`` with no such preset.
+    """
+    if options.max_flicker != "best-preset":
+        return options.max_flicker
+    within = [measured[label][0].get(options.flicker_metric) for label, s in references.items()
+              if label != "start" and (options.memory_budget is None
+                                       or shadow_memory_bytes(s) <= options.memory_budget)]
+    within = [v for v in within if v is not None]
+    if not within:
+        raise InputError("expected an engine preset within the memory budget with a measured flicker to set "
+                         "the limit from, got none", field="--max-flicker")
+    return min(within)
+
+
+def sampler_name(options: TuneOptions) -> str:
+    """``grid`` when the space is choices only and its grid fits in the trials (searched exhaustively), else
+    ``tpe`` for one objective and ``nsga2`` for several."""
+    grid = _grid(options.space)
+    if grid is not None and len(grid) <= options.trials:
+        return "grid"
+    return "tpe" if len(options.goals) == 1 else "nsga2"
+
+
+def search(options: TuneOptions, evaluate: Callable[[dict], dict], judge: Callable[..., Candidate],
+           tick: Callable[[str], None]) -> tuple[Candidate, ...]:
+    """Phase 3: the search's candidates in trial order, ``batch`` at a time.
+
+    Parameters
+    ----------
+    options : TuneOptions
+    evaluate : callable
+        ``evaluate({label: settings}) -> {label: (values, computed)}`` (:class:`_Evaluator`).
+    judge : callable
+        ``judge(label, kind, params, settings, values, computed) -> Candidate`` (budget violations).
+    tick : callable
+        ``tick(label)`` after each candidate.
+
+    A grid (:func:`sampler_name`) is walked in order; otherwise Optuna's seeded sampler is asked for each
+    batch and told each candidate's objective values and budget violations. A candidate over the memory
+    budget is not run.
+
+    Raises
+    ------
+    InputError
+        A candidate of the space that is no valid setting.
+    """
+    name = sampler_name(options)
+    grid = _grid(options.space) if name == "grid" else None
+    total = len(grid) if grid is not None else options.trials
+    study = None if grid is not None else _study(options, name)
+    distributions = {field: _distribution(spec) for field, spec in options.space.items()}
+    found: list[Candidate] = []
+    for number in range(0, total, options.batch):
+        size = min(options.batch, total - number)
+        asked = [None] * size if study is None else [study.ask(distributions) for _ in range(size)]
+        points = grid[number:number + size] if grid is not None else [dict(t.params) for t in asked]
+        labels = [f"trial {number + offset}" for offset in range(size)]
+        labelled = {label: (params, _trial_settings(options, label, params)) for label, params in zip(labels, points)}
+        results = evaluate({label: s for label, (_, s) in labelled.items() if not _over_memory(options, s)})
+        for trial, (label, (params, settings)) in zip(asked, labelled.items()):
+            values, computed = results.get(label, (None, False))
+            record = judge(label, "trial", params, settings, values, computed)
+            found.append(record)
+            if study is not None:
+                for budget, violation in record.violations.items():
+                    trial.set_constraint(budget, violation)
+                study.tell(trial, list(_objective_values(values, options.goals)))
+            tick(label)
+    return tuple(found)
+
+
+def _study(options: TuneOptions, name: str):
+    """A seeded Optuna study minimising every goal, the start's values of the searched fields enqueued first."""
+    import optuna
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    # Constrained sampling reads each trial's Trial.set_constraint values (Optuna ≥ 5).
+    sampler = (optuna.samplers.NSGAIISampler(seed=options.seed) if name == "nsga2"
+               else optuna.samplers.TPESampler(seed=options.seed))
+    study = optuna.create_study(directions=["minimize"] * len(options.goals), sampler=sampler)
+    start = {f: v for f, v in settings_document(options.start).items()
+             if f in options.space and _holds(options.space[f], v)}
+    if start:
+        # The search starts where the user is: the start's values of the fields it can hold.
+        study.enqueue_trial(start)
+    return study
+
+
+def _trial_settings(options: TuneOptions, label: str, params: dict) -> ShadowSettings:
+    """The start with a trial's ``params``, settled and checked (:func:`_candidate_settings`); else an InputError."""
+    try:
+        return _candidate_settings(options.start.replace(**params), options.settle, options.camera)
+    except ValueError as exc:
+        tried = ", ".join(f"{k}={v!r}" for k, v in params.items())
+        raise InputError(f"{label}, method {options.method}: {exc} (the candidate: {tried})", field="--param") from None
+
+
+def _over_memory(options: TuneOptions, settings: ShadowSettings) -> bool:
+    return options.memory_budget is not None and shadow_memory_bytes(settings) > options.memory_budget
+
+
+def tune_result(experiment: Experiment, options: TuneOptions, *, budgets: Budgets, references: tuple[Candidate, ...],
+                trials: tuple[Candidate, ...], runs_computed: int) -> TuneResult:
+    """Phase 4: the tune's record: the Pareto front of the trials and the recommended one."""
+    return TuneResult(name=experiment.name, method=options.method, objectives=options.goals, budgets=budgets,
+                      space=options.space, sampler=sampler_name(options), seed=options.seed, trials=trials,
+                      references=references,
+                      front=tuple(pareto_front(trials, flicker_metric=options.flicker_metric)),
+                      recommended=_recommended(trials, options.goals), runs_computed=runs_computed,
+                      frames=experiment.camera.frames)
+
+
+def write_tune(result: TuneResult, out_dir, *, near: float, far: float) -> None:
+    """Phase 5: ``tune.json`` and the outputs (:func:`write_outputs`) under ``out_dir``.
+
+    Raises
+    ------
+    InfeasibleBudget
+        When no trial is recommended, after everything is written: the budget no candidate met.
+    """
+    write_atomic(Path(out_dir) / "tune.json", json_text(tune_document(result)))
+    write_outputs(result, out_dir, near=near, far=far)
+    if result.recommended is None:
+        option, message = _infeasible_message(result.trials, result.budgets, result.objectives)
+        raise InfeasibleBudget(message, field=option)
+
+
+def tune(experiment: Experiment, *, out_dir, progress: Callable[[int, int, str], None] | None = None,
+         **request) -> TuneResult:
     """Search one method's shadow settings under budgets; write ``tune.json`` and the outputs beside it.
 
-    Every argument left ``None`` is taken from the experiment's ``[tune]`` table, then from the
-    defaults (first method, ``rho_p05``, 20 trials, seed 0, no budgets, the ``flicker`` column).
+    The phases, each its own function: :func:`resolved_options`, the references (:func:`reference_settings`,
+    measured, then :func:`flicker_limit`), :func:`search`, :func:`tune_result`, :func:`write_tune`.
 
     Parameters
     ----------
@@ -484,31 +820,11 @@ def tune(experiment: Experiment, *, out_dir, space: dict | None = None, objectiv
     out_dir : path
         ``tune.json``, ``cache/`` (one summary per evaluated setting) and ``runs/`` (the batches' results
         folders) go here.
-    space : dict, optional
-        Field → spec (:func:`parse_space`); merged over ``[tune]``'s, field by field.
-    objectives : sequence of str, optional
-        metrics.csv columns (means over frames).
-    trials : int, optional
-        Candidates of the search (an exhaustive grid may take fewer).
-    method : str, optional
-        A method of ``experiment``.
-    seed : int, optional
-        Sampler seed: the same seed repeats the search.
-    memory_budget : int, optional
-        Bytes of shadow-map memory.
-    max_flicker : float or "best-preset", optional
-        Limit of ``flicker_metric``; ``best-preset`` is the lowest among the engine presets within the
-        memory budget.
-    flicker_metric : str, optional
-    presets : sequence of path, optional
-        Engine presets to compare with; default :func:`engine_presets`.
-    batch : int
-        Candidates asked of the sampler, and run, together (they share each frame's view). A resumed
-        tune must use the same batch to replay the same candidates.
-    jobs, executor, address, device
-        Where each run's frames go (:func:`csmlab.experiment.run_experiment`).
     progress : callable, optional
         ``progress(done, total, label)`` after each candidate.
+    **request
+        The fields of :class:`TuneRequest` (``trials=``, ``memory_budget=``, …); each left out or ``None`` is
+        taken from the experiment's ``[tune]`` table, then from the defaults.
 
     Returns
     -------
@@ -521,61 +837,14 @@ def tune(experiment: Experiment, *, out_dir, space: dict | None = None, objectiv
     InfeasibleBudget
         When no trial meets the budgets, after the outputs are written.
     """
-    import optuna
-
-    config = experiment.tune
-    names = [m.name for m in experiment.methods]
-    chosen = method or config.method or names[0]
-    if chosen not in names:
-        raise InputError(f"expected one of the experiment's methods {names}, got {chosen!r}", field="--method")
-    space = {**dict(config.space), **(space or {})}
-    from csmlab.engines import tune_space
-
-    owner = tune_space(chosen)
-    if owner is not None:
-        # An engine preset is tuned in the engine's own space: values its files hold, derived fields settled.
-        space = owner[1].restricted(space, engine=owner[0], method=chosen)
-    settle = owner[1].settle if owner is not None else (lambda settings: settings)
-    if not space:
-        raise InputError("expected a search space: a [tune] table of [shadow] fields or --param FIELD=LO:HI|A,B,C",
-                         file=experiment.source, field="tune")
-    goals = tuple((m, objective_direction(m)) for m in (objectives or config.objectives or DEFAULT_OBJECTIVES))
-    trials = trials if trials is not None else (config.trials or 20)
-    if trials < 1:
-        raise InputError(f"expected at least 1 trial, got {trials}", field="--trials")
-    if batch < 1:
-        raise InputError(f"expected at least 1 candidate per batch, got {batch}", field="--batch")
-    seed = seed if seed is not None else (config.seed or 0)
-    flicker_metric = flicker_metric or config.flicker_metric
-    if objective_direction(flicker_metric) != "lower":
-        raise InputError(f"expected a metric that is better lower, got {flicker_metric!r}", field="--flicker-metric")
-    memory_budget = memory_budget if memory_budget is not None else config.memory_budget
-    max_flicker = max_flicker if max_flicker is not None else config.max_flicker
-    if max_flicker is not None and max_flicker != "best-preset" and not (
-            isinstance(max_flicker, (int, float)) and max_flicker >= 0):
-        raise InputError(f'expected a non-negative number or "best-preset", got {max_flicker!r}', field="--max-flicker")
-    if max_flicker is not None and experiment.camera.frames < 2:
-        raise InputError(f"expected at least 2 frames to measure flicker, got {experiment.camera.frames}",
-                         field="--max-flicker")
-    base = next(m for m in experiment.methods if m.name == chosen)
-    for field, spec in space.items():
-        for value in (spec[1] if spec[0] == "choice" else spec[1:3]):
-            try:
-                _candidate_settings(base.settings.replace(**{field: value}), settle, experiment.camera)
-            except ValueError as exc:
-                raise InputError(f"method {chosen}, {field} = {value!r}: {exc}", field=f"--param {field}") from None
-    preset_paths = engine_presets() if presets is None else [Path(p) for p in presets]
-    preset_settings = {Path(p).stem: _preset_settings(experiment, p) for p in preset_paths}
-
+    options = resolved_options(experiment, TuneRequest(**request))
     out_dir = Path(out_dir)
     cache = _Cache(out_dir / "cache", workload=workload_hash(experiment, frames=experiment.camera.frames),
-                   device=device)
-    evaluate = _Evaluator(experiment, cache, out_dir / "runs",
-                          dict(jobs=jobs, executor=executor, address=address, device=device))
-    grid = _grid(space)
-    exhaustive = grid is not None and len(grid) <= trials
-    total_trials = len(grid) if exhaustive else trials
-    total = total_trials + 1 + len(preset_settings)
+                   device=options.device)
+    evaluate = _Evaluator(experiment, cache, out_dir / "runs", options.run_options)
+    grid = _grid(options.space)
+    searched = len(grid) if sampler_name(options) == "grid" else options.trials
+    total = searched + 1 + len(options.presets)
     done = 0
 
     def tick(label: str) -> None:
@@ -586,93 +855,19 @@ def tune(experiment: Experiment, *, out_dir, space: dict | None = None, objectiv
 
     if progress is not None:
         progress(0, total, "start and engine presets")
-    budgets = Budgets(memory_bytes=memory_budget, flicker_metric=flicker_metric)
-    reference_settings = {"start": base.settings}
-    for name, settings in preset_settings.items():
-        fitted = _fitted(settings, memory_budget)
-        reference_settings[name if fitted == settings else _fitted_label(name, fitted)] = fitted
-    measured = evaluate(reference_settings)
-    for label in reference_settings:
+    references = reference_settings(options)
+    measured = evaluate(references)
+    for label in references:
         tick(label)
-    if max_flicker == "best-preset":
-        within = [measured[label][0].get(flicker_metric) for label, s in reference_settings.items()
-                  if label != "start" and (memory_budget is None or shadow_memory_bytes(s) <= memory_budget)]
-        within = [v for v in within if v is not None]
-        if not within:
-            raise InputError("expected an engine preset within the memory budget with a measured flicker to set "
-                             "the limit from, got none", field="--max-flicker")
-        max_flicker = min(within)
-    budgets = dataclasses.replace(budgets, max_flicker=max_flicker)
-
-    def candidate(label, kind, params, settings, values, computed) -> Candidate:
-        memory = shadow_memory_bytes(settings)
-        return Candidate(label=label, kind=kind, params=params, settings=settings, key=cache.key(settings),
-                         memory_bytes=memory, values=values, violations=budgets.violations(memory, values),
-                         computed=computed)
-
-    references = tuple(candidate(label, "start" if label == "start" else "preset",
-                                 _changed(settings, experiment.shadow), settings, *measured[label])
-                       for label, settings in reference_settings.items())
-
-    directions = ["minimize"] * len(goals)
-    if exhaustive:
-        sampler_name = "grid"
-    elif len(goals) == 1:
-        sampler_name = "tpe"
-    else:
-        sampler_name = "nsga2"
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
-    # Constrained sampling reads each trial's Trial.set_constraint values (Optuna ≥ 5).
-    sampler = (optuna.samplers.NSGAIISampler(seed=seed) if sampler_name == "nsga2"
-               else optuna.samplers.TPESampler(seed=seed))
-    study = optuna.create_study(directions=directions, sampler=sampler)
-    distributions = {field: _distribution(spec) for field, spec in space.items()}
-    start_params = {f: v for f, v in settings_document(base.settings).items() if f in space and _holds(space[f], v)}
-    if not exhaustive and start_params:
-        # The search starts where the user is: the start's values of the fields it can hold.
-        study.enqueue_trial(start_params)
-    found: list[Candidate] = []
-    number = 0
-    while number < total_trials:
-        size = min(batch, total_trials - number)
-        asked = [None if exhaustive else study.ask(distributions) for _ in range(size)]
-        points = grid[number:number + size] if exhaustive else [dict(t.params) for t in asked]
-        named, skipped = {}, {}
-        for offset, params in enumerate(points):
-            label = f"trial {number + offset}"
-            try:
-                settings = _candidate_settings(base.settings.replace(**params), settle, experiment.camera)
-            except ValueError as exc:
-                tried = ", ".join(f"{k}={v!r}" for k, v in params.items())
-                raise InputError(f"{label}, method {chosen}: {exc} (the candidate: {tried})", field="--param") from None
-            over = memory_budget is not None and shadow_memory_bytes(settings) > memory_budget
-            (skipped if over else named)[label] = (params, settings)
-        results = evaluate({label: s for label, (_, s) in named.items()})
-        for offset, params in enumerate(points):
-            label = f"trial {number + offset}"
-            _, settings = named.get(label) or skipped[label]
-            values, computed = results.get(label, (None, False))
-            record = candidate(label, "trial", params, settings, values, computed)
-            found.append(record)
-            if not exhaustive:
-                trial = asked[offset]
-                for budget, violation in record.violations.items():
-                    trial.set_constraint(budget, violation)
-                study.tell(trial, list(_objective_values(values, goals)))
-            tick(label)
-        number += size
-
-    trials_found = tuple(found)
-    result = TuneResult(name=experiment.name, method=chosen, objectives=goals, budgets=budgets, space=space,
-                        sampler=sampler_name, seed=seed, trials=trials_found, references=references,
-                        front=tuple(pareto_front(trials_found, flicker_metric=flicker_metric)),
-                        recommended=_recommended(trials_found, goals), runs_computed=evaluate.computed,
-                        frames=experiment.camera.frames)
-    write_atomic(out_dir / "tune.json", json_text(tune_document(result)))
-    write_outputs(result, out_dir, near=experiment.camera.near, far=experiment.camera.far)
-    if result.recommended is None:
-        option, message = _infeasible_message(trials_found, budgets, goals)
-        raise InfeasibleBudget(message, field=option)
+    budgets = Budgets(memory_bytes=options.memory_budget, max_flicker=flicker_limit(options, references, measured),
+                      flicker_metric=options.flicker_metric)
+    judge = _Judge(budgets, cache)
+    compared = tuple(judge(label, "start" if label == "start" else "preset", _changed(settings, experiment.shadow),
+                           settings, *measured[label]) for label, settings in references.items())
+    trials = search(options, evaluate, judge, tick)
+    result = tune_result(experiment, options, budgets=budgets, references=compared, trials=trials,
+                         runs_computed=evaluate.computed)
+    write_tune(result, out_dir, near=experiment.camera.near, far=experiment.camera.far)
     return result
 
 

@@ -15,7 +15,9 @@ from csmlab.errors import InputError
 from csmlab.experiment import run_experiment
 from csmlab.metrics.cost import shadow_memory_bytes
 from csmlab.settings import ShadowSettings
-from csmlab.tune import InfeasibleBudget, objective_direction, parse_space, tune
+from csmlab.tune import (ENGINES_DIR as ENGINES, Budgets, InfeasibleBudget, TuneRequest, flicker_limit,
+                         objective_direction, parse_space, reference_settings, resolved_options, sampler_name, search,
+                         tune, tune_result, write_tune)
 
 TINY = """
 name = "tiny_tune"
@@ -366,3 +368,139 @@ def test_a_field_an_engine_has_no_setting_for_is_refused_in_a_tune_of_its_preset
     with pytest.raises(InputError, match="method godot4 extends the godot4 preset.*no setting for 'depth_range'"):
         tune(load_experiment(path), out_dir=tmp_path / "out", space={"depth_range": ("choice", ("scene",))},
              presets=[])
+
+
+# --- the phases one by one: resolve options, references, search, result, outputs ---------------------------
+
+
+def test_resolved_options_take_the_request_over_the_tune_table_over_the_defaults(experiment):
+    options = resolved_options(experiment, TuneRequest(space={"lambda": ("choice", (0.5,))}, presets=[]))
+    assert options.space == {"resolution": ("choice", (64, 128, 256)), "lambda": ("choice", (0.5,))}
+    assert (options.method, options.trials, options.seed, options.batch) == ("none", 20, 0, 4)
+    assert options.goals == (("rho_p05", "higher"),) and options.flicker_metric == "flicker"
+    assert options.start == experiment.methods[0].settings and options.presets == {}
+    assert options.memory_budget is None and options.max_flicker is None and options.device == "cpu"
+    asked = resolved_options(experiment, TuneRequest(trials=7, seed=2, memory_budget=1024, max_flicker=0.5,
+                                                     presets=[], device="cuda:0", jobs=3))
+    assert (asked.trials, asked.seed, asked.memory_budget, asked.max_flicker) == (7, 2, 1024, 0.5)
+    assert asked.run_options == {"jobs": 3, "executor": "inprocess", "address": None, "device": "cuda:0"}
+    with pytest.raises(InputError) as caught:
+        resolved_options(experiment, TuneRequest(method="nope", presets=[]))
+    assert caught.value.field == "--method"
+    with pytest.raises(InputError) as caught:
+        resolved_options(experiment, TuneRequest(space={"resolution": ("choice", (8,))}, presets=[]))
+    assert caught.value.field == "--param resolution"
+
+
+def test_an_engine_preset_is_read_on_the_experiment_as_a_file_extending_both_would_read_it(experiment_file,
+                                                                                            experiment, tmp_path):
+    presets = [ENGINES / "ue5.toml", ENGINES / "godot4.toml"]
+    options = resolved_options(experiment, TuneRequest(presets=presets))
+    for preset in presets:
+        # The oracle: the user's way, a file on disk extending the experiment and then the preset.
+        probe = tmp_path / f"probe_{preset.stem}.toml"
+        probe.write_text(f"extends = [{json.dumps(str(experiment_file))}, {json.dumps(str(preset))}]\n")
+        expected = next(m for m in load_experiment(probe).methods if m.name == preset.stem).settings
+        assert options.presets[preset.stem] == expected
+        assert expected.shadow_distance != ShadowSettings().shadow_distance or preset.stem == "ue5"
+
+
+def test_reference_settings_are_the_start_then_each_preset_fitted_to_the_budget(experiment):
+    options = dataclasses.replace(resolved_options(experiment, TuneRequest(presets=[])),
+                                  presets={"big": ShadowSettings(resolution=2048), "small": ShadowSettings()},
+                                  memory_budget=shadow_memory_bytes(ShadowSettings(resolution=1024)))
+    references = reference_settings(options)
+    assert list(references) == ["start", "big @ 1024²", "small"]
+    assert references["start"] == options.start and references["big @ 1024²"].resolution == 1024
+    unlimited = reference_settings(dataclasses.replace(options, memory_budget=None))
+    assert list(unlimited) == ["start", "big", "small"]
+
+
+def test_flicker_limit_best_preset_is_the_lowest_measured_flicker_within_the_memory_budget(experiment):
+    options = dataclasses.replace(resolved_options(experiment, TuneRequest(presets=[])), max_flicker="best-preset",
+                                  memory_budget=shadow_memory_bytes(ShadowSettings(resolution=1024)))
+    references = {"start": ShadowSettings(), "a": ShadowSettings(), "b": ShadowSettings(resolution=2048),
+                  "c": ShadowSettings(), "d": ShadowSettings()}
+    measured = {"start": ({"flicker": 0.0}, True), "a": ({"flicker": 0.3}, True), "b": ({"flicker": 0.1}, True),
+                "c": ({"flicker": 0.2}, True), "d": ({"flicker": None}, True)}
+    # The start and the preset over the budget do not set it; an unmeasured flicker neither.
+    assert flicker_limit(options, references, measured) == 0.2
+    assert flicker_limit(dataclasses.replace(options, max_flicker=0.05), references, measured) == 0.05
+    with pytest.raises(InputError, match="expected an engine preset within the memory budget"):
+        flicker_limit(options, {"start": ShadowSettings(), "b": references["b"]}, measured)
+
+
+def test_sampler_is_a_grid_when_the_choices_fit_in_the_trials_else_tpe_or_nsga2(experiment):
+    options = resolved_options(experiment, TuneRequest(presets=[]))  # [tune]: lambda is a range
+    grid = dataclasses.replace(options, space={"resolution": ("choice", (64, 128)), "lambda": ("choice", (0.3, 0.9))},
+                               trials=4)
+    assert sampler_name(grid) == "grid"
+    assert sampler_name(dataclasses.replace(grid, trials=3)) == "tpe"
+    assert sampler_name(options) == "tpe"  # a range in the space
+    assert sampler_name(dataclasses.replace(grid, trials=3, goals=(("rho_p05", "higher"), ("flicker", "lower")))) \
+        == "nsga2"
+
+
+def _fake_search(options, tmp_path):
+    """:func:`search` with an evaluator that measures nothing: ρ p05 is the resolution, flicker 1 / resolution."""
+    asked, ticks = [], []
+
+    def evaluate(named):
+        asked.append(dict(named))
+        return {label: ({"rho_p05": float(s.resolution), "flicker": 1.0 / s.resolution}, True)
+                for label, s in named.items()}
+
+    budgets = Budgets(memory_bytes=options.memory_budget, flicker_metric="flicker")
+    judge = tune_module._Judge(budgets, tune_module._Cache(tmp_path, workload="w", device="cpu"))
+    return search(options, evaluate, judge, ticks.append), asked, ticks
+
+
+def test_search_walks_a_grid_in_order_in_batches_and_runs_nothing_over_the_memory_budget(experiment, tmp_path):
+    options = dataclasses.replace(resolved_options(experiment, TuneRequest(presets=[])),
+                                  space={"resolution": ("choice", (64, 128, 256)), "lambda": ("choice", (0.3, 0.9))},
+                                  trials=6, batch=4,
+                                  memory_budget=shadow_memory_bytes(ShadowSettings(cascades=2, resolution=128)))
+    trials, asked, ticks = _fake_search(options, tmp_path)
+    assert [t.params for t in trials] == [{"resolution": r, "lambda": l} for r in (64, 128, 256) for l in (0.3, 0.9)]
+    assert ticks == [t.label for t in trials] == [f"trial {i}" for i in range(6)]
+    assert [list(batch) for batch in asked] == [["trial 0", "trial 1", "trial 2", "trial 3"], []]
+    assert [t.values is None for t in trials] == [False] * 4 + [True] * 2
+    assert all(t.settings.resolution == t.params["resolution"] and t.settings.lambda_ == t.params["lambda"]
+               for t in trials)
+
+
+def test_search_with_a_sampler_starts_at_the_start_and_repeats_with_its_seed(experiment, tmp_path):
+    options = dataclasses.replace(resolved_options(experiment, TuneRequest(presets=[])),
+                                  space={"resolution": ("choice", (64, 128, 256)),
+                                         "lambda": ("range", 0.3, 0.9, False, None)}, trials=5, batch=2, seed=4)
+    first, _, _ = _fake_search(options, tmp_path / "a")
+    second, _, _ = _fake_search(options, tmp_path / "b")
+    assert [t.params for t in first] == [t.params for t in second] and len(first) == 5
+    assert first[0].params == {"resolution": 128, "lambda": options.start.lambda_}
+
+
+def test_tune_result_recommends_the_best_feasible_trial_and_keeps_the_front(experiment, tmp_path):
+    options = dataclasses.replace(resolved_options(experiment, TuneRequest(presets=[])),
+                                  space={"resolution": ("choice", (64, 128, 256))}, trials=3, batch=3,
+                                  memory_budget=shadow_memory_bytes(ShadowSettings(cascades=2, resolution=128)))
+    trials, _, _ = _fake_search(options, tmp_path)
+    budgets = Budgets(memory_bytes=options.memory_budget)
+    result = tune_result(experiment, options, budgets=budgets, references=(), trials=trials, runs_computed=2)
+    assert result.recommended.label == "trial 1"  # 128: the sharpest within the budget (256 is over it)
+    assert result.sampler == "grid" and result.runs_computed == 2 and result.frames == experiment.camera.frames
+    assert set(result.front) == {"trial 0", "trial 1"}  # 64 is cheaper, 128 sharper; 256 was not measured
+
+
+def test_write_tune_writes_everything_then_raises_when_no_trial_is_recommended(experiment, tmp_path):
+    options = dataclasses.replace(resolved_options(experiment, TuneRequest(presets=[])),
+                                  space={"resolution": ("choice", (128, 256))}, trials=2,
+                                  memory_budget=shadow_memory_bytes(ShadowSettings(cascades=2, resolution=64)))
+    trials, _, _ = _fake_search(options, tmp_path / "cache")
+    result = tune_result(experiment, options, budgets=Budgets(memory_bytes=options.memory_budget), references=(),
+                         trials=trials, runs_computed=0)
+    with pytest.raises(InfeasibleBudget) as caught:
+        write_tune(result, tmp_path, near=0.1, far=400.0)
+    assert caught.value.field == "--memory-budget" and "cheapest seen is trial 0" in caught.value.detail
+    document = json.loads((tmp_path / "tune.json").read_text())
+    assert document["recommended"] is None and [t["label"] for t in document["trials"]] == ["trial 0", "trial 1"]
+    assert (tmp_path / "index.html").is_file() and not (tmp_path / "recommended.toml").exists()

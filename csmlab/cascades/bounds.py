@@ -13,6 +13,18 @@ View depth, :data:`BOUNDS_METHODS` (``[shadow] bounds``):
   as Stride does instead (:func:`stepped_depth_ranges`): the far end grows in steps of 1.1ᵏ and
   shrinks in steps of 2⁻ᵏ of the held one, and so does the held range's depth (:data:`HOLD_METHODS`).
 
+Where the shadow ends, :data:`SHADOW_DISTANCE_METHODS` (``[shadow] shadow_distance_from``; TOML also
+takes ``shadow_distance = "camera_far"`` or ``"farthest_visible"`` for it), :func:`shadow_end`:
+
+- ``fixed`` — ``shadow_distance`` metres, clamped to the camera's far plane (Unity, Godot, Bevy, Unreal).
+- ``camera_far`` — the camera's far plane of each frame, at most ``max_shadow_distance`` when that is
+  set (three.js ``CSM._getBreaks``: ``Math.min(camera.far, this.maxFar)``, maxFar 100000; Filament
+  ``ShadowOptions::shadowFar = 0``: the camera's far; MJP ``MaxCascadeDistance`` 1.0 of the clip range).
+- ``farthest_visible`` — the farthest visible point of each frame (the held far end of ``bounds =
+  "sdsm"``'s visible range), at most ``max_shadow_distance`` when set, not clamped to ``shadow_distance``
+  (Stride ``LightDirectionalShadowMapRenderer.ComputeCascadeSplits``: ``maxDistance`` of the visible
+  objects, ``VisibilityGroup.CalculateMinMaxDistance``, with no cap).
+
 Light depth, :data:`DEPTH_RANGE_METHODS` (``[shadow] depth_range``), the box's extent along the light:
 
 - ``scene`` — the near side pushed toward the light to the scene's bounds (NVIDIA's z-range
@@ -53,8 +65,8 @@ import numpy as np
 from csmlab.registry import check_name
 
 __all__ = ["BOUNDS_METHODS", "Bounds", "DEPTH_RANGE_METHODS", "DepthRange", "HOLD_METHODS", "Hold",
-           "held_depth_ranges", "scene_box_depth", "scene_clipped_box_depth", "slice_box_depth", "split_range", "stepped_depth_ranges",
-           "visible_depth_range"]
+           "SHADOW_DISTANCE_METHODS", "held_depth_ranges", "scene_box_depth", "scene_clipped_box_depth",
+           "shadow_end", "slice_box_depth", "split_range", "stepped_depth_ranges", "visible_depth_range"]
 
 
 @dataclass(frozen=True)
@@ -328,6 +340,43 @@ HOLD_METHODS: dict[str, Hold] = {
                     "Stride: grows in 1.1^k and shrinks in 2^-k steps of the held range (stepped_depth_ranges)"),
 }
 """Holds of an SDSM's visible range, by name."""
+
+
+SHADOW_DISTANCE_METHODS: dict[str, str] = {
+    "fixed": "shadow_distance metres, clamped to the camera's far plane",
+    "camera_far": "the camera's far plane of each frame, at most max_shadow_distance when set (three.js maxFar, "
+                  "Filament shadowFar = 0, MJP)",
+    "farthest_visible": "the farthest visible point of each frame (bounds = \"sdsm\"'s held far end), at most "
+                        "max_shadow_distance when set (Stride)",
+}
+"""Where the last cascade ends (``[shadow] shadow_distance_from``), by name."""
+
+
+def shadow_end(*, method: str, shadow_distance: float, max_shadow_distance: float, camera_far: float,
+               visible: tuple[float, float] | None = None) -> float:
+    """The view depth in metres where the last cascade ends in one frame (:data:`SHADOW_DISTANCE_METHODS`).
+
+    Parameters
+    ----------
+    method : str
+        ``fixed``, ``camera_far`` or ``farthest_visible``.
+    shadow_distance : float
+        ``fixed``: the distance in metres.
+    max_shadow_distance : float
+        ``camera_far``, ``farthest_visible``: the engine's cap in metres; 0: none.
+    camera_far : float
+        The frame's camera far plane in metres (a glTF camera's ``zfar``, a recorded path's far).
+    visible : (float, float) or None
+        ``farthest_visible``: the frame's (held) visible view-depth range in metres; without one (nothing
+        visible) the camera's far plane.
+    """
+    check_name(method, SHADOW_DISTANCE_METHODS, field="shadow_distance_from")
+    if method == "fixed":
+        return float(min(shadow_distance, camera_far))
+    end = float(camera_far)
+    if method == "farthest_visible" and visible is not None and np.all(np.isfinite(visible)):
+        end = float(visible[1])
+    return min(end, float(max_shadow_distance)) if max_shadow_distance > 0.0 else end
 
 
 def split_range(*, near: float, far: float, visible: tuple[float, float] | None, method: str) -> tuple[float, float]:

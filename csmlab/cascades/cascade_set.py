@@ -11,9 +11,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from csmlab.camera import CameraPose
-from csmlab.cascades.bounds import DEPTH_RANGE_METHODS, split_range
+from csmlab.cascades.bounds import DEPTH_RANGE_METHODS, shadow_end, split_range
 from csmlab.cascades.extent import EXTENT_METHODS, radius_rounded_up
-from csmlab.cascades.fit import slice_intervals
+from csmlab.cascades.fit import selection_depths, slice_intervals
 from csmlab.cascades.focus import focused_volume
 from csmlab.cascades.splits import split_distances
 from csmlab.cascades.stabilize import SliceFootprint, stabilize
@@ -113,6 +113,10 @@ class CascadeSet:
         Texels kept free inside each box edge for the filter.
     eye : ndarray, shape (3,), optional
         World position of the camera the cascades were built for (the radial fades' centre).
+    selection_splits : ndarray, shape (C + 1,), optional
+        View depths in metres where the interval selection switches cascade when they are not the
+        splits (``fit = "cascade_lerp"``: three.js's ``b (f - n)``, :func:`csmlab.cascades.fit.selection_depths`);
+        None: the splits.
     """
 
     basis: np.ndarray
@@ -121,6 +125,7 @@ class CascadeSet:
     cascades: tuple[Cascade, ...]
     margin_texels: int
     eye: np.ndarray | None = None
+    selection_splits: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.cascades)
@@ -129,6 +134,11 @@ class CascadeSet:
     def warped(self) -> bool:
         """Whether any cascade is perspective-warped (its texels placed by a homography, on the host)."""
         return any(c.warp is not None for c in self.cascades)
+
+    @property
+    def switch_depths(self) -> np.ndarray:
+        """View depths ``(C + 1,)`` in metres where the interval selection switches cascade."""
+        return self.splits if self.selection_splits is None else self.selection_splits
 
     @property
     def direction(self) -> np.ndarray:
@@ -153,8 +163,9 @@ class CascadeSet:
 
 def _slices(pose: CameraPose, settings: ShadowSettings, visible_depth) -> tuple:
     """``(near, far, splits, intervals)`` of one frame: the range the splits divide, the splits, the fitted slices."""
-    near, far = split_range(near=pose.near, far=min(settings.shadow_distance, pose.far), visible=visible_depth,
-                            method=settings.bounds)
+    end = shadow_end(method=settings.shadow_distance_from, shadow_distance=settings.shadow_distance,
+                     max_shadow_distance=settings.max_shadow_distance, camera_far=pose.far, visible=visible_depth)
+    near, far = split_range(near=pose.near, far=end, visible=visible_depth, method=settings.bounds)
     splits = split_distances(near=near, far=far, count=settings.cascades, method=settings.split,
                              lambda_=settings.lambda_, splits=settings.splits,
                              distribution_exponent=settings.distribution_exponent,
@@ -256,8 +267,10 @@ def build_cascades(*, pose: CameraPose, light_direction, scene_corners, settings
             texel_size=texel, origin=origin, resolution=resolution, depth_near=depth_near,
             depth_far=depth_far, warp=warp, **_split_sphere(pose, z0, z1),
         ))
+    switches = selection_depths(splits, method=settings.fit)
     return CascadeSet(basis=basis, zref=float(scene_light[:, 2].min()), splits=splits, cascades=tuple(cascades),
-                      margin_texels=margin, eye=np.array(pose.position, dtype=np.float64))
+                      margin_texels=margin, eye=np.array(pose.position, dtype=np.float64),
+                      selection_splits=None if np.array_equal(switches, splits) else switches)
 
 
 def _split_sphere(pose: CameraPose, z0: float, z1: float) -> dict:

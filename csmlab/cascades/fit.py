@@ -21,8 +21,7 @@ from csmlab.lookup_choices import BLEND_LINEAR, BLEND_SMOOTHSTEP
 from csmlab.registry import check_name
 
 __all__ = ["BLEND_CURVES", "TRANSITION_METHODS", "FIT_METHODS", "Transition", "fit_cascade", "fit_cascade_lerp", "fit_scene",
-           "slice_intervals",
-           "transition_bands"]
+           "GODOT_BLEND_SPLITS", "selection_depths", "slice_intervals", "transition_bands"]
 
 
 def fit_cascade(splits: np.ndarray, i: int) -> tuple[float, float]:
@@ -44,6 +43,23 @@ def fit_cascade_lerp(splits: np.ndarray, i: int) -> tuple[float, float]:
         return near if k == 0 else far if k == len(splits) - 1 else near + float(splits[k]) / far * (far - near)
 
     return end(i), end(i + 1)
+
+
+def selection_depths(splits: np.ndarray, *, method: str) -> np.ndarray:
+    """The view depths ``(C + 1,)`` in metres where the interval selection switches cascade under the fit ``method``.
+
+    The splits themselves, but for ``cascade_lerp``: three.js selects by ``linearDepth = vViewPosition.z /
+    (shadowFar - cameraNear)`` in ``[breaks[i - 1], breaks[i])`` (``CSMShader.js`` ``lights_fragment_begin``,
+    ``CSM_cascades`` from ``CSM.getExtendedBreaks``), so cascade ``i`` ends at ``b (f - n)`` with ``b = z / f``:
+    ``n b`` before the split, ``n`` before its slice's end (:func:`fit_cascade_lerp`); a point beyond
+    ``f - n`` is in no cascade (three.js shades it lit). The first entry stays the near plane.
+    """
+    check_name(method, FIT_METHODS, field="fit")
+    z = np.array(splits, dtype=np.float64)
+    if method == "cascade_lerp":
+        near, far = float(z[0]), float(z[-1])
+        z[1:] = z[1:] / far * (far - near)
+    return z
 
 
 def fit_scene(splits: np.ndarray, i: int) -> tuple[float, float]:
@@ -141,9 +157,19 @@ def slice_intervals(splits: np.ndarray, *, method: str, blend_band: float = 0.0,
     check_name(method, FIT_METHODS, field="fit")
     count = len(splits) - 1
     out = np.array([FIT_METHODS[method](splits, i) for i in range(count)], dtype=np.float64)
-    select, start = transition_bands(splits, blend_band=blend_band, transition=transition)
+    select, start = transition_bands(selection_depths(splits, method=method), blend_band=blend_band,
+                                     transition=transition)
     for i in range(count):
         out[i, 1] = max(out[i, 1], select[i + 1])
         if i > 0:
             out[i, 0] = min(out[i, 0], start[i - 1])
     return out
+
+
+GODOT_BLEND_SPLITS: dict = {"blend_band": 0.1, "transition": "far_bound", "blend_curve": "smoothstep"}
+"""Godot 4's ``directional_shadow_blend_splits = true`` as ``[shadow]`` fields (``scene_forward_clustered.glsl``
+``light_process``, Forward+ 4.2+): in split i a second lookup in split i + 1 mixed in with weight
+``smoothstep(z_i+1 − 0.1 · z_i+1, z_i+1, depth_z)`` (``shadow_split_offsets``), none in the last split: the band
+from ``(1 − 0.1) z_i+1`` to ``z_i+1`` (``far_bound``), a smoothstep of the linear weight. With blend splits on, the
+Vogel radius is not scaled by the first split (``blur_factor + (1 − blur_factor) · blend_splits`` = 1:
+``vogel_scale = "none"``)."""

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
+from csmlab.cascades.bounds import shadow_end
 from csmlab.registry import check_name, dispatch
 
 if TYPE_CHECKING:
@@ -164,8 +165,12 @@ def split_distances(*, near: float, far: float, count: int, method: str = "pract
 
 def split_boundaries(settings: ShadowSettings, *, near: float, far: float) -> np.ndarray:
     """Cascade boundaries ``(C + 1,)`` in metres of view depth, as the cascades are built: from the camera's
-    ``near`` to ``min(shadow_distance, far)``."""
-    return split_distances(near=near, far=min(settings.shadow_distance, far), count=settings.cascades,
+    ``near`` to where the shadow ends under a camera whose far plane is ``far`` (``min(shadow_distance, far)``,
+    or ``far`` itself for ``shadow_distance_from = "camera_far"`` and, no frame being seen, ``"farthest_visible"``:
+    :func:`csmlab.cascades.bounds.shadow_end`)."""
+    end = shadow_end(method=settings.shadow_distance_from, shadow_distance=settings.shadow_distance,
+                     max_shadow_distance=settings.max_shadow_distance, camera_far=far)
+    return split_distances(near=near, far=end, count=settings.cascades,
                            method=settings.split, lambda_=settings.lambda_, splits=settings.splits,
                            distribution_exponent=settings.distribution_exponent,
                            first_cascade_far=settings.first_cascade_far)

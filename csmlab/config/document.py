@@ -34,6 +34,15 @@ def _section_document(record) -> dict:
     return out
 
 
+def _part_document(part) -> dict:
+    """A ``[[scene.parts]]`` entry: with a ``matrix``, without the other form (the loader takes one or the other)."""
+    document = _section_document(part)
+    if part.matrix is not None:
+        for key in ("translation", "rotation_deg", "scale"):
+            document.pop(key)
+    return document
+
+
 def experiment_document(experiment: Experiment) -> dict:
     """The resolved experiment as plain data in the TOML file's shape: every field, presets merged.
 
@@ -42,7 +51,7 @@ def experiment_document(experiment: Experiment) -> dict:
     """
     scene = _section_document(experiment.scene)
     if experiment.scene.parts:
-        scene["parts"] = [_section_document(part) for part in experiment.scene.parts]
+        scene["parts"] = [_part_document(part) for part in experiment.scene.parts]
     else:
         # Without parts: an experiment keeps the document (and the hashes) it had.
         scene.pop("parts")

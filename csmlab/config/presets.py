@@ -175,11 +175,15 @@ def _merge_methods(into: list, entries, origins: dict, *, file: Path) -> None:
             origins[f"methods.{name}.{key}"] = file
 
 
-def _merged(path: Path) -> tuple[dict, dict]:
-    """The merged document of ``path`` and its presets, and the file every value came from."""
+def _merged(path: Path, *, then_extends: tuple[Path, ...] = ()) -> tuple[dict, dict]:
+    """The merged document of ``path`` and its presets, and the file every value came from.
+
+    ``then_extends``: preset files merged after ``path`` (each with its own presets first), in memory as a
+    file extending ``[path, *then_extends]`` would merge them; ``path`` keeps its own name and description.
+    """
     merged: dict = {"methods": []}
     origins: dict = {}
-    layers = _layers(path)
+    layers = _layers(path) + [layer for preset in then_extends for layer in _layers(Path(preset).resolve())]
     for file, document in layers:
         own = file == path
         for key, value in document.items():

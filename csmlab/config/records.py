@@ -48,6 +48,9 @@ class _Checked:
         return self
 
 
+_Row = tuple[float, float, float, float]
+
+
 @dataclass(frozen=True)
 class ScenePart(_Checked):
     """One ``[[scene.parts]]`` entry: a mesh file placed in the level (csmlab.scene.parts)."""
@@ -60,6 +63,25 @@ class ScenePart(_Checked):
     """Turns about the world X, then Y, then Z axes through the part's origin, degrees (after ``scale``)."""
     scale: float = field(default=1.0, metadata=_expect(_positive, "a positive factor"))
     """The part's own uniform scale, after ``[scene] scale`` (metres per file unit) and ``up``."""
+    matrix: tuple[_Row, _Row, _Row, _Row] | None = None
+    """Instead of translation, rotation_deg and scale: a 4×4 affine transform, row-major, on column vectors
+    (``p' = M [p, 1]``, last row 0 0 0 1; shear, non-uniform scale and mirrors allowed), as engines store a node's
+    transform (``csmlab import godot4`` writes one per glTF instance)."""
+
+    def validated(self):
+        """Return ``self`` after the field checks and, with a ``matrix``, its check
+        (:func:`csmlab.scene.parts.matrix_fault`) and that the other form is left at its defaults."""
+        super().validated()
+        if self.matrix is None:
+            return self
+        from csmlab.scene.parts import matrix_fault
+
+        fault = matrix_fault(self.matrix)
+        if fault:
+            raise ValueError(f"matrix: expected {fault}")
+        if (self.translation, self.rotation_deg, self.scale) != ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 1.0):
+            raise ValueError("matrix: expected either matrix or translation, rotation_deg and scale, got both")
+        return self
 
 
 @dataclass(frozen=True)

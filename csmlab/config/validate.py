@@ -23,7 +23,7 @@ from csmlab.config.records import (_TOP_FIELDS, CameraConfig, Experiment, LightC
                                    SceneConfig, ScenePart, TuneConfig, _positive, _record_fields, sweep_points)
 from csmlab.config.toml_writer import _toml_value
 from csmlab.errors import InputError
-from csmlab.registry import parameters, unknown_name_message
+from csmlab.registry import close_match_hint, parameters, unknown_name_message
 from csmlab.settings import APPLIES, ShadowSettings
 
 
@@ -65,6 +65,8 @@ def _type_name(kind) -> str:
     args = typing.get_args(kind)
     if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
         return f"a list of {_type_name(args[0]).removeprefix('a ').removeprefix('an ')}s"
+    if origin is tuple and all(typing.get_origin(a) is tuple for a in args):
+        return f"a list of {len(args)} {_type_name(args[0]).replace('a list', 'lists', 1)}"
     if origin is tuple:
         return f"a list of {len(args)} numbers"
     if type(None) in args:
@@ -206,10 +208,14 @@ def _scene_parts(parts, located: _Located) -> tuple[ScenePart, ...]:
     """``[[scene.parts]]``: each a :class:`ScenePart` with its file made absolute and checked."""
     if not isinstance(parts, list) or not all(isinstance(p, dict) for p in parts):
         raise located.error("scene.parts", f"expected [[scene.parts]] tables (file, translation, rotation_deg, "
-                                           f"scale), got {parts!r}")
+                                           f"scale or matrix), got {parts!r}")
     out = []
     for i, table in enumerate(parts):
         where = f"scene.parts[{i}]"
+        both = [key for key in ("translation", "rotation_deg", "scale") if key in table]
+        if "matrix" in table and both:
+            raise located.error(f"{where}.matrix", f"expected either matrix or translation, rotation_deg and scale, "
+                                                   f"got matrix and {', '.join(both)}")
         part = _record(ScenePart, table, where=where, located=located)
         if not part.file:
             raise located.error(f"{where}.file", "expected the part's mesh file, got none")
@@ -316,8 +322,28 @@ def _shadow_fields(table, *, where: str, located: _Located, allow=("name",)) -> 
             continue
         if key not in types:
             raise _unknown(where, key, [*types, *allow], located)
+        if key == "shadow_distance":
+            out.update(_shadow_distance(value, given_from="shadow_distance_from" in table, where=f"{where}.{key}",
+                                        located=located))
+            continue
         out[key] = _typed_value(value, types[key], None, where=f"{where}.{key}", located=located)
     return out
+
+
+def _shadow_distance(value, *, given_from: bool, where: str, located: _Located) -> dict:
+    """The fields ``shadow_distance = value`` sets: a string names ``shadow_distance_from`` (``"camera_far"``,
+    ``"farthest_visible"``); a number is metres, and ``fixed`` unless the same table writes
+    ``shadow_distance_from`` itself (a resolved document writes both)."""
+    from csmlab.cascades.bounds import SHADOW_DISTANCE_METHODS
+
+    if isinstance(value, str):
+        names = [name for name in SHADOW_DISTANCE_METHODS if name != "fixed"]
+        if value not in names:
+            raise located.error(where, f"expected a distance in metres or one of {names}, got {value!r}"
+                                       f"{close_match_hint(value, names)}")
+        return {"shadow_distance_from": value}
+    metres = _typed_value(value, float, None, where=where, located=located)
+    return {"shadow_distance": metres} if given_from else {"shadow_distance": metres, "shadow_distance_from": "fixed"}
 
 
 def shadow_method_registries() -> dict:
@@ -325,7 +351,7 @@ def shadow_method_registries() -> dict:
     from csmlab.cascades import (BOUNDS_METHODS, DEPTH_RANGE_METHODS, EXTENT_METHODS, FIT_METHODS, SNAP_METHODS,
                                  SPLIT_METHODS, STABILIZATION_METHODS)
     from csmlab.lookup_choices import FILTER_METHODS, OUTSIDE_METHODS, SELECTION_METHODS
-    from csmlab.cascades.bounds import HOLD_METHODS
+    from csmlab.cascades.bounds import HOLD_METHODS, SHADOW_DISTANCE_METHODS
     from csmlab.cascades.fit import BLEND_CURVES, TRANSITION_METHODS
     from csmlab.culling import CULL_METHODS
     from csmlab.fades import FADE_METHODS
@@ -334,6 +360,7 @@ def shadow_method_registries() -> dict:
     from csmlab.texels import PRECISION_METHODS, VERTEX_SNAPS
     from csmlab.cascades.focus import FOCUS_METHODS
     from csmlab.cascades.warp import WARP_METHODS
+    from csmlab.shadow_policies import SUN_POLICIES, ZOOM_POLICIES
 
     return {"split": SPLIT_METHODS, "fit": FIT_METHODS, "stabilization": STABILIZATION_METHODS,
             "selection": SELECTION_METHODS, "filter": FILTER_METHODS, "extent": EXTENT_METHODS, "snap": SNAP_METHODS,
@@ -341,7 +368,8 @@ def shadow_method_registries() -> dict:
             "transition": TRANSITION_METHODS, "hold": HOLD_METHODS, "blend_curve": BLEND_CURVES, "fade": FADE_METHODS,
             "cull": CULL_METHODS, "focus": FOCUS_METHODS, "warp": WARP_METHODS, "vertex_snap": VERTEX_SNAPS,
             "light_basis": LIGHT_BASIS_METHODS, "depth_quantization": DEPTH_QUANTIZATION_METHODS,
-            "outside": OUTSIDE_METHODS}
+            "outside": OUTSIDE_METHODS, "shadow_distance_from": SHADOW_DISTANCE_METHODS, "zoom_policy": ZOOM_POLICIES,
+            "sun_policy": SUN_POLICIES}
 
 
 def _checked_settings(settings: ShadowSettings, *, where_of, located: _Located,
@@ -350,12 +378,26 @@ def _checked_settings(settings: ShadowSettings, *, where_of, located: _Located,
     _validated(settings, where_of=where_of, located=located)
     for name, registry in shadow_method_registries().items():
         _registry_name(getattr(settings, name), registry, where=where_of(name), located=located)
-    if settings.split == "geometric" and settings.cascades > 1 and settings.first_cascade_far >= settings.shadow_distance:
+    if settings.shadow_distance_from != "fixed" and 0.0 < settings.max_shadow_distance <= camera.near:
+        raise located.error(where_of("max_shadow_distance"), f"expected 0 (no cap) or a distance beyond the camera's "
+                                                             f"near plane ({camera.near} m), got "
+                                                             f"{settings.max_shadow_distance}")
+    end = _shadow_end_of(settings, camera)
+    if settings.split == "geometric" and settings.cascades > 1 and settings.first_cascade_far >= end:
         raise located.error(where_of("first_cascade_far"), f"expected a distance below shadow_distance "
-                                                           f"({settings.shadow_distance} m), got {settings.first_cascade_far}")
+                                                           f"({end} m), got {settings.first_cascade_far}")
     _split_distances(settings, camera, where_of=where_of, located=located)
     _room_inside_margins(settings, where_of=where_of, located=located)
     return settings
+
+
+def _shadow_end_of(settings: ShadowSettings, camera: CameraConfig) -> float:
+    """Where the last cascade ends under the experiment's camera (its far plane for ``camera_far`` and, before
+    any frame is seen, for ``farthest_visible``)."""
+    from csmlab.cascades.bounds import shadow_end
+
+    return shadow_end(method=settings.shadow_distance_from, shadow_distance=settings.shadow_distance,
+                      max_shadow_distance=settings.max_shadow_distance, camera_far=camera.far)
 
 
 def _room_inside_margins(settings: ShadowSettings, *, where_of, located: _Located) -> None:
@@ -386,7 +428,7 @@ def _split_distances(settings: ShadowSettings, camera: CameraConfig, *, where_of
                                                 f"(its far ends are fixed, and the visible depth range may begin "
                                                 f"beyond them), got \"sdsm\"")
     try:
-        split_distances(near=camera.near, far=min(settings.shadow_distance, camera.far), count=settings.cascades,
+        split_distances(near=camera.near, far=_shadow_end_of(settings, camera), count=settings.cascades,
                         method=settings.split, lambda_=settings.lambda_, splits=settings.splits,
                         distribution_exponent=settings.distribution_exponent,
                         first_cascade_far=settings.first_cascade_far)
@@ -462,6 +504,9 @@ def _sweep(table, methods: tuple[Method, ...], located: _Located,
     for key, values in table.items():
         if not isinstance(values, list) or not values:
             raise located.error(f"sweep.{key}", f"expected a non-empty list of values, got {values!r}")
+        if key == "shadow_distance" and any(isinstance(v, str) for v in values):
+            raise located.error("sweep.shadow_distance", f"expected distances in metres (sweep shadow_distance_from "
+                                                         f"for \"camera_far\" or \"farthest_visible\"), got {values!r}")
         typed = [_shadow_fields({key: v}, where="sweep", located=located, allow=())[key] for v in values]
         if len(set(map(repr, typed))) != len(typed):
             raise located.error(f"sweep.{key}", f"expected distinct values, got {values!r}")
@@ -594,7 +639,7 @@ def load_tolerances(path) -> dict:
     return _regress(table, _Located(origins, path))
 
 
-def load_experiment(path, *, frames: int | None = None) -> Experiment:
+def load_experiment(path, *, frames: int | None = None, then_extends=()) -> Experiment:
     """Read, merge and validate an experiment file.
 
     Parameters
@@ -603,6 +648,9 @@ def load_experiment(path, *, frames: int | None = None) -> Experiment:
         The experiment TOML file.
     frames : int, optional
         Overrides ``camera.frames`` (the ``--frames`` option).
+    then_extends : sequence of path, optional
+        Preset files merged after the experiment, in memory, as a file with ``extends = [path, *then_extends]``
+        would merge them (:func:`csmlab.tune` reads an engine preset's method on an experiment so).
 
     Returns
     -------
@@ -618,7 +666,7 @@ def load_experiment(path, *, frames: int | None = None) -> Experiment:
         message names the file, the line where found, the field and what was expected.
     """
     path = Path(path).resolve()
-    merged, origins = _merged(path)
+    merged, origins = _merged(path, then_extends=tuple(Path(p).resolve() for p in then_extends))
     located = _Located(origins, path)
     for key in merged:
         if key not in _TOP_FIELDS:

@@ -19,6 +19,8 @@ has no knob for are listed as unmodelled. :func:`preset_toml` writes the result 
 
 from __future__ import annotations
 
+import json
+import os
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
@@ -30,7 +32,8 @@ from csmlab.registry import check_name, dispatch
 from csmlab.settings import APPLIES, ShadowSettings
 
 __all__ = ["ENGINES", "EXPORT_METHODS", "IMPORT_METHODS", "Engine", "EngineFiles", "Imported", "Snippet", "TuneSpace",
-           "engine_files", "export", "import_settings", "preset_toml", "tune_space"]
+           "LEVEL_READERS", "engine_files", "export", "import_settings", "level_instances", "level_toml",
+           "preset_toml", "tune_space"]
 
 ENGINES: dict[str, Engine] = {module.ENGINE.name: module.ENGINE for module in (
     ue5, unity_urp, unity_builtin, godot4, bevy, threejs_csm, filament, stride)}
@@ -100,6 +103,45 @@ def import_settings(paths, *, engine: str) -> Imported:
         A file that is malformed, foreign to the engine, or holds a value out of range: file and key named.
     """
     return IMPORT_METHODS[check_name(engine, IMPORT_METHODS, field="engine")].read([Path(p) for p in paths])
+
+
+LEVEL_READERS: dict[str, Callable] = {"godot4": godot4.level_instances}
+"""Readers of the level an engine's imported files instance, by engine name: ``paths → (instances, not imported)``,
+each instance with ``file`` (absolute), ``transform`` (``(4, 4)``) and ``node``."""
+
+
+def level_instances(paths, *, engine: str) -> tuple[list, list[str]]:
+    """The mesh files ``engine``'s files ``paths`` place in their level, and a line for each they instance that csmlab
+    cannot place (node, file and why); none for an engine with no level reader (:data:`LEVEL_READERS`).
+
+    Raises
+    ------
+    csmlab.errors.InputError
+        A scene whose structure is broken (file, line and node named).
+    """
+    reader = LEVEL_READERS.get(engine)
+    return reader([Path(p) for p in paths]) if reader is not None else ([], [])
+
+
+def level_toml(instances, *, out) -> str:
+    """``[scene]`` (``kind = "mesh"``, one ``[[scene.parts]]`` per instance: its file relative to ``out``, its
+    transform as ``matrix``) and a ``[camera]`` walk fitted to that level, so that the file ``out`` runs; empty for
+    no instances. Each matrix entry is written as Python's shortest round-trip repr (the TOML float reads back equal).
+    """
+    if not instances:
+        return ""
+    folder = Path(out).resolve().parent
+    lines = ["", "# The level the scene instances: one part per glTF instance, placed by its node's world transform.",
+             "[scene]", 'kind = "mesh"']
+    for instance in instances:
+        node = " ".join(str(instance.node).split())
+        rows = ", ".join("[" + ", ".join(repr(float(v)) for v in row) + "]" for row in instance.transform)
+        lines += ["", f"[[scene.parts]]  # {node}",
+                  f"file = {json.dumps(Path(os.path.relpath(instance.file, folder)).as_posix(), ensure_ascii=False)}",
+                  f"matrix = [{rows}]"]
+    lines += ["", "# A walk placed in the level (fit_level); put your own camera path here.", "[camera]",
+              'path = "walk"']
+    return "\n".join(lines) + "\n"
 
 
 def engine_files(settings: ShadowSettings, *, near: float, far: float, engine: str) -> tuple[dict, list]:

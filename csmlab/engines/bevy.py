@@ -21,7 +21,7 @@ import numpy as np
 from csmlab.cascades.splits import split_boundaries
 from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, common_lacking, fixed_preset,
                                    largest_resolution, shape_lacking)
-from csmlab.engines.reading import Imported, Reading, number, read_text
+from csmlab.engines.reading import Entry, Imported, Located, Reading, read_text
 from csmlab.engines.ron import parse_ron
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
@@ -49,9 +49,18 @@ BEVY_EXACT: dict[str, int | None] = {"pcf_bilinear": None, "pcf_castano": 5}
 """The filters Bevy runs as csmlab does, with the filter_size that matches (None: any); the others are lacking."""
 
 
-def _by_type(table: dict, name: str):
-    return next(((k, v) for k, v in table.items() if isinstance(k, str) and k.rsplit("::", 1)[-1] == name),
-                (None, None))
+def _by_type(table: Entry, name: str) -> Entry | None:
+    """The value of ``table`` (components or resources, by type path) whose type's last segment is ``name``,
+    keyed by that name."""
+    found = next((value for key, value in table.fields() if isinstance(key, str) and key.rsplit("::", 1)[-1] == name),
+                 None)
+    return None if found is None else Entry(found.raw, file=table.file, key=name, line=found.line)
+
+
+def _geometric(bounds: np.ndarray) -> bool:
+    """Whether far bounds ``(n,)`` (positive, increasing) grow by one ratio: the builder's series after the first."""
+    steps = np.diff(np.log(bounds))  # logs: a ratio of 1e308 to 1e-300 overflows, its log does not
+    return len(bounds) > 1 and bool(np.all(np.abs(steps - steps[0]) <= 1e-6))
 
 
 def read_bevy(paths) -> Imported:
@@ -64,63 +73,75 @@ def read_bevy(paths) -> Imported:
     """
     reading = Reading("bevy", PRESET)
     for path in paths:
-        scene = parse_ron(read_text(path), file=path)
-        if not isinstance(scene, dict) or not isinstance(scene.get("entities"), dict):
-            raise InputError("expected a Bevy scene: ( resources: {…}, entities: {…} )", file=path, field="entities")
-        components = {}
-        for entity in scene["entities"].values():
-            for key, value in (entity.get("components", {}) if isinstance(entity, dict) else {}).items():
-                components.setdefault(key, value)
-        key, config = _by_type(components, "CascadeShadowConfig")
-        light_key, light = _by_type(components, "DirectionalLight")
+        scene = Entry(parse_ron(read_text(path), file=path), file=path)
+        entities = scene.get("entities") if scene.is_object() else None
+        if entities is None or not entities.is_object():
+            raise InputError("expected a Bevy scene: ( resources: {…}, entities: {…} )", file=path,
+                             field="entities", line=scene.line)
+        merged = Located()
+        merged.line, merged.key_lines = entities.line, {}
+        for _, entity in entities.fields():
+            found = entity.mapping("an entity: ( components: {…} )").get("components")
+            for key, value in [] if found is None else found.mapping("components by type path").fields():
+                if key not in merged:
+                    merged[key], merged.key_lines[key] = value.raw, value.line
+        components = Entry(merged, file=path, key="components", line=entities.line)
+        config = _by_type(components, "CascadeShadowConfig")
+        light = _by_type(components, "DirectionalLight")
         if config is None and light is None:
             raise InputError("expected an entity with CascadeShadowConfig or DirectionalLight components", file=path,
                              field="CascadeShadowConfig")
-        name = "CascadeShadowConfig"
-        if isinstance(config, dict) and "bounds" in config:
-            bounds = config["bounds"]
-            if not isinstance(bounds, list) or not bounds:
-                raise InputError(f"expected a list of far bounds in metres, got {bounds!r}", file=path,
-                                 field=f"{name}.bounds")
-            b = np.array([number(v, file=path, key=f"{name}.bounds", above=0.0) for v in bounds])
-            if np.any(np.diff(b) <= 0):
-                raise InputError(f"expected increasing bounds, got {bounds}", file=path, field=f"{name}.bounds")
-            reading.set("cascades", len(b), file=path, key=f"{name}.bounds", raw=bounds)
-            reading.set("shadow_distance", float(b[-1]), file=path, key=f"{name}.bounds[-1]", raw=bounds[-1])
-            ratios = b[1:] / b[:-1]
-            if len(b) > 1 and np.allclose(ratios, ratios[0], rtol=1e-6):
-                reading.set("split", "geometric", file=path, key=f"{name}.bounds", raw="geometric after the first")
-                reading.set("first_cascade_far", float(b[0]), file=path, key=f"{name}.bounds[0]", raw=bounds[0])
-            else:
-                reading.set("split", "manual", file=path, key=f"{name}.bounds", raw=bounds)
-                reading.set("splits", tuple(float(v) for v in b / b[-1]), file=path, key=f"{name}.bounds", raw=bounds)
-        if isinstance(config, dict) and "overlap_proportion" in config:
-            reading.set("blend_band", number(config["overlap_proportion"], file=path,
-                                             key=f"{name}.overlap_proportion", minimum=0.0), file=path,
-                        key=f"{name}.overlap_proportion")
-        if isinstance(config, dict) and "minimum_distance" in config:
-            reading.lack(file=path, key=f"{name}.minimum_distance", value=config["minimum_distance"],
-                         why="csmlab's first cascade starts at the camera's near plane")
-        if isinstance(light, dict):
+        if config is not None:
+            _read_cascades(config.mapping("CascadeShadowConfig's members (bounds, overlap_proportion, …)"), reading)
+        if light is not None:
+            light.mapping("DirectionalLight's members (shadow_depth_bias, …)")
             for field, attribute in (("shadow_depth_bias", "bias_constant"), ("shadow_normal_bias", "normal_offset")):
-                if field in light:
-                    reading.set(attribute, number(light[field], file=path, key=f"DirectionalLight.{field}",
-                                                  minimum=0.0), file=path, key=f"DirectionalLight.{field}")
-            if light.get("shadows_enabled") is False:
-                reading.lack(file=path, key="DirectionalLight.shadows_enabled", value=False,
+                if (entry := light.member(field)) is not None:
+                    reading.set(attribute, entry.number(minimum=0.0), file=path, key=entry.key)
+            enabled = light.member("shadows_enabled")
+            if enabled is not None and not enabled.boolean():
+                reading.lack(file=path, key=enabled.key, value=False,
                              why="the light casts no shadow in Bevy; csmlab measures its shadows anyway")
-        resources = scene.get("resources", {}) if isinstance(scene.get("resources"), dict) else {}
-        _, shadow_map = _by_type(resources, "DirectionalLightShadowMap")
-        if isinstance(shadow_map, dict) and "size" in shadow_map:
-            reading.set("resolution", number(shadow_map["size"], file=path, key="DirectionalLightShadowMap.size",
-                                             integer=True, minimum=1), file=path, key="DirectionalLightShadowMap.size")
-        _, filtering = _by_type(components, "ShadowFilteringMethod")
-        if filtering == "Hardware2x2":
-            reading.set("filter", "pcf_bilinear", file=path, key="ShadowFilteringMethod", raw=filtering)
-        elif filtering not in (None, "Gaussian"):
-            reading.lack(file=path, key="ShadowFilteringMethod", value=filtering,
+        resources = scene.get("resources")
+        shadow_map = None if resources is None else _by_type(resources.mapping("resources by type path"),
+                                                             "DirectionalLightShadowMap")
+        if shadow_map is not None and (entry := shadow_map.mapping("( size: … )").member("size")) is not None:
+            reading.set("resolution", entry.integer(minimum=1), file=path, key=entry.key)
+        filtering = _by_type(components, "ShadowFilteringMethod")
+        method = None if filtering is None else filtering.text(what="a ShadowFilteringMethod (Hardware2x2, "
+                                                                     "Gaussian, Temporal)")
+        if method == "Hardware2x2":
+            reading.set("filter", "pcf_bilinear", file=path, key="ShadowFilteringMethod", raw=method)
+        elif method not in (None, "Gaussian"):
+            reading.lack(file=path, key="ShadowFilteringMethod", value=method,
                          why="csmlab models Hardware2x2 and Gaussian (Castaño 5×5); the preset's Gaussian is kept")
     return reading.result()
+
+
+def _read_cascades(config: Entry, reading: Reading) -> None:
+    """CascadeShadowConfig's bounds, overlap and minimum distance."""
+    path, name = config.file, config.key
+    if (found := config.member("bounds")) is not None:
+        entries = found.items("a list of far bounds in metres")
+        if not entries:
+            raise found.error("a list of far bounds in metres")
+        b = np.array([entry.number(above=0.0) for entry in entries])
+        if np.any(np.diff(b) <= 0):
+            raise found.error("increasing bounds")
+        bounds = [float(v) for v in b]
+        reading.set("cascades", len(b), file=path, key=found.key, raw=bounds)
+        reading.set("shadow_distance", bounds[-1], file=path, key=f"{name}.bounds[-1]", raw=bounds[-1])
+        if _geometric(b):
+            reading.set("split", "geometric", file=path, key=found.key, raw="geometric after the first")
+            reading.set("first_cascade_far", bounds[0], file=path, key=f"{name}.bounds[0]", raw=bounds[0])
+        else:
+            reading.set("split", "manual", file=path, key=found.key, raw=bounds)
+            reading.set("splits", tuple(float(v) for v in b / b[-1]), file=path, key=found.key, raw=bounds)
+    if (entry := config.member("overlap_proportion")) is not None:
+        reading.set("blend_band", entry.number(minimum=0.0), file=path, key=entry.key)
+    if (entry := config.member("minimum_distance")) is not None:
+        reading.lack(file=path, key=entry.key, value=entry.number(minimum=0.0),
+                     why="csmlab's first cascade starts at the camera's near plane")
 
 
 def write_bevy(settings: ShadowSettings, *, near: float, far: float) -> tuple[dict, list]:

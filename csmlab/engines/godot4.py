@@ -9,8 +9,10 @@ settings map to csmlab fields; a property the file leaves out keeps Godot's defa
 Sources: DirectionalLight3D and Light3D class references; ``light_storage.cpp``
 ``LightStorage::update_light_buffers`` (``shadow_bias / 100 · bias_scale``, ``bias_scale = depth range ·
 soft_shadow_scale`` with soft_shadow_scale 2: ``bias_depth_range = shadow_bias · 0.02``; ``shadow_normal_bias``
-texels); ``RendererSceneRenderRD::directional_soft_shadow_filter_set_quality`` (Soft Low: 4 taps, radius 2.0,
-× ``shadow_blur``); ``RendererSceneCull::get_directional_light_shadow_size`` (2 or 4 splits: half the atlas).
+texels); ``RendererSceneRenderRD::directional_soft_shadow_filter_set_quality`` (Hard … Ultra: 0 to 32 taps at a
+quality radius, × ``shadow_blur``: csmlab.lookup_choices.GODOT_SOFT_SHADOW_QUALITIES); ``scene_forward_clustered.glsl``
+``light_process`` (``directional_shadow_blend_splits``: csmlab.cascades.fit.GODOT_BLEND_SPLITS);
+``RendererSceneCull::get_directional_light_shadow_size`` (2 or 4 splits: half the atlas).
 
 The snippet (export_godot4) names: ``DirectionalLight3D.directional_shadow_mode`` (orthogonal, 2 or 4 splits),
 ``directional_shadow_max_distance``, ``directional_shadow_split_1..3``, ``directional_shadow_blend_splits``;
@@ -25,26 +27,31 @@ from pathlib import Path
 
 import numpy as np
 
+from csmlab.cascades.fit import GODOT_BLEND_SPLITS
 from csmlab.cascades.splits import count_one_two_or_four, fractions_of_range, split_boundaries
-from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, blend_lacking, common_lacking,
+from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, common_lacking,
                                    fixed_preset, four_digits, hard_filter, largest_resolution, shape_lacking,
                                    storage_lacking, vogel_is)
-from csmlab.engines.reading import Imported, Reading, engine_settings, number, read_text
+from csmlab.engines.reading import Entry, Imported, Located, Reading, engine_settings, read_text
 from csmlab.errors import InputError
+from csmlab.lookup_choices import GODOT_SOFT_SHADOW_QUALITIES, godot_soft_shadow_fields
 from csmlab.settings import ShadowSettings
 
 __all__ = ["ENGINE", "FIELDS", "GODOT_SOFT_LOW", "PRESET", "TUNE_SPACE", "SceneInstance", "config_sections",
-           "export_godot4", "gltf_instances", "read_godot4", "settled_godot4", "write_godot4"]
+           "export_godot4", "gltf_instances", "level_instances", "read_godot4", "settled_godot4", "write_godot4"]
 
 PRESET = "godot4"
 """The engine preset holding Godot's defaults."""
 
 FIELDS = frozenset({"cascades", "split", "splits", "shadow_distance", "fade_out", "pancake", "bias_depth_range",
-                    "normal_offset", "vogel_radius", "cull", "resolution", "filter", "depth_format", "storage"})
+                    "normal_offset", "vogel_taps", "vogel_radius", "vogel_angle", "vogel_scale", "cull", "resolution",
+                    "filter", "depth_format", "blend_band", "transition", "blend_curve", "storage"})
 """The csmlab fields Godot's files carry (storage: one split fills the atlas, directional_shadow_mode = 0)."""
 
 GODOT_SOFT_LOW = {"vogel_taps": 4, "vogel_radius": 2.0, "vogel_angle": 2.4, "vogel_scale": "first_split"}
 """Godot 4's Soft Low (soft_shadow_filter_quality = 2) as csmlab's ``pcf_vogel`` fields (configs/engines/godot4.toml)."""
+GODOT_SOFT_LOW_LEVEL = 2
+"""The project setting's default level, Soft Low (the preset's filter)."""
 
 SHADOW_BIAS_SCALE = 0.02
 """bias_depth_range per unit of Light3D.shadow_bias: / 100 × soft_shadow_scale 2.0 (light_storage.cpp)."""
@@ -78,13 +85,20 @@ def _open(value: str) -> bool:
     return '"' in unquoted or sum(unquoted.count(o) - unquoted.count(c) for o, c in ("()", "[]", "{}")) > 0
 
 
+def _located(line: int) -> Located:
+    keys = Located()
+    keys.line, keys.key_lines = line, {}
+    return keys
+
+
 def config_sections(path) -> list[tuple[str, dict, dict, int]]:
     """The sections of a Godot ConfigFile: ``(kind, header attributes, {key: value}, header line)`` in file order.
 
     Lines before the first header form the section of kind ``""``; a value whose brackets are still
-    open continues on the next lines.
+    open continues on the next lines. Each ``{key: value}`` is :class:`~csmlab.engines.reading.Located` at its
+    header's line, for an :class:`~csmlab.engines.reading.Entry` of it.
     """
-    sections = [("", {}, {}, 0)]
+    sections = [("", {}, _located(1), 0)]
     lines = read_text(path).splitlines()
     i = 0
     while i < len(lines):
@@ -95,11 +109,12 @@ def config_sections(path) -> list[tuple[str, dict, dict, int]]:
         header = _HEADER.match(line)
         if header:
             attrs = {k: _value(v) for k, v in _ATTR.findall(header.group("attrs"))}
-            sections.append((header.group("kind"), attrs, {}, i))
+            sections.append((header.group("kind"), attrs, _located(i), i))
             continue
         if "=" not in line:
             raise InputError(f"expected key = value or a [section] header, got {line[:60]!r}", file=path, line=i)
         key, value = (part.strip() for part in line.split("=", 1))
+        sections[-1][2].key_lines[key] = i
         while _open(value) and i < len(lines):
             value += "\n" + lines[i]
             i += 1
@@ -112,26 +127,25 @@ def _project(path, reading: Reading) -> None:
     if "config_version" not in sections[0][2]:
         raise InputError("expected a Godot project file (config_version at the top), found none", file=path,
                          field="config_version")
-    rendering = next((keys for kind, _, keys, _ in sections[1:] if kind == "rendering"), {})
-    settings = {f"rendering/{k}": v for k, v in rendering.items() if f"rendering/{k}".startswith(_PROJECT)}
-    for key, value in settings.items():
-        name = key[len(_PROJECT):]
+    rendering = next((keys for kind, _, keys, _ in sections[1:] if kind == "rendering"), _located(1))
+    for key, value in rendering.items():
+        if not f"rendering/{key}".startswith(_PROJECT):
+            continue
+        entry = Entry(value, file=path, key=f"rendering/{key}", line=rendering.key_lines.get(key, rendering.line))
+        name = entry.key[len(_PROJECT):]
         if name == "size":
-            size = number(value, file=path, key=key, integer=True, minimum=1)
-            reading.pending["atlas"] = (size, key)
+            reading.pending["atlas"] = (entry.integer(minimum=1), entry.key, path)
         elif name == "soft_shadow_filter_quality":
-            quality = number(value, file=path, key=key, integer=True, minimum=0)
-            if quality == 0:
-                reading.set("filter", "pcf_bilinear", file=path, key=key, raw=value)
-            elif quality != 2:
-                reading.lack(file=path, key=key, value=value, why="csmlab models Hard (0) and Soft Low (2); the "
-                             "preset's Soft Low is kept")
+            quality = entry.integer(minimum=0)
+            if quality not in GODOT_SOFT_SHADOW_QUALITIES:
+                raise entry.error("0 (Hard) to 5 (Soft Ultra)")
+            reading.pending["quality"] = (quality, f"{Path(path).name}: {entry.key} = {value}")
         elif name == "16_bits":
-            if not isinstance(value, bool):
-                raise InputError(f"expected true or false, got {value!r}", file=path, field=key)
-            reading.set("depth_format", "unorm16" if value else "float32", file=path, key=key, raw=str(value).lower())
+            wide = entry.boolean()
+            reading.set("depth_format", "unorm16" if wide else "float32", file=path, key=entry.key,
+                        raw=str(wide).lower())
         else:
-            reading.lack(file=path, key=key, value=value, why="no csmlab knob")
+            reading.lack(file=path, key=entry.key, value=value, why="no csmlab knob")
 
 
 def _light(path, reading: Reading) -> None:
@@ -140,68 +154,73 @@ def _light(path, reading: Reading) -> None:
     sections = config_sections(path)
     if len(sections) < 2 or sections[1][0] not in ("gd_scene", "gd_resource"):
         raise InputError("expected a Godot scene ([gd_scene …] on the first line)", file=path, field="gd_scene")
-    lights = [(attrs, keys) for kind, attrs, keys, _ in sections if kind == "node"
-              and attrs.get("type") == "DirectionalLight3D"]
+    lights = [Entry(keys, file=path, key=str(attrs.get("name", "DirectionalLight3D"))) for kind, attrs, keys, _
+              in sections if kind == "node" and attrs.get("type") == "DirectionalLight3D"]
     if not lights:
         raise InputError("expected a node of type DirectionalLight3D, found none", file=path,
                          field="DirectionalLight3D")
-    attrs, keys = next(((a, k) for a, k in lights if k.get("shadow_enabled") is True), lights[0])
-    prefix = f"{attrs.get('name', 'DirectionalLight3D')}."
+    shadowed = [light for light in lights if _flag(light, "shadow_enabled")]
+    light = (shadowed or lights)[0]
+    prefix = f"{light.key}."
     base = reading.base
-    if keys.get("shadow_enabled") is not True:
-        reading.lack(file=path, key=prefix + "shadow_enabled", value=keys.get("shadow_enabled", False),
+    if not shadowed:
+        enabled = light.member("shadow_enabled")
+        reading.lack(file=path, key=prefix + "shadow_enabled", value=False if enabled is None else enabled.raw,
                      why="the light casts no shadow in Godot; csmlab measures its shadows anyway")
     mode_key = "directional_shadow_mode"
     cascades = base.cascades
-    if mode_key in keys:
-        mode = number(keys[mode_key], file=path, key=prefix + mode_key, integer=True, minimum=0)
+    mode_entry = light.member(mode_key)
+    if mode_entry is not None:
+        mode = mode_entry.integer(minimum=0)
         if mode not in _MODES:
-            raise InputError(f"expected 0, 1 or 2, got {mode}", file=path, field=prefix + mode_key)
+            raise mode_entry.error("0, 1 or 2")
         cascades = _MODES[mode]
         reading.set("cascades", cascades, file=path, key=prefix + mode_key, raw=mode)
-    split_keys = [f"directional_shadow_split_{i}" for i in range(1, cascades)]
-    if mode_key in keys or any(k in keys for k in split_keys):
-        fractions = [number(keys[k], file=path, key=prefix + k, above=0.0) if k in keys else base.splits[i]
-                     for i, k in enumerate(split_keys)] + [1.0]
+    split_entries = [light.member(f"directional_shadow_split_{i}") for i in range(1, cascades)]
+    if mode_entry is not None or any(e is not None for e in split_entries):
+        fractions = [e.number(above=0.0) if e is not None else base.splits[i]
+                     for i, e in enumerate(split_entries)] + [1.0]
         if any(b <= a for a, b in zip(fractions, fractions[1:])):
             raise InputError(f"expected increasing splits below 1, got {fractions[:-1]}", file=path,
-                             field=prefix + "directional_shadow_split_1")
-        found = [prefix + k for k in split_keys if k in keys] or [prefix + mode_key]
-        raw = fractions[:-1] if any(k in keys for k in split_keys) else keys.get(mode_key)
+                             field=prefix + "directional_shadow_split_1", line=light.line)
+        found = [e.key for e in split_entries if e is not None] or [prefix + mode_key]
+        raw = fractions[:-1] if any(e is not None for e in split_entries) else mode_entry.raw
         reading.set("split", "manual_range", file=path, key=", ".join(found), raw=raw)
         reading.set("splits", tuple(fractions), file=path, key=", ".join(found), raw=raw)
     plain = {"directional_shadow_max_distance": ("shadow_distance", 1.0, 0.0),
              "directional_shadow_pancake_size": ("pancake", 1.0, None),
              "shadow_normal_bias": ("normal_offset", 1.0, None),
-             "shadow_bias": ("bias_depth_range", SHADOW_BIAS_SCALE, None),
-             "shadow_blur": ("vogel_radius", base.vogel_radius, 0.0)}
+             "shadow_bias": ("bias_depth_range", SHADOW_BIAS_SCALE, None)}
+    if (entry := light.member("shadow_blur")) is not None:
+        reading.pending["blur"] = (entry.number(above=0.0), f"{Path(path).name}: {entry.key} = {entry.raw}")
     for key, (attribute, scale, above) in plain.items():
-        if key in keys:
-            value = number(keys[key], file=path, key=prefix + key, above=above, minimum=None if above is not None
-                           else 0.0)
-            reading.set(attribute, value * scale, file=path, key=prefix + key, raw=keys[key])
-    if "directional_shadow_fade_start" in keys:
-        start = number(keys["directional_shadow_fade_start"], file=path, key=prefix + "directional_shadow_fade_start",
-                       minimum=0.0)
-        if start > 1.0:
-            raise InputError(f"expected a fraction in [0, 1], got {start}", file=path,
-                             field=prefix + "directional_shadow_fade_start")
+        if (entry := light.member(key)) is not None:
+            value = entry.number(above=above) if above is not None else entry.number(minimum=0.0)
+            reading.set(attribute, value * scale, file=path, key=entry.key, raw=entry.raw)
+    if (entry := light.member("directional_shadow_fade_start")) is not None:
+        start = entry.number(minimum=0.0, maximum=1.0, what="a fraction in [0, 1]")
         # Rounded to 12 digits: 1 - 0.8 is 0.19999999999999996 in binary, Godot's fade_start is a float32.
-        reading.set("fade_out", round(1.0 - start, 12), file=path, key=prefix + "directional_shadow_fade_start", raw=start)
-    if "shadow_reverse_cull_face" in keys:
-        reading.set("cull", "front" if keys["shadow_reverse_cull_face"] is True else "back", file=path,
-                    key=prefix + "shadow_reverse_cull_face", raw=keys["shadow_reverse_cull_face"])
-    if keys.get("directional_shadow_blend_splits") is True:
-        reading.lack(file=path, key=prefix + "directional_shadow_blend_splits", value=True,
-                     why="Godot blends splits over a band of its own; csmlab's blend_band keeps the preset's 0")
-    angular = keys.get("light_angular_distance", 0)
-    if angular not in (0, 0.0):
-        reading.lack(file=path, key=prefix + "light_angular_distance", value=angular,
+        reading.set("fade_out", round(1.0 - start, 12), file=path, key=entry.key, raw=start)
+    if (entry := light.member("shadow_reverse_cull_face")) is not None:
+        reversed_ = entry.boolean()
+        reading.set("cull", "front" if reversed_ else "back", file=path, key=entry.key, raw=reversed_)
+    if (entry := light.member("directional_shadow_blend_splits")) is not None:
+        blend = entry.boolean()
+        reading.pending["blend"] = (blend, f"{Path(path).name}: {entry.key} = {str(blend).lower()}")
+    angular = light.member("light_angular_distance")
+    if angular is not None and angular.number() != 0.0:
+        reading.lack(file=path, key=angular.key, value=angular.raw,
                      why="a nonzero angle turns on Godot's PCSS penumbra, not modelled; the Soft Low disk is kept")
     for key in ("shadow_opacity", "shadow_transmittance_bias", "directional_shadow_fade_start.mobile",
                 "shadow_caster_mask"):
-        if key in keys:
-            reading.lack(file=path, key=prefix + key, value=keys[key], why="no csmlab knob")
+        if (entry := light.member(key)) is not None:
+            reading.lack(file=path, key=entry.key, value=entry.raw, why="no csmlab knob")
+
+
+def _flag(light: Entry, key: str) -> bool:
+    """Light property ``key``, true or false (false when the scene leaves it out: Godot's default)."""
+    entry = light.member(key)
+    return entry is not None and entry.boolean()
 
 
 def read_godot4(paths) -> Imported:
@@ -221,11 +240,12 @@ def read_godot4(paths) -> Imported:
             _light(path, reading)
         else:
             raise InputError("expected project.godot or a .tscn scene", file=path, field="file")
+    _soft_shadows(reading)
     if "atlas" in reading.pending:
-        size, key = reading.pending["atlas"]
+        size, key, project = reading.pending["atlas"]
         cascades = reading.values.get("cascades", reading.base.cascades)
         # get_directional_light_shadow_size: 2 or 4 splits share the atlas, each split half its side.
-        reading.set("resolution", size if cascades == 1 else size // 2, file="project.godot", key=key, raw=size)
+        reading.set("resolution", size if cascades == 1 else size // 2, file=project, key=key, raw=size)
     elif reading.values.get("cascades", reading.base.cascades) == 1:
         # One split takes the whole default atlas, twice the side of the preset's 4-split tile.
         reading.set("resolution", 2 * reading.base.resolution, file=reading.origins["cascades"].split(":")[0],
@@ -238,9 +258,52 @@ def read_godot4(paths) -> Imported:
     return reading.result()
 
 
+def _soft_shadows(reading: Reading) -> None:
+    """The filter of the project's soft-shadow level and the light's blur, and the light's blend splits, once every
+    file is read: the level's Vogel disk has its quality radius × shadow_blur texels
+    (csmlab.lookup_choices.godot_soft_shadow_fields), and blending splits drops the first-split blur scaling
+    (csmlab.cascades.fit.GODOT_BLEND_SPLITS)."""
+    origins = {}
+    if "quality" in reading.pending or "blur" in reading.pending:
+        quality, said_quality = reading.pending.get("quality", (GODOT_SOFT_LOW_LEVEL, None))
+        blur, said_blur = reading.pending.get("blur", (1.0, None))
+        origin = "; ".join(o for o in (said_quality, said_blur) if o)
+        origins.update({name: (value, origin) for name, value in godot_soft_shadow_fields(quality, blur=blur).items()})
+    if "blend" in reading.pending:
+        blend, origin = reading.pending["blend"]
+        fields = {**GODOT_BLEND_SPLITS, "vogel_scale": "none"} if blend else {
+            "blend_band": 0.0, "vogel_scale": GODOT_SOFT_LOW["vogel_scale"]}
+        origins.update({name: (value, origin) for name, value in fields.items()})
+    for name, (value, origin) in origins.items():
+        reading.values[name] = value
+        reading.origins[name] = origin
+
+
+def _soft_level(settings: ShadowSettings) -> tuple[int, float, list]:
+    """The soft_shadow_filter_quality and shadow_blur that give ``settings``' filter, and what the files cannot hold
+    of its filter and blend (Godot's blend splits are GODOT_BLEND_SPLITS, its disk unscaled under them)."""
+    lacking = []
+    differing = [k for k, v in GODOT_BLEND_SPLITS.items() if getattr(settings, k) != v]
+    if settings.blend_band > 0 and differing:
+        lacking.append(", ".join(f"{k} = {getattr(settings, k)!r}" for k in differing) +
+                       f" (Godot blends splits over the last tenth of each: {GODOT_BLEND_SPLITS})")
+    if hard_filter(settings):
+        return 0, 1.0, lacking
+    scale = "none" if settings.blend_band > 0 else GODOT_SOFT_LOW["vogel_scale"]
+    if settings.filter == "pcf_vogel" and settings.vogel_scale != scale:
+        lacking.append(f"vogel_scale = {settings.vogel_scale!r} (Godot scales its disk by the first split unless it "
+                       f"blends splits: {scale!r} here)")
+    for quality, level in GODOT_SOFT_SHADOW_QUALITIES.items():
+        if level.samples and vogel_is(settings, vogel_taps=level.samples, vogel_angle=2.4):
+            return quality, settings.vogel_radius / level.radius, lacking
+    return GODOT_SOFT_LOW_LEVEL, 1.0, lacking + [
+        f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Godot filters with its own soft-shadow "
+        f"kernel: pcf_vogel at golden angle 2.4 with 1, 4, 8, 16 or 32 taps; Soft Low written)"]
+
+
 def write_godot4(settings: ShadowSettings, *, near: float, far: float) -> tuple[dict, list]:
     """``settings`` as ``project.godot`` and ``light.tscn`` texts, and the knobs they cannot hold."""
-    lacking = []
+    quality, blur, lacking = _soft_level(settings)
     cascades = count_one_two_or_four(settings.cascades)
     z = split_boundaries(settings.replace(cascades=cascades), near=near, far=far)
     fractions = fractions_of_range(z)
@@ -253,13 +316,13 @@ def write_godot4(settings: ShadowSettings, *, near: float, far: float) -> tuple[
     mode = {v: k for k, v in _MODES.items()}[cascades]
     project = ["; Engine configuration file.", "config_version=5", "", "[rendering]", "",
                f"lights_and_shadows/directional_shadow/size={size * (1 if cascades == 1 else 2)}",
-               f"lights_and_shadows/directional_shadow/soft_shadow_filter_quality={0 if hard_filter(settings) else 2}",
+               f"lights_and_shadows/directional_shadow/soft_shadow_filter_quality={quality}",
                f"lights_and_shadows/directional_shadow/16_bits={'true' if settings.depth_format == 'unorm16' else 'false'}"]
     light = ['[gd_scene format=3]', '', '[node name="DirectionalLight3D" type="DirectionalLight3D"]',
              "shadow_enabled = true",
              f"shadow_bias = {settings.bias_depth_range / SHADOW_BIAS_SCALE!r}",
              f"shadow_normal_bias = {settings.normal_offset!r}",
-             f"shadow_blur = {settings.vogel_radius / _soft_low_radius()!r}",
+             f"shadow_blur = {blur!r}",
              f"shadow_reverse_cull_face = {'true' if settings.cull == 'front' else 'false'}",
              f"directional_shadow_mode = {mode}",
              *(f"directional_shadow_split_{i + 1} = {f!r}" for i, f in enumerate(fractions)),
@@ -270,14 +333,11 @@ def write_godot4(settings: ShadowSettings, *, near: float, far: float) -> tuple[
     return {"project.godot": "\n".join(project) + "\n", "light.tscn": "\n".join(light) + "\n"}, lacking
 
 
-def _soft_low_radius() -> float:
-    """Soft Low's disk radius in texels at shadow_blur 1: the preset's vogel_radius."""
-    return engine_settings(PRESET).vogel_radius
-
-
 def export_godot4(settings: ShadowSettings, *, near: float, far: float) -> Snippet:
     """Godot 4: DirectionalLight3D properties and the directional shadow atlas size."""
-    lacking = common_lacking(settings, stable="exact", carried=FIELDS) + shape_lacking(settings, fade="smoothstep")
+    quality, blur, soft_lacking = _soft_level(settings)
+    lacking = (common_lacking(settings, stable="exact", carried=FIELDS) + shape_lacking(settings, fade="smoothstep")
+               + soft_lacking)
     modes = {1: 0, 2: 1, 4: 2}
     cascades = count_one_two_or_four(settings.cascades)
     if cascades != settings.cascades:
@@ -296,21 +356,15 @@ def export_godot4(settings: ShadowSettings, *, near: float, far: float) -> Snipp
               f"directional_shadow_pancake_size = {four_digits(settings.pancake)}",
               f"shadow_bias = {four_digits(settings.bias_depth_range / SHADOW_BIAS_SCALE)}",
               f"shadow_normal_bias = {four_digits(settings.normal_offset)}",
-              f"shadow_blur = {four_digits(settings.vogel_radius / _soft_low_radius())}",
+              f"shadow_blur = {four_digits(blur)}",
               f"shadow_reverse_cull_face = {'true' if settings.cull == 'front' else 'false'}",
               "# Project Settings",
               f"rendering/lights_and_shadows/directional_shadow/size = {atlas}  "
               f"# {largest_resolution(settings)}² per split (2 or 4 splits: half the atlas side each)",
               "rendering/lights_and_shadows/directional_shadow/soft_shadow_filter_quality = "
-              f"{0 if hard_filter(settings) else 2}  # 2: Soft Low, 4 Vogel taps of 2 texels × shadow_blur",
+              f"{quality}  # {GODOT_SOFT_SHADOW_QUALITIES[quality].name}",
               "rendering/lights_and_shadows/directional_shadow/16_bits = "
               f"{'true' if settings.depth_format == 'unorm16' else 'false'}"]
-    lacking += blend_lacking(settings, "Godot blends splits over a fixed band")
-    # shadow_blur scales Soft Low's disk (the files carry vogel_radius): any radius is Godot's own kernel.
-    disk = {name: value for name, value in GODOT_SOFT_LOW.items() if name != "vogel_radius"}
-    if not hard_filter(settings) and not vogel_is(settings, **disk):
-        lacking.append(f"filter = {settings.filter!r}, filter_size = {settings.filter_size} (Godot filters with its "
-                       f"own soft-shadow kernel: Soft Low is pcf_vogel {GODOT_SOFT_LOW})")
     return Snippet("godot4", "Godot 4: DirectionalLight3D and project settings", "gdscript", "\n".join(lines) + "\n",
                    tuple(lacking))
 
@@ -382,7 +436,16 @@ class SceneInstance:
     node: str
 
 
-def gltf_instances(path) -> list[SceneInstance]:
+class _UnreadableInstance(InputError):
+    """An instanced file csmlab cannot read — another format, absent, or named by uid alone: refused by
+    :func:`gltf_instances`, or listed with ``why`` where its caller collects them (:func:`level_instances`)."""
+
+    def __init__(self, message: str, *, why: str, **where):
+        super().__init__(message, **where)
+        self.why = why
+
+
+def gltf_instances(path, *, skipped: list | None = None) -> list[SceneInstance]:
     """The glTF files a Godot ``.tscn`` instances, each with the transform that places it, in file order.
 
     Every node with ``instance=ExtResource(…)`` of a ``.glb`` or ``.gltf`` is one record; an instanced
@@ -391,18 +454,21 @@ def gltf_instances(path) -> list[SceneInstance]:
     resolve from the folder holding ``project.godot`` (searched upward from the scene), others from the
     scene's folder. Godot writes a ``Transform3D`` as the basis's rows, then the origin (variant_parser.cpp).
 
+    ``skipped``, when given, collects one line ``"<node> (<file>): <why>"`` for each instance of a file csmlab cannot
+    read (another format, absent, or named by uid alone) in place of refusing it.
+
     Raises
     ------
     InputError
         A file that is no Godot scene, a node whose parent or resource is missing, a transform that is not 12
-        numbers, an instanced file that does not exist or is neither glTF nor a text scene, or scenes that
-        instance each other (file, line and node named).
+        numbers, an instanced file that does not exist or is neither glTF nor a text scene (unless ``skipped``
+        collects those), or scenes that instance each other (file, line and node named).
     """
-    return _instances(Path(path).resolve(), np.eye(4), None, prefix="", chain=())
+    return _instances(Path(path).resolve(), np.eye(4), None, prefix="", chain=(), skipped=skipped)
 
 
 def _instances(path: Path, placed: np.ndarray, root: np.ndarray | None, *, prefix: str,
-               chain: tuple) -> list[SceneInstance]:
+               chain: tuple, skipped: list | None) -> list[SceneInstance]:
     """The glTF instances of the scene ``path`` whose root's parent is at ``placed`` ``(4, 4)``; ``root``, the
     instancing node's own transform, replaces the root's (the instancing node is the root: its ``transform``
     property overrides the scene's), None where it sets none."""
@@ -434,13 +500,19 @@ def _instances(path: Path, placed: np.ndarray, root: np.ndarray | None, *, prefi
         instance = _INSTANCE.search(lines[line - 1])
         if instance is None or node in hidden:
             continue
-        target = _resource_file(resources, instance.group(1), scene=path, line=line, node=node)
         shown = f"{prefix}{node}"
+        try:
+            target = _resource_file(resources, instance.group(1), scene=path, line=line, node=node)
+        except _UnreadableInstance as exc:
+            if skipped is None:
+                raise
+            skipped.append(f"{shown} ({resources[instance.group(1)][0] or instance.group(1)}): {exc.why}")
+            continue
         if target.suffix.lower() in _GLTF:
             found.append(SceneInstance(file=target, transform=world[node], node=shown))
         else:
             own = None if keys.get("transform") is None else local
-            found += _instances(target, above, own, prefix=f"{shown}/", chain=(*chain, path))
+            found += _instances(target, above, own, prefix=f"{shown}/", chain=(*chain, path), skipped=skipped)
     return found
 
 
@@ -471,8 +543,9 @@ def _resource_file(resources: dict, key: str, *, scene: Path, line: int, node: s
                          line=line, field=f"{node}.instance")
     written, declared = resources[key]
     if not isinstance(written, str) or not written:
-        raise InputError(f"expected a path on the [ext_resource] with id {key!r} (a uid alone is not resolved)",
-                         file=scene, line=declared, field="ext_resource.path")
+        raise _UnreadableInstance(f"expected a path on the [ext_resource] with id {key!r} (a uid alone is not "
+                                  "resolved)", why="its [ext_resource] has a uid and no path; csmlab does not "
+                                  "resolve uids", file=scene, line=declared, field="ext_resource.path")
     if written.startswith("res://"):
         root = next((folder for folder in scene.parents if (folder / "project.godot").is_file()), None)
         if root is None:
@@ -482,9 +555,38 @@ def _resource_file(resources: dict, key: str, *, scene: Path, line: int, node: s
     else:
         target = scene.parent / written
     if target.suffix.lower() not in (*_GLTF, _TEXT_SCENE):
-        raise InputError(f"expected node {node!r} to instance a glTF file (.glb, .gltf) or a text scene (.tscn), "
-                         f"got {written!r}", file=scene, line=line, field=f"{node}.instance")
+        raise _UnreadableInstance(f"expected node {node!r} to instance a glTF file (.glb, .gltf) or a text scene "
+                                  f"(.tscn), got {written!r}",
+                                  why=f"csmlab reads glTF (.glb, .gltf) and text scenes (.tscn), not "
+                                      f"{target.suffix or 'a file without a suffix'}: export it as glTF 2.0",
+                                  file=scene, line=line, field=f"{node}.instance")
     if not target.is_file():
-        raise InputError(f"expected the file node {node!r} instances, {written!r}, at {target}, found none",
-                         file=scene, line=line, field=f"{node}.instance")
+        raise _UnreadableInstance(f"expected the file node {node!r} instances, {written!r}, at {target}, found none",
+                                  why=f"no file at {target}", file=scene, line=line, field=f"{node}.instance")
     return target.resolve()
+
+
+def level_instances(paths) -> tuple[list[SceneInstance], list[str]]:
+    """The glTF instances of the ``.tscn``/``.escn`` scenes among ``paths`` (``csmlab import godot4``'s files) that a
+    ``[[scene.parts]]`` entry can place, and one line ``"<node> (<file>): <why>"`` for each instance that cannot be:
+    a file csmlab cannot read (:func:`gltf_instances`' ``skipped``), or a transform that flattens it (a scale of 0:
+    Godot draws nothing of it; :func:`csmlab.scene.parts.matrix_fault`).
+
+    Raises
+    ------
+    InputError
+        A scene :func:`gltf_instances` refuses for its structure (file, line and node named).
+    """
+    from csmlab.scene.parts import matrix_fault
+
+    placed, skipped = [], []
+    for path in paths:
+        if Path(path).suffix not in (".tscn", ".escn"):
+            continue
+        for instance in gltf_instances(path, skipped=skipped):
+            if matrix_fault(instance.transform):
+                skipped.append(f"{instance.node} ({instance.file.name}): its transform flattens it (a scale of 0); "
+                               "Godot draws nothing of it")
+            else:
+                placed.append(instance)
+    return placed, skipped

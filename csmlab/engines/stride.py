@@ -43,10 +43,13 @@ import uuid
 
 import yaml
 
+from csmlab.cascades.bounds import shadow_end
 from csmlab.cascades.splits import split_boundaries
 from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, common_lacking, fixed_preset,
                                    largest_resolution, one_file)
-from csmlab.engines.reading import Imported, Reading, engine_settings, number, read_text
+from csmlab.documents import described
+from csmlab.engines.reading import (Entry, Imported, Located, LocatingLoader, Reading, engine_settings,
+                                    located_mapping, read_text, yaml_document)
 from csmlab.errors import InputError
 from csmlab.lookup_choices import FILTER_METHODS
 from csmlab.settings import ShadowSettings
@@ -56,8 +59,8 @@ __all__ = ["DEFAULT_NEAR", "ENGINE", "FIELDS", "PRESET", "TUNE_SPACE", "export_s
 PRESET = "stride"
 """The engine preset holding Stride's defaults."""
 
-FIELDS = frozenset({"cascades", "resolution", "stabilization", "snap", "bounds", "hold", "shadow_distance", "split",
-                    "lambda_", "splits", "blend_band", "filter", "filter_size", "bias_depth_range",
+FIELDS = frozenset({"cascades", "resolution", "stabilization", "snap", "bounds", "hold", "shadow_distance",
+                    "shadow_distance_from", "split", "lambda_", "splits", "blend_band", "filter", "filter_size", "bias_depth_range",
                     "normal_offset_m"})
 """The csmlab fields a LightDirectionalShadowMap carries."""
 
@@ -88,14 +91,9 @@ MANUAL = "LightDirectionalShadowMap.PartitionManual"
 PCF = "LightShadowMapFilterTypePcf"
 
 
-class _Tagged(dict):
-    """A YAML mapping with its Stride type tag (``!LightComponent`` → ``tag = "LightComponent"``)."""
-
-    tag = ""
-
-
-class _StrideLoader(yaml.SafeLoader):
-    """PyYAML's safe loader taking Stride's ``!Type`` tags and its ``Member*`` override marks (the star dropped)."""
+class _StrideLoader(LocatingLoader):
+    """The safe loader taking Stride's ``!Type`` tags (a tagged mapping's :attr:`Located.tag`) and its ``Member*``
+    override marks (the star dropped)."""
 
     def construct_mapping(self, node, deep=False):
         mapping = super().construct_mapping(node, deep=deep)
@@ -104,7 +102,7 @@ class _StrideLoader(yaml.SafeLoader):
 
 def _construct_tagged(loader: _StrideLoader, suffix: str, node):
     if isinstance(node, yaml.MappingNode):
-        value = _Tagged(loader.construct_mapping(node, deep=True))
+        value = located_mapping(node, loader.construct_mapping(node, deep=True))
         value.tag = suffix
         return value
     if isinstance(node, yaml.SequenceNode):
@@ -115,69 +113,78 @@ def _construct_tagged(loader: _StrideLoader, suffix: str, node):
 _StrideLoader.add_multi_constructor("!", _construct_tagged)
 
 
-def _asset(path) -> _Tagged:
+def _asset(path) -> Entry:
     """The scene (or prefab) asset of ``path``."""
-    try:
-        document = yaml.load(read_text(path), Loader=_StrideLoader)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        raise InputError(f"expected Stride asset YAML, got {getattr(exc, 'problem', None) or exc}", file=path,
-                         line=None if mark is None else mark.line + 1) from None
-    if not isinstance(document, _Tagged) or document.tag not in ("SceneAsset", "PrefabAsset"):
+    document = yaml_document(read_text(path), file=path, loader=_StrideLoader, what="Stride asset YAML")
+    if getattr(document, "tag", "") not in ("SceneAsset", "PrefabAsset"):
         raise InputError("expected a Stride scene asset (a .sdscene starting with !SceneAsset)", file=path,
                          field="!SceneAsset")
-    return document
+    return Entry(document, file=path)
 
 
-def _components(asset: _Tagged, path) -> list[tuple[str, _Tagged]]:
-    """``(entity name, component)`` of every component of every entity in the asset's hierarchy."""
-    parts = (asset.get("Hierarchy") or {}).get("Parts") if isinstance(asset.get("Hierarchy"), dict) else None
-    if not isinstance(parts, list):
-        raise InputError("expected Hierarchy.Parts, the scene's entities", file=path, field="Hierarchy.Parts")
+def _shown(entry: Entry) -> str:
+    """A value as a message about a tagged one shows it: its tag, or what it is."""
+    return f"!{entry.tag}" if entry.tag else described(entry.raw)
+
+
+def _components(asset: Entry) -> list[tuple[str, Entry]]:
+    """``(entity name, component)`` of every tagged component of every entity in the asset's hierarchy."""
+    hierarchy = asset.get("Hierarchy")
+    parts = None if hierarchy is None else hierarchy.mapping("the scene's hierarchy (Hierarchy.Parts)").get("Parts")
+    if parts is None:
+        raise InputError("expected Hierarchy.Parts, the scene's entities", file=asset.file, field="Hierarchy.Parts")
     found = []
-    for index, part in enumerate(parts):
-        entity = part.get("Entity") if isinstance(part, dict) else None
-        if not isinstance(entity, dict):
+    for index, part in enumerate(parts.items("a list of the scene's entities")):
+        entity = part.mapping("an entity part (Entity: …)").get("Entity")
+        if entity is None:
             continue
-        name = str(entity.get("Name") or f"Hierarchy.Parts[{index}]")
-        components = entity.get("Components") or {}
-        if isinstance(components, dict):
-            found += [(name, c) for c in components.values() if isinstance(c, _Tagged)]
+        entity.mapping("an entity (Id, Name, Components)")
+        name = entity.get("Name")
+        label = str(name.raw) if name is not None and not isinstance(name.raw, (dict, list)) else \
+            f"Hierarchy.Parts[{index}]"
+        components = entity.get("Components")
+        if components is not None:
+            found += [(label, c) for _, c in components.mapping("the entity's components").fields() if c.tag]
     return found
 
 
-def _sun(components, path) -> tuple[str, dict]:
+def _sun(components, path) -> tuple[str, Entry]:
     """The entity name and ``Shadow`` of the scene's one enabled directional light."""
-    lights = [(name, c) for name, c in components if c.tag == "LightComponent" and c.get("Enabled", True) is not False
-              and isinstance(c.get("Type"), _Tagged) and c["Type"].tag == "LightDirectional"]
+    lights = []
+    for name, component in components:
+        enabled = component.member("Enabled")
+        kind = component.get("Type")
+        if component.tag == "LightComponent" and (enabled is None or enabled.boolean()) and kind is not None \
+                and kind.tag == "LightDirectional":
+            lights.append((name, kind))
     if len(lights) != 1:
         names = ", ".join(name for name, _ in lights)
         raise InputError("expected one enabled LightComponent of Type !LightDirectional, found "
                          + (f"{len(lights)}: {names}" if lights else "none"), file=path, field="LightDirectional")
-    name, light = lights[0]
-    shadow = light["Type"].get("Shadow")
-    if not isinstance(shadow, dict):
+    name, kind = lights[0]
+    shadow = kind.get("Shadow")
+    if shadow is None or not shadow.is_object():
         raise InputError("expected the directional light's Shadow (a LightDirectionalShadowMap)", file=path,
-                         field=f"{name}.Shadow")
-    return name, shadow
+                         field=f"{name}.Shadow", line=kind.line)
+    return name, Entry(shadow.raw, file=path, key=f"{name}.Shadow", line=shadow.line)
 
 
-def _near(components, path, reading: Reading) -> float:
+def _near(components, reading: Reading) -> float:
     """The scene camera's near plane in metres (the first CameraComponent's; Stride's default without one)."""
     cameras = [(name, c) for name, c in components if c.tag == "CameraComponent"]
     if not cameras:
         return DEFAULT_NEAR
     if len(cameras) > 1:
-        reading.lack(file=path, key="CameraComponent", value=", ".join(name for name, _ in cameras),
+        reading.lack(file=cameras[0][1].file, key="CameraComponent", value=", ".join(name for name, _ in cameras),
                      why=f"several cameras: the first one's near plane, {cameras[0][0]}'s, places a manual depth range")
     name, camera = cameras[0]
-    return number(camera.get("NearClipPlane", DEFAULT_NEAR), file=path, key=f"{name}.NearClipPlane", above=0.0)
+    near = Entry(camera.raw, file=camera.file, key=name, line=camera.line).member("NearClipPlane")
+    return DEFAULT_NEAR if near is None else near.number(above=0.0)
 
 
-def _choice(value, choices: dict, *, file, key: str):
-    if value not in choices:
-        raise InputError(f"expected one of {list(choices)}, got {value!r}", file=file, field=key)
-    return choices[value]
+def _members(entry: Entry | None, what: str) -> Entry | None:
+    """``entry``, checked to be a member set, or None where it is absent or null (all members the defaults)."""
+    return None if entry is None or entry.raw is None else entry.mapping(what)
 
 
 def read_stride(paths) -> Imported:
@@ -193,118 +200,117 @@ def read_stride(paths) -> Imported:
         raise InputError(f"expected one .sdscene, got {len(paths)} files", field="FILE")
     path = paths[0]
     reading = Reading("stride", PRESET)
-    components = _components(_asset(path), path)
-    name, shadow = _sun(components, path)
-    where = f"{name}.Shadow"
-    if shadow.get("Enabled") is not True:
-        reading.lack(file=path, key=f"{where}.Enabled", value=shadow.get("Enabled", False),
+    components = _components(_asset(path))
+    _, shadow = _sun(components, path)
+    enabled = shadow.member("Enabled")
+    if enabled is None or not enabled.boolean():
+        reading.lack(file=path, key=f"{shadow.key}.Enabled", value=False,
                      why="the light casts no shadow in Stride; csmlab always shadows")
     cascades = engine_settings(PRESET).cascades
-    if "CascadeCount" in shadow:
-        cascades = _choice(shadow["CascadeCount"], CASCADE_COUNTS, file=path, key=f"{where}.CascadeCount")
-        reading.set("cascades", cascades, file=path, key=f"{where}.CascadeCount", raw=shadow["CascadeCount"])
-    if "Size" in shadow:
-        reading.set("resolution", _choice(shadow["Size"], SIZES, file=path, key=f"{where}.Size"), file=path,
-                    key=f"{where}.Size", raw=shadow["Size"])
-    if "StabilizationMode" in shadow:
-        key = f"{where}.StabilizationMode"
-        stabilization, snap = _choice(shadow["StabilizationMode"], STABILIZATION, file=path, key=key)
-        reading.set("stabilization", stabilization, file=path, key=key, raw=shadow["StabilizationMode"])
+    if (entry := shadow.member("CascadeCount")) is not None:
+        cascades = entry.choice(CASCADE_COUNTS)
+        reading.set("cascades", cascades, file=path, key=entry.key, raw=entry.raw)
+    if (entry := shadow.member("Size")) is not None:
+        reading.set("resolution", entry.choice(SIZES), file=path, key=entry.key, raw=entry.raw)
+    if (entry := shadow.member("StabilizationMode")) is not None:
+        stabilization, snap = entry.choice(STABILIZATION)
+        reading.set("stabilization", stabilization, file=path, key=entry.key, raw=entry.raw)
         if snap is not None:
-            reading.set("snap", snap, file=path, key=key, raw=shadow["StabilizationMode"])
-    _read_filter(shadow.get("Filter"), reading, path, where)
-    depth = shadow.get("DepthRange") or {}
-    if not isinstance(depth, dict):
-        raise InputError(f"expected the DepthRange members, got {depth!r}", file=path, field=f"{where}.DepthRange")
-    near = _near(components, path, reading) if depth.get("IsAutomatic", True) is False else DEFAULT_NEAR
-    _read_depth_range(depth, reading, path, f"{where}.DepthRange", near=near)
-    _read_partition(shadow.get("PartitionMode"), depth, reading, path, where, cascades=cascades, near=near)
-    bias = shadow.get("BiasParameters") or {}
-    if "DepthBias" in bias:
-        key = f"{where}.BiasParameters.DepthBias"
-        reading.set("bias_depth_range", number(bias["DepthBias"], file=path, key=key, minimum=0.0), file=path, key=key,
-                    raw=bias["DepthBias"])
-    if "NormalOffsetScale" in bias:
-        key = f"{where}.BiasParameters.NormalOffsetScale"
-        scale = number(bias["NormalOffsetScale"], file=path, key=key, minimum=0.0)
-        reading.set("normal_offset_m", 2.0 * scale / ATLAS_SIZE, file=path, key=key, raw=bias["NormalOffsetScale"])
+            reading.set("snap", snap, file=path, key=entry.key, raw=entry.raw)
+    _read_filter(shadow.member("Filter") or Entry(None, file=path, key=f"{shadow.key}.Filter"), reading)
+    depth = _members(shadow.member("DepthRange"), "the DepthRange members") or Entry(
+        Located(), file=path, key=f"{shadow.key}.DepthRange", line=shadow.line)
+    automatic = depth.member("IsAutomatic")
+    automatic = True if automatic is None else automatic.boolean()
+    near = DEFAULT_NEAR if automatic else _near(components, reading)
+    _read_depth_range(depth, reading, automatic=automatic, near=near)
+    _read_partition(shadow.member("PartitionMode"), depth, reading, cascades=cascades, automatic=automatic, near=near)
+    bias = _members(shadow.member("BiasParameters"), "the BiasParameters members")
+    if bias is not None and (entry := bias.member("DepthBias")) is not None:
+        reading.set("bias_depth_range", entry.number(minimum=0.0), file=path, key=entry.key, raw=entry.raw)
+    if bias is not None and (entry := bias.member("NormalOffsetScale")) is not None:
+        scale = entry.number(minimum=0.0)
+        reading.set("normal_offset_m", 2.0 * scale / ATLAS_SIZE, file=path, key=entry.key, raw=entry.raw)
     for member, why in (("ComputeTransmittance", "transmittance through thin objects (hair, skin)"),
                         ("Debug", "cascade debug colours")):
-        if shadow.get(member, False) is not False:
-            reading.lack(file=path, key=f"{where}.{member}", value=shadow[member], why=why)
+        if (entry := shadow.member(member)) is not None and entry.boolean():
+            reading.lack(file=path, key=entry.key, value=True, why=why)
     return reading.result()
 
 
-def _read_filter(value, reading: Reading, path, where: str) -> None:
-    key = f"{where}.Filter"
-    if value is None:
+def _read_filter(value: Entry, reading: Reading) -> None:
+    path, key = value.file, value.key
+    if value.raw is None:
         reading.set("filter", "pcf_bilinear", file=path, key=key, raw="null (ShadowMapFilterDefault)")
         return
-    if not isinstance(value, _Tagged) or value.tag != PCF:
-        raise InputError(f"expected !{PCF} or no filter, got {getattr(value, 'tag', value)!r}", file=path, field=key)
-    size = value.get("FilterSize", "Filter3x3")
-    if size == "Filter7x7":
-        reading.set("filter", "pcf_castano", file=path, key=key, raw=f"!{PCF}")
-        reading.lack(file=path, key=f"{key}.FilterSize", value=size,
+    if value.tag != PCF:
+        raise InputError(f"expected !{PCF} or no filter, got {_shown(value)}", file=path, field=key, line=value.line)
+    size = value.member("FilterSize")
+    reading.set("filter", "pcf_castano", file=path, key=key, raw=f"!{PCF}")
+    if size is not None and size.raw == "Filter7x7":
+        reading.lack(file=path, key=size.key, value=size.raw,
                      why="csmlab's pcf_castano has the 3×3 and 5×5 kernels; the preset's size is kept")
         return
-    reading.set("filter", "pcf_castano", file=path, key=key, raw=f"!{PCF}")
-    reading.set("filter_size", _choice(size, PCF_SIZES, file=path, key=f"{key}.FilterSize"), file=path,
-                key=f"{key}.FilterSize", raw=size)
+    size_key = f"{key}.FilterSize"
+    reading.set("filter_size", PCF_SIZES["Filter3x3"] if size is None else size.choice(PCF_SIZES), file=path,
+                key=size_key, raw="Filter3x3" if size is None else size.raw)
 
 
-def _read_depth_range(depth: dict, reading: Reading, path, where: str, *, near: float) -> None:
-    automatic = depth.get("IsAutomatic", True)
-    if not isinstance(automatic, bool):
-        raise InputError(f"expected true or false, got {automatic!r}", file=path, field=f"{where}.IsAutomatic")
-    if "IsAutomatic" in depth:
+def _read_depth_range(depth: Entry, reading: Reading, *, automatic: bool, near: float) -> None:
+    path, where = depth.file, depth.key
+    if depth.member("IsAutomatic") is not None:
         reading.set("bounds", "sdsm" if automatic else "frustum", file=path, key=f"{where}.IsAutomatic", raw=automatic)
+        # Automatic: the farthest visible object ends the range, uncapped; manual: near + ManualMaxDistance.
+        reading.set("shadow_distance_from", "farthest_visible" if automatic else "fixed", file=path,
+                    key=f"{where}.IsAutomatic", raw=automatic)
         if automatic:
             reading.set("hold", "stepped", file=path, key=f"{where}.IsAutomatic", raw=automatic)
     if not automatic:
-        key = f"{where}.ManualMaxDistance"
-        farthest = number(depth.get("ManualMaxDistance", 50.0), file=path, key=key, above=0.0)
-        reading.set("shadow_distance", near + farthest, file=path, key=key,
-                    raw=f"{depth.get('ManualMaxDistance', 50.0)} (+ near plane {near:g})")
-    lowest = number(depth.get("ManualMinDistance", 0.0), file=path, key=f"{where}.ManualMinDistance", minimum=0.0)
+        farthest = _manual_max(depth)
+        reading.set("shadow_distance", near + farthest, file=path, key=f"{where}.ManualMaxDistance",
+                    raw=f"{farthest} (+ near plane {near:g})")
+    lowest = depth.member("ManualMinDistance")
+    lowest = 0.0 if lowest is None else lowest.number(minimum=0.0)
     if lowest and not automatic:
         reading.lack(file=path, key=f"{where}.ManualMinDistance", value=lowest,
                      why="csmlab's cascades start at the camera's near plane")
-    if "IsBlendingCascades" in depth:
-        blending = depth["IsBlendingCascades"]
-        if not isinstance(blending, bool):
-            raise InputError(f"expected true or false, got {blending!r}", file=path,
-                             field=f"{where}.IsBlendingCascades")
-        reading.set("blend_band", BLEND_BAND if blending else 0.0, file=path, key=f"{where}.IsBlendingCascades",
-                    raw=blending)
+    if (entry := depth.member("IsBlendingCascades")) is not None:
+        blending = entry.boolean()
+        reading.set("blend_band", BLEND_BAND if blending else 0.0, file=path, key=entry.key, raw=blending)
 
 
-def _read_partition(partition, depth: dict, reading: Reading, path, where: str, *, cascades: int,
+def _manual_max(depth: Entry) -> float:
+    """DepthRange.ManualMaxDistance in metres (Stride's 50 when the file leaves it out)."""
+    farthest = depth.member("ManualMaxDistance")
+    return 50.0 if farthest is None else farthest.number(above=0.0)
+
+
+def _read_partition(partition: Entry | None, depth: Entry, reading: Reading, *, cascades: int, automatic: bool,
                     near: float) -> None:
-    key = f"{where}.PartitionMode"
-    if partition is None:
+    if partition is None or partition.raw is None:
         return
-    if not isinstance(partition, _Tagged) or partition.tag not in (LOGARITHMIC, MANUAL):
-        raise InputError(f"expected !{LOGARITHMIC} or !{MANUAL}, got {getattr(partition, 'tag', partition)!r}",
-                         file=path, field=key)
+    path, key = partition.file, partition.key
+    if partition.tag not in (LOGARITHMIC, MANUAL):
+        raise InputError(f"expected !{LOGARITHMIC} or !{MANUAL}, got {_shown(partition)}", file=path, field=key,
+                         line=partition.line)
     if partition.tag == LOGARITHMIC:
         reading.set("split", "practical", file=path, key=key, raw=f"!{LOGARITHMIC}")
-        if "PSSMFactor" in partition:
-            factor = number(partition["PSSMFactor"], file=path, key=f"{key}.PSSMFactor", minimum=0.0)
-            reading.set("lambda_", 1.0 - min(factor, 1.0), file=path, key=f"{key}.PSSMFactor",
-                        raw=partition["PSSMFactor"])
+        if (entry := partition.member("PSSMFactor")) is not None:
+            factor = entry.number(minimum=0.0)
+            reading.set("lambda_", 1.0 - min(factor, 1.0), file=path, key=entry.key, raw=entry.raw)
         return
     members = MANUAL_SPLITS[cascades]
-    ends = [number(partition.get(m, MANUAL_DEFAULTS[m]), file=path, key=f"{key}.{m}", above=0.0) for m in members]
+    ends = [MANUAL_DEFAULTS[m] if partition.member(m) is None else partition.member(m).number(above=0.0)
+            for m in members]
     if any(b <= a for a, b in zip(ends, ends[1:])):
-        raise InputError(f"expected increasing {', '.join(members)}, got {ends}", file=path, field=key)
+        raise InputError(f"expected increasing {', '.join(members)}, got {ends}", file=path, field=key,
+                         line=partition.line)
     shown = ", ".join(f"{m} = {e:g}" for m, e in zip(members, ends))
     reading.set("split", "manual_range", file=path, key=key, raw=f"!{MANUAL}")
     reading.set("splits", tuple(e / ends[-1] for e in ends), file=path, key=key, raw=shown)
-    if depth.get("IsAutomatic", True) is False:
+    if not automatic:
         # Cascade i ends at min + s_i · max with min = near, max = near + ManualMaxDistance.
-        farthest = number(depth.get("ManualMaxDistance", 50.0), file=path, key=f"{where}.DepthRange.ManualMaxDistance",
-                          above=0.0)
+        farthest = _manual_max(depth)
         reading.set("shadow_distance", near + ends[-1] * (near + farthest), file=path, key=key,
                     raw=f"near plane {near:g} + {ends[-1]:g} · (near plane + ManualMaxDistance {farthest:g})")
     else:
@@ -379,14 +385,20 @@ def _depth_and_partition(settings: ShadowSettings, lacking: list, *, near: float
     automatic = settings.bounds == "sdsm"
     if automatic and settings.hold != "stepped":
         lacking.append(f"hold = {settings.hold!r} (Stride holds the visible range in steps: 'stepped')")
-    if automatic and settings.shadow_distance != engine_settings(PRESET).shadow_distance:
-        lacking.append(f"shadow_distance = {settings.shadow_distance} (Stride's automatic depth range ends at the "
-                       f"visible maximum: no distance is written)")
+    if automatic and settings.shadow_distance_from != "farthest_visible":
+        lacking.append(f"shadow_distance_from = {settings.shadow_distance_from!r}, shadow_distance = "
+                       f"{settings.shadow_distance} (Stride's automatic depth range ends at the farthest visible "
+                       f"object: no distance is written)")
     if not automatic:
-        if settings.shadow_distance > far:
+        end = shadow_end(method=settings.shadow_distance_from, shadow_distance=settings.shadow_distance,
+                         max_shadow_distance=settings.max_shadow_distance, camera_far=far)
+        if settings.shadow_distance_from != "fixed":
+            lacking.append(f"shadow_distance_from = {settings.shadow_distance_from!r} (Stride's manual depth range "
+                           f"is fixed: the end under this camera, {end:g} m, written)")
+        elif settings.shadow_distance > far:
             lacking.append(f"shadow_distance = {settings.shadow_distance} (beyond the camera's far plane, {far:g} m, "
                            f"written)")
-        depth += ["IsAutomatic: false", f"ManualMaxDistance: {_float(min(settings.shadow_distance, far) - near)}"]
+        depth += ["IsAutomatic: false", f"ManualMaxDistance: {_float(end - near)}"]
     if settings.blend_band == 0.0:
         depth.append("IsBlendingCascades: false")
     elif settings.blend_band != BLEND_BAND:

@@ -19,6 +19,7 @@ in the renderer), ``CascadeTransitionFraction``, ``ShadowDistanceFadeoutFraction
 from __future__ import annotations
 
 import configparser
+import math
 import re
 from pathlib import Path
 
@@ -27,7 +28,7 @@ import numpy as np
 from csmlab.cascades.splits import split_boundaries, ue_split_fractions
 from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, common_lacking, fixed_preset, four_digits,
                                    largest_resolution, shape_lacking)
-from csmlab.engines.reading import Imported, Reading, number, read_text
+from csmlab.engines.reading import Entry, Imported, Reading, read_text
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
 
@@ -104,69 +105,88 @@ def read_ue5(paths) -> Imported:
                     continue  # a scalability level: only the one in use applies, below
                 for key, value in parser.items(section):
                     if key.lower().startswith(("r.shadow", "sg.shadowquality")):
-                        cvars[key.lower()] = (value, path, f"[{section}] {key}")
+                        cvars[key.lower()] = _cvar(value, file=path, key=f"[{section}] {key}")
         else:
-            light = {k: (v, path) for k, v in _light_properties(path).items()}
-    level = cvars.get("sg.shadowquality", (str(_DEFAULT_SHADOW_QUALITY), None, None))[0]
+            light = {k: Entry(v, file=path, key=f"DirectionalLight.{k}") for k, v in _light_properties(path).items()}
+    level = cvars["sg.shadowquality"].integer(minimum=0) if "sg.shadowquality" in cvars else _DEFAULT_SHADOW_QUALITY
     for path, parser in scalability:
         section = f"ShadowQuality@{level}"
         if parser.has_section(section):
             for key, value in parser.items(section):
-                cvars.setdefault(key.lower(), (value, path, f"[{section}] {key}"))
+                cvars.setdefault(key.lower(), _cvar(value, file=path, key=f"[{section}] {key}"))
 
-    def cvar(name, **checks):
-        value, path, key = cvars.pop(name.lower())
-        # The engine reads a cvar's leading number: project files often trail it with "; comment".
-        return number(value.split(";", 1)[0].strip(), file=path, key=key, **checks), path, key
+    def cvar(name) -> Entry:
+        return cvars.pop(name.lower())
 
-    def prop(name, **checks):
-        value, path = light.pop(name)
-        return number(value, file=path, key=f"DirectionalLight.{name}", **checks), path, f"DirectionalLight.{name}"
+    def prop(name) -> Entry:
+        return light.pop(name)
 
     cascades = base.cascades
     if "DynamicShadowCascades" in light:
-        cascades, path, key = prop("DynamicShadowCascades", integer=True, minimum=1)
-        reading.set("cascades", cascades, file=path, key=key)
+        entry = prop("DynamicShadowCascades")
+        cascades = entry.integer(minimum=1)
+        reading.set("cascades", cascades, file=entry.file, key=entry.key)
     if "r.shadow.csm.maxcascades" in cvars:
-        cap, path, key = cvar("r.Shadow.CSM.MaxCascades", integer=True, minimum=1)
+        entry = cvar("r.Shadow.CSM.MaxCascades")
+        cap = entry.integer(minimum=1)
         if cap < cascades:
             cascades = cap
-            reading.set("cascades", cap, file=path, key=key)
+            reading.set("cascades", cap, file=entry.file, key=entry.key)
     if "CascadeDistributionExponent" in light:
-        exponent, path, key = prop("CascadeDistributionExponent", minimum=1.0)
-        reading.set("split", "exponent", file=path, key=key, raw=exponent)
-        reading.set("distribution_exponent", exponent, file=path, key=key)
+        entry = prop("CascadeDistributionExponent")
+        exponent = entry.number(minimum=1.0)
+        reading.set("split", "exponent", file=entry.file, key=entry.key, raw=exponent)
+        reading.set("distribution_exponent", exponent, file=entry.file, key=entry.key)
     scale = 1.0
     if "r.shadow.distancescale" in cvars:
-        scale, scale_path, scale_key = cvar("r.Shadow.DistanceScale", above=0.0)
+        scale_entry = cvar("r.Shadow.DistanceScale")
+        scale = scale_entry.number(above=0.0)
     if "DynamicShadowDistanceMovableLight" in light:
-        distance, path, key = prop("DynamicShadowDistanceMovableLight", above=0.0)
-        reading.set("shadow_distance", distance / 100.0 * scale, file=path, key=key, raw=f"{distance} cm")
+        entry = prop("DynamicShadowDistanceMovableLight")
+        distance = entry.number(above=0.0)
+        reading.set("shadow_distance", _finite(distance / 100.0 * scale, entry), file=entry.file, key=entry.key,
+                    raw=f"{distance} cm")
     elif scale != 1.0:
-        reading.set("shadow_distance", base.shadow_distance * scale, file=scale_path, key=scale_key, raw=scale)
+        reading.set("shadow_distance", _finite(base.shadow_distance * scale, scale_entry), file=scale_entry.file,
+                    key=scale_entry.key, raw=scale)
     transition = 1.0
     if "r.shadow.csm.transitionscale" in cvars:
-        transition, t_path, t_key = cvar("r.Shadow.CSM.TransitionScale", minimum=0.0)
+        transition_entry = cvar("r.Shadow.CSM.TransitionScale")
+        transition = transition_entry.number(minimum=0.0)
     if "CascadeTransitionFraction" in light:
-        fraction, path, key = prop("CascadeTransitionFraction", minimum=0.0)
-        reading.set("blend_band", fraction * transition, file=path, key=key, raw=fraction)
+        entry = prop("CascadeTransitionFraction")
+        fraction = entry.number(minimum=0.0)
+        reading.set("blend_band", _finite(fraction * transition, entry), file=entry.file, key=entry.key, raw=fraction)
     elif transition != 1.0:
-        reading.set("blend_band", base.blend_band * transition, file=t_path, key=t_key, raw=transition)
+        reading.set("blend_band", base.blend_band * transition, file=transition_entry.file, key=transition_entry.key,
+                    raw=transition)
     if "ShadowDistanceFadeoutFraction" in light:
-        fade, path, key = prop("ShadowDistanceFadeoutFraction", minimum=0.0)
-        reading.set("fade_out", fade, file=path, key=key)
+        entry = prop("ShadowDistanceFadeoutFraction")
+        reading.set("fade_out", entry.number(minimum=0.0), file=entry.file, key=entry.key)
     if "r.shadow.maxcsmresolution" in cvars:
-        size, path, key = cvar("r.Shadow.MaxCSMResolution", integer=True, minimum=1)
-        reading.set("resolution", size, file=path, key=key)
-    for name, (value, path, key) in sorted(cvars.items()):
+        entry = cvar("r.Shadow.MaxCSMResolution")
+        reading.set("resolution", entry.integer(minimum=1), file=entry.file, key=entry.key)
+    for name, entry in sorted(cvars.items()):
         why = ("virtual shadow maps replace cascaded shadow maps when on; csmlab models the cascades"
                if name == "r.shadow.virtual.enable" else "no csmlab knob")
-        if name not in ("sg.shadowquality", "r.shadow.filtermethod") or value.strip() not in ("0", str(level)):
-            reading.lack(file=path, key=key, value=value, why=why)
-    for name, (value, path) in sorted(light.items()):
+        if name not in ("sg.shadowquality", "r.shadow.filtermethod") or entry.raw not in ("0", str(level)):
+            reading.lack(file=entry.file, key=entry.key, value=entry.raw, why=why)
+    for name, entry in sorted(light.items()):
         if re.search(r"Shadow|Cascade", name):
-            reading.lack(file=path, key=f"DirectionalLight.{name}", value=value, why="no csmlab knob")
+            reading.lack(file=entry.file, key=entry.key, value=entry.raw, why="no csmlab knob")
     return reading.result()
+
+
+def _cvar(value: str | None, *, file, key: str) -> Entry:
+    """A cvar's value: the engine reads its leading text, project files often trail it with "; comment"."""
+    return Entry(None if value is None else value.split(";", 1)[0].strip(), file=file, key=key)
+
+
+def _finite(value: float, entry: Entry) -> float:
+    """``value``, a product of ``entry``'s number and a scale, checked finite."""
+    if not math.isfinite(value):
+        raise entry.error("a value whose product with its scale cvar is finite")
+    return value
 
 
 def _nearest_exponent(boundaries: np.ndarray, count: int) -> tuple[float, float]:

@@ -17,7 +17,7 @@ from __future__ import annotations
 from csmlab.cascades.splits import count_one_two_or_four, fractions_of_far, split_boundaries
 from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, blend_lacking, common_lacking, hard_filter,
                                    largest_resolution, one_file, shape_lacking, storage_lacking)
-from csmlab.engines.reading import Imported, Reading, engine_settings, number
+from csmlab.engines.reading import Imported, Reading, engine_settings
 from csmlab.engines.unity_yaml import unity_objects, unity_text
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
@@ -54,77 +54,73 @@ def read_unity_builtin(paths) -> Imported:
         raise InputError(f"expected one QualitySettings.asset, got {len(paths)} files", field="FILE")
     path = paths[0]
     quality = next((f for _, name, f in unity_objects(path) if name == "QualitySettings"), None)
-    levels = None if quality is None else quality.get("m_QualitySettings")
-    if not isinstance(levels, list) or not levels:
+    levels = None if quality is None or not quality.is_object() else quality.get("m_QualitySettings")
+    if levels is None or not isinstance(levels.raw, list) or not levels.raw:
         raise InputError("expected QualitySettings with a list of quality levels", file=path,
                          field="m_QualitySettings")
-    current = number(quality.get("m_CurrentQuality", 0), file=path, key="m_CurrentQuality", integer=True, minimum=0)
-    if current >= len(levels):
-        raise InputError(f"expected a level index below {len(levels)}, got {current}", file=path,
-                         field="m_CurrentQuality")
-    level = levels[current]
-    where = f"m_QualitySettings[{current}]"
-    name = level.get("name", current)
-    projection = number(level.get("shadowProjection", 1), file=path, key=f"{where}.shadowProjection", integer=True)
+    levels = levels.items()
+    current = quality.member("m_CurrentQuality")
+    current = 0 if current is None else current.integer(minimum=0, below=len(levels),
+                                                        what=f"a level index below {len(levels)}")
+    level = levels[current].mapping("a quality level (name, shadows, shadowCascades, …)")
+    where = level.key
+    name = level.get("name")
+    name = current if name is None or isinstance(name.raw, (dict, list)) else name.raw
+    projection_entry = level.member("shadowProjection")
+    projection = 1 if projection_entry is None else projection_entry.integer(what="0 (Close Fit) or 1 (Stable Fit)")
     if projection not in PRESETS:
-        raise InputError(f"expected 0 (Close Fit) or 1 (Stable Fit), got {projection}", file=path,
-                         field=f"{where}.shadowProjection")
+        raise projection_entry.error("0 (Close Fit) or 1 (Stable Fit)")
     reading = Reading("unity_builtin", PRESETS[projection])
     base = reading.base
-    key = f"{where} ({name}).shadowProjection"
-    if "shadowProjection" in level:
-        reading.set("stabilization", base.stabilization, file=path, key=key, raw=projection)
+    if projection_entry is not None:
+        reading.set("stabilization", base.stabilization, file=path, key=f"{where} ({name}).shadowProjection",
+                    raw=projection)
     cascades = base.cascades
-    if "shadowCascades" in level:
-        cascades = number(level["shadowCascades"], file=path, key=f"{where}.shadowCascades", integer=True)
+    if (entry := level.member("shadowCascades")) is not None:
+        cascades = entry.integer(what="1, 2 or 4 cascades")
         if cascades not in (1, 2, 4):
-            raise InputError(f"expected 1, 2 or 4 cascades, got {cascades}", file=path, field=f"{where}.shadowCascades")
-        reading.set("cascades", cascades, file=path, key=f"{where}.shadowCascades")
+            raise entry.error("1, 2 or 4 cascades")
+        reading.set("cascades", cascades, file=path, key=entry.key)
     if cascades > 1:
         split_key = "shadowCascade4Split" if cascades == 4 else "shadowCascade2Split"
-        if split_key in level:
-            value = level[split_key]
+        value = level.member(split_key)
+        if value is not None:
             if cascades == 4:
-                if not isinstance(value, dict) or any(a not in value for a in "xyz"):
-                    raise InputError(f"expected {{x: …, y: …, z: …}}, got {value!r}", file=path,
-                                     field=f"{where}.{split_key}")
-                fractions = [number(value[a], file=path, key=f"{where}.{split_key}.{a}", above=0.0) for a in "xyz"]
+                value.mapping("{x: …, y: …, z: …}")
+                fractions = [value.at(a).number(above=0.0) for a in "xyz"]
             else:
-                fractions = [number(value, file=path, key=f"{where}.{split_key}", above=0.0)]
+                fractions = [value.number(above=0.0)]
             if any(b <= a for a, b in zip(fractions, fractions[1:])) or fractions[-1] >= 1.0:
                 raise InputError(f"expected increasing fractions below 1, got {fractions}", file=path,
-                                 field=f"{where}.{split_key}")
-            reading.set("split", "manual", file=path, key=f"{where}.{split_key}", raw=fractions)
-            reading.set("splits", (*fractions, 1.0), file=path, key=f"{where}.{split_key}", raw=fractions)
+                                 field=value.key, line=value.line)
+            reading.set("split", "manual", file=path, key=value.key, raw=fractions)
+            reading.set("splits", (*fractions, 1.0), file=path, key=value.key, raw=fractions)
         elif cascades != base.cascades:
             raise InputError(f"expected {split_key} for {cascades} cascades, found none", file=path,
-                             field=f"{where}.{split_key}")
+                             field=f"{where}.{split_key}", line=level.line)
     else:
         reading.set("split", "manual", file=path, key=f"{where}.shadowCascades", raw=1)
         reading.set("splits", (1.0,), file=path, key=f"{where}.shadowCascades", raw=1)
         # One cascade takes the whole shadowmap: csmlab's array of one slice (memory_bytes).
         reading.set("storage", "array", file=path, key=f"{where}.shadowCascades", raw=1)
-    if "shadowDistance" in level:
-        reading.set("shadow_distance", number(level["shadowDistance"], file=path, key=f"{where}.shadowDistance",
-                                              above=0.0), file=path, key=f"{where}.shadowDistance")
-    if "shadowResolution" in level:
-        steps = number(level["shadowResolution"], file=path, key=f"{where}.shadowResolution", integer=True, minimum=0)
-        if steps > _VERY_HIGH:
-            raise InputError(f"expected 0 (Low) to 3 (Very High), got {steps}", file=path,
-                             field=f"{where}.shadowResolution")
-        reading.set("resolution", base.resolution >> (_VERY_HIGH - steps), file=path,
-                    key=f"{where}.shadowResolution", raw=steps)
-    if "shadows" in level:
-        shadows = number(level["shadows"], file=path, key=f"{where}.shadows", integer=True)
+    if (entry := level.member("shadowDistance")) is not None:
+        reading.set("shadow_distance", entry.number(above=0.0), file=path, key=entry.key)
+    if (entry := level.member("shadowResolution")) is not None:
+        steps = entry.integer(minimum=0, below=_VERY_HIGH + 1, what="0 (Low) to 3 (Very High)")
+        reading.set("resolution", base.resolution >> (_VERY_HIGH - steps), file=path, key=entry.key, raw=steps)
+    if (entry := level.member("shadows")) is not None:
+        shadows = entry.integer()
         if shadows == 0:
-            reading.lack(file=path, key=f"{where}.shadows", value=0, why="shadows disabled at this level")
+            reading.lack(file=path, key=entry.key, value=0, why="shadows disabled at this level")
         elif shadows == 1:
-            reading.set("filter", "pcf_bilinear", file=path, key=f"{where}.shadows", raw=1)
+            reading.set("filter", "pcf_bilinear", file=path, key=entry.key, raw=1)
     for unmodelled in _UNMODELLED:
-        if unmodelled in level and not (unmodelled == "shadowCascade2Split" and cascades == 2):
-            reading.lack(file=path, key=f"{where}.{unmodelled}", value=level[unmodelled],
-                         why="not used by this level's cascades" if unmodelled == "shadowCascade2Split"
-                         else "no csmlab knob")
+        entry = level.member(unmodelled)
+        if entry is None or (unmodelled == "shadowCascade2Split" and cascades == 2):
+            continue
+        entry.number()  # a number, checked: shown as written
+        reading.lack(file=path, key=entry.key, value=entry.raw,
+                     why="not used by this level's cascades" if unmodelled == "shadowCascade2Split" else "no csmlab knob")
     return reading.result()
 
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 from csmlab.cascades.splits import fractions_of_far, split_boundaries
 from csmlab.engines.common import (Engine, EngineFiles, Snippet, TuneSpace, blend_lacking, common_lacking, fixed_preset,
                                    four_digits, hard_filter, largest_resolution, shape_lacking, storage_lacking)
-from csmlab.engines.reading import Imported, Reading, engine_settings, number
+from csmlab.engines.reading import Entry, Imported, Reading, engine_settings
 from csmlab.engines.unity_yaml import unity_objects, unity_text
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
@@ -49,20 +49,20 @@ _UNMODELLED = {"m_ConservativeEnclosingSphere": "URP's tighter cascade spheres (
                "m_ShadowType": "an obsolete field of early URP assets"}
 
 
-def _split_fractions(fields: dict, cascades: int, path) -> tuple[list, str] | None:
+def _split_fractions(fields: Entry, cascades: int) -> tuple[list, str] | None:
     key = {2: "m_Cascade2Split", 3: "m_Cascade3Split", 4: "m_Cascade4Split"}.get(cascades)
-    if key is None or key not in fields:
+    value = None if key is None else fields.member(key)
+    if value is None:
         return None
-    value = fields[key]
     if cascades == 2:
-        fractions = [number(value, file=path, key=key, above=0.0)]
+        fractions = [value.number(above=0.0)]
     else:
         axes = "xyz"[:cascades - 1]
-        if not isinstance(value, dict) or any(a not in value for a in axes):
-            raise InputError(f"expected {{{', '.join(a + ': …' for a in axes)}}}, got {value!r}", file=path, field=key)
-        fractions = [number(value[a], file=path, key=f"{key}.{a}", above=0.0) for a in axes]
+        value.mapping(f"{{{', '.join(a + ': …' for a in axes)}}}")
+        fractions = [value.at(a).number(above=0.0) for a in axes]
     if any(b <= a for a, b in zip(fractions, fractions[1:])) or fractions[-1] >= 1.0:
-        raise InputError(f"expected increasing fractions below 1, got {fractions}", file=path, field=key)
+        raise InputError(f"expected increasing fractions below 1, got {fractions}", file=fields.file, field=key,
+                         line=value.line)
     return fractions, key
 
 
@@ -78,21 +78,19 @@ def read_unity_urp(paths) -> Imported:
     reading = Reading("unity_urp", PRESET)
     base = reading.base
     for path in paths:
-        assets = [f for class_id, name, f in unity_objects(path) if name == "MonoBehaviour"
-                  and ("m_ShadowCascadeCount" in f or "m_MainLightShadowmapResolution" in f)]
+        assets = [f for class_id, name, f in unity_objects(path) if name == "MonoBehaviour" and f.is_object()
+                  and {"m_ShadowCascadeCount", "m_MainLightShadowmapResolution"} & set(f.keys())]
         if not assets:
             raise InputError("expected a UniversalRenderPipelineAsset (a MonoBehaviour with m_ShadowCascadeCount)",
                              file=path, field="m_ShadowCascadeCount")
         fields = assets[0]
         cascades = base.cascades
-        if "m_ShadowCascadeCount" in fields:
-            cascades = number(fields["m_ShadowCascadeCount"], file=path, key="m_ShadowCascadeCount", integer=True,
-                              minimum=1)
-            if cascades > 4:
-                raise InputError(f"expected 1 to 4 cascades, got {cascades}", file=path, field="m_ShadowCascadeCount")
-            reading.set("cascades", cascades, file=path, key="m_ShadowCascadeCount")
-        found = _split_fractions(fields, cascades, path)
-        if found is not None or "m_ShadowCascadeCount" in fields:
+        count = fields.member("m_ShadowCascadeCount")
+        if count is not None:
+            cascades = count.integer(minimum=1, below=5, what="1 to 4 cascades")
+            reading.set("cascades", cascades, file=path, key=count.key)
+        found = _split_fractions(fields, cascades)
+        if found is not None or count is not None:
             fractions, key = found if found is not None else (
                 list(_FEWER_SPLITS.get(cascades, base.splits[:cascades - 1])), "m_ShadowCascadeCount")
             reading.set("split", "manual", file=path, key=key, raw=fractions)
@@ -100,15 +98,12 @@ def read_unity_urp(paths) -> Imported:
         for key, attribute, above in (("m_ShadowDistance", "shadow_distance", 0.0), ("m_CascadeBorder", "fade_out", None),
                                       ("m_ShadowDepthBias", "bias_texels", None),
                                       ("m_ShadowNormalBias", "normal_offset", None)):
-            if key in fields:
-                reading.set(attribute, number(fields[key], file=path, key=key, above=above,
-                                              minimum=None if above is not None else 0.0), file=path, key=key,
-                            raw=fields[key])
-        if "m_MainLightShadowmapResolution" in fields:
-            atlas = number(fields["m_MainLightShadowmapResolution"], file=path, key="m_MainLightShadowmapResolution",
-                           integer=True, minimum=1)
-            reading.set("resolution", atlas if cascades == 1 else atlas // 2, file=path,
-                        key="m_MainLightShadowmapResolution", raw=atlas)
+            if (entry := fields.member(key)) is not None:
+                value = entry.number(above=above) if above is not None else entry.number(minimum=0.0)
+                reading.set(attribute, value, file=path, key=key, raw=entry.raw)
+        if (entry := fields.member("m_MainLightShadowmapResolution")) is not None:
+            atlas = entry.integer(minimum=1)
+            reading.set("resolution", atlas if cascades == 1 else atlas // 2, file=path, key=entry.key, raw=atlas)
         if cascades == 1:
             # One cascade takes the whole shadowmap: one texture of one map, csmlab's array of one slice.
             reading.set("storage", "array", file=path, key="m_ShadowCascadeCount", raw=1)
@@ -116,22 +111,25 @@ def read_unity_urp(paths) -> Imported:
             reading.lack(file=path, key="m_ShadowCascadeCount", value=2,
                          why="URP allocates 2 tiles (the atlas's half height), csmlab's 2x2 layout counts 4 in "
                              "memory_bytes")
-        if "m_SoftShadowsSupported" in fields:
-            soft = number(fields["m_SoftShadowsSupported"], file=path, key="m_SoftShadowsSupported", integer=True)
-            quality = fields.get("m_SoftShadowQuality", _SOFT_MEDIUM)
+        if (entry := fields.member("m_SoftShadowsSupported")) is not None:
+            soft = entry.integer()
+            quality_entry = fields.member("m_SoftShadowQuality")
+            quality = _SOFT_MEDIUM if quality_entry is None else quality_entry.integer()
             if not soft:
-                reading.set("filter", "pcf_bilinear", file=path, key="m_SoftShadowsSupported", raw=soft)
+                reading.set("filter", "pcf_bilinear", file=path, key=entry.key, raw=soft)
             elif quality == _SOFT_MEDIUM:
-                reading.set("filter", URP_FILTER[0], file=path, key="m_SoftShadowsSupported", raw=soft)
-                reading.set("filter_size", URP_FILTER[1], file=path, key="m_SoftShadowQuality" if "m_SoftShadowQuality"
-                            in fields else "m_SoftShadowsSupported (no m_SoftShadowQuality: Medium)", raw=quality)
+                reading.set("filter", URP_FILTER[0], file=path, key=entry.key, raw=soft)
+                reading.set("filter_size", URP_FILTER[1], file=path, key="m_SoftShadowQuality" if quality_entry
+                            is not None else "m_SoftShadowsSupported (no m_SoftShadowQuality: Medium)", raw=quality)
             else:
                 reading.lack(file=path, key="m_SoftShadowQuality", value=quality,
                              why="csmlab models soft shadows off and Medium (Tent 5×5); the asset's default, "
                                  "soft shadows off, is kept")
         for key, why in _UNMODELLED.items():
-            if key in fields and not (key == "m_MainLightShadowsSupported" and fields[key] == 1):
-                reading.lack(file=path, key=key, value=fields[key], why=why)
+            entry = fields.member(key)
+            # Each a number, checked, then shown as written.
+            if entry is not None and not (entry.number() == 1 and key == "m_MainLightShadowsSupported"):
+                reading.lack(file=path, key=key, value=entry.raw, why=why)
     return reading.result()
 
 

@@ -1,25 +1,25 @@
 """Unity's serialized assets (``.asset``): YAML 1.1 documents headed ``--- !u!<class id> &<file id>``.
 
 PyYAML reads them once the ``!u!`` class tags (Unity's own, declared by ``%TAG !u! tag:unity3d.com,2011:``)
-are stripped from the document markers; each document is one object, ``{type name: {field: value}}``.
+are stripped from the document markers; each document is one object, ``{type name: {field: value}}``, whose
+fields an importer reads through :class:`~csmlab.engines.reading.Entry` (each mapping at its line).
 """
 
 from __future__ import annotations
 
 import re
 
-import yaml
-
+from csmlab.engines.reading import Entry, read_text, yaml_document
 from csmlab.errors import InputError
-from csmlab.engines.reading import read_text
 
 __all__ = ["unity_objects", "unity_text"]
 
 _MARKER = re.compile(r"^--- !u!(\d+) &(-?\d+)( stripped)?\s*$", re.M)
 
 
-def unity_objects(path) -> list[tuple[int, str, dict]]:
-    """``(class id, type name, fields)`` of every object in the Unity asset ``path``.
+def unity_objects(path) -> list[tuple[int, object, Entry]]:
+    """``(class id, type name, fields)`` of every object in the Unity asset ``path`` (fields: an Entry, the
+    object's mapping where the document holds one).
 
     Raises
     ------
@@ -31,18 +31,15 @@ def unity_objects(path) -> list[tuple[int, str, dict]]:
         raise InputError("expected a Unity YAML asset (%YAML 1.1 and --- !u!<class> &<id> documents); set the "
                          "project's Asset Serialization to Force Text", file=path, field="%YAML")
     classes = [int(m.group(1)) for m in _MARKER.finditer(text)]
-    try:
-        documents = [d for d in yaml.safe_load_all(_MARKER.sub("---", text)) if d is not None]
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        raise InputError(f"expected valid YAML, got {getattr(exc, 'problem', None) or exc}", file=path,
-                         line=None if mark is None else mark.line + 1) from None
+    documents = [d for d in yaml_document(_MARKER.sub("---", text), file=path, what="valid YAML", every=True)
+                 if d is not None]
     objects = []
     for class_id, document in zip(classes, documents):
         if not isinstance(document, dict) or len(document) != 1:
-            raise InputError("expected one Unity object per document", file=path, field=f"!u!{class_id}")
+            raise InputError("expected one Unity object per document", file=path, field=f"!u!{class_id}",
+                             line=getattr(document, "line", None))
         (name, fields), = document.items()
-        objects.append((class_id, name, fields if isinstance(fields, dict) else {}))
+        objects.append((class_id, name, Entry(fields, file=path, line=getattr(document, "line", None))))
     return objects
 
 

@@ -333,6 +333,9 @@ def window_receivers_kernel(
     factor = one
     if r.normal_scale == NORMAL_SIN:
         factor = wp.sqrt(wp.max(one - cos * cos, zero))
+    elif r.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
+        # Godot's light_dir points toward the light: 1 − max(0, dot(light_dir, −N)) (csmlab.texels.receiver_lookup).
+        factor = one - wp.max(-cos, zero)
     elif r.normal_scale != NORMAL_NONE:
         factor = one - wp.max(cos, zero)
     float32 = boxes.mode == WINDOW_FLOAT32
@@ -612,6 +615,9 @@ def warped_receivers_kernel(
     factor = one
     if r.normal_scale == NORMAL_SIN:
         factor = wp.sqrt(wp.max(one - cos * cos, zero))
+    elif r.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
+        # Godot's light_dir points toward the light: 1 − max(0, dot(light_dir, −N)) (csmlab.texels.receiver_lookup).
+        factor = one - wp.max(-cos, zero)
     elif r.normal_scale != NORMAL_NONE:
         factor = one - wp.max(cos, zero)
     along = one

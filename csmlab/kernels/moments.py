@@ -196,17 +196,53 @@ def hamburger_lit(m: wp.vec4d, t: wp.float64, moment_bias: wp.float64, depth_bia
     return wp.float64(1.0) - wp.clamp(g, wp.float64(0.0), wp.float64(1.0))
 
 
+@wp.struct
+class MomentBound:
+    """What the bound of filtered moments reads (:func:`moment_bound`), one record per lookup (:func:`_bound`).
+
+    Attributes
+    ----------
+    inv_span : float64
+        1 / the depth range in metres the moments were normalized over.
+    code : int
+        The moment filter (:data:`csmlab.lookup_choices.MOMENT_VSM` …).
+    c_pos, c_neg : float64
+        The EVSM warps' exponents c₊, c₋.
+    min_variance : float64
+        Variance floor in normalized depth² (not read by msm).
+    moment_bias, depth_bias : float64
+        msm: the moment bias α and the depth bias in normalized depth.
+    power, bleed : float64
+        The light-bleeding reductions ``p ← p^power`` and ``p ← linstep(bleed, 1, p)``.
+    """
+
+    inv_span: wp.float64
+    code: int
+    c_pos: wp.float64
+    c_neg: wp.float64
+    min_variance: wp.float64
+    moment_bias: wp.float64
+    depth_bias: wp.float64
+    power: wp.float64
+    bleed: wp.float64
+
+
 @wp.func
-def moment_bound(m: wp.vec4d, receiver: wp.float32, inv_span: wp.float64, code: int, c_pos: wp.float64,
-                 c_neg: wp.float64, min_variance: wp.float64, moment_bias: wp.float64, depth_bias: wp.float64,
-                 power: wp.float64, bleed: wp.float64) -> wp.float64:
+def moment_bound(m: wp.vec4d, receiver: wp.float32, bound: MomentBound) -> wp.float64:
     """Chebyshev's (or MSM's Hamburger) bound of filtered moments ``m`` at the receiver's depth, then the
     light-bleeding reductions."""
+    inv_span = bound.inv_span
+    code = bound.code
+    c_pos = bound.c_pos
+    c_neg = bound.c_neg
+    min_variance = bound.min_variance
+    power = bound.power
+    bleed = bound.bleed
     # The receiver's own depth is not clamped: one beyond the range is behind everything stored.
     t = wp.float64(receiver) * inv_span
     p = wp.float64(0.0)
     if code == MOMENT_MSM:
-        p = hamburger_lit(m, t, moment_bias, depth_bias)
+        p = hamburger_lit(m, t, bound.moment_bias, bound.depth_bias)
     elif code == MOMENT_VSM:
         variance = wp.clamp(m[1] - m[0] * m[0] + min_variance, wp.float64(0.0), wp.float64(1.0))
         p = chebyshev(m[0], variance, t)
@@ -228,14 +264,13 @@ def moment_bound(m: wp.vec4d, receiver: wp.float32, inv_span: wp.float64, code: 
 
 @wp.func
 def moment_lit(moments: wp.array3d(dtype=wp.vec4f), coords: wp.array3d(dtype=wp.int64),
-               receiver_depth: wp.array2d(dtype=wp.float32), c: int, k: int, unit: wp.int64, inv_span: wp.float64,
-               code: int, c_pos: wp.float64, c_neg: wp.float64, min_variance: wp.float64, moment_bias: wp.float64,
-               depth_bias: wp.float64, power: wp.float64, bleed: wp.float64) -> wp.float64:
+               receiver_depth: wp.array2d(dtype=wp.float32), c: int, k: int, unit: wp.int64,
+               bound: MomentBound) -> wp.float64:
     receiver = receiver_depth[c, k]
     if wp.isnan(receiver):
         return wp.float64(0.0)
     m = bilinear_moments(moments, c, coords[c, k, 0], coords[c, k, 1], unit)
-    return moment_bound(m, receiver, inv_span, code, c_pos, c_neg, min_variance, moment_bias, depth_bias, power, bleed)
+    return moment_bound(m, receiver, bound)
 
 
 @wp.kernel
@@ -246,15 +281,7 @@ def moment_lookup_kernel(
     cascade: wp.array(dtype=wp.int32),
     blend_weight: wp.array(dtype=wp.float64),
     unit: wp.int64,
-    inv_span: wp.float64,
-    code: int,
-    c_pos: wp.float64,
-    c_neg: wp.float64,
-    min_variance: wp.float64,
-    moment_bias: wp.float64,
-    depth_bias: wp.float64,
-    power: wp.float64,
-    bleed: wp.float64,
+    bound: MomentBound,
     lit: wp.array(dtype=wp.float32),
 ):
     k = wp.tid()
@@ -262,13 +289,10 @@ def moment_lookup_kernel(
     if c < 0:
         lit[k] = wp.float32(wp.nan)
         return
-    s = moment_lit(moments, coords, receiver_depth, c, k, unit, inv_span, code, c_pos, c_neg, min_variance, moment_bias,
-                   depth_bias, power, bleed)
+    s = moment_lit(moments, coords, receiver_depth, c, k, unit, bound)
     w = blend_weight[k]
     if w > wp.float64(0.0):
-        s = (wp.float64(1.0) - w) * s + w * moment_lit(moments, coords, receiver_depth, c + 1, k, unit, inv_span, code,
-                                                       c_pos, c_neg, min_variance, moment_bias, depth_bias, power,
-                                                       bleed)
+        s = (wp.float64(1.0) - w) * s + w * moment_lit(moments, coords, receiver_depth, c + 1, k, unit, bound)
     lit[k] = wp.float32(s)
 
 
@@ -276,11 +300,31 @@ def _code(method: str) -> int:
     return family_code(method, family="moment", field="method")
 
 
-def _check_bound(*, min_variance: float, moment_bias: float, depth_bias: float, power: float, bleed: float) -> None:
+def _bound(*, method: str, span: float, exponents: tuple[float, float], min_variance: float, moment_bias: float,
+           depth_bias: float, power: float, bleed: float) -> MomentBound:
+    """The :class:`MomentBound` of a lookup, its values checked.
+
+    Raises
+    ------
+    ValueError
+        An unknown method, or a reduction, floor or bias out of range.
+    """
+    code = _code(method)
     if not (0.0 <= bleed < 1.0 and power > 0 and min_variance >= 0 and 0.0 <= moment_bias < 1.0
             and np.isfinite(depth_bias)):
         raise ValueError(f"bleed, power, min_variance, moment_bias, depth_bias: expected [0, 1), > 0, ≥ 0, [0, 1), "
                          f"finite; got {bleed}, {power}, {min_variance}, {moment_bias}, {depth_bias}")
+    bound = MomentBound()
+    bound.inv_span = 1.0 / span
+    bound.code = code
+    bound.c_pos = float(exponents[0])
+    bound.c_neg = float(exponents[1])
+    bound.min_variance = float(min_variance)
+    bound.moment_bias = float(moment_bias)
+    bound.depth_bias = float(depth_bias)
+    bound.power = float(power)
+    bound.bleed = float(bleed)
+    return bound
 
 
 def moment_maps(depth, *, span: float, method: str, exponents: tuple[float, float] = (40.0, 5.0),
@@ -393,7 +437,8 @@ def moment_lookup(moments, coords, receiver_depth, *, cascade, method: str, span
     ndarray, shape (N,), float32
     """
     device = checked_device(device)
-    code = _code(method)
+    bound = _bound(method=method, span=span, exponents=exponents, min_variance=min_variance, moment_bias=moment_bias,
+                   depth_bias=depth_bias, power=power, bleed=bleed)
     m = np.ascontiguousarray(moments, dtype=np.float32)
     xy = np.ascontiguousarray(coords, dtype=np.int64)
     rd = np.ascontiguousarray(receiver_depth, dtype=np.float32)
@@ -404,7 +449,6 @@ def moment_lookup(moments, coords, receiver_depth, *, cascade, method: str, span
         raise ValueError(f"moments, coords, receiver_depth, cascade: expected shapes (C, R, R, 4), (C, N, 2), (C, N), "
                          f"(N,); got {m.shape}, {xy.shape}, {rd.shape}, {chosen.shape}")
     blend = np.zeros(n) if blend_weight is None else np.ascontiguousarray(blend_weight, dtype=np.float64)
-    _check_bound(min_variance=min_variance, moment_bias=moment_bias, depth_bias=depth_bias, power=power, bleed=bleed)
     if n == 0:
         return np.zeros(0, np.float32)
     lit = wp.empty(n, dtype=wp.float32, device=device)
@@ -414,9 +458,7 @@ def moment_lookup(moments, coords, receiver_depth, *, cascade, method: str, span
         inputs=(wp.array(m, dtype=wp.vec4f, device=device), wp.array(xy, dtype=wp.int64, device=device, copy=False),
                 wp.array(rd, dtype=wp.float32, device=device, copy=False),
                 wp.array(chosen, dtype=wp.int32, device=device, copy=False),
-                wp.array(blend, dtype=wp.float64, device=device, copy=False), wp.int64(2**bits), 1.0 / span, code,
-                float(exponents[0]), float(exponents[1]), float(min_variance), float(moment_bias), float(depth_bias),
-                float(power), float(bleed)),
+                wp.array(blend, dtype=wp.float64, device=device, copy=False), wp.int64(2**bits), bound),
         outputs=(lit,),
         device=device,
     )
@@ -530,15 +572,7 @@ def mip_lookup_kernel(
     unit: wp.int64,
     max_lod: int,
     max_aniso: int,
-    inv_span: wp.float64,
-    code: int,
-    c_pos: wp.float64,
-    c_neg: wp.float64,
-    min_variance: wp.float64,
-    moment_bias: wp.float64,
-    depth_bias: wp.float64,
-    power: wp.float64,
-    bleed: wp.float64,
+    bound: MomentBound,
     lit: wp.array(dtype=wp.float32),
 ):
     k = wp.tid()
@@ -558,8 +592,7 @@ def mip_lookup_kernel(
             if not wp.isnan(receiver):
                 m = filtered_moments(levels, offset, size, shift, c + b, coords[c + b, k, 0], coords[c + b, k, 1],
                                      ddx[b, k], ddy[b, k], unit, max_lod, max_aniso)
-                p = moment_bound(m, receiver, inv_span, code, c_pos, c_neg, min_variance, moment_bias, depth_bias,
-                                 power, bleed)
+                p = moment_bound(m, receiver, bound)
             if b == 0 and w == wp.float64(1.0):
                 s = p
             else:
@@ -674,7 +707,8 @@ def moment_mip_lookup(chain, coords, receiver_depth, *, origin_texels, cascade, 
     ndarray, shape (N,), float32
     """
     device = checked_device(device)
-    code = _code(method)
+    bound = _bound(method=method, span=span, exponents=exponents, min_variance=min_variance, moment_bias=moment_bias,
+                   depth_bias=depth_bias, power=power, bleed=bleed)
     levels = [np.ascontiguousarray(level, dtype=np.float32) for level in chain]
     if not levels or any(level.ndim != 4 or level.shape[3] != 4 or level.shape[1] != level.shape[2]
                          or level.shape[0] != levels[0].shape[0] for level in levels):
@@ -693,7 +727,6 @@ def moment_mip_lookup(chain, coords, receiver_depth, *, origin_texels, cascade, 
                          f"or (2, N, 2); got {xy.shape}, {rd.shape}, {chosen.shape}, {dx.shape}, {dy.shape}")
     if not (isinstance(anisotropy, (int, np.integer)) and 1 <= anisotropy <= 16):
         raise ValueError(f"anisotropy: expected an integer in 1..16, got {anisotropy!r}")
-    _check_bound(min_variance=min_variance, moment_bias=moment_bias, depth_bias=depth_bias, power=power, bleed=bleed)
     blend = np.zeros(n) if blend_weight is None else np.ascontiguousarray(blend_weight, dtype=np.float64)
     if n == 0:
         return np.zeros(0, np.float32)
@@ -716,8 +749,7 @@ def moment_mip_lookup(chain, coords, receiver_depth, *, origin_texels, cascade, 
                 wp.array(np.ascontiguousarray(dx), dtype=wp.vec2d, device=device),
                 wp.array(np.ascontiguousarray(dy), dtype=wp.vec2d, device=device),
                 wp.array(blend, dtype=wp.float64, device=device, copy=False), wp.int64(2**bits), int(max_lod),
-                int(anisotropy), 1.0 / span, code, float(exponents[0]), float(exponents[1]), float(min_variance),
-                float(moment_bias), float(depth_bias), float(power), float(bleed)),
+                int(anisotropy), bound),
         outputs=(lit,),
         device=device,
     )

@@ -336,10 +336,11 @@ def receiver_in(r: WorldReceivers, light: LightReceiver, c: int, k: int):  # noq
         # csmlab.texels.receiver_lookup's scale of the offset by the normal's angle to the light.
         if r.normal_scale == NORMAL_SIN:
             moved = moved * wp.sqrt(wp.max(wp.float64(1.0) - cos * cos, zero))
+        elif r.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
+            moved = moved * (wp.float64(1.0) - wp.max(-cos, zero))
+            along = zero
         else:
             moved = moved * (wp.float64(1.0) - wp.max(cos, zero))
-        if r.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
-            along = zero
     x = fixed_point(light.nx * moved + light.px, r.to_fixed[c, 0], r.limit) - r.origin_fixed[c, 0]
     y = fixed_point(light.ny * moved + light.py, r.to_fixed[c, 1], r.limit) - r.origin_fixed[c, 1]
     bias = r.bias_constant[c] + r.slope_bias[c] * light.tan

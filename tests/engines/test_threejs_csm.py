@@ -163,3 +163,5 @@ def test_three_js_options_read_practical_splits_and_the_bias_in_metres():
     # shadowBias left at CSM's 1e-6 of lightFar - lightNear = 4999 m, away from the light.
     assert (t.cascades, t.resolution, t.pancake, t.split, t.lambda_) == (4, 1024, 100.0, "practical", 0.5)
     assert t.bias_constant == pytest.approx(-0.004999)
+    # getBreaks: far = Math.min(camera.far, maxFar): the camera's far plane capped at maxFar 1000.
+    assert (t.shadow_distance_from, t.max_shadow_distance) == ("camera_far", 1000.0)

@@ -71,26 +71,29 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     ("engines/ue5", dict(cascades=3, split="exponent", distribution_exponent=3.0, blend_band=0.1,
                          transition="forward", fade_out=0.1,
                          shadow_distance=200.0, stabilization="exact")),
-    # Unity QualitySettings: shadowCascade4Split (0.067, 0.2, 0.467), shadowDistance 150.
+    # Unity QualitySettings: shadowCascade4Split (0.06666667, 0.2, 0.46666667), shadowDistance 150.
     # Built-in: Internal-ScreenSpaceShadows frag_pcf5x5 -> UnitySampleShadowmap_PCF5x5Tent; one 2×2 shadowmap;
     # getCascadeWeights_splitSpheres: the first split sphere holding the point.
-    ("engines/unity_builtin_stable", dict(cascades=4, splits=(0.067, 0.2, 0.467, 1.0), shadow_distance=150.0,
+    ("engines/unity_builtin_stable", dict(cascades=4, splits=(0.06666667, 0.2, 0.46666667, 1.0), shadow_distance=150.0,
                                           fade="radial",
                                           stabilization="exact", selection="sphere", filter="pcf_tent_bilinear",
                                           filter_size=7,
                                           storage="atlas", atlas_layout="2x2")),
-    ("engines/unity_builtin_close", dict(cascades=4, splits=(0.067, 0.2, 0.467, 1.0), stabilization="none",
+    ("engines/unity_builtin_close", dict(cascades=4, splits=(0.06666667, 0.2, 0.46666667, 1.0), stabilization="none",
                                          filter="pcf_tent_bilinear", filter_size=7, storage="atlas")),
     # UniversalRenderPipelineAsset: m_ShadowDistance 50, m_Cascade4Split (0.067, 0.2, 0.467), m_CascadeBorder 0.2;
     # m_SoftShadowQuality Medium = SampleShadow_ComputeSamples_Tent_5x5; 2×2 atlas; k_ShadowmapBufferBits = 16,
     # each tile rendered with its slice's projection (RenderShadowSlice); ComputeCascadeIndex: split spheres.
     ("engines/unity_urp", dict(shadow_distance=50.0, splits=(0.067, 0.2, 0.467, 1.0), fade_out=0.2,
-                               fade="squared_radial", filter="pcf_bilinear", selection="sphere",
+                               fade="squared_radial", filter="pcf_bilinear", selection="sphere", cull="back",
                                storage="atlas", atlas_layout="2x2", depth_format="unorm16",
                                depth_quantization="cascade")),
     # HDRP 10.10.1 DefaultSettingsVolumeProfile.asset: maxShadowDistance 150, splits 0.05/0.15/0.3; HDShadowInitParameters
     # Medium → SampleShadow_PCF_Tent_7x7, Depth32; the light's shadow resolution 512, 4 cascades as 2×2 atlas tiles.
-    ("engines/unity_hdrp", dict(cascades=4, splits=(0.05, 0.15, 0.3, 1.0), shadow_distance=150.0, selection="map",
+    # EvalShadow_GetSplitIndex: the first culling sphere holding the point; Lit's ShadowCaster pass culls back faces.
+    ("engines/unity_hdrp", dict(cascades=4, splits=(0.05, 0.15, 0.3, 1.0), shadow_distance=150.0,
+                                selection="sphere_dither", cascade_borders=(0.13333334, 0.06666666, 0.0, 0.0),
+                                cull="back",
                                 blend_band=0.0, fade_out=0.0, filter="pcf_tent_bilinear", filter_size=7,
                                 storage="atlas", atlas_layout="2x2", depth_format="float32", resolution=512)),
     # DirectionalLight3D: splits 0.1/0.2/0.5, max distance 100, fade_start 0.8, pancake_size 20, blend off;
@@ -108,6 +111,7 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
     # shadowNearHint 1 and shadowFarHint 100; focus_shadowcasters; ShadowType::PCF =
     # ShadowSample_PCF_Low, "hardware assisted PCF + 3x3 gaussian filter" (Castaño 2013).
     ("engines/filament", dict(cascades=1, split="practical", lambda_=0.5, stabilization="none",
+                              shadow_distance_from="camera_far",
                               focus="scene", warp="lispsm", lispsm_near_hint=1.0, lispsm_far_hint=100.0,
                               filter="pcf_castano", filter_size=3)),
     # CascadeShadowConfigBuilder::default(): 4, 0.1, 150, first bound 10, overlap 0.2;
@@ -122,18 +126,20 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
                                  fit="cascade_lerp", depth_range="light_camera", light_near=1.0, light_far=2000.0,
                                  light_basis="world_y", snap="centre_full",
                                  extent="diagonal_unrounded", filter="pcf_vogel", vogel_taps=5, vogel_radius=1.0,
-                                 poisson_rotation="pixel")),
+                                 poisson_rotation="pixel", outside="lit")),
     # LightDirectionalShadowMap: FourCascades, PSSMFactor 0.5, StabilizationMode ProjectionSnapping,
     # DepthRange.IsAutomatic true (held: DepthIncreaseThreshold 1.1, DepthDecreaseThreshold 2.0),
     # IsBlendingCascades true (overlap 0.2); PCF 5×5 in the shadow atlas.
     ("engines/stride", dict(cascades=4, lambda_=0.5, bounds="sdsm", hold="stepped", stabilization="exact",
+                            shadow_distance_from="farthest_visible",
                             extent="centroid", snap="centre_nearest", blend_band=0.2, blend_curve="smoothstep",
                             depth_range="sphere", depth_clamp=True,
                             transition="backward", filter="pcf_castano", filter_size=5, outside="last",
                             storage="atlas")),
     # TheRealMJP/Shadows AppSettings.cs: SplitDistance0..3 0.05/0.15/0.5/1.0, StabilizeCascades = false,
     # ShadowMode FixedSizePCF with FixedFilterSize Filter2x2, DepthBufferFormat DB32Float.
-    ("engines/mjp", dict(cascades=4, split="manual_range", splits=(0.05, 0.15, 0.5, 1.0), shadow_distance=400.0,
+    ("engines/mjp", dict(cascades=4, split="manual_range", splits=(0.05, 0.15, 0.5, 1.0),
+                         shadow_distance_from="camera_far", max_shadow_distance=0.0,
                          depth_range="slice", depth_clamp=True, pancake=0.0, stabilization="none",
                          filter="pcf_bilinear", outside="last",
                          depth_format="float32")),
@@ -581,7 +587,8 @@ FILTER_AND_BIAS = {
                            "caster_bias_units": 1.0, "caster_bias_slope": 2.5, "normal_offset": 1.0,
                            "normal_offset_scale": "one_minus_cos", "receiver_plane_bias": False}),
     "engines/unity_hdrp": ({"filter": "pcf_tent_bilinear", "filter_size": 7},
-                           {"bias_depth_range": 1.0 / 2**16, "bias_slope": 2.5, "normal_offset": 0.75,
+                           {"bias_depth_range": 1.0 / 2**16, "bias_slope": 0.0, "caster_bias_units": 1.0,
+                            "caster_bias_slope": 2.5, "normal_offset": 0.75,
                             "normal_offset_scale": "none", "receiver_plane_bias": False}),
     "engines/unity_builtin_stable": ({"filter": "pcf_tent_bilinear", "filter_size": 7},
                                      {"bias_slope": 0.0, "caster_bias_units": 1.0, "caster_bias_slope": 1.0,

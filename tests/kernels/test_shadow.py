@@ -161,7 +161,8 @@ def test_selection_for_a_filter_keeps_its_taps_inside_the_box(device):
 
 def test_unknown_names_list_the_valid_ones():
     args = (np.zeros((1, 8, 8), np.float32), np.zeros((1, 1, 2), np.int64), np.zeros((1, 1), np.float32), np.ones(1))
-    with pytest.raises(ValueError, match=r"selection: expected one of \['best_resolution', 'interval', 'map', 'sphere'\]"):
+    with pytest.raises(ValueError, match=r"selection: expected one of \['best_resolution', 'interval', 'map', 'sphere', "
+                                         r"'sphere_dither'\]"):
         lookup(*args, splits=np.array([0.0, 2.0]), selection="nearest")
     with pytest.raises(ValueError, match=r"filter: expected one of \['none', 'pcf', 'pcf_bilinear'\]"):
         lookup(*args, splits=np.array([0.0, 2.0]), filter="gaussian")
@@ -170,7 +171,7 @@ def test_unknown_names_list_the_valid_ones():
     with pytest.raises(ValueError, match="radius: expected a non-negative integer"):
         shadow_lookup(*args, splits=np.array([0.0, 2.0]), texel_area=np.ones(1), selection="interval", filter="pcf",
                       radius=-1, margin=1, blend_band=0.0, bits=BITS)
-    assert sorted(SELECTION_METHODS) == ["best_resolution", "interval", "map", "sphere"]
+    assert sorted(SELECTION_METHODS) == ["best_resolution", "interval", "map", "sphere", "sphere_dither"]
     assert sorted(family_filters("box")) == ["none", "pcf", "pcf_bilinear"]
 
 
@@ -317,8 +318,9 @@ def test_world_receivers_look_up_the_same_bits_as_converted_ones(selection, devi
                                                    ("pcf", 5, 0.0, False), ("pcf_bilinear", 1, 0.2, True)):
         common = dict(splits=splits, texel_area=np.prod(texel, axis=1), selection=selection, filter=filter,
                       radius=radius(filter, filter_size), margin=2, blend_band=blend_band, bits=BITS, device=device)
-        if selection == "sphere":
-            # A split sphere about the boxes' centre per cascade, as wide as 0.4 of its box.
+        if selection in ("sphere", "sphere_dither"):
+            # A split sphere about the boxes' centre per cascade, as wide as 0.4 of its box (sphere_dither: the
+            # kernel reads the cascade csmlab.cascades.borders chose, as for sphere).
             common["sphere_cascade"] = split_sphere_cascades(
                 points[receivers], centres=np.tile(np.append(centre, 0.0) @ basis, (count, 1)),
                 radii=0.4 * size * texel.max(axis=1), device=device)
@@ -364,7 +366,8 @@ def test_bias_models_scale_the_constant_bias_per_cascade_as_the_engines_do():
 def test_normal_offset_scales_are_the_engines_on_host_and_device_bit_for_bit(scale, device):
     """The receiver moved by normal_offset texels along its normal, times the engine's angle term:
     URP ApplyShadowBias / Stride GetShadowPositionOffset ``(1 − saturate(N·L))``, Filament computeLightSpacePosition
-    ``sinθ``, Godot 4 ``N (1 − max(0, dot(light_dir, −N)))`` less its component along the light (the depth kept)."""
+    ``sinθ``, Godot 4 ``N (1 − max(0, dot(light_dir, −N)))`` (light_dir toward the light) less its component along
+    the light (the depth kept)."""
     from csmlab.cascades import Cascade, CascadeSet
     from csmlab.geometry import light_basis
     from csmlab.kernels.shadow import receiver_coordinates
@@ -393,8 +396,10 @@ def test_normal_offset_scales_are_the_engines_on_host_and_device_bit_for_bit(sca
     n = normals.astype(np.float64) @ cs.basis.T
     p = points @ cs.basis.T
     cos = -n[:, 2]
+    # Godot's light_dir points toward the light (light_storage.cpp: the light's +Z), in light space (0, 0, −1).
+    godot_light_dir = np.array([0.0, 0.0, -1.0])
     k = {"none": np.ones_like(cos), "one_minus_cos": 1.0 - np.clip(cos, 0.0, 1.0), "sin": np.sqrt(1.0 - cos**2),
-         "one_minus_cos_lateral": 1.0 - np.maximum(cos, 0.0)}[scale]
+         "one_minus_cos_lateral": 1.0 - np.maximum(0.0, (-n) @ godot_light_dir)}[scale]
     moved = p + (k * (offset * texel + metres))[:, None] * n
     if scale == "one_minus_cos_lateral":
         moved[:, 2] = p[:, 2]                              # normal_bias -= light_dir · dot(light_dir, normal_bias)

@@ -180,7 +180,8 @@ def test_lookup_lit_is_numpys_filter_at_the_selected_cascades(selection, filter,
                                      slope[c], max(radius, 1))[0] for c in range(count)])
     common = dict(splits=splits, texel_area=np.prod(texel, axis=1), selection=selection, filter=filter,
                   radius=radius, margin=2, blend_band=0.4, bits=BITS, device=device)
-    if selection == "sphere":
+    if selection in ("sphere", "sphere_dither"):
+        # sphere_dither: the kernel reads the cascade csmlab.cascades.borders chose, as for sphere.
         common["sphere_cascade"] = split_sphere_cascades(points, centres=np.tile(np.append(centre, 0.0) @ basis,
                                                                                  (count, 1)),
                                                          radii=0.3 * size * texel.max(axis=1), device=device)

@@ -124,3 +124,96 @@ def test_the_level_of_parts_gets_a_walk_on_its_ground_and_the_unfitted_walk_is_f
     assert workload.views.clean
     unfitted = check_views(level, make_path("walk", frames=12))
     assert unfitted.below_ground == tuple(range(12))
+
+
+# --- parts placed by a 4×4 matrix -------------------------------------------------------------------------------------
+
+# The triangle of the plane x + y + z = 1, wound so its normal is +(1, 1, 1)/√3.
+SLANT = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _affine(linear, translation=(0.0, 0.0, 0.0)) -> tuple:
+    m = np.eye(4)
+    m[:3, :3], m[:3, 3] = linear, translation
+    return tuple(tuple(float(v) for v in row) for row in m)
+
+
+@pytest.mark.parametrize("linear, translation, corners, normal", [
+    # x stretched 2×: the plane x/2 + y + z = 1, normal ∝ (1/2, 1, 1) → (1, 2, 2)/3 (A n would give (2, 1, 1)).
+    ([[2, 0, 0], [0, 1, 0], [0, 0, 1]], (0, 0, 0), [[2, 0, 0], [0, 1, 0], [0, 0, 1]], [1 / 3, 2 / 3, 2 / 3]),
+    # x' = x + y (shear), then moved by (1, 2, 3): edges (0, 1, 0) and (−1, 0, 1) from the first corner, normal
+    # their cross product (1, 0, 1)/√2.
+    ([[1, 1, 0], [0, 1, 0], [0, 0, 1]], (1, 2, 3), [[2, 2, 3], [2, 3, 3], [1, 2, 4]],
+     [2 ** -0.5, 0, 2 ** -0.5]),
+])
+def test_a_matrix_shears_and_stretches_points_and_turns_normals_by_the_inverse_transpose(
+        tmp_path, linear, translation, corners, normal):
+    part = _obj(tmp_path / "slant.obj", SLANT, [(0, 1, 2)])
+    level = load_parts([PartPlacement(file=str(part), matrix=_affine(linear, translation))])
+    np.testing.assert_allclose(level.vertices[level.triangles[0]], corners, atol=1e-12)
+    np.testing.assert_allclose(level.normals[0], normal, atol=1e-12)
+    np.testing.assert_allclose(Scene.from_triangles(level.vertices, level.triangles).normals, level.normals,
+                               atol=1e-12)
+
+
+def test_a_mirroring_matrix_swaps_the_winding_so_faces_and_normals_still_point_outward(tmp_path):
+    part = _obj(tmp_path / "slant.obj", SLANT, [(0, 1, 2)])
+    mirror = _affine(np.diag([-1.0, 1.0, 1.0]), (4.0, 0.0, 0.0))
+    level = load_parts([PartPlacement(file=str(part), matrix=mirror)])
+    # x → 4 − x: the corners (3, 0, 0), (4, 1, 0), (4, 0, 1); the face's normal mirrored, (−1, 1, 1)/√3.
+    assert {tuple(p) for p in level.vertices[level.triangles[0]].tolist()} == {(3, 0, 0), (4, 1, 0), (4, 0, 1)}
+    np.testing.assert_allclose(level.normals[0], np.array([-1.0, 1.0, 1.0]) / 3 ** 0.5, atol=1e-12)
+    np.testing.assert_allclose(Scene.from_triangles(level.vertices, level.triangles).normals, level.normals,
+                               atol=1e-12)
+    # A closed box mirrored and sheared: every face still faces away from the box's centre.
+    corners, triangles = box((1.0, 2.0, 3.0))
+    level = load_parts([PartPlacement(file=str(_obj(tmp_path / "box.obj", corners, triangles)),
+                                      matrix=_affine([[-1.0, 0.5, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 2.0]]))])
+    centre = level.vertices.mean(axis=0)
+    outward = np.einsum("ij,ij->i", level.normals, level.vertices[level.triangles].mean(axis=1) - centre)
+    assert np.all(outward > 0)
+    np.testing.assert_allclose(Scene.from_triangles(level.vertices, level.triangles).normals, level.normals,
+                               atol=1e-12)
+
+
+def test_a_part_placed_by_translation_rotation_scale_and_by_the_same_matrix_is_the_same_scene(tmp_path):
+    corners, triangles = box((1.0, 2.0, 3.0))
+    part = str(_obj(tmp_path / "box.obj", corners, triangles))
+    t, r, s = (3.5, -1.25, 7.0), (10.0, -35.0, 70.0), 1.7
+    by_trs = load_parts([PartPlacement(file=part, translation=t, rotation_deg=r, scale=s)])
+    by_matrix = load_parts([PartPlacement(file=part, matrix=_affine(s * rotation_from_degrees(r), t))])
+    assert np.array_equal(by_trs.triangles, by_matrix.triangles)
+    # (s p) Rᵀ and p (s R)ᵀ round differently: within 1 ulp of the part's size.
+    spacing = np.spacing(np.abs(by_trs.vertices).max())
+    assert np.abs(by_trs.vertices - by_matrix.vertices).max() <= spacing
+    np.testing.assert_array_max_ulp(by_trs.normals, by_matrix.normals, maxulp=4)
+
+
+MATRIX = '[[0.0, 0.0, 2.0, 5.0], [0.0, 2.0, 0.0, 0.0], [-2.0, 0.0, 0.0, -2.0], [0.0, 0.0, 0.0, 1.0]]'
+
+
+def test_an_experiment_with_a_matrix_part_builds_its_level_and_writes_the_matrix_back(tmp_path):
+    experiment = load_experiment(_experiment(tmp_path, f'[[scene.parts]]\nfile = "house.obj"\nmatrix = {MATRIX}\n'))
+    assert experiment.scene.parts[0].matrix[2] == (-2.0, 0.0, 0.0, -2.0)
+    scene = build_workload(experiment).scene
+    # The 2 m house turned 90° about +Y (x → −z), doubled and moved to (5, 0, −2): x in [3, 7], z in [−4, 0].
+    np.testing.assert_allclose(scene.bounds, [[3.0, 0.0, -4.0], [7.0, 4.0, 0.0]], atol=1e-12)
+    written = tmp_path / "written.toml"
+    written.write_text(experiment_toml(experiment))
+    assert load_experiment(written).scene.parts == experiment.scene.parts
+
+
+@pytest.mark.parametrize("part, words", [
+    (f"matrix = {MATRIX}\nscale = 2.0\n", "either matrix or translation"),
+    ("matrix = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 1.0, 0.0, 1.0]]\n",
+     "last row"),
+    ("matrix = [[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]\n",
+     "non-singular"),
+    ("matrix = [[1.0, 0.0, 0.0, nan], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]\n",
+     "finite"),
+    ("matrix = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]\n", "a list of 4 lists of 4 numbers"),
+])
+def test_a_bad_matrix_is_refused_naming_the_part_and_what_was_expected(tmp_path, part, words):
+    with pytest.raises(InputError, match=r"scene\.parts\[0\]\.matrix") as caught:
+        load_experiment(_experiment(tmp_path, f'[[scene.parts]]\nfile = "house.obj"\n{part}'))
+    assert words in str(caught.value)
