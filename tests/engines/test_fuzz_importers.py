@@ -5,11 +5,11 @@ The good files are the fixtures of tests/data/engines/ (and, when present, the r
 with the harness of tests/fuzzing.py (seeded, a fixed number of variants per file):
 
 - its parsed tree: every value replaced by each other type (list, map, string, number, null, NaN,
-  huge), keys deleted, values nested one level deeper (:func:`tests.features.fuzzing.json_variants`), and the
+  huge), keys deleted, values nested one level deeper (:func:`tests.fuzzing.json_variants`), and the
   tree written back in the engine's own format — Unity YAML, Stride's tagged YAML, RON, Godot's
   ConfigFile, Unreal's ini and T3D (JSON for three.js and Filament);
 - its text: tokens replaced, lines deleted or repeated, bytes inserted, truncated, re-encoded
-  (:func:`tests.features.fuzzing.text_variants`).
+  (:func:`tests.fuzzing.text_variants`).
 
 The property, for every variant: ``import_settings`` returns and the preset it makes (``preset_toml``, what
 ``csmlab import`` writes) parses as TOML, or an InputError naming a file of the variant's folder is raised —
@@ -32,7 +32,7 @@ from tests.engines.engine_cases import DATA
 
 from csmlab.engines import import_settings, preset_toml
 from csmlab.errors import InputError
-from tests.features.fuzzing import fuzz_reader, json_variants, text_variants
+from tests.fuzzing import fuzz_reader, json_variants, text_variants
 
 EXAMPLES = int(os.environ.get("CSMLAB_FUZZ_EXAMPLES", "40"))
 """Variants per file and way (tree, text); ``CSMLAB_FUZZ_EXAMPLES=1000`` searches deeper."""

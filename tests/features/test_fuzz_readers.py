@@ -3,7 +3,7 @@
 The good files are the shipped fixtures (data/gltf/level.glb, data/meshes/cornell_box.obj,
 tests/data/meshes/pyramid.gltf, tests/data/paths/*) and files the project's own writers make from
 them (the TUM fixture as csmlab CSV and JSON, nerfstudio and an animated glTF camera; a masked card
-as OBJ + MTL + PNG and as glTF). :func:`tests.features.fuzzing.fuzz_reader` draws the variants (seeded, a
+as OBJ + MTL + PNG and as glTF). :func:`tests.fuzzing.fuzz_reader` draws the variants (seeded, a
 fixed number per reader) and fails on any exception other than an InputError naming a file of the
 variant's folder. Each test also checks that both outcomes occur where a reader has both — a
 fuzzer whose variants all load, or all fail, tests nothing.
@@ -24,7 +24,7 @@ from csmlab.scene import load_mesh
 from csmlab.scene.alpha_files import read_alpha_mask
 from csmlab.scene.gltf import read_gltf, sun_of
 from csmlab.scene.gltf_writer import GltfBuilder, box
-from tests.features.fuzzing import byte_variants, fuzz_reader, glb_variants, json_variants, text_variants
+from tests.fuzzing import byte_variants, fuzz_reader, glb_variants, json_variants, text_variants
 from tests.locations import ROOT
 
 pytestmark = [pytest.mark.fuzz, pytest.mark.slow]

@@ -8,8 +8,9 @@ from pathlib import Path
 import warp as wp
 
 from csmlab.kernels.cache import build_kernel_cache, kernel_modules
+from tests.locations import ROOT
 
-KERNELS = Path(__file__).resolve().parent.parent / "csmlab" / "kernels"
+KERNELS = ROOT / "csmlab" / "kernels"
 
 
 def _modules_defining_a_kernel() -> list[str]:
