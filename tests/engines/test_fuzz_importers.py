@@ -34,6 +34,8 @@ from csmlab.engines import import_settings, preset_toml
 from csmlab.errors import InputError
 from tests.fuzzing import fuzz_reader, json_variants, text_variants
 
+pytestmark = pytest.mark.fuzz
+
 EXAMPLES = int(os.environ.get("CSMLAB_FUZZ_EXAMPLES", "40"))
 """Variants per file and way (tree, text); ``CSMLAB_FUZZ_EXAMPLES=1000`` searches deeper."""
 SHARED = Path("/work/shared/data/engines")
