@@ -12,11 +12,23 @@ import warp as wp
 # foreign pointer (Warp's default, RELAXED, checks nothing: a CPU launch given a CUDA array segfaults).
 wp.config.launch_array_access_mode = wp.config.LaunchArrayAccessMode.STRICT
 
-DEVICES = ["cpu"] + (["cuda:0"] if wp.get_cuda_device_count() > 0 else [])
-"""The Warp devices this machine offers, in the order tests run on them."""
+DEVICES = ["cpu"] + ([pytest.param("cuda:0", marks=pytest.mark.cuda)] if wp.get_cuda_device_count() > 0 else [])
+"""The Warp devices this machine offers, in the order tests run on them (the CUDA one marked ``cuda``)."""
 
 
 @pytest.fixture(params=DEVICES)
 def device(request) -> str:
     """Each available Warp device in turn (``"cpu"``, then ``"cuda:0"`` where present)."""
     return request.param
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(items):
+    """Mark ``browser`` every test that takes a ``browser`` fixture (headless chromium under Selenium).
+
+    Marked by the fixture rather than by hand so that a new browser test cannot miss it; ``tryfirst``
+    so that ``-m`` selects on the mark.
+    """
+    for item in items:
+        if "browser" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.browser)

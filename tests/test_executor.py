@@ -54,6 +54,7 @@ def inprocess(tmp_path_factory):
     return out / "out" / "metrics.csv"
 
 
+@pytest.mark.slow
 def test_process_pool_gives_the_inprocess_csv(inprocess, tmp_path):
     result = run(tmp_path, "pool", executor="pool", jobs=2)
     assert result.chunks_run == 3
@@ -67,6 +68,7 @@ def inprocess_taa(tmp_path_factory):
     return out / "out"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("options", [dict(executor="pool"), dict(executor="dask", address="local")],
                          ids=["pool", "dask"])
 def test_taa_variants_on_two_workers_give_the_inprocess_files(inprocess_taa, tmp_path, options):
@@ -76,6 +78,7 @@ def test_taa_variants_on_two_workers_give_the_inprocess_files(inprocess_taa, tmp
         assert (tmp_path / "taa" / name).read_bytes() == (inprocess_taa / name).read_bytes()
 
 
+@pytest.mark.slow
 def test_dask_local_workers_keep_glibcs_adaptive_mmap_threshold():
     # Dask's default MALLOC_TRIM_THRESHOLD_ would map and fault in every large array afresh; the
     # thread limits stay. os.getenv(key, default) runs in the worker, which is given the key as the
@@ -87,6 +90,7 @@ def test_dask_local_workers_keep_glibcs_adaptive_mmap_threshold():
         assert value == expected
 
 
+@pytest.mark.slow
 def test_dask_local_cluster_gives_the_inprocess_csv(inprocess, tmp_path):
     run(tmp_path, "dask", executor="dask", jobs=2, address="local")
     assert (tmp_path / "dask" / "metrics.csv").read_bytes() == inprocess.read_bytes()

@@ -204,6 +204,7 @@ def test_texel_coordinates_locate_each_pixel_in_the_texel_it_looked_up():
         assert np.all((tc >= 0) & (tc < 128))
 
 
+@pytest.mark.cuda
 @pytest.mark.skipif(wp.get_cuda_device_count() == 0, reason="no CUDA device")
 def test_cpu_and_cuda_give_the_same_depth_maps_and_shadow():
     scene = scene_of(scattered_boxes(5), plane_half=60.0)

@@ -76,6 +76,7 @@ def counted_runs(monkeypatch):
     return runs
 
 
+@pytest.mark.slow
 def test_tune_table_gives_the_space_and_the_same_seed_repeats_the_search(experiment, tmp_path):
     first = tune(experiment, out_dir=tmp_path / "a", trials=5, seed=3, presets=[])
     second = tune(experiment, out_dir=tmp_path / "b", trials=5, seed=3, presets=[])
@@ -87,6 +88,7 @@ def test_tune_table_gives_the_space_and_the_same_seed_repeats_the_search(experim
     assert [t["values"]["rho_p05"] for t in document["trials"]] == [t.values["rho_p05"] for t in first.trials]
 
 
+@pytest.mark.slow
 def test_no_recommended_candidate_is_over_the_memory_budget(plain, tmp_path):
     budget = shadow_memory_bytes(ShadowSettings(cascades=2, resolution=128))
     result = tune(plain, out_dir=tmp_path, trials=8, seed=1, memory_budget=budget, presets=[],
@@ -106,6 +108,7 @@ def _dominates(a, b) -> bool:
     return no_worse and (a[0] < b[0] or a[1] > b[1] or a[2] < b[2])
 
 
+@pytest.mark.slow
 def test_exhaustive_search_of_a_tiny_space_returns_the_true_pareto_set(plain, tmp_path):
     space = {"resolution": ("choice", (64, 128)), "lambda": ("choice", (0.3, 0.9)),
              "stabilization": ("choice", ("none", "exact"))}
@@ -122,6 +125,7 @@ def test_exhaustive_search_of_a_tiny_space_returns_the_true_pareto_set(plain, tm
     assert found == true_front and 0 < len(true_front) < 8
 
 
+@pytest.mark.slow
 def test_an_impossible_budget_exits_2_naming_the_budget_and_the_cheapest(experiment_file, tmp_path):
     from typer.testing import CliRunner
 
@@ -135,6 +139,7 @@ def test_an_impossible_budget_exits_2_naming_the_budget_and_the_cheapest(experim
     assert (tmp_path / "index.html").is_file() and not (tmp_path / "recommended.toml").exists()
 
 
+@pytest.mark.slow
 def test_a_resumed_tune_evaluates_no_candidate_twice(experiment, tmp_path, counted_runs):
     first = tune(experiment, out_dir=tmp_path, trials=4, seed=5, batch=2, presets=[])
     runs_first = len(counted_runs)

@@ -1,7 +1,7 @@
 """What the engine tests share: the fixture folder, the round trip through an engine's own files, a snippet's numbers.
 
 Every test module of tests/engines/ imports it (pytest puts this folder on the path, as tests/ for
-tests/gl_pipeline.py).
+tests/features/gl_pipeline.py).
 """
 
 from __future__ import annotations

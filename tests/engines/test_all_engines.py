@@ -16,7 +16,7 @@ import tomllib
 
 import numpy as np
 import pytest
-from engine_cases import DATA, FAR, NEAR, ROOT, VENDOR, differences, numbers, round_trip
+from tests.engines.engine_cases import DATA, FAR, NEAR, ROOT, VENDOR, differences, numbers, round_trip
 
 from csmlab.cascades.splits import split_distances
 from csmlab.config import load_experiment
@@ -142,6 +142,7 @@ def test_cli_import_writes_a_commented_preset_an_experiment_extends(tmp_path):
     assert not differences(imported, method.settings, lacking="")
 
 
+@pytest.mark.slow
 def test_cli_import_of_a_bad_file_exits_2_with_one_line(tmp_path):
     bad = tmp_path / "broken.json"
     bad.write_text("{ not json")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from engine_cases import DATA, FAR, NEAR, engine_preset, numbers
+from tests.engines.engine_cases import DATA, FAR, NEAR, engine_preset, numbers
 
 from csmlab.engines import export, import_settings
 from csmlab.engines.ron import parse_ron

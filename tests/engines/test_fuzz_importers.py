@@ -28,11 +28,13 @@ from pathlib import Path
 
 import pytest
 import yaml
-from engine_cases import DATA
+from tests.engines.engine_cases import DATA
 
 from csmlab.engines import import_settings, preset_toml
 from csmlab.errors import InputError
 from tests.fuzzing import fuzz_reader, json_variants, text_variants
+
+pytestmark = pytest.mark.fuzz
 
 EXAMPLES = int(os.environ.get("CSMLAB_FUZZ_EXAMPLES", "40"))
 """Variants per file and way (tree, text); ``CSMLAB_FUZZ_EXAMPLES=1000`` searches deeper."""

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from engine_cases import DATA, FAR, NEAR, round_trip
+from tests.engines.engine_cases import DATA, FAR, NEAR, round_trip
 
 from csmlab.engines import export, import_settings
 from csmlab.engines.reading import engine_settings

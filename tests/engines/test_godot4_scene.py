@@ -20,7 +20,7 @@ import tomllib
 
 import numpy as np
 import pytest
-from engine_cases import DATA
+from tests.engines.engine_cases import DATA
 from typer.testing import CliRunner
 
 from csmlab.cli import app

@@ -6,7 +6,7 @@ import re
 
 import numpy as np
 import pytest
-from engine_cases import DATA, FAR, NEAR
+from tests.engines.engine_cases import DATA, FAR, NEAR
 
 from csmlab.cascades.splits import split_distances
 from csmlab.engines import export, import_settings

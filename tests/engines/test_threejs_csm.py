@@ -17,7 +17,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from engine_cases import DATA, ROOT
+from tests.engines.engine_cases import DATA, ROOT
 
 from csmlab.cascades import build_cascades
 from csmlab.config import find_experiment, load_experiment

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from engine_cases import DATA, FAR, NEAR, engine_preset
+from tests.engines.engine_cases import DATA, FAR, NEAR, engine_preset
 
 from csmlab.cascades.splits import ue_split_fractions
 from csmlab.engines import export, import_settings

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from engine_cases import DATA
+from tests.engines.engine_cases import DATA
 
 from csmlab.engines import import_settings
 from csmlab.engines.reading import engine_settings

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from engine_cases import DATA, FAR, NEAR, numbers
+from tests.engines.engine_cases import DATA, FAR, NEAR, numbers
 
 from csmlab.cascades.splits import split_distances
 from csmlab.engines import export, import_settings

@@ -1,6 +1,6 @@
 """Which rasterizer a device gets: the walk on the CPU, the tiles on CUDA (docs/performance.md, the tiled raster).
 
-Both give the same maps and counts bit for bit (tests/test_raster_tiled.py); they differ only in
+Both give the same maps and counts bit for bit (tests/kernels/test_raster_tiled.py); they differ only in
 how the work is laid out. A CPU thread walks a run of triangles row by row, four texels at a time
 (:mod:`csmlab.kernels.raster.schedule`); a GPU wants a thread per texel, a block per tile
 (:mod:`csmlab.kernels.raster.tiled`).

@@ -57,7 +57,7 @@ differences is below ``extent²`` and each edge function below ``2·extent² = 2
 integer float64 holds exactly. Below it, stepping one texel by adding a constant gives the same bits
 as evaluating afresh, and "inside or owned" is one comparison against a bias of −½ or 0. Above it,
 the products may round, and a stepped walk would carry its roundings from texel to texel, so the large
-path evaluates each centre afresh. A larger value would leave exactness unproven (tests/test_raster.py
+path evaluates each centre afresh. A larger value would leave exactness unproven (tests/kernels/test_raster.py
 checks the bound, and that every path forced gives the same maps); a smaller one only slows large
 triangles down.
 """

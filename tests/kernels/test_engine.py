@@ -1,0 +1,274 @@
+"""The engine pipelines on the kernels' path equal the host NumPy pipeline bit for bit.
+
+The oracle is the host's statement of each engine's float32 arithmetic (:mod:`csmlab.texels`:
+:func:`~csmlab.texels.fixed_point_coordinates`, :func:`~csmlab.texels.vertex_depth`,
+:func:`~csmlab.texels.receiver_lookup`) and its whole-map, one-cascade-at-a-time rasterization
+(:func:`csmlab.render.host_depth_maps`). The kernels (:mod:`csmlab.kernels.engine`, the chunked and
+banded rasterizer) must give the same integers, depths and counts on the shipped scenes: terrain
+(every engine preset, Filament's LiSPSM warp), foliage (alpha-tested casters) and terrain 10⁶ m from
+the origin (where float32 rounds at 6 cm, so any difference in operation order shows).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from csmlab import filters, render
+from csmlab.cascades import build_cascades
+from csmlab.cascades.bounds import visible_depth_range
+from csmlab.config import load_experiment
+from csmlab.experiment import build_workload
+from csmlab.cascades.warp import warped_texels
+from csmlab.kernels.engine import warped_vertices, window_receivers, window_vertices
+from csmlab.kernels.raster import (converted_region_chunks, light_space_mesh, rasterize_cascades, region_chunks,
+                                  whole_map_regions)
+from csmlab.texels import fixed_point_coordinates, receiver_lookup, vertex_depth, window_boxes
+from tests.locations import ROOT
+
+RESOLUTION = 128
+"""Map side the presets are shrunk to: small maps, the same arithmetic."""
+
+
+@dataclasses.dataclass
+class Case:
+    methods: dict
+    dscene: render.DeviceScene
+    workload: object
+
+
+def _case(experiment: str) -> Case:
+    exp = load_experiment(ROOT / "experiments" / experiment)
+    workload = build_workload(exp)
+    dscene = render.prepare_scene(workload.scene, threads=2)
+    methods = {m.name: m.settings for m in exp.methods if m.settings.shadow_map != "virtual_clipmap"}
+    return Case(methods=methods, dscene=dscene, workload=workload)
+
+
+@pytest.fixture(scope="module")
+def terrain() -> Case:
+    return _case("engines.toml")
+
+
+@pytest.fixture(scope="module")
+def foliage() -> Case:
+    return _case("foliage.toml")
+
+
+@pytest.fixture(scope="module")
+def far() -> Case:
+    return _case("hard_far_origin.toml")
+
+
+def _frame(case: Case, name: str, frame: int, **changes):
+    settings = dataclasses.replace(case.methods[name], resolution=min(case.methods[name].resolution, RESOLUTION),
+                                   **changes).validated()
+    view = render.render_view(case.dscene, case.workload.path.pose(frame), case.workload.light.direction(frame),
+                              width=96, height=54, reference=False)
+    cascades = build_cascades(pose=view.pose, light_direction=view.light_direction, scene_corners=case.dscene.corners,
+                              settings=settings, visible_depth=visible_depth_range(view.gbuffer.view_depth))
+    return settings, view, cascades
+
+
+def _same_bits(a: np.ndarray, b: np.ndarray) -> bool:
+    return a.shape == b.shape and a.dtype == b.dtype and np.array_equal(a.view(np.uint8), b.view(np.uint8))
+
+
+ENGINE_PRESETS = ["ue5", "unity_builtin_stable", "unity_builtin_close", "unity_urp", "unity_hdrp", "godot4", "bevy",
+                  "threejs_csm", "stride", "mjp"]
+
+
+def _assert_maps_equal_the_host(case: Case, name: str, frame: int, **changes) -> None:
+    settings, _, cascades = _frame(case, name, frame, **changes)
+    assert not cascades.warped
+    host, host_texels = render.host_depth_maps(case.dscene, cascades, settings)
+    kernels, texels = render._window_depth_maps(case.dscene, cascades, settings)
+    assert _same_bits(kernels, host)
+    assert texels == host_texels > 0
+
+
+@pytest.mark.parametrize("name", ENGINE_PRESETS)
+def test_every_engine_presets_depth_maps_equal_the_host_pipelines_on_terrain(terrain, name):
+    _assert_maps_equal_the_host(terrain, name, 5)
+
+
+@pytest.mark.parametrize("name", ["unity_urp", "threejs_csm", "ue5"])
+def test_alpha_tested_casters_give_the_host_pipelines_maps_on_foliage(foliage, name):
+    assert foliage.dscene.scene.vertex_mask is not None
+    _assert_maps_equal_the_host(foliage, name, 2)
+
+
+@pytest.mark.parametrize("name", ["exact_float32", "none_float32", "exact_camera_relative",
+                                  "quantized_camera_relative"])
+def test_maps_equal_the_host_pipelines_far_from_the_origin(far, name):
+    _assert_maps_equal_the_host(far, name, 4)
+
+
+def test_camera_relative_rebased_in_steps_and_window_snapping_equal_the_host(far, terrain):
+    _assert_maps_equal_the_host(far, "none_camera_relative", 3, rebase_distance=64.0)
+    _assert_maps_equal_the_host(terrain, "exact", 3, vertex_snap="window", stabilization="none")
+
+
+def test_casters_clipped_at_a_slice_without_pancaking_equal_the_host_in_float64(terrain):
+    """``depth_range = "slice"`` and ``depth_clamp = false`` on csmlab's own float64 grid: the same path, no window."""
+    _assert_maps_equal_the_host(terrain, "exact", 6, depth_range="slice", depth_clamp=False)
+
+
+@pytest.mark.parametrize("name, experiment", [("exact_float32", "far"), ("none_camera_relative", "far"),
+                                              ("bevy", "terrain")])
+def test_window_vertices_are_twice_the_hosts_fixed_point_and_its_depth(name, experiment, request):
+    case = request.getfixturevalue(experiment)
+    settings, _, cascades = _frame(case, name, 1, rebase_distance=16.0)
+    vertices = case.dscene.scene.vertices
+    boxes = window_boxes(cascades, bits=settings.subtexel_bits, precision=settings.engine_precision,
+                         snap=settings.vertex_snap, rebase_distance=settings.rebase_distance)
+    points, depth = window_vertices(boxes, positions=vertices, threads=2)
+    how = dict(precision=settings.engine_precision, rebase_distance=settings.rebase_distance)
+    for c in range(len(cascades)):
+        assert np.array_equal(points[c], 2 * fixed_point_coordinates(cascades, c, vertices, bits=settings.subtexel_bits,
+                                                                     **how))
+        assert _same_bits(depth[c], vertex_depth(cascades, c, vertices, **how))
+
+
+@pytest.mark.parametrize("name, experiment, changes", [
+    ("ue5", "terrain", {}),
+    ("unity_urp", "terrain", {}),
+    ("stride", "terrain", {"normal_offset_scale": "sin", "normal_offset": 1.5}),
+    ("mjp", "terrain", {"normal_offset_scale": "one_minus_cos_lateral", "normal_offset": 1.0,
+                        "normal_offset_m": 0.01, "receiver_plane_offset": 0.01}),
+    ("exact_float32", "far", {}),
+    ("none_camera_relative", "far", {"rebase_distance": 32.0, "normal_offset_scale": "one_minus_cos"}),
+    ("exact", "terrain", {"vertex_snap": "window", "stabilization": "none", "normal_offset": 0.7,
+                          "normal_offset_scale": "one_minus_cos"}),
+])
+def test_window_receivers_equal_the_hosts_receiver_lookup(name, experiment, changes, request):
+    case = request.getfixturevalue(experiment)
+    settings, view, cascades = _frame(case, name, 4, **changes)
+    g = view.gbuffer
+    points, normals = g.position.reshape(-1, 3), g.normal.reshape(-1, 3)
+    rows = np.flatnonzero(g.valid.reshape(-1))
+    kernels = filters.texel_coordinates(cascades, points, normals, rows, settings=settings, device="cpu")
+    host = receiver_lookup(cascades, points[rows], normals[rows], bits=settings.subtexel_bits,
+                           normal_offset=settings.normal_offset,
+                           bias_constant=filters._cascade_bias(cascades, settings),
+                           bias_slope=settings.bias_slope, normal_scale=settings.normal_offset_scale,
+                           plane_offset=filters._plane_offset(cascades, settings),
+                           normal_offset_m=settings.normal_offset_m, precision=settings.engine_precision,
+                           snap=settings.vertex_snap, rebase_distance=settings.rebase_distance)
+    assert all(_same_bits(a, b) for a, b in zip(kernels, host))
+    boxes = window_boxes(cascades, bits=settings.subtexel_bits, precision=settings.engine_precision,
+                         snap=settings.vertex_snap, rebase_distance=settings.rebase_distance)
+    assert window_receivers(boxes, points, normals, receivers=rows[:0], basis=cascades.basis,
+                            texel_size=np.stack([c.texel_size for c in cascades.cascades]), zref=cascades.zref,
+                            normal_offset=0.0, bias_constant=0.0, bias_slope=0.0)[0].shape == (len(cascades), 0, 2)
+
+
+def _random_mesh(seed: int, triangles: int = 3000):
+    rng = np.random.default_rng(seed)
+    centres = rng.uniform(0.0, 40.0, (triangles, 1, 2))
+    xy = (centres + rng.normal(0.0, 0.6, (triangles, 3, 2))).reshape(-1, 2)
+    depth = rng.uniform(-5.0, 5.0, xy.shape[0])
+    return light_space_mesh(xy, depth, np.arange(xy.shape[0]).reshape(-1, 3))
+
+
+def test_chunks_of_converted_vertices_leave_out_no_triangle_that_covers_a_region():
+    """Rasterizing only :func:`converted_region_chunks` gives the maps and counts of every chunk, region by region."""
+    mesh = _random_mesh(11)
+    texel = np.array([[0.1, 0.1], [0.23, 0.19]])
+    origin = np.array([[37, -12], [-3, 21]], dtype=np.int64) << 8
+    regions = np.array([[0, 0, 64, 0, 20], [0, 0, 64, 20, 64], [1, 5, 40, 0, 64]], dtype=np.int32)
+    unit = 2.0**8
+    points = np.stack([2 * (np.rint(mesh.xy / (texel[c] / unit)).astype(np.int64) - origin[c]) for c in range(2)])
+    how = dict(texel_size=texel, origin=origin, resolution=64, bits=8, regions=regions, points=points)
+    chunks = converted_region_chunks(points, mesh.triangles, regions=regions, bits=8)
+    every = rasterize_cascades(mesh, **how)
+    chosen = rasterize_cascades(mesh, chunks=chunks, **how)
+    assert len(chunks) < len(regions) * (-(-mesh.triangles.shape[0] // 32))
+    assert _same_bits(chosen[0], every[0]) and np.array_equal(chosen[1], every[1]) and every[1].sum() > 0
+    # The same points converted by the rasterizer itself from light space: the same maps.
+    converted = rasterize_cascades(mesh, texel_size=texel, origin=origin, resolution=64, bits=8, regions=regions)
+    assert _same_bits(converted[0], every[0])
+
+
+def test_a_near_cut_drops_exactly_the_triangles_wholly_nearer_than_it():
+    """``near`` per cascade equals rasterizing the triangle list :func:`csmlab.render.clipped_casters` keeps."""
+    mesh = _random_mesh(12)
+    texel = np.array([[0.1, 0.1], [0.1, 0.1]])
+    origin = np.zeros((2, 2), dtype=np.int64)
+    near = np.array([-1.0, 2.5])
+    how = dict(texel_size=texel, origin=origin, resolution=400, bits=8)
+    cut = rasterize_cascades(mesh, near=near, **how)
+    for c in range(2):
+        kept = light_space_mesh(mesh.xy, mesh.depth, render.clipped_casters(mesh.depth, mesh.triangles, near=near[c]))
+        alone = rasterize_cascades(kept, regions=whole_map_regions([400]), texel_size=texel[c:c + 1],
+                                   origin=origin[c:c + 1], resolution=400, bits=8)
+        assert _same_bits(cut[0][c], alone[0][0]) and cut[1][c] == alone[1][0] > 0
+    chunks = region_chunks(mesh.bounds, texel_size=texel, origin=np.zeros((2, 2)), regions=whole_map_regions([400] * 2))
+    assert _same_bits(rasterize_cascades(mesh, near=near, chunks=chunks, **how)[0], cut[0])
+
+
+def test_converted_vertices_of_the_wrong_shape_name_the_argument():
+    mesh = _random_mesh(13, triangles=10)
+    how = dict(texel_size=np.ones((1, 2)), origin=np.zeros((1, 2), np.int64), resolution=8, bits=4)
+    with pytest.raises(ValueError, match="points"):
+        rasterize_cascades(mesh, points=np.zeros((1, 5, 2), np.int64), **how)
+    with pytest.raises(ValueError, match="vertex_depth"):
+        rasterize_cascades(mesh, points=np.zeros((1, 30, 2), np.int64), vertex_depth=np.zeros((1, 29)), **how)
+    with pytest.raises(ValueError, match="near"):
+        rasterize_cascades(mesh, near=[0.0, 1.0], **how)
+
+
+@pytest.mark.parametrize("experiment, frame, changes", [
+    ("terrain", 5, {}),
+    ("terrain", 9, {"cull": "back", "depth_range": "slice", "depth_clamp": False, "cascades": 3}),
+    ("foliage", 2, {}),
+])
+def test_warped_cascades_maps_equal_the_host_pipelines(experiment, frame, changes, request):
+    """Filament's LiSPSM (``warp = "lispsm"``): clipped at the warp's near plane, through the homography on the
+    device, rasterized in bands; the host's :func:`csmlab.render.warped_depth_map` maps and counts bit for bit."""
+    case = request.getfixturevalue(experiment)
+    settings, _, cascades = _frame(case, "filament", frame, **changes)
+    assert cascades.warped
+    host, host_texels = render.host_depth_maps(case.dscene, cascades, settings)
+    kernels, texels = render._warped_window_depth_maps(case.dscene, cascades, settings)
+    assert _same_bits(kernels, host)
+    assert texels == host_texels > 0
+
+
+def test_warped_vertices_are_the_hosts_homography_texels_and_depth_over_w():
+    rng = np.random.default_rng(14)
+    homography = np.array([[3.1, 0.4, 40.0], [0.2, 2.7, 11.0], [0.001, 0.03, 1.5]])
+    xy = rng.uniform(-20.0, 20.0, (2000, 2))
+    depth = rng.uniform(-5.0, 5.0, 2000)
+    points, per_w = warped_vertices(homography, xy, depth, bits=8)
+    texels, w = warped_texels(homography, xy)
+    assert np.all(w > 0)
+    assert np.array_equal(points, 2 * np.rint(np.clip(texels * 256.0, -2.0**50, 2.0**50)).astype(np.int64))
+    assert _same_bits(per_w, depth / w)
+
+
+@pytest.mark.parametrize("experiment, changes", [
+    ("terrain", {}),
+    ("terrain", {"bias_slope": 2.0, "normal_offset": 1.0, "normal_offset_scale": "sin"}),
+    ("terrain", {"bias_slope": 1.0, "receiver_plane_offset": 0.01, "normal_offset": 0.5, "normal_offset_m": 0.02,
+                 "normal_offset_scale": "one_minus_cos_lateral", "cascades": 3}),
+    ("foliage", {"normal_offset_scale": "one_minus_cos", "normal_offset": 2.0, "subtexel_bits": 4}),
+])
+def test_warped_receivers_equal_the_hosts_receiver_lookup(experiment, changes, request):
+    """Filament's receivers through the homography (texel size from the Jacobian's inverse, NumPy's ``hypot``)."""
+    case = request.getfixturevalue(experiment)
+    settings, view, cascades = _frame(case, "filament", 6, **changes)
+    assert all(c.warp is not None for c in cascades.cascades)
+    g = view.gbuffer
+    points, normals = g.position.reshape(-1, 3), g.normal.reshape(-1, 3)
+    rows = np.flatnonzero(g.valid.reshape(-1))
+    kernels = filters.texel_coordinates(cascades, points, normals, rows, settings=settings, device="cpu")
+    host = receiver_lookup(cascades, points[rows], normals[rows], bits=settings.subtexel_bits,
+                           normal_offset=settings.normal_offset,
+                           bias_constant=filters._cascade_bias(cascades, settings), bias_slope=settings.bias_slope,
+                           normal_scale=settings.normal_offset_scale,
+                           plane_offset=filters._plane_offset(cascades, settings),
+                           normal_offset_m=settings.normal_offset_m)
+    assert all(_same_bits(a, b) for a, b in zip(kernels, host))

@@ -1,0 +1,123 @@
+"""csmlab.kernels: the device checks and arrays every wrapper shares."""
+
+import numpy as np
+import pytest
+import warp as wp
+
+from csmlab.kernels import checked_device, device_empty
+
+
+@wp.kernel
+def _fill_with_index(out: wp.array(dtype=wp.vec3d)):
+    i = wp.tid()
+    out[i] = wp.vec3d(wp.float64(i), wp.float64(2 * i), wp.float64(3 * i))
+
+
+@pytest.mark.parametrize("shape, dtype, host", [(7, wp.int32, (7,)), ((2, 3), wp.vec3d, (2, 3, 3)),
+                                                ((4, 5), wp.vec3, (4, 5, 3)), ((3,), wp.float64, (3,))])
+def test_device_empty_has_the_shape_and_type_asked_for(shape, dtype, host, device):
+    array = device_empty(shape, dtype, device)
+    assert array.dtype == dtype
+    assert array.numpy().shape == host
+
+
+def test_device_empty_holds_what_a_kernel_writes(device):
+    array = device_empty(1000, wp.vec3d, device)
+    wp.launch(_fill_with_index, dim=1000, outputs=(array,), device=device)
+    index = np.arange(1000, dtype=np.float64)
+    np.testing.assert_array_equal(array.numpy(), np.stack([index, 2 * index, 3 * index], axis=1))
+
+
+class _NotTheDeviceAskedFor:
+    """Stands in for Warp's default device: any use of it is a failure."""
+
+    def __getattr__(self, name):
+        raise AssertionError(f"Warp's default device was used (its {name!r} read), not the device asked for")
+
+
+def test_device_empty_is_on_the_device_asked_for_whatever_warps_default(device, monkeypatch):
+    # Where a GPU is present Warp's default device is cuda:0: an array for a CPU kernel made there
+    # held a GPU pointer, and the CPU launch writing through it segfaulted (the lent H200 machine).
+    wp.init()
+    monkeypatch.setattr(wp._src.context.runtime, "default_device", _NotTheDeviceAskedFor())
+    array = device_empty((3, 4), wp.vec3d, device)
+    assert array.device == wp.get_device(device)
+    wp.launch(_fill_with_index, dim=12, outputs=(array.flatten(),), device=device)
+    assert array.numpy()[2, 3, 2] == 33.0
+
+
+def test_checked_device_refuses_names_warp_does_not_know():
+    with pytest.raises(ValueError, match="device"):
+        checked_device("tpu")
+    assert checked_device("cpu") == "cpu"
+
+
+KERNEL_MODULES = ["depth_storage", "engine", "flip", "footprint", "moments", "pages", "pcf", "raster.kernels",
+                  "raster.tiled", "rays", "reference", "shadow", "ssim", "taa", "usage", "visibility"]
+"""csmlab's Warp modules: each module under csmlab.kernels (packages included) that defines kernels."""
+
+
+def test_the_list_of_kernel_modules_is_every_module_that_defines_kernels():
+    import importlib
+    import pkgutil
+
+    import csmlab.kernels
+
+    prefix = "csmlab.kernels."
+    modules = {m.name.removeprefix(prefix): importlib.import_module(m.name)
+               for m in pkgutil.walk_packages(csmlab.kernels.__path__, prefix)}
+    found = [name for name, module in modules.items()
+             if any(isinstance(v, wp.Kernel) and v.func.__module__ == module.__name__ for v in vars(module).values())]
+    assert sorted(found) == KERNEL_MODULES
+
+
+FMA_FROM_LIBRARIES = {
+    "engine": "libdevice's hypot (a warped cascade's receivers; the CPU calls the C library's)",
+    "flip": "libdevice's float64 exp and pow",
+    "moments": "libdevice's exp and log",
+    "pcf": "libdevice's exp",
+    "rays": "Warp's BVH ray query (wp.mesh_query_ray)",
+    "reference": "Warp's BVH ray query (wp.mesh_query_ray_anyhit)",
+    "visibility": "Warp's BVH ray query (wp.mesh_query_ray)",
+}
+"""Kernel modules whose CUDA build keeps a few ``fma`` that no compiler option removes: the library
+code they call (``fma`` written out by hand, for accuracy) — and which the CPU computes its own way."""
+
+
+def _fma_count(name: str, module_dir, *, fuse_fp=None) -> int:
+    """``fma`` instructions in the PTX of kernel module ``name`` (sm_90, NVRTC), as built, or with ``fuse_fp``."""
+    import importlib
+    import re
+
+    module = wp.get_module(importlib.import_module(f"csmlab.kernels.{name}").__name__)
+    held = module.options["fuse_fp"]
+    try:
+        if fuse_fp is not None:
+            module.options["fuse_fp"] = fuse_fp
+        paths = wp.compile_aot_module(module, arch=90, module_dir=module_dir, use_ptx=True)
+    finally:
+        module.options["fuse_fp"] = held
+    return len(re.findall(r"\bfma\.", paths[0].read_text()))
+
+
+@pytest.mark.slow
+@pytest.mark.compile
+@pytest.mark.skipif(wp.get_cuda_toolkit_version() is None, reason="this Warp has no CUDA compiler (NVRTC)")
+@pytest.mark.parametrize("name", KERNEL_MODULES)
+def test_every_kernel_module_compiles_for_a_gpu_and_rounds_there_as_on_the_cpu(name, tmp_path):
+    """Each module's CUDA source compiles (sm_90, NVRTC, to PTX) on a machine with no GPU, and fuses no
+    multiply and add (``fuse_fp``): its PTX holds no ``fma`` but what the libraries it calls write out
+    (:data:`FMA_FROM_LIBRARIES`).
+
+    The compilation catches what only the CUDA build sees — the native snippets' ``__CUDA_ARCH__``
+    branches, device-only builtins — where no GPU is lent. With ``fuse_fp`` off Warp's CPU build
+    (clang, ``-march=native``) rounds every product and every sum; NVRTC contracts ``a * b + c``
+    into one ``fma`` (one rounding) unless told not to, and then depths, edge functions and lookups
+    differ in their last bits between the devices (on an H200 the CPU and CUDA depth maps, hits and
+    shadows were bit for bit the same).
+    """
+    fused = _fma_count(name, tmp_path / "built")
+    if name in FMA_FROM_LIBRARIES:
+        assert fused == _fma_count(name, tmp_path / "unfused", fuse_fp=False), FMA_FROM_LIBRARIES[name]
+    else:
+        assert fused == 0
