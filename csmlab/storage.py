@@ -38,7 +38,6 @@ from collections.abc import Callable
 
 import numpy as np
 
-from csmlab.kernels.depth_storage import unorm_stored_depth
 from csmlab.registry import check_name
 from csmlab.settings import ShadowSettings
 
@@ -105,6 +104,9 @@ def stored_depth(depth, *, span: float, depth_format: str) -> np.ndarray:
     if step == 0.0:
         return maps
     rows = maps.reshape(1, -1, maps.shape[-1]) if maps.ndim else maps.reshape(1, 1, 1)
+    # Imported here: loading an experiment reads this module's tables and must not start Warp.
+    from csmlab.kernels.depth_storage import unorm_stored_depth
+
     return unorm_stored_depth(rows, step=step, top=float(2 ** DEPTH_FORMATS[depth_format][0] - 1)).reshape(maps.shape)
 
 
@@ -142,6 +144,9 @@ def cascade_stored_depth(depth, *, near, far, depth_format: str) -> np.ndarray:
     if lo.shape[0] != maps.shape[0] or hi.shape[0] != maps.shape[0] or not np.all(hi > lo):
         raise ValueError(f"near, far: expected {maps.shape[0]} boxes with far > near, got {lo.ravel()}, {hi.ravel()}")
     top = float(2**bits - 1)
+    # Imported here: loading an experiment reads this module's tables and must not start Warp.
+    from csmlab.kernels.depth_storage import unorm_stored_depth
+
     return unorm_stored_depth(maps, lo=lo.ravel(), step=((hi - lo) / top).ravel(), top=top)
 
 

@@ -23,14 +23,17 @@ texels; depths are metres along the light direction, ``d·X − zref``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from csmlab.cascades import CascadeSet
 from csmlab.cascades.warp import warped_texel_jacobian, warped_texels
-from csmlab.kernels.engine import EngineBoxes, engine_boxes
 from csmlab.lookup_choices import NORMAL_NONE, NORMAL_OFFSET_SCALES, NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN
 from csmlab.registry import check_name
+
+if TYPE_CHECKING:
+    from csmlab.kernels.engine import EngineBoxes
 
 __all__ = ["PRECISION_METHODS", "Precision", "VERTEX_SNAPS", "engine_matrix", "engine_origin", "engine_positions",
            "fixed_point_coordinates", "fixed_point_origin", "light_depth", "light_plane_coordinates", "receiver_lookup",
@@ -507,6 +510,9 @@ def window_boxes(cascades: CascadeSet, *, bits: int, precision: str = "float64",
     cascade's texel size and box origin. Not for warped cascades, nor for the global grid
     (:func:`uses_global_grid`), which other kernels finish themselves.
     """
+    # Imported here: loading an experiment reads this module's tables (PRECISION_METHODS) and must not start Warp.
+    from csmlab.kernels.engine import engine_boxes
+
     if any(c.warp is not None for c in cascades.cascades):
         raise ValueError("cascades: expected no warped cascade (window_boxes serves the unwarped window space)")
     if uses_global_grid(precision=precision, snap=snap):

@@ -163,10 +163,11 @@ def test_a_bad_cull_in_an_experiment_exits_2_naming_cull(tmp_path, value, words)
 def test_each_engine_preset_culls_the_faces_its_engine_culls(tmp_path):
     # three.js renders a FrontSide mesh's back faces (WebGLShadowMap getDepthMaterial: shadowSide
     # FrontSide -> BackSide); Godot 4 and Bevy draw the material's default back-face culling; Stride
-    # (CullMode.None), MJP (NoCullDesc) and every preset not yet read for it rasterize both windings.
+    # (CullMode.None), MJP (NoCullDesc) and every preset not yet read for it rasterize both windings; URP and
+    # HDRP's Lit ShadowCaster pass culls back faces (Cull[_Cull], [_CullMode] = 2, Back).
     from csmlab.config import CONFIGS_DIR, load_experiment
 
-    expected = {"threejs_csm": "front", "godot4": "back", "bevy": "back"}
+    expected = {"threejs_csm": "front", "godot4": "back", "bevy": "back", "unity_urp": "back", "unity_hdrp": "back"}
     for preset in sorted((CONFIGS_DIR / "engines").glob("*.toml")):
         path = tmp_path / "exp.toml"
         path.write_text(f'extends = ["engines/{preset.stem}"]\n[camera]\npath = "walk"\n')

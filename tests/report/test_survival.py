@@ -35,9 +35,9 @@ f 3 4 1
 """A 2 m pyramid 7 km from the origin: no pixel of the walk's view sees it, so no cascade covers a pixel."""
 
 
-def _experiment(scene: str, *, frames: int, methods: list[tuple[str, str]]) -> str:
+def _experiment(scene: str, *, frames: int, methods: list[tuple[str, str]], camera: str = "") -> str:
     text = (f'name = "case"\n[scene]\n{scene}\n'
-            f'[camera]\npath = "walk"\nframes = {frames}\nwidth = 64\nheight = 36\n'
+            f'[camera]\npath = "walk"\nframes = {frames}\nwidth = 64\nheight = 36\n{camera}'
             '[light]\nelevation_deg = 40.0\nazimuth_deg = 30.0\n[shadow]\ncascades = 2\nresolution = 128\n')
     return text + "".join(f'[[methods]]\nname = "{name}"\n{extra}\n' for name, extra in methods)
 
@@ -67,8 +67,9 @@ def _report(tmp_path: Path, text: str, *, mesh_text: str | None = None) -> tuple
 
 
 def test_a_run_whose_cascades_cover_no_pixel_writes_its_report(tmp_path):
-    _, summary = _report(tmp_path, _experiment(FAR_MESH, frames=2, methods=[("exact", 'stabilization = "exact"')]),
-                         mesh_text=FAR_PYRAMID)
+    # The walk kept at csmlab's own origin (fit_level = false): a path fitted to the level would find the pyramid.
+    _, summary = _report(tmp_path, _experiment(FAR_MESH, frames=2, methods=[("exact", 'stabilization = "exact"')],
+                                               camera="fit_level = false\n"), mesh_text=FAR_PYRAMID)
     assert summary["frames"] == 2 and summary["methods"]["exact"]["rho_median"] is None
 
 
