@@ -2,6 +2,7 @@
 
 - :mod:`csmlab.kernels.raster` — depth rasterization of every cascade (fixed-point, top-left rule).
 - :mod:`csmlab.kernels.visibility` — the scene's BVH on a device and the camera G-buffer.
+- :mod:`csmlab.kernels.camera` — the pinhole camera the camera pass and the TAA resolve read.
 - :mod:`csmlab.kernels.shadow` — cascade selection, receiver depth test, filtering, blend band.
 - :mod:`csmlab.kernels.pcf` — weighted PCF at a selected cascade: Gaussian, tent, Poisson disk, PCSS.
 - :mod:`csmlab.kernels.moments` — VSM/EVSM moments, their separable blur, mip chain and the Chebyshev lookup
