@@ -333,6 +333,12 @@ def grid_cell(u: wp.float64, count: int) -> int:
 
 
 @wp.func
+def grid_point(p: wp.vec3d, origin: wp.vec2d, inv_side: wp.float64) -> wp.vec2d:
+    """Light-space point ``p``'s x and y in grid coordinates: cells from the grid's corner ``origin``."""
+    return wp.vec2d((p[0] - origin[0]) * inv_side, (p[1] - origin[1]) * inv_side)
+
+
+@wp.func
 def sub_cell(u: wp.float64, cell: int, sub: int) -> int:
     """Sub-cell of grid coordinate ``u`` within coarse cell ``cell`` split ``sub`` ways, clamped: monotone in ``u``."""
     return wp.clamp(int(wp.floor((u - wp.float64(cell)) * wp.float64(sub))), 0, sub - 1)
@@ -347,18 +353,13 @@ def coarse_bin_kernel(
     count: wp.array(dtype=wp.int32),
 ):
     """The rays per coarse cell, of the receivers of :func:`receiver_block`."""
-    origin = grid.origin
-    inv_side = grid.inv_side
-    nx = grid.nx
-    ny = grid.ny
     k, last = receiver_block(wp.tid(), take, lit.shape[0])
     while k < last:
         k += 1
         if lit[k] != 1.0:
             continue
-        s = start[k]
-        c = grid_cell((s[1] - origin[1]) * inv_side, ny) * nx + grid_cell((s[0] - origin[0]) * inv_side, nx)
-        wp.atomic_add(count, c, 1)
+        g = grid_point(start[k], grid.origin, grid.inv_side)
+        wp.atomic_add(count, grid_cell(g[1], grid.ny) * grid.nx + grid_cell(g[0], grid.nx), 1)
 
 
 @wp.kernel
@@ -465,23 +466,17 @@ def fine_bin_kernel(
 ):
     """Each ray's sub-cell (row-major within its coarse cell) and its slot there (counting sort, first pass), of
     the receivers of :func:`receiver_block`."""
-    origin = grid.origin
-    inv_side = grid.inv_side
-    nx = grid.nx
-    ny = grid.ny
     k, last = receiver_block(wp.tid(), take, lit.shape[0])
     while k < last:
         k += 1
         if lit[k] != 1.0:
             continue
-        s = start[k]
-        u = (s[0] - origin[0]) * inv_side
-        v = (s[1] - origin[1]) * inv_side
-        col = grid_cell(u, nx)
-        row = grid_cell(v, ny)
-        c = row * nx + col
+        g = grid_point(start[k], grid.origin, grid.inv_side)
+        col = grid_cell(g[0], grid.nx)
+        row = grid_cell(g[1], grid.ny)
+        c = row * grid.nx + col
         n = sub[c]
-        f = offset[c] + sub_cell(v, row, n) * n + sub_cell(u, col, n)
+        f = offset[c] + sub_cell(g[1], row, n) * n + sub_cell(g[0], col, n)
         fine[k] = f
         slot[k] = wp.atomic_add(count, f, 1)
 
@@ -617,9 +612,9 @@ def block_triangle(
         area = -area
     # The vertices in grid coordinates (cells from the origin), mapped as the starts were: a start
     # inside the triangle lies inside it there too, within rounding far below MARGIN.
-    g_a = wp.vec2d((a[0] - origin[0]) * inv_side, (a[1] - origin[1]) * inv_side)
-    g_b = wp.vec2d((b[0] - origin[0]) * inv_side, (b[1] - origin[1]) * inv_side)
-    g_c = wp.vec2d((c[0] - origin[0]) * inv_side, (c[1] - origin[1]) * inv_side)
+    g_a = grid_point(a, origin, inv_side)
+    g_b = grid_point(b, origin, inv_side)
+    g_c = grid_point(c, origin, inv_side)
     u_lo = wp.min(g_a[0], wp.min(g_b[0], g_c[0])) - MARGIN
     u_hi = wp.max(g_a[0], wp.max(g_b[0], g_c[0])) + MARGIN
     v_lo = wp.min(g_a[1], wp.min(g_b[1], g_c[1])) - MARGIN

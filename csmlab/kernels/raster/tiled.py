@@ -36,8 +36,8 @@ import warp as wp
 
 from csmlab.kernels import checked_device
 from csmlab.kernels.alpha import AlphaTextures, alpha_passes, masked_mesh
-from csmlab.kernels.raster.kernels import (Boxes, CasterOffset, FixedPoint, caster_offset, doubled_fixed_point_vertex,
-                                           edge_inside, edge_owns_centre, edge_values, first_centre, last_centre,
+from csmlab.kernels.raster.kernels import (Boxes, CasterOffset, FixedPoint, caster_offset, centre_box, doubled_area,
+                                           doubled_fixed_point_vertex, edge_inside, edge_owns_centre, edge_values,
                                            vec2l)
 from csmlab.kernels.raster.mesh import CHUNK_BITS, LightSpaceMesh
 from csmlab.kernels.raster.regions import whole_map_regions
@@ -144,14 +144,10 @@ def set_up_triangles_kernel(
     b = doubled_fixed_point_vertex(mesh.xy[ib], step, fixed.limit, corner)
     q = doubled_fixed_point_vertex(mesh.xy[ic], step, fixed.limit, corner)
     unit = fixed.unit
-    bits = fixed.bits
-    i0 = first_centre(wp.min(wp.min(a[0], b[0]), q[0]), unit, bits, region[0], region[1])
-    i1 = last_centre(wp.max(wp.max(a[0], b[0]), q[0]), unit, bits, region[0], region[1])
-    j0 = first_centre(wp.min(wp.min(a[1], b[1]), q[1]), unit, bits, region[2], region[3])
-    j1 = last_centre(wp.max(wp.max(a[1], b[1]), q[1]), unit, bits, region[2], region[3])
-    if i0 > i1 or j0 > j1:
+    window = centre_box(a[0], a[1], b[0], b[1], q[0], q[1], fixed, region)
+    if window[0] > window[1] or window[2] > window[3]:
         return
-    area = wp.float64(b[0] - a[0]) * wp.float64(q[1] - a[1]) - wp.float64(b[1] - a[1]) * wp.float64(q[0] - a[0])
+    area = doubled_area(a[0], a[1], b[0], b[1], q[0], q[1])
     if area == wp.float64(0.0):
         return
     za = mesh.depth[ia]
@@ -165,7 +161,7 @@ def set_up_triangles_kernel(
     out = SetUpTriangle()
     out.a = a
     out.mask = m
-    out.window = wp.vec4i(i0, i1, j0, j1)
+    out.window = window
     if area > wp.float64(0.0):
         out.b = b
         out.c = q
@@ -180,8 +176,8 @@ def set_up_triangles_kernel(
         out.vertices = wp.vec3i(ia, ic, ib)
         out.area = -area
     set_up[p] = out
-    tiles[p] = (((i1 - region[0]) >> TILE_BITS) - ((i0 - region[0]) >> TILE_BITS) + 1) * (
-        ((j1 - region[2]) >> TILE_BITS) - ((j0 - region[2]) >> TILE_BITS) + 1)
+    tiles[p] = (((window[1] - region[0]) >> TILE_BITS) - ((window[0] - region[0]) >> TILE_BITS) + 1) * (
+        ((window[3] - region[2]) >> TILE_BITS) - ((window[2] - region[2]) >> TILE_BITS) + 1)
 
 
 @wp.kernel
