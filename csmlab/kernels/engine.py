@@ -300,6 +300,12 @@ def light_space(v: wp.vec3d, basis: wp.mat33d, row: int) -> wp.float64:
 
 
 @wp.func
+def light_space_xyz(v: wp.vec3d, basis: wp.mat33d):
+    """The three components of ``v`` in the light basis, each as :func:`light_space` sums it."""
+    return light_space(v, basis, 0), light_space(v, basis, 1), light_space(v, basis, 2)
+
+
+@wp.func
 def receiver_slopes(nx: wp.float64, ny: wp.float64, nz: wp.float64, max_tan: wp.float64, normal_scale: int):
     """A receiver's normal ``(nx, ny, nz)`` in light space (z away from the light) as the biases read it:
     ``tan θ`` (NaN where the normal turns from the light, else at most ``max_tan``), the receiver plane's
@@ -343,12 +349,8 @@ def window_receivers_kernel(
     point = r.points[r.index[k]]
     n32 = r.normals[r.index[k]]
     normal = wp.vec3d(n32)
-    px = light_space(point, r.basis, 0)
-    py = light_space(point, r.basis, 1)
-    pz = light_space(point, r.basis, 2)
-    nx = light_space(normal, r.basis, 0)
-    ny = light_space(normal, r.basis, 1)
-    nz = light_space(normal, r.basis, 2)
+    px, py, pz = light_space_xyz(point, r.basis)
+    nx, ny, nz = light_space_xyz(normal, r.basis)
     tan, plane_x, plane_y, factor = receiver_slopes(nx, ny, nz, r.max_tan, r.normal_scale)
     float32 = boxes.mode == WINDOW_FLOAT32
     p32 = wp.vec3()
@@ -608,12 +610,8 @@ def warped_receivers_kernel(
     one = wp.float64(1.0)
     point = r.points[r.index[k]]
     normal = wp.vec3d(r.normals[r.index[k]])
-    px = light_space(point, r.basis, 0)
-    py = light_space(point, r.basis, 1)
-    pz = light_space(point, r.basis, 2)
-    nx = light_space(normal, r.basis, 0)
-    ny = light_space(normal, r.basis, 1)
-    nz = light_space(normal, r.basis, 2)
+    px, py, pz = light_space_xyz(point, r.basis)
+    nx, ny, nz = light_space_xyz(normal, r.basis)
     tan, plane_x, plane_y, factor = receiver_slopes(nx, ny, nz, r.max_tan, r.normal_scale)
     along = one
     if r.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:

@@ -255,13 +255,13 @@ def last_centre(hi: wp.int64, unit: wp.int64, bits: wp.int64, begin: int, end: i
 
 @wp.func
 def centre_box(ax: wp.int64, ay: wp.int64, bx: wp.int64, by: wp.int64, cx: wp.int64, cy: wp.int64, fixed: FixedPoint,
-               window: wp.vec4i) -> wp.vec4i:
-    """The texels ``(i0, i1, j0, j1)`` of ``window`` whose centres the triangle's bounding box holds (doubled
+               window: wp.vec4i):
+    """The texels ``i0, i1, j0, j1`` of ``window`` whose centres the triangle's bounding box holds (doubled
     fixed-point vertices): columns ``i0..i1``, rows ``j0..j1``, none where ``i0 > i1`` or ``j0 > j1``."""
-    return wp.vec4i(first_centre(wp.min(wp.min(ax, bx), cx), fixed.unit, fixed.bits, window[0], window[1]),
-                    last_centre(wp.max(wp.max(ax, bx), cx), fixed.unit, fixed.bits, window[0], window[1]),
-                    first_centre(wp.min(wp.min(ay, by), cy), fixed.unit, fixed.bits, window[2], window[3]),
-                    last_centre(wp.max(wp.max(ay, by), cy), fixed.unit, fixed.bits, window[2], window[3]))
+    return (first_centre(wp.min(wp.min(ax, bx), cx), fixed.unit, fixed.bits, window[0], window[1]),
+            last_centre(wp.max(wp.max(ax, bx), cx), fixed.unit, fixed.bits, window[0], window[1]),
+            first_centre(wp.min(wp.min(ay, by), cy), fixed.unit, fixed.bits, window[2], window[3]),
+            last_centre(wp.max(wp.max(ay, by), cy), fixed.unit, fixed.bits, window[2], window[3]))
 
 
 @wp.func
@@ -438,11 +438,7 @@ def rasterize_triangle(
     # Cull before any per-texel work: triangles whose bounding box holds no texel centre of the
     # window, and triangles of zero area.
     two = wp.int64(2)
-    box = centre_box(ax, ay, bx, by, cx, cy, fixed, window)
-    i0 = box[0]
-    i1 = box[1]
-    j0 = box[2]
-    j1 = box[3]
+    i0, i1, j0, j1 = centre_box(ax, ay, bx, by, cx, cy, fixed, window)
     if i0 > i1 or j0 > j1:
         return 0
     area = doubled_area(ax, ay, bx, by, cx, cy)
@@ -450,15 +446,7 @@ def rasterize_triangle(
         return 0
     if area < wp.float64(0.0):
         # Turn the triangle counter-clockwise so that one top-left rule serves both windings.
-        sx = bx
-        sy = by
-        sz = zb
-        bx = cx
-        by = cy
-        zb = zc
-        cx = sx
-        cy = sy
-        zc = sz
+        bx, by, zb, cx, cy, zc = cx, cy, zc, bx, by, zb
         area = -area
     own_ab, own_bc, own_ca = owned_edges(ax, ay, bx, by, cx, cy)
     # Below STEPPED_EXTENT every edge function is an exact integer in float64, and stepping one texel
@@ -572,11 +560,7 @@ def rasterize_masked_triangle(
     """
     unit = fixed.unit
     two = wp.int64(2)
-    box = centre_box(ax, ay, bx, by, cx, cy, fixed, window)
-    i0 = box[0]
-    i1 = box[1]
-    j0 = box[2]
-    j1 = box[3]
+    i0, i1, j0, j1 = centre_box(ax, ay, bx, by, cx, cy, fixed, window)
     if i0 > i1 or j0 > j1:
         return 0
     area = doubled_area(ax, ay, bx, by, cx, cy)
@@ -584,18 +568,7 @@ def rasterize_masked_triangle(
         return 0
     if area < wp.float64(0.0):
         # Counter-clockwise, as rasterize_triangle turns it; the coordinates follow their vertices.
-        sx = bx
-        sy = by
-        sz = zb
-        suv = uvb
-        bx = cx
-        by = cy
-        zb = zc
-        uvb = uvc
-        cx = sx
-        cy = sy
-        zc = sz
-        uvc = suv
+        bx, by, zb, uvb, cx, cy, zc, uvc = cx, cy, zc, uvc, bx, by, zb, uvb
         area = -area
     own_ab, own_bc, own_ca = owned_edges(ax, ay, bx, by, cx, cy)
     count = int(0)

@@ -143,8 +143,8 @@ def set_up_triangles_kernel(
     b = doubled_fixed_point_vertex(mesh.xy[ib], step, fixed.limit, corner)
     q = doubled_fixed_point_vertex(mesh.xy[ic], step, fixed.limit, corner)
     unit = fixed.unit
-    window = centre_box(a[0], a[1], b[0], b[1], q[0], q[1], fixed, region)
-    if window[0] > window[1] or window[2] > window[3]:
+    i0, i1, j0, j1 = centre_box(a[0], a[1], b[0], b[1], q[0], q[1], fixed, region)
+    if i0 > i1 or j0 > j1:
         return
     area = doubled_area(a[0], a[1], b[0], b[1], q[0], q[1])
     if area == wp.float64(0.0):
@@ -160,7 +160,7 @@ def set_up_triangles_kernel(
     out = SetUpTriangle()
     out.a = a
     out.mask = m
-    out.window = window
+    out.window = wp.vec4i(i0, i1, j0, j1)
     if area > wp.float64(0.0):
         out.b = b
         out.c = q
@@ -175,8 +175,8 @@ def set_up_triangles_kernel(
         out.vertices = wp.vec3i(ia, ic, ib)
         out.area = -area
     set_up[p] = out
-    tiles[p] = (((window[1] - region[0]) >> TILE_BITS) - ((window[0] - region[0]) >> TILE_BITS) + 1) * (
-        ((window[3] - region[2]) >> TILE_BITS) - ((window[2] - region[2]) >> TILE_BITS) + 1)
+    tiles[p] = (((i1 - region[0]) >> TILE_BITS) - ((i0 - region[0]) >> TILE_BITS) + 1) * (
+        ((j1 - region[2]) >> TILE_BITS) - ((j0 - region[2]) >> TILE_BITS) + 1)
 
 
 @wp.kernel
