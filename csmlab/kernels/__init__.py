@@ -2,11 +2,14 @@
 
 - :mod:`csmlab.kernels.raster` — depth rasterization of every cascade (fixed-point, top-left rule).
 - :mod:`csmlab.kernels.visibility` — the scene's BVH on a device and the camera G-buffer.
+- :mod:`csmlab.kernels.camera` — the pinhole camera the camera pass and the TAA resolve read.
 - :mod:`csmlab.kernels.shadow` — cascade selection, receiver depth test, filtering, blend band.
 - :mod:`csmlab.kernels.pcf` — weighted PCF at a selected cascade: Gaussian, tent, Poisson disk, PCSS.
 - :mod:`csmlab.kernels.moments` — VSM/EVSM moments, their separable blur, mip chain and the Chebyshev lookup
   (bilinear, trilinear or anisotropic).
-- :mod:`csmlab.kernels.reference` — the ray-traced hard shadow (ground truth).
+- :mod:`csmlab.kernels.reference` — the ray-traced hard shadow (ground truth): what a shadow ray is
+  (``shadow_rays``), the BVH ray cast (``ray_cast``), the irregular z-buffer's binned ray starts
+  (``ray_grid``) and its triangles that block them (``irregular``).
 - :mod:`csmlab.kernels.footprint` — texel footprint of a screen pixel (aliasing metric).
 - :mod:`csmlab.kernels.threads` — CPU launches split over threads, each writing its own outputs.
 

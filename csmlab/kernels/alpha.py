@@ -19,6 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
+from csmlab.kernels import checked_device
+
 __all__ = ["AlphaTextures", "MaskedMesh", "alpha_passes", "masked_mesh", "no_masks"]
 
 # Products and sums rounded one by one on both devices (clang and NVRTC may otherwise contract them).
@@ -88,8 +90,10 @@ def _textures(masks, device: str) -> AlphaTextures:
 def masked_mesh(uv, vertex_mask, masks, *, device: str = "cpu") -> MaskedMesh:
     """A :class:`MaskedMesh` of per-vertex coordinates ``(V, 2)`` and masks ``(V,)`` and the :class:`AlphaMask` records.
 
-    ``uv`` and ``vertex_mask`` None: :func:`no_masks` (every triangle opaque).
+    ``uv`` and ``vertex_mask`` None: :func:`no_masks` (every triangle opaque). ``device`` is checked by
+    :func:`csmlab.kernels.checked_device` before any upload.
     """
+    device = checked_device(device)
     if vertex_mask is None:
         return no_masks(device=device)
     return MaskedMesh(uv=wp.array(np.ascontiguousarray(uv, dtype=np.float64), dtype=wp.vec2d, device=device),
@@ -100,6 +104,7 @@ def masked_mesh(uv, vertex_mask, masks, *, device: str = "cpu") -> MaskedMesh:
 
 def no_masks(*, device: str = "cpu") -> MaskedMesh:
     """The :class:`MaskedMesh` of a scene without masks: zero-length arrays, which the kernels read as "opaque"."""
+    device = checked_device(device)
     return MaskedMesh(uv=wp.zeros(0, dtype=wp.vec2d, device=device), vertex_mask=wp.zeros(0, dtype=wp.int32,
                                                                                             device=device),
                       textures=_textures((), device))

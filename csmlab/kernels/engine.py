@@ -299,6 +299,41 @@ def light_space(v: wp.vec3d, basis: wp.mat33d, row: int) -> wp.float64:
     return (v[0] * basis[row, 0] + v[2] * basis[row, 2]) + v[1] * basis[row, 1]
 
 
+@wp.func
+def light_space_xyz(v: wp.vec3d, basis: wp.mat33d):
+    """The three components of ``v`` in the light basis, each as :func:`light_space` sums it."""
+    return light_space(v, basis, 0), light_space(v, basis, 1), light_space(v, basis, 2)
+
+
+@wp.func
+def receiver_slopes(nx: wp.float64, ny: wp.float64, nz: wp.float64, max_tan: wp.float64, normal_scale: int):
+    """A receiver's normal ``(nx, ny, nz)`` in light space (z away from the light) as the biases read it:
+    ``tan θ`` (NaN where the normal turns from the light, else at most ``max_tan``), the receiver plane's
+    slopes ``(−nx/nz, −ny/nz)`` clamped to ±``max_tan`` (0 where turned away), and the normal offset's
+    factor of ``normal_scale`` — :func:`csmlab.texels.receiver_lookup`'s operations in its order."""
+    zero = wp.float64(0.0)
+    one = wp.float64(1.0)
+    cos = -nz
+    tan = wp.float64(wp.nan)
+    plane_x = zero
+    plane_y = zero
+    if cos > zero:
+        tan = wp.min(wp.sqrt(wp.max(one - cos * cos, zero)) / cos, max_tan)
+        plane_x = nx / cos
+        plane_y = ny / cos
+    plane_x = wp.clamp(plane_x, -max_tan, max_tan)
+    plane_y = wp.clamp(plane_y, -max_tan, max_tan)
+    factor = one
+    if normal_scale == NORMAL_SIN:
+        factor = wp.sqrt(wp.max(one - cos * cos, zero))
+    elif normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
+        # Godot's light_dir points toward the light: 1 − max(0, dot(light_dir, −N)) (csmlab.texels.receiver_lookup).
+        factor = one - wp.max(-cos, zero)
+    elif normal_scale != NORMAL_NONE:
+        factor = one - wp.max(cos, zero)
+    return tan, plane_x, plane_y, factor
+
+
 @wp.kernel
 def window_receivers_kernel(
     r: EngineReceivers,
@@ -314,30 +349,9 @@ def window_receivers_kernel(
     point = r.points[r.index[k]]
     n32 = r.normals[r.index[k]]
     normal = wp.vec3d(n32)
-    px = light_space(point, r.basis, 0)
-    py = light_space(point, r.basis, 1)
-    pz = light_space(point, r.basis, 2)
-    nx = light_space(normal, r.basis, 0)
-    ny = light_space(normal, r.basis, 1)
-    nz = light_space(normal, r.basis, 2)
-    cos = -nz
-    tan = wp.float64(wp.nan)
-    plane_x = zero
-    plane_y = zero
-    if cos > zero:
-        tan = wp.min(wp.sqrt(wp.max(one - cos * cos, zero)) / cos, r.max_tan)
-        plane_x = nx / cos
-        plane_y = ny / cos
-    plane_x = wp.clamp(plane_x, -r.max_tan, r.max_tan)
-    plane_y = wp.clamp(plane_y, -r.max_tan, r.max_tan)
-    factor = one
-    if r.normal_scale == NORMAL_SIN:
-        factor = wp.sqrt(wp.max(one - cos * cos, zero))
-    elif r.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
-        # Godot's light_dir points toward the light: 1 − max(0, dot(light_dir, −N)) (csmlab.texels.receiver_lookup).
-        factor = one - wp.max(-cos, zero)
-    elif r.normal_scale != NORMAL_NONE:
-        factor = one - wp.max(cos, zero)
+    px, py, pz = light_space_xyz(point, r.basis)
+    nx, ny, nz = light_space_xyz(normal, r.basis)
+    tan, plane_x, plane_y, factor = receiver_slopes(nx, ny, nz, r.max_tan, r.normal_scale)
     float32 = boxes.mode == WINDOW_FLOAT32
     p32 = wp.vec3()
     if float32:
@@ -596,30 +610,9 @@ def warped_receivers_kernel(
     one = wp.float64(1.0)
     point = r.points[r.index[k]]
     normal = wp.vec3d(r.normals[r.index[k]])
-    px = light_space(point, r.basis, 0)
-    py = light_space(point, r.basis, 1)
-    pz = light_space(point, r.basis, 2)
-    nx = light_space(normal, r.basis, 0)
-    ny = light_space(normal, r.basis, 1)
-    nz = light_space(normal, r.basis, 2)
-    cos = -nz
-    tan = wp.float64(wp.nan)
-    plane_x = zero
-    plane_y = zero
-    if cos > zero:
-        tan = wp.min(wp.sqrt(wp.max(one - cos * cos, zero)) / cos, r.max_tan)
-        plane_x = nx / cos
-        plane_y = ny / cos
-    plane_x = wp.clamp(plane_x, -r.max_tan, r.max_tan)
-    plane_y = wp.clamp(plane_y, -r.max_tan, r.max_tan)
-    factor = one
-    if r.normal_scale == NORMAL_SIN:
-        factor = wp.sqrt(wp.max(one - cos * cos, zero))
-    elif r.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
-        # Godot's light_dir points toward the light: 1 − max(0, dot(light_dir, −N)) (csmlab.texels.receiver_lookup).
-        factor = one - wp.max(-cos, zero)
-    elif r.normal_scale != NORMAL_NONE:
-        factor = one - wp.max(cos, zero)
+    px, py, pz = light_space_xyz(point, r.basis)
+    nx, ny, nz = light_space_xyz(normal, r.basis)
+    tan, plane_x, plane_y, factor = receiver_slopes(nx, ny, nz, r.max_tan, r.normal_scale)
     along = one
     if r.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
         along = zero

@@ -25,6 +25,9 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from csmlab.kernels import checked_device
+from csmlab.kernels.camera import PinholeCamera, pinhole_frame
+
 wp.set_module_options({"fuse_fp": False})
 
 __all__ = ["CLAMP_CODES", "resolve_taa"]
@@ -42,12 +45,7 @@ def taa_resolve_kernel(
     position: wp.array2d(dtype=wp.vec3d),
     history: wp.array2d(dtype=wp.float32),
     history_depth: wp.array2d(dtype=wp.float32),
-    eye: wp.vec3d,
-    right: wp.vec3d,
-    up: wp.vec3d,
-    forward: wp.vec3d,
-    step_x: wp.float64,
-    step_y: wp.float64,
+    camera: PinholeCamera,
     jitter_x: wp.float64,
     jitter_y: wp.float64,
     alpha: wp.float64,
@@ -66,16 +64,16 @@ def taa_resolve_kernel(
         out[row, col] = wp.float32(nan)
         reprojected[row, col] = wp.float32(nan)
         return
-    p = position[row, col] - eye
-    z = wp.dot(p, forward)
+    p = position[row, col] - camera.eye
+    z = wp.dot(p, camera.forward)
     half = wp.float64(0.5)
     total = wp.float64(0.0)
     weight = wp.float64(0.0)
     if z > wp.float64(0.0):
         # Frame t−1's image point of X in pixels (x right, y down), less frame t's jitter, less the
         # half pixel to the centres' lattice.
-        fx = wp.dot(p, right) / (z * step_x) + half * wp.float64(width) - jitter_x - half
-        fy = half * wp.float64(height) - wp.dot(p, up) / (z * step_y) - jitter_y - half
+        fx = wp.dot(p, camera.right) / (z * camera.step_x) + half * wp.float64(width) - jitter_x - half
+        fy = half * wp.float64(height) - wp.dot(p, camera.up) / (z * camera.step_y) - jitter_y - half
         if fx > wp.float64(-1.0) and fy > wp.float64(-1.0) and fx < wp.float64(width) and fy < wp.float64(height):
             # A point within SNAP of a pixel centre is at it: the projection's float64 rounding (~1e-13
             # pixel) would otherwise leak the neighbour's value at that weight, which a float32 output
@@ -172,6 +170,7 @@ def resolve_taa(current, *, position, history, history_depth, eye, rotation, fov
     reprojected : ndarray, shape (H, W), float32
         The history at X before the clamp; NaN where X was disoccluded or ``current`` is NaN.
     """
+    device = checked_device(device)
     c = np.ascontiguousarray(current, dtype=np.float32)
     shape = c.shape
     pos = np.ascontiguousarray(position, dtype=np.float64)
@@ -180,17 +179,14 @@ def resolve_taa(current, *, position, history, history_depth, eye, rotation, fov
     if pos.shape != (*shape, 3) or hist.shape != shape or depth.shape != shape:
         raise ValueError(f"current, position, history, history_depth: expected shapes (H, W), (H, W, 3), (H, W), "
                          f"(H, W); got {shape}, {pos.shape}, {hist.shape}, {depth.shape}")
-    r = np.asarray(rotation, dtype=np.float64)
-    tan_y = np.tan(np.radians(fov_y_deg) / 2.0)
     height, width = shape
+    camera = pinhole_frame(eye, rotation, fov_y_deg, aspect, width, height)
     out = wp.empty(shape, dtype=wp.float32, device=device)
     reprojected = wp.empty(shape, dtype=wp.float32, device=device)
     wp.launch(taa_resolve_kernel, dim=shape,
               inputs=(wp.array(c, dtype=wp.float32, device=device), wp.array(pos, dtype=wp.vec3d, device=device),
                       wp.array(hist, dtype=wp.float32, device=device), wp.array(depth, dtype=wp.float32, device=device),
-                      wp.vec3d(*np.asarray(eye, dtype=np.float64)), wp.vec3d(*r[:, 0]), wp.vec3d(*r[:, 1]),
-                      wp.vec3d(*(-r[:, 2])), float(2.0 * tan_y * aspect / width), float(2.0 * tan_y / height),
-                      float(jitter[0]), float(jitter[1]), float(alpha), int(CLAMP_CODES[clamp]), float(gamma),
+                      camera, float(jitter[0]), float(jitter[1]), float(alpha), int(CLAMP_CODES[clamp]), float(gamma),
                       float(depth_tolerance)),
               outputs=(out, reprojected), device=device)
     return out.numpy(), reprojected.numpy()

@@ -44,6 +44,7 @@ import warp as wp
 
 from csmlab.kernels import checked_device, device_empty
 from csmlab.kernels.alpha import AlphaTextures, MaskedMesh, alpha_passes, masked_mesh
+from csmlab.kernels.camera import PinholeCamera, pixel_ray, pixel_steps, pixel_x, pixel_y
 from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 from csmlab.registry import check_name
 
@@ -219,31 +220,6 @@ def chunks_in_view(bvh: MeshBVH, *, eye, right, up, forward, frustum, near: floa
 
 
 @wp.struct
-class PinholeCamera:
-    """A pinhole camera as the kernels read it: its frame relative to the scene's anchor, its image plane at
-    unit view depth and its clip distances."""
-
-    eye: wp.vec3d
-    """The eye relative to the scene's anchor, metres."""
-    right: wp.vec3d
-    up: wp.vec3d
-    forward: wp.vec3d
-    """The view direction: a pixel's ray is ``forward + x·right + y·up`` on the image plane at unit depth."""
-    step_x: wp.float64
-    """Pixel width on the image plane at unit view depth."""
-    step_y: wp.float64
-    """Pixel height on the image plane at unit view depth."""
-    near: wp.float64
-    """The raster's near clip (:data:`NEAR_FRACTION` of ``far``), metres of view depth."""
-    far: wp.float64
-    """The far clip, metres of view depth."""
-    frustum: wp.vec4d
-    """The image's extent at unit depth ``(x lo, x hi, y lo, y hi)``, padded by a pixel against rounding."""
-    anchor: wp.vec3d
-    """The scene's anchor in world metres (:attr:`MeshBVH.anchor`)."""
-
-
-@wp.struct
 class CameraSpaceVertices:
     """Every vertex in camera space and its out-code (:func:`camera_space_kernel`)."""
 
@@ -277,20 +253,6 @@ def plane_distance(n: wp.vec3d, point: wp.vec3d, origin: wp.vec3d, direction: wp
             t = s
     return t
 
-
-
-@wp.func
-def pixel_x(col: int, width: int, step_x: wp.float64) -> wp.float64:
-    """Image-plane x of the centre of column ``col``: ``(col + ½ − W/2)·step_x`` (unit view depth)."""
-    half = wp.float64(0.5)
-    return (wp.float64(col) + half - half * wp.float64(width)) * step_x
-
-
-@wp.func
-def pixel_y(row: int, height: int, step_y: wp.float64) -> wp.float64:
-    """Image-plane y of the centre of row ``row`` (row 0 at the top): ``(H/2 − row − ½)·step_y``."""
-    half = wp.float64(0.5)
-    return (half * wp.float64(height) - wp.float64(row) - half) * step_y
 
 
 @wp.func
@@ -358,10 +320,8 @@ def camera_hits_kernel(
     origin = pinhole.eye
     forward = pinhole.forward
     far = pinhole.far
-    # Camera-space ray through the pixel centre with unit forward component, so that its ray
-    # parameter is the view depth.
-    direction = (forward + pinhole.right * pixel_x(col, position.shape[1], pinhole.step_x)
-                 + pinhole.up * pixel_y(row, position.shape[0], pinhole.step_y))
+    # The ray's parameter is the view depth (its forward component is 1).
+    direction = pixel_ray(pinhole, row, col, position.shape[0], position.shape[1])
     length = wp.length(direction)
     query = wp.mesh_query_ray(mesh, wp.vec3(origin), wp.vec3(direction / length), wp.float32(far * length))
     face = int(-1)
@@ -620,8 +580,7 @@ def raster_hits_kernel(
     i, col = wp.tid()
     row = row0 + i
     forward = pinhole.forward
-    direction = (forward + pinhole.right * pixel_x(col, position.shape[1], pinhole.step_x)
-                 + pinhole.up * pixel_y(row, position.shape[0], pinhole.step_y))
+    direction = pixel_ray(pinhole, row, col, position.shape[0], position.shape[1])
     # The order of the triangles does not change a lexicographic minimum: merging the buffers of
     # any split of them gives the pixel one launch over all of them would.
     face = NO_TRIANGLE
@@ -652,9 +611,8 @@ def _pinhole(bvh: MeshBVH, position, rotation, fov_y_deg: float, aspect: float, 
     eye = np.asarray(position, dtype=np.float64) - bvh.anchor
     if r.shape != (3, 3) or eye.shape != (3,) or not (np.all(np.isfinite(r)) and np.all(np.isfinite(eye))):
         raise ValueError("camera: expected a finite position (3,) and rotation (3, 3)")
-    tan_y = np.tan(np.radians(fov_y_deg) / 2.0)
     return (wp.vec3d(*eye), wp.vec3d(*r[:, 0]), wp.vec3d(*r[:, 1]), wp.vec3d(*(-r[:, 2])),
-            float(2.0 * tan_y * aspect / width), float(2.0 * tan_y / height))
+            *pixel_steps(fov_y_deg, aspect, width, height))
 
 
 def _jittered(camera: tuple, jitter) -> tuple[tuple, tuple]:

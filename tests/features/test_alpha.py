@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 
 from csmlab.cli import app
 from csmlab.geometry import rotation_looking_at
-from csmlab.kernels.alpha import masked_mesh
+from csmlab.kernels.alpha import masked_mesh, no_masks
 from csmlab.kernels.raster import light_space_mesh, rasterize_cascades, rasterize_depth
 from csmlab.kernels.reference import hard_shadow
 from csmlab.kernels.visibility import camera_hits, mesh_bvh
@@ -318,3 +318,12 @@ def test_a_gltf_mask_image_that_cannot_be_read_exits_2_naming_it(tmp_path):
     assert outcome.exit_code == 2, outcome.output
     message = outcome.stderr.strip()
     assert len(message.splitlines()) == 1 and "leaf.png" in message and "images" in message
+
+
+@pytest.mark.parametrize("device, message", [("tpu", "device: expected 'cpu' or 'cuda'"),
+                                             ("cuda:99", "device: .*'cuda:99'")])
+def test_masked_mesh_and_no_masks_refuse_a_device_warp_cannot_use_by_name(device, message):
+    with pytest.raises(ValueError, match=message):
+        masked_mesh(np.zeros((3, 2)), np.zeros(3, np.int32), (AlphaMask(np.ones((2, 2), np.float32)),), device=device)
+    with pytest.raises(ValueError, match=message):
+        no_masks(device=device)

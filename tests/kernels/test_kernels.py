@@ -53,7 +53,8 @@ def test_checked_device_refuses_names_warp_does_not_know():
 
 
 KERNEL_MODULES = ["depth_storage", "engine", "flip", "footprint", "moments", "pages", "pcf", "raster.kernels",
-                  "raster.tiled", "rays", "reference", "shadow", "ssim", "taa", "usage", "visibility"]
+                  "raster.tiled", "rays", "reference.irregular", "reference.ray_cast", "reference.ray_grid", "shadow",
+                  "ssim", "taa", "usage", "visibility"]
 """csmlab's Warp modules: each module under csmlab.kernels (packages included) that defines kernels."""
 
 
@@ -77,7 +78,7 @@ FMA_FROM_LIBRARIES = {
     "moments": "libdevice's exp and log",
     "pcf": "libdevice's exp",
     "rays": "Warp's BVH ray query (wp.mesh_query_ray)",
-    "reference": "Warp's BVH ray query (wp.mesh_query_ray_anyhit)",
+    "reference.ray_cast": "Warp's BVH ray queries (wp.mesh_query_ray_anyhit, wp.mesh_query_ray)",
     "visibility": "Warp's BVH ray query (wp.mesh_query_ray)",
 }
 """Kernel modules whose CUDA build keeps a few ``fma`` that no compiler option removes: the library

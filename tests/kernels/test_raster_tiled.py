@@ -260,5 +260,14 @@ def test_tiles_refuse_what_the_walk_refuses():
         rasterize_tiled(mesh, chunks=[[0, 5]], **box)
     with pytest.raises(ValueError, match="depth"):
         rasterize_tiled(mesh, depth=np.zeros((2, 20, 20)), **box)
+
+
+@pytest.mark.parametrize("region", [(0, 5, 4, 0, 5), (0, 0, 5, 5, 4)])
+def test_the_walk_and_the_tiles_refuse_a_region_turned_inside_out(region):
+    xy, depth, triangles, box = soup(1, count=10, resolution=20, size=3.0)
+    mesh = light_space_mesh(xy, depth, triangles)
+    for rasterize in (schedule.rasterize_cascades, rasterize_tiled):
+        with pytest.raises(ValueError, match=r"regions: expected rows \(c, i0, i1, j0, j1\)"):
+            rasterize(mesh, regions=[region], **box)
     empty, counts = rasterize_tiled(mesh, regions=np.zeros((0, 5), np.int32), **box)
     assert np.isinf(empty).all() and counts.shape == (0,)

@@ -256,3 +256,13 @@ def test_a_taa_run_does_not_depend_on_chunk_frames_and_fills_the_taa_columns_fro
     assert outputs[0] == outputs[1]
     rows = list(csv.DictReader(outputs[0].decode().splitlines()))
     assert [row["flicker_taa"] == "" for row in rows] == [True, False, False, False] * 2
+
+
+@pytest.mark.parametrize("device, message", [("tpu", "device: expected 'cpu' or 'cuda'"),
+                                             ("cuda:99", "device: .*'cuda:99'")])
+def test_resolve_taa_refuses_a_device_warp_cannot_use_by_name(device, message):
+    frame = np.zeros((2, 3), np.float32)
+    with pytest.raises(ValueError, match=message):
+        resolve_taa(frame, position=np.zeros((2, 3, 3)), history=frame, history_depth=frame, eye=np.zeros(3),
+                    rotation=np.eye(3), fov_y_deg=60.0, aspect=1.5, jitter=(0.0, 0.0), alpha=0.1, clamp="none",
+                    gamma=1.0, depth_tolerance=0.1, device=device)

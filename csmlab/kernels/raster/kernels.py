@@ -254,6 +254,30 @@ def last_centre(hi: wp.int64, unit: wp.int64, bits: wp.int64, begin: int, end: i
 
 
 @wp.func
+def centre_box(ax: wp.int64, ay: wp.int64, bx: wp.int64, by: wp.int64, cx: wp.int64, cy: wp.int64, fixed: FixedPoint,
+               window: wp.vec4i):
+    """The texels ``i0, i1, j0, j1`` of ``window`` whose centres the triangle's bounding box holds (doubled
+    fixed-point vertices): columns ``i0..i1``, rows ``j0..j1``, none where ``i0 > i1`` or ``j0 > j1``."""
+    return (first_centre(wp.min(wp.min(ax, bx), cx), fixed.unit, fixed.bits, window[0], window[1]),
+            last_centre(wp.max(wp.max(ax, bx), cx), fixed.unit, fixed.bits, window[0], window[1]),
+            first_centre(wp.min(wp.min(ay, by), cy), fixed.unit, fixed.bits, window[2], window[3]),
+            last_centre(wp.max(wp.max(ay, by), cy), fixed.unit, fixed.bits, window[2], window[3]))
+
+
+@wp.func
+def doubled_area(ax: wp.int64, ay: wp.int64, bx: wp.int64, by: wp.int64, cx: wp.int64, cy: wp.int64) -> wp.float64:
+    """Twice the signed area of triangle abc (fixed-point units²), positive counter-clockwise; exact below
+    ``STEPPED_EXTENT``."""
+    return wp.float64(bx - ax) * wp.float64(cy - ay) - wp.float64(by - ay) * wp.float64(cx - ax)
+
+
+@wp.func
+def owned_edges(ax: wp.int64, ay: wp.int64, bx: wp.int64, by: wp.int64, cx: wp.int64, cy: wp.int64):
+    """Whether edges ab, bc and ca of a counter-clockwise triangle own the centres on them (top-left rule)."""
+    return edge_owns_centre(bx - ax, by - ay), edge_owns_centre(cx - bx, cy - by), edge_owns_centre(ax - cx, ay - cy)
+
+
+@wp.func
 def edge_values(px: wp.int64, ax: wp.int64, ay: wp.int64, bx: wp.int64, by: wp.int64, cx: wp.int64, cy: wp.int64,
                 row_ab: wp.float64, row_bc: wp.float64, row_ca: wp.float64):
     """The three edge functions at the centre of column ``px`` (doubled units) of a row, from the row's terms."""
@@ -411,34 +435,20 @@ def rasterize_triangle(
     docstring). Returns the number of texel centres covered.
     """
     unit = fixed.unit
-    bits = fixed.bits
     # Cull before any per-texel work: triangles whose bounding box holds no texel centre of the
     # window, and triangles of zero area.
     two = wp.int64(2)
-    i0 = first_centre(wp.min(wp.min(ax, bx), cx), unit, bits, window[0], window[1])
-    i1 = last_centre(wp.max(wp.max(ax, bx), cx), unit, bits, window[0], window[1])
-    j0 = first_centre(wp.min(wp.min(ay, by), cy), unit, bits, window[2], window[3])
-    j1 = last_centre(wp.max(wp.max(ay, by), cy), unit, bits, window[2], window[3])
+    i0, i1, j0, j1 = centre_box(ax, ay, bx, by, cx, cy, fixed, window)
     if i0 > i1 or j0 > j1:
         return 0
-    area = wp.float64(bx - ax) * wp.float64(cy - ay) - wp.float64(by - ay) * wp.float64(cx - ax)
+    area = doubled_area(ax, ay, bx, by, cx, cy)
     if area == wp.float64(0.0):
         return 0
     if area < wp.float64(0.0):
         # Turn the triangle counter-clockwise so that one top-left rule serves both windings.
-        sx = bx
-        sy = by
-        sz = zb
-        bx = cx
-        by = cy
-        zb = zc
-        cx = sx
-        cy = sy
-        zc = sz
+        bx, by, zb, cx, cy, zc = cx, cy, zc, bx, by, zb
         area = -area
-    own_ab = edge_owns_centre(bx - ax, by - ay)
-    own_bc = edge_owns_centre(cx - bx, cy - by)
-    own_ca = edge_owns_centre(ax - cx, ay - cy)
+    own_ab, own_bc, own_ca = owned_edges(ax, ay, bx, by, cx, cy)
     # Below STEPPED_EXTENT every edge function is an exact integer in float64, and stepping one texel
     # right by adding the constant −dy·2·unit gives the same bits as evaluating afresh: three
     # additions per texel instead of three products.
@@ -549,35 +559,18 @@ def rasterize_masked_triangle(
     (exact integers below ``STEPPED_EXTENT``), so a texel the mask keeps holds their depth bit for bit.
     """
     unit = fixed.unit
-    bits = fixed.bits
     two = wp.int64(2)
-    i0 = first_centre(wp.min(wp.min(ax, bx), cx), unit, bits, window[0], window[1])
-    i1 = last_centre(wp.max(wp.max(ax, bx), cx), unit, bits, window[0], window[1])
-    j0 = first_centre(wp.min(wp.min(ay, by), cy), unit, bits, window[2], window[3])
-    j1 = last_centre(wp.max(wp.max(ay, by), cy), unit, bits, window[2], window[3])
+    i0, i1, j0, j1 = centre_box(ax, ay, bx, by, cx, cy, fixed, window)
     if i0 > i1 or j0 > j1:
         return 0
-    area = wp.float64(bx - ax) * wp.float64(cy - ay) - wp.float64(by - ay) * wp.float64(cx - ax)
+    area = doubled_area(ax, ay, bx, by, cx, cy)
     if area == wp.float64(0.0):
         return 0
     if area < wp.float64(0.0):
         # Counter-clockwise, as rasterize_triangle turns it; the coordinates follow their vertices.
-        sx = bx
-        sy = by
-        sz = zb
-        suv = uvb
-        bx = cx
-        by = cy
-        zb = zc
-        uvb = uvc
-        cx = sx
-        cy = sy
-        zc = sz
-        uvc = suv
+        bx, by, zb, uvb, cx, cy, zc, uvc = cx, cy, zc, uvc, bx, by, zb, uvb
         area = -area
-    own_ab = edge_owns_centre(bx - ax, by - ay)
-    own_bc = edge_owns_centre(cx - bx, cy - by)
-    own_ca = edge_owns_centre(ax - cx, ay - cy)
+    own_ab, own_bc, own_ca = owned_edges(ax, ay, bx, by, cx, cy)
     count = int(0)
     j = j0
     while j <= j1:

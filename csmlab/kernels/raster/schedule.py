@@ -45,6 +45,43 @@ def _checked_paths(paths) -> TrianglePaths:
     return paths
 
 
+def _checked_mesh(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The light-space vertices, depths and triangles of a :class:`LightSpaceMesh`, refused otherwise."""
+    if not isinstance(mesh, LightSpaceMesh):
+        raise ValueError(f"mesh: expected a LightSpaceMesh (light_space_mesh), got {type(mesh).__name__}")
+    return mesh.xy, mesh.depth, mesh.triangles
+
+
+def _checked_boxes(texel_size, origin) -> tuple[np.ndarray, np.ndarray]:
+    """Each cascade's texel size ``(C, 2)`` (metres, float64) and fixed-point origin ``(C, 2)`` (int64)."""
+    size = np.ascontiguousarray(texel_size, dtype=np.float64)
+    origin_fixed = np.ascontiguousarray(origin, dtype=np.int64)
+    if size.ndim != 2 or size.shape[1] != 2 or origin_fixed.shape != size.shape:
+        raise ValueError(f"texel_size, origin: expected shapes (C, 2), (C, 2); got {size.shape}, "
+                         f"{origin_fixed.shape}")
+    return size, origin_fixed
+
+
+def _checked_regions(regions, chunks, shape: tuple[int, int, int], *, triangles: int) -> tuple[np.ndarray, np.ndarray]:
+    """The regions ``(G, 5)`` rows ``(c, i0, i1, j0, j1)`` (int32; None: every whole map) within maps of ``shape``,
+    and the ``(region, chunk)`` rows ``(K, 2)`` (int32; None: every chunk of ``triangles`` in every region)."""
+    resolution = shape[1]
+    areas = np.ascontiguousarray(whole_map_regions([resolution] * shape[0]) if regions is None else regions,
+                                 dtype=np.int32)
+    if (areas.ndim != 2 or areas.shape[1] != 5 or np.any(areas[:, 0] < 0) or np.any(areas[:, 0] >= shape[0])
+            or np.any(areas[:, 1:] < 0) or np.any(areas[:, 1:] > resolution)
+            or np.any(areas[:, 2] < areas[:, 1]) or np.any(areas[:, 4] < areas[:, 3])):
+        raise ValueError(f"regions: expected rows (c, i0, i1, j0, j1) within {shape}, got shape {areas.shape}")
+    count = -(-triangles // (1 << CHUNK_BITS))
+    rows = (np.stack(np.meshgrid(np.arange(areas.shape[0]), np.arange(count), indexing="ij"), -1).reshape(-1, 2)
+            if chunks is None else np.asarray(chunks)).astype(np.int32)
+    if rows.ndim != 2 or rows.shape[1] != 2 or (rows.size and (rows.min() < 0 or rows[:, 0].max() >= areas.shape[0]
+                                                               or rows[:, 1].max() >= count)):
+        raise ValueError(f"chunks: expected (region, chunk) rows of shape (K, 2) within ({areas.shape[0]}, {count}), "
+                         f"got {rows.shape}")
+    return areas, rows
+
+
 def _fixed_point(bits: int) -> FixedPoint:
     """The :class:`FixedPoint` grid of ``bits`` sub-texel bits."""
     fixed = FixedPoint()
@@ -381,30 +418,14 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
     the vertices of each triangle as they rasterize it. Both give the same integers.
     """
     device = checked_device(device)
-    if not isinstance(mesh, LightSpaceMesh):
-        raise ValueError(f"mesh: expected a LightSpaceMesh (light_space_mesh), got {type(mesh).__name__}")
-    xy, z, tri = mesh.xy, mesh.depth, mesh.triangles
-    size = np.ascontiguousarray(texel_size, dtype=np.float64)
-    origin_fixed = np.ascontiguousarray(origin, dtype=np.int64)
-    if size.ndim != 2 or size.shape[1] != 2 or origin_fixed.shape != size.shape:
-        raise ValueError(f"texel_size, origin: expected shapes (C, 2), (C, 2); got {size.shape}, "
-                         f"{origin_fixed.shape}")
+    xy, z, tri = _checked_mesh(mesh)
+    size, origin_fixed = _checked_boxes(texel_size, origin)
     bits = _checked_bits(bits)
     resolution = _checked_resolution(resolution)
     paths = _checked_paths(paths)
     shape = (size.shape[0], resolution, resolution)
-    areas = np.ascontiguousarray(whole_map_regions([resolution] * shape[0]) if regions is None else regions,
-                                 dtype=np.int32)
-    if (areas.ndim != 2 or areas.shape[1] != 5 or np.any(areas[:, 0] < 0) or np.any(areas[:, 0] >= shape[0])
-            or np.any(areas[:, 1:] < 0) or np.any(areas[:, 1:] > resolution)):
-        raise ValueError(f"regions: expected rows (c, i0, i1, j0, j1) within {shape}, got shape {areas.shape}")
+    areas, rows = _checked_regions(regions, chunks, shape, triangles=tri.shape[0])
     count = -(-tri.shape[0] // (1 << CHUNK_BITS))
-    rows = (np.stack(np.meshgrid(np.arange(areas.shape[0]), np.arange(count), indexing="ij"), -1).reshape(-1, 2)
-            if chunks is None else np.asarray(chunks)).astype(np.int32)
-    if rows.ndim != 2 or rows.shape[1] != 2 or (rows.size and (rows.min() < 0 or rows[:, 0].max() >= areas.shape[0]
-                                                               or rows[:, 1].max() >= count)):
-        raise ValueError(f"chunks: expected (region, chunk) rows of shape (K, 2) within ({areas.shape[0]}, {count}), "
-                         f"got {rows.shape}")
     parts = min(checked_threads(threads, device), areas.shape[0])
     extent = (areas[:, 2].astype(np.int64) - areas[:, 1]) * (areas[:, 4] - areas[:, 3])
     if count_only:

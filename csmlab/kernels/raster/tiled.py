@@ -36,13 +36,12 @@ import warp as wp
 
 from csmlab.kernels import checked_device
 from csmlab.kernels.alpha import AlphaTextures, alpha_passes, masked_mesh
-from csmlab.kernels.raster.kernels import (Boxes, CasterOffset, FixedPoint, caster_offset, doubled_fixed_point_vertex,
-                                           edge_inside, edge_owns_centre, edge_values, first_centre, last_centre,
+from csmlab.kernels.raster.kernels import (Boxes, CasterOffset, FixedPoint, caster_offset, centre_box, doubled_area,
+                                           doubled_fixed_point_vertex, edge_inside, edge_owns_centre, edge_values,
                                            vec2l)
 from csmlab.kernels.raster.mesh import CHUNK_BITS, LightSpaceMesh
-from csmlab.kernels.raster.regions import whole_map_regions
-from csmlab.kernels.raster.schedule import (_boxes, _caster_offset, _checked_bits, _checked_resolution,
-                                            _fixed_point)
+from csmlab.kernels.raster.schedule import (_boxes, _caster_offset, _checked_bits, _checked_boxes, _checked_mesh,
+                                            _checked_regions, _checked_resolution, _fixed_point)
 from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 
 __all__ = ["TILE_BITS", "TILE_TEXELS", "rasterize_tiled"]
@@ -144,14 +143,10 @@ def set_up_triangles_kernel(
     b = doubled_fixed_point_vertex(mesh.xy[ib], step, fixed.limit, corner)
     q = doubled_fixed_point_vertex(mesh.xy[ic], step, fixed.limit, corner)
     unit = fixed.unit
-    bits = fixed.bits
-    i0 = first_centre(wp.min(wp.min(a[0], b[0]), q[0]), unit, bits, region[0], region[1])
-    i1 = last_centre(wp.max(wp.max(a[0], b[0]), q[0]), unit, bits, region[0], region[1])
-    j0 = first_centre(wp.min(wp.min(a[1], b[1]), q[1]), unit, bits, region[2], region[3])
-    j1 = last_centre(wp.max(wp.max(a[1], b[1]), q[1]), unit, bits, region[2], region[3])
+    i0, i1, j0, j1 = centre_box(a[0], a[1], b[0], b[1], q[0], q[1], fixed, region)
     if i0 > i1 or j0 > j1:
         return
-    area = wp.float64(b[0] - a[0]) * wp.float64(q[1] - a[1]) - wp.float64(b[1] - a[1]) * wp.float64(q[0] - a[0])
+    area = doubled_area(a[0], a[1], b[0], b[1], q[0], q[1])
     if area == wp.float64(0.0):
         return
     za = mesh.depth[ia]
@@ -336,29 +331,12 @@ def rasterize_tiled(mesh: LightSpaceMesh, *, texel_size, origin, resolution: int
         On the inputs :func:`~csmlab.kernels.raster.schedule.rasterize_cascades` refuses.
     """
     device = checked_device(device)
-    if not isinstance(mesh, LightSpaceMesh):
-        raise ValueError(f"mesh: expected a LightSpaceMesh (light_space_mesh), got {type(mesh).__name__}")
-    size = np.ascontiguousarray(texel_size, dtype=np.float64)
-    origin_fixed = np.ascontiguousarray(origin, dtype=np.int64)
-    if size.ndim != 2 or size.shape[1] != 2 or origin_fixed.shape != size.shape:
-        raise ValueError(f"texel_size, origin: expected shapes (C, 2), (C, 2); got {size.shape}, "
-                         f"{origin_fixed.shape}")
+    _checked_mesh(mesh)
+    size, origin_fixed = _checked_boxes(texel_size, origin)
     bits = _checked_bits(bits)
     resolution = _checked_resolution(resolution)
     shape = (size.shape[0], resolution, resolution)
-    areas = np.ascontiguousarray(whole_map_regions([resolution] * shape[0]) if regions is None else regions,
-                                 dtype=np.int32)
-    if (areas.ndim != 2 or areas.shape[1] != 5 or np.any(areas[:, 0] < 0) or np.any(areas[:, 0] >= shape[0])
-            or np.any(areas[:, 1:] < 0) or np.any(areas[:, 1:] > resolution)
-            or np.any(areas[:, 2] < areas[:, 1]) or np.any(areas[:, 4] < areas[:, 3])):
-        raise ValueError(f"regions: expected rows (c, i0, i1, j0, j1) within {shape}, got shape {areas.shape}")
-    count = -(-mesh.triangles.shape[0] // (1 << CHUNK_BITS))
-    rows = (np.stack(np.meshgrid(np.arange(areas.shape[0]), np.arange(count), indexing="ij"), -1).reshape(-1, 2)
-            if chunks is None else np.asarray(chunks)).astype(np.int32)
-    if rows.ndim != 2 or rows.shape[1] != 2 or (rows.size and (rows.min() < 0 or rows[:, 0].max() >= areas.shape[0]
-                                                               or rows[:, 1].max() >= count)):
-        raise ValueError(f"chunks: expected (region, chunk) rows of shape (K, 2) within ({areas.shape[0]}, {count}), "
-                         f"got {rows.shape}")
+    areas, rows = _checked_regions(regions, chunks, shape, triangles=mesh.triangles.shape[0])
     if count_only:
         maps = wp.zeros((0, 0, 0), dtype=wp.float32, device=device)
     elif depth is None:
