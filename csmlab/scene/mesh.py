@@ -372,13 +372,18 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
         raise InputError(f"expected vertices within {MAX_COORDINATE:g} m of the origin (docs/design.md, \"Inputs\"), "
                          f"vertex {at + 1} in reading order lies at {np.abs(points[at]).max():.3g} m", file=path,
                          field="vertices")
+    base_colour = masks.pop("base_colour", None)
+    textures = masks.pop("colour", None)
+    if base_colour is not None:  # a glTF material's base colour; [scene] albedo where a primitive has none
+        colour = np.where(np.isnan(base_colour), colour, base_colour)
     try:
         scene = Scene.from_triangles(points, triangles, albedo=colour, name=path.name)
     except ValueError as exc:
         raise InputError(f"expected at least one triangle of non-zero area, all {triangles.shape[0]} are degenerate",
                          file=path, field="triangles") from exc
-    if masks:
-        scene = Scene(scene.vertices, scene.triangles, scene.normals, scene.albedo, name=scene.name, **masks)
+    if masks or textures is not None:
+        scene = Scene(scene.vertices, scene.triangles, scene.normals, scene.albedo, name=scene.name, colour=textures,
+                      **masks)
     return scene.merged(_ground_under(scene)) if ground else scene
 
 
