@@ -142,3 +142,75 @@ def test_the_report_header_names_the_suns_colour_beside_its_source():
     assert _light({"from_scene": True}, SUN_COLOUR) == (
         "the scene file's sun (KHR_lights_punctual), colour 1, 0.5, 0.25 (linear RGB)")
     assert _light({"from_scene": True}) == "the scene file's sun (KHR_lights_punctual)"
+
+
+OBJ = """mtllib level.mtl
+v -1 0 -1
+v 1 0 -1
+v 1 0 1
+v -1 0 1
+v 3 0 -1
+v 3 0 1
+vt 0 1
+vt 1 1
+vt 1 0
+vt 0 0
+usemtl checker
+f 1/1 4/4 3/3 2/2
+usemtl plain
+f 2 3 6 5
+"""
+
+
+def _obj_level(folder, *, mtl: str, leaf: bool = False):
+    (folder / "level.obj").write_text(OBJ)
+    (folder / "level.mtl").write_text(mtl)
+    (folder / "checker.png").write_bytes(_png(CHECKER))
+    if leaf:
+        rgba = np.full((2, 2, 4), 255, np.uint8)
+        out = io.BytesIO()
+        Image.fromarray(rgba, "RGBA").save(out, format="PNG")
+        (folder / "leaf.png").write_bytes(out.getvalue())
+    return folder / "level.obj"
+
+
+@pytest.mark.parametrize("masked", [False, True])
+def test_an_obj_materials_kd_and_map_kd_colour_its_faces(tmp_path, masked):
+    mtl = ("newmtl checker\nKd 0.5 1 0.25\nmap_Kd checker.png\n" + ("map_d leaf.png\n" if masked else "")
+           + "newmtl plain\nKd 0.3\n")
+    scene = load_mesh(_obj_level(tmp_path, mtl=mtl, leaf=masked), albedo=(0.6, 0.6, 0.6))
+    textured = scene.colour.vertex_texture[scene.triangles[:, 0]] >= 0
+    assert textured.sum() == 2 and scene.masked is masked
+    np.testing.assert_allclose(scene.albedo[textured], [[0.5, 1.0, 0.25]] * 2)
+    np.testing.assert_allclose(scene.albedo[~textured], [[0.3, 0.3, 0.3]] * 2)
+    # A hit at (x, z) on the checker quad: vt runs with x and against z (u = (x + 1)/2, vt_v = (1 − z)/2),
+    # OBJ's v up the image, so the image row is ⌊(z + 1)/2 · 2⌋.
+    x, z = np.meshgrid([-0.5, 0.5], [-0.5, 0.5])
+    hit = np.stack([x, np.zeros_like(x), z], axis=-1)
+    quad_triangle = np.array([[int(np.flatnonzero(textured)[k])] for k in (0, 1)])
+    from csmlab.kernels.texture import textured_albedo
+
+    found = None
+    for t in quad_triangle[:, 0]:  # the point lies in one of the quad's two triangles: take each, keep the inside
+        albedo = textured_albedo(scene, np.full(x.shape, t, np.int32), hit)
+        found = albedo if found is None else np.where(_inside(scene, t, hit)[..., None], albedo, found)
+    texel = CHECKER[((z + 1.0) / 2.0 * 2).astype(int), ((x + 1.0) / 2.0 * 2).astype(int)]
+    np.testing.assert_allclose(found, _srgb_decoded(texel) * [0.5, 1.0, 0.25], rtol=1e-6)
+
+
+def _inside(scene: Scene, t: int, points: np.ndarray) -> np.ndarray:
+    """Whether ``points`` on the y = 0 plane lie inside triangle ``t`` (its x, z corners)."""
+    a, b, c = scene.vertices[scene.triangles[t]][:, [0, 2]]
+    p = points[..., [0, 2]]
+
+    def side(u, v):
+        return (v[0] - u[0]) * (p[..., 1] - u[1]) - (v[1] - u[1]) * (p[..., 0] - u[0])
+    s = np.stack([side(a, b), side(b, c), side(c, a)])
+    return np.all(s >= 0, axis=0) | np.all(s <= 0, axis=0)
+
+
+def test_a_bad_kd_is_refused_naming_the_mtl_line(tmp_path):
+    path = _obj_level(tmp_path, mtl="newmtl checker\nKd 0.5 2 0.25\n")
+    with pytest.raises(InputError) as caught:
+        load_mesh(path)
+    assert caught.value.field == "Kd" and caught.value.line == 2 and str(caught.value.file).endswith("level.mtl")

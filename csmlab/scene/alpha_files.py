@@ -22,7 +22,7 @@ from csmlab.documents import MAX_IMAGE_TEXELS, found_at, is_file, within_limit
 from csmlab.errors import InputError
 from csmlab.scene.core import AlphaMask, ColourTexture
 
-__all__ = ["alpha_mask_of_image", "colour_texture_of_image", "read_alpha_mask"]
+__all__ = ["alpha_mask_of_image", "colour_texture_of_image", "read_alpha_mask", "read_colour_texture"]
 
 
 def read_alpha_mask(file, *, cutoff: float = 0.5, field: str = "alpha_mask") -> AlphaMask:
@@ -43,15 +43,30 @@ def read_alpha_mask(file, *, cutoff: float = 0.5, field: str = "alpha_mask") -> 
         Naming the file and ``field``: missing, not an image Pillow can read, or empty.
     """
     path = Path(file)
+    return alpha_mask_of_image(_image_bytes(path, field, "an alpha mask"), cutoff=cutoff, source=path, field=field)
+
+
+def read_colour_texture(file, *, field: str = "map_Kd") -> ColourTexture:
+    """The :class:`~csmlab.scene.core.ColourTexture` of an image file (an OBJ material's ``map_Kd``).
+
+    Raises
+    ------
+    InputError
+        Naming the file and ``field``: missing, not an image Pillow can read, or empty.
+    """
+    return colour_texture_of_image(_image_bytes(Path(file), field, "a colour texture"), source=file, field=field)
+
+
+def _image_bytes(path: Path, field: str, what: str) -> bytes:
+    """The bytes of an image file, or an :class:`~csmlab.errors.InputError` naming it and ``field``."""
     if not is_file(path):
-        raise InputError(f"expected an existing image file with an alpha mask, found {found_at(path)}", file=path,
+        raise InputError(f"expected an existing image file with {what}, found {found_at(path)}", file=path,
                          field=field)
     try:
-        data = path.read_bytes()
+        return path.read_bytes()
     except OSError as exc:
         raise InputError(f"expected a readable image file, got {exc.strerror or exc}", file=path,
                          field=field) from None
-    return alpha_mask_of_image(data, cutoff=cutoff, source=path, field=field)
 
 
 def alpha_mask_of_image(data: bytes, *, cutoff: float = 0.5, source, field: str = "alpha_mask") -> AlphaMask:
