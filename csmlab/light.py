@@ -14,7 +14,7 @@ import numpy as np
 
 from csmlab.geometry import normalized
 
-__all__ = ["LightPath", "WHITE", "direction_from_angles"]
+__all__ = ["WHITE", "LightPath", "direction_from_angles"]
 
 WHITE = (1.0, 1.0, 1.0)
 """The colour of a light that names none: the shading's unit irradiance in every channel."""

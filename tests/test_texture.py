@@ -17,6 +17,7 @@ from PIL import Image
 from csmlab.camera import CameraPose
 from csmlab.errors import InputError
 from csmlab.geometry import rotation_looking_at
+from csmlab.kernels.texture import textured_albedo
 from csmlab.metrics.shading import shaded_rgb, shading_terms
 from csmlab.render import prepare_scene, render_view
 from csmlab.report import _light
@@ -24,6 +25,7 @@ from csmlab.scene.core import ColourTexture, ColourTextures, Scene
 from csmlab.scene.gltf import read_gltf, sun_of
 from csmlab.scene.gltf_writer import GltfBuilder, ground
 from csmlab.scene.mesh import load_mesh
+from csmlab.scene.parts import PartPlacement, load_parts
 
 CHECKER = np.array([[[255, 0, 0], [0, 255, 0]], [[0, 0, 255], [200, 100, 50]]], dtype=np.uint8)
 """2×2 sRGB texels: row 0 (v < ½) red, green; row 1 blue, brown."""
@@ -188,8 +190,6 @@ def test_an_obj_materials_kd_and_map_kd_colour_its_faces(tmp_path, masked):
     x, z = np.meshgrid([-0.5, 0.5], [-0.5, 0.5])
     hit = np.stack([x, np.zeros_like(x), z], axis=-1)
     quad_triangle = np.array([[int(np.flatnonzero(textured)[k])] for k in (0, 1)])
-    from csmlab.kernels.texture import textured_albedo
-
     found = None
     for t in quad_triangle[:, 0]:  # the point lies in one of the quad's two triangles: take each, keep the inside
         albedo = textured_albedo(scene, np.full(x.shape, t, np.int32), hit)
@@ -214,3 +214,21 @@ def test_a_bad_kd_is_refused_naming_the_mtl_line(tmp_path):
     with pytest.raises(InputError) as caught:
         load_mesh(path)
     assert caught.value.field == "Kd" and caught.value.line == 2 and str(caught.value.file).endswith("level.mtl")
+
+
+def test_a_placed_part_keeps_its_texture_where_it_is_placed(tmp_path):
+    path = _textured_level(tmp_path)
+    mirror = ((-1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1))
+    level = load_parts([PartPlacement(file=str(path), translation=(10.0, 0.0, 0.0)),
+                        PartPlacement(file=str(path), matrix=mirror)], ground=True)
+    assert level.textured and len(level.colour.textures) == 2
+    # The mirrored copy (x → −x) at the origin: a hit at (x, z) shows the texel of (−x, z) in the file.
+    x, z = np.meshgrid([-0.5, 0.5], [-0.5, 0.5])
+    hit = np.stack([x, np.zeros_like(x), z], axis=-1)
+    mirrored = np.flatnonzero(level.colour.vertex_texture[level.triangles[:, 0]] == 1)
+    found = None
+    for t in mirrored:
+        albedo = textured_albedo(level, np.full(x.shape, t, np.int32), hit)
+        found = albedo if found is None else np.where(_inside(level, t, hit)[..., None], albedo, found)
+    texel = CHECKER[((z + 1.0) / 2.0 * 2).astype(int), ((-x + 1.0) / 2.0 * 2).astype(int)]
+    np.testing.assert_allclose(found, _srgb_decoded(texel), rtol=1e-6)

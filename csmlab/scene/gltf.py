@@ -661,7 +661,7 @@ def _scene_colour(gltf: GltfFile, parts: list[tuple[_Primitive, int]]) -> dict:
 
 
 def _base_colour_factor(gltf: GltfFile, material: int) -> np.ndarray:
-    """``materials[material].pbrMetallicRoughness.baseColorFactor`` ``(4,)``, linear RGBA in [0, 1] (ones without one)."""
+    """``materials[material].pbrMetallicRoughness.baseColorFactor`` ``(4,)``: linear RGBA in [0, 1], ones without one."""
     pbr = gltf.section("materials")[material].get("pbrMetallicRoughness")
     factor_value = None if pbr is None else pbr.mapping().get("baseColorFactor")
     factor = np.ones(4) if factor_value is None else factor_value.numbers(4, what="4 numbers in [0, 1]")
