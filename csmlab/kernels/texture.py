@@ -7,7 +7,8 @@ found here from the hit position and the triangle's corners (the G-buffer keeps 
 the triangle, not the weights).
 
 Sampling is the nearest texel, as the alpha test samples masks (:mod:`csmlab.kernels.alpha`):
-coordinates repeat (``u − ⌊u⌋``), column ``⌊u·W⌋``, row ``⌊v·H⌋`` (row 0 at v = 0). The texel is
+coordinates repeat (``u − ⌊u⌋``), column ``⌊u·W⌋``, row ``⌊v·H⌋`` (row 0 at v = 0); a glTF
+sampler's wrap modes and filters are not read (``CLAMP_TO_EDGE`` and ``MIRRORED_REPEAT`` repeat too). The texel is
 decoded from 8-bit sRGB to linear RGB (IEC 61966-2-1, a 256-entry table) before it multiplies the
 factor, so the shading is linear as an engine's sRGB texture fetch makes it. Engines filter
 bilinearly from a mip chain; nearest texels without mips alias where a texture is minified (far

@@ -24,8 +24,8 @@ read (they come from the winding), nor vertex colours. A primitive's material gi
 albedo: ``pbrMetallicRoughness.baseColorFactor`` (linear RGB, white without one) times its
 ``baseColorTexture`` (sRGB-decoded, sampled at the texture's ``TEXCOORD_n`` under
 ``KHR_texture_transform``, :class:`~csmlab.scene.core.ColourTextures`); a primitive without a
-material takes ``[scene] albedo``. The alpha test (§3.9.4 "Alpha Coverage") is read too:
-a primitive whose material has ``alphaMode = "MASK"`` becomes alpha-tested triangles
+material keeps :func:`~csmlab.scene.mesh.load_mesh`'s ``albedo`` (grey). The alpha test (§3.9.4
+"Alpha Coverage") is read too: a primitive whose material has ``alphaMode = "MASK"`` becomes alpha-tested triangles
 (:class:`~csmlab.scene.core.AlphaMask`) — coverage is ``pbrMetallicRoughness.baseColorFactor[3]``
 times the ``baseColorTexture``'s alpha channel (read by :func:`csmlab.scene.alpha_files.alpha_mask_of_image`
 from a file beside the glTF, a ``data:`` URI or a buffer view), opaque where coverage ≥
@@ -428,7 +428,7 @@ class _Primitive:
     uv : ndarray, shape (V, 2), float64, or None
         The mask's texture coordinates (None for an opaque primitive).
     colour_material : int
-        The primitive's material, −1 without one (its base colour is ``[scene] albedo``).
+        The primitive's material, −1 without one (it keeps :func:`~csmlab.scene.mesh.load_mesh`'s ``albedo``).
     colour_uv : ndarray, shape (V, 2), float64, or None
         Where its ``baseColorTexture`` is sampled (None without a texture).
     """

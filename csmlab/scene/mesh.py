@@ -422,7 +422,7 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
                          field="vertices")
     base_colour = masks.pop("base_colour", None)
     textures = masks.pop("colour", None)
-    if base_colour is not None:  # a glTF material's base colour; [scene] albedo where a primitive has none
+    if base_colour is not None:  # a material's base colour; `albedo` where a face has none
         colour = np.where(np.isnan(base_colour), colour, base_colour)
     try:
         scene = Scene.from_triangles(points, triangles, albedo=colour, name=path.name)
@@ -460,7 +460,7 @@ class _ObjColours:
     Attributes
     ----------
     base_colour : ndarray, shape (T, 3), float64
-        ``Kd`` of each triangle's material; NaN where it has none (``[scene] albedo``).
+        ``Kd`` of each triangle's material; NaN where it has none (the ``albedo`` given).
     rows : ndarray, shape (R,), int64
         The triangles with a ``map_Kd``.
     uv : ndarray, shape (R, 3, 2), float64
