@@ -42,7 +42,7 @@ class ShadingTerms:
     light: np.ndarray | None = None
 
     def taken(self, index) -> "ShadingTerms":
-        """These terms at the pixels ``index`` selects (one index into the leading axes of both arrays), the light kept."""
+        """These terms at the pixels ``index`` selects (one index into both arrays' leading axes), the light kept."""
         return ShadingTerms(albedo=self.albedo[index], cosine=self.cosine[index], light=self.light)
 
 
