@@ -251,7 +251,7 @@ def _moved_scene(scene: Scene, offset) -> Scene:
     if not any(offset):
         return scene
     return Scene(scene.vertices + np.asarray(offset, dtype=np.float64), scene.triangles, scene.normals, scene.albedo,
-                 name=scene.name, uv=scene.uv, vertex_mask=scene.vertex_mask, alpha=scene.alpha)
+                 name=scene.name, uv=scene.uv, vertex_mask=scene.vertex_mask, alpha=scene.alpha, colour=scene.colour)
 
 
 def _moved_path(path: CameraPath, offset) -> CameraPath:
@@ -261,13 +261,14 @@ def _moved_path(path: CameraPath, offset) -> CameraPath:
     return dataclasses.replace(path, positions=path.positions + np.asarray(offset, dtype=np.float64))
 
 
-def _scene_sun(experiment: Experiment):
-    """``[light] from_scene``: the glTF scene's directional light in csmlab's axes (``[scene] up``)."""
+def _scene_sun(experiment: Experiment) -> tuple[np.ndarray, np.ndarray]:
+    """``[light] from_scene``: the glTF scene's directional light in csmlab's axes (``[scene] up``) and its colour."""
     from csmlab.scene.gltf import read_gltf, sun_of
     from csmlab.scene.mesh import UP_AXES
 
     try:
-        return UP_AXES[experiment.scene.up] @ sun_of(read_gltf(experiment.scene.file)).direction
+        sun = sun_of(read_gltf(experiment.scene.file))
+        return UP_AXES[experiment.scene.up] @ sun.direction, sun.colour
     except ValueError as exc:
         raise _located(exc, file=experiment.scene.file, field="light.from_scene") from None
 
@@ -275,7 +276,7 @@ def _scene_sun(experiment: Experiment):
 def _first_light_direction(experiment: Experiment):
     light = experiment.light
     if light.from_scene:
-        return _scene_sun(experiment)
+        return _scene_sun(experiment)[0]
     if light.direction is not None:
         return normalized(light.direction, name="light.direction")
     return direction_from_angles(elevation_deg=light.elevation_deg, azimuth_deg=light.azimuth_deg)
@@ -329,7 +330,8 @@ def _camera_path(experiment: Experiment, light_direction, level) -> tuple[Camera
 def _light_path(experiment: Experiment, frames: int) -> LightPath:
     light = experiment.light
     if light.from_scene:
-        return LightPath.static(_scene_sun(experiment), frames)
+        direction, colour = _scene_sun(experiment)
+        return dataclasses.replace(LightPath.static(direction, frames), colour=colour)
     if light.direction is not None:
         return LightPath.static(light.direction, frames)
     if light.is_static:
@@ -529,7 +531,8 @@ def _run_chunk(job: Job, chunk: Unit) -> ChunkResult:
         view = render_view(scene, pose, workload.light.direction(index), width=workload.width,
                            height=workload.height, index=index, reference=counted,
                            previous_light_direction=workload.light.direction(index - 1) if index else None,
-                           jitter=None if taa is None else halton_jitter(index, phases=taa.phases))
+                           jitter=None if taa is None else halton_jitter(index, phases=taa.phases),
+                           light_colour=workload.light.colour)
         if index in workload.restarts:
             previous = {}
             history, reference_history, previous_view = {}, None, None
@@ -814,5 +817,7 @@ def _write_results(out: Path, experiment: Experiment, job: Job, units: list[Unit
         summary["view_check"] = job.workload.views.as_dict()
     if job.workload.blend is not None:
         summary["blend_materials"] = job.workload.blend
+    if np.any(job.workload.light.colour != 1.0):
+        summary["light_colour"] = [float(c) for c in job.workload.light.colour]
     results.write_summary(out / "summary.json", **summary)
     return results.read_summary(out)

@@ -104,6 +104,8 @@ class View:
         The sub-pixel camera jitter ``(x, y)`` in pixels (x right, y down) this view was rendered
         with for temporal anti-aliasing (:mod:`csmlab.metrics.taa`): pixel ``(row, col)`` saw the
         image point ``(col + ½ + x, row + ½ + y)``; None without TAA.
+    light_colour : ndarray, shape (3,), float64, or None
+        Linear RGB of the light (:attr:`csmlab.light.LightPath.colour`); None: white.
     derived : dict
         Quantities of this view alone computed for the metrics, by :meth:`shared`; not part of
         the view's identity.
@@ -118,6 +120,7 @@ class View:
     previous_light_direction: np.ndarray | None = None
     previous_reference: np.ndarray | None = None
     jitter: tuple[float, float] | None = None
+    light_colour: np.ndarray | None = None
     derived: dict = field(default_factory=dict, init=False, compare=False, repr=False)
 
     def shared(self, key: tuple, compute: Callable[[], Any]) -> Any:

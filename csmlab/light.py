@@ -2,6 +2,8 @@
 
 The direction ``d`` points from the light toward the scene (docs/design.md, "Conventions").
 Elevation is the sun's angle above the horizon, azimuth is measured from +Z toward +X about +Y.
+The light's colour (linear RGB, white by default; a glTF sun's ``color``) tints the direct term of
+the shaded views (:mod:`csmlab.metrics.shading`).
 """
 
 from __future__ import annotations
@@ -12,7 +14,10 @@ import numpy as np
 
 from csmlab.geometry import normalized
 
-__all__ = ["LightPath", "direction_from_angles"]
+__all__ = ["WHITE", "LightPath", "direction_from_angles"]
+
+WHITE = (1.0, 1.0, 1.0)
+"""The colour of a light that names none: the shading's unit irradiance in every channel."""
 
 
 def direction_from_angles(*, elevation_deg: float, azimuth_deg: float) -> np.ndarray:
@@ -38,14 +43,23 @@ class LightPath:
     ----------
     directions : ndarray, shape (N, 3), float64
         Unit directions from the light toward the scene, one per frame.
+    colour : ndarray, shape (3,), float64
+        Linear RGB of the light, each in [0, 1]: the direct light's irradiance is its colour
+        times the shading's unit (white ``(1, 1, 1)``, the default, leaves the shading as it was).
     """
 
     directions: np.ndarray
+    colour: np.ndarray = WHITE
 
     def __post_init__(self) -> None:
         d = normalized(np.atleast_2d(self.directions), name="light direction")
         d.setflags(write=False)
         object.__setattr__(self, "directions", d)
+        c = np.array(self.colour, dtype=np.float64)
+        if c.shape != (3,) or not np.all((c >= 0.0) & (c <= 1.0)):
+            raise ValueError(f"light colour: expected three linear RGB values in [0, 1], got {self.colour!r}")
+        c.setflags(write=False)
+        object.__setattr__(self, "colour", c)
 
     @classmethod
     def static(cls, direction, frames: int) -> "LightPath":

@@ -32,6 +32,7 @@ from csmlab.kernels.raster import (BANDS_PER_THREAD, LightSpaceMesh, banded_regi
 from csmlab.kernels.alpha import masked_mesh
 from csmlab.kernels.reference import hard_shadow
 from csmlab.kernels.threads import checked_threads
+from csmlab.kernels.texture import textured_albedo
 from csmlab.kernels.visibility import MeshBVH, camera_hits, mesh_bvh
 from csmlab.quads import quad_lanes
 from csmlab.registry import dispatch
@@ -91,7 +92,8 @@ def prepare_scene(scene: Scene, *, device: str = "cpu", threads: int = 1) -> Dev
 
 
 def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width: int, height: int,
-                index: int = 0, previous_light_direction=None, reference: bool = True, jitter=None) -> View:
+                index: int = 0, previous_light_direction=None, reference: bool = True, jitter=None,
+                light_colour=None) -> View:
     """The G-buffer and the ray-traced reference of one camera and light (shared by all methods).
 
     Parameters
@@ -115,6 +117,8 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
     jitter : tuple of float, optional
         Sub-pixel camera jitter ``(x, y)`` in pixels for temporal anti-aliasing (``View.jitter``);
         None: pixel centres, no TAA.
+    light_colour : array_like, shape (3,), optional
+        Linear RGB of the light (``View.light_colour``, for the shading); None: white.
 
     Returns
     -------
@@ -127,7 +131,10 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
                        aspect=pose.aspect, far=pose.far, width=width, height=height, threads=dscene.threads,
                        jitter=(0.0, 0.0) if jitter is None else jitter)
     valid = hits.triangle >= 0
-    albedo = np.where(valid[..., None], dscene.scene.albedo[np.maximum(hits.triangle, 0)], np.float32(0.0))
+    if dscene.scene.textured:
+        albedo = textured_albedo(dscene.scene, hits.triangle, hits.position, device=dscene.device)
+    else:
+        albedo = np.where(valid[..., None], dscene.scene.albedo[np.maximum(hits.triangle, 0)], np.float32(0.0))
     gbuffer = GBuffer(hits=hits, albedo=albedo.astype(np.float32))
     timings = {"visibility": time.perf_counter() - start}
     before = previous = cast = None
@@ -147,7 +154,8 @@ def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width
         before = None
     return View(index=index, pose=pose, light_direction=d, gbuffer=gbuffer, reference=cast, timings=timings,
                 previous_light_direction=before, previous_reference=previous,
-                jitter=None if jitter is None else (float(jitter[0]), float(jitter[1])))
+                jitter=None if jitter is None else (float(jitter[0]), float(jitter[1])),
+                light_colour=None if light_colour is None else np.asarray(light_colour, dtype=np.float64))
 
 
 def _scene_in_light_space(dscene: DeviceScene, cascades: CascadeSet, cull: str = "none") -> LightSpaceMesh:

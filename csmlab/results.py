@@ -29,6 +29,7 @@ Files in a results directory (docs/design.md, "Interfaces"):
     :meth:`csmlab.paths.view_check.ViewFindings.as_dict`): frames checked and, for each check, the
     flagged frames as ``[first, last]`` ranges. ``blend_materials`` (a glTF level with ``alphaMode = "BLEND"``
     materials, :func:`csmlab.experiment.build_workload`): the rule they were read by and their names.
+    ``light_colour`` (a light that is not white: a glTF sun's ``color``): its linear RGB.
     Written last: a directory without it holds no
     finished run.
 ``.chunks/``
@@ -274,11 +275,13 @@ def json_text(document: dict) -> str:
 def write_summary(path, *, name: str, config_hash: str, workload_hash: str, device: str, frames: int,
                   config: dict, light_moves: bool, point_fields: dict, stabilization: dict, invariants: dict,
                   methods: dict, points: dict, recording: dict | None = None, view_check: dict | None = None,
-                  blend_materials: dict | None = None) -> Path:
+                  blend_materials: dict | None = None, light_colour: list | None = None) -> Path:
     """Write ``summary.json`` (fields in the module docstring; ``recording`` only for a recorded path,
-    ``view_check`` only when the check ran, ``blend_materials`` only for a level that has them)."""
+    ``view_check`` only when the check ran, ``blend_materials`` only for a level that has them,
+    ``light_colour`` only for a light that is not white)."""
     extra = {key: value for key, value in (("recording", recording), ("view_check", view_check),
-                                           ("blend_materials", blend_materials)) if value is not None}
+                                           ("blend_materials", blend_materials), ("light_colour", light_colour))
+             if value is not None}
     return write_atomic(path, json_text({
         "name": name,
         "config_hash": config_hash,

@@ -168,7 +168,8 @@ def _shaded_where_differs(shaded: np.ndarray, lit: np.ndarray, other_lit: np.nda
     same |= np.isnan(lit) & np.isnan(other_lit)
     differs = np.flatnonzero(~same)
     if differs.size:
-        some = ShadingTerms(albedo=terms.albedo.reshape(-1, 3)[differs], cosine=terms.cosine.reshape(-1)[differs])
+        some = ShadingTerms(albedo=terms.albedo.reshape(-1, 3)[differs], cosine=terms.cosine.reshape(-1)[differs],
+                            light=terms.light)
         out.reshape(-1, 3)[differs] = shaded_rgb(None, None, other_lit.reshape(-1)[differs],
                                                  light_direction=light_direction, ambient=ambient, terms=some)
     return out

@@ -1,7 +1,10 @@
 """Shading of a shadow image: what a player sees, for the perceptual metrics and the report.
 
-Linear RGB ``albedo × (ambient + S · max(0, n · l))`` with ``l = −d`` the unit vector toward the
-light (docs/design.md, "Metrics"), and its sRGB encoding for display and for ꟻLIP.
+Linear RGB ``albedo × (ambient + S · max(0, n · l) · c)`` with ``l = −d`` the unit vector toward the
+light and ``c`` the light's linear RGB colour (white unless a glTF sun names one; the ambient is
+left uncoloured), and its sRGB encoding for display and for ꟻLIP (docs/design.md, "Metrics"). The
+albedo is the G-buffer's, per pixel: the triangle's base colour times its texture at the hit
+(:mod:`csmlab.kernels.texture`).
 """
 
 from __future__ import annotations
@@ -30,17 +33,34 @@ class ShadingTerms:
         Linear RGB reflectance.
     cosine : ndarray, shape (H, W), float64
         ``max(0, n · l)``.
+    light : ndarray, shape (3,), float64, or None
+        The light's linear RGB colour; None for white (the shading's unit in every channel).
     """
 
     albedo: np.ndarray
     cosine: np.ndarray
+    light: np.ndarray | None = None
+
+    def taken(self, index) -> "ShadingTerms":
+        """These terms at the pixels ``index`` selects (one index into both arrays' leading axes), the light kept."""
+        return ShadingTerms(albedo=self.albedo[index], cosine=self.cosine[index], light=self.light)
 
 
-def shading_terms(albedo, normal, *, light_direction) -> ShadingTerms:
-    """The shadow-independent terms of :func:`shaded_rgb` (shapes and units as there)."""
+def shading_terms(albedo, normal, *, light_direction, light_colour=None) -> ShadingTerms:
+    """The shadow-independent terms of :func:`shaded_rgb` (shapes and units as there).
+
+    ``light_colour`` ``(3,)``: the light's linear RGB in [0, 1]; None or white leaves ``light``
+    None, the shading exactly as a white light's.
+    """
     towards_light = -normalized(light_direction, name="light_direction")
+    light = None
+    if light_colour is not None:
+        light = np.asarray(light_colour, dtype=np.float64)
+        if light.shape != (3,) or not np.all((light >= 0.0) & (light <= 1.0)):
+            raise ValueError(f"light_colour: expected three linear RGB values in [0, 1], got {light_colour!r}")
+        light = None if np.all(light == 1.0) else light
     return ShadingTerms(albedo=np.asarray(albedo, dtype=np.float64),
-                        cosine=np.maximum(np.asarray(normal, dtype=np.float64) @ towards_light, 0.0))
+                        cosine=np.maximum(np.asarray(normal, dtype=np.float64) @ towards_light, 0.0), light=light)
 
 
 def shaded_rgb(albedo, normal, lit, *, light_direction, ambient: float,
@@ -80,6 +100,10 @@ def shaded_rgb(albedo, normal, lit, *, light_direction, ambient: float,
     # S · cos in float64 (a float32 S widens exactly, in the loop rather than as a copy), then the
     # ambient added in place: the same products and sums (addition commutes), two temporaries fewer.
     irradiance = np.multiply(np.asarray(lit), terms.cosine, dtype=np.float64)
+    if terms.light is not None:
+        coloured = irradiance[..., None] * terms.light
+        coloured += ambient
+        return terms.albedo * coloured
     irradiance += ambient
     return terms.albedo * irradiance[..., None]
 
@@ -88,7 +112,8 @@ def view_shading_terms(view) -> ShadingTerms:
     """:func:`shading_terms` of a :class:`csmlab.frame.View`'s G-buffer and light, computed once per view."""
     g = view.gbuffer
     return view.shared(("shading_terms",), lambda: shading_terms(g.albedo, g.normal,
-                                                                  light_direction=view.light_direction))
+                                                                  light_direction=view.light_direction,
+                                                                  light_colour=view.light_colour))
 
 
 def srgb_encoded(rgb) -> np.ndarray:

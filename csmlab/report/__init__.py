@@ -208,7 +208,7 @@ def _header(results: ResultFiles) -> dict:
         "frames": len(np.unique(results.metrics["frame"])),
         "scene": _describe(config.get("scene", {}), ("kind", "file", "seed")),
         "camera": _describe(config.get("camera", {}), ("path", "file", "frames", "width", "height")),
-        "light": _light(config.get("light", {})),
+        "light": _light(config.get("light", {}), summary.get("light_colour")),
         "config_text": json.dumps(config, indent=2, sort_keys=True),
         "recording": summary.get("recording"),
         "taa": _taa(config.get("taa") or {}),
@@ -217,11 +217,14 @@ def _header(results: ResultFiles) -> dict:
     }
 
 
-def _light(light: dict) -> str:
-    """The header's light: the scene file's sun when it comes from there, else its direction or angles."""
-    if light.get("from_scene"):
-        return "the scene file's sun (KHR_lights_punctual)"
-    return _describe(light, ("elevation_deg", "azimuth_deg", "direction"))
+def _light(light: dict, colour: list | None = None) -> str:
+    """The header's light: the scene file's sun when it comes from there, else its direction or angles; its
+    colour (linear RGB) when it is not white."""
+    source = ("the scene file's sun (KHR_lights_punctual)" if light.get("from_scene")
+              else _describe(light, ("elevation_deg", "azimuth_deg", "direction")))
+    if not colour:
+        return source
+    return f"{source}, colour {', '.join(f'{c:.3g}' for c in colour)} (linear RGB)"
 
 
 def _taa(taa: dict) -> str | None:

@@ -327,7 +327,7 @@ def taa_pixels(frame: Frame, pixels: dict, shadow, reference, *, stride: int, am
         sRGB of the view shaded through T^S and T^R as ``shaded`` is through S
         (:func:`csmlab.metrics.shading.shaded_rgb`), 0 where T^S is undefined.
     """
-    from csmlab.metrics.shading import AMBIENT, ShadingTerms, shaded_rgb, view_shading_terms
+    from csmlab.metrics.shading import AMBIENT, shaded_rgb, view_shading_terms
 
     ambient = AMBIENT if ambient is None else ambient
 
@@ -339,7 +339,7 @@ def taa_pixels(frame: Frame, pixels: dict, shadow, reference, *, stride: int, am
         change = np.where(counted, np.abs((s - s0) - (r - r0)), np.nan)
     view = frame.view
     full = view_shading_terms(view)
-    terms = ShadingTerms(albedo=full.albedo[take], cosine=full.cosine[take])
+    terms = full.taken(take)
     g = view.gbuffer
     valid = np.asarray(g.valid)[take]
 

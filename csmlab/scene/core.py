@@ -6,6 +6,11 @@ takes the mask of its vertices (all three the same, so the depth pass, the camer
 reference need no triangle order: culling and reordering triangles keep it). Where the mask's
 nearest texel to the interpolated coordinates is below the mask's cutoff the surface is a hole,
 in every pass (:mod:`csmlab.kernels.alpha`).
+
+Base-colour textures (glTF ``baseColorTexture``) follow the same rule: a :class:`ColourTextures`
+holds coordinates and a texture index per vertex (all three of a triangle the same) and the
+textures' linear RGB; the shaded views multiply the triangle's albedo (the material's base colour
+factor) by the texture sampled at the hit (:mod:`csmlab.kernels.texture`).
 """
 
 from __future__ import annotations
@@ -14,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["AlphaMask", "Scene"]
+__all__ = ["AlphaMask", "ColourTexture", "ColourTextures", "Scene"]
 
 
 @dataclass(frozen=True)
@@ -49,6 +54,78 @@ class AlphaMask:
 
 
 @dataclass(frozen=True)
+class ColourTexture:
+    """One base-colour texture as its image stores it: 8-bit sRGB-encoded texels.
+
+    Attributes
+    ----------
+    srgb : ndarray, shape (H, W, 3), uint8
+        sRGB-encoded RGB (the shading decodes each texel to linear RGB, :mod:`csmlab.kernels.texture`);
+        row 0 is v = 0 (the image's top row), column 0 is u = 0; coordinates repeat outside [0, 1).
+    source : str
+        Where it came from (a file, or the glTF file that embeds it).
+    """
+
+    srgb: np.ndarray
+    source: str = "texture"
+
+    def __post_init__(self) -> None:
+        if np.asarray(self.srgb).dtype != np.uint8:
+            raise ValueError(f"{self.source}: srgb: expected 8-bit texels, got {np.asarray(self.srgb).dtype}")
+        texels = np.ascontiguousarray(self.srgb)
+        if texels.ndim != 3 or texels.shape[2] != 3 or texels.shape[0] * texels.shape[1] == 0:
+            raise ValueError(f"{self.source}: srgb: expected a non-empty (H, W, 3) array, got shape {texels.shape}")
+        texels.setflags(write=False)
+        object.__setattr__(self, "srgb", texels)
+
+
+@dataclass(frozen=True)
+class ColourTextures:
+    """The base-colour textures of a scene and where each vertex samples them.
+
+    Attributes
+    ----------
+    uv : ndarray, shape (V, 2), float64
+        Texture coordinates per vertex (``KHR_texture_transform`` already applied).
+    vertex_texture : ndarray, shape (V,), int32
+        Index into ``textures`` of each vertex's texture, −1 for none (the albedo alone); a
+        triangle's three vertices hold the same value.
+    textures : tuple of ColourTexture
+    """
+
+    uv: np.ndarray
+    vertex_texture: np.ndarray
+    textures: tuple
+
+    def __post_init__(self) -> None:
+        uv = np.ascontiguousarray(self.uv, dtype=np.float64)
+        index = np.ascontiguousarray(self.vertex_texture, dtype=np.int32)
+        textures = tuple(self.textures)
+        if index.ndim != 1 or uv.shape != (index.shape[0], 2) or not np.all(np.isfinite(uv)):
+            raise ValueError(f"colour textures: expected finite uv (V, 2) beside vertex_texture (V,), got "
+                             f"{uv.shape} and {index.shape}")
+        if index.size and (index.min() < -1 or index.max() >= len(textures)):
+            raise ValueError(f"colour textures: vertex_texture: expected indices in [-1, {len(textures)})")
+        if not all(isinstance(t, ColourTexture) for t in textures):
+            raise ValueError("colour textures: textures: expected ColourTexture records")
+        for name, value in (("uv", uv), ("vertex_texture", index)):
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "textures", textures)
+
+    @classmethod
+    def none(cls, vertex_count: int) -> "ColourTextures":
+        """No texture on any of ``vertex_count`` vertices."""
+        return cls(np.zeros((vertex_count, 2)), np.full(vertex_count, -1, np.int32), ())
+
+    def merged(self, other: "ColourTextures") -> "ColourTextures":
+        """These vertices' textures, then ``other``'s (its indices shifted past these textures)."""
+        theirs = np.where(other.vertex_texture >= 0, other.vertex_texture + len(self.textures), -1)
+        return ColourTextures(np.concatenate([self.uv, other.uv]), np.concatenate([self.vertex_texture, theirs]),
+                              self.textures + other.textures)
+
+
+@dataclass(frozen=True)
 class Scene:
     """Geometry lit by the directional light and seen by the camera.
 
@@ -71,6 +148,8 @@ class Scene:
         hold the same value. None: every triangle opaque.
     alpha : tuple of AlphaMask
         The masks ``vertex_mask`` indexes.
+    colour : ColourTextures or None
+        Base-colour textures multiplying ``albedo`` where the camera sees them; None: none.
 
     Raises
     ------
@@ -87,6 +166,7 @@ class Scene:
     uv: np.ndarray | None = None
     vertex_mask: np.ndarray | None = None
     alpha: tuple = ()
+    colour: ColourTextures | None = None
 
     def __post_init__(self) -> None:
         v = np.ascontiguousarray(self.vertices, dtype=np.float64)
@@ -107,6 +187,16 @@ class Scene:
             value.setflags(write=False)
             object.__setattr__(self, name, value)
         self._check_masks(v.shape[0], t)
+        self._check_colour(v.shape[0], t)
+
+    def _check_colour(self, vertex_count: int, t: np.ndarray) -> None:
+        if self.colour is None:
+            return
+        if not isinstance(self.colour, ColourTextures) or self.colour.vertex_texture.shape != (vertex_count,):
+            raise ValueError(f"{self.name}: colour: expected ColourTextures of {vertex_count} vertices")
+        per_corner = self.colour.vertex_texture[t]
+        if np.any(per_corner != per_corner[:, :1]):
+            raise ValueError(f"{self.name}: colour: expected the three vertices of a triangle to share a texture")
 
     def _check_masks(self, vertex_count: int, t: np.ndarray) -> None:
         if self.vertex_mask is None:
@@ -130,6 +220,11 @@ class Scene:
             value.setflags(write=False)
             object.__setattr__(self, name, value)
         object.__setattr__(self, "alpha", masks)
+
+    @property
+    def textured(self) -> bool:
+        """Whether any triangle has a base-colour texture."""
+        return self.colour is not None and bool(np.any(self.colour.vertex_texture >= 0))
 
     @property
     def masked(self) -> bool:
@@ -186,6 +281,9 @@ class Scene:
             theirs, their_uv = mask_of(other, len(self.alpha))
             masks = dict(uv=np.concatenate([own_uv, their_uv]), vertex_mask=np.concatenate([own, theirs]),
                          alpha=self.alpha + other.alpha)
+        if self.colour is not None or other.colour is not None:
+            masks["colour"] = (self.colour or ColourTextures.none(len(self.vertices))).merged(
+                other.colour or ColourTextures.none(len(other.vertices)))
         return Scene(
             np.concatenate([self.vertices, other.vertices]),
             np.concatenate([self.triangles, other.triangles + self.vertices.shape[0]]),

@@ -20,9 +20,12 @@ triangle here is put where the glTF 2.0 specification puts it (§3.5.3 "Transfor
   counter-clockwise rule and per-triangle normals stay outward.
 
 Only triangle primitives (modes 4, 5, 6) are read; points and lines are left out. Normals are not
-read (they come from the winding) and neither are colours (the albedo is one colour, as for the
-other mesh formats). The one material property read is the alpha test (§3.9.4 "Alpha Coverage"):
-a primitive whose material has ``alphaMode = "MASK"`` becomes alpha-tested triangles
+read (they come from the winding), nor vertex colours. A primitive's material gives its triangles'
+albedo: ``pbrMetallicRoughness.baseColorFactor`` (linear RGB, white without one) times its
+``baseColorTexture`` (sRGB-decoded, sampled at the texture's ``TEXCOORD_n`` under
+``KHR_texture_transform``, :class:`~csmlab.scene.core.ColourTextures`); a primitive without a
+material keeps :func:`~csmlab.scene.mesh.load_mesh`'s ``albedo`` (grey). The alpha test (§3.9.4
+"Alpha Coverage") is read too: a primitive whose material has ``alphaMode = "MASK"`` becomes alpha-tested triangles
 (:class:`~csmlab.scene.core.AlphaMask`) — coverage is ``pbrMetallicRoughness.baseColorFactor[3]``
 times the ``baseColorTexture``'s alpha channel (read by :func:`csmlab.scene.alpha_files.alpha_mask_of_image`
 from a file beside the glTF, a ``data:`` URI or a buffer view), opaque where coverage ≥
@@ -32,7 +35,8 @@ Every primitive has vertices of its own in every placement, so an instanced or m
 its texture coordinates and its mask.
 
 The sun is a ``KHR_lights_punctual`` light of type ``directional`` attached to a node of the scene:
-it shines along that node's world −Z axis (the extension's "lights point along −Z").
+it shines along that node's world −Z axis (the extension's "lights point along −Z"), in its
+``color`` (linear RGB; the shaded views tint the direct light with it).
 
 Every broken file stops with an :class:`~csmlab.errors.InputError` naming the file and the glTF
 key (``accessors[3]``, ``nodes[2].rotation``, ``KHR_lights_punctual``, …) and what was expected;
@@ -56,8 +60,8 @@ import numpy as np
 from csmlab.documents import MAX_TRIANGLES, Value, is_file, json_value, within_limit
 from csmlab.errors import InputError
 from csmlab.geometry import quat_to_matrix
-from csmlab.scene.alpha_files import alpha_mask_of_image
-from csmlab.scene.core import AlphaMask
+from csmlab.scene.alpha_files import alpha_mask_of_image, colour_texture_of_image
+from csmlab.scene.core import AlphaMask, ColourTexture, ColourTextures
 from csmlab.scene.gltf_compression import decompressed
 from csmlab.scene.gltf_materials import texture_coordinate_set, transformed_uv
 
@@ -423,12 +427,18 @@ class _Primitive:
         The ``MASK`` material's index, −1 for an opaque primitive.
     uv : ndarray, shape (V, 2), float64, or None
         The mask's texture coordinates (None for an opaque primitive).
+    colour_material : int
+        The primitive's material, −1 without one (it keeps :func:`~csmlab.scene.mesh.load_mesh`'s ``albedo``).
+    colour_uv : ndarray, shape (V, 2), float64, or None
+        Where its ``baseColorTexture`` is sampled (None without a texture).
     """
 
     points: np.ndarray
     triangles: np.ndarray
     material: int
     uv: np.ndarray | None
+    colour_material: int = -1
+    colour_uv: np.ndarray | None = None
 
 
 def _primitive(gltf: GltfFile, mesh: Value, p: int) -> _Primitive | None:
@@ -463,9 +473,14 @@ def _primitive(gltf: GltfFile, mesh: Value, p: int) -> _Primitive | None:
         hub = np.full(k.shape, indices[0] if indices.size else 0)
         triangles = np.stack([hub, indices[k + 1], indices[k + 2]], axis=1)
     material = _masked_material(gltf, primitive.get("material"))
+    colour_material = -1 if not primitive.has("material") else gltf.entry(primitive.at("material"), "materials")[0]
+    colour_uv = None
+    if colour_material >= 0 and _base_colour_texture(gltf, colour_material) is not None:
+        colour_uv = _mask_coordinates(gltf, attributes, colour_material, points.shape[0])
     if material < 0:
-        return _Primitive(points, triangles, -1, None)
-    return _Primitive(points, triangles, material, _mask_coordinates(gltf, attributes, material, points.shape[0]))
+        return _Primitive(points, triangles, -1, None, colour_material, colour_uv)
+    return _Primitive(points, triangles, material, _mask_coordinates(gltf, attributes, material, points.shape[0]),
+                      colour_material, colour_uv)
 
 
 def _masked_material(gltf: GltfFile, reference: Value | None) -> int:
@@ -485,13 +500,13 @@ def _base_colour_texture(gltf: GltfFile, material: int) -> Value | None:
 
 
 def _mask_coordinates(gltf: GltfFile, attributes: Value, material: int, count: int) -> np.ndarray:
-    """The ``TEXCOORD_n`` ``(count, 2)`` a ``MASK`` material's base colour texture is sampled at (zeros without one)."""
+    """The ``TEXCOORD_n`` ``(count, 2)`` a material's base colour texture is sampled at (zeros without one)."""
     texture = _base_colour_texture(gltf, material)
     if texture is None:
         return np.zeros((count, 2))
     name = f"TEXCOORD_{texture_coordinate_set(texture)}"
     if not attributes.has(name):
-        raise attributes.error(f"{name}, the coordinates of alpha-masked materials[{material}]'s baseColorTexture, "
+        raise attributes.error(f"{name}, the coordinates of materials[{material}]'s baseColorTexture, "
                                f"found none", got=False)
     uv = gltf.accessor(attributes.at(name))
     if uv.shape != (count, 2):
@@ -595,7 +610,8 @@ def gltf_scene_triangles(gltf: GltfFile) -> tuple[np.ndarray, np.ndarray, dict]:
             triangles_out.append((wound + shift[:, None, None]).reshape(-1, 3))
             parts.append((part, placements.shape[0]))
             offset += placed.shape[0] * placed.shape[1]
-    return np.concatenate(points_out), np.concatenate(triangles_out), _scene_masks(gltf, parts)
+    return np.concatenate(points_out), np.concatenate(triangles_out), {**_scene_masks(gltf, parts),
+                                                                       **_scene_colour(gltf, parts)}
 
 
 def _scene_masks(gltf: GltfFile, parts: list[tuple[_Primitive, int]]) -> dict:
@@ -620,6 +636,47 @@ def _scene_masks(gltf: GltfFile, parts: list[tuple[_Primitive, int]]) -> dict:
                 alpha=tuple(material_mask(gltf, material) for material in used))
 
 
+def _scene_colour(gltf: GltfFile, parts: list[tuple[_Primitive, int]]) -> dict:
+    """``base_colour`` ``(T, 3)`` (NaN where a primitive has no material) and ``colour``
+    (:class:`~csmlab.scene.core.ColourTextures`) of the placed primitives, in output order; empty
+    when no primitive has a material."""
+    if all(part.colour_material < 0 for part, _ in parts):
+        return {}
+    textured = sorted({part.colour_material for part, _ in parts if part.colour_uv is not None})
+    factors, uv, index = [], [], []
+    for part, instances in parts:
+        count = part.points.shape[0] * instances
+        factor = (np.full(3, np.nan) if part.colour_material < 0
+                  else _base_colour_factor(gltf, part.colour_material)[:3])
+        factors.append(np.tile(factor, (part.triangles.shape[0] * instances, 1)))
+        if part.colour_uv is None:
+            uv.append(np.zeros((count, 2)))
+            index.append(np.full(count, -1, np.int32))
+        else:
+            uv.append(np.tile(part.colour_uv, (instances, 1)))
+            index.append(np.full(count, textured.index(part.colour_material), np.int32))
+    textures = tuple(_colour_texture(gltf, material) for material in textured)
+    colour = ColourTextures(np.concatenate(uv), np.concatenate(index), textures) if textures else None
+    return dict(base_colour=np.concatenate(factors), colour=colour)
+
+
+def _base_colour_factor(gltf: GltfFile, material: int) -> np.ndarray:
+    """``materials[material].pbrMetallicRoughness.baseColorFactor`` ``(4,)``: linear RGBA in [0, 1], ones without one."""
+    pbr = gltf.section("materials")[material].get("pbrMetallicRoughness")
+    factor_value = None if pbr is None else pbr.mapping().get("baseColorFactor")
+    factor = np.ones(4) if factor_value is None else factor_value.numbers(4, what="4 numbers in [0, 1]")
+    if not np.all((factor >= 0.0) & (factor <= 1.0)):
+        raise factor_value.error("4 numbers in [0, 1]")
+    return factor
+
+
+def _colour_texture(gltf: GltfFile, material: int) -> ColourTexture:
+    """The :class:`~csmlab.scene.core.ColourTexture` of ``materials[material]``'s ``baseColorTexture``."""
+    texture = _base_colour_texture(gltf, material)
+    data, source, image_key = _texture_image(gltf, texture.at("index", "a texture index"))
+    return colour_texture_of_image(data, source=source, field=image_key)
+
+
 @dataclass(frozen=True)
 class Sun:
     """A ``KHR_lights_punctual`` directional light of a glTF scene.
@@ -630,10 +687,14 @@ class Sun:
         Unit vector from the light toward the scene, in the file's axes (its node's world −Z).
     name : str
         The light's name (its node's when the light has none).
+    colour : ndarray, shape (3,), float64
+        The light's ``color``, linear RGB in [0, 1] (white without one). Its ``intensity`` (lux) is
+        not read: csmlab's shading is in units of the sun's irradiance.
     """
 
     direction: np.ndarray
     name: str
+    colour: np.ndarray = field(default_factory=lambda: np.ones(3))
 
 
 def sun_of(gltf: GltfFile) -> Sun:
@@ -662,7 +723,11 @@ def sun_of(gltf: GltfFile) -> Sun:
         if not math.isfinite(length) or length < 1e-12:
             raise gltf.error(f"nodes[{index}]", "expected a directional light's node to have a non-degenerate "
                                                 "world transform, its −Z axis has zero length")
-        found.append(Sun(direction=axis / length, name=_name(light) or _name(node) or f"nodes[{index}]"))
+        colour_value = light.get("color")
+        colour = np.ones(3) if colour_value is None else colour_value.numbers(3, what="3 linear RGB numbers in [0, 1]")
+        if not np.all((colour >= 0.0) & (colour <= 1.0)):
+            raise colour_value.error("3 linear RGB numbers in [0, 1]")
+        found.append(Sun(direction=axis / length, name=_name(light) or _name(node) or f"nodes[{index}]", colour=colour))
     if len(found) != 1:
         names = ", ".join(s.name for s in found)
         raise gltf.error(LIGHTS, "expected one directional light on a node of the scene, found "

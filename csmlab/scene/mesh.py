@@ -13,6 +13,10 @@ triangles (:class:`~csmlab.scene.core.AlphaMask`, cutoff 0.5: OBJ has none of it
 alpha channel (or luminance) read by :func:`csmlab.scene.alpha_files.read_alpha_mask`, the
 material's texture coordinates (``vt``, which VTK keeps per material), ``v`` turned to run down the
 image (OBJ's origin is the image's bottom-left). Each masked triangle gets vertices of its own.
+A material's ``Kd`` (linear RGB) is its triangles' albedo and its ``map_Kd`` (sRGB, read by
+:func:`csmlab.scene.alpha_files.read_colour_texture`) multiplies it where the camera sees it
+(:class:`~csmlab.scene.core.ColourTextures`, sampled at the same ``vt``); a face without a material
+colour takes the ``albedo`` given.
 A glTF file's ``alphaMode = "MASK"`` materials become alpha-tested triangles the same way, read by
 :mod:`csmlab.scene.gltf` (VTK's reader keeps no material).
 
@@ -28,6 +32,7 @@ import logging
 import re
 import warnings
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -35,8 +40,8 @@ import numpy as np
 from csmlab.documents import MAX_COORDINATE, MAX_TRIANGLES, is_file, within_limit
 from csmlab.errors import InputError
 from csmlab.registry import check_name
-from csmlab.scene.alpha_files import read_alpha_mask
-from csmlab.scene.core import Scene
+from csmlab.scene.alpha_files import read_alpha_mask, read_colour_texture
+from csmlab.scene.core import ColourTextures, Scene
 from csmlab.scene.gltf import gltf_scene_triangles, read_gltf
 from csmlab.scene.gltf_materials import BLEND_CASTERS, apply_blend_rule
 from csmlab.scene.shapes import height_field, scene_from_parts
@@ -213,14 +218,41 @@ def _check_obj_references(path: Path) -> None:
                                      f"-{seen[kind]}), got {word!r}", file=path, line=number, field="f")
 
 
-def _obj_materials(path: Path) -> tuple[list[str], dict[str, Path]]:
-    """The material of every face of an OBJ file, in file order, and the ``map_d`` of each material that has one.
+@dataclass(frozen=True)
+class _ObjMaterials:
+    """What an OBJ file's materials say, by material name.
 
-    ``mtllib`` files are read relative to the OBJ file, their ``map_d`` images relative to the
-    ``.mtl`` file (the last word of the line: options before it are not read). A missing ``.mtl``
-    leaves its materials without maps, as viewers draw them.
+    Attributes
+    ----------
+    faces : list of str
+        The material of every face, in file order (``""`` before the first ``usemtl``).
+    maps : dict of str to Path
+        Each material's ``map_d`` image.
+    diffuse : dict of str to ndarray
+        Each material's ``Kd`` ``(3,)``, linear RGB in [0, 1].
+    colour_maps : dict of str to Path
+        Each material's ``map_Kd`` image.
     """
-    faces, maps, current = [], {}, ""
+
+    faces: list
+    maps: dict
+    diffuse: dict
+    colour_maps: dict
+
+
+def _obj_materials(path: Path) -> _ObjMaterials:
+    """The material of every face of an OBJ file and the ``map_d``, ``Kd`` and ``map_Kd`` of its materials.
+
+    ``mtllib`` files are read relative to the OBJ file, their images relative to the ``.mtl`` file
+    (the last word of the line: options before it are not read). A missing ``.mtl`` leaves its
+    materials without maps or colours, as viewers draw them.
+
+    Raises
+    ------
+    InputError
+        On a ``Kd`` that is not one or three numbers in [0, 1], naming the ``.mtl`` file and line.
+    """
+    faces, maps, diffuse, colour_maps, current = [], {}, {}, {}, ""
     for line in _lenient_text(path).splitlines():
         words = line.split()
         if not words:
@@ -235,13 +267,29 @@ def _obj_materials(path: Path) -> tuple[list[str], dict[str, Path]]:
                 if not is_file(library):
                     continue
                 material = ""
-                for entry in _lenient_text(library).splitlines():
+                for number, entry in enumerate(_lenient_text(library).splitlines(), start=1):
                     parts = entry.split()
                     if parts and parts[0] == "newmtl":
                         material = " ".join(parts[1:])
                     elif parts and parts[0] == "map_d" and len(parts) > 1:
                         maps[material] = library.parent / parts[-1]
-    return faces, maps
+                    elif parts and parts[0] == "map_Kd" and len(parts) > 1:
+                        colour_maps[material] = library.parent / parts[-1]
+                    elif parts and parts[0] == "Kd":
+                        diffuse[material] = _diffuse(parts[1:], library, number)
+    return _ObjMaterials(faces, maps, diffuse, colour_maps)
+
+
+def _diffuse(words: list[str], library: Path, number: int) -> np.ndarray:
+    """``Kd r [g b]`` as linear RGB ``(3,)`` (one number: grey, as the MTL format defines)."""
+    try:
+        values = np.array([float(w) for w in words], dtype=np.float64)
+    except ValueError:
+        values = np.array([np.nan])
+    if values.size not in (1, 3) or not np.all((values >= 0.0) & (values <= 1.0)):
+        raise InputError(f"expected Kd as one or three numbers in [0, 1] (linear RGB), got {' '.join(words)!r}",
+                         file=library, line=number, field="Kd")
+    return np.broadcast_to(values, (3,)).copy()
 
 
 def _lenient_text(path: Path) -> str:
@@ -252,14 +300,14 @@ def _lenient_text(path: Path) -> str:
         raise InputError(f"expected a readable file, got {exc.strerror or exc}", file=path) from None
 
 
-def _obj_masks(cell_count: int, path: Path, points: np.ndarray, triangles: np.ndarray, cells: np.ndarray,
-               point_arrays: dict):
+def _obj_masks(materials: _ObjMaterials, cell_count: int, path: Path, points: np.ndarray, triangles: np.ndarray,
+               cells: np.ndarray, point_arrays: dict):
     """Vertices, triangles and ``uv, vertex_mask, alpha`` of an OBJ mesh with ``map_d`` materials; None if it has none.
 
     Each masked triangle's corners become vertices of their own (appended after ``points``), so a
     vertex a masked face shares with another face keeps one mask.
     """
-    faces, maps = _obj_materials(path)
+    faces, maps = materials.faces, materials.maps
     used = sorted({name for name in faces if name in maps})
     if not used:
         return None
@@ -372,13 +420,18 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
         raise InputError(f"expected vertices within {MAX_COORDINATE:g} m of the origin (docs/design.md, \"Inputs\"), "
                          f"vertex {at + 1} in reading order lies at {np.abs(points[at]).max():.3g} m", file=path,
                          field="vertices")
+    base_colour = masks.pop("base_colour", None)
+    textures = masks.pop("colour", None)
+    if base_colour is not None:  # a material's base colour; `albedo` where a face has none
+        colour = np.where(np.isnan(base_colour), colour, base_colour)
     try:
         scene = Scene.from_triangles(points, triangles, albedo=colour, name=path.name)
     except ValueError as exc:
         raise InputError(f"expected at least one triangle of non-zero area, all {triangles.shape[0]} are degenerate",
                          file=path, field="triangles") from exc
-    if masks:
-        scene = Scene(scene.vertices, scene.triangles, scene.normals, scene.albedo, name=scene.name, **masks)
+    if masks or textures is not None:
+        scene = Scene(scene.vertices, scene.triangles, scene.normals, scene.albedo, name=scene.name, colour=textures,
+                      **masks)
     return scene.merged(_ground_under(scene)) if ground else scene
 
 
@@ -390,7 +443,90 @@ def _vtk_mesh(path: Path, fmt: str) -> tuple[np.ndarray, np.ndarray, dict]:
     points, triangles, cells, point_arrays = _surface_triangles(data, path)
     masks = {}
     if fmt == MESH_FORMATS[".obj"]:
-        found = _obj_masks(data.n_cells, path, points, triangles, cells, point_arrays)
+        materials = _obj_materials(path)
+        colour = _obj_colours(materials, data.n_cells, path, triangles, cells, point_arrays)
+        found = _obj_masks(materials, data.n_cells, path, points, triangles, cells, point_arrays)
         if found is not None:
             points, triangles, masks = found
+        if colour is not None:
+            points, triangles, masks = _with_colour(points, triangles, masks, colour)
     return points, triangles, masks
+
+
+@dataclass(frozen=True)
+class _ObjColours:
+    """An OBJ mesh's base colours: ``Kd`` per triangle and its ``map_Kd`` textures.
+
+    Attributes
+    ----------
+    base_colour : ndarray, shape (T, 3), float64
+        ``Kd`` of each triangle's material; NaN where it has none (the ``albedo`` given).
+    rows : ndarray, shape (R,), int64
+        The triangles with a ``map_Kd``.
+    uv : ndarray, shape (R, 3, 2), float64
+        Their corners' texture coordinates, v running down the image.
+    texture : ndarray, shape (R,), int32
+        Index of each one's texture in ``textures``.
+    textures : tuple of ColourTexture
+    """
+
+    base_colour: np.ndarray
+    rows: np.ndarray
+    uv: np.ndarray
+    texture: np.ndarray
+    textures: tuple
+
+
+def _obj_colours(materials: _ObjMaterials, cell_count: int, path: Path, triangles: np.ndarray, cells: np.ndarray,
+                 point_arrays: dict) -> _ObjColours | None:
+    """The ``Kd`` and ``map_Kd`` of an OBJ mesh's triangles; None when no face's material has either."""
+    faces = materials.faces
+    coloured = {name for name in faces if name in materials.diffuse or name in materials.colour_maps}
+    if not coloured:
+        return None
+    if len(faces) != cell_count:
+        raise InputError(f"expected one cell per face line to match materials to faces, VTK read {cell_count} "
+                         f"cells for {len(faces)} faces", file=path, field="usemtl")
+    names = sorted(set(faces))
+    face_material = np.array([names.index(name) for name in faces], dtype=np.int64)[cells]
+    table = np.array([materials.diffuse.get(name, np.full(3, np.nan)) for name in names])
+    textured = sorted(name for name in coloured if name in materials.colour_maps)
+    textures = tuple(read_colour_texture(materials.colour_maps[name], field="map_Kd") for name in textured)
+    rows, uv, texture = [], [], []
+    for k, name in enumerate(textured):
+        picked = np.flatnonzero(face_material == names.index(name))
+        if name not in point_arrays:
+            raise InputError(f"expected texture coordinates (vt) on the faces of material {name!r}, which has a "
+                             f"map_Kd", file=path, field="vt")
+        coordinates = np.asarray(point_arrays[name], dtype=np.float64)[triangles[picked]]
+        if not np.all(np.isfinite(coordinates)):
+            raise InputError(f"expected finite texture coordinates (vt) on the faces of material {name!r}, found NaN "
+                             f"or infinity", file=path, line=_line_of_first_non_finite(path), field="vt")
+        rows.append(picked)
+        uv.append(np.stack([coordinates[..., 0], 1.0 - coordinates[..., 1]], axis=-1))
+        texture.append(np.full(picked.size, k, np.int32))
+    return _ObjColours(table[face_material], np.concatenate(rows) if rows else np.zeros(0, np.int64),
+                       np.concatenate(uv) if uv else np.zeros((0, 3, 2)),
+                       np.concatenate(texture) if texture else np.zeros(0, np.int32), textures)
+
+
+def _with_colour(points: np.ndarray, triangles: np.ndarray, masks: dict,
+                 colour: _ObjColours) -> tuple[np.ndarray, np.ndarray, dict]:
+    """``points``, ``triangles`` and ``masks`` with the colours of :func:`_obj_colours` as ``base_colour`` and
+    ``colour`` (each textured triangle's corners become vertices of their own, their masks copied)."""
+    out = triangles.copy()
+    extra = {"base_colour": colour.base_colour}
+    if not colour.textures:
+        return points, out, {**masks, **extra}
+    corners = triangles[colour.rows].reshape(-1)
+    slots = (points.shape[0] + np.arange(corners.size)).reshape(-1, 3)
+    out[colour.rows] = slots
+    vertex_texture = np.full(points.shape[0] + corners.size, -1, np.int32)
+    vertex_texture[slots] = colour.texture[:, None]
+    uv = np.zeros((vertex_texture.size, 2))
+    uv[slots] = colour.uv
+    if masks:
+        masks = dict(masks, uv=np.concatenate([masks["uv"], masks["uv"][corners]]),
+                     vertex_mask=np.concatenate([masks["vertex_mask"], masks["vertex_mask"][corners]]))
+    extra["colour"] = ColourTextures(uv, vertex_texture, colour.textures)
+    return np.concatenate([points, points[corners]]), out, {**masks, **extra}
