@@ -52,7 +52,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import warp as wp
 from threadpoolctl import threadpool_limits
 
 # Run as a script, this file's folder comes first on sys.path: put the checkout it belongs to

@@ -149,7 +149,7 @@ class CameraPath:
         """All poses in order."""
         return [self.pose(i) for i in range(len(self))]
 
-    def sample(self, t) -> "CameraPath":
+    def sample(self, t) -> CameraPath:
         """Poses at times ``t`` (seconds, within the path): linear positions and fov, slerped orientations."""
         t = np.asarray(t, dtype=np.float64).reshape(-1)
         if np.any(t < self.times[0] - 1e-9) or np.any(t > self.times[-1] + 1e-9):
@@ -173,7 +173,7 @@ class CameraPath:
             aspect=self.aspect, near=self.near, far=self.far, name=self.name,
         )
 
-    def resample(self, fps: float) -> "CameraPath":
+    def resample(self, fps: float) -> CameraPath:
         """The path at a fixed frame rate ``fps`` (Hz) from its first time stamp, slerping orientations.
 
         The first pose is kept; the last kept pose is the last whole frame inside the path.
@@ -184,7 +184,7 @@ class CameraPath:
         count = int(np.floor(duration * fps + 1e-9)) + 1
         return self.sample(self.times[0] + np.arange(count) / fps)
 
-    def crop(self, start_s: float, end_s: float) -> "CameraPath":
+    def crop(self, start_s: float, end_s: float) -> CameraPath:
         """Poses with ``start_s <= time <= end_s`` (seconds)."""
         keep = (self.times >= start_s) & (self.times <= end_s)
         if not np.any(keep):
@@ -194,7 +194,7 @@ class CameraPath:
             fov_y_deg=self.fov_y_deg[keep], aspect=self.aspect, near=self.near, far=self.far, name=self.name,
         )
 
-    def head(self, count: int) -> "CameraPath":
+    def head(self, count: int) -> CameraPath:
         """The first ``count`` poses."""
         if count < 1:
             raise ValueError(f"frames: expected at least 1, got {count}")

@@ -14,7 +14,6 @@ import re
 import sys
 import time
 from pathlib import Path
-from typing import Optional
 
 import typer
 from rich.console import Console
@@ -150,14 +149,14 @@ def _summary_table(summary: dict) -> Table:
 
 @app.command()
 def run(
-    experiment: Optional[str] = typer.Argument(None, help="Experiment file, or the name of a built-in one; "
+    experiment: str | None = typer.Argument(None, help="Experiment file, or the name of a built-in one; "
                                                           "default: the built-in default experiment."),
-    out: Optional[Path] = typer.Option(None, "--out", help="Results directory; default reports/<name>/."),
-    frames: Optional[int] = typer.Option(None, "--frames", help="Cap on frames (overrides camera.frames)."),
-    jobs: Optional[int] = typer.Option(None, "--jobs", help="Local worker processes; default all cores "
+    out: Path | None = typer.Option(None, "--out", help="Results directory; default reports/<name>/."),
+    frames: int | None = typer.Option(None, "--frames", help="Cap on frames (overrides camera.frames)."),
+    jobs: int | None = typer.Option(None, "--jobs", help="Local worker processes; default all cores "
                                                             "(1 runs in this process; with --scheduler local: "
                                                             "Dask workers)."),
-    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask: 'local' (a LocalCluster) or "
+    scheduler: str | None = typer.Option(None, "--scheduler", help="Dask: 'local' (a LocalCluster) or "
                                                                       "tcp://HOST:PORT (a running scheduler)."),
     device: str = typer.Option("cpu", "--device", help="Warp device: cpu or cuda."),
     resume: bool = typer.Option(False, "--resume", help="Continue an interrupted run in the same directory."),
@@ -282,11 +281,11 @@ def _regress_table(result) -> Table:
 def regress(
     results_dir: Path = typer.Argument(..., help="A results directory of csmlab run."),
     baseline: Path = typer.Option(..., "--baseline", help="A baseline file (csmlab baseline writes one)."),
-    tolerances: Optional[Path] = typer.Option(None, "--tolerances", help="TOML of metric = { abs = …, rel = … } "
+    tolerances: Path | None = typer.Option(None, "--tolerances", help="TOML of metric = { abs = …, rel = … } "
                                                                          "overrides."),
-    junit: Optional[Path] = typer.Option(None, "--junit", help="Also write the verdict as JUnit XML (one test case "
+    junit: Path | None = typer.Option(None, "--junit", help="Also write the verdict as JUnit XML (one test case "
                                                                "per method × metric check) for the CI's test report."),
-    markdown: Optional[Path] = typer.Option(None, "--markdown", help="Also write a Markdown summary (verdict, what "
+    markdown: Path | None = typer.Option(None, "--markdown", help="Also write a Markdown summary (verdict, what "
                                                                      "moved, worst frames) for a PR comment."),
 ) -> None:
     """Compare a run's summary with a baseline: exit 1 when a metric moved the wrong way beyond tolerance."""
@@ -338,7 +337,7 @@ def baseline(
 def compare(
     run_a: Path = typer.Argument(..., help="Results directory of run A (the reference)."),
     run_b: Path = typer.Argument(..., help="Results directory of run B (the change), of the same workload."),
-    out: Optional[Path] = typer.Option(None, "--out", help="Where the comparison report goes; default "
+    out: Path | None = typer.Option(None, "--out", help="Where the comparison report goes; default "
                                                           "reports/compare/<A>-vs-<B>/."),
 ) -> None:
     """Compare two runs of one workload, A against B: metric deltas, per-frame curves, images, settings."""
@@ -402,7 +401,7 @@ def list_names() -> None:
 
 
 @app.command()
-def show(experiment: Optional[str] = typer.Argument(None, help="Experiment file or built-in name; default: the "
+def show(experiment: str | None = typer.Argument(None, help="Experiment file or built-in name; default: the "
                                                                "default experiment.")) -> None:
     """Print an experiment resolved: presets merged, every field with its documentation, and its hashes; then its
     scene, camera path and light as loaded and checked (a bad mesh, path or sun stops here, not at run)."""
@@ -455,29 +454,29 @@ def _workload_lines(loaded, workload) -> list[str]:
 def tune(
     experiment: str = typer.Argument(..., help="Experiment file or built-in name: the workload, the method and "
                                                "its \\[tune] table."),
-    param: Optional[list[str]] = typer.Option(None, "--param", help="A \\[shadow] field to search: FIELD=LO:HI (a "
+    param: list[str] | None = typer.Option(None, "--param", help="A \\[shadow] field to search: FIELD=LO:HI (a "
                                               "range) or FIELD=A,B,C (choices); repeat for more; adds to \\[tune]."),
-    objective: Optional[list[str]] = typer.Option(None, "--objective", help="A metrics.csv column to improve (mean "
+    objective: list[str] | None = typer.Option(None, "--objective", help="A metrics.csv column to improve (mean "
                                                   "over frames); repeat for several. Default: \\[tune] objectives, "
                                                   "else rho_p05."),
-    memory_budget: Optional[str] = typer.Option(None, "--memory-budget", help="Shadow-map memory a recommended "
+    memory_budget: str | None = typer.Option(None, "--memory-budget", help="Shadow-map memory a recommended "
                                                 "setting may not exceed: 64MiB, 16MB or bytes."),
-    max_flicker: Optional[str] = typer.Option(None, "--max-flicker", help="Largest flicker (--flicker-metric) a "
+    max_flicker: str | None = typer.Option(None, "--max-flicker", help="Largest flicker (--flicker-metric) a "
                                               "recommended setting may have: a number, or best-preset."),
-    flicker_metric: Optional[str] = typer.Option(None, "--flicker-metric", help="The flicker column the limit "
+    flicker_metric: str | None = typer.Option(None, "--flicker-metric", help="The flicker column the limit "
                                                  "applies to; default flicker."),
-    method: Optional[str] = typer.Option(None, "--method", help="The method to tune; default the first."),
-    trials: Optional[int] = typer.Option(None, "--trials", help="Candidates to search; default \\[tune] trials, "
+    method: str | None = typer.Option(None, "--method", help="The method to tune; default the first."),
+    trials: int | None = typer.Option(None, "--trials", help="Candidates to search; default \\[tune] trials, "
                                                                 "else 20."),
     batch: int = typer.Option(4, "--batch", help="Candidates run together (they share each frame's view); a "
                                                  "resumed tune must use the same."),
-    frames: Optional[int] = typer.Option(None, "--frames", help="Cap on frames (overrides camera.frames)."),
-    out: Optional[Path] = typer.Option(None, "--out", help="Where the tune goes; default reports/<name>/tune/."),
-    jobs: Optional[int] = typer.Option(None, "--jobs", help="Local worker processes per run; default all cores."),
-    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask: 'local' or tcp://HOST:PORT."),
+    frames: int | None = typer.Option(None, "--frames", help="Cap on frames (overrides camera.frames)."),
+    out: Path | None = typer.Option(None, "--out", help="Where the tune goes; default reports/<name>/tune/."),
+    jobs: int | None = typer.Option(None, "--jobs", help="Local worker processes per run; default all cores."),
+    scheduler: str | None = typer.Option(None, "--scheduler", help="Dask: 'local' or tcp://HOST:PORT."),
     device: str = typer.Option("cpu", "--device", help="Warp device: cpu or cuda."),
-    seed: Optional[int] = typer.Option(None, "--seed", help="Sampler seed (the same seed repeats the search)."),
-    presets: Optional[Path] = typer.Option(None, "--presets", help="A folder of method presets to compare with; "
+    seed: int | None = typer.Option(None, "--seed", help="Sampler seed (the same seed repeats the search)."),
+    presets: Path | None = typer.Option(None, "--presets", help="A folder of method presets to compare with; "
                                                                    "default configs/engines."),
 ) -> None:
     """Find the best shadow setting within memory and flicker budgets, against every engine preset."""
@@ -548,7 +547,7 @@ def import_(
     engine: str = typer.Argument(..., help="The engine (csmlab list names each with its files)."),
     files: list[Path] = typer.Argument(..., help="The engine's own files (README.md, 'Your engine's settings')."),
     out: Path = typer.Option(..., "--out", help="The method preset to write (TOML, for extends)."),
-    name: Optional[str] = typer.Option(None, "--name", help="The method's name; default the file's stem."),
+    name: str | None = typer.Option(None, "--name", help="The method's name; default the file's stem."),
 ) -> None:
     """Read an engine's shadow settings from its own files as a method preset: each field commented with the file
     and key it came from, the engine settings csmlab cannot model listed. A Godot scene that instances glTF files

@@ -62,13 +62,13 @@ class LightPath:
         object.__setattr__(self, "colour", c)
 
     @classmethod
-    def static(cls, direction, frames: int) -> "LightPath":
+    def static(cls, direction, frames: int) -> LightPath:
         """The same ``direction`` for ``frames`` frames."""
         return cls(np.repeat(normalized(direction, name="light direction")[None], frames, axis=0))
 
     @classmethod
     def sun(cls, *, elevation_deg: float, azimuth_deg: float, elevation_end_deg: float,
-            azimuth_end_deg: float, frames: int) -> "LightPath":
+            azimuth_end_deg: float, frames: int) -> LightPath:
         """A sun moving linearly in elevation and azimuth from the first frame to the last."""
         s = np.linspace(0.0, 1.0, frames) if frames > 1 else np.zeros(1)
         return cls(np.stack([

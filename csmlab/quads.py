@@ -75,7 +75,7 @@ class Quads:
     position: np.ndarray
     slot: np.ndarray
 
-    def __getitem__(self, index) -> "Quads":
+    def __getitem__(self, index) -> Quads:
         return Quads(position=self.position[index], slot=self.slot[index])
 
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import difflib
 import functools
 import inspect
-from typing import Callable, Mapping
+from collections.abc import Callable, Mapping
 
 __all__ = ["check_name", "close_match_hint", "dispatch", "parameters", "unknown_name_message"]
 
@@ -44,7 +44,7 @@ def check_name(value, registry: Mapping, *, field: str) -> str:
     raise ValueError(f"{field}: {unknown_name_message(value, registry)}")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def parameters(function: Callable) -> tuple[str, ...]:
     """The keyword parameters ``function`` declares, in order.
 

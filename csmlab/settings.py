@@ -252,7 +252,7 @@ class ShadowSettings:
     atlas_layout: str = "2x2"
     """atlas: 2x2 | 1x4 | unigine (2×2, split 1 below split 0), up to 4 cascades, empty tiles allocated."""
 
-    def validated(self) -> "ShadowSettings":
+    def validated(self) -> ShadowSettings:
         """Return ``self`` after checking every field's range, group by group (:data:`SETTING_GROUPS`); raise
         ``ValueError`` naming the field."""
         for group in SETTING_GROUPS:
@@ -274,7 +274,7 @@ class ShadowSettings:
         """
         return FILTER_METHODS[check_name(self.filter, FILTER_METHODS, field="filter")].radius_of(self) + 1
 
-    def replace(self, **changes) -> "ShadowSettings":
+    def replace(self, **changes) -> ShadowSettings:
         """A copy with ``changes`` applied (TOML name ``lambda`` accepted for ``lambda_``)."""
         if "lambda" in changes:
             changes["lambda_"] = changes.pop("lambda")

@@ -52,7 +52,7 @@ def test_a_value_of_another_type_names_file_key_expected_and_got(read, key, expe
     with pytest.raises(InputError, match=f"expected {expected}, got {got}") as info:
         read(_value())
     assert info.value.file == "level.gltf" and info.value.field == key
-    assert str(info.value).startswith(f"level.gltf:") and f": {key}: expected" in str(info.value)
+    assert str(info.value).startswith("level.gltf:") and f": {key}: expected" in str(info.value)
 
 
 def test_a_missing_key_says_it_is_missing_and_a_null_says_null():

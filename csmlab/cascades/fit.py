@@ -13,7 +13,7 @@ where the selection leaves it, and the boxes are fitted so that both cascades ho
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

@@ -12,7 +12,7 @@ with the other's faces — Filament's steps (a)–(d).
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

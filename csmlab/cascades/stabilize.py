@@ -19,7 +19,7 @@ over frames — it grows at once and shrinks only when the tight size falls a fr
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

@@ -45,7 +45,7 @@ bias and filter reads warped maps in the same unit as orthographic ones.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

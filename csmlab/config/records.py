@@ -367,7 +367,7 @@ class Experiment:
         return [Variant(method=m.name, point=label, settings=m.settings.replace(**point))
                 for m in self.methods for label, point in self.points()]
 
-    def with_frames(self, frames: int) -> "Experiment":
+    def with_frames(self, frames: int) -> Experiment:
         """The same experiment with the camera's frame cap set to ``frames``."""
         if not isinstance(frames, int) or frames < 1:
             raise InputError(f"expected at least 1 frame, got {frames!r}", field="--frames")

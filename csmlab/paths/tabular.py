@@ -34,7 +34,7 @@ Errors name the line of the header (a missing column) or of the pose (its ``{`` 
 from __future__ import annotations
 
 import json
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

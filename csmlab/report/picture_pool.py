@@ -17,7 +17,8 @@ from __future__ import annotations
 import multiprocessing
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 from csmlab.executor import freeze_objects_at_exit
 

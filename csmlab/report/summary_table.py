@@ -45,7 +45,7 @@ class Headline:
     scale: float = 1.0
 
     @classmethod
-    def of(cls, metric: Metric) -> "Headline":
+    def of(cls, metric: Metric) -> Headline:
         """The column of a registered metric."""
         return cls(metric.name, metric.label, metric.unit, metric.better, metric.scale)
 

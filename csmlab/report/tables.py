@@ -46,7 +46,7 @@ class Columns:
         """Column names in file order."""
         return list(self.data)
 
-    def where(self, mask: np.ndarray) -> "Columns":
+    def where(self, mask: np.ndarray) -> Columns:
         """The rows where ``mask`` (N,) bool is true."""
         return Columns({k: v[mask] for k, v in self.data.items()})
 
@@ -54,7 +54,7 @@ class Columns:
         """The distinct ``(method, point)`` pairs, in order of first appearance."""
         return list(dict.fromkeys(zip(self.data["method"].tolist(), self.data["point"].tolist())))
 
-    def of(self, method: str, point: str) -> "Columns":
+    def of(self, method: str, point: str) -> Columns:
         """The rows of one method × sweep point, sorted by frame."""
         rows = self.where((self.data["method"] == method) & (self.data["point"] == point))
         return rows.where(np.argsort(rows.data["frame"], kind="stable"))

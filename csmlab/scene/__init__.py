@@ -9,7 +9,7 @@ dispatches on the name.
 from __future__ import annotations
 
 import inspect
-from typing import Callable
+from collections.abc import Callable
 
 from csmlab.registry import check_name, dispatch
 from csmlab.scene.city import city

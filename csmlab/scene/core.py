@@ -114,11 +114,11 @@ class ColourTextures:
         object.__setattr__(self, "textures", textures)
 
     @classmethod
-    def none(cls, vertex_count: int) -> "ColourTextures":
+    def none(cls, vertex_count: int) -> ColourTextures:
         """No texture on any of ``vertex_count`` vertices."""
         return cls(np.zeros((vertex_count, 2)), np.full(vertex_count, -1, np.int32), ())
 
-    def merged(self, other: "ColourTextures") -> "ColourTextures":
+    def merged(self, other: ColourTextures) -> ColourTextures:
         """These vertices' textures, then ``other``'s (its indices shifted past these textures)."""
         theirs = np.where(other.vertex_texture >= 0, other.vertex_texture + len(self.textures), -1)
         return ColourTextures(np.concatenate([self.uv, other.uv]), np.concatenate([self.vertex_texture, theirs]),
@@ -232,7 +232,7 @@ class Scene:
         return self.vertex_mask is not None and bool(np.any(self.vertex_mask >= 0))
 
     @classmethod
-    def from_triangles(cls, vertices, triangles, *, albedo=(0.6, 0.6, 0.6), name: str = "scene") -> "Scene":
+    def from_triangles(cls, vertices, triangles, *, albedo=(0.6, 0.6, 0.6), name: str = "scene") -> Scene:
         """Build a scene, computing each triangle's normal from its winding.
 
         Degenerate (zero-area) triangles are dropped; a scene left with none raises ``ValueError``.
@@ -269,7 +269,7 @@ class Scene:
         lo, hi = self.bounds
         return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
 
-    def merged(self, other: "Scene", *, name: str | None = None) -> "Scene":
+    def merged(self, other: Scene, *, name: str | None = None) -> Scene:
         """This scene and ``other`` as one (their masks side by side)."""
         masks = {}
         if self.vertex_mask is not None or other.vertex_mask is not None:

@@ -21,7 +21,7 @@ refuses names the primitive or buffer view.
 from __future__ import annotations
 
 import importlib
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

@@ -70,7 +70,7 @@ class Level:
     bvh: object = field(repr=False)
 
     @classmethod
-    def of(cls, scene: Scene, *, device: str = "cpu") -> "Level":
+    def of(cls, scene: Scene, *, device: str = "cpu") -> Level:
         """The level of ``scene``: its opaque triangles (all, when every one is masked) on ``device``."""
         from csmlab.kernels import start_warp
         from csmlab.kernels.visibility import mesh_bvh

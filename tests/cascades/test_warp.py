@@ -10,7 +10,7 @@ from csmlab.cascades import build_cascades
 from csmlab.cascades.warp import lispsm_parameter, warp_lispsm, warped_texel_jacobian
 from csmlab.geometry import frustum_slice_corners, light_basis, rotation_looking_at
 from csmlab.light import direction_from_angles
-from csmlab.metrics.aliasing import aliasing_maps, aliasing_summary
+from csmlab.metrics.aliasing import aliasing_maps
 from csmlab.render import clipped_triangles, prepare_scene, render_frame, shadow_maps
 from csmlab.settings import ShadowSettings
 from csmlab.texels import receiver_lookup, texel_coordinates

@@ -286,7 +286,6 @@ def gltf_card(image_uri: str) -> str:
 
 
 def test_a_gltf_mask_materials_base_colour_alpha_cuts_its_primitives(tmp_path):
-    from io import BytesIO
 
     from PIL import Image
 

@@ -63,7 +63,7 @@ def ctx():
         pytest.skip(str(exc))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _workload(offset: float, tmp: str):
     path = f"{tmp}/walk_{int(offset)}.toml"
     with open(path, "w") as file:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from csmlab.kernels.raster.mesh import CHUNK_BITS, TriangleBounds
+from csmlab.kernels.raster.mesh import TriangleBounds
 
 __all__ = ["BANDS_PER_THREAD", "banded_regions", "empty_regions", "region_chunks", "whole_map_regions"]
 
