@@ -66,7 +66,7 @@ def measure_costs(frame, previous, *, device: str) -> dict[str, float]:
     _timed(costs, "aliasing_summary", lambda: aliasing_summary(alias, cascades=len(frame.maps.cascades)))
     _timed(costs, "utilization", lambda: utilization(frame, device=device))
     errors = _timed(costs, "reference_maps", lambda: reference_maps(frame))
-    _timed(costs, "reference_summary", lambda: reference_summary(errors))
+    _timed(costs, "reference_summary", lambda: reference_summary(errors, view=frame.view))
     _timed(costs, "bias_errors", lambda: bias_errors(frame, errors))
     _timed(costs, "seam_error", lambda: seam_error(frame))
     _timed(costs, "cost_summary", lambda: cost_summary(frame))

@@ -572,8 +572,9 @@ def flip_error_map(reference, test, *, pixels_per_degree: float = FLIP_DEFAULT_P
     reach = np.asarray(reach, dtype=np.uint8)
     if reach.shape != (height, width):
         raise ValueError(f"reach: expected the images' shape {(height, width)}, got {reach.shape}")
-    reach = wp.array(reach, dtype=wp.uint8, device=device)
-    srgb = wp.array(np.stack((reference, test)), dtype=wp.vec3, device=device)
+    # Read in place where the device can (the CPU): the checked reach and this call's own stacked pair.
+    reach = wp.array(np.ascontiguousarray(reach), dtype=wp.uint8, device=device, copy=False)
+    srgb = wp.array(np.stack((reference, test)), dtype=wp.vec3, device=device, copy=False)
     ycxcz = wp.empty(pair, dtype=wp.vec3, device=device)
     luma = wp.empty(pair, dtype=float, device=device)
     wp.launch(ycxcz_kernel, dim=(height, width), inputs=(srgb, reach), outputs=(ycxcz, luma), device=device)

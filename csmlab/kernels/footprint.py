@@ -149,9 +149,10 @@ def surface_differentials(position, normal, *, eye, rotation, fov_y_deg: float, 
     wp.launch(
         surface_differentials_kernel,
         dim=shape,
+        # Read in place where the device can (the CPU): `relative` is this call's own, `n` checked above.
         inputs=(
-            wp.array(np.ascontiguousarray(relative), dtype=wp.vec3d, device=device),
-            wp.array(n, dtype=wp.vec3, device=device),
+            wp.array(np.ascontiguousarray(relative), dtype=wp.vec3d, device=device, copy=False),
+            wp.array(n, dtype=wp.vec3, device=device, copy=False),
             wp.vec3d(*(-r[:, 2])), wp.vec3d(*step_u), wp.vec3d(*step_v),
         ),
         outputs=(dpdu, dpdv),
@@ -334,10 +335,11 @@ def texel_footprint(dpdx, dpdy, cascade, *, texel_axes, device: str = "cpu") -> 
     wp.launch(
         texel_footprint_kernel,
         dim=shape,
+        # The checked arrays are read in place where the device can (the CPU), not copied again.
         inputs=(
-            wp.array(dpdx, dtype=wp.vec3, device=device),
-            wp.array(dpdy, dtype=wp.vec3, device=device),
-            wp.array(cascade, dtype=wp.int32, device=device),
+            wp.array(dpdx, dtype=wp.vec3, device=device, copy=False),
+            wp.array(dpdy, dtype=wp.vec3, device=device, copy=False),
+            wp.array(cascade, dtype=wp.int32, device=device, copy=False),
             wp.array(np.ascontiguousarray(axes[:, 0], dtype=np.float32), dtype=wp.vec3, device=device),
             wp.array(np.ascontiguousarray(axes[:, 1], dtype=np.float32), dtype=wp.vec3, device=device),
         ),

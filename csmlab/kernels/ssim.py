@@ -218,12 +218,13 @@ def ssim_where_changed(previous, current, changed, *, device: str = "cpu") -> np
     if min(previous.shape) < 2 * SSIM_RADIUS + 1:
         raise ValueError(f"previous: expected sides of at least {2 * SSIM_RADIUS + 1} pixels, got {previous.shape}")
     height, width = previous.shape
-    reach = wp.array(ssim_reach(changed), dtype=wp.uint8, device=device)
+    # The checked arrays are read in place where the device can (the CPU), not copied again.
+    reach = wp.array(ssim_reach(changed), dtype=wp.uint8, device=device, copy=False)
     weights = wp.array(_weights(), dtype=wp.float64, device=device)
     filtered = wp.empty((5, height, width), dtype=wp.float64, device=device)
     wp.launch(vertical_kernel, dim=(height, width),
-              inputs=(wp.array(previous, dtype=wp.float64, device=device),
-                      wp.array(current, dtype=wp.float64, device=device), reach, weights, SSIM_RADIUS),
+              inputs=(wp.array(previous, dtype=wp.float64, device=device, copy=False),
+                      wp.array(current, dtype=wp.float64, device=device, copy=False), reach, weights, SSIM_RADIUS),
               outputs=(filtered,), device=device)
     ssim = wp.empty((height, width), dtype=wp.float64, device=device)
     c1 = (_K1 * _DATA_RANGE) ** 2

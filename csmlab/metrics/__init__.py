@@ -96,7 +96,8 @@ def measure_frame(frame: Frame, previous: Frame | None = None, *, ambient: float
     errors = reference_maps(frame)
     values = {**aliasing_summary(alias, cascades=cascades), "utilization": _mean_utilization(share),
               **{f"utilization_c{c}": float(u) for c, u in enumerate(share)},
-              **reference_summary(errors), **bias_errors(frame, errors), **seam_error(frame), **cost_summary(frame),
+              **reference_summary(errors, view=frame.view), **bias_errors(frame, errors), **seam_error(frame),
+              **cost_summary(frame),
               **dict.fromkeys(TAA_COLUMNS, float("nan"))}
     g = frame.view.gbuffer
     if previous is None:

@@ -36,12 +36,13 @@ shadowed when ``S <= 0.5`` (the method) or ``R <= 0.5`` (the reference).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from csmlab.fades import FADE_METHODS
-from csmlab.frame import Frame
+from csmlab.frame import Frame, View
 from csmlab.registry import check_name
 
 __all__ = ["ReferenceMaps", "bias_errors", "boundary_pixels", "mean_boundary_distance", "reference_boundary",
@@ -108,26 +109,46 @@ def bias_errors(frame: Frame, maps: ReferenceMaps) -> dict[str, float]:
     if count == 0:
         return dict.fromkeys(("acne", "peter_panning"), float("nan"))
     wrong = (maps.diff != 0) & ~_fading(frame)
-    boundary = reference_boundary(maps.reference_shadowed, maps.compared)
+    cascades = frame.maps.cascades
+    boundary, tree = _reference_boundary_tree(frame.view, maps, cascades)
     # A wrong pixel that is itself a boundary point is 0 from the boundary, inside the band: only
     # the others are queried (with no boundary in view, every wrong pixel is outside).
     outside = wrong & ~boundary
     query = outside.copy() if boundary.any() else np.zeros_like(wrong)
     if query.any():
-        cascades = frame.maps.cascades
-        # Light-space x/y of the positions: the plane the map is indexed in, where resolution errors live.
-        # The same for every method whose maps share the light's basis: taken once per view and basis.
-        light_xy = frame.view.shared(("light_xy", cascades.basis.tobytes()),
-                                     lambda: cascades.to_light(frame.view.gbuffer.position)[..., :2])
         texel = np.array([float(np.max(c.texel_size)) for c in cascades.cascades])
         selected = frame.shadow.cascade[query].astype(np.int64)
         band = cascades.margin_texels * texel[selected]
-        distance = cKDTree(light_xy[boundary]).query(light_xy[query])[0]
+        distance = tree().query(_light_xy(frame.view, cascades)[query])[0]
         outside[query] = distance > band
     return {
         "acne": float(np.count_nonzero(outside & (maps.diff == 1))) / count,
         "peter_panning": float(np.count_nonzero(outside & (maps.diff == -1))) / count,
     }
+
+
+def _light_xy(view: View, cascades) -> np.ndarray:
+    """Light-space x/y ``(H, W, 2)`` of the view's positions: the plane the map is indexed in, where
+    resolution errors live. The same for every method whose maps share the light's basis: taken once
+    per view and basis."""
+    return view.shared(("light_xy", cascades.basis.tobytes()),
+                       lambda: cascades.to_light(view.gbuffer.position)[..., :2])
+
+
+def _pixels_key(maps: ReferenceMaps) -> tuple[bytes, bytes]:
+    """What the reference's side of ``maps`` depends on, as a key of the view's shared values."""
+    return np.packbits(maps.compared).tobytes(), np.packbits(maps.reference_shadowed).tobytes()
+
+
+def _reference_boundary_tree(view: View, maps: ReferenceMaps, cascades):
+    """:func:`reference_boundary` of ``maps`` and a function that gives the k-d tree of its points'
+    light-space x/y, built once: the same for every method of the view that compares the same pixels
+    (the default run's three methods, every frame), kept by the view (:meth:`View.shared`)."""
+    pixels = _pixels_key(maps)
+    boundary = view.shared(("reference_boundary", *pixels),
+                           lambda: reference_boundary(maps.reference_shadowed, maps.compared))
+    tree_key = ("reference_boundary_tree", cascades.basis.tobytes(), *pixels)
+    return boundary, lambda: view.shared(tree_key, lambda: cKDTree(_light_xy(view, cascades)[boundary]))
 
 
 def reference_maps(frame: Frame) -> ReferenceMaps:
@@ -156,11 +177,27 @@ def mean_boundary_distance(a, b) -> float:
     Each pixel of ``a`` contributes its distance to the nearest pixel of ``b`` and vice versa; the
     mean is over both sets together. 0 when both are empty, NaN when exactly one is.
     """
-    a = np.asarray(a, dtype=bool)
-    b = np.asarray(b, dtype=bool)
-    if not a.any() and not b.any():
+    return _mean_boundary_distance(np.asarray(a, dtype=bool), _Boundary(np.asarray(b, dtype=bool)))
+
+
+class _Boundary:
+    """A boundary mask ``(H, W)`` bool, its pixels ``(N, 2)`` (row, column) and their k-d tree, built
+    when first queried: the reference's side of :func:`mean_boundary_distance`, which every method of
+    a view comparing the same pixels queries."""
+
+    def __init__(self, mask: np.ndarray):
+        self.mask = mask
+        self.points = np.argwhere(mask)
+
+    @cached_property
+    def tree(self) -> cKDTree:
+        return cKDTree(self.points)
+
+
+def _mean_boundary_distance(a: np.ndarray, b: _Boundary) -> float:
+    if not a.any() and not b.points.size:
         return 0.0
-    if not a.any() or not b.any():
+    if not a.any() or not b.points.size:
         return float("nan")
     # Nearest-neighbour queries between the two pixel sets (a k-d tree of each), not a distance
     # transform of the whole image per set: the same exact distances, √(integer), from the
@@ -168,29 +205,36 @@ def mean_boundary_distance(a, b) -> float:
     # 0 from the other: only the others are queried (a method's boundary mostly lies on the
     # reference's — nine in ten pixels of the default walk), and every distance keeps its place in
     # the array that is averaged, so that the sum is taken in the same order.
-    pa, pb = np.argwhere(a), np.argwhere(b)
+    pa, pb = np.argwhere(a), b.points
     distances = np.zeros(len(pa) + len(pb), dtype=np.float64)
-    only_a, only_b = ~b[a], ~a[b]
+    only_a, only_b = ~b.mask[a], ~a[b.mask]
     if only_a.any():
-        distances[:len(pa)][only_a] = cKDTree(pb).query(pa[only_a])[0]
+        distances[:len(pa)][only_a] = b.tree.query(pa[only_a])[0]
     if only_b.any():
         distances[len(pa):][only_b] = cKDTree(pa).query(pb[only_b])[0]
     return float(np.mean(distances, dtype=np.float64))
 
 
-def reference_summary(maps: ReferenceMaps) -> dict[str, float]:
+def reference_summary(maps: ReferenceMaps, *, view: View | None = None) -> dict[str, float]:
     """``ref_false_shadow``, ``ref_false_light`` (fractions of compared pixels) and ``ref_boundary_px``.
 
-    All NaN when no pixel is compared.
+    All NaN when no pixel is compared. With ``view`` (the view ``maps`` compares with), the
+    reference's boundary and its k-d tree are kept by the view for the other methods that compare
+    the same pixels (:meth:`View.shared`): the same values.
     """
     count = int(maps.compared.sum())
     if count == 0:
         return dict.fromkeys(("ref_false_shadow", "ref_false_light", "ref_boundary_px"), float("nan"))
+
+    def reference_side() -> _Boundary:
+        return _Boundary(boundary_pixels(maps.reference_shadowed, maps.compared))
+
+    side = reference_side() if view is None else view.shared(("reference_boundary_px", *_pixels_key(maps)),
+                                                             reference_side)
     return {
         "ref_false_shadow": float(np.count_nonzero(maps.diff == 1)) / count,
         "ref_false_light": float(np.count_nonzero(maps.diff == -1)) / count,
-        "ref_boundary_px": mean_boundary_distance(boundary_pixels(maps.shadowed, maps.compared),
-                                                  boundary_pixels(maps.reference_shadowed, maps.compared)),
+        "ref_boundary_px": _mean_boundary_distance(boundary_pixels(maps.shadowed, maps.compared), side),
     }
 
 

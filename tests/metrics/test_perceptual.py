@@ -355,3 +355,28 @@ def test_wide_changes_filtered_whole_give_the_windowed_values():
     windowed = _windowed(flip, (previous_rgb, rgb), changed_windows(changed, support=FLIP_SUPPORT),
                          shape=current.shape, fill=0.0, dtype=np.float32)
     np.testing.assert_array_equal(flip_map(previous_rgb, rgb, changed=changed), windowed)
+
+
+def test_encoding_with_compared_fills_only_the_pixels_read_and_gives_the_filled_pairs_encoding():
+    from csmlab.metrics.perceptual import _encoded_where_read, _filled_pair
+
+    rng = np.random.default_rng(41)
+    previous = rng.random((30, 44, 3)).round(1)
+    current = previous.copy()
+    current[8:12, 5:30] = rng.random((4, 25, 3))
+    current[20, 40] = np.nan
+    compared = rng.random((30, 44)) < 0.9
+    previous[~compared] = rng.random((np.count_nonzero(~compared), 3))
+    for odd in (None, np.inf, -np.inf, np.nan):
+        if odd is not None:
+            # A compared pixel whose test colour is not finite: filled, it is nan_to_num's value,
+            # here the reference's own (the filled pair agrees there), and once not.
+            current[2, 3, 1] = odd
+            previous[2, 3] = np.nan_to_num(current[2, 3])
+            current[4, 6, 2] = odd
+            compared[2, 3] = compared[4, 6] = True
+        filled_current, filled_previous = _filled_pair(current, previous, compared)
+        expected = _encoded_where_read(filled_previous, filled_current)
+        got = _encoded_where_read(previous, current, compared=compared)
+        for a, b in zip(got, expected):
+            assert a.dtype == b.dtype and a.tobytes() == b.tobytes()

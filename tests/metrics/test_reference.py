@@ -311,3 +311,38 @@ def test_false_shadow_where_the_far_fade_reaches_is_not_counted_as_acne():
     maps = reference_maps(frame)
     assert np.count_nonzero(maps.diff == 1) > 0.2 * maps.compared.sum()  # the near half of the weights leaves S ≤ 0.5
     assert bias_errors(frame, maps) == {"acne": 0.0, "peter_panning": 0.0}
+
+
+def test_methods_of_one_view_sharing_the_reference_side_get_each_their_own_all_pairs_values():
+    # Three shadows of one view: the reference's boundary and its k-d trees are kept by the view and
+    # read by the next method that compares the same pixels; one that compares fewer pixels (a part
+    # without a cascade) must not read them. Each value is checked against all pairs.
+    dscene, view = _slab_view()
+    frames = [render_shadow(dscene, view, _bias_only(bias)) for bias in (3.5, -0.05, 0.01)]
+    fewer = frames[2].shadow.lit.copy()
+    fewer[:, : fewer.shape[1] // 3] = np.nan
+    frames.append(Frame(view=view, settings=frames[2].settings, maps=frames[2].maps,
+                        shadow=ShadowLookup(lit=fewer, cascade=np.where(np.isfinite(fewer), 0, -1).astype(np.int8),
+                                            blend=frames[2].shadow.blend)))
+    light_xy = view.gbuffer.position @ frames[0].maps.cascades.basis[:2].T
+    band = frames[0].maps.cascades.margin_texels * float(np.max(frames[0].maps.cascades.cascades[0].texel_size))
+    for frame in frames:
+        maps = reference_maps(frame)
+        summary = reference_summary(maps, view=view)
+        errors = bias_errors(frame, maps)
+        compared = maps.compared.sum()
+        method_boundary = boundary_pixels(maps.shadowed, maps.compared)
+        ref_boundary = boundary_pixels(maps.reference_shadowed, maps.compared)
+        assert ref_boundary.any()
+        expected = (_brute_force_mean_distance(method_boundary, ref_boundary) if method_boundary.any()
+                    else float("nan"))
+        assert summary["ref_boundary_px"] == pytest.approx(expected, rel=1e-12, nan_ok=True)
+        boundary = reference_boundary(maps.reference_shadowed, maps.compared)
+        wrong = (maps.diff != 0) & ~boundary
+        distance = np.linalg.norm(light_xy[wrong][:, None, :] - light_xy[boundary][None, :, :], axis=-1).min(axis=1)
+        outside = np.zeros_like(wrong)
+        outside[wrong] = distance > band
+        assert errors["acne"] == np.count_nonzero(outside & (maps.diff == 1)) / compared
+        assert errors["peter_panning"] == np.count_nonzero(outside & (maps.diff == -1)) / compared
+    assert not np.array_equal(reference_maps(frames[3]).compared, reference_maps(frames[2]).compared)
+    assert sum(key[0] in ("reference_boundary", "reference_boundary_px") for key in view.derived) == 4
