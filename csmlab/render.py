@@ -43,9 +43,9 @@ from csmlab.storage import DEPTH_QUANTIZATION_METHODS, polygon_offset_unit, stor
 from csmlab.texels import (fixed_point_coordinates, fixed_point_origin, light_depth, light_plane_coordinates,
                            uses_global_grid, vertex_depth, window_boxes)
 
-__all__ = ["DeviceScene", "caster_offsets", "caster_scene", "clipped_casters", "clipped_triangles", "host_depth_maps", "lookup_shadow",
-           "prepare_scene", "render_frame", "render_shadow", "render_view", "shadow_maps", "virtual_shadow_maps",
-           "visible_depth", "warped_depth_map"]
+__all__ = ["DeviceScene", "caster_offsets", "caster_scene", "clipped_casters", "clipped_triangles", "host_depth_maps",
+           "lookup_shadow", "prepare_scene", "render_frame", "render_shadow", "render_view", "shadow_maps",
+           "virtual_shadow_maps", "visible_depth", "warped_depth_map"]
 
 
 @dataclass(frozen=True)
@@ -96,7 +96,9 @@ def prepare_scene(scene: Scene, *, device: str = "cpu", threads: int = 1) -> Dev
 
 
 def caster_scene(dscene: DeviceScene, rule: str) -> DeviceScene:
-    """The scene a depth pass rasterizes under ``[shadow] blend_casters = rule`` (:data:`csmlab.culling.BLEND_CASTER_RULES`).
+    """The scene a depth pass rasterizes under ``[shadow] blend_casters = rule``.
+
+    ``rule``: a key of :data:`csmlab.culling.BLEND_CASTER_RULES`.
 
     ``dscene`` itself for ``"scene"`` and wherever the rule leaves its casters as they are (a level
     without blended triangles: bit for bit the level's maps); else the casters of
@@ -220,7 +222,7 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
     Pancaked slice boxes (``depth_range = "slice"``) are clamped to their near side; the moments
     and their mips follow when the filter reads them (:func:`csmlab.filters.filter_inputs`). ``scroll_from``, the
     same method's previous maps, lends the texels its boxes already covered (:mod:`csmlab.scrolling`):
-    the same maps, less rasterization.
+    the same maps, less rasterization. The casters are ``settings.blend_casters``' (:func:`caster_scene`).
     """
     dscene = caster_scene(dscene, settings.blend_casters)
     raster = None
