@@ -32,7 +32,7 @@ import numpy as np
 
 from csmlab.registry import check_name
 
-__all__ = ["CULL_METHODS", "Cull", "culled_triangles", "front_facing"]
+__all__ = ["BLEND_CASTER_RULES", "CULL_METHODS", "Cull", "culled_triangles", "front_facing"]
 
 
 @dataclass(frozen=True)
@@ -60,6 +60,15 @@ CULL_METHODS: dict[str, Cull] = {
                                         "= BackSide for FrontSide materials)"),
 }
 """Face culls of the depth pass, by name."""
+
+BLEND_CASTER_RULES: dict[str, str] = {
+    "scene": "as the level reads them ([scene] blend_casters)",
+    "opaque": "cast solid",
+    "masked": "alpha-tested at their material's alphaCutoff (Godot 4's alpha depth pre-pass)",
+    "none": "no shadow (Unity URP: a Transparent surface has no ShadowCaster pass)",
+}
+"""How the depth pass casts blended (glTF ``alphaMode = BLEND``) triangles (``[shadow] blend_casters``,
+:meth:`csmlab.scene.core.Scene.casters`); the camera and the reference see the level's rule."""
 
 
 def front_facing(vertices, triangles, light_direction) -> np.ndarray:

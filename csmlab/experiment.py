@@ -375,7 +375,8 @@ def build_workload(experiment: Experiment) -> Workload:
 
 def _blend_note(experiment: Experiment) -> dict | None:
     """``{"rule": …, "materials": ["file: name", …]}``: the glTF files' ``BLEND`` materials (a run warns about them,
-    :func:`csmlab.scene.gltf_materials.blend_line`); None for a procedural scene or a level without any."""
+    :func:`csmlab.scene.gltf_materials.blend_line`), with ``"methods": {name: rule}`` for the methods whose
+    ``[shadow] blend_casters`` casts them otherwise; None for a procedural scene or a level without any."""
     from csmlab.scene.gltf import read_gltf
     from csmlab.scene.gltf_materials import blend_materials
 
@@ -385,7 +386,10 @@ def _blend_note(experiment: Experiment) -> dict | None:
     files = dict.fromkeys(f for f in (scene.file, *(p.file for p in scene.parts)) if f)
     names = [f"{Path(file).name}: {name}" for file in files if Path(file).suffix.lower() in (".gltf", ".glb")
              for name in blend_materials(read_gltf(file).document)]
-    return {"rule": scene.blend_casters, "materials": names} if names else None
+    if not names:
+        return None
+    own = {m.name: m.settings.blend_casters for m in experiment.methods if m.settings.blend_casters != "scene"}
+    return {"rule": scene.blend_casters, "materials": names, **({"methods": own} if own else {})}
 
 
 def _image_width(camera, path: CameraPath) -> int:

@@ -11,7 +11,7 @@ does both. Each stage's wall-clock time goes into the records' ``timings``.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -43,9 +43,9 @@ from csmlab.storage import DEPTH_QUANTIZATION_METHODS, polygon_offset_unit, stor
 from csmlab.texels import (fixed_point_coordinates, fixed_point_origin, light_depth, light_plane_coordinates,
                            uses_global_grid, vertex_depth, window_boxes)
 
-__all__ = ["DeviceScene", "caster_offsets", "clipped_casters", "clipped_triangles", "host_depth_maps", "lookup_shadow",
-           "prepare_scene", "render_frame", "render_shadow", "render_view", "shadow_maps", "virtual_shadow_maps",
-           "visible_depth", "warped_depth_map"]
+__all__ = ["DeviceScene", "caster_offsets", "caster_scene", "clipped_casters", "clipped_triangles", "host_depth_maps",
+           "lookup_shadow", "prepare_scene", "render_frame", "render_shadow", "render_view", "shadow_maps",
+           "virtual_shadow_maps", "visible_depth", "warped_depth_map"]
 
 
 @dataclass(frozen=True)
@@ -69,6 +69,9 @@ class DeviceScene:
     ordered_vertices : dict
         Beside each mesh of ``light_space``, under the same key: the scene's float64 world vertices
         ``(V, 3)`` in that mesh's vertex order (what an engine's float32 pipeline transforms).
+    casters : dict
+        The scene as a depth pass casts it under a ``[shadow] blend_casters`` rule that changes its
+        blended triangles (:func:`caster_scene`), uploaded once per rule, by rule.
     threads : int
         CPU threads a frame's kernels may use at once (one Warp CPU launch runs on one thread):
         1 where processes already share out the cores (:mod:`csmlab.executor`).
@@ -81,6 +84,7 @@ class DeviceScene:
     light_space: dict = field(default_factory=dict, compare=False, repr=False)
     threads: int = 1
     ordered_vertices: dict = field(default_factory=dict, compare=False, repr=False)
+    casters: dict = field(default_factory=dict, compare=False, repr=False)
 
 
 def prepare_scene(scene: Scene, *, device: str = "cpu", threads: int = 1) -> DeviceScene:
@@ -89,6 +93,26 @@ def prepare_scene(scene: Scene, *, device: str = "cpu", threads: int = 1) -> Dev
                                                  vertex_mask=scene.vertex_mask, alpha=scene.alpha, device=device),
                        device=device,
                        corners=scene.corners(), threads=checked_threads(threads, device))
+
+
+def caster_scene(dscene: DeviceScene, rule: str) -> DeviceScene:
+    """The scene a depth pass rasterizes under ``[shadow] blend_casters = rule``.
+
+    ``rule``: a key of :data:`csmlab.culling.BLEND_CASTER_RULES`.
+
+    ``dscene`` itself for ``"scene"`` and wherever the rule leaves its casters as they are (a level
+    without blended triangles: bit for bit the level's maps); else the casters of
+    :meth:`csmlab.scene.core.Scene.casters` uploaded once (kept in ``dscene.casters``), with the
+    level's bounding corners (the cascades fit the level, not its casters). The camera pass and the
+    reference keep ``dscene``.
+    """
+    if rule == "scene":
+        return dscene
+    if rule not in dscene.casters:
+        casters = dscene.scene.casters(rule)
+        dscene.casters[rule] = dscene if casters is dscene.scene else replace(
+            prepare_scene(casters, device=dscene.device, threads=dscene.threads), corners=dscene.corners)
+    return dscene.casters[rule]
 
 
 def render_view(dscene: DeviceScene, pose: CameraPose, light_direction, *, width: int, height: int,
@@ -198,8 +222,9 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
     Pancaked slice boxes (``depth_range = "slice"``) are clamped to their near side; the moments
     and their mips follow when the filter reads them (:func:`csmlab.filters.filter_inputs`). ``scroll_from``, the
     same method's previous maps, lends the texels its boxes already covered (:mod:`csmlab.scrolling`):
-    the same maps, less rasterization.
+    the same maps, less rasterization. The casters are ``settings.blend_casters``' (:func:`caster_scene`).
     """
+    dscene = caster_scene(dscene, settings.blend_casters)
     raster = None
     cut = DEPTH_RANGE_METHODS[settings.depth_range].cuts_casters
     if cascades.warped:
@@ -344,6 +369,7 @@ def host_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowS
     which give the same maps and counts bit for bit). Faces are culled as on the other paths
     (``settings.cull``, once per call, by ``d`` alone).
     """
+    dscene = caster_scene(dscene, settings.blend_casters)
     bits = settings.subtexel_bits
     vertices = dscene.scene.vertices
     depth_of_vertex = light_depth(cascades, vertices)
@@ -630,6 +656,7 @@ def _rasterized_pages(dscene: DeviceScene, cascades: CascadeSet, texel: np.ndarr
     corner, a whole page of texels, as origin. Its texels are then those of the level's global grid,
     with the same fixed-point vertices wherever the page lies (:mod:`csmlab.kernels.raster`).
     """
+    dscene = caster_scene(dscene, settings.blend_casters)
     side = settings.page_size
     bits = settings.subtexel_bits
     mesh = _scene_in_light_space(dscene, cascades, settings.cull)

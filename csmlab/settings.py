@@ -11,7 +11,7 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, fields, replace
 
-from csmlab.culling import CULL_METHODS
+from csmlab.culling import BLEND_CASTER_RULES, CULL_METHODS
 from csmlab.lookup_choices import CASTANO_SIZES, FILTER_METHODS, NORMAL_OFFSET_SCALES, ROTATIONS
 from csmlab.registry import check_name, parameters
 from csmlab.shadow_policies import SUN_POLICIES, ZOOM_POLICIES
@@ -146,9 +146,11 @@ class ShadowSettings:
     """engine_precision = float64: where vertices and receivers are snapped to 2**-subtexel_bits texels, world (global fixed point less the box origin: world-locked) | window (the window position, the rasterizer's rule: follows a fractional box origin) (csmlab.texels.VERTEX_SNAPS)."""
     subtexel_bits: int = 8
     """Fixed-point bits below a texel for vertices and receivers (docs/design.md, "Exact zero")."""
-    # depth_pass: the faces the depth pass rasterizes
+    # depth_pass: the faces the depth pass rasterizes and how blended casters cast
     cull: str = "none"
     """Faces the depth pass drops, judged in the light's view as OpenGL's glCullFace (counter-clockwise fronts): none (both rasterized) | back (keeps the faces turned toward the light) | front (keeps those turned away: three.js's shadowSide = BackSide) (csmlab.culling.CULL_METHODS)."""
+    blend_casters: str = "scene"
+    """How the depth pass casts glTF alphaMode BLEND triangles, scene (as [scene] blend_casters reads them) | opaque (solid) | masked (alpha-tested at their alphaCutoff: Godot 4) | none (no shadow: Unity URP); the camera and the reference see the level's rule (csmlab.culling.BLEND_CASTER_RULES)."""
     # selection: which cascade a point is looked up in
     selection: str = "interval"
     """Cascade selection: interval | map | best_resolution | sphere (the first split sphere holding the point: Unity) | sphere_dither (sphere, the next cascade dithered in over each sphere's border: Unity HDRP)."""
@@ -388,6 +390,8 @@ def _check_precision(s: ShadowSettings) -> None:
 
 def _check_depth_pass(s: ShadowSettings) -> None:
     _need(s.cull in CULL_METHODS, "cull", f"one of {list(CULL_METHODS)}", s.cull)
+    _need(s.blend_casters in BLEND_CASTER_RULES, "blend_casters", f"one of {list(BLEND_CASTER_RULES)}",
+          s.blend_casters)
 
 
 def _check_selection(s: ShadowSettings) -> None:
@@ -658,7 +662,8 @@ SETTING_GROUPS: tuple[SettingGroup, ...] = (
                      "vertex_snap": Applies(lambda *, engine_precision: engine_precision == "float64",
                                             'engine_precision = "float64" (a float32 pipeline snaps its window '
                                             'position)')}),
-    SettingGroup("depth_pass", "the faces the depth pass rasterizes", ("cull",), _check_depth_pass),
+    SettingGroup("depth_pass", "the faces the depth pass rasterizes and how blended casters cast",
+                 ("cull", "blend_casters"), _check_depth_pass),
     SettingGroup("selection", "which cascade a point is looked up in", ("selection", "outside", "cascade_borders"),
                  _check_selection, rules={
                      "cascade_borders": Applies(lambda *, selection: selection == "sphere_dither",

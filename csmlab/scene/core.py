@@ -7,6 +7,11 @@ reference need no triangle order: culling and reordering triangles keep it). Whe
 nearest texel to the interpolated coordinates is below the mask's cutoff the surface is a hole,
 in every pass (:mod:`csmlab.kernels.alpha`).
 
+Blended casters (glTF ``alphaMode = BLEND``) keep, per vertex, the mask an alpha test of their
+material would use (``vertex_blend``) beside the mask the level reads them with (``vertex_mask``:
+that mask or none, ``[scene] blend_casters``), so that a depth pass can cast them by its own rule
+(:meth:`Scene.casters`, ``[shadow] blend_casters``) while the camera sees the level's.
+
 Base-colour textures (glTF ``baseColorTexture``) follow the same rule: a :class:`ColourTextures`
 holds coordinates and a texture index per vertex (all three of a triangle the same) and the
 textures' linear RGB; the shaded views multiply the triangle's albedo (the material's base colour
@@ -15,7 +20,7 @@ factor) by the texture sampled at the hit (:mod:`csmlab.kernels.texture`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -150,6 +155,11 @@ class Scene:
         The masks ``vertex_mask`` indexes.
     colour : ColourTextures or None
         Base-colour textures multiplying ``albedo`` where the camera sees them; None: none.
+    vertex_blend : ndarray, shape (V,), int32, or None
+        For each vertex of a blended (glTF ``BLEND``) material, the index into ``alpha`` of the
+        mask its alpha test would use; −1 for every other vertex; a triangle's three vertices hold
+        the same value, and ``vertex_mask`` there is −1 (cast solid) or the same mask. None: no
+        blended triangle. Needs ``vertex_mask``.
 
     Raises
     ------
@@ -167,6 +177,7 @@ class Scene:
     vertex_mask: np.ndarray | None = None
     alpha: tuple = ()
     colour: ColourTextures | None = None
+    vertex_blend: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         v = np.ascontiguousarray(self.vertices, dtype=np.float64)
@@ -188,6 +199,21 @@ class Scene:
             object.__setattr__(self, name, value)
         self._check_masks(v.shape[0], t)
         self._check_colour(v.shape[0], t)
+        self._check_blend(v.shape[0], t)
+
+    def _check_blend(self, vertex_count: int, t: np.ndarray) -> None:
+        if self.vertex_blend is None:
+            return
+        b = np.ascontiguousarray(self.vertex_blend, dtype=np.int32)
+        if self.vertex_mask is None or b.shape != (vertex_count,) or b.min() < -1 or b.max() >= len(self.alpha):
+            raise ValueError(f"{self.name}: vertex_blend: expected ({vertex_count},) indices in "
+                             f"[-1, {len(self.alpha)}) beside vertex_mask")
+        if np.any(b[t] != b[t][:, :1]):
+            raise ValueError(f"{self.name}: vertex_blend: expected the three vertices of a triangle to share it")
+        if np.any((b >= 0) & (self.vertex_mask >= 0) & (self.vertex_mask != b)):
+            raise ValueError(f"{self.name}: vertex_mask: expected a blended vertex's mask to be -1 or its vertex_blend")
+        b.setflags(write=False)
+        object.__setattr__(self, "vertex_blend", b)
 
     def _check_colour(self, vertex_count: int, t: np.ndarray) -> None:
         if self.colour is None:
@@ -225,6 +251,38 @@ class Scene:
     def textured(self) -> bool:
         """Whether any triangle has a base-colour texture."""
         return self.colour is not None and bool(np.any(self.colour.vertex_texture >= 0))
+
+    @property
+    def blended(self) -> bool:
+        """Whether any triangle is of a blended (glTF ``BLEND``) material."""
+        return self.vertex_blend is not None and bool(np.any(self.vertex_blend >= 0))
+
+    def casters(self, rule: str) -> Scene:
+        """The scene as a depth pass casts it under ``rule`` for its blended triangles (``[shadow] blend_casters``).
+
+        ``"opaque"``: solid; ``"masked"``: alpha-tested with their ``vertex_blend`` mask; ``"none"``:
+        dropped (the vertices stay, unreferenced). This scene itself where the rule changes nothing
+        (no blended triangle, or they already cast so), so a level without them is cast bit for bit
+        as before.
+
+        Raises
+        ------
+        ValueError
+            On a rule not one of ``opaque``, ``masked``, ``none``.
+        """
+        if rule not in ("opaque", "masked", "none"):
+            raise ValueError(f"blend_casters: expected one of ['opaque', 'masked', 'none'], got {rule!r}")
+        if not self.blended:
+            return self
+        blend = self.vertex_blend >= 0
+        if rule == "none":
+            keep = ~blend[self.triangles[:, 0]]
+            if not np.any(keep):
+                raise ValueError(f"{self.name}: blend_casters = \"none\" leaves no caster: every triangle is blended")
+            return replace(self, triangles=self.triangles[keep], normals=self.normals[keep],
+                           albedo=self.albedo[keep], vertex_blend=None)
+        mask = np.where(blend, self.vertex_blend if rule == "masked" else -1, self.vertex_mask)
+        return self if np.array_equal(mask, self.vertex_mask) else replace(self, vertex_mask=mask)
 
     @property
     def masked(self) -> bool:
@@ -281,6 +339,12 @@ class Scene:
             theirs, their_uv = mask_of(other, len(self.alpha))
             masks = dict(uv=np.concatenate([own_uv, their_uv]), vertex_mask=np.concatenate([own, theirs]),
                          alpha=self.alpha + other.alpha)
+        if self.vertex_blend is not None or other.vertex_blend is not None:
+            def blend_of(scene, first):
+                if scene.vertex_blend is None:
+                    return np.full(len(scene.vertices), -1, np.int32)
+                return np.where(scene.vertex_blend >= 0, scene.vertex_blend + first, -1)
+            masks["vertex_blend"] = np.concatenate([blend_of(self, 0), blend_of(other, len(self.alpha))])
         if self.colour is not None or other.colour is not None:
             masks["colour"] = (self.colour or ColourTextures.none(len(self.vertices))).merged(
                 other.colour or ColourTextures.none(len(other.vertices)))

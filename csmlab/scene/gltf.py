@@ -572,7 +572,7 @@ def gltf_scene_triangles(gltf: GltfFile) -> tuple[np.ndarray, np.ndarray, dict]:
         Empty when no primitive of the scene has a ``MASK`` material; else the
         :class:`~csmlab.scene.core.Scene` fields ``uv`` ``(V, 2)`` float64, ``vertex_mask`` ``(V,)``
         int32 (−1 opaque) and ``alpha`` (one :class:`~csmlab.scene.core.AlphaMask` per ``MASK``
-        material drawn, by material index).
+        material drawn, by material index), with ``mask_materials`` (the material of each mask).
 
     Raises
     ------
@@ -633,7 +633,7 @@ def _scene_masks(gltf: GltfFile, parts: list[tuple[_Primitive, int]]) -> dict:
             uv.append(np.tile(part.uv, (instances, 1)))
             vertex_mask.append(np.full(count, used.index(part.material), np.int32))
     return dict(uv=np.concatenate(uv), vertex_mask=np.concatenate(vertex_mask),
-                alpha=tuple(material_mask(gltf, material) for material in used))
+                alpha=tuple(material_mask(gltf, material) for material in used), mask_materials=used)
 
 
 def _scene_colour(gltf: GltfFile, parts: list[tuple[_Primitive, int]]) -> dict:

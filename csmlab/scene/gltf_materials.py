@@ -9,7 +9,9 @@
   translucency, so a blended material is either solid or alpha-tested. ``[scene] blend_casters``
   (:data:`BLEND_CASTERS`) says which for the whole level: ``opaque`` (the default, every triangle
   solid, as before) or ``masked`` (alpha-tested at the material's ``alphaCutoff``, 0.5 without one,
-  like a ``MASK`` material). docs/engines.md says what each engine does with them.
+  like a ``MASK`` material) for what the camera and the reference see; a shadow method's own
+  ``[shadow] blend_casters`` may cast them otherwise (:meth:`csmlab.scene.core.Scene.casters`), so
+  their masks are read whichever rule the level takes. docs/engines.md says what each engine does.
   :func:`blend_materials` names a file's blended materials so that a run warns about them.
 """
 
@@ -19,7 +21,8 @@ import numpy as np
 
 from csmlab.documents import Value
 
-__all__ = ["BLEND_CASTERS", "TEXTURE_TRANSFORM", "apply_blend_rule", "blend_line", "blend_materials",
+__all__ = ["BLEND_CASTERS", "TEXTURE_TRANSFORM", "blend_line", "blend_materials", "blend_rule_masks",
+           "read_blended_masked",
            "texture_coordinate_set", "transformed_uv"]
 
 TEXTURE_TRANSFORM = "KHR_texture_transform"
@@ -78,8 +81,33 @@ def blend_materials(document: Value) -> list[str]:
     return [str(materials[i].raw.get("name") or f"materials[{i}]") for i in _blended(document)]
 
 
-def apply_blend_rule(document: Value, rule: str) -> None:
-    """Turn the used ``BLEND`` materials to ``MASK`` for ``rule = "masked"`` (in the raw JSON); ``opaque`` leaves them.
+def read_blended_masked(document: Value) -> list[int]:
+    """Turn the used ``BLEND`` materials to ``MASK`` (in the raw JSON) so that their masks are read; their indices.
+
+    :func:`blend_rule_masks` then keeps each one's mask as its ``vertex_blend`` and, by the level's
+    rule, as its ``vertex_mask`` too (``masked``) or not (``opaque``).
+    """
+    blended = _blended(document)
+    materials = document.list_at("materials")
+    for i in blended:
+        materials[i].raw["alphaMode"] = "MASK"
+    return blended
+
+
+def blend_rule_masks(masks: dict, mask_materials: list[int], blended: list[int], rule: str) -> dict:
+    """The :class:`~csmlab.scene.core.Scene` mask fields of a file read after :func:`read_blended_masked`.
+
+    Parameters
+    ----------
+    masks : dict
+        ``uv``, ``vertex_mask``, ``alpha`` as :func:`~csmlab.scene.gltf.gltf_scene_triangles` read them
+        (empty: no mask).
+    mask_materials : list of int
+        The material of each mask in ``alpha``.
+    blended : list of int
+        The materials that were ``BLEND``.
+    rule : {"opaque", "masked"}
+        ``[scene] blend_casters``: ``opaque`` takes their masks out of ``vertex_mask``.
 
     Raises
     ------
@@ -88,11 +116,12 @@ def apply_blend_rule(document: Value, rule: str) -> None:
     """
     if rule not in BLEND_CASTERS:
         raise ValueError(f"blend_casters: expected one of {list(BLEND_CASTERS)}, got {rule!r}")
-    if rule != "masked":
-        return
-    materials = document.list_at("materials")
-    for i in _blended(document):
-        materials[i].raw["alphaMode"] = "MASK"
+    slots = [k for k, material in enumerate(mask_materials) if material in blended]
+    if not masks or not slots:
+        return masks
+    vertex_blend = np.where(np.isin(masks["vertex_mask"], slots), masks["vertex_mask"], -1).astype(np.int32)
+    vertex_mask = masks["vertex_mask"] if rule == "masked" else np.where(vertex_blend >= 0, -1, masks["vertex_mask"])
+    return {**masks, "vertex_mask": vertex_mask, "vertex_blend": vertex_blend}
 
 
 def blend_line(note: dict | None) -> str | None:
@@ -102,5 +131,6 @@ def blend_line(note: dict | None) -> str | None:
         return None
     rule = note.get("rule", "opaque")
     how = "cast solid" if rule == "opaque" else "cast alpha-tested at their alphaCutoff"
-    return (f"{len(note['materials'])} alphaMode BLEND material(s) {how} ([scene] blend_casters = \"{rule}\"; "
+    own = "".join(f"; {name}'s shadow {rule}" for name, rule in note.get("methods", {}).items())
+    return (f"{len(note['materials'])} alphaMode BLEND material(s) {how} ([scene] blend_casters = \"{rule}\"{own}; "
             f"docs/engines.md says what each engine does): {', '.join(note['materials'])}")

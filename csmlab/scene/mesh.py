@@ -43,7 +43,7 @@ from csmlab.registry import check_name
 from csmlab.scene.alpha_files import read_alpha_mask, read_colour_texture
 from csmlab.scene.core import ColourTextures, Scene
 from csmlab.scene.gltf import gltf_scene_triangles, read_gltf
-from csmlab.scene.gltf_materials import BLEND_CASTERS, apply_blend_rule
+from csmlab.scene.gltf_materials import BLEND_CASTERS, blend_rule_masks, read_blended_masked
 from csmlab.scene.shapes import height_field, scene_from_parts
 
 __all__ = ["GLTF_SUFFIXES", "GROUND_ALBEDO", "GROUND_SIZE_FACTOR", "MESH_FORMATS", "UP_AXES", "load_mesh"]
@@ -368,8 +368,8 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
     albedo : (float, float, float)
         Linear RGB in [0, 1] for every triangle of the mesh (file colours are not read).
     blend_casters : {"opaque", "masked"}
-        glTF: ``alphaMode = "BLEND"`` materials read solid or alpha-tested
-        (:func:`csmlab.scene.gltf_materials.apply_blend_rule`).
+        glTF: ``alphaMode = "BLEND"`` materials read solid or alpha-tested; their masks are kept
+        as ``vertex_blend`` either way (:func:`csmlab.scene.gltf_materials.blend_rule_masks`).
 
     Returns
     -------
@@ -408,8 +408,9 @@ def load_mesh(file, *, scale: float = 1.0, up: str = "y", ground: bool = False, 
                          f"got {path.suffix or 'no suffix'!r}", file=path, field="file")
     if path.suffix.lower() in GLTF_SUFFIXES:
         gltf = read_gltf(path)
-        apply_blend_rule(gltf.document, blend_casters)
+        blended = read_blended_masked(gltf.document)
         points, triangles, masks = gltf_scene_triangles(gltf)
+        masks = blend_rule_masks(masks, masks.pop("mask_materials", []), blended, blend_casters)
     else:
         points, triangles, masks = _vtk_mesh(path, fmt)
     with np.errstate(over="ignore", invalid="ignore"):  # a coordinate scaled past float64: refused below

@@ -98,7 +98,8 @@ def _placed(scene: Scene, placement: PartPlacement) -> Scene:
     vertices = (s * scene.vertices) @ rotation.T + t
     # A rotation and a positive uniform scale keep the winding: the normals turn with the part.
     return Scene(vertices, scene.triangles, scene.normals @ rotation.T, scene.albedo, name=scene.name, uv=scene.uv,
-                 vertex_mask=scene.vertex_mask, alpha=scene.alpha, colour=scene.colour)
+                 vertex_mask=scene.vertex_mask, alpha=scene.alpha, colour=scene.colour,
+                 vertex_blend=scene.vertex_blend)
 
 
 def _placed_by_matrix(scene: Scene, placement: PartPlacement) -> Scene:
@@ -116,7 +117,8 @@ def _placed_by_matrix(scene: Scene, placement: PartPlacement) -> Scene:
     # A mirror reverses the orientation: swapping two corners keeps each face's winding agreeing with its normal.
     triangles = scene.triangles[:, [0, 2, 1]] if np.linalg.det(linear) < 0 else scene.triangles
     return Scene(vertices, triangles, normals, scene.albedo, name=scene.name, uv=scene.uv,
-                 vertex_mask=scene.vertex_mask, alpha=scene.alpha, colour=scene.colour)
+                 vertex_mask=scene.vertex_mask, alpha=scene.alpha, colour=scene.colour,
+                 vertex_blend=scene.vertex_blend)
 
 
 def load_parts(placements, *, file: str = "", scale: float = 1.0, up: str = "y", ground: bool = False,
@@ -163,5 +165,6 @@ def load_parts(placements, *, file: str = "", scale: float = 1.0, up: str = "y",
     for part in scenes[1:]:
         level = level.merged(part)
     level = Scene(level.vertices, level.triangles, level.normals, level.albedo, name=name, uv=level.uv,
-                  vertex_mask=level.vertex_mask, alpha=level.alpha, colour=level.colour)
+                  vertex_mask=level.vertex_mask, alpha=level.alpha, colour=level.colour,
+                  vertex_blend=level.vertex_blend)
     return level.merged(_ground_under(level)) if ground else level

@@ -85,6 +85,39 @@ def test_a_mask_reads_its_coordinates_through_the_texture_transform(tmp_path):
 def test_blend_materials_cast_solid_or_alpha_tested_by_the_rule(tmp_path, rule, masked):
     scene = load_mesh(_card(tmp_path, mode="BLEND"), blend_casters=rule)
     assert scene.masked is masked
+    # Either way the card's mask is kept for a method's own rule ([shadow] blend_casters).
+    assert scene.blended and np.all(scene.vertex_blend == 0) and scene.alpha[0].cutoff == 0.5
+    assert scene.casters("masked").masked and not scene.casters("opaque").masked
+
+
+def test_a_mask_material_is_not_marked_blended(tmp_path):
+    scene = load_mesh(_card(tmp_path, mode="MASK"))
+    assert scene.masked and not scene.blended and scene.vertex_blend is None
+    assert scene.casters("none") is scene
+
+
+def test_the_none_rule_drops_the_blended_triangles_and_keeps_the_others(tmp_path):
+    scene = load_mesh(_card(tmp_path, mode="BLEND"), ground=True)
+    blended = scene.vertex_blend[scene.triangles[:, 0]] >= 0
+    assert blended.sum() == 2 and (~blended).sum() == 2
+    casters = scene.casters("none")
+    np.testing.assert_array_equal(casters.triangles, scene.triangles[~blended])
+    np.testing.assert_array_equal(casters.vertices, scene.vertices)
+    with pytest.raises(ValueError, match="blend_casters: expected one of"):
+        scene.casters("scene")
+
+
+def test_a_blend_flag_that_disagrees_with_the_mask_is_refused(tmp_path):
+    from dataclasses import replace
+
+    scene = load_mesh(_card(tmp_path, mode="BLEND"), ground=True)
+    with pytest.raises(ValueError, match="vertex_blend: expected the three vertices"):
+        replace(scene, vertex_blend=np.r_[scene.vertex_blend[:-1], 0])
+    with pytest.raises(ValueError, match="vertex_blend: expected"):
+        replace(scene, vertex_blend=np.full(len(scene.vertices), 5))
+    merged = scene.merged(scene)
+    assert merged.vertex_blend.tolist() == scene.vertex_blend.tolist() + [
+        b + len(scene.alpha) if b >= 0 else -1 for b in scene.vertex_blend]
 
 
 def test_a_level_with_blend_materials_names_them_in_its_workload_and_warning(tmp_path):
