@@ -9,8 +9,8 @@ at a few dozen of those (like ``exact``). Prints, per method, the best of ``--re
 milliseconds of :func:`csmlab.metrics.perceptual.flip_map` on the whole image and on the changed
 windows, ns per pixel of the whole image, and the largest difference from ``flip-evaluator``; on
 a GPU also how many pixels of the warp method's whole-image map differ from the CPU's (few expected: exp
-and pow are the C library's on the CPU and correctly rounded on CUDA, see :func:`csmlab.kernels.flip.libm_pow`: they differ on ~0.06 % of inputs).
-Every thread pool (ꟻLIP's OpenMP, NumPy's BLAS) is held to one thread, as in a csmlab run.
+and pow are the C library's on the CPU and correctly rounded on CUDA, see :func:`csmlab.kernels.flip.libm_pow`: they
+differ on ~0.06 % of inputs). Every thread pool (ꟻLIP's OpenMP, NumPy's BLAS) is held to one thread, as in a csmlab run.
 """
 
 from __future__ import annotations
@@ -84,8 +84,10 @@ def main() -> None:
     with threadpool_limits(limits=1):
         oracle = flip_map(previous, current, method="flip-evaluator")
         for method in sorted(FLIP_METHODS, reverse=True):
-            whole, error = _best(args.repeats, lambda: flip_map(previous, current, method=method, device=device))
-            windowed = [_best(args.repeats, lambda: flip_map(a, b, changed=c, method=method, device=device))[0]
+            whole, error = _best(args.repeats,
+                                 lambda method=method: flip_map(previous, current, method=method, device=device))
+            windowed = [_best(args.repeats, lambda a=a, b=b, c=c, method=method:
+                              flip_map(a, b, changed=c, method=method, device=device))[0]
                         for a, b, c in cases.values()]
             print(f"{method:16s} {whole * 1e3:9.1f} {whole / pixels * 1e9:6.0f} "
                   + " ".join(f"{t * 1e3:12.2f}" for t in windowed) + f"  {np.abs(error - oracle).max():.2e}")

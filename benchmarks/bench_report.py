@@ -119,7 +119,8 @@ def synthesize_results(out: Path, *, frames: int, methods: tuple[str, ...], widt
             values = {c: float(rng.random()) for c in columns}
             values["memory_bytes"] = 4.0 * cascades * resolution ** 2
             rows.append(results.MetricRow(index, index / 30, method, "base", values))
-            timings += [results.TimingRow(index, method, "base", stage, float(rng.random()) * 0.1) for stage in ("raster", "shadow")]
+            timings += [results.TimingRow(index, method, "base", stage, float(rng.random()) * 0.1)
+                        for stage in ("raster", "shadow")]
     order = {(m, "base"): k for k, m in enumerate(methods)}
     out.mkdir(parents=True, exist_ok=True)
     results.write_metrics(out / "metrics.csv", ([r for r in rows if r.method == m] for m in methods), columns=columns)

@@ -126,7 +126,8 @@ class CameraPath:
         validate_unit_quaternion(orientations, name=f"{self.name}: orientations")
         fov = np.broadcast_to(np.asarray(self.fov_y_deg, dtype=np.float64), (n,)).copy()
         _check_projection(fov_y_deg=fov, aspect=self.aspect, near=self.near, far=self.far)
-        for field, value in (("times", times), ("positions", positions), ("orientations", orientations), ("fov_y_deg", fov)):
+        for field, value in (("times", times), ("positions", positions), ("orientations", orientations),
+                             ("fov_y_deg", fov)):
             value.setflags(write=False)
             object.__setattr__(self, field, value)
 

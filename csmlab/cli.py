@@ -190,8 +190,8 @@ def run(
         bar.update(tasks[0], completed=done, total=total)
 
     try:
-        result = run_experiment(loaded, out_dir=out_dir, jobs=workers, executor=executor, address=address, device=device,
-                                resume=resume, progress=progress)
+        result = run_experiment(loaded, out_dir=out_dir, jobs=workers, executor=executor, address=address,
+                                device=device, resume=resume, progress=progress)
     except InputError as exc:
         raise _bad_input(exc) from None
     except KeyboardInterrupt:

@@ -340,7 +340,8 @@ def resident_pages(marked: np.ndarray, *, pool: int) -> np.ndarray:
 
 
 def page_table(clip: Clipmap, keys: np.ndarray) -> np.ndarray:
-    """``(L, pages_per_side, pages_per_side)`` int32: each resident page's index in ``keys`` at its place, -1 elsewhere."""
+    """``(L, pages_per_side, pages_per_side)`` int32: each resident page's index in ``keys`` at its place, -1
+    elsewhere."""
     table = np.full((len(clip), clip.pages_per_side, clip.pages_per_side), -1, dtype=np.int32)
     local = keys[:, 1:] - clip.origin_page[keys[:, 0]]
     table[keys[:, 0], local[:, 1], local[:, 0]] = np.arange(len(keys), dtype=np.int32)

@@ -810,7 +810,8 @@ def _write_results(out: Path, experiment: Experiment, job: Job, units: list[Unit
     summary = dict(name=experiment.name, config_hash=config_hash, workload_hash=job.workload.key, device=job.device,
                    frames=len(job.workload.path), config=experiment_document(experiment),
                    light_moves=not experiment.light.is_static, point_fields=dict(experiment.points()),
-                   stabilization={m.name: {v.point: v.settings.stabilization for v in job.variants if v.method == m.name}
+                   stabilization={m.name: {v.point: v.settings.stabilization for v in job.variants
+                                           if v.method == m.name}
                                   for m in experiment.methods},
                    invariants=summary_invariants(job.variants, light_static=experiment.light.is_static,
                                                  fov_y_deg=job.workload.path.fov_y_deg),

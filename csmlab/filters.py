@@ -53,8 +53,8 @@ from csmlab.settings import ShadowSettings
 from csmlab.kernels.engine import warped_receivers, window_receivers
 from csmlab.texels import fixed_point_origin, receiver_lookup, uses_global_grid, window_boxes
 
-__all__ = ["FAMILY_LOOKUPS", "Receivers", "clipmap_radius", "filter_inputs", "interleaved_gradient_noise", "lookup_shadow", "noise_frame", "screen_pixels",
-           "texel_coordinates", "uses_pixels"]
+__all__ = ["FAMILY_LOOKUPS", "Receivers", "clipmap_radius", "filter_inputs", "interleaved_gradient_noise",
+           "lookup_shadow", "noise_frame", "screen_pixels", "texel_coordinates", "uses_pixels"]
 
 
 @dataclass(frozen=True)
@@ -158,7 +158,8 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
 
 
 def clipmap_radius(settings: ShadowSettings) -> int:
-    """Texels a virtual clipmap's taps reach about the receiver's texel: 0 for ``none``, ``filter_size // 2`` for ``pcf``."""
+    """Texels a virtual clipmap's taps reach about the receiver's texel: 0 for ``none``, ``filter_size // 2`` for
+    ``pcf``."""
     return 0 if settings.filter == "none" else settings.filter_size // 2
 
 
@@ -302,7 +303,8 @@ def _cascade_bias(cascades: CascadeSet, settings: ShadowSettings):
 
 def _plane_offset(cascades: CascadeSet, settings: ShadowSettings):
     """The cap in metres of MJP's static receiver-plane offset per cascade ``(C,)``: ``receiver_plane_offset`` of
-    each cascade's light-space depth range (MJP: ``min(fractionalSamplingError, 0.01f)`` in normalized depth); 0: none."""
+    each cascade's light-space depth range (MJP: ``min(fractionalSamplingError, 0.01f)`` in normalized depth); 0:
+    none."""
     if settings.receiver_plane_offset == 0.0:
         return 0.0
     return settings.receiver_plane_offset * np.array([c.depth_far - c.depth_near for c in cascades.cascades])

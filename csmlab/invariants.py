@@ -10,10 +10,10 @@ Each condition below is one row of :data:`_CONDITIONS`; the promise holds when a
    to steps of the camera's footprint and ``none`` follows it, so their texel sizes change) with a
    *fixed extent* — ``bounds = "frustum"`` (SDSM moves the splits with the visible depth range),
    a camera whose field of view never changes (each slice's extent follows it; a zoom path
-   changes it every frame), or one that stays below a ``zoom_policy = "min_fov"`` floor, and an extent of :data:`FIXED_EXTENTS` — and the box snapped to whole
-   texels (:data:`WHOLE_TEXEL_SNAPS`: every snap of :mod:`csmlab.cascades.stabilize` moves the
-   box by whole texels, ``view`` in steps of four, ``nearest2`` — Godot's edges rounded to the
-   nearest 2-texel unit — in steps of two: its texel size is the fixed radius's, its origin a whole
+   changes it every frame), or one that stays below a ``zoom_policy = "min_fov"`` floor, and an extent of
+   :data:`FIXED_EXTENTS` — and the box snapped to whole texels (:data:`WHOLE_TEXEL_SNAPS`: every snap of
+   :mod:`csmlab.cascades.stabilize` moves the box by whole texels, ``view`` in steps of four, ``nearest2`` — Godot's
+   edges rounded to the nearest 2-texel unit — in steps of two: its texel size is the fixed radius's, its origin a whole
    texel index, so rounding to nearest rather than down changes only when the box steps; so does
    ``centre_nearest``, Stride's centre rounded to the nearest texel). The
    ``centroid`` extent (Godot, Stride) is fixed like ``sphere``: its centre's depth and its radius
@@ -59,8 +59,8 @@ whatever the camera or the boxes.
 
 Selection, blend bands and the fade-out — whatever their ``transition``, ``blend_curve`` or
 ``fade`` shape (a band placed forward or at the far bound, a smoothstep, a radial distance) — decide
-only *which* cascade a point reads or how much a camera-dependent weight counts; the temporal metric files those points under "cascade changed"
-(:mod:`csmlab.metrics.temporal`), so they keep the promise.
+only *which* cascade a point reads or how much a camera-dependent weight counts; the temporal metric files those points
+under "cascade changed" (:mod:`csmlab.metrics.temporal`), so they keep the promise.
 
 The promise is written into ``summary.json`` (``invariants``, :func:`summary_invariants`) and
 read back by the gate, which holds exactly what was promised and nothing more.

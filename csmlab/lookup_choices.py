@@ -31,11 +31,12 @@ import numpy as np
 
 from csmlab.registry import check_name, parameters
 
-__all__ = ["BLEND_LINEAR", "BLEND_SMOOTHSTEP", "BOX_BILINEAR", "BOX_TAPS", "CASTANO_SIZES", "NORMAL_NONE", "NORMAL_OFFSET_SCALES", "NORMAL_ONE_MINUS_COS", "ROTATIONS",
-           "NORMAL_ONE_MINUS_COS_LATERAL", "NORMAL_SIN", "FAMILIES", "FILTER_METHODS", "Filter", "MOMENT_EVSM2", "OUTSIDE_METHODS",
-           "MOMENT_EVSM4", "MOMENT_MSM", "MOMENT_VSM", "PCF_BILINEAR_BOX", "PCF_CASTANO", "PCF_GAUSSIAN", "PCF_PCSS", "PCF_POISSON",
-           "PCF_TENT", "PCF_TENT_BILINEAR", "PCF_VOGEL", "SELECTION_METHODS", "SELECT_BEST_RESOLUTION",
-           "SELECT_INTERVAL", "SELECT_MAP", "SELECT_SPHERE", "Selection", "family_code", "family_filters", "poisson_disk", "vogel_disk",
+__all__ = ["BLEND_LINEAR", "BLEND_SMOOTHSTEP", "BOX_BILINEAR", "BOX_TAPS", "CASTANO_SIZES", "NORMAL_NONE",
+           "NORMAL_OFFSET_SCALES", "NORMAL_ONE_MINUS_COS", "ROTATIONS", "NORMAL_ONE_MINUS_COS_LATERAL", "NORMAL_SIN",
+           "FAMILIES", "FILTER_METHODS", "Filter", "MOMENT_EVSM2", "OUTSIDE_METHODS", "MOMENT_EVSM4", "MOMENT_MSM",
+           "MOMENT_VSM", "PCF_BILINEAR_BOX", "PCF_CASTANO", "PCF_GAUSSIAN", "PCF_PCSS", "PCF_POISSON", "PCF_TENT",
+           "PCF_TENT_BILINEAR", "PCF_VOGEL", "SELECTION_METHODS", "SELECT_BEST_RESOLUTION", "SELECT_INTERVAL",
+           "SELECT_MAP", "SELECT_SPHERE", "Selection", "family_code", "family_filters", "poisson_disk", "vogel_disk",
            "GODOT_SOFT_SHADOW_QUALITIES", "GodotSoftShadowQuality", "godot_soft_shadow_fields"]
 
 SELECT_INTERVAL = 0
@@ -189,11 +190,12 @@ SELECTION_METHODS: dict[str, Selection] = {s.name: s for s in (
     Selection("map", SELECT_MAP, "the first cascade whose box holds the point, less the margin"),
     Selection("best_resolution", SELECT_BEST_RESOLUTION,
               "of the boxes that hold the point, the one with the smallest texels (seed 003)"),
-    Selection("sphere", SELECT_SPHERE, "the first cascade whose split sphere holds the point (Unity built-in Stable Fit "
-              "getCascadeWeights_splitSpheres, URP ComputeCascadeIndex)"),
-    Selection("sphere_dither", SELECT_SPHERE, "the first cascade whose split sphere holds the point, the next one where "
-              "the pixel's interleaved gradient noise is at most its border weight (Unity HDRP EvalShadow_GetSplitIndex, "
-              "EvalShadow_CascadedDepth_Dither_SplitIndex; cascade_borders, csmlab.cascades.borders)"),
+    Selection("sphere", SELECT_SPHERE, "the first cascade whose split sphere holds the point (Unity built-in "
+              "Stable Fit getCascadeWeights_splitSpheres, URP ComputeCascadeIndex)"),
+    Selection("sphere_dither", SELECT_SPHERE, "the first cascade whose split sphere holds the point, the next one "
+              "where the pixel's interleaved gradient noise is at most its border weight (Unity HDRP "
+              "EvalShadow_GetSplitIndex, EvalShadow_CascadedDepth_Dither_SplitIndex; cascade_borders, "
+              "csmlab.cascades.borders)"),
 )}
 """Cascade selection methods by name."""
 

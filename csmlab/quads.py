@@ -55,7 +55,8 @@ __all__ = ["LOD_METHODS", "Quads", "quad_derivatives", "quad_lanes"]
 LOD_METHODS: dict[str, str] = {
     "quad": "coarse derivatives of each lane's texel coordinates in its own cascade (hardware; a seam at splits)",
     "quad_consistent": "the quad's lowest cascade for all four lanes (PSVSM, seed 003 Listing 4.1.6)",
-    "analytic": "the lanes' light-space differences in the selected cascade's texels (seed 003 Listing 4.1.7, seed 002)",
+    "analytic": ("the lanes' light-space differences in the selected cascade's texels (seed 003 Listing 4.1.7, "
+                 "seed 002)"),
 }
 """Where a mipmapped lookup's level of detail comes from, by name (the ``[shadow] lod`` values)."""
 

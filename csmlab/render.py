@@ -88,7 +88,8 @@ class DeviceScene:
 
 
 def prepare_scene(scene: Scene, *, device: str = "cpu", threads: int = 1) -> DeviceScene:
-    """Upload ``scene`` to ``device`` (``"cpu"`` or ``"cuda"``) and build its BVH; ``threads`` as :class:`DeviceScene`."""
+    """Upload ``scene`` to ``device`` (``"cpu"`` or ``"cuda"``) and build its BVH; ``threads`` as
+    :class:`DeviceScene`."""
     return DeviceScene(scene=scene, bvh=mesh_bvh(scene.vertices, scene.triangles, uv=scene.uv,
                                                  vertex_mask=scene.vertex_mask, alpha=scene.alpha, device=device),
                        device=device,
@@ -217,7 +218,8 @@ def visible_depth(dscene: DeviceScene, pose: CameraPose, *, width: int, height: 
 
 def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings, *,
                 scroll_from: ShadowMaps | None = None) -> ShadowMaps:
-    """Rasterize every cascade's depth map from the scene's vertices in fixed point, stored in ``settings.depth_format``.
+    """Rasterize every cascade's depth map from the scene's vertices in fixed point, stored in
+    ``settings.depth_format``.
 
     Pancaked slice boxes (``depth_range = "slice"``) are clamped to their near side; the moments
     and their mips follow when the filter reads them (:func:`csmlab.filters.filter_inputs`). ``scroll_from``, the

@@ -384,7 +384,8 @@ def save_chunk(out_dir, result, *, run_key: str, parts: dict[str, bytes] | None 
 
 
 def load_chunk_part(out_dir, start: int, stop: int, ranks: tuple[int, ...], name: str) -> bytes | None:
-    """The part ``name`` kept with the unit of frames ``[start, stop)`` and variants ``ranks``; None when there is none."""
+    """The part ``name`` kept with the unit of frames ``[start, stop)`` and variants ``ranks``; None when there is
+    none."""
     path = _chunk_path(out_dir, start, stop, tuple(ranks), name)
     return path.read_bytes() if path.is_file() else None
 

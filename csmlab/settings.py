@@ -51,18 +51,21 @@ class ShadowSettings:
     cascade_resolutions: tuple[int, ...] = ()
     """Texels per side of each cascade, one per cascade; empty: resolution for every cascade."""
     shadow_map: str = "cascades"
-    """What the depth maps are: cascades (one box per split, the fields below) | virtual_clipmap (Unreal 5's virtual shadow map clipmap: levels of pages rasterized where visible pixels need them, csmlab.clipmaps)."""
+    """What the depth maps are: cascades (one box per split, the fields below) | virtual_clipmap (Unreal 5's virtual
+    shadow map clipmap: levels of pages rasterized where visible pixels need them, csmlab.clipmaps)."""
     # clipmap: the virtual clipmap's levels and pages (only with shadow_map = "virtual_clipmap")
     virtual_resolution: int = 16384
     """virtual_clipmap: virtual texels per side of every clipmap level (Unreal: 16k)."""
     page_size: int = 128
     """virtual_clipmap: texels per side of a page, the unit of marking, caching and rasterization (Unreal: 128)."""
     clipmap_first_level: int = 6
-    """virtual_clipmap: the finest level n, covering a radius of 2^n cm around the camera (r.Shadow.Virtual.Clipmap.FirstLevel)."""
+    """virtual_clipmap: the finest level n, covering a radius of 2^n cm around the camera
+    (r.Shadow.Virtual.Clipmap.FirstLevel)."""
     clipmap_last_level: int = 22
     """virtual_clipmap: the coarsest level (r.Shadow.Virtual.Clipmap.LastLevel)."""
     lod_bias: float = -0.5
-    """virtual_clipmap: log2 bias of the level chosen from a pixel's footprint, -1 doubles the resolution (r.Shadow.Virtual.ResolutionLodBiasDirectional)."""
+    """virtual_clipmap: log2 bias of the level chosen from a pixel's footprint, -1 doubles the resolution
+    (r.Shadow.Virtual.ResolutionLodBiasDirectional)."""
     physical_pages: int = 2048
     """virtual_clipmap: pages of the physical pool, its memory (r.Shadow.Virtual.MaxPhysicalPages)."""
     # split: the splits of the view depth
@@ -71,108 +74,159 @@ class ShadowSettings:
     lambda_: float = 0.75
     """practical: PSSM blend λ of log and uniform splits (TOML field ``lambda``)."""
     splits: tuple[float, ...] = ()
-    """manual: far end of each cascade, metres, or fractions of shadow_distance when all ≤ 1; manual_range: fractions of the range from the near plane to shadow_distance (Godot, MJP)."""
+    """manual: far end of each cascade, metres, or fractions of shadow_distance when all ≤ 1; manual_range: fractions of
+    the range from the near plane to shadow_distance (Godot, MJP)."""
     distribution_exponent: float = 3.0
     """split = exponent: depth ratio of consecutive cascades (Unreal's CascadeDistributionExponent)."""
     first_cascade_far: float = 10.0
-    """split = geometric: far end of the first cascade in metres, the rest geometric (Bevy's first_cascade_far_bound)."""
+    """split = geometric: far end of the first cascade in metres, the rest geometric (Bevy's
+    first_cascade_far_bound)."""
     shadow_distance: float = 200.0
-    """View depth in metres that the last cascade ends at (clamped to the camera's far plane), with shadow_distance_from = fixed."""
+    """View depth in metres that the last cascade ends at (clamped to the camera's far plane), with shadow_distance_from
+    = fixed."""
     shadow_distance_from: str = "fixed"
-    """Where the last cascade ends: fixed (shadow_distance) | camera_far (the camera's far plane of each frame: three.js, Filament, MJP) | farthest_visible (the farthest visible point, bounds = sdsm: Stride); TOML also takes shadow_distance = "camera_far" or "farthest_visible" (csmlab.cascades.bounds.SHADOW_DISTANCE_METHODS)."""
+    """Where the last cascade ends: fixed (shadow_distance) | camera_far (the camera's far plane of each frame:
+    three.js, Filament, MJP) | farthest_visible (the farthest visible point, bounds = sdsm: Stride); TOML also takes
+    shadow_distance = "camera_far" or "farthest_visible" (csmlab.cascades.bounds.SHADOW_DISTANCE_METHODS)."""
     max_shadow_distance: float = 0.0
-    """shadow_distance_from = camera_far or farthest_visible: the engine's cap in metres (three.js maxFar 100000); 0: none."""
+    """shadow_distance_from = camera_far or farthest_visible: the engine's cap in metres (three.js maxFar 100000); 0:
+    none."""
     # policies: the sun and zoom policies (the light and field of view the maps are built for)
     zoom_policy: str = "camera"
-    """cascades: the field of view the cascades are fitted to, camera (the camera's own) | min_fov (max(fov, min_fov_deg) while the camera renders at its own: Godot's directional_shadow_min_fov) (csmlab.shadow_policies.ZOOM_POLICIES)."""
+    """cascades: the field of view the cascades are fitted to, camera (the camera's own) | min_fov (max(fov,
+    min_fov_deg) while the camera renders at its own: Godot's directional_shadow_min_fov)
+    (csmlab.shadow_policies.ZOOM_POLICIES)."""
     min_fov_deg: float = 60.0
     """zoom_policy = min_fov: the smallest vertical field of view in degrees the cascades are fitted to."""
     sun_policy: str = "every_frame"
-    """The light direction the shadow maps are built with, every_frame (the true sun) | every_n (the sun of every sun_update_frames-th frame, held in between) | quantized (the sun's elevation and azimuth rounded to sun_step_deg); shading and reference keep the true sun (csmlab.shadow_policies.SUN_POLICIES)."""
+    """The light direction the shadow maps are built with, every_frame (the true sun) | every_n (the sun of every
+    sun_update_frames-th frame, held in between) | quantized (the sun's elevation and azimuth rounded to sun_step_deg);
+    shading and reference keep the true sun (csmlab.shadow_policies.SUN_POLICIES)."""
     sun_update_frames: int = 4
     """sun_policy = every_n: frames between updates of the shadow's light direction."""
     sun_step_deg: float = 1.0
     """sun_policy = quantized: the angular step in degrees the sun's elevation and azimuth are rounded to."""
     # bounds: the depth range the splits divide
     bounds: str = "frustum"
-    """Depth range the splits divide, frustum (near .. shadow_distance) | sdsm (the frame's visible depth range, from the G-buffer)."""
+    """Depth range the splits divide, frustum (near .. shadow_distance) | sdsm (the frame's visible depth range, from
+    the G-buffer)."""
     hold: str = "fraction"
-    """bounds = sdsm: how the visible range is held, fraction (hysteresis) | stepped (Stride: grows in 1.1^k and shrinks in 2^-k steps) (csmlab.cascades.bounds.HOLD_METHODS)."""
+    """bounds = sdsm: how the visible range is held, fraction (hysteresis) | stepped (Stride: grows in 1.1^k and shrinks
+    in 2^-k steps) (csmlab.cascades.bounds.HOLD_METHODS)."""
     hysteresis: float = 0.0
-    """bounds = sdsm with hold = fraction: the held range grows at once and shrinks only when the visible range is this fraction inside it."""
+    """bounds = sdsm with hold = fraction: the held range grows at once and shrinks only when the visible range is this
+    fraction inside it."""
     # fit: each cascade's box across the light: fit and stabilization
     fit: str = "cascade"
-    """Fit: cascade (slice [z_i, z_i+1]) | cascade_lerp (its ends lerped from near to far: n + (z_i/f)(f − n), three.js) | scene (slice [near, z_i+1])."""
+    """Fit: cascade (slice [z_i, z_i+1]) | cascade_lerp (its ends lerped from near to far: n + (z_i/f)(f − n), three.js)
+    | scene (slice [near, z_i+1])."""
     stabilization: str = "exact"
-    """none | exact | quantized | tight_snapped (the tight box padded for the filter, snapped to texels of its own size every frame: DirectX CSM11 fit to cascade)."""
+    """none | exact | quantized | tight_snapped (the tight box padded for the filter, snapped to texels of its own size
+    every frame: DirectX CSM11 fit to cascade)."""
     levels: int = 64
     """quantized: number of extent steps of the base extent."""
     quantized_base: str = "sphere"
     """quantized: base extent, sphere (slice bounding-sphere diameter) | frustum (whole frustum box)."""
     extent: str = "sphere"
-    """exact, and quantized with quantized_base = sphere: the fixed box diameter, sphere (slice bounding sphere) | diagonal (ceil of the slice's largest diagonal, Bevy) | diagonal_unrounded (the same unrounded: three.js) | centroid (sphere about the corners' centroid: Godot, Stride) | body_diagonal (the body diagonal alone, unrounded: DirectX CSM11 fit to scene)."""
+    """exact, and quantized with quantized_base = sphere: the fixed box diameter, sphere (slice bounding sphere) |
+    diagonal (ceil of the slice's largest diagonal, Bevy) | diagonal_unrounded (the same unrounded: three.js) | centroid
+    (sphere about the corners' centroid: Godot, Stride) | body_diagonal (the body diagonal alone, unrounded: DirectX
+    CSM11 fit to scene)."""
     snap: str = "origin"
-    """exact: what is snapped to whole texels, origin (box corner: Valient, DirectX, Unreal) | centre (box centre floored, the filter margins kept inside) | centre_full (box centre, texel D/R with no filter margin inside: Bevy, three.js) | view (centre in 4-texel steps: Stride view snapping) | nearest2 (edges rounded to the nearest 2-texel unit: Godot) | centre_nearest (box centre rounded to the nearest texel: Stride projection snapping)."""
+    """exact: what is snapped to whole texels, origin (box corner: Valient, DirectX, Unreal) | centre (box centre
+    floored, the filter margins kept inside) | centre_full (box centre, texel D/R with no filter margin inside: Bevy,
+    three.js) | view (centre in 4-texel steps: Stride view snapping) | nearest2 (edges rounded to the nearest 2-texel
+    unit: Godot) | centre_nearest (box centre rounded to the nearest texel: Stride projection snapping)."""
     light_basis: str = "least_aligned"
-    """Light space's right and up about the light axis, where the texel grid lies: least_aligned (csmlab's: the world axis least aligned with the light as up) | world_y (a look-at with world +Y up: three.js, Godot, Bevy, Stride, MJP, DirectX) (csmlab.geometry.LIGHT_BASIS_METHODS)."""
+    """Light space's right and up about the light axis, where the texel grid lies: least_aligned (csmlab's: the world
+    axis least aligned with the light as up) | world_y (a look-at with world +Y up: three.js, Godot, Bevy, Stride, MJP,
+    DirectX) (csmlab.geometry.LIGHT_BASIS_METHODS)."""
     extent_hysteresis: float = 0.0
-    """stabilization = none: the tight box's extent grows at once and shrinks only when the tight extent is this fraction below it (csmlab.cascades.stabilize.held_extents)."""
+    """stabilization = none: the tight box's extent grows at once and shrinks only when the tight extent is this
+    fraction below it (csmlab.cascades.stabilize.held_extents)."""
     focus: str = "slice"
-    """stabilization = none: what a tight box covers, slice (the view slice) | scene (the slice clipped to the scene's light-space bounds, receivers ∩ casters: Filament's tightly bound scene) (csmlab.cascades.focus)."""
+    """stabilization = none: what a tight box covers, slice (the view slice) | scene (the slice clipped to the scene's
+    light-space bounds, receivers ∩ casters: Filament's tightly bound scene) (csmlab.cascades.focus)."""
     # warp: the light-space perspective warp
     warp: str = "none"
-    """Light projection, none (orthographic boxes) | lispsm (Filament's light-space perspective warp, stabilization = none only) (csmlab.cascades.warp)."""
+    """Light projection, none (orthographic boxes) | lispsm (Filament's light-space perspective warp, stabilization =
+    none only) (csmlab.cascades.warp)."""
     lispsm_near_hint: float = 1.0
     """warp = lispsm: metres from the camera where shadow quality is optimized from (Filament's shadowNearHint)."""
     lispsm_far_hint: float = 100.0
     """warp = lispsm: metres from the camera where shadow quality is optimized up to (Filament's shadowFarHint)."""
     # depth_range: each cascade's box along the light: its depth range
     depth_range: str = "scene"
-    """Box depth: scene (near side pushed to the scene bounds) | slice (the slice's own range, less pancake) | sphere (the slice corners' centroid sphere ± radius, less pancake: Godot, Stride) | light_camera (light_near to light_far in front of a light pancake metres from the slice: three.js) | scene_clipped (the scene's bounding box clipped to the cascade's box on x and y: DirectX CSM11)."""
+    """Box depth: scene (near side pushed to the scene bounds) | slice (the slice's own range, less pancake) | sphere
+    (the slice corners' centroid sphere ± radius, less pancake: Godot, Stride) | light_camera (light_near to light_far
+    in front of a light pancake metres from the slice: three.js) | scene_clipped (the scene's bounding box clipped to
+    the cascade's box on x and y: DirectX CSM11)."""
     pancake: float = 0.0
-    """depth_range = slice, sphere or light_camera: metres the near side (light_camera: the light) is pulled toward the light beyond the slice (Godot pancake_size, three.js lightMargin)."""
+    """depth_range = slice, sphere or light_camera: metres the near side (light_camera: the light) is pulled toward the
+    light beyond the slice (Godot pancake_size, three.js lightMargin)."""
     depth_clamp: bool = True
-    """depth_range = slice, sphere or light_camera: casters nearer than the near side are flattened onto it (pancaking) rather than clipped."""
+    """depth_range = slice, sphere or light_camera: casters nearer than the near side are flattened onto it (pancaking)
+    rather than clipped."""
     light_near: float = 1.0
-    """depth_range = light_camera: metres in front of the light where its camera's depth range starts (three.js lightNear)."""
+    """depth_range = light_camera: metres in front of the light where its camera's depth range starts (three.js
+    lightNear)."""
     light_far: float = 2000.0
-    """depth_range = light_camera: metres in front of the light where its camera's depth range ends (three.js lightFar)."""
+    """depth_range = light_camera: metres in front of the light where its camera's depth range ends (three.js
+    lightFar)."""
     # precision: the precision of the cascade math and of the raster
     engine_precision: str = "float64"
-    """Cascade math (light matrices, positions, snapping, depth) as csmlab does it, float64 | float32 (an engine's float32 pipeline on absolute world positions: Godot 4, Unity) | camera_relative (the same relative to an origin rebased near the camera: Unreal 5, HDRP) (csmlab.texels.PRECISION_METHODS)."""
+    """Cascade math (light matrices, positions, snapping, depth) as csmlab does it, float64 | float32 (an engine's
+    float32 pipeline on absolute world positions: Godot 4, Unity) | camera_relative (the same relative to an origin
+    rebased near the camera: Unreal 5, HDRP) (csmlab.texels.PRECISION_METHODS)."""
     rebase_distance: float = 0.0
-    """engine_precision = camera_relative: metres between the origins the float32 positions are taken from; 0 rebases at the camera every frame (Unreal 5, HDRP), d > 0 to the camera rounded to multiples of d."""
+    """engine_precision = camera_relative: metres between the origins the float32 positions are taken from; 0 rebases at
+    the camera every frame (Unreal 5, HDRP), d > 0 to the camera rounded to multiples of d."""
     vertex_snap: str = "world"
-    """engine_precision = float64: where vertices and receivers are snapped to 2**-subtexel_bits texels, world (global fixed point less the box origin: world-locked) | window (the window position, the rasterizer's rule: follows a fractional box origin) (csmlab.texels.VERTEX_SNAPS)."""
+    """engine_precision = float64: where vertices and receivers are snapped to 2**-subtexel_bits texels, world (global
+    fixed point less the box origin: world-locked) | window (the window position, the rasterizer's rule: follows a
+    fractional box origin) (csmlab.texels.VERTEX_SNAPS)."""
     subtexel_bits: int = 8
     """Fixed-point bits below a texel for vertices and receivers (docs/design.md, "Exact zero")."""
     # depth_pass: the faces the depth pass rasterizes and how blended casters cast
     cull: str = "none"
-    """Faces the depth pass drops, judged in the light's view as OpenGL's glCullFace (counter-clockwise fronts): none (both rasterized) | back (keeps the faces turned toward the light) | front (keeps those turned away: three.js's shadowSide = BackSide) (csmlab.culling.CULL_METHODS)."""
+    """Faces the depth pass drops, judged in the light's view as OpenGL's glCullFace (counter-clockwise fronts): none
+    (both rasterized) | back (keeps the faces turned toward the light) | front (keeps those turned away: three.js's
+    shadowSide = BackSide) (csmlab.culling.CULL_METHODS)."""
     blend_casters: str = "scene"
-    """How the depth pass casts glTF alphaMode BLEND triangles, scene (as [scene] blend_casters reads them) | opaque (solid) | masked (alpha-tested at their alphaCutoff: Godot 4) | none (no shadow: Unity URP); the camera and the reference see the level's rule (csmlab.culling.BLEND_CASTER_RULES)."""
+    """How the depth pass casts glTF alphaMode BLEND triangles, scene (as [scene] blend_casters reads them) | opaque
+    (solid) | masked (alpha-tested at their alphaCutoff: Godot 4) | none (no shadow: Unity URP); the camera and the
+    reference see the level's rule (csmlab.culling.BLEND_CASTER_RULES)."""
     # selection: which cascade a point is looked up in
     selection: str = "interval"
-    """Cascade selection: interval | map | best_resolution | sphere (the first split sphere holding the point: Unity) | sphere_dither (sphere, the next cascade dithered in over each sphere's border: Unity HDRP)."""
+    """Cascade selection: interval | map | best_resolution | sphere (the first split sphere holding the point: Unity) |
+    sphere_dither (sphere, the next cascade dithered in over each sphere's border: Unity HDRP)."""
     outside: str = "none"
-    """A point no cascade holds: none (no shadow value, left out of the measures) | lit (S = 1: Bevy) | last (interval selection keeps the last cascade beyond the last split: Stride, MJP) (csmlab.lookup_choices.OUTSIDE_METHODS)."""
+    """A point no cascade holds: none (no shadow value, left out of the measures) | lit (S = 1: Bevy) | last (interval
+    selection keeps the last cascade beyond the last split: Stride, MJP) (csmlab.lookup_choices.OUTSIDE_METHODS)."""
     cascade_borders: tuple[float, ...] = ()
-    """selection = sphere_dither: each cascade's border as a fraction of its split sphere's squared radius, one per cascade, the last 0 (HDRP cascadeShadowBorder0..3; its fade to lit is fade_out); empty: no border."""
+    """selection = sphere_dither: each cascade's border as a fraction of its split sphere's squared radius, one per
+    cascade, the last 0 (HDRP cascadeShadowBorder0..3; its fade to lit is fade_out); empty: no border."""
     # filter: the depth-compare filters
     filter: str = "pcf"
-    """Filter: none | pcf | pcf_bilinear | pcf_gaussian | pcf_tent | pcf_poisson | pcf_vogel | pcf_castano | pcf_tent_bilinear | pcf_bilinear_box | pcss | vsm | evsm2 | evsm4 | msm (csmlab.filters)."""
+    """Filter: none | pcf | pcf_bilinear | pcf_gaussian | pcf_tent | pcf_poisson | pcf_vogel | pcf_castano |
+    pcf_tent_bilinear | pcf_bilinear_box | pcss | vsm | evsm2 | evsm4 | msm (csmlab.filters)."""
     filter_size: int = 3
-    """pcf, pcf_gaussian, pcf_tent, pcf_poisson, pcss, pcf_castano (3 or 5), pcf_tent_bilinear, pcf_bilinear_box: taps per side N (odd)."""
+    """pcf, pcf_gaussian, pcf_tent, pcf_poisson, pcss, pcf_castano (3 or 5), pcf_tent_bilinear, pcf_bilinear_box: taps
+    per side N (odd)."""
     filter_sigma: float = 1.0
     """pcf_gaussian with filter_width_m = 0: standard deviation σ of the weights, texels."""
     filter_width_m: float = 0.0
-    """pcf_gaussian, pcf_tent, pcf_poisson: filter width in metres, the same in every cascade (Unigine); 0: in texels from filter_size and filter_sigma."""
+    """pcf_gaussian, pcf_tent, pcf_poisson: filter width in metres, the same in every cascade (Unigine); 0: in texels
+    from filter_size and filter_sigma."""
     poisson_taps: int = 16
     """pcf_poisson: taps of the fixed Poisson disk."""
     poisson_seed: int = 1
     """pcf_poisson: seed of the disk's (deterministic) construction."""
     poisson_rotation: str = "none"
-    """pcf_poisson, pcf_vogel: none (one disk everywhere) | pixel (rotated per screen pixel by interleaved gradient noise) | pixel_frame (per pixel and per frame: the noise's pixel offset by 5.588238 · (frame mod 64), Bevy's ShadowFilteringMethod::Temporal) | pixel_taa (pixel_frame under [taa], pixel without it: Godot's taa_frame_count term) (csmlab.filters.ROTATIONS)."""
+    """pcf_poisson, pcf_vogel: none (one disk everywhere) | pixel (rotated per screen pixel by interleaved gradient
+    noise) | pixel_frame (per pixel and per frame: the noise's pixel offset by 5.588238 · (frame mod 64), Bevy's
+    ShadowFilteringMethod::Temporal) | pixel_taa (pixel_frame under [taa], pixel without it: Godot's taa_frame_count
+    term) (csmlab.filters.ROTATIONS)."""
     vogel_taps: int = 5
     """pcf_vogel: taps of the Vogel disk (Godot 4 Soft Low: 4, three.js PCFShadowMap: 5)."""
     vogel_radius: float = 1.0
@@ -180,7 +234,8 @@ class ShadowSettings:
     vogel_angle: float = 2.399963229728653
     """pcf_vogel: angle between consecutive taps, radians (three.js: 2.399963229728653, Godot 4: 2.4)."""
     vogel_scale: str = "none"
-    """pcf_vogel: none (vogel_radius in every cascade) | first_split (× the first cascade's far end / this cascade's: Godot 4)."""
+    """pcf_vogel: none (vogel_radius in every cascade) | first_split (× the first cascade's far end / this cascade's:
+    Godot 4)."""
     light_size_deg: float = 0.53
     """pcss: angular diameter of the light, degrees (the sun: 0.53)."""
     # moments: the moment filters' moments, bounds and mip chain (only with filter = "vsm", "evsm2", "evsm4" or "msm")
@@ -195,15 +250,20 @@ class ShadowSettings:
     vsm_bleed: float = 0.0
     """vsm, evsm2, evsm4, msm: light-bleeding reduction p ← linstep(amount, 1, p) (Lauritzen; 0: none), in [0, 1)."""
     msm_moment_bias: float = 3e-6
-    """msm: moment bias α in [0, 1), the weight of (0.5, 0.5, 0.5, 0.5) mixed into the moments (MJP's Shadows sample: MSMMomentBias 0.003 × 10⁻³ for float32 moments)."""
+    """msm: moment bias α in [0, 1), the weight of (0.5, 0.5, 0.5, 0.5) mixed into the moments (MJP's Shadows sample:
+    MSMMomentBias 0.003 × 10⁻³ for float32 moments)."""
     msm_depth_bias: float = 0.0
-    """msm: depth bias in normalized depth (a fraction of the scene's light-space depth range) subtracted from the receiver's (MJP: MSMDepthBias, default 0)."""
+    """msm: depth bias in normalized depth (a fraction of the scene's light-space depth range) subtracted from the
+    receiver's (MJP: MSMDepthBias, default 0)."""
     moment_mips: bool = False
-    """vsm, evsm2, evsm4, msm: look the moments up in a mip chain, trilinear at a level of detail from screen-space derivatives (lod), not bilinear at level 0."""
+    """vsm, evsm2, evsm4, msm: look the moments up in a mip chain, trilinear at a level of detail from screen-space
+    derivatives (lod), not bilinear at level 0."""
     lod: str = "quad"
-    """moment_mips: derivatives the level of detail comes from: quad (hardware, per 2×2 quad; a seam at splits) | quad_consistent (PSVSM) | analytic (csmlab.quads)."""
+    """moment_mips: derivatives the level of detail comes from: quad (hardware, per 2×2 quad; a seam at splits) |
+    quad_consistent (PSVSM) | analytic (csmlab.quads)."""
     max_lod: int = 3
-    """moment_mips: coarsest mip level looked up (the sampler's MaxLOD), 0..8; the boxes keep its reach free inside their edges."""
+    """moment_mips: coarsest mip level looked up (the sampler's MaxLOD), 0..8; the boxes keep its reach free inside
+    their edges."""
     anisotropy: int = 1
     """moment_mips: most probes along the footprint's major axis, 1..16 (1: trilinear)."""
     # bias: the depth biases and offsets of receivers and casters
@@ -212,43 +272,60 @@ class ShadowSettings:
     bias_slope: float = 1.0
     """Slope-scaled bias in texels: bias += bias_slope · texel · tan(angle(n, -d))."""
     bias_depth_range: float = 0.0
-    """Constant depth bias as a fraction of each cascade's light-space depth range, added to bias_constant (Godot 4, Stride)."""
+    """Constant depth bias as a fraction of each cascade's light-space depth range, added to bias_constant (Godot 4,
+    Stride)."""
     bias_texels: float = 0.0
     """Constant depth bias in texels of each cascade, added to bias_constant (Unity URP's depth bias)."""
     caster_bias_texels: float = 0.0
-    """Casters pushed away from the light by this many texels of each cascade before they are rasterized (Unity URP's depth bias on the caster vertices, ShadowUtils.GetShadowBias)."""
+    """Casters pushed away from the light by this many texels of each cascade before they are rasterized (Unity URP's
+    depth bias on the caster vertices, ShadowUtils.GetShadowBias)."""
     caster_bias_units: float = 0.0
-    """Raster polygon offset, constant part: caster depth pushed away from the light by this many smallest steps of depth_format over each cascade's light-space depth range (Direct3D DepthBias, OpenGL polygon offset units; csmlab.storage.polygon_offset_unit)."""
+    """Raster polygon offset, constant part: caster depth pushed away from the light by this many smallest steps of
+    depth_format over each cascade's light-space depth range (Direct3D DepthBias, OpenGL polygon offset units;
+    csmlab.storage.polygon_offset_unit)."""
     caster_bias_slope: float = 0.0
-    """Raster polygon offset, slope part: caster depth pushed away from the light by this times each caster triangle's largest depth change over one texel along light-space x or y (Direct3D SlopeScaledDepthBias, OpenGL polygon offset factor)."""
+    """Raster polygon offset, slope part: caster depth pushed away from the light by this times each caster triangle's
+    largest depth change over one texel along light-space x or y (Direct3D SlopeScaledDepthBias, OpenGL polygon offset
+    factor)."""
     normal_offset: float = 0.5
     """Receiver offset along its normal, in texels."""
     normal_offset_m: float = 0.0
-    """Metres added to the normal offset in every cascade, a world distance (Stride: 2 · NormalOffsetScale / atlas size)."""
+    """Metres added to the normal offset in every cascade, a world distance (Stride: 2 · NormalOffsetScale / atlas
+    size)."""
     normal_offset_scale: str = "none"
-    """The normal offset per receiver: none | one_minus_cos (× 1 − cos θ: URP, Stride) | sin (× sin θ: Filament, Unity built-in) | one_minus_cos_lateral (Godot 4: × 1 − cos θ, across the light only)."""
+    """The normal offset per receiver: none | one_minus_cos (× 1 − cos θ: URP, Stride) | sin (× sin θ: Filament, Unity
+    built-in) | one_minus_cos_lateral (Godot 4: × 1 − cos θ, across the light only)."""
     receiver_plane_bias: bool = True
     """Compare each filter tap against the receiver's tangent plane at that texel (derivative-based bias)."""
     receiver_plane_offset: float = 0.0
-    """MJP's receiver-plane bias for one hardware compare: the depth pulled toward the light by its tangent plane's change over a texel in x and one in y, at most this fraction of the cascade's depth range (MJP: 0.01); 0: none."""
+    """MJP's receiver-plane bias for one hardware compare: the depth pulled toward the light by its tangent plane's
+    change over a texel in x and one in y, at most this fraction of the cascade's depth range (MJP: 0.01); 0: none."""
     # blend: the blend between cascades and the fade at the shadow's end
     blend_band: float = 0.0
     """Fraction of a cascade's depth range blended with the next cascade, in [0, 0.5]."""
     transition: str = "backward"
-    """blend_band > 0: where each band lies, backward (the last blend_band of cascade i's width, cascade i + 1 reaching back) | far_bound (from (1 - blend_band) z_i+1 to z_i+1: Bevy) | forward (cascade i reaching blend_band of its width past its split: Unreal) (csmlab.cascades.fit.TRANSITION_METHODS)."""
+    """blend_band > 0: where each band lies, backward (the last blend_band of cascade i's width, cascade i + 1 reaching
+    back) | far_bound (from (1 - blend_band) z_i+1 to z_i+1: Bevy) | forward (cascade i reaching blend_band of its width
+    past its split: Unreal) (csmlab.cascades.fit.TRANSITION_METHODS)."""
     blend_curve: str = "linear"
-    """blend_band > 0: the next cascade's weight over the band, linear | smoothstep (Stride, Godot) (csmlab.cascades.fit.BLEND_CURVES)."""
+    """blend_band > 0: the next cascade's weight over the band, linear | smoothstep (Stride, Godot)
+    (csmlab.cascades.fit.BLEND_CURVES)."""
     fade_out: float = 0.0
-    """Fraction of the shadow distance at its end over which the shadow fades to lit (Unreal, Unity, Godot 1 - fade_start)."""
+    """Fraction of the shadow distance at its end over which the shadow fades to lit (Unreal, Unity, Godot 1 -
+    fade_start)."""
     fade: str = "linear"
-    """fade_out > 0: the fade's shape, linear (in view depth: Unreal) | smoothstep (in view depth: Godot) | radial (linear in the distance to the camera: Unity built-in Stable Fit) | squared_radial (linear in its square: Unity URP) (csmlab.fades.FADE_METHODS)."""
+    """fade_out > 0: the fade's shape, linear (in view depth: Unreal) | smoothstep (in view depth: Godot) | radial
+    (linear in the distance to the camera: Unity built-in Stable Fit) | squared_radial (linear in its square: Unity URP)
+    (csmlab.fades.FADE_METHODS)."""
     # storage: how the depth maps are stored
     depth_format: str = "float32"
     """Stored depth: float32 | unorm24 | unorm16, quantized over depth_quantization's range (csmlab.storage)."""
     depth_bytes: int = 0
     """Bytes per stored depth texel (memory cost only); 0: what depth_format allocates (2, 4, 4)."""
     depth_quantization: str = "scene"
-    """depth_format = unorm24 or unorm16: the range its levels divide, scene (the scene's light-space depth span, in power-of-two steps) | cascade (each box's own near/far, as engines store it) (csmlab.storage.DEPTH_QUANTIZATION_METHODS)."""
+    """depth_format = unorm24 or unorm16: the range its levels divide, scene (the scene's light-space depth span, in
+    power-of-two steps) | cascade (each box's own near/far, as engines store it)
+    (csmlab.storage.DEPTH_QUANTIZATION_METHODS)."""
     storage: str = "array"
     """Texture the cascades live in: array (C slices) | atlas (one texture, atlas_layout)."""
     atlas_layout: str = "2x2"
@@ -587,8 +664,8 @@ SETTING_GROUPS: tuple[SettingGroup, ...] = (
                                                 'shadow_distance_from = "fixed" (a number of metres; "camera_far" and '
                                                 '"farthest_visible" end each frame where the camera or its view ends)'),
                      "max_shadow_distance": Applies(lambda *, shadow_distance_from: shadow_distance_from != "fixed",
-                                                    'shadow_distance_from = "camera_far" or "farthest_visible" (the cap '
-                                                    'on where they end)'),
+                                                    'shadow_distance_from = "camera_far" or "farthest_visible" '
+                                                    '(the cap on where they end)'),
                      "lambda": Applies(lambda *, split: split == "practical",
                                        'split = "practical" (the blend of log and uniform splits)'),
                      "splits": Applies(lambda *, split: split in ("manual", "manual_range"),

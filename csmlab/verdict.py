@@ -124,7 +124,8 @@ def _failure_message(check: Check) -> str:
 
 def _failure_text(check: Check, frames: list[tuple[str, float]]) -> str:
     lines = [("baseline", _fmt(check.baseline)), ("value", _fmt(check.now)), ("delta", _signed(check.delta)),
-             ("tolerance", _fmt(check.allowed)), ("direction", f"{check.direction} ({DIRECTION_TEXT[check.direction]})"),
+             ("tolerance", _fmt(check.allowed)),
+             ("direction", f"{check.direction} ({DIRECTION_TEXT[check.direction]})"),
              ("worst frames", _frames_text(frames))]
     return "".join(f"{name}: {value}\n" for name, value in lines)
 

@@ -78,7 +78,8 @@ def _disk_in_square(r: float, a: float) -> float:
 
 
 def _boundary_in_square(r_in: float, r_out: float, a: float) -> float:
-    """Length of the boundary of the ring ``r_in ≤ ρ < r_out`` cut by that square: arcs inside it, edges inside the ring."""
+    """Length of the boundary of the ring ``r_in ≤ ρ < r_out`` cut by that square: arcs inside it, edges inside the
+    ring."""
     def arc(r):
         return 2 * math.pi * r if r <= a else max(2 * math.pi * r - 8 * r * math.acos(min(a / r, 1.0)), 0.0)
 

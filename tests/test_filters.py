@@ -1,4 +1,5 @@
-"""Every filter through the whole frame: exact stabilization keeps zero same-cascade flicker, per-pixel rotation breaks it."""
+"""Every filter through the whole frame: exact stabilization keeps zero same-cascade flicker, per-pixel rotation breaks
+it."""
 
 import numpy as np
 import pytest
@@ -37,9 +38,11 @@ def _walk(variants, frames=10):
 
 def test_exact_keeps_zero_same_cascade_flicker_under_every_filter_and_unorm16_and_pixel_rotation_breaks_it():
     base = ShadowSettings(cascades=3, resolution=256, stabilization="exact", shadow_distance=60.0)
-    variants = {name: base.replace(filter=name.removesuffix("_world").removesuffix("_unorm16"), **params) for name, params in STEADY.items()}
+    variants = {name: base.replace(filter=name.removesuffix("_world").removesuffix("_unorm16"), **params)
+                for name, params in STEADY.items()}
     variants["rotated"] = base.replace(filter="pcf_poisson", filter_size=5, poisson_rotation="pixel")
-    variants["rotated_vogel"] = base.replace(filter="pcf_vogel", vogel_taps=4, vogel_radius=2.0, poisson_rotation="pixel")
+    variants["rotated_vogel"] = base.replace(filter="pcf_vogel", vogel_taps=4, vogel_radius=2.0,
+                                             poisson_rotation="pixel")
     variants["none_stabilized"] = base.replace(stabilization="none", filter="pcf_tent", filter_size=5)
     summary = _walk(variants)
     for name in STEADY:
@@ -69,7 +72,7 @@ def test_every_filter_has_one_record_and_the_margin_follows_its_radius():
     mips = ShadowSettings(filter="vsm", moment_blur=5, moment_mips=True, max_lod=3, anisotropy=2)
     assert mips.margin_texels == 16 + 2 + 1
     with pytest.raises(ValueError, match="filter: expected one of .*'pcf_poisson'"):
-        ShadowSettings(filter="poisson").margin_texels
+        _ = ShadowSettings(filter="poisson").margin_texels
 
 
 def test_a_filter_reads_what_its_record_says():

@@ -67,8 +67,8 @@ def test_slice_sphere_is_the_smallest_enclosing_sphere_on_the_view_axis(fov, asp
                                     z_near=z0, z_far=z1)
     # Oracle: brute-force search over centre depth for the smallest max distance to the corners.
     depths = np.linspace(z0, z1, 200001)
-    radii = np.max(np.linalg.norm(corners[None, :, :] - np.stack([0 * depths, 0 * depths, -depths], 1)[:, None], axis=2),
-                   axis=1)
+    centres = np.stack([0 * depths, 0 * depths, -depths], 1)
+    radii = np.max(np.linalg.norm(corners[None, :, :] - centres[:, None], axis=2), axis=1)
     assert s.radius == pytest.approx(radii.min(), rel=1e-6)
     dist = np.linalg.norm(corners - np.array([0, 0, -s.centre_depth]), axis=1)
     assert dist.max() <= s.radius * (1 + 1e-12)

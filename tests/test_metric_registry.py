@@ -16,7 +16,8 @@ from csmlab.metric_registry import (DERIVED, METRICS, best_mask, finite_mean, fo
 DESIGN_COLUMNS = (
     "rho_median, rho_p05, rho_p95, rho_frac_lt1, rho_frac_lt05, sigma_min_p05, utilization, flicker, flicker_same, "
     "flicker_changed, flip_rate, flip_same, flip_changed, de2000_mean, de2000_p99, de2000_frac_jnd, ssim, flip, "
-    "ref_false_shadow, ref_false_light, acne, peter_panning, ref_boundary_px, memory_bytes, texels_rasterized").split(", ")
+    "ref_false_shadow, ref_false_light, acne, peter_panning, ref_boundary_px, memory_bytes, "
+    "texels_rasterized").split(", ")
 """docs/design.md "Interfaces", copied by hand: the contract the registry must keep."""
 
 

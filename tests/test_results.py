@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from csmlab.errors import InputError
-from csmlab.results import (MetricRow, clear_chunks, format_value, kept_chunks, load_chunk, load_chunk_part, metric_arrays,
-                            prepare_output, read_metrics, read_summary, save_chunk, summarize, write_atomic,
-                            write_metrics)
+from csmlab.results import (MetricRow, clear_chunks, format_value, kept_chunks, load_chunk, load_chunk_part,
+                            metric_arrays, prepare_output, read_metrics, read_summary, save_chunk, summarize,
+                            write_atomic, write_metrics)
 
 
 def test_cells_round_trip_every_float_exactly():

@@ -216,7 +216,8 @@ def test_parse_size_refuses_what_is_not_a_size(text):
 
 
 @pytest.mark.parametrize("table, match", [
-    ('stabilization = ["exakt"]', r"tune.stabilization: expected one of \['exact', 'none', 'quantized', 'tight_snapped'\], got 'exakt' \(did you mean 'exact'\?\)"),
+    ('stabilization = ["exakt"]', r"tune.stabilization: expected one of \['exact', 'none', 'quantized', "
+                                  r"'tight_snapped'\], got 'exakt' \(did you mean 'exact'\?\)"),
     ("lambda = { min = 0.9, max = 0.3 }", "tune.lambda: expected min < max"),
     ('split = { min = 1, max = 2 }', "tune.split: expected a list of choices"),
     ('memory_budget = "lots"', "tune.memory_budget: expected a positive size"),
@@ -461,7 +462,8 @@ def test_search_walks_a_grid_in_order_in_batches_and_runs_nothing_over_the_memor
                                   trials=6, batch=4,
                                   memory_budget=shadow_memory_bytes(ShadowSettings(cascades=2, resolution=128)))
     trials, asked, ticks = _fake_search(options, tmp_path)
-    assert [t.params for t in trials] == [{"resolution": r, "lambda": l} for r in (64, 128, 256) for l in (0.3, 0.9)]
+    assert [t.params for t in trials] == [{"resolution": r, "lambda": lam}
+                                          for r in (64, 128, 256) for lam in (0.3, 0.9)]
     assert ticks == [t.label for t in trials] == [f"trial {i}" for i in range(6)]
     assert [list(batch) for batch in asked] == [["trial 0", "trial 1", "trial 2", "trial 3"], []]
     assert [t.values is None for t in trials] == [False] * 4 + [True] * 2

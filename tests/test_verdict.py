@@ -132,6 +132,7 @@ def test_unchanged_gate_passes_in_junit_and_markdown_with_exit_0(degraded_gate, 
 def test_unwritable_junit_path_is_bad_input_exit_2(degraded_gate, tmp_path):
     (tmp_path / "file").write_text("")
     outcome = CliRunner().invoke(app, ["regress", str(degraded_gate / "base"), "--baseline",
-                                       str(degraded_gate / "baseline.json"), "--junit", str(tmp_path / "file" / "j.xml")])
+                                       str(degraded_gate / "baseline.json"), "--junit",
+                                       str(tmp_path / "file" / "j.xml")])
     assert outcome.exit_code == 2
     assert "--junit" in outcome.output and "j.xml" in outcome.output

@@ -71,7 +71,8 @@ class Cascade:
 
     @property
     def homography(self) -> np.ndarray:
-        """Light-space ``(x, y, 1)`` metres to ``(i·w, j·w, w)`` local texels ``(3, 3)``: the warp's, or the box's (w = 1)."""
+        """Light-space ``(x, y, 1)`` metres to ``(i·w, j·w, w)`` local texels ``(3, 3)``: the warp's, or the
+        box's (w = 1)."""
         if self.warp is not None:
             return self.warp.homography
         return np.array([[1.0 / self.texel_size[0], 0.0, -self.origin[0]],

@@ -54,7 +54,8 @@ def radius_rounded_up(radius: float, *, bits: int = 12) -> float:
 
 def extent_sphere(*, pose: CameraPose, basis: np.ndarray, z_near: float, z_far: float,
                   corners: np.ndarray) -> tuple[np.ndarray, float]:
-    """Centre x/y ``(2,)`` in light-space metres and radius (metres, rounded up to a 2^-12 quantum) of the bounding sphere."""
+    """Centre x/y ``(2,)`` in light-space metres and radius (metres, rounded up to a 2^-12 quantum) of the bounding
+    sphere."""
     sphere = slice_bounding_sphere(fov_y_deg=pose.fov_y_deg, aspect=pose.aspect, z_near=z_near, z_far=z_far)
     centre = basis @ (pose.position + pose.forward * sphere.centre_depth)
     return centre[:2], radius_rounded_up(sphere.radius)
@@ -109,7 +110,8 @@ def extent_body_diagonal(*, pose: CameraPose, basis: np.ndarray, z_near: float, 
 
 def extent_centroid(*, pose: CameraPose, basis: np.ndarray, z_near: float, z_far: float,
                     corners: np.ndarray) -> tuple[np.ndarray, float]:
-    """Centre x/y ``(2,)`` of the corners' centroid and the distance to the farthest corner (rounded up to a 2^-12 quantum).
+    """Centre x/y ``(2,)`` of the corners' centroid and the distance to the farthest corner (rounded up to a 2^-12
+    quantum).
 
     Closed form in the view frame, so it is bit-stable from frame to frame (the centroid of the
     corners lies on the view axis at depth ``(z_n + z_f) / 2``; the far corners are the farthest).

@@ -20,8 +20,8 @@ import numpy as np
 from csmlab.lookup_choices import BLEND_LINEAR, BLEND_SMOOTHSTEP
 from csmlab.registry import check_name
 
-__all__ = ["BLEND_CURVES", "TRANSITION_METHODS", "FIT_METHODS", "Transition", "fit_cascade", "fit_cascade_lerp", "fit_scene",
-           "GODOT_BLEND_SPLITS", "selection_depths", "slice_intervals", "transition_bands"]
+__all__ = ["BLEND_CURVES", "TRANSITION_METHODS", "FIT_METHODS", "Transition", "fit_cascade", "fit_cascade_lerp",
+           "fit_scene", "GODOT_BLEND_SPLITS", "selection_depths", "slice_intervals", "transition_bands"]
 
 
 def fit_cascade(splits: np.ndarray, i: int) -> tuple[float, float]:
@@ -111,7 +111,8 @@ TRANSITION_METHODS: dict[str, Transition] = {
     "backward": Transition(_backward, "the last b of cascade i's width before z_i+1, cascade i + 1 reaching back "
                                       "(DirectX CSM11, Stride's IsBlendingCascades)"),
     "far_bound": Transition(_far_bound, "from (1 - b) z_i+1 to z_i+1: b of the far bound, not of the width (Bevy "
-                                        "overlap_proportion: build_directional_light_cascades, fetch_directional_shadow)"),
+                                        "overlap_proportion: build_directional_light_cascades, "
+                                        "fetch_directional_shadow)"),
     "forward": Transition(_forward, "from z_i+1 to z_i+1 + b (z_i+1 - z_i): cascade i reaching forward past its split "
                                     "(Unreal CascadeTransitionFraction, FShadowCascadeSettings' fade plane)"),
 }

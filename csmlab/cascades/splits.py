@@ -3,9 +3,9 @@
 References: NVIDIA, "Cascaded Shadow Maps" (2007), seed 000 — the logarithmic and practical
 (PSSM) schemes; Zhang et al., "Practical Cascaded Shadow Maps", seed 003; Unreal Engine
 ``FDirectionalLightSceneProxy::GetSplitDistance`` (``CascadeDistributionExponent``); Bevy
-``bevy_light/src/cascade.rs`` ``calculate_cascade_bounds`` (``first_cascade_far_bound``); Godot 4 ``renderer_scene_cull.cpp``
-``_light_instance_setup_directional_shadow`` and MJP's ``Shadows`` sample (``MeshRenderer.cpp``), which
-place fractions over the range from the near plane (``manual_range``).
+``bevy_light/src/cascade.rs`` ``calculate_cascade_bounds`` (``first_cascade_far_bound``); Godot 4
+``renderer_scene_cull.cpp`` ``_light_instance_setup_directional_shadow`` and MJP's ``Shadows`` sample
+(``MeshRenderer.cpp``), which place fractions over the range from the near plane (``manual_range``).
 
 Every scheme returns the ``C + 1`` boundaries ``z_0 = n < z_1 < … < z_C = f`` in metres of
 view depth. Schemes are registered by name in :data:`SPLIT_METHODS`; :func:`split_distances`
@@ -81,7 +81,8 @@ def splits_manual_range(*, near: float, far: float, count: int, splits=()) -> np
     if s.shape[0] != count:
         raise ValueError(f"splits: expected {count} fractions (one per cascade), got {s.shape[0]}")
     if not (np.all(np.isfinite(s)) and np.all(s > 0) and np.all(np.diff(s) > 0) and np.isclose(s[-1], 1.0, rtol=1e-9)):
-        raise ValueError(f"splits: expected increasing fractions of the range in (0, 1] ending at 1.0, got {s.tolist()}")
+        raise ValueError(f"splits: expected increasing fractions of the range in (0, 1] ending at 1.0, "
+                         f"got {s.tolist()}")
     z = np.concatenate([[near], near + s * (far - near)])
     z[-1] = far
     return z

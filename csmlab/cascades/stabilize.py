@@ -112,9 +112,9 @@ def snap_origin(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[np
 def snap_centre(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[np.ndarray, np.ndarray]:
     """The box's centre floored to whole texels and the box laid around it, the filter margins kept inside.
 
-    Bevy's and three.js's own box is :func:`snap_centre_full` (texel D/R, no margin). With ``h = floor(R / 2)`` the box spans ``[k - h, k - h + R)`` texels around the snapped centre
-    ``k = floor(c / t)``; ``t = 2r / (2 (h - m - 1))`` keeps the sphere and the margins inside on
-    both sides whatever ``c - k t ∈ [0, t)`` is.
+    Bevy's and three.js's own box is :func:`snap_centre_full` (texel D/R, no margin). With ``h = floor(R / 2)`` the box
+    spans ``[k - h, k - h + R)`` texels around the snapped centre ``k = floor(c / t)``; ``t = 2r / (2 (h - m - 1))``
+    keeps the sphere and the margins inside on both sides whatever ``c - k t ∈ [0, t)`` is.
     """
     half = resolution // 2
     t = fp.radius / (half - margin - 1)
@@ -123,7 +123,8 @@ def snap_centre(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[np
 
 
 def snap_centre_nearest(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[np.ndarray, np.ndarray]:
-    """The box's centre rounded to the *nearest* whole texel and the box laid around it (Stride's ``ProjectionSnapping``).
+    """The box's centre rounded to the *nearest* whole texel and the box laid around it (Stride's
+    ``ProjectionSnapping``).
 
     Stride (``LightDirectionalShadowMapRenderer.Collect``) takes the shadow projection's translation in
     shadow-map pixels, ``shadowPixelPosition = viewProjection.TranslationVector · size · 0.5``, rounds it
@@ -238,7 +239,8 @@ def stabilize_quantized(fp: SliceFootprint, *, resolution: int, margin: int, lev
 
 
 def stabilize_tight_snapped(fp: SliceFootprint, *, resolution: int, margin: int) -> tuple[np.ndarray, np.ndarray]:
-    """Tight box padded for the filter and snapped to texels of its own size, every frame (DirectX CSM11 fit to cascade).
+    """Tight box padded for the filter and snapped to texels of its own size, every frame (DirectX CSM11 fit to
+    cascade).
 
     ``CascadedShadowsManager::InitFrame`` with ``FIT_TO_CASCADES`` and ``m_bMoveLightTexelSize``: the
     light-space AABB of the slice's corners is widened on each side by half of ``(2 · m_iPCFBlurSize +

@@ -67,7 +67,8 @@ def experiment_document(experiment: Experiment) -> dict:
         scene.pop("offset")
     camera = _section_document(experiment.camera)
     drop = ("path",) if experiment.camera.file else ("file", "format", "convention", "scale", "offset", "time_offset",
-                                                     "times_file", "anchor", "duplicate_times", "max_gap", "gaps", "camera")
+                                                     "times_file", "anchor", "duplicate_times", "max_gap", "gaps",
+                                                     "camera")
     for key in drop:
         camera.pop(key, None)
     if not experiment.camera.camera:

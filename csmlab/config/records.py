@@ -132,7 +132,8 @@ class CameraConfig(_Checked):
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     """file: world position in metres the path is moved by after scaling."""
     time_offset: float = 0.0
-    """file: the run's clock at the file's first pose, seconds (the clock starts there, not at the file's time stamps)."""
+    """file: the run's clock at the file's first pose, seconds (the clock starts there, not at the file's time
+    stamps)."""
     start_s: float | None = None
     """file: first time kept, seconds on the run's clock (see ``time_offset``); unset keeps from the start."""
     end_s: float | None = None

@@ -49,7 +49,8 @@ FIELDS = frozenset({"cascades", "split", "splits", "shadow_distance", "fade_out"
 """The csmlab fields Godot's files carry (storage: one split fills the atlas, directional_shadow_mode = 0)."""
 
 GODOT_SOFT_LOW = {"vogel_taps": 4, "vogel_radius": 2.0, "vogel_angle": 2.4, "vogel_scale": "first_split"}
-"""Godot 4's Soft Low (soft_shadow_filter_quality = 2) as csmlab's ``pcf_vogel`` fields (configs/engines/godot4.toml)."""
+"""Godot 4's Soft Low (soft_shadow_filter_quality = 2) as csmlab's ``pcf_vogel`` fields
+(configs/engines/godot4.toml)."""
 GODOT_SOFT_LOW_LEVEL = 2
 """The project setting's default level, Soft Low (the preset's filter)."""
 
@@ -317,7 +318,8 @@ def write_godot4(settings: ShadowSettings, *, near: float, far: float) -> tuple[
     project = ["; Engine configuration file.", "config_version=5", "", "[rendering]", "",
                f"lights_and_shadows/directional_shadow/size={size * (1 if cascades == 1 else 2)}",
                f"lights_and_shadows/directional_shadow/soft_shadow_filter_quality={quality}",
-               f"lights_and_shadows/directional_shadow/16_bits={'true' if settings.depth_format == 'unorm16' else 'false'}"]
+               "lights_and_shadows/directional_shadow/16_bits="
+               f"{'true' if settings.depth_format == 'unorm16' else 'false'}"]
     light = ['[gd_scene format=3]', '', '[node name="DirectionalLight3D" type="DirectionalLight3D"]',
              "shadow_enabled = true",
              f"shadow_bias = {settings.bias_depth_range / SHADOW_BIAS_SCALE!r}",

@@ -18,7 +18,10 @@ from csmlab.errors import InputError
 
 __all__ = ["parse_ron"]
 
-_TOKEN = re.compile(r"""\s+|//[^\n]*|/\*.*?\*/|(?P<string>"(?:[^"\\]|\\.)*")|(?P<number>[-+]?(?:\d[\d_]*\.?[\d_]*(?:[eE][-+]?\d+)?|\.\d+(?:[eE][-+]?\d+)?|inf|NaN))(?![\w])|(?P<ident>[A-Za-z_][\w]*)|(?P<punct>[()\[\]{}:,])""", re.S)
+_TOKEN = re.compile(r"\s+|//[^\n]*|/\*.*?\*/|"
+                    r'(?P<string>"(?:[^"\\]|\\.)*")|'
+                    r"(?P<number>[-+]?(?:\d[\d_]*\.?[\d_]*(?:[eE][-+]?\d+)?|\.\d+(?:[eE][-+]?\d+)?|inf|NaN))(?![\w])|"
+                    r"(?P<ident>[A-Za-z_][\w]*)|(?P<punct>[()\[\]{}:,])", re.S)
 
 
 _ESCAPE = re.compile(r"""\\(?:u\{(?P<code>[0-9a-fA-F]{1,6})\}|x(?P<byte>[0-7][0-9a-fA-F])|(?P<plain>[nrt0\\"'])|.?)""",

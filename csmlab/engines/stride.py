@@ -60,8 +60,8 @@ PRESET = "stride"
 """The engine preset holding Stride's defaults."""
 
 FIELDS = frozenset({"cascades", "resolution", "stabilization", "snap", "bounds", "hold", "shadow_distance",
-                    "shadow_distance_from", "split", "lambda_", "splits", "blend_band", "filter", "filter_size", "bias_depth_range",
-                    "normal_offset_m"})
+                    "shadow_distance_from", "split", "lambda_", "splits", "blend_band", "filter", "filter_size",
+                    "bias_depth_range", "normal_offset_m"})
 """The csmlab fields a LightDirectionalShadowMap carries."""
 
 CASCADE_COUNTS = {"OneCascade": 1, "TwoCascades": 2, "FourCascades": 4}

@@ -36,7 +36,8 @@ FIELDS = frozenset({"cascades", "split", "splits", "lambda_", "shadow_distance",
 """The csmlab fields the options carry."""
 
 THREEJS_PCF = {"vogel_taps": 5, "vogel_angle": 2.399963229728653, "vogel_scale": "none"}
-"""three.js r182+ PCFShadowMap as csmlab's ``pcf_vogel`` fields, its radius LightShadow.radius (configs/engines/threejs_csm.toml)."""
+"""three.js r182+ PCFShadowMap as csmlab's ``pcf_vogel`` fields, its radius LightShadow.radius
+(configs/engines/threejs_csm.toml)."""
 
 MAX_FAR = 100000.0
 """CSM.js constructor default maxFar (``data.maxFar || 100000``)."""

@@ -120,7 +120,8 @@ def read_unity_builtin(paths) -> Imported:
             continue
         entry.number()  # a number, checked: shown as written
         reading.lack(file=path, key=entry.key, value=entry.raw,
-                     why="not used by this level's cascades" if unmodelled == "shadowCascade2Split" else "no csmlab knob")
+                     why=("not used by this level's cascades" if unmodelled == "shadowCascade2Split"
+                          else "no csmlab knob"))
     return reading.result()
 
 

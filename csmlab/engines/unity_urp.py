@@ -95,7 +95,8 @@ def read_unity_urp(paths) -> Imported:
                 list(_FEWER_SPLITS.get(cascades, base.splits[:cascades - 1])), "m_ShadowCascadeCount")
             reading.set("split", "manual", file=path, key=key, raw=fractions)
             reading.set("splits", (*fractions, 1.0), file=path, key=key, raw=fractions)
-        for key, attribute, above in (("m_ShadowDistance", "shadow_distance", 0.0), ("m_CascadeBorder", "fade_out", None),
+        for key, attribute, above in (("m_ShadowDistance", "shadow_distance", 0.0),
+                                      ("m_CascadeBorder", "fade_out", None),
                                       ("m_ShadowDepthBias", "bias_texels", None),
                                       ("m_ShadowNormalBias", "normal_offset", None)):
             if (entry := fields.member(key)) is not None:

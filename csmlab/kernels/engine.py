@@ -488,7 +488,8 @@ def _engine_receivers(points, normals, *, basis, texel_size, zref: float, normal
 
 def _launched(kernel, inputs: tuple, cascades: int, receivers: int,
               device: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``kernel`` launched a thread per receiver: its coordinates ``(C, N, 2)``, depths ``(C, N)`` and slopes ``(C, N, 2)``."""
+    """``kernel`` launched a thread per receiver: its coordinates ``(C, N, 2)``, depths ``(C, N)`` and slopes
+    ``(C, N, 2)``."""
     shape = (cascades, receivers)
     coords = device_empty(shape + (2,), wp.int64, device)
     depth = device_empty(shape, wp.float32, device)

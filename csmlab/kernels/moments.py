@@ -517,7 +517,8 @@ def filtered_moments(levels: wp.array(dtype=wp.vec4f), offset: wp.array(dtype=wp
                      size: wp.array(dtype=wp.int64), shift: wp.array3d(dtype=wp.int64), c: int, x: wp.int64,
                      y: wp.int64, ddx: wp.vec2d, ddy: wp.vec2d, unit: wp.int64, max_lod: int,
                      max_aniso: int) -> wp.vec4d:
-    """Trilinear (``max_aniso`` 1) or anisotropic moments at fixed-point ``(x, y)`` for a footprint ``ddx, ddy`` (texels)."""
+    """Trilinear (``max_aniso`` 1) or anisotropic moments at fixed-point ``(x, y)`` for a footprint ``ddx, ddy``
+    (texels)."""
     px = wp.length(ddx)
     py = wp.length(ddy)
     major = ddx

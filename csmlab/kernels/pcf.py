@@ -81,7 +81,8 @@ def tent_cdf(x: wp.float64, h: wp.float64) -> wp.float64:
 def tent_sum(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int64, tx: wp.float64, ty: wp.float64,
              h: wp.float64, radius: int, receiver: wp.float32, slope: wp.vec2d, x: wp.int64, y: wp.int64,
              unit: wp.int64, inverse_span: wp.float64) -> wp.float64:
-    """Tent-weighted tests of the (2r + 1)² texels around texel (i, j); ``tx, ty`` the point in texels from texel i, j."""
+    """Tent-weighted tests of the (2r + 1)² texels around texel (i, j); ``tx, ty`` the point in texels from
+    texel i, j."""
     s = wp.float64(0.0)
     for dj in range(-radius, radius + 1):
         # The texel spans [dj, dj + 1) relative to texel j; the tent is centred at ty.
@@ -99,7 +100,8 @@ def tent_sum(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int
 def blocker_depth(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int64, radius: int,
                   receiver: wp.float32, slope: wp.vec2d, x: wp.int64, y: wp.int64, unit: wp.int64,
                   inverse_span: wp.float64) -> wp.float64:
-    """Mean stored depth of the texels among the (2r + 1)² around (i, j) that shadow the receiver plane; +inf if none."""
+    """Mean stored depth of the texels among the (2r + 1)² around (i, j) that shadow the receiver plane; +inf if
+    none."""
     total = wp.float64(0.0)
     count = int(0)
     top = wp.int64(depth.shape[1] - 1)

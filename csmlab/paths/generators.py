@@ -394,7 +394,8 @@ LEVEL_FIT_SAMPLES = 64
 
 
 def _level_reach(level) -> float:
-    """The level's smaller horizontal half-extent in metres, or a twentieth of the larger for a level thin along one axis."""
+    """The level's smaller horizontal half-extent in metres, or a twentieth of the larger for a level thin along one
+    axis."""
     half = np.asarray(level.half_extent, dtype=np.float64)
     return max(float(half.min()), 0.05 * float(half.max()), 1e-3)
 

@@ -103,7 +103,8 @@ def findings_line(summary: dict | None) -> str | None:
 
 
 def _view_directions(path: CameraPath, rows: int) -> np.ndarray:
-    """Unit world directions ``(N, rows·GRID_COLUMNS, 3)`` of each frame's grid of rays through cell centres, row-major from the top."""
+    """Unit world directions ``(N, rows·GRID_COLUMNS, 3)`` of each frame's grid of rays through cell centres, row-major
+    from the top."""
     u = (np.arange(GRID_COLUMNS) + 0.5) / GRID_COLUMNS * 2.0 - 1.0
     v = 1.0 - (np.arange(rows) + 0.5) / rows * 2.0
     uu, vv = np.meshgrid(u, v)

@@ -175,7 +175,8 @@ def _cores() -> int:
 
 
 def _strip_pixels(snapshots: dict, strip_frames: dict) -> int:
-    return sum(s.height * s.width for point, frames in strip_frames.items() for f in frames for s in snapshots[point][f])
+    return sum(s.height * s.width for point, frames in strip_frames.items() for f in frames
+               for s in snapshots[point][f])
 
 
 def _explore(explore: dict | None) -> dict | None:

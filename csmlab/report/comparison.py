@@ -129,7 +129,9 @@ def _describe(section: dict, keys: tuple[str, ...]) -> str:
 
 
 def _setting(value) -> str:
-    return "(unset)" if value is None else json.dumps(value, ensure_ascii=False) if not isinstance(value, str) else value
+    if value is None:
+        return "(unset)"
+    return value if isinstance(value, str) else json.dumps(value, ensure_ascii=False)
 
 
 def _counts(deltas: list[MetricDelta]) -> dict:

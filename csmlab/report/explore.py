@@ -249,7 +249,8 @@ def write_explore(out_dir, files: ExploreFiles | None, *, budget_bytes: int = BU
                         f"keep every frame")
     if not kept_animations:
         left_out.append("the animations are left out (play the frames here)")
-    note = f"To keep this report under its size budget of {budget_mib}, {', and '.join(left_out)}." if left_out else None
+    note = (f"To keep this report under its size budget of {budget_mib}, {', and '.join(left_out)}." if left_out
+            else None)
     every = "every frame" if step == 1 else f"every {_ordinal(step)} frame"
     animations_note = None if kept_animations else (
         f"Animations left out to keep {every} in Explore under the {budget_mib} budget: play the frames there.")
@@ -415,7 +416,8 @@ def _run_data(present, records, frames, metrics, casters, *, taa: bool) -> str:
                     "false_shadow": _u8_colours(FALSE_SHADOW), "false_light": _u8_colours(FALSE_LIGHT),
                     "no_surface": _u8_colours(NO_SURFACE)},
         "world": {"x": _rounded(origin[0] + cell * (np.arange(seen_x.start, seen_x.stop) + 0.5), 2),
-                  "z": _rounded(origin[1] + cell * (np.arange(seen_z.start, seen_z.stop) + 0.5), 2), "cell": round(cell, 4)},
+                  "z": _rounded(origin[1] + cell * (np.arange(seen_z.start, seen_z.stop) + 0.5), 2),
+                  "cell": round(cell, 4)},
         "rho_centres": _rounded(np.exp2(0.5 * (first["rho_edges"][:-1] + first["rho_edges"][1:])), 5),
         "casters": _rounded(casters, 2),
         "box_edges": BOX_EDGES.tolist(), "frustum_edges": FRUSTUM_EDGES.tolist(),

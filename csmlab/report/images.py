@@ -163,9 +163,9 @@ def snapshot_strip_figures(strips: list[tuple[list[dict], object, str]], labels:
     """Write a picture per snapshot frame: a row per snapshot (method) of shaded, cascades, ρ, |ΔS| and reference error.
 
     A last, short row holds each column's colour bar or legend; the cascade legend runs to the
-    highest cascade any of the frames selects (a note instead when no pixel falls in any cascade). The frames share one figure, built and laid out for the
-    first; each further frame swaps in its images and title — the axes, colour bars and labels cost
-    more to build and lay out than the images to paint.
+    highest cascade any of the frames selects (a note instead when no pixel falls in any cascade). The frames share one
+    figure, built and laid out for the first; each further frame swaps in its images and title — the axes, colour bars
+    and labels cost more to build and lay out than the images to paint.
 
     Parameters
     ----------

@@ -186,7 +186,8 @@ class ViewPixels:
 
 
 def view_pixels(view: View, *, grid: WorldGrid) -> ViewPixels:
-    """The view-only part of :func:`frame_pixels`, which keeps it in :meth:`csmlab.frame.View.shared` for the view's methods.
+    """The view-only part of :func:`frame_pixels`, which keeps it in :meth:`csmlab.frame.View.shared` for the view's
+    methods.
 
     Parameters
     ----------
@@ -236,8 +237,8 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid, taa: tuple | No
         (0 where undefined), ``reference_shaded`` the same of the view through the ray-traced
         shadow (when ``pixels`` has it), 0 where the method's S is undefined (beyond its shadow
         distance too), so that the two sequences differ by the shadow alone; ``valid`` bool;
-        ``grid`` (the ``grid`` argument); ``stride`` int; ``camera_position`` (3,), ``light_direction`` (3,), ``frustum_corners``
-        and ``box_corners`` (C, 8, 3), world metres;
+        ``grid`` (the ``grid`` argument); ``stride`` int; ``camera_position`` (3,), ``light_direction`` (3,),
+        ``frustum_corners`` and ``box_corners`` (C, 8, 3), world metres;
         ``cells`` (K,) int64 flat indices of the ground cells that counted pixels fall in, with
         ``cell_dS`` (K,) float64 sum of |ΔS|, ``cell_counted`` and ``cell_flips`` (K,) int64, at
         full resolution; ``rho_hist`` (C, len(RHO_EDGES) - 1) int64: pixels per log2 ρ bin and

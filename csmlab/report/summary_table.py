@@ -1,7 +1,7 @@
 """The report's summary tables: headline metrics per method × sweep point, the best of each column marked.
 
-Values are means over frames (a peak, ``flicker_peak``, the largest frame's), NaN cells (frame 0's temporal metrics) left out, read from
-``metrics.csv``; time per frame comes from ``timings.csv``. Labels, units, display factors and
+Values are means over frames (a peak, ``flicker_peak``, the largest frame's), NaN cells (frame 0's temporal metrics)
+left out, read from ``metrics.csv``; time per frame comes from ``timings.csv``. Labels, units, display factors and
 which way is better come from :data:`csmlab.metric_registry.METRICS` (and ``DERIVED``): lowest flicker, highest
 utilization, median ρ closest to the 1:1 ideal (smallest ``|ln ρ|``).
 """

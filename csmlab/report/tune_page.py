@@ -48,7 +48,7 @@ def tune_figure(result, path) -> None:
     for ax, (metric, label, scale) in zip(axes, (
             ("memory_bytes", f"shadow-map {memory.label} ({memory.unit}, log scale)", memory.scale),
             (flicker, f"{METRICS[flicker].label} ({METRICS[flicker].unit} per frame)", METRICS[flicker].scale))):
-        def xy(items):
+        def xy(items, metric=metric, scale=scale):
             pairs = [(_value(c, metric), _value(c, "rho_p05")) for c in items]
             pairs = [(x * scale, y) for x, y in pairs if x is not None and y is not None]
             return np.array(pairs, dtype=np.float64).reshape(-1, 2)
@@ -135,7 +135,8 @@ def write_tune_report(out_dir, result, *, snippets, preset_file: str) -> Path:
         "runs_computed": result.runs_computed,
         "objectives": ", ".join(f"{m} ({d})" for m, d in result.objectives),
         "memory_budget": "none" if budgets.memory_bytes is None else _memory_text(budgets.memory_bytes),
-        "flicker_budget": "none" if budgets.max_flicker is None else f"{budgets.flicker_metric} ≤ {budgets.max_flicker:.6g}",
+        "flicker_budget": ("none" if budgets.max_flicker is None
+                           else f"{budgets.flicker_metric} ≤ {budgets.max_flicker:.6g}"),
         "space": [(field, ", ".join(map(str, spec[1])) if spec[0] == "choice" else
                    f"{spec[1]} … {spec[2]}{' (log)' if spec[3] else ''}") for field, spec in result.space.items()],
         "columns": [(m.label, m.unit) for m in TABLE_COLUMNS],

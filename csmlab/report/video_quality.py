@@ -27,8 +27,8 @@ from csmlab.errors import InputError
 from csmlab.files import write_atomic
 from csmlab.report.capture import read_npz
 
-__all__ = ["DISPLAY", "INSTALL", "SEQUENCES", "SEQUENCE_LABELS", "cvvdp_missing", "jod_of_sequences", "jod_scores", "record_sequences",
-           "write_jod"]
+__all__ = ["DISPLAY", "INSTALL", "SEQUENCES", "SEQUENCE_LABELS", "cvvdp_missing", "jod_of_sequences", "jod_scores",
+           "record_sequences", "write_jod"]
 
 SEQUENCES = {
     "shaded": ("shaded", "reference_shaded"),

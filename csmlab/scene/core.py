@@ -189,7 +189,8 @@ class Scene:
         if not np.all(np.isfinite(v)):
             raise ValueError(f"{self.name}: vertices: expected finite coordinates, found NaN or inf")
         if t.min() < 0 or t.max() >= v.shape[0]:
-            raise ValueError(f"{self.name}: triangles: expected indices in [0, {v.shape[0]}), got [{t.min()}, {t.max()}]")
+            raise ValueError(f"{self.name}: triangles: expected indices in [0, {v.shape[0]}), "
+                             f"got [{t.min()}, {t.max()}]")
         n = np.ascontiguousarray(self.normals, dtype=np.float64)
         a = np.ascontiguousarray(self.albedo, dtype=np.float32)
         if n.shape != t.shape or a.shape != t.shape:
@@ -310,7 +311,8 @@ class Scene:
         scale = max(float(np.ptp(v, axis=0).max()), 1e-30)
         keep = length > 1e-12 * scale * scale
         if not np.any(keep):
-            raise ValueError(f"{name}: triangles: expected at least one triangle of non-zero area, all {t.shape[0]} are degenerate")
+            raise ValueError(f"{name}: triangles: expected at least one triangle of non-zero area, "
+                             f"all {t.shape[0]} are degenerate")
         return cls(v, t[keep], cross[keep] / length[keep, None], alb[keep], name=name)
 
     @property

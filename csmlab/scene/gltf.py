@@ -298,7 +298,8 @@ def read_gltf(file) -> GltfFile:
 
 
 def trs_matrices(translation, rotation, scale) -> np.ndarray:
-    """``T · R · S`` matrices ``(N, 4, 4)``: translations ``(N, 3)``, quaternions ``(N, 4)`` (x, y, z, w), scales ``(N, 3)``."""
+    """``T · R · S`` matrices ``(N, 4, 4)``: translations ``(N, 3)``, quaternions ``(N, 4)`` (x, y, z, w), scales
+    ``(N, 3)``."""
     translation, rotation, scale = (np.asarray(a, dtype=np.float64) for a in (translation, rotation, scale))
     out = np.zeros((translation.shape[0], 4, 4))
     out[:, :3, :3] = quat_to_matrix(rotation) * scale[:, None, :]
@@ -388,7 +389,8 @@ def _extension(entry: Value, name: str) -> Value | None:
 
 
 def _instance_matrices(gltf: GltfFile, index: int) -> np.ndarray:
-    """``T · R · S`` ``(I, 4, 4)`` of ``nodes[index]``'s ``EXT_mesh_gpu_instancing`` instances; identity ``(1, 4, 4)`` without."""
+    """``T · R · S`` ``(I, 4, 4)`` of ``nodes[index]``'s ``EXT_mesh_gpu_instancing`` instances; identity ``(1, 4, 4)``
+    without."""
     extension = _extension(gltf.section("nodes")[index], INSTANCING)
     if extension is None:
         return np.eye(4)[None]
@@ -484,7 +486,8 @@ def _primitive(gltf: GltfFile, mesh: Value, p: int) -> _Primitive | None:
 
 
 def _masked_material(gltf: GltfFile, reference: Value | None) -> int:
-    """The index of the material ``reference`` names if its ``alphaMode`` is ``"MASK"``, else −1 (none, opaque, blend)."""
+    """The index of the material ``reference`` names if its ``alphaMode`` is ``"MASK"``, else −1 (none, opaque,
+    blend)."""
     if reference is None:
         return -1
     index, material = gltf.entry(reference, "materials")
@@ -661,7 +664,8 @@ def _scene_colour(gltf: GltfFile, parts: list[tuple[_Primitive, int]]) -> dict:
 
 
 def _base_colour_factor(gltf: GltfFile, material: int) -> np.ndarray:
-    """``materials[material].pbrMetallicRoughness.baseColorFactor`` ``(4,)``: linear RGBA in [0, 1], ones without one."""
+    """``materials[material].pbrMetallicRoughness.baseColorFactor`` ``(4,)``: linear RGBA in [0, 1], ones without
+    one."""
     pbr = gltf.section("materials")[material].get("pbrMetallicRoughness")
     factor_value = None if pbr is None else pbr.mapping().get("baseColorFactor")
     factor = np.ones(4) if factor_value is None else factor_value.numbers(4, what="4 numbers in [0, 1]")

@@ -158,7 +158,8 @@ class GltfBuilder:
 
 
 def box(size=(1.0, 1.0, 1.0)) -> tuple[np.ndarray, np.ndarray]:
-    """A closed box standing on y = 0: corners ``(8, 3)`` from ``(−sx/2, 0, −sz/2)`` to ``(sx/2, sy, sz/2)``, 12 outward triangles."""
+    """A closed box standing on y = 0: corners ``(8, 3)`` from ``(−sx/2, 0, −sz/2)`` to ``(sx/2, sy, sz/2)``, 12 outward
+    triangles."""
     sx, sy, sz = size
     corners = np.array([[x, y, z] for x in (-sx / 2, sx / 2) for y in (0.0, sy) for z in (-sz / 2, sz / 2)])
     # Corner k = 4·[x high] + 2·[y high] + [z high]; each face's quad counter-clockwise from outside.

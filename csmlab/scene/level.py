@@ -134,7 +134,8 @@ class Level:
         for _ in range(MAX_LAYERS):
             if open_.size == 0:
                 break
-            hits = self.first_hits(np.stack([x[open_], y[open_], z[open_]], axis=1), np.broadcast_to(up, (open_.size, 3)))
+            hits = self.first_hits(np.stack([x[open_], y[open_], z[open_]], axis=1),
+                                   np.broadcast_to(up, (open_.size, 3)))
             found = hits.facing != MISS
             up_facing = found & (hits.normal[:, 1] > 0.0)
             ground[open_[up_facing]] = y[open_[up_facing]] + hits.distance[up_facing]

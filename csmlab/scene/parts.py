@@ -77,7 +77,8 @@ def matrix_fault(matrix) -> str:
 
 
 def rotation_from_degrees(rotation_deg) -> np.ndarray:
-    """``Rz Ry Rx`` ``(3, 3)``: turns about world X, then Y, then Z by ``rotation_deg`` ``(3,)`` degrees (right-handed)."""
+    """``Rz Ry Rx`` ``(3, 3)``: turns about world X, then Y, then Z by ``rotation_deg`` ``(3,)`` degrees
+    (right-handed)."""
     x, y, z = np.radians(np.asarray(rotation_deg, dtype=np.float64))
     rx = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(x), -np.sin(x)], [0.0, np.sin(x), np.cos(x)]])
     ry = np.array([[np.cos(y), 0.0, np.sin(y)], [0.0, 1.0, 0.0], [-np.sin(y), 0.0, np.cos(y)]])

@@ -25,10 +25,10 @@ def _hdrp_alpha(point, eye, centres, radii, borders) -> tuple[int, float]:
         dist_sq = float(w @ w)
         rel = dist_sq / radius**2
         if 0.0 < rel <= 1.0:
+            border = borders[i]
             break
     else:
         return -1, 0.0
-    border = borders[i]
     alpha = 0.0 if border <= 0.0 else min(max((rel - (1.0 - border)) / border, 0.0), 1.0)
     view = (eye - point) / np.linalg.norm(eye - point)
     casc_dot = float(view @ (w / math.sqrt(dist_sq)))

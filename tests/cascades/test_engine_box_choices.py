@@ -129,7 +129,8 @@ def _clipped_polygon(polygon, axis, bound, keep_below):
 def compute_near_and_far(aabb_light, lo, hi):
     """DirectX CascadedShadowsManager::ComputeNearAndFar: the AABB's 12 triangles (iAABBTriIndexes) clipped
     against the ortho box's min/max x and y, near and far the min and max z of what is left."""
-    indexes = [0, 1, 2, 1, 2, 3, 4, 5, 6, 5, 6, 7, 0, 2, 4, 2, 4, 6, 1, 3, 5, 3, 5, 7, 0, 1, 4, 1, 4, 5, 2, 3, 6, 3, 6, 7]
+    indexes = [0, 1, 2, 1, 2, 3, 4, 5, 6, 5, 6, 7, 0, 2, 4, 2, 4, 6,
+               1, 3, 5, 3, 5, 7, 0, 1, 4, 1, 4, 5, 2, 3, 6, 3, 6, 7]
     near, far = np.inf, -np.inf
     for t in range(12):
         polygon = [aabb_light[i] for i in indexes[3 * t:3 * t + 3]]

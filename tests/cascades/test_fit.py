@@ -121,7 +121,8 @@ def test_centre_nearest_snap_rounds_the_centre_to_the_nearest_texel():
         assert np.all(np.abs(centre - [c, -c]) <= 0.5 * texel + 1e-12)
         np.testing.assert_array_equal(origin + resolution // 2, np.floor(np.array([c, -c]) / texel + 0.5))
         lo, hi = origin * texel, (origin + resolution) * texel
-        assert np.all(lo + margin * texel <= np.array([c, -c]) - radius) and np.all(hi - margin * texel >= np.array([c, -c]) + radius)
+        assert (np.all(lo + margin * texel <= np.array([c, -c]) - radius)
+                and np.all(hi - margin * texel >= np.array([c, -c]) + radius))
 
 
 def test_transition_bands_hand_back_a_copy_of_the_splits():

@@ -63,7 +63,8 @@ def test_exponent_is_unreals_geometric_series():
     # CascadeDistributionExponent = 3.0, DynamicShadowDistanceMovableLight = 20000 cm; near 0.1 m.
     z = split_distances(near=0.1, far=200.0, count=3, method="exponent", distribution_exponent=3.0)
     np.testing.assert_allclose(z, [0.1, 0.1 + 199.9 / 13, 0.1 + 199.9 * 4 / 13, 200.0], rtol=1e-12)
-    np.testing.assert_allclose(split_distances(near=0.1, far=50.0, count=4, method="exponent", distribution_exponent=1.0),
+    np.testing.assert_allclose(split_distances(near=0.1, far=50.0, count=4, method="exponent",
+                                               distribution_exponent=1.0),
                                split_distances(near=0.1, far=50.0, count=4, method="uniform"), rtol=1e-12)
 
 
@@ -86,7 +87,8 @@ def test_ten_cascades_are_accepted():
     assert z.shape == (11,) and np.all(np.diff(z) > 0)
 
 
-@pytest.mark.parametrize("near, far, fractions", [(0.1, 100.0, (0.1, 0.2, 0.5, 1.0)), (0.25, 250.0, (0.05, 0.15, 0.5, 1.0))])
+@pytest.mark.parametrize("near, far, fractions", [(0.1, 100.0, (0.1, 0.2, 0.5, 1.0)),
+                                                  (0.25, 250.0, (0.05, 0.15, 0.5, 1.0))])
 def test_manual_range_places_fractions_over_the_range_from_near(near, far, fractions):
     # Godot renderer_scene_cull.cpp: distances[i + 1] = min_distance + split * (max_distance - min_distance);
     # MJP MeshRenderer.cpp: camera.NearClip() + splitDist * (FarClip - NearClip).

@@ -83,7 +83,8 @@ CASES = {
     "physical_pages": ("512", {"shadow_map": '"virtual_clipmap"'}),
 }
 # Where each does not apply: the defaults, but for the fields that the defaults make apply.
-NOT_THERE = {"lambda": {"split": '"log"'}, "shadow_distance": {"shadow_distance_from": '"camera_far"'}, "extent": {"stabilization": '"none"'}, "snap": {"stabilization": '"none"'},
+NOT_THERE = {"lambda": {"split": '"log"'}, "shadow_distance": {"shadow_distance_from": '"camera_far"'},
+             "extent": {"stabilization": '"none"'}, "snap": {"stabilization": '"none"'},
              "filter_size": {"filter": '"pcf_bilinear"'},
              "vertex_snap": {"engine_precision": '"float32"'},
              "zoom_policy": {"shadow_map": '"virtual_clipmap"'}}

@@ -172,7 +172,8 @@ def test_import_places_a_mirrored_glb_and_lists_every_instance_it_cannot_place_w
     (project / "tree.fbx").write_bytes(b"Kaydara FBX Binary")
     builder = GltfBuilder()
     corners, triangles = box((1.0, 2.0, 3.0))
-    builder.save(project / "crate.glb", roots=[builder.add_node(name="Crate", mesh=builder.add_mesh(corners, triangles))])
+    builder.save(project / "crate.glb",
+                 roots=[builder.add_node(name="Crate", mesh=builder.add_mesh(corners, triangles))])
     (project / "level.tscn").write_text(LEVEL)
     out = tmp_path / "level.toml"
     printed = " ".join(_import(project / "level.tscn", "--out", out).split())

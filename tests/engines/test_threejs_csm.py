@@ -2,9 +2,9 @@
 csmlab's ``threejs_csm`` preset on the same camera poses.
 
 tests/data/threejs_csm/csm_driver.mjs runs the addon's ``CSM.js`` and ``CSMFrustum.js`` (from
-tests/data/threejs_csm/vendor/ or an npm install of ``three``, see the README there) under Node with the addon's constructor defaults
-and prints its breaks and each cascade's shadow camera; this test builds csmlab's cascades of the preset
-for the same poses (the ``engines`` experiment's walk, camera and light) and compares them. What csmlab
+tests/data/threejs_csm/vendor/ or an npm install of ``three``, see the README there) under Node with the addon's
+constructor defaults and prints its breaks and each cascade's shadow camera; this test builds csmlab's cascades of the
+preset for the same poses (the ``engines`` experiment's walk, camera and light) and compares them. What csmlab
 builds as three.js does is asserted; what it does not yet build is a strict xfail naming the missing
 behaviour, so that it fails (XPASS) the day csmlab models it and the mark must go.
 """

@@ -59,8 +59,8 @@ def _run(tmp_path, *, extends=(), methods="", scene="", frames=4) -> dict:
 
 
 def test_every_engine_and_seed_of_the_issue_has_a_preset():
-    assert set(ENGINES) == {"ue5", "ue5_vsm", "unity_builtin_stable", "unity_builtin_close", "unity_urp", "unity_hdrp", "godot4", "filament",
-                            "bevy", "threejs_csm", "stride", "mjp"}
+    assert set(ENGINES) == {"ue5", "ue5_vsm", "unity_builtin_stable", "unity_builtin_close", "unity_urp", "unity_hdrp",
+                            "godot4", "filament", "bevy", "threejs_csm", "stride", "mjp"}
     assert set(SEEDS) == {"nvidia_sdk", "ogldev49", "dx_csm11_cascade", "dx_csm11_scene", "dx_vsm11", "unigine_exact",
                           "unigine_quantized", "unigine_best_resolution"}
 
@@ -88,8 +88,9 @@ def test_every_engine_and_seed_of_the_issue_has_a_preset():
                                fade="squared_radial", filter="pcf_bilinear", selection="sphere", cull="back",
                                storage="atlas", atlas_layout="2x2", depth_format="unorm16",
                                depth_quantization="cascade")),
-    # HDRP 10.10.1 DefaultSettingsVolumeProfile.asset: maxShadowDistance 150, splits 0.05/0.15/0.3; HDShadowInitParameters
-    # Medium → SampleShadow_PCF_Tent_7x7, Depth32; the light's shadow resolution 512, 4 cascades as 2×2 atlas tiles.
+    # HDRP 10.10.1 DefaultSettingsVolumeProfile.asset: maxShadowDistance 150, splits 0.05/0.15/0.3;
+    # HDShadowInitParameters Medium → SampleShadow_PCF_Tent_7x7, Depth32; the light's shadow resolution 512, 4 cascades
+    # as 2×2 atlas tiles.
     # EvalShadow_GetSplitIndex: the first culling sphere holding the point; Lit's ShadowCaster pass culls back faces.
     ("engines/unity_hdrp", dict(cascades=4, splits=(0.05, 0.15, 0.3, 1.0), shadow_distance=150.0,
                                 selection="sphere_dither", cascade_borders=(0.13333334, 0.06666666, 0.0, 0.0),
@@ -389,7 +390,9 @@ def test_godot4_splits_sphere_snap_and_fade_are_godots(tmp_path):
         radius *= size / (size - 2.0)                                          # add a texel by each side
         texel = radius * 2.0 / size                                            # shadow_texel_size
         unit = radius * 4.0 / size
-        snapped = lambda v, s: np.floor(v / s + 0.5) * s                       # Math::snapped
+        def snapped(v, s):                                                     # Math::snapped
+            return np.floor(v / s + 0.5) * s
+
         x_min = np.array([snapped(axis @ center - radius, unit) for axis in cs.basis[:2]])
         np.testing.assert_allclose(cascade.texel_size, [texel, texel], rtol=2.0 ** -11)
         # The same edge on the same 2-texel grid (csmlab's radius is rounded up by < 2^-12, its texel with it).

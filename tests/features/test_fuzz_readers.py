@@ -144,7 +144,7 @@ def test_fuzzed_shipped_path_fixtures_load_or_exit_2_naming_the_file():
                              ("csmlab_quaternion.csv", {}),
                              ("kitti_00_head.txt", {"format": "kitti", "fps": 10.0})):
         text = (PATHS / fixture).read_text()
-        _fuzzed(f"path fixture {fixture}", lambda p: read_path(p, **options), {fixture: b""}, fixture,
+        _fuzzed(f"path fixture {fixture}", lambda p, options=options: read_path(p, **options), {fixture: b""}, fixture,
                 text_variants(text), examples=EXAMPLES // 2)
     document = json.loads((PATHS / "csmlab_yaw_pitch_roll.json").read_text())
     _fuzzed("path fixture csmlab_yaw_pitch_roll.json", read_path, {"p.json": b""}, "p.json", json_variants(document),
@@ -180,7 +180,7 @@ def test_variants_a_deeper_search_found_load_or_exit_2(tmp_path):
                                                                       + b"9" * 40 + b",0,0,0,1,0,0,0\n"),
     ]
     for name, file, options, data in cases:
-        counts = _fuzzed(f"found: {name}", lambda p: read_path(p, **options), {file: data}, file,
+        counts = _fuzzed(f"found: {name}", lambda p, options=options: read_path(p, **options), {file: data}, file,
                          st.sampled_from([data]), examples=1, both=False)
         assert counts == {"refused": 1}, name
     # An undecodable byte in a material name: VTK keeps that material's coordinates under no name.
@@ -195,8 +195,9 @@ def test_variants_a_deeper_search_found_load_or_exit_2(tmp_path):
     assert counts == {"refused": 1}
     times = b"0\n-0\n" + b"".join(b"%d\n" % k for k in range(1, 29))  # one per pose of the 30
     counts = _fuzzed("found: KITTI times file, a repeated time", lambda p: read_path(
-        p.parent / "poses.txt", format="kitti", times_file=p), {"poses.txt": (PATHS / "kitti_00_head.txt").read_bytes()},
-        "times.txt", st.sampled_from([times]), examples=1, both=False)
+        p.parent / "poses.txt", format="kitti", times_file=p),
+        {"poses.txt": (PATHS / "kitti_00_head.txt").read_bytes()}, "times.txt", st.sampled_from([times]), examples=1,
+        both=False)
     assert counts == {"refused": 1}
     snan = _gltf_with_signalling_nan(tmp_path)
     counts = _fuzzed("found: glTF, a signalling NaN", load_mesh, {"s.glb": snan}, "s.glb", st.sampled_from([snan]),

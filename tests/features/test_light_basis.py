@@ -22,7 +22,8 @@ def _normalized(v):
 
 
 def threejs_look_at_rows(direction):
-    """three.js ``Matrix4.lookAt(eye = origin, target = direction, up = +Y)``: z = eye − target, x = up × z, y = z × x."""
+    """three.js ``Matrix4.lookAt(eye = origin, target = direction, up = +Y)``: z = eye − target, x = up × z, y = z ×
+    x."""
     z = _normalized(-np.asarray(direction, float))
     x = _normalized(np.cross([0.0, 1.0, 0.0], z))
     return x, np.cross(z, x), z

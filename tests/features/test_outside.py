@@ -1,4 +1,5 @@
-"""What a point no cascade holds is given (``[shadow] outside``): nothing, lit (Bevy), or the last cascade (Stride, MJP)."""
+"""What a point no cascade holds is given (``[shadow] outside``): nothing, lit (Bevy), or the last cascade (Stride,
+MJP)."""
 
 from __future__ import annotations
 

@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from csmlab.config import (CONFIGS_DIR, PROJECT_DIR, experiment_document, find_experiment, list_experiments, list_presets,
-                           load_experiment)
+from csmlab.config import (CONFIGS_DIR, PROJECT_DIR, experiment_document, find_experiment, list_experiments,
+                           list_presets, load_experiment)
 from csmlab.experiment import run_experiment
 
 TINY = """

@@ -159,7 +159,8 @@ def test_the_house_names_every_file_of(house, folder, pattern):
 
 def test_the_experiments_table_lists_every_experiment_with_its_description():
     table = experiments_table()
-    assert table in _readme(), f"README's experiments table should read (python -m tests.features.test_readme):\n{table}"
+    assert table in _readme(), ("README's experiments table should read (python -m tests.features.test_readme):\n"
+                                f"{table}")
 
 
 def test_every_experiment_and_preset_has_a_description():

@@ -268,8 +268,9 @@ def test_exp_and_pow_are_the_c_librarys_on_the_cpu_and_correctly_rounded_on_cuda
     if wp.get_device(device).is_cpu:
         libm = _c_library()
         np.testing.assert_array_equal(exp_out.numpy(), np.array([libm.expf(v) for v in x.tolist()], np.float32))
-        np.testing.assert_array_equal(pow_out.numpy(), np.array([libm.powf(abs(a), b) for a, b in zip(x.tolist(), y.tolist())],
-                                                                np.float32))
+        np.testing.assert_array_equal(pow_out.numpy(),
+                                      np.array([libm.powf(abs(a), b) for a, b in zip(x.tolist(), y.tolist())],
+                                               np.float32))
     else:
         np.testing.assert_array_equal(exp_out.numpy(), rounded_exp)
         np.testing.assert_array_equal(pow_out.numpy(), rounded_pow)

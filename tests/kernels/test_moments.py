@@ -73,8 +73,12 @@ def ref_lit(m, c, x, y, receiver, method, span, min_variance, power, bleed):
     fx, fy = (2 * x - UNIT) / (2 * UNIT), (2 * y - UNIT) / (2 * UNIT)
     i0, j0 = int(np.floor(fx)), int(np.floor(fy))
     wx, wy = fx - i0, fy - j0
-    at = lambda i, j: m[c, min(max(j, 0), r), min(max(i, 0), r)].astype(np.float64)
-    mom = (1 - wy) * ((1 - wx) * at(i0, j0) + wx * at(i0 + 1, j0)) + wy * ((1 - wx) * at(i0, j0 + 1) + wx * at(i0 + 1, j0 + 1))
+
+    def at(i, j):
+        return m[c, min(max(j, 0), r), min(max(i, 0), r)].astype(np.float64)
+
+    mom = ((1 - wy) * ((1 - wx) * at(i0, j0) + wx * at(i0 + 1, j0))
+           + wy * ((1 - wx) * at(i0, j0 + 1) + wx * at(i0 + 1, j0 + 1)))
     t = float(receiver) / span
     if method == "msm":
         p = hamburger(mom, t)
@@ -147,7 +151,8 @@ def test_msm_equals_the_papers_hamburger_reconstruction_under_its_moment_and_dep
         i0, j0 = int(np.floor(fx)), int(np.floor(fy))
         wx, wy = fx - i0, fy - j0
         m = moments[0].astype(np.float64)
-        mom = (1 - wy) * ((1 - wx) * m[j0, i0] + wx * m[j0, i0 + 1]) + wy * ((1 - wx) * m[j0 + 1, i0] + wx * m[j0 + 1, i0 + 1])
+        mom = ((1 - wy) * ((1 - wx) * m[j0, i0] + wx * m[j0, i0 + 1])
+               + wy * ((1 - wx) * m[j0 + 1, i0] + wx * m[j0 + 1, i0 + 1]))
         expected.append(hamburger(mom, float(receiver[0, k]) / 30.0, alpha, depth_bias))
     np.testing.assert_allclose(lit, expected, atol=1e-5)
     assert 0.05 < np.mean(lit) < 0.95  # both lit and shadowed receivers are tested
@@ -245,8 +250,12 @@ def ref_mip_lit(chain, origin, c, x, y, ddx, ddy, receiver, method, span, anisot
         wx, wy = fx - i0, fy - j0
         m = chain[level][c]
         r = m.shape[0] - 1
-        at = lambda i, j: m[min(max(j, 0), r), min(max(i, 0), r)].astype(np.float64)
-        return (1 - wy) * ((1 - wx) * at(i0, j0) + wx * at(i0 + 1, j0)) + wy * ((1 - wx) * at(i0, j0 + 1) + wx * at(i0 + 1, j0 + 1))
+
+        def at(i, j):
+            return m[min(max(j, 0), r), min(max(i, 0), r)].astype(np.float64)
+
+        return ((1 - wy) * ((1 - wx) * at(i0, j0) + wx * at(i0 + 1, j0))
+                + wy * ((1 - wx) * at(i0, j0 + 1) + wx * at(i0 + 1, j0 + 1)))
 
     total = np.zeros(4)
     for p in range(probes):
@@ -286,8 +295,8 @@ def test_trilinear_and_anisotropic_lookup_equal_a_numpy_reference(method, anisot
     ddy = rng.normal(0.0, 1.0, (n, 2))
     ddx[:4] = 0.0  # no footprint: level 0
     lit = moment_mip_lookup(chain, coords, receiver, origin_texels=origin, cascade=cascade, ddx=ddx, ddy=ddy,
-                            method=method, span=span, bits=BITS, anisotropy=anisotropy, exponents=EXPONENTS, min_variance=1e-4,
-                            device=device)
+                            method=method, span=span, bits=BITS, anisotropy=anisotropy, exponents=EXPONENTS,
+                            min_variance=1e-4, device=device)
     expected = [ref_mip_lit(chain, origin, c, *coords[c, k], ddx[k], ddy[k], receiver[c, k], method, span, anisotropy)
                 for k, c in enumerate(cascade)]
     np.testing.assert_allclose(lit, expected, atol=1e-5)

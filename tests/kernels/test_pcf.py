@@ -27,7 +27,8 @@ def ref_tap(depth, c, i, j, receiver, slope, x, y):
 
 
 def ref_tent_weights(t, h, lo, hi, samples=4000):
-    """Per texel k in [lo, hi]: the tent of half-width h centred at t integrated over [k, k + 1) by the midpoint rule."""
+    """Per texel k in [lo, hi]: the tent of half-width h centred at t integrated over [k, k + 1) by the midpoint
+    rule."""
     k = np.arange(lo, hi + 1)
     u = k[:, None] + (np.arange(samples) + 0.5) / samples
     tent = np.maximum(0.0, 1.0 - np.abs(u - t) / h) / h

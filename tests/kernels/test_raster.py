@@ -567,8 +567,8 @@ def two_cascade_soup(seed: int, *, device: str = "cpu"):
     xy = light_plane_coordinates(cs, vertices)
     triangles = spatially_sorted(xy, triangles)
     box = dict(texel_size=np.stack([c.texel_size for c in cs.cascades]),
-               origin=np.stack([fixed_point_origin(cs, c, bits=BITS) for c in range(len(cs))]), resolution=40, bits=BITS,
-               device=device)
+               origin=np.stack([fixed_point_origin(cs, c, bits=BITS) for c in range(len(cs))]), resolution=40,
+               bits=BITS, device=device)
     return cs, vertices, triangles, xy, triangle_bounds(xy, triangles), box, np.stack([c.origin for c in cs.cascades])
 
 

@@ -133,7 +133,8 @@ def test_tiles_launched_on_several_cpu_threads_give_the_same_maps(threads):
 
 
 def brute_force_depth(points, depth, triangles, resolution):
-    """Per texel centre the nearest covering triangle's depth (+inf where none) and the coverage count, centre by centre.
+    """Per texel centre the nearest covering triangle's depth (+inf where none) and the coverage count, centre by
+    centre.
 
     ``points`` ``(V, 2)`` integer fixed point (``2**-BITS`` texels); a centre is covered when it lies
     strictly inside, or on an edge that is a top edge or a left edge of the triangle as drawn with
@@ -167,7 +168,8 @@ def brute_force_depth(points, depth, triangles, resolution):
 
 
 def test_a_handful_of_triangles_cover_what_a_brute_force_covers_at_the_depth_of_their_planes(device):
-    """Shared edges and a fan around a vertex on texel centres (the tie rule), tile borders, and a triangle off the map."""
+    """Shared edges and a fan around a vertex on texel centres (the tie rule), tile borders, and a triangle off the
+    map."""
     unit = 2**BITS
     corners = np.array([
         [2.5, 2.5], [17.5, 2.5], [17.5, 17.5], [2.5, 17.5],  # two triangles sharing a diagonal through centres

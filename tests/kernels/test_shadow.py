@@ -161,8 +161,8 @@ def test_selection_for_a_filter_keeps_its_taps_inside_the_box(device):
 
 def test_unknown_names_list_the_valid_ones():
     args = (np.zeros((1, 8, 8), np.float32), np.zeros((1, 1, 2), np.int64), np.zeros((1, 1), np.float32), np.ones(1))
-    with pytest.raises(ValueError, match=r"selection: expected one of \['best_resolution', 'interval', 'map', 'sphere', "
-                                         r"'sphere_dither'\]"):
+    with pytest.raises(ValueError, match=r"selection: expected one of \['best_resolution', 'interval', 'map', "
+                                         r"'sphere', 'sphere_dither'\]"):
         lookup(*args, splits=np.array([0.0, 2.0]), selection="nearest")
     with pytest.raises(ValueError, match=r"filter: expected one of \['none', 'pcf', 'pcf_bilinear'\]"):
         lookup(*args, splits=np.array([0.0, 2.0]), filter="gaussian")
@@ -286,7 +286,8 @@ def test_receiver_coordinates_on_the_device_equal_the_host_receiver_lookup_bit_f
 
 @pytest.mark.parametrize("selection", sorted(SELECTION_METHODS))
 def test_world_receivers_look_up_the_same_bits_as_converted_ones(selection, device):
-    """shadow_lookup_world converts each receiver where it reads it; receiver_coordinates + shadow_lookup gives the same."""
+    """shadow_lookup_world converts each receiver where it reads it; receiver_coordinates + shadow_lookup gives the
+    same."""
     from csmlab.kernels.shadow import receiver_coordinates, shadow_lookup_world, split_sphere_cascades
 
     rng = np.random.default_rng(11)

@@ -65,7 +65,8 @@ def plane_depths(xy, receiver, slope, radius):
 
 
 def near_plane_maps(rng, shape, c, xy, receiver, slope, radius):
-    """Maps of random depths with each receiver's texels overwritten by its plane depth, one ulp either side or equal."""
+    """Maps of random depths with each receiver's texels overwritten by its plane depth, one ulp either side or
+    equal."""
     maps = rng.uniform(-1.0, 1.0, shape).astype(np.float32)
     plane, ti, tj = plane_depths(xy, receiver, slope, radius)
     step = rng.integers(-1, 2, plane.shape)

@@ -1,4 +1,5 @@
-"""Temporal anti-aliasing: the blend's variance in closed form, reprojection on a plane by hand, flicker before and after."""
+"""Temporal anti-aliasing: the blend's variance in closed form, reprojection on a plane by hand, flicker before and
+after."""
 
 import numpy as np
 import pytest

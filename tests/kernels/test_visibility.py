@@ -223,7 +223,8 @@ def dyadic_grid(cells: int, rng):
     triangles = []
     for j in range(cells):
         for i in range(cells):
-            a, b, c, d = j * (cells + 1) + i, j * (cells + 1) + i + 1, (j + 1) * (cells + 1) + i, (j + 1) * (cells + 1) + i + 1
+            a, b = j * (cells + 1) + i, j * (cells + 1) + i + 1
+            c, d = (j + 1) * (cells + 1) + i, (j + 1) * (cells + 1) + i + 1
             pair = [(a, b, d), (a, d, c)] if (i + j) % 2 else [(a, b, c), (b, d, c)]
             triangles += [t[::-1] if (i * 3 + j) % 2 else t for t in pair]
     fov = 73.73979529168804

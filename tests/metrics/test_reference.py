@@ -170,7 +170,8 @@ def test_split_boundary_pixels_are_both_sides_of_a_cascade_change_and_the_seam_e
     lit = np.array([[1.0, 1.0, 0.75, 0.5, 0.0, 0.0]] * 3, np.float32)
     reference = np.ones((3, 6), np.float32)
     frame = SimpleNamespace(shadow=SimpleNamespace(lit=lit, cascade=cascade),
-                            view=SimpleNamespace(reference=reference, gbuffer=SimpleNamespace(valid=np.ones((3, 6), bool))))
+                            view=SimpleNamespace(reference=reference,
+                                                 gbuffer=SimpleNamespace(valid=np.ones((3, 6), bool))))
     assert seam_error(frame) == {"ref_seam_error": (0.25 + 0.5) / 2}
     frame.shadow.cascade = np.zeros((3, 6), int)
     assert np.isnan(seam_error(frame)["ref_seam_error"])

@@ -1,4 +1,5 @@
-"""Temporal shadow change: summaries by hand counts, the previous light's reference in closed form, and whole-path properties."""
+"""Temporal shadow change: summaries by hand counts, the previous light's reference in closed form, and whole-path
+properties."""
 
 import numpy as np
 import pytest

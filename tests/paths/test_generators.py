@@ -155,7 +155,8 @@ def test_make_path_sets_the_projection():
 
 
 @pytest.mark.parametrize("name, kwargs, message", [
-    ("spiral", {}, r"path: expected one of \['dolly', 'dueling', 'flyover', 'jitter', 'orbit', 'pan', 'walk', 'zoom'\]"),
+    ("spiral", {}, r"path: expected one of \['dolly', 'dueling', 'flyover', 'jitter', 'orbit', 'pan', 'walk', "
+                   r"'zoom'\]"),
     ("walk", {"radus": 3.0}, r"walk: unknown parameter\(s\) \['radus'\]; expected some of .*'radius'"),
     ("walk", {"frames": 0}, "frames: expected a whole number ≥ 1"),
     ("pan", {"fps": 0.0}, "fps: expected a positive frame rate"),

@@ -147,8 +147,8 @@ def test_anchor_first_keeps_millimetres_of_utm_coordinates(tmp_path):
     east, north = 461234.567, 5412345.678
     steps = np.array([[0.0, 0.0, 0.0], [0.001, 0.002, 0.0], [0.104, -0.003, 0.0005]])
     file = tmp_path / "utm.txt"
-    file.write_text("".join(f"{0.1 * k!r} {float(east + d[0])!r} {float(north + d[1])!r} {float(250.0 + d[2])!r} 0 0 0 1\n"
-                            for k, d in enumerate(steps)))
+    file.write_text("".join(f"{0.1 * k!r} {float(east + d[0])!r} {float(north + d[1])!r} {float(250.0 + d[2])!r} "
+                            "0 0 0 1\n" for k, d in enumerate(steps)))
     path = read_path(file, format="tum", convention="ros", anchor="first", offset=(5.0, 1.7, -3.0))
     np.testing.assert_array_equal(path.positions[0], [5.0, 1.7, -3.0])
     expected = np.array([5.0, 1.7, -3.0]) + steps[:, [0, 2, 1]] * [1.0, 1.0, -1.0]
@@ -243,7 +243,8 @@ resolution = 32
 POSES = "0.0 0 1 5 0 0 0 1\n0.1 0 1 5 0 0 0 1\n0.1 0 1 5.01 0 0 0 1\n0.2 0 1 5 0 0 0 1\n3.0 0 1 5 0 0 0 1\n"
 
 BAD_FIELDS = {
-    "duplicate_times": ('duplicate_times = "sometimes"', "camera.duplicate_times", "['error', 'first', 'last', 'mean']"),
+    "duplicate_times": ('duplicate_times = "sometimes"', "camera.duplicate_times",
+                        "['error', 'first', 'last', 'mean']"),
     "gaps": ('gaps = "skip"', "camera.gaps", "['cut', 'error', 'interpolate']"),
     "max_gap": ("max_gap = -0.5", "camera.max_gap", "a positive number of seconds"),
     "max_gap type": ('max_gap = "long"', "camera.max_gap", "number"),

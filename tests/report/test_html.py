@@ -271,7 +271,8 @@ def test_unticking_a_method_hides_it_from_the_viewer_and_the_read_out(tiny_run, 
     assert browser.find_element("css selector", "#explore-viewer .vrow[data-stem=none__base]").is_displayed()
     ActionChains(browser).move_to_element(
         browser.find_element("css selector", ".vcell[data-map=rho][data-stem=none__base]")).perform()
-    stems = [r.get_attribute("data-stem") for r in browser.find_elements("css selector", "#explore-readout tr[data-stem]")]
+    stems = [r.get_attribute("data-stem")
+             for r in browser.find_elements("css selector", "#explore-readout tr[data-stem]")]
     assert stems == ["none__base"]
 
 
@@ -314,7 +315,8 @@ def test_hovering_a_pixel_reads_the_values_the_metrics_per_pixel_arrays_hold(tin
     box = cell.rect
 
     def read(key: str) -> str:
-        return browser.find_element("css selector", f"#explore-readout tr[data-stem={method}__base] td[data-key={key}]").text
+        return browser.find_element("css selector",
+                                    f"#explore-readout tr[data-stem={method}__base] td[data-key={key}]").text
 
     for j, i in _telling_pixels(rho, dS, lit, cascade, stride=stride):
         y, x = stride * j, stride * i
@@ -330,7 +332,8 @@ def test_hovering_a_pixel_reads_the_values_the_metrics_per_pixel_arrays_hold(tin
         assert float(read("lit")) == pytest.approx(round(round(254 * float(lit[y, x])) / 254, 3), abs=1e-9)
         assert read("cascade") == str(int(cascade[y, x]))
         assert read("reference") == ("lit" if frame.view.reference[y, x] > 0.5 else "shadowed")
-    stems = {r.get_attribute("data-stem") for r in browser.find_elements("css selector", "#explore-readout tr[data-stem]")}
+    stems = {r.get_attribute("data-stem")
+             for r in browser.find_elements("css selector", "#explore-readout tr[data-stem]")}
     assert stems == {"exact__base", "none__base"}
     assert _errors(browser) == []
 
@@ -345,7 +348,8 @@ def test_clicking_a_point_of_a_curve_moves_the_slider_to_its_frame(tiny_run, bro
     # Where frame 1 of the first method's flicker curve is drawn, in pixels from the plot's top-left corner.
     point = browser.execute_script("""
         const gd = arguments[0], trace = gd._fullData[0], k = trace.x.indexOf(1);
-        const xa = gd._fullLayout[trace.xaxis.replace('x', 'xaxis')], ya = gd._fullLayout[trace.yaxis.replace('y', 'yaxis')];
+        const xa = gd._fullLayout[trace.xaxis.replace('x', 'xaxis')];
+        const ya = gd._fullLayout[trace.yaxis.replace('y', 'yaxis')];
         return [xa._offset + xa.l2p(trace.x[k]), ya._offset + ya.l2p(trace.y[k])];""", plot)
     box = plot.rect
     ActionChains(browser).move_to_element_with_offset(
@@ -518,7 +522,8 @@ def test_the_reference_sequence_equals_the_shaded_one_where_the_method_agrees_wi
         # Less light than the reference is darker, more is brighter: by the direct light, where it reaches the surface.
         darker = defined & (lit < 254 * (reference == 1))
         brighter = defined & (lit > 254 * (reference == 1))
-        assert (reference_shaded[darker] >= shaded[darker]).all() and (shaded[brighter] >= reference_shaded[brighter]).all()
+        assert (reference_shaded[darker] >= shaded[darker]).all()
+        assert (shaded[brighter] >= reference_shaded[brighter]).all()
         # Where the method has no shadow (beyond its shadow distance), the reference is blanked as the method is.
         assert (reference_shaded[lit == report_pixels.NO_VALUE] == 0).all()
 
@@ -710,7 +715,8 @@ def test_only_a_taa_run_offers_the_after_taa_sequence_to_the_video_metric(tiny_r
             assert np.array_equal(reference, record[SEQUENCES[name][1]])
             assert fps == pytest.approx(1.0 / np.median(np.diff(record["time_s"])))
     # After TAA the sequences differ from the ones before it (frame 0 aside, where the resolve is its input).
-    before, after = (record_sequences(tiny_taa_run.parent, sequence=n)["none__base"][0] for n in ("shaded", "after_taa"))
+    before, after = (record_sequences(tiny_taa_run.parent, sequence=n)["none__base"][0]
+                     for n in ("shaded", "after_taa"))
     assert np.array_equal(before[0], after[0]) and not np.array_equal(before[1:], after[1:])
 
 
@@ -739,12 +745,14 @@ def test_the_explore_page_shows_the_after_taa_maps_and_values_only_for_a_taa_run
     dS_taa = record["dS_taa"][frame_index]
     h, w = dS_taa.shape
     j, i = np.unravel_index(np.argmax(np.where(dS_taa == 255, -1, dS_taa.astype(int))), dS_taa.shape)
-    ActionChains(browser).move_to_element_with_offset(cell, int(round((i + 0.5) * box["width"] / w - box["width"] / 2)),
-                                                      int(round((j + 0.5) * box["height"] / h - box["height"] / 2))).perform()
+    ActionChains(browser).move_to_element_with_offset(
+        cell, int(round((i + 0.5) * box["width"] / w - box["width"] / 2)),
+        int(round((j + 0.5) * box["height"] / h - box["height"] / 2))).perform()
     assert f"pixel x = {stride * i}, y = {stride * j}" in browser.find_element("id", "explore-where").text
 
     def read(key: str) -> str:
-        return browser.find_element("css selector", f"#explore-readout tr[data-stem={method}__base] td[data-key={key}]").text
+        return browser.find_element("css selector",
+                                    f"#explore-readout tr[data-stem={method}__base] td[data-key={key}]").text
 
     for key in ("dS_taa", "lit_taa", "reference_taa", "dS", "lit"):
         assert read(key) == f"{record[key][frame_index][j, i] / 254:.3f}", key

@@ -24,7 +24,8 @@ def test_strips_drawn_on_one_shared_figure_have_the_pixels_of_strips_drawn_alone
     frames = [[_snapshot(10 * f + m) for m in range(2)] for f in range(3)]
     labels = ["exact", "none"]
     titles = ["frame 1, t = 0.03 s", "frame 60, t = 2.00 s", "frame 119, t = 3.97 s"]
-    snapshot_strip_figures([(s, tmp_path / f"shared{k}.png", t) for k, (s, t) in enumerate(zip(frames, titles))], labels)
+    snapshot_strip_figures([(s, tmp_path / f"shared{k}.png", t) for k, (s, t) in enumerate(zip(frames, titles))],
+                           labels)
     for k, (snapshots, title) in enumerate(zip(frames, titles)):
         snapshot_strip_figures([(snapshots, tmp_path / f"alone{k}.png", title)], labels)
         shared = np.asarray(Image.open(tmp_path / f"shared{k}.png"))
@@ -52,12 +53,14 @@ def _smooth_snapshot(shift: int, *, height=90, width=160) -> dict:
     """A snapshot like a rendered one: smooth shading with a shadowed block, cascades in bands, ρ a gradient."""
     y, x = np.mgrid[0:height, 0:width] / np.array([height, width])[:, None, None]
     shadow = (np.abs(x - 0.3 - shift / width) < 0.15) & (y > 0.5)
-    shaded = np.stack([0.3 + 0.4 * x, 0.5 + 0.2 * y, 0.2 + 0.1 * x * y], axis=-1) * np.where(shadow, 0.3, 1.0)[..., None]
+    shaded = (np.stack([0.3 + 0.4 * x, 0.5 + 0.2 * y, 0.2 + 0.1 * x * y], axis=-1)
+              * np.where(shadow, 0.3, 1.0)[..., None])
     valid = y > 0.2
     return {"valid": valid, "cascade": np.where(valid, np.minimum(3 * (y - 0.2) / 0.8, 2), -1).astype(np.int8),
             "shaded": np.where(valid[..., None], shaded, np.nan).astype(np.float32),
             "rho": np.where(valid, 2.0 ** (4 * y - 2), np.nan).astype(np.float32),
-            "dS": np.where(valid, np.where(shadow, 0.0, 0.02) + 0.5 * (np.abs(x - 0.45) < 0.01), np.nan).astype(np.float32),
+            "dS": np.where(valid, np.where(shadow, 0.0, 0.02) + 0.5 * (np.abs(x - 0.45) < 0.01),
+                           np.nan).astype(np.float32),
             "ref_diff": np.where(shadow & (x < 0.2), 1, 0).astype(np.int8)}
 
 

@@ -22,7 +22,8 @@ GRID = world_grid([[0.0, 0.0, 0.0], [5.0, 1.0, 3.0]], reach=30.0, cells=16)
 def _record(index, **kw):
     frame, measures = _frame(index, **kw)
     rng = np.random.default_rng(index)
-    pixels = {**measures.pixels, "flipped": np.isfinite(measures.pixels["dS"]) & (rng.random(frame.shadow.lit.shape) > 0.6)}
+    pixels = {**measures.pixels,
+              "flipped": np.isfinite(measures.pixels["dS"]) & (rng.random(frame.shadow.lit.shape) > 0.6)}
     return frame, pixels, frame_pixels(frame, pixels, grid=GRID)
 
 

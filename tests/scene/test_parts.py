@@ -20,7 +20,8 @@ from tests.locations import ROOT
 
 
 def _obj(path, points, triangles):
-    lines = [f"v {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in points] + [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in triangles]
+    lines = ([f"v {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in points]
+             + [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in triangles])
     path.write_text("\n".join(lines) + "\n")
     return path
 

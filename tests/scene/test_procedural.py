@@ -231,7 +231,8 @@ def test_fence_has_many_slats_narrower_than_3_cm_and_at_least_1_m_tall():
 
 
 def test_make_scene_rejects_unknown_names_listing_the_valid_ones():
-    with pytest.raises(ValueError, match=r"scene: expected one of \['city', 'fence', 'foliage', 'mesh', 'plane_box', 'terrain'\], got 'forest'"):
+    with pytest.raises(ValueError, match=r"scene: expected one of \['city', 'fence', 'foliage', 'mesh', 'plane_box', "
+                                         r"'terrain'\], got 'forest'"):
         make_scene("forest")
     with pytest.raises(ValueError, match="unknown parameter.*resolutio.*expected some of.*resolution"):
         make_scene("terrain", resolutio=10)

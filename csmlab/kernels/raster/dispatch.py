@@ -30,7 +30,8 @@ _CHOSEN: ContextVar[str | None] = ContextVar("csmlab_rasterizer", default=None)
 
 
 def device_rasterizer(device: str) -> str:
-    """The rasterizer ``device`` gets unless one is chosen (:func:`rasterizer_chosen`): ``tiled`` on CUDA, else ``walk``."""
+    """The rasterizer ``device`` gets unless one is chosen (:func:`rasterizer_chosen`): ``tiled`` on CUDA, else
+    ``walk``."""
     return "walk" if wp.get_device(checked_device(device)).is_cpu else "tiled"
 
 

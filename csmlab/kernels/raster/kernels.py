@@ -217,7 +217,8 @@ def reciprocal(x: wp.float64) -> wp.float64:
 @wp.func
 def run_bounds(w: wp.float64, step: wp.float64, inverse_step: wp.float64, bias: wp.float64, start: wp.float64,
                lo: wp.float64, hi: wp.float64):
-    """``[lo, hi]`` (texel columns, whole numbers in float64) narrowed to where ``w − step·(i − start) > bias`` may hold.
+    """``[lo, hi]`` (texel columns, whole numbers in float64) narrowed to where ``w − step·(i − start) > bias``
+    may hold.
 
     ``w`` is the edge function at column ``start``. The bound ``⌊(w − bias)·(1 / step)⌋`` is off by
     far less than a column (|w| < 2**53, a few roundings); the upper bound is widened by one
@@ -396,8 +397,8 @@ def walk_run(depth: wp.array3d(dtype=wp.float32), c: int, j: int, lo: int, hi: i
 @wp.func
 def centre_covered(px: wp.int64, py: wp.int64, ax: wp.int64, ay: wp.int64, bx: wp.int64, by: wp.int64, cx: wp.int64,
                    cy: wp.int64, bias_ab: wp.float64, bias_bc: wp.float64, bias_ca: wp.float64, za: wp.float64,
-                   zb: wp.float64, zc: wp.float64, area: wp.float64, depth: wp.array3d(dtype=wp.float32), c: int, j: int,
-                   i: int) -> int:
+                   zb: wp.float64, zc: wp.float64, area: wp.float64, depth: wp.array3d(dtype=wp.float32), c: int,
+                   j: int, i: int) -> int:
     """1 if the centre ``(px, py)`` (doubled units) of texel (i, j) lies in the triangle, else 0.
 
     The edge functions are exact integers (a stepped triangle's), so each test is one comparison
