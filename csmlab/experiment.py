@@ -362,6 +362,7 @@ def build_workload(experiment: Experiment) -> Workload:
                                           level if fits_level(experiment) else None)
     if not fits_level(experiment):
         path = _moved_path(path, experiment.scene.offset)
+    _check_casters(experiment, scene)
     views = None if check == "off" else check_views(level, path)
     if check == "refuse" and not views.clean:
         raise InputError(f"refused: {findings_line(views.as_dict())}; expected every view to fit the scene "
@@ -371,6 +372,18 @@ def build_workload(experiment: Experiment) -> Workload:
                     width=_image_width(experiment.camera, path), height=experiment.camera.height,
                     key=workload_hash(experiment, frames=len(path)), timing=timing, restarts=restarts, views=views,
                     blend=_blend_note(experiment))
+
+
+def _check_casters(experiment: Experiment, scene: Scene) -> None:
+    """InputError naming the method when its ``[shadow] blend_casters = "none"`` would leave the level no caster (every
+    triangle blended): before any frame runs, not from a worker mid-run."""
+    if not scene.blended or np.any(scene.vertex_blend[scene.triangles[:, 0]] < 0):
+        return
+    for method in experiment.methods:
+        if method.settings.blend_casters == "none":
+            raise InputError(f"expected a rule that leaves the level a caster; every triangle of {scene.name} is "
+                             f"blended (alphaMode BLEND) and \"none\" drops them all from method {method.name}'s "
+                             f"depth pass", file=experiment.source, field=f"{method.name}.shadow.blend_casters")
 
 
 def _blend_note(experiment: Experiment) -> dict | None:

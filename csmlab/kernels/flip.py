@@ -191,13 +191,15 @@ _LIBM_POW = """
 
 @wp.func_native(_LIBM_EXP)
 def libm_exp(x: float) -> float:
-    """``e^x`` in float32 as the CPU's C library gives it (``expf``); on CUDA, correctly rounded (float64 rounded once)."""
+    """``e^x`` in float32 as the CPU's C library gives it (``expf``); on CUDA, correctly rounded (float64 rounded
+    once)."""
     ...
 
 
 @wp.func_native(_LIBM_POW)
 def libm_pow(x: float, y: float) -> float:
-    """``x^y`` in float32 as the CPU's C library gives it (``powf``); on CUDA, correctly rounded (float64 rounded once)."""
+    """``x^y`` in float32 as the CPU's C library gives it (``powf``); on CUDA, correctly rounded (float64 rounded
+    once)."""
     ...
 
 

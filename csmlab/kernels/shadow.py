@@ -235,8 +235,8 @@ class WorldReceivers:
     """Receivers as world points, taken into a cascade's fixed point where a kernel reads them.
 
     ``to_fixed = 2**bits / texel_size``, ``offset`` (the normal offset in metres), ``bias_constant``
-    (metres) and ``slope_bias`` (``bias_slope · texel``) are per cascade; ``planar`` 0 gives every receiver a flat plane (no
-    receiver-plane bias).
+    (metres) and ``slope_bias`` (``bias_slope · texel``) are per cascade; ``planar`` 0 gives every receiver a flat
+    plane (no receiver-plane bias).
     """
 
     points: wp.array(dtype=wp.vec3d)
@@ -540,7 +540,8 @@ def select_cascades(depth, coords, receiver_depth, view_depth, *, splits, texel_
 
     Parameters
     ----------
-    depth, coords, receiver_depth, view_depth, splits, texel_area, selection, margin, blend_band, bits, sphere_cascade, device
+    depth, coords, receiver_depth, view_depth, splits, texel_area, selection, margin, blend_band, bits, sphere_cascade,
+    device
         As :func:`shadow_lookup`.
     radius : int
         Texels the filter's taps reach beyond the one holding the point.
@@ -565,7 +566,8 @@ def select_cascades(depth, coords, receiver_depth, view_depth, *, splits, texel_
 
 def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis, texel_size, origin_fixed, zref: float,
                         normal_offset: float, bias_constant, bias_slope: float, receiver_plane_bias: bool,
-                        splits, normal_scale: str = "none", plane_offset=0.0, normal_offset_m: float = 0.0, texel_area, selection: str, filter: str, radius: int, margin: int,
+                        splits, normal_scale: str = "none", plane_offset=0.0, normal_offset_m: float = 0.0,
+                        texel_area, selection: str, filter: str, radius: int, margin: int,
                         blend_band: float, bits: int, band_start=None, blend_curve: int = 0, sphere_cascade=None,
                         device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`shadow_lookup` of world receivers, each taken into a cascade's fixed point where the lookup reads it.
@@ -658,8 +660,9 @@ def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str,
     n = vd.shape[0]
     if selected.code == SELECT_SPHERE:
         if sphere_cascade is None or np.shape(sphere_cascade) != (n,):
+            found = None if sphere_cascade is None else np.shape(sphere_cascade)
             raise ValueError(f"sphere_cascade: selection = \"sphere\" needs each receiver's split sphere ({n},) "
-                             f"(split_sphere_cascades), got {None if sphere_cascade is None else np.shape(sphere_cascade)}")
+                             f"(split_sphere_cascades), got {found}")
         spheres = np.ascontiguousarray(sphere_cascade, dtype=np.int32)
     else:
         # The other selections read no sphere: one element stands in for the array.
@@ -712,7 +715,8 @@ def fixed_point(u: wp.float64, to_fixed: wp.float64, limit: wp.float64) -> wp.in
 
 @wp.func
 def light_space(v: wp.vec3d, basis: wp.mat33d, row: int) -> wp.float64:
-    """Component ``row`` of ``v`` in the light basis, summed in the order of the host's ``csmlab.texels._light_space``."""
+    """Component ``row`` of ``v`` in the light basis, summed in the order of the host's
+    ``csmlab.texels._light_space``."""
     return (v[0] * basis[row, 0] + v[2] * basis[row, 2]) + v[1] * basis[row, 1]
 
 
@@ -791,7 +795,8 @@ def world_receivers(points, normals, *, receivers, basis, texel_size, origin_fix
                     normal_offset: float, bias_constant, bias_slope: float, planar: bool,
                     device: str, normal_scale: str = "none", plane_offset=0.0,
                     normal_offset_m: float = 0.0) -> WorldReceivers:
-    """The :class:`WorldReceivers` of :func:`receiver_coordinates`'s arguments, checked (``planar``: receiver-plane slopes)."""
+    """The :class:`WorldReceivers` of :func:`receiver_coordinates`'s arguments, checked (``planar``: receiver-plane
+    slopes)."""
     p = np.ascontiguousarray(points, dtype=np.float64)
     n = np.ascontiguousarray(normals, dtype=np.float32)
     rows = np.ascontiguousarray(basis, dtype=np.float64)

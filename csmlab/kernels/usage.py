@@ -81,8 +81,8 @@ def looked_up_texels(points, cascade, *, basis, texel_size, origin, resolution, 
     count = size.shape[0] if size.ndim == 2 else 0
     if p.ndim != 2 or p.shape[1] != 3 or selected.shape != (p.shape[0],) or rows.shape != (3, 3) \
             or size.shape != (count, 2) or corner.shape != (count, 2) or sides.shape != (count,) or count == 0:
-        raise ValueError(f"points, cascade, basis, texel_size, origin, resolution: expected shapes (N, 3), (N,), (3, 3), "
-                         f"(C, 2), (C, 2), (C,); got {p.shape}, {selected.shape}, {rows.shape}, {size.shape}, "
+        raise ValueError(f"points, cascade, basis, texel_size, origin, resolution: expected shapes (N, 3), (N,), "
+                         f"(3, 3), (C, 2), (C, 2), (C,); got {p.shape}, {selected.shape}, {rows.shape}, {size.shape}, "
                          f"{corner.shape}, {sides.shape}")
     if selected.size and selected.max() >= count:
         raise ValueError(f"cascade: expected indices below {count}, got {selected.max()}")

@@ -43,7 +43,8 @@ class FrameMeasures:
         at the first frame; ``shaded`` (H, W, 3) float64 linear RGB of frame t, NaN where S is
         undefined; ``reference_shaded`` (H, W, 3) float64 linear RGB of the same view through the
         ray-traced shadow (NaN where it is undefined; absent when the view has no reference), the
-        reference sequence of a video metric (:mod:`csmlab.report.video_quality`); ``ref_diff`` (H, W) int8, +1 false shadow, −1 false light, 0 otherwise;
+        reference sequence of a video metric (:mod:`csmlab.report.video_quality`); ``ref_diff`` (H, W) int8, +1
+        false shadow, −1 false light, 0 otherwise;
         ``de2000`` (H, W) float64, NaN where not compared or at the first frame; ``flipped`` (H, W)
         bool, the lit/shadowed state changed (all False at the first frame).
     """

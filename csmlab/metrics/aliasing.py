@@ -172,7 +172,8 @@ def utilization(frame: Frame, *, device: str = "cpu") -> np.ndarray:
 
 
 def _resident_utilization(frame: Frame) -> np.ndarray:
-    """:func:`utilization` of a virtual clipmap: distinct texels looked up per level over its resident texels, ``(L,)``."""
+    """:func:`utilization` of a virtual clipmap: distinct texels looked up per level over its resident texels,
+    ``(L,)``."""
     g = frame.view.gbuffer
     pages = frame.maps.pages
     clip = pages.clipmap

@@ -62,8 +62,8 @@ from csmlab.metrics.shading import ShadingTerms, shaded_rgb, srgb_encoded, view_
 from csmlab.registry import dispatch
 
 __all__ = ["FLIP_METHODS", "FLIP_SUPPORT", "JND_CIEDE2000", "PerceptualMaps", "SSIM_SUPPORT", "WIDE_CHANGE",
-           "changed_windows", "delta_e_2000", "flip_map", "lab_from_linear_srgb", "perceptual_maps", "perceptual_summary",
-           "ssim_map"]
+           "changed_windows", "delta_e_2000", "flip_map", "lab_from_linear_srgb", "perceptual_maps",
+           "perceptual_summary", "ssim_map"]
 
 JND_CIEDE2000: float = 1.0
 """ΔE2000 of one just-noticeable difference. CIEDE2000 was fitted to threshold and small-difference

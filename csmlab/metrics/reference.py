@@ -251,7 +251,8 @@ def split_boundary_pixels(cascade) -> np.ndarray:
     # compared once and marks both pixels of a pair that differ, instead of 8 shifted comparisons.
     for dy, dx in ((0, 1), (1, 0), (1, 1), (1, -1)):
         rows = slice(0, height - dy)
-        first, second = (slice(0, width - dx), slice(dx, width)) if dx >= 0 else (slice(-dx, width), slice(0, width + dx))
+        first, second = ((slice(0, width - dx), slice(dx, width)) if dx >= 0
+                         else (slice(-dx, width), slice(0, width + dx)))
         a, b = c[rows, first], c[dy:, second]
         pair = (a >= 0) & (b >= 0) & (a != b)
         out[rows, first] |= pair

@@ -41,7 +41,7 @@ class ShadingTerms:
     cosine: np.ndarray
     light: np.ndarray | None = None
 
-    def taken(self, index) -> "ShadingTerms":
+    def taken(self, index) -> ShadingTerms:
         """These terms at the pixels ``index`` selects (one index into both arrays' leading axes), the light kept."""
         return ShadingTerms(albedo=self.albedo[index], cosine=self.cosine[index], light=self.light)
 

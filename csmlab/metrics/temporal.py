@@ -14,8 +14,9 @@ in a blend band in either frame, where the blend weight follows the camera).
 
 When the shadow's light moved between t−1 and t (the direction its maps were built with,
 ``maps.cascades.direction``, differs: the view's light every frame, or a sun policy's, held between
-updates or quantized, :mod:`csmlab.shadow_policies`), the reference's own change is subtracted: ``ΔS − ΔR`` with ``ΔR = R_t(X) − R_{t−1}(X)``, and a flip is a change of
-state that differs from the reference's change of state. R_{t−1}(X) is cast afresh: a shadow ray
+updates or quantized, :mod:`csmlab.shadow_policies`), the reference's own change is subtracted: ``ΔS − ΔR``
+with ``ΔR = R_t(X) − R_{t−1}(X)``, and a flip is a change of state that differs from the reference's change of
+state. R_{t−1}(X) is cast afresh: a shadow ray
 from frame t's point X toward frame t−1's light (``View.previous_reference``, from
 :func:`csmlab.render.render_view` given ``previous_light_direction``). When the camera did not move
 either, frame t−1's reference image is the same cast (the same pixel sees the same point) and is

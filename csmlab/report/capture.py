@@ -151,7 +151,7 @@ def default_snapshot_frames(n_frames: int) -> list[int]:
     return sorted({int(round(f)) for f in np.linspace(1, n_frames - 1, _SNAPSHOT_COUNT)})
 
 
-def capture_frame(frame: Frame, measures: "FrameMeasures", *, snapshot: bool,
+def capture_frame(frame: Frame, measures: FrameMeasures, *, snapshot: bool,
                   grid: WorldGrid | None = None, images: bool = True, taa: tuple | None = None) -> Capture:
     """The report's record of one frame of one method.
 

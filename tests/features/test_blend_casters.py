@@ -157,3 +157,21 @@ def test_methods_of_one_run_cast_by_their_own_rules_against_the_levels_reference
     assert note == {"rule": "masked", "materials": ["level_True_BLEND.glb: glass"],
                     "methods": {"own": "masked", "solid": "opaque", "none": "none"}}
     assert "solid's shadow opaque; none's shadow none" in blend_line(note)
+
+
+def test_none_on_a_level_that_is_all_blended_is_refused_before_any_frame_naming_the_method(tmp_path):
+    from csmlab.config import load_experiment
+    from csmlab.errors import InputError
+    from csmlab.experiment import build_workload
+
+    b = GltfBuilder()
+    material = b.add_masked_material(_half_mask_png())
+    b.document.materials[material].alphaMode = "BLEND"
+    points, triangles = ground(half_size=HALF)
+    uv = np.c_[(points[:, 0] + HALF) / (2 * HALF), (points[:, 2] + HALF) / (2 * HALF)]
+    b.save(tmp_path / "glass.glb", roots=[b.add_node(mesh=b.add_mesh(points, triangles, uv=uv, material=material))])
+    path = tmp_path / "x.toml"
+    path.write_text('[scene]\nkind = "mesh"\nfile = "glass.glb"\n[camera]\npath = "pan"\nframes = 2\nwidth = 64\n'
+                    'height = 36\nview_check = "off"\n[[methods]]\nname = "urp"\nblend_casters = "none"\n')
+    with pytest.raises(InputError, match=r"urp\.shadow\.blend_casters.*every triangle of .* is blended"):
+        build_workload(load_experiment(path))
