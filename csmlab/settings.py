@@ -16,8 +16,8 @@ from csmlab.lookup_choices import CASTANO_SIZES, FILTER_METHODS, NORMAL_OFFSET_S
 from csmlab.registry import check_name, parameters
 from csmlab.shadow_policies import SUN_POLICIES, ZOOM_POLICIES
 
-__all__ = ["APPLIES", "CLIPMAP_FILTERS", "SETTING_GROUPS", "SHADOW_MAP_METHODS", "Applies", "SettingGroup",
-           "ShadowSettings"]
+__all__ = ["APPLIES", "CLIPMAP_FILTERS", "GROUP_OF", "SETTING_GROUPS", "SHADOW_MAP_METHODS", "Applies",
+           "SettingGroup", "ShadowSettings"]
 
 SHADOW_MAP_METHODS: dict[str, str] = {
     "cascades": "cascaded shadow maps: one stabilized box per split of the view depth (csmlab.cascades)",
@@ -808,6 +808,10 @@ table that validation (:meth:`ShadowSettings.validated` runs each group's check 
 rules (:data:`APPLIES`), ``csmlab list`` and the documentation test read. A new field goes in one group's
 ``fields`` at the place it holds among the class's fields, with its range check in the group's ``check`` and,
 where it takes effect only somewhere, its rule in ``rules``."""
+
+GROUP_OF: dict[str, SettingGroup] = {key: group for group in SETTING_GROUPS for key in group.fields}
+"""The group of each ``[shadow]`` field (TOML name): what orders and heads the lists of fields people read (an
+engine's lacking lines, the tune page's search space)."""
 
 APPLIES: dict[str, Applies] = {key: group.rule(key) for group in SETTING_GROUPS for key in group.fields
                                if group.rule(key) is not None}

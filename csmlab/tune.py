@@ -878,11 +878,13 @@ _SUFFIXES = {"ini": ("ini", ";"), "csharp": ("cs", "//"), "gdscript": ("txt", "#
 
 def write_outputs(result: TuneResult, out_dir, *, near: float, far: float) -> Path:
     """Write the recommended setting as ``recommended.toml``, its engine snippets as ``exports/<engine>.*``
-    (the knobs an engine lacks as comments) and the report ``index.html``; return the report's path.
+    (the knobs an engine lacks as comments, headed by their group's title) and the report ``index.html``; return
+    the report's path.
 
     ``near`` and ``far`` are the camera's planes, metres (where the exported splits start and end).
     """
     from csmlab.engines import EXPORT_METHODS, export
+    from csmlab.engines.common import lacking_by_group
     from csmlab.report.tune_page import write_tune_report
 
     out_dir = Path(out_dir)
@@ -900,7 +902,8 @@ def write_outputs(result: TuneResult, out_dir, *, near: float, far: float) -> Pa
     snippets = [export(best.settings, near=near, far=far, engine=engine) for engine in EXPORT_METHODS]
     for snippet in snippets:
         suffix, comment = _SUFFIXES[snippet.language]
-        lacking = "".join(f"{comment} lacks: {item}\n" for item in snippet.lacking)
+        lacking = "".join(f"{comment} {title}:\n" + "".join(f"{comment} lacks: {item}\n" for item in items)
+                          for title, items in lacking_by_group(snippet.lacking))
         write_atomic(out_dir / "exports" / f"{snippet.engine}.{suffix}",
                      f"{comment} {snippet.title} — csmlab tune of {result.name}, {best.label}\n{snippet.text}{lacking}")
         for name, text in snippet.files:

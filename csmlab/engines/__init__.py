@@ -26,10 +26,10 @@ from dataclasses import replace
 from pathlib import Path
 
 from csmlab.engines import bevy, filament, godot4, stride, threejs_csm, ue5, unity_builtin, unity_urp
-from csmlab.engines.common import Engine, EngineFiles, Snippet, TuneSpace, the_engines_own
-from csmlab.engines.reading import Imported, engine_settings, toml_name
+from csmlab.engines.common import Engine, EngineFiles, Snippet, TuneSpace, in_group_order, the_engines_own
+from csmlab.engines.reading import Imported, attribute_name, engine_settings, toml_name
 from csmlab.registry import check_name, dispatch
-from csmlab.settings import APPLIES, ShadowSettings
+from csmlab.settings import APPLIES, SETTING_GROUPS, ShadowSettings
 
 __all__ = ["ENGINES", "EXPORT_METHODS", "IMPORT_METHODS", "Engine", "EngineFiles", "Imported", "Snippet", "TuneSpace",
            "LEVEL_READERS", "engine_files", "export", "import_settings", "level_instances", "level_toml",
@@ -61,7 +61,8 @@ def export(settings: ShadowSettings, *, near: float, far: float, engine: str) ->
 
     An engine with an importer (:data:`IMPORT_METHODS`) also gets its own files, and every
     knob they cannot hold is added to ``lacking``; a knob at the value of the engine preset the files are
-    written against is the engine's own behaviour and is not lacking.
+    written against is the engine's own behaviour and is not lacking. The lacking lines come group by group in
+    the documented order (:func:`~csmlab.engines.common.in_group_order`).
 
     Raises
     ------
@@ -70,13 +71,13 @@ def export(settings: ShadowSettings, *, near: float, far: float, engine: str) ->
     """
     snippet = dispatch(EXPORT_METHODS, engine, settings, field="engine", near=near, far=far)
     if engine not in IMPORT_METHODS:
-        return snippet
+        return replace(snippet, lacking=in_group_order(snippet.lacking))
     files, more = engine_files(settings, near=near, far=far, engine=engine)
     named = " ".join(snippet.lacking)
     extra = tuple(item for item in more if f"{item.split(' =', 1)[0]} =" not in named)
     # A knob at the value of the preset the files are written against is the engine's own behaviour: not lacking.
     preset = engine_settings(IMPORT_METHODS[engine].preset(settings))
-    lacking = tuple(item for item in snippet.lacking + extra if not the_engines_own(item, settings, preset))
+    lacking = in_group_order(item for item in snippet.lacking + extra if not the_engines_own(item, settings, preset))
     return replace(snippet, lacking=lacking, files=tuple(files.items()))
 
 
@@ -148,18 +149,20 @@ def engine_files(settings: ShadowSettings, *, near: float, far: float, engine: s
     """``settings`` as ``engine``'s own files ``{name: text}`` and the knobs they cannot hold.
 
     Beyond what the writer names, every field the files do not carry that applies to ``settings``
-    and differs from the engine's preset is lacking: the engine would use its own.
+    and differs from the engine's preset is lacking (the engine would use its own), group by group in the
+    documented order (:data:`~csmlab.settings.SETTING_GROUPS`).
     """
     record = IMPORT_METHODS[check_name(engine, IMPORT_METHODS, field="engine")]
     files, lacking = record.write(settings, near=near, far=far)
     base = engine_settings(record.preset(settings))
-    for attribute in ShadowSettings.__dataclass_fields__:
-        name = toml_name(attribute)
-        if attribute in record.fields or (name in APPLIES and not APPLIES[name].holds(settings)):
-            continue
-        mine, theirs = getattr(settings, attribute), getattr(base, attribute)
-        if mine != theirs:
-            lacking.append(f"{name} = {mine!r} (the engine's is {theirs!r})")
+    for group in SETTING_GROUPS:
+        for name in group.fields:
+            attribute = attribute_name(name)
+            if attribute in record.fields or (name in APPLIES and not APPLIES[name].holds(settings)):
+                continue
+            mine, theirs = getattr(settings, attribute), getattr(base, attribute)
+            if mine != theirs:
+                lacking.append(f"{name} = {mine!r} (the engine's is {theirs!r})")
     return files, lacking
 
 

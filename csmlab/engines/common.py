@@ -22,11 +22,12 @@ from csmlab.cascades.bounds import BOUNDS_METHODS
 from csmlab.engines.reading import Imported
 from csmlab.errors import InputError
 from csmlab.lookup_choices import FILTER_METHODS
-from csmlab.settings import APPLIES, ShadowSettings
+from csmlab.settings import APPLIES, GROUP_OF, SETTING_GROUPS, ShadowSettings
 
-__all__ = ["Engine", "EngineFiles", "Snippet", "TuneSpace", "blend_lacking", "common_lacking", "describe_spec",
-           "fixed_preset", "four_digits", "hard_filter", "largest_resolution", "named_fields", "one_file",
-           "shape_lacking", "storage_lacking", "the_engines_own", "vogel_is"]
+__all__ = ["OTHER_TITLE", "Engine", "EngineFiles", "Snippet", "TuneSpace", "blend_lacking", "common_lacking",
+           "describe_spec", "fixed_preset", "four_digits", "hard_filter", "in_group_order", "lacking_by_group",
+           "largest_resolution", "named_fields", "one_file", "shape_lacking", "storage_lacking", "the_engines_own",
+           "vogel_is"]
 
 
 @dataclass(frozen=True)
@@ -113,6 +114,30 @@ def common_lacking(settings: ShadowSettings, *, stable: str, carried=frozenset()
 def named_fields(item: str) -> list[str]:
     """The fields a lacking line names: ``a = 1, b = 2 (why)`` → ``[a, b]``."""
     return re.findall(r"(?:^|, )([a-z_]+) = ", item.split(" (", 1)[0])
+
+
+OTHER_TITLE = "other"
+"""The heading of lacking lines that name no ``[shadow]`` field (:func:`lacking_by_group`)."""
+
+
+def lacking_by_group(lacking) -> list[tuple[str, tuple[str, ...]]]:
+    """``lacking`` (lines) as ``(group title, lines)`` in the documented order
+    (:data:`~csmlab.settings.SETTING_GROUPS`): a line goes in the group of the first ``[shadow]`` field it names
+    (:func:`named_fields`), and within its group at that field's place (lines naming one field keep their order);
+    lines naming no field come last, headed :data:`OTHER_TITLE`. Groups with no line are left out."""
+    place = {name: k for k, name in enumerate(name for group in SETTING_GROUPS for name in group.fields)}
+    titles = [group.title for group in SETTING_GROUPS] + [OTHER_TITLE]
+    lines: dict[str, list[tuple[int, str]]] = {title: [] for title in titles}
+    for item in lacking:
+        name = next((name for name in named_fields(item) if name in GROUP_OF), None)
+        lines[OTHER_TITLE if name is None else GROUP_OF[name].title].append((place.get(name, len(place)), item))
+    return [(title, tuple(item for _, item in sorted(lines[title], key=lambda pair: pair[0])))
+            for title in titles if lines[title]]
+
+
+def in_group_order(lacking) -> tuple[str, ...]:
+    """``lacking`` (lines) reordered group by group, as :func:`lacking_by_group` heads them."""
+    return tuple(item for _, items in lacking_by_group(lacking) for item in items)
 
 
 def the_engines_own(item: str, settings: ShadowSettings, preset: ShadowSettings) -> bool:

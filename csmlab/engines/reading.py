@@ -25,8 +25,8 @@ from csmlab.documents import Value, read_text
 from csmlab.errors import InputError
 from csmlab.settings import ShadowSettings
 
-__all__ = ["Entry", "Imported", "Located", "LocatingLoader", "Reading", "engine_settings", "json_document",
-           "located_mapping", "one_line", "read_text", "toml_name", "yaml_document"]
+__all__ = ["Entry", "Imported", "Located", "LocatingLoader", "Reading", "attribute_name", "engine_settings",
+           "json_document", "located_mapping", "one_line", "read_text", "toml_name", "yaml_document"]
 
 
 @functools.cache
@@ -47,6 +47,11 @@ def engine_settings(preset: str) -> ShadowSettings:
 def toml_name(attribute: str) -> str:
     """The TOML spelling of a :class:`~csmlab.settings.ShadowSettings` attribute (``lambda_`` is ``lambda``)."""
     return "lambda" if attribute == "lambda_" else attribute
+
+
+def attribute_name(name: str) -> str:
+    """The :class:`~csmlab.settings.ShadowSettings` attribute of a TOML field name (``lambda`` is ``lambda_``)."""
+    return "lambda_" if name == "lambda" else name
 
 
 class Entry(Value):

@@ -13,13 +13,15 @@ import numpy as np
 from matplotlib.figure import Figure
 
 import csmlab
+from csmlab.engines.common import lacking_by_group
 from csmlab.metric_registry import METRICS, format_number
 from csmlab.report.html import render_report_html
 from csmlab.report.images import CATEGORY_COLOURS
 from csmlab.report.png import save_figure
 from csmlab.results import write_atomic
+from csmlab.settings import SETTING_GROUPS
 
-__all__ = ["TABLE_COLUMNS", "tune_figure", "write_tune_report"]
+__all__ = ["TABLE_COLUMNS", "space_rows", "tune_figure", "write_tune_report"]
 
 TABLE_COLUMNS = tuple(METRICS[name] for name in ("memory_bytes", "rho_p05", "rho_median", "flicker_same", "flicker",
                                                   "flip_rate"))
@@ -34,6 +36,19 @@ def _value(candidate, metric: str):
     if candidate.values is None or candidate.values.get(metric) is None:
         return None
     return float(candidate.values[metric])
+
+
+def space_rows(space: dict) -> list[tuple[str, str, str]]:
+    """The search space ``{field: spec}`` (csmlab.tune.parse_space's) as ``(group title, field, values in words)``
+    rows, group by group and field by field in the documented order (:data:`~csmlab.settings.SETTING_GROUPS`)."""
+    rows = []
+    for group in SETTING_GROUPS:
+        for field in (name for name in group.fields if name in space):
+            spec = space[field]
+            values = (", ".join(map(str, spec[1])) if spec[0] == "choice" else
+                      f"{spec[1]} … {spec[2]}{' (log)' if spec[3] else ''}")
+            rows.append((group.title, field, values))
+    return rows
 
 
 def tune_figure(result, path) -> None:
@@ -137,14 +152,13 @@ def write_tune_report(out_dir, result, *, snippets, preset_file: str) -> Path:
         "memory_budget": "none" if budgets.memory_bytes is None else _memory_text(budgets.memory_bytes),
         "flicker_budget": ("none" if budgets.max_flicker is None
                            else f"{budgets.flicker_metric} ≤ {budgets.max_flicker:.6g}"),
-        "space": [(field, ", ".join(map(str, spec[1])) if spec[0] == "choice" else
-                   f"{spec[1]} … {spec[2]}{' (log)' if spec[3] else ''}") for field, spec in result.space.items()],
+        "space": space_rows(result.space),
         "columns": [(m.label, m.unit) for m in TABLE_COLUMNS],
         "headline": headline,
         "front": front,
         "all_trials": [_row(c) for c in result.trials],
         "recommended": recommended.label if recommended else None,
         "preset_file": preset_file,
-        "snippets": snippets,
+        "snippets": [(snippet, lacking_by_group(snippet.lacking)) for snippet in snippets],
     }
     return write_atomic(out / "index.html", render_report_html(context, template="tune.html"))

@@ -10,6 +10,7 @@ themselves are read from the git-ignored tests/data/engines/vendor/ when present
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 import tomllib
@@ -23,7 +24,7 @@ from csmlab.config import load_experiment
 from csmlab.engines import ENGINES, EXPORT_METHODS, IMPORT_METHODS, export, import_settings
 from csmlab.engines.reading import engine_settings
 from csmlab.errors import InputError
-from csmlab.settings import ShadowSettings
+from csmlab.settings import SETTING_GROUPS, ShadowSettings
 
 PRESETS = [(engine, preset) for engine, record in IMPORT_METHODS.items() for preset in record.presets]
 """Every engine with its files and each preset they are written against."""
@@ -285,3 +286,19 @@ def test_each_engine_names_a_band_or_fade_of_another_shape():
                                                      engine="bevy").lacking)
     assert not any("fade =" in i for i in export(band.replace(fade="smoothstep"), near=NEAR, far=FAR,
                                                  engine="godot4").lacking)
+
+
+MANY_LACKING = ShadowSettings(cascades=3, cascade_resolutions=(2048, 1024, 512), stabilization="none", fit="sphere",
+                              selection="map", depth_format="float16", filter="pcf_vogel", blend_band=0.1,
+                              bias_slope=2.0, storage="array")
+"""A setting that no engine holds whole: knobs of many groups lacking at once."""
+
+
+@pytest.mark.parametrize("engine", sorted(EXPORT_METHODS))
+def test_lacking_lines_come_group_by_group_in_the_documented_order(engine):
+    # The oracle: the position in docs/design.md's order (group by group) of the first [shadow] field a line names.
+    documented = [name for group in SETTING_GROUPS for name in group.fields]
+    lacking = export(MANY_LACKING, near=NEAR, far=FAR, engine=engine).lacking
+    places = [next((documented.index(word) for word in re.findall(r"\b[a-z_]+(?= = )", item) if word in documented),
+                   len(documented)) for item in lacking]
+    assert len(lacking) >= 3 and places == sorted(places), (engine, lacking)
