@@ -1,13 +1,15 @@
 """The receiver bias as the receiver conversions read it: one record per lookup, per-cascade values as arrays.
 
-:func:`receiver_bias` turns ``[shadow]``'s bias fields (normal offset in texels and metres, its
-scale mode, constant and slope bias, the receiver-plane offset cap) and the cascades' texel sizes
-into a :class:`ReceiverBias`, which :class:`csmlab.kernels.shadow.WorldReceivers` and
+:func:`receiver_bias` turns a :class:`BiasSettings` (``[shadow]``'s bias fields: normal offset in
+texels and metres, its scale mode, constant and slope bias, the receiver-plane offset cap) and the
+cascades' texel sizes into a :class:`ReceiverBias`, which :class:`csmlab.kernels.shadow.WorldReceivers` and
 :class:`csmlab.kernels.engine.EngineReceivers` carry to the kernels that move and bias a receiver
 (:func:`csmlab.kernels.shadow.receiver_in`, the window-space and warped receiver kernels).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 import warp as wp
@@ -36,39 +38,48 @@ class ReceiverBias:
     normal_scale: int
 
 
-def receiver_bias(texel, *, normal_offset: float, bias_constant, bias_slope: float, normal_scale: str = "none",
-                  plane_offset=0.0, normal_offset_m: float = 0.0, device: str) -> ReceiverBias:
-    """The :class:`ReceiverBias` of the bias fields for cascades of ``texel`` metres.
+@dataclass(frozen=True)
+class BiasSettings:
+    """The receiver bias of one lookup, as the host wrappers take it (docs/design.md ``[shadow]``).
+
+    ``normal_offset`` and ``bias_slope`` are in texels, ``bias_constant`` in metres (one value per
+    cascade ``(C,)`` with a bias model's scaling, csmlab.filters), ``normal_scale`` a
+    :data:`csmlab.lookup_choices.NORMAL_OFFSET_SCALES` name, ``plane_offset`` the cap in metres of
+    the static receiver-plane offset (scalar or ``(C,)``; 0: none), ``normal_offset_m`` a world
+    normal offset in metres, the same in every cascade (Stride).
+    """
+
+    normal_offset: float
+    bias_constant: float | np.ndarray
+    bias_slope: float
+    normal_scale: str = "none"
+    plane_offset: float | np.ndarray = 0.0
+    normal_offset_m: float = 0.0
+
+
+def receiver_bias(texel, settings: BiasSettings, *, device: str) -> ReceiverBias:
+    """The :class:`ReceiverBias` of ``settings`` for cascades of ``texel`` metres.
 
     Parameters
     ----------
     texel : ndarray, shape (C,), float64
         Each cascade's larger texel side, metres.
-    normal_offset, bias_slope : float
-        Texels (docs/design.md ``[shadow]``).
-    bias_constant : float or array_like, shape (C,)
-        Metres; one value per cascade with a bias model's scaling (csmlab.filters).
-    normal_scale : str
-        A :data:`csmlab.lookup_choices.NORMAL_OFFSET_SCALES` name (``normal_offset_scale``).
-    plane_offset : float or array_like, shape (C,)
-        Cap of the static receiver-plane offset, metres; 0: none.
-    normal_offset_m : float
-        A world normal offset, metres, the same in every cascade (Stride).
+    settings : BiasSettings
     device : str
     """
     count = texel.shape
-    offset = normal_offset * texel
-    if normal_offset_m != 0.0:
-        offset = offset + normal_offset_m  # a world distance, the same in every cascade (Stride)
+    offset = settings.normal_offset * texel
+    if settings.normal_offset_m != 0.0:
+        offset = offset + settings.normal_offset_m  # a world distance, the same in every cascade (Stride)
     bias = ReceiverBias()
     bias.offset = wp.array(offset, dtype=wp.float64, device=device)
-    bias.slope_bias = wp.array(bias_slope * texel, dtype=wp.float64, device=device)
-    bias.bias_slope = float(bias_slope)
-    bias.bias_constant = wp.array(np.broadcast_to(np.asarray(bias_constant, dtype=np.float64), count).copy(),
+    bias.slope_bias = wp.array(settings.bias_slope * texel, dtype=wp.float64, device=device)
+    bias.bias_slope = float(settings.bias_slope)
+    bias.bias_constant = wp.array(np.broadcast_to(np.asarray(settings.bias_constant, dtype=np.float64), count).copy(),
                                   dtype=wp.float64, device=device)
-    bias.plane_offset = wp.array(np.broadcast_to(np.asarray(plane_offset, dtype=np.float64), count).copy(),
+    bias.plane_offset = wp.array(np.broadcast_to(np.asarray(settings.plane_offset, dtype=np.float64), count).copy(),
                                  dtype=wp.float64, device=device)
     bias.max_tan = 10.0
-    bias.normal_scale = NORMAL_OFFSET_SCALES[check_name(normal_scale, NORMAL_OFFSET_SCALES,
+    bias.normal_scale = NORMAL_OFFSET_SCALES[check_name(settings.normal_scale, NORMAL_OFFSET_SCALES,
                                                         field="normal_offset_scale")]
     return bias

@@ -22,7 +22,7 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device, device_empty
-from csmlab.kernels.bias import ReceiverBias, receiver_bias
+from csmlab.kernels.bias import BiasSettings, ReceiverBias, receiver_bias
 from csmlab.kernels.raster.kernels import vec2l
 from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 from csmlab.lookup_choices import NORMAL_NONE, NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN
@@ -395,9 +395,8 @@ def window_receivers_kernel(
         c += 1
 
 
-def window_receivers(boxes: EngineBoxes, points, normals, *, basis, texel_size, zref: float, normal_offset: float,
-                     bias_constant, bias_slope: float, receivers=None, normal_scale: str = "none", plane_offset=0.0,
-                     normal_offset_m: float = 0.0, device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def window_receivers(boxes: EngineBoxes, points, normals, *, basis, texel_size, zref: float, bias: BiasSettings,
+                     receivers=None, device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`csmlab.texels.receiver_lookup` of window-space cascades on the device (``engine_precision`` float32 or
     camera_relative, or ``vertex_snap = "window"``), bit for bit.
 
@@ -415,8 +414,8 @@ def window_receivers(boxes: EngineBoxes, points, normals, *, basis, texel_size, 
         Metres per texel of each cascade.
     zref : float
         The cascades' depth offset, metres.
-    normal_offset, bias_constant, bias_slope, normal_scale, plane_offset, normal_offset_m
-        As :func:`csmlab.texels.receiver_lookup`.
+    bias : BiasSettings
+        The normal offset and depth bias, as :func:`csmlab.texels.receiver_lookup`'s arguments of those names.
     receivers : array_like, shape (N,), integer, optional
         The rows of ``points`` and ``normals`` that are receivers, in output order; None: all.
     device : str
@@ -430,15 +429,12 @@ def window_receivers(boxes: EngineBoxes, points, normals, *, basis, texel_size, 
     """
     device = checked_device(device)
     count = boxes.matrix.shape[0] if boxes.mode == WINDOW_FLOAT32 else boxes.texel_size.shape[0]
-    r = _engine_receivers(points, normals, basis=basis, texel_size=texel_size, zref=zref, normal_offset=normal_offset,
-                          bias_constant=bias_constant, bias_slope=bias_slope, receivers=receivers,
-                          normal_scale=normal_scale, plane_offset=plane_offset, normal_offset_m=normal_offset_m,
-                          cascades=count, device=device)
+    r = _engine_receivers(points, normals, basis=basis, texel_size=texel_size, zref=zref, bias=bias,
+                          receivers=receivers, cascades=count, device=device)
     return _launched(window_receivers_kernel, (r, boxes), count, r.index.shape[0], device)
 
 
-def _engine_receivers(points, normals, *, basis, texel_size, zref: float, normal_offset: float, bias_constant,
-                      bias_slope: float, receivers, normal_scale: str, plane_offset, normal_offset_m: float,
+def _engine_receivers(points, normals, *, basis, texel_size, zref: float, bias: BiasSettings, receivers,
                       cascades: int, device: str) -> EngineReceivers:
     """The :class:`EngineReceivers` of :func:`window_receivers`' arguments for ``cascades`` cascades, checked."""
     p = np.ascontiguousarray(points, dtype=np.float64)
@@ -462,9 +458,7 @@ def _engine_receivers(points, normals, *, basis, texel_size, zref: float, normal
     r.index = wp.array(index, dtype=wp.int32, device=device, copy=False)
     r.basis = wp.mat33d(*rows.reshape(-1))
     r.texel_size = wp.array(size, dtype=wp.vec2d, device=device)
-    r.bias = receiver_bias(texel, normal_offset=normal_offset, bias_constant=bias_constant, bias_slope=bias_slope,
-                           normal_scale=normal_scale, plane_offset=plane_offset, normal_offset_m=normal_offset_m,
-                           device=device)
+    r.bias = receiver_bias(texel, bias, device=device)
     r.zref = float(zref)
     r.limit = float(2**50)
     r.scale = 1.0
@@ -645,10 +639,8 @@ def warped_receivers_kernel(
         c += 1
 
 
-def warped_receivers(homographies, points, normals, *, basis, texel_size, zref: float, bits: int,
-                     normal_offset: float, bias_constant, bias_slope: float, receivers=None, normal_scale: str = "none",
-                     plane_offset=0.0, normal_offset_m: float = 0.0,
-                     device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def warped_receivers(homographies, points, normals, *, basis, texel_size, zref: float, bits: int, bias: BiasSettings,
+                     receivers=None, device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`csmlab.texels.receiver_lookup` of perspective-warped cascades (``warp``) on the device, bit for bit on
     the CPU (on a GPU the texel size takes CUDA's ``hypot``).
 
@@ -656,8 +648,7 @@ def warped_receivers(homographies, points, normals, *, basis, texel_size, zref: 
     ----------
     homographies : array_like, shape (C, 3, 3), float64
         Each cascade's homography, light-space x/y metres to homogeneous texels (:mod:`csmlab.cascades.warp`).
-    points, normals, basis, texel_size, zref, normal_offset, bias_constant, bias_slope, receivers, normal_scale,
-    plane_offset, normal_offset_m
+    points, normals, basis, texel_size, zref, bias, receivers
         As :func:`window_receivers`; ``texel_size`` ``(C, 2)`` the warps' nominal texels (the normal offset's unit).
     bits : int
         Sub-texel bits.
@@ -675,10 +666,8 @@ def warped_receivers(homographies, points, normals, *, basis, texel_size, zref: 
         raise ValueError(f"homographies: expected shape (C, 3, 3), got {h.shape}")
     if not (isinstance(bits, (int, np.integer)) and 0 <= bits <= 16):
         raise ValueError(f"bits: expected an integer in 0..16, got {bits!r}")
-    r = _engine_receivers(points, normals, basis=basis, texel_size=texel_size, zref=zref, normal_offset=normal_offset,
-                          bias_constant=bias_constant, bias_slope=bias_slope, receivers=receivers,
-                          normal_scale=normal_scale, plane_offset=plane_offset, normal_offset_m=normal_offset_m,
-                          cascades=h.shape[0], device=device)
+    r = _engine_receivers(points, normals, basis=basis, texel_size=texel_size, zref=zref, bias=bias,
+                          receivers=receivers, cascades=h.shape[0], device=device)
     r.scale = float(2**int(bits))
     return _launched(warped_receivers_kernel, (r, wp.array(h, dtype=wp.mat33d, device=device)), h.shape[0],
                      r.index.shape[0], device)

@@ -52,7 +52,7 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device
-from csmlab.kernels.bias import ReceiverBias, receiver_bias
+from csmlab.kernels.bias import BiasSettings, ReceiverBias, receiver_bias
 from csmlab.lookup_choices import (BLEND_SMOOTHSTEP, BOX_BILINEAR, BOX_TAPS, NORMAL_NONE,
                                    NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN, SELECT_BEST_RESOLUTION, SELECT_INTERVAL,
                                    SELECT_MAP, SELECT_SPHERE, SELECTION_METHODS, family_code)
@@ -561,8 +561,7 @@ def select_cascades(depth, coords, receiver_depth, view_depth, *, splits, texel_
 
 
 def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis, texel_size, origin_fixed, zref: float,
-                        normal_offset: float, bias_constant, bias_slope: float, receiver_plane_bias: bool,
-                        splits, normal_scale: str = "none", plane_offset=0.0, normal_offset_m: float = 0.0,
+                        bias: BiasSettings, receiver_plane_bias: bool, splits,
                         texel_area, selection: str, filter: str, radius: int, margin: int,
                         blend_band: float, bits: int, band_start=None, blend_curve: int = 0, sphere_cascade=None,
                         device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -576,7 +575,7 @@ def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis,
     ----------
     depth, view_depth, splits, texel_area, selection, filter, radius, margin, blend_band, bits, sphere_cascade, device
         As :func:`shadow_lookup`; ``view_depth`` and ``sphere_cascade`` ``(N,)`` one per receiver.
-    points, normals, receivers, basis, texel_size, origin_fixed, zref, normal_offset, bias_constant, bias_slope
+    points, normals, receivers, basis, texel_size, origin_fixed, zref, bias
         As :func:`receiver_coordinates`.
     receiver_plane_bias : bool
         Compare each tap with the receiver's tangent plane (else with its own depth).
@@ -590,9 +589,7 @@ def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis,
     code = family_code(filter, family="box")
     world = world_receivers(points, normals, receivers=receivers, basis=basis, texel_size=texel_size,
                             origin_fixed=origin_fixed,
-                            zref=zref, bits=bits, normal_offset=normal_offset, bias_constant=bias_constant,
-                            bias_slope=bias_slope, planar=receiver_plane_bias, normal_scale=normal_scale,
-                            plane_offset=plane_offset, normal_offset_m=normal_offset_m, device=device)
+                            zref=zref, bits=bits, bias=bias, planar=receiver_plane_bias, device=device)
     if world.index.shape[0] != np.shape(view_depth)[0] or np.ndim(view_depth) != 1:
         raise ValueError(f"view_depth: expected one view depth per receiver ({world.index.shape[0]},), "
                          f"got shape {np.shape(view_depth)}")
@@ -737,8 +734,7 @@ def receiver_coordinates_kernel(
 
 
 def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zref: float, bits: int,
-                         normal_offset: float, bias_constant, bias_slope: float, receivers=None,
-                         normal_scale: str = "none", plane_offset=0.0, normal_offset_m: float = 0.0,
+                         bias: BiasSettings, receivers=None,
                          device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`csmlab.texels.receiver_lookup` on the device, from world receivers.
 
@@ -758,8 +754,8 @@ def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zr
         The cascades' depth offset, metres.
     bits : int
         Sub-texel bits.
-    normal_offset, bias_constant, bias_slope : float
-        Texels, metres, texels (docs/design.md ``[shadow]``); ``bias_constant`` may be one value per
+    bias : BiasSettings
+        The normal offset and depth bias (docs/design.md ``[shadow]``); its ``bias_constant`` may be one value per
         cascade ``(C,)`` (a bias model's per-cascade scaling, csmlab.filters).
     receivers : array_like, shape (N,), integer, optional
         The rows of ``points`` and ``normals`` that are receivers, in output order; None: all.
@@ -774,9 +770,7 @@ def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zr
     device = checked_device(device)
     world = world_receivers(points, normals, receivers=receivers, basis=basis, texel_size=texel_size,
                             origin_fixed=origin_fixed,
-                            zref=zref, bits=bits, normal_offset=normal_offset, bias_constant=bias_constant,
-                            bias_slope=bias_slope, planar=True, normal_scale=normal_scale, plane_offset=plane_offset,
-                            normal_offset_m=normal_offset_m, device=device)
+                            zref=zref, bits=bits, bias=bias, planar=True, device=device)
     shape = (world.texel_size.shape[0], world.index.shape[0])
     coords = wp.empty(shape + (2,), dtype=wp.int64, device=device)
     depth = wp.empty(shape, dtype=wp.float32, device=device)
@@ -788,9 +782,7 @@ def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zr
 
 
 def world_receivers(points, normals, *, receivers, basis, texel_size, origin_fixed, zref: float, bits: int,
-                    normal_offset: float, bias_constant, bias_slope: float, planar: bool,
-                    device: str, normal_scale: str = "none", plane_offset=0.0,
-                    normal_offset_m: float = 0.0) -> WorldReceivers:
+                    bias: BiasSettings, planar: bool, device: str) -> WorldReceivers:
     """The :class:`WorldReceivers` of :func:`receiver_coordinates`'s arguments, checked (``planar``: receiver-plane
     slopes)."""
     p = np.ascontiguousarray(points, dtype=np.float64)
@@ -816,9 +808,7 @@ def world_receivers(points, normals, *, receivers, basis, texel_size, origin_fix
     world.origin_fixed = wp.array(corner, dtype=wp.int64, device=device)
     world.zref = float(zref)
     world.limit = float(2**50)
-    world.bias = receiver_bias(texel, normal_offset=normal_offset, bias_constant=bias_constant, bias_slope=bias_slope,
-                               normal_scale=normal_scale, plane_offset=plane_offset, normal_offset_m=normal_offset_m,
-                               device=device)
+    world.bias = receiver_bias(texel, bias, device=device)
     world.planar = int(bool(planar))
     return world
 
