@@ -41,6 +41,7 @@ from csmlab.cascades.borders import dithered_sphere_cascades
 from csmlab.cascades.fit import BLEND_CURVES, transition_bands
 from csmlab.fades import FADE_METHODS, faded
 from csmlab.frame import ShadowLookup, ShadowMaps
+from csmlab.kernels.bias import BiasSettings
 from csmlab.kernels.moments import blur_moments, moment_lookup, moment_maps, moment_mip_chain, moment_mip_lookup
 from csmlab.kernels.pages import page_lookup
 from csmlab.kernels.pcf import weighted_pcf
@@ -275,15 +276,17 @@ def _dithered_cascades(cascades: CascadeSet, receivers: Receivers, cascade: np.n
 
 def _conversion(cascades: CascadeSet, settings: ShadowSettings) -> dict:
     """What takes world receivers into the cascades' fixed point: the keyword arguments ``basis, texel_size,
-    origin_fixed, zref, normal_offset, bias_constant, bias_slope`` of :func:`csmlab.kernels.shadow.receiver_coordinates`
-    and :func:`csmlab.kernels.shadow.shadow_lookup_world`."""
+    origin_fixed, zref, bias`` of :func:`csmlab.kernels.shadow.receiver_coordinates` and
+    :func:`csmlab.kernels.shadow.shadow_lookup_world`, ``bias`` the :class:`csmlab.kernels.bias.BiasSettings` of
+    ``settings``."""
     bits = settings.subtexel_bits
     return dict(basis=cascades.basis, texel_size=np.stack([c.texel_size for c in cascades.cascades]),
                 origin_fixed=np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))]),
-                zref=cascades.zref, normal_offset=settings.normal_offset,
-                bias_constant=_cascade_bias(cascades, settings), normal_scale=settings.normal_offset_scale,
-                plane_offset=_plane_offset(cascades, settings), normal_offset_m=settings.normal_offset_m,
-                bias_slope=settings.bias_slope)
+                zref=cascades.zref,
+                bias=BiasSettings(normal_offset=settings.normal_offset, bias_constant=_cascade_bias(cascades, settings),
+                                  bias_slope=settings.bias_slope, normal_scale=settings.normal_offset_scale,
+                                  plane_offset=_plane_offset(cascades, settings),
+                                  normal_offset_m=settings.normal_offset_m))
 
 
 def _cascade_bias(cascades: CascadeSet, settings: ShadowSettings):

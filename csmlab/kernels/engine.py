@@ -22,10 +22,10 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device, device_empty
+from csmlab.kernels.bias import BiasSettings, ReceiverBias, receiver_bias
 from csmlab.kernels.raster.kernels import vec2l
 from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
-from csmlab.lookup_choices import NORMAL_NONE, NORMAL_OFFSET_SCALES, NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN
-from csmlab.registry import check_name
+from csmlab.lookup_choices import NORMAL_NONE, NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN
 
 __all__ = ["EngineBoxes", "engine_boxes", "warped_receivers", "warped_vertices", "window_receivers", "window_vertices"]
 
@@ -278,14 +278,8 @@ class EngineReceivers:
     index: wp.array(dtype=wp.int32)
     basis: wp.mat33d
     texel_size: wp.array(dtype=wp.vec2d)
-    offset: wp.array(dtype=wp.float64)
-    slope_bias: wp.array(dtype=wp.float64)
-    bias_slope: wp.float64
-    bias_constant: wp.array(dtype=wp.float64)
-    plane_offset: wp.array(dtype=wp.float64)
+    bias: ReceiverBias
     zref: wp.float64
-    max_tan: wp.float64
-    normal_scale: int
     scale: wp.float64
     """``2**bits`` (the warped receivers' snap; the window boxes hold their own)."""
     limit: wp.float64
@@ -351,7 +345,7 @@ def window_receivers_kernel(
     normal = wp.vec3d(n32)
     px, py, pz = light_space_xyz(point, r.basis)
     nx, ny, nz = light_space_xyz(normal, r.basis)
-    tan, plane_x, plane_y, factor = receiver_slopes(nx, ny, nz, r.max_tan, r.normal_scale)
+    tan, plane_x, plane_y, factor = receiver_slopes(nx, ny, nz, r.bias.max_tan, r.bias.normal_scale)
     float32 = boxes.mode == WINDOW_FLOAT32
     p32 = wp.vec3()
     if float32:
@@ -361,12 +355,12 @@ def window_receivers_kernel(
     c = int(0)
     while c < coords.shape[0]:
         size = r.texel_size[c]
-        offset = r.offset[c]
-        if r.normal_scale != NORMAL_NONE:
+        offset = r.bias.offset[c]
+        if r.bias.normal_scale != NORMAL_NONE:
             offset = offset * factor
         sx = plane_x * size[0]
         sy = plane_y * size[1]
-        bias = r.bias_constant[c] + r.slope_bias[c] * tan
+        bias = r.bias.bias_constant[c] + r.bias.slope_bias[c] * tan
         if float32:
             m = boxes.matrix[c]
             half = boxes.half[c]
@@ -377,10 +371,10 @@ def window_receivers_kernel(
             coords[c, k, 0] = window_fixed(clip_row(m, 0, mx, my, mz), half, scale, limit)
             coords[c, k, 1] = window_fixed(clip_row(m, 1, mx, my, mz), half, scale, limit)
             wz = clip_row(m, 2, mx, my, mz)
-            if r.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
+            if r.bias.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
                 wz = clip_row(m, 2, p32[0], p32[1], p32[2])
-            if r.plane_offset[c] > zero:
-                bias = bias + wp.min(wp.abs(sx) + wp.abs(sy), r.plane_offset[c])
+            if r.bias.plane_offset[c] > zero:
+                bias = bias + wp.min(wp.abs(sx) + wp.abs(sy), r.bias.plane_offset[c])
             depth[c, k] = wp.float32((boxes.depth_near[c] + wp.float64(wz) * boxes.depth_span[c]) - bias)
         else:
             # csmlab.texels.receiver_lookup's window snap: u = n·offset + p, then / texel, − corner, · 2**bits.
@@ -390,10 +384,10 @@ def window_receivers_kernel(
             uy = ny * offset + py
             coords[c, k, 0] = snapped(((ux / size[0]) - corner[0]) * fixed, limit)
             coords[c, k, 1] = snapped(((uy / size[1]) - corner[1]) * fixed, limit)
-            if r.plane_offset[c] > zero:
-                bias = bias + wp.min(wp.abs(sx) + wp.abs(sy), r.plane_offset[c])
+            if r.bias.plane_offset[c] > zero:
+                bias = bias + wp.min(wp.abs(sx) + wp.abs(sy), r.bias.plane_offset[c])
             along = one
-            if r.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
+            if r.bias.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
                 along = zero
             depth[c, k] = wp.float32(((pz + along * offset * nz) - r.zref) - bias)
         slope[c, k, 0] = sx
@@ -401,9 +395,8 @@ def window_receivers_kernel(
         c += 1
 
 
-def window_receivers(boxes: EngineBoxes, points, normals, *, basis, texel_size, zref: float, normal_offset: float,
-                     bias_constant, bias_slope: float, receivers=None, normal_scale: str = "none", plane_offset=0.0,
-                     normal_offset_m: float = 0.0, device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def window_receivers(boxes: EngineBoxes, points, normals, *, basis, texel_size, zref: float, bias: BiasSettings,
+                     receivers=None, device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`csmlab.texels.receiver_lookup` of window-space cascades on the device (``engine_precision`` float32 or
     camera_relative, or ``vertex_snap = "window"``), bit for bit.
 
@@ -421,8 +414,8 @@ def window_receivers(boxes: EngineBoxes, points, normals, *, basis, texel_size, 
         Metres per texel of each cascade.
     zref : float
         The cascades' depth offset, metres.
-    normal_offset, bias_constant, bias_slope, normal_scale, plane_offset, normal_offset_m
-        As :func:`csmlab.texels.receiver_lookup`.
+    bias : BiasSettings
+        The normal offset and depth bias, as :func:`csmlab.texels.receiver_lookup`'s arguments of those names.
     receivers : array_like, shape (N,), integer, optional
         The rows of ``points`` and ``normals`` that are receivers, in output order; None: all.
     device : str
@@ -436,15 +429,12 @@ def window_receivers(boxes: EngineBoxes, points, normals, *, basis, texel_size, 
     """
     device = checked_device(device)
     count = boxes.matrix.shape[0] if boxes.mode == WINDOW_FLOAT32 else boxes.texel_size.shape[0]
-    r = _engine_receivers(points, normals, basis=basis, texel_size=texel_size, zref=zref, normal_offset=normal_offset,
-                          bias_constant=bias_constant, bias_slope=bias_slope, receivers=receivers,
-                          normal_scale=normal_scale, plane_offset=plane_offset, normal_offset_m=normal_offset_m,
-                          cascades=count, device=device)
+    r = _engine_receivers(points, normals, basis=basis, texel_size=texel_size, zref=zref, bias=bias,
+                          receivers=receivers, cascades=count, device=device)
     return _launched(window_receivers_kernel, (r, boxes), count, r.index.shape[0], device)
 
 
-def _engine_receivers(points, normals, *, basis, texel_size, zref: float, normal_offset: float, bias_constant,
-                      bias_slope: float, receivers, normal_scale: str, plane_offset, normal_offset_m: float,
+def _engine_receivers(points, normals, *, basis, texel_size, zref: float, bias: BiasSettings, receivers,
                       cascades: int, device: str) -> EngineReceivers:
     """The :class:`EngineReceivers` of :func:`window_receivers`' arguments for ``cascades`` cascades, checked."""
     p = np.ascontiguousarray(points, dtype=np.float64)
@@ -462,27 +452,16 @@ def _engine_receivers(points, normals, *, basis, texel_size, zref: float, normal
     if index.ndim != 1 or (index.size and (index.min() < 0 or index.max() >= p.shape[0])):
         raise ValueError(f"receivers: expected row indices in [0, {p.shape[0]}), got shape {index.shape}")
     texel = size.max(axis=1)
-    offset = normal_offset * texel
-    if normal_offset_m != 0.0:
-        offset = offset + normal_offset_m
     r = EngineReceivers()
     r.points = wp.array(p, dtype=wp.vec3d, device=device, copy=False)
     r.normals = wp.array(n, dtype=wp.vec3, device=device, copy=False)
     r.index = wp.array(index, dtype=wp.int32, device=device, copy=False)
     r.basis = wp.mat33d(*rows.reshape(-1))
     r.texel_size = wp.array(size, dtype=wp.vec2d, device=device)
-    r.offset = wp.array(offset, dtype=wp.float64, device=device)
-    r.slope_bias = wp.array(bias_slope * texel, dtype=wp.float64, device=device)
-    r.bias_slope = float(bias_slope)
-    r.bias_constant = wp.array(np.broadcast_to(np.asarray(bias_constant, dtype=np.float64), (count,)).copy(),
-                               dtype=wp.float64, device=device)
-    r.plane_offset = wp.array(np.broadcast_to(np.asarray(plane_offset, dtype=np.float64), (count,)).copy(),
-                              dtype=wp.float64, device=device)
+    r.bias = receiver_bias(texel, bias, device=device)
     r.zref = float(zref)
     r.limit = float(2**50)
     r.scale = 1.0
-    r.max_tan = 10.0
-    r.normal_scale = NORMAL_OFFSET_SCALES[check_name(normal_scale, NORMAL_OFFSET_SCALES, field="normal_offset_scale")]
     return r
 
 
@@ -613,15 +592,15 @@ def warped_receivers_kernel(
     normal = wp.vec3d(r.normals[r.index[k]])
     px, py, pz = light_space_xyz(point, r.basis)
     nx, ny, nz = light_space_xyz(normal, r.basis)
-    tan, plane_x, plane_y, factor = receiver_slopes(nx, ny, nz, r.max_tan, r.normal_scale)
+    tan, plane_x, plane_y, factor = receiver_slopes(nx, ny, nz, r.bias.max_tan, r.bias.normal_scale)
     along = one
-    if r.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
+    if r.bias.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
         along = zero
     c = int(0)
     while c < coords.shape[0]:
         h = homographies[c]
-        offset = r.offset[c]
-        if r.normal_scale != NORMAL_NONE:
+        offset = r.bias.offset[c]
+        if r.bias.normal_scale != NORMAL_NONE:
             offset = offset * factor
         moved = wp.vec3d(point[0] + normal[0] * offset, point[1] + normal[1] * offset, point[2] + normal[2] * offset)
         mx = light_space(moved, r.basis, 0)
@@ -651,19 +630,17 @@ def warped_receivers_kernel(
         texel = numpy_maximum(hypot(ai0, ai1), hypot(aj0, aj1))
         sx = plane_x * ai0 + plane_y * ai1
         sy = plane_x * aj0 + plane_y * aj1
-        bias = r.bias_constant[c] + r.bias_slope * texel * tan
-        if r.plane_offset[c] > zero:
-            bias = bias + wp.min(wp.abs(sx) + wp.abs(sy), r.plane_offset[c])
+        bias = r.bias.bias_constant[c] + r.bias.bias_slope * texel * tan
+        if r.bias.plane_offset[c] > zero:
+            bias = bias + wp.min(wp.abs(sx) + wp.abs(sy), r.bias.plane_offset[c])
         depth[c, k] = wp.float32(((pz + along * offset * nz) - r.zref) - bias)
         slope[c, k, 0] = sx
         slope[c, k, 1] = sy
         c += 1
 
 
-def warped_receivers(homographies, points, normals, *, basis, texel_size, zref: float, bits: int,
-                     normal_offset: float, bias_constant, bias_slope: float, receivers=None, normal_scale: str = "none",
-                     plane_offset=0.0, normal_offset_m: float = 0.0,
-                     device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def warped_receivers(homographies, points, normals, *, basis, texel_size, zref: float, bits: int, bias: BiasSettings,
+                     receivers=None, device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`csmlab.texels.receiver_lookup` of perspective-warped cascades (``warp``) on the device, bit for bit on
     the CPU (on a GPU the texel size takes CUDA's ``hypot``).
 
@@ -671,8 +648,7 @@ def warped_receivers(homographies, points, normals, *, basis, texel_size, zref: 
     ----------
     homographies : array_like, shape (C, 3, 3), float64
         Each cascade's homography, light-space x/y metres to homogeneous texels (:mod:`csmlab.cascades.warp`).
-    points, normals, basis, texel_size, zref, normal_offset, bias_constant, bias_slope, receivers, normal_scale,
-    plane_offset, normal_offset_m
+    points, normals, basis, texel_size, zref, bias, receivers
         As :func:`window_receivers`; ``texel_size`` ``(C, 2)`` the warps' nominal texels (the normal offset's unit).
     bits : int
         Sub-texel bits.
@@ -690,10 +666,8 @@ def warped_receivers(homographies, points, normals, *, basis, texel_size, zref: 
         raise ValueError(f"homographies: expected shape (C, 3, 3), got {h.shape}")
     if not (isinstance(bits, (int, np.integer)) and 0 <= bits <= 16):
         raise ValueError(f"bits: expected an integer in 0..16, got {bits!r}")
-    r = _engine_receivers(points, normals, basis=basis, texel_size=texel_size, zref=zref, normal_offset=normal_offset,
-                          bias_constant=bias_constant, bias_slope=bias_slope, receivers=receivers,
-                          normal_scale=normal_scale, plane_offset=plane_offset, normal_offset_m=normal_offset_m,
-                          cascades=h.shape[0], device=device)
+    r = _engine_receivers(points, normals, basis=basis, texel_size=texel_size, zref=zref, bias=bias,
+                          receivers=receivers, cascades=h.shape[0], device=device)
     r.scale = float(2**int(bits))
     return _launched(warped_receivers_kernel, (r, wp.array(h, dtype=wp.mat33d, device=device)), h.shape[0],
                      r.index.shape[0], device)

@@ -52,7 +52,8 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device
-from csmlab.lookup_choices import (BLEND_SMOOTHSTEP, BOX_BILINEAR, BOX_TAPS, NORMAL_NONE, NORMAL_OFFSET_SCALES,
+from csmlab.kernels.bias import BiasSettings, ReceiverBias, receiver_bias
+from csmlab.lookup_choices import (BLEND_SMOOTHSTEP, BOX_BILINEAR, BOX_TAPS, NORMAL_NONE,
                                    NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN, SELECT_BEST_RESOLUTION, SELECT_INTERVAL,
                                    SELECT_MAP, SELECT_SPHERE, SELECTION_METHODS, family_code)
 from csmlab.registry import check_name
@@ -234,9 +235,9 @@ class FixedReceivers:
 class WorldReceivers:
     """Receivers as world points, taken into a cascade's fixed point where a kernel reads them.
 
-    ``to_fixed = 2**bits / texel_size``, ``offset`` (the normal offset in metres), ``bias_constant``
-    (metres) and ``slope_bias`` (``bias_slope · texel``) are per cascade; ``planar`` 0 gives every receiver a flat
-    plane (no receiver-plane bias).
+    ``to_fixed = 2**bits / texel_size`` is per cascade, ``bias`` the normal offset and depth bias
+    (:class:`csmlab.kernels.bias.ReceiverBias`); ``planar`` 0 gives every receiver a flat plane (no
+    receiver-plane bias).
     """
 
     points: wp.array(dtype=wp.vec3d)
@@ -245,16 +246,11 @@ class WorldReceivers:
     basis: wp.mat33d
     texel_size: wp.array2d(dtype=wp.float64)
     to_fixed: wp.array2d(dtype=wp.float64)
-    offset: wp.array(dtype=wp.float64)
-    slope_bias: wp.array(dtype=wp.float64)
     origin_fixed: wp.array2d(dtype=wp.int64)
     zref: wp.float64
     limit: wp.float64
-    bias_constant: wp.array(dtype=wp.float64)
-    max_tan: wp.float64
+    bias: ReceiverBias
     planar: int
-    normal_scale: int
-    plane_offset: wp.array(dtype=wp.float64)
 
 
 @wp.struct
@@ -304,7 +300,7 @@ def receiver_light(r: WorldReceivers, k: int) -> LightReceiver:  # noqa: F811  (
     light.plane_x = zero
     light.plane_y = zero
     if cos > zero:
-        light.tan = wp.min(wp.sqrt(wp.max(wp.float64(1.0) - cos * cos, zero)) / cos, r.max_tan)
+        light.tan = wp.min(wp.sqrt(wp.max(wp.float64(1.0) - cos * cos, zero)) / cos, r.bias.max_tan)
         light.plane_x = light.nx / cos
         light.plane_y = light.ny / cos
     return light
@@ -328,27 +324,27 @@ def receiver_in(r: WorldReceivers, light: LightReceiver, c: int, k: int):  # noq
     cos = light.cos
     slope = wp.vec2d(zero, zero)
     if r.planar != 0:
-        slope = wp.vec2d(wp.clamp(light.plane_x, -r.max_tan, r.max_tan) * r.texel_size[c, 0],
-                         wp.clamp(light.plane_y, -r.max_tan, r.max_tan) * r.texel_size[c, 1])
-    moved = r.offset[c]
+        slope = wp.vec2d(wp.clamp(light.plane_x, -r.bias.max_tan, r.bias.max_tan) * r.texel_size[c, 0],
+                         wp.clamp(light.plane_y, -r.bias.max_tan, r.bias.max_tan) * r.texel_size[c, 1])
+    moved = r.bias.offset[c]
     along = wp.float64(1.0)
-    if r.normal_scale != NORMAL_NONE:
+    if r.bias.normal_scale != NORMAL_NONE:
         # csmlab.texels.receiver_lookup's scale of the offset by the normal's angle to the light.
-        if r.normal_scale == NORMAL_SIN:
+        if r.bias.normal_scale == NORMAL_SIN:
             moved = moved * wp.sqrt(wp.max(wp.float64(1.0) - cos * cos, zero))
-        elif r.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
+        elif r.bias.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
             moved = moved * (wp.float64(1.0) - wp.max(-cos, zero))
             along = zero
         else:
             moved = moved * (wp.float64(1.0) - wp.max(cos, zero))
     x = fixed_point(light.nx * moved + light.px, r.to_fixed[c, 0], r.limit) - r.origin_fixed[c, 0]
     y = fixed_point(light.ny * moved + light.py, r.to_fixed[c, 1], r.limit) - r.origin_fixed[c, 1]
-    bias = r.bias_constant[c] + r.slope_bias[c] * light.tan
-    if r.plane_offset[c] > zero:
+    bias = r.bias.bias_constant[c] + r.bias.slope_bias[c] * light.tan
+    if r.bias.plane_offset[c] > zero:
         # MJP's static receiver-plane offset: the plane's depth change over a texel in x and one in y, capped.
-        sx = wp.clamp(light.plane_x, -r.max_tan, r.max_tan) * r.texel_size[c, 0]
-        sy = wp.clamp(light.plane_y, -r.max_tan, r.max_tan) * r.texel_size[c, 1]
-        bias = bias + wp.min(wp.abs(sx) + wp.abs(sy), r.plane_offset[c])
+        sx = wp.clamp(light.plane_x, -r.bias.max_tan, r.bias.max_tan) * r.texel_size[c, 0]
+        sy = wp.clamp(light.plane_y, -r.bias.max_tan, r.bias.max_tan) * r.texel_size[c, 1]
+        bias = bias + wp.min(wp.abs(sx) + wp.abs(sy), r.bias.plane_offset[c])
     return x, y, wp.float32(light.pz + along * moved * light.nz - r.zref - bias), slope
 
 
@@ -565,8 +561,7 @@ def select_cascades(depth, coords, receiver_depth, view_depth, *, splits, texel_
 
 
 def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis, texel_size, origin_fixed, zref: float,
-                        normal_offset: float, bias_constant, bias_slope: float, receiver_plane_bias: bool,
-                        splits, normal_scale: str = "none", plane_offset=0.0, normal_offset_m: float = 0.0,
+                        bias: BiasSettings, receiver_plane_bias: bool, splits,
                         texel_area, selection: str, filter: str, radius: int, margin: int,
                         blend_band: float, bits: int, band_start=None, blend_curve: int = 0, sphere_cascade=None,
                         device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -580,7 +575,7 @@ def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis,
     ----------
     depth, view_depth, splits, texel_area, selection, filter, radius, margin, blend_band, bits, sphere_cascade, device
         As :func:`shadow_lookup`; ``view_depth`` and ``sphere_cascade`` ``(N,)`` one per receiver.
-    points, normals, receivers, basis, texel_size, origin_fixed, zref, normal_offset, bias_constant, bias_slope
+    points, normals, receivers, basis, texel_size, origin_fixed, zref, bias
         As :func:`receiver_coordinates`.
     receiver_plane_bias : bool
         Compare each tap with the receiver's tangent plane (else with its own depth).
@@ -594,9 +589,7 @@ def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis,
     code = family_code(filter, family="box")
     world = world_receivers(points, normals, receivers=receivers, basis=basis, texel_size=texel_size,
                             origin_fixed=origin_fixed,
-                            zref=zref, bits=bits, normal_offset=normal_offset, bias_constant=bias_constant,
-                            bias_slope=bias_slope, planar=receiver_plane_bias, normal_scale=normal_scale,
-                            plane_offset=plane_offset, normal_offset_m=normal_offset_m, device=device)
+                            zref=zref, bits=bits, bias=bias, planar=receiver_plane_bias, device=device)
     if world.index.shape[0] != np.shape(view_depth)[0] or np.ndim(view_depth) != 1:
         raise ValueError(f"view_depth: expected one view depth per receiver ({world.index.shape[0]},), "
                          f"got shape {np.shape(view_depth)}")
@@ -741,8 +734,7 @@ def receiver_coordinates_kernel(
 
 
 def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zref: float, bits: int,
-                         normal_offset: float, bias_constant, bias_slope: float, receivers=None,
-                         normal_scale: str = "none", plane_offset=0.0, normal_offset_m: float = 0.0,
+                         bias: BiasSettings, receivers=None,
                          device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`csmlab.texels.receiver_lookup` on the device, from world receivers.
 
@@ -762,8 +754,8 @@ def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zr
         The cascades' depth offset, metres.
     bits : int
         Sub-texel bits.
-    normal_offset, bias_constant, bias_slope : float
-        Texels, metres, texels (docs/design.md ``[shadow]``); ``bias_constant`` may be one value per
+    bias : BiasSettings
+        The normal offset and depth bias (docs/design.md ``[shadow]``); its ``bias_constant`` may be one value per
         cascade ``(C,)`` (a bias model's per-cascade scaling, csmlab.filters).
     receivers : array_like, shape (N,), integer, optional
         The rows of ``points`` and ``normals`` that are receivers, in output order; None: all.
@@ -778,9 +770,7 @@ def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zr
     device = checked_device(device)
     world = world_receivers(points, normals, receivers=receivers, basis=basis, texel_size=texel_size,
                             origin_fixed=origin_fixed,
-                            zref=zref, bits=bits, normal_offset=normal_offset, bias_constant=bias_constant,
-                            bias_slope=bias_slope, planar=True, normal_scale=normal_scale, plane_offset=plane_offset,
-                            normal_offset_m=normal_offset_m, device=device)
+                            zref=zref, bits=bits, bias=bias, planar=True, device=device)
     shape = (world.texel_size.shape[0], world.index.shape[0])
     coords = wp.empty(shape + (2,), dtype=wp.int64, device=device)
     depth = wp.empty(shape, dtype=wp.float32, device=device)
@@ -792,9 +782,7 @@ def receiver_coordinates(points, normals, *, basis, texel_size, origin_fixed, zr
 
 
 def world_receivers(points, normals, *, receivers, basis, texel_size, origin_fixed, zref: float, bits: int,
-                    normal_offset: float, bias_constant, bias_slope: float, planar: bool,
-                    device: str, normal_scale: str = "none", plane_offset=0.0,
-                    normal_offset_m: float = 0.0) -> WorldReceivers:
+                    bias: BiasSettings, planar: bool, device: str) -> WorldReceivers:
     """The :class:`WorldReceivers` of :func:`receiver_coordinates`'s arguments, checked (``planar``: receiver-plane
     slopes)."""
     p = np.ascontiguousarray(points, dtype=np.float64)
@@ -817,22 +805,11 @@ def world_receivers(points, normals, *, receivers, basis, texel_size, origin_fix
     world.basis = wp.mat33d(*rows.reshape(-1))
     world.texel_size = wp.array(size, dtype=wp.float64, device=device)
     world.to_fixed = wp.array(float(2**bits) / size, dtype=wp.float64, device=device)
-    offset = normal_offset * texel
-    if normal_offset_m != 0.0:
-        offset = offset + normal_offset_m  # a world distance, the same in every cascade (Stride)
-    world.offset = wp.array(offset, dtype=wp.float64, device=device)
-    world.slope_bias = wp.array(bias_slope * texel, dtype=wp.float64, device=device)
     world.origin_fixed = wp.array(corner, dtype=wp.int64, device=device)
     world.zref = float(zref)
     world.limit = float(2**50)
-    world.bias_constant = wp.array(np.broadcast_to(np.asarray(bias_constant, dtype=np.float64), texel.shape).copy(),
-                                   dtype=wp.float64, device=device)
-    world.max_tan = 10.0
+    world.bias = receiver_bias(texel, bias, device=device)
     world.planar = int(bool(planar))
-    world.plane_offset = wp.array(np.broadcast_to(np.asarray(plane_offset, dtype=np.float64), texel.shape).copy(),
-                                  dtype=wp.float64, device=device)
-    world.normal_scale = NORMAL_OFFSET_SCALES[check_name(normal_scale, NORMAL_OFFSET_SCALES,
-                                                         field="normal_offset_scale")]
     return world
 
 

@@ -22,6 +22,7 @@ from csmlab.cascades.bounds import visible_depth_range
 from csmlab.config import load_experiment
 from csmlab.experiment import build_workload
 from csmlab.cascades.warp import warped_texels
+from csmlab.kernels.bias import BiasSettings
 from csmlab.kernels.engine import warped_vertices, window_receivers, window_vertices
 from csmlab.kernels.raster import (converted_region_chunks, light_space_mesh, rasterize_cascades, region_chunks,
                                   whole_map_regions)
@@ -160,9 +161,10 @@ def test_window_receivers_equal_the_hosts_receiver_lookup(name, experiment, chan
     assert all(_same_bits(a, b) for a, b in zip(kernels, host))
     boxes = window_boxes(cascades, bits=settings.subtexel_bits, precision=settings.engine_precision,
                          snap=settings.vertex_snap, rebase_distance=settings.rebase_distance)
+    none = BiasSettings(normal_offset=0.0, bias_constant=0.0, bias_slope=0.0)
     assert window_receivers(boxes, points, normals, receivers=rows[:0], basis=cascades.basis,
                             texel_size=np.stack([c.texel_size for c in cascades.cascades]), zref=cascades.zref,
-                            normal_offset=0.0, bias_constant=0.0, bias_slope=0.0)[0].shape == (len(cascades), 0, 2)
+                            bias=none)[0].shape == (len(cascades), 0, 2)
 
 
 def _random_mesh(seed: int, triangles: int = 3000):

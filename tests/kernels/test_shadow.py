@@ -6,6 +6,7 @@ import pytest
 from csmlab.cascades import Cascade, CascadeSet
 from csmlab.frame import ShadowMaps
 from csmlab.geometry import light_basis
+from csmlab.kernels.bias import BiasSettings
 from csmlab.kernels.raster import rasterize_depth
 from csmlab.kernels.shadow import select_cascades, shadow_lookup
 from csmlab.lookup_choices import FILTER_METHODS, SELECTION_METHODS, family_filters
@@ -271,7 +272,7 @@ def test_receiver_coordinates_on_the_device_equal_the_host_receiver_lookup_bit_f
         got = receiver_coordinates(
             points, normals, basis=cs.basis, texel_size=np.stack([c.texel_size for c in cs.cascades]),
             origin_fixed=np.stack([fixed_point_origin(cs, c, bits=bits) for c in range(len(cs))]), zref=cs.zref,
-            bits=bits, normal_offset=offset, bias_constant=constant, bias_slope=slope, device=device)
+            bits=bits, bias=BiasSettings(offset, constant, slope), device=device)
         assert np.isnan(expected[1]).any()
         for e, g in zip(expected, got):
             np.testing.assert_array_equal(g, e)
@@ -279,8 +280,7 @@ def test_receiver_coordinates_on_the_device_equal_the_host_receiver_lookup_bit_f
         for e, g in zip(expected, receiver_coordinates(
                 points, normals, basis=cs.basis, texel_size=np.stack([c.texel_size for c in cs.cascades]),
                 origin_fixed=np.stack([fixed_point_origin(cs, c, bits=bits) for c in range(len(cs))]), zref=cs.zref,
-                bits=bits, normal_offset=offset, bias_constant=constant, bias_slope=slope, receivers=picked,
-                device=device)):
+                bits=bits, bias=BiasSettings(offset, constant, slope), receivers=picked, device=device)):
             np.testing.assert_array_equal(g, e[:, picked])
 
 
@@ -309,8 +309,8 @@ def test_world_receivers_look_up_the_same_bits_as_converted_ones(selection, devi
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     receivers = rng.permutation(points.shape[0])[:900]
     view_depth = depths[receivers]
-    conversion = dict(basis=basis, texel_size=texel, origin_fixed=origin, zref=-2.0, bits=BITS, normal_offset=0.75,
-                      bias_constant=0.01, bias_slope=1.5, device=device)
+    conversion = dict(basis=basis, texel_size=texel, origin_fixed=origin, zref=-2.0, bits=BITS,
+                      bias=BiasSettings(normal_offset=0.75, bias_constant=0.01, bias_slope=1.5), device=device)
     coords, receiver_depth, slope = receiver_coordinates(points, normals, receivers=receivers, **conversion)
     finite = receiver_depth[np.isfinite(receiver_depth)]
     maps = rng.uniform(finite.min(), finite.max(), (count, size, size)).astype(np.float32)
@@ -390,7 +390,7 @@ def test_normal_offset_scales_are_the_engines_on_host_and_device_bit_for_bit(sca
     coords, depth, _ = receiver_lookup(cs, points, normals, **args)
     got = receiver_coordinates(points, normals, basis=cs.basis, texel_size=np.array([[texel, texel]]),
                                origin_fixed=np.stack([fixed_point_origin(cs, 0, bits=bits)]), zref=cs.zref,
-                               device=device, **args)
+                               bits=bits, bias=_bias_settings(args), device=device)
     for e, g in zip((coords, depth), got[:2]):
         np.testing.assert_array_equal(g, e)
     # The engines' formulas in light space: cos θ = n · (−d), the offset o = k(θ) · normal_offset · texel · n.
@@ -434,7 +434,7 @@ def test_mjps_receiver_plane_offset_is_its_formula_on_host_and_device_bit_for_bi
     _, depth, _ = receiver_lookup(cs, points, normals, **args)
     got = receiver_coordinates(points, normals, basis=cs.basis, texel_size=texel[None],
                                origin_fixed=np.stack([fixed_point_origin(cs, 0, bits=bits)]), zref=cs.zref,
-                               device=device, **args)
+                               bits=bits, bias=_bias_settings(args), device=device)
     np.testing.assert_array_equal(got[1], depth)
     _, plain, _ = receiver_lookup(cs, points, normals, **{**args, "plane_offset": 0.0})
     n = normals.astype(np.float64) @ cs.basis.T
@@ -445,3 +445,8 @@ def test_mjps_receiver_plane_offset_is_its_formula_on_host_and_device_bit_for_bi
     mjp = np.minimum(per_texel.sum(axis=1), cap)
     np.testing.assert_allclose(plain[0, lit] - depth[0, lit], mjp, atol=2e-5)
     assert np.any(mjp == cap) and np.any(mjp < cap)
+
+
+def _bias_settings(args: dict) -> BiasSettings:
+    """The :class:`BiasSettings` of :func:`csmlab.texels.receiver_lookup`'s keyword arguments ``args``."""
+    return BiasSettings(**{k: v for k, v in args.items() if k != "bits"})

@@ -12,6 +12,7 @@ import pytest
 import warp as wp
 
 from csmlab.geometry import light_basis
+from csmlab.kernels.bias import BiasSettings
 from csmlab.kernels.shadow import (box_count, box_count_3x3, receiver_coordinates, shadow_lookup, shadow_lookup_world,
                                    split_sphere_cascades, tap)
 from csmlab.lookup_choices import SELECTION_METHODS
@@ -170,8 +171,8 @@ def test_lookup_lit_is_numpys_filter_at_the_selected_cascades(selection, filter,
     points = light @ basis
     normals = rng.normal(size=points.shape).astype(np.float32)
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    conversion = dict(basis=basis, texel_size=texel, origin_fixed=origin, zref=-2.0, normal_offset=0.5,
-                      bias_constant=0.0, bias_slope=1.0)
+    conversion = dict(basis=basis, texel_size=texel, origin_fixed=origin, zref=-2.0,
+                      bias=BiasSettings(normal_offset=0.5, bias_constant=0.0, bias_slope=1.0))
     coords, depth, slope = receiver_coordinates(points, normals, bits=BITS, device=device, **conversion)
     if not plane:
         slope = np.zeros_like(slope)
