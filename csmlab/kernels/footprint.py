@@ -72,9 +72,18 @@ def transferred_differential(v: wp.vec3d, n: wp.vec3d, t: wp.float64, step: wp.v
     return d - v * (wp.dot(n, d) / along)
 
 
+@wp.func
+def finite_difference(a: wp.float64, b: wp.float64) -> wp.float64:
+    """``a − b``, or 0 where ``a`` is not finite (a ray that missed has a NaN hit point)."""
+    if wp.isfinite(a):
+        return a - b
+    return wp.float64(0.0)
+
+
 @wp.kernel
 def surface_differentials_kernel(
-    relative: wp.array2d(dtype=wp.vec3d),
+    position: wp.array2d(dtype=wp.vec3d),
+    eye: wp.vec3d,
     normal: wp.array2d(dtype=wp.vec3),
     forward: wp.vec3d,
     step_u: wp.vec3d,
@@ -83,7 +92,8 @@ def surface_differentials_kernel(
     dpdv: wp.array2d(dtype=wp.vec3),
 ):
     i, j = wp.tid()
-    v = relative[i, j]
+    p = position[i, j]
+    v = wp.vec3d(finite_difference(p[0], eye[0]), finite_difference(p[1], eye[1]), finite_difference(p[2], eye[2]))
     n = wp.vec3d(normal[i, j])
     t = wp.dot(v, forward)
     if not (t > wp.float64(0.0)) or wp.dot(n, n) == wp.float64(0.0):
@@ -127,7 +137,7 @@ def surface_differentials(position, normal, *, eye, rotation, fov_y_deg: float, 
         On mismatched shapes, a non-finite camera or an unusable device.
     """
     device = checked_device(device)
-    p = np.asarray(position, dtype=np.float64)
+    p = np.ascontiguousarray(position, dtype=np.float64)
     n = np.ascontiguousarray(normal, dtype=np.float32)
     if p.ndim != 3 or p.shape[2] != 3 or n.shape != p.shape:
         raise ValueError(f"position, normal: expected two (H, W, 3) arrays, got {p.shape} and {n.shape}")
@@ -142,16 +152,17 @@ def surface_differentials(position, normal, *, eye, rotation, fov_y_deg: float, 
     # The ray through image point (u, v) is f + r·(2u/W − 1)·tan_y·aspect + up·(1 − 2v/H)·tan_y.
     step_u = r[:, 0] * (2.0 * tan_y * aspect / width)
     step_v = -r[:, 1] * (2.0 * tan_y / height)
-    relative = np.where(np.isfinite(p), p - c, 0.0)
     shape = (height, width)
     dpdu = wp.empty(shape, dtype=wp.vec3, device=device)
     dpdv = wp.empty(shape, dtype=wp.vec3, device=device)
     wp.launch(
         surface_differentials_kernel,
         dim=shape,
-        # Read in place where the device can (the CPU): `relative` is this call's own, `n` checked above.
+        # Read in place where the device can (the CPU), both checked above; the hit relative to the eye is taken
+        # per pixel in the kernel (float64 subtractions, as NumPy's), not as two (H, W, 3) temporaries on the host.
         inputs=(
-            wp.array(np.ascontiguousarray(relative), dtype=wp.vec3d, device=device, copy=False),
+            wp.array(p, dtype=wp.vec3d, device=device, copy=False),
+            wp.vec3d(*c),
             wp.array(n, dtype=wp.vec3, device=device, copy=False),
             wp.vec3d(*(-r[:, 2])), wp.vec3d(*step_u), wp.vec3d(*step_v),
         ),
