@@ -105,7 +105,7 @@ def bias_errors(frame: Frame, maps: ReferenceMaps) -> dict[str, float]:
     dict of str to float
         Fractions of the compared pixels (module docstring); NaN when no pixel is compared.
     """
-    count = int(maps.compared.sum())
+    count = int(np.count_nonzero(maps.compared))
     if count == 0:
         return dict.fromkeys(("acne", "peter_panning"), float("nan"))
     wrong = (maps.diff != 0) & ~_fading(frame)
@@ -180,24 +180,40 @@ def mean_boundary_distance(a, b) -> float:
     return _mean_boundary_distance(np.asarray(a, dtype=bool), _Boundary(np.asarray(b, dtype=bool)))
 
 
+def _pixels(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The set pixels of ``mask`` ``(H, W)`` bool: their flat indices ``(N,)`` and ``(row, column)`` ``(N, 2)`` int64,
+    in row-major order — ``np.argwhere(mask)``, from the flat indices at an eighth of its cost."""
+    flat = np.flatnonzero(mask)
+    return flat, np.stack(np.divmod(flat, mask.shape[1]), axis=1)
+
+
+def _pixel_tree(points: np.ndarray) -> cKDTree:
+    """A k-d tree of pixel positions ``(N, 2)`` int64, split at the middle of each box rather than at the median
+    (half the build). Its nearest-neighbour distances are the same: √ of the same exact integer sums, whatever
+    tree finds them."""
+    return cKDTree(points, balanced_tree=False, compact_nodes=False)
+
+
 class _Boundary:
-    """A boundary mask ``(H, W)`` bool, its pixels ``(N, 2)`` (row, column) and their k-d tree, built
-    when first queried: the reference's side of :func:`mean_boundary_distance`, which every method of
+    """A boundary mask ``(H, W)`` bool, its pixels (flat indices ``(N,)``, (row, column) ``(N, 2)``) and their k-d
+    tree, built when first queried: the reference's side of :func:`mean_boundary_distance`, which every method of
     a view comparing the same pixels queries."""
 
     def __init__(self, mask: np.ndarray):
         self.mask = mask
-        self.points = np.argwhere(mask)
+        self.flat, self.points = _pixels(mask)
 
     @cached_property
     def tree(self) -> cKDTree:
-        return cKDTree(self.points)
+        return _pixel_tree(self.points)
 
 
 def _mean_boundary_distance(a: np.ndarray, b: _Boundary) -> float:
-    if not a.any() and not b.points.size:
+    flat, pa = _pixels(a)
+    pb = b.points
+    if not flat.size and not pb.size:
         return 0.0
-    if not a.any() or not b.points.size:
+    if not flat.size or not pb.size:
         return float("nan")
     # Nearest-neighbour queries between the two pixel sets (a k-d tree of each), not a distance
     # transform of the whole image per set: the same exact distances, √(integer), from the
@@ -205,13 +221,12 @@ def _mean_boundary_distance(a: np.ndarray, b: _Boundary) -> float:
     # 0 from the other: only the others are queried (a method's boundary mostly lies on the
     # reference's — nine in ten pixels of the default walk), and every distance keeps its place in
     # the array that is averaged, so that the sum is taken in the same order.
-    pa, pb = np.argwhere(a), b.points
     distances = np.zeros(len(pa) + len(pb), dtype=np.float64)
-    only_a, only_b = ~b.mask[a], ~a[b.mask]
+    only_a, only_b = ~np.take(b.mask.reshape(-1), flat), ~np.take(a.reshape(-1), b.flat)
     if only_a.any():
         distances[:len(pa)][only_a] = b.tree.query(pa[only_a])[0]
     if only_b.any():
-        distances[len(pa):][only_b] = cKDTree(pa).query(pb[only_b])[0]
+        distances[len(pa):][only_b] = _pixel_tree(pa).query(pb[only_b])[0]
     return float(np.mean(distances, dtype=np.float64))
 
 
@@ -222,7 +237,7 @@ def reference_summary(maps: ReferenceMaps, *, view: View | None = None) -> dict[
     reference's boundary and its k-d tree are kept by the view for the other methods that compare
     the same pixels (:meth:`View.shared`): the same values.
     """
-    count = int(maps.compared.sum())
+    count = int(np.count_nonzero(maps.compared))
     if count == 0:
         return dict.fromkeys(("ref_false_shadow", "ref_false_light", "ref_boundary_px"), float("nan"))
 
