@@ -82,7 +82,9 @@ def _fading(frame: Frame) -> np.ndarray:
     if settings.fade_out <= 0.0:
         return np.zeros(g.shape, dtype=bool)
     record = FADE_METHODS[check_name(settings.fade, FADE_METHODS, field="fade")]
-    distance = np.linalg.norm(g.position - frame.view.pose.position, axis=-1) if record.radial else None
+    # The pixels' distances to the camera are the view's alone: taken once for every method with a radial fade.
+    distance = frame.view.shared(("camera_distance",), lambda: np.linalg.norm(
+        g.position - frame.view.pose.position, axis=-1)) if record.radial else None
     with np.errstate(invalid="ignore"):
         weight = record.weight(g.view_depth, distance, far=float(frame.maps.cascades.splits[-1]),
                                fade_out=settings.fade_out)
