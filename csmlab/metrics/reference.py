@@ -116,13 +116,14 @@ def bias_errors(frame: Frame, maps: ReferenceMaps) -> dict[str, float]:
     # A wrong pixel that is itself a boundary point is 0 from the boundary, inside the band: only
     # the others are queried (with no boundary in view, every wrong pixel is outside).
     outside = wrong & ~boundary
-    query = outside.copy() if boundary.any() else np.zeros_like(wrong)
-    if query.any():
+    # The queried pixels by flat index (a 2-D boolean mask gathers on NumPy's slow path): the same points.
+    query = np.flatnonzero(outside) if boundary.any() else np.zeros(0, dtype=np.intp)
+    if query.size:
         texel = np.array([float(np.max(c.texel_size)) for c in cascades.cascades])
-        selected = frame.shadow.cascade[query].astype(np.int64)
+        selected = np.take(frame.shadow.cascade.reshape(-1), query).astype(np.int64)
         band = cascades.margin_texels * texel[selected]
-        distance = tree().query(_light_xy(frame.view, cascades)[query])[0]
-        outside[query] = distance > band
+        distance = tree().query(np.take(_light_xy(frame.view, cascades).reshape(-1, 2), query, axis=0))[0]
+        outside.reshape(-1)[query] = distance > band
     return {
         "acne": float(np.count_nonzero(outside & (maps.diff == 1))) / count,
         "peter_panning": float(np.count_nonzero(outside & (maps.diff == -1))) / count,
@@ -132,9 +133,9 @@ def bias_errors(frame: Frame, maps: ReferenceMaps) -> dict[str, float]:
 def _light_xy(view: View, cascades) -> np.ndarray:
     """Light-space x/y ``(H, W, 2)`` of the view's positions: the plane the map is indexed in, where
     resolution errors live. The same for every method whose maps share the light's basis: taken once
-    per view and basis."""
+    per view and basis. Contiguous: its pixels are taken by flat index."""
     return view.shared(("light_xy", cascades.basis.tobytes()),
-                       lambda: cascades.to_light(view.gbuffer.position)[..., :2])
+                       lambda: np.ascontiguousarray(cascades.to_light(view.gbuffer.position)[..., :2]))
 
 
 def _pixels_key(maps: ReferenceMaps) -> tuple[bytes, bytes]:
@@ -150,7 +151,8 @@ def _reference_boundary_tree(view: View, maps: ReferenceMaps, cascades):
     boundary = view.shared(("reference_boundary", *pixels),
                            lambda: reference_boundary(maps.reference_shadowed, maps.compared))
     tree_key = ("reference_boundary_tree", cascades.basis.tobytes(), *pixels)
-    return boundary, lambda: view.shared(tree_key, lambda: cKDTree(_light_xy(view, cascades)[boundary]))
+    return boundary, lambda: view.shared(tree_key, lambda: cKDTree(np.take(
+        _light_xy(view, cascades).reshape(-1, 2), np.flatnonzero(boundary), axis=0)))
 
 
 def reference_maps(frame: Frame) -> ReferenceMaps:
@@ -282,8 +284,10 @@ def seam_error(frame: Frame) -> dict[str, float]:
     lit = frame.shadow.lit
     reference = frame.view.reference
     compared = frame.view.gbuffer.valid & np.isfinite(lit) & np.isfinite(reference)
-    seam = compared & split_boundary_pixels(frame.shadow.cascade)
-    if not seam.any():
+    # The seam's pixels by flat index (a 2-D boolean mask gathers on NumPy's slow path): the same values in order.
+    seam = np.flatnonzero(compared & split_boundary_pixels(frame.shadow.cascade))
+    if not seam.size:
         return {"ref_seam_error": float("nan")}
-    error = np.abs(lit[seam].astype(np.float64) - reference[seam].astype(np.float64))
+    error = np.abs(np.take(lit.reshape(-1), seam).astype(np.float64)
+                   - np.take(reference.reshape(-1), seam).astype(np.float64))
     return {"ref_seam_error": float(np.mean(error, dtype=np.float64))}

@@ -196,14 +196,13 @@ def temporal_summary(maps: TemporalMaps) -> dict[str, float]:
         changed cascade).
     """
     changed = maps.counted & ~maps.same_cascade
-    change = maps.change.reshape(-1)
+    magnitude = np.abs(maps.change)
     out = {}
     for suffix, subset in (("", maps.counted), ("_same", maps.same_cascade), ("_changed", changed)):
-        # The subset's values by flat index (a 2-D boolean mask gathers on NumPy's slow path), the same values in
-        # the same order: the same sum. A flip rate is a count over a count, as the mean of the 0/1 values is.
-        index = np.flatnonzero(subset)
-        out[f"flicker{suffix}"] = finite_mean(np.abs(np.take(change, index)))
+        out[f"flicker{suffix}"] = finite_mean(magnitude[subset])
+        # A count over a count, as the mean of the 0/1 values is, without gathering them.
+        size = int(np.count_nonzero(subset))
         flips = int(np.count_nonzero(maps.flipped & subset))
-        out["flip_rate" if not suffix else f"flip{suffix}"] = flips / index.size if index.size else float("nan")
+        out["flip_rate" if not suffix else f"flip{suffix}"] = flips / size if size else float("nan")
     return {key: out[key] for key in ("flicker", "flicker_same", "flicker_changed", "flip_rate", "flip_same",
                                       "flip_changed")}
