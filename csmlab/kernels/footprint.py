@@ -287,11 +287,12 @@ def warped_texel_footprint(position, dpdx, dpdy, cascade, *, basis, homographies
         warped_texel_footprint_kernel,
         # One thread per pixel in row-major order (a 1-D launch: no division to split a 2-D index).
         dim=cascade.size,
+        # The checked arrays are read in place where the device can (the CPU), not copied again.
         inputs=(
-            wp.array(np.nan_to_num(p).reshape(-1, 3), dtype=wp.vec3d, device=device),
-            wp.array(dpdx.reshape(-1, 3), dtype=wp.vec3, device=device),
-            wp.array(dpdy.reshape(-1, 3), dtype=wp.vec3, device=device),
-            wp.array(cascade.reshape(-1), dtype=wp.int32, device=device),
+            wp.array(np.nan_to_num(p).reshape(-1, 3), dtype=wp.vec3d, device=device, copy=False),
+            wp.array(dpdx.reshape(-1, 3), dtype=wp.vec3, device=device, copy=False),
+            wp.array(dpdy.reshape(-1, 3), dtype=wp.vec3, device=device, copy=False),
+            wp.array(cascade.reshape(-1), dtype=wp.int32, device=device, copy=False),
             wp.vec3d(*rows[0]),
             wp.vec3d(*rows[1]),
             wp.array(h, dtype=wp.mat33d, device=device),

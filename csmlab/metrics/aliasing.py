@@ -133,8 +133,8 @@ def aliasing_summary(maps: AliasingMaps, *, cascades: int) -> dict[str, float]:
         cascade i. Percentiles are linear-interpolated (NumPy's default) in float64; a key is NaN
         when no pixel contributes to it.
     """
-    # The selected pixels by flat index (a 2-D boolean mask gathers on NumPy's slow path), their float32 values
-    # as they are: the percentiles interpolate the order statistics in float64 (linear_percentiles).
+    # The selected pixels' flat indices found once for the three arrays; their float32 values as they are: the
+    # percentiles interpolate the order statistics in float64 (linear_percentiles).
     selected = np.flatnonzero(maps.cascade.reshape(-1) >= 0)
     rho = np.take(maps.rho.reshape(-1), selected)
     cascade = np.take(maps.cascade.reshape(-1), selected)

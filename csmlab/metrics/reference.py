@@ -284,7 +284,7 @@ def seam_error(frame: Frame) -> dict[str, float]:
     lit = frame.shadow.lit
     reference = frame.view.reference
     compared = frame.view.gbuffer.valid & np.isfinite(lit) & np.isfinite(reference)
-    # The seam's pixels by flat index (a 2-D boolean mask gathers on NumPy's slow path): the same values in order.
+    # The seam's flat indices found once for both arrays: the same values in the same order.
     seam = np.flatnonzero(compared & split_boundary_pixels(frame.shadow.cascade))
     if not seam.size:
         return {"ref_seam_error": float("nan")}
