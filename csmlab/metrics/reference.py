@@ -260,10 +260,12 @@ def reference_summary(maps: ReferenceMaps, *, view: View | None = None) -> dict[
 def split_boundary_pixels(cascade) -> np.ndarray:
     """``(H, W)`` bool: pixels with a cascade (≥ 0) that have another cascade (≥ 0) among their 8 neighbours."""
     c = np.asarray(cascade)
-    # Cascade indices are small: compared in int16, not int64, the same tests on an eighth of the bytes.
+    # Cascade indices are small: compared in int16 (or the lookup's own int8), not int64, the same tests on an
+    # eighth of the bytes or less.
     if c.size and (c.min() < -1 or c.max() > np.iinfo(np.int16).max):
         raise ValueError(f"cascade: expected indices in -1..{np.iinfo(np.int16).max}, got {c.min()}..{c.max()}")
-    c = c.astype(np.int16)
+    if c.dtype != np.int8:
+        c = c.astype(np.int16)
     height, width = c.shape
     out = np.zeros(c.shape, dtype=bool)
     # Being 8-neighbours of another cascade is symmetric: each of the 4 neighbour directions is
