@@ -33,8 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["BETTER", "BETTER_TEXT", "CASCADE_PLACES", "DERIVED", "HEADLINE", "METRICS", "PLOTS", "Metric", "best_mask",
-           "finite_mean", "format_number", "is_metric_column", "is_per_cascade", "metric_columns", "metric_named",
-           "metric_of", "metric_values", "number_or_none", "run_value", "temporal_columns"]
+           "finite_mean", "format_number", "is_metric_column", "is_per_cascade", "linear_percentiles", "metric_columns",
+           "metric_named", "metric_of", "metric_values", "number_or_none", "run_value", "temporal_columns"]
 
 
 def _distance_from_one(value: float) -> float:
@@ -324,6 +324,53 @@ def finite_mean(values) -> float:
     # All finite (the usual case): the same entries in the same order, without copying them out.
     finite = values if finite.all() else values[finite]
     return float(np.mean(finite, dtype=np.float64)) if finite.size else math.nan
+
+
+def linear_percentiles(values: np.ndarray, q: tuple[float, ...]) -> np.ndarray:
+    """``np.percentile(values, q)`` (linear interpolation, NumPy's default) in float64, bit for bit, ``(len(q),)``.
+
+    Parameters
+    ----------
+    values : ndarray, shape (N,), float32 or float64
+        A scratch array: one partition with every needed rank reorders it in place. Float32 values
+        are partitioned as they are (the order statistics of their float64 conversion are the same
+        values, half the bytes moved) and interpolated in float64, as NumPy interpolates the
+        float64 array.
+    q : tuple of float
+        Percentiles in [0, 100].
+
+    Returns
+    -------
+    ndarray, shape (len(q),), float64
+        NumPy's interpolation between the order statistics at ``floor((N − 1)·q/100)`` and the next,
+        its weight and its two forms (from below under ½, from above from ½ on) repeated; all NaN
+        when ``values`` holds a NaN (NumPy's too) or is empty. What NumPy's ``np.percentile`` adds
+        around this — reductions over axes, its checks, the partition of the minimum it does not
+        read — is not paid: six such calls are half of the ρ summaries.
+    """
+    count = values.size
+    quantiles = np.true_divide(np.asarray(q, dtype=np.float64), 100)
+    if count == 0:
+        return np.full(quantiles.shape, np.nan)
+    virtual = (count - 1) * quantiles
+    below = np.floor(virtual)
+    above = below + 1
+    # From the last rank on, both neighbours are the largest value (NumPy's index −1, its weight from it).
+    last = virtual >= count - 1
+    below[last] = -1
+    above[last] = -1
+    gamma = virtual - below
+    below, above = below.astype(np.intp), above.astype(np.intp)
+    # The largest rank too: a NaN sorts last, and NumPy answers NaN for every quantile when it is there.
+    values.partition(np.unique(np.concatenate(([count - 1], below % count, above % count))))
+    if np.isnan(values[-1]):
+        return np.full(quantiles.shape, np.nan)
+    a = values[below].astype(np.float64)
+    b = values[above].astype(np.float64)
+    difference = b - a
+    out = a + difference * gamma
+    np.subtract(b, difference * (1 - gamma), out=out, where=gamma >= 0.5)
+    return out
 
 
 def format_number(value, *, digits: int = 3) -> str:

@@ -1,6 +1,7 @@
 """Virtual shadow map clipmaps (csmlab.clipmaps): world-locked pages, marking, the page cache and the lookup."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -242,6 +243,22 @@ def test_utilization_counts_each_levels_distinct_texels_over_its_resident_texels
     got = utilization(frame)
     assert np.isfinite(got).sum() >= 2
     assert np.allclose(got, want, rtol=0, atol=0, equal_nan=True)
+
+
+def test_utilization_counts_the_texels_of_pages_the_table_does_not_hold_as_well(dscene):
+    # A page looked up but not resident (a marking that missed it) still has its texels counted, in its level.
+    (frame,) = frames(dscene, CLIPMAP, [camera(160, 96)], [LIGHT], size=(160, 96))
+    pages, clip = frame.maps.pages, frame.maps.pages.clipmap
+    level, x, y = (int(v) for v in pages.keys[len(pages.keys) // 2])
+    table = pages.table.copy()
+    table[level, y - clip.origin_page[level, 1], x - clip.origin_page[level, 0]] = -1
+    dropped = replace(frame, maps=replace(frame.maps, pages=replace(pages, table=table)))
+    np.testing.assert_array_equal(utilization(dropped), utilization(frame))
+    g = frame.view.gbuffer
+    chosen = g.valid & (frame.shadow.cascade == level)
+    xy = g.position[chosen] @ clip.basis[:2].T
+    page = np.floor(xy / clip.texel[level]).astype(np.int64) // CLIPMAP.page_size
+    assert np.any((page[:, 0] == x) & (page[:, 1] == y))
 
 
 def test_a_clipmaps_memory_is_its_whole_pool_and_its_pool_bytes_its_resident_pages(dscene):

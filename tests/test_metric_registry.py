@@ -10,6 +10,7 @@ import pytest
 
 import csmlab
 from csmlab.metric_registry import (DERIVED, METRICS, best_mask, finite_mean, format_number, is_metric_column,
+                                    linear_percentiles,
                                     is_per_cascade, metric_columns, metric_named, metric_of, metric_values,
                                     number_or_none, temporal_columns)
 
@@ -124,6 +125,27 @@ def test_finite_mean_leaves_out_missing_values_and_sums_in_float64():
     ones = np.full(2**20 + 1, 0.1, dtype=np.float32)
     assert finite_mean(ones) == pytest.approx(float(np.float32(0.1)), rel=1e-12)
     assert finite_mean(np.array([True, False, False, True])) == 0.5
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_linear_percentiles_are_numpys_bit_for_bit_with_ties_infinities_nans_and_single_values(dtype):
+    rng = np.random.default_rng(5)
+    for trial in range(400):
+        size = int(rng.integers(1, 5)) if trial % 4 == 0 else int(rng.integers(5, 300))
+        values = (rng.random(size) * 10.0 ** rng.uniform(-3, 3)).astype(dtype)
+        if trial % 5 == 0:
+            values = np.round(values, 1)  # ties between neighbouring ranks
+        if trial % 7 == 0:
+            values[rng.integers(0, size)] = np.inf
+        if trial % 11 == 0:
+            values[rng.integers(0, size)] = np.nan
+        q = tuple(float(x) for x in rng.choice([0.0, 1.0, 5.0, 33.3, 50.0, 95.0, 99.0, 100.0],
+                                               size=int(rng.integers(1, 4)), replace=False))
+        with np.errstate(invalid="ignore"):
+            want = np.percentile(values.astype(np.float64), list(q))
+            got = linear_percentiles(values.copy(), q)
+        assert got.dtype == np.float64 and got.tobytes() == want.tobytes(), (size, q)
+    assert np.isnan(linear_percentiles(np.zeros(0, dtype=dtype), (5.0, 50.0))).all()
 
 
 def test_a_declaration_with_an_unknown_direction_is_refused():

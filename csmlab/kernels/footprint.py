@@ -72,26 +72,36 @@ def transferred_differential(v: wp.vec3d, n: wp.vec3d, t: wp.float64, step: wp.v
     return d - v * (wp.dot(n, d) / along)
 
 
+@wp.func
+def finite_difference(a: wp.float64, b: wp.float64) -> wp.float64:
+    """``a − b``, or 0 where ``a`` is not finite (a ray that missed has a NaN hit point)."""
+    if wp.isfinite(a):
+        return a - b
+    return wp.float64(0.0)
+
+
 @wp.kernel
 def surface_differentials_kernel(
-    relative: wp.array2d(dtype=wp.vec3d),
-    normal: wp.array2d(dtype=wp.vec3),
+    position: wp.array(dtype=wp.vec3d),
+    eye: wp.vec3d,
+    normal: wp.array(dtype=wp.vec3),
     forward: wp.vec3d,
     step_u: wp.vec3d,
     step_v: wp.vec3d,
-    dpdu: wp.array2d(dtype=wp.vec3),
-    dpdv: wp.array2d(dtype=wp.vec3),
+    dpdu: wp.array(dtype=wp.vec3),
+    dpdv: wp.array(dtype=wp.vec3),
 ):
-    i, j = wp.tid()
-    v = relative[i, j]
-    n = wp.vec3d(normal[i, j])
+    k = wp.tid()
+    p = position[k]
+    v = wp.vec3d(finite_difference(p[0], eye[0]), finite_difference(p[1], eye[1]), finite_difference(p[2], eye[2]))
+    n = wp.vec3d(normal[k])
     t = wp.dot(v, forward)
     if not (t > wp.float64(0.0)) or wp.dot(n, n) == wp.float64(0.0):
-        dpdu[i, j] = wp.vec3(0.0)
-        dpdv[i, j] = wp.vec3(0.0)
+        dpdu[k] = wp.vec3(0.0)
+        dpdv[k] = wp.vec3(0.0)
         return
-    dpdu[i, j] = wp.vec3(transferred_differential(v, n, t, step_u))
-    dpdv[i, j] = wp.vec3(transferred_differential(v, n, t, step_v))
+    dpdu[k] = wp.vec3(transferred_differential(v, n, t, step_u))
+    dpdv[k] = wp.vec3(transferred_differential(v, n, t, step_v))
 
 
 def surface_differentials(position, normal, *, eye, rotation, fov_y_deg: float, aspect: float,
@@ -127,7 +137,7 @@ def surface_differentials(position, normal, *, eye, rotation, fov_y_deg: float, 
         On mismatched shapes, a non-finite camera or an unusable device.
     """
     device = checked_device(device)
-    p = np.asarray(position, dtype=np.float64)
+    p = np.ascontiguousarray(position, dtype=np.float64)
     n = np.ascontiguousarray(normal, dtype=np.float32)
     if p.ndim != 3 or p.shape[2] != 3 or n.shape != p.shape:
         raise ValueError(f"position, normal: expected two (H, W, 3) arrays, got {p.shape} and {n.shape}")
@@ -142,71 +152,74 @@ def surface_differentials(position, normal, *, eye, rotation, fov_y_deg: float, 
     # The ray through image point (u, v) is f + r·(2u/W − 1)·tan_y·aspect + up·(1 − 2v/H)·tan_y.
     step_u = r[:, 0] * (2.0 * tan_y * aspect / width)
     step_v = -r[:, 1] * (2.0 * tan_y / height)
-    relative = np.where(np.isfinite(p), p - c, 0.0)
-    shape = (height, width)
-    dpdu = wp.empty(shape, dtype=wp.vec3, device=device)
-    dpdv = wp.empty(shape, dtype=wp.vec3, device=device)
+    count = height * width
+    dpdu = wp.empty(count, dtype=wp.vec3, device=device)
+    dpdv = wp.empty(count, dtype=wp.vec3, device=device)
     wp.launch(
         surface_differentials_kernel,
-        dim=shape,
-        # Read in place where the device can (the CPU): `relative` is this call's own, `n` checked above.
+        # One thread per pixel in row-major order: a 1-D launch, which spares each CPU thread the division that
+        # splits a 2-D index.
+        dim=count,
+        # Read in place where the device can (the CPU), both checked above; the hit relative to the eye is taken
+        # per pixel in the kernel (float64 subtractions, as NumPy's), not as two (H, W, 3) temporaries on the host.
         inputs=(
-            wp.array(np.ascontiguousarray(relative), dtype=wp.vec3d, device=device, copy=False),
-            wp.array(n, dtype=wp.vec3, device=device, copy=False),
+            wp.array(p.reshape(-1, 3), dtype=wp.vec3d, device=device, copy=False),
+            wp.vec3d(*c),
+            wp.array(n.reshape(-1, 3), dtype=wp.vec3, device=device, copy=False),
             wp.vec3d(*(-r[:, 2])), wp.vec3d(*step_u), wp.vec3d(*step_v),
         ),
         outputs=(dpdu, dpdv),
         device=device,
     )
-    return dpdu.numpy(), dpdv.numpy()
+    return dpdu.numpy().reshape(height, width, 3), dpdv.numpy().reshape(height, width, 3)
 
 
 @wp.kernel
 def texel_footprint_kernel(
-    dpdx: wp.array2d(dtype=wp.vec3),
-    dpdy: wp.array2d(dtype=wp.vec3),
-    cascade: wp.array2d(dtype=wp.int32),
+    dpdx: wp.array(dtype=wp.vec3),
+    dpdy: wp.array(dtype=wp.vec3),
+    cascade: wp.array(dtype=wp.int32),
     axis_x: wp.array(dtype=wp.vec3),
     axis_y: wp.array(dtype=wp.vec3),
-    rho: wp.array2d(dtype=float),
-    sigma_min: wp.array2d(dtype=float),
+    rho: wp.array(dtype=float),
+    sigma_min: wp.array(dtype=float),
 ):
-    i, j = wp.tid()
-    c = cascade[i, j]
+    k = wp.tid()
+    c = cascade[k]
     if c < 0:
-        rho[i, j] = wp.nan
-        sigma_min[i, j] = wp.nan
+        rho[k] = wp.nan
+        sigma_min[k] = wp.nan
         return
-    du = dpdx[i, j]
-    dv = dpdy[i, j]
+    du = dpdx[k]
+    dv = dpdy[k]
     a = wp.dot(axis_x[c], du)
     b = wp.dot(axis_x[c], dv)
     cc = wp.dot(axis_y[c], du)
     d = wp.dot(axis_y[c], dv)
-    rho[i, j] = wp.sqrt(wp.abs(a * d - b * cc))
-    sigma_min[i, j] = smallest_singular_value(a, b, cc, d)
+    rho[k] = wp.sqrt(wp.abs(a * d - b * cc))
+    sigma_min[k] = smallest_singular_value(a, b, cc, d)
 
 
 @wp.kernel
 def warped_texel_footprint_kernel(
-    position: wp.array2d(dtype=wp.vec3d),
-    dpdx: wp.array2d(dtype=wp.vec3),
-    dpdy: wp.array2d(dtype=wp.vec3),
-    cascade: wp.array2d(dtype=wp.int32),
+    position: wp.array(dtype=wp.vec3d),
+    dpdx: wp.array(dtype=wp.vec3),
+    dpdy: wp.array(dtype=wp.vec3),
+    cascade: wp.array(dtype=wp.int32),
     right: wp.vec3d,
     up: wp.vec3d,
     homography: wp.array(dtype=wp.mat33d),
-    rho: wp.array2d(dtype=float),
-    sigma_min: wp.array2d(dtype=float),
+    rho: wp.array(dtype=float),
+    sigma_min: wp.array(dtype=float),
 ):
-    i, j = wp.tid()
-    c = cascade[i, j]
+    k = wp.tid()
+    c = cascade[k]
     if c < 0:
-        rho[i, j] = wp.nan
-        sigma_min[i, j] = wp.nan
+        rho[k] = wp.nan
+        sigma_min[k] = wp.nan
         return
     h = homography[c]
-    p = position[i, j]
+    p = position[k]
     x = wp.dot(right, p)
     y = wp.dot(up, p)
     w = h[2, 0] * x + h[2, 1] * y + h[2, 2]
@@ -216,14 +229,14 @@ def warped_texel_footprint_kernel(
     # light basis: the world directions of texel u and v per metre at this point.
     axis_u = ((h[0, 0] - u * h[2, 0]) * right + (h[0, 1] - u * h[2, 1]) * up) / w
     axis_v = ((h[1, 0] - v * h[2, 0]) * right + (h[1, 1] - v * h[2, 1]) * up) / w
-    du = wp.vec3d(dpdx[i, j])
-    dv = wp.vec3d(dpdy[i, j])
+    du = wp.vec3d(dpdx[k])
+    dv = wp.vec3d(dpdy[k])
     a = wp.float32(wp.dot(axis_u, du))
     b = wp.float32(wp.dot(axis_u, dv))
     cc = wp.float32(wp.dot(axis_v, du))
     d = wp.float32(wp.dot(axis_v, dv))
-    rho[i, j] = wp.sqrt(wp.abs(a * d - b * cc))
-    sigma_min[i, j] = smallest_singular_value(a, b, cc, d)
+    rho[k] = wp.sqrt(wp.abs(a * d - b * cc))
+    sigma_min[k] = smallest_singular_value(a, b, cc, d)
 
 
 def warped_texel_footprint(position, dpdx, dpdy, cascade, *, basis, homographies,
@@ -268,16 +281,18 @@ def warped_texel_footprint(position, dpdx, dpdy, cascade, *, basis, homographies
     if cascade.size and cascade.max() >= h.shape[0]:
         raise ValueError(f"cascade: expected indices below {h.shape[0]} (the cascade count), got {cascade.max()}")
     shape = cascade.shape
-    rho = wp.empty(shape, dtype=float, device=device)
-    sigma_min = wp.empty(shape, dtype=float, device=device)
+    rho = wp.empty(cascade.size, dtype=float, device=device)
+    sigma_min = wp.empty(cascade.size, dtype=float, device=device)
     wp.launch(
         warped_texel_footprint_kernel,
-        dim=shape,
+        # One thread per pixel in row-major order (a 1-D launch: no division to split a 2-D index).
+        dim=cascade.size,
+        # The checked arrays are read in place where the device can (the CPU), not copied again.
         inputs=(
-            wp.array(np.nan_to_num(p), dtype=wp.vec3d, device=device),
-            wp.array(dpdx, dtype=wp.vec3, device=device),
-            wp.array(dpdy, dtype=wp.vec3, device=device),
-            wp.array(cascade, dtype=wp.int32, device=device),
+            wp.array(np.nan_to_num(p).reshape(-1, 3), dtype=wp.vec3d, device=device, copy=False),
+            wp.array(dpdx.reshape(-1, 3), dtype=wp.vec3, device=device, copy=False),
+            wp.array(dpdy.reshape(-1, 3), dtype=wp.vec3, device=device, copy=False),
+            wp.array(cascade.reshape(-1), dtype=wp.int32, device=device, copy=False),
             wp.vec3d(*rows[0]),
             wp.vec3d(*rows[1]),
             wp.array(h, dtype=wp.mat33d, device=device),
@@ -285,7 +300,7 @@ def warped_texel_footprint(position, dpdx, dpdy, cascade, *, basis, homographies
         outputs=(rho, sigma_min),
         device=device,
     )
-    return rho.numpy(), sigma_min.numpy()
+    return rho.numpy().reshape(shape), sigma_min.numpy().reshape(shape)
 
 
 def texel_footprint(dpdx, dpdy, cascade, *, texel_axes, device: str = "cpu") -> tuple[np.ndarray, np.ndarray]:
@@ -330,20 +345,21 @@ def texel_footprint(dpdx, dpdy, cascade, *, texel_axes, device: str = "cpu") -> 
     if cascade.size and cascade.max() >= axes.shape[0]:
         raise ValueError(f"cascade: expected indices below {axes.shape[0]} (the cascade count), got {cascade.max()}")
     shape = cascade.shape
-    rho = wp.empty(shape, dtype=float, device=device)
-    sigma_min = wp.empty(shape, dtype=float, device=device)
+    rho = wp.empty(cascade.size, dtype=float, device=device)
+    sigma_min = wp.empty(cascade.size, dtype=float, device=device)
     wp.launch(
         texel_footprint_kernel,
-        dim=shape,
+        # One thread per pixel in row-major order (a 1-D launch: no division to split a 2-D index).
+        dim=cascade.size,
         # The checked arrays are read in place where the device can (the CPU), not copied again.
         inputs=(
-            wp.array(dpdx, dtype=wp.vec3, device=device, copy=False),
-            wp.array(dpdy, dtype=wp.vec3, device=device, copy=False),
-            wp.array(cascade, dtype=wp.int32, device=device, copy=False),
+            wp.array(dpdx.reshape(-1, 3), dtype=wp.vec3, device=device, copy=False),
+            wp.array(dpdy.reshape(-1, 3), dtype=wp.vec3, device=device, copy=False),
+            wp.array(cascade.reshape(-1), dtype=wp.int32, device=device, copy=False),
             wp.array(np.ascontiguousarray(axes[:, 0], dtype=np.float32), dtype=wp.vec3, device=device),
             wp.array(np.ascontiguousarray(axes[:, 1], dtype=np.float32), dtype=wp.vec3, device=device),
         ),
         outputs=(rho, sigma_min),
         device=device,
     )
-    return rho.numpy(), sigma_min.numpy()
+    return rho.numpy().reshape(shape), sigma_min.numpy().reshape(shape)

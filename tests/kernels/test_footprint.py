@@ -84,3 +84,32 @@ def test_surface_differentials_cuda_matches_cpu():
     gpu = surface_differentials(position, normal, **camera, device="cuda")
     for a, b in zip(cpu, gpu):
         np.testing.assert_allclose(b, a, rtol=1e-6, atol=1e-9)
+
+
+def test_surface_differentials_are_the_transferred_ray_steps_and_zero_where_the_ray_missed():
+    # The tangent-plane transfer dX = t·(∂D − D (n·∂D)/(n·D)) in float64 NumPy, against the kernel, which takes the
+    # hit relative to the eye itself and must read a missed pixel's NaN position as no hit at all.
+    rng = np.random.default_rng(4)
+    height, width = 12, 20
+    eye = np.array([1.0, 2.0, 3.0])
+    position = eye + rng.normal(size=(height, width, 3)) + [0.0, 0.0, -15.0]
+    normal = rng.normal(size=(height, width, 3))
+    normal = (normal / np.linalg.norm(normal, axis=-1, keepdims=True)).astype(np.float32)
+    missed = rng.random((height, width)) < 0.2
+    position[missed] = np.nan
+    normal[missed] = 0.0
+    partly = tuple(np.argwhere(~missed)[0])  # a hit with one coordinate made non-finite, its normal kept
+    position[partly][1] = np.inf
+    camera = dict(rotation=np.eye(3), fov_y_deg=50.0, aspect=width / height)
+    dpdu, dpdv = surface_differentials(position, normal, eye=eye, **camera)
+    tan_y = np.tan(np.radians(50.0) / 2.0)
+    steps = (np.array([2.0 * tan_y * width / height / width, 0.0, 0.0]), np.array([0.0, -2.0 * tan_y / height, 0.0]))
+    v = np.where(np.isfinite(position), position - eye, 0.0)  # a non-finite coordinate is no offset
+    t = -v[..., 2]
+    n = normal.astype(np.float64)
+    for got, step in zip((dpdu, dpdv), steps):
+        with np.errstate(invalid="ignore"):  # 0/0 at the missed pixels, left out below
+            d = v / t[..., None]
+            want = t[..., None] * (step - d * (n @ step)[..., None] / np.sum(n * d, axis=-1)[..., None])
+        np.testing.assert_allclose(got[~missed], want[~missed], rtol=1e-5, atol=1e-7)
+        assert np.all(got[missed] == 0.0) and np.any(got[partly] != 0.0)

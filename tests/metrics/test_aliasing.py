@@ -14,6 +14,7 @@ from csmlab.paths import make_path
 from csmlab.render import prepare_scene, render_frame, render_shadow, render_view
 from csmlab.scene import Scene, make_scene
 from csmlab.settings import ShadowSettings
+from csmlab.texels import texel_coordinates
 
 WIDTH, HEIGHT = 64, 48
 
@@ -194,3 +195,21 @@ def test_utilization_of_exact_is_below_none_on_the_default_scene():
     for share in shares.values():
         assert np.all((share > 0.0) & (share <= 1.0))
     assert shares["exact"].mean() < shares["none"].mean()
+
+
+def test_utilization_of_warped_cascades_counts_the_distinct_floors_of_their_texel_coordinates():
+    scene = make_scene("terrain", seed=1, size=200.0, resolution=32, trees=150, ring_trees=40)
+    dscene = prepare_scene(scene)
+    pose = make_path("walk", frames=1, seed=1, aspect=160 / 90).pose(0)
+    view = render_view(dscene, pose, direction_from_angles(elevation_deg=40.0, azimuth_deg=30.0), width=160, height=90)
+    frame = render_shadow(dscene, view, ShadowSettings(cascades=3, resolution=64, stabilization="none", warp="lispsm"))
+    cascades = frame.maps.cascades
+    assert cascades.warped
+    g = frame.view.gbuffer
+    want = []
+    for c in range(len(cascades)):
+        texel = np.floor(texel_coordinates(cascades, c, g.position[g.valid & (frame.shadow.cascade == c)]))
+        cells = {(int(i), int(j)) for i, j in texel if 0 <= i < 64 and 0 <= j < 64}
+        want.append(len(cells) / 64**2)
+    assert min(want) > 0.0
+    assert utilization(frame).tolist() == want

@@ -153,6 +153,8 @@ def test_split_boundary_pixels_are_those_with_another_cascade_among_their_8_neig
             neighbours = cascade[max(i - 1, 0):i + 2, max(j - 1, 0):j + 2]
             expected[i, j] = cascade[i, j] >= 0 and np.any((neighbours >= 0) & (neighbours != cascade[i, j]))
     np.testing.assert_array_equal(split_boundary_pixels(cascade), expected)
+    # The lookup's own int8 selection is compared as it is, the same pixels.
+    np.testing.assert_array_equal(split_boundary_pixels(cascade.astype(np.int8)), expected)
 
 
 def test_split_boundary_pixels_are_both_sides_of_a_cascade_change_and_the_seam_error_is_their_mean_error():
