@@ -87,28 +87,25 @@ def tap(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int64, r
 
 
 @wp.func
-def bilinear_corner(x: wp.int64, unit: wp.int64):
-    """The texel centre at or before fixed-point ``x`` (``unit`` per texel) on one axis, and the exact fraction
-    of ``x`` between it and the next centre: the index and weight of a bilinear footprint."""
-    # Texel centres sit at (2i + 1)·unit in doubled units, so the division is exact in integers.
+def bilinear_corner(x: wp.int64, unit: wp.int64, bits: int, inverse_span: wp.float64):
+    """The texel centre at or before fixed-point ``x`` (``unit = 2**bits`` per texel) on one axis, and the exact
+    fraction of ``x`` between it and the next centre: the index and weight of a bilinear footprint.
+
+    Texel centres sit at ``(2i + 1)·unit`` in doubled units, so the division by ``2·unit`` is exact:
+    a shift (an arithmetic shift floors, as ``//`` does, and costs no division), and the remainder's
+    product with ``inverse_span = 1 / (2·unit)``, a power of two, is its exact quotient.
+    """
     x2 = wp.int64(2) * x - unit
-    span = wp.int64(2) * unit
-    i0 = x2 // span
-    return i0, wp.float64(x2 - i0 * span) / wp.float64(span)
+    i0 = x2 >> wp.int64(bits + 1)
+    return i0, wp.float64(x2 - i0 * (wp.int64(2) * unit)) * inverse_span
 
 
 @wp.func
-def bilinear_tap(depth: wp.array3d(dtype=wp.float32), c: int, qx: wp.int64, qy: wp.int64, receiver: wp.float32,
-                 slope: wp.vec2d, x: wp.int64, y: wp.int64, unit: wp.int64, inverse_span: wp.float64) -> wp.float64:
-    """One hardware bilinear-compare tap at fixed point ``(qx, qy)``: the 2×2 texels around it, each a :func:`tap`
-    of the receiver at ``(x, y)``, weighted bilinearly by the exact fraction of ``(qx, qy)`` between their centres.
-
-    What a comparison sampler with linear filtering returns (``SampleCmpLevelZero``,
-    ``textureProj(sampler2DShadow)``, ``textureSampleCompareLevel``), at the fixed point's precision
-    rather than the hardware's 8 sub-texel bits.
-    """
-    i0, wx = bilinear_corner(qx, unit)
-    j0, wy = bilinear_corner(qy, unit)
+def bilinear_taps(depth: wp.array3d(dtype=wp.float32), c: int, i0: wp.int64, wx: wp.float64, j0: wp.int64,
+                  wy: wp.float64, receiver: wp.float32, slope: wp.vec2d, x: wp.int64, y: wp.int64, unit: wp.int64,
+                  inverse_span: wp.float64) -> wp.float64:
+    """The 2×2 texels from (i0, j0), each a :func:`tap` of the receiver at ``(x, y)``, weighted bilinearly by the
+    fractions ``wx, wy`` (:func:`bilinear_corner`): a bilinear-compare tap whose footprint is known."""
     one = wp.int64(1)
     s00 = wp.float64(tap(depth, c, i0, j0, receiver, slope, x, y, unit, inverse_span))
     s10 = wp.float64(tap(depth, c, i0 + one, j0, receiver, slope, x, y, unit, inverse_span))
@@ -116,6 +113,22 @@ def bilinear_tap(depth: wp.array3d(dtype=wp.float32), c: int, qx: wp.int64, qy: 
     s11 = wp.float64(tap(depth, c, i0 + one, j0 + one, receiver, slope, x, y, unit, inverse_span))
     w1 = wp.float64(1.0)
     return (w1 - wy) * ((w1 - wx) * s00 + wx * s10) + wy * ((w1 - wx) * s01 + wx * s11)
+
+
+@wp.func
+def bilinear_tap(depth: wp.array3d(dtype=wp.float32), c: int, qx: wp.int64, qy: wp.int64, receiver: wp.float32,
+                 slope: wp.vec2d, x: wp.int64, y: wp.int64, unit: wp.int64, bits: int,
+                 inverse_span: wp.float64) -> wp.float64:
+    """One hardware bilinear-compare tap at fixed point ``(qx, qy)``: the 2×2 texels around it, each a :func:`tap`
+    of the receiver at ``(x, y)``, weighted bilinearly by the exact fraction of ``(qx, qy)`` between their centres.
+
+    What a comparison sampler with linear filtering returns (``SampleCmpLevelZero``,
+    ``textureProj(sampler2DShadow)``, ``textureSampleCompareLevel``), at the fixed point's precision
+    rather than the hardware's 8 sub-texel bits.
+    """
+    i0, wx = bilinear_corner(qx, unit, bits, inverse_span)
+    j0, wy = bilinear_corner(qy, unit, bits, inverse_span)
+    return bilinear_taps(depth, c, i0, wx, j0, wy, receiver, slope, x, y, unit, inverse_span)
 
 
 @wp.func
@@ -127,7 +140,7 @@ def lit_fraction(depth: wp.array3d(dtype=wp.float32), c: int, x: wp.int64, y: wp
     """
     unit = wp.int64(1) << wp.int64(bits)
     if filter_code == BOX_BILINEAR:
-        return bilinear_tap(depth, c, x, y, receiver, slope, x, y, unit, inverse_span)
+        return bilinear_tap(depth, c, x, y, receiver, slope, x, y, unit, bits, inverse_span)
     # BOX_TAPS: the (2r + 1)² texels centred on the one that contains the point (r = 0: none).
     count = int(0)
     if radius == 1:
