@@ -28,7 +28,11 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
-from csmlab.kernels import start_warp
+# Run as a script, this file's folder comes first on sys.path: put the checkout it belongs to
+# before any installed csmlab.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from csmlab.kernels import start_warp  # noqa: E402
 
 
 def capture(experiment: str, *, frames: int, calls: int, out: Path) -> None:

@@ -55,7 +55,7 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device
-from csmlab.kernels.shadow import bilinear_corner, bilinear_tap, bilinear_taps, tap
+from csmlab.kernels.shadow import bilinear_corner_shifted, bilinear_tap, bilinear_taps, tap
 from csmlab.lookup_choices import (PCF_BILINEAR_BOX, PCF_CASTANO, PCF_GAUSSIAN, PCF_POISSON, PCF_TENT,
                                    PCF_TENT_BILINEAR, PCF_VOGEL, family_code)
 
@@ -178,15 +178,16 @@ def axis_fetch(code: int, size: int, a: int, x: wp.int64, unit: wp.int64):
 @wp.func
 def axis_table(code: int, size: int, count: int, x: wp.int64, unit: wp.int64, bits: int, inverse_span: wp.float64):
     """The first ``count`` taps of a separable bilinear-tap filter along one axis (:func:`axis_fetch`), each as the
-    texel its bilinear footprint starts at and its fraction (:func:`csmlab.kernels.shadow.bilinear_corner`), and its
-    weight: taken once per axis, not once per tap of the 2-D kernel (``count`` at most :data:`AXIS_TAPS`)."""
+    texel its bilinear footprint starts at and its fraction
+    (:func:`csmlab.kernels.shadow.bilinear_corner_shifted`), and its weight: taken once per axis, not once per
+    tap of the 2-D kernel (``count`` at most :data:`AXIS_TAPS`)."""
     texel = axis_texels()
     fraction = axis_values()
     weight = axis_values()
     a = int(0)
     while a < count:
         q, w = axis_fetch(code, size, a, x, unit)
-        t, f = bilinear_corner(q, unit, bits, inverse_span)
+        t, f = bilinear_corner_shifted(q, unit, bits, inverse_span)
         texel[a] = t
         fraction[a] = f
         weight[a] = w
@@ -226,12 +227,12 @@ def bilinear_box_lit(depth: wp.array3d(dtype=wp.float32), c: int, size: int, x: 
     """S of ``pcf_bilinear_box`` of ``size`` N: the mean of N × N bilinear taps at the point plus whole-texel offsets.
 
     A whole-texel offset moves a tap's footprint by whole texels and leaves its fraction, so one
-    :func:`csmlab.kernels.shadow.bilinear_corner` per axis places every tap; the sum runs rows outer, as
-    the weighted form ``Σ 1·1·tap`` does, and is the same bits.
+    :func:`csmlab.kernels.shadow.bilinear_corner_shifted` per axis places every tap; the sum runs rows
+    outer, as the weighted form ``Σ 1·1·tap`` does, and is the same bits.
     """
     half = wp.int64(size // 2) * unit
-    i0, fx = bilinear_corner(x - half, unit, bits, inverse_span)
-    j0, fy = bilinear_corner(y - half, unit, bits, inverse_span)
+    i0, fx = bilinear_corner_shifted(x - half, unit, bits, inverse_span)
+    j0, fy = bilinear_corner_shifted(y - half, unit, bits, inverse_span)
     s = wp.float64(0.0)
     total = wp.float64(0.0)
     bj = int(0)
@@ -249,15 +250,17 @@ def bilinear_box_lit(depth: wp.array3d(dtype=wp.float32), c: int, size: int, x: 
 @wp.func
 def weighted_lit(depth: wp.array3d(dtype=wp.float32), coords: wp.array3d(dtype=wp.int64),
                  receiver_depth: wp.array2d(dtype=wp.float32), receiver_slope: wp.array2d(dtype=wp.vec2d),
-                 c: int, k: int, bits: int, code: int, radius: int, width: wp.float64,
+                 planar: int, c: int, k: int, bits: int, code: int, radius: int, width: wp.float64,
                  disk: wp.array(dtype=wp.vec2d), angle: wp.float64) -> wp.float64:
     """S of receiver k in cascade c under the weighted filter of kernel code ``code`` (PCF_GAUSSIAN … PCF_PCSS),
-    ``bits`` sub-texel bits."""
+    ``bits`` sub-texel bits; ``planar`` 0: a flat receiver (``receiver_slope`` not read)."""
     unit = wp.int64(1) << wp.int64(bits)
     x = coords[c, k, 0]
     y = coords[c, k, 1]
     receiver = receiver_depth[c, k]
-    slope = receiver_slope[c, k]
+    slope = wp.vec2d()
+    if planar != 0:
+        slope = receiver_slope[c, k]
     inverse_span = wp.float64(1.0) / wp.float64(wp.int64(2) * unit)
     # An arithmetic shift floors as `//` does, without a division.
     i = x >> wp.int64(bits)
@@ -303,7 +306,8 @@ def weighted_lit(depth: wp.array3d(dtype=wp.float32), coords: wp.array3d(dtype=w
             o = disk[n]
             ox = wp.int64(wp.round(width * (ca * o[0] - sa * o[1]) * wp.float64(unit)))
             oy = wp.int64(wp.round(width * (sa * o[0] + ca * o[1]) * wp.float64(unit)))
-            count += tap(depth, c, (x + ox) >> wp.int64(bits), (y + oy) >> wp.int64(bits), receiver, slope, x, y, unit, inverse_span)
+            count += tap(depth, c, (x + ox) >> wp.int64(bits), (y + oy) >> wp.int64(bits), receiver, slope, x, y, unit,
+                         inverse_span)
         return wp.float64(count) / wp.float64(disk.shape[0])
     if wp.isnan(receiver):
         return wp.float64(0.0)
@@ -320,6 +324,7 @@ def weighted_pcf_kernel(
     coords: wp.array3d(dtype=wp.int64),
     receiver_depth: wp.array2d(dtype=wp.float32),
     receiver_slope: wp.array2d(dtype=wp.vec2d),
+    planar: int,
     cascade: wp.array(dtype=wp.int32),
     blend_weight: wp.array(dtype=wp.float64),
     width: wp.array(dtype=wp.float64),
@@ -335,12 +340,12 @@ def weighted_pcf_kernel(
     if c < 0:
         lit[k] = wp.float32(wp.nan)
         return
-    s = weighted_lit(depth, coords, receiver_depth, receiver_slope, c, k, bits, code, radius, width[c], disk,
+    s = weighted_lit(depth, coords, receiver_depth, receiver_slope, planar, c, k, bits, code, radius, width[c], disk,
                      angle[k])
     w = blend_weight[k]
     if w > wp.float64(0.0):
-        s = (wp.float64(1.0) - w) * s + w * weighted_lit(depth, coords, receiver_depth, receiver_slope, c + 1, k,
-                                                         bits, code, radius, width[c + 1], disk, angle[k])
+        s = (wp.float64(1.0) - w) * s + w * weighted_lit(depth, coords, receiver_depth, receiver_slope, planar, c + 1,
+                                                         k, bits, code, radius, width[c + 1], disk, angle[k])
     lit[k] = wp.float32(s)
 
 
@@ -352,11 +357,12 @@ def _checked(depth, coords, receiver_depth, receiver_slope, cascade, width):
     xy = np.ascontiguousarray(coords, dtype=np.int64)
     n = xy.shape[1] if xy.ndim == 3 else -1
     rd = np.ascontiguousarray(receiver_depth, dtype=np.float32)
-    slope = (np.zeros((count, max(n, 0), 2)) if receiver_slope is None
-             else np.ascontiguousarray(receiver_slope, dtype=np.float64))
+    # No slope: flat receivers, and one element stands in for the array the kernel does not read.
+    slope = np.zeros((1, 1, 2)) if receiver_slope is None else np.ascontiguousarray(receiver_slope, dtype=np.float64)
     chosen = np.ascontiguousarray(cascade, dtype=np.int32)
     w = np.ascontiguousarray(np.broadcast_to(np.asarray(width, dtype=np.float64), (count,)))
-    if xy.shape != (count, n, 2) or rd.shape != (count, n) or slope.shape != (count, n, 2) or chosen.shape != (n,):
+    if xy.shape != (count, n, 2) or rd.shape != (count, n) or chosen.shape != (n,) or (
+            receiver_slope is not None and slope.shape != (count, n, 2)):
         raise ValueError(f"coords, receiver_depth, receiver_slope, cascade: expected shapes ({count}, N, 2), "
                          f"({count}, N), ({count}, N, 2), (N,); got {xy.shape}, {rd.shape}, {slope.shape}, "
                          f"{chosen.shape}")
@@ -444,7 +450,8 @@ def weighted_pcf(depth, coords, receiver_depth, *, cascade, filter: str, width, 
             wp.array(maps, dtype=wp.float32, device=device, copy=False),
             wp.array(xy, dtype=wp.int64, device=device, copy=False),
             wp.array(rd, dtype=wp.float32, device=device, copy=False),
-            wp.array(slope, dtype=wp.vec2d, device=device),
+            wp.array(slope, dtype=wp.vec2d, device=device, copy=False),
+            int(receiver_slope is not None),
             wp.array(chosen, dtype=wp.int32, device=device, copy=False),
             wp.array(blend, dtype=wp.float64, device=device, copy=False),
             wp.array(w, dtype=wp.float64, device=device, copy=False),

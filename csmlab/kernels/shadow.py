@@ -53,7 +53,7 @@ import warp as wp
 
 from csmlab.kernels import checked_device
 from csmlab.kernels.bias import BiasSettings, ReceiverBias, receiver_bias
-from csmlab.lookup_choices import (BLEND_SMOOTHSTEP, BOX_BILINEAR, BOX_TAPS, NORMAL_NONE,
+from csmlab.lookup_choices import (BLEND_SMOOTHSTEP, BOX_BILINEAR, NORMAL_NONE,
                                    NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN, SELECT_BEST_RESOLUTION, SELECT_INTERVAL,
                                    SELECT_MAP, SELECT_SPHERE, SELECTION_METHODS, family_code)
 from csmlab.registry import check_name
@@ -62,6 +62,9 @@ __all__ = ["receiver_coordinates", "select_cascades", "shadow_lookup", "shadow_l
            "world_receivers"]
 
 wp.set_module_options({"fuse_fp": False})
+
+SELECT_ONLY = -1
+"""The filter code of a selection that filters nothing (:func:`select_cascades`: its filter runs after it)."""
 
 @wp.func
 def tap(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int64, receiver: wp.float32,
@@ -87,13 +90,22 @@ def tap(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int64, r
 
 
 @wp.func
-def bilinear_corner(x: wp.int64, unit: wp.int64, bits: int, inverse_span: wp.float64):
-    """The texel centre at or before fixed-point ``x`` (``unit = 2**bits`` per texel) on one axis, and the exact
-    fraction of ``x`` between it and the next centre: the index and weight of a bilinear footprint.
+def bilinear_corner(x: wp.int64, unit: wp.int64):
+    """The texel centre at or before fixed-point ``x`` (``unit`` per texel) on one axis, and the exact fraction
+    of ``x`` between it and the next centre: the index and weight of a bilinear footprint."""
+    # Texel centres sit at (2i + 1)·unit in doubled units, so the division is exact in integers.
+    x2 = wp.int64(2) * x - unit
+    span = wp.int64(2) * unit
+    i0 = x2 // span
+    return i0, wp.float64(x2 - i0 * span) / wp.float64(span)
 
-    Texel centres sit at ``(2i + 1)·unit`` in doubled units, so the division by ``2·unit`` is exact:
-    a shift (an arithmetic shift floors, as ``//`` does, and costs no division), and the remainder's
-    product with ``inverse_span = 1 / (2·unit)``, a power of two, is its exact quotient.
+
+@wp.func
+def bilinear_corner_shifted(x: wp.int64, unit: wp.int64, bits: int, inverse_span: wp.float64):
+    """:func:`bilinear_corner` of ``unit = 2**bits``, without a division: the same index and fraction.
+
+    The floor division by ``2·unit`` is an arithmetic shift (which floors, as ``//`` does), and the
+    remainder's product with ``inverse_span = 1 / (2·unit)``, a power of two, is its exact quotient.
     """
     x2 = wp.int64(2) * x - unit
     i0 = x2 >> wp.int64(bits + 1)
@@ -105,7 +117,7 @@ def bilinear_taps(depth: wp.array3d(dtype=wp.float32), c: int, i0: wp.int64, wx:
                   wy: wp.float64, receiver: wp.float32, slope: wp.vec2d, x: wp.int64, y: wp.int64, unit: wp.int64,
                   inverse_span: wp.float64) -> wp.float64:
     """The 2×2 texels from (i0, j0), each a :func:`tap` of the receiver at ``(x, y)``, weighted bilinearly by the
-    fractions ``wx, wy`` (:func:`bilinear_corner`): a bilinear-compare tap whose footprint is known."""
+    fractions ``wx, wy`` (:func:`bilinear_corner_shifted`): a bilinear-compare tap whose footprint is known."""
     one = wp.int64(1)
     s00 = wp.float64(tap(depth, c, i0, j0, receiver, slope, x, y, unit, inverse_span))
     s10 = wp.float64(tap(depth, c, i0 + one, j0, receiver, slope, x, y, unit, inverse_span))
@@ -126,8 +138,8 @@ def bilinear_tap(depth: wp.array3d(dtype=wp.float32), c: int, qx: wp.int64, qy: 
     ``textureProj(sampler2DShadow)``, ``textureSampleCompareLevel``), at the fixed point's precision
     rather than the hardware's 8 sub-texel bits.
     """
-    i0, wx = bilinear_corner(qx, unit, bits, inverse_span)
-    j0, wy = bilinear_corner(qy, unit, bits, inverse_span)
+    i0, wx = bilinear_corner_shifted(qx, unit, bits, inverse_span)
+    j0, wy = bilinear_corner_shifted(qy, unit, bits, inverse_span)
     return bilinear_taps(depth, c, i0, wx, j0, wy, receiver, slope, x, y, unit, inverse_span)
 
 
@@ -237,11 +249,13 @@ def holds(x: wp.int64, y: wp.int64, inset: wp.int64, top: wp.int64) -> bool:
 @wp.struct
 class FixedReceivers:
     """Receivers already in every cascade's fixed point (:func:`receiver_coordinates`, or an engine's window space:
-    :func:`csmlab.kernels.engine.window_receivers`)."""
+    :func:`csmlab.kernels.engine.window_receivers`); ``planar`` 0: every receiver a flat plane, and ``slope`` one
+    element that no kernel reads."""
 
     coords: wp.array3d(dtype=wp.int64)
     depth: wp.array2d(dtype=wp.float32)
     slope: wp.array2d(dtype=wp.vec2d)
+    planar: int
 
 
 @wp.struct
@@ -322,7 +336,10 @@ def receiver_light(r: WorldReceivers, k: int) -> LightReceiver:  # noqa: F811  (
 @wp.func
 def receiver_in(r: FixedReceivers, light: LightReceiver, c: int, k: int):
     """Receiver k in cascade c: fixed-point ``x, y``, biased depth and receiver-plane slope."""
-    return r.coords[c, k, 0], r.coords[c, k, 1], r.depth[c, k], r.slope[c, k]
+    slope = wp.vec2d()
+    if r.planar != 0:
+        slope = r.slope[c, k]
+    return r.coords[c, k, 0], r.coords[c, k, 1], r.depth[c, k], slope
 
 
 @wp.func
@@ -436,7 +453,10 @@ def shadow_lookup_kernel(
     if chosen < 0:
         lit[k] = 0.0
         return
-    s = lit_fraction(depth, chosen, x, y, receiver, slope, bits, inverse_span, filter_code, radius)
+    filtered = filter_code != SELECT_ONLY
+    s = wp.float64(0.0)
+    if filtered:
+        s = lit_fraction(depth, chosen, x, y, receiver, slope, bits, inverse_span, filter_code, radius)
     nxt = chosen + 1
     if nxt < count:
         # The band of cascade `chosen` runs from band_start[chosen] (+inf: none) to where the
@@ -449,8 +469,9 @@ def shadow_lookup_kernel(
                 w = (z - start) / (z1 - start)
                 if blend_curve == BLEND_SMOOTHSTEP:
                     w = w * w * (wp.float64(3.0) - wp.float64(2.0) * w)
-                s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, nxt, xn, yn, rn, sn, bits, inverse_span,
-                                                                 filter_code, radius)
+                if filtered:
+                    s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, nxt, xn, yn, rn, sn, bits, inverse_span,
+                                                                     filter_code, radius)
                 blend[k] = 1
                 if keep_weight != 0:
                     blend_weight[k] = w
@@ -567,7 +588,7 @@ def select_cascades(depth, coords, receiver_depth, view_depth, *, splits, texel_
     device = checked_device(device)
     receivers = _fixed_receivers(depth, coords, receiver_depth, view_depth, None, device=device)
     _, cascade, blend, weight = _launch(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
-                                        selection=selection, code=BOX_TAPS, radius=0, reach=radius, margin=margin,
+                                        selection=selection, code=SELECT_ONLY, radius=0, reach=radius, margin=margin,
                                         blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
                                         sphere_cascade=sphere_cascade, bits=bits, weights=True, device=device)
     return cascade, weight, blend
@@ -617,11 +638,12 @@ def _fixed_receivers(depth, coords, receiver_depth, view_depth, receiver_slope, 
     """The :class:`FixedReceivers` of :func:`shadow_lookup`'s arrays, their shapes checked against the maps."""
     xy = np.ascontiguousarray(coords, dtype=np.int64)
     rd = np.ascontiguousarray(receiver_depth, dtype=np.float32)
-    slope = (np.zeros(rd.shape + (2,)) if receiver_slope is None
-             else np.ascontiguousarray(receiver_slope, dtype=np.float64))
+    # No slope: a flat plane per receiver, and one element stands in for the array no kernel reads.
+    slope = np.zeros((1, 1, 2)) if receiver_slope is None else np.ascontiguousarray(receiver_slope, dtype=np.float64)
     count = np.shape(depth)[0] if np.ndim(depth) == 3 else 0
     n = np.shape(view_depth)[0] if np.ndim(view_depth) == 1 else -1
-    if xy.shape != (count, n, 2) or rd.shape != (count, n) or slope.shape != (count, n, 2):
+    if xy.shape != (count, n, 2) or rd.shape != (count, n) or (
+            receiver_slope is not None and slope.shape != (count, n, 2)):
         raise ValueError(f"coords, receiver_depth, receiver_slope, view_depth: expected shapes ({count}, N, 2), "
                          f"({count}, N), ({count}, N, 2), (N,); got {xy.shape}, {rd.shape}, {slope.shape}, "
                          f"{np.shape(view_depth)}")
@@ -629,6 +651,7 @@ def _fixed_receivers(depth, coords, receiver_depth, view_depth, receiver_slope, 
     receivers.coords = wp.array(xy, dtype=wp.int64, device=device, copy=False)
     receivers.depth = wp.array(rd, dtype=wp.float32, device=device, copy=False)
     receivers.slope = wp.array(slope, dtype=wp.vec2d, device=device, copy=False)
+    receivers.planar = int(receiver_slope is not None)
     return receivers
 
 
@@ -637,9 +660,10 @@ def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str,
             blend_curve: int = 0, sphere_cascade=None) -> tuple:
     """Launch :func:`shadow_lookup_kernel` over ``receivers`` (a :class:`FixedReceivers` or :class:`WorldReceivers`).
 
-    ``code`` and ``radius`` are the box filter run at the selected cascade, ``reach`` the taps a
-    selected box must hold. Returns ``lit`` (NaN where none selected), ``cascade`` int32, ``blend``
-    bool and, with ``weights``, the blend weights float64 (else None) as NumPy arrays.
+    ``code`` and ``radius`` are the box filter run at the selected cascade (:data:`SELECT_ONLY`: none,
+    ``lit`` 0 where selected), ``reach`` the taps a selected box must hold. Returns ``lit`` (NaN where
+    none selected), ``cascade`` int32, ``blend`` bool and, with ``weights``, the blend weights float64
+    (else None) as NumPy arrays.
     """
     selected = SELECTION_METHODS[check_name(selection, SELECTION_METHODS, field="selection")]
     if not (isinstance(reach, (int, np.integer)) and reach >= 0):
