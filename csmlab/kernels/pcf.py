@@ -250,17 +250,18 @@ def bilinear_box_lit(depth: wp.array3d(dtype=wp.float32), c: int, size: int, x: 
 @wp.func
 def weighted_lit(depth: wp.array3d(dtype=wp.float32), coords: wp.array3d(dtype=wp.int64),
                  receiver_depth: wp.array2d(dtype=wp.float32), receiver_slope: wp.array2d(dtype=wp.vec2d),
-                 planar: int, c: int, k: int, bits: int, code: int, radius: int, width: wp.float64,
+                 planar: int, c: int, row: int, k: int, bits: int, code: int, radius: int, width: wp.float64,
                  disk: wp.array(dtype=wp.vec2d), angle: wp.float64) -> wp.float64:
-    """S of receiver k in cascade c under the weighted filter of kernel code ``code`` (PCF_GAUSSIAN … PCF_PCSS),
-    ``bits`` sub-texel bits; ``planar`` 0: a flat receiver (``receiver_slope`` not read)."""
+    """S of receiver k in cascade c, its position, depth and slope in ``row`` of the receivers' arrays, under the
+    weighted filter of kernel code ``code`` (PCF_GAUSSIAN … PCF_PCSS), ``bits`` sub-texel bits; ``planar`` 0: a flat
+    receiver (``receiver_slope`` not read)."""
     unit = wp.int64(1) << wp.int64(bits)
-    x = coords[c, k, 0]
-    y = coords[c, k, 1]
-    receiver = receiver_depth[c, k]
+    x = coords[row, k, 0]
+    y = coords[row, k, 1]
+    receiver = receiver_depth[row, k]
     slope = wp.vec2d()
     if planar != 0:
-        slope = receiver_slope[c, k]
+        slope = receiver_slope[row, k]
     inverse_span = wp.float64(1.0) / wp.float64(wp.int64(2) * unit)
     # An arithmetic shift floors as `//` does, without a division.
     i = x >> wp.int64(bits)
@@ -325,6 +326,7 @@ def weighted_pcf_kernel(
     receiver_depth: wp.array2d(dtype=wp.float32),
     receiver_slope: wp.array2d(dtype=wp.vec2d),
     planar: int,
+    picked: int,
     cascade: wp.array(dtype=wp.int32),
     blend_weight: wp.array(dtype=wp.float64),
     width: wp.array(dtype=wp.float64),
@@ -340,41 +342,47 @@ def weighted_pcf_kernel(
     if c < 0:
         lit[k] = wp.float32(wp.nan)
         return
-    s = weighted_lit(depth, coords, receiver_depth, receiver_slope, planar, c, k, bits, code, radius, width[c], disk,
-                     angle[k])
+    # The rows of the receivers' arrays: every cascade's, or (picked) the selected cascade's and the next's.
+    row = c
+    if picked != 0:
+        row = 0
+    s = weighted_lit(depth, coords, receiver_depth, receiver_slope, planar, c, row, k, bits, code, radius, width[c],
+                     disk, angle[k])
     w = blend_weight[k]
     if w > wp.float64(0.0):
         s = (wp.float64(1.0) - w) * s + w * weighted_lit(depth, coords, receiver_depth, receiver_slope, planar, c + 1,
-                                                         k, bits, code, radius, width[c + 1], disk, angle[k])
+                                                         row + 1, k, bits, code, radius, width[c + 1], disk, angle[k])
     lit[k] = wp.float32(s)
 
 
-def _checked(depth, coords, receiver_depth, receiver_slope, cascade, width):
+def _checked(depth, coords, receiver_depth, receiver_slope, cascade, width, picked: bool):
     maps = np.ascontiguousarray(depth, dtype=np.float32)
     if maps.ndim != 3 or maps.shape[1] != maps.shape[2] or maps.shape[0] == 0:
         raise ValueError(f"depth: expected depth maps of shape (C, R, R), got {maps.shape}")
-    count = maps.shape[0]
+    cascades = maps.shape[0]
+    count = 2 if picked else cascades
     xy = np.ascontiguousarray(coords, dtype=np.int64)
     n = xy.shape[1] if xy.ndim == 3 else -1
     rd = np.ascontiguousarray(receiver_depth, dtype=np.float32)
     # No slope: flat receivers, and one element stands in for the array the kernel does not read.
     slope = np.zeros((1, 1, 2)) if receiver_slope is None else np.ascontiguousarray(receiver_slope, dtype=np.float64)
     chosen = np.ascontiguousarray(cascade, dtype=np.int32)
-    w = np.ascontiguousarray(np.broadcast_to(np.asarray(width, dtype=np.float64), (count,)))
+    w = np.ascontiguousarray(np.broadcast_to(np.asarray(width, dtype=np.float64), (cascades,)))
     if xy.shape != (count, n, 2) or rd.shape != (count, n) or chosen.shape != (n,) or (
             receiver_slope is not None and slope.shape != (count, n, 2)):
         raise ValueError(f"coords, receiver_depth, receiver_slope, cascade: expected shapes ({count}, N, 2), "
                          f"({count}, N), ({count}, N, 2), (N,); got {xy.shape}, {rd.shape}, {slope.shape}, "
                          f"{chosen.shape}")
-    if np.any(chosen >= count):
-        raise ValueError(f"cascade: expected indices below {count} (or −1 for none), got {chosen.max()}")
+    if np.any(chosen >= cascades):
+        raise ValueError(f"cascade: expected indices below {cascades} (or −1 for none), got {chosen.max()}")
     if not np.all(np.isfinite(w) & (w > 0)):
         raise ValueError(f"width: expected positive texel widths per cascade, got {w}")
     return maps, xy, rd, slope, chosen, w, n
 
 
 def weighted_pcf(depth, coords, receiver_depth, *, cascade, filter: str, width, radius: int, bits: int,
-                 receiver_slope=None, blend_weight=None, angle=None, disk=None, device: str = "cpu") -> np.ndarray:
+                 receiver_slope=None, blend_weight=None, angle=None, disk=None, picked: bool = False,
+                 device: str = "cpu") -> np.ndarray:
     """Lit fraction S of receivers at their selected cascade under a weighted PCF filter.
 
     Parameters
@@ -407,6 +415,10 @@ def weighted_pcf(depth, coords, receiver_depth, *, cascade, filter: str, width, 
         ``pcf_poisson``, ``pcf_vogel``: rotation of the disk per receiver, radians; None: unrotated.
     disk : array_like, shape (K, 2), float64, optional
         ``pcf_poisson``, ``pcf_vogel``: tap offsets in the unit disk.
+    picked : bool
+        ``coords``, ``receiver_depth`` and ``receiver_slope`` hold two rows, ``(2, N, ...)``: each
+        receiver at its selected cascade and at the next
+        (:func:`csmlab.kernels.shadow.select_window_cascades`), in place of every cascade's.
     device : str
         ``"cpu"`` or ``"cuda"``.
 
@@ -426,7 +438,8 @@ def weighted_pcf(depth, coords, receiver_depth, *, cascade, filter: str, width, 
     code = family_code(filter, family="weighted")
     if not (isinstance(radius, (int, np.integer)) and radius >= 0):
         raise ValueError(f"radius: expected a non-negative integer, got {radius!r}")
-    maps, xy, rd, slope, chosen, w, n = _checked(depth, coords, receiver_depth, receiver_slope, cascade, width)
+    maps, xy, rd, slope, chosen, w, n = _checked(depth, coords, receiver_depth, receiver_slope, cascade, width,
+                                                 picked)
     if code in (PCF_CASTANO, PCF_TENT_BILINEAR) and np.any((np.floor(2.0 * w + 0.5) + 1) // 2 > AXIS_TAPS):
         raise ValueError(f"width: {filter} takes at most {AXIS_TAPS} taps per axis (N / 2 ≤ {AXIS_TAPS - 0.5}), "
                          f"got {w}")
@@ -452,6 +465,7 @@ def weighted_pcf(depth, coords, receiver_depth, *, cascade, filter: str, width, 
             wp.array(rd, dtype=wp.float32, device=device, copy=False),
             wp.array(slope, dtype=wp.vec2d, device=device, copy=False),
             int(receiver_slope is not None),
+            int(bool(picked)),
             wp.array(chosen, dtype=wp.int32, device=device, copy=False),
             wp.array(blend, dtype=wp.float64, device=device, copy=False),
             wp.array(w, dtype=wp.float64, device=device, copy=False),

@@ -53,13 +53,15 @@ import warp as wp
 
 from csmlab.kernels import checked_device
 from csmlab.kernels.bias import BiasSettings, ReceiverBias, receiver_bias
+from csmlab.kernels.engine import (WINDOW_FLOAT32, EngineBoxes, EngineReceivers, WindowPoint, engine_receivers,
+                                   window_in, window_point)
 from csmlab.lookup_choices import (BLEND_SMOOTHSTEP, BOX_BILINEAR, NORMAL_NONE,
                                    NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN, SELECT_BEST_RESOLUTION, SELECT_INTERVAL,
                                    SELECT_MAP, SELECT_SPHERE, SELECTION_METHODS, family_code)
 from csmlab.registry import check_name
 
-__all__ = ["receiver_coordinates", "select_cascades", "shadow_lookup", "shadow_lookup_world", "split_sphere_cascades",
-           "world_receivers"]
+__all__ = ["receiver_coordinates", "select_cascades", "select_window_cascades", "shadow_lookup", "shadow_lookup_window",
+           "shadow_lookup_world", "split_sphere_cascades", "world_receivers"]
 
 wp.set_module_options({"fuse_fp": False})
 
@@ -378,6 +380,34 @@ def receiver_in(r: WorldReceivers, light: LightReceiver, c: int, k: int):  # noq
     return x, y, wp.float32(light.pz + along * moved * light.nz - r.zref - bias), slope
 
 
+@wp.struct
+class WindowReceivers:
+    """Receivers as world points, taken into an engine's window space (:mod:`csmlab.kernels.engine`) where a kernel
+    reads them; ``planar`` 0 gives every receiver a flat plane."""
+
+    receivers: EngineReceivers
+    boxes: EngineBoxes
+    planar: int
+
+
+@wp.func
+def receiver_light(r: WindowReceivers, k: int) -> WindowPoint:  # noqa: F811  (a Warp overload)
+    """Receiver k as every cascade's window-space conversion reads it (:func:`csmlab.kernels.engine.window_point`):
+    computed once per receiver."""
+    return window_point(r.receivers, r.boxes, k)
+
+
+@wp.func
+def receiver_in(r: WindowReceivers, light: WindowPoint, c: int, k: int):  # noqa: F811  (a Warp overload)
+    """Receiver k, ``light`` its :func:`receiver_light`, in cascade c's window space
+    (:func:`csmlab.kernels.engine.window_in`, as :func:`csmlab.kernels.engine.window_receivers` takes it)."""
+    x, y, d, sx, sy = window_in(r.receivers, r.boxes, light, c)
+    slope = wp.vec2d()
+    if r.planar != 0:
+        slope = wp.vec2d(sx, sy)
+    return x, y, d, slope
+
+
 @wp.kernel
 def shadow_lookup_kernel(
     depth: wp.array3d(dtype=wp.float32),
@@ -395,10 +425,14 @@ def shadow_lookup_kernel(
     band_start: wp.array(dtype=wp.float64),
     blend_curve: int,
     keep_weight: int,
+    keep_picked: int,
     lit: wp.array(dtype=wp.float32),
     cascade: wp.array(dtype=wp.int32),
     blend: wp.array(dtype=wp.int32),
     blend_weight: wp.array(dtype=wp.float64),
+    picked_coords: wp.array3d(dtype=wp.int64),
+    picked_depth: wp.array2d(dtype=wp.float32),
+    picked_slope: wp.array2d(dtype=wp.vec2d),
 ):
     k = wp.tid()
     unit = wp.int64(1) << wp.int64(bits)
@@ -453,6 +487,13 @@ def shadow_lookup_kernel(
     if chosen < 0:
         lit[k] = 0.0
         return
+    if keep_picked != 0:
+        # The receiver at its selected cascade (row 0) and, in the blend band, the next (row 1): what a filter
+        # run after the selection reads.
+        picked_coords[0, k, 0] = x
+        picked_coords[0, k, 1] = y
+        picked_depth[0, k] = receiver
+        picked_slope[0, k] = slope
     filtered = filter_code != SELECT_ONLY
     s = wp.float64(0.0)
     if filtered:
@@ -475,11 +516,17 @@ def shadow_lookup_kernel(
                 blend[k] = 1
                 if keep_weight != 0:
                     blend_weight[k] = w
+                if keep_picked != 0:
+                    picked_coords[1, k, 0] = xn
+                    picked_coords[1, k, 1] = yn
+                    picked_depth[1, k] = rn
+                    picked_slope[1, k] = sn
     lit[k] = wp.float32(s)
 
 
 wp.overload(shadow_lookup_kernel, {"receivers": FixedReceivers})
 wp.overload(shadow_lookup_kernel, {"receivers": WorldReceivers})
+wp.overload(shadow_lookup_kernel, {"receivers": WindowReceivers})
 
 
 def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_area, selection: str,
@@ -552,7 +599,7 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
     device = checked_device(device)
     code = family_code(filter, family="box")
     receivers = _fixed_receivers(depth, coords, receiver_depth, view_depth, receiver_slope, device=device)
-    lit, cascade, blend, _ = _launch(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
+    lit, cascade, blend, _, _ = _launch(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
                                      selection=selection, code=code, radius=radius, reach=radius, margin=margin,
                                      blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
                                      sphere_cascade=sphere_cascade, bits=bits, weights=False, device=device)
@@ -587,7 +634,7 @@ def select_cascades(depth, coords, receiver_depth, view_depth, *, splits, texel_
     """
     device = checked_device(device)
     receivers = _fixed_receivers(depth, coords, receiver_depth, view_depth, None, device=device)
-    _, cascade, blend, weight = _launch(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
+    _, cascade, blend, weight, _ = _launch(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
                                         selection=selection, code=SELECT_ONLY, radius=0, reach=radius, margin=margin,
                                         blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
                                         sphere_cascade=sphere_cascade, bits=bits, weights=True, device=device)
@@ -627,11 +674,111 @@ def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis,
     if world.index.shape[0] != np.shape(view_depth)[0] or np.ndim(view_depth) != 1:
         raise ValueError(f"view_depth: expected one view depth per receiver ({world.index.shape[0]},), "
                          f"got shape {np.shape(view_depth)}")
-    lit, cascade, blend, _ = _launch(depth, world, view_depth, splits=splits, texel_area=texel_area,
+    lit, cascade, blend, _, _ = _launch(depth, world, view_depth, splits=splits, texel_area=texel_area,
                                      selection=selection, code=code, radius=radius, reach=radius, margin=margin,
                                      blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
                                      sphere_cascade=sphere_cascade, bits=bits, weights=False, device=device)
     return lit, cascade.astype(np.int8), blend
+
+
+def shadow_lookup_window(depth, boxes: EngineBoxes, points, normals, view_depth, *, receivers, basis, texel_size,
+                         zref: float, bias: BiasSettings, receiver_plane_bias: bool, splits, texel_area, selection: str,
+                         filter: str, radius: int, margin: int, blend_band: float, bits: int, band_start=None,
+                         blend_curve: int = 0, sphere_cascade=None,
+                         device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`shadow_lookup` of receivers in an engine's window space, each taken into a cascade where the lookup
+    reads it.
+
+    The same results, bit for bit, as :func:`csmlab.kernels.engine.window_receivers` followed by
+    :func:`shadow_lookup` (one conversion, :func:`csmlab.kernels.engine.window_in`, serves both) without
+    converting every receiver into every cascade.
+
+    Parameters
+    ----------
+    depth, view_depth, splits, texel_area, selection, filter, radius, margin, blend_band, bits, sphere_cascade, device
+        As :func:`shadow_lookup`; ``view_depth`` and ``sphere_cascade`` ``(N,)`` one per receiver.
+    boxes : EngineBoxes
+        :func:`csmlab.kernels.engine.engine_boxes` of the cascades (``2**bits`` its scale), on ``device``.
+    points, normals, receivers, basis, texel_size, zref, bias
+        As :func:`csmlab.kernels.engine.window_receivers`.
+    receiver_plane_bias : bool
+        Compare each tap with the receiver's tangent plane (else with its own depth).
+
+    Returns
+    -------
+    lit, cascade, blend
+        As :func:`shadow_lookup`.
+    """
+    device = checked_device(device)
+    code = family_code(filter, family="box")
+    window = _window_receivers(depth, boxes, points, normals, view_depth, receivers=receivers, basis=basis,
+                               texel_size=texel_size, zref=zref, bias=bias, planar=receiver_plane_bias, device=device)
+    lit, cascade, blend, _, _ = _launch(depth, window, view_depth, splits=splits, texel_area=texel_area,
+                                        selection=selection, code=code, radius=radius, reach=radius, margin=margin,
+                                        blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
+                                        sphere_cascade=sphere_cascade, bits=bits, weights=False, device=device)
+    return lit, cascade.astype(np.int8), blend
+
+
+def select_window_cascades(depth, boxes: EngineBoxes, points, normals, view_depth, *, receivers, basis, texel_size,
+                           zref: float, bias: BiasSettings, receiver_plane_bias: bool, splits, texel_area,
+                           selection: str, radius: int, margin: int, blend_band: float, bits: int, band_start=None,
+                           blend_curve: int = 0, sphere_cascade=None, device: str = "cpu") -> tuple:
+    """:func:`select_cascades` of receivers in an engine's window space, with each receiver at the cascades a filter
+    run after the selection reads: the one it selects and, in the blend band, the next.
+
+    Bit for bit :func:`csmlab.kernels.engine.window_receivers` followed by :func:`select_cascades`, and
+    the rows of the first's arrays at those cascades, without converting every receiver into every cascade.
+
+    Parameters
+    ----------
+    depth, boxes, points, normals, view_depth, receivers, basis, texel_size, zref, bias, receiver_plane_bias, splits,
+    texel_area, selection, margin, blend_band, bits, band_start, blend_curve, sphere_cascade, device
+        As :func:`shadow_lookup_window`.
+    radius : int
+        Texels the filter's taps reach beyond the one holding the point.
+
+    Returns
+    -------
+    cascade, blend_weight, blend
+        As :func:`select_cascades`.
+    coordinates : ndarray, shape (2, N, 2), int64
+        Each receiver's fixed point in its selected cascade (row 0) and the next (row 1, set where
+        ``blend_weight`` is set; undefined elsewhere and where no cascade is selected).
+    receiver_depth : ndarray, shape (2, N), float32
+        Its biased depth there.
+    slope : ndarray, shape (2, N, 2), float64, or None
+        Its receiver-plane slopes there; None without ``receiver_plane_bias``.
+    """
+    device = checked_device(device)
+    window = _window_receivers(depth, boxes, points, normals, view_depth, receivers=receivers, basis=basis,
+                               texel_size=texel_size, zref=zref, bias=bias, planar=receiver_plane_bias, device=device)
+    _, cascade, blend, weight, rows = _launch(depth, window, view_depth, splits=splits, texel_area=texel_area,
+                                              selection=selection, code=SELECT_ONLY, radius=0, reach=radius,
+                                              margin=margin, blend_band=blend_band, band_start=band_start,
+                                              blend_curve=blend_curve, sphere_cascade=sphere_cascade, bits=bits,
+                                              weights=True, picked=True, device=device)
+    coords, receiver_depth, slope = rows
+    return cascade, weight, blend, coords, receiver_depth, slope if receiver_plane_bias else None
+
+
+def _window_receivers(depth, boxes: EngineBoxes, points, normals, view_depth, *, receivers, basis, texel_size,
+                      zref: float, bias: BiasSettings, planar: bool, device: str) -> WindowReceivers:
+    """The :class:`WindowReceivers` of :func:`shadow_lookup_window`'s arguments, checked against the maps and the
+    view depths."""
+    count = boxes.matrix.shape[0] if boxes.mode == WINDOW_FLOAT32 else boxes.texel_size.shape[0]
+    if np.ndim(depth) != 3 or np.shape(depth)[0] != count:
+        raise ValueError(f"depth: expected the depth maps of the boxes' {count} cascades (C, R, R), got shape "
+                         f"{np.shape(depth)}")
+    window = WindowReceivers()
+    window.receivers = engine_receivers(points, normals, basis=basis, texel_size=texel_size, zref=zref, bias=bias,
+                                        receivers=receivers, cascades=count, device=device)
+    window.boxes = boxes
+    window.planar = int(bool(planar))
+    n = window.receivers.index.shape[0]
+    if np.ndim(view_depth) != 1 or np.shape(view_depth)[0] != n:
+        raise ValueError(f"view_depth: expected one view depth per receiver ({n},), got shape {np.shape(view_depth)}")
+    return window
 
 
 def _fixed_receivers(depth, coords, receiver_depth, view_depth, receiver_slope, *, device: str) -> FixedReceivers:
@@ -657,13 +804,16 @@ def _fixed_receivers(depth, coords, receiver_depth, view_depth, receiver_slope, 
 
 def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str, code: int, radius: int, reach: int,
             margin: int, blend_band: float, bits: int, weights: bool, device: str, band_start=None,
-            blend_curve: int = 0, sphere_cascade=None) -> tuple:
-    """Launch :func:`shadow_lookup_kernel` over ``receivers`` (a :class:`FixedReceivers` or :class:`WorldReceivers`).
+            blend_curve: int = 0, sphere_cascade=None, picked: bool = False) -> tuple:
+    """Launch :func:`shadow_lookup_kernel` over ``receivers`` (:class:`FixedReceivers`, :class:`WorldReceivers` or
+    :class:`WindowReceivers`).
 
     ``code`` and ``radius`` are the box filter run at the selected cascade (:data:`SELECT_ONLY`: none,
     ``lit`` 0 where selected), ``reach`` the taps a selected box must hold. Returns ``lit`` (NaN where
-    none selected), ``cascade`` int32, ``blend`` bool and, with ``weights``, the blend weights float64
-    (else None) as NumPy arrays.
+    none selected), ``cascade`` int32, ``blend`` bool, with ``weights`` the blend weights float64 (else
+    None) and, with ``picked``, the receivers at their selected cascade and the next (rows 0 and 1 of
+    coordinates ``(2, N, 2)`` int64, depths ``(2, N)`` float32, slopes ``(2, N, 2)`` float64; row 1 set
+    where the blend weight is set; else None) as NumPy arrays.
     """
     selected = SELECTION_METHODS[check_name(selection, SELECTION_METHODS, field="selection")]
     if not (isinstance(reach, (int, np.integer)) and reach >= 0):
@@ -698,12 +848,18 @@ def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str,
         # The other selections read no sphere: one element stands in for the array.
         spheres = np.full(1, -1, dtype=np.int32)
     if n == 0:
-        return np.zeros(0, np.float32), np.zeros(0, np.int32), np.zeros(0, bool), np.zeros(0) if weights else None
+        empty = (np.zeros((2, 0, 2), np.int64), np.zeros((2, 0), np.float32), np.zeros((2, 0, 2))) if picked else None
+        return np.zeros(0, np.float32), np.zeros(0, np.int32), np.zeros(0, bool), np.zeros(0) if weights else None, \
+            empty
     lit = wp.empty(n, dtype=wp.float32, device=device)
     chosen = wp.empty(n, dtype=wp.int32, device=device)
     blended = wp.empty(n, dtype=wp.int32, device=device)
     # The box filters' lookups keep no weights: one element stands in for the array they do not write.
     weight = wp.empty(n if weights else 1, dtype=wp.float64, device=device)
+    rows = (2, n) if picked else (1, 1)
+    picked_coords = wp.empty(rows + (2,), dtype=wp.int64, device=device)
+    picked_depth = wp.empty(rows, dtype=wp.float32, device=device)
+    picked_slope = wp.empty(rows, dtype=wp.vec2d, device=device)
     wp.launch(
         shadow_lookup_kernel,
         dim=n,
@@ -723,14 +879,16 @@ def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str,
             wp.array(np.ascontiguousarray(start), dtype=wp.float64, device=device, copy=False),
             int(blend_curve),
             int(weights),
+            int(picked),
         ),
-        outputs=(lit, chosen, blended, weight),
+        outputs=(lit, chosen, blended, weight, picked_coords, picked_depth, picked_slope),
         device=device,
     )
     cascade = chosen.numpy()
     s = lit.numpy()
     s[cascade < 0] = np.nan
-    return s, cascade, blended.numpy().astype(bool), weight.numpy() if weights else None
+    rows = (picked_coords.numpy(), picked_depth.numpy(), picked_slope.numpy()) if picked else None
+    return s, cascade, blended.numpy().astype(bool), weight.numpy() if weights else None, rows
 
 
 @wp.func
