@@ -15,10 +15,13 @@ through it). Each step is decided once, in the order it runs:
 4. **Cascade selection** — the ``selection`` method with the margin and the filter's radius, and the
    blend band toward the next cascade (:func:`csmlab.kernels.shadow.select_cascades`).
 5. **The family's kernel** (:data:`FAMILY_LOOKUPS`) — ``box`` filters run inside the selection
-   kernel itself (:func:`csmlab.kernels.shadow.shadow_lookup`; over cascades of one size in
-   float64 math it converts world receivers itself, steps 3–5 in one launch); ``weighted``
-   filters run :func:`csmlab.kernels.pcf.weighted_pcf` and ``moment`` filters
-   :func:`csmlab.kernels.moments.moment_lookup` (or its mip-chain lookup) at the selected cascade.
+   kernel itself (:func:`csmlab.kernels.shadow.shadow_lookup`; over unwarped cascades of one size
+   it converts world receivers itself, into the cascades it reads only, on the float64 grid or in
+   an engine's window space: steps 3–5 in one launch); ``weighted`` filters run
+   :func:`csmlab.kernels.pcf.weighted_pcf` at the selected cascade (there too, on the rows the
+   selection picked for it, :func:`csmlab.kernels.shadow.select_world_cascades`,
+   :func:`~csmlab.kernels.shadow.select_window_cascades`) and ``moment`` filters
+   :func:`csmlab.kernels.moments.moment_lookup` (or its mip-chain lookup).
 6. **Fade** — toward lit over the end of the shadow distance (:func:`csmlab.fades.faded`).
 
 Width per cascade: in texels from ``filter_size`` / ``filter_sigma``, or, with ``filter_width_m > 0``,
@@ -45,8 +48,9 @@ from csmlab.kernels.bias import BiasSettings
 from csmlab.kernels.moments import blur_moments, moment_lookup, moment_maps, moment_mip_chain, moment_mip_lookup
 from csmlab.kernels.pages import page_lookup
 from csmlab.kernels.pcf import weighted_pcf
-from csmlab.kernels.shadow import (receiver_coordinates, select_cascades, select_window_cascades, shadow_lookup,
-                                   shadow_lookup_window, shadow_lookup_world, split_sphere_cascades)
+from csmlab.kernels.shadow import (receiver_coordinates, select_cascades, select_window_cascades,
+                                   select_world_cascades, shadow_lookup, shadow_lookup_window, shadow_lookup_world,
+                                   split_sphere_cascades)
 from csmlab.lookup_choices import FILTER_METHODS, OUTSIDE_METHODS, Filter
 from csmlab.quads import Quads, quad_derivatives
 from csmlab.registry import check_name
@@ -438,11 +442,18 @@ def _weighted_lookup(maps: ShadowMaps, receivers: Receivers, *, record: Filter, 
                      settings: ShadowSettings, device: str) -> tuple:
     """Steps 3–5 for a ``weighted`` filter: select, then weigh the taps at the selected cascade (and the next).
 
-    In an engine's window space the selection converts each receiver into the cascades it reads and
-    hands the filter those rows only (the same bits as converting it into every cascade first).
+    Where the selection kernel converts receivers itself (:func:`_converted_in_kernel`), it takes each
+    into the cascades it reads and hands the filter those rows only (the same bits as converting it
+    into every cascade first).
     """
-    picked = _converted_in_kernel(maps, settings) == "window"
-    if picked:
+    converted = _converted_in_kernel(maps, settings)
+    picked = converted is not None
+    if converted == "world":
+        chosen, weight, band, coords, depth, slope = select_world_cascades(
+            maps.depth, receivers.points, receivers.normals, receivers.view_depth, receivers=receivers.index,
+            **_conversion(maps.cascades, settings), receiver_plane_bias=settings.receiver_plane_bias, radius=radius,
+            **selection, device=device)
+    elif converted == "window":
         chosen, weight, band, coords, depth, slope = select_window_cascades(
             maps.depth, **_window_conversion(maps, receivers, settings, device=device), radius=radius, **selection,
             device=device)

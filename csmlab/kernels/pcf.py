@@ -418,7 +418,8 @@ def weighted_pcf(depth, coords, receiver_depth, *, cascade, filter: str, width, 
     picked : bool
         ``coords``, ``receiver_depth`` and ``receiver_slope`` hold two rows, ``(2, N, ...)``: each
         receiver at its selected cascade and at the next
-        (:func:`csmlab.kernels.shadow.select_window_cascades`), in place of every cascade's.
+        (:func:`csmlab.kernels.shadow.select_world_cascades`,
+        :func:`~csmlab.kernels.shadow.select_window_cascades`), in place of every cascade's.
     device : str
         ``"cpu"`` or ``"cuda"``.
 

@@ -60,8 +60,8 @@ from csmlab.lookup_choices import (BLEND_SMOOTHSTEP, BOX_BILINEAR, NORMAL_NONE,
                                    SELECT_MAP, SELECT_SPHERE, SELECTION_METHODS, family_code)
 from csmlab.registry import check_name
 
-__all__ = ["receiver_coordinates", "select_cascades", "select_window_cascades", "shadow_lookup", "shadow_lookup_window",
-           "shadow_lookup_world", "split_sphere_cascades", "world_receivers"]
+__all__ = ["receiver_coordinates", "select_cascades", "select_window_cascades", "select_world_cascades",
+           "shadow_lookup", "shadow_lookup_window", "shadow_lookup_world", "split_sphere_cascades", "world_receivers"]
 
 wp.set_module_options({"fuse_fp": False})
 
@@ -681,6 +681,42 @@ def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis,
     return lit, cascade.astype(np.int8), blend
 
 
+def select_world_cascades(depth, points, normals, view_depth, *, receivers, basis, texel_size, origin_fixed,
+                          zref: float, bias: BiasSettings, receiver_plane_bias: bool, splits, texel_area,
+                          selection: str, radius: int, margin: int, blend_band: float, bits: int, band_start=None,
+                          blend_curve: int = 0, sphere_cascade=None, device: str = "cpu") -> tuple:
+    """:func:`select_cascades` of world receivers, with each receiver at the cascades a filter run after the
+    selection reads: the one it selects and, in the blend band, the next.
+
+    Bit for bit :func:`receiver_coordinates` followed by :func:`select_cascades`, and the rows of the
+    first's arrays at those cascades, without converting every receiver into every cascade.
+
+    Parameters
+    ----------
+    depth, points, normals, view_depth, receivers, basis, texel_size, origin_fixed, zref, bias, receiver_plane_bias,
+    splits, texel_area, selection, margin, blend_band, bits, band_start, blend_curve, sphere_cascade, device
+        As :func:`shadow_lookup_world`.
+    radius : int
+        Texels the filter's taps reach beyond the one holding the point.
+
+    Returns
+    -------
+    cascade, blend_weight, blend, coordinates, receiver_depth, slope
+        As :func:`select_window_cascades`.
+    """
+    device = checked_device(device)
+    world = world_receivers(points, normals, receivers=receivers, basis=basis, texel_size=texel_size,
+                            origin_fixed=origin_fixed, zref=zref, bits=bits, bias=bias, planar=receiver_plane_bias,
+                            device=device)
+    if world.index.shape[0] != np.shape(view_depth)[0] or np.ndim(view_depth) != 1:
+        raise ValueError(f"view_depth: expected one view depth per receiver ({world.index.shape[0]},), "
+                         f"got shape {np.shape(view_depth)}")
+    return _picked_selection(depth, world, view_depth, splits=splits, texel_area=texel_area, selection=selection,
+                             radius=radius, margin=margin, blend_band=blend_band, band_start=band_start,
+                             blend_curve=blend_curve, sphere_cascade=sphere_cascade, bits=bits,
+                             planar=receiver_plane_bias, device=device)
+
+
 def shadow_lookup_window(depth, boxes: EngineBoxes, points, normals, view_depth, *, receivers, basis, texel_size,
                          zref: float, bias: BiasSettings, receiver_plane_bias: bool, splits, texel_area, selection: str,
                          filter: str, radius: int, margin: int, blend_band: float, bits: int, band_start=None,
@@ -753,13 +789,24 @@ def select_window_cascades(depth, boxes: EngineBoxes, points, normals, view_dept
     device = checked_device(device)
     window = _window_receivers(depth, boxes, points, normals, view_depth, receivers=receivers, basis=basis,
                                texel_size=texel_size, zref=zref, bias=bias, planar=receiver_plane_bias, device=device)
-    _, cascade, blend, weight, rows = _launch(depth, window, view_depth, splits=splits, texel_area=texel_area,
+    return _picked_selection(depth, window, view_depth, splits=splits, texel_area=texel_area, selection=selection,
+                             radius=radius, margin=margin, blend_band=blend_band, band_start=band_start,
+                             blend_curve=blend_curve, sphere_cascade=sphere_cascade, bits=bits,
+                             planar=receiver_plane_bias, device=device)
+
+
+def _picked_selection(depth, receivers, view_depth, *, splits, texel_area, selection: str, radius: int, margin: int,
+                      blend_band: float, band_start, blend_curve: int, sphere_cascade, bits: int, planar: bool,
+                      device: str) -> tuple:
+    """The selection of ``receivers`` (:class:`WorldReceivers` or :class:`WindowReceivers`) and their rows at the
+    selected cascade and the next: :func:`select_window_cascades`' outputs."""
+    _, cascade, blend, weight, rows = _launch(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
                                               selection=selection, code=SELECT_ONLY, radius=0, reach=radius,
                                               margin=margin, blend_band=blend_band, band_start=band_start,
                                               blend_curve=blend_curve, sphere_cascade=sphere_cascade, bits=bits,
                                               weights=True, picked=True, device=device)
     coords, receiver_depth, slope = rows
-    return cascade, weight, blend, coords, receiver_depth, slope if receiver_plane_bias else None
+    return cascade, weight, blend, coords, receiver_depth, slope if planar else None
 
 
 def _window_receivers(depth, boxes: EngineBoxes, points, normals, view_depth, *, receivers, basis, texel_size,
