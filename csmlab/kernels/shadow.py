@@ -65,8 +65,6 @@ __all__ = ["receiver_coordinates", "select_cascades", "select_window_cascades", 
 
 wp.set_module_options({"fuse_fp": False})
 
-SELECT_ONLY = -1
-"""The filter code of a selection that filters nothing (:func:`select_cascades`: its filter runs after it)."""
 
 @wp.func
 def tap(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int64, receiver: wp.float32,
@@ -408,46 +406,17 @@ def receiver_in(r: WindowReceivers, light: WindowPoint, c: int, k: int):  # noqa
     return x, y, d, slope
 
 
-@wp.kernel
-def shadow_lookup_kernel(
-    depth: wp.array3d(dtype=wp.float32),
-    receivers: Any,
-    view_depth: wp.array(dtype=wp.float64),
-    splits: wp.array(dtype=wp.float64),
-    texel_area: wp.array(dtype=wp.float64),
-    sphere_cascade: wp.array(dtype=wp.int32),
-    bits: int,
-    selection: int,
-    filter_code: int,
-    radius: int,
-    reach: int,
-    margin: int,
-    band_start: wp.array(dtype=wp.float64),
-    blend_curve: int,
-    keep_weight: int,
-    keep_picked: int,
-    lit: wp.array(dtype=wp.float32),
-    cascade: wp.array(dtype=wp.int32),
-    blend: wp.array(dtype=wp.int32),
-    blend_weight: wp.array(dtype=wp.float64),
-    picked_coords: wp.array3d(dtype=wp.int64),
-    picked_depth: wp.array2d(dtype=wp.float32),
-    picked_slope: wp.array2d(dtype=wp.vec2d),
-):
-    k = wp.tid()
-    unit = wp.int64(1) << wp.int64(bits)
-    inverse_span = wp.float64(1.0) / wp.float64(wp.int64(2) * unit)
-    count = depth.shape[0]
-    size = wp.int64(depth.shape[1])
-    # A box holds a point for sampling when every tap (`reach` texels around it) is inside it, and
-    # for `map` selection when the point is also `margin` texels inside its edges.
-    tap_lo = wp.int64(reach) * unit
-    tap_hi = (size - wp.int64(reach)) * unit
-    select_lo = wp.int64(margin) * unit
-    select_hi = (size - wp.int64(margin)) * unit
-    z = view_depth[k]
-    # The receiver in the light's basis once, whichever cascades the selection and the blend read.
-    light = receiver_light(receivers, k)
+@wp.func
+def selected_cascade(receivers: Any, light: Any, k: int, z: wp.float64, selection: int, count: int,
+                     splits: wp.array(dtype=wp.float64), texel_area: wp.array(dtype=wp.float64),
+                     sphere_cascade: wp.array(dtype=wp.int32), tap_lo: wp.int64, tap_hi: wp.int64,
+                     select_lo: wp.int64, select_hi: wp.int64):
+    """Receiver k's cascade under ``selection`` (−1: none) and the receiver there (:func:`receiver_in`): fixed-point
+    ``x, y``, biased depth and slope.
+
+    A box holds a point for sampling when every tap is inside ``[tap_lo, tap_hi)``, and for ``map``
+    selection when the point is also inside ``[select_lo, select_hi)`` (fixed point).
+    """
     chosen = int(-1)
     x = wp.int64(0)
     y = wp.int64(0)
@@ -480,53 +449,139 @@ def shadow_lookup_kernel(
                     receiver = rc
                     slope = sc
             c += 1
+    return chosen, x, y, receiver, slope
+
+
+@wp.func
+def band_weight(z: wp.float64, chosen: int, count: int, splits: wp.array(dtype=wp.float64),
+                band_start: wp.array(dtype=wp.float64), blend_curve: int) -> wp.float64:
+    """The next cascade's weight in [0, 1) at view depth ``z`` in cascade ``chosen``'s blend band; −1 outside it.
+
+    The band of cascade ``chosen`` runs from ``band_start[chosen]`` (+inf: none) to where the
+    selection leaves it (:func:`csmlab.cascades.fit.transition_bands`).
+    """
+    nxt = chosen + 1
+    w = wp.float64(-1.0)
+    if nxt < count:
+        z1 = splits[nxt]
+        start = band_start[chosen]
+        if z >= start and z < z1:
+            w = (z - start) / (z1 - start)
+            if blend_curve == BLEND_SMOOTHSTEP:
+                w = w * w * (wp.float64(3.0) - wp.float64(2.0) * w)
+    return w
+
+
+@wp.kernel
+def shadow_lookup_kernel(
+    depth: wp.array3d(dtype=wp.float32),
+    receivers: Any,
+    view_depth: wp.array(dtype=wp.float64),
+    splits: wp.array(dtype=wp.float64),
+    texel_area: wp.array(dtype=wp.float64),
+    sphere_cascade: wp.array(dtype=wp.int32),
+    bits: int,
+    selection: int,
+    reach: int,
+    margin: int,
+    band_start: wp.array(dtype=wp.float64),
+    blend_curve: int,
+    filter_code: int,
+    radius: int,
+    lit: wp.array(dtype=wp.float32),
+    cascade: wp.array(dtype=wp.int32),
+    blend: wp.array(dtype=wp.int32),
+):
+    k = wp.tid()
+    unit = wp.int64(1) << wp.int64(bits)
+    inverse_span = wp.float64(1.0) / wp.float64(wp.int64(2) * unit)
+    count = depth.shape[0]
+    size = wp.int64(depth.shape[1])
+    z = view_depth[k]
+    # The receiver in the light's basis once, whichever cascades the selection and the blend read.
+    light = receiver_light(receivers, k)
+    chosen, x, y, receiver, slope = selected_cascade(
+        receivers, light, k, z, selection, count, splits, texel_area, sphere_cascade, wp.int64(reach) * unit,
+        (size - wp.int64(reach)) * unit, wp.int64(margin) * unit, (size - wp.int64(margin)) * unit)
     cascade[k] = chosen
     blend[k] = 0
-    if keep_weight != 0:
-        blend_weight[k] = wp.float64(0.0)
     if chosen < 0:
         lit[k] = 0.0
         return
+    s = lit_fraction(depth, chosen, x, y, receiver, slope, bits, inverse_span, filter_code, radius)
+    w = band_weight(z, chosen, count, splits, band_start, blend_curve)
+    if w >= wp.float64(0.0):
+        xn, yn, rn, sn = receiver_in(receivers, light, chosen + 1, k)
+        if holds(xn, yn, wp.int64(reach) * unit, (size - wp.int64(reach)) * unit):
+            s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, chosen + 1, xn, yn, rn, sn, bits, inverse_span,
+                                                             filter_code, radius)
+            blend[k] = 1
+    lit[k] = wp.float32(s)
+
+
+@wp.kernel
+def selection_kernel(
+    depth: wp.array3d(dtype=wp.float32),
+    receivers: Any,
+    view_depth: wp.array(dtype=wp.float64),
+    splits: wp.array(dtype=wp.float64),
+    texel_area: wp.array(dtype=wp.float64),
+    sphere_cascade: wp.array(dtype=wp.int32),
+    bits: int,
+    selection: int,
+    reach: int,
+    margin: int,
+    band_start: wp.array(dtype=wp.float64),
+    blend_curve: int,
+    keep_picked: int,
+    cascade: wp.array(dtype=wp.int32),
+    blend: wp.array(dtype=wp.int32),
+    blend_weight: wp.array(dtype=wp.float64),
+    picked_coords: wp.array3d(dtype=wp.int64),
+    picked_depth: wp.array2d(dtype=wp.float32),
+    picked_slope: wp.array2d(dtype=wp.vec2d),
+):
+    """:func:`shadow_lookup_kernel`'s selection and blend band without a filter: each receiver's cascade, blend and
+    blend weight, and (``keep_picked``) the receiver at its selected cascade (row 0) and, in the blend band, the next
+    (row 1): what a filter run after the selection reads."""
+    k = wp.tid()
+    unit = wp.int64(1) << wp.int64(bits)
+    count = depth.shape[0]
+    size = wp.int64(depth.shape[1])
+    z = view_depth[k]
+    light = receiver_light(receivers, k)
+    chosen, x, y, receiver, slope = selected_cascade(
+        receivers, light, k, z, selection, count, splits, texel_area, sphere_cascade, wp.int64(reach) * unit,
+        (size - wp.int64(reach)) * unit, wp.int64(margin) * unit, (size - wp.int64(margin)) * unit)
+    cascade[k] = chosen
+    blend[k] = 0
+    blend_weight[k] = wp.float64(0.0)
+    if chosen < 0:
+        return
     if keep_picked != 0:
-        # The receiver at its selected cascade (row 0) and, in the blend band, the next (row 1): what a filter
-        # run after the selection reads.
         picked_coords[0, k, 0] = x
         picked_coords[0, k, 1] = y
         picked_depth[0, k] = receiver
         picked_slope[0, k] = slope
-    filtered = filter_code != SELECT_ONLY
-    s = wp.float64(0.0)
-    if filtered:
-        s = lit_fraction(depth, chosen, x, y, receiver, slope, bits, inverse_span, filter_code, radius)
-    nxt = chosen + 1
-    if nxt < count:
-        # The band of cascade `chosen` runs from band_start[chosen] (+inf: none) to where the
-        # selection leaves it (csmlab.cascades.fit.transition_bands).
-        z1 = splits[nxt]
-        start = band_start[chosen]
-        if z >= start and z < z1:
-            xn, yn, rn, sn = receiver_in(receivers, light, nxt, k)
-            if holds(xn, yn, tap_lo, tap_hi):
-                w = (z - start) / (z1 - start)
-                if blend_curve == BLEND_SMOOTHSTEP:
-                    w = w * w * (wp.float64(3.0) - wp.float64(2.0) * w)
-                if filtered:
-                    s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, nxt, xn, yn, rn, sn, bits, inverse_span,
-                                                                     filter_code, radius)
-                blend[k] = 1
-                if keep_weight != 0:
-                    blend_weight[k] = w
-                if keep_picked != 0:
-                    picked_coords[1, k, 0] = xn
-                    picked_coords[1, k, 1] = yn
-                    picked_depth[1, k] = rn
-                    picked_slope[1, k] = sn
-    lit[k] = wp.float32(s)
+    w = band_weight(z, chosen, count, splits, band_start, blend_curve)
+    if w >= wp.float64(0.0):
+        xn, yn, rn, sn = receiver_in(receivers, light, chosen + 1, k)
+        if holds(xn, yn, wp.int64(reach) * unit, (size - wp.int64(reach)) * unit):
+            blend[k] = 1
+            blend_weight[k] = w
+            if keep_picked != 0:
+                picked_coords[1, k, 0] = xn
+                picked_coords[1, k, 1] = yn
+                picked_depth[1, k] = rn
+                picked_slope[1, k] = sn
 
 
 wp.overload(shadow_lookup_kernel, {"receivers": FixedReceivers})
 wp.overload(shadow_lookup_kernel, {"receivers": WorldReceivers})
 wp.overload(shadow_lookup_kernel, {"receivers": WindowReceivers})
+wp.overload(selection_kernel, {"receivers": FixedReceivers})
+wp.overload(selection_kernel, {"receivers": WorldReceivers})
+wp.overload(selection_kernel, {"receivers": WindowReceivers})
 
 
 def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_area, selection: str,
@@ -599,10 +654,10 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
     device = checked_device(device)
     code = family_code(filter, family="box")
     receivers = _fixed_receivers(depth, coords, receiver_depth, view_depth, receiver_slope, device=device)
-    lit, cascade, blend, _, _ = _launch(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
-                                     selection=selection, code=code, radius=radius, reach=radius, margin=margin,
-                                     blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
-                                     sphere_cascade=sphere_cascade, bits=bits, weights=False, device=device)
+    lit, cascade, blend = _launch(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
+                                  selection=selection, code=code, radius=radius, reach=radius, margin=margin,
+                                  blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
+                                  sphere_cascade=sphere_cascade, bits=bits, device=device)
     return lit, cascade.astype(np.int8), blend
 
 
@@ -634,10 +689,11 @@ def select_cascades(depth, coords, receiver_depth, view_depth, *, splits, texel_
     """
     device = checked_device(device)
     receivers = _fixed_receivers(depth, coords, receiver_depth, view_depth, None, device=device)
-    _, cascade, blend, weight, _ = _launch(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
-                                        selection=selection, code=SELECT_ONLY, radius=0, reach=radius, margin=margin,
-                                        blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
-                                        sphere_cascade=sphere_cascade, bits=bits, weights=True, device=device)
+    cascade, blend, weight, _ = _launch_selection(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
+                                                  selection=selection, reach=radius, margin=margin,
+                                                  blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
+                                                  sphere_cascade=sphere_cascade, bits=bits, picked=False,
+                                                  device=device)
     return cascade, weight, blend
 
 
@@ -674,10 +730,10 @@ def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis,
     if world.index.shape[0] != np.shape(view_depth)[0] or np.ndim(view_depth) != 1:
         raise ValueError(f"view_depth: expected one view depth per receiver ({world.index.shape[0]},), "
                          f"got shape {np.shape(view_depth)}")
-    lit, cascade, blend, _, _ = _launch(depth, world, view_depth, splits=splits, texel_area=texel_area,
-                                     selection=selection, code=code, radius=radius, reach=radius, margin=margin,
-                                     blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
-                                     sphere_cascade=sphere_cascade, bits=bits, weights=False, device=device)
+    lit, cascade, blend = _launch(depth, world, view_depth, splits=splits, texel_area=texel_area,
+                                  selection=selection, code=code, radius=radius, reach=radius, margin=margin,
+                                  blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
+                                  sphere_cascade=sphere_cascade, bits=bits, device=device)
     return lit, cascade.astype(np.int8), blend
 
 
@@ -749,10 +805,10 @@ def shadow_lookup_window(depth, boxes: EngineBoxes, points, normals, view_depth,
     code = family_code(filter, family="box")
     window = _window_receivers(depth, boxes, points, normals, view_depth, receivers=receivers, basis=basis,
                                texel_size=texel_size, zref=zref, bias=bias, planar=receiver_plane_bias, device=device)
-    lit, cascade, blend, _, _ = _launch(depth, window, view_depth, splits=splits, texel_area=texel_area,
-                                        selection=selection, code=code, radius=radius, reach=radius, margin=margin,
-                                        blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
-                                        sphere_cascade=sphere_cascade, bits=bits, weights=False, device=device)
+    lit, cascade, blend = _launch(depth, window, view_depth, splits=splits, texel_area=texel_area,
+                                  selection=selection, code=code, radius=radius, reach=radius, margin=margin,
+                                  blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
+                                  sphere_cascade=sphere_cascade, bits=bits, device=device)
     return lit, cascade.astype(np.int8), blend
 
 
@@ -800,11 +856,11 @@ def _picked_selection(depth, receivers, view_depth, *, splits, texel_area, selec
                       device: str) -> tuple:
     """The selection of ``receivers`` (:class:`WorldReceivers` or :class:`WindowReceivers`) and their rows at the
     selected cascade and the next: :func:`select_window_cascades`' outputs."""
-    _, cascade, blend, weight, rows = _launch(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
-                                              selection=selection, code=SELECT_ONLY, radius=0, reach=radius,
-                                              margin=margin, blend_band=blend_band, band_start=band_start,
-                                              blend_curve=blend_curve, sphere_cascade=sphere_cascade, bits=bits,
-                                              weights=True, picked=True, device=device)
+    cascade, blend, weight, rows = _launch_selection(depth, receivers, view_depth, splits=splits,
+                                                     texel_area=texel_area, selection=selection, reach=radius,
+                                                     margin=margin, blend_band=blend_band, band_start=band_start,
+                                                     blend_curve=blend_curve, sphere_cascade=sphere_cascade,
+                                                     bits=bits, picked=True, device=device)
     coords, receiver_depth, slope = rows
     return cascade, weight, blend, coords, receiver_depth, slope if planar else None
 
@@ -849,25 +905,70 @@ def _fixed_receivers(depth, coords, receiver_depth, view_depth, receiver_slope, 
     return receivers
 
 
-def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str, code: int, radius: int, reach: int,
-            margin: int, blend_band: float, bits: int, weights: bool, device: str, band_start=None,
-            blend_curve: int = 0, sphere_cascade=None, picked: bool = False) -> tuple:
+def _launch(depth, receivers, view_depth, *, code: int, radius: int, device: str, **selection) -> tuple:
     """Launch :func:`shadow_lookup_kernel` over ``receivers`` (:class:`FixedReceivers`, :class:`WorldReceivers` or
-    :class:`WindowReceivers`).
+    :class:`WindowReceivers`) with the box filter ``code`` of ``radius`` run at the selected cascade; ``selection``
+    the keyword arguments of :func:`_selection_inputs`.
 
-    ``code`` and ``radius`` are the box filter run at the selected cascade (:data:`SELECT_ONLY`: none,
-    ``lit`` 0 where selected), ``reach`` the taps a selected box must hold. Returns ``lit`` (NaN where
-    none selected), ``cascade`` int32, ``blend`` bool, with ``weights`` the blend weights float64 (else
-    None) and, with ``picked``, the receivers at their selected cascade and the next (rows 0 and 1 of
-    coordinates ``(2, N, 2)`` int64, depths ``(2, N)`` float32, slopes ``(2, N, 2)`` float64; row 1 set
-    where the blend weight is set; else None) as NumPy arrays.
+    Returns ``lit`` (NaN where none selected), ``cascade`` int32 and ``blend`` bool as NumPy arrays.
+    """
+    if selection["reach"] < radius:
+        # box_count reads the taps unclamped: the selected box must hold every one of them.
+        raise ValueError(f"radius: the taps a selected box holds ({selection['reach']}) must reach the filter's "
+                         f"({radius})")
+    n, inputs = _selection_inputs(depth, view_depth, device=device, **selection)
+    if n == 0:
+        return np.zeros(0, np.float32), np.zeros(0, np.int32), np.zeros(0, bool)
+    lit = wp.empty(n, dtype=wp.float32, device=device)
+    chosen = wp.empty(n, dtype=wp.int32, device=device)
+    blended = wp.empty(n, dtype=wp.int32, device=device)
+    wp.launch(shadow_lookup_kernel, dim=n, inputs=(inputs[0], receivers) + inputs[1:] + (code, int(radius)),
+              outputs=(lit, chosen, blended), device=device)
+    cascade = chosen.numpy()
+    s = lit.numpy()
+    s[cascade < 0] = np.nan
+    return s, cascade, blended.numpy().astype(bool)
+
+
+def _launch_selection(depth, receivers, view_depth, *, picked: bool, device: str, **selection) -> tuple:
+    """Launch :func:`selection_kernel` over ``receivers``; ``selection`` the keyword arguments of
+    :func:`_selection_inputs`.
+
+    Returns ``cascade`` int32, ``blend`` bool, the blend weights float64 and, with ``picked``, the
+    receivers at their selected cascade and the next (rows 0 and 1 of coordinates ``(2, N, 2)`` int64,
+    depths ``(2, N)`` float32, slopes ``(2, N, 2)`` float64; row 1 set where the blend weight is set;
+    else None) as NumPy arrays.
+    """
+    n, inputs = _selection_inputs(depth, view_depth, device=device, **selection)
+    if n == 0:
+        rows = (np.zeros((2, 0, 2), np.int64), np.zeros((2, 0), np.float32), np.zeros((2, 0, 2))) if picked else None
+        return np.zeros(0, np.int32), np.zeros(0, bool), np.zeros(0), rows
+    chosen = wp.empty(n, dtype=wp.int32, device=device)
+    blended = wp.empty(n, dtype=wp.int32, device=device)
+    weight = wp.empty(n, dtype=wp.float64, device=device)
+    # Without picked rows, one element stands in for each array the kernel does not write.
+    shape = (2, n) if picked else (1, 1)
+    picked_coords = wp.empty(shape + (2,), dtype=wp.int64, device=device)
+    picked_depth = wp.empty(shape, dtype=wp.float32, device=device)
+    picked_slope = wp.empty(shape, dtype=wp.vec2d, device=device)
+    wp.launch(selection_kernel, dim=n, inputs=(inputs[0], receivers) + inputs[1:] + (int(picked),),
+              outputs=(chosen, blended, weight, picked_coords, picked_depth, picked_slope), device=device)
+    rows = (picked_coords.numpy(), picked_depth.numpy(), picked_slope.numpy()) if picked else None
+    return chosen.numpy(), blended.numpy().astype(bool), weight.numpy(), rows
+
+
+def _selection_inputs(depth, view_depth, *, splits, texel_area, selection: str, reach: int, margin: int,
+                      blend_band: float, bits: int, device: str, band_start=None, blend_curve: int = 0,
+                      sphere_cascade=None) -> tuple[int, tuple]:
+    """The receivers' count and the selection's inputs of :func:`shadow_lookup_kernel` and
+    :func:`selection_kernel` (all but ``receivers``, which follows the first), checked.
+
+    ``reach`` is the taps a selected box must hold, ``margin`` the ``map`` selection's inset (widened
+    to ``reach``).
     """
     selected = SELECTION_METHODS[check_name(selection, SELECTION_METHODS, field="selection")]
     if not (isinstance(reach, (int, np.integer)) and reach >= 0):
         raise ValueError(f"radius: expected a non-negative integer, got {reach!r}")
-    if reach < radius:
-        # box_count reads the taps unclamped: the selected box must hold every one of them.
-        raise ValueError(f"radius: the taps a selected box holds ({reach}) must reach the filter's ({radius})")
     maps = np.ascontiguousarray(depth, dtype=np.float32)
     vd = np.ascontiguousarray(view_depth, dtype=np.float64)
     z = np.ascontiguousarray(splits, dtype=np.float64)
@@ -894,48 +995,15 @@ def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str,
     else:
         # The other selections read no sphere: one element stands in for the array.
         spheres = np.full(1, -1, dtype=np.int32)
-    if n == 0:
-        empty = (np.zeros((2, 0, 2), np.int64), np.zeros((2, 0), np.float32), np.zeros((2, 0, 2))) if picked else None
-        return np.zeros(0, np.float32), np.zeros(0, np.int32), np.zeros(0, bool), np.zeros(0) if weights else None, \
-            empty
-    lit = wp.empty(n, dtype=wp.float32, device=device)
-    chosen = wp.empty(n, dtype=wp.int32, device=device)
-    blended = wp.empty(n, dtype=wp.int32, device=device)
-    # The box filters' lookups keep no weights: one element stands in for the array they do not write.
-    weight = wp.empty(n if weights else 1, dtype=wp.float64, device=device)
-    rows = (2, n) if picked else (1, 1)
-    picked_coords = wp.empty(rows + (2,), dtype=wp.int64, device=device)
-    picked_depth = wp.empty(rows, dtype=wp.float32, device=device)
-    picked_slope = wp.empty(rows, dtype=wp.vec2d, device=device)
-    wp.launch(
-        shadow_lookup_kernel,
-        dim=n,
-        inputs=(
-            wp.array(maps, dtype=wp.float32, device=device, copy=False),
-            receivers,
-            wp.array(vd, dtype=wp.float64, device=device, copy=False),
-            wp.array(z, dtype=wp.float64, device=device, copy=False),
-            wp.array(area, dtype=wp.float64, device=device, copy=False),
-            wp.array(spheres, dtype=wp.int32, device=device, copy=False),
-            int(bits),
-            selected.code,
-            code,
-            int(radius),
-            int(reach),
-            max(int(margin), int(reach)),
-            wp.array(np.ascontiguousarray(start), dtype=wp.float64, device=device, copy=False),
-            int(blend_curve),
-            int(weights),
-            int(picked),
-        ),
-        outputs=(lit, chosen, blended, weight, picked_coords, picked_depth, picked_slope),
-        device=device,
-    )
-    cascade = chosen.numpy()
-    s = lit.numpy()
-    s[cascade < 0] = np.nan
-    rows = (picked_coords.numpy(), picked_depth.numpy(), picked_slope.numpy()) if picked else None
-    return s, cascade, blended.numpy().astype(bool), weight.numpy() if weights else None, rows
+    inputs = (wp.array(maps, dtype=wp.float32, device=device, copy=False),
+              wp.array(vd, dtype=wp.float64, device=device, copy=False),
+              wp.array(z, dtype=wp.float64, device=device, copy=False),
+              wp.array(area, dtype=wp.float64, device=device, copy=False),
+              wp.array(spheres, dtype=wp.int32, device=device, copy=False),
+              int(bits), selected.code, int(reach), max(int(margin), int(reach)),
+              wp.array(np.ascontiguousarray(start), dtype=wp.float64, device=device, copy=False),
+              int(blend_curve))
+    return n, inputs
 
 
 @wp.func
