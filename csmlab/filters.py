@@ -15,10 +15,13 @@ through it). Each step is decided once, in the order it runs:
 4. **Cascade selection** — the ``selection`` method with the margin and the filter's radius, and the
    blend band toward the next cascade (:func:`csmlab.kernels.shadow.select_cascades`).
 5. **The family's kernel** (:data:`FAMILY_LOOKUPS`) — ``box`` filters run inside the selection
-   kernel itself (:func:`csmlab.kernels.shadow.shadow_lookup`; over cascades of one size in
-   float64 math it converts world receivers itself, steps 3–5 in one launch); ``weighted``
-   filters run :func:`csmlab.kernels.pcf.weighted_pcf` and ``moment`` filters
-   :func:`csmlab.kernels.moments.moment_lookup` (or its mip-chain lookup) at the selected cascade.
+   kernel itself (:func:`csmlab.kernels.shadow.shadow_lookup`; over unwarped cascades of one size
+   it converts world receivers itself, into the cascades it reads only, on the float64 grid or in
+   an engine's window space: steps 3–5 in one launch); ``weighted`` filters run
+   :func:`csmlab.kernels.pcf.weighted_pcf` at the selected cascade (there too, on the rows the
+   selection picked for it, :func:`csmlab.kernels.shadow.select_world_cascades`,
+   :func:`~csmlab.kernels.shadow.select_window_cascades`) and ``moment`` filters
+   :func:`csmlab.kernels.moments.moment_lookup` (or its mip-chain lookup).
 6. **Fade** — toward lit over the end of the shadow distance (:func:`csmlab.fades.faded`).
 
 Width per cascade: in texels from ``filter_size`` / ``filter_sigma``, or, with ``filter_width_m > 0``,
@@ -45,7 +48,8 @@ from csmlab.kernels.bias import BiasSettings
 from csmlab.kernels.moments import blur_moments, moment_lookup, moment_maps, moment_mip_chain, moment_mip_lookup
 from csmlab.kernels.pages import page_lookup
 from csmlab.kernels.pcf import weighted_pcf
-from csmlab.kernels.shadow import (receiver_coordinates, select_cascades, shadow_lookup, shadow_lookup_world,
+from csmlab.kernels.shadow import (receiver_coordinates, select_cascades, select_window_cascades,
+                                   select_world_cascades, shadow_lookup, shadow_lookup_window, shadow_lookup_world,
                                    split_sphere_cascades)
 from csmlab.lookup_choices import FILTER_METHODS, OUTSIDE_METHODS, Filter
 from csmlab.quads import Quads, quad_derivatives
@@ -340,9 +344,8 @@ def texel_coordinates(cascades: CascadeSet, points: np.ndarray, normals: np.ndar
     conversion = _conversion(cascades, settings)
     del conversion["origin_fixed"]
     if not cascades.warped:
-        boxes = window_boxes(cascades, bits=bits, precision=settings.engine_precision, snap=settings.vertex_snap,
-                             rebase_distance=settings.rebase_distance, device=device)
-        return window_receivers(boxes, points, normals, receivers=rows, **conversion, device=device)
+        return window_receivers(_window_boxes(cascades, settings, device=device), points, normals, receivers=rows,
+                                **conversion, device=device)
     if all(c.warp is not None for c in cascades.cascades):
         return warped_receivers(np.stack([c.warp.homography for c in cascades.cascades]), points, normals,
                                 receivers=rows, bits=bits, **conversion, device=device)
@@ -352,6 +355,33 @@ def texel_coordinates(cascades: CascadeSet, points: np.ndarray, normals: np.ndar
                            normal_offset_m=settings.normal_offset_m,
                            precision=settings.engine_precision, snap=settings.vertex_snap,
                            rebase_distance=settings.rebase_distance)
+
+
+def _window_boxes(cascades: CascadeSet, settings: ShadowSettings, *, device: str):
+    """The :class:`csmlab.kernels.engine.EngineBoxes` of unwarped cascades in an engine's window space
+    (``engine_precision``, ``vertex_snap``)."""
+    return window_boxes(cascades, bits=settings.subtexel_bits, precision=settings.engine_precision,
+                        snap=settings.vertex_snap, rebase_distance=settings.rebase_distance, device=device)
+
+
+def _converted_in_kernel(maps: ShadowMaps, settings: ShadowSettings) -> str | None:
+    """Where the selection kernel converts world receivers itself, into the cascades it reads only: ``"world"``
+    (the global float64 grid), ``"window"`` (an engine's window space) or None (the receivers converted into every
+    cascade first: warped cascades, or a cascade smaller than the maps, whose corner :func:`_selectable` marks)."""
+    cascades = maps.cascades
+    if cascades.warped or any(c.resolution != maps.depth.shape[1] for c in cascades.cascades):
+        return None
+    return "world" if uses_global_grid(precision=settings.engine_precision, snap=settings.vertex_snap) else "window"
+
+
+def _window_conversion(maps: ShadowMaps, receivers: Receivers, settings: ShadowSettings, *, device: str) -> dict:
+    """The keyword arguments that take ``receivers`` into window space in the selection kernel
+    (:func:`csmlab.kernels.shadow.shadow_lookup_window`, :func:`csmlab.kernels.shadow.select_window_cascades`)."""
+    conversion = _conversion(maps.cascades, settings)
+    del conversion["origin_fixed"]
+    return dict(boxes=_window_boxes(maps.cascades, settings, device=device), points=receivers.points,
+                normals=receivers.normals, view_depth=receivers.view_depth, receivers=receivers.index,
+                receiver_plane_bias=settings.receiver_plane_bias, **conversion)
 
 
 def _selectable(coords: np.ndarray, cascades: CascadeSet, *, margin: int, bits: int, resolution: int) -> np.ndarray:
@@ -392,14 +422,17 @@ def _box_lookup(maps: ShadowMaps, receivers: Receivers, *, record: Filter, radiu
                 settings: ShadowSettings, device: str) -> tuple:
     """Steps 3–5 for a ``box`` filter: the selection kernel filters at the cascade it selects."""
     cascades = maps.cascades
-    if uses_global_grid(precision=settings.engine_precision, snap=settings.vertex_snap) and not cascades.warped and all(
-            c.resolution == maps.depth.shape[1] for c in cascades.cascades):
+    converted = _converted_in_kernel(maps, settings)
+    if converted == "world":
         # Each receiver converted where the kernel reads it: no (C, N) arrays of every receiver in
         # every cascade (the same bits as texel_coordinates then shadow_lookup).
         return shadow_lookup_world(maps.depth, receivers.points, receivers.normals, receivers.view_depth,
                                    receivers=receivers.index, **_conversion(cascades, settings),
                                    receiver_plane_bias=settings.receiver_plane_bias, filter=record.name, radius=radius,
                                    **selection, device=device)
+    if converted == "window":
+        return shadow_lookup_window(maps.depth, **_window_conversion(maps, receivers, settings, device=device),
+                                    filter=record.name, radius=radius, **selection, device=device)
     coords, depth, slope = _fixed_receivers(maps, receivers, selection=selection, settings=settings, device=device)
     return shadow_lookup(maps.depth, coords, depth, receivers.view_depth, filter=record.name, radius=radius,
                          receiver_slope=slope, **selection, device=device)
@@ -407,10 +440,28 @@ def _box_lookup(maps: ShadowMaps, receivers: Receivers, *, record: Filter, radiu
 
 def _weighted_lookup(maps: ShadowMaps, receivers: Receivers, *, record: Filter, radius: int, selection: dict,
                      settings: ShadowSettings, device: str) -> tuple:
-    """Steps 3–5 for a ``weighted`` filter: select, then weigh the taps at the selected cascade (and the next)."""
-    coords, depth, slope = _fixed_receivers(maps, receivers, selection=selection, settings=settings, device=device)
-    chosen, weight, band = select_cascades(maps.depth, coords, depth, receivers.view_depth, radius=radius,
-                                           **selection, device=device)
+    """Steps 3–5 for a ``weighted`` filter: select, then weigh the taps at the selected cascade (and the next).
+
+    Where the selection kernel converts receivers itself (:func:`_converted_in_kernel`), it takes each
+    into the cascades it reads and hands the filter those rows only (the same bits as converting it
+    into every cascade first).
+    """
+    converted = _converted_in_kernel(maps, settings)
+    picked = converted is not None
+    if converted == "world":
+        chosen, weight, band, coords, depth, slope = select_world_cascades(
+            maps.depth, receivers.points, receivers.normals, receivers.view_depth, receivers=receivers.index,
+            **_conversion(maps.cascades, settings), receiver_plane_bias=settings.receiver_plane_bias, radius=radius,
+            **selection, device=device)
+    elif converted == "window":
+        chosen, weight, band, coords, depth, slope = select_window_cascades(
+            maps.depth, **_window_conversion(maps, receivers, settings, device=device), radius=radius, **selection,
+            device=device)
+    else:
+        coords, depth, slope = _fixed_receivers(maps, receivers, selection=selection, settings=settings,
+                                                device=device)
+        chosen, weight, band = select_cascades(maps.depth, coords, depth, receivers.view_depth, radius=radius,
+                                               **selection, device=device)
     angle = None if receivers.pixels is None else 2.0 * np.pi * interleaved_gradient_noise(
         receivers.pixels, frame=receivers.noise_frame)
     texel = np.array([float(np.max(c.texel_size)) for c in maps.cascades.cascades])
@@ -418,7 +469,7 @@ def _weighted_lookup(maps: ShadowMaps, receivers: Receivers, *, record: Filter, 
                        width=record.width_of(texel, settings, maps.cascades.splits[1:]), radius=radius,
                        bits=settings.subtexel_bits,
                        receiver_slope=slope, blend_weight=weight, angle=angle, disk=record.offsets_of(settings),
-                       device=device)
+                       picked=picked, device=device)
     return lit, chosen.astype(np.int8), band
 
 

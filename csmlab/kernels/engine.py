@@ -27,7 +27,8 @@ from csmlab.kernels.raster.kernels import vec2l
 from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 from csmlab.lookup_choices import NORMAL_NONE, NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN
 
-__all__ = ["EngineBoxes", "engine_boxes", "warped_receivers", "warped_vertices", "window_receivers", "window_vertices"]
+__all__ = ["EngineBoxes", "EngineReceivers", "engine_boxes", "engine_receivers", "warped_receivers", "warped_vertices",
+           "window_receivers", "window_vertices"]
 
 # Products and sums rounded one by one on both devices, as NumPy rounds them.
 wp.set_module_options({"fuse_fp": False})
@@ -328,6 +329,104 @@ def receiver_slopes(nx: wp.float64, ny: wp.float64, nz: wp.float64, max_tan: wp.
     return tan, plane_x, plane_y, factor
 
 
+@wp.struct
+class WindowPoint:
+    """One receiver as every cascade's window-space conversion reads it (:func:`window_point`): its point and normal
+    in float32 (``p32`` from the boxes' origin, float32 mode) and in the light's basis, and its normal's slopes
+    (:func:`receiver_slopes`)."""
+
+    p32: wp.vec3
+    n32: wp.vec3
+    px: wp.float64
+    py: wp.float64
+    pz: wp.float64
+    nx: wp.float64
+    ny: wp.float64
+    nz: wp.float64
+    tan: wp.float64
+    plane_x: wp.float64
+    plane_y: wp.float64
+    factor: wp.float64
+
+
+@wp.func
+def window_point(r: EngineReceivers, boxes: EngineBoxes, k: int) -> WindowPoint:
+    """Receiver k's :class:`WindowPoint`: computed once per receiver, whichever cascades it is taken into."""
+    point = r.points[r.index[k]]
+    n32 = r.normals[r.index[k]]
+    normal = wp.vec3d(n32)
+    px, py, pz = light_space_xyz(point, r.basis)
+    nx, ny, nz = light_space_xyz(normal, r.basis)
+    tan, plane_x, plane_y, factor = receiver_slopes(nx, ny, nz, r.bias.max_tan, r.bias.normal_scale)
+    w = WindowPoint()
+    w.n32 = n32
+    w.px = px
+    w.py = py
+    w.pz = pz
+    w.nx = nx
+    w.ny = ny
+    w.nz = nz
+    w.tan = tan
+    w.plane_x = plane_x
+    w.plane_y = plane_y
+    w.factor = factor
+    if boxes.mode == WINDOW_FLOAT32:
+        w.p32 = float32_position(point, boxes.origin)
+    return w
+
+
+@wp.func
+def window_in(r: EngineReceivers, boxes: EngineBoxes, w: WindowPoint, c: int):
+    """The receiver ``w`` in cascade c: fixed-point ``x, y``, biased depth (float32) and receiver-plane slopes
+    ``sx, sy`` — :func:`csmlab.texels.receiver_lookup`'s operations in its order."""
+    zero = wp.float64(0.0)
+    one = wp.float64(1.0)
+    size = r.texel_size[c]
+    offset = r.bias.offset[c]
+    if r.bias.normal_scale != NORMAL_NONE:
+        offset = offset * w.factor
+    sx = w.plane_x * size[0]
+    sy = w.plane_y * size[1]
+    bias = r.bias.bias_constant[c] + r.bias.slope_bias[c] * w.tan
+    scale = boxes.scale
+    limit = boxes.limit
+    x = wp.int64(0)
+    y = wp.int64(0)
+    depth = wp.float32(0.0)
+    if boxes.mode == WINDOW_FLOAT32:
+        m = boxes.matrix[c]
+        half = boxes.half[c]
+        o32 = wp.float32(offset)
+        p32 = w.p32
+        n32 = w.n32
+        mx = p32[0] + n32[0] * o32
+        my = p32[1] + n32[1] * o32
+        mz = p32[2] + n32[2] * o32
+        x = window_fixed(clip_row(m, 0, mx, my, mz), half, scale, limit)
+        y = window_fixed(clip_row(m, 1, mx, my, mz), half, scale, limit)
+        wz = clip_row(m, 2, mx, my, mz)
+        if r.bias.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
+            wz = clip_row(m, 2, p32[0], p32[1], p32[2])
+        if r.bias.plane_offset[c] > zero:
+            bias = bias + wp.min(wp.abs(sx) + wp.abs(sy), r.bias.plane_offset[c])
+        depth = wp.float32((boxes.depth_near[c] + wp.float64(wz) * boxes.depth_span[c]) - bias)
+    else:
+        # csmlab.texels.receiver_lookup's window snap: u = n·offset + p, then / texel, − corner, · 2**bits.
+        corner = boxes.corner[c]
+        fixed = wp.float64(scale)
+        ux = w.nx * offset + w.px
+        uy = w.ny * offset + w.py
+        x = snapped(((ux / size[0]) - corner[0]) * fixed, limit)
+        y = snapped(((uy / size[1]) - corner[1]) * fixed, limit)
+        if r.bias.plane_offset[c] > zero:
+            bias = bias + wp.min(wp.abs(sx) + wp.abs(sy), r.bias.plane_offset[c])
+        along = one
+        if r.bias.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
+            along = zero
+        depth = wp.float32(((w.pz + along * offset * w.nz) - r.zref) - bias)
+    return x, y, depth, sx, sy
+
+
 @wp.kernel
 def window_receivers_kernel(
     r: EngineReceivers,
@@ -336,60 +435,15 @@ def window_receivers_kernel(
     depth: wp.array2d(dtype=wp.float32),
     slope: wp.array3d(dtype=wp.float64),
 ):
-    """Receiver k in every cascade: :func:`csmlab.texels.receiver_lookup`'s operations in its order."""
+    """Receiver k in every cascade (:func:`window_in`)."""
     k = wp.tid()
-    zero = wp.float64(0.0)
-    one = wp.float64(1.0)
-    point = r.points[r.index[k]]
-    n32 = r.normals[r.index[k]]
-    normal = wp.vec3d(n32)
-    px, py, pz = light_space_xyz(point, r.basis)
-    nx, ny, nz = light_space_xyz(normal, r.basis)
-    tan, plane_x, plane_y, factor = receiver_slopes(nx, ny, nz, r.bias.max_tan, r.bias.normal_scale)
-    float32 = boxes.mode == WINDOW_FLOAT32
-    p32 = wp.vec3()
-    if float32:
-        p32 = float32_position(point, boxes.origin)
-    scale = boxes.scale
-    limit = boxes.limit
+    w = window_point(r, boxes, k)
     c = int(0)
     while c < coords.shape[0]:
-        size = r.texel_size[c]
-        offset = r.bias.offset[c]
-        if r.bias.normal_scale != NORMAL_NONE:
-            offset = offset * factor
-        sx = plane_x * size[0]
-        sy = plane_y * size[1]
-        bias = r.bias.bias_constant[c] + r.bias.slope_bias[c] * tan
-        if float32:
-            m = boxes.matrix[c]
-            half = boxes.half[c]
-            o32 = wp.float32(offset)
-            mx = p32[0] + n32[0] * o32
-            my = p32[1] + n32[1] * o32
-            mz = p32[2] + n32[2] * o32
-            coords[c, k, 0] = window_fixed(clip_row(m, 0, mx, my, mz), half, scale, limit)
-            coords[c, k, 1] = window_fixed(clip_row(m, 1, mx, my, mz), half, scale, limit)
-            wz = clip_row(m, 2, mx, my, mz)
-            if r.bias.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
-                wz = clip_row(m, 2, p32[0], p32[1], p32[2])
-            if r.bias.plane_offset[c] > zero:
-                bias = bias + wp.min(wp.abs(sx) + wp.abs(sy), r.bias.plane_offset[c])
-            depth[c, k] = wp.float32((boxes.depth_near[c] + wp.float64(wz) * boxes.depth_span[c]) - bias)
-        else:
-            # csmlab.texels.receiver_lookup's window snap: u = n·offset + p, then / texel, − corner, · 2**bits.
-            corner = boxes.corner[c]
-            fixed = wp.float64(scale)
-            ux = nx * offset + px
-            uy = ny * offset + py
-            coords[c, k, 0] = snapped(((ux / size[0]) - corner[0]) * fixed, limit)
-            coords[c, k, 1] = snapped(((uy / size[1]) - corner[1]) * fixed, limit)
-            if r.bias.plane_offset[c] > zero:
-                bias = bias + wp.min(wp.abs(sx) + wp.abs(sy), r.bias.plane_offset[c])
-            along = one
-            if r.bias.normal_scale == NORMAL_ONE_MINUS_COS_LATERAL:
-                along = zero
-            depth[c, k] = wp.float32(((pz + along * offset * nz) - r.zref) - bias)
+        x, y, d, sx, sy = window_in(r, boxes, w, c)
+        coords[c, k, 0] = x
+        coords[c, k, 1] = y
+        depth[c, k] = d
         slope[c, k, 0] = sx
         slope[c, k, 1] = sy
         c += 1
@@ -429,14 +483,15 @@ def window_receivers(boxes: EngineBoxes, points, normals, *, basis, texel_size, 
     """
     device = checked_device(device)
     count = boxes.matrix.shape[0] if boxes.mode == WINDOW_FLOAT32 else boxes.texel_size.shape[0]
-    r = _engine_receivers(points, normals, basis=basis, texel_size=texel_size, zref=zref, bias=bias,
+    r = engine_receivers(points, normals, basis=basis, texel_size=texel_size, zref=zref, bias=bias,
                           receivers=receivers, cascades=count, device=device)
     return _launched(window_receivers_kernel, (r, boxes), count, r.index.shape[0], device)
 
 
-def _engine_receivers(points, normals, *, basis, texel_size, zref: float, bias: BiasSettings, receivers,
-                      cascades: int, device: str) -> EngineReceivers:
-    """The :class:`EngineReceivers` of :func:`window_receivers`' arguments for ``cascades`` cascades, checked."""
+def engine_receivers(points, normals, *, basis, texel_size, zref: float, bias: BiasSettings, receivers,
+                     cascades: int, device: str) -> EngineReceivers:
+    """The :class:`EngineReceivers` of :func:`window_receivers`' arguments for ``cascades`` cascades, checked (also
+    what :func:`csmlab.kernels.shadow.shadow_lookup_window` takes into window space where it reads them)."""
     p = np.ascontiguousarray(points, dtype=np.float64)
     n = np.ascontiguousarray(normals, dtype=np.float32)
     rows = np.ascontiguousarray(basis, dtype=np.float64)
@@ -666,7 +721,7 @@ def warped_receivers(homographies, points, normals, *, basis, texel_size, zref: 
         raise ValueError(f"homographies: expected shape (C, 3, 3), got {h.shape}")
     if not (isinstance(bits, (int, np.integer)) and 0 <= bits <= 16):
         raise ValueError(f"bits: expected an integer in 0..16, got {bits!r}")
-    r = _engine_receivers(points, normals, basis=basis, texel_size=texel_size, zref=zref, bias=bias,
+    r = engine_receivers(points, normals, basis=basis, texel_size=texel_size, zref=zref, bias=bias,
                           receivers=receivers, cascades=h.shape[0], device=device)
     r.scale = float(2**int(bits))
     return _launched(warped_receivers_kernel, (r, wp.array(h, dtype=wp.mat33d, device=device)), h.shape[0],

@@ -55,7 +55,7 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device
-from csmlab.kernels.shadow import bilinear_tap, tap
+from csmlab.kernels.shadow import bilinear_corner_shifted, bilinear_tap, bilinear_taps, tap
 from csmlab.lookup_choices import (PCF_BILINEAR_BOX, PCF_CASTANO, PCF_GAUSSIAN, PCF_POISSON, PCF_TENT,
                                    PCF_TENT_BILINEAR, PCF_VOGEL, family_code)
 
@@ -63,7 +63,13 @@ __all__ = ["weighted_pcf"]
 
 wp.set_module_options({"fuse_fp": False})
 
+AXIS_TAPS = 32
+"""The most taps along one axis that a separable filter's table holds (:func:`axis_table`): Castaño's kernels take
+2 or 3, the bilinear tent ``(N + 1) / 2``, at most 32 for ``filter_size`` ≤ 63 (the settings' bound, which
+:func:`weighted_pcf` checks)."""
 
+axis_texels = wp.types.vector(AXIS_TAPS, wp.int64)
+axis_values = wp.types.vector(AXIS_TAPS, wp.float64)
 
 @wp.func
 def tent_cdf(x: wp.float64, h: wp.float64) -> wp.float64:
@@ -170,18 +176,96 @@ def axis_fetch(code: int, size: int, a: int, x: wp.int64, unit: wp.int64):
 
 
 @wp.func
+def axis_table(code: int, size: int, count: int, x: wp.int64, unit: wp.int64, bits: int, inverse_span: wp.float64):
+    """The first ``count`` taps of a separable bilinear-tap filter along one axis (:func:`axis_fetch`), each as the
+    texel its bilinear footprint starts at and its fraction
+    (:func:`csmlab.kernels.shadow.bilinear_corner_shifted`), and its weight: taken once per axis, not once per
+    tap of the 2-D kernel (``count`` at most :data:`AXIS_TAPS`)."""
+    texel = axis_texels()
+    fraction = axis_values()
+    weight = axis_values()
+    a = int(0)
+    while a < count:
+        q, w = axis_fetch(code, size, a, x, unit)
+        t, f = bilinear_corner_shifted(q, unit, bits, inverse_span)
+        texel[a] = t
+        fraction[a] = f
+        weight[a] = w
+        a += 1
+    return texel, fraction, weight
+
+
+@wp.func
+def separable_lit(depth: wp.array3d(dtype=wp.float32), c: int, code: int, size: int, x: wp.int64, y: wp.int64,
+                  receiver: wp.float32, slope: wp.vec2d, unit: wp.int64, bits: int,
+                  inverse_span: wp.float64) -> wp.float64:
+    """S of Castaño's kernel or the bilinear tent (``code``) of ``size`` N: ``Σ wx·wy·tap / Σ wx·wy`` over their
+    ``(N + 1) / 2`` taps per axis, rows outer, each axis's taps from its :func:`axis_table`."""
+    count = (size + 1) // 2
+    xt, xf, xw = axis_table(code, size, count, x, unit, bits, inverse_span)
+    yt, yf, yw = axis_table(code, size, count, y, unit, bits, inverse_span)
+    s = wp.float64(0.0)
+    total = wp.float64(0.0)
+    # `while` loops: a range known only at run time costs Warp's CPU code several times more per step.
+    bj = int(0)
+    while bj < count:
+        ai = int(0)
+        while ai < count:
+            w = xw[ai] * yw[bj]
+            s += w * bilinear_taps(depth, c, xt[ai], xf[ai], yt[bj], yf[bj], receiver, slope, x, y, unit,
+                                   inverse_span)
+            total += w
+            ai += 1
+        bj += 1
+    return s / total
+
+
+@wp.func
+def bilinear_box_lit(depth: wp.array3d(dtype=wp.float32), c: int, size: int, x: wp.int64, y: wp.int64,
+                     receiver: wp.float32, slope: wp.vec2d, unit: wp.int64, bits: int,
+                     inverse_span: wp.float64) -> wp.float64:
+    """S of ``pcf_bilinear_box`` of ``size`` N: the mean of N × N bilinear taps at the point plus whole-texel offsets.
+
+    A whole-texel offset moves a tap's footprint by whole texels and leaves its fraction, so one
+    :func:`csmlab.kernels.shadow.bilinear_corner_shifted` per axis places every tap; the sum runs rows
+    outer, as the weighted form ``Σ 1·1·tap`` does, and is the same bits.
+    """
+    half = wp.int64(size // 2) * unit
+    i0, fx = bilinear_corner_shifted(x - half, unit, bits, inverse_span)
+    j0, fy = bilinear_corner_shifted(y - half, unit, bits, inverse_span)
+    s = wp.float64(0.0)
+    total = wp.float64(0.0)
+    bj = int(0)
+    while bj < size:
+        ai = int(0)
+        while ai < size:
+            s += bilinear_taps(depth, c, i0 + wp.int64(ai), fx, j0 + wp.int64(bj), fy, receiver, slope, x, y, unit,
+                               inverse_span)
+            total += wp.float64(1.0)
+            ai += 1
+        bj += 1
+    return s / total
+
+
+@wp.func
 def weighted_lit(depth: wp.array3d(dtype=wp.float32), coords: wp.array3d(dtype=wp.int64),
                  receiver_depth: wp.array2d(dtype=wp.float32), receiver_slope: wp.array2d(dtype=wp.vec2d),
-                 c: int, k: int, unit: wp.int64, code: int, radius: int, width: wp.float64,
+                 planar: int, c: int, row: int, k: int, bits: int, code: int, radius: int, width: wp.float64,
                  disk: wp.array(dtype=wp.vec2d), angle: wp.float64) -> wp.float64:
-    """S of receiver k in cascade c under the weighted filter of kernel code ``code`` (PCF_GAUSSIAN … PCF_PCSS)."""
-    x = coords[c, k, 0]
-    y = coords[c, k, 1]
-    receiver = receiver_depth[c, k]
-    slope = receiver_slope[c, k]
+    """S of receiver k in cascade c, its position, depth and slope in ``row`` of the receivers' arrays, under the
+    weighted filter of kernel code ``code`` (PCF_GAUSSIAN … PCF_PCSS), ``bits`` sub-texel bits; ``planar`` 0: a flat
+    receiver (``receiver_slope`` not read)."""
+    unit = wp.int64(1) << wp.int64(bits)
+    x = coords[row, k, 0]
+    y = coords[row, k, 1]
+    receiver = receiver_depth[row, k]
+    slope = wp.vec2d()
+    if planar != 0:
+        slope = receiver_slope[row, k]
     inverse_span = wp.float64(1.0) / wp.float64(wp.int64(2) * unit)
-    i = x // unit
-    j = y // unit
+    # An arithmetic shift floors as `//` does, without a division.
+    i = x >> wp.int64(bits)
+    j = y >> wp.int64(bits)
     # The point's position inside its texel, in texels: an exact fraction of `unit`.
     tx = wp.float64(x - i * unit) / wp.float64(unit)
     ty = wp.float64(y - j * unit) / wp.float64(unit)
@@ -201,27 +285,20 @@ def weighted_lit(depth: wp.array3d(dtype=wp.float32), coords: wp.array3d(dtype=w
         ca = wp.cos(angle)
         sa = wp.sin(angle)
         total = wp.float64(0.0)
-        for n in range(disk.shape[0]):
+        n = int(0)
+        while n < disk.shape[0]:
             o = disk[n]
             ox = wp.int64(wp.round(width * (ca * o[0] - sa * o[1]) * wp.float64(unit)))
             oy = wp.int64(wp.round(width * (sa * o[0] + ca * o[1]) * wp.float64(unit)))
-            total += bilinear_tap(depth, c, x + ox, y + oy, receiver, slope, x, y, unit, inverse_span)
+            total += bilinear_tap(depth, c, x + ox, y + oy, receiver, slope, x, y, unit, bits, inverse_span)
+            n += 1
         return total / wp.float64(disk.shape[0])
     if code == PCF_CASTANO or code == PCF_TENT_BILINEAR or code == PCF_BILINEAR_BOX:
         # width carries N / 2; Castaño's and the tent's N + 1 texels per axis take (N + 1) / 2 taps.
         size = int(wp.round(wp.float64(2.0) * width))
-        count = size
-        if code != PCF_BILINEAR_BOX:
-            count = (size + 1) // 2
-        s = wp.float64(0.0)
-        total = wp.float64(0.0)
-        for bj in range(count):
-            qy, wy = axis_fetch(code, size, bj, y, unit)
-            for ai in range(count):
-                qx, wx = axis_fetch(code, size, ai, x, unit)
-                s += wx * wy * bilinear_tap(depth, c, qx, qy, receiver, slope, x, y, unit, inverse_span)
-                total += wx * wy
-        return s / total
+        if code == PCF_BILINEAR_BOX:
+            return bilinear_box_lit(depth, c, size, x, y, receiver, slope, unit, bits, inverse_span)
+        return separable_lit(depth, c, code, size, x, y, receiver, slope, unit, bits, inverse_span)
     if code == PCF_POISSON:
         ca = wp.cos(angle)
         sa = wp.sin(angle)
@@ -230,7 +307,8 @@ def weighted_lit(depth: wp.array3d(dtype=wp.float32), coords: wp.array3d(dtype=w
             o = disk[n]
             ox = wp.int64(wp.round(width * (ca * o[0] - sa * o[1]) * wp.float64(unit)))
             oy = wp.int64(wp.round(width * (sa * o[0] + ca * o[1]) * wp.float64(unit)))
-            count += tap(depth, c, (x + ox) // unit, (y + oy) // unit, receiver, slope, x, y, unit, inverse_span)
+            count += tap(depth, c, (x + ox) >> wp.int64(bits), (y + oy) >> wp.int64(bits), receiver, slope, x, y, unit,
+                         inverse_span)
         return wp.float64(count) / wp.float64(disk.shape[0])
     if wp.isnan(receiver):
         return wp.float64(0.0)
@@ -247,12 +325,14 @@ def weighted_pcf_kernel(
     coords: wp.array3d(dtype=wp.int64),
     receiver_depth: wp.array2d(dtype=wp.float32),
     receiver_slope: wp.array2d(dtype=wp.vec2d),
+    planar: int,
+    picked: int,
     cascade: wp.array(dtype=wp.int32),
     blend_weight: wp.array(dtype=wp.float64),
     width: wp.array(dtype=wp.float64),
     angle: wp.array(dtype=wp.float64),
     disk: wp.array(dtype=wp.vec2d),
-    unit: wp.int64,
+    bits: int,
     code: int,
     radius: int,
     lit: wp.array(dtype=wp.float32),
@@ -262,40 +342,47 @@ def weighted_pcf_kernel(
     if c < 0:
         lit[k] = wp.float32(wp.nan)
         return
-    s = weighted_lit(depth, coords, receiver_depth, receiver_slope, c, k, unit, code, radius, width[c], disk,
-                     angle[k])
+    # The rows of the receivers' arrays: every cascade's, or (picked) the selected cascade's and the next's.
+    row = c
+    if picked != 0:
+        row = 0
+    s = weighted_lit(depth, coords, receiver_depth, receiver_slope, planar, c, row, k, bits, code, radius, width[c],
+                     disk, angle[k])
     w = blend_weight[k]
     if w > wp.float64(0.0):
-        s = (wp.float64(1.0) - w) * s + w * weighted_lit(depth, coords, receiver_depth, receiver_slope, c + 1, k,
-                                                         unit, code, radius, width[c + 1], disk, angle[k])
+        s = (wp.float64(1.0) - w) * s + w * weighted_lit(depth, coords, receiver_depth, receiver_slope, planar, c + 1,
+                                                         row + 1, k, bits, code, radius, width[c + 1], disk, angle[k])
     lit[k] = wp.float32(s)
 
 
-def _checked(depth, coords, receiver_depth, receiver_slope, cascade, width):
+def _checked(depth, coords, receiver_depth, receiver_slope, cascade, width, picked: bool):
     maps = np.ascontiguousarray(depth, dtype=np.float32)
     if maps.ndim != 3 or maps.shape[1] != maps.shape[2] or maps.shape[0] == 0:
         raise ValueError(f"depth: expected depth maps of shape (C, R, R), got {maps.shape}")
-    count = maps.shape[0]
+    cascades = maps.shape[0]
+    count = 2 if picked else cascades
     xy = np.ascontiguousarray(coords, dtype=np.int64)
     n = xy.shape[1] if xy.ndim == 3 else -1
     rd = np.ascontiguousarray(receiver_depth, dtype=np.float32)
-    slope = (np.zeros((count, max(n, 0), 2)) if receiver_slope is None
-             else np.ascontiguousarray(receiver_slope, dtype=np.float64))
+    # No slope: flat receivers, and one element stands in for the array the kernel does not read.
+    slope = np.zeros((1, 1, 2)) if receiver_slope is None else np.ascontiguousarray(receiver_slope, dtype=np.float64)
     chosen = np.ascontiguousarray(cascade, dtype=np.int32)
-    w = np.ascontiguousarray(np.broadcast_to(np.asarray(width, dtype=np.float64), (count,)))
-    if xy.shape != (count, n, 2) or rd.shape != (count, n) or slope.shape != (count, n, 2) or chosen.shape != (n,):
+    w = np.ascontiguousarray(np.broadcast_to(np.asarray(width, dtype=np.float64), (cascades,)))
+    if xy.shape != (count, n, 2) or rd.shape != (count, n) or chosen.shape != (n,) or (
+            receiver_slope is not None and slope.shape != (count, n, 2)):
         raise ValueError(f"coords, receiver_depth, receiver_slope, cascade: expected shapes ({count}, N, 2), "
                          f"({count}, N), ({count}, N, 2), (N,); got {xy.shape}, {rd.shape}, {slope.shape}, "
                          f"{chosen.shape}")
-    if np.any(chosen >= count):
-        raise ValueError(f"cascade: expected indices below {count} (or −1 for none), got {chosen.max()}")
+    if np.any(chosen >= cascades):
+        raise ValueError(f"cascade: expected indices below {cascades} (or −1 for none), got {chosen.max()}")
     if not np.all(np.isfinite(w) & (w > 0)):
         raise ValueError(f"width: expected positive texel widths per cascade, got {w}")
     return maps, xy, rd, slope, chosen, w, n
 
 
 def weighted_pcf(depth, coords, receiver_depth, *, cascade, filter: str, width, radius: int, bits: int,
-                 receiver_slope=None, blend_weight=None, angle=None, disk=None, device: str = "cpu") -> np.ndarray:
+                 receiver_slope=None, blend_weight=None, angle=None, disk=None, picked: bool = False,
+                 device: str = "cpu") -> np.ndarray:
     """Lit fraction S of receivers at their selected cascade under a weighted PCF filter.
 
     Parameters
@@ -328,6 +415,11 @@ def weighted_pcf(depth, coords, receiver_depth, *, cascade, filter: str, width, 
         ``pcf_poisson``, ``pcf_vogel``: rotation of the disk per receiver, radians; None: unrotated.
     disk : array_like, shape (K, 2), float64, optional
         ``pcf_poisson``, ``pcf_vogel``: tap offsets in the unit disk.
+    picked : bool
+        ``coords``, ``receiver_depth`` and ``receiver_slope`` hold two rows, ``(2, N, ...)``: each
+        receiver at its selected cascade and at the next
+        (:func:`csmlab.kernels.shadow.select_world_cascades`,
+        :func:`~csmlab.kernels.shadow.select_window_cascades`), in place of every cascade's.
     device : str
         ``"cpu"`` or ``"cuda"``.
 
@@ -340,13 +432,18 @@ def weighted_pcf(depth, coords, receiver_depth, *, cascade, filter: str, width, 
     ------
     ValueError
         On an unknown filter (the message lists the valid names), shapes that do not match, a
-        non-positive width, a missing disk for ``pcf_poisson`` or a negative radius.
+        non-positive width (or one of more than :data:`AXIS_TAPS` taps per axis for ``pcf_castano`` and
+        ``pcf_tent_bilinear``), a missing disk for ``pcf_poisson`` or a negative radius.
     """
     device = checked_device(device)
     code = family_code(filter, family="weighted")
     if not (isinstance(radius, (int, np.integer)) and radius >= 0):
         raise ValueError(f"radius: expected a non-negative integer, got {radius!r}")
-    maps, xy, rd, slope, chosen, w, n = _checked(depth, coords, receiver_depth, receiver_slope, cascade, width)
+    maps, xy, rd, slope, chosen, w, n = _checked(depth, coords, receiver_depth, receiver_slope, cascade, width,
+                                                 picked)
+    if code in (PCF_CASTANO, PCF_TENT_BILINEAR) and np.any((np.floor(2.0 * w + 0.5) + 1) // 2 > AXIS_TAPS):
+        raise ValueError(f"width: {filter} takes at most {AXIS_TAPS} taps per axis (N / 2 ≤ {AXIS_TAPS - 0.5}), "
+                         f"got {w}")
     taps = np.zeros((1, 2)) if disk is None else np.ascontiguousarray(disk, dtype=np.float64)
     if code in (PCF_POISSON, PCF_VOGEL) and (disk is None or taps.ndim != 2 or taps.shape[1] != 2
                                              or taps.shape[0] == 0):
@@ -367,13 +464,15 @@ def weighted_pcf(depth, coords, receiver_depth, *, cascade, filter: str, width, 
             wp.array(maps, dtype=wp.float32, device=device, copy=False),
             wp.array(xy, dtype=wp.int64, device=device, copy=False),
             wp.array(rd, dtype=wp.float32, device=device, copy=False),
-            wp.array(slope, dtype=wp.vec2d, device=device),
+            wp.array(slope, dtype=wp.vec2d, device=device, copy=False),
+            int(receiver_slope is not None),
+            int(bool(picked)),
             wp.array(chosen, dtype=wp.int32, device=device, copy=False),
             wp.array(blend, dtype=wp.float64, device=device, copy=False),
             wp.array(w, dtype=wp.float64, device=device, copy=False),
             wp.array(turn, dtype=wp.float64, device=device, copy=False),
             wp.array(taps, dtype=wp.vec2d, device=device),
-            wp.int64(2**bits),
+            int(bits),
             code,
             int(radius),
         ),

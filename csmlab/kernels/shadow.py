@@ -53,15 +53,18 @@ import warp as wp
 
 from csmlab.kernels import checked_device
 from csmlab.kernels.bias import BiasSettings, ReceiverBias, receiver_bias
-from csmlab.lookup_choices import (BLEND_SMOOTHSTEP, BOX_BILINEAR, BOX_TAPS, NORMAL_NONE,
+from csmlab.kernels.engine import (WINDOW_FLOAT32, EngineBoxes, EngineReceivers, WindowPoint, engine_receivers,
+                                   window_in, window_point)
+from csmlab.lookup_choices import (BLEND_SMOOTHSTEP, BOX_BILINEAR, NORMAL_NONE,
                                    NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN, SELECT_BEST_RESOLUTION, SELECT_INTERVAL,
                                    SELECT_MAP, SELECT_SPHERE, SELECTION_METHODS, family_code)
 from csmlab.registry import check_name
 
-__all__ = ["receiver_coordinates", "select_cascades", "shadow_lookup", "shadow_lookup_world", "split_sphere_cascades",
-           "world_receivers"]
+__all__ = ["receiver_coordinates", "select_cascades", "select_window_cascades", "select_world_cascades",
+           "shadow_lookup", "shadow_lookup_window", "shadow_lookup_world", "split_sphere_cascades", "world_receivers"]
 
 wp.set_module_options({"fuse_fp": False})
+
 
 @wp.func
 def tap(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: wp.int64, receiver: wp.float32,
@@ -98,17 +101,23 @@ def bilinear_corner(x: wp.int64, unit: wp.int64):
 
 
 @wp.func
-def bilinear_tap(depth: wp.array3d(dtype=wp.float32), c: int, qx: wp.int64, qy: wp.int64, receiver: wp.float32,
-                 slope: wp.vec2d, x: wp.int64, y: wp.int64, unit: wp.int64, inverse_span: wp.float64) -> wp.float64:
-    """One hardware bilinear-compare tap at fixed point ``(qx, qy)``: the 2×2 texels around it, each a :func:`tap`
-    of the receiver at ``(x, y)``, weighted bilinearly by the exact fraction of ``(qx, qy)`` between their centres.
+def bilinear_corner_shifted(x: wp.int64, unit: wp.int64, bits: int, inverse_span: wp.float64):
+    """:func:`bilinear_corner` of ``unit = 2**bits``, without a division: the same index and fraction.
 
-    What a comparison sampler with linear filtering returns (``SampleCmpLevelZero``,
-    ``textureProj(sampler2DShadow)``, ``textureSampleCompareLevel``), at the fixed point's precision
-    rather than the hardware's 8 sub-texel bits.
+    The floor division by ``2·unit`` is an arithmetic shift (which floors, as ``//`` does), and the
+    remainder's product with ``inverse_span = 1 / (2·unit)``, a power of two, is its exact quotient.
     """
-    i0, wx = bilinear_corner(qx, unit)
-    j0, wy = bilinear_corner(qy, unit)
+    x2 = wp.int64(2) * x - unit
+    i0 = x2 >> wp.int64(bits + 1)
+    return i0, wp.float64(x2 - i0 * (wp.int64(2) * unit)) * inverse_span
+
+
+@wp.func
+def bilinear_taps(depth: wp.array3d(dtype=wp.float32), c: int, i0: wp.int64, wx: wp.float64, j0: wp.int64,
+                  wy: wp.float64, receiver: wp.float32, slope: wp.vec2d, x: wp.int64, y: wp.int64, unit: wp.int64,
+                  inverse_span: wp.float64) -> wp.float64:
+    """The 2×2 texels from (i0, j0), each a :func:`tap` of the receiver at ``(x, y)``, weighted bilinearly by the
+    fractions ``wx, wy`` (:func:`bilinear_corner_shifted`): a bilinear-compare tap whose footprint is known."""
     one = wp.int64(1)
     s00 = wp.float64(tap(depth, c, i0, j0, receiver, slope, x, y, unit, inverse_span))
     s10 = wp.float64(tap(depth, c, i0 + one, j0, receiver, slope, x, y, unit, inverse_span))
@@ -116,6 +125,22 @@ def bilinear_tap(depth: wp.array3d(dtype=wp.float32), c: int, qx: wp.int64, qy: 
     s11 = wp.float64(tap(depth, c, i0 + one, j0 + one, receiver, slope, x, y, unit, inverse_span))
     w1 = wp.float64(1.0)
     return (w1 - wy) * ((w1 - wx) * s00 + wx * s10) + wy * ((w1 - wx) * s01 + wx * s11)
+
+
+@wp.func
+def bilinear_tap(depth: wp.array3d(dtype=wp.float32), c: int, qx: wp.int64, qy: wp.int64, receiver: wp.float32,
+                 slope: wp.vec2d, x: wp.int64, y: wp.int64, unit: wp.int64, bits: int,
+                 inverse_span: wp.float64) -> wp.float64:
+    """One hardware bilinear-compare tap at fixed point ``(qx, qy)``: the 2×2 texels around it, each a :func:`tap`
+    of the receiver at ``(x, y)``, weighted bilinearly by the exact fraction of ``(qx, qy)`` between their centres.
+
+    What a comparison sampler with linear filtering returns (``SampleCmpLevelZero``,
+    ``textureProj(sampler2DShadow)``, ``textureSampleCompareLevel``), at the fixed point's precision
+    rather than the hardware's 8 sub-texel bits.
+    """
+    i0, wx = bilinear_corner_shifted(qx, unit, bits, inverse_span)
+    j0, wy = bilinear_corner_shifted(qy, unit, bits, inverse_span)
+    return bilinear_taps(depth, c, i0, wx, j0, wy, receiver, slope, x, y, unit, inverse_span)
 
 
 @wp.func
@@ -127,7 +152,7 @@ def lit_fraction(depth: wp.array3d(dtype=wp.float32), c: int, x: wp.int64, y: wp
     """
     unit = wp.int64(1) << wp.int64(bits)
     if filter_code == BOX_BILINEAR:
-        return bilinear_tap(depth, c, x, y, receiver, slope, x, y, unit, inverse_span)
+        return bilinear_tap(depth, c, x, y, receiver, slope, x, y, unit, bits, inverse_span)
     # BOX_TAPS: the (2r + 1)² texels centred on the one that contains the point (r = 0: none).
     count = int(0)
     if radius == 1:
@@ -224,11 +249,13 @@ def holds(x: wp.int64, y: wp.int64, inset: wp.int64, top: wp.int64) -> bool:
 @wp.struct
 class FixedReceivers:
     """Receivers already in every cascade's fixed point (:func:`receiver_coordinates`, or an engine's window space:
-    :func:`csmlab.kernels.engine.window_receivers`)."""
+    :func:`csmlab.kernels.engine.window_receivers`); ``planar`` 0: every receiver a flat plane, and ``slope`` one
+    element that no kernel reads."""
 
     coords: wp.array3d(dtype=wp.int64)
     depth: wp.array2d(dtype=wp.float32)
     slope: wp.array2d(dtype=wp.vec2d)
+    planar: int
 
 
 @wp.struct
@@ -309,7 +336,10 @@ def receiver_light(r: WorldReceivers, k: int) -> LightReceiver:  # noqa: F811  (
 @wp.func
 def receiver_in(r: FixedReceivers, light: LightReceiver, c: int, k: int):
     """Receiver k in cascade c: fixed-point ``x, y``, biased depth and receiver-plane slope."""
-    return r.coords[c, k, 0], r.coords[c, k, 1], r.depth[c, k], r.slope[c, k]
+    slope = wp.vec2d()
+    if r.planar != 0:
+        slope = r.slope[c, k]
+    return r.coords[c, k, 0], r.coords[c, k, 1], r.depth[c, k], slope
 
 
 @wp.func
@@ -348,42 +378,45 @@ def receiver_in(r: WorldReceivers, light: LightReceiver, c: int, k: int):  # noq
     return x, y, wp.float32(light.pz + along * moved * light.nz - r.zref - bias), slope
 
 
-@wp.kernel
-def shadow_lookup_kernel(
-    depth: wp.array3d(dtype=wp.float32),
-    receivers: Any,
-    view_depth: wp.array(dtype=wp.float64),
-    splits: wp.array(dtype=wp.float64),
-    texel_area: wp.array(dtype=wp.float64),
-    sphere_cascade: wp.array(dtype=wp.int32),
-    bits: int,
-    selection: int,
-    filter_code: int,
-    radius: int,
-    reach: int,
-    margin: int,
-    band_start: wp.array(dtype=wp.float64),
-    blend_curve: int,
-    keep_weight: int,
-    lit: wp.array(dtype=wp.float32),
-    cascade: wp.array(dtype=wp.int32),
-    blend: wp.array(dtype=wp.int32),
-    blend_weight: wp.array(dtype=wp.float64),
-):
-    k = wp.tid()
-    unit = wp.int64(1) << wp.int64(bits)
-    inverse_span = wp.float64(1.0) / wp.float64(wp.int64(2) * unit)
-    count = depth.shape[0]
-    size = wp.int64(depth.shape[1])
-    # A box holds a point for sampling when every tap (`reach` texels around it) is inside it, and
-    # for `map` selection when the point is also `margin` texels inside its edges.
-    tap_lo = wp.int64(reach) * unit
-    tap_hi = (size - wp.int64(reach)) * unit
-    select_lo = wp.int64(margin) * unit
-    select_hi = (size - wp.int64(margin)) * unit
-    z = view_depth[k]
-    # The receiver in the light's basis once, whichever cascades the selection and the blend read.
-    light = receiver_light(receivers, k)
+@wp.struct
+class WindowReceivers:
+    """Receivers as world points, taken into an engine's window space (:mod:`csmlab.kernels.engine`) where a kernel
+    reads them; ``planar`` 0 gives every receiver a flat plane."""
+
+    receivers: EngineReceivers
+    boxes: EngineBoxes
+    planar: int
+
+
+@wp.func
+def receiver_light(r: WindowReceivers, k: int) -> WindowPoint:  # noqa: F811  (a Warp overload)
+    """Receiver k as every cascade's window-space conversion reads it (:func:`csmlab.kernels.engine.window_point`):
+    computed once per receiver."""
+    return window_point(r.receivers, r.boxes, k)
+
+
+@wp.func
+def receiver_in(r: WindowReceivers, light: WindowPoint, c: int, k: int):  # noqa: F811  (a Warp overload)
+    """Receiver k, ``light`` its :func:`receiver_light`, in cascade c's window space
+    (:func:`csmlab.kernels.engine.window_in`, as :func:`csmlab.kernels.engine.window_receivers` takes it)."""
+    x, y, d, sx, sy = window_in(r.receivers, r.boxes, light, c)
+    slope = wp.vec2d()
+    if r.planar != 0:
+        slope = wp.vec2d(sx, sy)
+    return x, y, d, slope
+
+
+@wp.func
+def selected_cascade(receivers: Any, light: Any, k: int, z: wp.float64, selection: int, count: int,
+                     splits: wp.array(dtype=wp.float64), texel_area: wp.array(dtype=wp.float64),
+                     sphere_cascade: wp.array(dtype=wp.int32), tap_lo: wp.int64, tap_hi: wp.int64,
+                     select_lo: wp.int64, select_hi: wp.int64):
+    """Receiver k's cascade under ``selection`` (−1: none) and the receiver there (:func:`receiver_in`): fixed-point
+    ``x, y``, biased depth and slope.
+
+    A box holds a point for sampling when every tap is inside ``[tap_lo, tap_hi)``, and for ``map``
+    selection when the point is also inside ``[select_lo, select_hi)`` (fixed point).
+    """
     chosen = int(-1)
     x = wp.int64(0)
     y = wp.int64(0)
@@ -416,36 +449,139 @@ def shadow_lookup_kernel(
                     receiver = rc
                     slope = sc
             c += 1
+    return chosen, x, y, receiver, slope
+
+
+@wp.func
+def band_weight(z: wp.float64, chosen: int, count: int, splits: wp.array(dtype=wp.float64),
+                band_start: wp.array(dtype=wp.float64), blend_curve: int) -> wp.float64:
+    """The next cascade's weight in [0, 1) at view depth ``z`` in cascade ``chosen``'s blend band; −1 outside it.
+
+    The band of cascade ``chosen`` runs from ``band_start[chosen]`` (+inf: none) to where the
+    selection leaves it (:func:`csmlab.cascades.fit.transition_bands`).
+    """
+    nxt = chosen + 1
+    w = wp.float64(-1.0)
+    if nxt < count:
+        z1 = splits[nxt]
+        start = band_start[chosen]
+        if z >= start and z < z1:
+            w = (z - start) / (z1 - start)
+            if blend_curve == BLEND_SMOOTHSTEP:
+                w = w * w * (wp.float64(3.0) - wp.float64(2.0) * w)
+    return w
+
+
+@wp.kernel
+def shadow_lookup_kernel(
+    depth: wp.array3d(dtype=wp.float32),
+    receivers: Any,
+    view_depth: wp.array(dtype=wp.float64),
+    splits: wp.array(dtype=wp.float64),
+    texel_area: wp.array(dtype=wp.float64),
+    sphere_cascade: wp.array(dtype=wp.int32),
+    bits: int,
+    selection: int,
+    reach: int,
+    margin: int,
+    band_start: wp.array(dtype=wp.float64),
+    blend_curve: int,
+    filter_code: int,
+    radius: int,
+    lit: wp.array(dtype=wp.float32),
+    cascade: wp.array(dtype=wp.int32),
+    blend: wp.array(dtype=wp.int32),
+):
+    k = wp.tid()
+    unit = wp.int64(1) << wp.int64(bits)
+    inverse_span = wp.float64(1.0) / wp.float64(wp.int64(2) * unit)
+    count = depth.shape[0]
+    size = wp.int64(depth.shape[1])
+    z = view_depth[k]
+    # The receiver in the light's basis once, whichever cascades the selection and the blend read.
+    light = receiver_light(receivers, k)
+    chosen, x, y, receiver, slope = selected_cascade(
+        receivers, light, k, z, selection, count, splits, texel_area, sphere_cascade, wp.int64(reach) * unit,
+        (size - wp.int64(reach)) * unit, wp.int64(margin) * unit, (size - wp.int64(margin)) * unit)
     cascade[k] = chosen
     blend[k] = 0
-    if keep_weight != 0:
-        blend_weight[k] = wp.float64(0.0)
     if chosen < 0:
         lit[k] = 0.0
         return
     s = lit_fraction(depth, chosen, x, y, receiver, slope, bits, inverse_span, filter_code, radius)
-    nxt = chosen + 1
-    if nxt < count:
-        # The band of cascade `chosen` runs from band_start[chosen] (+inf: none) to where the
-        # selection leaves it (csmlab.cascades.fit.transition_bands).
-        z1 = splits[nxt]
-        start = band_start[chosen]
-        if z >= start and z < z1:
-            xn, yn, rn, sn = receiver_in(receivers, light, nxt, k)
-            if holds(xn, yn, tap_lo, tap_hi):
-                w = (z - start) / (z1 - start)
-                if blend_curve == BLEND_SMOOTHSTEP:
-                    w = w * w * (wp.float64(3.0) - wp.float64(2.0) * w)
-                s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, nxt, xn, yn, rn, sn, bits, inverse_span,
-                                                                 filter_code, radius)
-                blend[k] = 1
-                if keep_weight != 0:
-                    blend_weight[k] = w
+    w = band_weight(z, chosen, count, splits, band_start, blend_curve)
+    if w >= wp.float64(0.0):
+        xn, yn, rn, sn = receiver_in(receivers, light, chosen + 1, k)
+        if holds(xn, yn, wp.int64(reach) * unit, (size - wp.int64(reach)) * unit):
+            s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, chosen + 1, xn, yn, rn, sn, bits, inverse_span,
+                                                             filter_code, radius)
+            blend[k] = 1
     lit[k] = wp.float32(s)
+
+
+@wp.kernel
+def selection_kernel(
+    depth: wp.array3d(dtype=wp.float32),
+    receivers: Any,
+    view_depth: wp.array(dtype=wp.float64),
+    splits: wp.array(dtype=wp.float64),
+    texel_area: wp.array(dtype=wp.float64),
+    sphere_cascade: wp.array(dtype=wp.int32),
+    bits: int,
+    selection: int,
+    reach: int,
+    margin: int,
+    band_start: wp.array(dtype=wp.float64),
+    blend_curve: int,
+    keep_picked: int,
+    cascade: wp.array(dtype=wp.int32),
+    blend: wp.array(dtype=wp.int32),
+    blend_weight: wp.array(dtype=wp.float64),
+    picked_coords: wp.array3d(dtype=wp.int64),
+    picked_depth: wp.array2d(dtype=wp.float32),
+    picked_slope: wp.array2d(dtype=wp.vec2d),
+):
+    """:func:`shadow_lookup_kernel`'s selection and blend band without a filter: each receiver's cascade, blend and
+    blend weight, and (``keep_picked``) the receiver at its selected cascade (row 0) and, in the blend band, the next
+    (row 1): what a filter run after the selection reads."""
+    k = wp.tid()
+    unit = wp.int64(1) << wp.int64(bits)
+    count = depth.shape[0]
+    size = wp.int64(depth.shape[1])
+    z = view_depth[k]
+    light = receiver_light(receivers, k)
+    chosen, x, y, receiver, slope = selected_cascade(
+        receivers, light, k, z, selection, count, splits, texel_area, sphere_cascade, wp.int64(reach) * unit,
+        (size - wp.int64(reach)) * unit, wp.int64(margin) * unit, (size - wp.int64(margin)) * unit)
+    cascade[k] = chosen
+    blend[k] = 0
+    blend_weight[k] = wp.float64(0.0)
+    if chosen < 0:
+        return
+    if keep_picked != 0:
+        picked_coords[0, k, 0] = x
+        picked_coords[0, k, 1] = y
+        picked_depth[0, k] = receiver
+        picked_slope[0, k] = slope
+    w = band_weight(z, chosen, count, splits, band_start, blend_curve)
+    if w >= wp.float64(0.0):
+        xn, yn, rn, sn = receiver_in(receivers, light, chosen + 1, k)
+        if holds(xn, yn, wp.int64(reach) * unit, (size - wp.int64(reach)) * unit):
+            blend[k] = 1
+            blend_weight[k] = w
+            if keep_picked != 0:
+                picked_coords[1, k, 0] = xn
+                picked_coords[1, k, 1] = yn
+                picked_depth[1, k] = rn
+                picked_slope[1, k] = sn
 
 
 wp.overload(shadow_lookup_kernel, {"receivers": FixedReceivers})
 wp.overload(shadow_lookup_kernel, {"receivers": WorldReceivers})
+wp.overload(shadow_lookup_kernel, {"receivers": WindowReceivers})
+wp.overload(selection_kernel, {"receivers": FixedReceivers})
+wp.overload(selection_kernel, {"receivers": WorldReceivers})
+wp.overload(selection_kernel, {"receivers": WindowReceivers})
 
 
 def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_area, selection: str,
@@ -518,10 +654,10 @@ def shadow_lookup(depth, coords, receiver_depth, view_depth, *, splits, texel_ar
     device = checked_device(device)
     code = family_code(filter, family="box")
     receivers = _fixed_receivers(depth, coords, receiver_depth, view_depth, receiver_slope, device=device)
-    lit, cascade, blend, _ = _launch(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
-                                     selection=selection, code=code, radius=radius, reach=radius, margin=margin,
-                                     blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
-                                     sphere_cascade=sphere_cascade, bits=bits, weights=False, device=device)
+    lit, cascade, blend = _launch(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
+                                  selection=selection, code=code, radius=radius, reach=radius, margin=margin,
+                                  blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
+                                  sphere_cascade=sphere_cascade, bits=bits, device=device)
     return lit, cascade.astype(np.int8), blend
 
 
@@ -553,10 +689,11 @@ def select_cascades(depth, coords, receiver_depth, view_depth, *, splits, texel_
     """
     device = checked_device(device)
     receivers = _fixed_receivers(depth, coords, receiver_depth, view_depth, None, device=device)
-    _, cascade, blend, weight = _launch(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
-                                        selection=selection, code=BOX_TAPS, radius=0, reach=radius, margin=margin,
-                                        blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
-                                        sphere_cascade=sphere_cascade, bits=bits, weights=True, device=device)
+    cascade, blend, weight, _ = _launch_selection(depth, receivers, view_depth, splits=splits, texel_area=texel_area,
+                                                  selection=selection, reach=radius, margin=margin,
+                                                  blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
+                                                  sphere_cascade=sphere_cascade, bits=bits, picked=False,
+                                                  device=device)
     return cascade, weight, blend
 
 
@@ -593,22 +730,170 @@ def shadow_lookup_world(depth, points, normals, view_depth, *, receivers, basis,
     if world.index.shape[0] != np.shape(view_depth)[0] or np.ndim(view_depth) != 1:
         raise ValueError(f"view_depth: expected one view depth per receiver ({world.index.shape[0]},), "
                          f"got shape {np.shape(view_depth)}")
-    lit, cascade, blend, _ = _launch(depth, world, view_depth, splits=splits, texel_area=texel_area,
-                                     selection=selection, code=code, radius=radius, reach=radius, margin=margin,
-                                     blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
-                                     sphere_cascade=sphere_cascade, bits=bits, weights=False, device=device)
+    lit, cascade, blend = _launch(depth, world, view_depth, splits=splits, texel_area=texel_area,
+                                  selection=selection, code=code, radius=radius, reach=radius, margin=margin,
+                                  blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
+                                  sphere_cascade=sphere_cascade, bits=bits, device=device)
     return lit, cascade.astype(np.int8), blend
+
+
+def select_world_cascades(depth, points, normals, view_depth, *, receivers, basis, texel_size, origin_fixed,
+                          zref: float, bias: BiasSettings, receiver_plane_bias: bool, splits, texel_area,
+                          selection: str, radius: int, margin: int, blend_band: float, bits: int, band_start=None,
+                          blend_curve: int = 0, sphere_cascade=None, device: str = "cpu") -> tuple:
+    """:func:`select_cascades` of world receivers, with each receiver at the cascades a filter run after the
+    selection reads: the one it selects and, in the blend band, the next.
+
+    Bit for bit :func:`receiver_coordinates` followed by :func:`select_cascades`, and the rows of the
+    first's arrays at those cascades, without converting every receiver into every cascade.
+
+    Parameters
+    ----------
+    depth, points, normals, view_depth, receivers, basis, texel_size, origin_fixed, zref, bias, receiver_plane_bias,
+    splits, texel_area, selection, margin, blend_band, bits, band_start, blend_curve, sphere_cascade, device
+        As :func:`shadow_lookup_world`.
+    radius : int
+        Texels the filter's taps reach beyond the one holding the point.
+
+    Returns
+    -------
+    cascade, blend_weight, blend, coordinates, receiver_depth, slope
+        As :func:`select_window_cascades`.
+    """
+    device = checked_device(device)
+    world = world_receivers(points, normals, receivers=receivers, basis=basis, texel_size=texel_size,
+                            origin_fixed=origin_fixed, zref=zref, bits=bits, bias=bias, planar=receiver_plane_bias,
+                            device=device)
+    if world.index.shape[0] != np.shape(view_depth)[0] or np.ndim(view_depth) != 1:
+        raise ValueError(f"view_depth: expected one view depth per receiver ({world.index.shape[0]},), "
+                         f"got shape {np.shape(view_depth)}")
+    return _picked_selection(depth, world, view_depth, splits=splits, texel_area=texel_area, selection=selection,
+                             radius=radius, margin=margin, blend_band=blend_band, band_start=band_start,
+                             blend_curve=blend_curve, sphere_cascade=sphere_cascade, bits=bits,
+                             planar=receiver_plane_bias, device=device)
+
+
+def shadow_lookup_window(depth, boxes: EngineBoxes, points, normals, view_depth, *, receivers, basis, texel_size,
+                         zref: float, bias: BiasSettings, receiver_plane_bias: bool, splits, texel_area, selection: str,
+                         filter: str, radius: int, margin: int, blend_band: float, bits: int, band_start=None,
+                         blend_curve: int = 0, sphere_cascade=None,
+                         device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`shadow_lookup` of receivers in an engine's window space, each taken into a cascade where the lookup
+    reads it.
+
+    The same results, bit for bit, as :func:`csmlab.kernels.engine.window_receivers` followed by
+    :func:`shadow_lookup` (one conversion, :func:`csmlab.kernels.engine.window_in`, serves both) without
+    converting every receiver into every cascade.
+
+    Parameters
+    ----------
+    depth, view_depth, splits, texel_area, selection, filter, radius, margin, blend_band, bits, sphere_cascade, device
+        As :func:`shadow_lookup`; ``view_depth`` and ``sphere_cascade`` ``(N,)`` one per receiver.
+    boxes : EngineBoxes
+        :func:`csmlab.kernels.engine.engine_boxes` of the cascades (``2**bits`` its scale), on ``device``.
+    points, normals, receivers, basis, texel_size, zref, bias
+        As :func:`csmlab.kernels.engine.window_receivers`.
+    receiver_plane_bias : bool
+        Compare each tap with the receiver's tangent plane (else with its own depth).
+
+    Returns
+    -------
+    lit, cascade, blend
+        As :func:`shadow_lookup`.
+    """
+    device = checked_device(device)
+    code = family_code(filter, family="box")
+    window = _window_receivers(depth, boxes, points, normals, view_depth, receivers=receivers, basis=basis,
+                               texel_size=texel_size, zref=zref, bias=bias, planar=receiver_plane_bias, device=device)
+    lit, cascade, blend = _launch(depth, window, view_depth, splits=splits, texel_area=texel_area,
+                                  selection=selection, code=code, radius=radius, reach=radius, margin=margin,
+                                  blend_band=blend_band, band_start=band_start, blend_curve=blend_curve,
+                                  sphere_cascade=sphere_cascade, bits=bits, device=device)
+    return lit, cascade.astype(np.int8), blend
+
+
+def select_window_cascades(depth, boxes: EngineBoxes, points, normals, view_depth, *, receivers, basis, texel_size,
+                           zref: float, bias: BiasSettings, receiver_plane_bias: bool, splits, texel_area,
+                           selection: str, radius: int, margin: int, blend_band: float, bits: int, band_start=None,
+                           blend_curve: int = 0, sphere_cascade=None, device: str = "cpu") -> tuple:
+    """:func:`select_cascades` of receivers in an engine's window space, with each receiver at the cascades a filter
+    run after the selection reads: the one it selects and, in the blend band, the next.
+
+    Bit for bit :func:`csmlab.kernels.engine.window_receivers` followed by :func:`select_cascades`, and
+    the rows of the first's arrays at those cascades, without converting every receiver into every cascade.
+
+    Parameters
+    ----------
+    depth, boxes, points, normals, view_depth, receivers, basis, texel_size, zref, bias, receiver_plane_bias, splits,
+    texel_area, selection, margin, blend_band, bits, band_start, blend_curve, sphere_cascade, device
+        As :func:`shadow_lookup_window`.
+    radius : int
+        Texels the filter's taps reach beyond the one holding the point.
+
+    Returns
+    -------
+    cascade, blend_weight, blend
+        As :func:`select_cascades`.
+    coordinates : ndarray, shape (2, N, 2), int64
+        Each receiver's fixed point in its selected cascade (row 0) and the next (row 1, set where
+        ``blend_weight`` is set; undefined elsewhere and where no cascade is selected).
+    receiver_depth : ndarray, shape (2, N), float32
+        Its biased depth there.
+    slope : ndarray, shape (2, N, 2), float64, or None
+        Its receiver-plane slopes there; None without ``receiver_plane_bias``.
+    """
+    device = checked_device(device)
+    window = _window_receivers(depth, boxes, points, normals, view_depth, receivers=receivers, basis=basis,
+                               texel_size=texel_size, zref=zref, bias=bias, planar=receiver_plane_bias, device=device)
+    return _picked_selection(depth, window, view_depth, splits=splits, texel_area=texel_area, selection=selection,
+                             radius=radius, margin=margin, blend_band=blend_band, band_start=band_start,
+                             blend_curve=blend_curve, sphere_cascade=sphere_cascade, bits=bits,
+                             planar=receiver_plane_bias, device=device)
+
+
+def _picked_selection(depth, receivers, view_depth, *, splits, texel_area, selection: str, radius: int, margin: int,
+                      blend_band: float, band_start, blend_curve: int, sphere_cascade, bits: int, planar: bool,
+                      device: str) -> tuple:
+    """The selection of ``receivers`` (:class:`WorldReceivers` or :class:`WindowReceivers`) and their rows at the
+    selected cascade and the next: :func:`select_window_cascades`' outputs."""
+    cascade, blend, weight, rows = _launch_selection(depth, receivers, view_depth, splits=splits,
+                                                     texel_area=texel_area, selection=selection, reach=radius,
+                                                     margin=margin, blend_band=blend_band, band_start=band_start,
+                                                     blend_curve=blend_curve, sphere_cascade=sphere_cascade,
+                                                     bits=bits, picked=True, device=device)
+    coords, receiver_depth, slope = rows
+    return cascade, weight, blend, coords, receiver_depth, slope if planar else None
+
+
+def _window_receivers(depth, boxes: EngineBoxes, points, normals, view_depth, *, receivers, basis, texel_size,
+                      zref: float, bias: BiasSettings, planar: bool, device: str) -> WindowReceivers:
+    """The :class:`WindowReceivers` of :func:`shadow_lookup_window`'s arguments, checked against the maps and the
+    view depths."""
+    count = boxes.matrix.shape[0] if boxes.mode == WINDOW_FLOAT32 else boxes.texel_size.shape[0]
+    if np.ndim(depth) != 3 or np.shape(depth)[0] != count:
+        raise ValueError(f"depth: expected the depth maps of the boxes' {count} cascades (C, R, R), got shape "
+                         f"{np.shape(depth)}")
+    window = WindowReceivers()
+    window.receivers = engine_receivers(points, normals, basis=basis, texel_size=texel_size, zref=zref, bias=bias,
+                                        receivers=receivers, cascades=count, device=device)
+    window.boxes = boxes
+    window.planar = int(bool(planar))
+    n = window.receivers.index.shape[0]
+    if np.ndim(view_depth) != 1 or np.shape(view_depth)[0] != n:
+        raise ValueError(f"view_depth: expected one view depth per receiver ({n},), got shape {np.shape(view_depth)}")
+    return window
 
 
 def _fixed_receivers(depth, coords, receiver_depth, view_depth, receiver_slope, *, device: str) -> FixedReceivers:
     """The :class:`FixedReceivers` of :func:`shadow_lookup`'s arrays, their shapes checked against the maps."""
     xy = np.ascontiguousarray(coords, dtype=np.int64)
     rd = np.ascontiguousarray(receiver_depth, dtype=np.float32)
-    slope = (np.zeros(rd.shape + (2,)) if receiver_slope is None
-             else np.ascontiguousarray(receiver_slope, dtype=np.float64))
+    # No slope: a flat plane per receiver, and one element stands in for the array no kernel reads.
+    slope = np.zeros((1, 1, 2)) if receiver_slope is None else np.ascontiguousarray(receiver_slope, dtype=np.float64)
     count = np.shape(depth)[0] if np.ndim(depth) == 3 else 0
     n = np.shape(view_depth)[0] if np.ndim(view_depth) == 1 else -1
-    if xy.shape != (count, n, 2) or rd.shape != (count, n) or slope.shape != (count, n, 2):
+    if xy.shape != (count, n, 2) or rd.shape != (count, n) or (
+            receiver_slope is not None and slope.shape != (count, n, 2)):
         raise ValueError(f"coords, receiver_depth, receiver_slope, view_depth: expected shapes ({count}, N, 2), "
                          f"({count}, N), ({count}, N, 2), (N,); got {xy.shape}, {rd.shape}, {slope.shape}, "
                          f"{np.shape(view_depth)}")
@@ -616,24 +901,74 @@ def _fixed_receivers(depth, coords, receiver_depth, view_depth, receiver_slope, 
     receivers.coords = wp.array(xy, dtype=wp.int64, device=device, copy=False)
     receivers.depth = wp.array(rd, dtype=wp.float32, device=device, copy=False)
     receivers.slope = wp.array(slope, dtype=wp.vec2d, device=device, copy=False)
+    receivers.planar = int(receiver_slope is not None)
     return receivers
 
 
-def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str, code: int, radius: int, reach: int,
-            margin: int, blend_band: float, bits: int, weights: bool, device: str, band_start=None,
-            blend_curve: int = 0, sphere_cascade=None) -> tuple:
-    """Launch :func:`shadow_lookup_kernel` over ``receivers`` (a :class:`FixedReceivers` or :class:`WorldReceivers`).
+def _launch(depth, receivers, view_depth, *, code: int, radius: int, device: str, **selection) -> tuple:
+    """Launch :func:`shadow_lookup_kernel` over ``receivers`` (:class:`FixedReceivers`, :class:`WorldReceivers` or
+    :class:`WindowReceivers`) with the box filter ``code`` of ``radius`` run at the selected cascade; ``selection``
+    the keyword arguments of :func:`_selection_inputs`.
 
-    ``code`` and ``radius`` are the box filter run at the selected cascade, ``reach`` the taps a
-    selected box must hold. Returns ``lit`` (NaN where none selected), ``cascade`` int32, ``blend``
-    bool and, with ``weights``, the blend weights float64 (else None) as NumPy arrays.
+    Returns ``lit`` (NaN where none selected), ``cascade`` int32 and ``blend`` bool as NumPy arrays.
+    """
+    if selection["reach"] < radius:
+        # box_count reads the taps unclamped: the selected box must hold every one of them.
+        raise ValueError(f"radius: the taps a selected box holds ({selection['reach']}) must reach the filter's "
+                         f"({radius})")
+    n, inputs = _selection_inputs(depth, view_depth, device=device, **selection)
+    if n == 0:
+        return np.zeros(0, np.float32), np.zeros(0, np.int32), np.zeros(0, bool)
+    lit = wp.empty(n, dtype=wp.float32, device=device)
+    chosen = wp.empty(n, dtype=wp.int32, device=device)
+    blended = wp.empty(n, dtype=wp.int32, device=device)
+    wp.launch(shadow_lookup_kernel, dim=n, inputs=(inputs[0], receivers) + inputs[1:] + (code, int(radius)),
+              outputs=(lit, chosen, blended), device=device)
+    cascade = chosen.numpy()
+    s = lit.numpy()
+    s[cascade < 0] = np.nan
+    return s, cascade, blended.numpy().astype(bool)
+
+
+def _launch_selection(depth, receivers, view_depth, *, picked: bool, device: str, **selection) -> tuple:
+    """Launch :func:`selection_kernel` over ``receivers``; ``selection`` the keyword arguments of
+    :func:`_selection_inputs`.
+
+    Returns ``cascade`` int32, ``blend`` bool, the blend weights float64 and, with ``picked``, the
+    receivers at their selected cascade and the next (rows 0 and 1 of coordinates ``(2, N, 2)`` int64,
+    depths ``(2, N)`` float32, slopes ``(2, N, 2)`` float64; row 1 set where the blend weight is set;
+    else None) as NumPy arrays.
+    """
+    n, inputs = _selection_inputs(depth, view_depth, device=device, **selection)
+    if n == 0:
+        rows = (np.zeros((2, 0, 2), np.int64), np.zeros((2, 0), np.float32), np.zeros((2, 0, 2))) if picked else None
+        return np.zeros(0, np.int32), np.zeros(0, bool), np.zeros(0), rows
+    chosen = wp.empty(n, dtype=wp.int32, device=device)
+    blended = wp.empty(n, dtype=wp.int32, device=device)
+    weight = wp.empty(n, dtype=wp.float64, device=device)
+    # Without picked rows, one element stands in for each array the kernel does not write.
+    shape = (2, n) if picked else (1, 1)
+    picked_coords = wp.empty(shape + (2,), dtype=wp.int64, device=device)
+    picked_depth = wp.empty(shape, dtype=wp.float32, device=device)
+    picked_slope = wp.empty(shape, dtype=wp.vec2d, device=device)
+    wp.launch(selection_kernel, dim=n, inputs=(inputs[0], receivers) + inputs[1:] + (int(picked),),
+              outputs=(chosen, blended, weight, picked_coords, picked_depth, picked_slope), device=device)
+    rows = (picked_coords.numpy(), picked_depth.numpy(), picked_slope.numpy()) if picked else None
+    return chosen.numpy(), blended.numpy().astype(bool), weight.numpy(), rows
+
+
+def _selection_inputs(depth, view_depth, *, splits, texel_area, selection: str, reach: int, margin: int,
+                      blend_band: float, bits: int, device: str, band_start=None, blend_curve: int = 0,
+                      sphere_cascade=None) -> tuple[int, tuple]:
+    """The receivers' count and the selection's inputs of :func:`shadow_lookup_kernel` and
+    :func:`selection_kernel` (all but ``receivers``, which follows the first), checked.
+
+    ``reach`` is the taps a selected box must hold, ``margin`` the ``map`` selection's inset (widened
+    to ``reach``).
     """
     selected = SELECTION_METHODS[check_name(selection, SELECTION_METHODS, field="selection")]
     if not (isinstance(reach, (int, np.integer)) and reach >= 0):
         raise ValueError(f"radius: expected a non-negative integer, got {reach!r}")
-    if reach < radius:
-        # box_count reads the taps unclamped: the selected box must hold every one of them.
-        raise ValueError(f"radius: the taps a selected box holds ({reach}) must reach the filter's ({radius})")
     maps = np.ascontiguousarray(depth, dtype=np.float32)
     vd = np.ascontiguousarray(view_depth, dtype=np.float64)
     z = np.ascontiguousarray(splits, dtype=np.float64)
@@ -660,40 +995,15 @@ def _launch(depth, receivers, view_depth, *, splits, texel_area, selection: str,
     else:
         # The other selections read no sphere: one element stands in for the array.
         spheres = np.full(1, -1, dtype=np.int32)
-    if n == 0:
-        return np.zeros(0, np.float32), np.zeros(0, np.int32), np.zeros(0, bool), np.zeros(0) if weights else None
-    lit = wp.empty(n, dtype=wp.float32, device=device)
-    chosen = wp.empty(n, dtype=wp.int32, device=device)
-    blended = wp.empty(n, dtype=wp.int32, device=device)
-    # The box filters' lookups keep no weights: one element stands in for the array they do not write.
-    weight = wp.empty(n if weights else 1, dtype=wp.float64, device=device)
-    wp.launch(
-        shadow_lookup_kernel,
-        dim=n,
-        inputs=(
-            wp.array(maps, dtype=wp.float32, device=device, copy=False),
-            receivers,
-            wp.array(vd, dtype=wp.float64, device=device, copy=False),
-            wp.array(z, dtype=wp.float64, device=device, copy=False),
-            wp.array(area, dtype=wp.float64, device=device, copy=False),
-            wp.array(spheres, dtype=wp.int32, device=device, copy=False),
-            int(bits),
-            selected.code,
-            code,
-            int(radius),
-            int(reach),
-            max(int(margin), int(reach)),
-            wp.array(np.ascontiguousarray(start), dtype=wp.float64, device=device, copy=False),
-            int(blend_curve),
-            int(weights),
-        ),
-        outputs=(lit, chosen, blended, weight),
-        device=device,
-    )
-    cascade = chosen.numpy()
-    s = lit.numpy()
-    s[cascade < 0] = np.nan
-    return s, cascade, blended.numpy().astype(bool), weight.numpy() if weights else None
+    inputs = (wp.array(maps, dtype=wp.float32, device=device, copy=False),
+              wp.array(vd, dtype=wp.float64, device=device, copy=False),
+              wp.array(z, dtype=wp.float64, device=device, copy=False),
+              wp.array(area, dtype=wp.float64, device=device, copy=False),
+              wp.array(spheres, dtype=wp.int32, device=device, copy=False),
+              int(bits), selected.code, int(reach), max(int(margin), int(reach)),
+              wp.array(np.ascontiguousarray(start), dtype=wp.float64, device=device, copy=False),
+              int(blend_curve))
+    return n, inputs
 
 
 @wp.func

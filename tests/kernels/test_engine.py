@@ -21,6 +21,7 @@ from csmlab.cascades import build_cascades
 from csmlab.cascades.bounds import visible_depth_range
 from csmlab.config import load_experiment
 from csmlab.experiment import build_workload
+from csmlab.frame import ShadowMaps
 from csmlab.cascades.warp import warped_texels
 from csmlab.kernels.bias import BiasSettings
 from csmlab.kernels.engine import warped_vertices, window_receivers, window_vertices
@@ -165,6 +166,70 @@ def test_window_receivers_equal_the_hosts_receiver_lookup(name, experiment, chan
     assert window_receivers(boxes, points, normals, receivers=rows[:0], basis=cascades.basis,
                             texel_size=np.stack([c.texel_size for c in cascades.cascades]), zref=cascades.zref,
                             bias=none)[0].shape == (len(cascades), 0, 2)
+
+
+WINDOW_LOOKUPS = [("ue5", {}), ("unity_builtin_stable", {}), ("unity_urp", {}), ("unity_hdrp", {}), ("godot4", {}),
+                  ("bevy", {}), ("mjp", {}), ("filament", {"warp": "none", "engine_precision": "float32"}),
+                  ("stride", {"receiver_plane_bias": True, "blend_band": 0.2}),
+                  ("unity_builtin_close", {"selection": "map", "blend_band": 0.3, "receiver_plane_bias": True}),
+                  ("threejs_csm", {"filter": "pcf", "filter_size": 5, "receiver_plane_bias": True, "blend_band": 0.2})]
+"""Every engine preset in window space, and changes that reach the other selections, the blend band, the
+receiver-plane bias and a box filter of taps."""
+
+
+@pytest.mark.parametrize("name, changes", WINDOW_LOOKUPS)
+def test_window_lookups_equal_the_hosts_receivers_looked_up(terrain, name, changes, monkeypatch):
+    """The selection kernel takes each receiver into window space only in the cascades it reads
+    (shadow_lookup_window, select_window_cascades then weighted_pcf of the picked rows): the same S, cascade and
+    blend, bit for bit, as the host's receiver_lookup of every receiver into every cascade, looked up by the
+    kernels of converted receivers."""
+    settings, view, cascades = _frame(terrain, name, 4, **changes)
+    assert filters._converted_in_kernel(ShadowMaps(cascades=cascades, depth=np.zeros((1, 128, 128), np.float32),
+                                                   texels_rasterized=0), settings) == "window"
+    maps = ShadowMaps(cascades=cascades, depth=render.host_depth_maps(terrain.dscene, cascades, settings)[0],
+                      texels_rasterized=0)
+    g = view.gbuffer
+    looked_up = dict(points=g.position, normals=g.normal, view_depth=g.view_depth, settings=settings, device="cpu")
+    fused = filters.lookup_shadow(maps, **looked_up)
+
+    def host_coordinates(cascades, points, normals, rows, *, settings, device):
+        return receiver_lookup(cascades, points[rows], normals[rows], bits=settings.subtexel_bits,
+                               normal_offset=settings.normal_offset,
+                               bias_constant=filters._cascade_bias(cascades, settings),
+                               bias_slope=settings.bias_slope, normal_scale=settings.normal_offset_scale,
+                               plane_offset=filters._plane_offset(cascades, settings),
+                               normal_offset_m=settings.normal_offset_m, precision=settings.engine_precision,
+                               snap=settings.vertex_snap, rebase_distance=settings.rebase_distance)
+
+    monkeypatch.setattr(filters, "_converted_in_kernel", lambda maps, settings: None)
+    monkeypatch.setattr(filters, "texel_coordinates", host_coordinates)
+    host = filters.lookup_shadow(maps, **looked_up)
+    for field in ("lit", "cascade", "blend"):
+        assert _same_bits(getattr(fused, field), getattr(host, field)), field
+    lit = fused.lit[np.isfinite(fused.lit)]
+    assert lit.size > 1000 and 0.0 < lit.mean() < 1.0
+    assert len(set(np.unique(fused.cascade).tolist()) - {-1}) >= min(2, len(cascades))
+    assert fused.blend.any() or settings.blend_band == 0.0
+
+
+def test_window_lookup_names_maps_or_view_depths_that_do_not_match_its_boxes(terrain):
+    from csmlab.kernels.shadow import shadow_lookup_window
+
+    settings, view, cascades = _frame(terrain, "unity_urp", 4)
+    conversion = filters._window_conversion(ShadowMaps(cascades=cascades, depth=np.zeros((1, 1, 1), np.float32),
+                                                       texels_rasterized=0),
+                                            filters._receivers(view.gbuffer.position, view.gbuffer.normal,
+                                                               view.gbuffer.view_depth, pixels=None, quads=None,
+                                                               quad_view_depth=None, reads=set()),
+                                            settings, device="cpu")
+    selection = filters._selection(cascades, settings, radius=1)
+    with pytest.raises(ValueError, match="depth: expected the depth maps of the boxes' 4 cascades"):
+        shadow_lookup_window(np.zeros((3, 128, 128), np.float32), **conversion, filter="pcf_bilinear", radius=1,
+                             **selection)
+    conversion["view_depth"] = conversion["view_depth"][:-1]
+    with pytest.raises(ValueError, match="view_depth: expected one view depth per receiver"):
+        shadow_lookup_window(np.zeros((4, 128, 128), np.float32), **conversion, filter="pcf_bilinear", radius=1,
+                             **selection)
 
 
 def _random_mesh(seed: int, triangles: int = 3000):

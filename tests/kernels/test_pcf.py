@@ -8,7 +8,7 @@ from csmlab.cascades import Cascade, CascadeSet
 from csmlab.filters import interleaved_gradient_noise, lookup_shadow
 from csmlab.frame import ShadowMaps
 from csmlab.geometry import light_basis
-from csmlab.kernels.pcf import weighted_pcf
+from csmlab.kernels.pcf import AXIS_TAPS, weighted_pcf
 from csmlab.lookup_choices import FILTER_METHODS, family_filters, poisson_disk
 from csmlab.settings import ShadowSettings
 
@@ -388,11 +388,29 @@ def test_pcf_tent_bilinear_is_unitys_tent_in_bilinear_taps(size, device):
         assert a == pytest.approx(b, abs=((size + 1) // 2) ** 2 * 2.0 / UNIT)
 
 
-def test_pcf_bilinear_box_is_the_directx_samples_nine_bilinear_taps(device):
+def test_pcf_tent_bilinear_of_the_largest_filter_size_fills_its_axis_table(device):
+    # filter_size 63, the settings' largest: 32 taps per axis, every entry of the per-axis table (AXIS_TAPS).
+    assert (63 + 1) // 2 == AXIS_TAPS
+    depth = blocker_field(seed=9, resolution=80)
+    for point in [(40.5, 40.5), (39.30078125, 41.76953125), (40.98828125, 39.01171875)]:
+        got = lit_of("pcf_tent_bilinear", depth, point, width=31.5, radius=33, device=device)
+        # The taps' offsets round to 2⁻⁸ texel: a few 10⁻⁵ of S here.
+        assert got == pytest.approx(ref_tent_texels(depth, *point, 10.0, 63), abs=2e-4), point
+
+
+def test_weighted_pcf_rejects_a_separable_kernel_wider_than_its_axis_table():
+    depth, coords, receiver, _, cascade = random_case(1)
+    with pytest.raises(ValueError, match="at most 32 taps per axis"):
+        weighted_pcf(depth, coords, receiver, cascade=cascade, filter="pcf_tent_bilinear", width=32.5, radius=34,
+                     bits=BITS)
+
+
+@pytest.mark.parametrize("size", [3, 5])
+def test_pcf_bilinear_box_is_the_directx_samples_grid_of_bilinear_taps(size, device):
     depth = blocker_field(seed=3)
     for point in POINTS:
-        got = lit_of("pcf_bilinear_box", depth, point, width=1.5, radius=2, device=device)
-        assert got == pytest.approx(ref_dx_box(depth, *point, 10.0, 3), abs=1e-6), point
+        got = lit_of("pcf_bilinear_box", depth, point, width=size / 2.0, radius=size // 2 + 1, device=device)
+        assert got == pytest.approx(ref_dx_box(depth, *point, 10.0, size), abs=1e-6), point
 
 
 @pytest.mark.parametrize("filter, fields", [("pcf_vogel", {"vogel_taps": 4, "vogel_radius": 2.0}),

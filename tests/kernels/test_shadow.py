@@ -284,11 +284,9 @@ def test_receiver_coordinates_on_the_device_equal_the_host_receiver_lookup_bit_f
             np.testing.assert_array_equal(g, e[:, picked])
 
 
-@pytest.mark.parametrize("selection", sorted(SELECTION_METHODS))
-def test_world_receivers_look_up_the_same_bits_as_converted_ones(selection, device):
-    """shadow_lookup_world converts each receiver where it reads it; receiver_coordinates + shadow_lookup gives the
-    same."""
-    from csmlab.kernels.shadow import receiver_coordinates, shadow_lookup_world, split_sphere_cascades
+def _world_case(device):
+    """Receivers about three nested boxes' centre and maps in their depth range (the world lookups' tests)."""
+    from csmlab.kernels.shadow import receiver_coordinates
 
     rng = np.random.default_rng(11)
     size, count = 32, 3
@@ -315,16 +313,38 @@ def test_world_receivers_look_up_the_same_bits_as_converted_ones(selection, devi
     finite = receiver_depth[np.isfinite(receiver_depth)]
     maps = rng.uniform(finite.min(), finite.max(), (count, size, size)).astype(np.float32)
     maps[:, ::5, ::3] = np.inf
+    return dict(size=size, count=count, texel=texel, centre=centre, basis=basis, splits=splits, points=points,
+                normals=normals, receivers=receivers, view_depth=view_depth, conversion=conversion, coords=coords,
+                receiver_depth=receiver_depth, slope=slope, maps=maps)
+
+
+def _split_spheres(case, device):
+    """A split sphere about the boxes' centre per cascade, as wide as 0.4 of its box."""
+    from csmlab.kernels.shadow import split_sphere_cascades
+
+    return split_sphere_cascades(
+        case["points"][case["receivers"]], centres=np.tile(np.append(case["centre"], 0.0) @ case["basis"],
+                                                           (case["count"], 1)),
+        radii=0.4 * case["size"] * case["texel"].max(axis=1), device=device)
+
+
+@pytest.mark.parametrize("selection", sorted(SELECTION_METHODS))
+def test_world_receivers_look_up_the_same_bits_as_converted_ones(selection, device):
+    """shadow_lookup_world converts each receiver where it reads it; receiver_coordinates + shadow_lookup gives the
+    same."""
+    from csmlab.kernels.shadow import shadow_lookup_world
+
+    case = _world_case(device)
+    maps, splits, texel, conversion = case["maps"], case["splits"], case["texel"], case["conversion"]
+    coords, receiver_depth, slope = case["coords"], case["receiver_depth"], case["slope"]
+    points, normals, receivers, view_depth = case["points"], case["normals"], case["receivers"], case["view_depth"]
     for filter, filter_size, blend_band, plane in (("none", 1, 0.0, True), ("pcf", 3, 0.3, True),
                                                    ("pcf", 5, 0.0, False), ("pcf_bilinear", 1, 0.2, True)):
         common = dict(splits=splits, texel_area=np.prod(texel, axis=1), selection=selection, filter=filter,
                       radius=radius(filter, filter_size), margin=2, blend_band=blend_band, bits=BITS, device=device)
         if selection in ("sphere", "sphere_dither"):
-            # A split sphere about the boxes' centre per cascade, as wide as 0.4 of its box (sphere_dither: the
-            # kernel reads the cascade csmlab.cascades.borders chose, as for sphere).
-            common["sphere_cascade"] = split_sphere_cascades(
-                points[receivers], centres=np.tile(np.append(centre, 0.0) @ basis, (count, 1)),
-                radii=0.4 * size * texel.max(axis=1), device=device)
+            # sphere_dither: the kernel reads the cascade csmlab.cascades.borders chose, as for sphere.
+            common["sphere_cascade"] = _split_spheres(case, device)
         converted = shadow_lookup(maps, coords, receiver_depth, view_depth, receiver_slope=slope if plane else None,
                                   **common)
         world = shadow_lookup_world(maps, points, normals, view_depth, receivers=receivers,
@@ -337,6 +357,44 @@ def test_world_receivers_look_up_the_same_bits_as_converted_ones(selection, devi
         assert np.isfinite(lit).sum() > 100 and 0 < np.mean(lit[np.isfinite(lit)]) < 1
         assert len(set(chosen.tolist()) - {-1}) >= 2
         assert blended.any() == (blend_band > 0.0)
+
+
+@pytest.mark.parametrize("selection", sorted(SELECTION_METHODS))
+def test_world_receivers_picked_for_a_weighted_filter_filter_the_same_bits_as_converted_ones(selection, device):
+    """select_world_cascades converts each receiver into the cascades it reads and hands weighted_pcf those rows
+    (picked): the same cascades, weights, blend and S, bit for bit, as receiver_coordinates, select_cascades and
+    weighted_pcf over every cascade's rows."""
+    from csmlab.kernels.pcf import weighted_pcf
+    from csmlab.kernels.shadow import select_world_cascades
+
+    case = _world_case(device)
+    maps, texel, conversion = case["maps"], case["texel"], case["conversion"]
+    for filter, width, reach, blend_band, plane in (("pcf_tent_bilinear", 3.5, 5, 0.3, False),
+                                                    ("pcf_castano", 2.5, 4, 0.2, True),
+                                                    ("pcf_gaussian", 1.0, 2, 0.0, True),
+                                                    ("pcf_bilinear_box", 1.5, 3, 0.3, True)):
+        common = dict(splits=case["splits"], texel_area=np.prod(texel, axis=1), selection=selection, radius=reach,
+                      margin=2, blend_band=blend_band, bits=BITS, device=device)
+        if selection in ("sphere", "sphere_dither"):
+            common["sphere_cascade"] = _split_spheres(case, device)
+        slope = case["slope"] if plane else None
+        chosen, weight, band = select_cascades(maps, case["coords"], case["receiver_depth"], case["view_depth"],
+                                               **common)
+        filtered = dict(filter=filter, width=width, radius=reach, bits=BITS, device=device)
+        expected = weighted_pcf(maps, case["coords"], case["receiver_depth"], cascade=chosen, receiver_slope=slope,
+                                blend_weight=weight, **filtered)
+        picked = select_world_cascades(maps, case["points"], case["normals"], case["view_depth"],
+                                       receivers=case["receivers"], receiver_plane_bias=plane,
+                                       **{k: v for k, v in conversion.items() if k not in ("bits", "device")},
+                                       **common)
+        for a, b in zip((chosen, weight, band), picked[:3]):
+            np.testing.assert_array_equal(a, b)
+        assert (picked[5] is None) == (not plane)
+        got = weighted_pcf(maps, picked[3], picked[4], cascade=picked[0], receiver_slope=picked[5],
+                           blend_weight=picked[1], picked=True, **filtered)
+        np.testing.assert_array_equal(got, expected)
+        assert np.isfinite(got).sum() > 100 and 0 < np.nanmean(got) < 1
+        assert (weight > 0).any() == (blend_band > 0.0)
 
 
 def test_bias_models_scale_the_constant_bias_per_cascade_as_the_engines_do():
