@@ -163,7 +163,18 @@ def run(
 ) -> None:
     """Run an experiment: every frame × method × sweep point → metrics.csv, summary.json, the report."""
     from csmlab.config import find_experiment, load_experiment
-    from csmlab.executor import executor_for
+    from csmlab.executor import executor_for, start_process_server
+
+    try:
+        _count(frames, "--frames")
+        loaded = load_experiment(find_experiment(experiment), frames=frames)
+        executor, workers, address = executor_for(jobs=_count(jobs, "--jobs"), scheduler=scheduler)
+    except ValueError as exc:
+        raise _bad_input(exc) from None
+    if executor == "pool":
+        # Started once the experiment reads well, before anything else: the workers' process
+        # server imports their modules while this process imports its own and builds the workload.
+        start_process_server()
     from csmlab.experiment import check_device, run_experiment
     from csmlab.paths.timing import timing_lines
     from csmlab.paths.view_check import findings_line
@@ -171,9 +182,6 @@ def run(
     from csmlab.report import write_report
 
     try:
-        _count(frames, "--frames")
-        loaded = load_experiment(find_experiment(experiment), frames=frames)
-        executor, workers, address = executor_for(jobs=_count(jobs, "--jobs"), scheduler=scheduler)
         check_device(device)
         out_dir = _output_folder(out if out is not None else Path("reports") / loaded.name, "--out")
     except ValueError as exc:

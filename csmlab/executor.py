@@ -6,9 +6,10 @@ in, in whatever order they finish; callers that need an order sort the results t
 the pool hands it to each process's initializer, Dask scatters it to every worker.
 
 Warp's CPU backend runs one kernel launch on one thread, so parallelism comes from processes: the
-pool uses the ``spawn`` start method (a forked Warp or CUDA context is not safe) and Dask workers
-have one thread each. ``fn`` must be importable (a module-level function) and ``shared``, tasks and
-results picklable.
+pool's processes are forked from a process server (:func:`process_context`) that has imported
+csmlab's modules but never started Warp (a forked Warp or CUDA context is not safe), and Dask
+workers have one thread each. ``fn`` must be importable (a module-level function) and ``shared``,
+tasks and results picklable.
 """
 
 from __future__ import annotations
@@ -19,14 +20,15 @@ import logging
 import multiprocessing
 import os
 import pickle
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from pathlib import Path
 
 from csmlab.errors import InputError
 from csmlab.registry import dispatch
 
-__all__ = ["EXECUTORS", "execute", "executor_for", "freeze_objects_at_exit", "run_dask", "run_inprocess", "run_pool",
-           "start_worker", "task_runs"]
+__all__ = ["EXECUTORS", "WORKER_MODULES", "execute", "executor_for", "freeze_objects_at_exit", "process_context",
+           "run_dask", "run_inprocess", "run_pool", "start_process_server", "start_worker", "task_runs"]
 
 _SHARED = None
 
@@ -42,6 +44,53 @@ def freeze_objects_at_exit() -> None:
     first, so that no one waits on a process's exit.
     """
     atexit.register(gc.freeze)
+
+
+def process_context() -> multiprocessing.context.BaseContext:
+    """The start method of the processes csmlab starts itself: ``forkserver`` where the platform has it, else ``spawn``.
+
+    A spawned process is a fresh interpreter that imports csmlab, Warp, SciPy and colour-science
+    (with Matplotlib) itself: 1.5–2 s of CPU in every process, before its first task. A process
+    forked from the process server starts with whatever the server imported
+    (:func:`start_process_server`); the server never starts Warp, so each process starts its own
+    Warp and CUDA context, as a spawned one does. Without a server started beforehand, the first
+    process started starts a bare one, and its processes import what they need themselves.
+    """
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        return multiprocessing.get_context("forkserver")
+    return multiprocessing.get_context("spawn")
+
+
+WORKER_MODULES = ("csmlab.worker_imports",)
+"""The modules the process server imports for csmlab's workers (:mod:`csmlab.worker_imports`)."""
+
+
+def start_process_server(modules: Sequence[str] = WORKER_MODULES) -> None:
+    """Start the process server of :func:`process_context` now, importing ``modules``, unless it runs already.
+
+    The server is a process of its own: its imports overlap whatever this process does until it
+    starts its first worker, which then waits only for the imports still unfinished. A server
+    already running keeps the modules it was started with. An import error in the server leaves
+    that module to the processes; nothing is started where the start method is ``spawn``.
+    """
+    context = process_context()
+    if context.get_start_method() != "forkserver":
+        return
+    from multiprocessing import forkserver
+
+    import csmlab
+
+    context.set_forkserver_preload(list(modules))
+    # Python 3.11's server does not take this process's sys.path: it imports from its working
+    # folder first, then the installed packages. Started in the folder this process's csmlab
+    # lies in, it imports the same csmlab — a checkout's, or the installed one — whatever folder
+    # the command runs in. Forked processes still work in this process's folder.
+    here = os.getcwd()
+    os.chdir(Path(csmlab.__file__).resolve().parent.parent)
+    try:
+        forkserver.ensure_running()
+    finally:
+        os.chdir(here)
 
 
 def start_worker() -> None:
@@ -77,7 +126,7 @@ def _call_with_shared(fn: Callable, task):
 
 
 def run_pool(fn: Callable, tasks: list, *, shared, jobs: int, address: str | None = None) -> Iterator:
-    """Run the tasks on ``jobs`` local processes (spawned), ``shared`` installed once per process.
+    """Run the tasks on ``jobs`` local processes (:func:`process_context`), ``shared`` installed once per process.
 
     Each process takes a run of consecutive tasks in list order (the tasks cut into ``jobs`` runs),
     one at a time; a process whose run is done takes over the second half of the longest run left.
@@ -87,13 +136,14 @@ def run_pool(fn: Callable, tasks: list, *, shared, jobs: int, address: str | Non
     exception in the caller, Ctrl-C) cancels the tasks not yet started and waits for the running ones.
     """
     if len(tasks) <= 1 or jobs <= 1:
-        # One task gains nothing from a process of its own, and spawning one costs seconds.
+        # One task gains nothing from a process of its own, and starting one costs seconds.
         yield from run_inprocess(fn, tasks, shared=shared)
         return
-    context = multiprocessing.get_context("spawn")
-    # Pickled here, unpickled by the initializer: a spawned process reads its start-up arguments
+    context = process_context()
+    # Pickled here, unpickled by the initializer: a new process reads its start-up arguments
     # while this process writes them, and unpickling the shared objects in that stream imports
-    # their modules (seconds) with this process blocked on the pipe — one process after another.
+    # their modules (seconds, where the process server has not) with this process blocked on the
+    # pipe — one process after another.
     packed = pickle.dumps(shared, protocol=pickle.HIGHEST_PROTOCOL)
     count = max(1, min(jobs, len(tasks)))
     runs = task_runs(len(tasks), count)

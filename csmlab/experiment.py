@@ -35,7 +35,7 @@ from csmlab.camera import CameraPath
 from csmlab.cascades.bounds import shadow_end
 from csmlab.config import Experiment, Variant, config_hash, experiment_document, experiment_toml, workload_hash
 from csmlab.errors import InputError
-from csmlab.executor import execute
+from csmlab.executor import execute, start_process_server
 from csmlab.geometry import normalized
 from csmlab.light import LightPath, direction_from_angles
 from csmlab.paths.timing import TimingReport
@@ -718,6 +718,9 @@ def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, executor: 
     """
     began = time.perf_counter()
     check_device(device)
+    if executor == "pool" and jobs > 1:
+        # Unless the command line started it already: its imports overlap the workload's building.
+        start_process_server()
     workload = build_workload(experiment)
     frames = len(workload.path)
     hash_ = config_hash(experiment)

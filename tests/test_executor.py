@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -156,3 +157,53 @@ atexit.register(lambda: print("before", gc.get_freeze_count() == 0, flush=True))
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["before", "True", "frozen", "True"]
+
+
+STATE = """
+import sys
+from pathlib import Path
+
+import warp._src.context
+
+
+def worker_state(queue):
+    import csmlab
+
+    queue.put((csmlab.__file__, "csmlab.render" in sys.modules, "colour" in sys.modules,
+               warp._src.context.runtime is None))
+
+
+def main():
+    import csmlab
+    from csmlab.executor import process_context, start_process_server
+
+    start_process_server()
+    context = process_context()
+    queue = context.Queue()
+    process = context.Process(target=worker_state, args=(queue,))
+    process.start()
+    print(repr((csmlab.__file__, *queue.get(timeout=120))))
+    process.join()
+
+
+if __name__ == "__main__":
+    main()
+"""
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="no forkserver start method")
+def test_a_process_forked_from_the_server_has_the_parents_csmlab_imported_and_warp_not_started(tmp_path):
+    # Run from a folder holding another package named csmlab, as `csmlab run` in a second checkout
+    # runs: Python 3.11's server puts its working folder first on its path, and would import that one.
+    (tmp_path / "script").mkdir()
+    (tmp_path / "script" / "state.py").write_text(STATE)
+    (tmp_path / "csmlab").mkdir()
+    (tmp_path / "csmlab" / "__init__.py").write_text("raise ImportError('the decoy csmlab')\n")
+    here = str(Path(__file__).resolve().parent.parent)
+    environment = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [here, os.environ.get("PYTHONPATH")])))
+    done = subprocess.run([sys.executable, str(tmp_path / "script" / "state.py")], capture_output=True, text=True,
+                          timeout=300, cwd=tmp_path, env=environment)
+    assert done.returncode == 0, done.stderr
+    parents, workers, render_imported, colour_imported, warp_not_started = eval(done.stdout)
+    assert workers == parents == str(Path(here) / "csmlab" / "__init__.py")
+    assert render_imported and colour_imported and warp_not_started

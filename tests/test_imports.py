@@ -35,7 +35,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("metrics", ("csmlab.metrics",)),
     ("run records", ("csmlab.config", "csmlab.results", "csmlab.executor", "csmlab.engines", "csmlab.invariants")),
     ("judgement and reports", ("csmlab.regress", "csmlab.compare", "csmlab.verdict", "csmlab.report")),
-    ("experiment", ("csmlab.experiment",)),
+    ("experiment", ("csmlab.experiment", "csmlab.worker_imports")),
     ("tune", ("csmlab.tune",)),
     ("command line", ("csmlab.cli",)),
 )

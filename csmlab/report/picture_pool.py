@@ -2,11 +2,13 @@
 
 Most of a report's time goes to pictures that need nothing from each other: the snapshot strips
 (matplotlib), the 3D view (VTK) and the interactive folder's frame files (WebP). A
-:class:`PicturePool` hands pictures to one spawned worker process while this process makes the
-rest, then draws here every picture the worker has not started, so that neither process waits
-while the other has work queued. A spawned worker imports csmlab, matplotlib and, for the 3D view,
-PyVista afresh (about a second), which pays only for pictures that take longer than that: the
-caller decides with ``worker=``.
+:class:`PicturePool` hands pictures to one worker process while this process makes the rest, then
+draws here every picture the worker has not started, so that neither process waits while the other
+has work queued. The worker is forked from csmlab's process server
+(:func:`csmlab.executor.process_context`): after a run, whose server has imported csmlab and
+matplotlib, it imports only PyVista for the 3D view; a bare server's worker imports csmlab and
+matplotlib afresh too (about a second), which pays only for pictures that take longer than that:
+the caller decides with ``worker=``.
 
 A picture drawn in the worker is the same, byte for byte, as one drawn here: same code, same
 libraries, no shared state.
@@ -14,13 +16,12 @@ libraries, no shared state.
 
 from __future__ import annotations
 
-import multiprocessing
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 from collections.abc import Callable
 
-from csmlab.executor import freeze_objects_at_exit
+from csmlab.executor import freeze_objects_at_exit, process_context
 
 __all__ = ["Picture", "PicturePool"]
 
@@ -59,7 +60,7 @@ class Picture:
 
 
 class PicturePool:
-    """Draw pictures in one spawned worker process and in this one; a context manager.
+    """Draw pictures in one worker process and in this one; a context manager.
 
     :meth:`submit` each picture (a module-level function and picklable arguments), do this
     process's own work, then :meth:`finish`: it draws here, latest first, every picture the worker
@@ -76,7 +77,7 @@ class PicturePool:
         self._pictures: list[Picture] = []
         self._executor = None
         if worker:
-            self._executor = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
+            self._executor = ProcessPoolExecutor(max_workers=1, mp_context=process_context(),
                                                  initializer=freeze_objects_at_exit)
 
     def __enter__(self) -> PicturePool:
