@@ -37,7 +37,7 @@ def test_halton_jitter_is_the_2_3_sequence_less_a_half():
     assert halton_jitter(5, phases=1) == halton_jitter(0, phases=1)
 
 
-def test_exponential_blend_of_stationary_noise_reaches_alpha_over_two_minus_alpha():
+def test_exponential_blend_of_stationary_noise_reaches_alpha_over_two_minus_alpha(device):
     # A static camera (the history is its own pixel, no resampling), no clamp: y_t = (1 − α) y_{t−1} + α x_t
     # with x_t white noise of variance σ² has the stationary variance σ² α / (2 − α). 48 × 48 pixels,
     # frames 60..259 (past 20 time constants of α = 0.2): the sample variance of ~2300 pixels × 200
@@ -55,14 +55,14 @@ def test_exponential_blend_of_stationary_noise_reaches_alpha_over_two_minus_alph
             continue
         history, _ = resolve_taa(noise, position=points, history=history, history_depth=depth, eye=eye,
                                  rotation=np.eye(3), fov_y_deg=60.0, aspect=1.0, jitter=(0.0, 0.0), alpha=alpha,
-                                 clamp="none", gamma=1.0, depth_tolerance=0.05)
+                                 clamp="none", gamma=1.0, depth_tolerance=0.05, device=device)
         if t >= 60:
             outputs.append(history.astype(np.float64))
     variance = np.var(np.stack(outputs))
     assert variance == pytest.approx(sigma ** 2 * alpha / (2.0 - alpha), rel=0.05)
 
 
-def test_reprojection_of_a_translating_camera_over_a_plane_returns_the_history_exactly():
+def test_reprojection_of_a_translating_camera_over_a_plane_returns_the_history_exactly(device):
     # The camera steps sideways by exactly 3 pixels' width at the plane's distance: pixel (row, col) of
     # frame t sees frame t−1's point at (row, col + 3). Where that lies inside frame t−1's image the
     # history comes back bit for bit (a point within 1e-9 pixel of a centre reads that pixel alone);
@@ -76,12 +76,13 @@ def test_reprojection_of_a_translating_camera_over_a_plane_returns_the_history_e
     current = np.full((height, width), 0.5, dtype=np.float32)
     _, reprojected = resolve_taa(current, position=points, history=history, history_depth=depth, eye=before,
                                  rotation=np.eye(3), fov_y_deg=60.0, aspect=width / height, jitter=(0.0, 0.0),
-                                 alpha=0.1, clamp="minmax", gamma=1.0, depth_tolerance=0.05)
+                                 alpha=0.1, clamp="minmax", gamma=1.0, depth_tolerance=0.05,
+                                 device=device)
     np.testing.assert_array_equal(reprojected[:, :width - k], history[:, k:])
     assert np.all(np.isnan(reprojected[:, width - k:]))
 
 
-def test_a_point_hidden_in_the_previous_frame_drops_its_history():
+def test_a_point_hidden_in_the_previous_frame_drops_its_history(device):
     # Frame t−1 saw something 20 % nearer at every pixel: every tap fails the depth test, the output is
     # the current frame and nothing is reprojected.
     width, height = 16, 12
@@ -91,7 +92,7 @@ def test_a_point_hidden_in_the_previous_frame_drops_its_history():
     out, reprojected = resolve_taa(current, position=points, history=np.ones((height, width), np.float32),
                                    history_depth=depth * np.float32(0.8), eye=eye, rotation=np.eye(3),
                                    fov_y_deg=60.0, aspect=width / height, jitter=(0.0, 0.0), alpha=0.1,
-                                   clamp="none", gamma=1.0, depth_tolerance=0.05)
+                                   clamp="none", gamma=1.0, depth_tolerance=0.05, device=device)
     np.testing.assert_array_equal(out, current)
     assert np.all(np.isnan(reprojected))
 

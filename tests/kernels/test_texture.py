@@ -61,19 +61,19 @@ def _textured_level(tmp_path, *, factor=(1.0, 1.0, 1.0), colour=SUN_COLOUR, texe
     return b.save(tmp_path / "checker.glb", roots=[quad, sun])
 
 
-def _view(scene: Scene, sun, *, width=48):
+def _view(scene: Scene, sun, *, width=48, device="cpu"):
     pose = CameraPose(position=np.array([0.0, 3.0, 0.01]), orientation=rotation_looking_at([0.0, -1.0, -0.003]),
                       aspect=1.0, far=20.0)
-    return render_view(prepare_scene(scene), pose, sun.direction, width=width, height=width, reference=False,
+    return render_view(prepare_scene(scene, device=device), pose, sun.direction, width=width, height=width, reference=False,
                        light_colour=sun.colour)
 
 
-def test_a_checker_seen_from_above_shades_as_texel_times_sun_colour_times_cosine(tmp_path):
+def test_a_checker_seen_from_above_shades_as_texel_times_sun_colour_times_cosine(tmp_path, device):
     path = _textured_level(tmp_path, factor=(1.0, 0.8, 0.6))
     sun = sun_of(read_gltf(path))
     scene = load_mesh(path)
     assert scene.textured
-    view = _view(scene, sun)
+    view = _view(scene, sun, device=device)
     g = view.gbuffer
     terms = shading_terms(g.albedo, g.normal, light_direction=view.light_direction, light_colour=view.light_colour)
     shaded = shaded_rgb(None, None, np.ones(g.triangle.shape), light_direction=view.light_direction, ambient=0.0,
@@ -104,17 +104,17 @@ def test_a_white_light_shades_to_the_same_bits_as_no_colour():
     np.testing.assert_array_equal(red[..., 0], plain[..., 0])
 
 
-def test_an_untextured_scene_keeps_the_triangle_albedo_bit_for_bit(tmp_path):
+def test_an_untextured_scene_keeps_the_triangle_albedo_bit_for_bit(tmp_path, device):
     path = _textured_level(tmp_path)
     sun = sun_of(read_gltf(path))
     textured = load_mesh(path)
     plain = Scene(textured.vertices, textured.triangles, textured.normals, textured.albedo, name="plain")
     mixed = plain.merged(textured.merged(plain))  # untextured triangles beside textured ones
-    g_plain = _view(plain, sun, width=24).gbuffer
+    g_plain = _view(plain, sun, width=24, device=device).gbuffer
     expected = np.where((g_plain.triangle >= 0)[..., None], plain.albedo[np.maximum(g_plain.triangle, 0)], 0.0)
     assert g_plain.albedo.tobytes() == expected.astype(np.float32).tobytes()
     assert mixed.textured and mixed.colour.vertex_texture.tolist().count(-1) == 2 * len(plain.vertices)
-    g_mixed = _view(mixed, sun, width=24).gbuffer
+    g_mixed = _view(mixed, sun, width=24, device=device).gbuffer
     corner = mixed.triangles[np.maximum(g_mixed.triangle, 0), 0]
     untextured = (g_mixed.triangle >= 0) & (mixed.colour.vertex_texture[corner] < 0)
     assert untextured.sum() > 100
