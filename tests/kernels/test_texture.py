@@ -64,8 +64,8 @@ def _textured_level(tmp_path, *, factor=(1.0, 1.0, 1.0), colour=SUN_COLOUR, texe
 def _view(scene: Scene, sun, *, width=48, device="cpu"):
     pose = CameraPose(position=np.array([0.0, 3.0, 0.01]), orientation=rotation_looking_at([0.0, -1.0, -0.003]),
                       aspect=1.0, far=20.0)
-    return render_view(prepare_scene(scene, device=device), pose, sun.direction, width=width, height=width, reference=False,
-                       light_colour=sun.colour)
+    return render_view(prepare_scene(scene, device=device), pose, sun.direction, width=width, height=width,
+                       reference=False, light_colour=sun.colour)
 
 
 def test_a_checker_seen_from_above_shades_as_texel_times_sun_colour_times_cosine(tmp_path, device):
