@@ -45,9 +45,9 @@ import functools
 
 import numpy as np
 import warp as wp
-from scipy.ndimage import maximum_filter1d
 
 from csmlab.kernels import checked_device
+from csmlab.kernels.reach import nested_reach
 
 __all__ = ["FLIP_DEFAULT_PPD", "flip_error_map", "flip_filter_radii", "flip_reach", "pixels_differ"]
 
@@ -156,13 +156,7 @@ def flip_reach(differs, *, radius: int) -> np.ndarray:
     -------
     ndarray, shape (H, W), uint8
     """
-    size = 2 * int(radius) + 1
-    level = np.asarray(differs, dtype=np.uint8)
-    reach = level.copy()
-    for axis in (1, 0, 0, 1):
-        level = maximum_filter1d(level, size, axis=axis, mode="nearest")
-        reach += level
-    return reach
+    return nested_reach(differs, int(radius), (1, 0, 0, 1))
 
 
 # CUDA's float32 expf and powf are not correctly rounded (an H200: wp.exp up to 1.83 ulp off and
