@@ -98,6 +98,20 @@ def test_shaded_rgb_is_the_float64_formula_bit_for_bit(dtype):
     assert rgb.dtype == np.float64 and rgb.tobytes() == expected.tobytes()
 
 
+def test_shaded_rgb_under_a_coloured_light_is_the_broadcast_formula_bit_for_bit():
+    # albedo · (ambient + S · cos · c), as NumPy broadcasts it: the shading multiplies per channel.
+    rng = np.random.default_rng(23)
+    albedo = rng.random((7, 5, 3))
+    normal = rng.normal(size=(7, 5, 3))
+    normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+    lit = rng.random((7, 5)).astype(np.float32)
+    lit[1, 4] = np.nan
+    terms = shading_terms(albedo, normal, light_direction=[0.3, -1.0, 0.2], light_colour=[1.0, 0.8, 0.55])
+    expected = terms.albedo * ((lit.astype(np.float64) * terms.cosine)[..., None] * terms.light + 0.25)
+    rgb = shaded_rgb(albedo, normal, lit, light_direction=[0.3, -1.0, 0.2], ambient=0.25, terms=terms)
+    assert rgb.dtype == np.float64 and rgb.tobytes() == expected.tobytes()
+
+
 def test_identical_evaluations_give_zero_delta_e_unit_ssim_and_zero_flip():
     rng = np.random.default_rng(4)
     lit = rng.random((48, 64)).astype(np.float32)
