@@ -149,8 +149,10 @@ def perceptual_maps(frame: Frame, previous_lit, *, ambient: float) -> Perceptual
     de2000 = np.where(compared, 0.0, np.nan)
     # Equal colours are 0 apart: the difference is computed only where S changed.
     changed = compared & (lit != previous_lit)
-    de2000[changed] = delta_e_2000(lab_from_linear_srgb(shaded[changed]),
-                                   lab_from_linear_srgb(previous_shaded[changed]))
+    # Both shadings' CIELAB in one colour-science call (a colour's conversion is its own, batched or not).
+    index = np.flatnonzero(changed)
+    lab = lab_from_linear_srgb(np.concatenate((_pixels_taken(shaded, index), _pixels_taken(previous_shaded, index))))
+    de2000.reshape(-1)[index] = delta_e_2000(lab[:index.size], lab[index.size:])
     return PerceptualMaps(lit=lit, previous_lit=previous_lit, shaded=shaded, previous_shaded=previous_shaded,
                           de2000=de2000, compared=compared)
 
@@ -408,9 +410,13 @@ def _encoded_where_read(reference: np.ndarray, test: np.ndarray, *,
     reach = flip_reach(differs, radius=FLIP_SUPPORT)
     read = np.flatnonzero(reach)
     test_read = _pixels_taken(test, read)
+    if compared is not None:
+        # The fill is nan_to_num's, an element-wise identity on finite values: applied to the rows it changes.
+        unfinished = np.flatnonzero(~np.isfinite(sums.reshape(-1)[read]))
+        test_read[unfinished] = np.nan_to_num(test_read[unfinished])
     # Both encoded images in one buffer, zero (calloc'd, untouched) where not read.
     pair = np.zeros((2, *test.shape), dtype=np.float32)
-    _pixels_put(pair[1], read, srgb_encoded(test_read if compared is None else np.nan_to_num(test_read)))
+    _pixels_put(pair[1], read, srgb_encoded(test_read))
     np.copyto(pair[0], pair[1])
     # A pixel that differs is compared: its filled reference is the reference itself.
     changed = np.flatnonzero(differs)
