@@ -26,7 +26,8 @@ values in both images has SSIM exactly 1 and ꟻLIP exactly 0. So each is comput
 *windows* (:func:`changed_windows`) around the pixels whose S changed, each window grown by the
 filter's support so that every value inside is what the whole image gives, and the maps are filled
 with 1 (SSIM) or 0 (ꟻLIP) elsewhere; the summaries are then taken over the full maps exactly as
-before. Where changes are many (:data:`WIDE_CHANGE`), the whole image is filtered instead, by Warp
+before. Where changes are many (:data:`WIDE_CHANGE`), or their windows cover much of the image
+(:data:`SSIM_WHOLE_ABOVE`, :data:`FLIP_WHOLE_ABOVE`), the whole image is filtered instead, by Warp
 kernels that skip, pixel by pixel, every pass out of a change's reach: SSIM by scikit-image's
 operations (:func:`csmlab.kernels.ssim.ssim_where_changed`, bit for bit its map), ꟻLIP by
 NVIDIA's (:func:`csmlab.kernels.flip.flip_reach`), whose windows skip the same way, and only the
@@ -61,9 +62,9 @@ from csmlab.metric_registry import finite_mean
 from csmlab.metrics.shading import ShadingTerms, shaded_rgb, srgb_encoded, view_shading_terms
 from csmlab.registry import dispatch
 
-__all__ = ["FLIP_METHODS", "FLIP_SUPPORT", "JND_CIEDE2000", "PerceptualMaps", "SSIM_SUPPORT", "WIDE_CHANGE",
-           "changed_windows", "delta_e_2000", "flip_map", "lab_from_linear_srgb", "perceptual_maps",
-           "perceptual_summary", "ssim_map"]
+__all__ = ["FLIP_METHODS", "FLIP_SUPPORT", "FLIP_WHOLE_ABOVE", "JND_CIEDE2000", "PerceptualMaps", "SSIM_SUPPORT",
+           "SSIM_WHOLE_ABOVE", "WIDE_CHANGE", "changed_windows", "delta_e_2000", "flip_map", "lab_from_linear_srgb",
+           "perceptual_maps", "perceptual_summary", "ssim_map"]
 
 JND_CIEDE2000: float = 1.0
 """ΔE2000 of one just-noticeable difference. CIEDE2000 was fitted to threshold and small-difference
@@ -287,7 +288,8 @@ def ssim_map(previous, current, *, changed=None, compared=None, device: str = "c
     With ``changed`` (bool ``(H, W)``: where the two differ) it is computed only where a change
     reaches and is exactly 1 elsewhere — the same values as scikit-image gives for the whole image:
     on :func:`changed_windows` by scikit-image, or, for changes over more than :data:`WIDE_CHANGE`
-    of the pixels, pixel by pixel over the whole image by
+    of the pixels or windows over more than :data:`SSIM_WHOLE_ABOVE` of the image, pixel by pixel
+    over the whole image by
     :func:`csmlab.kernels.ssim.ssim_where_changed` (scikit-image's operations in Warp kernels on
     ``device``). Without, by scikit-image on the whole image. With ``compared`` (bool ``(H, W)``)
     every other pixel is first set to the same value in both images (``current``'s, else 0).
@@ -295,15 +297,17 @@ def ssim_map(previous, current, *, changed=None, compared=None, device: str = "c
     """
     previous = np.asarray(previous, dtype=np.float64)
     current = np.asarray(current, dtype=np.float64)
-    if changed is not None and _changes_widely(changed):
-        if compared is not None:
-            current, previous = _filled_pair(current, previous, compared)
-        return ssim_where_changed(previous, current, changed, device=device)
+    windows = None
+    if changed is not None:
+        windows = _windows_or_whole(changed, support=SSIM_SUPPORT, whole_above=SSIM_WHOLE_ABOVE)
+        if windows is None:
+            if compared is not None:
+                current, previous = _filled_pair(current, previous, compared)
+            return ssim_where_changed(previous, current, changed, device=device)
     images, evaluate = _with_compared((previous, current), compared, _ssim_full)
     if changed is None:
         return evaluate(*images)
-    return _windowed(evaluate, images, changed_windows(changed, support=SSIM_SUPPORT),
-                     shape=current.shape, fill=1.0, dtype=np.float64)
+    return _windowed(evaluate, images, windows, shape=current.shape, fill=1.0, dtype=np.float64)
 
 
 WIDE_CHANGE: float = 0.005
@@ -316,9 +320,27 @@ scikit-image on the whole image took 66); ``exact`` changes under 0.03 %, whose 
 less than one pass over the image (6 ms against 12)."""
 
 
-def _changes_widely(changed) -> bool:
+SSIM_WHOLE_ABOVE: float = 0.04
+"""Fraction of the image above which :func:`ssim_map`'s :func:`changed_windows` cost more than its
+kernels over the whole image: on the default walk and the engines, a window costs ~55 ms per image
+area (scikit-image filters every pixel of it), the kernels ~3.5 ms (they skip what no change
+reaches); 0.10 of the image in windows took 6.5 ms, the kernels 3.4 (CPU, 640×360)."""
+
+FLIP_WHOLE_ABOVE: float = 0.2
+"""As :data:`SSIM_WHOLE_ABOVE`, for :func:`flip_map` (``warp``): windows ~2 ms + 52 ms per image
+area, the whole image ~8.5 ms + what the changes reach; 0.24–0.27 of the image in windows cost about
+as much as the whole (15.1 against 13.5 ms, 16.8 against 16.3), 0.43 took 25.2 ms against 19.4."""
+
+
+def _windows_or_whole(changed, *, support: int, whole_above: float):
+    """The :func:`changed_windows` of ``changed`` (bool ``(H, W)``), or None where the whole image costs
+    less: changes over :data:`WIDE_CHANGE` of the pixels, or windows over ``whole_above`` of the image."""
     changed = np.asarray(changed, dtype=bool)
-    return np.count_nonzero(changed) > WIDE_CHANGE * changed.size
+    if np.count_nonzero(changed) > WIDE_CHANGE * changed.size:
+        return None
+    windows = changed_windows(changed, support=support)
+    area = sum((rows.stop - rows.start) * (columns.stop - columns.start) for (rows, columns), _ in windows)
+    return None if area > whole_above * changed.size else windows
 
 
 def _with_compared(images: tuple, compared, evaluate):
@@ -356,7 +378,8 @@ def flip_map(reference, test, *, changed=None, compared=None, method: str = "war
 
     With ``changed`` (bool ``(H, W)``: where the images differ) it is computed on
     :func:`changed_windows` only, or on the whole image where the changes are wide (more than
-    :data:`WIDE_CHANGE` of the pixels, with ``warp``), and is exactly 0 elsewhere — the same values
+    :data:`WIDE_CHANGE` of the pixels or windows over :data:`FLIP_WHOLE_ABOVE` of the image, with
+    ``warp``), and is exactly 0 elsewhere — the same values
     as the whole image gives. With ``compared`` (bool ``(H, W)``) every other pixel is first set to
     the same value in both images (``test``'s, else 0). Only the colours ꟻLIP reads to evaluate a
     pixel that may differ are sRGB-encoded (:func:`csmlab.kernels.flip.flip_reach`). ``method``
@@ -370,14 +393,17 @@ def flip_map(reference, test, *, changed=None, compared=None, method: str = "war
 
     reference = np.asarray(reference, dtype=np.float64)
     test = np.asarray(test, dtype=np.float64)
-    if changed is None or (method == "warp" and _changes_widely(changed)):
+    windows = None
+    if changed is not None:
+        windows = (_windows_or_whole(changed, support=FLIP_SUPPORT, whole_above=FLIP_WHOLE_ABOVE)
+                   if method == "warp" else changed_windows(changed, support=FLIP_SUPPORT))
+    if windows is None:
         # The whole image: filled and encoded together, only at the pixels ꟻLIP reads.
         reference, test, reach = _encoded_where_read(reference, test, compared=compared)
         return dispatch(FLIP_METHODS, method, reference, test, field="flip method",
                         offered={"device": device, "reach": reach})
     images, evaluate = _with_compared((reference, test), compared, encoded)
-    return _windowed(evaluate, images, changed_windows(changed, support=FLIP_SUPPORT), shape=images[1].shape[:2],
-                     fill=0.0, dtype=np.float32)
+    return _windowed(evaluate, images, windows, shape=images[1].shape[:2], fill=0.0, dtype=np.float32)
 
 
 def _encoded_where_read(reference: np.ndarray, test: np.ndarray, *,

@@ -394,3 +394,37 @@ def test_encoding_with_compared_fills_only_the_pixels_read_and_gives_the_filled_
         got = _encoded_where_read(previous, current, compared=compared)
         for a, b in zip(got, expected):
             assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
+
+
+def test_few_changes_whose_windows_cover_much_of_the_image_are_filtered_whole_to_the_windowed_values():
+    from csmlab.metrics.perceptual import (FLIP_SUPPORT, FLIP_WHOLE_ABOVE, SSIM_SUPPORT, SSIM_WHOLE_ABOVE, WIDE_CHANGE,
+                                           _flip_warp, _ssim_full, _windowed, _windows_or_whole)
+    from csmlab.metrics.shading import srgb_encoded
+
+    rng = np.random.default_rng(22)
+    previous = rng.random((90, 120)).round(1)
+    current = previous.copy()
+    for row, column in ((10, 15), (45, 100), (80, 60), (20, 70)):
+        current[row, column] = 1.0 - previous[row, column]
+    changed = current != previous
+    assert 0 < changed.mean() <= WIDE_CHANGE
+    # Scattered: their windows cover more of the image than the whole image's kernels cost.
+    assert _windows_or_whole(changed, support=SSIM_SUPPORT, whole_above=SSIM_WHOLE_ABOVE) is None
+    assert _windows_or_whole(changed, support=FLIP_SUPPORT, whole_above=FLIP_WHOLE_ABOVE) is None
+    # One change in a frame-sized image keeps its window (21 × 21 pixels for SSIM).
+    one = np.zeros((360, 640), dtype=bool)
+    one[45, 100] = True
+    assert len(_windows_or_whole(one, support=SSIM_SUPPORT, whole_above=SSIM_WHOLE_ABOVE)) == 1
+    assert len(_windows_or_whole(one, support=FLIP_SUPPORT, whole_above=FLIP_WHOLE_ABOVE)) == 1
+    windowed = _windowed(_ssim_full, (previous, current), changed_windows(changed, support=SSIM_SUPPORT),
+                         shape=current.shape, fill=1.0, dtype=np.float64)
+    np.testing.assert_array_equal(ssim_map(previous, current, changed=changed), windowed)
+    rgb, previous_rgb = (np.repeat(x[..., None], 3, axis=-1) * [0.9, 0.7, 0.5] for x in (current, previous))
+
+    def flip(a, b):
+        return _flip_warp(np.ascontiguousarray(srgb_encoded(a), dtype=np.float32),
+                          np.ascontiguousarray(srgb_encoded(b), dtype=np.float32))
+
+    windowed = _windowed(flip, (previous_rgb, rgb), changed_windows(changed, support=FLIP_SUPPORT),
+                         shape=current.shape, fill=0.0, dtype=np.float32)
+    np.testing.assert_array_equal(flip_map(previous_rgb, rgb, changed=changed), windowed)
