@@ -16,10 +16,16 @@ differ on ~0.06 % of inputs). Every thread pool (ꟻLIP's OpenMP, NumPy's BLAS) 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 from threadpoolctl import threadpool_limits
+
+# Run as a script, this file's folder comes first on sys.path: put the checkout it belongs to
+# before any installed csmlab (as benchmarks/bench_metrics.py does).
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from csmlab.camera import CameraPose
 from csmlab.geometry import rotation_looking_at

@@ -45,9 +45,9 @@ import functools
 
 import numpy as np
 import warp as wp
-from scipy.ndimage import maximum_filter1d
 
 from csmlab.kernels import checked_device
+from csmlab.kernels.reach import nested_reach
 
 __all__ = ["FLIP_DEFAULT_PPD", "flip_error_map", "flip_filter_radii", "flip_reach", "pixels_differ"]
 
@@ -156,13 +156,7 @@ def flip_reach(differs, *, radius: int) -> np.ndarray:
     -------
     ndarray, shape (H, W), uint8
     """
-    size = 2 * int(radius) + 1
-    level = np.asarray(differs, dtype=np.uint8)
-    reach = level.copy()
-    for axis in (1, 0, 0, 1):
-        level = maximum_filter1d(level, size, axis=axis, mode="nearest")
-        reach += level
-    return reach
+    return nested_reach(differs, int(radius), (1, 0, 0, 1))
 
 
 # CUDA's float32 expf and powf are not correctly rounded (an H200: wp.exp up to 1.83 ulp off and
@@ -387,18 +381,18 @@ def ycxcz_and_luma(c: wp.vec3):
 
 
 @wp.kernel
-def ycxcz_kernel(srgb: wp.array3d(dtype=wp.vec3), reach: wp.array2d(dtype=wp.uint8),
-                 ycxcz: wp.array3d(dtype=wp.vec3), luma: wp.array3d(dtype=float)):
+def ycxcz_kernel(reference: wp.array2d(dtype=wp.vec3), test: wp.array2d(dtype=wp.vec3),
+                 reach: wp.array2d(dtype=wp.uint8), ycxcz: wp.array3d(dtype=wp.vec3), luma: wp.array3d(dtype=float)):
     # Index 0 the reference, 1 the test; the test's values are the reference's where the pixels agree.
     i, j = wp.tid()
     level = int(reach[i, j])
     if level < READ_BY_ROWS:
         return
-    v, y = ycxcz_and_luma(srgb[0, i, j])
+    v, y = ycxcz_and_luma(reference[i, j])
     ycxcz[0, i, j] = v
     luma[0, i, j] = y
     if level == DIFFERS:
-        v, y = ycxcz_and_luma(srgb[1, i, j])
+        v, y = ycxcz_and_luma(test[i, j])
     ycxcz[1, i, j] = v
     luma[1, i, j] = y
 
@@ -453,28 +447,46 @@ def rows_kernel(
 
 
 @wp.func
-def columns_of(spatial_rows: wp.array3d(dtype=wp.vec4), feature_rows: wp.array3d(dtype=wp.vec3), k: int, i: int,
-               j: int, spatial: wp.array(dtype=wp.vec4), spatial_radius: int, feature: wp.array(dtype=wp.vec3),
-               feature_radius: int):
-    """Image k's column pass at (i, j): its Hunt-adjusted CIELAB and its edge and point strengths."""
+def column_sums(spatial_rows: wp.array3d(dtype=wp.vec4), feature_rows: wp.array3d(dtype=wp.vec3), i: int, j: int,
+                spatial: wp.array(dtype=wp.vec4), spatial_radius: int, feature: wp.array(dtype=wp.vec3),
+                feature_radius: int):
+    """Both images' column passes at (i, j): (Y, Cx, Cz, Cz) and (d/dx, d²/dx², d/dy, d²/dy²) of each.
+
+    One walk over the taps for the two images (a weight and a clamped row found once for both),
+    each sum still added in tap order, so each is what a walk of its own gives.
+    """
     last = spatial_rows.shape[1] - 1
     # `while` loops: see rows_of.
-    spatial_sum = wp.vec4(0.0)
+    reference_spatial = wp.vec4(0.0)
+    test_spatial = wp.vec4(0.0)
     t = -spatial_radius
     while t <= spatial_radius:
-        spatial_sum += wp.cw_mul(spatial[t + spatial_radius], spatial_rows[k, wp.min(wp.max(0, i + t), last), j])
+        w = spatial[t + spatial_radius]
+        row = wp.min(wp.max(0, i + t), last)
+        reference_spatial += wp.cw_mul(w, spatial_rows[0, row, j])
+        test_spatial += wp.cw_mul(w, spatial_rows[1, row, j])
         t += 1
-    # The two Cz parts add (the Cz filter is a sum of two Gaussians).
-    lab = filtered_lab(spatial_sum[0], spatial_sum[1], spatial_sum[2] + spatial_sum[3])
     # x-derivatives smoothed in y by the Gaussian, the x-smoothed luma differentiated in y.
-    feature_sum = wp.vec4(0.0)
+    reference_feature = wp.vec4(0.0)
+    test_feature = wp.vec4(0.0)
     t = -feature_radius
     while t <= feature_radius:
         g = feature[t + feature_radius]
-        a = feature_rows[k, wp.min(wp.max(0, i + t), last), j]
-        feature_sum += wp.cw_mul(wp.vec4(g[0], g[0], g[1], g[2]), wp.vec4(a[0], a[1], a[2], a[2]))
+        w = wp.vec4(g[0], g[0], g[1], g[2])
+        row = wp.min(wp.max(0, i + t), last)
+        a = feature_rows[0, row, j]
+        reference_feature += wp.cw_mul(w, wp.vec4(a[0], a[1], a[2], a[2]))
+        b = feature_rows[1, row, j]
+        test_feature += wp.cw_mul(w, wp.vec4(b[0], b[1], b[2], b[2]))
         t += 1
-    return lab, edge_and_point(feature_sum)
+    return reference_spatial, test_spatial, reference_feature, test_feature
+
+
+@wp.func
+def summed_lab(spatial_sum: wp.vec4) -> wp.vec3:
+    """Hunt-adjusted CIELAB of a column pass's (Y, Cx, Cz, Cz): the two Cz parts add (the Cz filter
+    is a sum of two Gaussians)."""
+    return filtered_lab(spatial_sum[0], spatial_sum[1], spatial_sum[2] + spatial_sum[3])
 
 
 @wp.kernel
@@ -494,12 +506,11 @@ def columns_kernel(
         # Equal inputs over the whole support: equal filtered values, a HyAB distance of 0, an error of 0.
         error[i, j] = 0.0
         return
-    reference_lab, reference_features = columns_of(spatial_rows, feature_rows, 0, i, j, spatial, spatial_radius,
-                                                   feature, feature_radius)
-    test_lab, test_features = columns_of(spatial_rows, feature_rows, 1, i, j, spatial, spatial_radius, feature,
-                                         feature_radius)
-    color_difference = redistributed(libm_pow(hyab(reference_lab, test_lab), QC), cmax[0])
-    error[i, j] = flip_error(color_difference, reference_features, test_features)
+    reference_spatial, test_spatial, reference_feature, test_feature = column_sums(
+        spatial_rows, feature_rows, i, j, spatial, spatial_radius, feature, feature_radius)
+    color_difference = redistributed(libm_pow(hyab(summed_lab(reference_spatial), summed_lab(test_spatial)), QC),
+                                     cmax[0])
+    error[i, j] = flip_error(color_difference, edge_and_point(reference_feature), edge_and_point(test_feature))
 
 
 @functools.lru_cache(maxsize=8)
@@ -515,14 +526,17 @@ def _filters(pixels_per_degree: float, device: str) -> tuple[int, int, wp.array,
 
 
 def _checked_image(name: str, image) -> np.ndarray:
+    """The image as C-contiguous float32 ``(H, W, 3)``, not copied when it is one already."""
     array = np.asarray(image)
     if array.ndim != 3 or array.shape[2] != 3 or array.shape[0] < 1 or array.shape[1] < 1:
         raise ValueError(f"{name}: expected an (H, W, 3) sRGB image, got shape {array.shape}")
-    array = array.astype(np.float32)
-    if not np.all(np.isfinite(array)):
+    array = np.ascontiguousarray(array, dtype=np.float32)
+    # min and max propagate NaN, and an infinity is their value if present: two passes tell all three.
+    low, high = array.min(), array.max()
+    if not (np.isfinite(low) and np.isfinite(high)):
         raise ValueError(f"{name}: expected finite values, got NaN or infinity")
-    if array.min() < 0.0 or array.max() > 1.0:
-        raise ValueError(f"{name}: expected sRGB values in [0, 1], got [{array.min()}, {array.max()}]")
+    if low < 0.0 or high > 1.0:
+        raise ValueError(f"{name}: expected sRGB values in [0, 1], got [{low}, {high}]")
     return array
 
 
@@ -574,12 +588,14 @@ def flip_error_map(reference, test, *, pixels_per_degree: float = FLIP_DEFAULT_P
     reach = np.asarray(reach, dtype=np.uint8)
     if reach.shape != (height, width):
         raise ValueError(f"reach: expected the images' shape {(height, width)}, got {reach.shape}")
-    # Read in place where the device can (the CPU): the checked reach and this call's own stacked pair.
+    # Read in place where the device can (the CPU): the checked reach and images.
     reach = wp.array(np.ascontiguousarray(reach), dtype=wp.uint8, device=device, copy=False)
-    srgb = wp.array(np.stack((reference, test)), dtype=wp.vec3, device=device, copy=False)
     ycxcz = wp.empty(pair, dtype=wp.vec3, device=device)
     luma = wp.empty(pair, dtype=float, device=device)
-    wp.launch(ycxcz_kernel, dim=(height, width), inputs=(srgb, reach), outputs=(ycxcz, luma), device=device)
+    wp.launch(ycxcz_kernel, dim=(height, width),
+              inputs=(wp.array(reference, dtype=wp.vec3, device=device, copy=False),
+                      wp.array(test, dtype=wp.vec3, device=device, copy=False), reach),
+              outputs=(ycxcz, luma), device=device)
     spatial_rows = wp.empty(pair, dtype=wp.vec4, device=device)
     feature_rows = wp.empty(pair, dtype=wp.vec3, device=device)
     wp.launch(rows_kernel, dim=(height, width),

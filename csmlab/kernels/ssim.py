@@ -29,9 +29,10 @@ import functools
 
 import numpy as np
 import warp as wp
-from scipy.ndimage import gaussian_filter1d, maximum_filter1d
+from scipy.ndimage import gaussian_filter1d
 
 from csmlab.kernels import checked_device
+from csmlab.kernels.reach import nested_reach
 
 __all__ = ["SSIM_RADIUS", "SSIM_SIGMA", "ssim_reach", "ssim_where_changed"]
 
@@ -64,31 +65,55 @@ def reflected(index: int, size: int) -> int:
 
 
 @wp.func
-def vertical(image: wp.array2d(dtype=wp.float64), other: wp.array2d(dtype=wp.float64), kind: int, i: int, j: int,
-             weights: wp.array(dtype=wp.float64), radius: int) -> wp.float64:
-    """Axis-0 ``correlate1d`` at (i, j) of ``image`` (kind 0), ``image²`` (1) or ``image·other`` (2)."""
-    rows = image.shape[0]
-    value = image[i, j]
-    if kind == 1:
-        value = value * value
-    elif kind == 2:
-        value = value * other[i, j]
-    total = value * weights[0]
+def vertical_previous(previous: wp.array2d(dtype=wp.float64), i: int, j: int, weights: wp.array(dtype=wp.float64),
+                      radius: int):
+    """Axis-0 ``correlate1d`` at (i, j) of ``previous`` and ``previous²``, in one walk over the taps."""
+    rows = previous.shape[0]
+    x = previous[i, j]
+    w = weights[0]
+    ux = x * w
+    uxx = (x * x) * w
+    k = radius
+    while k >= 1:
+        left = previous[reflected(i - k, rows), j]
+        right = previous[reflected(i + k, rows), j]
+        w = weights[k]
+        ux = ux + (left + right) * w
+        uxx = uxx + (left * left + right * right) * w
+        k -= 1
+    return ux, uxx
+
+
+@wp.func
+def vertical_both(previous: wp.array2d(dtype=wp.float64), current: wp.array2d(dtype=wp.float64), i: int, j: int,
+                  weights: wp.array(dtype=wp.float64), radius: int):
+    """Axis-0 ``correlate1d`` at (i, j) of the five planes, in one walk over the taps (each sum in
+    SciPy's order, as a walk of its own): previous, current, their squares and their product."""
+    rows = previous.shape[0]
+    x = previous[i, j]
+    y = current[i, j]
+    w = weights[0]
+    ux = x * w
+    uy = y * w
+    uxx = (x * x) * w
+    uyy = (y * y) * w
+    uxy = (x * y) * w
     k = radius
     while k >= 1:
         a = reflected(i - k, rows)
         b = reflected(i + k, rows)
-        left = image[a, j]
-        right = image[b, j]
-        if kind == 1:
-            left = left * left
-            right = right * right
-        elif kind == 2:
-            left = left * other[a, j]
-            right = right * other[b, j]
-        total = total + (left + right) * weights[k]
+        xa = previous[a, j]
+        xb = previous[b, j]
+        ya = current[a, j]
+        yb = current[b, j]
+        w = weights[k]
+        ux = ux + (xa + xb) * w
+        uy = uy + (ya + yb) * w
+        uxx = uxx + (xa * xa + xb * xb) * w
+        uyy = uyy + (ya * ya + yb * yb) * w
+        uxy = uxy + (xa * ya + xb * yb) * w
         k -= 1
-    return total
+    return ux, uy, uxx, uyy, uxy
 
 
 @wp.kernel
@@ -100,34 +125,22 @@ def vertical_kernel(previous: wp.array2d(dtype=wp.float64), current: wp.array2d(
     level = int(reach[i, j])
     if level < FIRST_PASS:
         return
-    ux = vertical(previous, current, 0, i, j, weights, radius)
-    uxx = vertical(previous, current, 1, i, j, weights, radius)
-    filtered[0, i, j] = ux
-    filtered[2, i, j] = uxx
     if level >= BOTH_DIFFER:
-        filtered[1, i, j] = vertical(current, current, 0, i, j, weights, radius)
-        filtered[3, i, j] = vertical(current, current, 1, i, j, weights, radius)
-        filtered[4, i, j] = vertical(previous, current, 2, i, j, weights, radius)
-    else:
-        # No change within the column's support: the current image, its square and the product are
-        # the previous image and its square there.
-        filtered[1, i, j] = ux
-        filtered[3, i, j] = uxx
-        filtered[4, i, j] = uxx
-
-
-@wp.func
-def horizontal(filtered: wp.array3d(dtype=wp.float64), plane: int, i: int, j: int,
-               weights: wp.array(dtype=wp.float64), radius: int) -> wp.float64:
-    """Axis-1 ``correlate1d`` at (i, j) of one plane of the first pass."""
-    columns = filtered.shape[2]
-    total = filtered[plane, i, j] * weights[0]
-    k = radius
-    while k >= 1:
-        total = total + (filtered[plane, i, reflected(j - k, columns)]
-                         + filtered[plane, i, reflected(j + k, columns)]) * weights[k]
-        k -= 1
-    return total
+        ux, uy, uxx, uyy, uxy = vertical_both(previous, current, i, j, weights, radius)
+        filtered[0, i, j] = ux
+        filtered[1, i, j] = uy
+        filtered[2, i, j] = uxx
+        filtered[3, i, j] = uyy
+        filtered[4, i, j] = uxy
+        return
+    # No change within the column's support: the current image, its square and the product are
+    # the previous image and its square there.
+    ux, uxx = vertical_previous(previous, i, j, weights, radius)
+    filtered[0, i, j] = ux
+    filtered[1, i, j] = ux
+    filtered[2, i, j] = uxx
+    filtered[3, i, j] = uxx
+    filtered[4, i, j] = uxx
 
 
 @wp.kernel
@@ -139,11 +152,25 @@ def horizontal_kernel(filtered: wp.array3d(dtype=wp.float64), reach: wp.array2d(
         # Equal images over the whole support: A1 = B1, A2 = B2.
         ssim[i, j] = wp.float64(1.0)
         return
-    ux = horizontal(filtered, 0, i, j, weights, radius)
-    uy = horizontal(filtered, 1, i, j, weights, radius)
-    uxx = horizontal(filtered, 2, i, j, weights, radius)
-    uyy = horizontal(filtered, 3, i, j, weights, radius)
-    uxy = horizontal(filtered, 4, i, j, weights, radius)
+    # Axis-1 ``correlate1d`` at (i, j) of the five planes of the first pass, in one walk over the taps.
+    columns = filtered.shape[2]
+    w = weights[0]
+    ux = filtered[0, i, j] * w
+    uy = filtered[1, i, j] * w
+    uxx = filtered[2, i, j] * w
+    uyy = filtered[3, i, j] * w
+    uxy = filtered[4, i, j] * w
+    k = radius
+    while k >= 1:
+        a = reflected(j - k, columns)
+        b = reflected(j + k, columns)
+        w = weights[k]
+        ux = ux + (filtered[0, i, a] + filtered[0, i, b]) * w
+        uy = uy + (filtered[1, i, a] + filtered[1, i, b]) * w
+        uxx = uxx + (filtered[2, i, a] + filtered[2, i, b]) * w
+        uyy = uyy + (filtered[3, i, a] + filtered[3, i, b]) * w
+        uxy = uxy + (filtered[4, i, a] + filtered[4, i, b]) * w
+        k -= 1
     # use_sample_covariance=False: cov_norm = 1.0.
     one = wp.float64(1.0)
     two = wp.float64(2.0)
@@ -176,13 +203,7 @@ def ssim_reach(changed) -> np.ndarray:
     the radius of a change along its column — the first pass differs; 2 (``SECOND_PASS``) the SSIM
     may differ from 1; 1 (``FIRST_PASS``) the second pass reads its first pass; 0 nothing.
     """
-    size = 2 * SSIM_RADIUS + 1
-    level = np.asarray(changed, dtype=np.uint8)
-    reach = level.copy()
-    for axis in (0, 1, 1):
-        level = maximum_filter1d(level, size, axis=axis, mode="nearest")
-        reach += level
-    return reach
+    return nested_reach(changed, SSIM_RADIUS, (0, 1, 1))
 
 
 def ssim_where_changed(previous, current, changed, *, device: str = "cpu") -> np.ndarray:

@@ -26,7 +26,8 @@ values in both images has SSIM exactly 1 and ꟻLIP exactly 0. So each is comput
 *windows* (:func:`changed_windows`) around the pixels whose S changed, each window grown by the
 filter's support so that every value inside is what the whole image gives, and the maps are filled
 with 1 (SSIM) or 0 (ꟻLIP) elsewhere; the summaries are then taken over the full maps exactly as
-before. Where changes are many (:data:`WIDE_CHANGE`), the whole image is filtered instead, by Warp
+before. Where changes are many (:data:`WIDE_CHANGE`), or their windows cover much of the image
+(:data:`SSIM_WHOLE_ABOVE`, :data:`FLIP_WHOLE_ABOVE`), the whole image is filtered instead, by Warp
 kernels that skip, pixel by pixel, every pass out of a change's reach: SSIM by scikit-image's
 operations (:func:`csmlab.kernels.ssim.ssim_where_changed`, bit for bit its map), ꟻLIP by
 NVIDIA's (:func:`csmlab.kernels.flip.flip_reach`), whose windows skip the same way, and only the
@@ -51,19 +52,19 @@ from dataclasses import dataclass
 import colour
 import flip_evaluator
 import numpy as np
-from scipy.ndimage import maximum_filter
 from skimage.metrics import structural_similarity
 
 from csmlab.frame import Frame
 from csmlab.kernels.flip import flip_error_map, flip_filter_radii, flip_reach, pixels_differ
+from csmlab.kernels.reach import grown_along
 from csmlab.kernels.ssim import SSIM_RADIUS, SSIM_SIGMA, ssim_where_changed
 from csmlab.metric_registry import finite_mean
 from csmlab.metrics.shading import ShadingTerms, shaded_rgb, srgb_encoded, view_shading_terms
 from csmlab.registry import dispatch
 
-__all__ = ["FLIP_METHODS", "FLIP_SUPPORT", "JND_CIEDE2000", "PerceptualMaps", "SSIM_SUPPORT", "WIDE_CHANGE",
-           "changed_windows", "delta_e_2000", "flip_map", "lab_from_linear_srgb", "perceptual_maps",
-           "perceptual_summary", "ssim_map"]
+__all__ = ["FLIP_METHODS", "FLIP_SUPPORT", "FLIP_WHOLE_ABOVE", "JND_CIEDE2000", "PerceptualMaps", "SSIM_SUPPORT",
+           "SSIM_WHOLE_ABOVE", "WIDE_CHANGE", "changed_windows", "delta_e_2000", "flip_map", "lab_from_linear_srgb",
+           "perceptual_maps", "perceptual_summary", "ssim_map"]
 
 JND_CIEDE2000: float = 1.0
 """ΔE2000 of one just-noticeable difference. CIEDE2000 was fitted to threshold and small-difference
@@ -149,8 +150,10 @@ def perceptual_maps(frame: Frame, previous_lit, *, ambient: float) -> Perceptual
     de2000 = np.where(compared, 0.0, np.nan)
     # Equal colours are 0 apart: the difference is computed only where S changed.
     changed = compared & (lit != previous_lit)
-    de2000[changed] = delta_e_2000(lab_from_linear_srgb(shaded[changed]),
-                                   lab_from_linear_srgb(previous_shaded[changed]))
+    # Both shadings' CIELAB in one colour-science call (a colour's conversion is its own, batched or not).
+    index = np.flatnonzero(changed)
+    lab = lab_from_linear_srgb(np.concatenate((_pixels_taken(shaded, index), _pixels_taken(previous_shaded, index))))
+    de2000.reshape(-1)[index] = delta_e_2000(lab[:index.size], lab[index.size:])
     return PerceptualMaps(lit=lit, previous_lit=previous_lit, shaded=shaded, previous_shaded=previous_shaded,
                           de2000=de2000, compared=compared)
 
@@ -218,7 +221,8 @@ def changed_windows(changed, *, support: int) -> list[tuple[tuple[slice, slice],
     if not changed.any():
         return []
     height, width = changed.shape
-    reach = maximum_filter(changed.view(np.uint8), size=2 * support + 1, mode="constant").view(bool)
+    # The square window's maximum, one axis at a time (SciPy's maximum_filter, mode "constant", gives the same).
+    reach = grown_along(grown_along(changed, support, 0), support, 1)
     band = max(4 * support, 1)
     # Boxes of reach pixels: [row0, row1, col0, col1) and the core they keep, [row0, row1, col0, col1).
     boxes = []
@@ -284,7 +288,8 @@ def ssim_map(previous, current, *, changed=None, compared=None, device: str = "c
     With ``changed`` (bool ``(H, W)``: where the two differ) it is computed only where a change
     reaches and is exactly 1 elsewhere — the same values as scikit-image gives for the whole image:
     on :func:`changed_windows` by scikit-image, or, for changes over more than :data:`WIDE_CHANGE`
-    of the pixels, pixel by pixel over the whole image by
+    of the pixels or windows over more than :data:`SSIM_WHOLE_ABOVE` of the image, pixel by pixel
+    over the whole image by
     :func:`csmlab.kernels.ssim.ssim_where_changed` (scikit-image's operations in Warp kernels on
     ``device``). Without, by scikit-image on the whole image. With ``compared`` (bool ``(H, W)``)
     every other pixel is first set to the same value in both images (``current``'s, else 0).
@@ -292,15 +297,17 @@ def ssim_map(previous, current, *, changed=None, compared=None, device: str = "c
     """
     previous = np.asarray(previous, dtype=np.float64)
     current = np.asarray(current, dtype=np.float64)
-    if changed is not None and _changes_widely(changed):
-        if compared is not None:
-            current, previous = _filled_pair(current, previous, compared)
-        return ssim_where_changed(previous, current, changed, device=device)
+    windows = None
+    if changed is not None:
+        windows = _windows_or_whole(changed, support=SSIM_SUPPORT, whole_above=SSIM_WHOLE_ABOVE)
+        if windows is None:
+            if compared is not None:
+                current, previous = _filled_pair(current, previous, compared)
+            return ssim_where_changed(previous, current, changed, device=device)
     images, evaluate = _with_compared((previous, current), compared, _ssim_full)
     if changed is None:
         return evaluate(*images)
-    return _windowed(evaluate, images, changed_windows(changed, support=SSIM_SUPPORT),
-                     shape=current.shape, fill=1.0, dtype=np.float64)
+    return _windowed(evaluate, images, windows, shape=current.shape, fill=1.0, dtype=np.float64)
 
 
 WIDE_CHANGE: float = 0.005
@@ -313,9 +320,27 @@ scikit-image on the whole image took 66); ``exact`` changes under 0.03 %, whose 
 less than one pass over the image (6 ms against 12)."""
 
 
-def _changes_widely(changed) -> bool:
+SSIM_WHOLE_ABOVE: float = 0.04
+"""Fraction of the image above which :func:`ssim_map`'s :func:`changed_windows` cost more than its
+kernels over the whole image: on the default walk and the engines, a window costs ~55 ms per image
+area (scikit-image filters every pixel of it), the kernels ~3.5 ms (they skip what no change
+reaches); 0.10 of the image in windows took 6.5 ms, the kernels 3.4 (CPU, 640×360)."""
+
+FLIP_WHOLE_ABOVE: float = 0.2
+"""As :data:`SSIM_WHOLE_ABOVE`, for :func:`flip_map` (``warp``): windows ~2 ms + 52 ms per image
+area, the whole image ~8.5 ms + what the changes reach; 0.24–0.27 of the image in windows cost about
+as much as the whole (15.1 against 13.5 ms, 16.8 against 16.3), 0.43 took 25.2 ms against 19.4."""
+
+
+def _windows_or_whole(changed, *, support: int, whole_above: float):
+    """The :func:`changed_windows` of ``changed`` (bool ``(H, W)``), or None where the whole image costs
+    less: changes over :data:`WIDE_CHANGE` of the pixels, or windows over ``whole_above`` of the image."""
     changed = np.asarray(changed, dtype=bool)
-    return np.count_nonzero(changed) > WIDE_CHANGE * changed.size
+    if np.count_nonzero(changed) > WIDE_CHANGE * changed.size:
+        return None
+    windows = changed_windows(changed, support=support)
+    area = sum((rows.stop - rows.start) * (columns.stop - columns.start) for (rows, columns), _ in windows)
+    return None if area > whole_above * changed.size else windows
 
 
 def _with_compared(images: tuple, compared, evaluate):
@@ -353,7 +378,8 @@ def flip_map(reference, test, *, changed=None, compared=None, method: str = "war
 
     With ``changed`` (bool ``(H, W)``: where the images differ) it is computed on
     :func:`changed_windows` only, or on the whole image where the changes are wide (more than
-    :data:`WIDE_CHANGE` of the pixels, with ``warp``), and is exactly 0 elsewhere — the same values
+    :data:`WIDE_CHANGE` of the pixels or windows over :data:`FLIP_WHOLE_ABOVE` of the image, with
+    ``warp``), and is exactly 0 elsewhere — the same values
     as the whole image gives. With ``compared`` (bool ``(H, W)``) every other pixel is first set to
     the same value in both images (``test``'s, else 0). Only the colours ꟻLIP reads to evaluate a
     pixel that may differ are sRGB-encoded (:func:`csmlab.kernels.flip.flip_reach`). ``method``
@@ -367,14 +393,17 @@ def flip_map(reference, test, *, changed=None, compared=None, method: str = "war
 
     reference = np.asarray(reference, dtype=np.float64)
     test = np.asarray(test, dtype=np.float64)
-    if changed is None or (method == "warp" and _changes_widely(changed)):
+    windows = None
+    if changed is not None:
+        windows = (_windows_or_whole(changed, support=FLIP_SUPPORT, whole_above=FLIP_WHOLE_ABOVE)
+                   if method == "warp" else changed_windows(changed, support=FLIP_SUPPORT))
+    if windows is None:
         # The whole image: filled and encoded together, only at the pixels ꟻLIP reads.
         reference, test, reach = _encoded_where_read(reference, test, compared=compared)
         return dispatch(FLIP_METHODS, method, reference, test, field="flip method",
                         offered={"device": device, "reach": reach})
     images, evaluate = _with_compared((reference, test), compared, encoded)
-    return _windowed(evaluate, images, changed_windows(changed, support=FLIP_SUPPORT), shape=images[1].shape[:2],
-                     fill=0.0, dtype=np.float32)
+    return _windowed(evaluate, images, windows, shape=images[1].shape[:2], fill=0.0, dtype=np.float32)
 
 
 def _encoded_where_read(reference: np.ndarray, test: np.ndarray, *,
@@ -388,27 +417,51 @@ def _encoded_where_read(reference: np.ndarray, test: np.ndarray, *,
     ``nan_to_num``, and the reference's pixels only where compared): the same bits, but filled
     only at the pixels read, not over the whole image first (``none`` reads 45 % of them).
     """
+    reference = np.ascontiguousarray(reference)
+    test = np.ascontiguousarray(test)
     if compared is None:
         differs = pixels_differ(reference, test)
     else:
         # Filled, the two agree wherever a pixel is not compared; where it is, the filled test is
         # the test's nan_to_num, an element-wise fill (what _filled_pair's fill gives, inf or not),
-        # which is the test itself but at its non-finite pixels: those few are compared again.
+        # which is the test itself but at its non-finite pixels: those few are compared again. A
+        # pixel's channels sum to a non-finite value wherever one is not finite (and where finite
+        # ones overflow, compared again to no effect): one pass over the pixels, not three.
         compared = np.asarray(compared, dtype=bool)
         differs = compared & pixels_differ(reference, test)
-        odd = np.flatnonzero(compared & ~np.isfinite(test).all(axis=-1))
+        sums = test[..., 0] + test[..., 1]
+        sums += test[..., 2]
+        odd = np.flatnonzero(compared & ~np.isfinite(sums))
         differs.reshape(-1)[odd] = pixels_differ(reference.reshape(-1, 3)[odd], np.nan_to_num(test.reshape(-1, 3)[odd]))
     reach = flip_reach(differs, radius=FLIP_SUPPORT)
-    # Pixels as rows of (N, 3): each index list found once serves the gather and the scatter.
     read = np.flatnonzero(reach)
-    test_read = test.reshape(-1, 3)[read]
-    out_test = np.zeros(test.shape, dtype=np.float32)
-    out_test.reshape(-1, 3)[read] = srgb_encoded(test_read if compared is None else np.nan_to_num(test_read))
-    out_reference = out_test.copy()
+    test_read = _pixels_taken(test, read)
+    if compared is not None:
+        # The fill is nan_to_num's, an element-wise identity on finite values: applied to the rows it changes.
+        unfinished = np.flatnonzero(~np.isfinite(sums.reshape(-1)[read]))
+        test_read[unfinished] = np.nan_to_num(test_read[unfinished])
+    # Both encoded images in one buffer, zero (calloc'd, untouched) where not read.
+    pair = np.zeros((2, *test.shape), dtype=np.float32)
+    _pixels_put(pair[1], read, srgb_encoded(test_read))
+    np.copyto(pair[0], pair[1])
     # A pixel that differs is compared: its filled reference is the reference itself.
     changed = np.flatnonzero(differs)
-    out_reference.reshape(-1, 3)[changed] = srgb_encoded(reference.reshape(-1, 3)[changed])
-    return out_reference, out_test, reach
+    _pixels_put(pair[0], changed, srgb_encoded(_pixels_taken(reference, changed)))
+    return pair[0], pair[1], reach
+
+
+def _pixels_taken(image: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """``(N, 3)``: the pixels ``index`` (flat) of a C-contiguous ``(H, W, 3)`` image, each one element
+    of a void view (NumPy gathers those in one pass; a row-wise fancy index takes 4× as long)."""
+    pixels = image.reshape(-1).view(np.dtype((np.void, 3 * image.itemsize)))
+    return np.take(pixels, index).view(image.dtype).reshape(-1, 3)
+
+
+def _pixels_put(image: np.ndarray, index: np.ndarray, values) -> None:
+    """Set the pixels ``index`` (flat) of a C-contiguous ``(H, W, 3)`` image to ``values`` ``(N, 3)``,
+    cast to the image's dtype as an assignment casts, through a void view as :func:`_pixels_taken`."""
+    void = np.dtype((np.void, 3 * image.itemsize))
+    image.reshape(-1).view(void)[index] = np.ascontiguousarray(values, dtype=image.dtype).reshape(-1).view(void)
 
 
 def perceptual_summary(maps: PerceptualMaps, *, device: str = "cpu") -> dict[str, float]:

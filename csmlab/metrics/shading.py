@@ -101,11 +101,20 @@ def shaded_rgb(albedo, normal, lit, *, light_direction, ambient: float,
     # ambient added in place: the same products and sums (addition commutes), two temporaries fewer.
     irradiance = np.multiply(np.asarray(lit), terms.cosine, dtype=np.float64)
     if terms.light is not None:
-        coloured = irradiance[..., None] * terms.light
+        coloured = _channels_scaled(np.broadcast_to(terms.light, terms.albedo.shape), irradiance)
         coloured += ambient
         return terms.albedo * coloured
     irradiance += ambient
-    return terms.albedo * irradiance[..., None]
+    return _channels_scaled(terms.albedo, irradiance)
+
+
+def _channels_scaled(rgb: np.ndarray, factor: np.ndarray) -> np.ndarray:
+    """``rgb * factor[..., None]`` ``(..., 3)`` float64, one channel at a time: the same products,
+    where a broadcast over the last axis of 3 runs NumPy's inner loop three elements at a time."""
+    out = np.empty(np.broadcast_shapes(rgb.shape, factor.shape + (3,)), dtype=np.float64)
+    for channel in range(3):
+        np.multiply(rgb[..., channel], factor, out=out[..., channel])
+    return out
 
 
 def view_shading_terms(view) -> ShadingTerms:

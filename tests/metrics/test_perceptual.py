@@ -98,6 +98,20 @@ def test_shaded_rgb_is_the_float64_formula_bit_for_bit(dtype):
     assert rgb.dtype == np.float64 and rgb.tobytes() == expected.tobytes()
 
 
+def test_shaded_rgb_under_a_coloured_light_is_the_broadcast_formula_bit_for_bit():
+    # albedo · (ambient + S · cos · c), as NumPy broadcasts it: the shading multiplies per channel.
+    rng = np.random.default_rng(23)
+    albedo = rng.random((7, 5, 3))
+    normal = rng.normal(size=(7, 5, 3))
+    normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+    lit = rng.random((7, 5)).astype(np.float32)
+    lit[1, 4] = np.nan
+    terms = shading_terms(albedo, normal, light_direction=[0.3, -1.0, 0.2], light_colour=[1.0, 0.8, 0.55])
+    expected = terms.albedo * ((lit.astype(np.float64) * terms.cosine)[..., None] * terms.light + 0.25)
+    rgb = shaded_rgb(albedo, normal, lit, light_direction=[0.3, -1.0, 0.2], ambient=0.25, terms=terms)
+    assert rgb.dtype == np.float64 and rgb.tobytes() == expected.tobytes()
+
+
 def test_identical_evaluations_give_zero_delta_e_unit_ssim_and_zero_flip():
     rng = np.random.default_rng(4)
     lit = rng.random((48, 64)).astype(np.float32)
@@ -380,3 +394,37 @@ def test_encoding_with_compared_fills_only_the_pixels_read_and_gives_the_filled_
         got = _encoded_where_read(previous, current, compared=compared)
         for a, b in zip(got, expected):
             assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
+
+
+def test_few_changes_whose_windows_cover_much_of_the_image_are_filtered_whole_to_the_windowed_values():
+    from csmlab.metrics.perceptual import (FLIP_SUPPORT, FLIP_WHOLE_ABOVE, SSIM_SUPPORT, SSIM_WHOLE_ABOVE, WIDE_CHANGE,
+                                           _flip_warp, _ssim_full, _windowed, _windows_or_whole)
+    from csmlab.metrics.shading import srgb_encoded
+
+    rng = np.random.default_rng(22)
+    previous = rng.random((90, 120)).round(1)
+    current = previous.copy()
+    for row, column in ((10, 15), (45, 100), (80, 60), (20, 70)):
+        current[row, column] = 1.0 - previous[row, column]
+    changed = current != previous
+    assert 0 < changed.mean() <= WIDE_CHANGE
+    # Scattered: their windows cover more of the image than the whole image's kernels cost.
+    assert _windows_or_whole(changed, support=SSIM_SUPPORT, whole_above=SSIM_WHOLE_ABOVE) is None
+    assert _windows_or_whole(changed, support=FLIP_SUPPORT, whole_above=FLIP_WHOLE_ABOVE) is None
+    # One change in a frame-sized image keeps its window (21 × 21 pixels for SSIM).
+    one = np.zeros((360, 640), dtype=bool)
+    one[45, 100] = True
+    assert len(_windows_or_whole(one, support=SSIM_SUPPORT, whole_above=SSIM_WHOLE_ABOVE)) == 1
+    assert len(_windows_or_whole(one, support=FLIP_SUPPORT, whole_above=FLIP_WHOLE_ABOVE)) == 1
+    windowed = _windowed(_ssim_full, (previous, current), changed_windows(changed, support=SSIM_SUPPORT),
+                         shape=current.shape, fill=1.0, dtype=np.float64)
+    np.testing.assert_array_equal(ssim_map(previous, current, changed=changed), windowed)
+    rgb, previous_rgb = (np.repeat(x[..., None], 3, axis=-1) * [0.9, 0.7, 0.5] for x in (current, previous))
+
+    def flip(a, b):
+        return _flip_warp(np.ascontiguousarray(srgb_encoded(a), dtype=np.float32),
+                          np.ascontiguousarray(srgb_encoded(b), dtype=np.float32))
+
+    windowed = _windowed(flip, (previous_rgb, rgb), changed_windows(changed, support=FLIP_SUPPORT),
+                         shape=current.shape, fill=0.0, dtype=np.float32)
+    np.testing.assert_array_equal(flip_map(previous_rgb, rgb, changed=changed), windowed)
