@@ -48,6 +48,15 @@ __all__ = ["DeviceScene", "caster_offsets", "caster_scene", "clipped_casters", "
            "virtual_shadow_maps", "visible_depth", "warped_depth_map"]
 
 
+LIGHT_SPACE_MESHES = 8
+"""Light-space meshes a :class:`DeviceScene` keeps, the least recently used dropped first. The methods of
+one run build their light bases and depth references each their own way (five for the thirteen methods
+of ``experiments/engines.toml``), and a worker renders them in turn every frame: keeping one light's
+meshes only made 29 of 51 calls of a 4-frame walk there build theirs again (a pass over every vertex and
+a Z-order sort, ~40 ms on the terrain). A light that moves every frame makes a new key every frame,
+which the bound keeps from piling up."""
+
+
 @dataclass(frozen=True)
 class DeviceScene:
     """A scene uploaded once to a Warp device.
@@ -63,9 +72,10 @@ class DeviceScene:
         The scene's bounding-box corners, metres (:meth:`Scene.corners`, a pass over every
         vertex: taken once here, not twice per frame and method).
     light_space : dict
-        The scene in the light space of the last light direction seen (what the cascade pass
-        needs of every vertex and triangle, which a static light leaves unchanged from frame to
-        frame), keyed by the light basis, its depth offset and the face cull (``settings.cull``).
+        The scene in the light spaces last used (what the cascade pass needs of every vertex and
+        triangle, which a static light leaves unchanged from frame to frame), keyed by the light
+        basis, its depth offset and the face cull (``settings.cull``), least recently used first, at
+        most :data:`LIGHT_SPACE_MESHES`.
     ordered_vertices : dict
         Beside each mesh of ``light_space``, under the same key: the scene's float64 world vertices
         ``(V, 3)`` in that mesh's vertex order (what an engine's float32 pipeline transforms).
@@ -188,18 +198,21 @@ def _scene_in_light_space(dscene: DeviceScene, cascades: CascadeSet, cull: str =
 
     Only the triangles ``cull`` keeps (:func:`csmlab.culling.culled_triangles`, judged by ``d``
     alone) are handed on, listed with their vertices along a Z-order curve in light space
-    (:func:`csmlab.kernels.raster.z_ordered`): the same mesh, rasterized place by place. Meshes of
-    the same light under other culls are kept beside it; another light's are dropped.
+    (:func:`csmlab.kernels.raster.z_ordered`): the same mesh, rasterized place by place. The last
+    :data:`LIGHT_SPACE_MESHES` meshes used are kept, under their light basis, depth reference and cull.
     """
-    light = (cascades.basis.tobytes(), cascades.zref)
-    key = (*light, cull)
-    if key not in dscene.light_space:
+    key = (cascades.basis.tobytes(), cascades.zref, cull)
+    if key in dscene.light_space:
+        # Most recently used last: the first key is the one to drop.
+        dscene.light_space[key] = dscene.light_space.pop(key)
+    else:
         vertices = dscene.scene.vertices
         xy = light_plane_coordinates(cascades, vertices)
         order, triangles = z_ordered(xy, culled_triangles(vertices, dscene.scene.triangles, cascades.direction, cull))
-        for other in [k for k in dscene.light_space if k[:2] != light]:
-            del dscene.light_space[other]
-            dscene.ordered_vertices.pop(other, None)
+        while len(dscene.light_space) >= LIGHT_SPACE_MESHES:
+            dropped = next(iter(dscene.light_space))
+            del dscene.light_space[dropped]
+            dscene.ordered_vertices.pop(dropped, None)
         scene = dscene.scene
         masks = {} if scene.vertex_mask is None else dict(uv=scene.uv[order], vertex_mask=scene.vertex_mask[order],
                                                           alpha=scene.alpha)

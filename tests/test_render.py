@@ -8,7 +8,7 @@ from scipy.spatial import ConvexHull
 from csmlab.camera import CameraPose
 from csmlab.geometry import rotation_looking_at
 from csmlab.light import direction_from_angles
-from csmlab.render import lookup_shadow, prepare_scene, render_frame, render_shadow, render_view
+from csmlab.render import LIGHT_SPACE_MESHES, lookup_shadow, prepare_scene, render_frame, render_shadow, render_view
 from csmlab.scene import Scene
 from csmlab.settings import ShadowSettings
 from csmlab.texels import texel_coordinates
@@ -192,6 +192,28 @@ def test_the_view_is_shared_across_methods_and_every_stage_is_timed_and_repeatab
                  (again.view.gbuffer.position, g.position), (again.view.reference, view.reference),
                  (again.view.gbuffer.normal, g.normal)):
         assert np.array_equal(x, y, equal_nan=True)
+
+
+def test_methods_of_other_lights_keep_their_light_space_meshes_and_the_same_maps():
+    # Two lights in turn, as methods with their own light bases are rendered in turn by one worker: each
+    # keeps its mesh (the same object again), and the maps equal those of a scene that never saw the other.
+    dscene = prepare_scene(scene_of(BOXES))
+    pose = camera(32, 24)
+    lights = [direction_from_angles(elevation_deg=40.0 + k, azimuth_deg=30.0) for k in range(LIGHT_SPACE_MESHES + 2)]
+    settings = ShadowSettings(cascades=2, resolution=64, stabilization="exact")
+    first = render_frame(dscene, pose, lights[0], settings, width=32, height=24)
+    kept = dict(dscene.light_space)
+    second = render_frame(dscene, pose, lights[1], settings, width=32, height=24)
+    again = render_frame(dscene, pose, lights[0], settings, width=32, height=24)
+    assert len(dscene.light_space) == 2 and all(dscene.light_space[k] is m for k, m in kept.items())
+    assert np.array_equal(again.maps.depth, first.maps.depth)
+    alone = render_frame(prepare_scene(scene_of(BOXES)), pose, lights[1], settings, width=32, height=24)
+    assert np.array_equal(second.maps.depth, alone.maps.depth)
+    # More lights than are kept: the least recently used (lights[1], then lights[0]) go first.
+    for light in lights[2:]:
+        render_frame(dscene, pose, light, settings, width=32, height=24)
+    assert len(dscene.light_space) == LIGHT_SPACE_MESHES == len(dscene.ordered_vertices)
+    assert not set(kept) & set(dscene.light_space)
 
 
 def test_texel_coordinates_locate_each_pixel_in_the_texel_it_looked_up():
