@@ -262,8 +262,9 @@ def _stored_maps(depth: np.ndarray, cascades: CascadeSet, settings: ShadowSettin
         # a fresh (C, R, R) array costs its page faults, more than the comparisons.
         depth = np.maximum(depth, np.array(near, dtype=np.float32)[:, None, None],
                            out=depth if depth.flags.writeable else None)
+    # The unorm levels in place too, where the maps are this call's own.
     return dispatch(DEPTH_QUANTIZATION_METHODS, settings.depth_quantization, depth, field="depth_quantization",
-                    depth_format=settings.depth_format, offered=dict(
+                    depth_format=settings.depth_format, overwrite=bool(depth.flags.writeable), offered=dict(
                         span=span, near=near, far=[c.depth_far - cascades.zref for c in boxes]))
 
 
