@@ -342,7 +342,7 @@ def _window_stored_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Sha
     """
     inputs = _window_inputs(cascades, settings)
     mesh = _scene_in_light_space(dscene, cascades, settings.cull)
-    keys = _window_cascade_keys(cascades, settings, span=span, inputs=inputs, mesh=mesh)
+    keys = _window_cascade_keys(cascades, settings, span=span, inputs=inputs)
     side = max(c.resolution for c in cascades.cascades)
     reused = reused_cascades(previous, keys, side=side, mesh=mesh)
     if reused.all():
@@ -383,15 +383,15 @@ def _window_inputs(cascades: CascadeSet, settings: ShadowSettings) -> dict | Non
                              snap=settings.vertex_snap, rebase_distance=settings.rebase_distance)
 
 
-def _window_cascade_keys(cascades: CascadeSet, settings: ShadowSettings, *, span: float, inputs: dict | None,
-                         mesh: LightSpaceMesh) -> list[bytes]:
+def _window_cascade_keys(cascades: CascadeSet, settings: ShadowSettings, *, span: float,
+                         inputs: dict | None) -> list[bytes]:
     """Each cascade's inputs to :func:`_window_depth_maps` and :func:`_stored_maps`, bit for bit, as bytes.
 
     The settings those read, the light space and ``span``; each cascade's resolution, texel size,
     box origin (in texels and in fixed point), near and far side, caster offset, and its rows of the
     window transform ``inputs`` (:func:`csmlab.texels.window_box_inputs`: an engine's float32 matrix,
-    with the shared rebase origin). The scene itself is ``mesh``, compared by identity
-    (:func:`csmlab.scrolling.reused_cascades`).
+    with the shared rebase origin). The scene itself, its casters and cull are the light-space mesh,
+    compared by identity (:func:`csmlab.scrolling.reused_cascades`).
     """
     bits = settings.subtexel_bits
     shared = repr((settings.blend_casters, settings.cull, bits, settings.engine_precision, settings.vertex_snap,
