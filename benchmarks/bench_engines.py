@@ -1,7 +1,7 @@
 """Per engine preset: the raster and shadow lookup in the preset's own precision against the same preset in float64.
 
     .venv/bin/python benchmarks/bench_engines.py [--device cpu|cuda] [--frames 6] [--threads 1]
-        [--presets ue5,godot4,...] [--resolution R] [--clock wall|cpu]
+        [--presets ue5,godot4,...] [--resolution R] [--clock wall|cpu] [--raster-only --passes 2]
 
 Every cascaded method of ``experiments/engines.toml`` (terrain, the walk, 640×360) is run over the
 first ``--frames`` frames of the walk as a run renders them: one view per frame, each method's maps
@@ -14,6 +14,10 @@ that many cores per process (``csmlab run --jobs 2`` on 2 cores gives each proce
 ``--clock cpu`` times the stages in CPU seconds of the process (:func:`time.process_time`) instead
 of wall-clock seconds: on a machine shared with other work, the work itself rather than the waits
 for a core (every thread's CPU time summed, so use it with ``--threads 1``).
+
+``--raster-only`` times the depth maps alone (:func:`csmlab.render.shadow_maps`, each frame's from the
+previous frame's maps) over frames 1 .. ``--frames − 1``, the cascades built first and no view rendered:
+the best of ``--passes`` passes, for A/B runs on a shared machine.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from pathlib import Path
 
 import warp as wp
 
+from csmlab.cascades import build_cascades
 from csmlab.config import load_experiment
 from csmlab.experiment import build_workload
 from csmlab.kernels import checked_device, start_warp
@@ -52,6 +57,22 @@ def stage_means(dscene, workload, settings, frames: int, device: str) -> dict:
     return {stage: sums[stage] / (frames - 1) for stage in STAGES}
 
 
+def raster_means(dscene, workload, settings, frames: int, passes: int, clock, device: str) -> dict:
+    """Seconds per frame of :func:`csmlab.render.shadow_maps` over frames 1 .. ``frames − 1``, best of ``passes``."""
+    sets = [build_cascades(pose=workload.path.pose(i), light_direction=workload.light.direction(i),
+                           scene_corners=dscene.corners, settings=settings) for i in range(frames)]
+    render.shadow_maps(dscene, sets[0], settings)  # compiles and fills the caches
+    best = float("inf")
+    for _ in range(passes):
+        previous = render.shadow_maps(dscene, sets[0], settings)
+        start = clock()
+        for cascades in sets[1:]:
+            previous = render.shadow_maps(dscene, cascades, settings, scroll_from=previous)
+        wp.synchronize_device(device)
+        best = min(best, (clock() - start) / (frames - 1))
+    return {"raster": best}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--device", default="cpu", help="Warp device: cpu or cuda")
@@ -61,9 +82,13 @@ def main() -> None:
     parser.add_argument("--resolution", type=int, default=0, help="texels per side (default: each preset's own)")
     parser.add_argument("--clock", choices=("wall", "cpu"), default="wall",
                         help="wall: wall-clock seconds; cpu: the process's CPU seconds")
+    parser.add_argument("--raster-only", action="store_true", help="time only the depth maps (no view, no lookup)")
+    parser.add_argument("--passes", type=int, default=2, help="with --raster-only: passes, the best kept")
     args = parser.parse_args()
     if args.frames < 2:
         parser.error("--frames: expected at least 2 (the first only warms up)")
+    if args.passes < 1:
+        parser.error("--passes: expected at least 1")
 
     if args.clock == "cpu":
         # The frames' own timings read render's clock: CPU seconds there, nowhere else.
@@ -81,17 +106,23 @@ def main() -> None:
                and (not chosen or m.name in chosen)]
     print(f"experiments/engines.toml: {workload.scene.triangle_count:,} triangles, view {workload.width}x"
           f"{workload.height}; device {args.device}, {args.threads} thread(s); mean {args.clock} ms/frame over "
-          f"frames 1..{args.frames - 1} (frame 0 warms up)")
-    print(f"{'preset':<22} {'precision':<16} {'R':>5} {'raster':>9} {'f64':>9} {'ratio':>6} {'shadow':>9} {'f64':>9} "
-          f"{'ratio':>6}")
+          f"frames 1..{args.frames - 1} (frame 0 warms up)" + (f", depth maps only, best of {args.passes} passes"
+                                                             if args.raster_only else ""))
+    stages = ("raster",) if args.raster_only else STAGES
+    print(f"{'preset':<22} {'precision':<16} {'R':>5}"
+          + "".join(f" {stage:>9} {'f64':>9} {'ratio':>6}" for stage in stages))
+    clock = time.process_time if args.clock == "cpu" else time.perf_counter
     for method in methods:
         settings = method.settings
         if args.resolution:
             settings = dataclasses.replace(settings, resolution=args.resolution)
-        own = stage_means(dscene, workload, settings, args.frames, args.device)
-        wide = stage_means(dscene, workload, dataclasses.replace(settings, engine_precision="float64"), args.frames,
-                           args.device)
-        cells = "".join(f" {own[s] * 1e3:9.1f} {wide[s] * 1e3:9.1f} {own[s] / wide[s]:6.2f}" for s in STAGES)
+        wide_settings = dataclasses.replace(settings, engine_precision="float64")
+        if args.raster_only:
+            own, wide = (raster_means(dscene, workload, s, args.frames, args.passes, clock, args.device)
+                         for s in (settings, wide_settings))
+        else:
+            own, wide = (stage_means(dscene, workload, s, args.frames, args.device) for s in (settings, wide_settings))
+        cells = "".join(f" {own[s] * 1e3:9.1f} {wide[s] * 1e3:9.1f} {own[s] / wide[s]:6.2f}" for s in stages)
         print(f"{method.name:<22} {settings.engine_precision:<16} {settings.resolution:>5}{cells}", flush=True)
 
 

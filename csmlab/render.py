@@ -37,11 +37,11 @@ from csmlab.kernels.visibility import MeshBVH, camera_hits, mesh_bvh
 from csmlab.quads import quad_lanes
 from csmlab.registry import dispatch
 from csmlab.scene.core import Scene
-from csmlab.scrolling import RasterizedMaps, scroll_plan
+from csmlab.scrolling import RasterizedMaps, StoredMaps, reused_cascades, scroll_plan
 from csmlab.settings import ShadowSettings
 from csmlab.storage import DEPTH_QUANTIZATION_METHODS, polygon_offset_unit, stored_depth
-from csmlab.texels import (fixed_point_coordinates, fixed_point_origin, light_depth, light_plane_coordinates,
-                           uses_global_grid, vertex_depth, window_boxes)
+from csmlab.texels import (WINDOW_BOX_ROWS, fixed_point_coordinates, fixed_point_origin, light_depth,
+                           light_plane_coordinates, uploaded_boxes, uses_global_grid, vertex_depth, window_box_inputs)
 
 __all__ = ["DeviceScene", "caster_offsets", "caster_scene", "clipped_casters", "clipped_triangles", "host_depth_maps",
            "lookup_shadow", "prepare_scene", "render_frame", "render_shadow", "render_view", "shadow_maps",
@@ -236,35 +236,49 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
 
     Pancaked slice boxes (``depth_range = "slice"``) are clamped to their near side; the moments
     and their mips follow when the filter reads them (:func:`csmlab.filters.filter_inputs`). ``scroll_from``, the
-    same method's previous maps, lends the texels its boxes already covered (:mod:`csmlab.scrolling`):
-    the same maps, less rasterization. The casters are ``settings.blend_casters``' (:func:`caster_scene`).
+    same method's previous maps, lends the texels its boxes already covered (:mod:`csmlab.scrolling`),
+    or, on a window-space path, the stored maps of the cascades whose every input is unchanged: the
+    same maps, less rasterization. The casters are ``settings.blend_casters``' (:func:`caster_scene`).
     """
     dscene = caster_scene(dscene, settings.blend_casters)
-    raster = None
+    previous = None if scroll_from is None else scroll_from.raster
+    span = float(np.ptp(cascades.to_light(dscene.corners)[:, 2]))
     cut = DEPTH_RANGE_METHODS[settings.depth_range].cuts_casters
     if cascades.warped:
         depth, texels = _warped_window_depth_maps(dscene, cascades, settings)
+        depth, raster = _stored_maps(depth, cascades, settings, span=span), None
     elif uses_global_grid(precision=settings.engine_precision, snap=settings.vertex_snap) \
             and not (cut and not settings.depth_clamp):
-        depth, texels, raster = _culled_depth_maps(dscene, cascades, settings,
-                                                   previous=None if scroll_from is None else scroll_from.raster)
+        depth, texels, raster = _culled_depth_maps(dscene, cascades, settings, previous=previous)
+        depth = _stored_maps(depth, cascades, settings, span=span)
     else:
-        depth, texels = _window_depth_maps(dscene, cascades, settings)
-    if cut and settings.depth_clamp:
-        # Pancaking is a per-fragment clamp max(z, near); the stored minimum of clamped fragments
-        # is the clamped minimum, so clamping the map is exact.
-        near = np.array([c.depth_near - cascades.zref for c in cascades.cascades], dtype=np.float32)
-        # In place where the maps are this call's own (not kept read-only for the next frame's scrolling):
-        # a fresh (C, R, R) array costs its page faults, more than the comparisons.
-        depth = np.maximum(depth, near[:, None, None], out=depth if depth.flags.writeable else None)
-    span = float(np.ptp(cascades.to_light(dscene.corners)[:, 2]))
-    depth = dispatch(DEPTH_QUANTIZATION_METHODS, settings.depth_quantization, depth, field="depth_quantization",
-                     depth_format=settings.depth_format, offered=dict(
-                         span=span, near=[c.depth_near - cascades.zref for c in cascades.cascades],
-                         far=[c.depth_far - cascades.zref for c in cascades.cascades]))
+        depth, texels, raster = _window_stored_maps(dscene, cascades, settings, span=span, previous=previous)
     moments, mips = filter_inputs(depth, cascades, span=span, settings=settings, device=dscene.device)
     return ShadowMaps(cascades=cascades, depth=depth, texels_rasterized=texels, moments=moments, depth_span=span,
                       mips=mips, raster=raster)
+
+
+def _stored_maps(depth: np.ndarray, cascades: CascadeSet, settings: ShadowSettings, *, span: float, first: int = 0,
+                 last: int | None = None) -> np.ndarray:
+    """Rasterized maps ``(C', R, R)`` of cascades ``[first, last)`` as stored: pancaked, then in the depth format.
+
+    ``span``: the scene's light-space depth range in metres (:data:`csmlab.storage.DEPTH_QUANTIZATION_METHODS`'
+    ``scene`` quantization). Each cascade's stored map depends only on its own rasterized map, its
+    near and far side, ``span`` and the settings.
+    """
+    boxes = cascades.cascades[first:last]
+    near = [c.depth_near - cascades.zref for c in boxes]
+    if DEPTH_RANGE_METHODS[settings.depth_range].cuts_casters and settings.depth_clamp:
+        # Pancaking is a per-fragment clamp max(z, near); the stored minimum of clamped fragments
+        # is the clamped minimum, so clamping the map is exact.
+        # In place where the maps are this call's own (not kept read-only for the next frame's scrolling):
+        # a fresh (C, R, R) array costs its page faults, more than the comparisons.
+        depth = np.maximum(depth, np.array(near, dtype=np.float32)[:, None, None],
+                           out=depth if depth.flags.writeable else None)
+    # The unorm levels in place too, where the maps are this call's own.
+    return dispatch(DEPTH_QUANTIZATION_METHODS, settings.depth_quantization, depth, field="depth_quantization",
+                    depth_format=settings.depth_format, overwrite=bool(depth.flags.writeable), offered=dict(
+                        span=span, near=near, far=[c.depth_far - cascades.zref for c in boxes]))
 
 
 def caster_offsets(cascades: CascadeSet, settings: ShadowSettings) -> np.ndarray:
@@ -329,46 +343,136 @@ def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
     return depth, int(per_cascade.sum()), raster
 
 
-def _window_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings) -> tuple[np.ndarray, int]:
-    """``(C, R, R)`` depth maps and texels rasterized of unwarped cascades the scrolling path does not model.
+def _window_stored_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings, *, span: float,
+                        previous) -> tuple[np.ndarray, int, StoredMaps]:
+    """``(C, R, R)`` stored maps, texels rasterized and what the next frame reuses, of the window-space path.
+
+    A cascade whose inputs (:func:`_window_cascade_keys`) equal, bit for bit, those of the same
+    cascade in ``previous`` (:class:`csmlab.scrolling.StoredMaps`, the method's previous frame) has the
+    same stored map and count: they are taken from there (:func:`csmlab.scrolling.reused_cascades`).
+    The others, each run of consecutive cascades at once, are rasterized whole
+    (:func:`_window_depth_maps`) and stored (:func:`_stored_maps`).
+    """
+    inputs = _window_inputs(cascades, settings)
+    mesh = _scene_in_light_space(dscene, cascades, settings.cull)
+    keys = _window_cascade_keys(cascades, settings, span=span, inputs=inputs)
+    side = max(c.resolution for c in cascades.cascades)
+    reused = reused_cascades(previous, keys, side=side, mesh=mesh)
+    if reused.all():
+        return previous.depth, int(previous.texels.sum()), previous
+    if not reused.any():
+        raw, texels = _window_depth_maps(dscene, cascades, settings, inputs=inputs)
+        depth = _stored_maps(raw, cascades, settings, span=span)
+    else:
+        # The kept cascades copied once into this frame's maps, each run of the others rasterized into its place.
+        depth = np.empty((len(keys), side, side), dtype=np.float32)
+        depth[reused] = previous.depth[reused]
+        texels = previous.texels.copy()
+        for first, last in _runs(~reused):
+            own = depth[first:last]
+            for part, cascade in zip(own, cascades.cascades[first:last]):
+                part[cascade.resolution:, :] = np.inf
+                part[:cascade.resolution, cascade.resolution:] = np.inf
+            raw, texels[first:last] = _window_depth_maps(dscene, cascades, settings, inputs=inputs, first=first,
+                                                         last=last, depth=own)
+            stored = _stored_maps(raw, cascades, settings, span=span, first=first, last=last)
+            if stored is not own:
+                own[...] = stored
+    depth.flags.writeable = False
+    return depth, int(texels.sum()), StoredMaps(keys=tuple(keys), depth=depth, texels=texels, mesh=mesh)
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """The runs ``[first, last)`` of consecutive True entries of ``mask`` ``(C,)`` bool, in order."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[False], mask, [False]]).astype(np.int8)))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
+
+
+def _window_inputs(cascades: CascadeSet, settings: ShadowSettings) -> dict | None:
+    """The window transform of every cascade (:func:`csmlab.texels.window_box_inputs`); None on the global grid."""
+    if uses_global_grid(precision=settings.engine_precision, snap=settings.vertex_snap):
+        return None
+    return window_box_inputs(cascades, bits=settings.subtexel_bits, precision=settings.engine_precision,
+                             snap=settings.vertex_snap, rebase_distance=settings.rebase_distance)
+
+
+def _window_cascade_keys(cascades: CascadeSet, settings: ShadowSettings, *, span: float,
+                         inputs: dict | None) -> list[bytes]:
+    """Each cascade's inputs to :func:`_window_depth_maps` and :func:`_stored_maps`, bit for bit, as bytes.
+
+    The settings those read, the light space and ``span``; each cascade's resolution, texel size,
+    box origin (in texels and in fixed point), near and far side, caster offset, and its rows of the
+    window transform ``inputs`` (:func:`csmlab.texels.window_box_inputs`: an engine's float32 matrix,
+    with the shared rebase origin). The scene itself, its casters and cull are the light-space mesh,
+    compared by identity (:func:`csmlab.scrolling.reused_cascades`).
+    """
+    bits = settings.subtexel_bits
+    shared = repr((settings.blend_casters, settings.cull, bits, settings.engine_precision, settings.vertex_snap,
+                   settings.caster_bias_slope, settings.depth_range, settings.depth_clamp,
+                   settings.depth_quantization, settings.depth_format, span, cascades.zref,
+                   None if inputs is None else (inputs["mode"], inputs["bits"])))
+    shared = shared.encode() + np.ascontiguousarray(cascades.basis, dtype=np.float64).tobytes()
+    if inputs is not None and "origin" in inputs:
+        shared += np.asarray(inputs["origin"], dtype=np.float64).tobytes()
+    offsets = caster_offsets(cascades, settings)
+    keys = []
+    for c, cascade in enumerate(cascades.cascades):
+        rows = [np.array([cascade.resolution], dtype=np.int64), np.asarray(cascade.texel_size, dtype=np.float64),
+                np.asarray(cascade.origin, dtype=np.float64), fixed_point_origin(cascades, c, bits=bits),
+                np.array([cascade.depth_near, cascade.depth_far, offsets[c]], dtype=np.float64)]
+        if inputs is not None:
+            rows += [np.asarray(value[c]) for name, value in inputs.items() if name in WINDOW_BOX_ROWS]
+        keys.append(shared + b"".join(np.ascontiguousarray(row).tobytes() for row in rows))
+    return keys
+
+
+def _window_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings, *, inputs: dict | None,
+                       first: int = 0, last: int | None = None,
+                       depth: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(C', R, R)`` depth maps and ``(C',)`` texels rasterized of unwarped cascades ``[first, last)`` the scrolling
+    path does not model (R the largest cascade's side), into ``depth`` where given (as
+    :func:`csmlab.kernels.raster.rasterize_cascades`: each cascade's own ``R_c²`` texels overwritten,
+    the rest kept).
 
     An engine's float32 pipeline (``engine_precision``), window-space snapping (``vertex_snap``),
     and casters clipped at a slice's near side without pancaking (``depth_range`` that cuts casters,
     ``depth_clamp = false``): the scene's light-space mesh (:func:`_scene_in_light_space`) taken into
-    every cascade's window space on the device (:func:`csmlab.kernels.engine.window_vertices`) where
-    the pipeline is not the global grid's, then rasterized whole map by map, cut into bands for the
-    threads, only the chunks that reach a region (:func:`csmlab.kernels.raster.converted_region_chunks`,
-    or :func:`~csmlab.kernels.raster.region_chunks` on the global grid). The same maps and counts,
-    bit for bit, as the host's :func:`host_depth_maps` (the tests' oracle); no scrolling (the
-    float32 roundings change as a box moves).
+    every cascade's window space on the device (:func:`csmlab.kernels.engine.window_vertices`, the
+    boxes of ``inputs``, :func:`csmlab.texels.window_box_inputs`) where the pipeline is not the global
+    grid's (``inputs`` None), then rasterized whole map by map, cut into bands for the threads, only
+    the chunks that reach a region (:func:`csmlab.kernels.raster.converted_region_chunks`, or
+    :func:`~csmlab.kernels.raster.region_chunks` on the global grid). The same maps and counts, bit
+    for bit, as the host's :func:`host_depth_maps` (the tests' oracle); no scrolling (the float32
+    roundings change as a box moves).
     """
     bits = settings.subtexel_bits
     mesh = _scene_in_light_space(dscene, cascades, settings.cull)
-    sizes = [c.resolution for c in cascades.cascades]
-    regions = whole_map_regions(sizes)
+    side = max(c.resolution for c in cascades.cascades)
+    boxes = cascades.cascades[first:last]
+    regions = whole_map_regions([c.resolution for c in boxes])
     if dscene.threads > 1:
         regions = banded_regions(regions, parts=BANDS_PER_THREAD * dscene.threads, axis=mesh.bounds.narrow_axis)
-    texel_size = np.stack([c.texel_size for c in cascades.cascades])
-    origin_fixed = np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))])
-    how = dict(caster_constant=caster_offsets(cascades, settings), caster_slope=settings.caster_bias_slope,
+    texel_size = np.stack([c.texel_size for c in boxes])
+    origin_fixed = np.stack([fixed_point_origin(cascades, c, bits=bits) for c in range(len(cascades))][first:last])
+    how = dict(caster_constant=caster_offsets(cascades, settings)[first:last], caster_slope=settings.caster_bias_slope,
                threads=dscene.threads, device=dscene.device)
     if DEPTH_RANGE_METHODS[settings.depth_range].cuts_casters and not settings.depth_clamp:
-        how["near"] = np.array([c.depth_near - cascades.zref for c in cascades.cascades])
-    if uses_global_grid(precision=settings.engine_precision, snap=settings.vertex_snap):
-        chunks = region_chunks(mesh.bounds, texel_size=texel_size,
-                               origin=np.stack([c.origin for c in cascades.cascades]), regions=regions)
+        how["near"] = np.array([c.depth_near - cascades.zref for c in boxes])
+    if inputs is None:
+        chunks = region_chunks(mesh.bounds, texel_size=texel_size, origin=np.stack([c.origin for c in boxes]),
+                               regions=regions)
     else:
-        boxes = window_boxes(cascades, bits=bits, precision=settings.engine_precision, snap=settings.vertex_snap,
-                             rebase_distance=settings.rebase_distance, device=dscene.device)
         key = (cascades.basis.tobytes(), cascades.zref, settings.cull)
-        how["points"], how["vertex_depth"] = window_vertices(boxes, positions=dscene.ordered_vertices[key],
+        how["points"], how["vertex_depth"] = window_vertices(uploaded_boxes(inputs, first=first, last=last,
+                                                                            device=dscene.device),
+                                                             positions=dscene.ordered_vertices[key],
                                                              light_xy=mesh.xy, light_depth=mesh.depth,
                                                              threads=dscene.threads, device=dscene.device)
         chunks = converted_region_chunks(how["points"], mesh.triangles, regions=regions, bits=bits,
                                          device=dscene.device)
-    depth, texels = rasterize_cascades(mesh, texel_size=texel_size, origin=origin_fixed, resolution=max(sizes),
-                                       bits=bits, regions=regions, chunks=chunks, **how)
-    return depth, int(texels.sum())
+    depth, texels = rasterize_cascades(mesh, texel_size=texel_size, origin=origin_fixed, resolution=side,
+                                       bits=bits, regions=regions, chunks=chunks, depth=depth, **how)
+    return depth, np.bincount(regions[:, 0], weights=texels, minlength=len(boxes)).astype(np.int64)
 
 
 def host_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings) -> tuple[np.ndarray, int]:
@@ -512,7 +616,8 @@ def _warped_window_depth_maps(dscene: DeviceScene, cascades: CascadeSet,
         if cascade.warp is None:
             one = CascadeSet(basis=cascades.basis, zref=cascades.zref, splits=cascades.splits[c:c + 2],
                              cascades=(cascade,), margin_texels=cascades.margin_texels, eye=cascades.eye)
-            depth, count = _window_depth_maps(dscene, one, settings)
+            depth, count = _window_depth_maps(dscene, one, settings, inputs=_window_inputs(one, settings))
+            count = int(count[0])
         else:
             depth, count = _warped_map(dscene, mesh, kept, cascade, bits=bits, caster_constant=float(offsets[c]),
                                        caster_slope=settings.caster_bias_slope)

@@ -15,6 +15,13 @@ scroll static shadow maps in the same way. Here it changes no value, only the ti
 without scrolling: a cascade's count is its previous count, less the coverage tests of the texels
 its box left (counted in the previous box), plus those of the texels it newly covers. The coverage
 of a texel centre, like its depth, depends only on the fixed-point differences.
+
+An engine's float32 pipeline (and window-space snapping) cannot scroll: its roundings change as a
+box moves. What it can keep is a whole cascade whose every input is the same, bit for bit, as the
+previous frame's — the same window transform, light space, casters, caster offsets, near cut,
+depth range and format (:class:`StoredMaps`, :func:`reused_cascades`): the same computation gives
+the same stored map and the same count. A stabilized box moves only when the camera crosses one
+of its texels, so far cascades keep theirs for frames on end.
 """
 
 from __future__ import annotations
@@ -23,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["RasterizedMaps", "ScrollPlan", "scroll_plan"]
+__all__ = ["RasterizedMaps", "ScrollPlan", "StoredMaps", "reused_cascades", "scroll_plan"]
 
 
 @dataclass(frozen=True)
@@ -96,6 +103,53 @@ class ScrollPlan:
     left: np.ndarray
 
 
+@dataclass(frozen=True)
+class StoredMaps:
+    """One frame's stored depth maps, each cascade beside every input it was made from, kept for the next frame.
+
+    Attributes
+    ----------
+    keys : tuple of bytes, length C
+        Each cascade's inputs, bit for bit (:func:`csmlab.render.shadow_maps` composes them): equal
+        keys of the same ``mesh``, equal maps and counts.
+    depth : ndarray, shape (C, R, R), float32
+        The maps as stored (pancaked, quantized to the depth format), +inf where empty. Read-only.
+    texels : ndarray, shape (C,), int64
+        Coverage tests that pass in each cascade's whole map (its ``texels_rasterized``).
+    mesh : object
+        The scene in light space the maps were rasterized from
+        (:class:`csmlab.kernels.raster.LightSpaceMesh`), compared by identity: the same scene, casters,
+        light and face cull.
+    """
+
+    keys: tuple[bytes, ...]
+    depth: np.ndarray
+    texels: np.ndarray
+    mesh: object
+
+
+def reused_cascades(previous, keys, *, side: int, mesh) -> np.ndarray:
+    """``(C,)`` bool: which cascades take their map and count from ``previous``, whose inputs were ``keys``.
+
+    Parameters
+    ----------
+    previous : StoredMaps or None
+        The same method's previous frame; None or another kind of maps (a path that scrolls, or
+        none): no cascade is reused.
+    keys : sequence of bytes, length C
+        This frame's inputs of each cascade, composed as ``previous.keys`` were.
+    side : int
+        Texels per side R of this frame's maps ``(C, R, R)``.
+    mesh : object
+        The scene in light space this frame rasterizes (:attr:`StoredMaps.mesh`).
+    """
+    count = len(keys)
+    if (not isinstance(previous, StoredMaps) or previous.mesh is not mesh
+            or previous.depth.shape != (len(previous.keys), side, side)):
+        return np.zeros(count, dtype=bool)
+    return np.array([c < len(previous.keys) and previous.keys[c] == key for c, key in enumerate(keys)], dtype=bool)
+
+
 def _shift(previous: RasterizedMaps, c: int, *, basis, zref: float, bits: int, texel_size, origin,
            resolution: int, offset: tuple[float, float]) -> np.ndarray | None:
     """Whole-texel move ``(dx, dy)`` of cascade c's box since ``previous``, or None when its texels cannot be kept."""
@@ -117,7 +171,8 @@ def scroll_plan(previous: RasterizedMaps | None, *, basis, zref: float, bits: in
     Parameters
     ----------
     previous : RasterizedMaps or None
-        The same method's previous frame; None: every map is rasterized whole.
+        The same method's previous frame; None (or maps of another path, :class:`StoredMaps`): every
+        map is rasterized whole.
     basis : ndarray, shape (3, 3)
     zref : float
     bits : int
@@ -139,6 +194,8 @@ def scroll_plan(previous: RasterizedMaps | None, *, basis, zref: float, bits: in
         starts empty and is rasterized whole. When no box moved, the previous arrays themselves are
         returned.
     """
+    if not isinstance(previous, RasterizedMaps):
+        previous = None
     sizes = [int(r) for r in resolution]
     count, side = len(sizes), max(sizes)
     box = dict(basis=basis, zref=zref, bits=bits, texel_size=texel_size, origin=origin)

@@ -81,7 +81,7 @@ def polygon_offset_unit(span: float, *, depth_format: str) -> float:
     return span * (2.0**-24 if bits is None else 1.0 / (2**bits - 1))
 
 
-def stored_depth(depth, *, span: float, depth_format: str) -> np.ndarray:
+def stored_depth(depth, *, span: float, depth_format: str, overwrite: bool = False) -> np.ndarray:
     """Depth maps as the format stores them, back in metres.
 
     Parameters
@@ -92,6 +92,9 @@ def stored_depth(depth, *, span: float, depth_format: str) -> np.ndarray:
         Depth of the near/far range in metres (the scene's light-space depth extent).
     depth_format : str
         A key of :data:`DEPTH_FORMATS`.
+    overwrite : bool
+        Whether ``depth`` may hold the result (quantized in place where it is a writeable
+        C-contiguous float32 array: no fresh maps).
 
     Returns
     -------
@@ -107,10 +110,11 @@ def stored_depth(depth, *, span: float, depth_format: str) -> np.ndarray:
     # Imported here: loading an experiment reads this module's tables and must not start Warp.
     from csmlab.kernels.depth_storage import unorm_stored_depth
 
-    return unorm_stored_depth(rows, step=step, top=float(2 ** DEPTH_FORMATS[depth_format][0] - 1)).reshape(maps.shape)
+    return unorm_stored_depth(rows, step=step, top=float(2 ** DEPTH_FORMATS[depth_format][0] - 1),
+                              overwrite=overwrite).reshape(maps.shape)
 
 
-def cascade_stored_depth(depth, *, near, far, depth_format: str) -> np.ndarray:
+def cascade_stored_depth(depth, *, near, far, depth_format: str, overwrite: bool = False) -> np.ndarray:
     """Depth maps quantized over each cascade's own near/far, as an engine's unorm depth buffer stores them.
 
     Parameters
@@ -121,6 +125,8 @@ def cascade_stored_depth(depth, *, near, far, depth_format: str) -> np.ndarray:
         Each cascade's box near and far side in the same metres (``depth_near − zref``, ``depth_far − zref``).
     depth_format : str
         A key of :data:`DEPTH_FORMATS`.
+    overwrite : bool
+        As :func:`stored_depth`'s.
 
     Returns
     -------
@@ -147,15 +153,15 @@ def cascade_stored_depth(depth, *, near, far, depth_format: str) -> np.ndarray:
     # Imported here: loading an experiment reads this module's tables and must not start Warp.
     from csmlab.kernels.depth_storage import unorm_stored_depth
 
-    return unorm_stored_depth(maps, lo=lo.ravel(), step=((hi - lo) / top).ravel(), top=top)
+    return unorm_stored_depth(maps, lo=lo.ravel(), step=((hi - lo) / top).ravel(), top=top, overwrite=overwrite)
 
 
-def _scene_quantized(depth, *, span: float, depth_format: str) -> np.ndarray:
-    return stored_depth(depth, span=span, depth_format=depth_format)
+def _scene_quantized(depth, *, span: float, depth_format: str, overwrite: bool = False) -> np.ndarray:
+    return stored_depth(depth, span=span, depth_format=depth_format, overwrite=overwrite)
 
 
-def _cascade_quantized(depth, *, near, far, depth_format: str) -> np.ndarray:
-    return cascade_stored_depth(depth, near=near, far=far, depth_format=depth_format)
+def _cascade_quantized(depth, *, near, far, depth_format: str, overwrite: bool = False) -> np.ndarray:
+    return cascade_stored_depth(depth, near=near, far=far, depth_format=depth_format, overwrite=overwrite)
 
 
 DEPTH_QUANTIZATION_METHODS: dict[str, Callable[..., np.ndarray]] = {
@@ -165,7 +171,8 @@ DEPTH_QUANTIZATION_METHODS: dict[str, Callable[..., np.ndarray]] = {
 """The range a unorm depth format's levels divide, by name (``[shadow] depth_quantization``):
 ``scene`` (the scene's fixed light-space span in power-of-two steps, :func:`stored_depth`) or
 ``cascade`` (each box's own near/far, :func:`cascade_stored_depth`). Each is
-``f(depth, *, depth_format, span | near, far) -> stored maps``."""
+``f(depth, *, depth_format, span | near, far, overwrite=False) -> stored maps`` (``overwrite``: the
+maps may be quantized in place)."""
 
 
 MOMENT_BYTES: dict[str, int] = {"vsm": 8, "evsm2": 8, "evsm4": 16}

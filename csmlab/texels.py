@@ -35,10 +35,10 @@ from csmlab.registry import check_name
 if TYPE_CHECKING:
     from csmlab.kernels.engine import EngineBoxes
 
-__all__ = ["PRECISION_METHODS", "Precision", "VERTEX_SNAPS", "engine_matrix", "engine_origin", "engine_positions",
-           "fixed_point_coordinates", "fixed_point_origin", "light_depth", "light_plane_coordinates", "receiver_lookup",
-           "texel_coordinates", "uses_global_grid", "vertex_depth", "window_boxes", "window_depth_metres",
-           "window_positions"]
+__all__ = ["PRECISION_METHODS", "Precision", "VERTEX_SNAPS", "WINDOW_BOX_ROWS", "engine_matrix", "engine_origin",
+           "engine_positions", "fixed_point_coordinates", "fixed_point_origin", "light_depth",
+           "light_plane_coordinates", "receiver_lookup", "texel_coordinates", "uploaded_boxes", "uses_global_grid",
+           "vertex_depth", "window_box_inputs", "window_boxes", "window_depth_metres", "window_positions"]
 
 
 @dataclass(frozen=True)
@@ -500,30 +500,51 @@ def _warped_texel_steps(homography: np.ndarray, light_xy: np.ndarray,
     return texel, step
 
 
-def window_boxes(cascades: CascadeSet, *, bits: int, precision: str = "float64", snap: str = "world",
-                 rebase_distance: float = 0.0, device: str = "cpu") -> EngineBoxes:
-    """The cascades as the window-space kernels read them (:mod:`csmlab.kernels.engine`), on ``device``.
+WINDOW_BOX_ROWS = ("matrices", "resolution", "depth_near", "depth_span", "texel_size", "corner")
+"""The inputs of :func:`window_box_inputs` that hold one row per cascade (the others are shared)."""
 
-    For an engine's float32 ``precision``: each cascade's :func:`engine_matrix` (built here on the
-    host, as an engine builds it), relative to :func:`engine_origin`, and the depth range that
-    :func:`window_depth_metres` maps window depth to. For ``snap = "window"`` in float64: each
-    cascade's texel size and box origin. Not for warped cascades, nor for the global grid
-    (:func:`uses_global_grid`), which other kernels finish themselves.
+
+def window_box_inputs(cascades: CascadeSet, *, bits: int, precision: str = "float64", snap: str = "world",
+                      rebase_distance: float = 0.0) -> dict:
+    """The host arrays :func:`window_boxes` uploads, keyed as :func:`csmlab.kernels.engine.engine_boxes` takes them.
+
+    For an engine's float32 ``precision`` (``mode = "float32"``): each cascade's :func:`engine_matrix`
+    ``(C, 3, 4)`` float32 (built here on the host, as an engine builds it) relative to
+    :func:`engine_origin` ``(3,)``, its ``resolution`` and the depth range ``depth_near``,
+    ``depth_span`` ``(C,)`` metres that :func:`window_depth_metres` maps window depth to. For
+    ``snap = "window"`` in float64 (``mode = "float64"``): each cascade's ``texel_size`` ``(C, 2)``
+    metres and box origin ``corner`` ``(C, 2)`` texels. The names of :data:`WINDOW_BOX_ROWS` hold one
+    row per cascade. Not for warped cascades, nor for the global grid (:func:`uses_global_grid`),
+    which other kernels finish themselves.
     """
-    # Imported here: loading an experiment reads this module's tables (PRECISION_METHODS) and must not start Warp.
-    from csmlab.kernels.engine import engine_boxes
-
     if any(c.warp is not None for c in cascades.cascades):
         raise ValueError("cascades: expected no warped cascade (window_boxes serves the unwarped window space)")
     if uses_global_grid(precision=precision, snap=snap):
         raise ValueError(f"precision, snap: expected a window-space pipeline, got {precision!r} with {snap!r}")
     if not PRECISION_METHODS[precision].global_grid:
         origin = engine_origin(cascades.eye, precision=precision, rebase_distance=rebase_distance)
-        matrices = np.stack([engine_matrix(cascades, c, origin=origin) for c in range(len(cascades))])
-        return engine_boxes(mode="float32", bits=bits, device=device, matrices=matrices,
-                            resolution=[c.resolution for c in cascades.cascades], origin=origin,
-                            depth_near=[c.depth_near - cascades.zref for c in cascades.cascades],
-                            depth_span=[c.depth_far - c.depth_near for c in cascades.cascades])
-    return engine_boxes(mode="float64", bits=bits, device=device,
-                        texel_size=np.stack([c.texel_size for c in cascades.cascades]),
-                        corner=np.stack([c.origin for c in cascades.cascades]))
+        return dict(mode="float32", bits=bits, origin=origin,
+                    matrices=np.stack([engine_matrix(cascades, c, origin=origin) for c in range(len(cascades))]),
+                    resolution=np.array([c.resolution for c in cascades.cascades]),
+                    depth_near=np.array([c.depth_near - cascades.zref for c in cascades.cascades]),
+                    depth_span=np.array([c.depth_far - c.depth_near for c in cascades.cascades]))
+    return dict(mode="float64", bits=bits, texel_size=np.stack([c.texel_size for c in cascades.cascades]),
+                corner=np.stack([c.origin for c in cascades.cascades]))
+
+
+def window_boxes(cascades: CascadeSet, *, bits: int, precision: str = "float64", snap: str = "world",
+                 rebase_distance: float = 0.0, device: str = "cpu") -> EngineBoxes:
+    """The cascades as the window-space kernels read them (:mod:`csmlab.kernels.engine`), on ``device``:
+    :func:`window_box_inputs` uploaded by :func:`uploaded_boxes`."""
+    return uploaded_boxes(window_box_inputs(cascades, bits=bits, precision=precision, snap=snap,
+                                            rebase_distance=rebase_distance), device=device)
+
+
+def uploaded_boxes(inputs: dict, *, first: int = 0, last: int | None = None, device: str = "cpu") -> EngineBoxes:
+    """Cascades ``[first, last)`` of :func:`window_box_inputs` ``inputs`` as an
+    :class:`~csmlab.kernels.engine.EngineBoxes` on ``device`` (default: every cascade)."""
+    # Imported here: loading an experiment reads this module's tables (PRECISION_METHODS) and must not start Warp.
+    from csmlab.kernels.engine import engine_boxes
+
+    rows = {name: value[first:last] for name, value in inputs.items() if name in WINDOW_BOX_ROWS}
+    return engine_boxes(**{**inputs, **rows}, device=device)

@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 
+from csmlab import render
 from csmlab.light import direction_from_angles
 from csmlab.render import prepare_scene, render_shadow, render_view
-from csmlab.scrolling import RasterizedMaps, scroll_plan
+from csmlab.scrolling import RasterizedMaps, StoredMaps, reused_cascades, scroll_plan
 from csmlab.settings import ShadowSettings
 from tests.test_render import camera, scattered_boxes, scene_of
 
@@ -156,3 +157,73 @@ def test_any_change_but_a_whole_texel_move_rasterizes_the_cascade_whole(change):
     size = box["resolution"][c]
     assert (c, 0, size, 0, size) in [tuple(r) for r in plan.regions]
     assert plan.kept_texels[c] == 0
+
+
+def window_walk(dscene, settings, monkeypatch):
+    """Per pose of the walk: the maps made afresh, those made from the previous frame's (:class:`StoredMaps`), and the
+    cascades the second rasterized (``(first, last)`` runs of :func:`csmlab.render._window_depth_maps`)."""
+    light = direction_from_angles(elevation_deg=35.0, azimuth_deg=120.0)
+    runs = []
+    rasterize = render._window_depth_maps
+    monkeypatch.setattr(render, "_window_depth_maps", lambda dscene, cascades, *args, **how: runs.append(
+        (how.get("first", 0), how.get("last") or len(cascades))) or rasterize(dscene, cascades, *args, **how))
+    previous = None
+    for eye, target in zip(EYES, TARGETS):
+        view = render_view(dscene, camera(48, 32, eye=eye, target=target), light, width=48, height=32, reference=False)
+        fresh = render_shadow(dscene, view, settings, lookup=False)
+        runs.clear()
+        kept = render_shadow(dscene, view, settings, lookup=False, scroll_from=previous)
+        yield fresh.maps, kept.maps, list(runs)
+        previous = kept.maps
+
+
+@pytest.mark.parametrize("changes, steps_keep", [
+    (dict(engine_precision="float32"), True),
+    (dict(engine_precision="float32", depth_format="unorm16", depth_quantization="cascade", cull="back"), True),
+    (dict(engine_precision="float32", cascade_resolutions=(128, 96, 64), depth_range="slice", depth_clamp=True), False),
+    (dict(depth_range="slice", depth_clamp=False), False),
+    (dict(vertex_snap="window", depth_format="unorm24"), True),
+])
+def test_window_space_maps_keep_unchanged_cascades_bit_for_bit_and_count_as_rasterized_whole(dscene, changes,
+                                                                                          steps_keep, monkeypatch):
+    """An engine's float32 pipeline cannot scroll; a cascade whose every input is unchanged is taken from the previous
+    frame, the others rasterized, and the maps and counts equal those made afresh (themselves the host pipeline's,
+    tests/kernels/test_engine.py). A slice's depth range follows the camera, so only the repeated pose keeps its
+    cascades there; elsewhere a small step keeps the far boxes."""
+    settings = ShadowSettings(cascades=3, resolution=128, shadow_distance=50.0, stabilization="exact", filter="pcf",
+                              filter_size=3, **changes).validated()
+    whole = partial = 0
+    for fresh, kept, runs in window_walk(dscene, settings, monkeypatch):
+        assert isinstance(kept.raster, StoredMaps) and not kept.depth.flags.writeable
+        assert kept.depth.tobytes() == fresh.depth.tobytes()
+        assert kept.texels_rasterized == fresh.texels_rasterized > 0
+        rasterized = sum(last - first for first, last in runs)
+        whole += rasterized == 0
+        partial += 0 < rasterized < 3
+    assert whole >= 1 and (partial >= 1) == steps_keep
+
+
+def test_a_camera_relative_pipeline_keeps_cascades_only_while_the_camera_stays(dscene, monkeypatch):
+    """Rebased at the camera every frame (``rebase_distance = 0``), every float32 position changes as the eye moves:
+    only the repeated pose keeps its maps, the previous frame's arrays themselves."""
+    settings = ShadowSettings(cascades=3, resolution=64, shadow_distance=50.0, stabilization="exact",
+                              engine_precision="camera_relative").validated()
+    kept_whole = []
+    for fresh, kept, runs in window_walk(dscene, settings, monkeypatch):
+        assert kept.depth.tobytes() == fresh.depth.tobytes()
+        assert kept.texels_rasterized == fresh.texels_rasterized
+        kept_whole.append(runs == [])
+    assert kept_whole == [k == 2 for k in range(len(EYES))]
+
+
+def test_reused_cascades_are_those_of_equal_keys_from_the_same_mesh_and_map_size():
+    mesh = object()
+    depth = np.zeros((3, 8, 8), dtype=np.float32)
+    previous = StoredMaps(keys=(b"a", b"b", b"c"), depth=depth, texels=np.arange(3), mesh=mesh)
+    assert reused_cascades(previous, [b"a", b"x", b"c"], side=8, mesh=mesh).tolist() == [True, False, True]
+    assert reused_cascades(previous, [b"a", b"b", b"c", b"d"], side=8, mesh=mesh).tolist() == [True] * 3 + [False]
+    assert not reused_cascades(previous, [b"a", b"b", b"c"], side=16, mesh=mesh).any()
+    assert not reused_cascades(previous, [b"a", b"b", b"c"], side=8, mesh=object()).any()
+    assert not reused_cascades(None, [b"a"], side=8, mesh=mesh).any()
+    assert not reused_cascades(kept_maps(np.random.default_rng(2), sizes=[8, 8, 8]), [b"a", b"b", b"c"], side=8,
+                               mesh=mesh).any()

@@ -52,7 +52,8 @@ def unorm_stored_depth_kernel(depth: wp.array3d(dtype=wp.float32), lo: wp.array(
         out[c, j, i] = kept
 
 
-def unorm_stored_depth(depth: np.ndarray, *, step, top: float, lo=None, threads: int = 1) -> np.ndarray:
+def unorm_stored_depth(depth: np.ndarray, *, step, top: float, lo=None, threads: int = 1,
+                       overwrite: bool = False) -> np.ndarray:
     """``(C, R, R)`` float32 maps quantized to ``top + 1`` levels of ``step`` metres per cascade, on the CPU.
 
     Parameters
@@ -68,6 +69,10 @@ def unorm_stored_depth(depth: np.ndarray, *, step, top: float, lo=None, threads:
         (``level · step``, no sum: a level of −0 stays −0 as NumPy keeps it).
     threads : int
         CPU launches at once, each over its own rows.
+    overwrite : bool
+        Whether ``depth`` may hold the result (a writeable C-contiguous float32 array is then
+        quantized in place: each texel is read before it is written, by the same thread), sparing
+        a fresh array's page faults.
 
     Returns
     -------
@@ -80,7 +85,7 @@ def unorm_stored_depth(depth: np.ndarray, *, step, top: float, lo=None, threads:
     count = maps.shape[0]
     size = np.ascontiguousarray(np.broadcast_to(np.asarray(step, dtype=np.float64), (count,)))
     low = np.zeros(count) if lo is None else np.ascontiguousarray(np.broadcast_to(np.asarray(lo, np.float64), (count,)))
-    out = np.empty_like(maps)
+    out = maps if overwrite and maps.flags.writeable else np.empty_like(maps)
     rows = count * maps.shape[1]
     if rows == 0 or maps.shape[2] == 0:
         return out
