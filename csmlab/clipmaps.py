@@ -18,7 +18,7 @@ and is kept between frames until the light moves. Levels follow the console vari
   ``n = floor(log2(footprint · virtual_resolution / 2 cm) + lod_bias)``, clamped to the levels
   (:func:`wanted_levels`). Like Unreal's ``CalcClipmapLevel`` it depends on the distance only. A
   receiver whose taps leave that level's box, or (looking up) whose pages are not resident, takes
-  the next coarser level that holds them (:func:`chosen_levels`).
+  the next coarser level that holds them (:func:`read_levels`).
 - **Marking.** The pages under every tap of every visible pixel at its level (:func:`marked_pages`).
   When more are marked than the pool holds (``physical_pages``), the coarsest levels' pages are kept
   first, so that the pixels whose pages did not fit fall back to a coarser level.
@@ -29,8 +29,10 @@ and is kept between frames until the light moves. Levels follow the console vari
   unrequested pages while the pool has room) makes a frame's pages a function of that frame and the
   one before, the same however a run is cut into chunks.
 
-This module is host NumPy only; the pages are rasterized by :func:`csmlab.render.render_shadow` with
-the cascades' rasterizer, one page per map, and looked up by :mod:`csmlab.kernels.pages`.
+The levels and pages are host NumPy, but for the level each receiver reads, a kernel
+(:func:`read_levels`, :mod:`csmlab.kernels.levels`) whose host reference is :func:`chosen_levels`;
+the pages are rasterized by :func:`csmlab.render.render_shadow` with the cascades' rasterizer, one
+page per map, and looked up by :mod:`csmlab.kernels.pages`.
 """
 
 from __future__ import annotations
@@ -43,12 +45,13 @@ import numpy as np
 from csmlab.camera import CameraPose
 from csmlab.cascades import Cascade, CascadeSet
 from csmlab.geometry import light_basis
+from csmlab.kernels.levels import receiver_levels
 from csmlab.settings import ShadowSettings
 from csmlab.storage import texel_bytes
 
 __all__ = ["Clipmap", "PageCache", "VirtualPages", "chosen_levels", "clipmap_cascades", "clipmap_levels",
            "footprint_scale", "light_space", "marked_pages", "page_cache", "page_table", "pool_bytes",
-           "receiver_texels", "resident_pages", "wanted_levels"]
+           "read_levels", "receiver_texels", "resident_pages", "wanted_levels"]
 
 CENTIMETRE = 0.01
 """Metres in a centimetre, Unreal's world unit: level n covers ``2**n`` of them."""
@@ -268,6 +271,8 @@ def chosen_levels(clip: Clipmap, light_points: np.ndarray, light_normals: np.nda
                   holds: Callable[[int, np.ndarray], np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The level each receiver reads: the first from its wanted level whose pages ``holds`` every tap.
 
+    The host reference of :func:`read_levels` (the run's path), which its tests hold it to bit for bit.
+
     Parameters
     ----------
     clip : Clipmap
@@ -308,17 +313,32 @@ def chosen_levels(clip: Clipmap, light_points: np.ndarray, light_normals: np.nda
     return level, coordinates, depth
 
 
+def read_levels(clip: Clipmap, light_points: np.ndarray, light_normals: np.ndarray, wanted: np.ndarray, *,
+                settings: ShadowSettings, radius: int, table: np.ndarray | None,
+                device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`chosen_levels` in a kernel (:func:`csmlab.kernels.levels.receiver_levels`), bit for bit.
+
+    ``table`` (:attr:`VirtualPages.table`, ``(L, Q, Q)`` int32) holds a page where it is ``>= 0``;
+    None holds every page of a level's box (marking). Returns ``level`` ``(N,)`` int64 (-1: none),
+    ``coordinates`` ``(N, 2)`` int64 and ``depth`` ``(N,)`` float32, as :func:`chosen_levels`.
+    """
+    return receiver_levels(light_points, light_normals, wanted, texel=clip.texel, origin_page=clip.origin_page,
+                           page_size=clip.page_size, pages_per_side=clip.pages_per_side, table=table,
+                           normal_offset=settings.normal_offset, zref=clip.zref, bias_constant=settings.bias_constant,
+                           bias_slope=settings.bias_slope, bits=settings.subtexel_bits, radius=radius, device=device)
+
+
 def marked_pages(clip: Clipmap, light_points: np.ndarray, light_normals: np.ndarray, wanted: np.ndarray, *,
                  settings: ShadowSettings, radius: int) -> np.ndarray:
     """The pages the receivers need, ``(M, 3)`` int64 rows ``(level index, global page x, global page y)``.
 
     Each receiver marks the pages under the corners of its taps at the first level from its wanted
-    one whose box holds them all (:func:`chosen_levels`), in a page mask of every level's box, as
+    one whose box holds them all (:func:`read_levels`), in a page mask of every level's box, as
     Unreal's page-marking pass fills its page-request flags; the rows are the marks in level, page
     row, page column order.
     """
-    level, coordinates, _ = chosen_levels(clip, light_points, light_normals, wanted, settings=settings,
-                                          radius=radius, holds=lambda k, pages: np.ones(len(pages), dtype=bool))
+    level, coordinates, _ = read_levels(clip, light_points, light_normals, wanted, settings=settings, radius=radius,
+                                        table=None)
     used = level >= 0
     side = clip.pages_per_side
     local = _tap_pages(clip, coordinates[used], radius=radius, bits=settings.subtexel_bits) \

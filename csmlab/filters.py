@@ -39,7 +39,7 @@ import numpy as np
 
 from csmlab.camera import CameraPose
 from csmlab.cascades import CascadeSet
-from csmlab.clipmaps import chosen_levels, light_space, wanted_levels
+from csmlab.clipmaps import light_space, read_levels, wanted_levels
 from csmlab.cascades.borders import dithered_sphere_cascades
 from csmlab.cascades.fit import BLEND_CURVES, transition_bands
 from csmlab.fades import FADE_METHODS, faded
@@ -170,7 +170,7 @@ def clipmap_radius(settings: ShadowSettings) -> int:
 
 def _clipmap_lookup(maps: ShadowMaps, *, points, normals, settings: ShadowSettings, device: str) -> ShadowLookup:
     """A virtual clipmap's shadow at ``points``: each receiver at the first level from the one its distance to
-    the maps' camera wants whose pages hold all its taps (:func:`csmlab.clipmaps.chosen_levels`), read through the
+    the maps' camera wants whose pages hold all its taps (:func:`csmlab.clipmaps.read_levels`), read through the
     page table (:func:`csmlab.kernels.pages.page_lookup`). ``cascade`` is the level index; no blend band, no fade.
 
     The maps' camera (:attr:`csmlab.clipmaps.Clipmap.eye`) chooses the levels, so frame t−1's maps
@@ -186,13 +186,9 @@ def _clipmap_lookup(maps: ShadowMaps, *, points, normals, settings: ShadowSettin
     index = np.flatnonzero(np.isfinite(flat[:, 0]) & np.isfinite(flat[:, 1]) & np.isfinite(flat[:, 2]))
     radius = clipmap_radius(settings)
     table = pages.table
-
-    def resident(k, local):
-        return np.all(table[k, local[..., 1], local[..., 0]] >= 0, axis=1)
-
-    level, coordinates, depth = chosen_levels(clip, light_space(flat[index], clip.basis),
-                                              light_space(flat_n[index], clip.basis), wanted_levels(clip, flat[index]),
-                                              settings=settings, radius=radius, holds=resident)
+    level, coordinates, depth = read_levels(clip, light_space(flat[index], clip.basis),
+                                            light_space(flat_n[index], clip.basis), wanted_levels(clip, flat[index]),
+                                            settings=settings, radius=radius, table=table, device=device)
     lit = np.full(flat.shape[0], np.nan, dtype=np.float32)
     cascade = np.full(flat.shape[0], -1, dtype=np.int8)
     lit[index] = page_lookup(maps.depth, table, clip.origin_page, level, coordinates, depth, radius=radius,

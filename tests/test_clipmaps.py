@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from csmlab.camera import CameraPose
+from csmlab.clipmaps import Clipmap, chosen_levels, light_space, read_levels, wanted_levels
 from csmlab.config import load_experiment
 from csmlab.errors import InputError
 from csmlab.geometry import rotation_looking_at
@@ -278,3 +279,76 @@ def test_a_clipmap_promises_zero_same_level_flicker_whatever_the_cascades_fields
     assert not promised_invariants(loose.replace(shadow_map="cascades"), workload=static)[FLICKER_SAME_ZERO].promised
     moving = promised_invariants(loose, workload=WorkloadFacts(light_static=False, fov_fixed=True))
     assert not moving[FLICKER_SAME_ZERO].promised
+
+
+def _random_clipmap(rng, *, levels=6, side=4, page_size=8):
+    """A clipmap of ``levels`` levels of ``side``² pages of ``page_size``² texels, 5 cm texels and up."""
+    return Clipmap(first_level=0, texel=0.05 * 2.0 ** np.arange(levels), origin_page=rng.integers(-3, 0, (levels, 2)),
+                   pages_per_side=side, page_size=page_size, footprint=0.002, lod_bias=0.0, eye=np.zeros(3),
+                   basis=np.eye(3), zref=-1.5)
+
+
+def _receivers(rng, count):
+    """Light-space receivers over the clipmap's boxes and past them, with unit normals some turned from the light."""
+    points = np.column_stack([rng.uniform(-12.0, 12.0, (count, 2)), rng.uniform(-3.0, 3.0, count)])
+    normals = rng.normal(size=(count, 3))
+    normals[: count // 10] = (0.0, 0.0, -1.0)
+    normals[count // 10: count // 5] = (0.0, 1.0, 0.0)
+    return points, normals / np.linalg.norm(normals, axis=1, keepdims=True)
+
+
+@pytest.mark.parametrize("radius", [0, 1, 3])
+@pytest.mark.parametrize("resident", [False, True])
+def test_the_level_kernel_equals_the_host_level_choice_bit_for_bit(radius, resident):
+    """read_levels equals chosen_levels (the host reference): level, coordinates and depth bits, with the
+    page table or without it, receivers outside every box, at the box edges and turned from the light."""
+    rng = np.random.default_rng(11 + radius)
+    clip = _random_clipmap(rng)
+    points, normals = _receivers(rng, 3000)
+    wanted = rng.integers(0, len(clip) + 1, len(points))
+    table = np.where(rng.uniform(size=(len(clip), 4, 4)) < 0.7, rng.integers(0, 50, (len(clip), 4, 4)), -1)
+    settings = ShadowSettings(normal_offset=0.7, bias_constant=0.003, bias_slope=1.3, subtexel_bits=5)
+
+    def holds(k, local):
+        if not resident:
+            return np.ones(len(local), dtype=bool)
+        return np.all(table[k, local[..., 1], local[..., 0]] >= 0, axis=1)
+
+    want = chosen_levels(clip, points, normals, wanted, settings=settings, radius=radius, holds=holds)
+    got = read_levels(clip, points, normals, wanted, settings=settings, radius=radius,
+                      table=table if resident else None)
+    level = want[0]
+    assert (level == -1).sum() > 50 and (level >= 0).sum() > 500 and np.isnan(want[2][level >= 0]).sum() > 50
+    assert len(np.unique(level)) >= len(clip) and np.any(level > wanted)
+    for g, w in zip(got, want):
+        assert g.dtype == w.dtype and np.array_equal(g, w, equal_nan=True)
+    assert np.array_equal(got[2].view(np.int32), want[2].view(np.int32))
+
+
+def test_the_level_kernel_equals_the_host_level_choice_on_a_rendered_frame(dscene):
+    """On a frame's own receivers and resident pages (S_t) and on the next frame's receivers (S_{t-1}'s case)."""
+    first, second = frames(dscene, CLIPMAP.replace(filter="pcf", filter_size=3), dolly(2), [LIGHT, LIGHT])
+    pages = first.maps.pages
+    clip = pages.clipmap
+    for frame in (first, second):
+        g = frame.view.gbuffer
+        points = light_space(g.position[g.valid], clip.basis)
+        normals = light_space(g.normal[g.valid], clip.basis)
+        wanted = wanted_levels(clip, g.position[g.valid])
+        want = chosen_levels(clip, points, normals, wanted, settings=CLIPMAP, radius=1,
+                             holds=lambda k, local: np.all(pages.table[k, local[..., 1], local[..., 0]] >= 0, axis=1))
+        got = read_levels(clip, points, normals, wanted, settings=CLIPMAP, radius=1, table=pages.table)
+        assert (want[0] >= 0).sum() > 1000
+        for g_, w in zip(got, want):
+            assert np.array_equal(g_, w, equal_nan=True)
+
+
+def test_the_level_kernel_refuses_negative_wanted_levels_and_a_table_of_the_wrong_shape():
+    rng = np.random.default_rng(3)
+    clip = _random_clipmap(rng)
+    points, normals = _receivers(rng, 10)
+    with pytest.raises(ValueError, match="wanted"):
+        read_levels(clip, points, normals, np.full(10, -1), settings=CLIPMAP, radius=0, table=None)
+    with pytest.raises(ValueError, match="table"):
+        read_levels(clip, points, normals, np.zeros(10, dtype=int), settings=CLIPMAP, radius=0,
+                    table=np.zeros((2, 4, 4), dtype=np.int32))

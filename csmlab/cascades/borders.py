@@ -74,8 +74,24 @@ def dithered_sphere_cascades(cascade, points, *, centres, radii, borders, eye, n
     :func:`border_weights`. −1 stays −1 (no sphere holds the point).
     """
     c = np.asarray(cascade, dtype=np.int64)
-    count = len(np.asarray(radii))
-    alpha = border_weights(c, points, centres=centres, radii=radii, borders=borders, eye=eye)
-    following = np.minimum(c + 1, count - 1)
-    take = (c >= 0) & (following != c) & (alpha > 0.0) & (np.asarray(noise, dtype=np.float64) <= alpha)
-    return np.where(take, following, c).astype(np.int32)
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    rows = _border_rows(c, p, centres=centres, radii=radii, borders=borders)
+    # border_weights is row by row: on the rows alone it has the bits it has there on every point.
+    alpha = border_weights(c[rows], p[rows], centres=centres, radii=radii, borders=borders, eye=eye)
+    take = rows[(alpha > 0.0) & (np.asarray(noise, dtype=np.float64)[rows] <= alpha)]
+    out = c.astype(np.int32)
+    out[take] += 1
+    return out
+
+
+def _border_rows(cascade: np.ndarray, points: np.ndarray, *, centres, radii, borders) -> np.ndarray:
+    """The rows ``(M,)`` whose ``alpha`` may be above 0 and that have a next cascade: in a sphere that is not the
+    last, whose border is above 0, past ``1 − border`` of its squared radius (``alpha``'s numerator above 0)."""
+    border = np.asarray(borders, dtype=np.float64)
+    rows = np.flatnonzero((cascade >= 0) & (cascade < len(np.asarray(radii)) - 1))
+    rows = rows[border[cascade[rows]] > 0.0]
+    i = cascade[rows]
+    offset = points[rows] - np.asarray(centres, dtype=np.float64)[i]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        relative = np.sum(offset * offset, axis=1) / np.asarray(radii, dtype=np.float64)[i] ** 2
+    return rows[relative > 1.0 - border[i]]

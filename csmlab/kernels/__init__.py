@@ -11,6 +11,7 @@
   (``shadow_rays``), the BVH ray cast (``ray_cast``), the irregular z-buffer's binned ray starts
   (``ray_grid``) and its triangles that block them (``irregular``).
 - :mod:`csmlab.kernels.footprint` — texel footprint of a screen pixel (aliasing metric).
+- :mod:`csmlab.kernels.levels` — the clipmap level each virtual shadow map receiver reads.
 - :mod:`csmlab.kernels.threads` — CPU launches split over threads, each writing its own outputs.
 
 Every wrapper takes ``device=`` (``"cpu"`` by default, ``"cuda"`` when asked) and checks it with

@@ -1,7 +1,7 @@
 """The shadow of a virtual shadow map's receivers, read through its page table (:mod:`csmlab.clipmaps`).
 
 One thread per receiver. Its level, fixed-point texel coordinate and biased depth come from the
-host (:func:`csmlab.clipmaps.chosen_levels`, which already checked that every tap's page is
+host (:func:`csmlab.clipmaps.read_levels`, which already checked that every tap's page is
 resident). Each tap texel ``(i, j)`` of the level's global grid lies in page ``(i >> log2 S,
 j >> log2 S)``; the page table gives that page's place in the pool, and the tap compares the
 receiver's depth with the pool's texel there: lit when the receiver is not deeper than it (an

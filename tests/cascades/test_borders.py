@@ -118,3 +118,29 @@ def test_render_shades_each_receiver_from_its_dithered_sphere(device):
     selected = chosen >= 0
     assert np.any(expected[selected] != first[selected])             # some receivers are dithered over
     np.testing.assert_array_equal(chosen[selected], expected[selected])
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_dither_equals_hdrps_rule_applied_to_every_point(seed):
+    """dithered_sphere_cascades weighs only the points in a border band; the cascades equal HDRP's rule with the
+    weight of every point (``next = min(i + 1, count − 1)``, taken where ``next ≠ i``, ``alpha > 0``, noise ≤ alpha),
+    with points outside every sphere, at a centre, at the eye, zero borders and zero radii."""
+    rng = np.random.default_rng(seed)
+    count = 4
+    points = rng.uniform(-30.0, 30.0, (5000, 3))
+    centres = rng.uniform(-5.0, 5.0, (count, 3))
+    radii = rng.choice([0.0, 10.0, 20.0, 40.0], count)
+    borders = tuple(rng.choice([0.0, 0.05, 0.3, 1.0], count - 1)) + (0.0,)
+    eye = rng.uniform(-3.0, 3.0, 3)
+    points[:5], points[5:10], points[10:15] = centres[0], centres[1], eye
+    offset = points[:, None, :] - centres[None]
+    inside = np.sum(offset * offset, axis=2) <= radii ** 2
+    cascade = np.where(inside.any(axis=1), inside.argmax(axis=1), -1)
+    noise = rng.uniform(0.0, 1.0, len(points))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        alpha = border_weights(cascade, points, centres=centres, radii=radii, borders=borders, eye=eye)
+    following = np.minimum(cascade + 1, count - 1)
+    want = np.where((cascade >= 0) & (following != cascade) & (alpha > 0.0) & (noise <= alpha), following, cascade)
+    got = dithered_sphere_cascades(cascade, points, centres=centres, radii=radii, borders=borders, eye=eye,
+                                   noise=noise)
+    assert got.dtype == np.int32 and np.array_equal(got, want)
