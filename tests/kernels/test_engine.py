@@ -197,15 +197,15 @@ def test_window_lookups_equal_the_hosts_receivers_looked_up(terrain, name, chang
     """The selection kernel takes each receiver into window space only in the cascades it reads
     (shadow_lookup_window, select_window_cascades then weighted_pcf of the picked rows): the same S, cascade and
     blend, bit for bit, as the host's receiver_lookup of every receiver into every cascade, looked up by the
-    kernels of converted receivers (on the CPU)."""
+    kernels of converted receivers on the same device."""
     settings, view, cascades = _frame(terrain, name, 4, **changes)
     assert filters._converted_in_kernel(ShadowMaps(cascades=cascades, depth=np.zeros((1, 128, 128), np.float32),
                                                    texels_rasterized=0), settings) == "window"
     maps = ShadowMaps(cascades=cascades, depth=render.host_depth_maps(terrain.dscene, cascades, settings)[0],
                       texels_rasterized=0)
     g = view.gbuffer
-    looked_up = dict(points=g.position, normals=g.normal, view_depth=g.view_depth, settings=settings)
-    fused = filters.lookup_shadow(maps, **looked_up, device=device)
+    looked_up = dict(points=g.position, normals=g.normal, view_depth=g.view_depth, settings=settings, device=device)
+    fused = filters.lookup_shadow(maps, **looked_up)
 
     def host_coordinates(cascades, points, normals, rows, *, settings, device):
         return receiver_lookup(cascades, points[rows], normals[rows], bits=settings.subtexel_bits,
@@ -218,7 +218,7 @@ def test_window_lookups_equal_the_hosts_receivers_looked_up(terrain, name, chang
 
     monkeypatch.setattr(filters, "_converted_in_kernel", lambda maps, settings: None)
     monkeypatch.setattr(filters, "texel_coordinates", host_coordinates)
-    host = filters.lookup_shadow(maps, **looked_up, device="cpu")
+    host = filters.lookup_shadow(maps, **looked_up)
     for field in ("lit", "cascade", "blend"):
         assert _same_bits(getattr(fused, field), getattr(host, field)), field
     lit = fused.lit[np.isfinite(fused.lit)]
