@@ -109,7 +109,7 @@ step() {
 cuda_test_modules() {
   "$PYTHON" - <<'EOF'
 import ast, pathlib
-for path in sorted(pathlib.Path("tests").glob("test_*.py")):
+for path in sorted(pathlib.Path("tests").rglob("test_*.py")):
     tree = ast.parse(path.read_text(encoding="utf-8"))
     if any(isinstance(n, ast.FunctionDef) and n.name.startswith("test_") and any(a.arg == "device" for a in n.args.args)
            for n in ast.walk(tree)):

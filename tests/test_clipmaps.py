@@ -299,7 +299,7 @@ def _receivers(rng, count):
 
 @pytest.mark.parametrize("radius", [0, 1, 3])
 @pytest.mark.parametrize("resident", [False, True])
-def test_the_level_kernel_equals_the_host_level_choice_bit_for_bit(radius, resident):
+def test_the_level_kernel_equals_the_host_level_choice_bit_for_bit(radius, resident, device):
     """read_levels equals chosen_levels (the host reference): level, coordinates and depth bits, with the
     page table or without it, receivers outside every box, at the box edges and turned from the light."""
     rng = np.random.default_rng(11 + radius)
@@ -316,7 +316,7 @@ def test_the_level_kernel_equals_the_host_level_choice_bit_for_bit(radius, resid
 
     want = chosen_levels(clip, points, normals, wanted, settings=settings, radius=radius, holds=holds)
     got = read_levels(clip, points, normals, wanted, settings=settings, radius=radius,
-                      table=table if resident else None)
+                      table=table if resident else None, device=device)
     level = want[0]
     assert (level == -1).sum() > 50 and (level >= 0).sum() > 500 and np.isnan(want[2][level >= 0]).sum() > 50
     assert len(np.unique(level)) >= len(clip) and np.any(level > wanted)
@@ -325,7 +325,7 @@ def test_the_level_kernel_equals_the_host_level_choice_bit_for_bit(radius, resid
     assert np.array_equal(got[2].view(np.int32), want[2].view(np.int32))
 
 
-def test_the_level_kernel_equals_the_host_level_choice_on_a_rendered_frame(dscene):
+def test_the_level_kernel_equals_the_host_level_choice_on_a_rendered_frame(dscene, device):
     """On a frame's own receivers and resident pages (S_t) and on the next frame's receivers (S_{t-1}'s case)."""
     first, second = frames(dscene, CLIPMAP.replace(filter="pcf", filter_size=3), dolly(2), [LIGHT, LIGHT])
     pages = first.maps.pages
@@ -337,7 +337,8 @@ def test_the_level_kernel_equals_the_host_level_choice_on_a_rendered_frame(dscen
         wanted = wanted_levels(clip, g.position[g.valid])
         want = chosen_levels(clip, points, normals, wanted, settings=CLIPMAP, radius=1,
                              holds=lambda k, local: np.all(pages.table[k, local[..., 1], local[..., 0]] >= 0, axis=1))
-        got = read_levels(clip, points, normals, wanted, settings=CLIPMAP, radius=1, table=pages.table)
+        got = read_levels(clip, points, normals, wanted, settings=CLIPMAP, radius=1, table=pages.table,
+                          device=device)
         assert (want[0] >= 0).sum() > 1000
         for g_, w in zip(got, want):
             assert np.array_equal(g_, w, equal_nan=True)

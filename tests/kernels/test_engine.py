@@ -7,6 +7,9 @@ The oracle is the host's statement of each engine's float32 arithmetic (:mod:`cs
 banded rasterizer) must give the same integers, depths and counts on the shipped scenes: terrain
 (every engine preset, Filament's LiSPSM warp), foliage (alpha-tested casters) and terrain 10⁶ m from
 the origin (where float32 rounds at 6 cm, so any difference in operation order shows).
+
+Each kernel test runs on every device (the ``device`` fixture); the views, cascades and the host's
+oracle are made on the CPU, so CUDA's kernels are held to the same bits as the CPU's.
 """
 
 from __future__ import annotations
@@ -36,17 +39,28 @@ RESOLUTION = 128
 
 @dataclasses.dataclass
 class Case:
+    """An experiment's methods and workload, its scene uploaded to each device a test asks for, once."""
+
     methods: dict
-    dscene: render.DeviceScene
     workload: object
+    scenes: dict = dataclasses.field(default_factory=dict)
+
+    def on(self, device: str) -> render.DeviceScene:
+        """The scene on ``device`` (the kernels' side of a comparison)."""
+        if device not in self.scenes:
+            self.scenes[device] = render.prepare_scene(self.workload.scene, device=device, threads=2)
+        return self.scenes[device]
+
+    @property
+    def dscene(self) -> render.DeviceScene:
+        """The scene on the CPU: the views, cascades and host oracle every device is compared against."""
+        return self.on("cpu")
 
 
 def _case(experiment: str) -> Case:
     exp = load_experiment(ROOT / "experiments" / experiment)
-    workload = build_workload(exp)
-    dscene = render.prepare_scene(workload.scene, threads=2)
     methods = {m.name: m.settings for m in exp.methods if m.settings.shadow_map != "virtual_clipmap"}
-    return Case(methods=methods, dscene=dscene, workload=workload)
+    return Case(methods=methods, workload=build_workload(exp))
 
 
 @pytest.fixture(scope="module")
@@ -82,52 +96,52 @@ ENGINE_PRESETS = ["ue5", "unity_builtin_stable", "unity_builtin_close", "unity_u
                   "threejs_csm", "stride", "mjp"]
 
 
-def _assert_maps_equal_the_host(case: Case, name: str, frame: int, **changes) -> None:
+def _assert_maps_equal_the_host(case: Case, name: str, frame: int, device: str, **changes) -> None:
     settings, _, cascades = _frame(case, name, frame, **changes)
     assert not cascades.warped
     host, host_texels = render.host_depth_maps(case.dscene, cascades, settings)
-    kernels, texels = render._window_depth_maps(case.dscene, cascades, settings,
+    kernels, texels = render._window_depth_maps(case.on(device), cascades, settings,
                                                 inputs=render._window_inputs(cascades, settings))
     assert _same_bits(kernels, host)
     assert texels.sum() == host_texels > 0
 
 
 @pytest.mark.parametrize("name", ENGINE_PRESETS)
-def test_every_engine_presets_depth_maps_equal_the_host_pipelines_on_terrain(terrain, name):
-    _assert_maps_equal_the_host(terrain, name, 5)
+def test_every_engine_presets_depth_maps_equal_the_host_pipelines_on_terrain(terrain, name, device):
+    _assert_maps_equal_the_host(terrain, name, 5, device)
 
 
 @pytest.mark.parametrize("name", ["unity_urp", "threejs_csm", "ue5"])
-def test_alpha_tested_casters_give_the_host_pipelines_maps_on_foliage(foliage, name):
+def test_alpha_tested_casters_give_the_host_pipelines_maps_on_foliage(foliage, name, device):
     assert foliage.dscene.scene.vertex_mask is not None
-    _assert_maps_equal_the_host(foliage, name, 2)
+    _assert_maps_equal_the_host(foliage, name, 2, device)
 
 
 @pytest.mark.parametrize("name", ["exact_float32", "none_float32", "exact_camera_relative",
                                   "quantized_camera_relative"])
-def test_maps_equal_the_host_pipelines_far_from_the_origin(far, name):
-    _assert_maps_equal_the_host(far, name, 4)
+def test_maps_equal_the_host_pipelines_far_from_the_origin(far, name, device):
+    _assert_maps_equal_the_host(far, name, 4, device)
 
 
-def test_camera_relative_rebased_in_steps_and_window_snapping_equal_the_host(far, terrain):
-    _assert_maps_equal_the_host(far, "none_camera_relative", 3, rebase_distance=64.0)
-    _assert_maps_equal_the_host(terrain, "exact", 3, vertex_snap="window", stabilization="none")
+def test_camera_relative_rebased_in_steps_and_window_snapping_equal_the_host(far, terrain, device):
+    _assert_maps_equal_the_host(far, "none_camera_relative", 3, device, rebase_distance=64.0)
+    _assert_maps_equal_the_host(terrain, "exact", 3, device, vertex_snap="window", stabilization="none")
 
 
-def test_casters_clipped_at_a_slice_without_pancaking_equal_the_host_in_float64(terrain):
+def test_casters_clipped_at_a_slice_without_pancaking_equal_the_host_in_float64(terrain, device):
     """``depth_range = "slice"`` and ``depth_clamp = false`` on csmlab's own float64 grid: the same path, no window."""
-    _assert_maps_equal_the_host(terrain, "exact", 6, depth_range="slice", depth_clamp=False)
+    _assert_maps_equal_the_host(terrain, "exact", 6, device, depth_range="slice", depth_clamp=False)
 
 
 @pytest.mark.parametrize("name, experiment", [("exact_float32", "far"), ("none_camera_relative", "far"),
                                               ("bevy", "terrain")])
-def test_window_vertices_are_twice_the_hosts_fixed_point_and_its_depth(name, experiment, request):
+def test_window_vertices_are_twice_the_hosts_fixed_point_and_its_depth(name, experiment, device, request):
     case = request.getfixturevalue(experiment)
     settings, _, cascades = _frame(case, name, 1, rebase_distance=16.0)
     vertices = case.dscene.scene.vertices
     boxes = window_boxes(cascades, bits=settings.subtexel_bits, precision=settings.engine_precision,
-                         snap=settings.vertex_snap, rebase_distance=settings.rebase_distance)
-    points, depth = window_vertices(boxes, positions=vertices, threads=2)
+                         snap=settings.vertex_snap, rebase_distance=settings.rebase_distance, device=device)
+    points, depth = window_vertices(boxes, positions=vertices, threads=2, device=device)
     how = dict(precision=settings.engine_precision, rebase_distance=settings.rebase_distance)
     for c in range(len(cascades)):
         assert np.array_equal(points[c], 2 * fixed_point_coordinates(cascades, c, vertices, bits=settings.subtexel_bits,
@@ -146,13 +160,13 @@ def test_window_vertices_are_twice_the_hosts_fixed_point_and_its_depth(name, exp
     ("exact", "terrain", {"vertex_snap": "window", "stabilization": "none", "normal_offset": 0.7,
                           "normal_offset_scale": "one_minus_cos"}),
 ])
-def test_window_receivers_equal_the_hosts_receiver_lookup(name, experiment, changes, request):
+def test_window_receivers_equal_the_hosts_receiver_lookup(name, experiment, changes, device, request):
     case = request.getfixturevalue(experiment)
     settings, view, cascades = _frame(case, name, 4, **changes)
     g = view.gbuffer
     points, normals = g.position.reshape(-1, 3), g.normal.reshape(-1, 3)
     rows = np.flatnonzero(g.valid.reshape(-1))
-    kernels = filters.texel_coordinates(cascades, points, normals, rows, settings=settings, device="cpu")
+    kernels = filters.texel_coordinates(cascades, points, normals, rows, settings=settings, device=device)
     host = receiver_lookup(cascades, points[rows], normals[rows], bits=settings.subtexel_bits,
                            normal_offset=settings.normal_offset,
                            bias_constant=filters._cascade_bias(cascades, settings),
@@ -162,11 +176,11 @@ def test_window_receivers_equal_the_hosts_receiver_lookup(name, experiment, chan
                            snap=settings.vertex_snap, rebase_distance=settings.rebase_distance)
     assert all(_same_bits(a, b) for a, b in zip(kernels, host))
     boxes = window_boxes(cascades, bits=settings.subtexel_bits, precision=settings.engine_precision,
-                         snap=settings.vertex_snap, rebase_distance=settings.rebase_distance)
+                         snap=settings.vertex_snap, rebase_distance=settings.rebase_distance, device=device)
     none = BiasSettings(normal_offset=0.0, bias_constant=0.0, bias_slope=0.0)
     assert window_receivers(boxes, points, normals, receivers=rows[:0], basis=cascades.basis,
                             texel_size=np.stack([c.texel_size for c in cascades.cascades]), zref=cascades.zref,
-                            bias=none)[0].shape == (len(cascades), 0, 2)
+                            bias=none, device=device)[0].shape == (len(cascades), 0, 2)
 
 
 WINDOW_LOOKUPS = [("ue5", {}), ("unity_builtin_stable", {}), ("unity_urp", {}), ("unity_hdrp", {}), ("godot4", {}),
@@ -179,18 +193,18 @@ receiver-plane bias and a box filter of taps."""
 
 
 @pytest.mark.parametrize("name, changes", WINDOW_LOOKUPS)
-def test_window_lookups_equal_the_hosts_receivers_looked_up(terrain, name, changes, monkeypatch):
+def test_window_lookups_equal_the_hosts_receivers_looked_up(terrain, name, changes, device, monkeypatch):
     """The selection kernel takes each receiver into window space only in the cascades it reads
     (shadow_lookup_window, select_window_cascades then weighted_pcf of the picked rows): the same S, cascade and
     blend, bit for bit, as the host's receiver_lookup of every receiver into every cascade, looked up by the
-    kernels of converted receivers."""
+    kernels of converted receivers on the same device."""
     settings, view, cascades = _frame(terrain, name, 4, **changes)
     assert filters._converted_in_kernel(ShadowMaps(cascades=cascades, depth=np.zeros((1, 128, 128), np.float32),
                                                    texels_rasterized=0), settings) == "window"
     maps = ShadowMaps(cascades=cascades, depth=render.host_depth_maps(terrain.dscene, cascades, settings)[0],
                       texels_rasterized=0)
     g = view.gbuffer
-    looked_up = dict(points=g.position, normals=g.normal, view_depth=g.view_depth, settings=settings, device="cpu")
+    looked_up = dict(points=g.position, normals=g.normal, view_depth=g.view_depth, settings=settings, device=device)
     fused = filters.lookup_shadow(maps, **looked_up)
 
     def host_coordinates(cascades, points, normals, rows, *, settings, device):
@@ -241,7 +255,7 @@ def _random_mesh(seed: int, triangles: int = 3000):
     return light_space_mesh(xy, depth, np.arange(xy.shape[0]).reshape(-1, 3))
 
 
-def test_chunks_of_converted_vertices_leave_out_no_triangle_that_covers_a_region():
+def test_chunks_of_converted_vertices_leave_out_no_triangle_that_covers_a_region(device):
     """Rasterizing only :func:`converted_region_chunks` gives the maps and counts of every chunk, region by region."""
     mesh = _random_mesh(11)
     texel = np.array([[0.1, 0.1], [0.23, 0.19]])
@@ -249,29 +263,30 @@ def test_chunks_of_converted_vertices_leave_out_no_triangle_that_covers_a_region
     regions = np.array([[0, 0, 64, 0, 20], [0, 0, 64, 20, 64], [1, 5, 40, 0, 64]], dtype=np.int32)
     unit = 2.0**8
     points = np.stack([2 * (np.rint(mesh.xy / (texel[c] / unit)).astype(np.int64) - origin[c]) for c in range(2)])
-    how = dict(texel_size=texel, origin=origin, resolution=64, bits=8, regions=regions, points=points)
-    chunks = converted_region_chunks(points, mesh.triangles, regions=regions, bits=8)
+    how = dict(texel_size=texel, origin=origin, resolution=64, bits=8, regions=regions, points=points, device=device)
+    chunks = converted_region_chunks(points, mesh.triangles, regions=regions, bits=8, device=device)
     every = rasterize_cascades(mesh, **how)
     chosen = rasterize_cascades(mesh, chunks=chunks, **how)
     assert len(chunks) < len(regions) * (-(-mesh.triangles.shape[0] // 32))
     assert _same_bits(chosen[0], every[0]) and np.array_equal(chosen[1], every[1]) and every[1].sum() > 0
     # The same points converted by the rasterizer itself from light space: the same maps.
-    converted = rasterize_cascades(mesh, texel_size=texel, origin=origin, resolution=64, bits=8, regions=regions)
+    converted = rasterize_cascades(mesh, texel_size=texel, origin=origin, resolution=64, bits=8, regions=regions,
+                                   device=device)
     assert _same_bits(converted[0], every[0])
 
 
-def test_a_near_cut_drops_exactly_the_triangles_wholly_nearer_than_it():
+def test_a_near_cut_drops_exactly_the_triangles_wholly_nearer_than_it(device):
     """``near`` per cascade equals rasterizing the triangle list :func:`csmlab.render.clipped_casters` keeps."""
     mesh = _random_mesh(12)
     texel = np.array([[0.1, 0.1], [0.1, 0.1]])
     origin = np.zeros((2, 2), dtype=np.int64)
     near = np.array([-1.0, 2.5])
-    how = dict(texel_size=texel, origin=origin, resolution=400, bits=8)
+    how = dict(texel_size=texel, origin=origin, resolution=400, bits=8, device=device)
     cut = rasterize_cascades(mesh, near=near, **how)
     for c in range(2):
         kept = light_space_mesh(mesh.xy, mesh.depth, render.clipped_casters(mesh.depth, mesh.triangles, near=near[c]))
         alone = rasterize_cascades(kept, regions=whole_map_regions([400]), texel_size=texel[c:c + 1],
-                                   origin=origin[c:c + 1], resolution=400, bits=8)
+                                   origin=origin[c:c + 1], resolution=400, bits=8, device=device)
         assert _same_bits(cut[0][c], alone[0][0]) and cut[1][c] == alone[1][0] > 0
     chunks = region_chunks(mesh.bounds, texel_size=texel, origin=np.zeros((2, 2)), regions=whole_map_regions([400] * 2))
     assert _same_bits(rasterize_cascades(mesh, near=near, chunks=chunks, **how)[0], cut[0])
@@ -293,24 +308,24 @@ def test_converted_vertices_of_the_wrong_shape_name_the_argument():
     ("terrain", 9, {"cull": "back", "depth_range": "slice", "depth_clamp": False, "cascades": 3}),
     ("foliage", 2, {}),
 ])
-def test_warped_cascades_maps_equal_the_host_pipelines(experiment, frame, changes, request):
+def test_warped_cascades_maps_equal_the_host_pipelines(experiment, frame, changes, device, request):
     """Filament's LiSPSM (``warp = "lispsm"``): clipped at the warp's near plane, through the homography on the
     device, rasterized in bands; the host's :func:`csmlab.render.warped_depth_map` maps and counts bit for bit."""
     case = request.getfixturevalue(experiment)
     settings, _, cascades = _frame(case, "filament", frame, **changes)
     assert cascades.warped
     host, host_texels = render.host_depth_maps(case.dscene, cascades, settings)
-    kernels, texels = render._warped_window_depth_maps(case.dscene, cascades, settings)
+    kernels, texels = render._warped_window_depth_maps(case.on(device), cascades, settings)
     assert _same_bits(kernels, host)
     assert texels == host_texels > 0
 
 
-def test_warped_vertices_are_the_hosts_homography_texels_and_depth_over_w():
+def test_warped_vertices_are_the_hosts_homography_texels_and_depth_over_w(device):
     rng = np.random.default_rng(14)
     homography = np.array([[3.1, 0.4, 40.0], [0.2, 2.7, 11.0], [0.001, 0.03, 1.5]])
     xy = rng.uniform(-20.0, 20.0, (2000, 2))
     depth = rng.uniform(-5.0, 5.0, 2000)
-    points, per_w = warped_vertices(homography, xy, depth, bits=8)
+    points, per_w = warped_vertices(homography, xy, depth, bits=8, device=device)
     texels, w = warped_texels(homography, xy)
     assert np.all(w > 0)
     assert np.array_equal(points, 2 * np.rint(np.clip(texels * 256.0, -2.0**50, 2.0**50)).astype(np.int64))
@@ -324,7 +339,7 @@ def test_warped_vertices_are_the_hosts_homography_texels_and_depth_over_w():
                  "normal_offset_scale": "one_minus_cos_lateral", "cascades": 3}),
     ("foliage", {"normal_offset_scale": "one_minus_cos", "normal_offset": 2.0, "subtexel_bits": 4}),
 ])
-def test_warped_receivers_equal_the_hosts_receiver_lookup(experiment, changes, request):
+def test_warped_receivers_equal_the_hosts_receiver_lookup(experiment, changes, device, request):
     """Filament's receivers through the homography (texel size from the Jacobian's inverse, NumPy's ``hypot``)."""
     case = request.getfixturevalue(experiment)
     settings, view, cascades = _frame(case, "filament", 6, **changes)
@@ -332,7 +347,7 @@ def test_warped_receivers_equal_the_hosts_receiver_lookup(experiment, changes, r
     g = view.gbuffer
     points, normals = g.position.reshape(-1, 3), g.normal.reshape(-1, 3)
     rows = np.flatnonzero(g.valid.reshape(-1))
-    kernels = filters.texel_coordinates(cascades, points, normals, rows, settings=settings, device="cpu")
+    kernels = filters.texel_coordinates(cascades, points, normals, rows, settings=settings, device=device)
     host = receiver_lookup(cascades, points[rows], normals[rows], bits=settings.subtexel_bits,
                            normal_offset=settings.normal_offset,
                            bias_constant=filters._cascade_bias(cascades, settings), bias_slope=settings.bias_slope,

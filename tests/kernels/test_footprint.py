@@ -86,7 +86,7 @@ def test_surface_differentials_cuda_matches_cpu():
         np.testing.assert_allclose(b, a, rtol=1e-6, atol=1e-9)
 
 
-def test_surface_differentials_are_the_transferred_ray_steps_and_zero_where_the_ray_missed():
+def test_surface_differentials_are_the_transferred_ray_steps_and_zero_where_the_ray_missed(device):
     # The tangent-plane transfer dX = t·(∂D − D (n·∂D)/(n·D)) in float64 NumPy, against the kernel, which takes the
     # hit relative to the eye itself and must read a missed pixel's NaN position as no hit at all.
     rng = np.random.default_rng(4)
@@ -101,7 +101,7 @@ def test_surface_differentials_are_the_transferred_ray_steps_and_zero_where_the_
     partly = tuple(np.argwhere(~missed)[0])  # a hit with one coordinate made non-finite, its normal kept
     position[partly][1] = np.inf
     camera = dict(rotation=np.eye(3), fov_y_deg=50.0, aspect=width / height)
-    dpdu, dpdv = surface_differentials(position, normal, eye=eye, **camera)
+    dpdu, dpdv = surface_differentials(position, normal, eye=eye, **camera, device=device)
     tan_y = np.tan(np.radians(50.0) / 2.0)
     steps = (np.array([2.0 * tan_y * width / height / width, 0.0, 0.0]), np.array([0.0, -2.0 * tan_y / height, 0.0]))
     v = np.where(np.isfinite(position), position - eye, 0.0)  # a non-finite coordinate is no offset

@@ -218,14 +218,14 @@ def test_every_triangle_path_forced_gives_the_default_maps_bit_for_bit(forced, d
     assert forced_count == expected_count
 
 
-def test_every_path_gives_the_specified_depths_and_the_walk_its_exact_integers():
+def test_every_path_gives_the_specified_depths_and_the_walk_its_exact_integers(device):
     """The default paths give :func:`interpolated_depth_map` (exact integer edge functions) on the small triangles,
     and the walk's threshold keeps every edge function below 2**53, where float64 integers are exact."""
     from csmlab.kernels.raster.kernels import STEPPED_EXTENT
 
     points, depth, triangles = path_test_triangles(np.random.default_rng(43), 32)
     small = triangles[:-5]
-    rasterized, _ = rasterize_depth(points[None], depth, small, resolution=32, bits=BITS)
+    rasterized, _ = rasterize_depth(points[None], depth, small, resolution=32, bits=BITS, device=device)
     np.testing.assert_array_equal(rasterized[0], interpolated_depth_map(points, depth, small, 32))
     assert 2 * STEPPED_EXTENT**2 <= 2**53
 

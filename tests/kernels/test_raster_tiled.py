@@ -243,9 +243,11 @@ def test_cuda_gets_the_tiles_the_cpu_the_walk_and_a_choice_overrides_both(device
     with rasterizer_chosen("tiled"):
         rasterize_cascades(None, device=device)
         rasterize_cascades(None, paths=object(), device=device)
+        rasterize_cascades(None, points=np.zeros((1, 3, 2), np.int64), device=device)
+        rasterize_cascades(None, near=np.zeros(1), device=device)
     with rasterizer_chosen("walk"):
         rasterize_cascades(None, device=device)
-    assert calls == [device_rasterizer(device), "tiled", "walk", "walk"]
+    assert calls == [device_rasterizer(device), "tiled", "walk", "walk", "walk", "walk"]
     with pytest.raises(ValueError, match="rasterizer"):
         with rasterizer_chosen("scanline"):
             pass

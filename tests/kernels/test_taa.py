@@ -180,14 +180,14 @@ def test_bad_taa_values_exit_2_naming_the_field(tmp_path, text, field):
 
 
 @pytest.mark.parametrize("method", ["raster", "ray"])
-def test_a_jittered_camera_hits_the_ground_where_the_moved_pixel_ray_meets_it(method):
+def test_a_jittered_camera_hits_the_ground_where_the_moved_pixel_ray_meets_it(method, device):
     # plane_box's ground (y = 0) under a camera looking down at it: pixel (row, col) with jitter (x, y)
     # must hit the ground where the ray through (col + ½ + x, row + ½ + y) meets y = 0, in closed form;
     # the box hides a few pixels, which are left out.
     from csmlab.kernels.visibility import camera_hits, mesh_bvh
 
     scene = make_scene("plane_box", plane_size=200.0, box_size=2.0)
-    bvh = mesh_bvh(scene.vertices, scene.triangles)
+    bvh = mesh_bvh(scene.vertices, scene.triangles, device=device)
     eye = np.array([3.0, 12.0, 9.0])
     width, height, jitter = 40, 24, (0.3125, -0.4375)
     rotation = CameraPose(position=eye, orientation=rotation_looking_at(np.array([-2.0, 0.0, -6.0]) - eye),

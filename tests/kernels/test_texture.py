@@ -177,7 +177,7 @@ def _obj_level(folder, *, mtl: str, leaf: bool = False):
 
 
 @pytest.mark.parametrize("masked", [False, True])
-def test_an_obj_materials_kd_and_map_kd_colour_its_faces(tmp_path, masked):
+def test_an_obj_materials_kd_and_map_kd_colour_its_faces(tmp_path, masked, device):
     mtl = ("newmtl checker\nKd 0.5 1 0.25\nmap_Kd checker.png\n" + ("map_d leaf.png\n" if masked else "")
            + "newmtl plain\nKd 0.3\n")
     scene = load_mesh(_obj_level(tmp_path, mtl=mtl, leaf=masked), albedo=(0.6, 0.6, 0.6))
@@ -192,7 +192,7 @@ def test_an_obj_materials_kd_and_map_kd_colour_its_faces(tmp_path, masked):
     quad_triangle = np.array([[int(np.flatnonzero(textured)[k])] for k in (0, 1)])
     found = None
     for t in quad_triangle[:, 0]:  # the point lies in one of the quad's two triangles: take each, keep the inside
-        albedo = textured_albedo(scene, np.full(x.shape, t, np.int32), hit)
+        albedo = textured_albedo(scene, np.full(x.shape, t, np.int32), hit, device=device)
         found = albedo if found is None else np.where(_inside(scene, t, hit)[..., None], albedo, found)
     texel = CHECKER[((z + 1.0) / 2.0 * 2).astype(int), ((x + 1.0) / 2.0 * 2).astype(int)]
     np.testing.assert_allclose(found, _srgb_decoded(texel) * [0.5, 1.0, 0.25], rtol=1e-6)
@@ -216,7 +216,7 @@ def test_a_bad_kd_is_refused_naming_the_mtl_line(tmp_path):
     assert caught.value.field == "Kd" and caught.value.line == 2 and str(caught.value.file).endswith("level.mtl")
 
 
-def test_a_placed_part_keeps_its_texture_where_it_is_placed(tmp_path):
+def test_a_placed_part_keeps_its_texture_where_it_is_placed(tmp_path, device):
     path = _textured_level(tmp_path)
     mirror = ((-1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1))
     level = load_parts([PartPlacement(file=str(path), translation=(10.0, 0.0, 0.0)),
@@ -228,7 +228,7 @@ def test_a_placed_part_keeps_its_texture_where_it_is_placed(tmp_path):
     mirrored = np.flatnonzero(level.colour.vertex_texture[level.triangles[:, 0]] == 1)
     found = None
     for t in mirrored:
-        albedo = textured_albedo(level, np.full(x.shape, t, np.int32), hit)
+        albedo = textured_albedo(level, np.full(x.shape, t, np.int32), hit, device=device)
         found = albedo if found is None else np.where(_inside(level, t, hit)[..., None], albedo, found)
     texel = CHECKER[((z + 1.0) / 2.0 * 2).astype(int), ((-x + 1.0) / 2.0 * 2).astype(int)]
     np.testing.assert_allclose(found, _srgb_decoded(texel), rtol=1e-6)

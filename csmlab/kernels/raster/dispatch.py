@@ -55,10 +55,10 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, paths: TrianglePaths | None = No
     """:func:`csmlab.kernels.raster.schedule.rasterize_cascades` (parameters, returns) by the device's rasterizer.
 
     ``paths`` chooses among the walk's paths, so a call that gives it is walked; so is a call with
-    vertices an engine's float32 pipeline converted (``points``, :mod:`csmlab.kernels.engine`), whose
-    set-up the tiles do not yet take.
+    vertices an engine's float32 pipeline converted (``points``, :mod:`csmlab.kernels.engine`) or
+    casters cut at a slice's near side (``near``), whose set-up the tiles do not yet take.
     """
     name = _CHOSEN.get() or device_rasterizer(device)
-    if name == "tiled" and paths is None and how.get("points") is None:
+    if name == "tiled" and paths is None and how.get("points") is None and how.get("near") is None:
         return rasterize_tiled(mesh, device=device, **how)
     return schedule.rasterize_cascades(mesh, paths=paths, device=device, **how)
