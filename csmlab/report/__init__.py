@@ -125,8 +125,7 @@ def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES, worker: bool | No
         pool.finish()
     # The interactive part once every picture is on disk, so that it knows the size of everything else.
     written = write_explore(out, explore, budget_bytes=budget_bytes, animations=[out / a["src"] for a in animations],
-                            compact=lambda: explore_files(out, groups=groups, labels=labels, metrics=results.metrics,
-                                                          encoding="compact"))
+                            compact=True)
     context = {
         **_header(results),
         "groups": groups,

@@ -397,6 +397,60 @@ def test_the_budget_plans_every_2nd_frame_then_the_animations_then_the_other_fra
     assert budget_plan(sizes, available, animation_bytes=animation_bytes) == plan
 
 
+class _ReadSizes(list):
+    """Frame sizes that remember which frames a plan read (as :class:`FramePayloads` encodes what is read)."""
+
+    def __init__(self, sizes):
+        super().__init__(sizes)
+        self.read = set()
+
+    def __getitem__(self, index):
+        self.read.update(range(len(self))[index] if isinstance(index, slice) else [index])
+        return super().__getitem__(index)
+
+    def __iter__(self):
+        return (self[k] for k in range(len(self)))
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_the_budget_plans_the_same_from_the_sizes_it_reads_and_stops_at_the_first_overflow(seed):
+    from csmlab.report.explore import budget_plan
+
+    rng = np.random.default_rng(seed)
+    sizes = rng.integers(1, 100, rng.integers(1, 120)).tolist()
+    available, animation_bytes = int(rng.integers(0, 1.2 * sum(sizes))), int(rng.choice([0, 50, 500]))
+    lazy = _ReadSizes(sizes)
+    step, kept = budget_plan(lazy, available, animation_bytes=animation_bytes)
+    # The plan, from a plain list: the smallest step from 2 that fits, then the animations, then every frame.
+    want = next((k for k in range(2, len(sizes) + 1) if sum(sizes[::k]) <= available), max(len(sizes), 1))
+    left = available - sum(sizes[::want])
+    want_kept = animation_bytes <= max(left, 0)
+    left -= animation_bytes if want_kept else 0
+    if want == 2 and sum(sizes[1::2]) <= left:
+        want = 1
+    assert (step, kept) == (want, want_kept)
+    others = sorted(lazy.read - set(range(0, len(sizes), 2)))
+    if step == 2 and others:
+        # Every other frame read up to the chunk where they overflowed, and no chunk beyond it.
+        assert sum(sizes[k] for k in others) > left and sum(sizes[k] for k in others[:-8]) <= left
+
+
+def test_planes_encoded_again_are_the_files_of_that_encoding_and_share_the_shaded_views(tiny_run):
+    from csmlab.report.explore import explore_files, recoded
+    from csmlab.report.tables import read_results
+
+    out = tiny_run.parent
+    metrics = read_results(out).metrics
+    groups = metrics.groups()
+    made = {encoding: explore_files(out, groups=groups, labels=[m for m, _ in groups], metrics=metrics,
+                                    encoding=encoding) for encoding in ("fast", "compact")}
+    again = recoded(made["fast"], "compact")
+    assert list(again.payloads) == list(made["compact"].payloads) != list(made["fast"].payloads)
+    for fast, compact in zip(made["fast"].payloads, again.payloads):
+        views = [name for name in fast if name.endswith(".webp")]
+        assert views and all(compact[name] is fast[name] for name in views)
+
+
 def _budget_parts(tiny_run) -> dict:
     """Bytes of the tiny run's report by part, its frames as the report encodes them when something is left out."""
     from csmlab.report.explore import explore_files, report_size
