@@ -58,9 +58,10 @@ from csmlab.results import json_text, read_json, write_atomic
 from csmlab.settings import ShadowSettings
 
 __all__ = ["ALIASING_AXIS", "DEFAULT_OBJECTIVES", "ENGINES_DIR", "Budgets", "Candidate", "InfeasibleBudget",
-           "TuneOptions", "TuneRequest", "TuneResult", "engine_presets", "flicker_limit", "objective_direction",
-           "pareto_front", "parse_space", "reference_settings", "resolved_options", "sampler_name", "search",
-           "settings_document", "tune", "tune_document", "tune_result", "write_outputs", "write_tune"]
+           "TuneOptions", "TuneRequest", "TuneResult", "balanced_chunk_frames", "engine_presets", "flicker_limit",
+           "objective_direction", "pareto_front", "parse_space", "reference_settings", "resolved_options",
+           "sampler_name", "search", "settings_document", "tune", "tune_document", "tune_result", "write_outputs",
+           "write_tune"]
 
 ENGINES_DIR = CONFIGS_DIR / "engines"
 """The engine presets every tune is compared with."""
@@ -356,7 +357,9 @@ class _Evaluator:
             methods = tuple(Method(name=f"k{key}", overrides=_changed(named[name], self.experiment.shadow),
                                    settings=named[name]) for name, key in todo.items())
             variant = dataclasses.replace(self.experiment, methods=methods, sweep=(),
-                                          report=ReportConfig(snapshot_frames=()))
+                                          report=ReportConfig(snapshot_frames=()),
+                                          chunk_frames=balanced_chunk_frames(self.experiment,
+                                                                             jobs=self.run_options.get("jobs") or 1))
             batch = hashlib.sha256(" ".join(sorted(todo.values())).encode()).hexdigest()[:12]
             summary = run_experiment(variant, out_dir=self.runs_dir / batch, resume=True,
                                      **self.run_options).summary["methods"]
@@ -368,6 +371,17 @@ class _Evaluator:
             self.computed += len(todo)
         fresh = set(todo.values())
         return {name: (found[key], key in fresh and todo.get(name) == key) for name, key in keys.items()}
+
+
+def balanced_chunk_frames(experiment: Experiment, *, jobs: int) -> int:
+    """Frames per unit of a candidates' run: the experiment's ``chunk_frames``, or fewer, so that each of ``jobs``
+    processes has a unit.
+
+    A tune's runs are short (``tune_default``: 12 frames, cut by the default 10 into units of 10 and 2 frames, one
+    process idle most of each run). Cut in ``jobs`` equal units instead, each process but the first renders one
+    frame again (the previous frame a unit's flicker needs); the numbers do not depend on the cut.
+    """
+    return max(1, min(experiment.chunk_frames, math.ceil(experiment.camera.frames / max(jobs, 1))))
 
 
 # --- the search ---------------------------------------------------------------------------------------

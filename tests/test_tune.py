@@ -506,3 +506,26 @@ def test_write_tune_writes_everything_then_raises_when_no_trial_is_recommended(e
     document = json.loads((tmp_path / "tune.json").read_text())
     assert document["recommended"] is None and [t["label"] for t in document["trials"]] == ["trial 0", "trial 1"]
     assert (tmp_path / "index.html").is_file() and not (tmp_path / "recommended.toml").exists()
+
+
+@pytest.mark.parametrize("frames, chunk, jobs, want", [(12, 10, 2, 6), (12, 10, 1, 10), (120, 10, 2, 10), (3, 10, 4, 1),
+                                                       (7, 10, 2, 4), (12, 4, 2, 4)])
+def test_a_candidates_run_is_cut_so_that_every_process_has_a_unit(experiment, frames, chunk, jobs, want):
+    from csmlab.experiment import chunk_ranges
+
+    cut = tune_module.balanced_chunk_frames(dataclasses.replace(experiment.with_frames(frames), chunk_frames=chunk),
+                                            jobs=jobs)
+    assert cut == want and cut <= chunk and len(chunk_ranges(frames, cut)) >= min(jobs, frames)
+
+
+def test_the_candidates_runs_take_the_balanced_cut(experiment, tmp_path, monkeypatch):
+    cuts = []
+    real = tune_module.run_experiment
+
+    def spy(variant, **kwargs):
+        cuts.append((variant.chunk_frames, kwargs["jobs"]))
+        return real(variant, **{**kwargs, "jobs": 1, "executor": "inprocess"})
+
+    monkeypatch.setattr(tune_module, "run_experiment", spy)
+    tune(experiment, out_dir=tmp_path, trials=2, batch=2, presets=[], jobs=2)
+    assert cuts and all(cut == (2, 2) for cut in cuts)  # 3 frames over 2 processes: units of 2 and 1
