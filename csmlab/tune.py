@@ -55,7 +55,7 @@ from csmlab.experiment import run_experiment
 from csmlab.metrics.cost import shadow_memory_bytes
 from csmlab.metric_registry import METRICS
 from csmlab.results import json_text, read_json, write_atomic
-from csmlab.settings import ShadowSettings
+from csmlab.settings import APPLIES, ShadowSettings
 
 __all__ = ["ALIASING_AXIS", "DEFAULT_OBJECTIVES", "ENGINES_DIR", "Budgets", "Candidate", "InfeasibleBudget",
            "TuneOptions", "TuneRequest", "TuneResult", "balanced_chunk_frames", "engine_presets", "flicker_limit",
@@ -269,8 +269,11 @@ def settings_document(settings: ShadowSettings) -> dict:
 
 
 def _changed(settings: ShadowSettings, base: ShadowSettings) -> dict:
+    """The fields of ``settings`` that differ from ``base`` and apply to it (:data:`~csmlab.settings.APPLIES`): a
+    run's resolved TOML lists them, and the loader refuses a field that does not apply (``lambda`` with
+    ``split = "exponent"``)."""
     ours, theirs = settings_document(settings), settings_document(base)
-    return {k: v for k, v in ours.items() if v != theirs[k]}
+    return {k: v for k, v in ours.items() if v != theirs[k] and (k not in APPLIES or APPLIES[k].holds(settings))}
 
 
 def engine_presets(directory=None) -> list[Path]:

@@ -529,3 +529,14 @@ def test_the_candidates_runs_take_the_balanced_cut(experiment, tmp_path, monkeyp
     monkeypatch.setattr(tune_module, "run_experiment", spy)
     tune(experiment, out_dir=tmp_path, trials=2, batch=2, presets=[], jobs=2)
     assert cuts and all(cut == (2, 2) for cut in cuts)  # 3 frames over 2 processes: units of 2 and 1
+
+
+def test_a_candidates_run_lists_only_fields_that_apply_and_its_resolved_toml_loads_back(experiment, tmp_path):
+    settings = experiment.shadow.replace(split="exponent", lambda_=0.75, distribution_exponent=3.5)
+    changed = tune_module._changed(settings, experiment.shadow)
+    assert changed["split"] == "exponent" and "lambda" not in changed and changed["distribution_exponent"] == 3.5
+    tune(experiment, out_dir=tmp_path, trials=2, batch=2, presets=[], jobs=1,
+         space={"split": ("choice", ("exponent",)), "lambda": ("range", 0.3, 0.9, False, None),
+                "distribution_exponent": ("range", 2.0, 4.0, False, None)})
+    runs = sorted((tmp_path / "runs").glob("*/config.resolved.toml"))
+    assert runs and all(load_experiment(run).methods for run in runs)
