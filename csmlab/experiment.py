@@ -685,7 +685,8 @@ def _snapshot_frames(experiment: Experiment, frames: int) -> frozenset:
 
 def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, executor: str = "inprocess",
                    address: str | None = None, device: str = "cpu", resume: bool = False,
-                   progress: Callable[[int, int], None] | None = None) -> RunResult:
+                   progress: Callable[[int, int], None] | None = None,
+                   workload: Workload | None = None) -> RunResult:
     """Run every frame × method × sweep point of ``experiment`` and write its results files.
 
     Parameters
@@ -706,6 +707,10 @@ def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, executor: 
     progress : callable, optional
         ``progress(frames_done, frames_total)``, called before the first unit and after each;
         ``frames_done`` is the frames' worth of work done (frames × variants done ÷ variants, whole).
+    workload : Workload, optional
+        :func:`build_workload` of ``experiment``, built already: the runs of a tune, which differ in
+        their methods alone, share one (its scene generated, its level's BVH built and its views
+        checked once, not once a run). None builds it here.
 
     Returns
     -------
@@ -721,7 +726,8 @@ def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, executor: 
     if executor == "pool" and jobs > 1:
         # Unless the command line started it already: its imports overlap the workload's building.
         start_process_server()
-    workload = build_workload(experiment)
+    if workload is None:
+        workload = build_workload(experiment)
     frames = len(workload.path)
     hash_ = config_hash(experiment)
     # Chunks of another device differ in float rounding: they must not be mixed into this run.

@@ -51,7 +51,7 @@ from csmlab import config
 from csmlab.config import (CONFIGS_DIR, CameraConfig, Experiment, Method, ReportConfig, load_experiment,
                            workload_hash)
 from csmlab.errors import InputError
-from csmlab.experiment import run_experiment
+from csmlab.experiment import Workload, build_workload, run_experiment
 from csmlab.metrics.cost import shadow_memory_bytes
 from csmlab.metric_registry import METRICS
 from csmlab.results import json_text, read_json, write_atomic
@@ -347,6 +347,7 @@ class _Evaluator:
     runs_dir: Path
     run_options: dict
     computed: int = 0
+    workload: Workload | None = None
 
     def __call__(self, named: dict[str, ShadowSettings]) -> dict[str, tuple[dict, bool]]:
         """``{name: settings}`` → ``{name: (values, computed_now)}``; equal settings are run once."""
@@ -364,7 +365,10 @@ class _Evaluator:
                                           chunk_frames=balanced_chunk_frames(self.experiment,
                                                                              jobs=self.run_options.get("jobs") or 1))
             batch = hashlib.sha256(" ".join(sorted(todo.values())).encode()).hexdigest()[:12]
-            summary = run_experiment(variant, out_dir=self.runs_dir / batch, resume=True,
+            if self.workload is None:
+                # Every run has the experiment's scene, path and light: built once, for the first.
+                self.workload = build_workload(self.experiment)
+            summary = run_experiment(variant, out_dir=self.runs_dir / batch, resume=True, workload=self.workload,
                                      **self.run_options).summary["methods"]
             for name, key in todo.items():
                 values = {k: (None if v is None or (isinstance(v, float) and math.isnan(v)) else v)

@@ -540,3 +540,20 @@ def test_a_candidates_run_lists_only_fields_that_apply_and_its_resolved_toml_loa
                 "distribution_exponent": ("range", 2.0, 4.0, False, None)})
     runs = sorted((tmp_path / "runs").glob("*/config.resolved.toml"))
     assert runs and all(load_experiment(run).methods for run in runs)
+
+
+def test_a_tunes_runs_share_one_workload_built_once(experiment, tmp_path, monkeypatch):
+    built, given = [], []
+    real_build, real_run = tune_module.build_workload, tune_module.run_experiment
+    monkeypatch.setattr(tune_module, "build_workload", lambda e: built.append(real_build(e)) or built[-1])
+
+    def spy(variant, **kwargs):
+        given.append(kwargs["workload"])
+        return real_run(variant, **kwargs)
+
+    monkeypatch.setattr(tune_module, "run_experiment", spy)
+    result = tune(experiment, out_dir=tmp_path, trials=4, batch=2, presets=[f"{METHODS}/exact.toml"])
+    assert len(given) >= 3 and len(built) == 1 and all(w is built[0] for w in given)
+    alone = run_experiment(dataclasses.replace(experiment, methods=(experiment.methods[0],)),
+                           out_dir=tmp_path / "alone")
+    assert result.trials and alone.summary["workload_hash"] == built[0].key
