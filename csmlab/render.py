@@ -55,6 +55,10 @@ of ``experiments/engines.toml``), and a worker renders them in turn every frame:
 meshes only made 29 of 51 calls of a 4-frame walk there build theirs again (a pass over every vertex and
 a Z-order sort, ~40 ms on the terrain). A light that moves every frame makes a new key every frame,
 which the bound keeps from piling up."""
+LIGHT_SPACE_BYTES = 512 * 2 ** 20
+"""Bytes of the light-space meshes a :class:`DeviceScene` keeps beside the newest, which is always kept: the
+terrain's take ~10 MB each, a 3M-triangle level's ~110 MB (its vertices' light-space x/y and depth, its
+triangles, and its float64 vertices in their order), of which eight would hold ~0.9 GB in every process."""
 
 
 @dataclass(frozen=True)
@@ -75,7 +79,7 @@ class DeviceScene:
         The scene in the light spaces last used (what the cascade pass needs of every vertex and
         triangle, which a static light leaves unchanged from frame to frame), keyed by the light
         basis, its depth offset and the face cull (``settings.cull``), least recently used first, at
-        most :data:`LIGHT_SPACE_MESHES`.
+        most :data:`LIGHT_SPACE_MESHES` and :data:`LIGHT_SPACE_BYTES`.
     ordered_vertices : dict
         Beside each mesh of ``light_space``, under the same key: the scene's float64 world vertices
         ``(V, 3)`` in that mesh's vertex order (what an engine's float32 pipeline transforms).
@@ -199,7 +203,8 @@ def _scene_in_light_space(dscene: DeviceScene, cascades: CascadeSet, cull: str =
     Only the triangles ``cull`` keeps (:func:`csmlab.culling.culled_triangles`, judged by ``d``
     alone) are handed on, listed with their vertices along a Z-order curve in light space
     (:func:`csmlab.kernels.raster.z_ordered`): the same mesh, rasterized place by place. The last
-    :data:`LIGHT_SPACE_MESHES` meshes used are kept, under their light basis, depth reference and cull.
+    :data:`LIGHT_SPACE_MESHES` meshes used are kept (fewer where they would hold over
+    :data:`LIGHT_SPACE_BYTES`), under their light basis, depth reference and cull.
     """
     key = (cascades.basis.tobytes(), cascades.zref, cull)
     if key in dscene.light_space:
@@ -209,17 +214,26 @@ def _scene_in_light_space(dscene: DeviceScene, cascades: CascadeSet, cull: str =
         vertices = dscene.scene.vertices
         xy = light_plane_coordinates(cascades, vertices)
         order, triangles = z_ordered(xy, culled_triangles(vertices, dscene.scene.triangles, cascades.direction, cull))
-        while len(dscene.light_space) >= LIGHT_SPACE_MESHES:
-            dropped = next(iter(dscene.light_space))
-            del dscene.light_space[dropped]
-            dscene.ordered_vertices.pop(dropped, None)
         scene = dscene.scene
         masks = {} if scene.vertex_mask is None else dict(uv=scene.uv[order], vertex_mask=scene.vertex_mask[order],
                                                           alpha=scene.alpha)
-        dscene.light_space[key] = light_space_mesh(xy[order], light_depth(cascades, vertices)[order], triangles,
-                                                   **masks)
-        dscene.ordered_vertices[key] = np.ascontiguousarray(vertices[order], dtype=np.float64)
+        mesh = light_space_mesh(xy[order], light_depth(cascades, vertices)[order], triangles, **masks)
+        ordered = np.ascontiguousarray(vertices[order], dtype=np.float64)
+        kept = _light_space_bytes(mesh, ordered) + sum(_light_space_bytes(dscene.light_space[k],
+                                                                          dscene.ordered_vertices.get(k))
+                                                       for k in dscene.light_space)
+        while dscene.light_space and (len(dscene.light_space) >= LIGHT_SPACE_MESHES or kept > LIGHT_SPACE_BYTES):
+            dropped = next(iter(dscene.light_space))
+            kept -= _light_space_bytes(dscene.light_space.pop(dropped), dscene.ordered_vertices.pop(dropped, None))
+        dscene.light_space[key] = mesh
+        dscene.ordered_vertices[key] = ordered
     return dscene.light_space[key]
+
+
+def _light_space_bytes(mesh: LightSpaceMesh, ordered: np.ndarray | None) -> int:
+    """Bytes of a kept light-space mesh's arrays and its ordered float64 vertices."""
+    arrays = (mesh.xy, mesh.depth, mesh.triangles, mesh.uv, mesh.vertex_mask, ordered)
+    return sum(a.nbytes for a in arrays if a is not None)
 
 
 def visible_depth(dscene: DeviceScene, pose: CameraPose, *, width: int, height: int) -> tuple[float, float] | None:

@@ -216,6 +216,27 @@ def test_methods_of_other_lights_keep_their_light_space_meshes_and_the_same_maps
     assert not set(kept) & set(dscene.light_space)
 
 
+def test_light_space_meshes_over_the_byte_bound_are_dropped_oldest_first_the_newest_always_kept(monkeypatch):
+    from csmlab import render
+
+    dscene = prepare_scene(scene_of(BOXES))
+    pose = camera(32, 24)
+    settings = ShadowSettings(cascades=2, resolution=64, stabilization="exact")
+    lights = [direction_from_angles(elevation_deg=40.0 + k, azimuth_deg=30.0) for k in range(3)]
+    first = render_frame(dscene, pose, lights[0], settings, width=32, height=24)
+    (key, mesh), = dscene.light_space.items()
+    one = render._light_space_bytes(mesh, dscene.ordered_vertices[key])
+    monkeypatch.setattr(render, "LIGHT_SPACE_BYTES", 2 * one)
+    render_frame(dscene, pose, lights[1], settings, width=32, height=24)
+    assert len(dscene.light_space) == 2
+    render_frame(dscene, pose, lights[2], settings, width=32, height=24)
+    assert len(dscene.light_space) == 2 == len(dscene.ordered_vertices) and key not in dscene.light_space
+    monkeypatch.setattr(render, "LIGHT_SPACE_BYTES", 0)
+    again = render_frame(dscene, pose, lights[0], settings, width=32, height=24)
+    assert list(dscene.light_space) == list(dscene.ordered_vertices) == [key]
+    assert np.array_equal(again.maps.depth, first.maps.depth)
+
+
 def test_texel_coordinates_locate_each_pixel_in_the_texel_it_looked_up():
     settings = ShadowSettings(cascades=2, resolution=128, filter="none", normal_offset=0.0)
     frame = render_frame(scene_of(BOXES), camera(48, 32), [0.0, -1.0, 0.0], settings, width=48, height=32)
