@@ -346,17 +346,11 @@ def test_filling_uncompared_pixels_window_by_window_equals_filling_the_whole_ima
             flip_map(whole_previous_shaded, whole_shaded, changed=changed, method=method))
 
 
-def test_wide_changes_filtered_whole_give_the_windowed_values():
-    from csmlab.metrics.perceptual import FLIP_SUPPORT, SSIM_SUPPORT, WIDE_CHANGE, _flip_warp, _ssim_full, _windowed
+def _assert_maps_equal_their_windowed_values(previous, current, changed):
+    """ssim_map and flip_map of a grey pair (and its tinted RGB) equal the maps filtered window by window."""
+    from csmlab.metrics.perceptual import FLIP_SUPPORT, SSIM_SUPPORT, _flip_warp, _ssim_full, _windowed
     from csmlab.metrics.shading import srgb_encoded
 
-    rng = np.random.default_rng(21)
-    previous = rng.random((48, 64)).round(1)
-    current = previous.copy()
-    spots = rng.random((48, 64)) < 0.02
-    current[spots] = rng.random(spots.sum())
-    changed = current != previous
-    assert changed.mean() > WIDE_CHANGE
     windowed = _windowed(_ssim_full, (previous, current), changed_windows(changed, support=SSIM_SUPPORT),
                          shape=current.shape, fill=1.0, dtype=np.float64)
     np.testing.assert_array_equal(ssim_map(previous, current, changed=changed), windowed)
@@ -369,6 +363,19 @@ def test_wide_changes_filtered_whole_give_the_windowed_values():
     windowed = _windowed(flip, (previous_rgb, rgb), changed_windows(changed, support=FLIP_SUPPORT),
                          shape=current.shape, fill=0.0, dtype=np.float32)
     np.testing.assert_array_equal(flip_map(previous_rgb, rgb, changed=changed), windowed)
+
+
+def test_wide_changes_filtered_whole_give_the_windowed_values():
+    from csmlab.metrics.perceptual import WIDE_CHANGE
+
+    rng = np.random.default_rng(21)
+    previous = rng.random((48, 64)).round(1)
+    current = previous.copy()
+    spots = rng.random((48, 64)) < 0.02
+    current[spots] = rng.random(spots.sum())
+    changed = current != previous
+    assert changed.mean() > WIDE_CHANGE
+    _assert_maps_equal_their_windowed_values(previous, current, changed)
 
 
 def test_encoding_with_compared_fills_only_the_pixels_read_and_gives_the_filled_pairs_encoding():
@@ -398,8 +405,7 @@ def test_encoding_with_compared_fills_only_the_pixels_read_and_gives_the_filled_
 
 def test_few_changes_whose_windows_cover_much_of_the_image_are_filtered_whole_to_the_windowed_values():
     from csmlab.metrics.perceptual import (FLIP_SUPPORT, FLIP_WHOLE_ABOVE, SSIM_SUPPORT, SSIM_WHOLE_ABOVE, WIDE_CHANGE,
-                                           _flip_warp, _ssim_full, _windowed, _windows_or_whole)
-    from csmlab.metrics.shading import srgb_encoded
+                                           _windows_or_whole)
 
     rng = np.random.default_rng(22)
     previous = rng.random((90, 120)).round(1)
@@ -416,15 +422,4 @@ def test_few_changes_whose_windows_cover_much_of_the_image_are_filtered_whole_to
     one[45, 100] = True
     assert len(_windows_or_whole(one, support=SSIM_SUPPORT, whole_above=SSIM_WHOLE_ABOVE)) == 1
     assert len(_windows_or_whole(one, support=FLIP_SUPPORT, whole_above=FLIP_WHOLE_ABOVE)) == 1
-    windowed = _windowed(_ssim_full, (previous, current), changed_windows(changed, support=SSIM_SUPPORT),
-                         shape=current.shape, fill=1.0, dtype=np.float64)
-    np.testing.assert_array_equal(ssim_map(previous, current, changed=changed), windowed)
-    rgb, previous_rgb = (np.repeat(x[..., None], 3, axis=-1) * [0.9, 0.7, 0.5] for x in (current, previous))
-
-    def flip(a, b):
-        return _flip_warp(np.ascontiguousarray(srgb_encoded(a), dtype=np.float32),
-                          np.ascontiguousarray(srgb_encoded(b), dtype=np.float32))
-
-    windowed = _windowed(flip, (previous_rgb, rgb), changed_windows(changed, support=FLIP_SUPPORT),
-                         shape=current.shape, fill=0.0, dtype=np.float32)
-    np.testing.assert_array_equal(flip_map(previous_rgb, rgb, changed=changed), windowed)
+    _assert_maps_equal_their_windowed_values(previous, current, changed)
