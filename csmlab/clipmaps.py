@@ -45,7 +45,7 @@ import numpy as np
 from csmlab.camera import CameraPose
 from csmlab.cascades import Cascade, CascadeSet
 from csmlab.geometry import light_basis
-from csmlab.kernels.levels import receiver_levels
+from csmlab.kernels.levels import MAX_TAN, receiver_levels
 from csmlab.settings import ShadowSettings
 from csmlab.storage import texel_bytes
 
@@ -55,10 +55,6 @@ __all__ = ["Clipmap", "PageCache", "VirtualPages", "chosen_levels", "clipmap_cas
 
 CENTIMETRE = 0.01
 """Metres in a centimetre, Unreal's world unit: level n covers ``2**n`` of them."""
-
-_MAX_TAN = 10.0
-"""The slope-scaled bias's tan θ is clamped to this, as the cascades' (:func:`csmlab.texels.receiver_lookup`)."""
-
 
 @dataclass(frozen=True)
 class Clipmap:
@@ -252,7 +248,7 @@ def receiver_texels(clip: Clipmap, light_points: np.ndarray, light_normals: np.n
     cos = -light_normals[:, 2]
     with np.errstate(divide="ignore", invalid="ignore"):
         tan = np.sqrt(np.maximum(1.0 - cos * cos, 0.0)) / cos
-    tan = np.where(cos > 0.0, np.minimum(tan, _MAX_TAN), np.nan)
+    tan = np.where(cos > 0.0, np.minimum(tan, MAX_TAN), np.nan)
     scale = float(2**settings.subtexel_bits)
     coordinates = np.rint(moved[:, :2] / texel[:, None] * scale).astype(np.int64)
     depth = moved[:, 2] - clip.zref - (settings.bias_constant + settings.bias_slope * texel * tan)
