@@ -488,11 +488,45 @@ def shadow_lookup_kernel(
     blend_curve: int,
     filter_code: int,
     radius: int,
+    run: int,
     lit: wp.array(dtype=wp.float32),
     cascade: wp.array(dtype=wp.int32),
     blend: wp.array(dtype=wp.int32),
 ):
-    k = wp.tid()
+    # A run of receivers per thread (one on a GPU): a CPU thread's start copies every argument, the
+    # receivers' struct among them, which costed about as much as a receiver's selection.
+    first = wp.tid() * run
+    last = wp.min(first + run, view_depth.shape[0])
+    k = first
+    while k < last:
+        looked_up(depth, receivers, view_depth, splits, texel_area, sphere_cascade, bits, selection, reach, margin,
+                  band_start, blend_curve, filter_code, radius, lit, cascade, blend, k)
+        k += 1
+
+
+@wp.func
+def looked_up(
+    depth: wp.array3d(dtype=wp.float32),
+    receivers: Any,
+    view_depth: wp.array(dtype=wp.float64),
+    splits: wp.array(dtype=wp.float64),
+    texel_area: wp.array(dtype=wp.float64),
+    sphere_cascade: wp.array(dtype=wp.int32),
+    bits: int,
+    selection: int,
+    reach: int,
+    margin: int,
+    band_start: wp.array(dtype=wp.float64),
+    blend_curve: int,
+    filter_code: int,
+    radius: int,
+    lit: wp.array(dtype=wp.float32),
+    cascade: wp.array(dtype=wp.int32),
+    blend: wp.array(dtype=wp.int32),
+    k: int,
+) -> int:
+    """Receiver k's lit fraction, cascade and blend into ``lit[k]``, ``cascade[k]``, ``blend[k]``
+    (:func:`shadow_lookup_kernel`); returns its cascade."""
     unit = wp.int64(1) << wp.int64(bits)
     inverse_span = wp.float64(1.0) / wp.float64(wp.int64(2) * unit)
     count = depth.shape[0]
@@ -507,7 +541,7 @@ def shadow_lookup_kernel(
     blend[k] = 0
     if chosen < 0:
         lit[k] = 0.0
-        return
+        return chosen
     s = lit_fraction(depth, chosen, x, y, receiver, slope, bits, inverse_span, filter_code, radius)
     w = band_weight(z, chosen, count, splits, band_start, blend_curve)
     if w >= wp.float64(0.0):
@@ -517,6 +551,7 @@ def shadow_lookup_kernel(
                                                              filter_code, radius)
             blend[k] = 1
     lit[k] = wp.float32(s)
+    return chosen
 
 
 @wp.kernel
@@ -905,6 +940,10 @@ def _fixed_receivers(depth, coords, receiver_depth, view_depth, receiver_slope, 
     return receivers
 
 
+_RECEIVER_RUN = 64
+"""Receivers a CPU thread of :func:`shadow_lookup_kernel` looks up (a GPU thread one)."""
+
+
 def _launch(depth, receivers, view_depth, *, code: int, radius: int, device: str, **selection) -> tuple:
     """Launch :func:`shadow_lookup_kernel` over ``receivers`` (:class:`FixedReceivers`, :class:`WorldReceivers` or
     :class:`WindowReceivers`) with the box filter ``code`` of ``radius`` run at the selected cascade; ``selection``
@@ -922,7 +961,9 @@ def _launch(depth, receivers, view_depth, *, code: int, radius: int, device: str
     lit = wp.empty(n, dtype=wp.float32, device=device)
     chosen = wp.empty(n, dtype=wp.int32, device=device)
     blended = wp.empty(n, dtype=wp.int32, device=device)
-    wp.launch(shadow_lookup_kernel, dim=n, inputs=(inputs[0], receivers) + inputs[1:] + (code, int(radius)),
+    run = _RECEIVER_RUN if wp.get_device(device).is_cpu else 1
+    wp.launch(shadow_lookup_kernel, dim=-(-n // run),
+              inputs=(inputs[0], receivers) + inputs[1:] + (code, int(radius), run),
               outputs=(lit, chosen, blended), device=device)
     cascade = chosen.numpy()
     s = lit.numpy()

@@ -127,6 +127,20 @@ def test_filters_match_a_numpy_reference_on_random_depth_maps(filter, size, devi
     assert lit.min() >= 0.0 and lit.max() <= 1.0 and 0.0 < lit.mean() < 1.0
 
 
+@pytest.mark.parametrize("n", [1, 63, 64, 65, 200])
+def test_every_receiver_is_looked_up_whatever_the_count_of_a_thread_run(n, device):
+    """A CPU thread looks up a run of receivers: each, the last of a short run too, as it would alone."""
+    rng = np.random.default_rng(n)
+    depth = rng.uniform(0.0, 1.0, (1, 24, 24)).astype(np.float32)
+    coords = rng.integers(3 * UNIT, 21 * UNIT, (1, n, 2))
+    receiver = rng.uniform(0.0, 1.0, (1, n)).astype(np.float32)
+    together = lookup(depth, coords, receiver, np.ones(n), splits=np.array([0.0, 2.0]), filter="pcf", filter_size=3,
+                      device=device)[0]
+    alone = [lookup(depth, coords[:, k:k + 1], receiver[:, k:k + 1], np.ones(1), splits=np.array([0.0, 2.0]),
+                    filter="pcf", filter_size=3, device=device)[0][0] for k in range(n)]
+    np.testing.assert_array_equal(together, alone)
+
+
 def test_blend_band_moves_linearly_toward_the_next_cascade(device):
     splits = np.array([1.0, 10.0, 20.0])
     depth = np.stack([np.full((8, 8), -np.inf), np.full((8, 8), np.inf)]).astype(np.float32)
