@@ -23,6 +23,7 @@ import warp as wp
 
 from csmlab.kernels import checked_device, device_empty
 from csmlab.kernels.bias import BiasSettings, ReceiverBias, receiver_bias
+from csmlab.kernels.floats import is_nan
 from csmlab.kernels.raster.kernels import vec2l
 from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 from csmlab.lookup_choices import NORMAL_NONE, NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN
@@ -133,10 +134,10 @@ def engine_boxes(*, mode: str, bits: int, matrices=None, resolution=None, origin
 def snapped(u: wp.float64, limit: wp.float64) -> wp.int64:
     """``u`` (fixed-point units) clipped to ±``limit`` and rounded half to even; NaN maps to ``-limit``.
 
-    :func:`csmlab.texels._snapped`; ``v != v`` is isnan without the call Warp's CPU code makes.
+    :func:`csmlab.texels._snapped`.
     """
     v = wp.rint(wp.clamp(u, -limit, limit))
-    if v != v:
+    if is_nan(v):
         v = -limit
     return wp.int64(v)
 

@@ -38,6 +38,7 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device
+from csmlab.kernels.floats import is_finite
 
 __all__ = ["surface_differentials", "texel_footprint", "warped_texel_footprint"]
 
@@ -75,7 +76,7 @@ def transferred_differential(v: wp.vec3d, n: wp.vec3d, t: wp.float64, step: wp.v
 @wp.func
 def finite_difference(a: wp.float64, b: wp.float64) -> wp.float64:
     """``a − b``, or 0 where ``a`` is not finite (a ray that missed has a NaN hit point)."""
-    if wp.isfinite(a):
+    if is_finite(a):
         return a - b
     return wp.float64(0.0)
 

@@ -75,6 +75,7 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device
+from csmlab.kernels.floats import is_finite, is_nan
 from csmlab.kernels.shadow import bilinear_corner
 from csmlab.lookup_choices import MOMENT_EVSM4, MOMENT_MSM, MOMENT_VSM, family_code
 
@@ -87,7 +88,7 @@ wp.set_module_options({"fuse_fp": False})
 @wp.func
 def normalized_depth(depth: wp.float32, inv_span: wp.float64) -> wp.float64:
     """Depth over the span, clamped to [0, 1]; an empty texel (+inf) is the far plane, 1."""
-    if not wp.isfinite(depth):
+    if not is_finite(depth):
         return wp.float64(1.0)
     return wp.clamp(wp.float64(depth) * inv_span, wp.float64(0.0), wp.float64(1.0))
 
@@ -267,7 +268,7 @@ def moment_lit(moments: wp.array3d(dtype=wp.vec4f), coords: wp.array3d(dtype=wp.
                receiver_depth: wp.array2d(dtype=wp.float32), c: int, k: int, unit: wp.int64,
                bound: MomentBound) -> wp.float64:
     receiver = receiver_depth[c, k]
-    if wp.isnan(receiver):
+    if is_nan(receiver):
         return wp.float64(0.0)
     m = bilinear_moments(moments, c, coords[c, k, 0], coords[c, k, 1], unit)
     return moment_bound(m, receiver, bound)
@@ -537,7 +538,7 @@ def filtered_moments(levels: wp.array(dtype=wp.vec4f), offset: wp.array(dtype=wp
     lod = wp.float64(0.0)
     if pmax > wp.float64(0.0):
         lod = wp.clamp(wp.log2(pmax / wp.float64(probes)), wp.float64(0.0), wp.float64(max_lod))
-    if not wp.isfinite(lod):
+    if not is_finite(lod):
         lod = wp.float64(max_lod)
     base = int(wp.floor(lod))
     frac = lod - wp.float64(base)
@@ -590,7 +591,7 @@ def mip_lookup_kernel(
         if w > wp.float64(0.0):
             receiver = receiver_depth[c + b, k]
             p = wp.float64(0.0)
-            if not wp.isnan(receiver):
+            if not is_nan(receiver):
                 m = filtered_moments(levels, offset, size, shift, c + b, coords[c + b, k, 0], coords[c + b, k, 1],
                                      ddx[b, k], ddy[b, k], unit, max_lod, max_aniso)
                 p = moment_bound(m, receiver, bound)

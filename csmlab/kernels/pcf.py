@@ -55,6 +55,7 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device
+from csmlab.kernels.floats import is_finite, is_nan
 from csmlab.kernels.shadow import bilinear_corner_shifted, bilinear_tap, bilinear_taps, tap
 from csmlab.lookup_choices import (PCF_BILINEAR_BOX, PCF_CASTANO, PCF_GAUSSIAN, PCF_POISSON, PCF_TENT,
                                    PCF_TENT_BILINEAR, PCF_VOGEL, family_code)
@@ -117,7 +118,7 @@ def blocker_depth(depth: wp.array3d(dtype=wp.float32), c: int, i: wp.int64, j: w
             jj = j + wp.int64(dj)
             if tap(depth, c, ii, jj, receiver, slope, x, y, unit, inverse_span) == 0:
                 stored = depth[c, int(wp.clamp(jj, wp.int64(0), top)), int(wp.clamp(ii, wp.int64(0), top))]
-                if wp.isfinite(stored):
+                if is_finite(stored):
                     total += wp.float64(stored)
                     count += 1
     if count == 0:
@@ -310,10 +311,10 @@ def weighted_lit(depth: wp.array3d(dtype=wp.float32), coords: wp.array3d(dtype=w
             count += tap(depth, c, (x + ox) >> wp.int64(bits), (y + oy) >> wp.int64(bits), receiver, slope, x, y, unit,
                          inverse_span)
         return wp.float64(count) / wp.float64(disk.shape[0])
-    if wp.isnan(receiver):
+    if is_nan(receiver):
         return wp.float64(0.0)
     blocker = blocker_depth(depth, c, i, j, radius, receiver, slope, x, y, unit, inverse_span)
-    if not wp.isfinite(blocker):
+    if not is_finite(blocker):
         return wp.float64(1.0)
     half = wp.clamp(wp.float64(0.5) * (wp.float64(receiver) - blocker) * width, wp.float64(0.5), wp.float64(radius))
     return tent_sum(depth, c, i, j, tx, ty, half, radius, receiver, slope, x, y, unit, inverse_span)

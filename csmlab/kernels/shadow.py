@@ -55,6 +55,7 @@ from csmlab.kernels import checked_device
 from csmlab.kernels.bias import BiasSettings, ReceiverBias, receiver_bias
 from csmlab.kernels.engine import (WINDOW_FLOAT32, EngineBoxes, EngineReceivers, WindowPoint, engine_receivers,
                                    window_in, window_point)
+from csmlab.kernels.floats import is_nan
 from csmlab.lookup_choices import (BLEND_SMOOTHSTEP, BOX_BILINEAR, NORMAL_NONE,
                                    NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN, SELECT_BEST_RESOLUTION, SELECT_INTERVAL,
                                    SELECT_MAP, SELECT_SPHERE, SELECTION_METHODS, family_code)
@@ -1051,8 +1052,7 @@ def _selection_inputs(depth, view_depth, *, splits, texel_area, selection: str, 
 def fixed_point(u: wp.float64, to_fixed: wp.float64, limit: wp.float64) -> wp.int64:
     """``u`` metres in ``2**-bits`` texels, rounded half to even; NaN maps to ``-limit`` (far outside every box)."""
     v = wp.rint(wp.clamp(u * to_fixed, -limit, limit))
-    # v != v is isnan(v) without the call Warp's CPU code makes for wp.isnan.
-    if v != v:
+    if is_nan(v):
         v = -limit
     return wp.int64(v)
 

@@ -27,6 +27,7 @@ import warp as wp
 
 from csmlab.kernels import checked_device
 from csmlab.kernels.camera import PinholeCamera, pinhole_frame
+from csmlab.kernels.floats import is_finite
 
 wp.set_module_options({"fuse_fp": False})
 
@@ -60,7 +61,7 @@ def taa_resolve_kernel(
     width = current.shape[1]
     c = wp.float64(current[row, col])
     nan = wp.float64(wp.nan)
-    if not wp.isfinite(c):
+    if not is_finite(c):
         out[row, col] = wp.float32(nan)
         reprojected[row, col] = wp.float32(nan)
         return
@@ -94,7 +95,7 @@ def taa_resolve_kernel(
                                                                                     wp.float64(1.0) - ay)
                     h = wp.float64(history[y, x])
                     seen = wp.float64(history_depth[y, x])
-                    if w > wp.float64(0.0) and wp.isfinite(h) and wp.isfinite(seen):
+                    if w > wp.float64(0.0) and is_finite(h) and is_finite(seen):
                         if wp.abs(seen - z) <= depth_tolerance * z:
                             total += w * h
                             weight += w
@@ -116,7 +117,7 @@ def taa_resolve_kernel(
                 x = col + dx
                 if x >= 0 and y >= 0 and x < width and y < height:
                     v = wp.float64(current[y, x])
-                    if wp.isfinite(v):
+                    if is_finite(v):
                         lo = wp.min(lo, v)
                         hi = wp.max(hi, v)
                         s1 += v

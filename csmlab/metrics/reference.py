@@ -152,7 +152,8 @@ def _reference_boundary_tree(view: View, maps: ReferenceMaps, cascades):
                            lambda: reference_boundary(maps.reference_shadowed, maps.compared))
     tree_key = ("reference_boundary_tree", cascades.basis.tobytes(), *pixels)
     return boundary, lambda: view.shared(tree_key, lambda: cKDTree(np.take(
-        _light_xy(view, cascades).reshape(-1, 2), np.flatnonzero(boundary), axis=0)))
+        _light_xy(view, cascades).reshape(-1, 2), np.flatnonzero(boundary), axis=0),
+        balanced_tree=False, compact_nodes=False))
 
 
 def reference_maps(frame: Frame) -> ReferenceMaps:

@@ -26,6 +26,7 @@ from __future__ import annotations
 import warp as wp
 
 from csmlab.kernels.alpha import AlphaTextures, alpha_passes
+from csmlab.kernels.floats import is_nan
 
 __all__ = ["ONE_CENTRE", "SOLVED_COLUMNS", "STEPPED_EXTENT", "Boxes", "CasterOffset", "ChunkRows", "FixedPoint",
            "chunk_rectangles_kernel",
@@ -673,10 +674,10 @@ def doubled_fixed_point(u: wp.float64, step: wp.float64, limit: wp.float64, orig
     Scaling by a power of two commutes with rounding, so ``u / (texel / 2**bits)`` is the same
     float64 (both sides overflow alike, and an underflow differs only below 2**-1000, which rounds
     to 0 anyway): one division, no product. No sum, so no fused multiply-add can change a
-    rounding. NaN is caught by ``v != v``: ``wp.isnan`` is a function call on the CPU.
+    rounding.
     """
     v = wp.rint(wp.clamp(u / step, -limit, limit))
-    if v != v:
+    if is_nan(v):
         v = -limit
     return wp.int64(2) * (wp.int64(v) - origin_fixed)
 

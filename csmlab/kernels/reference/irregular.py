@@ -11,6 +11,7 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels.alpha import AlphaTextures, alpha_passes
+from csmlab.kernels.floats import is_nan
 from csmlab.kernels.reference.ray_grid import BinnedRays, binned_rays, grid_cell, grid_point, ray_start_kernel, sub_cell
 from csmlab.kernels.reference.shadow_rays import RAY_LENGTH, RAY_OFFSET, checked_receivers
 from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
@@ -149,7 +150,7 @@ def strip_extent(p: wp.vec2d, q: wp.vec2d, du_dv: wp.float64, v_lo: wp.float64, 
         return extent
     u_p = p[0]
     u_q = q[0]
-    if not wp.isnan(du_dv):
+    if not is_nan(du_dv):
         u_p = p[0] + (wp.clamp(v_lo, low, high) - p[1]) * du_dv
         u_q = p[0] + (wp.clamp(v_hi, low, high) - p[1]) * du_dv
     return wp.vec2d(wp.min(extent[0], wp.min(u_p, u_q)), wp.max(extent[1], wp.max(u_p, u_q)))

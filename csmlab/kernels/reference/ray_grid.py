@@ -16,6 +16,7 @@ import math
 import numpy as np
 import warp as wp
 
+from csmlab.kernels.floats import is_finite
 from csmlab.kernels.threads import LaunchPool, split_range
 
 __all__ = ["COARSE_RAYS_PER_CELL", "RAYS_PER_CELL", "RECEIVER_BLOCK", "BinnedRays", "RayGrid", "binned_rays",
@@ -120,7 +121,7 @@ def ray_start_kernel(
     while k < last:
         k += 1
         p = position[k]
-        if not (wp.isfinite(p[0]) and wp.isfinite(p[1]) and wp.isfinite(p[2])):
+        if not (is_finite(p[0]) and is_finite(p[1]) and is_finite(p[2])):
             lit[k] = wp.nan
             continue
         n = wp.vec3d(normal[k])
