@@ -3,9 +3,10 @@
 A pixel looks up the texel that contains its surface point: ``floor`` of the point's texel
 coordinates in its selected cascade, ``(light x/y) / texel size − box origin``
 (:func:`csmlab.texels.texel_coordinates`, whose operations the kernel repeats in the same order, so
-the floors are the same). One thread per pixel marks its texel in a per-cascade bitmap — a plain
-store of 1, the same value from every writer, so no race on any device — and the marks are
-counted once.
+the floors are the same). One thread per pixel marks its texel in a per-cascade bitmap, one bit a
+texel (an atomic OR on a GPU, where two pixels may mark bits of one word at once), and the marks
+are counted once. A bit, not a byte, a texel: 4 × 1024² marks take 512 KB rather than 4 MB, to
+clear, to mark (in a CPU's caches) and to count (3.1 → 2.4 ms a call on the default run).
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ def mark_texels_kernel(
     texel_size: wp.array2d(dtype=wp.float64),
     origin: wp.array2d(dtype=wp.float64),
     resolution: wp.array(dtype=wp.int32),
-    marked: wp.array3d(dtype=wp.uint8),
+    marked: wp.array3d(dtype=wp.uint32),
 ):
     k = wp.tid()
     c = cascade[k]
@@ -45,7 +46,8 @@ def mark_texels_kernel(
     j = wp.floor(v / texel_size[c, 1] - origin[c, 1])
     size = wp.float64(resolution[c])
     if i >= wp.float64(0.0) and i < size and j >= wp.float64(0.0) and j < size:
-        marked[c, int(j), int(i)] = wp.uint8(1)
+        column = int(i)
+        wp.atomic_or(marked, c, int(j), column >> 5, wp.uint32(1) << wp.uint32(column & 31))
 
 
 def looked_up_texels(points, cascade, *, basis, texel_size, origin, resolution, device: str = "cpu") -> np.ndarray:
@@ -87,7 +89,7 @@ def looked_up_texels(points, cascade, *, basis, texel_size, origin, resolution, 
     if selected.size and selected.max() >= count:
         raise ValueError(f"cascade: expected indices below {count}, got {selected.max()}")
     largest = int(sides.max())
-    marked = wp.zeros((count, largest, largest), dtype=wp.uint8, device=device)
+    marked = wp.zeros((count, largest, -(-largest // 32)), dtype=wp.uint32, device=device)
     if p.shape[0]:
         wp.launch(mark_texels_kernel, dim=p.shape[0],
                   inputs=(wp.array(p, dtype=wp.vec3d, device=device, copy=False),
@@ -98,6 +100,4 @@ def looked_up_texels(points, cascade, *, basis, texel_size, origin, resolution, 
                           wp.array(sides, dtype=wp.int32, device=device)),
                   outputs=(marked,), device=device)
     marks = marked.numpy()
-    # One count per cascade: count_nonzero along an axis converts the whole bitmap to booleans and sums them
-    # (1.6 ms for 4 × 1024²), over a whole array it is a vectorized scan (0.2 ms).
-    return np.array([np.count_nonzero(marks[c]) for c in range(count)], dtype=np.int64)
+    return np.bitwise_count(marks).reshape(count, -1).sum(axis=1, dtype=np.int64)

@@ -10,8 +10,9 @@ from csmlab.geometry import light_basis
 from csmlab.kernels.usage import looked_up_texels
 from csmlab.texels import texel_coordinates
 
-_BOXES = ((0.05, (-2.0, 1.0), 64), (0.4, (-7.5, 2.0), 32), (1.5, (30.0, -3.0), 64))
-"""Texel size (m), box centre in light x/y (m) and resolution of three cascades."""
+_BOXES = ((0.05, (-2.0, 1.0), 64), (0.4, (-7.5, 2.0), 40), (1.5, (30.0, -3.0), 72))
+"""Texel size (m), box centre in light x/y (m) and resolution of three cascades (sides that are not whole
+words of 32 bits among them)."""
 
 
 def _cascades(far):
