@@ -570,32 +570,54 @@ def raster_hits_kernel(
     nearest: wp.array3d(dtype=wp.int32),
     depth: wp.array3d(dtype=wp.float64),
     pinhole: PinholeCamera,
+    run: int,
     row0: int,
     position: wp.array2d(dtype=wp.vec3d),
     normal: wp.array2d(dtype=wp.vec3),
     triangle: wp.array2d(dtype=wp.int32),
     view_depth: wp.array2d(dtype=wp.float32),
 ):
-    """The rows ``row0 + i``: each pixel's smallest ``(depth, triangle)`` over the raster's buffers, and its hit."""
-    i, col = wp.tid()
+    """The rows ``row0 + i``: each pixel's smallest ``(depth, triangle)`` over the raster's buffers, and its hit.
+
+    A thread per run of ``run`` columns of a row: on the CPU the whole row, so that a thread's start
+    (which copies every argument, the camera's struct included) serves all of its pixels; on a GPU one.
+    """
+    i, j = wp.tid()
     row = row0 + i
+    height = position.shape[0]
+    width = position.shape[1]
+    parts = nearest.shape[0]
+    eye = pinhole.eye
     forward = pinhole.forward
-    direction = pixel_ray(pinhole, row, col, position.shape[0], position.shape[1])
-    # The order of the triangles does not change a lexicographic minimum: merging the buffers of
-    # any split of them gives the pixel one launch over all of them would.
-    face = NO_TRIANGLE
-    t = wp.float64(wp.inf)
-    for k in range(nearest.shape[0]):
-        d = depth[k, row, col]
-        f = nearest[k, row, col]
-        if d < t or (d == t and f < face):
-            t = d
-            face = f
-    if face == NO_TRIANGLE:
-        face = -1
-    # An edge-on hit keeps the raster's camera-space depth.
-    store_hit(vertices, triangles, face, pinhole.eye, direction, forward, pinhole.far, t, pinhole.anchor, row, col,
-              position, normal, triangle, view_depth)
+    right = pinhole.right
+    far = pinhole.far
+    anchor = pinhole.anchor
+    step_x = pinhole.step_x
+    # The ray's up part, the same for the whole row (added last, as in pixel_ray).
+    lift = pinhole.up * pixel_y(row, height, pinhole.step_y)
+    col = j * run
+    end = wp.min(col + run, width)
+    # A `while` loop: a range known only at run time costs Warp's CPU code several times more per step.
+    while col < end:
+        direction = forward + right * pixel_x(col, width, step_x) + lift
+        # The order of the triangles does not change a lexicographic minimum: merging the buffers of
+        # any split of them gives the pixel one launch over all of them would.
+        face = NO_TRIANGLE
+        t = wp.float64(wp.inf)
+        k = int(0)
+        while k < parts:
+            d = depth[k, row, col]
+            f = nearest[k, row, col]
+            if d < t or (d == t and f < face):
+                t = d
+                face = f
+            k += 1
+        if face == NO_TRIANGLE:
+            face = -1
+        # An edge-on hit keeps the raster's camera-space depth.
+        store_hit(vertices, triangles, face, eye, direction, forward, far, t, anchor, row, col, position, normal,
+                  triangle, view_depth)
+        col += 1
 
 
 def _pinhole(bvh: MeshBVH, position, rotation, fov_y_deg: float, aspect: float, far: float, width: int,
@@ -648,14 +670,15 @@ def _pinhole_camera(bvh: MeshBVH, camera: tuple, *, far: float, frustum=None) ->
     return pinhole
 
 
-def _hits_record(bvh: MeshBVH, shape: tuple[int, int], pool: LaunchPool, kernel, inputs: tuple) -> CameraHits:
+def _hits_record(bvh: MeshBVH, shape: tuple[int, int], pool: LaunchPool, kernel, inputs: tuple,
+                 columns: int | None = None) -> CameraHits:
     """Allocate the output arrays, launch ``kernel`` over bands of rows (``inputs``, then the band's first row)
-    and return them as host arrays."""
+    and return them as host arrays; ``columns``: the threads a row is cut into (None: one per pixel)."""
     device = bvh.device
     outputs = (device_empty(shape, wp.vec3d, device), device_empty(shape, wp.vec3, device),
                device_empty(shape, wp.int32, device), device_empty(shape, wp.float32, device))
-    pool.run([functools.partial(wp.launch, kernel, dim=(hi - lo, shape[1]), inputs=(*inputs, lo), outputs=outputs,
-                                device=device)
+    pool.run([functools.partial(wp.launch, kernel, dim=(hi - lo, shape[1] if columns is None else columns),
+                                inputs=(*inputs, lo), outputs=outputs, device=device)
               for lo, hi in split_range(shape[0], pool.threads)])
     position, normal, triangle, view_depth = (a.numpy() for a in outputs)
     return CameraHits(position=position, normal=normal, triangle=triangle, view_depth=view_depth)
@@ -771,8 +794,10 @@ def camera_hits_raster(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, as
                                     outputs=(view.camera[lo:hi], view.outcode[lo:hi]), device=device)
                   for lo, hi in split_range(vertex_count, threads)])
         pool.run([functools.partial(rasterize, k) for k in range(parts)])
+        # On the CPU a thread per row (raster_hits_kernel's run), on a GPU per pixel.
+        run = width if wp.get_device(device).is_cpu else 1
         return _hits_record(bvh, (height, width), pool, raster_hits_kernel,
-                            (bvh.vertices, bvh.triangles, nearest, depth, hits_pinhole))
+                            (bvh.vertices, bvh.triangles, nearest, depth, hits_pinhole, run), columns=width // run)
 
 
 VISIBILITY_METHODS = {"raster": camera_hits_raster, "ray": camera_hits_ray}
