@@ -239,8 +239,8 @@ class ChunkRuns:
 
 
 @wp.func
-def plane_distance(n: wp.vec3d, point: wp.vec3d, origin: wp.vec3d, direction: wp.vec3d, t_max: wp.float64):
-    """Ray parameter where ``origin + t·direction`` meets the plane through ``point`` with normal ``n``.
+def hit_distance(n: wp.vec3d, offset: wp.float64, direction: wp.vec3d, t_max: wp.float64):
+    """Ray parameter where ``origin + t·direction`` meets the plane ``n·(X − origin) = offset`` (:func:`face_plane`).
 
     A ray that meets the plane behind the camera, beyond ``t_max`` or not at all is taken at
     ``t_max`` (the far plane), so grazing differentials stay finite.
@@ -248,18 +248,46 @@ def plane_distance(n: wp.vec3d, point: wp.vec3d, origin: wp.vec3d, direction: wp
     denom = wp.dot(n, direction)
     t = t_max
     if denom != wp.float64(0.0):
-        s = wp.dot(n, point - origin) / denom
+        s = offset / denom
         if s > wp.float64(0.0) and s < t_max:
             t = s
     return t
 
 
+@wp.func
+def face_plane(vertices: wp.array(dtype=wp.vec3d), triangles: wp.array2d(dtype=wp.int32), face: int,
+               origin: wp.vec3d):
+    """The plane of triangle ``face`` (vertices ``A, B, C``) as the rays from ``origin`` meet it: its normal
+    ``n = (B − A)×(C − A)``, ``n`` normalized, and ``n·(A − origin)``."""
+    a = vertices[triangles[face, 0]]
+    b = vertices[triangles[face, 1]]
+    c = vertices[triangles[face, 2]]
+    n = wp.cross(b - a, c - a)
+    return n, wp.normalize(n), wp.dot(n, a - origin)
+
 
 @wp.func
-def store_hit(
-    vertices: wp.array(dtype=wp.vec3d),
-    triangles: wp.array2d(dtype=wp.int32),
+def store_miss(
+    row: int,
+    col: int,
+    position: wp.array2d(dtype=wp.vec3d),
+    normal: wp.array2d(dtype=wp.vec3),
+    triangle: wp.array2d(dtype=wp.int32),
+    view_depth: wp.array2d(dtype=wp.float32),
+):
+    """Write a pixel whose ray hits nothing."""
+    position[row, col] = wp.vec3d(wp.float64(wp.nan), wp.float64(wp.nan), wp.float64(wp.nan))
+    normal[row, col] = wp.vec3(0.0)
+    triangle[row, col] = -1
+    view_depth[row, col] = wp.inf
+
+
+@wp.func
+def store_plane_hit(
     face: int,
+    n: wp.vec3d,
+    unit: wp.vec3d,
+    offset: wp.float64,
     origin: wp.vec3d,
     direction: wp.vec3d,
     forward: wp.vec3d,
@@ -273,31 +301,21 @@ def store_hit(
     triangle: wp.array2d(dtype=wp.int32),
     view_depth: wp.array2d(dtype=wp.float32),
 ):
-    """Write the hit of ray ``origin + t·direction`` on triangle ``face``, or a miss when ``face < 0``.
+    """Write the hit of ray ``origin + t·direction`` on triangle ``face`` of plane ``n, unit, offset`` (:func:`face_plane`).
 
     The hit is the ray's float64 intersection with the triangle's plane; a ray the plane does not
     meet in (0, far) — the triangle seen edge-on — is taken at ``edge_on`` instead. ``position``
     gets it in world metres (``+ anchor``), ``view_depth`` relative to the eye.
     """
-    if face < 0:
-        position[row, col] = wp.vec3d(wp.float64(wp.nan), wp.float64(wp.nan), wp.float64(wp.nan))
-        normal[row, col] = wp.vec3(0.0)
-        triangle[row, col] = -1
-        view_depth[row, col] = wp.inf
-        return
-    a = vertices[triangles[face, 0]]
-    b = vertices[triangles[face, 1]]
-    c = vertices[triangles[face, 2]]
-    n = wp.cross(b - a, c - a)
-    t = plane_distance(n, a, origin, direction, far)
+    t = hit_distance(n, offset, direction, far)
     if t == far:
         t = edge_on
     hit = origin + direction * t
-    n = wp.normalize(n)
-    if wp.dot(n, direction) > wp.float64(0.0):
-        n = -n
+    facing = unit
+    if wp.dot(facing, direction) > wp.float64(0.0):
+        facing = -facing
     position[row, col] = hit + anchor
-    normal[row, col] = wp.vec3(n)
+    normal[row, col] = wp.vec3(facing)
     triangle[row, col] = face
     view_depth[row, col] = wp.float32(wp.dot(hit - origin, forward))
 
@@ -330,8 +348,12 @@ def camera_hits_kernel(
         face = query.face
         # An edge-on hit keeps the BVH's float32 distance.
         edge_on = wp.float64(query.t) / length
-    store_hit(vertices, triangles, face, origin, direction, forward, far, edge_on, pinhole.anchor, row, col, position,
-              normal, triangle, view_depth)
+    if face < 0:
+        store_miss(row, col, position, normal, triangle, view_depth)
+    else:
+        n, unit, offset = face_plane(vertices, triangles, face, origin)
+        store_plane_hit(face, n, unit, offset, origin, direction, forward, far, edge_on, pinhole.anchor, row, col,
+                        position, normal, triangle, view_depth)
 
 
 @wp.kernel
@@ -597,6 +619,10 @@ def raster_hits_kernel(
     lift = pinhole.up * pixel_y(row, height, pinhole.step_y)
     col = j * run
     end = wp.min(col + run, width)
+    plane_face = int(-1)
+    n = wp.vec3d()
+    unit = wp.vec3d()
+    offset = wp.float64(0.0)
     # A `while` loop: a range known only at run time costs Warp's CPU code several times more per step.
     while col < end:
         direction = forward + right * pixel_x(col, width, step_x) + lift
@@ -613,10 +639,15 @@ def raster_hits_kernel(
                 face = f
             k += 1
         if face == NO_TRIANGLE:
-            face = -1
-        # An edge-on hit keeps the raster's camera-space depth.
-        store_hit(vertices, triangles, face, eye, direction, forward, far, t, anchor, row, col, position, normal,
-                  triangle, view_depth)
+            store_miss(row, col, position, normal, triangle, view_depth)
+        else:
+            # Most pixels hit their left neighbour's triangle: its plane is taken once for the run.
+            if face != plane_face:
+                n, unit, offset = face_plane(vertices, triangles, face, eye)
+                plane_face = face
+            # An edge-on hit keeps the raster's camera-space depth.
+            store_plane_hit(face, n, unit, offset, eye, direction, forward, far, t, anchor, row, col, position, normal,
+                            triangle, view_depth)
         col += 1
 
 
