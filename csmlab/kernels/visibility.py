@@ -775,7 +775,8 @@ def camera_hits_raster(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, as
        ``k`` takes the chunks ``k, k + threads, …`` of those left (interleaved, so that near and far
        triangles, small and large, fall to every launch alike) into its own depth and triangle buffers;
     3. per pixel, the smallest ``(t, triangle)`` over those buffers, and the hit on that triangle as
-       the ray method computes it — each thread a band of rows.
+       the ray method computes it — each thread a band of rows; on the CPU a kernel thread walks a
+       whole row, taking a triangle's plane once for the run of pixels that hit it.
 
     The minimum of ``(t, triangle)`` pairs does not depend on how they are grouped, so every
     ``threads`` gives the same pixels, bit for bit.
