@@ -301,7 +301,7 @@ def store_plane_hit(
     triangle: wp.array2d(dtype=wp.int32),
     view_depth: wp.array2d(dtype=wp.float32),
 ):
-    """Write the hit of ray ``origin + t·direction`` on triangle ``face`` of plane ``n, unit, offset`` (:func:`face_plane`).
+    """Write the hit of ray ``origin + t·direction`` on triangle ``face``, whose plane :func:`face_plane` gave.
 
     The hit is the ray's float64 intersection with the triangle's plane; a ray the plane does not
     meet in (0, far) — the triangle seen edge-on — is taken at ``edge_on`` instead. ``position``
