@@ -171,6 +171,17 @@ def test_exact_stabilization_keeps_S_bit_identical_at_fixed_points_when_the_came
         assert np.sum(now[same] != earlier.lit[same]) > 0
 
 
+def test_the_gbuffer_albedo_is_the_hit_triangles_and_positive_zero_on_a_miss():
+    scene = scene_of(BOXES)
+    light = direction_from_angles(elevation_deg=40.0, azimuth_deg=30.0)
+    view = render_view(prepare_scene(scene), camera(48, 32), light, width=48, height=32, reference=False)
+    g = view.gbuffer
+    assert g.albedo.dtype == np.float32 and g.albedo.shape == (32, 48, 3)
+    assert 0 < np.count_nonzero(g.valid) < g.valid.size
+    np.testing.assert_array_equal(g.albedo[g.valid], np.asarray(scene.albedo, dtype=np.float32)[g.triangle[g.valid]])
+    assert np.all(g.albedo[~g.valid] == 0.0) and not np.any(np.signbit(g.albedo[~g.valid]))
+
+
 def test_the_view_is_shared_across_methods_and_every_stage_is_timed_and_repeatable():
     dscene = prepare_scene(scene_of(BOXES))
     pose = camera(48, 32)

@@ -239,8 +239,8 @@ class ChunkRuns:
 
 
 @wp.func
-def plane_distance(n: wp.vec3d, point: wp.vec3d, origin: wp.vec3d, direction: wp.vec3d, t_max: wp.float64):
-    """Ray parameter where ``origin + t·direction`` meets the plane through ``point`` with normal ``n``.
+def hit_distance(n: wp.vec3d, offset: wp.float64, direction: wp.vec3d, t_max: wp.float64):
+    """Ray parameter where ``origin + t·direction`` meets the plane ``n·(X − origin) = offset`` (:func:`face_plane`).
 
     A ray that meets the plane behind the camera, beyond ``t_max`` or not at all is taken at
     ``t_max`` (the far plane), so grazing differentials stay finite.
@@ -248,18 +248,46 @@ def plane_distance(n: wp.vec3d, point: wp.vec3d, origin: wp.vec3d, direction: wp
     denom = wp.dot(n, direction)
     t = t_max
     if denom != wp.float64(0.0):
-        s = wp.dot(n, point - origin) / denom
+        s = offset / denom
         if s > wp.float64(0.0) and s < t_max:
             t = s
     return t
 
 
+@wp.func
+def face_plane(vertices: wp.array(dtype=wp.vec3d), triangles: wp.array2d(dtype=wp.int32), face: int,
+               origin: wp.vec3d):
+    """The plane of triangle ``face`` (vertices ``A, B, C``) as the rays from ``origin`` meet it: its normal
+    ``n = (B − A)×(C − A)``, ``n`` normalized, and ``n·(A − origin)``."""
+    a = vertices[triangles[face, 0]]
+    b = vertices[triangles[face, 1]]
+    c = vertices[triangles[face, 2]]
+    n = wp.cross(b - a, c - a)
+    return n, wp.normalize(n), wp.dot(n, a - origin)
+
 
 @wp.func
-def store_hit(
-    vertices: wp.array(dtype=wp.vec3d),
-    triangles: wp.array2d(dtype=wp.int32),
+def store_miss(
+    row: int,
+    col: int,
+    position: wp.array2d(dtype=wp.vec3d),
+    normal: wp.array2d(dtype=wp.vec3),
+    triangle: wp.array2d(dtype=wp.int32),
+    view_depth: wp.array2d(dtype=wp.float32),
+):
+    """Write a pixel whose ray hits nothing."""
+    position[row, col] = wp.vec3d(wp.float64(wp.nan), wp.float64(wp.nan), wp.float64(wp.nan))
+    normal[row, col] = wp.vec3(0.0)
+    triangle[row, col] = -1
+    view_depth[row, col] = wp.inf
+
+
+@wp.func
+def store_plane_hit(
     face: int,
+    n: wp.vec3d,
+    unit: wp.vec3d,
+    offset: wp.float64,
     origin: wp.vec3d,
     direction: wp.vec3d,
     forward: wp.vec3d,
@@ -273,31 +301,21 @@ def store_hit(
     triangle: wp.array2d(dtype=wp.int32),
     view_depth: wp.array2d(dtype=wp.float32),
 ):
-    """Write the hit of ray ``origin + t·direction`` on triangle ``face``, or a miss when ``face < 0``.
+    """Write the hit of ray ``origin + t·direction`` on triangle ``face``, whose plane :func:`face_plane` gave.
 
     The hit is the ray's float64 intersection with the triangle's plane; a ray the plane does not
     meet in (0, far) — the triangle seen edge-on — is taken at ``edge_on`` instead. ``position``
     gets it in world metres (``+ anchor``), ``view_depth`` relative to the eye.
     """
-    if face < 0:
-        position[row, col] = wp.vec3d(wp.float64(wp.nan), wp.float64(wp.nan), wp.float64(wp.nan))
-        normal[row, col] = wp.vec3(0.0)
-        triangle[row, col] = -1
-        view_depth[row, col] = wp.inf
-        return
-    a = vertices[triangles[face, 0]]
-    b = vertices[triangles[face, 1]]
-    c = vertices[triangles[face, 2]]
-    n = wp.cross(b - a, c - a)
-    t = plane_distance(n, a, origin, direction, far)
+    t = hit_distance(n, offset, direction, far)
     if t == far:
         t = edge_on
     hit = origin + direction * t
-    n = wp.normalize(n)
-    if wp.dot(n, direction) > wp.float64(0.0):
-        n = -n
+    facing = unit
+    if wp.dot(facing, direction) > wp.float64(0.0):
+        facing = -facing
     position[row, col] = hit + anchor
-    normal[row, col] = wp.vec3(n)
+    normal[row, col] = wp.vec3(facing)
     triangle[row, col] = face
     view_depth[row, col] = wp.float32(wp.dot(hit - origin, forward))
 
@@ -330,8 +348,12 @@ def camera_hits_kernel(
         face = query.face
         # An edge-on hit keeps the BVH's float32 distance.
         edge_on = wp.float64(query.t) / length
-    store_hit(vertices, triangles, face, origin, direction, forward, far, edge_on, pinhole.anchor, row, col, position,
-              normal, triangle, view_depth)
+    if face < 0:
+        store_miss(row, col, position, normal, triangle, view_depth)
+    else:
+        n, unit, offset = face_plane(vertices, triangles, face, origin)
+        store_plane_hit(face, n, unit, offset, origin, direction, forward, far, edge_on, pinhole.anchor, row, col,
+                        position, normal, triangle, view_depth)
 
 
 @wp.kernel
@@ -570,32 +592,63 @@ def raster_hits_kernel(
     nearest: wp.array3d(dtype=wp.int32),
     depth: wp.array3d(dtype=wp.float64),
     pinhole: PinholeCamera,
+    run: int,
     row0: int,
     position: wp.array2d(dtype=wp.vec3d),
     normal: wp.array2d(dtype=wp.vec3),
     triangle: wp.array2d(dtype=wp.int32),
     view_depth: wp.array2d(dtype=wp.float32),
 ):
-    """The rows ``row0 + i``: each pixel's smallest ``(depth, triangle)`` over the raster's buffers, and its hit."""
-    i, col = wp.tid()
+    """The rows ``row0 + i``: each pixel's smallest ``(depth, triangle)`` over the raster's buffers, and its hit.
+
+    A thread per run of ``run`` columns of a row: on the CPU the whole row, so that a thread's start
+    (which copies every argument, the camera's struct included) serves all of its pixels; on a GPU one.
+    """
+    i, j = wp.tid()
     row = row0 + i
+    height = position.shape[0]
+    width = position.shape[1]
+    parts = nearest.shape[0]
+    eye = pinhole.eye
     forward = pinhole.forward
-    direction = pixel_ray(pinhole, row, col, position.shape[0], position.shape[1])
-    # The order of the triangles does not change a lexicographic minimum: merging the buffers of
-    # any split of them gives the pixel one launch over all of them would.
-    face = NO_TRIANGLE
-    t = wp.float64(wp.inf)
-    for k in range(nearest.shape[0]):
-        d = depth[k, row, col]
-        f = nearest[k, row, col]
-        if d < t or (d == t and f < face):
-            t = d
-            face = f
-    if face == NO_TRIANGLE:
-        face = -1
-    # An edge-on hit keeps the raster's camera-space depth.
-    store_hit(vertices, triangles, face, pinhole.eye, direction, forward, pinhole.far, t, pinhole.anchor, row, col,
-              position, normal, triangle, view_depth)
+    right = pinhole.right
+    far = pinhole.far
+    anchor = pinhole.anchor
+    step_x = pinhole.step_x
+    # The ray's up part, the same for the whole row (added last, as in pixel_ray).
+    lift = pinhole.up * pixel_y(row, height, pinhole.step_y)
+    col = j * run
+    end = wp.min(col + run, width)
+    plane_face = int(-1)
+    n = wp.vec3d()
+    unit = wp.vec3d()
+    offset = wp.float64(0.0)
+    # A `while` loop: a range known only at run time costs Warp's CPU code several times more per step.
+    while col < end:
+        direction = forward + right * pixel_x(col, width, step_x) + lift
+        # The order of the triangles does not change a lexicographic minimum: merging the buffers of
+        # any split of them gives the pixel one launch over all of them would.
+        face = NO_TRIANGLE
+        t = wp.float64(wp.inf)
+        k = int(0)
+        while k < parts:
+            d = depth[k, row, col]
+            f = nearest[k, row, col]
+            if d < t or (d == t and f < face):
+                t = d
+                face = f
+            k += 1
+        if face == NO_TRIANGLE:
+            store_miss(row, col, position, normal, triangle, view_depth)
+        else:
+            # Most pixels hit their left neighbour's triangle: its plane is taken once for the run.
+            if face != plane_face:
+                n, unit, offset = face_plane(vertices, triangles, face, eye)
+                plane_face = face
+            # An edge-on hit keeps the raster's camera-space depth.
+            store_plane_hit(face, n, unit, offset, eye, direction, forward, far, t, anchor, row, col, position, normal,
+                            triangle, view_depth)
+        col += 1
 
 
 def _pinhole(bvh: MeshBVH, position, rotation, fov_y_deg: float, aspect: float, far: float, width: int,
@@ -648,14 +701,15 @@ def _pinhole_camera(bvh: MeshBVH, camera: tuple, *, far: float, frustum=None) ->
     return pinhole
 
 
-def _hits_record(bvh: MeshBVH, shape: tuple[int, int], pool: LaunchPool, kernel, inputs: tuple) -> CameraHits:
+def _hits_record(bvh: MeshBVH, shape: tuple[int, int], pool: LaunchPool, kernel, inputs: tuple,
+                 columns: int | None = None) -> CameraHits:
     """Allocate the output arrays, launch ``kernel`` over bands of rows (``inputs``, then the band's first row)
-    and return them as host arrays."""
+    and return them as host arrays; ``columns``: the threads a row is cut into (None: one per pixel)."""
     device = bvh.device
     outputs = (device_empty(shape, wp.vec3d, device), device_empty(shape, wp.vec3, device),
                device_empty(shape, wp.int32, device), device_empty(shape, wp.float32, device))
-    pool.run([functools.partial(wp.launch, kernel, dim=(hi - lo, shape[1]), inputs=(*inputs, lo), outputs=outputs,
-                                device=device)
+    pool.run([functools.partial(wp.launch, kernel, dim=(hi - lo, shape[1] if columns is None else columns),
+                                inputs=(*inputs, lo), outputs=outputs, device=device)
               for lo, hi in split_range(shape[0], pool.threads)])
     position, normal, triangle, view_depth = (a.numpy() for a in outputs)
     return CameraHits(position=position, normal=normal, triangle=triangle, view_depth=view_depth)
@@ -721,7 +775,8 @@ def camera_hits_raster(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, as
        ``k`` takes the chunks ``k, k + threads, …`` of those left (interleaved, so that near and far
        triangles, small and large, fall to every launch alike) into its own depth and triangle buffers;
     3. per pixel, the smallest ``(t, triangle)`` over those buffers, and the hit on that triangle as
-       the ray method computes it — each thread a band of rows.
+       the ray method computes it — each thread a band of rows; on the CPU a kernel thread walks a
+       whole row, taking a triangle's plane once for the run of pixels that hit it.
 
     The minimum of ``(t, triangle)`` pairs does not depend on how they are grouped, so every
     ``threads`` gives the same pixels, bit for bit.
@@ -771,8 +826,10 @@ def camera_hits_raster(bvh: MeshBVH, *, position, rotation, fov_y_deg: float, as
                                     outputs=(view.camera[lo:hi], view.outcode[lo:hi]), device=device)
                   for lo, hi in split_range(vertex_count, threads)])
         pool.run([functools.partial(rasterize, k) for k in range(parts)])
+        # On the CPU a thread per row (raster_hits_kernel's run), on a GPU per pixel.
+        run = width if wp.get_device(device).is_cpu else 1
         return _hits_record(bvh, (height, width), pool, raster_hits_kernel,
-                            (bvh.vertices, bvh.triangles, nearest, depth, hits_pinhole))
+                            (bvh.vertices, bvh.triangles, nearest, depth, hits_pinhole, run), columns=width // run)
 
 
 VISIBILITY_METHODS = {"raster": camera_hits_raster, "ray": camera_hits_ray}
