@@ -458,14 +458,7 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
     # the maps emptied by the host before they are copied to it.
     on_cpu = wp.get_device(device).is_cpu
     empty_regions(maps, areas if not on_cpu and not count_only else areas[:0])
-    light = LightMesh()
-    light.xy = wp.array(xy, dtype=wp.vec2d, device=device, copy=False)
-    light.depth = wp.array(z, dtype=wp.float64, device=device, copy=False)
-    light.triangles = wp.array(tri, dtype=wp.int32, device=device, copy=False)
-    masks = masked_mesh(mesh.uv, mesh.vertex_mask, mesh.alpha, device=device)
-    light.uv = masks.uv
-    light.vertex_mask = masks.vertex_mask
-    light.textures = masks.textures
+    light = light_mesh(mesh, device)
     boxes = _boxes(device, size, origin_fixed)
     fixed = _fixed_point(bits)
     offset = _caster_offset(caster_constant, caster_slope, shape[0], device)
@@ -501,6 +494,29 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
         pool.take_in_turn(np.lexsort((-extent, -held)).tolist(), rasterize_region)
     return None if count_only else maps_on.numpy(), covered.numpy()
 
+
+
+def light_mesh(mesh: LightSpaceMesh, device: str) -> LightMesh:
+    """The :class:`LightMesh` of ``mesh`` on ``device`` (checked), made on the first call and kept with the mesh
+    (:attr:`LightSpaceMesh.on_devices`).
+
+    A mesh is rasterized by every cascade and frame of its light: wrapping its arrays and masks for
+    Warp cost ~0.2 ms a call on the CPU (the masks' six arrays most), and a GPU uploaded the whole
+    mesh each call. The arrays are read-only, so what one call made serves the next.
+    """
+    device = checked_device(device)
+    light = mesh.on_devices.get(device)
+    if light is None:
+        light = LightMesh()
+        light.xy = wp.array(mesh.xy, dtype=wp.vec2d, device=device, copy=False)
+        light.depth = wp.array(mesh.depth, dtype=wp.float64, device=device, copy=False)
+        light.triangles = wp.array(mesh.triangles, dtype=wp.int32, device=device, copy=False)
+        masks = masked_mesh(mesh.uv, mesh.vertex_mask, mesh.alpha, device=device)
+        light.uv = masks.uv
+        light.vertex_mask = masks.vertex_mask
+        light.textures = masks.textures
+        mesh.on_devices[device] = light
+    return light
 
 
 def _converted_vertices(points, vertex_depth, near, cascades: int,
