@@ -338,7 +338,8 @@ def converted_region_chunks(points, triangles, *, regions, bits: int, device: st
 
 
 def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: int, bits: int,
-                       regions=None, chunks=None, depth=None, count_only: bool = False, threads: int = 1,
+                       regions=None, chunks=None, depth=None, count_only: bool = False,
+                       stored_cascades: int | None = None, threads: int = 1,
                        paths: TrianglePaths | None = None, caster_constant=None, caster_slope: float = 0.0,
                        points=None, vertex_depth=None, near=None,
                        device: str = "cpu") -> tuple[np.ndarray | None, np.ndarray]:
@@ -372,12 +373,17 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
     chunks : array_like, shape (K, 2), int32, optional
         (region, chunk) rows to rasterize (:func:`~csmlab.kernels.raster.regions.region_chunks`); None: every
         chunk of every region.
-    depth : ndarray, shape (C, R, R), float32, C-contiguous, optional
-        The maps to rasterize into (default +inf everywhere): the regions' texels are rasterized
-        afresh (their values are not read), the others keep theirs. Consumed: on the CPU it is
-        filled in place and returned.
+    depth : ndarray, shape (S, R, R), float32, C-contiguous, optional
+        The maps of the stored cascades ``[0, S)`` to rasterize into (default +inf everywhere): the
+        regions' texels are rasterized afresh (their values are not read), the others keep theirs.
+        Consumed: on the CPU it is filled in place and returned.
     count_only : bool
         Count the coverage tests that pass and store no depth (``depth`` is ignored and None returned).
+    stored_cascades : int, optional
+        S: cascades ``[0, S)`` are stored; the regions of cascades ``[S, C)`` are only counted (their
+        coverage tests, no depth), and may overlap any region: e.g. the strips a scrolled frame's
+        previous boxes left, counted in the call that rasterizes the new ones
+        (:func:`csmlab.render.shadow_maps`). None: every cascade (0 with ``count_only``).
     threads : int
         CPU launches run at once (one Warp CPU launch runs on one thread). The regions, which are
         disjoint, are taken by the threads one at a time, costliest first, so no two launches write
@@ -405,7 +411,7 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
 
     Returns
     -------
-    depth : ndarray, shape (C, R, R), float32, or None
+    depth : ndarray, shape (S, R, R), float32, or None
         None with ``count_only``.
     texels_rasterized : ndarray, shape (G,), int64
         Coverage tests that passed in each region.
@@ -428,14 +434,18 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
     count = -(-tri.shape[0] // (1 << CHUNK_BITS))
     parts = min(checked_threads(threads, device), areas.shape[0])
     extent = (areas[:, 2].astype(np.int64) - areas[:, 1]) * (areas[:, 4] - areas[:, 3])
+    stored = _checked_stored(stored_cascades, shape[0], count_only=count_only)
+    filled = areas[:, 0] < stored
+    stored_shape = (stored, resolution, resolution)
     if count_only:
         maps = np.zeros((0, 0, 0), dtype=np.float32)
     elif depth is None:
         # Regions that tile the maps leave nothing to fill but what each region fills itself.
-        maps = np.empty(shape, dtype=np.float32) if extent.sum() == np.prod(shape) else np.full(shape, np.inf,
-                                                                                               dtype=np.float32)
-    elif depth.shape != shape or depth.dtype != np.float32 or not depth.flags.c_contiguous:
-        raise ValueError(f"depth: expected C-contiguous float32 maps of shape {shape}, got {depth.dtype} {depth.shape}")
+        maps = (np.empty(stored_shape, dtype=np.float32) if extent[filled].sum() == np.prod(stored_shape)
+                else np.full(stored_shape, np.inf, dtype=np.float32))
+    elif depth.shape != stored_shape or depth.dtype != np.float32 or not depth.flags.c_contiguous:
+        raise ValueError(f"depth: expected C-contiguous float32 maps of shape {stored_shape}, got {depth.dtype} "
+                         f"{depth.shape}")
     else:
         maps = depth
     if areas.shape[0] == 0:
@@ -457,7 +467,7 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
     # On the CPU each launch empties its own regions first (on two threads at once); a GPU gets
     # the maps emptied by the host before they are copied to it.
     on_cpu = wp.get_device(device).is_cpu
-    empty_regions(maps, areas if not on_cpu and not count_only else areas[:0])
+    empty_regions(maps, areas[filled] if not on_cpu else areas[:0])
     light = light_mesh(mesh, device)
     boxes = _boxes(device, size, origin_fixed)
     fixed = _fixed_point(bits)
@@ -477,7 +487,7 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
 
         def rasterize_region(g: int) -> None:
             # Emptied just before it is rasterized, while its texels are still in the cache.
-            if on_cpu and not count_only:
+            if on_cpu and filled[g]:
                 empty_regions(maps, areas[g:g + 1])
             if held[g]:
                 work = ChunkRows()
@@ -494,6 +504,15 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
         pool.take_in_turn(np.lexsort((-extent, -held)).tolist(), rasterize_region)
     return None if count_only else maps_on.numpy(), covered.numpy()
 
+
+
+def _checked_stored(stored_cascades, cascades: int, *, count_only: bool) -> int:
+    """The cascades :func:`rasterize_cascades` stores (``stored_cascades``; None: all, or none with ``count_only``)."""
+    if stored_cascades is None:
+        return 0 if count_only else cascades
+    if not (isinstance(stored_cascades, (int, np.integer)) and 0 <= stored_cascades <= cascades):
+        raise ValueError(f"stored_cascades: expected an integer in 0..{cascades}, got {stored_cascades!r}")
+    return 0 if count_only else int(stored_cascades)
 
 
 def light_mesh(mesh: LightSpaceMesh, device: str) -> LightMesh:
