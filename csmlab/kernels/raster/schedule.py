@@ -321,7 +321,7 @@ def converted_region_chunks(points, triangles, *, regions, bits: int, device: st
     lo = device_empty(shape, vec2l, device)
     hi = device_empty(shape, vec2l, device)
     wp.launch(chunk_rectangles_kernel, dim=shape,
-              inputs=(wp.array(pts, dtype=vec2l, device=device),
+              inputs=(wp.array(pts, dtype=vec2l, device=device, copy=False),
                       wp.array(tri, dtype=wp.int32, device=device, copy=False), CHUNK_BITS), outputs=(lo, hi),
               device=device)
     low = lo.numpy().view(np.int64).reshape(shape + (2,))
@@ -480,9 +480,9 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
     with LaunchPool(parts, kernels=(rasterize_chunks_kernel, fixed_point_vertices_kernel), device=device) as pool:
         converted_here = VertexPass()
         converted_here.points = (_vertex_pass(pool, light.xy, boxes, converted, fixed, device=device)
-                                 if given[0] is None else wp.array(given[0], dtype=vec2l, device=device))
+                                 if given[0] is None else wp.array(given[0], dtype=vec2l, device=device, copy=False))
         converted_here.slots = wp.array(slots, dtype=wp.int32, device=device)
-        converted_here.depth = wp.array(given[1], dtype=wp.float64, device=device)
+        converted_here.depth = wp.array(given[1], dtype=wp.float64, device=device, copy=False)
         converted_here.near = wp.array(given[2], dtype=wp.float64, device=device)
 
         def rasterize_region(g: int) -> None:
@@ -545,7 +545,8 @@ def _converted_vertices(points, vertex_depth, near, cascades: int,
     pts = None
     if points is not None:
         pts = np.ascontiguousarray(points, dtype=np.int64)
-        if pts.shape != (cascades, vertices, 2) or np.any(np.abs(pts) > 2**52):
+        # Two passes over the values, no array of their magnitudes (|INT64_MIN| wraps negative, as a bound must not).
+        if pts.shape != (cascades, vertices, 2) or (pts.size and (pts.min() < -2**52 or pts.max() > 2**52)):
             raise ValueError(f"points: expected doubled fixed-point vertices of shape {(cascades, vertices, 2)} "
                              f"within ±2**52, got {pts.shape}")
     z = np.zeros((0, 0), dtype=np.float64)
