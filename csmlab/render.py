@@ -342,25 +342,37 @@ def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
     offset = dict(caster_constant=caster_offsets(cascades, settings), caster_slope=settings.caster_bias_slope)
 
     def rasterized(origin_texels, origin_fixed, regions, **how):
+        # Boxes beyond the first C (counted only, stored_cascades) have the texel size and offset of the first C.
+        repeat = (len(origin_fixed) // len(sizes), 1)
+        size = np.tile(texel_size, repeat)
         if dscene.threads > 1:
             # Each region cut in bands (BANDS_PER_THREAD per thread), which the threads take in turn.
             regions = banded_regions(regions, parts=BANDS_PER_THREAD * dscene.threads, axis=bounds.narrow_axis)
-        chunks = region_chunks(bounds, texel_size=texel_size, origin=origin_texels, regions=regions)
-        depth, texels = rasterize_cascades(mesh, texel_size=texel_size, origin=origin_fixed, resolution=max(sizes),
+        chunks = region_chunks(bounds, texel_size=size, origin=origin_texels, regions=regions)
+        depth, texels = rasterize_cascades(mesh, texel_size=size, origin=origin_fixed, resolution=max(sizes),
                                            bits=bits, regions=regions, chunks=chunks, threads=dscene.threads,
-                                           device=dscene.device, **offset, **how)
-        return depth, np.bincount(regions[:, 0], weights=texels, minlength=len(sizes)).astype(np.int64)
+                                           device=dscene.device, caster_constant=np.tile(offset["caster_constant"],
+                                                                                         repeat[0]),
+                                           caster_slope=offset["caster_slope"], **how)
+        return depth, np.bincount(regions[:, 0], weights=texels, minlength=len(origin_fixed)).astype(np.int64)
 
     if np.any(origin_fixed % (1 << bits)):
         depth, texels = rasterized(origin_texels, origin_fixed, whole_map_regions(sizes))
         return depth, int(texels.sum()), None
     plan = scroll_plan(previous, basis=cascades.basis, zref=cascades.zref, bits=bits, texel_size=texel_size,
                        origin=origin_fixed, resolution=sizes, **offset)
-    depth, texels = rasterized(origin_texels, origin_fixed, plan.regions, depth=plan.depth)
-    per_cascade = plan.kept_texels + texels
     if len(plan.left):
-        # Counted where the previous boxes lay (scroll_plan keeps only boxes of this texel size).
-        per_cascade -= rasterized(previous.origin / float(1 << bits), previous.origin, plan.left, count_only=True)[1]
+        # The strips the previous boxes left, counted where those boxes lay (scroll_plan keeps only boxes of this
+        # texel size and offset), in the same call: as cascades C..2C−1, whose depths are not stored.
+        count = len(sizes)
+        depth, texels = rasterized(np.concatenate([origin_texels, previous.origin / float(1 << bits)]),
+                                   np.concatenate([origin_fixed, previous.origin]),
+                                   np.concatenate([plan.regions, plan.left + [count, 0, 0, 0, 0]]),
+                                   depth=plan.depth, stored_cascades=count)
+        per_cascade = plan.kept_texels + texels[:count] - texels[count:]
+    else:
+        depth, texels = rasterized(origin_texels, origin_fixed, plan.regions, depth=plan.depth)
+        per_cascade = plan.kept_texels + texels
     depth.flags.writeable = False
     raster = RasterizedMaps(basis=cascades.basis, zref=cascades.zref, bits=bits, texel_size=texel_size,
                             origin=origin_fixed, resolution=np.array(sizes), depth=depth, texels=per_cascade,

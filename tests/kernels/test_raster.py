@@ -598,6 +598,30 @@ def test_a_map_rasterized_region_by_region_is_the_whole_map_and_counting_alone_c
     assert np.all(part[0, :3] == -7.0) and np.all(part[1] == -7.0)
 
 
+def test_cascades_beyond_the_stored_ones_are_counted_where_their_boxes_lie_and_store_nothing(device):
+    """Cascades ``[S, C)`` of a call with ``stored_cascades = S`` count what they count rasterized alone, at their own
+    boxes, while the maps of ``[0, S)`` are those of a call without them, bit for bit."""
+    from csmlab.kernels.raster import rasterize_cascades
+
+    cs, vertices, triangles, xy, _, box, _ = two_cascade_soup(17, device=device)
+    mesh = light_space_mesh(xy, light_depth(cs, vertices), triangles)
+    constant = np.array([0.01, 0.02])
+    whole, whole_count = rasterize_cascades(mesh, caster_constant=constant, **box)
+    moved = dict(box, origin=box["origin"] + np.array([[3, -5], [-11, 2]]) * (1 << BITS))
+    _, moved_count = rasterize_cascades(mesh, caster_constant=constant, **moved)
+    assert moved_count.sum() > 0 and not np.array_equal(moved_count, whole_count)
+    both = dict(box, texel_size=np.tile(box["texel_size"], (2, 1)),
+                origin=np.concatenate([box["origin"], moved["origin"]]))
+    # The counted regions lie over the stored ones, as a scrolled frame's left strips lie over its new boxes.
+    regions = np.array([(c, 0, 40, 0, 40) for c in range(4)])
+    depth, counts = rasterize_cascades(mesh, regions=regions, stored_cascades=2, caster_constant=np.tile(constant, 2),
+                                       depth=np.full_like(whole, -7.0), **both)
+    np.testing.assert_array_equal(depth, whole)
+    np.testing.assert_array_equal(counts, np.concatenate([whole_count, moved_count]))
+    with pytest.raises(ValueError, match="stored_cascades"):
+        rasterize_cascades(mesh, regions=regions, stored_cascades=5, **both)
+
+
 def test_vertices_converted_once_or_per_triangle_rasterize_the_same_maps(monkeypatch, device):
     """A cascade with many triangles gets its vertices converted in one pass, one with few per triangle: the same bits.
 

@@ -1,7 +1,7 @@
 """Which rasterizer a device gets: the walk on the CPU, the tiles on CUDA (docs/performance.md, the tiled raster).
 
 Both give the same maps and counts bit for bit (tests/kernels/test_raster_tiled.py); they differ only in
-how the work is laid out. A CPU thread walks a run of triangles row by row, four texels at a time
+how the work is laid out. A CPU thread walks a run of triangles row by row, eight texels at a time
 (:mod:`csmlab.kernels.raster.schedule`); a GPU wants a thread per texel, a block per tile
 (:mod:`csmlab.kernels.raster.tiled`).
 """
@@ -55,10 +55,11 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, paths: TrianglePaths | None = No
     """:func:`csmlab.kernels.raster.schedule.rasterize_cascades` (parameters, returns) by the device's rasterizer.
 
     ``paths`` chooses among the walk's paths, so a call that gives it is walked; so is a call with
-    vertices an engine's float32 pipeline converted (``points``, :mod:`csmlab.kernels.engine`) or
-    casters cut at a slice's near side (``near``), whose set-up the tiles do not yet take.
+    vertices an engine's float32 pipeline converted (``points``, :mod:`csmlab.kernels.engine`),
+    casters cut at a slice's near side (``near``) or cascades only counted (``stored_cascades``), whose
+    set-up the tiles do not yet take.
     """
     name = _CHOSEN.get() or device_rasterizer(device)
-    if name == "tiled" and paths is None and how.get("points") is None and how.get("near") is None:
+    if name == "tiled" and paths is None and all(how.get(k) is None for k in ("points", "near", "stored_cascades")):
         return rasterize_tiled(mesh, device=device, **how)
     return schedule.rasterize_cascades(mesh, paths=paths, device=device, **how)

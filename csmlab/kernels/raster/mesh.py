@@ -103,6 +103,12 @@ class LightSpaceMesh:
     alpha: tuple = ()
 
     @cached_property
+    def on_devices(self) -> dict:
+        """The mesh's arrays on each device the depth pass read them on, by device name, filled by that pass
+        (:func:`csmlab.kernels.raster.schedule.light_mesh`): uploaded and wrapped once, not once per call."""
+        return {}
+
+    @cached_property
     def bounds(self) -> TriangleBounds:
         """The light-space rectangles of the triangles and of their chunks (queried by
         :func:`~csmlab.kernels.raster.regions.region_chunks`)."""

@@ -321,7 +321,7 @@ def converted_region_chunks(points, triangles, *, regions, bits: int, device: st
     lo = device_empty(shape, vec2l, device)
     hi = device_empty(shape, vec2l, device)
     wp.launch(chunk_rectangles_kernel, dim=shape,
-              inputs=(wp.array(pts, dtype=vec2l, device=device),
+              inputs=(wp.array(pts, dtype=vec2l, device=device, copy=False),
                       wp.array(tri, dtype=wp.int32, device=device, copy=False), CHUNK_BITS), outputs=(lo, hi),
               device=device)
     low = lo.numpy().view(np.int64).reshape(shape + (2,))
@@ -338,7 +338,8 @@ def converted_region_chunks(points, triangles, *, regions, bits: int, device: st
 
 
 def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: int, bits: int,
-                       regions=None, chunks=None, depth=None, count_only: bool = False, threads: int = 1,
+                       regions=None, chunks=None, depth=None, count_only: bool = False,
+                       stored_cascades: int | None = None, threads: int = 1,
                        paths: TrianglePaths | None = None, caster_constant=None, caster_slope: float = 0.0,
                        points=None, vertex_depth=None, near=None,
                        device: str = "cpu") -> tuple[np.ndarray | None, np.ndarray]:
@@ -372,12 +373,17 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
     chunks : array_like, shape (K, 2), int32, optional
         (region, chunk) rows to rasterize (:func:`~csmlab.kernels.raster.regions.region_chunks`); None: every
         chunk of every region.
-    depth : ndarray, shape (C, R, R), float32, C-contiguous, optional
-        The maps to rasterize into (default +inf everywhere): the regions' texels are rasterized
-        afresh (their values are not read), the others keep theirs. Consumed: on the CPU it is
-        filled in place and returned.
+    depth : ndarray, shape (S, R, R), float32, C-contiguous, optional
+        The maps of the stored cascades ``[0, S)`` to rasterize into (default +inf everywhere): the
+        regions' texels are rasterized afresh (their values are not read), the others keep theirs.
+        Consumed: on the CPU it is filled in place and returned.
     count_only : bool
         Count the coverage tests that pass and store no depth (``depth`` is ignored and None returned).
+    stored_cascades : int, optional
+        S: cascades ``[0, S)`` are stored; the regions of cascades ``[S, C)`` are only counted (their
+        coverage tests, no depth), and may overlap any region: e.g. the strips a scrolled frame's
+        previous boxes left, counted in the call that rasterizes the new ones
+        (:func:`csmlab.render.shadow_maps`). None: every cascade (0 with ``count_only``).
     threads : int
         CPU launches run at once (one Warp CPU launch runs on one thread). The regions, which are
         disjoint, are taken by the threads one at a time, costliest first, so no two launches write
@@ -405,7 +411,7 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
 
     Returns
     -------
-    depth : ndarray, shape (C, R, R), float32, or None
+    depth : ndarray, shape (S, R, R), float32, or None
         None with ``count_only``.
     texels_rasterized : ndarray, shape (G,), int64
         Coverage tests that passed in each region.
@@ -428,14 +434,18 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
     count = -(-tri.shape[0] // (1 << CHUNK_BITS))
     parts = min(checked_threads(threads, device), areas.shape[0])
     extent = (areas[:, 2].astype(np.int64) - areas[:, 1]) * (areas[:, 4] - areas[:, 3])
+    stored = _checked_stored(stored_cascades, shape[0], count_only=count_only)
+    filled = areas[:, 0] < stored
+    stored_shape = (stored, resolution, resolution)
     if count_only:
         maps = np.zeros((0, 0, 0), dtype=np.float32)
     elif depth is None:
         # Regions that tile the maps leave nothing to fill but what each region fills itself.
-        maps = np.empty(shape, dtype=np.float32) if extent.sum() == np.prod(shape) else np.full(shape, np.inf,
-                                                                                               dtype=np.float32)
-    elif depth.shape != shape or depth.dtype != np.float32 or not depth.flags.c_contiguous:
-        raise ValueError(f"depth: expected C-contiguous float32 maps of shape {shape}, got {depth.dtype} {depth.shape}")
+        maps = (np.empty(stored_shape, dtype=np.float32) if extent[filled].sum() == np.prod(stored_shape)
+                else np.full(stored_shape, np.inf, dtype=np.float32))
+    elif depth.shape != stored_shape or depth.dtype != np.float32 or not depth.flags.c_contiguous:
+        raise ValueError(f"depth: expected C-contiguous float32 maps of shape {stored_shape}, got {depth.dtype} "
+                         f"{depth.shape}")
     else:
         maps = depth
     if areas.shape[0] == 0:
@@ -457,15 +467,8 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
     # On the CPU each launch empties its own regions first (on two threads at once); a GPU gets
     # the maps emptied by the host before they are copied to it.
     on_cpu = wp.get_device(device).is_cpu
-    empty_regions(maps, areas if not on_cpu and not count_only else areas[:0])
-    light = LightMesh()
-    light.xy = wp.array(xy, dtype=wp.vec2d, device=device, copy=False)
-    light.depth = wp.array(z, dtype=wp.float64, device=device, copy=False)
-    light.triangles = wp.array(tri, dtype=wp.int32, device=device, copy=False)
-    masks = masked_mesh(mesh.uv, mesh.vertex_mask, mesh.alpha, device=device)
-    light.uv = masks.uv
-    light.vertex_mask = masks.vertex_mask
-    light.textures = masks.textures
+    empty_regions(maps, areas[filled] if not on_cpu else areas[:0])
+    light = light_mesh(mesh, device)
     boxes = _boxes(device, size, origin_fixed)
     fixed = _fixed_point(bits)
     offset = _caster_offset(caster_constant, caster_slope, shape[0], device)
@@ -477,14 +480,14 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
     with LaunchPool(parts, kernels=(rasterize_chunks_kernel, fixed_point_vertices_kernel), device=device) as pool:
         converted_here = VertexPass()
         converted_here.points = (_vertex_pass(pool, light.xy, boxes, converted, fixed, device=device)
-                                 if given[0] is None else wp.array(given[0], dtype=vec2l, device=device))
+                                 if given[0] is None else wp.array(given[0], dtype=vec2l, device=device, copy=False))
         converted_here.slots = wp.array(slots, dtype=wp.int32, device=device)
-        converted_here.depth = wp.array(given[1], dtype=wp.float64, device=device)
+        converted_here.depth = wp.array(given[1], dtype=wp.float64, device=device, copy=False)
         converted_here.near = wp.array(given[2], dtype=wp.float64, device=device)
 
         def rasterize_region(g: int) -> None:
             # Emptied just before it is rasterized, while its texels are still in the cache.
-            if on_cpu and not count_only:
+            if on_cpu and filled[g]:
                 empty_regions(maps, areas[g:g + 1])
             if held[g]:
                 work = ChunkRows()
@@ -503,6 +506,38 @@ def rasterize_cascades(mesh: LightSpaceMesh, *, texel_size, origin, resolution: 
 
 
 
+def _checked_stored(stored_cascades, cascades: int, *, count_only: bool) -> int:
+    """The cascades :func:`rasterize_cascades` stores (``stored_cascades``; None: all, or none with ``count_only``)."""
+    if stored_cascades is None:
+        return 0 if count_only else cascades
+    if not (isinstance(stored_cascades, (int, np.integer)) and 0 <= stored_cascades <= cascades):
+        raise ValueError(f"stored_cascades: expected an integer in 0..{cascades}, got {stored_cascades!r}")
+    return 0 if count_only else int(stored_cascades)
+
+
+def light_mesh(mesh: LightSpaceMesh, device: str) -> LightMesh:
+    """The :class:`LightMesh` of ``mesh`` on ``device`` (checked), made on the first call and kept with the mesh
+    (:attr:`LightSpaceMesh.on_devices`).
+
+    A mesh is rasterized by every cascade and frame of its light: wrapping its arrays and masks for
+    Warp cost ~0.2 ms a call on the CPU (the masks' six arrays most), and a GPU uploaded the whole
+    mesh each call. The arrays are read-only, so what one call made serves the next.
+    """
+    device = checked_device(device)
+    light = mesh.on_devices.get(device)
+    if light is None:
+        light = LightMesh()
+        light.xy = wp.array(mesh.xy, dtype=wp.vec2d, device=device, copy=False)
+        light.depth = wp.array(mesh.depth, dtype=wp.float64, device=device, copy=False)
+        light.triangles = wp.array(mesh.triangles, dtype=wp.int32, device=device, copy=False)
+        masks = masked_mesh(mesh.uv, mesh.vertex_mask, mesh.alpha, device=device)
+        light.uv = masks.uv
+        light.vertex_mask = masks.vertex_mask
+        light.textures = masks.textures
+        mesh.on_devices[device] = light
+    return light
+
+
 def _converted_vertices(points, vertex_depth, near, cascades: int,
                         vertices: int) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
     """:func:`rasterize_cascades`'s ``points`` ``(C, V, 2)`` (None where not given), ``vertex_depth`` ``(C, V)`` (zero
@@ -510,7 +545,8 @@ def _converted_vertices(points, vertex_depth, near, cascades: int,
     pts = None
     if points is not None:
         pts = np.ascontiguousarray(points, dtype=np.int64)
-        if pts.shape != (cascades, vertices, 2) or np.any(np.abs(pts) > 2**52):
+        # Two passes over the values, no array of their magnitudes (|INT64_MIN| wraps negative, as a bound must not).
+        if pts.shape != (cascades, vertices, 2) or (pts.size and (pts.min() < -2**52 or pts.max() > 2**52)):
             raise ValueError(f"points: expected doubled fixed-point vertices of shape {(cascades, vertices, 2)} "
                              f"within ±2**52, got {pts.shape}")
     z = np.zeros((0, 0), dtype=np.float64)
