@@ -495,64 +495,35 @@ def shadow_lookup_kernel(
     blend: wp.array(dtype=wp.int32),
 ):
     # A run of receivers per thread (one on a GPU): a CPU thread's start copies every argument, the
-    # receivers' struct among them, which costed about as much as a receiver's selection.
-    first = wp.tid() * run
-    last = wp.min(first + run, view_depth.shape[0])
-    k = first
-    while k < last:
-        looked_up(depth, receivers, view_depth, splits, texel_area, sphere_cascade, bits, selection, reach, margin,
-                  band_start, blend_curve, filter_code, radius, lit, cascade, blend, k)
-        k += 1
-
-
-@wp.func
-def looked_up(
-    depth: wp.array3d(dtype=wp.float32),
-    receivers: Any,
-    view_depth: wp.array(dtype=wp.float64),
-    splits: wp.array(dtype=wp.float64),
-    texel_area: wp.array(dtype=wp.float64),
-    sphere_cascade: wp.array(dtype=wp.int32),
-    bits: int,
-    selection: int,
-    reach: int,
-    margin: int,
-    band_start: wp.array(dtype=wp.float64),
-    blend_curve: int,
-    filter_code: int,
-    radius: int,
-    lit: wp.array(dtype=wp.float32),
-    cascade: wp.array(dtype=wp.int32),
-    blend: wp.array(dtype=wp.int32),
-    k: int,
-) -> int:
-    """Receiver k's lit fraction, cascade and blend into ``lit[k]``, ``cascade[k]``, ``blend[k]``
-    (:func:`shadow_lookup_kernel`); returns its cascade."""
+    # receivers' struct among them, which cost about as much as a receiver's selection.
     unit = wp.int64(1) << wp.int64(bits)
     inverse_span = wp.float64(1.0) / wp.float64(wp.int64(2) * unit)
     count = depth.shape[0]
     size = wp.int64(depth.shape[1])
-    z = view_depth[k]
-    # The receiver in the light's basis once, whichever cascades the selection and the blend read.
-    light = receiver_light(receivers, k)
-    chosen, x, y, receiver, slope = selected_cascade(
-        receivers, light, k, z, selection, count, splits, texel_area, sphere_cascade, wp.int64(reach) * unit,
-        (size - wp.int64(reach)) * unit, wp.int64(margin) * unit, (size - wp.int64(margin)) * unit)
-    cascade[k] = chosen
-    blend[k] = 0
-    if chosen < 0:
-        lit[k] = 0.0
-        return chosen
-    s = lit_fraction(depth, chosen, x, y, receiver, slope, bits, inverse_span, filter_code, radius)
-    w = band_weight(z, chosen, count, splits, band_start, blend_curve)
-    if w >= wp.float64(0.0):
-        xn, yn, rn, sn = receiver_in(receivers, light, chosen + 1, k)
-        if holds(xn, yn, wp.int64(reach) * unit, (size - wp.int64(reach)) * unit):
-            s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, chosen + 1, xn, yn, rn, sn, bits, inverse_span,
-                                                             filter_code, radius)
-            blend[k] = 1
-    lit[k] = wp.float32(s)
-    return chosen
+    k = wp.tid() * run
+    last = wp.min(k + run, view_depth.shape[0])
+    while k < last:
+        z = view_depth[k]
+        # The receiver in the light's basis once, whichever cascades the selection and the blend read.
+        light = receiver_light(receivers, k)
+        chosen, x, y, receiver, slope = selected_cascade(
+            receivers, light, k, z, selection, count, splits, texel_area, sphere_cascade, wp.int64(reach) * unit,
+            (size - wp.int64(reach)) * unit, wp.int64(margin) * unit, (size - wp.int64(margin)) * unit)
+        cascade[k] = chosen
+        blend[k] = 0
+        if chosen < 0:
+            lit[k] = 0.0
+        else:
+            s = lit_fraction(depth, chosen, x, y, receiver, slope, bits, inverse_span, filter_code, radius)
+            w = band_weight(z, chosen, count, splits, band_start, blend_curve)
+            if w >= wp.float64(0.0):
+                xn, yn, rn, sn = receiver_in(receivers, light, chosen + 1, k)
+                if holds(xn, yn, wp.int64(reach) * unit, (size - wp.int64(reach)) * unit):
+                    s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, chosen + 1, xn, yn, rn, sn, bits,
+                                                                     inverse_span, filter_code, radius)
+                    blend[k] = 1
+            lit[k] = wp.float32(s)
+        k += 1
 
 
 @wp.kernel

@@ -35,13 +35,13 @@ import numpy as np
 import warp as wp
 
 from csmlab.kernels import checked_device
-from csmlab.kernels.alpha import AlphaTextures, alpha_passes, masked_mesh
+from csmlab.kernels.alpha import AlphaTextures, alpha_passes
 from csmlab.kernels.raster.kernels import (Boxes, CasterOffset, FixedPoint, caster_offset, centre_box, doubled_area,
                                            doubled_fixed_point_vertex, edge_inside, edge_owns_centre, edge_values,
                                            vec2l)
 from csmlab.kernels.raster.mesh import CHUNK_BITS, LightSpaceMesh
 from csmlab.kernels.raster.schedule import (_boxes, _caster_offset, _checked_bits, _checked_boxes, _checked_mesh,
-                                            _checked_regions, _checked_resolution, _fixed_point)
+                                            _checked_regions, _checked_resolution, _fixed_point, light_mesh)
 from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 
 __all__ = ["TILE_BITS", "TILE_TEXELS", "rasterize_tiled"]
@@ -361,12 +361,13 @@ def _rasterize_tiles(mesh: LightSpaceMesh, grid: TileGrid, tile_count: int, rows
                      origin_fixed: np.ndarray, bits: int, caster_constant, caster_slope: float, maps: wp.array,
                      covered: wp.array, threads: int, device: str) -> None:
     """The four passes of the module's docstring over the pairs of ``rows`` into ``maps`` and ``covered`` (per tile)."""
+    # The mesh's device arrays and masks as the walk keeps them with the mesh (made once per device).
+    kept = light_mesh(mesh, device)
     light = TiledMesh()
-    light.xy = wp.array(mesh.xy, dtype=wp.vec2d, device=device, copy=False)
-    light.depth = wp.array(mesh.depth, dtype=wp.float64, device=device, copy=False)
-    light.triangles = wp.array(mesh.triangles, dtype=wp.int32, device=device, copy=False)
-    masks = masked_mesh(mesh.uv, mesh.vertex_mask, mesh.alpha, device=device)
-    light.vertex_mask = masks.vertex_mask
+    light.xy = kept.xy
+    light.depth = kept.depth
+    light.triangles = kept.triangles
+    light.vertex_mask = kept.vertex_mask
     fixed = _fixed_point(bits)
     pairs = rows.shape[0] << CHUNK_BITS
     set_up = wp.empty(pairs, dtype=SetUpTriangle, device=device)
@@ -395,7 +396,7 @@ def _rasterize_tiles(mesh: LightSpaceMesh, grid: TileGrid, tile_count: int, rows
     with LaunchPool(threads, kernels=(rasterize_tiles_kernel,), device=device) as pool:
         def launch(lo: int, hi: int) -> None:
             wp.launch(rasterize_tiles_kernel, dim=(hi - lo) * TILE_TEXELS,
-                      inputs=(*inputs, lo, masks.uv, masks.textures, fixed), outputs=(maps, covered),
+                      inputs=(*inputs, lo, kept.uv, kept.textures, fixed), outputs=(maps, covered),
                       block_dim=TILE_TEXELS, device=device)
 
         pool.run([lambda lo=lo, hi=hi: launch(lo, hi) for lo, hi in split_range(tile_count, threads)])
