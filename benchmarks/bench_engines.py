@@ -9,8 +9,10 @@ scrolled from its previous frame's where its path allows (:func:`csmlab.render.r
 first frame compiles and fills the caches and is not counted; the table gives each stage's mean
 milliseconds per frame over the rest, from the frames' own ``timings``, for the preset as shipped
 (``engine_precision`` float32 or camera_relative, Filament's warp) and for the same preset with
-``engine_precision = "float64"``, and their ratio. ``--threads`` CPU threads per frame, as a run with
-that many cores per process (``csmlab run --jobs 2`` on 2 cores gives each process 1).
+``engine_precision = "float64"``, and their ratio; then the float64 preset's raster with every frame's maps made
+anew (``f64 whole``: none scrolled from the previous frame's, as the engines and the float32 paths make them) and
+the preset's raster against it — what its precision costs on the same work. ``--threads`` CPU threads per frame,
+as a run with that many cores per process (``csmlab run --jobs 2`` on 2 cores gives each process 1).
 ``--clock cpu`` times the stages in CPU seconds of the process (:func:`time.process_time`) instead
 of wall-clock seconds: on a machine shared with other work, the work itself rather than the waits
 for a core (every thread's CPU time summed, so use it with ``--threads 1``).
@@ -41,14 +43,15 @@ EXPERIMENT = Path(__file__).resolve().parent.parent / "experiments" / "engines.t
 STAGES = ("raster", "shadow")
 
 
-def stage_means(dscene, workload, settings, frames: int, device: str) -> dict:
-    """Mean seconds per frame of each of :data:`STAGES` over frames 1 .. ``frames − 1`` (frame 0 warms up)."""
+def stage_means(dscene, workload, settings, frames: int, device: str, *, scroll: bool = True) -> dict:
+    """Mean seconds per frame of each of :data:`STAGES` over frames 1 .. ``frames − 1`` (frame 0 warms up);
+    without ``scroll`` every frame's maps are made anew, none from the previous frame's."""
     sums = dict.fromkeys(STAGES, 0.0)
     previous = None
     for i in range(frames):
         view = render_view(dscene, workload.path.pose(i), workload.light.direction(i), width=workload.width,
                            height=workload.height, index=i, reference=False)
-        frame = render_shadow(dscene, view, settings, scroll_from=previous)
+        frame = render_shadow(dscene, view, settings, scroll_from=previous if scroll else None)
         wp.synchronize_device(device)
         previous = frame.maps
         if i:
@@ -57,8 +60,10 @@ def stage_means(dscene, workload, settings, frames: int, device: str) -> dict:
     return {stage: sums[stage] / (frames - 1) for stage in STAGES}
 
 
-def raster_means(dscene, workload, settings, frames: int, passes: int, clock, device: str) -> dict:
-    """Seconds per frame of :func:`csmlab.render.shadow_maps` over frames 1 .. ``frames − 1``, best of ``passes``."""
+def raster_means(dscene, workload, settings, frames: int, passes: int, clock, device: str, *,
+                 scroll: bool = True) -> dict:
+    """Seconds per frame of :func:`csmlab.render.shadow_maps` over frames 1 .. ``frames − 1``, best of ``passes``;
+    without ``scroll`` every frame's maps are made anew."""
     sets = [build_cascades(pose=workload.path.pose(i), light_direction=workload.light.direction(i),
                            scene_corners=dscene.corners, settings=settings) for i in range(frames)]
     render.shadow_maps(dscene, sets[0], settings)  # compiles and fills the caches
@@ -67,7 +72,7 @@ def raster_means(dscene, workload, settings, frames: int, passes: int, clock, de
         previous = render.shadow_maps(dscene, sets[0], settings)
         start = clock()
         for cascades in sets[1:]:
-            previous = render.shadow_maps(dscene, cascades, settings, scroll_from=previous)
+            previous = render.shadow_maps(dscene, cascades, settings, scroll_from=previous if scroll else None)
         wp.synchronize_device(device)
         best = min(best, (clock() - start) / (frames - 1))
     return {"raster": best}
@@ -110,7 +115,8 @@ def main() -> None:
                                                              if args.raster_only else ""))
     stages = ("raster",) if args.raster_only else STAGES
     print(f"{'preset':<22} {'precision':<16} {'R':>5}"
-          + "".join(f" {stage:>9} {'f64':>9} {'ratio':>6}" for stage in stages))
+          + "".join(f" {stage:>9} {'f64':>9} {'ratio':>6}" for stage in stages)
+          + f" {'f64 whole':>9} {'ratio':>6}")
     clock = time.process_time if args.clock == "cpu" else time.perf_counter
     for method in methods:
         settings = method.settings
@@ -118,11 +124,14 @@ def main() -> None:
             settings = dataclasses.replace(settings, resolution=args.resolution)
         wide_settings = dataclasses.replace(settings, engine_precision="float64")
         if args.raster_only:
-            own, wide = (raster_means(dscene, workload, s, args.frames, args.passes, clock, args.device)
-                         for s in (settings, wide_settings))
+            own, wide, whole = (raster_means(dscene, workload, s, args.frames, args.passes, clock, args.device,
+                                             scroll=scroll)
+                                for s, scroll in ((settings, True), (wide_settings, True), (wide_settings, False)))
         else:
-            own, wide = (stage_means(dscene, workload, s, args.frames, args.device) for s in (settings, wide_settings))
+            own, wide, whole = (stage_means(dscene, workload, s, args.frames, args.device, scroll=scroll)
+                                for s, scroll in ((settings, True), (wide_settings, True), (wide_settings, False)))
         cells = "".join(f" {own[s] * 1e3:9.1f} {wide[s] * 1e3:9.1f} {own[s] / wide[s]:6.2f}" for s in stages)
+        cells += f" {whole['raster'] * 1e3:9.1f} {own['raster'] / whole['raster']:6.2f}"
         print(f"{method.name:<22} {settings.engine_precision:<16} {settings.resolution:>5}{cells}", flush=True)
 
 

@@ -26,9 +26,9 @@ from csmlab.filters import clipmap_radius, filter_inputs, lookup_shadow, noise_f
 from csmlab.frame import Frame, GBuffer, ShadowMaps, View
 from csmlab.geometry import light_basis, normalized
 from csmlab.kernels.engine import warped_vertices, window_vertices
-from csmlab.kernels.raster import (BANDS_PER_THREAD, LightSpaceMesh, banded_regions, converted_region_chunks,
-                                  light_space_mesh, rasterize_cascades, rasterize_depth, region_chunks,
-                                  whole_map_regions, z_ordered)
+from csmlab.kernels.raster import (BANDS_PER_THREAD, LightSpaceMesh, banded_regions, chunk_vertices,
+                                  converted_region_chunks, light_space_mesh, rasterize_cascades, rasterize_depth,
+                                  region_chunks, whole_map_regions, z_ordered)
 from csmlab.kernels.alpha import masked_mesh
 from csmlab.kernels.reference import hard_shadow
 from csmlab.kernels.threads import checked_threads
@@ -505,7 +505,7 @@ def _window_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
                                                              positions=dscene.ordered_vertices[key],
                                                              light_xy=mesh.xy, light_depth=mesh.depth,
                                                              threads=dscene.threads, device=dscene.device)
-        chunks = converted_region_chunks(how["points"], mesh.triangles, regions=regions, bits=bits,
+        chunks = converted_region_chunks(how["points"], mesh.chunk_vertices, regions=regions, bits=bits,
                                          device=dscene.device)
     depth, texels = rasterize_cascades(mesh, texel_size=texel_size, origin=origin_fixed, resolution=side,
                                        bits=bits, regions=regions, chunks=chunks, depth=depth, **how)
@@ -683,7 +683,8 @@ def _warped_map(dscene: DeviceScene, mesh: LightSpaceMesh, triangles: np.ndarray
     regions = whole_map_regions([cascade.resolution])
     if dscene.threads > 1:
         regions = banded_regions(regions, parts=BANDS_PER_THREAD * dscene.threads, axis=mesh.bounds.narrow_axis)
-    chunks = converted_region_chunks(points[None], kept, regions=regions, bits=bits, device=dscene.device)
+    chunks = converted_region_chunks(points[None], chunk_vertices(kept, distinct=False), regions=regions, bits=bits,
+                                     device=dscene.device)
     per_w_map, count = rasterize_cascades(clipped, texel_size=np.ones((1, 2)), origin=np.zeros((1, 2), np.int64),
                                           resolution=cascade.resolution, bits=bits, regions=regions, chunks=chunks,
                                           points=points[None], vertex_depth=per_w[None], caster_slope=caster_slope,

@@ -28,8 +28,8 @@ from csmlab.frame import ShadowMaps
 from csmlab.cascades.warp import warped_texels
 from csmlab.kernels.bias import BiasSettings
 from csmlab.kernels.engine import warped_vertices, window_receivers, window_vertices
-from csmlab.kernels.raster import (converted_region_chunks, light_space_mesh, rasterize_cascades, region_chunks,
-                                  whole_map_regions)
+from csmlab.kernels.raster import (chunk_vertices, converted_region_chunks, light_space_mesh, rasterize_cascades,
+                                  region_chunks, whole_map_regions)
 from csmlab.texels import fixed_point_coordinates, receiver_lookup, vertex_depth, window_boxes
 from tests.locations import ROOT
 
@@ -264,7 +264,7 @@ def test_chunks_of_converted_vertices_leave_out_no_triangle_that_covers_a_region
     unit = 2.0**8
     points = np.stack([2 * (np.rint(mesh.xy / (texel[c] / unit)).astype(np.int64) - origin[c]) for c in range(2)])
     how = dict(texel_size=texel, origin=origin, resolution=64, bits=8, regions=regions, points=points, device=device)
-    chunks = converted_region_chunks(points, mesh.triangles, regions=regions, bits=8, device=device)
+    chunks = converted_region_chunks(points, mesh.chunk_vertices, regions=regions, bits=8, device=device)
     every = rasterize_cascades(mesh, **how)
     chosen = rasterize_cascades(mesh, chunks=chunks, **how)
     assert len(chunks) < len(regions) * (-(-mesh.triangles.shape[0] // 32))
@@ -273,6 +273,25 @@ def test_chunks_of_converted_vertices_leave_out_no_triangle_that_covers_a_region
     converted = rasterize_cascades(mesh, texel_size=texel, origin=origin, resolution=64, bits=8, regions=regions,
                                    device=device)
     assert _same_bits(converted[0], every[0])
+
+
+def test_chunks_chosen_by_their_distinct_vertices_are_those_chosen_by_their_corners(device):
+    """A mesh whose triangles share vertices (a grid): each chunk's rectangle over its distinct vertices is the one over
+    its triangles' corners, so :func:`converted_region_chunks` keeps the same (region, chunk) rows."""
+    corner = np.arange(40)[:, None] * 41 + np.arange(40)[None, :]
+    quads = np.stack([corner, corner + 1, corner + 41, corner + 42], axis=-1).reshape(-1, 4)
+    triangles = np.concatenate([quads[:, [0, 1, 2]], quads[:, [1, 3, 2]]], axis=1).reshape(-1, 3)
+    rng = np.random.default_rng(13)
+    xy = np.stack(np.meshgrid(np.arange(41.0), np.arange(41.0)), axis=-1).reshape(-1, 2) + rng.normal(0, 0.3, (1681, 2))
+    mesh = light_space_mesh(xy, np.zeros(len(xy)), triangles)
+    points = np.stack([2 * (np.rint(mesh.xy / (size / 2.0**8)).astype(np.int64) - 40) for size in (0.25, 0.7)])
+    regions = np.array([[0, 0, 64, 0, 64], [0, 64, 160, 30, 90], [1, 10, 50, 0, 64]], dtype=np.int32)
+    distinct = converted_region_chunks(points, mesh.chunk_vertices, regions=regions, bits=8, device=device)
+    corners = converted_region_chunks(points, chunk_vertices(mesh.triangles, distinct=False), regions=regions, bits=8,
+                                      device=device)
+    assert mesh.chunk_vertices.vertices.size < mesh.triangles.size / 2
+    np.testing.assert_array_equal(distinct, corners)
+    assert 0 < len(distinct) < len(regions) * (-(-len(triangles) // 32))
 
 
 def test_a_near_cut_drops_exactly_the_triangles_wholly_nearer_than_it(device):

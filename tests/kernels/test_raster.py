@@ -510,6 +510,27 @@ def test_chunk_rectangles_bound_their_triangles_and_the_last_chunk_only_its_own(
     assert all(len(a) == 0 for a in triangle_bounds(xy[:0], np.zeros((0, 3), int)).chunks)
 
 
+def test_chunk_vertices_list_each_chunks_corners_once_and_every_corner_in_order_when_not_distinct():
+    from csmlab.kernels.raster import CHUNK_BITS, chunk_vertices
+
+    size = 1 << CHUNK_BITS
+    # A 9 × 9 grid of quads (162 triangles sharing vertices, the last chunk shorter), listed row by row.
+    corner = np.arange(9)[:, None] * 10 + np.arange(9)[None, :]
+    quads = np.stack([corner, corner + 1, corner + 10, corner + 11], axis=-1).reshape(-1, 4)
+    triangles = np.concatenate([quads[:, [0, 1, 2]], quads[:, [1, 3, 2]]], axis=1).reshape(-1, 3)
+    listed = chunk_vertices(triangles)
+    assert listed.starts.size == -(-len(triangles) // size) + 1 and listed.starts[0] == 0
+    for k in range(listed.starts.size - 1):
+        mine = listed.vertices[listed.starts[k]:listed.starts[k + 1]]
+        assert len(set(mine.tolist())) == len(mine)
+        assert set(mine.tolist()) == set(triangles[k * size:(k + 1) * size].ravel().tolist())
+    assert listed.vertices.size < triangles.size / 2
+    every = chunk_vertices(triangles, distinct=False)
+    np.testing.assert_array_equal(every.vertices, triangles.ravel())
+    np.testing.assert_array_equal(every.starts, np.minimum(np.arange(listed.starts.size) * 3 * size, triangles.size))
+    assert chunk_vertices(np.zeros((0, 3), int)).starts.tolist() == [0]
+
+
 @pytest.mark.parametrize("threads", [1, 2, 3])
 def test_the_vertex_pass_is_twice_the_host_fixed_point(threads, device):
     from csmlab.kernels.raster import fixed_point_vertices

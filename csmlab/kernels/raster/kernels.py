@@ -842,25 +842,25 @@ def rasterize_chunks_kernel(
 @wp.kernel
 def chunk_rectangles_kernel(
     points: wp.array2d(dtype=vec2l),
-    triangles: wp.array2d(dtype=wp.int32),
-    chunk_bits: int,
+    starts: wp.array(dtype=wp.int32),
+    vertices: wp.array(dtype=wp.int32),
     lo: wp.array2d(dtype=vec2l),
     hi: wp.array2d(dtype=vec2l),
 ):
-    """``lo[c, k]``, ``hi[c, k]``: the rectangle of chunk k's vertices in cascade c's doubled fixed point ``points[c]``.
+    """``lo[c, k]``, ``hi[c, k]``: the rectangle of chunk k's vertices ``vertices[starts[k]:starts[k + 1]]``
+    (:class:`~csmlab.kernels.raster.mesh.ChunkVertices`, none empty) in cascade c's doubled fixed point ``points[c]``.
 
-    A thread per cascade and chunk (``2**chunk_bits`` consecutive triangles, the last one shorter).
+    A thread per cascade and chunk.
     """
     c, k = wp.tid()
-    t = k << chunk_bits
-    end = wp.min(t + (1 << chunk_bits), triangles.shape[0])
-    low = points[c, triangles[t, 0]]
+    t = starts[k]
+    end = starts[k + 1]
+    low = points[c, vertices[t]]
     high = low
     while t < end:
-        for corner in range(3):
-            p = points[c, triangles[t, corner]]
-            low = vec2l(wp.min(low[0], p[0]), wp.min(low[1], p[1]))
-            high = vec2l(wp.max(high[0], p[0]), wp.max(high[1], p[1]))
+        p = points[c, vertices[t]]
+        low = vec2l(wp.min(low[0], p[0]), wp.min(low[1], p[1]))
+        high = vec2l(wp.max(high[0], p[0]), wp.max(high[1], p[1]))
         t += 1
     lo[c, k] = low
     hi[c, k] = high

@@ -11,7 +11,8 @@ from functools import cached_property
 
 import numpy as np
 
-__all__ = ["CHUNK_BITS", "LightSpaceMesh", "TriangleBounds", "light_space_mesh", "triangle_bounds", "z_ordered"]
+__all__ = ["CHUNK_BITS", "ChunkVertices", "LightSpaceMesh", "TriangleBounds", "chunk_vertices", "light_space_mesh",
+           "triangle_bounds", "z_ordered"]
 
 CHUNK_BITS = 5
 """Triangles are culled in chunks of ``2**CHUNK_BITS`` consecutive ones
@@ -58,6 +59,49 @@ class TriangleBounds:
         """
         lo_x, lo_y, hi_x, hi_y = self.chunks
         return int(len(lo_x) > 0 and np.median(hi_y - lo_y) < np.median(hi_x - lo_x))
+
+
+@dataclass(frozen=True)
+class ChunkVertices:
+    """The vertices each chunk of triangles (:data:`CHUNK_BITS`) uses: chunk k's are
+    ``vertices[starts[k]:starts[k + 1]]``.
+
+    Attributes
+    ----------
+    starts : ndarray, shape (K + 1,), int32
+        Offsets into ``vertices``, K = ⌈T / 2**CHUNK_BITS⌉.
+    vertices : ndarray, shape (N,), int32
+        Vertex indices, chunk after chunk.
+    """
+
+    starts: np.ndarray
+    vertices: np.ndarray
+
+
+def chunk_vertices(triangles, *, distinct: bool = True) -> ChunkVertices:
+    """The vertices of each chunk of ``triangles`` ``(T, 3)``: each once (``distinct``), or every corner in order.
+
+    A chunk's rectangle in any space is its vertices' (:func:`csmlab.kernels.raster.converted_region_chunks`):
+    on a grid's chunk of 32 triangles, ~30 distinct vertices against 96 corners. Taking them apart sorts each
+    chunk's corners, ~10 ms at ~250k triangles: worth it for a mesh that serves many frames
+    (:attr:`LightSpaceMesh.chunk_vertices`), not for one clipped for a single cascade.
+    """
+    corners = np.ascontiguousarray(triangles, dtype=np.int32).reshape(-1)
+    size = 3 << CHUNK_BITS
+    count = -(-corners.size // size)
+    if not distinct or count == 0:
+        return ChunkVertices(starts=np.minimum(np.arange(count + 1, dtype=np.int64) * size, corners.size)
+                             .astype(np.int32), vertices=corners)
+    # The last chunk is padded with copies of its first corner, which the distinct vertices drop.
+    padded = np.empty(count * size, dtype=np.int32)
+    padded[:corners.size] = corners
+    padded[corners.size:] = corners[(count - 1) * size]
+    ordered = np.sort(padded.reshape(count, size), axis=1)
+    first = np.ones_like(ordered, dtype=bool)
+    first[:, 1:] = ordered[:, 1:] != ordered[:, :-1]
+    starts = np.zeros(count + 1, dtype=np.int32)
+    np.cumsum(first.sum(axis=1), out=starts[1:])
+    return ChunkVertices(starts=starts, vertices=ordered[first])
 
 
 def triangle_bounds(light_xy, triangles) -> TriangleBounds:
@@ -107,6 +151,11 @@ class LightSpaceMesh:
         """The mesh's arrays on each device the depth pass read them on, by device name, filled by that pass
         (:func:`csmlab.kernels.raster.schedule.light_mesh`): uploaded and wrapped once, not once per call."""
         return {}
+
+    @cached_property
+    def chunk_vertices(self) -> ChunkVertices:
+        """The distinct vertices of each chunk of :attr:`triangles` (:func:`chunk_vertices`), taken once per mesh."""
+        return chunk_vertices(self.triangles)
 
     @cached_property
     def bounds(self) -> TriangleBounds:

@@ -18,7 +18,7 @@ from csmlab.kernels.alpha import MaskedMesh, masked_mesh, no_masks
 from csmlab.kernels.raster.kernels import (Boxes, CasterOffset, ChunkRows, FixedPoint, LightMesh, TrianglePaths,
                                            VertexPass, chunk_rectangles_kernel, fixed_point_vertices_kernel,
                                            rasterize_chunks_kernel, rasterize_depth_kernel, triangle_paths, vec2l)
-from csmlab.kernels.raster.mesh import CHUNK_BITS, LightSpaceMesh
+from csmlab.kernels.raster.mesh import CHUNK_BITS, ChunkVertices, LightSpaceMesh
 from csmlab.kernels.raster.regions import empty_regions, whole_map_regions
 from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 
@@ -280,20 +280,24 @@ _FIXED_LIMIT = float(2**50)
 """The clip of global fixed-point values (:mod:`csmlab.texels`)."""
 
 
-def converted_region_chunks(points, triangles, *, regions, bits: int, device: str = "cpu") -> np.ndarray:
+def converted_region_chunks(points, vertices: ChunkVertices, *, regions, bits: int,
+                            device: str = "cpu") -> np.ndarray:
     """(region, chunk) rows whose chunk can cover a texel centre of the region, from converted vertices.
 
     :func:`~csmlab.kernels.raster.regions.region_chunks` for vertices already in each cascade's
     fixed point (an engine's window space, :func:`csmlab.kernels.engine.window_vertices`), where
     light-space metres do not bound them: each chunk's rectangle is taken in the fixed point
-    itself, and a chunk is kept for a region when that rectangle reaches a texel centre of it.
-    Exact, no margin: a chunk left out holds no triangle whose bounding box holds a centre of the region.
+    itself, over the chunk's vertices, and a chunk is kept for a region when that rectangle reaches
+    a texel centre of it. Exact, no margin: a chunk left out holds no triangle whose bounding box
+    holds a centre of the region.
 
     Parameters
     ----------
     points : array_like, shape (C, V, 2), int64
         Every vertex in every cascade's doubled fixed point (texel centres at odd multiples of ``2**bits``).
-    triangles : array_like, shape (T, 3), int32
+    vertices : ChunkVertices
+        The vertices of each chunk of the triangles (:func:`~csmlab.kernels.raster.mesh.chunk_vertices`, or a
+        mesh's :attr:`~csmlab.kernels.raster.mesh.LightSpaceMesh.chunk_vertices`), indices in ``[0, V)``.
     regions : array_like, shape (G, 5), integer
         Rows ``(c, i0, i1, j0, j1)`` (:func:`~csmlab.kernels.raster.regions.whole_map_regions`).
     bits : int
@@ -306,14 +310,16 @@ def converted_region_chunks(points, triangles, *, regions, bits: int, device: st
     """
     device = checked_device(device)
     pts = np.ascontiguousarray(points, dtype=np.int64)
-    tri = np.ascontiguousarray(triangles, dtype=np.int32)
+    starts = np.ascontiguousarray(vertices.starts, dtype=np.int32)
+    listed = np.ascontiguousarray(vertices.vertices, dtype=np.int32)
     areas = np.asarray(regions, dtype=np.int64).reshape(-1, 5)
     unit = 1 << _checked_bits(bits)
-    if pts.ndim != 3 or pts.shape[2] != 2 or tri.ndim != 2 or tri.shape[1] != 3 \
-            or (tri.size and (tri.min() < 0 or tri.max() >= pts.shape[1])):
-        raise ValueError(f"points, triangles: expected shapes (C, V, 2), (T, 3) and indices in [0, V); got "
-                         f"{pts.shape}, {tri.shape}")
-    count = -(-tri.shape[0] // (1 << CHUNK_BITS))
+    if pts.ndim != 3 or pts.shape[2] != 2 or starts.ndim != 1 or starts.size < 1 or listed.ndim != 1 \
+            or starts[0] != 0 or starts[-1] != listed.size or np.any(np.diff(starts) < 1) \
+            or (listed.size and (listed.min() < 0 or listed.max() >= pts.shape[1])):
+        raise ValueError(f"points, vertices: expected shapes (C, V, 2), chunks of at least one vertex each and "
+                         f"indices in [0, V); got {pts.shape}, {starts.size - 1} chunks of {listed.size} vertices")
+    count = starts.size - 1
     rows = [np.zeros((0, 2), np.int32)]
     if count == 0:
         return rows[0]
@@ -322,7 +328,8 @@ def converted_region_chunks(points, triangles, *, regions, bits: int, device: st
     hi = device_empty(shape, vec2l, device)
     wp.launch(chunk_rectangles_kernel, dim=shape,
               inputs=(wp.array(pts, dtype=vec2l, device=device, copy=False),
-                      wp.array(tri, dtype=wp.int32, device=device, copy=False), CHUNK_BITS), outputs=(lo, hi),
+                      wp.array(starts, dtype=wp.int32, device=device, copy=False),
+                      wp.array(listed, dtype=wp.int32, device=device, copy=False)), outputs=(lo, hi),
               device=device)
     low = lo.numpy().view(np.int64).reshape(shape + (2,))
     high = hi.numpy().view(np.int64).reshape(shape + (2,))
