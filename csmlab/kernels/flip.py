@@ -380,14 +380,10 @@ def ycxcz_and_luma(c: wp.vec3):
     return v, v[0] * ONE_OVER_116 + SIXTEEN_OVER_116
 
 
-@wp.kernel
-def ycxcz_kernel(reference: wp.array2d(dtype=wp.vec3), test: wp.array2d(dtype=wp.vec3),
-                 reach: wp.array2d(dtype=wp.uint8), ycxcz: wp.array3d(dtype=wp.vec3), luma: wp.array3d(dtype=float)):
-    # Index 0 the reference, 1 the test; the test's values are the reference's where the pixels agree.
-    i, j = wp.tid()
-    level = int(reach[i, j])
-    if level < READ_BY_ROWS:
-        return
+@wp.func
+def ycxcz_pixel(reference: wp.array2d(dtype=wp.vec3), test: wp.array2d(dtype=wp.vec3), level: int, i: int, j: int,
+                ycxcz: wp.array3d(dtype=wp.vec3), luma: wp.array3d(dtype=float)):
+    """Pixel (i, j) of both images in YCxCz and luma; the test's values are the reference's where the pixels agree."""
     v, y = ycxcz_and_luma(reference[i, j])
     ycxcz[0, i, j] = v
     luma[0, i, j] = y
@@ -395,6 +391,22 @@ def ycxcz_kernel(reference: wp.array2d(dtype=wp.vec3), test: wp.array2d(dtype=wp
         v, y = ycxcz_and_luma(test[i, j])
     ycxcz[1, i, j] = v
     luma[1, i, j] = y
+
+
+@wp.kernel
+def ycxcz_kernel(reference: wp.array2d(dtype=wp.vec3), test: wp.array2d(dtype=wp.vec3),
+                 reach: wp.array2d(dtype=wp.uint8), run: int, ycxcz: wp.array3d(dtype=wp.vec3),
+                 luma: wp.array3d(dtype=float)):
+    # Index 0 the reference, 1 the test. A thread per run of ``run`` pixels of a row: on the CPU the
+    # whole row, so that a thread's start, which copies every argument, serves them all; on a GPU one.
+    i, k = wp.tid()
+    j = k * run
+    end = wp.min(j + run, reach.shape[1])
+    while j < end:
+        level = int(reach[i, j])
+        if level >= READ_BY_ROWS:
+            ycxcz_pixel(reference, test, level, i, j, ycxcz, luma)
+        j += 1
 
 
 @wp.func
@@ -421,6 +433,20 @@ def rows_of(ycxcz: wp.array3d(dtype=wp.vec3), luma: wp.array3d(dtype=float), k: 
     return spatial_sum, feature_sum
 
 
+@wp.func
+def rows_pixel(ycxcz: wp.array3d(dtype=wp.vec3), luma: wp.array3d(dtype=float), level: int, i: int, j: int,
+               spatial: wp.array(dtype=wp.vec4), spatial_radius: int, feature: wp.array(dtype=wp.vec3),
+               feature_radius: int, spatial_rows: wp.array3d(dtype=wp.vec4), feature_rows: wp.array3d(dtype=wp.vec3)):
+    """Both images' row passes at (i, j): the test's is the reference's where its row does not differ."""
+    s, f = rows_of(ycxcz, luma, 0, i, j, spatial, spatial_radius, feature, feature_radius)
+    spatial_rows[0, i, j] = s
+    feature_rows[0, i, j] = f
+    if level >= ROWS_DIFFER:
+        s, f = rows_of(ycxcz, luma, 1, i, j, spatial, spatial_radius, feature, feature_radius)
+    spatial_rows[1, i, j] = s
+    feature_rows[1, i, j] = f
+
+
 @wp.kernel
 def rows_kernel(
     ycxcz: wp.array3d(dtype=wp.vec3),
@@ -430,20 +456,19 @@ def rows_kernel(
     spatial_radius: int,
     feature: wp.array(dtype=wp.vec3),
     feature_radius: int,
+    run: int,
     spatial_rows: wp.array3d(dtype=wp.vec4),
     feature_rows: wp.array3d(dtype=wp.vec3),
 ):
-    i, j = wp.tid()
-    level = int(reach[i, j])
-    if level < READ_BY_COLUMNS:
-        return
-    s, f = rows_of(ycxcz, luma, 0, i, j, spatial, spatial_radius, feature, feature_radius)
-    spatial_rows[0, i, j] = s
-    feature_rows[0, i, j] = f
-    if level >= ROWS_DIFFER:
-        s, f = rows_of(ycxcz, luma, 1, i, j, spatial, spatial_radius, feature, feature_radius)
-    spatial_rows[1, i, j] = s
-    feature_rows[1, i, j] = f
+    i, k = wp.tid()
+    j = k * run
+    end = wp.min(j + run, reach.shape[1])
+    while j < end:
+        level = int(reach[i, j])
+        if level >= READ_BY_COLUMNS:
+            rows_pixel(ycxcz, luma, level, i, j, spatial, spatial_radius, feature, feature_radius, spatial_rows,
+                       feature_rows)
+        j += 1
 
 
 @wp.func
@@ -489,6 +514,18 @@ def summed_lab(spatial_sum: wp.vec4) -> wp.vec3:
     return filtered_lab(spatial_sum[0], spatial_sum[1], spatial_sum[2] + spatial_sum[3])
 
 
+@wp.func
+def error_at(spatial_rows: wp.array3d(dtype=wp.vec4), feature_rows: wp.array3d(dtype=wp.vec3), i: int, j: int,
+             spatial: wp.array(dtype=wp.vec4), spatial_radius: int, feature: wp.array(dtype=wp.vec3),
+             feature_radius: int, cmax: float) -> float:
+    """The ꟻLIP error at (i, j) from both images' row passes."""
+    reference_spatial, test_spatial, reference_feature, test_feature = column_sums(
+        spatial_rows, feature_rows, i, j, spatial, spatial_radius, feature, feature_radius)
+    color_difference = redistributed(libm_pow(hyab(summed_lab(reference_spatial), summed_lab(test_spatial)), QC),
+                                     cmax)
+    return flip_error(color_difference, edge_and_point(reference_feature), edge_and_point(test_feature))
+
+
 @wp.kernel
 def columns_kernel(
     spatial_rows: wp.array3d(dtype=wp.vec4),
@@ -499,18 +536,20 @@ def columns_kernel(
     feature: wp.array(dtype=wp.vec3),
     feature_radius: int,
     cmax: wp.array(dtype=float),
+    run: int,
     error: wp.array2d(dtype=float),
 ):
-    i, j = wp.tid()
-    if int(reach[i, j]) < MAY_DIFFER:
-        # Equal inputs over the whole support: equal filtered values, a HyAB distance of 0, an error of 0.
-        error[i, j] = 0.0
-        return
-    reference_spatial, test_spatial, reference_feature, test_feature = column_sums(
-        spatial_rows, feature_rows, i, j, spatial, spatial_radius, feature, feature_radius)
-    color_difference = redistributed(libm_pow(hyab(summed_lab(reference_spatial), summed_lab(test_spatial)), QC),
-                                     cmax[0])
-    error[i, j] = flip_error(color_difference, edge_and_point(reference_feature), edge_and_point(test_feature))
+    i, k = wp.tid()
+    j = k * run
+    end = wp.min(j + run, reach.shape[1])
+    while j < end:
+        # Below MAY_DIFFER the inputs are equal over the whole support: equal filtered values, a HyAB
+        # distance of 0, an error of 0.
+        e = float(0.0)
+        if int(reach[i, j]) >= MAY_DIFFER:
+            e = error_at(spatial_rows, feature_rows, i, j, spatial, spatial_radius, feature, feature_radius, cmax[0])
+        error[i, j] = e
+        j += 1
 
 
 @functools.lru_cache(maxsize=8)
@@ -592,17 +631,19 @@ def flip_error_map(reference, test, *, pixels_per_degree: float = FLIP_DEFAULT_P
     reach = wp.array(np.ascontiguousarray(reach), dtype=wp.uint8, device=device, copy=False)
     ycxcz = wp.empty(pair, dtype=wp.vec3, device=device)
     luma = wp.empty(pair, dtype=float, device=device)
-    wp.launch(ycxcz_kernel, dim=(height, width),
+    run = width if wp.get_device(device).is_cpu else 1
+    runs = (height, -(-width // run))
+    wp.launch(ycxcz_kernel, dim=runs,
               inputs=(wp.array(reference, dtype=wp.vec3, device=device, copy=False),
-                      wp.array(test, dtype=wp.vec3, device=device, copy=False), reach),
+                      wp.array(test, dtype=wp.vec3, device=device, copy=False), reach, run),
               outputs=(ycxcz, luma), device=device)
     spatial_rows = wp.empty(pair, dtype=wp.vec4, device=device)
     feature_rows = wp.empty(pair, dtype=wp.vec3, device=device)
-    wp.launch(rows_kernel, dim=(height, width),
-              inputs=(ycxcz, luma, reach, spatial, spatial_radius, feature, feature_radius),
+    wp.launch(rows_kernel, dim=runs,
+              inputs=(ycxcz, luma, reach, spatial, spatial_radius, feature, feature_radius, run),
               outputs=(spatial_rows, feature_rows), device=device)
     error = wp.empty((height, width), dtype=float, device=device)
-    wp.launch(columns_kernel, dim=(height, width),
-              inputs=(spatial_rows, feature_rows, reach, spatial, spatial_radius, feature, feature_radius, cmax),
+    wp.launch(columns_kernel, dim=runs,
+              inputs=(spatial_rows, feature_rows, reach, spatial, spatial_radius, feature, feature_radius, cmax, run),
               outputs=(error,), device=device)
     return error.numpy()
