@@ -116,15 +116,10 @@ def vertical_both(previous: wp.array2d(dtype=wp.float64), current: wp.array2d(dt
     return ux, uy, uxx, uyy, uxy
 
 
-@wp.kernel
-def vertical_kernel(previous: wp.array2d(dtype=wp.float64), current: wp.array2d(dtype=wp.float64),
-                    reach: wp.array2d(dtype=wp.uint8), weights: wp.array(dtype=wp.float64), radius: int,
-                    filtered: wp.array3d(dtype=wp.float64)):
-    # Planes: previous, current, previous², current², previous·current.
-    i, j = wp.tid()
-    level = int(reach[i, j])
-    if level < FIRST_PASS:
-        return
+@wp.func
+def vertical_pixel(previous: wp.array2d(dtype=wp.float64), current: wp.array2d(dtype=wp.float64), level: int, i: int,
+                   j: int, weights: wp.array(dtype=wp.float64), radius: int, filtered: wp.array3d(dtype=wp.float64)):
+    """The five planes' axis-0 pass at (i, j), written to ``filtered``."""
     if level >= BOTH_DIFFER:
         ux, uy, uxx, uyy, uxy = vertical_both(previous, current, i, j, weights, radius)
         filtered[0, i, j] = ux
@@ -144,14 +139,26 @@ def vertical_kernel(previous: wp.array2d(dtype=wp.float64), current: wp.array2d(
 
 
 @wp.kernel
-def horizontal_kernel(filtered: wp.array3d(dtype=wp.float64), reach: wp.array2d(dtype=wp.uint8),
-                      weights: wp.array(dtype=wp.float64), radius: int, c1: wp.float64, c2: wp.float64,
-                      ssim: wp.array2d(dtype=wp.float64)):
-    i, j = wp.tid()
-    if int(reach[i, j]) < SECOND_PASS:
-        # Equal images over the whole support: A1 = B1, A2 = B2.
-        ssim[i, j] = wp.float64(1.0)
-        return
+def vertical_kernel(previous: wp.array2d(dtype=wp.float64), current: wp.array2d(dtype=wp.float64),
+                    reach: wp.array2d(dtype=wp.uint8), weights: wp.array(dtype=wp.float64), radius: int, run: int,
+                    filtered: wp.array3d(dtype=wp.float64)):
+    # Planes: previous, current, previous², current², previous·current. A thread per run of ``run``
+    # pixels of a row: on the CPU the whole row, so that a thread's start, which copies every
+    # argument, serves them all; on a GPU one.
+    i, k = wp.tid()
+    j = k * run
+    end = wp.min(j + run, reach.shape[1])
+    while j < end:
+        level = int(reach[i, j])
+        if level >= FIRST_PASS:
+            vertical_pixel(previous, current, level, i, j, weights, radius, filtered)
+        j += 1
+
+
+@wp.func
+def horizontal_pixel(filtered: wp.array3d(dtype=wp.float64), i: int, j: int, weights: wp.array(dtype=wp.float64),
+                     radius: int, c1: wp.float64, c2: wp.float64) -> wp.float64:
+    """The SSIM at (i, j) from the five planes' axis-0 pass."""
     # Axis-1 ``correlate1d`` at (i, j) of the five planes of the first pass, in one walk over the taps.
     columns = filtered.shape[2]
     w = weights[0]
@@ -182,7 +189,24 @@ def horizontal_kernel(filtered: wp.array3d(dtype=wp.float64), reach: wp.array2d(
     b1 = ux * ux + uy * uy + c1
     b2 = vx + vy + c2
     d = b1 * b2
-    ssim[i, j] = (a1 * a2) / d
+    return (a1 * a2) / d
+
+
+@wp.kernel
+def horizontal_kernel(filtered: wp.array3d(dtype=wp.float64), reach: wp.array2d(dtype=wp.uint8),
+                      weights: wp.array(dtype=wp.float64), radius: int, c1: wp.float64, c2: wp.float64, run: int,
+                      ssim: wp.array2d(dtype=wp.float64)):
+    # A thread per run of a row's pixels, as vertical_kernel.
+    i, k = wp.tid()
+    j = k * run
+    end = wp.min(j + run, reach.shape[1])
+    while j < end:
+        # Below SECOND_PASS the images are equal over the whole support: A1 = B1, A2 = B2.
+        value = wp.float64(1.0)
+        if int(reach[i, j]) >= SECOND_PASS:
+            value = horizontal_pixel(filtered, i, j, weights, radius, c1, c2)
+        ssim[i, j] = value
+        j += 1
 
 
 @functools.lru_cache(maxsize=1)
@@ -243,13 +267,16 @@ def ssim_where_changed(previous, current, changed, *, device: str = "cpu") -> np
     reach = wp.array(ssim_reach(changed), dtype=wp.uint8, device=device, copy=False)
     weights = wp.array(_weights(), dtype=wp.float64, device=device)
     filtered = wp.empty((5, height, width), dtype=wp.float64, device=device)
-    wp.launch(vertical_kernel, dim=(height, width),
+    run = width if wp.get_device(device).is_cpu else 1
+    runs = (height, -(-width // run))
+    wp.launch(vertical_kernel, dim=runs,
               inputs=(wp.array(previous, dtype=wp.float64, device=device, copy=False),
-                      wp.array(current, dtype=wp.float64, device=device, copy=False), reach, weights, SSIM_RADIUS),
+                      wp.array(current, dtype=wp.float64, device=device, copy=False), reach, weights, SSIM_RADIUS,
+                      run),
               outputs=(filtered,), device=device)
     ssim = wp.empty((height, width), dtype=wp.float64, device=device)
     c1 = (_K1 * _DATA_RANGE) ** 2
     c2 = (_K2 * _DATA_RANGE) ** 2
-    wp.launch(horizontal_kernel, dim=(height, width), inputs=(filtered, reach, weights, SSIM_RADIUS, c1, c2),
+    wp.launch(horizontal_kernel, dim=runs, inputs=(filtered, reach, weights, SSIM_RADIUS, c1, c2, run),
               outputs=(ssim,), device=device)
     return ssim.numpy()

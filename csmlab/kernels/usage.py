@@ -23,22 +23,11 @@ __all__ = ["looked_up_texels"]
 wp.set_module_options({"fuse_fp": False})
 
 
-@wp.kernel
-def mark_texels_kernel(
-    points: wp.array(dtype=wp.vec3d),
-    cascade: wp.array(dtype=wp.int32),
-    rows: wp.mat22d,
-    rows_z: wp.vec2d,
-    texel_size: wp.array2d(dtype=wp.float64),
-    origin: wp.array2d(dtype=wp.float64),
-    resolution: wp.array(dtype=wp.int32),
-    marked: wp.array3d(dtype=wp.uint32),
-):
-    k = wp.tid()
-    c = cascade[k]
-    if c < 0:
-        return
-    p = points[k]
+@wp.func
+def mark_texel(p: wp.vec3d, c: int, rows: wp.mat22d, rows_z: wp.vec2d, texel_size: wp.array2d(dtype=wp.float64),
+               origin: wp.array2d(dtype=wp.float64), resolution: wp.array(dtype=wp.int32),
+               marked: wp.array3d(dtype=wp.uint32)):
+    """Set the bit of the texel of cascade c that world point ``p`` lies in, if inside the cascade's map."""
     # (x·r_x + z·r_z) + y·r_y per light axis, as csmlab.texels._light_space sums it.
     u = (p[0] * rows[0, 0] + p[2] * rows_z[0]) + p[1] * rows[0, 1]
     v = (p[0] * rows[1, 0] + p[2] * rows_z[1]) + p[1] * rows[1, 1]
@@ -48,6 +37,33 @@ def mark_texels_kernel(
     if i >= wp.float64(0.0) and i < size and j >= wp.float64(0.0) and j < size:
         column = int(i)
         wp.atomic_or(marked, c, int(j), column >> 5, wp.uint32(1) << wp.uint32(column & 31))
+
+
+@wp.kernel
+def mark_texels_kernel(
+    points: wp.array(dtype=wp.vec3d),
+    cascade: wp.array(dtype=wp.int32),
+    rows: wp.mat22d,
+    rows_z: wp.vec2d,
+    texel_size: wp.array2d(dtype=wp.float64),
+    origin: wp.array2d(dtype=wp.float64),
+    resolution: wp.array(dtype=wp.int32),
+    run: int,
+    marked: wp.array3d(dtype=wp.uint32),
+):
+    # A thread per run of ``run`` points: on the CPU many, so that a thread's start, which copies every
+    # argument, serves them all; on a GPU one.
+    k = wp.tid() * run
+    end = wp.min(k + run, points.shape[0])
+    while k < end:
+        c = cascade[k]
+        if c >= 0:
+            mark_texel(points[k], c, rows, rows_z, texel_size, origin, resolution, marked)
+        k += 1
+
+
+_POINT_RUN = 256
+"""Points a CPU thread of :func:`mark_texels_kernel` marks (a GPU thread one)."""
 
 
 def looked_up_texels(points, cascade, *, basis, texel_size, origin, resolution, device: str = "cpu") -> np.ndarray:
@@ -91,13 +107,14 @@ def looked_up_texels(points, cascade, *, basis, texel_size, origin, resolution, 
     largest = int(sides.max())
     marked = wp.zeros((count, largest, -(-largest // 32)), dtype=wp.uint32, device=device)
     if p.shape[0]:
-        wp.launch(mark_texels_kernel, dim=p.shape[0],
+        run = _POINT_RUN if wp.get_device(device).is_cpu else 1
+        wp.launch(mark_texels_kernel, dim=-(-p.shape[0] // run),
                   inputs=(wp.array(p, dtype=wp.vec3d, device=device, copy=False),
                           wp.array(selected, dtype=wp.int32, device=device, copy=False),
                           wp.mat22d(rows[0, 0], rows[0, 1], rows[1, 0], rows[1, 1]), wp.vec2d(rows[0, 2], rows[1, 2]),
                           wp.array(size, dtype=wp.float64, device=device),
                           wp.array(corner, dtype=wp.float64, device=device),
-                          wp.array(sides, dtype=wp.int32, device=device)),
+                          wp.array(sides, dtype=wp.int32, device=device), run),
                   outputs=(marked,), device=device)
     marks = marked.numpy()
     return np.bitwise_count(marks).reshape(count, -1).sum(axis=1, dtype=np.int64)
