@@ -25,10 +25,10 @@ from csmlab.cascades.warp import warped_texels
 from csmlab.filters import clipmap_radius, filter_inputs, lookup_shadow, noise_frame
 from csmlab.frame import Frame, GBuffer, ShadowMaps, View
 from csmlab.geometry import light_basis, normalized
-from csmlab.kernels.engine import warped_vertices, window_vertices
+from csmlab.kernels.engine import warped_vertices, window_chunk_vertices, window_vertices
 from csmlab.kernels.raster import (BANDS_PER_THREAD, LightSpaceMesh, banded_regions, chunk_vertices,
-                                  converted_region_chunks, light_space_mesh, rasterize_cascades, rasterize_depth,
-                                  region_chunks, whole_map_regions, z_ordered)
+                                  chunks_meeting_regions, converted_region_chunks, light_space_mesh,
+                                  rasterize_cascades, rasterize_depth, region_chunks, whole_map_regions, z_ordered)
 from csmlab.kernels.alpha import masked_mesh
 from csmlab.kernels.reference import hard_shadow
 from csmlab.kernels.threads import checked_threads
@@ -41,7 +41,8 @@ from csmlab.scrolling import RasterizedMaps, StoredMaps, reused_cascades, scroll
 from csmlab.settings import ShadowSettings
 from csmlab.storage import DEPTH_QUANTIZATION_METHODS, polygon_offset_unit, stored_depth
 from csmlab.texels import (WINDOW_BOX_ROWS, fixed_point_coordinates, fixed_point_origin, light_depth,
-                           light_plane_coordinates, uploaded_boxes, uses_global_grid, vertex_depth, window_box_inputs)
+                           light_plane_coordinates, uploaded_boxes, uses_global_grid, vertex_depth, window_box_inputs,
+                           window_rectangles)
 
 __all__ = ["DeviceScene", "caster_offsets", "caster_scene", "clipped_casters", "clipped_triangles", "host_depth_maps",
            "lookup_shadow", "prepare_scene", "render_frame", "render_shadow", "render_view", "shadow_maps",
@@ -83,6 +84,9 @@ class DeviceScene:
     ordered_vertices : dict
         Beside each mesh of ``light_space``, under the same key: the scene's float64 world vertices
         ``(V, 3)`` in that mesh's vertex order (what an engine's float32 pipeline transforms).
+    chunk_boxes : dict
+        Beside those, once an engine's pipeline has read them: the world box ``(lo, hi)`` ``(K, 3)`` of
+        each chunk of the mesh's triangles (:func:`_chunk_world_boxes`).
     casters : dict
         The scene as a depth pass casts it under a ``[shadow] blend_casters`` rule that changes its
         blended triangles (:func:`caster_scene`), uploaded once per rule, by rule.
@@ -101,6 +105,7 @@ class DeviceScene:
     light_space: dict = field(default_factory=dict, compare=False, repr=False)
     threads: int = 1
     ordered_vertices: dict = field(default_factory=dict, compare=False, repr=False)
+    chunk_boxes: dict = field(default_factory=dict, compare=False, repr=False)
     casters: dict = field(default_factory=dict, compare=False, repr=False)
     albedo_table: np.ndarray | None = field(default=None, compare=False, repr=False)
 
@@ -236,9 +241,22 @@ def _scene_in_light_space(dscene: DeviceScene, cascades: CascadeSet, cull: str =
         while dscene.light_space and (len(dscene.light_space) >= LIGHT_SPACE_MESHES or kept > LIGHT_SPACE_BYTES):
             dropped = next(iter(dscene.light_space))
             kept -= _light_space_bytes(dscene.light_space.pop(dropped), dscene.ordered_vertices.pop(dropped, None))
+            dscene.chunk_boxes.pop(dropped, None)
         dscene.light_space[key] = mesh
         dscene.ordered_vertices[key] = ordered
     return dscene.light_space[key]
+
+
+def _chunk_world_boxes(dscene: DeviceScene, key: tuple, mesh: LightSpaceMesh) -> tuple[np.ndarray, np.ndarray]:
+    """The world box ``(lo, hi)`` ``(K, 3)`` float64 of each chunk of ``mesh`` (the mesh of ``dscene.light_space`` under
+    ``key``), over its vertices ``dscene.ordered_vertices[key]``; made once per mesh."""
+    if key not in dscene.chunk_boxes:
+        listed = mesh.chunk_vertices
+        corners = dscene.ordered_vertices[key][listed.vertices]
+        starts = listed.starts[:-1]
+        dscene.chunk_boxes[key] = (np.minimum.reduceat(corners, starts, axis=0),
+                                   np.maximum.reduceat(corners, starts, axis=0))
+    return dscene.chunk_boxes[key]
 
 
 def _light_space_bytes(mesh: LightSpaceMesh, ordered: np.ndarray | None) -> int:
@@ -478,8 +496,12 @@ def _window_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
     boxes of ``inputs``, :func:`csmlab.texels.window_box_inputs`) where the pipeline is not the global
     grid's (``inputs`` None), then rasterized whole map by map, cut into bands for the threads, only
     the chunks that reach a region (:func:`csmlab.kernels.raster.converted_region_chunks`, or
-    :func:`~csmlab.kernels.raster.region_chunks` on the global grid). The same maps and counts, bit
-    for bit, as the host's :func:`host_depth_maps` (the tests' oracle); no scrolling (the float32
+    :func:`~csmlab.kernels.raster.region_chunks` on the global grid). A float32 pipeline takes into a
+    cascade only the vertices of the chunks whose world box, bounded in window space with the
+    pipeline's roundings (:func:`csmlab.texels.window_rectangles`), may reach one of its regions
+    (:func:`csmlab.kernels.engine.window_chunk_vertices`, which finds their exact rectangles too):
+    on the terrain, 5–40 % of the chunks a cascade, the others never read. The same maps and counts,
+    bit for bit, as the host's :func:`host_depth_maps` (the tests' oracle); no scrolling (the float32
     roundings change as a box moves).
     """
     bits = settings.subtexel_bits
@@ -498,6 +520,21 @@ def _window_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
     if inputs is None:
         chunks = region_chunks(mesh.bounds, texel_size=texel_size, origin=np.stack([c.origin for c in boxes]),
                                regions=regions)
+    elif inputs["mode"] == "float32":
+        key = (cascades.basis.tobytes(), cascades.zref, settings.cull)
+        ordered = dscene.ordered_vertices[key]
+        sliced = {name: value[first:last] if name in WINDOW_BOX_ROWS else value for name, value in inputs.items()}
+        # Only the chunks a bound of their window rectangle lets reach a region, and their vertices, go through
+        # the float32 pipeline; their exact rectangles then choose among them.
+        reaching = chunks_meeting_regions(*window_rectangles(sliced, *_chunk_world_boxes(dscene, key, mesh)),
+                                          regions=regions, bits=bits)
+        alive = np.zeros((len(boxes), mesh.chunk_vertices.starts.size - 1), dtype=bool)
+        alive[regions[reaching[:, 0], 0], reaching[:, 1]] = True
+        pairs = np.argwhere(alive)
+        how["points"], how["vertex_depth"], low, high = window_chunk_vertices(
+            uploaded_boxes(sliced, device=dscene.device), positions=ordered, vertices=mesh.chunk_vertices,
+            pairs=pairs, threads=dscene.threads, device=dscene.device)
+        chunks = chunks_meeting_regions(low, high, regions=regions, bits=bits)
     else:
         key = (cascades.basis.tobytes(), cascades.zref, settings.cull)
         how["points"], how["vertex_depth"] = window_vertices(uploaded_boxes(inputs, first=first, last=last,

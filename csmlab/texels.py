@@ -38,7 +38,8 @@ if TYPE_CHECKING:
 __all__ = ["PRECISION_METHODS", "Precision", "VERTEX_SNAPS", "WINDOW_BOX_ROWS", "engine_matrix", "engine_origin",
            "engine_positions", "fixed_point_coordinates", "fixed_point_origin", "light_depth",
            "light_plane_coordinates", "receiver_lookup", "texel_coordinates", "uploaded_boxes", "uses_global_grid",
-           "vertex_depth", "window_box_inputs", "window_boxes", "window_depth_metres", "window_positions"]
+           "vertex_depth", "window_box_inputs", "window_boxes", "window_depth_metres", "window_positions",
+           "window_rectangles"]
 
 
 @dataclass(frozen=True)
@@ -273,6 +274,61 @@ def window_positions(matrix: np.ndarray, positions: np.ndarray, *, resolution: i
     half = np.float32(0.5 * resolution)
     clip[..., :2] = clip[..., :2] * half + half
     return clip
+
+
+_UNIT_ROUNDOFF_32 = 2.0**-24
+"""Float32's unit roundoff u: an operation's result is the exact one times (1 + δ), |δ| ≤ u."""
+
+
+def window_rectangles(inputs: dict, lo, hi) -> tuple[np.ndarray, np.ndarray]:
+    """Rectangles in each cascade's doubled window fixed point that hold every point of K world boxes, the float32
+    pipeline's roundings included.
+
+    A point of box k, taken through cascade c's float32 pipeline as :func:`fixed_point_coordinates`
+    takes it (:func:`engine_positions`, :func:`window_positions`, ``2**bits``, rounded) and doubled,
+    lies in ``[low[c, k], high[c, k]]``. The exact window position is affine in the point, so the
+    box's corners bound it; each of the pipeline's float32 operations moves it by at most u of its
+    magnitude, which over a clip row's four terms and the viewport's two operations is within
+    ``R/2 · u · (7 S + 2)`` texels, S the sum of the row's terms' magnitudes over the box (the
+    float32 position's rounding, then γ₄ of the products and sums); the rectangles are wider by
+    twice that, and a fixed-point step for the rounding to it.
+
+    Parameters
+    ----------
+    inputs : dict
+        :func:`window_box_inputs` of an engine's float32 precision (``mode = "float32"``), C cascades.
+    lo, hi : array_like, shape (K, 3), float64
+        Each box's lowest and highest corner, world metres.
+
+    Returns
+    -------
+    low, high : ndarray, shape (C, K, 2), int64
+        Doubled fixed point, ``2**bits`` steps a texel from the box's minimum corner.
+    """
+    if inputs.get("mode") != "float32":
+        raise ValueError(f"inputs: expected an engine's float32 pipeline (mode 'float32'), got {inputs.get('mode')!r}")
+    m = np.asarray(inputs["matrices"], dtype=np.float64)[:, :2]
+    origin = np.asarray(inputs["origin"], dtype=np.float64)
+    low_corner = np.asarray(lo, dtype=np.float64)
+    high_corner = np.asarray(hi, dtype=np.float64)
+    # Each box as its centre and half extent from the origin; rows (c, x or y) as columns of one product.
+    centre = 0.5 * (low_corner + high_corner) - origin
+    extent = 0.5 * (high_corner - low_corner)
+    rows = m[..., :3].reshape(-1, 3).T
+    offset = m[..., 3].reshape(1, -1)
+    middle = centre @ rows + offset
+    spread = extent @ np.abs(rows)
+    # The magnitude of a row's terms over the box, |m|·(|centre| + extent) + |m3|, the largest of |m|·|p − o|.
+    size = (np.abs(centre) + extent) @ np.abs(rows) + np.abs(offset)
+    half = np.repeat(0.5 * np.asarray(inputs["resolution"], dtype=np.float64), 2)[None]
+    scale = float(2 ** int(inputs["bits"]))
+    reach = scale * half * _UNIT_ROUNDOFF_32 * (16.0 * size + 4.0) + 1.0
+    low = np.clip(((middle - spread) * half + half) * scale - reach, -_FIXED_LIMIT, _FIXED_LIMIT)
+    high = np.clip(((middle + spread) * half + half) * scale + reach, -_FIXED_LIMIT, _FIXED_LIMIT)
+    # (K, C·2) columns → (C, K, 2).
+    shape = (low.shape[0], m.shape[0], 2)
+    return ((2 * np.floor(low).astype(np.int64)).reshape(shape).transpose(1, 0, 2),
+            (2 * np.ceil(high).astype(np.int64)).reshape(shape).transpose(1, 0, 2))
 
 
 def window_depth_metres(cascades: CascadeSet, index: int, depth) -> np.ndarray:

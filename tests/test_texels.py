@@ -193,3 +193,38 @@ def test_window_snapping_equals_world_snapping_on_whole_texel_boxes_and_follows_
     window = fixed_point_coordinates(fractional, 0, points, bits=bits, snap="window")
     assert np.array_equal(window, np.rint(texel_coordinates(fractional, 0, points) * 2**bits).astype(np.int64))
     assert not np.array_equal(window, fixed_point_coordinates(fractional, 0, points, bits=bits))
+
+
+@pytest.mark.parametrize("precision", ["float32", "camera_relative"])
+@pytest.mark.parametrize("offset", [0.0, 1e5, 1e6])
+def test_window_rectangles_hold_every_point_of_their_boxes_through_the_float32_pipeline(offset, precision):
+    """Points of small world boxes in and around a cascade, at the origin and 10⁵ or 10⁶ m from it, taken through the
+    float32 pipeline and snapped (the host's fixed_point_coordinates), doubled, lie in their box's rectangle; the
+    rectangle is the points' own span but for the float32 roundings' room, a few steps at the origin."""
+    from csmlab.texels import window_box_inputs, window_rectangles
+
+    rng = np.random.default_rng(17)
+    _, cs, move = _shifted_pair(offset)
+    bits = 8
+    inputs = window_box_inputs(cs, bits=bits, precision=precision)
+    centres = move + rng.uniform(-4.0, 4.0, (60, 3))
+    lo = centres - rng.uniform(0.0, 0.3, (60, 3))
+    hi = centres + rng.uniform(0.0, 0.3, (60, 3))
+    hi[:5] = lo[:5]  # boxes of one point
+    low, high = window_rectangles(inputs, lo, hi)
+    assert low.shape == high.shape == (1, 60, 2)
+    corners = ((np.arange(8)[:, None] >> np.arange(3)) & 1).astype(bool)
+    for k in range(60):
+        points = np.concatenate([np.where(corners, hi[k], lo[k]), rng.uniform(lo[k], hi[k], (200, 3))])
+        doubled = 2 * fixed_point_coordinates(cs, 0, points, bits=bits, precision=precision)
+        assert np.all(doubled >= low[0, k]) and np.all(doubled <= high[0, k])
+        if offset == 0.0 or precision == "camera_relative":
+            assert np.all(high[0, k] - low[0, k] <= doubled.max(axis=0) - doubled.min(axis=0) + 2 * 2 ** bits)
+
+
+def test_window_rectangles_need_the_float32_pipelines_inputs():
+    from csmlab.texels import window_box_inputs, window_rectangles
+
+    inputs = window_box_inputs(cascade_set(origins=[(0.0, 0.0)]), bits=8, precision="float64", snap="window")
+    with pytest.raises(ValueError, match="float32"):
+        window_rectangles(inputs, np.zeros((1, 3)), np.ones((1, 3)))

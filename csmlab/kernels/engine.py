@@ -9,6 +9,8 @@ coordinates (``vertex_snap = "window"``) is the same pass with float64 light-spa
 
 - :func:`window_vertices`: every vertex in every cascade's doubled fixed point and its depth in
   metres, what :func:`csmlab.kernels.raster.rasterize_cascades` takes as converted vertices;
+  :func:`window_chunk_vertices` the same for the vertices of chosen chunks of triangles only, with
+  the chunks' rectangles;
 - :func:`window_receivers`: receivers' fixed point, biased depth and receiver-plane slope, what
   :func:`csmlab.kernels.shadow.shadow_lookup` reads;
 - :func:`warped_vertices`, :func:`warped_receivers`: vertices and receivers through a
@@ -29,7 +31,7 @@ from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 from csmlab.lookup_choices import NORMAL_NONE, NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN
 
 __all__ = ["EngineBoxes", "EngineReceivers", "engine_boxes", "engine_receivers", "warped_receivers", "warped_vertices",
-           "window_receivers", "window_vertices"]
+           "window_chunk_vertices", "window_receivers", "window_vertices"]
 
 # Products and sums rounded one by one on both devices, as NumPy rounds them.
 wp.set_module_options({"fuse_fp": False})
@@ -162,6 +164,58 @@ def float32_position(p: wp.vec3d, origin: wp.vec3d) -> wp.vec3:
     return wp.vec3(wp.float32(p[0] - origin[0]), wp.float32(p[1] - origin[1]), wp.float32(p[2] - origin[2]))
 
 
+@wp.func
+def float32_window_vertex(position: wp.vec3d, origin: wp.vec3d, m: mat34f, half: wp.float32, near: wp.float64,
+                          span: wp.float64, scale: wp.float32, limit: wp.float64):
+    """A world vertex through a cascade's float32 pipeline: its doubled fixed point and its stored depth in metres."""
+    p = float32_position(position, origin)
+    x = window_fixed(clip_row(m, 0, p[0], p[1], p[2]), half, scale, limit)
+    y = window_fixed(clip_row(m, 1, p[0], p[1], p[2]), half, scale, limit)
+    return vec2l(wp.int64(2) * x, wp.int64(2) * y), near + wp.float64(clip_row(m, 2, p[0], p[1], p[2])) * span
+
+
+@wp.kernel
+def window_chunks_kernel(
+    positions: wp.array(dtype=wp.vec3d),
+    boxes: EngineBoxes,
+    starts: wp.array(dtype=wp.int32),
+    vertices: wp.array(dtype=wp.int32),
+    pairs: wp.array2d(dtype=wp.int32),
+    points: wp.array2d(dtype=vec2l),
+    depth: wp.array2d(dtype=wp.float64),
+    lo: wp.array2d(dtype=vec2l),
+    hi: wp.array2d(dtype=vec2l),
+):
+    """Pair n = (cascade c, chunk k): the chunk's vertices through cascade c's float32 pipeline into ``points[c]`` and
+    ``depth[c]``, and their rectangle into ``lo[c, k]``, ``hi[c, k]``; a thread per pair.
+
+    A vertex of several chunks is written by each of their threads, with the same values.
+    """
+    n = wp.tid()
+    c = pairs[n, 0]
+    k = pairs[n, 1]
+    m = boxes.matrix[c]
+    half = boxes.half[c]
+    near = boxes.depth_near[c]
+    span = boxes.depth_span[c]
+    t = starts[k]
+    end = starts[k + 1]
+    # Every chunk has a vertex: the rectangle starts at the largest and smallest values and shrinks to them.
+    big = wp.int64(9223372036854775807)
+    low = vec2l(big, big)
+    high = vec2l(-big, -big)
+    while t < end:
+        v = vertices[t]
+        point, z = float32_window_vertex(positions[v], boxes.origin, m, half, near, span, boxes.scale, boxes.limit)
+        points[c, v] = point
+        depth[c, v] = z
+        low = vec2l(wp.min(low[0], point[0]), wp.min(low[1], point[1]))
+        high = vec2l(wp.max(high[0], point[0]), wp.max(high[1], point[1]))
+        t += 1
+    lo[c, k] = low
+    hi[c, k] = high
+
+
 @wp.kernel
 def window_vertices_kernel(
     positions: wp.array(dtype=wp.vec3d),
@@ -188,11 +242,9 @@ def window_vertices_kernel(
         near = boxes.depth_near[c]
         span = boxes.depth_span[c]
         while v < end:
-            p = float32_position(positions[v], boxes.origin)
-            x = window_fixed(clip_row(m, 0, p[0], p[1], p[2]), half, scale, limit)
-            y = window_fixed(clip_row(m, 1, p[0], p[1], p[2]), half, scale, limit)
-            points[c, v] = vec2l(two * x, two * y)
-            depth[c, v] = near + wp.float64(clip_row(m, 2, p[0], p[1], p[2])) * span
+            point, z = float32_window_vertex(positions[v], boxes.origin, m, half, near, span, scale, limit)
+            points[c, v] = point
+            depth[c, v] = z
             v += 1
     else:
         size = boxes.texel_size[c]
@@ -269,6 +321,76 @@ def window_vertices(boxes: EngineBoxes, *, positions=None, light_xy=None, light_
         with LaunchPool(parts, kernels=(window_vertices_kernel,), device=device) as pool:
             pool.run([lambda lo=lo, hi=hi: launch(lo, hi) for lo, hi in split_range(vertices, pool.threads)])
     return points.numpy().view(np.int64).reshape(count, vertices, 2), depth.numpy()
+
+
+def window_chunk_vertices(boxes: EngineBoxes, *, positions, vertices, pairs, threads: int = 1,
+                          device: str = "cpu") -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The vertices of chosen chunks in chosen cascades' window space, and the chunks' rectangles there.
+
+    :func:`window_vertices` of an engine's float32 pipeline for the vertices a depth pass will read
+    only: those of the chunks of triangles that may reach a cascade's map (chosen on the host from a
+    bound, :func:`csmlab.texels.window_rectangles`), with each chunk's exact rectangle
+    (:func:`csmlab.kernels.raster.converted_region_chunks`'s) found in the same pass.
+
+    Parameters
+    ----------
+    boxes : EngineBoxes
+        :func:`engine_boxes` in float32 mode, C cascades, on ``device``.
+    positions : array_like, shape (V, 3), float64
+        World positions, metres.
+    vertices : ChunkVertices
+        The vertices of each of the K chunks (:func:`csmlab.kernels.raster.mesh.chunk_vertices`).
+    pairs : array_like, shape (P, 2), integer
+        ``(cascade, chunk)`` rows to convert, each once.
+    threads : int
+        CPU launches run at once, each over its own pairs. Ignored on CUDA.
+    device : str
+
+    Returns
+    -------
+    points : ndarray, shape (C, V, 2), int64
+        :func:`window_vertices`'s at the vertices of the pairs' chunks in their cascades, 0 elsewhere.
+    depth : ndarray, shape (C, V), float64
+        Likewise its depths, 0 elsewhere.
+    low, high : ndarray, shape (C, K, 2), int64
+        Each pair's chunk's rectangle of ``points``; an empty one (low above high) for the other pairs.
+    """
+    device = checked_device(device)
+    if boxes.mode != WINDOW_FLOAT32:
+        raise ValueError("boxes: expected an engine's float32 pipeline (engine_boxes(mode='float32'))")
+    p = np.ascontiguousarray(positions, dtype=np.float64)
+    starts = np.ascontiguousarray(vertices.starts, dtype=np.int32)
+    listed = np.ascontiguousarray(vertices.vertices, dtype=np.int32)
+    rows = np.ascontiguousarray(pairs, dtype=np.int32).reshape(-1, 2)
+    count, chunks = boxes.matrix.shape[0], starts.size - 1
+    if p.ndim != 2 or p.shape[1] != 3 or (listed.size and (listed.min() < 0 or listed.max() >= p.shape[0])) \
+            or (rows.size and (rows[:, 0].min() < 0 or rows[:, 0].max() >= count or rows[:, 1].min() < 0
+                               or rows[:, 1].max() >= chunks)):
+        raise ValueError(f"positions, vertices, pairs: expected (V, 3) positions, vertex indices in [0, V) and pairs "
+                         f"of a cascade in [0, {count}) and a chunk in [0, {chunks}); got {p.shape}, {rows.shape}")
+    # Zeros where no pair writes: within every bound the depth pass checks, and never read by it.
+    points = np.zeros((count, p.shape[0], 2), dtype=np.int64)
+    depth = np.zeros((count, p.shape[0]), dtype=np.float64)
+    low = np.full((count, chunks, 2), np.iinfo(np.int64).max, dtype=np.int64)
+    high = np.full((count, chunks, 2), np.iinfo(np.int64).min, dtype=np.int64)
+    if rows.shape[0]:
+        arrays = [wp.array(a, dtype=t, device=device, copy=False)
+                  for a, t in ((points, vec2l), (depth, wp.float64), (low, vec2l), (high, vec2l))]
+        inputs = (wp.array(p, dtype=wp.vec3d, device=device, copy=False), boxes,
+                  wp.array(starts, dtype=wp.int32, device=device, copy=False),
+                  wp.array(listed, dtype=wp.int32, device=device, copy=False))
+
+        def launch(lo: int, hi: int) -> None:
+            wp.launch(window_chunks_kernel, dim=hi - lo,
+                      inputs=(*inputs, wp.array(rows[lo:hi], dtype=wp.int32, device=device)), outputs=arrays,
+                      device=device)
+
+        with LaunchPool(checked_threads(threads, device), kernels=(window_chunks_kernel,), device=device) as pool:
+            pool.run([lambda lo=lo, hi=hi: launch(lo, hi) for lo, hi in split_range(rows.shape[0], pool.threads)])
+        if not wp.get_device(device).is_cpu:
+            points, depth, low, high = (a.numpy().reshape(shape) for a, shape in
+                                        zip(arrays, (points.shape, depth.shape, low.shape, high.shape)))
+    return points, depth, low, high
 
 
 @wp.struct

@@ -27,7 +27,7 @@ from csmlab.experiment import build_workload
 from csmlab.frame import ShadowMaps
 from csmlab.cascades.warp import warped_texels
 from csmlab.kernels.bias import BiasSettings
-from csmlab.kernels.engine import warped_vertices, window_receivers, window_vertices
+from csmlab.kernels.engine import warped_vertices, window_chunk_vertices, window_receivers, window_vertices
 from csmlab.kernels.raster import (chunk_vertices, converted_region_chunks, light_space_mesh, rasterize_cascades,
                                   region_chunks, whole_map_regions)
 from csmlab.texels import fixed_point_coordinates, receiver_lookup, vertex_depth, window_boxes
@@ -147,6 +147,37 @@ def test_window_vertices_are_twice_the_hosts_fixed_point_and_its_depth(name, exp
         assert np.array_equal(points[c], 2 * fixed_point_coordinates(cascades, c, vertices, bits=settings.subtexel_bits,
                                                                      **how))
         assert _same_bits(depth[c], vertex_depth(cascades, c, vertices, **how))
+
+
+@pytest.mark.parametrize("name, experiment", [("exact_float32", "far"), ("ue5", "terrain")])
+def test_window_chunk_vertices_are_window_vertices_at_the_pairs_chunks_and_their_rectangles(name, experiment, device,
+                                                                                             request):
+    """Every vertex of a pair's chunk is :func:`window_vertices`'s in the pair's cascade (the rest 0), and each pair's
+    rectangle spans its chunk's points there (the other pairs' are empty), on any split of the pairs over threads."""
+    case = request.getfixturevalue(experiment)
+    settings, _, cascades = _frame(case, name, 1)
+    mesh = render._scene_in_light_space(case.dscene, cascades, settings.cull)
+    positions = case.dscene.ordered_vertices[(cascades.basis.tobytes(), cascades.zref, settings.cull)]
+    boxes = window_boxes(cascades, bits=settings.subtexel_bits, precision=settings.engine_precision,
+                         snap=settings.vertex_snap, rebase_distance=settings.rebase_distance, device=device)
+    every_point, every_depth = window_vertices(boxes, positions=positions, device=device)
+    listed = mesh.chunk_vertices
+    chunks = listed.starts.size - 1
+    rng = np.random.default_rng(3)
+    pairs = np.argwhere(rng.random((len(cascades), chunks)) < 0.3)
+    points, depth, low, high = window_chunk_vertices(boxes, positions=positions, vertices=listed, pairs=pairs,
+                                                     threads=3, device=device)
+    written = np.zeros((len(cascades), len(positions)), dtype=bool)
+    for c, k in pairs:
+        mine = listed.vertices[listed.starts[k]:listed.starts[k + 1]]
+        written[c, mine] = True
+        assert np.array_equal(low[c, k], every_point[c, mine].min(axis=0))
+        assert np.array_equal(high[c, k], every_point[c, mine].max(axis=0))
+    assert np.array_equal(points[written], every_point[written]) and _same_bits(depth[written], every_depth[written])
+    assert not points[~written].any() and not depth[~written].any()
+    unpaired = np.ones((len(cascades), chunks), dtype=bool)
+    unpaired[pairs[:, 0], pairs[:, 1]] = False
+    assert np.all(low[unpaired] > high[unpaired])
 
 
 @pytest.mark.parametrize("name, experiment, changes", [

@@ -42,10 +42,11 @@ from csmlab.kernels.raster.kernels import TrianglePaths, triangle_paths
 from csmlab.kernels.raster.mesh import (CHUNK_BITS, ChunkVertices, LightSpaceMesh, TriangleBounds, chunk_vertices,
                                         light_space_mesh, triangle_bounds, z_ordered)
 from csmlab.kernels.raster.regions import BANDS_PER_THREAD, banded_regions, region_chunks, whole_map_regions
-from csmlab.kernels.raster.schedule import converted_region_chunks, fixed_point_vertices, rasterize_depth
+from csmlab.kernels.raster.schedule import (chunks_meeting_regions, converted_region_chunks, fixed_point_vertices,
+                                            rasterize_depth)
 from csmlab.kernels.raster.dispatch import rasterize_cascades
 
 __all__ = ["BANDS_PER_THREAD", "CHUNK_BITS", "ChunkVertices", "LightSpaceMesh", "TriangleBounds", "TrianglePaths",
-           "banded_regions", "chunk_vertices", "converted_region_chunks",
+           "banded_regions", "chunk_vertices", "chunks_meeting_regions", "converted_region_chunks",
            "fixed_point_vertices", "light_space_mesh", "rasterize_cascades", "rasterize_depth", "region_chunks",
            "triangle_bounds", "triangle_paths", "whole_map_regions", "z_ordered"]

@@ -22,7 +22,8 @@ from csmlab.kernels.raster.mesh import CHUNK_BITS, ChunkVertices, LightSpaceMesh
 from csmlab.kernels.raster.regions import empty_regions, whole_map_regions
 from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 
-__all__ = ["converted_region_chunks", "fixed_point_vertices", "rasterize_cascades", "rasterize_depth"]
+__all__ = ["chunks_meeting_regions", "converted_region_chunks", "fixed_point_vertices", "rasterize_cascades",
+           "rasterize_depth"]
 
 
 def _checked_bits(bits) -> int:
@@ -313,16 +314,15 @@ def converted_region_chunks(points, vertices: ChunkVertices, *, regions, bits: i
     starts = np.ascontiguousarray(vertices.starts, dtype=np.int32)
     listed = np.ascontiguousarray(vertices.vertices, dtype=np.int32)
     areas = np.asarray(regions, dtype=np.int64).reshape(-1, 5)
-    unit = 1 << _checked_bits(bits)
+    _checked_bits(bits)
     if pts.ndim != 3 or pts.shape[2] != 2 or starts.ndim != 1 or starts.size < 1 or listed.ndim != 1 \
             or starts[0] != 0 or starts[-1] != listed.size or np.any(np.diff(starts) < 1) \
             or (listed.size and (listed.min() < 0 or listed.max() >= pts.shape[1])):
         raise ValueError(f"points, vertices: expected shapes (C, V, 2), chunks of at least one vertex each and "
                          f"indices in [0, V); got {pts.shape}, {starts.size - 1} chunks of {listed.size} vertices")
     count = starts.size - 1
-    rows = [np.zeros((0, 2), np.int32)]
     if count == 0:
-        return rows[0]
+        return np.zeros((0, 2), np.int32)
     shape = (pts.shape[0], count)
     lo = device_empty(shape, vec2l, device)
     hi = device_empty(shape, vec2l, device)
@@ -331,8 +331,30 @@ def converted_region_chunks(points, vertices: ChunkVertices, *, regions, bits: i
                       wp.array(starts, dtype=wp.int32, device=device, copy=False),
                       wp.array(listed, dtype=wp.int32, device=device, copy=False)), outputs=(lo, hi),
               device=device)
-    low = lo.numpy().view(np.int64).reshape(shape + (2,))
-    high = hi.numpy().view(np.int64).reshape(shape + (2,))
+    return chunks_meeting_regions(lo.numpy().view(np.int64).reshape(shape + (2,)),
+                                  hi.numpy().view(np.int64).reshape(shape + (2,)), regions=areas, bits=bits)
+
+
+def chunks_meeting_regions(low, high, *, regions, bits: int) -> np.ndarray:
+    """(region, chunk) rows whose rectangle ``[low, high]`` in the region's cascade reaches a texel centre of it.
+
+    Parameters
+    ----------
+    low, high : array_like, shape (C, K, 2), int64
+        Each chunk's rectangle in each cascade's doubled fixed point (texel centres at odd multiples
+        of ``2**bits``); an empty one (low above high) meets no region.
+    regions : array_like, shape (G, 5), integer
+        Rows ``(c, i0, i1, j0, j1)``.
+    bits : int
+
+    Returns
+    -------
+    ndarray, shape (N, 2), int32
+        Sorted by region, then chunk.
+    """
+    areas = np.asarray(regions, dtype=np.int64).reshape(-1, 5)
+    unit = 1 << _checked_bits(bits)
+    rows = [np.zeros((0, 2), np.int32)]
     for g, (c, i0, i1, j0, j1) in enumerate(areas):
         # Doubled units: texel i's centre lies at (2i + 1)·unit.
         meeting = np.flatnonzero((high[c, :, 0] >= (2 * i0 + 1) * unit) & (low[c, :, 0] <= (2 * i1 - 1) * unit)
