@@ -42,7 +42,7 @@ from csmlab.settings import ShadowSettings
 from csmlab.storage import DEPTH_QUANTIZATION_METHODS, polygon_offset_unit, stored_depth
 from csmlab.texels import (WINDOW_BOX_ROWS, fixed_point_coordinates, fixed_point_origin, light_depth,
                            light_plane_coordinates, uploaded_boxes, uses_global_grid, vertex_depth, window_box_inputs,
-                           window_rectangles)
+                           window_box_slice, window_rectangles)
 
 __all__ = ["DeviceScene", "caster_offsets", "caster_scene", "clipped_casters", "clipped_triangles", "host_depth_maps",
            "lookup_shadow", "prepare_scene", "render_frame", "render_shadow", "render_view", "shadow_maps",
@@ -523,7 +523,7 @@ def _window_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
     elif inputs["mode"] == "float32":
         key = (cascades.basis.tobytes(), cascades.zref, settings.cull)
         ordered = dscene.ordered_vertices[key]
-        sliced = {name: value[first:last] if name in WINDOW_BOX_ROWS else value for name, value in inputs.items()}
+        sliced = window_box_slice(inputs, first=first, last=last)
         # Only the chunks a bound of their window rectangle lets reach a region, and their vertices, go through
         # the float32 pipeline; their exact rectangles then choose among them.
         reaching = chunks_meeting_regions(*window_rectangles(sliced, *_chunk_world_boxes(dscene, key, mesh)),

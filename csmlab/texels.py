@@ -38,8 +38,8 @@ if TYPE_CHECKING:
 __all__ = ["PRECISION_METHODS", "Precision", "VERTEX_SNAPS", "WINDOW_BOX_ROWS", "engine_matrix", "engine_origin",
            "engine_positions", "fixed_point_coordinates", "fixed_point_origin", "light_depth",
            "light_plane_coordinates", "receiver_lookup", "texel_coordinates", "uploaded_boxes", "uses_global_grid",
-           "vertex_depth", "window_box_inputs", "window_boxes", "window_depth_metres", "window_positions",
-           "window_rectangles"]
+           "vertex_depth", "window_box_inputs", "window_box_slice", "window_boxes", "window_depth_metres",
+           "window_positions", "window_rectangles"]
 
 
 @dataclass(frozen=True)
@@ -602,5 +602,10 @@ def uploaded_boxes(inputs: dict, *, first: int = 0, last: int | None = None, dev
     # Imported here: loading an experiment reads this module's tables (PRECISION_METHODS) and must not start Warp.
     from csmlab.kernels.engine import engine_boxes
 
-    rows = {name: value[first:last] for name, value in inputs.items() if name in WINDOW_BOX_ROWS}
-    return engine_boxes(**{**inputs, **rows}, device=device)
+    return engine_boxes(**window_box_slice(inputs, first=first, last=last), device=device)
+
+
+def window_box_slice(inputs: dict, *, first: int = 0, last: int | None = None) -> dict:
+    """Cascades ``[first, last)`` of :func:`window_box_inputs` ``inputs``: its :data:`WINDOW_BOX_ROWS` cut, the rest
+    shared."""
+    return {name: value[first:last] if name in WINDOW_BOX_ROWS else value for name, value in inputs.items()}

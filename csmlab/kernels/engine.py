@@ -27,6 +27,7 @@ from csmlab.kernels import checked_device, device_empty
 from csmlab.kernels.bias import BiasSettings, ReceiverBias, receiver_bias
 from csmlab.kernels.floats import is_nan
 from csmlab.kernels.raster.kernels import vec2l
+from csmlab.kernels.raster.mesh import checked_chunk_vertices
 from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 from csmlab.lookup_choices import NORMAL_NONE, NORMAL_ONE_MINUS_COS_LATERAL, NORMAL_SIN
 
@@ -359,15 +360,16 @@ def window_chunk_vertices(boxes: EngineBoxes, *, positions, vertices, pairs, thr
     if boxes.mode != WINDOW_FLOAT32:
         raise ValueError("boxes: expected an engine's float32 pipeline (engine_boxes(mode='float32'))")
     p = np.ascontiguousarray(positions, dtype=np.float64)
-    starts = np.ascontiguousarray(vertices.starts, dtype=np.int32)
-    listed = np.ascontiguousarray(vertices.vertices, dtype=np.int32)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise ValueError(f"positions: expected world positions of shape (V, 3), got {p.shape}")
+    starts, listed = checked_chunk_vertices(vertices, vertex_count=p.shape[0])
     rows = np.ascontiguousarray(pairs, dtype=np.int32).reshape(-1, 2)
     count, chunks = boxes.matrix.shape[0], starts.size - 1
-    if p.ndim != 2 or p.shape[1] != 3 or (listed.size and (listed.min() < 0 or listed.max() >= p.shape[0])) \
-            or (rows.size and (rows[:, 0].min() < 0 or rows[:, 0].max() >= count or rows[:, 1].min() < 0
-                               or rows[:, 1].max() >= chunks)):
-        raise ValueError(f"positions, vertices, pairs: expected (V, 3) positions, vertex indices in [0, V) and pairs "
-                         f"of a cascade in [0, {count}) and a chunk in [0, {chunks}); got {p.shape}, {rows.shape}")
+    if rows.size and (rows[:, 0].min() < 0 or rows[:, 0].max() >= count or rows[:, 1].min() < 0
+                      or rows[:, 1].max() >= chunks):
+        raise ValueError(f"pairs: expected rows of a cascade in [0, {count}) and a chunk in [0, {chunks}), got "
+                         f"cascades {rows[:, 0].min()}..{rows[:, 0].max()}, "
+                         f"chunks {rows[:, 1].min()}..{rows[:, 1].max()}")
     # Zeros where no pair writes: within every bound the depth pass checks, and never read by it.
     points = np.zeros((count, p.shape[0], 2), dtype=np.int64)
     depth = np.zeros((count, p.shape[0]), dtype=np.float64)

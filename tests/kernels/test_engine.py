@@ -178,6 +178,8 @@ def test_window_chunk_vertices_are_window_vertices_at_the_pairs_chunks_and_their
     unpaired = np.ones((len(cascades), chunks), dtype=bool)
     unpaired[pairs[:, 0], pairs[:, 1]] = False
     assert np.all(low[unpaired] > high[unpaired])
+    with pytest.raises(ValueError, match="pairs: expected rows of a cascade in"):
+        window_chunk_vertices(boxes, positions=positions, vertices=listed, pairs=[[len(cascades), 0]], device=device)
 
 
 @pytest.mark.parametrize("name, experiment, changes", [

@@ -531,6 +531,20 @@ def test_chunk_vertices_list_each_chunks_corners_once_and_every_corner_in_order_
     assert chunk_vertices(np.zeros((0, 3), int)).starts.tolist() == [0]
 
 
+def test_chunk_vertex_lists_with_an_empty_chunk_a_vertex_outside_or_offsets_past_the_end_are_refused():
+    from csmlab.kernels.raster.mesh import ChunkVertices, checked_chunk_vertices
+
+    good = ChunkVertices(starts=np.array([0, 2, 3]), vertices=np.array([4, 1, 0]))
+    starts, listed = checked_chunk_vertices(good, vertex_count=5)
+    assert starts.dtype == listed.dtype == np.int32 and listed.tolist() == [4, 1, 0]
+    for bad, count in ((ChunkVertices(starts=np.array([0, 2, 2, 3]), vertices=np.array([4, 1, 0])), 5),
+                       (good, 4),
+                       (ChunkVertices(starts=np.array([0, 2, 4]), vertices=np.array([4, 1, 0])), 5),
+                       (ChunkVertices(starts=np.array([1, 2, 3]), vertices=np.array([4, 1, 0])), 5)):
+        with pytest.raises(ValueError, match="vertices: expected chunks of at least one vertex each"):
+            checked_chunk_vertices(bad, vertex_count=count)
+
+
 @pytest.mark.parametrize("threads", [1, 2, 3])
 def test_the_vertex_pass_is_twice_the_host_fixed_point(threads, device):
     from csmlab.kernels.raster import fixed_point_vertices

@@ -11,8 +11,8 @@ from functools import cached_property
 
 import numpy as np
 
-__all__ = ["CHUNK_BITS", "ChunkVertices", "LightSpaceMesh", "TriangleBounds", "chunk_vertices", "light_space_mesh",
-           "triangle_bounds", "z_ordered"]
+__all__ = ["CHUNK_BITS", "ChunkVertices", "LightSpaceMesh", "TriangleBounds", "checked_chunk_vertices",
+           "chunk_vertices", "light_space_mesh", "triangle_bounds", "z_ordered"]
 
 CHUNK_BITS = 5
 """Triangles are culled in chunks of ``2**CHUNK_BITS`` consecutive ones
@@ -102,6 +102,24 @@ def chunk_vertices(triangles, *, distinct: bool = True) -> ChunkVertices:
     starts = np.zeros(count + 1, dtype=np.int32)
     np.cumsum(first.sum(axis=1), out=starts[1:])
     return ChunkVertices(starts=starts, vertices=ordered[first])
+
+
+def checked_chunk_vertices(vertices: ChunkVertices, *, vertex_count: int) -> tuple[np.ndarray, np.ndarray]:
+    """``vertices``' offsets ``(K + 1,)`` and indices ``(N,)`` as contiguous int32, checked: offsets rising from 0 to N
+    by at least one (no chunk without a vertex), indices in ``[0, vertex_count)``.
+
+    Raises
+    ------
+    ValueError
+        Naming what was expected and what was given.
+    """
+    starts = np.ascontiguousarray(vertices.starts, dtype=np.int32)
+    listed = np.ascontiguousarray(vertices.vertices, dtype=np.int32)
+    if starts.ndim != 1 or starts.size < 1 or listed.ndim != 1 or starts[0] != 0 or starts[-1] != listed.size \
+            or np.any(np.diff(starts) < 1) or (listed.size and (listed.min() < 0 or listed.max() >= vertex_count)):
+        raise ValueError(f"vertices: expected chunks of at least one vertex each, indices in [0, {vertex_count}); got "
+                         f"offsets of shape {starts.shape} over {listed.shape} indices")
+    return starts, listed
 
 
 def triangle_bounds(light_xy, triangles) -> TriangleBounds:

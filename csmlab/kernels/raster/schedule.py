@@ -18,7 +18,7 @@ from csmlab.kernels.alpha import MaskedMesh, masked_mesh, no_masks
 from csmlab.kernels.raster.kernels import (Boxes, CasterOffset, ChunkRows, FixedPoint, LightMesh, TrianglePaths,
                                            VertexPass, chunk_rectangles_kernel, fixed_point_vertices_kernel,
                                            rasterize_chunks_kernel, rasterize_depth_kernel, triangle_paths, vec2l)
-from csmlab.kernels.raster.mesh import CHUNK_BITS, ChunkVertices, LightSpaceMesh
+from csmlab.kernels.raster.mesh import CHUNK_BITS, ChunkVertices, LightSpaceMesh, checked_chunk_vertices
 from csmlab.kernels.raster.regions import empty_regions, whole_map_regions
 from csmlab.kernels.threads import LaunchPool, checked_threads, split_range
 
@@ -311,15 +311,11 @@ def converted_region_chunks(points, vertices: ChunkVertices, *, regions, bits: i
     """
     device = checked_device(device)
     pts = np.ascontiguousarray(points, dtype=np.int64)
-    starts = np.ascontiguousarray(vertices.starts, dtype=np.int32)
-    listed = np.ascontiguousarray(vertices.vertices, dtype=np.int32)
     areas = np.asarray(regions, dtype=np.int64).reshape(-1, 5)
     _checked_bits(bits)
-    if pts.ndim != 3 or pts.shape[2] != 2 or starts.ndim != 1 or starts.size < 1 or listed.ndim != 1 \
-            or starts[0] != 0 or starts[-1] != listed.size or np.any(np.diff(starts) < 1) \
-            or (listed.size and (listed.min() < 0 or listed.max() >= pts.shape[1])):
-        raise ValueError(f"points, vertices: expected shapes (C, V, 2), chunks of at least one vertex each and "
-                         f"indices in [0, V); got {pts.shape}, {starts.size - 1} chunks of {listed.size} vertices")
+    if pts.ndim != 3 or pts.shape[2] != 2:
+        raise ValueError(f"points: expected shape (C, V, 2), got {pts.shape}")
+    starts, listed = checked_chunk_vertices(vertices, vertex_count=pts.shape[1])
     count = starts.size - 1
     if count == 0:
         return np.zeros((0, 2), np.int32)
