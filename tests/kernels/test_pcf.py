@@ -3,13 +3,14 @@ cases; exact-zero under box moves."""
 
 import numpy as np
 import pytest
+import warp as wp
 
 from csmlab.cascades import Cascade, CascadeSet
 from csmlab.filters import interleaved_gradient_noise, lookup_shadow
 from csmlab.frame import ShadowMaps
 from csmlab.geometry import light_basis
-from csmlab.kernels.pcf import AXIS_TAPS, weighted_pcf
-from csmlab.lookup_choices import FILTER_METHODS, family_filters, poisson_disk
+from csmlab.kernels.pcf import AXIS_TAPS, axis_table, axis_tables, weighted_pcf
+from csmlab.lookup_choices import FILTER_METHODS, PCF_CASTANO, PCF_TENT_BILINEAR, family_filters, poisson_disk
 from csmlab.settings import ShadowSettings
 
 BITS = 8
@@ -396,6 +397,54 @@ def test_pcf_tent_bilinear_of_the_largest_filter_size_fills_its_axis_table(devic
         got = lit_of("pcf_tent_bilinear", depth, point, width=31.5, radius=33, device=device)
         # The taps' offsets round to 2⁻⁸ texel: a few 10⁻⁵ of S here.
         assert got == pytest.approx(ref_tent_texels(depth, *point, 10.0, 63), abs=2e-4), point
+
+
+@wp.kernel
+def _computed_taps_kernel(code: int, size: int, bits: int, points: wp.array(dtype=wp.int64),
+                          texel: wp.array2d(dtype=wp.int64), fraction: wp.array2d(dtype=wp.float64),
+                          weight: wp.array2d(dtype=wp.float64)):
+    k = wp.tid()
+    unit = wp.int64(1) << wp.int64(bits)
+    t, f, w = axis_table(code, size, (size + 1) // 2, points[k], unit, bits,
+                         wp.float64(1.0) / wp.float64(wp.int64(2) * unit))
+    for a in range((size + 1) // 2):
+        texel[k, a] = t[a]
+        fraction[k, a] = f[a]
+        weight[k, a] = w[a]
+
+
+@pytest.mark.parametrize("code, size, bits", [(PCF_CASTANO, 3, 8), (PCF_CASTANO, 5, 8), (PCF_TENT_BILINEAR, 7, 8),
+                                              (PCF_TENT_BILINEAR, 5, 3), (PCF_TENT_BILINEAR, 63, 6)])
+def test_axis_tables_hold_the_taps_computed_at_the_point_itself(code, size, bits, device):
+    # Each point's taps computed where it lies (axis_table at x) are the table's at its remainder past the nearest
+    # texel corner b, moved by b: bit for bit, at every remainder, for points on both sides of the origin and far
+    # from it.
+    unit = 2**bits
+    rng = np.random.default_rng(size + bits)
+    corners = np.concatenate([[-3, 0, 1, 7], rng.integers(-2**30, 2**30, 12)]).astype(np.int64)
+    points = (corners[:, None] * unit + np.arange(unit) - unit // 2).reshape(-1)
+    count = (size + 1) // 2
+    computed = [wp.zeros((points.size, count), dtype=dtype, device=device) for dtype in (wp.int64, wp.float64,
+                                                                                        wp.float64)]
+    wp.launch(_computed_taps_kernel, dim=points.size,
+              inputs=(code, size, bits, wp.array(points, dtype=wp.int64, device=device)), outputs=computed,
+              device=device)
+    tables = axis_tables(code, [size / 2.0, size / 2.0], bits=bits, device=device)
+    assert tables.slot.numpy().tolist() == [0, 0]
+    remainder = np.arange(unit)[None, :].repeat(corners.size, axis=0).reshape(-1)
+    b = np.repeat(corners, unit)
+    texel, fraction, weight = (a.numpy()[0, remainder, :count] for a in (tables.texel, tables.fraction,
+                                                                          tables.weight))
+    np.testing.assert_array_equal(computed[0].numpy(), texel + b[:, None])
+    np.testing.assert_array_equal(computed[1].numpy(), fraction)
+    np.testing.assert_array_equal(computed[2].numpy(), weight)
+
+
+def test_axis_tables_keep_one_table_per_filter_size_and_a_stand_in_for_other_filters():
+    tables = axis_tables(PCF_TENT_BILINEAR, [2.5, 3.5, 2.5], bits=4, device="cpu")
+    assert tables.slot.numpy().tolist() == [0, 1, 0]
+    assert tables.texel.shape == (2, 16, 4)
+    assert axis_tables(FILTER_METHODS["pcf_gaussian"].code, [1.0, 1.0], bits=8, device="cpu").texel.shape == (1, 1, 1)
 
 
 def test_weighted_pcf_rejects_a_separable_kernel_wider_than_its_axis_table():
