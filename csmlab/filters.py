@@ -458,7 +458,9 @@ def _weighted_lookup(maps: ShadowMaps, receivers: Receivers, *, record: Filter, 
                                                 device=device)
         chosen, weight, band = select_cascades(maps.depth, coords, depth, receivers.view_depth, radius=radius,
                                                **selection, device=device)
-    angle = None if receivers.pixels is None else 2.0 * np.pi * interleaved_gradient_noise(
+    # A disk rotated per pixel reads the pixels; HDRP's dithered borders read them too (sphere_dither), but
+    # rotate no filter.
+    angle = None if "pixels" not in record.reads_of(settings) else 2.0 * np.pi * interleaved_gradient_noise(
         receivers.pixels, frame=receivers.noise_frame)
     texel = np.array([float(np.max(c.texel_size)) for c in maps.cascades.cascades])
     lit = weighted_pcf(maps.depth, coords, depth, cascade=chosen, filter=record.name,

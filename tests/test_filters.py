@@ -115,3 +115,21 @@ def test_a_bad_filter_or_storage_field_is_an_input_error_naming_it(tmp_path, lin
     file.write_text(f'[scene]\nkind = "plane_box"\n[camera]\npath = "orbit"\n[[methods]]\nname = "m"\n{line}\n')
     with pytest.raises(InputError, match=field.replace(".", r"\.")):
         load_experiment(file)
+
+
+def test_hdrps_dithered_borders_read_the_pixels_but_rotate_no_disk():
+    # sphere_dither reads each receiver's pixel for its border noise; a Vogel disk whose rotation is "none" stays
+    # unrotated there: wherever the dither keeps a receiver's sphere, S is the plain sphere selection's, bit for bit.
+    dscene = prepare_scene(make_scene("terrain", seed=1, size=120.0, resolution=24, trees=120, ring_trees=40))
+    pose = make_path("walk", frames=2, fps=30, seed=1, aspect=96 / 54, far=150.0).pose(1)
+    view = render_view(dscene, pose, SUN, width=96, height=54, index=1)
+    base = ShadowSettings(cascades=3, resolution=256, shadow_distance=60.0, selection="sphere", filter="pcf_vogel",
+                          vogel_taps=8, vogel_radius=2.0)
+    plain = render_shadow(dscene, view, base).shadow
+    dithered = render_shadow(dscene, view, base.replace(selection="sphere_dither",
+                                                       cascade_borders=(0.05, 0.05, 0.0))).shadow
+    rotated = render_shadow(dscene, view, base.replace(poisson_rotation="pixel")).shadow
+    kept = (dithered.cascade == plain.cascade) & (plain.cascade >= 0)
+    assert np.count_nonzero(kept) > 0.9 * np.count_nonzero(plain.cascade >= 0)
+    np.testing.assert_array_equal(dithered.lit[kept], plain.lit[kept])
+    assert np.any(rotated.lit[kept] != plain.lit[kept])              # a rotation would show here
