@@ -35,11 +35,11 @@ from csmlab.kernels.threads import checked_threads
 from csmlab.kernels.texture import textured_albedo
 from csmlab.kernels.visibility import MeshBVH, camera_hits, mesh_bvh
 from csmlab.quads import quad_lanes
-from csmlab.registry import dispatch
+from csmlab.registry import dispatch, parameters
 from csmlab.scene.core import Scene
-from csmlab.scrolling import RasterizedMaps, StoredMaps, reused_cascades, scroll_plan
+from csmlab.scrolling import RasterizedMaps, StoredMaps, kept_stored, reused_cascades, scroll_plan
 from csmlab.settings import ShadowSettings
-from csmlab.storage import DEPTH_QUANTIZATION_METHODS, polygon_offset_unit, stored_depth
+from csmlab.storage import DEPTH_FORMATS, DEPTH_QUANTIZATION_METHODS, polygon_offset_unit, stored_depth
 from csmlab.texels import (WINDOW_BOX_ROWS, fixed_point_coordinates, fixed_point_origin, light_depth,
                            light_plane_coordinates, uploaded_boxes, uses_global_grid, vertex_depth, window_box_inputs,
                            window_box_slice, window_rectangles)
@@ -279,9 +279,10 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
 
     Pancaked slice boxes (``depth_range = "slice"``) are clamped to their near side; the moments
     and their mips follow when the filter reads them (:func:`csmlab.filters.filter_inputs`). ``scroll_from``, the
-    same method's previous maps, lends the texels its boxes already covered (:mod:`csmlab.scrolling`),
-    or, on a window-space path, the stored maps of the cascades whose every input is unchanged: the
-    same maps, less rasterization. The casters are ``settings.blend_casters``' (:func:`caster_scene`).
+    same method's previous maps, lends the texels its boxes already covered (:mod:`csmlab.scrolling`), raw
+    and as stored (:func:`_scrolled_stored_maps`), or, on a window-space path, the stored maps of the
+    cascades whose every input is unchanged: the same maps, less rasterization and storing. The casters are
+    ``settings.blend_casters``' (:func:`caster_scene`).
     """
     dscene = caster_scene(dscene, settings.blend_casters)
     previous = None if scroll_from is None else scroll_from.raster
@@ -292,8 +293,9 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
         depth, raster = _stored_maps(depth, cascades, settings, span=span), None
     elif uses_global_grid(precision=settings.engine_precision, snap=settings.vertex_snap) \
             and not (cut and not settings.depth_clamp):
-        depth, texels, raster = _culled_depth_maps(dscene, cascades, settings, previous=previous)
-        depth = _stored_maps(depth, cascades, settings, span=span)
+        depth, texels, raster, shifts = _culled_depth_maps(dscene, cascades, settings, previous=previous)
+        depth, raster = _scrolled_stored_maps(depth, raster, cascades, settings, span=span, shifts=shifts,
+                                              previous=previous)
     else:
         depth, texels, raster = _window_stored_maps(dscene, cascades, settings, span=span, previous=previous)
     moments, mips = filter_inputs(depth, cascades, span=span, settings=settings, device=dscene.device)
@@ -302,26 +304,85 @@ def shadow_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSetti
 
 
 def _stored_maps(depth: np.ndarray, cascades: CascadeSet, settings: ShadowSettings, *, span: float, first: int = 0,
-                 last: int | None = None) -> np.ndarray:
+                 last: int | None = None, regions: np.ndarray | None = None,
+                 out: np.ndarray | None = None) -> np.ndarray:
     """Rasterized maps ``(C', R, R)`` of cascades ``[first, last)`` as stored: pancaked, then in the depth format.
 
     ``span``: the scene's light-space depth range in metres (:data:`csmlab.storage.DEPTH_QUANTIZATION_METHODS`'
     ``scene`` quantization). Each cascade's stored map depends only on its own rasterized map, its
-    near and far side, ``span`` and the settings.
+    near and far side, ``span`` and the settings (:func:`_storage_keys`). ``regions`` ``(G, 5)``: only
+    those rectangles ``(c, i0, i1, j0, j1)`` are stored, into ``out`` ``(C', R, R)`` (writeable, its other
+    texels kept), which is returned; a format and range that store the raw depths as they are
+    (``float32``, no pancaking) write nothing there and return ``depth``.
     """
     boxes = cascades.cascades[first:last]
     near = [c.depth_near - cascades.zref for c in boxes]
-    if DEPTH_RANGE_METHODS[settings.depth_range].cuts_casters and settings.depth_clamp:
+    if _pancaked(settings):
         # Pancaking is a per-fragment clamp max(z, near); the stored minimum of clamped fragments
         # is the clamped minimum, so clamping the map is exact.
-        # In place where the maps are this call's own (not kept read-only for the next frame's scrolling):
-        # a fresh (C, R, R) array costs its page faults, more than the comparisons.
-        depth = np.maximum(depth, np.array(near, dtype=np.float32)[:, None, None],
-                           out=depth if depth.flags.writeable else None)
+        floor = np.array(near, dtype=np.float32)
+        if regions is None:
+            # In place where the maps are this call's own (not kept read-only for the next frame's scrolling):
+            # a fresh (C, R, R) array costs its page faults, more than the comparisons.
+            depth = np.maximum(depth, floor[:, None, None], out=depth if depth.flags.writeable else None)
+        else:
+            for c, i0, i1, j0, j1 in regions:
+                np.maximum(depth[c, j0:j1, i0:i1], floor[c], out=out[c, j0:j1, i0:i1])
+            depth = out
     # The unorm levels in place too, where the maps are this call's own.
     return dispatch(DEPTH_QUANTIZATION_METHODS, settings.depth_quantization, depth, field="depth_quantization",
-                    depth_format=settings.depth_format, overwrite=bool(depth.flags.writeable), offered=dict(
-                        span=span, near=near, far=[c.depth_far - cascades.zref for c in boxes]))
+                    depth_format=settings.depth_format, overwrite=bool(depth.flags.writeable), regions=regions,
+                    out=out, offered=dict(span=span, near=near, far=[c.depth_far - cascades.zref for c in boxes]))
+
+
+def _pancaked(settings: ShadowSettings) -> bool:
+    """Whether the maps are stored clamped to each box's near side (a range that cuts casters, ``depth_clamp``)."""
+    return DEPTH_RANGE_METHODS[settings.depth_range].cuts_casters and settings.depth_clamp
+
+
+def _storage_keys(cascades: CascadeSet, settings: ShadowSettings, *, span: float) -> tuple[bytes, ...]:
+    """Each cascade's inputs to :func:`_stored_maps` besides its raw map, bit for bit, as bytes.
+
+    The depth format, quantization and pancaking, and the values they read: the box's near side
+    where it is pancaked, and for a unorm format what its quantization method declares of ``span``
+    (``scene``) and the box's near and far side (``cascade``).
+    """
+    pancaked = _pancaked(settings)
+    unorm = DEPTH_FORMATS[settings.depth_format][0] is not None
+    declared = parameters(DEPTH_QUANTIZATION_METHODS[settings.depth_quantization]) if unorm else ()
+    shared = repr((settings.depth_format, settings.depth_quantization, pancaked,
+                   span if "span" in declared else None)).encode()
+    keys = []
+    for cascade in cascades.cascades:
+        near, far = cascade.depth_near - cascades.zref, cascade.depth_far - cascades.zref
+        values = [near] if pancaked or "near" in declared else []
+        keys.append(shared + np.array(values + ([far] if "far" in declared else []), dtype=np.float64).tobytes())
+    return tuple(keys)
+
+
+def _scrolled_stored_maps(raw: np.ndarray, raster: RasterizedMaps | None, cascades: CascadeSet,
+                          settings: ShadowSettings, *, span: float, shifts,
+                          previous) -> tuple[np.ndarray, RasterizedMaps | None]:
+    """``(C, R, R)`` stored maps of the global grid's raw maps ``raw``, and ``raster`` keeping them for the next frame.
+
+    Where the raw maps scrolled (``shifts``, :attr:`csmlab.scrolling.ScrollPlan.shifts`), a cascade stored
+    under the same keys (:func:`_storage_keys`) in ``previous`` keeps its stored texels, shifted as the raw
+    ones (:func:`csmlab.scrolling.kept_stored`): only the texels rasterized this frame are pancaked and
+    quantized, not every texel of every map each frame. Boxes off whole texels (``raster`` None) store
+    their own maps in place. ``float32`` without pancaking stores the raw maps themselves.
+    """
+    if raster is None:
+        return _stored_maps(raw, cascades, settings, span=span), None
+    storage = _storage_keys(cascades, settings, span=span)
+    if not (_pancaked(settings) or DEPTH_FORMATS[settings.depth_format][0] is not None):
+        return raw, replace(raster, stored=raw, storage=storage)
+    depth, regions = kept_stored(previous, shifts=shifts, storage=storage, resolution=raster.resolution)
+    if depth is None:
+        depth = _stored_maps(raw, cascades, settings, span=span)
+    elif len(regions):
+        depth = _stored_maps(raw, cascades, settings, span=span, regions=regions, out=depth)
+    depth.flags.writeable = False
+    return depth, replace(raster, stored=depth, storage=storage)
 
 
 def caster_offsets(cascades: CascadeSet, settings: ShadowSettings) -> np.ndarray:
@@ -337,8 +398,9 @@ def caster_offsets(cascades: CascadeSet, settings: ShadowSettings) -> np.ndarray
 
 
 def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings, *,
-                       previous: RasterizedMaps | None) -> tuple[np.ndarray, int, RasterizedMaps | None]:
-    """``(C, R, R)`` depth maps, texels rasterized and, for boxes on whole texels, what the next frame scrolls from.
+                       previous: RasterizedMaps | None) -> tuple[np.ndarray, int, RasterizedMaps | None, tuple | None]:
+    """``(C, R, R)`` depth maps, texels rasterized and, for boxes on whole texels, what the next frame scrolls from
+    and each cascade's whole-texel move (:attr:`csmlab.scrolling.ScrollPlan.shifts`).
 
     Only the chunks of triangles whose light-space rectangle meets a region go to that region's
     rasterization (:func:`csmlab.kernels.raster.region_chunks`); the others cover none of its
@@ -376,7 +438,7 @@ def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
 
     if np.any(origin_fixed % (1 << bits)):
         depth, texels = rasterized(origin_texels, origin_fixed, whole_map_regions(sizes))
-        return depth, int(texels.sum()), None
+        return depth, int(texels.sum()), None, None
     plan = scroll_plan(previous, basis=cascades.basis, zref=cascades.zref, bits=bits, texel_size=texel_size,
                        origin=origin_fixed, resolution=sizes, **offset)
     if len(plan.left):
@@ -395,7 +457,7 @@ def _culled_depth_maps(dscene: DeviceScene, cascades: CascadeSet, settings: Shad
     raster = RasterizedMaps(basis=cascades.basis, zref=cascades.zref, bits=bits, texel_size=texel_size,
                             origin=origin_fixed, resolution=np.array(sizes), depth=depth, texels=per_cascade,
                             **offset)
-    return depth, int(per_cascade.sum()), raster
+    return depth, int(per_cascade.sum()), raster, plan.shifts
 
 
 def _window_stored_maps(dscene: DeviceScene, cascades: CascadeSet, settings: ShadowSettings, *, span: float,

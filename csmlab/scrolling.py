@@ -11,6 +11,13 @@ The exact and quantized stabilizations move their boxes in whole texels. Along t
 0.1 % (exact) and 7 % (quantized) of their texels need rasterizing per frame. Engines cache and
 scroll static shadow maps in the same way. Here it changes no value, only the time.
 
+The stored maps scroll too. A texel's stored depth (pancaked, in the depth format) is a function of
+its raw depth and of its cascade's storage inputs alone — the depth format and quantization, the
+span or the box's near/far its levels divide, the pancaking near side (``storage`` keys,
+:func:`csmlab.render.shadow_maps` composes them). A cascade whose raw texels scrolled and whose
+key is the previous frame's keeps its stored texels shifted the same way (:func:`kept_stored`): only
+the strips rasterized this frame are stored afresh, not the whole map every frame.
+
 ``texels_rasterized`` still counts the work of rasterizing every map whole, the cost an engine pays
 without scrolling: a cascade's count is its previous count, less the coverage tests of the texels
 its box left (counted in the previous box), plus those of the texels it newly covers. The coverage
@@ -30,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["RasterizedMaps", "ScrollPlan", "StoredMaps", "reused_cascades", "scroll_plan"]
+__all__ = ["RasterizedMaps", "ScrollPlan", "StoredMaps", "kept_stored", "reused_cascades", "scroll_plan"]
 
 
 @dataclass(frozen=True)
@@ -60,6 +67,12 @@ class RasterizedMaps:
         part, :func:`csmlab.kernels.raster.rasterize_cascades`).
     caster_slope : float
         The polygon offset's slope factor.
+    stored : ndarray, shape (C, R, R), float32, optional
+        The maps as stored (pancaked, in the depth format; ``depth`` itself where that changes
+        nothing), +inf where empty. Read-only. None: not kept.
+    storage : tuple of bytes, length C
+        Each cascade's storage inputs, bit for bit, that ``stored`` was made with: equal keys, equal
+        stored texels of equal raw texels (:func:`kept_stored`).
     """
 
     basis: np.ndarray
@@ -72,6 +85,8 @@ class RasterizedMaps:
     texels: np.ndarray
     caster_constant: np.ndarray | None = None
     caster_slope: float = 0.0
+    stored: np.ndarray | None = None
+    storage: tuple[bytes, ...] = ()
 
     def offset_of(self, c: int) -> tuple[float, float]:
         """Cascade c's caster offset ``(constant metres, slope factor)``; a map without one has ``(0, 0)``."""
@@ -95,12 +110,16 @@ class ScrollPlan:
     left : ndarray, shape (L, 5), int32
         Regions of the *previous* boxes that the new boxes left, as ``regions``: their coverage
         tests, counted in the previous boxes, come off ``kept_texels``.
+    shifts : tuple, length C
+        Each cascade's whole-texel move ``(dx, dy)`` (ints) since the previous frame, or None for a
+        cascade rasterized whole.
     """
 
     depth: np.ndarray
     regions: np.ndarray
     kept_texels: np.ndarray
     left: np.ndarray
+    shifts: tuple
 
 
 @dataclass(frozen=True)
@@ -151,7 +170,7 @@ def reused_cascades(previous, keys, *, side: int, mesh) -> np.ndarray:
 
 
 def _shift(previous: RasterizedMaps, c: int, *, basis, zref: float, bits: int, texel_size, origin,
-           resolution: int, offset: tuple[float, float]) -> np.ndarray | None:
+           resolution: int, offset: tuple[float, float]) -> tuple[int, int] | None:
     """Whole-texel move ``(dx, dy)`` of cascade c's box since ``previous``, or None when its texels cannot be kept."""
     if (previous.bits != bits or previous.zref != zref or not np.array_equal(previous.basis, basis)
             or c >= len(previous.resolution) or int(previous.resolution[c]) != resolution
@@ -161,7 +180,7 @@ def _shift(previous: RasterizedMaps, c: int, *, basis, zref: float, bits: int, t
     if np.any(moved % (1 << bits)):
         return None
     shift = moved >> bits
-    return shift if np.all(np.abs(shift) < resolution) else None
+    return (int(shift[0]), int(shift[1])) if np.all(np.abs(shift) < resolution) else None
 
 
 def scroll_plan(previous: RasterizedMaps | None, *, basis, zref: float, bits: int, texel_size, origin,
@@ -201,16 +220,75 @@ def scroll_plan(previous: RasterizedMaps | None, *, basis, zref: float, bits: in
     box = dict(basis=basis, zref=zref, bits=bits, texel_size=texel_size, origin=origin)
     offsets = [(0.0 if caster_constant is None else float(caster_constant[c]), float(caster_slope))
                for c in range(count)]
-    shifts = [None if previous is None else _shift(previous, c, resolution=sizes[c], offset=offsets[c], **box)
-              for c in range(count)]
+    shifts = tuple(None if previous is None else _shift(previous, c, resolution=sizes[c], offset=offsets[c], **box)
+                   for c in range(count))
     kept_texels = np.array([0 if shift is None else previous.texels[c] for c, shift in enumerate(shifts)],
                            dtype=np.int64)
-    no_regions = np.zeros((0, 5), np.int32)
-    if (previous is not None and previous.depth.shape == (count, side, side)
-            and all(s is not None and not s.any() for s in shifts)):
-        return ScrollPlan(depth=previous.depth, regions=no_regions, kept_texels=kept_texels, left=no_regions)
+    if previous is not None and _unmoved(previous.depth, shifts, side):
+        no_regions = np.zeros((0, 5), np.int32)
+        return ScrollPlan(depth=previous.depth, regions=no_regions, kept_texels=kept_texels, left=no_regions,
+                          shifts=shifts)
+    depth, regions = _shifted(None if previous is None else previous.depth, shifts, sizes)
+    left = []
+    for c, (size, shift) in enumerate(zip(sizes, shifts)):
+        if shift is not None:
+            (dx, dy), (i0, i1, j0, j1) = shift, _kept_window(size, shift)
+            left += _outside(c, size, i0 + dx, i1 + dx, j0 + dy, j1 + dy)
+    return ScrollPlan(depth=depth, regions=regions, kept_texels=kept_texels,
+                      left=np.array(left, dtype=np.int32).reshape(-1, 5), shifts=shifts)
+
+
+def kept_stored(previous: RasterizedMaps | None, *, shifts, storage,
+                resolution) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The stored texels each cascade keeps from ``previous`` and the regions left to store.
+
+    Parameters
+    ----------
+    previous : RasterizedMaps or None
+        The previous frame the raw maps scrolled from; None (or maps of another path), or one
+        without ``stored``: nothing kept.
+    shifts : sequence, length C
+        Each cascade's whole-texel move (:attr:`ScrollPlan.shifts`), None where rasterized whole.
+    storage : sequence of bytes, length C
+        This frame's storage keys, composed as ``previous.storage``.
+    resolution : sequence of int, length C
+        Texels per side of each cascade.
+
+    Returns
+    -------
+    depth : ndarray, shape (C, R, R), float32, or None
+        A cascade that scrolled under the key it was stored with holds the previous stored texels
+        shifted as its raw texels were (:func:`scroll_plan`); texels beyond a smaller cascade's own
+        map are +inf; the texels of ``regions`` are left unset. When no cascade moved or changed its
+        key, the previous stored array itself. None when no cascade keeps a texel: the maps are
+        stored whole.
+    regions : ndarray, shape (G, 5), int32, or None
+        Rows ``(c, i0, i1, j0, j1)`` to store from this frame's raw maps: the strips a scrolled
+        cascade rasterized, every texel of the others. None with ``depth``.
+    """
+    sizes = [int(r) for r in resolution]
+    side = max(sizes)
+    kept = isinstance(previous, RasterizedMaps) and previous.stored is not None
+    shifts = [shift if kept and c < len(previous.storage) and previous.storage[c] == key else None
+              for c, (shift, key) in enumerate(zip(shifts, storage))]
+    if all(shift is None for shift in shifts):
+        return None, None
+    if _unmoved(previous.stored, shifts, side):
+        return previous.stored, np.zeros((0, 5), np.int32)
+    return _shifted(previous.stored, shifts, sizes)
+
+
+def _unmoved(maps: np.ndarray, shifts, side: int) -> bool:
+    """Whether every cascade keeps ``maps`` ``(C, R, R)`` where they are: all kept, none moved, of this frame's side."""
+    return maps.shape == (len(shifts), side, side) and all(shift == (0, 0) for shift in shifts)
+
+
+def _shifted(maps: np.ndarray | None, shifts, sizes: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Fresh ``(C, R, R)`` maps holding the texels each cascade keeps of ``maps`` and the regions ``(G, 5)`` int32
+    left unset: new texel ``(i, j)`` is old texel ``(i + dx, j + dy)``; a cascade of shift None keeps nothing."""
+    count, side = len(sizes), max(sizes)
     depth = np.empty((count, side, side), dtype=np.float32)
-    regions, left = [], []
+    regions = []
     for c, (size, shift) in enumerate(zip(sizes, shifts)):
         # Texels beyond a smaller cascade's own map stay empty.
         depth[c, size:, :] = np.inf
@@ -218,14 +296,18 @@ def scroll_plan(previous: RasterizedMaps | None, *, basis, zref: float, bits: in
         if shift is None:
             regions.append((c, 0, size, 0, size))
             continue
-        dx, dy = (int(v) for v in shift)
-        i0, i1 = max(0, -dx), min(size, size - dx)
-        j0, j1 = max(0, -dy), min(size, size - dy)
-        depth[c, j0:j1, i0:i1] = previous.depth[c, j0 + dy:j1 + dy, i0 + dx:i1 + dx]
+        dx, dy = shift
+        i0, i1, j0, j1 = _kept_window(size, shift)
+        depth[c, j0:j1, i0:i1] = maps[c, j0 + dy:j1 + dy, i0 + dx:i1 + dx]
         regions += _outside(c, size, i0, i1, j0, j1)
-        left += _outside(c, size, i0 + dx, i1 + dx, j0 + dy, j1 + dy)
-    return ScrollPlan(depth=depth, regions=np.array(regions, dtype=np.int32).reshape(-1, 5), kept_texels=kept_texels,
-                      left=np.array(left, dtype=np.int32).reshape(-1, 5))
+    return depth, np.array(regions, dtype=np.int32).reshape(-1, 5)
+
+
+def _kept_window(size: int, shift: tuple[int, int]) -> tuple[int, int, int, int]:
+    """``(i0, i1, j0, j1)``: the texel columns ``[i0, i1)`` and rows ``[j0, j1)`` a ``size``² box moved by ``shift``
+    ``(dx, dy)`` keeps, in the new box (they lay at ``+dx``, ``+dy`` in the previous one)."""
+    dx, dy = shift
+    return max(0, -dx), min(size, size - dx), max(0, -dy), min(size, size - dy)
 
 
 def _outside(c: int, size: int, i0: int, i1: int, j0: int, j1: int) -> list[tuple[int, int, int, int, int]]:

@@ -81,7 +81,8 @@ def polygon_offset_unit(span: float, *, depth_format: str) -> float:
     return span * (2.0**-24 if bits is None else 1.0 / (2**bits - 1))
 
 
-def stored_depth(depth, *, span: float, depth_format: str, overwrite: bool = False) -> np.ndarray:
+def stored_depth(depth, *, span: float, depth_format: str, overwrite: bool = False, regions=None,
+                 out: np.ndarray | None = None) -> np.ndarray:
     """Depth maps as the format stores them, back in metres.
 
     Parameters
@@ -95,26 +96,37 @@ def stored_depth(depth, *, span: float, depth_format: str, overwrite: bool = Fal
     overwrite : bool
         Whether ``depth`` may hold the result (quantized in place where it is a writeable
         C-contiguous float32 array: no fresh maps).
+    regions : array_like, shape (G, 5), integer, optional
+        Rectangles ``(c, i0, i1, j0, j1)`` of ``(C, R, R)`` maps to store, the other texels kept as
+        ``out`` holds them (:func:`csmlab.kernels.depth_storage.unorm_stored_depth`); None: every texel.
+    out : ndarray, shape (C, R, R), float32, optional
+        Writeable C-contiguous maps the stored texels are written into and returned (``depth``
+        itself allowed). Left as it is by ``float32``, which returns ``depth``.
 
     Returns
     -------
     ndarray, shape (C, R, R), float32
         ``round(z / step) · step`` (half to even, as a float-to-unorm conversion rounds to
-        nearest), clamped to the format's levels; empty texels stay +inf. ``float32``: unchanged.
+        nearest), clamped to the format's levels; empty texels stay +inf. ``float32``: unchanged
+        (``depth`` itself).
     """
     maps = np.asarray(depth, dtype=np.float32)
     step = depth_step(span, depth_format=depth_format)
     if step == 0.0:
         return maps
-    rows = maps.reshape(1, -1, maps.shape[-1]) if maps.ndim else maps.reshape(1, 1, 1)
+    top = float(2 ** DEPTH_FORMATS[depth_format][0] - 1)
     # Imported here: loading an experiment reads this module's tables and must not start Warp.
     from csmlab.kernels.depth_storage import unorm_stored_depth
 
-    return unorm_stored_depth(rows, step=step, top=float(2 ** DEPTH_FORMATS[depth_format][0] - 1),
-                              overwrite=overwrite).reshape(maps.shape)
+    if regions is not None or out is not None:
+        return unorm_stored_depth(maps, step=step, top=top, overwrite=overwrite, regions=regions, out=out)
+    # Any shape, as rows of one map: every texel has the same levels.
+    rows = maps.reshape(1, -1, maps.shape[-1]) if maps.ndim else maps.reshape(1, 1, 1)
+    return unorm_stored_depth(rows, step=step, top=top, overwrite=overwrite).reshape(maps.shape)
 
 
-def cascade_stored_depth(depth, *, near, far, depth_format: str, overwrite: bool = False) -> np.ndarray:
+def cascade_stored_depth(depth, *, near, far, depth_format: str, overwrite: bool = False, regions=None,
+                         out: np.ndarray | None = None) -> np.ndarray:
     """Depth maps quantized over each cascade's own near/far, as an engine's unorm depth buffer stores them.
 
     Parameters
@@ -125,7 +137,7 @@ def cascade_stored_depth(depth, *, near, far, depth_format: str, overwrite: bool
         Each cascade's box near and far side in the same metres (``depth_near − zref``, ``depth_far − zref``).
     depth_format : str
         A key of :data:`DEPTH_FORMATS`.
-    overwrite : bool
+    overwrite, regions, out
         As :func:`stored_depth`'s.
 
     Returns
@@ -153,15 +165,19 @@ def cascade_stored_depth(depth, *, near, far, depth_format: str, overwrite: bool
     # Imported here: loading an experiment reads this module's tables and must not start Warp.
     from csmlab.kernels.depth_storage import unorm_stored_depth
 
-    return unorm_stored_depth(maps, lo=lo.ravel(), step=((hi - lo) / top).ravel(), top=top, overwrite=overwrite)
+    return unorm_stored_depth(maps, lo=lo.ravel(), step=((hi - lo) / top).ravel(), top=top, overwrite=overwrite,
+                              regions=regions, out=out)
 
 
-def _scene_quantized(depth, *, span: float, depth_format: str, overwrite: bool = False) -> np.ndarray:
-    return stored_depth(depth, span=span, depth_format=depth_format, overwrite=overwrite)
+def _scene_quantized(depth, *, span: float, depth_format: str, overwrite: bool = False, regions=None,
+                     out=None) -> np.ndarray:
+    return stored_depth(depth, span=span, depth_format=depth_format, overwrite=overwrite, regions=regions, out=out)
 
 
-def _cascade_quantized(depth, *, near, far, depth_format: str, overwrite: bool = False) -> np.ndarray:
-    return cascade_stored_depth(depth, near=near, far=far, depth_format=depth_format, overwrite=overwrite)
+def _cascade_quantized(depth, *, near, far, depth_format: str, overwrite: bool = False, regions=None,
+                       out=None) -> np.ndarray:
+    return cascade_stored_depth(depth, near=near, far=far, depth_format=depth_format, overwrite=overwrite,
+                                regions=regions, out=out)
 
 
 DEPTH_QUANTIZATION_METHODS: dict[str, Callable[..., np.ndarray]] = {
@@ -171,8 +187,9 @@ DEPTH_QUANTIZATION_METHODS: dict[str, Callable[..., np.ndarray]] = {
 """The range a unorm depth format's levels divide, by name (``[shadow] depth_quantization``):
 ``scene`` (the scene's fixed light-space span in power-of-two steps, :func:`stored_depth`) or
 ``cascade`` (each box's own near/far, :func:`cascade_stored_depth`). Each is
-``f(depth, *, depth_format, span | near, far, overwrite=False) -> stored maps`` (``overwrite``: the
-maps may be quantized in place)."""
+``f(depth, *, depth_format, span | near, far, overwrite=False, regions=None, out=None) -> stored maps``
+(``overwrite``: the maps may be quantized in place; ``regions``, ``out``: only those rectangles, stored
+into ``out``, as :func:`stored_depth`'s)."""
 
 
 MOMENT_BYTES: dict[str, int] = {"vsm": 8, "evsm2": 8, "evsm4": 16}

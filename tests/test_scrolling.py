@@ -1,13 +1,16 @@
 """Scrolled depth maps equal maps rasterized whole, bit for bit, and count the same coverage tests."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from csmlab import render
 from csmlab.light import direction_from_angles
 from csmlab.render import prepare_scene, render_shadow, render_view
-from csmlab.scrolling import RasterizedMaps, StoredMaps, reused_cascades, scroll_plan
+from csmlab.scrolling import RasterizedMaps, StoredMaps, kept_stored, reused_cascades, scroll_plan
 from csmlab.settings import ShadowSettings
+from csmlab.storage import cascade_stored_depth, stored_depth
 from tests.test_render import camera, scattered_boxes, scene_of
 
 # Eyes along a walk: small steps (whole-texel moves of the near boxes), a repeated pose (no box
@@ -227,3 +230,127 @@ def test_reused_cascades_are_those_of_equal_keys_from_the_same_mesh_and_map_size
     assert not reused_cascades(None, [b"a"], side=8, mesh=mesh).any()
     assert not reused_cascades(kept_maps(np.random.default_rng(2), sizes=[8, 8, 8]), [b"a", b"b", b"c"], side=8,
                                mesh=mesh).any()
+
+
+def stored_as_whole(frame, settings) -> np.ndarray:
+    """The raw maps of a frame rendered without a previous frame, pancaked and stored whole by :mod:`csmlab.storage`."""
+    cascades = frame.maps.cascades
+    near = np.array([c.depth_near - cascades.zref for c in cascades.cascades])
+    far = np.array([c.depth_far - cascades.zref for c in cascades.cascades])
+    raw = frame.maps.raster.depth
+    if settings.depth_range == "slice" and settings.depth_clamp:
+        raw = np.maximum(raw, near.astype(np.float32)[:, None, None])
+    if settings.depth_quantization == "cascade":
+        return cascade_stored_depth(raw, near=near, far=far, depth_format=settings.depth_format)
+    return stored_depth(raw, span=frame.maps.depth_span, depth_format=settings.depth_format)
+
+
+def stored_walk(dscene, settings_of, monkeypatch):
+    """Per pose of the walk (``settings_of(k)`` at pose k): the frame rendered without a previous frame, the frame
+    scrolled from the previous scrolled one, that previous one, and the texels the scrolled frame stored (those of
+    :func:`csmlab.render._stored_maps`' regions, every texel of its maps when it stored them whole)."""
+    light = direction_from_angles(elevation_deg=35.0, azimuth_deg=120.0)
+    stored = []
+    store = render._stored_maps
+
+    def spied(depth, *args, regions=None, **how):
+        stored.append(depth.size if regions is None else int(np.sum((regions[:, 2] - regions[:, 1])
+                                                                    * (regions[:, 4] - regions[:, 3]))))
+        return store(depth, *args, regions=regions, **how)
+
+    monkeypatch.setattr(render, "_stored_maps", spied)
+    previous = None
+    for k, (eye, target) in enumerate(zip(EYES, TARGETS)):
+        settings = settings_of(k)
+        view = render_view(dscene, camera(48, 32, eye=eye, target=target), light, width=48, height=32, reference=False)
+        whole = render_shadow(dscene, view, settings, lookup=False)
+        before = None if previous is None else previous.maps.depth.tobytes()
+        stored.clear()
+        scrolled = render_shadow(dscene, view, settings, lookup=False,
+                                 scroll_from=None if previous is None else previous.maps)
+        # The previous frame's maps, which the temporal metric still reads, are left as they were.
+        assert previous is None or previous.maps.depth.tobytes() == before
+        yield whole, scrolled, previous, sum(stored)
+        previous = scrolled
+
+
+@pytest.mark.parametrize("changes, keeps", [
+    (dict(depth_format="unorm16"), True),
+    (dict(depth_format="unorm16", stabilization="quantized"), True),
+    (dict(depth_format="unorm24", cascade_resolutions=(128, 96, 64)), True),
+    (dict(depth_format="unorm16", depth_quantization="cascade"), True),
+    (dict(depth_range="slice", depth_clamp=True), False),
+    (dict(depth_format="unorm16", depth_range="slice", depth_clamp=True, depth_quantization="cascade"), False),
+])
+def test_scrolled_stored_maps_equal_the_raw_maps_stored_whole_along_a_walk(dscene, changes, keeps, monkeypatch):
+    """A cascade that scrolled under unchanged storage inputs keeps its stored texels and stores only the strips it
+    rasterized; the maps equal, bit for bit, the maps rasterized and stored whole. A slice's near side (the pancaking,
+    the cascade quantization's level 0) follows the camera, so only the repeated pose keeps its stored maps there."""
+    settings = ShadowSettings(cascades=3, resolution=128, shadow_distance=50.0, filter="pcf", filter_size=3,
+                              **{"stabilization": "exact", **changes}).validated()
+    partial = 0
+    for k, (whole, scrolled, previous, stored) in enumerate(stored_walk(dscene, lambda k: settings, monkeypatch)):
+        expected = stored_as_whole(whole, settings)
+        assert scrolled.maps.depth.tobytes() == expected.tobytes() == whole.maps.depth.tobytes()
+        assert scrolled.maps.raster.stored is scrolled.maps.depth and not scrolled.maps.depth.flags.writeable
+        if k == 2:  # the repeated pose: the previous stored maps themselves, nothing stored
+            assert scrolled.maps.depth is previous.maps.depth and stored == 0
+        partial += 0 < stored < scrolled.maps.depth.size
+    assert partial >= 3 if keeps else partial == 0
+
+
+def test_a_frame_whose_storage_changed_stores_its_maps_whole_though_its_raw_maps_scroll(dscene, monkeypatch):
+    """The depth format and quantization change from frame to frame (the raw maps, with no caster offset, still
+    scroll): a cascade stored under other inputs is stored whole from this frame's raw maps, the repeated pose's
+    included; the frames after the same settings store only their strips."""
+    looks = [dict(depth_format="unorm16"), dict(depth_format="unorm16"), dict(depth_format="unorm24"),
+             dict(depth_format="unorm24", depth_quantization="cascade"), dict(depth_format="float32"),
+             dict(depth_format="unorm16"), dict(depth_format="unorm16")]
+    settings = [ShadowSettings(cascades=3, resolution=128, shadow_distance=50.0, stabilization="exact", **look)
+                .validated() for look in looks]
+    for k, (whole, scrolled, _, stored) in enumerate(stored_walk(dscene, settings.__getitem__, monkeypatch)):
+        assert scrolled.maps.depth.tobytes() == stored_as_whole(whole, settings[k]).tobytes()
+        if k in (2, 3, 5):
+            assert stored == scrolled.maps.depth.size
+        elif k in (1, 6):
+            assert 0 < stored < scrolled.maps.depth.size
+        elif k == 4:  # float32 stores the raw maps themselves
+            assert scrolled.maps.depth is scrolled.maps.raster.depth and stored == 0
+
+
+def stored_maps(rng, *, sizes) -> RasterizedMaps:
+    previous = kept_maps(rng, sizes=sizes)
+    stored = rng.random(previous.depth.shape).astype(np.float32)
+    stored.flags.writeable = False
+    return replace(previous, stored=stored, storage=tuple(b"key%d" % c for c in range(len(sizes))))
+
+
+def test_kept_stored_texels_are_shifted_as_the_raw_ones_where_the_key_is_unchanged():
+    rng = np.random.default_rng(7)
+    sizes = [32, 24, 16]
+    previous = stored_maps(rng, sizes=sizes)
+    shift = np.array([[3, -2], [1, 4], [-5, 0]])
+    plan = scroll_plan(previous, basis=np.eye(3), zref=-3.0, bits=8, texel_size=previous.texel_size,
+                       origin=previous.origin + (shift << 8), resolution=sizes)
+    storage = (b"key0", b"changed", b"key2")
+    depth, regions = kept_stored(previous, shifts=plan.shifts, storage=storage, resolution=sizes)
+    # Cascades 0 and 2 store the strips they rasterized; cascade 1, whose key changed, its whole map.
+    raw = [tuple(r) for r in plan.regions if r[0] != 1] + [(1, 0, 24, 0, 24)]
+    assert sorted(tuple(r) for r in regions) == sorted(raw)
+    unset = covered_once(regions, depth.shape).astype(bool)
+    for c in (0, 2):
+        j, i = np.mgrid[0:sizes[c], 0:sizes[c]]
+        dx, dy = plan.shifts[c]
+        kept = ~unset[c, :sizes[c], :sizes[c]]
+        np.testing.assert_array_equal(depth[c, :sizes[c], :sizes[c]][kept],
+                                      previous.stored[c][(j + dy)[kept], (i + dx)[kept]])
+    for c, size in enumerate(sizes):
+        assert np.all(np.isinf(depth[c, size:, :])) and np.all(np.isinf(depth[c, :, size:]))
+    # Nothing moved and no key changed: the previous stored maps themselves. Nothing kept (no stored maps, every
+    # key changed, every cascade rasterized whole): None, the maps stored whole.
+    still = kept_stored(previous, shifts=[(0, 0)] * 3, storage=previous.storage, resolution=sizes)
+    assert still[0] is previous.stored and still[1].shape == (0, 5)
+    assert kept_stored(replace(previous, stored=None), shifts=plan.shifts, storage=previous.storage,
+                       resolution=sizes) == (None, None)
+    assert kept_stored(previous, shifts=plan.shifts, storage=(b"a", b"b", b"c"), resolution=sizes) == (None, None)
+    assert kept_stored(previous, shifts=[None] * 3, storage=previous.storage, resolution=sizes) == (None, None)

@@ -4,7 +4,10 @@
 quantization (``lo + clip(rint((z − lo) / step), 0, top) · step``, float64, back to float32); the
 kernel here runs it texel by texel with the same roundings (``fuse_fp`` off) and the same clip as
 NumPy's (a level replaced by a bound only where strictly beyond it: −0 stays −0), in place of
-NumPy's ten passes over float64 temporaries of every texel.
+NumPy's ten passes over float64 temporaries of every texel. It may quantize only some rectangles of
+the maps into maps that hold the others already (the strips a scrolled frame rasterized,
+:func:`csmlab.scrolling.kept_stored`): each rectangle a strided view of its own, so that every launch
+runs the same row loop, from column 0 to the row's end, as a whole map's.
 """
 
 from __future__ import annotations
@@ -56,7 +59,7 @@ def unorm_stored_depth_kernel(depth: wp.array3d(dtype=wp.float32), lo: wp.array(
 
 
 def unorm_stored_depth(depth: np.ndarray, *, step, top: float, lo=None, threads: int = 1,
-                       overwrite: bool = False) -> np.ndarray:
+                       overwrite: bool = False, regions=None, out: np.ndarray | None = None) -> np.ndarray:
     """``(C, R, R)`` float32 maps quantized to ``top + 1`` levels of ``step`` metres per cascade, on the CPU.
 
     Parameters
@@ -75,12 +78,20 @@ def unorm_stored_depth(depth: np.ndarray, *, step, top: float, lo=None, threads:
     overwrite : bool
         Whether ``depth`` may hold the result (a writeable C-contiguous float32 array is then
         quantized in place: each texel is read before it is written, by the same thread), sparing
-        a fresh array's page faults.
+        a fresh array's page faults. Ignored where ``out`` is given.
+    regions : array_like, shape (G, 5), integer, optional
+        Rows ``(c, i0, i1, j0, j1)``: texel columns ``[i0, i1)`` and rows ``[j0, j1)`` of cascade c
+        to quantize, disjoint; the other texels keep the values of the array written into
+        (``out``, else ``depth`` itself or its copy). None: every texel.
+    out : ndarray, shape (C, R, R), float32, C-contiguous, writeable, optional
+        The maps the quantized texels are written into (``depth`` itself allowed), and returned;
+        None: ``depth`` (``overwrite``) or a fresh array.
 
     Returns
     -------
     ndarray, shape (C, R, R), float32
-        :func:`csmlab.storage.cascade_stored_depth` (with ``lo``) or :func:`csmlab.storage.stored_depth`, bit for bit.
+        :func:`csmlab.storage.cascade_stored_depth` (with ``lo``) or :func:`csmlab.storage.stored_depth`, bit for bit,
+        at the texels of ``regions``.
     """
     maps = np.ascontiguousarray(depth, dtype=np.float32)
     if maps.ndim != 3:
@@ -88,16 +99,39 @@ def unorm_stored_depth(depth: np.ndarray, *, step, top: float, lo=None, threads:
     count = maps.shape[0]
     size = np.ascontiguousarray(np.broadcast_to(np.asarray(step, dtype=np.float64), (count,)))
     low = np.zeros(count) if lo is None else np.ascontiguousarray(np.broadcast_to(np.asarray(lo, np.float64), (count,)))
-    out = maps if overwrite and maps.flags.writeable else np.empty_like(maps)
-    rows = count * maps.shape[1]
-    if rows == 0 or maps.shape[2] == 0:
+    if out is None:
+        out = maps if overwrite and maps.flags.writeable else (np.empty_like(maps) if regions is None else maps.copy())
+    elif out.shape != maps.shape or out.dtype != np.float32 or not (out.flags.c_contiguous and out.flags.writeable):
+        raise ValueError(f"out: expected writeable C-contiguous float32 maps of shape {maps.shape}")
+    # Each piece: maps (C', H, W) read and written, strided views for a region, and their cascades' levels.
+    pieces = [(maps, out, low, size)] if regions is None else [
+        (maps[c:c + 1, j0:j1, i0:i1], out[c:c + 1, j0:j1, i0:i1], low[c:c + 1], size[c:c + 1])
+        for c, i0, i1, j0, j1 in _checked_regions(regions, maps.shape)]
+    launches = [((wp.array(source, dtype=wp.float32, device="cpu", copy=False),
+                  wp.array(levels_lo, dtype=wp.float64, device="cpu"),
+                  wp.array(levels_step, dtype=wp.float64, device="cpu"), float(top), int(lo is not None)),
+                 wp.array(target, dtype=wp.float32, device="cpu", copy=False), source.shape[0] * source.shape[1])
+                for source, target, levels_lo, levels_step in pieces if source.size]
+    if not launches:
         return out
-    inputs = (wp.array(maps, dtype=wp.float32, device="cpu", copy=False),
-              wp.array(low, dtype=wp.float64, device="cpu"), wp.array(size, dtype=wp.float64, device="cpu"),
-              float(top), int(lo is not None))
-    result = wp.array(out, dtype=wp.float32, device="cpu", copy=False)
     with LaunchPool(threads, kernels=(unorm_stored_depth_kernel,), device="cpu") as pool:
-        pool.run([lambda a=a, b=b: wp.launch(unorm_stored_depth_kernel, dim=b - a, inputs=(*inputs, a),
-                                             outputs=(result,), device="cpu")
-                  for a, b in split_range(rows, pool.threads)])
+        pool.run([lambda inputs=inputs, result=result, a=a, b=b: wp.launch(
+            unorm_stored_depth_kernel, dim=b - a, inputs=(*inputs, a), outputs=(result,), device="cpu")
+            for inputs, result, rows in launches for a, b in split_range(rows, pool.threads)])
     return out
+
+
+def _checked_regions(regions, shape: tuple[int, int, int]) -> np.ndarray:
+    """``(G, 5)`` int64 rectangles ``(c, i0, i1, j0, j1)`` of ``regions``, each inside maps of ``shape``.
+
+    Raises
+    ------
+    ValueError
+        On a rectangle beyond the maps (the kernel reads and writes without bounds checks).
+    """
+    count, side, width = shape
+    areas = np.asarray(regions, dtype=np.int64).reshape(-1, 5)
+    if areas.size and (areas[:, 0].min() < 0 or areas[:, 0].max() >= count or areas[:, 1].min() < 0
+                       or areas[:, 2].max() > width or areas[:, 3].min() < 0 or areas[:, 4].max() > side):
+        raise ValueError(f"regions: expected rectangles (c, i0, i1, j0, j1) inside maps of shape {shape}")
+    return areas
