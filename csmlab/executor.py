@@ -15,6 +15,7 @@ tasks and results picklable.
 from __future__ import annotations
 
 import atexit
+import contextlib
 import gc
 import logging
 import multiprocessing
@@ -27,10 +28,13 @@ from pathlib import Path
 from csmlab.errors import InputError
 from csmlab.registry import dispatch
 
-__all__ = ["EXECUTORS", "WORKER_MODULES", "execute", "executor_for", "freeze_objects_at_exit", "process_context",
-           "run_dask", "run_inprocess", "run_pool", "start_process_server", "start_worker", "task_runs"]
+__all__ = ["EXECUTORS", "WORKER_MODULES", "execute", "executor_for", "freeze_objects_at_exit", "kept_processes",
+           "process_context", "run_dask", "run_inprocess", "run_pool", "start_process_server", "start_worker",
+           "task_runs"]
 
 _SHARED = None
+_KEPT: dict | None = None
+"""The pool's processes by (start method, count) while a :func:`kept_processes` block runs; None outside one."""
 
 
 def freeze_objects_at_exit() -> None:
@@ -117,12 +121,52 @@ def run_inprocess(fn: Callable, tasks: list, *, shared, jobs: int = 1, address: 
 
 def _install_shared(packed: bytes) -> None:
     global _SHARED
-    start_worker()
     _SHARED = pickle.loads(packed)
 
 
 def _call_with_shared(fn: Callable, task):
     return fn(_SHARED, task)
+
+
+@contextlib.contextmanager
+def kept_processes() -> Iterator[None]:
+    """Keep :func:`run_pool`'s processes from one call to the next until the block ends.
+
+    A run's processes otherwise start with the run and end with it; a block of many short runs
+    (a tune's candidates: ``tune_default`` makes 16 runs of 12 frames) then pays each process's
+    start, its Warp kernels loaded, its scene prepared (:func:`csmlab.experiment.run_chunk` keeps
+    it per workload) and its first frame's allocations once a run. Kept, each call hands them its
+    ``shared`` data as their first task. A block inside a block keeps the outer one's processes;
+    an error in a call ends its processes, and the next call starts new ones.
+    """
+    global _KEPT
+    if _KEPT is not None:
+        yield
+        return
+    _KEPT = {}
+    try:
+        yield
+    finally:
+        kept, _KEPT = _KEPT, None
+        for lanes in kept.values():
+            _shut_down(lanes)
+
+
+def _lanes(context, count: int) -> list[ProcessPoolExecutor]:
+    """``count`` single-process pools: new ones, or those a :func:`kept_processes` block keeps."""
+    key = (context.get_start_method(), count)
+    if _KEPT is not None and key in _KEPT:
+        return _KEPT[key]
+    # One single-process pool per process, so that the next task of a run goes to its process.
+    lanes = [ProcessPoolExecutor(max_workers=1, mp_context=context, initializer=start_worker) for _ in range(count)]
+    if _KEPT is not None:
+        _KEPT[key] = lanes
+    return lanes
+
+
+def _shut_down(lanes: list[ProcessPoolExecutor]) -> None:
+    for lane in lanes:
+        lane.shutdown(wait=True, cancel_futures=True)
 
 
 def run_pool(fn: Callable, tasks: list, *, shared, jobs: int, address: str | None = None) -> Iterator:
@@ -134,22 +178,22 @@ def run_pool(fn: Callable, tasks: list, *, shared, jobs: int, address: str | Non
     chunk of frames starts from the previous chunk's last frame, kept in the process, instead of
     rendering it again (:func:`csmlab.experiment.run_chunk`). Stopping the iteration early (an
     exception in the caller, Ctrl-C) cancels the tasks not yet started and waits for the running ones.
+    The processes end with the call, unless a :func:`kept_processes` block keeps them for the next.
     """
     if len(tasks) <= 1 or jobs <= 1:
         # One task gains nothing from a process of its own, and starting one costs seconds.
         yield from run_inprocess(fn, tasks, shared=shared)
         return
     context = process_context()
-    # Pickled here, unpickled by the initializer: a new process reads its start-up arguments
-    # while this process writes them, and unpickling the shared objects in that stream imports
-    # their modules (seconds, where the process server has not) with this process blocked on the
-    # pipe — one process after another.
+    # Pickled here, unpickled by each process's first task: unpickling the shared objects in the
+    # stream a process reads its task from would import their modules (seconds, where the process
+    # server has not) with this process blocked on the pipe — one process after another.
     packed = pickle.dumps(shared, protocol=pickle.HIGHEST_PROTOCOL)
     count = max(1, min(jobs, len(tasks)))
     runs = task_runs(len(tasks), count)
-    # One single-process pool per process, so that the next task of a run goes to its process.
-    lanes = [ProcessPoolExecutor(max_workers=1, mp_context=context, initializer=_install_shared, initargs=(packed,))
-             for _ in range(count)]
+    lanes = _lanes(context, count)
+    for lane in lanes:
+        lane.submit(_install_shared, packed)
     running = {}
 
     def feed(lane: int) -> None:
@@ -162,6 +206,7 @@ def run_pool(fn: Callable, tasks: list, *, shared, jobs: int, address: str | Non
             index = runs[lane].pop(0)
             running[lanes[lane].submit(_call_with_shared, fn, tasks[index])] = (lane, index)
 
+    finished = False
     try:
         for lane in range(count):
             feed(lane)
@@ -172,11 +217,15 @@ def run_pool(fn: Callable, tasks: list, *, shared, jobs: int, address: str | Non
                 result = future.result()
                 feed(lane)
                 yield tasks[index], result
+        finished = True
     finally:
         for future in running:
             future.cancel()
-        for lane in lanes:
-            lane.shutdown(wait=True, cancel_futures=True)
+        if not finished and _KEPT is not None:
+            # Processes an error or a stopped iteration left busy, or broken, are not kept for the next call.
+            _KEPT.pop((context.get_start_method(), count), None)
+        if not finished or _KEPT is None:
+            _shut_down(lanes)
 
 
 def task_runs(tasks: int, processes: int) -> list[list[int]]:

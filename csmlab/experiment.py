@@ -686,7 +686,7 @@ def _snapshot_frames(experiment: Experiment, frames: int) -> frozenset:
 def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, executor: str = "inprocess",
                    address: str | None = None, device: str = "cpu", resume: bool = False,
                    progress: Callable[[int, int], None] | None = None,
-                   workload: Workload | None = None) -> RunResult:
+                   workload: Workload | None = None, images: bool = True) -> RunResult:
     """Run every frame × method × sweep point of ``experiment`` and write its results files.
 
     Parameters
@@ -711,6 +711,10 @@ def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, executor: 
         :func:`build_workload` of ``experiment``, built already: the runs of a tune, which differ in
         their methods alone, share one (its scene generated, its level's BVH built and its views
         checked once, not once a run). None builds it here.
+    images : bool
+        Keep the report's images: the animations and the interactive page's per-pixel records
+        (:func:`image_frames`). False keeps the metrics, the timings, the cascade rows and the
+        snapshots asked for: a tune's runs, whose summaries alone are read, record nothing else.
 
     Returns
     -------
@@ -754,7 +758,7 @@ def run_experiment(experiment: Experiment, *, out_dir, jobs: int = 1, executor: 
     processes = jobs if executor == "dask" else max(1, min(jobs, len(todo)))
     threads = 1 if executor == "dask" else max(1, (os.cpu_count() or 1) // processes)
     job = Job(workload=workload, variants=variants, snapshot_frames=_snapshot_frames(experiment, frames),
-              device=device, image_frames=image_frames(frames), held_depths=held_depths,
+              device=device, image_frames=image_frames(frames) if images else frozenset(), held_depths=held_depths,
               held_extents=_held_extents(workload, variants, held_depths, device=device), threads=threads,
               taa=experiment.taa if experiment.taa.enabled else None)
     order = [(v.method, v.point) for v in variants]

@@ -16,7 +16,8 @@ searched exhaustively, in grid order.
 
 Every candidate is evaluated through :func:`csmlab.experiment.run_experiment` (the runner's
 executors: in-process, a process pool or Dask), several at a time as methods of one run so that they
-share each frame's view, and its summary is kept in ``OUT/cache/`` under a key of the workload hash,
+share each frame's view (keeping the metrics and cascade rows, not the report's images), the pool's processes
+kept from one run to the next, and its summary is kept in ``OUT/cache/`` under a key of the workload hash,
 the device and the settings: a repeated or resumed tune recomputes nothing, and the seeded sampler,
 told the same values, proposes the same candidates again.
 
@@ -51,6 +52,7 @@ from csmlab import config
 from csmlab.config import (CONFIGS_DIR, CameraConfig, Experiment, Method, ReportConfig, load_experiment,
                            workload_hash)
 from csmlab.errors import InputError
+from csmlab.executor import kept_processes
 from csmlab.experiment import Workload, build_workload, run_experiment
 from csmlab.metrics.cost import shadow_memory_bytes
 from csmlab.metric_registry import METRICS
@@ -369,7 +371,7 @@ class _Evaluator:
                 # Every run has the experiment's scene, path and light: built once, for the first.
                 self.workload = build_workload(self.experiment)
             summary = run_experiment(variant, out_dir=self.runs_dir / batch, resume=True, workload=self.workload,
-                                     **self.run_options).summary["methods"]
+                                     images=False, **self.run_options).summary["methods"]
             for name, key in todo.items():
                 values = {k: (None if v is None or (isinstance(v, float) and math.isnan(v)) else v)
                           for k, v in summary[f"k{key}"].items()}
@@ -877,15 +879,17 @@ def tune(experiment: Experiment, *, out_dir, progress: Callable[[int, int, str],
     if progress is not None:
         progress(0, total, "start and engine presets")
     references = reference_settings(options)
-    measured = evaluate(references)
-    for label in references:
-        tick(label)
-    budgets = Budgets(memory_bytes=options.memory_budget, max_flicker=flicker_limit(options, references, measured),
-                      flicker_metric=options.flicker_metric)
-    judge = _Judge(budgets, cache)
-    compared = tuple(judge(label, "start" if label == "start" else "preset", _changed(settings, experiment.shadow),
-                           settings, *measured[label]) for label, settings in references.items())
-    trials = search(options, evaluate, judge, tick)
+    # The runs' processes, their kernels and prepared scene kept from one batch of candidates to the next.
+    with kept_processes():
+        measured = evaluate(references)
+        for label in references:
+            tick(label)
+        budgets = Budgets(memory_bytes=options.memory_budget, max_flicker=flicker_limit(options, references, measured),
+                          flicker_metric=options.flicker_metric)
+        judge = _Judge(budgets, cache)
+        compared = tuple(judge(label, "start" if label == "start" else "preset", _changed(settings, experiment.shadow),
+                               settings, *measured[label]) for label, settings in references.items())
+        trials = search(options, evaluate, judge, tick)
     result = tune_result(experiment, options, budgets=budgets, references=compared, trials=trials,
                          runs_computed=evaluate.computed)
     write_tune(result, out_dir, near=experiment.camera.near, far=experiment.camera.far)

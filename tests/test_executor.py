@@ -11,7 +11,7 @@ import pytest
 
 from csmlab.config import load_experiment
 from csmlab.errors import InputError
-from csmlab.executor import EXECUTORS, execute, executor_for, task_runs
+from csmlab.executor import EXECUTORS, execute, executor_for, kept_processes, task_runs
 from csmlab.experiment import run_experiment
 
 TINY = """
@@ -207,3 +207,33 @@ def test_a_process_forked_from_the_server_has_the_parents_csmlab_imported_and_wa
     parents, workers, render_imported, colour_imported, warp_not_started = eval(done.stdout)
     assert workers == parents == str(Path(here) / "csmlab" / "__init__.py")
     assert render_imported and colour_imported and warp_not_started
+
+
+def _pid_with_shared(shared, task):
+    return shared, os.getpid()
+
+
+def test_kept_processes_serve_every_call_of_the_block_each_with_its_own_shared_data():
+    with kept_processes():
+        first = [result for _, result in execute(_pid_with_shared, range(4), shared="a", executor="pool", jobs=2)]
+        second = [result for _, result in execute(_pid_with_shared, range(4), shared="b", executor="pool", jobs=2)]
+    assert {shared for shared, _ in first} == {"a"} and {shared for shared, _ in second} == {"b"}
+    assert {pid for _, pid in first} == {pid for _, pid in second} and len({pid for _, pid in first}) == 2
+    after = [result for _, result in execute(_pid_with_shared, range(4), shared="c", executor="pool", jobs=2)]
+    assert not {pid for _, pid in after} & {pid for _, pid in first}
+
+
+def _fails_on_two(shared, task):
+    if task == 2:
+        raise RuntimeError("task 2")
+    return os.getpid()
+
+
+def test_a_call_that_fails_inside_the_block_ends_its_processes_and_the_next_call_starts_new_ones():
+    before = set()
+    with kept_processes():
+        with pytest.raises(RuntimeError, match="task 2"):
+            for _, pid in execute(_fails_on_two, range(6), shared=None, executor="pool", jobs=2):
+                before.add(pid)
+        pids = {pid for _, pid in execute(_fails_on_two, [0, 1, 3, 4], shared=None, executor="pool", jobs=2)}
+    assert len(pids) == 2 and before and not pids & before

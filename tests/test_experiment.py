@@ -303,3 +303,13 @@ def test_a_long_path_keeps_metrics_of_every_frame_and_images_of_the_sample(tmp_p
         assert read_npz(out / "anim" / f"{method}__base.npz")["frame"].tolist() == [0, 2, 5]
     write_report(out)
     assert (out / "index.html").is_file()
+
+
+def test_a_run_without_images_keeps_the_same_metrics_and_cascade_rows_and_no_animation_or_pixel_record(
+        reference, tmp_path):
+    _, out = run_tiny(tmp_path, "plain", images=False)
+    _, kept = reference
+    for name in ("metrics.csv", "cascades.csv"):
+        assert (out / name).read_bytes() == (kept / name).read_bytes()
+    assert not list((out / "anim").glob("*.npz")) and not list((out / "pixels").glob("*.npz"))
+    assert list((kept / "anim").glob("*.npz")) and list((kept / "pixels").glob("*.npz"))
