@@ -121,6 +121,8 @@ def run_inprocess(fn: Callable, tasks: list, *, shared, jobs: int = 1, address: 
 
 def _install_shared(packed: bytes) -> None:
     global _SHARED
+    # Let go of the previous call's data first: its memory, and no task of a failed install reads it.
+    _SHARED = None
     _SHARED = pickle.loads(packed)
 
 
@@ -192,8 +194,9 @@ def run_pool(fn: Callable, tasks: list, *, shared, jobs: int, address: str | Non
     count = max(1, min(jobs, len(tasks)))
     runs = task_runs(len(tasks), count)
     lanes = _lanes(context, count)
-    for lane in lanes:
-        lane.submit(_install_shared, packed)
+    # A lane runs its tasks in order: its install is done when its first task is. Its error is raised
+    # before any result of the lane is taken.
+    installs = [lane.submit(_install_shared, packed) for lane in lanes]
     running = {}
 
     def feed(lane: int) -> None:
@@ -214,6 +217,7 @@ def run_pool(fn: Callable, tasks: list, *, shared, jobs: int, address: str | Non
             done, _ = wait(running, return_when=FIRST_COMPLETED)
             for future in done:
                 lane, index = running.pop(future)
+                installs[lane].result()
                 result = future.result()
                 feed(lane)
                 yield tasks[index], result

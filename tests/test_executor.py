@@ -237,3 +237,22 @@ def test_a_call_that_fails_inside_the_block_ends_its_processes_and_the_next_call
                 before.add(pid)
         pids = {pid for _, pid in execute(_fails_on_two, [0, 1, 3, 4], shared=None, executor="pool", jobs=2)}
     assert len(pids) == 2 and before and not pids & before
+
+
+def _refuse_to_load(message):
+    raise RuntimeError(message)
+
+
+class _Unloadable:
+    """Shared data that pickles in the caller and fails to load in a worker."""
+
+    def __reduce__(self):
+        return _refuse_to_load, ("shared data not loaded",)
+
+
+def test_shared_data_a_process_cannot_load_fails_the_call_with_its_error_not_results_of_the_previous_data():
+    with kept_processes():
+        assert {shared for _, (shared, _) in execute(_pid_with_shared, range(4), shared="a", executor="pool",
+                                                     jobs=2)} == {"a"}
+        with pytest.raises(RuntimeError, match="shared data not loaded"):
+            list(execute(_pid_with_shared, range(4), shared=_Unloadable(), executor="pool", jobs=2))
