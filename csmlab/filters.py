@@ -543,7 +543,10 @@ def _shadow_of_points(found: tuple, receivers: Receivers, view_depth: np.ndarray
     lit = np.full(view_depth.size, np.nan, dtype=np.float32)
     cascade = np.full(view_depth.size, -1, dtype=np.int8)
     blend = np.zeros(view_depth.size, dtype=bool)
-    lit[index], cascade[index], blend[index] = found
+    # Each in the array's own type before the scatter, which would otherwise cast element by element.
+    lit[index] = np.asarray(found[0]).astype(np.float32, copy=False)
+    cascade[index] = np.asarray(found[1]).astype(np.int8, copy=False)
+    blend[index] = found[2]
     if settings.outside == "lit":
         # Bevy returns 1.0 for a point no cascade holds.
         lit[index] = np.where(cascade[index] < 0, np.float32(1.0), lit[index])

@@ -10,7 +10,7 @@ import pytest
 
 import csmlab
 from csmlab.metric_registry import (DERIVED, METRICS, best_mask, finite_mean, format_number, is_metric_column,
-                                    linear_percentiles,
+                                    linear_percentiles, order_statistics, SELECTION_WHOLE_BELOW,
                                     is_per_cascade, metric_columns, metric_named, metric_of, metric_values,
                                     number_or_none, temporal_columns)
 
@@ -146,6 +146,46 @@ def test_linear_percentiles_are_numpys_bit_for_bit_with_ties_infinities_nans_and
             got = linear_percentiles(values.copy(), q)
         assert got.dtype == np.float64 and got.tobytes() == want.tobytes(), (size, q)
     assert np.isnan(linear_percentiles(np.zeros(0, dtype=dtype), (5.0, 50.0))).all()
+
+
+@pytest.mark.parametrize("order", ["random", "sorted", "reversed", "ties", "zeros_and_infinities", "periodic"])
+def test_linear_percentiles_of_long_arrays_are_numpys_bit_for_bit_whichever_way_the_values_lie(order):
+    # Long enough for the sample's brackets (SELECTION_WHOLE_BELOW); orders that put a strided sample
+    # far from the array's (sorted, periodic at the sample's stride) and ties across a bracket's ends.
+    rng = np.random.default_rng(8)
+    for trial, dtype in enumerate((np.float32, np.float64) * 3):
+        size = int(rng.integers(SELECTION_WHOLE_BELOW, 4 * SELECTION_WHOLE_BELOW))
+        values = rng.lognormal(0.0, 1.5, size)
+        if order == "sorted":
+            values = np.sort(values)
+        elif order == "reversed":
+            values = np.sort(values)[::-1].copy()
+        elif order == "ties":
+            values = np.round(values, 0)
+        elif order == "zeros_and_infinities":
+            values[rng.random(size) < 0.3] = 0.0
+            values[rng.integers(0, size, 7)] = np.inf
+        elif order == "periodic":
+            values = np.tile(np.sort(rng.random(64)), size // 64 + 1)[:size]
+        values = values.astype(dtype)
+        q = ((5.0, 50.0, 95.0), (0.0, 99.0, 100.0), (33.3,))[trial % 3]
+        want = np.percentile(values.astype(np.float64), list(q))
+        got = linear_percentiles(values.copy(), q)
+        assert got.tobytes() == want.tobytes(), (order, size, dtype, q)
+
+
+def test_order_statistics_answer_none_for_a_nan_and_a_negative_zero_keeps_numpys_choice_of_tie():
+    values = np.linspace(-1.0, 1.0, 3 * SELECTION_WHOLE_BELOW)
+    values[5] = np.nan
+    assert order_statistics(values.copy(), np.array([10, 20])) is None
+    # Zeros of both signs at the rank: the whole array partitioned as np.percentile's partition does.
+    signed = np.zeros(3 * SELECTION_WHOLE_BELOW)
+    signed[::2] = -0.0
+    signed[:100] = -1.0
+    rank = signed.size // 2
+    want = np.percentile(signed, 50.0)
+    assert linear_percentiles(signed.copy(), (50.0,)).tobytes() == np.array([want]).tobytes()
+    assert order_statistics(signed.copy(), np.array([rank]))[0] == 0.0
 
 
 def test_a_declaration_with_an_unknown_direction_is_refused():
