@@ -82,7 +82,7 @@ def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES, worker: bool | No
         animations out, to stay under it (:func:`csmlab.report.explore.budget_plan`).
     worker : bool or None, keyword-only
         Draw the pictures (strips, 3D view, plots, animations) in a second process while this one
-        makes the interactive part's files, and here those the worker has not started by then
+        reads the interactive part's records, and here those the worker has not started by then
         (:class:`~csmlab.report.picture_pool.PicturePool`); None decides by the strips' size and
         the cores available. The files are the same either way.
 
@@ -109,9 +109,9 @@ def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES, worker: bool | No
     if worker is None:
         worker = _cores() > 1 and _strip_pixels(snapshots, strip_frames) >= _WORKER_PIXELS
     with PicturePool(worker=worker) as pool:
-        # Every picture is queued before this process makes the interactive part's files. The worker takes
+        # Every picture is queued before this process reads the interactive part's records. The worker takes
         # pictures from the front: the 3D view first, so that it alone imports PyVista. This process takes them
-        # from the back once its files are made: the strips, the largest that are left, last.
+        # from the back once the records are read: the strips, the largest that are left, last.
         view3d = _view3d(out, snapshots[points[0]], pool)
         stabilization = _stabilization(results, groups, points, pool)
         pool.submit(frame_curves_figure, results.metrics, out / "figures" / "curves.png")
@@ -123,7 +123,8 @@ def write_report(out_dir, *, budget_bytes: int = BUDGET_BYTES, worker: bool | No
         labels = [m if single else f"{m} @ {p}" for m, p in groups]
         explore = explore_files(out, groups=groups, labels=labels, metrics=results.metrics, encoding="fast")
         pool.finish()
-    # The interactive part once every picture is on disk, so that it knows the size of everything else.
+    # The interactive part once every picture is on disk, so that it knows the size of everything else: its
+    # frames are encoded as the budget reads them.
     written = write_explore(out, explore, budget_bytes=budget_bytes, animations=[out / a["src"] for a in animations],
                             compact=True)
     context = {

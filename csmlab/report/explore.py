@@ -47,10 +47,15 @@ the viewer kept every 4th frame (30 of 120) in a 58.1 MiB report (the order belo
 
 The report encodes the planes ``fast`` first (:data:`PLANE_ENCODINGS`) and, only when they would leave
 frames or the animations out of the budget, again ``compact``: a run the size of the default one keeps
-every frame and animation either way and is spared three quarters of the encoding time. Encoded again,
-only the frames the plan reads are (:class:`FramePayloads`: every 2nd frame, then the others in chunks
-until one overflows what is left), and the shaded views are those already made: ``engines.toml``'s report
-(13 variants, 120 frames) took 45.4 s wall and 55.8 s CPU with every frame encoded twice, 34.1 s and 37.0 s so.
+every frame and animation either way and is spared three quarters of the encoding time. The frames are
+made when the budget reads them, once every picture is on disk: ``fast`` in chunks until they overflow
+what is left for every frame and the animations (they are all kept exactly when their sum fits), and
+then, encoded again, only the frames the plan reads (:class:`FramePayloads`: every 2nd frame, then the
+others in chunks until one overflows what is left), the shaded views those already made.
+``engines.toml``'s report (13 variants, 120 frames) took 45.4 s wall and 55.8 s CPU with every frame
+encoded twice, 34.1 s and 37.0 s so; making every ``fast`` frame first (70.1 MiB of them against the
+60 MiB budget) while the pictures were drawn, 39.8–40.2 s and 62.5–64.8 s CPU (`csmlab report` of
+its 120 frames, a later machine), made as read 32.7–34.4 s and 56.8–59.2 s, the same files.
 
 The folder is kept under a size budget of the report, the files ``index.html`` loads (:func:`report_size`:
 the run's records — ``*.npz``, the CSV, JSON and TOML files at the top — are the report's input, not
@@ -234,9 +239,9 @@ def explore_files(out_dir, *, groups: list[tuple[str, str]], labels: list[str], 
     frames = sorted(set.intersection(*(set(r["frame"].tolist()) for r in records)))
     taa = all(name in r for r in records for name in (*TAA_PLANES, "shaded_taa"))
     run = _run_data(present, records, frames, metrics, _casters(out / "casters.npz"), taa=taa)
+    # The frames are made when the budget reads them (write_explore): a run whose planes are encoded
+    # again compact makes only as many in this encoding as prove that they do not all fit.
     payloads = FramePayloads(frames, present, records, encoding=encoding, taa=taa)
-    # Every frame made now: the report calls this while its pictures are drawn in a second process.
-    payloads[:]
     return ExploreFiles(frames=frames, run=run, payloads=payloads, stride=int(records[0]["stride"]),
                         cell=float(records[0]["world_cell"]))
 
@@ -281,6 +286,11 @@ def write_explore(out_dir, files: ExploreFiles | None, *, budget_bytes: int = BU
     (folder / "data.js").write_text(f"window.csmlabRun = {files.run};\n", encoding="utf-8")
     animation_bytes = sum(Path(p).stat().st_size for p in animations)
     available = budget_bytes - (report_size(out) - animation_bytes + _INDEX_RESERVE)
+    if compact and len(files.frames) >= FIRST_STEP and not _all_fit(_frame_sizes(files), available - animation_bytes):
+        # The plan below would leave frames or the animations out (every frame and the animations fit
+        # exactly when their sum does): encoded again at once, the frames not yet made never made.
+        files = recoded(files, "compact")
+        compact = False
     step, kept_animations = budget_plan(_frame_sizes(files), available, animation_bytes=animation_bytes)
     if (step > 1 or not kept_animations) and compact:
         files = recoded(files, "compact")
@@ -379,6 +389,17 @@ def _others_fit(sizes: Sequence[int], step: int, left: int) -> bool:
             total += sum(sizes[start:start + step * _PLAN_CHUNK:step])
             if total > left:
                 return False
+    return True
+
+
+def _all_fit(sizes: Sequence[int], left: int) -> bool:
+    """Whether all of ``sizes`` fit in ``left`` bytes; read in chunks, stopping at the first that overflows
+    (:func:`_others_fit`'s reading)."""
+    total = 0
+    for start in range(0, len(sizes), _PLAN_CHUNK):
+        total += sum(sizes[start:start + _PLAN_CHUNK])
+        if total > left:
+            return False
     return True
 
 

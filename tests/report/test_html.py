@@ -435,6 +435,53 @@ def test_the_budget_plans_the_same_from_the_sizes_it_reads_and_stops_at_the_firs
         assert sum(sizes[k] for k in others) > left and sum(sizes[k] for k in others[:-8]) <= left
 
 
+@pytest.mark.parametrize("seed", range(60))
+def test_every_frame_and_the_animations_fit_exactly_when_their_sizes_add_up_to_what_is_available(seed):
+    # The report encodes the planes again compact as soon as the fast frames read so far overflow
+    # (explore._all_fit), before any plan: the same choice as the plan's (every frame and the
+    # animations kept, or not), and it reads no chunk past the one that overflows.
+    from csmlab.report.explore import FIRST_STEP, _all_fit, budget_plan
+
+    rng = np.random.default_rng(seed)
+    sizes = rng.integers(1, 100, rng.integers(FIRST_STEP, 120)).tolist()
+    available, animation_bytes = int(rng.integers(-50, 1.2 * sum(sizes))), int(rng.choice([0, 50, 500]))
+    lazy = _ReadSizes(sizes)
+    fits = _all_fit(lazy, available - animation_bytes)
+    assert fits == (budget_plan(sizes, available, animation_bytes=animation_bytes) == (1, True))
+    read = sorted(lazy.read)
+    assert read == list(range(len(read)))
+    if not fits:
+        # Chunks of 8 from the first frame: the last one read overflowed, those before it did not.
+        before = (len(read) - 1) // 8 * 8
+        assert sum(sizes[:len(read)]) > available - animation_bytes
+        assert before == 0 or sum(sizes[:before]) <= available - animation_bytes
+
+
+def test_a_report_whose_fast_frames_overflow_encodes_compact_without_making_every_fast_frame(tiny_run, tmp_path,
+                                                                                            monkeypatch):
+    import csmlab.report.explore as explore
+
+    made = []
+    frame_file = explore._frame_file
+
+    def counted(frame, present, records, *, encoding, **options):
+        made.append((encoding, frame))
+        return frame_file(frame, present, records, encoding=encoding, **options)
+
+    monkeypatch.setattr(explore, "_frame_file", counted)
+    monkeypatch.setattr(explore, "_PLAN_CHUNK", 1)
+    parts = _budget_parts(tiny_run)
+    made.clear()
+    # Room for the report but its frames, and for the first compact frame: the first fast frame, larger, overflows.
+    budget = parts["rest"] + explore._INDEX_RESERVE + parts["animations"] + parts["sizes"][0]
+    copy = tmp_path / "overflowing"
+    shutil.copytree(tiny_run.parent, copy)
+    written = write_report(copy, budget_bytes=budget)
+    fast = [frame for encoding, frame in made if encoding == "fast"]
+    assert len(parts["sizes"]) > 1 and len(fast) == 1
+    assert written.kept and any(encoding == "compact" for encoding, _ in made)
+
+
 def test_planes_encoded_again_are_the_files_of_that_encoding_and_share_the_shaded_views(tiny_run):
     from csmlab.report.explore import explore_files, recoded
     from csmlab.report.tables import read_results
