@@ -397,9 +397,10 @@ def order_statistics(values: np.ndarray, ranks: np.ndarray) -> np.ndarray | None
     :data:`SELECTION_WHOLE_BELOW` values or more is first narrowed to the values between two of a
     sorted sample's (:data:`SELECTION_SAMPLE`, :data:`SELECTION_BRACKET`) around each rank. They
     hold the rank when the values below the lower one are fewer than the rank and those up to the
-    upper one more; that is counted, and only the values between are partitioned. Where a check fails, or the
-    bracket holds a negative zero (equal to +0, whose bits a partition's order of ties would
-    choose), the whole array is partitioned, reordering ``values`` in place.
+    upper one more; that is counted, and only the values between are partitioned. Where a count
+    shows a bracket missing its rank, or a bracket holds a negative zero (equal to +0, whose bits a
+    partition's order of ties would choose), the whole array is partitioned, reordering ``values``
+    in place.
     """
     if np.isnan(values.max()):
         return None
@@ -430,9 +431,9 @@ def _bracketed_statistics(values: np.ndarray, ranks: np.ndarray) -> np.ndarray |
             stop += 1
         lo = sample[low[start]] if low[start] > 0 else -np.inf
         hi = sample[high[stop - 1]] if high[stop - 1] < sample.size - 1 else np.inf
-        inside = (values >= lo) & (values <= hi)
-        held = values[inside]
-        at = ranks[start:stop] - np.count_nonzero(values < lo)
+        below = values < lo
+        held = values[~below & (values <= hi)]
+        at = ranks[start:stop] - np.count_nonzero(below)
         if at[0] < 0 or at[-1] >= held.size or np.signbit(held[held == 0]).any():
             return None
         held.partition(at)

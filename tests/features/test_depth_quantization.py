@@ -122,17 +122,23 @@ def test_the_quantization_kernel_gives_numpys_bits_beyond_the_range_at_signed_ze
     assert np.array_equal(stored_depth(z[1, 2], span=350.0, depth_format=depth_format), scene[1, 2])
 
 
+def unorm16_stored(maps, scheme: str, **how) -> np.ndarray:
+    """``maps`` ``(3, R, R)`` stored as unorm16 by the ``scene`` scheme (a 350 m span) or the ``cascade`` one (each
+    cascade's own near and far, across and beyond the test depths)."""
+    if scheme == "scene":
+        return stored_depth(maps, span=350.0, depth_format="unorm16", **how)
+    return cascade_stored_depth(maps, near=np.array([-5.0, 0.0, 12.3]), far=np.array([80.0, 200.0, 99.9]),
+                                depth_format="unorm16", **how)
+
+
 @pytest.mark.parametrize("scheme", ["scene", "cascade"])
 def test_quantizing_in_place_gives_the_same_bits_and_leaves_read_only_maps_as_they_were(scheme):
     rng = np.random.default_rng(10)
     z = rng.uniform(-30.0, 400.0, (3, 24, 24)).astype(np.float32)
     z[:, 0] = np.inf
-    near, far = np.array([-5.0, 0.0, 12.3]), np.array([80.0, 200.0, 99.9])
 
     def stored(maps, **how):
-        if scheme == "scene":
-            return stored_depth(maps, span=350.0, depth_format="unorm16", **how)
-        return cascade_stored_depth(maps, near=near, far=far, depth_format="unorm16", **how)
+        return unorm16_stored(maps, scheme, **how)
 
     fresh = stored(z)
     own = z.copy()

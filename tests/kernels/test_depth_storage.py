@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from csmlab.kernels.depth_storage import unorm_stored_depth
-from csmlab.storage import cascade_stored_depth, stored_depth
+from tests.features.test_depth_quantization import unorm16_stored
 
 
 def depth_maps(seed: int) -> np.ndarray:
@@ -31,12 +31,9 @@ def inside(regions, shape) -> np.ndarray:
 @pytest.mark.parametrize("seed", range(3))
 def test_regions_are_quantized_as_the_whole_maps_and_the_other_texels_keep_outs_values(scheme, seed):
     z = depth_maps(seed)
-    near, far = np.array([-5.0, 0.0, 12.3]), np.array([80.0, 200.0, 99.9])
 
     def stored(maps, **how):
-        if scheme == "scene":
-            return stored_depth(maps, span=350.0, depth_format="unorm16", **how)
-        return cascade_stored_depth(maps, near=near, far=far, depth_format="unorm16", **how)
+        return unorm16_stored(maps, scheme, **how)
 
     whole = stored(z)
     out = np.full(z.shape, 7.5, dtype=np.float32)
