@@ -59,8 +59,9 @@ from csmlab.kernels.flip import flip_error_map, flip_filter_radii, flip_reach, p
 from csmlab.kernels.reach import grown_along
 from csmlab.kernels.ssim import SSIM_RADIUS, SSIM_SIGMA, ssim_where_changed
 from csmlab.metric_registry import finite_mean
-from csmlab.metrics.shading import ShadingTerms, shaded_rgb, srgb_encoded, view_shading_terms
+from csmlab.metrics.shading import ShadingTerms, shaded_rgb, view_shading_terms
 from csmlab.registry import dispatch
+from csmlab.srgb import srgb_encoded
 
 __all__ = ["FLIP_METHODS", "FLIP_SUPPORT", "FLIP_WHOLE_ABOVE", "JND_CIEDE2000", "PerceptualMaps", "SSIM_SUPPORT",
            "SSIM_WHOLE_ABOVE", "WIDE_CHANGE", "changed_windows", "delta_e_2000", "flip_map", "lab_from_linear_srgb",

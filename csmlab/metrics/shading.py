@@ -2,7 +2,7 @@
 
 Linear RGB ``albedo × (ambient + S · max(0, n · l) · c)`` with ``l = −d`` the unit vector toward the
 light and ``c`` the light's linear RGB colour (white unless a glTF sun names one; the ambient is
-left uncoloured), and its sRGB encoding for display and for ꟻLIP (docs/design.md, "Metrics"). The
+left uncoloured), encoded for display and for ꟻLIP by :mod:`csmlab.srgb` (docs/design.md, "Metrics"). The
 albedo is the G-buffer's, per pixel: the triangle's base colour times its texture at the hit
 (:mod:`csmlab.kernels.texture`).
 """
@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import colour
 import numpy as np
 
 from csmlab.geometry import normalized
@@ -20,7 +19,7 @@ AMBIENT = 0.25
 """The ambient term of a run's shading, in units of the direct light: the perceptual metrics
 (:func:`csmlab.metrics.measure_frame`) and the report's shaded views (before and after TAA) use it."""
 
-__all__ = ["AMBIENT", "ShadingTerms", "shaded_rgb", "shading_terms", "srgb_encoded", "view_shading_terms"]
+__all__ = ["AMBIENT", "ShadingTerms", "shaded_rgb", "shading_terms", "view_shading_terms"]
 
 
 @dataclass(frozen=True)
@@ -123,8 +122,3 @@ def view_shading_terms(view) -> ShadingTerms:
     return view.shared(("shading_terms",), lambda: shading_terms(g.albedo, g.normal,
                                                                   light_direction=view.light_direction,
                                                                   light_colour=view.light_colour))
-
-
-def srgb_encoded(rgb) -> np.ndarray:
-    """sRGB-encoded display values ``(..., 3)`` in [0, 1] of linear RGB, clipped to the display range first."""
-    return np.asarray(colour.cctf_encoding(np.clip(np.asarray(rgb, dtype=np.float64), 0.0, 1.0), function="sRGB"))

@@ -27,11 +27,12 @@ from matplotlib.lines import Line2D
 
 from csmlab.compare import Comparison, MetricDelta, compare_runs
 from csmlab.metric_registry import BETTER_TEXT, finite_mean, format_number
+from csmlab.srgb import srgb_encoded
 from csmlab.report.capture import capture_stem, decode_u8, read_npz
 from csmlab.report.figures import CURVES
 from csmlab.report.images import (CATEGORY_COLOURS, CHANGE_CMAP, DIFFERENCE_CMAP, RHO_CMAP, change_image, change_norm,
                                   difference_image, difference_norm, rho_image, rho_norm, rho_ratio_image,
-                                  rho_ratio_norm, shaded_image, srgb_from_linear)
+                                  rho_ratio_norm, shaded_image)
 from csmlab.report.png import save_figure
 from csmlab.report.tables import Columns, read_columns
 from csmlab.results import write_atomic
@@ -193,7 +194,7 @@ def _shown_srgb(snapshot: dict) -> np.ndarray:
     """The shaded view as displayed, ``(H, W, 3)`` float64 sRGB; NaN where there is no shading."""
     shaded = np.asarray(snapshot["shaded"], dtype=np.float64)
     defined = np.asarray(snapshot["valid"], dtype=bool) & np.all(np.isfinite(shaded), axis=-1)
-    return np.where(defined[..., None], srgb_from_linear(np.nan_to_num(shaded)), np.nan)
+    return np.where(defined[..., None], srgb_encoded(np.nan_to_num(shaded)), np.nan)
 
 
 def _shaded_difference(snap_a: dict, snap_b: dict) -> np.ndarray:

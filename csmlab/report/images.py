@@ -20,6 +20,7 @@ from matplotlib.colors import Normalize, PowerNorm
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
+from csmlab.srgb import srgb_encoded
 from csmlab.report.png import save_figure
 
 __all__ = [
@@ -37,7 +38,6 @@ __all__ = [
     "rho_norm",
     "shaded_image",
     "snapshot_strip_figures",
-    "srgb_from_linear",
 ]
 
 CATEGORY_COLOURS = np.array([
@@ -65,12 +65,6 @@ _OVERLAY_ALPHA = 0.45
 _DIFF_BACKGROUND = 0.35
 
 
-def srgb_from_linear(linear) -> np.ndarray:
-    """sRGB-encoded values in [0, 1] (float64, same shape) of linear values (clipped to [0, 1]), IEC 61966-2-1."""
-    x = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
-
-
 def _u8(rgb: np.ndarray) -> np.ndarray:
     return np.rint(np.clip(rgb, 0.0, 1.0) * 255.0).astype(np.uint8)
 
@@ -82,7 +76,7 @@ def _with_background(rgb: np.ndarray, defined: np.ndarray) -> np.ndarray:
 def shaded_image(shaded, valid) -> np.ndarray:
     """The shaded view: ``(H, W, 3)`` uint8 sRGB of linear RGB ``shaded`` (H, W, 3); NO_SURFACE where undefined."""
     shaded = np.asarray(shaded, dtype=np.float64)
-    return _with_background(srgb_from_linear(np.nan_to_num(shaded)), _shaded_defined(shaded, valid))
+    return _with_background(srgb_encoded(np.nan_to_num(shaded)), _shaded_defined(shaded, valid))
 
 
 def _shaded_defined(shaded: np.ndarray, valid) -> np.ndarray:
@@ -102,7 +96,7 @@ def cascade_overlay_image(shaded, cascade, valid) -> np.ndarray:
     valid : array_like, shape (H, W), bool
     """
     shaded = np.asarray(shaded, dtype=np.float64)
-    base = srgb_from_linear(np.nan_to_num(shaded))
+    base = srgb_encoded(np.nan_to_num(shaded))
     return _with_background(_cascade_tint(base, cascade), _shaded_defined(shaded, valid))
 
 
@@ -149,7 +143,7 @@ def reference_diff_image(shaded, ref_diff, valid) -> np.ndarray:
     The shaded view, darkened, with false shadow (+1) in vermillion and false light (-1) in sky blue.
     """
     shaded = np.asarray(shaded, dtype=np.float64)
-    base = srgb_from_linear(np.nan_to_num(shaded))
+    base = srgb_encoded(np.nan_to_num(shaded))
     return _with_background(_reference_diff(base, ref_diff), _shaded_defined(shaded, valid))
 
 
@@ -231,7 +225,7 @@ def _strip_panels(fig: Figure, grid, images: list[tuple[np.ndarray, ...]], label
 def _strip_images(snap: dict) -> tuple[np.ndarray, ...]:
     """The five panels of a snapshot's row, ``(H, W, 3)`` uint8 each."""
     shaded = np.asarray(snap["shaded"], dtype=np.float64)
-    base = srgb_from_linear(np.nan_to_num(shaded))
+    base = srgb_encoded(np.nan_to_num(shaded))
     defined = _shaded_defined(shaded, snap["valid"])
     return (_with_background(base, defined), _with_background(_cascade_tint(base, snap["cascade"]), defined),
             rho_image(snap["rho"]), change_image(snap["dS"]),

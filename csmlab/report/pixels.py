@@ -21,6 +21,7 @@ import numpy as np
 
 from csmlab.frame import Frame, View
 from csmlab.geometry import frustum_slice_corners
+from csmlab.srgb import srgb_encoded
 
 __all__ = [
     "NO_VALUE",
@@ -361,15 +362,13 @@ def taa_pixels(frame: Frame, pixels: dict, shadow, reference, *, stride: int, am
 
 def _srgb_u8(linear, take) -> np.ndarray:
     """uint8 sRGB ``(h, w, 3)`` of linear RGB ``(H, W, 3)`` at the pixels ``take``, 0 where undefined."""
-    from csmlab.report.images import srgb_from_linear
-
     # The sampled pixels copied out first (contiguous, float64), then worked on in place: NumPy's
     # loops over a strided view cost several times their contiguous ones.
     rgb = np.array(np.asarray(linear)[take], dtype=np.float64, order="C")
     finite = np.isfinite(rgb)
     # Three column tests: np.all over a length-3 last axis is several times slower.
     rgb[~(finite[..., 0] & finite[..., 1] & finite[..., 2])] = 0.0  # 0 where undefined: sRGB(0) = 0
-    srgb = srgb_from_linear(rgb)
+    srgb = srgb_encoded(rgb)
     srgb *= 255.0
     return np.rint(srgb, out=srgb).astype(np.uint8)
 

@@ -12,13 +12,15 @@ import pytest
 import warp as wp
 
 from csmlab.camera import CameraPose
+from csmlab.kernels import flip
 from csmlab.geometry import rotation_looking_at
 from csmlab.kernels.flip import (FLIP_DEFAULT_PPD, flip_error_map, flip_filter_radii, flip_reach, libm_exp, libm_pow,
                                 pixels_differ)
-from csmlab.metrics.shading import shaded_rgb, srgb_encoded
+from csmlab.metrics.shading import shaded_rgb
 from csmlab.render import render_frame
 from csmlab.scene import make_scene
 from csmlab.settings import ShadowSettings
+from csmlab.srgb import srgb_encoded
 
 wp.set_module_options({"fuse_fp": False})
 
@@ -207,6 +209,24 @@ def test_a_reach_grown_from_more_pixels_than_differ_gives_the_same_map_bit_for_b
     np.testing.assert_array_equal(flip_error_map(reference, test, reach=reach, device=device), expected)
     with pytest.raises(ValueError, match="reach: expected the images' shape"):
         flip_error_map(reference, test, reach=reach[:-1], device=device)
+
+
+@pytest.mark.parametrize("changed", [0.002, 0.02, 0.3])
+def test_the_cpus_runs_of_pixels_give_the_bits_of_a_pixel_at_a_time(changed, monkeypatch):
+    # On the CPU the row passes take four or eight pixels at once where the taps allow; a pixel at a
+    # time (a GPU's threads) is the oracle, checked against flip_evaluator above. Scattered changes
+    # leave runs of every length, at the image's edges too.
+    rng = np.random.default_rng(int(changed * 1000))
+    reference = rng.random((48, 160, 3)).astype(np.float32)
+    test = reference.copy()
+    spots = rng.random(reference.shape[:2]) < changed
+    test[spots] = rng.random((np.count_nonzero(spots), 3)).astype(np.float32)
+    blocks = flip_error_map(reference, test, device="cpu")
+    monkeypatch.setattr(flip, "_pixels_per_thread", lambda device, width: 1)
+    pixels = flip_error_map(reference, test, device="cpu")
+    np.testing.assert_array_equal(blocks.view(np.uint32), pixels.view(np.uint32))
+    assert np.count_nonzero(blocks) > 0.5 * np.count_nonzero(flip_reach(pixels_differ(reference, test),
+                                                                         radius=max(flip_filter_radii())) >= 3)
 
 
 @pytest.mark.parametrize("reference, test, match", [

@@ -212,7 +212,7 @@ def test_windowed_flip_equals_the_whole_image_flip_bit_for_bit(seed, method):
 
 @pytest.mark.parametrize("method", sorted(FLIP_METHODS))
 def test_flip_encoding_only_the_colours_read_gives_the_fully_encoded_images_flip(method):
-    from csmlab.metrics.shading import srgb_encoded
+    from csmlab.srgb import srgb_encoded
 
     previous, current, changed = _sparse_pair(7)
     albedo = np.random.default_rng(8).random(current.shape + (3,))
@@ -349,7 +349,7 @@ def test_filling_uncompared_pixels_window_by_window_equals_filling_the_whole_ima
 def _assert_maps_equal_their_windowed_values(previous, current, changed):
     """ssim_map and flip_map of a grey pair (and its tinted RGB) equal the maps filtered window by window."""
     from csmlab.metrics.perceptual import FLIP_SUPPORT, SSIM_SUPPORT, _flip_warp, _ssim_full, _windowed
-    from csmlab.metrics.shading import srgb_encoded
+    from csmlab.srgb import srgb_encoded
 
     windowed = _windowed(_ssim_full, (previous, current), changed_windows(changed, support=SSIM_SUPPORT),
                          shape=current.shape, fill=1.0, dtype=np.float64)

@@ -726,7 +726,8 @@ def _resolves_anew(toml: Path, *, method: str):
 
 @pytest.mark.slow
 def test_a_taa_runs_record_holds_the_after_taa_planes_and_they_decode_to_the_resolves(tiny_taa_run):
-    from csmlab.metrics.shading import shaded_rgb, srgb_encoded
+    from csmlab.metrics.shading import shaded_rgb
+    from csmlab.srgb import srgb_encoded
 
     stride, step = 2, 0.5 / 254 + 1e-9  # the record's pixels; its precision, ±1/508
     record = np.load(tiny_taa_run.parent / "pixels" / "none__base.npz")
