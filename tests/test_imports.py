@@ -25,7 +25,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "csmlab"
 
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("foundations", ("csmlab", "csmlab.errors", "csmlab.files", "csmlab.documents", "csmlab.registry",
-                     "csmlab.geometry", "csmlab.metric_registry")),
+                     "csmlab.geometry", "csmlab.srgb", "csmlab.metric_registry")),
     ("settings", ("csmlab.lookup_choices", "csmlab.culling", "csmlab.fades", "csmlab.shadow_policies",
                   "csmlab.settings")),
     ("kernels", ("csmlab.kernels",)),
