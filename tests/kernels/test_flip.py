@@ -229,6 +229,19 @@ def test_the_cpus_runs_of_pixels_give_the_bits_of_a_pixel_at_a_time(changed, mon
                                                                          radius=max(flip_filter_radii())) >= 3)
 
 
+def test_the_passes_kept_arrays_hold_nothing_a_later_call_reads(device):
+    # The intermediate arrays are kept from call to call (flip._scratch): filled with NaN between two
+    # calls of one shape, the second map is still the one a first call gives (no pixel read unwritten).
+    first = _noisy_pair(5, (40, 72))
+    reference, test = _noisy_pair(6, (40, 72))
+    test[:, :30] = reference[:, :30]
+    expected = flip_error_map(reference, test, device=device)
+    flip_error_map(*first, device=device)
+    for array in flip._SCRATCH.arrays:
+        array.fill_(float("nan"))
+    np.testing.assert_array_equal(flip_error_map(reference, test, device=device), expected)
+
+
 @pytest.mark.parametrize("reference, test, match", [
     (np.zeros((4, 4)), np.zeros((4, 4)), "reference: expected an \\(H, W, 3\\)"),
     (np.zeros((4, 4, 3)), np.zeros((4, 4, 4)), "test: expected an \\(H, W, 3\\)"),
