@@ -556,8 +556,8 @@ def rows_kernel(
     inner = wp.max(spatial_radius, feature_radius)
     while j < end:
         level = int(reach[i, j])
-        if (run > 1 and j >= inner and j + 7 + inner < end and four_at_least(reach, i, j, READ_BY_COLUMNS)
-                and four_at_least(reach, i, j + 4, READ_BY_COLUMNS)):
+        if (run > 1 and j >= inner and j + 8 <= end and j + 7 + inner < reach.shape[1]
+                and four_at_least(reach, i, j, READ_BY_COLUMNS) and four_at_least(reach, i, j + 4, READ_BY_COLUMNS)):
             # On the CPU (a row a thread) eight pixels at once where no tap is clamped, both images: where
             # the test's row does not differ its pass is the reference's, as rows_pixel copies it.
             rows_block(ycxcz, luma, i, j, spatial, spatial_radius, feature, feature_radius, spatial_rows, feature_rows)
