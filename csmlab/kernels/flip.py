@@ -667,9 +667,10 @@ def column_sums_block(spatial_rows: wp.array3d(dtype=wp.vec4), feature_rows: wp.
                       feature_radius: int) -> BlockSums:
     """:func:`column_sums` of pixels j … j + 3 of row i, on the CPU: the same sums in the same order, bit for bit.
 
-    Native code so that clang adds the four pixels' taps in one vector of 16 floats (the columns
-    pass ~2× faster than a pixel at a time); floating-point contraction off, as in the rest of the
-    module. A GPU's threads take a pixel each and never call it (its ``sums`` are then undefined).
+    Native code so that clang adds the four pixels' taps in one vector of 16 floats (the pass's sums
+    ~2× faster than a pixel at a time; its per-pixel tail stays Warp's); floating-point contraction
+    off, as in the rest of the module. A GPU's threads take a pixel each and never call it (its
+    ``sums`` are then undefined).
     """
     ...
 

@@ -27,7 +27,6 @@ from matplotlib.lines import Line2D
 
 from csmlab.compare import Comparison, MetricDelta, compare_runs
 from csmlab.metric_registry import BETTER_TEXT, finite_mean, format_number
-from csmlab.srgb import srgb_encoded
 from csmlab.report.capture import capture_stem, decode_u8, read_npz
 from csmlab.report.figures import CURVES
 from csmlab.report.images import (CATEGORY_COLOURS, CHANGE_CMAP, DIFFERENCE_CMAP, RHO_CMAP, change_image, change_norm,
@@ -36,6 +35,7 @@ from csmlab.report.images import (CATEGORY_COLOURS, CHANGE_CMAP, DIFFERENCE_CMAP
 from csmlab.report.png import save_figure
 from csmlab.report.tables import Columns, read_columns
 from csmlab.results import write_atomic
+from csmlab.srgb import srgb_encoded
 
 __all__ = ["FRAMES_SHOWN", "write_comparison_report"]
 

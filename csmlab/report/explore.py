@@ -377,29 +377,29 @@ def budget_plan(sizes: Sequence[int], available: int, *, animation_bytes: int) -
 
 
 _PLAN_CHUNK = 8
-"""Frames whose sizes :func:`_others_fit` reads at once: enough for both encoding threads, few past the answer."""
+"""Frames whose sizes :func:`_fit_in_chunks` reads at once: enough for both encoding threads, few past the answer."""
 
 
 def _others_fit(sizes: Sequence[int], step: int, left: int) -> bool:
-    """Whether the frames not in ``sizes[::step]`` fit in ``left`` bytes; read in chunks, stopping at the first
-    that overflows (the sizes of :class:`FramePayloads` are encoded as they are read)."""
+    """Whether the frames not in ``sizes[::step]`` fit in ``left`` bytes (:func:`_fit_in_chunks`)."""
+    return _fit_in_chunks(sizes, left, offsets=range(1, step), step=step)
+
+
+def _all_fit(sizes: Sequence[int], left: int) -> bool:
+    """Whether all of ``sizes`` fit in ``left`` bytes (:func:`_fit_in_chunks`)."""
+    return _fit_in_chunks(sizes, left, offsets=(0,), step=1)
+
+
+def _fit_in_chunks(sizes: Sequence[int], left: int, *, offsets, step: int) -> bool:
+    """Whether ``sizes[offset::step]`` of every offset fit in ``left`` bytes together; read in chunks of
+    :data:`_PLAN_CHUNK`, stopping at the first that overflows (the sizes of :class:`FramePayloads` are
+    encoded as they are read)."""
     total = 0
-    for offset in range(1, step):
+    for offset in offsets:
         for start in range(offset, len(sizes), step * _PLAN_CHUNK):
             total += sum(sizes[start:start + step * _PLAN_CHUNK:step])
             if total > left:
                 return False
-    return True
-
-
-def _all_fit(sizes: Sequence[int], left: int) -> bool:
-    """Whether all of ``sizes`` fit in ``left`` bytes; read in chunks, stopping at the first that overflows
-    (:func:`_others_fit`'s reading)."""
-    total = 0
-    for start in range(0, len(sizes), _PLAN_CHUNK):
-        total += sum(sizes[start:start + _PLAN_CHUNK])
-        if total > left:
-            return False
     return True
 
 

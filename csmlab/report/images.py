@@ -20,8 +20,8 @@ from matplotlib.colors import Normalize, PowerNorm
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from csmlab.srgb import srgb_encoded
 from csmlab.report.png import save_figure
+from csmlab.srgb import srgb_encoded
 
 __all__ = [
     "CATEGORY_COLOURS",
