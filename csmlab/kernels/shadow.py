@@ -46,6 +46,7 @@ References
 
 from __future__ import annotations
 
+from string import Template
 from typing import Any
 
 import numpy as np
@@ -207,11 +208,52 @@ def box_count(depth: wp.array3d(dtype=wp.float32), c: int, x: wp.int64, y: wp.in
     return count
 
 
+_NINE_TAPS = """
+int count = 0;
+#if !defined(__CUDA_ARCH__)
+{
+#pragma clang fp contract(off)
+    // A row's three taps side by side: the plane's column terms plus the row's term, each sum rounded
+    // to float32 and compared with the texel, as Warp's scalar code does them one at a time.
+    typedef double v4d __attribute__((ext_vector_type(4)));
+    typedef float v4f __attribute__((ext_vector_type(4)));
+    typedef int v4i __attribute__((ext_vector_type(4)));
+    const v4d columns = {c0, c1, c2, c2};
+    const double rows[3] = {r0, r1, r2};
+    for (int t = 0; t < 3; ++t) {
+        v4f texels = 0.0f;
+        __builtin_memcpy(&texels, &wp::index(depth, c, j - 1 + t, i - 1), 12);
+        const v4i passes = __builtin_convertvector(columns + rows[t], v4f) <= texels;
+        count -= passes[0] + passes[1] + passes[2];
+    }
+}
+#else
+    const double columns[3] = {c0, c1, c2};
+    const double rows[3] = {r0, r1, r2};
+    for (int t = 0; t < 3; ++t) {
+        for (int u = 0; u < 3; ++u) {
+            count += static_cast<float>(columns[u] + rows[t]) <= wp::index(depth, c, j - 1 + t, i - 1 + u) ? 1 : 0;
+        }
+    }
+#endif
+return count;
+"""
+
+
+@wp.func_native(_NINE_TAPS)
+def nine_taps(depth: wp.array3d(dtype=wp.float32), c: int, i: int, j: int, c0: wp.float64, c1: wp.float64,
+              c2: wp.float64, r0: wp.float64, r1: wp.float64, r2: wp.float64) -> int:
+    """How many of the 3×3 texels centred on (i, j) of cascade c are not nearer than the receiver plane
+    ``float32(c_u + r_t)`` at column u and row t: :func:`box_count_3x3`'s comparisons, a row's three at once
+    on the CPU (native code, so that clang puts them in one vector), one at a time on a GPU."""
+    ...
+
+
 @wp.func
 def box_count_3x3(depth: wp.array3d(dtype=wp.float32), c: int, x: wp.int64, y: wp.int64, receiver: wp.float32,
                   slope: wp.vec2d, bits: int, inverse_span: wp.float64) -> int:
     """:func:`box_count` of radius 1 (PCF 3×3), its loops unrolled: the three column and three row terms of
-    the plane are each computed once and the nine taps are straight-line code."""
+    the plane are each computed once and the nine taps compared in :func:`nine_taps`."""
     shift = wp.int64(bits)
     unit = wp.int64(1) << shift
     step = wp.int64(2) * unit
@@ -226,19 +268,7 @@ def box_count_3x3(depth: wp.array3d(dtype=wp.float32), c: int, x: wp.int64, y: w
     r0 = slope[1] * (wp.float64(ey) * inverse_span)
     r1 = slope[1] * (wp.float64(ey + step) * inverse_span)
     r2 = slope[1] * (wp.float64(ey + wp.int64(2) * step) * inverse_span)
-    ii = int(i)
-    jj = int(j)
-    count = int(0)
-    count += wp.where(wp.float32(c0 + r0) <= depth[c, jj - 1, ii - 1], 1, 0)
-    count += wp.where(wp.float32(c1 + r0) <= depth[c, jj - 1, ii], 1, 0)
-    count += wp.where(wp.float32(c2 + r0) <= depth[c, jj - 1, ii + 1], 1, 0)
-    count += wp.where(wp.float32(c0 + r1) <= depth[c, jj, ii - 1], 1, 0)
-    count += wp.where(wp.float32(c1 + r1) <= depth[c, jj, ii], 1, 0)
-    count += wp.where(wp.float32(c2 + r1) <= depth[c, jj, ii + 1], 1, 0)
-    count += wp.where(wp.float32(c0 + r2) <= depth[c, jj + 1, ii - 1], 1, 0)
-    count += wp.where(wp.float32(c1 + r2) <= depth[c, jj + 1, ii], 1, 0)
-    count += wp.where(wp.float32(c2 + r2) <= depth[c, jj + 1, ii + 1], 1, 0)
-    return count
+    return nine_taps(depth, c, int(i), int(j), c0, c1, c2, r0, r1, r2)
 
 
 @wp.func
@@ -473,6 +503,184 @@ def band_weight(z: wp.float64, chosen: int, count: int, splits: wp.array(dtype=w
     return w
 
 
+BLOCK = 8
+"""World receivers a CPU thread selects at once (:func:`world_block`), in the lanes of its vectors."""
+
+WorldBlock = wp.types.matrix(shape=(6, BLOCK), dtype=wp.float64)
+""":data:`BLOCK` world receivers at their ``interval`` cascade (:func:`world_block`), a column each: rows the cascade
+(−1: none, or its box does not hold the taps), fixed-point ``x, y`` (exact in float64: inside the box), the biased
+float32 depth and the receiver plane's slope ``(x, y)``."""
+
+_WORLD_BLOCK = Template("""
+wp::mat_t<6, $BLOCK, double> out;
+#if !defined(__CUDA_ARCH__)
+{
+#pragma clang fp contract(off)
+    // receiver_light, the interval selection and receiver_in of eight receivers, each step over the eight
+    // lanes at once: the same operations in the same order as Warp's code, so the same bits.
+    double px[$BLOCK], py[$BLOCK], pz[$BLOCK], nx[$BLOCK], ny[$BLOCK], nz[$BLOCK], cs[$BLOCK], tn[$BLOCK], plx[$BLOCK],
+           ply[$BLOCK], z[$BLOCK];
+    int chosen[$BLOCK];
+    const wp::mat_t<3, 3, double> b = r.basis;
+    for (int l = 0; l < $BLOCK; ++l) {
+        const int m = wp::index(r.index, k + l);
+        const wp::vec_t<3, double> p = wp::index(r.points, m);
+        const wp::vec_t<3, float> nf = wp::index(r.normals, m);
+        const double n0 = static_cast<double>(nf[0]), n1 = static_cast<double>(nf[1]), n2 = static_cast<double>(nf[2]);
+        px[l] = (p[0] * b.data[0][0] + p[2] * b.data[0][2]) + p[1] * b.data[0][1];
+        py[l] = (p[0] * b.data[1][0] + p[2] * b.data[1][2]) + p[1] * b.data[1][1];
+        pz[l] = (p[0] * b.data[2][0] + p[2] * b.data[2][2]) + p[1] * b.data[2][1];
+        nx[l] = (n0 * b.data[0][0] + n2 * b.data[0][2]) + n1 * b.data[0][1];
+        ny[l] = (n0 * b.data[1][0] + n2 * b.data[1][2]) + n1 * b.data[1][1];
+        nz[l] = (n0 * b.data[2][0] + n2 * b.data[2][2]) + n1 * b.data[2][1];
+        z[l] = wp::index(view_depth, k + l);
+    }
+    for (int l = 0; l < $BLOCK; ++l) {
+        const double cos = -nz[l];
+        const bool facing = cos > 0.0;
+        cs[l] = cos;
+        tn[l] = facing ? wp::min(wp::sqrt(wp::max(1.0 - cos * cos, 0.0)) / cos, r.bias.max_tan) : NAN;
+        plx[l] = facing ? nx[l] / cos : 0.0;
+        ply[l] = facing ? ny[l] / cos : 0.0;
+        chosen[l] = -1;
+    }
+    const int count = splits.shape[0] - 1;
+    for (int c = 0; c < count; ++c) {
+        const double lo = wp::index(splits, c), hi = wp::index(splits, c + 1);
+        for (int l = 0; l < $BLOCK; ++l) {
+            chosen[l] = (z[l] >= lo && z[l] < hi) ? c : chosen[l];
+        }
+    }
+    const double max_tan = r.bias.max_tan;
+    for (int l = 0; l < $BLOCK; ++l) {
+        const int c = chosen[l] < 0 ? 0 : chosen[l];
+        const double cos = cs[l];
+        const double tx = wp::index(r.texel_size, c, 0), ty = wp::index(r.texel_size, c, 1);
+        double sx = 0.0, sy = 0.0;
+        if (r.planar != 0) {
+            sx = wp::clamp(plx[l], -max_tan, max_tan) * tx;
+            sy = wp::clamp(ply[l], -max_tan, max_tan) * ty;
+        }
+        double moved = wp::index(r.bias.offset, c);
+        double along = 1.0;
+        if (r.bias.normal_scale != $NORMAL_NONE) {
+            if (r.bias.normal_scale == $NORMAL_SIN) {
+                moved = moved * wp::sqrt(wp::max(1.0 - cos * cos, 0.0));
+            } else if (r.bias.normal_scale == $NORMAL_ONE_MINUS_COS_LATERAL) {
+                moved = moved * (1.0 - wp::max(-cos, 0.0));
+                along = 0.0;
+            } else {
+                moved = moved * (1.0 - wp::max(cos, 0.0));
+            }
+        }
+        double ux = wp::rint(wp::clamp((nx[l] * moved + px[l]) * wp::index(r.to_fixed, c, 0), -r.limit, r.limit));
+        double uy = wp::rint(wp::clamp((ny[l] * moved + py[l]) * wp::index(r.to_fixed, c, 1), -r.limit, r.limit));
+        ux = ux != ux ? -r.limit : ux;
+        uy = uy != uy ? -r.limit : uy;
+        const long long x = static_cast<long long>(ux) - wp::index(r.origin_fixed, c, 0);
+        const long long y = static_cast<long long>(uy) - wp::index(r.origin_fixed, c, 1);
+        double bias = wp::index(r.bias.bias_constant, c) + wp::index(r.bias.slope_bias, c) * tn[l];
+        const double cap = wp::index(r.bias.plane_offset, c);
+        if (cap > 0.0) {
+            const double ox = wp::clamp(plx[l], -max_tan, max_tan) * tx;
+            const double oy = wp::clamp(ply[l], -max_tan, max_tan) * ty;
+            bias = bias + wp::min(wp::abs(ox) + wp::abs(oy), cap);
+        }
+        const float receiver = static_cast<float>(pz[l] + along * moved * nz[l] - r.zref - bias);
+        const bool held = chosen[l] >= 0 && x >= tap_lo && x < tap_hi && y >= tap_lo && y < tap_hi;
+        out.data[0][l] = held ? static_cast<double>(chosen[l]) : -1.0;
+        out.data[1][l] = held ? static_cast<double>(x) : 0.0;
+        out.data[2][l] = held ? static_cast<double>(y) : 0.0;
+        out.data[3][l] = static_cast<double>(receiver);
+        out.data[4][l] = sx;
+        out.data[5][l] = sy;
+    }
+}
+#endif
+return out;
+""").substitute(BLOCK=BLOCK, NORMAL_NONE=NORMAL_NONE, NORMAL_SIN=NORMAL_SIN,
+                 NORMAL_ONE_MINUS_COS_LATERAL=NORMAL_ONE_MINUS_COS_LATERAL)
+
+
+@wp.func_native(_WORLD_BLOCK)
+def world_block(r: WorldReceivers, view_depth: wp.array(dtype=wp.float64), splits: wp.array(dtype=wp.float64),
+                k: int, tap_lo: wp.int64, tap_hi: wp.int64) -> WorldBlock:
+    """Receivers k … k + 7 at their ``interval`` cascade, on the CPU: :func:`selected_cascade` of each, bit for bit.
+
+    Native code so that clang takes the eight receivers through :func:`receiver_light`, the
+    selection and :func:`receiver_in` in vectors of eight float64 (a third of the lookup's time
+    went to these, a receiver at a time); floating-point contraction off, as in the rest of the
+    module. A GPU's threads take a receiver each and never call it.
+    """
+    ...
+
+
+@wp.func
+def interval_block(r: WorldReceivers, view_depth: wp.array(dtype=wp.float64), splits: wp.array(dtype=wp.float64),
+                   k: int, tap_lo: wp.int64, tap_hi: wp.int64) -> WorldBlock:
+    """:func:`world_block` of world receivers; the other receivers' overloads are never called
+    (:func:`has_blocks`)."""
+    return world_block(r, view_depth, splits, k, tap_lo, tap_hi)
+
+
+@wp.func
+def interval_block(r: FixedReceivers, view_depth: wp.array(dtype=wp.float64),  # noqa: F811
+                   splits: wp.array(dtype=wp.float64), k: int, tap_lo: wp.int64, tap_hi: wp.int64) -> WorldBlock:
+    """Converted receivers have no block (:func:`has_blocks`): what the generic kernel's code compiles to."""
+    return WorldBlock()
+
+
+@wp.func
+def interval_block(r: WindowReceivers, view_depth: wp.array(dtype=wp.float64),  # noqa: F811
+                   splits: wp.array(dtype=wp.float64), k: int, tap_lo: wp.int64, tap_hi: wp.int64) -> WorldBlock:
+    """An engine's window receivers have no block (:func:`has_blocks`): what the generic kernel's code compiles to."""
+    return WorldBlock()
+
+
+@wp.func
+def has_blocks(r: WorldReceivers) -> bool:
+    """World receivers are selected :data:`BLOCK` at a time on the CPU (:func:`world_block`)."""
+    return True
+
+
+@wp.func
+def has_blocks(r: FixedReceivers) -> bool:  # noqa: F811
+    """Converted receivers are read a receiver at a time."""
+    return False
+
+
+@wp.func
+def has_blocks(r: WindowReceivers) -> bool:  # noqa: F811
+    """An engine's window receivers are converted a receiver at a time."""
+    return False
+
+
+@wp.func
+def write_lookup(depth: wp.array3d(dtype=wp.float32), receivers: Any, k: int, z: wp.float64, chosen: int, x: wp.int64,
+                 y: wp.int64, receiver: wp.float32, slope: wp.vec2d, splits: wp.array(dtype=wp.float64),
+                 band_start: wp.array(dtype=wp.float64), blend_curve: int, bits: int, inverse_span: wp.float64,
+                 filter_code: int, radius: int, tap_lo: wp.int64, tap_hi: wp.int64, lit: wp.array(dtype=wp.float32),
+                 cascade: wp.array(dtype=wp.int32), blend: wp.array(dtype=wp.int32)):
+    """Receiver k's S, cascade and blend flag, the receiver at ``(x, y)`` with ``receiver`` depth and ``slope`` in its
+    selected cascade ``chosen`` (−1: none, S 0): filtered there and, in the cascade's blend band, blended with the next
+    cascade where that holds the taps (``[tap_lo, tap_hi)``, fixed point)."""
+    cascade[k] = chosen
+    blend[k] = 0
+    if chosen < 0:
+        lit[k] = 0.0
+        return
+    s = lit_fraction(depth, chosen, x, y, receiver, slope, bits, inverse_span, filter_code, radius)
+    w = band_weight(z, chosen, depth.shape[0], splits, band_start, blend_curve)
+    if w >= wp.float64(0.0):
+        # The receiver in the light's basis again: only a band's receivers read a second cascade.
+        xn, yn, rn, sn = receiver_in(receivers, receiver_light(receivers, k), chosen + 1, k)
+        if holds(xn, yn, tap_lo, tap_hi):
+            s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, chosen + 1, xn, yn, rn, sn, bits, inverse_span,
+                                                             filter_code, radius)
+            blend[k] = 1
+    lit[k] = wp.float32(s)
+
+
 @wp.kernel
 def shadow_lookup_kernel(
     depth: wp.array3d(dtype=wp.float32),
@@ -500,30 +708,31 @@ def shadow_lookup_kernel(
     inverse_span = wp.float64(1.0) / wp.float64(wp.int64(2) * unit)
     count = depth.shape[0]
     size = wp.int64(depth.shape[1])
+    tap_lo = wp.int64(reach) * unit
+    tap_hi = (size - wp.int64(reach)) * unit
     k = wp.tid() * run
     last = wp.min(k + run, view_depth.shape[0])
+    blocks = run > 1 and selection == SELECT_INTERVAL and has_blocks(receivers)
     while k < last:
-        z = view_depth[k]
-        # The receiver in the light's basis once, whichever cascades the selection and the blend read.
-        light = receiver_light(receivers, k)
-        chosen, x, y, receiver, slope = selected_cascade(
-            receivers, light, k, z, selection, count, splits, texel_area, sphere_cascade, wp.int64(reach) * unit,
-            (size - wp.int64(reach)) * unit, wp.int64(margin) * unit, (size - wp.int64(margin)) * unit)
-        cascade[k] = chosen
-        blend[k] = 0
-        if chosen < 0:
-            lit[k] = 0.0
+        if blocks and k + BLOCK <= last:
+            block = interval_block(receivers, view_depth, splits, k, tap_lo, tap_hi)
+            lane = int(0)
+            while lane < BLOCK:
+                write_lookup(depth, receivers, k + lane, view_depth[k + lane], int(block[0, lane]),
+                             wp.int64(block[1, lane]), wp.int64(block[2, lane]), wp.float32(block[3, lane]),
+                             wp.vec2d(block[4, lane], block[5, lane]),
+                             splits, band_start, blend_curve, bits, inverse_span, filter_code, radius, tap_lo, tap_hi,
+                             lit, cascade, blend)
+                lane += 1
+            k += BLOCK
         else:
-            s = lit_fraction(depth, chosen, x, y, receiver, slope, bits, inverse_span, filter_code, radius)
-            w = band_weight(z, chosen, count, splits, band_start, blend_curve)
-            if w >= wp.float64(0.0):
-                xn, yn, rn, sn = receiver_in(receivers, light, chosen + 1, k)
-                if holds(xn, yn, wp.int64(reach) * unit, (size - wp.int64(reach)) * unit):
-                    s = (wp.float64(1.0) - w) * s + w * lit_fraction(depth, chosen + 1, xn, yn, rn, sn, bits,
-                                                                     inverse_span, filter_code, radius)
-                    blend[k] = 1
-            lit[k] = wp.float32(s)
-        k += 1
+            z = view_depth[k]
+            chosen, x, y, receiver, slope = selected_cascade(
+                receivers, receiver_light(receivers, k), k, z, selection, count, splits, texel_area, sphere_cascade,
+                tap_lo, tap_hi, wp.int64(margin) * unit, (size - wp.int64(margin)) * unit)
+            write_lookup(depth, receivers, k, z, chosen, x, y, receiver, slope, splits, band_start, blend_curve, bits,
+                         inverse_span, filter_code, radius, tap_lo, tap_hi, lit, cascade, blend)
+            k += 1
 
 
 @wp.kernel

@@ -8,7 +8,7 @@ from csmlab.frame import ShadowMaps
 from csmlab.geometry import light_basis
 from csmlab.kernels.bias import BiasSettings
 from csmlab.kernels.raster import rasterize_depth
-from csmlab.kernels.shadow import select_cascades, shadow_lookup
+from csmlab.kernels.shadow import receiver_coordinates, select_cascades, shadow_lookup
 from csmlab.lookup_choices import FILTER_METHODS, SELECTION_METHODS, family_filters
 from csmlab.render import lookup_shadow
 from csmlab.settings import ShadowSettings
@@ -265,7 +265,6 @@ def test_receiver_coordinates_on_the_device_equal_the_host_receiver_lookup_bit_f
     """The kernel finishing csmlab.texels.receiver_lookup gives its coordinates, depths and slopes exactly."""
     from csmlab.cascades import Cascade, CascadeSet
     from csmlab.geometry import light_basis
-    from csmlab.kernels.shadow import receiver_coordinates
     from csmlab.texels import fixed_point_origin, receiver_lookup
 
     rng = np.random.default_rng(5)
@@ -298,9 +297,9 @@ def test_receiver_coordinates_on_the_device_equal_the_host_receiver_lookup_bit_f
             np.testing.assert_array_equal(g, e[:, picked])
 
 
-def _world_case(device):
-    """Receivers about three nested boxes' centre and maps in their depth range (the world lookups' tests)."""
-    from csmlab.kernels.shadow import receiver_coordinates
+def _world_case(device, bias=BiasSettings(normal_offset=0.75, bias_constant=0.01, bias_slope=1.5)):
+    """Receivers about three nested boxes' centre and maps in their depth range (the world lookups' tests), moved
+    and biased by ``bias``."""
 
     rng = np.random.default_rng(11)
     size, count = 32, 3
@@ -321,8 +320,8 @@ def _world_case(device):
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     receivers = rng.permutation(points.shape[0])[:900]
     view_depth = depths[receivers]
-    conversion = dict(basis=basis, texel_size=texel, origin_fixed=origin, zref=-2.0, bits=BITS,
-                      bias=BiasSettings(normal_offset=0.75, bias_constant=0.01, bias_slope=1.5), device=device)
+    conversion = dict(basis=basis, texel_size=texel, origin_fixed=origin, zref=-2.0, bits=BITS, bias=bias,
+                      device=device)
     coords, receiver_depth, slope = receiver_coordinates(points, normals, receivers=receivers, **conversion)
     finite = receiver_depth[np.isfinite(receiver_depth)]
     maps = rng.uniform(finite.min(), finite.max(), (count, size, size)).astype(np.float32)
@@ -371,6 +370,40 @@ def test_world_receivers_look_up_the_same_bits_as_converted_ones(selection, devi
         assert np.isfinite(lit).sum() > 100 and 0 < np.mean(lit[np.isfinite(lit)]) < 1
         assert len(set(chosen.tolist()) - {-1}) >= 2
         assert blended.any() == (blend_band > 0.0)
+
+
+@pytest.mark.parametrize("scale", ["none", "one_minus_cos", "sin", "one_minus_cos_lateral"])
+def test_world_receivers_selected_eight_at_a_time_look_up_the_bits_of_converted_ones(scale, device):
+    """On the CPU a thread takes world receivers through the interval selection eight at a time (native vector code,
+    csmlab.kernels.shadow.world_block): under every normal-offset scale, with MJP's plane offset and without, with
+    NaN normals and view depths, the same bits as receiver_coordinates + shadow_lookup, whose receivers are converted
+    one at a time by Warp's code."""
+    from csmlab.kernels.shadow import shadow_lookup_world
+
+    for cap in (0.0, 0.02):
+        bias = BiasSettings(normal_offset=0.75, bias_constant=0.01, bias_slope=1.5, normal_scale=scale,
+                            plane_offset=cap, normal_offset_m=0.003)
+        case = _world_case(device, bias)
+        normals, view_depth = case["normals"].copy(), case["view_depth"].copy()
+        normals[case["receivers"][::97]] = np.nan
+        view_depth[5::89] = np.nan
+        coords, receiver_depth, slope = (receiver_coordinates(case["points"], normals, receivers=case["receivers"],
+                                                              **case["conversion"]))
+        for filter, filter_size, blend_band in (("pcf", 3, 0.3), ("pcf", 5, 0.0), ("pcf_bilinear", 1, 0.0)):
+            common = dict(splits=case["splits"], texel_area=np.prod(case["texel"], axis=1), selection="interval",
+                          filter=filter, radius=radius(filter, filter_size), margin=2, blend_band=blend_band,
+                          bits=BITS, device=device)
+            converted = shadow_lookup(case["maps"], coords, receiver_depth, view_depth, receiver_slope=slope,
+                                      **common)
+            world = shadow_lookup_world(case["maps"], case["points"], normals, view_depth,
+                                        receivers=case["receivers"], receiver_plane_bias=True,
+                                        **{k: v for k, v in case["conversion"].items() if k not in ("bits", "device")},
+                                        **common)
+            for a, b in zip(converted, world):
+                np.testing.assert_array_equal(a, b)
+            lit, chosen, _ = world
+            assert np.isfinite(lit).sum() > 100 and len(set(chosen.tolist()) - {-1}) == 3
+            assert np.isnan(lit[5::89]).all()
 
 
 @pytest.mark.parametrize("selection", sorted(SELECTION_METHODS))
@@ -443,7 +476,6 @@ def test_normal_offset_scales_are_the_engines_on_host_and_device_bit_for_bit(sca
     the light (the depth kept)."""
     from csmlab.cascades import Cascade, CascadeSet
     from csmlab.geometry import light_basis
-    from csmlab.kernels.shadow import receiver_coordinates
     from csmlab.texels import fixed_point_origin, receiver_lookup
 
     texel, offset, bits = 0.25, 2.0, 12
@@ -489,7 +521,6 @@ def test_mjps_receiver_plane_offset_is_its_formula_on_host_and_device_bit_for_bi
     cascade's normalized depth: the plane's depth change over one texel in x plus one in y, capped."""
     from csmlab.cascades import Cascade, CascadeSet
     from csmlab.geometry import light_basis
-    from csmlab.kernels.shadow import receiver_coordinates
     from csmlab.texels import fixed_point_origin, receiver_lookup
 
     texel, bits, span = np.array([0.25, 0.3]), 10, 80.0
