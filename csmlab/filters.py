@@ -59,7 +59,7 @@ from csmlab.kernels.engine import warped_receivers, window_receivers
 from csmlab.texels import fixed_point_origin, receiver_lookup, uses_global_grid, window_boxes
 
 __all__ = ["FAMILY_LOOKUPS", "Receivers", "clipmap_radius", "filter_inputs", "interleaved_gradient_noise",
-           "lookup_shadow", "noise_frame", "screen_pixels", "texel_coordinates", "uses_pixels"]
+           "lookup_shadow", "noise_frame", "receiver_rows", "screen_pixels", "texel_coordinates", "uses_pixels"]
 
 
 @dataclass(frozen=True)
@@ -99,7 +99,7 @@ class Receivers:
 
 def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: ShadowSettings,
                   pixels=None, quads: Quads | None = None, quad_view_depth=None, noise_frame: int = 0,
-                  device: str = "cpu") -> ShadowLookup:
+                  rows=None, device: str = "cpu") -> ShadowLookup:
     """One method's shadow at receiver points: the filter's record, receivers, selection, the filter, fade.
 
     Parameters
@@ -125,6 +125,9 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
         The lanes' view depths under the camera whose cascade selection is wanted.
     noise_frame : int
         Frame term of a per-pixel rotation's noise (:func:`noise_frame` of the frame shaded).
+    rows : ndarray, shape (K,), int, optional
+        :func:`receiver_rows` of ``points`` and ``view_depth``, when the caller keeps it (a view's
+        methods look up the same points); None finds them.
     device : str
         ``"cpu"`` or ``"cuda"``.
 
@@ -147,7 +150,7 @@ def lookup_shadow(maps: ShadowMaps, *, points, normals, view_depth, settings: Sh
         reads = reads | {"pixels"}
     receivers = dataclasses.replace(
         _receivers(points, normals, view_depth, pixels=pixels, quads=quads, quad_view_depth=quad_view_depth,
-                   reads=reads), noise_frame=int(noise_frame))
+                   reads=reads, rows=rows), noise_frame=int(noise_frame))
     _check_maps(maps, reads)
     radius = record.radius_of(settings)
     selection = _selection(maps.cascades, settings, radius=radius)
@@ -197,8 +200,27 @@ def _clipmap_lookup(maps: ShadowMaps, *, points, normals, settings: ShadowSettin
     return ShadowLookup(lit=lit.reshape(shape), cascade=cascade.reshape(shape), blend=np.zeros(shape, dtype=bool))
 
 
-def _receivers(points, normals, view_depth, *, pixels, quads: Quads | None, quad_view_depth, reads) -> Receivers:
-    """Step 2: the receivers among ``points``, with the pixels and quads the filter reads."""
+def receiver_rows(points, view_depth) -> np.ndarray:
+    """The receivers among ``points``: the flat indices ``(K,)`` int64, in order, of the rows whose three
+    coordinates are finite and whose view depth is not NaN.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3) or (H, W, 3), float64
+        World positions in metres.
+    view_depth : array_like, shape (N,) or (H, W)
+        The points' view depths.
+    """
+    flat = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    # Component by component: np.all over a length-3 axis is ten times slower than three columns.
+    finite = np.isfinite(flat[:, 0]) & np.isfinite(flat[:, 1]) & np.isfinite(flat[:, 2])
+    return np.flatnonzero(finite & ~np.isnan(np.asarray(view_depth, dtype=np.float64).reshape(-1)))
+
+
+def _receivers(points, normals, view_depth, *, pixels, quads: Quads | None, quad_view_depth, reads,
+               rows=None) -> Receivers:
+    """Step 2: the receivers among ``points`` (``rows``, else :func:`receiver_rows`), with the pixels and quads the
+    filter reads."""
     p = np.asarray(points, dtype=np.float64)
     n = np.asarray(normals, dtype=np.float32)
     z = np.asarray(view_depth, dtype=np.float64)
@@ -207,14 +229,12 @@ def _receivers(points, normals, view_depth, *, pixels, quads: Quads | None, quad
                          f"got {p.shape}, {n.shape}, {z.shape}")
     flat_z = z.reshape(-1)
     flat = p.reshape(-1, 3)
-    # Component by component: np.all over a length-3 axis is ten times slower than three columns.
-    finite = np.isfinite(flat[:, 0]) & np.isfinite(flat[:, 1]) & np.isfinite(flat[:, 2])
-    index = np.flatnonzero(finite & ~np.isnan(flat_z))
+    index = receiver_rows(flat, flat_z) if rows is None else np.asarray(rows)
     at = None
     if "pixels" in reads:
         if pixels is None and p.ndim == 3:
-            rows, cols = np.indices(p.shape[:2])
-            pixels = np.stack([cols, rows], axis=-1)
+            ys, xs = np.indices(p.shape[:2])
+            pixels = np.stack([xs, ys], axis=-1)
         if pixels is None:
             raise ValueError("pixels: a filter rotated per pixel needs each receiver's pixel")
         at = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)[index]

@@ -22,7 +22,7 @@ from csmlab.culling import culled_triangles
 from csmlab.cascades import CascadeSet, build_cascades
 from csmlab.cascades.bounds import BOUNDS_METHODS, DEPTH_RANGE_METHODS, visible_depth_range
 from csmlab.cascades.warp import warped_texels
-from csmlab.filters import clipmap_radius, filter_inputs, lookup_shadow, noise_frame
+from csmlab.filters import clipmap_radius, filter_inputs, lookup_shadow, noise_frame, receiver_rows
 from csmlab.frame import Frame, GBuffer, ShadowMaps, View
 from csmlab.geometry import light_basis, normalized
 from csmlab.kernels.engine import warped_vertices, window_chunk_vertices, window_vertices
@@ -969,6 +969,7 @@ def render_shadow(dscene: DeviceScene, view: View, settings: ShadowSettings, *,
     shadow = lookup_shadow(maps, points=g.position, normals=g.normal, view_depth=g.view_depth, settings=settings,
                            quads=quads, quad_view_depth=quad_view_depth,
                            noise_frame=noise_frame(settings, frame=view.index, taa=view.jitter is not None),
+                           rows=view.shared(("receiver_rows",), lambda: receiver_rows(g.position, g.view_depth)),
                            device=dscene.device)
     timings["shadow"] = time.perf_counter() - start
     return Frame(view=view, settings=settings, maps=maps, shadow=shadow, timings=timings)

@@ -133,3 +133,41 @@ def test_hdrps_dithered_borders_read_the_pixels_but_rotate_no_disk():
     assert np.count_nonzero(kept) > 0.9 * np.count_nonzero(plain.cascade >= 0)
     np.testing.assert_array_equal(dithered.lit[kept], plain.lit[kept])
     assert np.any(rotated.lit[kept] != plain.lit[kept])              # a rotation would show here
+
+
+def test_receiver_rows_are_the_points_with_three_finite_coordinates_and_a_view_depth():
+    """Checked point by point: a NaN or infinite coordinate, or a NaN view depth, leaves a point out; an infinite
+    view depth alone does not."""
+    from csmlab.filters import receiver_rows
+
+    rng = np.random.default_rng(2)
+    points = rng.uniform(-5.0, 5.0, (6, 7, 3))
+    view_depth = rng.uniform(0.1, 50.0, (6, 7))
+    for (i, j, axis), value in zip(rng.integers(0, [6, 7, 3], size=(12, 3)), [np.nan, np.inf, -np.inf] * 4):
+        points[i, j, axis] = value
+    view_depth[1, ::2] = np.nan
+    view_depth[4, 1::3] = np.inf
+    expected = [row for row, (p, z) in enumerate(zip(points.reshape(-1, 3), view_depth.reshape(-1)))
+                if all(np.isfinite(c) for c in p) and not np.isnan(z)]
+    np.testing.assert_array_equal(receiver_rows(points, view_depth), expected)
+    assert 0 < len(expected) < 42
+
+
+def test_a_lookup_given_its_receivers_rows_shades_as_one_that_finds_them():
+    """render_shadow hands lookup_shadow the view's receiver rows, found once for its methods: the same S, cascade
+    and blend as when the lookup finds them, where the view has misses."""
+    from csmlab.filters import lookup_shadow, receiver_rows
+
+    dscene = prepare_scene(make_scene("terrain", seed=1, size=120.0, resolution=24, trees=120, ring_trees=40))
+    pose = next(iter(make_path("walk", frames=2, fps=30, seed=1, aspect=96 / 54, far=150.0).poses()))
+    view = render_view(dscene, pose, SUN, width=96, height=54, reference=False)
+    g = view.gbuffer
+    assert not g.valid.all()
+    settings = ShadowSettings(filter="pcf", filter_size=3, blend_band=0.2)
+    maps = render_shadow(dscene, view, settings, lookup=False).maps
+    common = dict(points=g.position, normals=g.normal, view_depth=g.view_depth, settings=settings)
+    found = lookup_shadow(maps, **common)
+    given = lookup_shadow(maps, rows=receiver_rows(g.position, g.view_depth), **common)
+    for a, b in zip((found.lit, found.cascade, found.blend), (given.lit, given.cascade, given.blend)):
+        np.testing.assert_array_equal(a, b)
+    assert np.isfinite(found.lit).sum() > 100

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from csmlab.camera import CameraPose
-from csmlab.filters import noise_frame, screen_pixels, uses_pixels
+from csmlab.filters import noise_frame, receiver_rows, screen_pixels, uses_pixels
 from csmlab.frame import Frame
 from csmlab.metric_registry import finite_mean
 from csmlab.quads import quad_lanes
@@ -101,8 +101,8 @@ def temporal_maps(frame: Frame, previous: Frame, *, device: str = "cpu") -> Temp
     # keep every earlier view alive in a chain).
     visible, rows, points, normals = frame.view.shared(("visible_points",), lambda: _visible_points(g))
     camera = previous.view.pose
-    earlier_depth = frame.view.shared(("view_depth_from", camera.position.tobytes(), camera.forward.tobytes()),
-                                      lambda: camera.view_depth(points))
+    seen_from = (camera.position.tobytes(), camera.forward.tobytes())
+    earlier_depth = frame.view.shared(("view_depth_from",) + seen_from, lambda: camera.view_depth(points))
     quads = quad_view_depth = None
     if previous.maps.mips is not None:
         # Frame t's pixel quads, each lane selecting with frame t−1's camera (csmlab.quads).
@@ -116,6 +116,8 @@ def temporal_maps(frame: Frame, previous: Frame, *, device: str = "cpu") -> Temp
                             quads=quads, quad_view_depth=quad_view_depth,
                             noise_frame=noise_frame(previous.settings, frame=previous.view.index,
                                                     taa=previous.view.jitter is not None),
+                            rows=frame.view.shared(("receiver_rows_from",) + seen_from,
+                                                   lambda: receiver_rows(points, earlier_depth)),
                             device=device)
     previous_lit = np.full(g.shape, np.nan, dtype=np.float32)
     previous_lit.reshape(-1)[rows] = earlier.lit

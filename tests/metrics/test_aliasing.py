@@ -142,7 +142,7 @@ def test_methods_sharing_a_view_get_the_differentials_computed_once_and_equal_to
     coarse, fine = (render_shadow(dscene, view, ShadowSettings(cascades=2, resolution=r, shadow_distance=40.0))
                     for r in (64, 128))
     shared = [aliasing_maps(coarse).rho, aliasing_maps(fine).rho]
-    assert [key[0] for key in view.derived] == ["surface_differentials"]
+    assert [key[0] for key in view.derived].count("surface_differentials") == 1
     alone = render_shadow(dscene, render_view(dscene, pose, [0.3, -0.8, -0.5], width=WIDTH, height=HEIGHT),
                           ShadowSettings(cascades=2, resolution=128, shadow_distance=40.0))
     np.testing.assert_array_equal(shared[1], aliasing_maps(alone).rho)
