@@ -560,13 +560,20 @@ def _shadow_of_points(found: tuple, receivers: Receivers, view_depth: np.ndarray
     """Step 6: the :class:`ShadowLookup` of every point (shaped like ``view_depth``), faded toward ``far``."""
     shape = view_depth.shape
     index = receivers.index
-    lit = np.full(view_depth.size, np.nan, dtype=np.float32)
-    cascade = np.full(view_depth.size, -1, dtype=np.int8)
-    blend = np.zeros(view_depth.size, dtype=bool)
-    # Each in the array's own type before the scatter, which would otherwise cast element by element.
-    lit[index] = np.asarray(found[0]).astype(np.float32, copy=False)
-    cascade[index] = np.asarray(found[1]).astype(np.int8, copy=False)
-    blend[index] = found[2]
+    if index.size == view_depth.size:
+        # Every point a receiver (their rows in order: 0 … N − 1, as the temporal lookup's visible points are):
+        # the receivers' results are the points', without a scatter.
+        lit = np.array(found[0], dtype=np.float32)
+        cascade = np.array(found[1], dtype=np.int8)
+        blend = np.array(found[2], dtype=bool)
+    else:
+        lit = np.full(view_depth.size, np.nan, dtype=np.float32)
+        cascade = np.full(view_depth.size, -1, dtype=np.int8)
+        blend = np.zeros(view_depth.size, dtype=bool)
+        # Each in the array's own type before the scatter, which would otherwise cast element by element.
+        lit[index] = np.asarray(found[0]).astype(np.float32, copy=False)
+        cascade[index] = np.asarray(found[1]).astype(np.int8, copy=False)
+        blend[index] = found[2]
     if settings.outside == "lit":
         # Bevy returns 1.0 for a point no cascade holds.
         lit[index] = np.where(cascade[index] < 0, np.float32(1.0), lit[index])

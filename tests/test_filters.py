@@ -171,3 +171,23 @@ def test_a_lookup_given_its_receivers_rows_shades_as_one_that_finds_them():
     for a, b in zip((found.lit, found.cascade, found.blend), (given.lit, given.cascade, given.blend)):
         np.testing.assert_array_equal(a, b)
     assert np.isfinite(found.lit).sum() > 100
+
+
+def test_a_lookup_of_the_visible_points_alone_shades_them_as_among_the_misses():
+    """Where every point is a receiver (the temporal metric's visible points) the lookup returns the receivers'
+    results as they are; they equal the same points' among the view's misses."""
+    from csmlab.filters import lookup_shadow
+
+    dscene = prepare_scene(make_scene("terrain", seed=1, size=120.0, resolution=24, trees=120, ring_trees=40))
+    pose = next(iter(make_path("walk", frames=2, fps=30, seed=1, aspect=96 / 54, far=150.0).poses()))
+    g = render_view(dscene, pose, SUN, width=96, height=54, reference=False).gbuffer
+    settings = ShadowSettings(filter="pcf", filter_size=3, blend_band=0.2, fade_out=0.1)
+    maps = render_shadow(dscene, render_view(dscene, pose, SUN, width=96, height=54, reference=False), settings,
+                         lookup=False).maps
+    whole = lookup_shadow(maps, points=g.position, normals=g.normal, view_depth=g.view_depth, settings=settings)
+    valid = g.valid
+    alone = lookup_shadow(maps, points=g.position[valid], normals=g.normal[valid], view_depth=g.view_depth[valid],
+                          settings=settings)
+    for a, b in zip((whole.lit, whole.cascade, whole.blend), (alone.lit, alone.cascade, alone.blend)):
+        np.testing.assert_array_equal(a[valid], b)
+    assert not valid.all() and np.isfinite(alone.lit).sum() > 100 and alone.blend.any()
