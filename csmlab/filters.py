@@ -560,20 +560,13 @@ def _shadow_of_points(found: tuple, receivers: Receivers, view_depth: np.ndarray
     """Step 6: the :class:`ShadowLookup` of every point (shaped like ``view_depth``), faded toward ``far``."""
     shape = view_depth.shape
     index = receivers.index
-    if index.size == view_depth.size:
-        # Every point a receiver (their rows in order: 0 … N − 1, as the temporal lookup's visible points are):
-        # the receivers' results are the points', without a scatter.
-        lit = np.array(found[0], dtype=np.float32)
-        cascade = np.array(found[1], dtype=np.int8)
-        blend = np.array(found[2], dtype=bool)
-    else:
-        lit = np.full(view_depth.size, np.nan, dtype=np.float32)
-        cascade = np.full(view_depth.size, -1, dtype=np.int8)
-        blend = np.zeros(view_depth.size, dtype=bool)
-        # Each in the array's own type before the scatter, which would otherwise cast element by element.
-        lit[index] = np.asarray(found[0]).astype(np.float32, copy=False)
-        cascade[index] = np.asarray(found[1]).astype(np.int8, copy=False)
-        blend[index] = found[2]
+    # Each in the points' array type before a scatter, which would otherwise cast element by element.
+    lit, cascade, blend = (np.asarray(a).astype(t, copy=False) for a, t in zip(found, (np.float32, np.int8, bool)))
+    if index.size < view_depth.size:
+        lit, cascade, blend = (_scattered(a, index, size=view_depth.size, fill=f)
+                               for a, f in ((lit, np.nan), (cascade, -1), (blend, False)))
+    # Else every point is a receiver, their rows in order (0 … N − 1, as the temporal lookup's visible points are):
+    # the receivers' results are the points'.
     if settings.outside == "lit":
         # Bevy returns 1.0 for a point no cascade holds.
         lit[index] = np.where(cascade[index] < 0, np.float32(1.0), lit[index])
@@ -587,6 +580,13 @@ def _shadow_of_points(found: tuple, receivers: Receivers, view_depth: np.ndarray
         # points with the transitions, not with same-cascade swimming.
         blend[index] |= fading
     return ShadowLookup(lit=lit.reshape(shape), cascade=cascade.reshape(shape), blend=blend.reshape(shape))
+
+
+def _scattered(values: np.ndarray, index: np.ndarray, *, size: int, fill) -> np.ndarray:
+    """``values`` at rows ``index`` of an array of ``size`` rows of their type, ``fill`` elsewhere."""
+    out = np.full(size, fill, dtype=values.dtype)
+    out[index] = values
+    return out
 
 
 def _box_origins(cascades: CascadeSet, settings: ShadowSettings) -> np.ndarray:

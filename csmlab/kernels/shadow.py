@@ -608,7 +608,7 @@ def world_block(r: WorldReceivers, view_depth: wp.array(dtype=wp.float64), split
     """Receivers k … k + 7 at their ``interval`` cascade, on the CPU: :func:`selected_cascade` of each, bit for bit.
 
     Native code so that clang takes the eight receivers through :func:`receiver_light`, the
-    selection and :func:`receiver_in` in vectors of eight float64 (a third of the lookup's time
+    selection and :func:`receiver_in` in vectors of eight float64 (about half of the kernel's time
     went to these, a receiver at a time); floating-point contraction off, as in the rest of the
     module. A GPU's threads take a receiver each and never call it.
     """
