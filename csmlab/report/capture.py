@@ -182,12 +182,13 @@ def capture_frame(frame: Frame, measures: FrameMeasures, *, snapshot: bool,
         ``images``, ``snapshot`` None without ``snapshot``.
     """
     pixels = measures.pixels
+    shadow, dS = _animation_planes(frame.shadow.lit, pixels["dS"]) if images else (None, None)
     return Capture(
         frame=int(frame.view.index),
         time_s=float(frame.view.pose.time_s),
         cascades=_cascade_rows(frame),
-        shadow=_coded_u8(_block_mean(frame.shadow.lit)) if images else None,
-        dS=_coded_u8(_block_max(np.abs(pixels["dS"]))) if images else None,
+        shadow=shadow,
+        dS=dS,
         snapshot=_snapshot(frame, pixels) if snapshot else None,
         pixels=frame_pixels(frame, pixels, grid=grid, taa=taa) if images and grid is not None else None,
     )
@@ -330,6 +331,21 @@ def _block_reduce(values: np.ndarray, ufunc: np.ufunc, dtype) -> np.ndarray:
     for a in range(1, k):
         ufunc(total, rows[a::k], out=total)
     return total
+
+
+def _animation_planes(lit, change) -> tuple[np.ndarray, np.ndarray]:
+    """An animation frame's planes: the coded block mean of S and block maximum of |ΔS| ``(H // k, W // k)`` uint8.
+
+    One kernel pass over the frame (:func:`csmlab.kernels.records.animation_codes`) for blocks under 8
+    pixels wide; wider ones (images over 7 × :data:`ANIM_WIDTH`) NumPy sums pairwise, as
+    :func:`_block_reduce` does.
+    """
+    k = _anim_factor(np.shape(lit)[1])
+    if k >= 8:
+        return _coded_u8(_block_mean(lit)), _coded_u8(_block_max(np.abs(change)))
+    from csmlab.kernels.records import animation_codes
+
+    return animation_codes(lit, change, k=k)
 
 
 def _block_mean(values) -> np.ndarray:

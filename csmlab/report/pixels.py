@@ -75,13 +75,13 @@ class WorldGrid:
     nz: int
 
     def index(self, positions) -> np.ndarray:
-        """Flat cell index ``row · nx + column`` of world ``positions`` (..., 3); -1 outside or NaN."""
+        """Flat cell index ``row · nx + column`` of world ``positions`` (..., 3); -1 outside or NaN
+        (:func:`csmlab.kernels.records.grid_cells`)."""
+        from csmlab.kernels.records import grid_cells
+
         p = np.asarray(positions, dtype=np.float64)
-        with np.errstate(invalid="ignore"):
-            col = np.floor((p[..., 0] - self.x0) / self.cell)
-            row = np.floor((p[..., 2] - self.z0) / self.cell)
-            inside = (col >= 0) & (col < self.nx) & (row >= 0) & (row < self.nz)
-        return np.where(inside, np.nan_to_num(row) * self.nx + np.nan_to_num(col), -1).astype(np.int64)
+        image = p if p.ndim == 3 else p.reshape(1, -1, 3)
+        return grid_cells(image, x0=self.x0, z0=self.z0, cell=self.cell, nx=self.nx, nz=self.nz).reshape(p.shape[:-1])
 
 
 def world_grid(camera_positions, *, reach: float, cells: int = WORLD_CELLS) -> WorldGrid:
@@ -246,6 +246,8 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid, taa: tuple | No
         selected cascade. The view-only part (:func:`view_pixels`) is computed once per view and
         grid, by the first method of the view. With ``taa``, also the keys of :func:`taa_pixels`.
     """
+    from csmlab.kernels.records import cell_sums
+
     view = frame.view
     per_view = view.shared(("view_pixels", grid), lambda: view_pixels(view, grid=grid))
     k = per_view.stride
@@ -253,13 +255,7 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid, taa: tuple | No
     lit = np.where(per_view.valid, frame.shadow.lit[take], np.nan)
     srgb = _srgb_u8(pixels["shaded"], take)
     dS = np.asarray(pixels["dS"], dtype=np.float64)
-    cells = per_view.cells
-    keep = np.isfinite(dS) & (cells >= 0)
-    where = cells[keep]
-    size = grid.nx * grid.nz
-    dS_sum = np.bincount(where, weights=dS[keep], minlength=size)
-    counts = np.bincount(where, minlength=size)
-    flips = np.bincount(where[np.asarray(pixels["flipped"], dtype=bool)[keep]], minlength=size)
+    dS_sum, counts, flips = cell_sums(per_view.cells, dS, pixels["flipped"], size=grid.nx * grid.nz)
     touched = np.flatnonzero(counts)
     rho = np.asarray(pixels["rho"], dtype=np.float64)
     cascade = np.asarray(frame.shadow.cascade)
@@ -293,8 +289,8 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid, taa: tuple | No
         "box_corners": box_corners(frame.maps.cascades),
         "cells": touched.astype(np.int64),
         "cell_dS": dS_sum[touched],
-        "cell_counted": counts[touched].astype(np.int64),
-        "cell_flips": flips[touched].astype(np.int64),
+        "cell_counted": counts[touched],
+        "cell_flips": flips[touched],
         "rho_hist": hist,
         **({} if taa is None else taa_pixels(frame, pixels, *taa, stride=k, ambient=ambient)),
     }
