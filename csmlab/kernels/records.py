@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-__all__ = ["animation_codes", "cell_sums", "grid_cells"]
+__all__ = ["animation_codes", "cell_sums", "grid_cells", "log2_histogram"]
 
 # Each product, quotient and sum rounded on its own, as NumPy rounds them.
 wp.set_module_options({"fuse_fp": False})
@@ -122,6 +122,29 @@ def animation_codes_kernel(lit: wp.array2d(dtype=wp.float64), change: wp.array2d
         if largest >= wp.float64(0.0):
             change_codes[i, j] = coded(largest)
         j += 1
+
+
+@wp.kernel
+def log2_histogram_kernel(log2_values: wp.array2d(dtype=wp.float64), bin_of: wp.array2d(dtype=wp.int32),
+                          defined: wp.array2d(dtype=wp.bool), per_step: wp.float64, offset: wp.float64,
+                          counts: wp.array2d(dtype=wp.int64), outside: wp.array(dtype=wp.int64)):
+    # One thread (the counts are added to at random). A group out of range is counted in `outside`, not written.
+    i = int(0)
+    groups = counts.shape[0]
+    bins = counts.shape[1]
+    while i < defined.shape[0]:
+        j = int(0)
+        while j < defined.shape[1]:
+            if defined[i, j]:
+                step = wp.floor(log2_values[i, j] * per_step) - offset
+                step = wp.min(wp.max(step, wp.float64(0.0)), wp.float64(bins - 1))
+                c = int(bin_of[i, j])
+                if c >= 0 and c < groups:
+                    counts[c, int(step)] = counts[c, int(step)] + wp.int64(1)
+                else:
+                    outside[0] = outside[0] + wp.int64(1)
+            j += 1
+        i += 1
 
 
 def _host(array, dtype) -> wp.array:
@@ -233,3 +256,51 @@ def animation_codes(lit, change, *, k: int) -> tuple[np.ndarray, np.ndarray]:
         wp.launch(animation_codes_kernel, dim=shape[0], inputs=(_host(lit, np.float64), _host(change, np.float64), k),
                   outputs=(_host(lit_codes, np.uint8), _host(change_codes, np.uint8)), device="cpu")
     return lit_codes, change_codes
+
+
+def log2_histogram(log2_values, group, defined, *, edges, groups: int) -> np.ndarray:
+    """Defined pixels per bin of ``edges`` (log2 units, spaced by a power of two) and group, ``(groups, len(edges) − 1)``.
+
+    A value's bin is ``floor(v / step) − edges[0] / step`` clipped to the first and last bins, ``step`` the
+    edges' spacing: exact, where shifting by the first edge before the floor could round up into the next bin.
+
+    Parameters
+    ----------
+    log2_values : array_like, shape (H, W), float64
+        Each pixel's value (``log2 ρ``); read where ``defined`` only.
+    group : array_like, shape (H, W), integer
+        Each pixel's group (a cascade), ``0 … groups − 1`` where defined.
+    defined : array_like, shape (H, W), bool
+        The pixels counted.
+    edges : array_like, shape (B + 1,)
+        Bin edges.
+    groups : int, keyword-only
+
+    Returns
+    -------
+    ndarray, shape (groups, B), int64
+
+    Raises
+    ------
+    ValueError
+        On shapes that differ, or a defined pixel's group out of range.
+    """
+    values = np.ascontiguousarray(log2_values, dtype=np.float64)
+    defined = np.ascontiguousarray(defined, dtype=bool)
+    group = np.ascontiguousarray(group)
+    edges = np.asarray(edges, dtype=np.float64)
+    bins = len(edges) - 1
+    if defined.ndim != 2 or group.shape != defined.shape or values.shape != defined.shape:
+        raise ValueError(f"log2_values, group, defined: expected three (H, W) images, got shapes {values.shape}, "
+                         f"{group.shape}, {defined.shape}")
+    counts = np.zeros((groups, bins), dtype=np.int64)
+    outside = np.zeros(1, dtype=np.int64)
+    if defined.size:
+        per_step = bins / (edges[-1] - edges[0])
+        wp.launch(log2_histogram_kernel, dim=1,
+                  inputs=(_host(values, np.float64), _host(group, np.int32), _host(defined, np.bool_),
+                          wp.float64(per_step), wp.float64(edges[0] * per_step)),
+                  outputs=(_host(counts, np.int64), _host(outside, np.int64)), device="cpu")
+    if outside[0]:
+        raise ValueError(f"group: expected 0 … {groups - 1} where defined, got {outside[0]} pixels outside")
+    return counts

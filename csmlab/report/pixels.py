@@ -246,7 +246,7 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid, taa: tuple | No
         selected cascade. The view-only part (:func:`view_pixels`) is computed once per view and
         grid, by the first method of the view. With ``taa``, also the keys of :func:`taa_pixels`.
     """
-    from csmlab.kernels.records import cell_sums
+    from csmlab.kernels.records import cell_sums, log2_histogram
 
     view = frame.view
     per_view = view.shared(("view_pixels", grid), lambda: view_pixels(view, grid=grid))
@@ -262,14 +262,12 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid, taa: tuple | No
     C = len(frame.maps.cascades)
     has = np.isfinite(rho) & (rho > 0) & (cascade >= 0)
     # The bin of log2 ρ among RHO_EDGES, whose edges are whole multiples of a power-of-two step
-    # (1/8 octave): floor(log2 ρ / step) is exact, as a search among the edges is, where shifting
-    # by the first edge before the floor could round up into the next bin. Counted with one
-    # bincount of a flat cascade × bin index.
-    bins = len(RHO_EDGES) - 1
-    per_step = bins / (RHO_EDGES[-1] - RHO_EDGES[0])
-    steps = np.floor(np.log2(rho[has]) * per_step) - RHO_EDGES[0] * per_step
-    flat = cascade[has].astype(np.int64) * bins + np.clip(steps, 0, bins - 1).astype(np.int64)
-    hist = np.bincount(flat, minlength=C * bins).reshape(C, bins)
+    # (1/8 octave): floor(log2 ρ / step) is exact, as a search among the edges is (log2_histogram).
+    # log2 of the whole image (NaN or -inf where ρ is not positive, not read): an element-wise function,
+    # the same value at a pixel as of the pixels with ρ alone, without gathering them.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        log2_rho = np.log2(rho)
+    hist = log2_histogram(log2_rho, cascade, has, edges=RHO_EDGES, groups=len(frame.maps.cascades))
     return {
         "grid": grid,
         "stride": k,

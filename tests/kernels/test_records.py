@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from csmlab.kernels.records import animation_codes, cell_sums, grid_cells
+from csmlab.kernels.records import animation_codes, cell_sums, grid_cells, log2_histogram
 
 
 def _points(height, width, *, seed):
@@ -115,3 +115,29 @@ def test_animation_codes_round_half_to_even_and_clip():
 def test_animation_codes_refuse_blocks_of_eight_pixels_or_more():
     with pytest.raises(ValueError, match="1 to 7"):
         animation_codes(np.zeros((8, 8)), np.zeros((8, 8)), k=8)
+
+
+def test_log2_histogram_counts_each_defined_pixel_in_its_bin_among_the_edges_by_group():
+    rng = np.random.default_rng(7)
+    edges = np.linspace(-2.0, 2.0, 33)
+    shape = (13, 17)
+    # Values on the edges, one ulp either side of them, and beyond both ends.
+    on_edges = rng.choice(edges, shape)
+    values = np.where(rng.random(shape) < 0.5, on_edges, rng.uniform(-3.0, 3.0, shape))
+    values = np.where(rng.random(shape) < 0.2, np.nextafter(values, rng.choice([-np.inf, np.inf], shape)), values)
+    group = rng.integers(0, 3, shape)
+    defined = rng.random(shape) < 0.8
+    counts = log2_histogram(values, group, defined, edges=edges, groups=3)
+    expected = np.zeros((3, 32), dtype=np.int64)
+    for (i, j), v in np.ndenumerate(values):
+        if defined[i, j]:
+            expected[group[i, j], min(max(np.searchsorted(edges, v, side="right") - 1, 0), 31)] += 1
+    np.testing.assert_array_equal(counts, expected)
+
+
+def test_log2_histogram_refuses_a_defined_pixel_outside_the_groups():
+    group = np.array([[0, 3]])
+    with pytest.raises(ValueError, match="1 pixels outside"):
+        log2_histogram(np.zeros((1, 2)), group, np.ones((1, 2), bool), edges=np.linspace(0, 1, 5), groups=3)
+    assert log2_histogram(np.zeros((1, 2)), group, np.array([[True, False]]), edges=np.linspace(0, 1, 5),
+                          groups=3).sum() == 1
