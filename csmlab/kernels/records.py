@@ -259,7 +259,7 @@ def animation_codes(lit, change, *, k: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def log2_histogram(log2_values, group, defined, *, edges, groups: int) -> np.ndarray:
-    """Defined pixels per bin of ``edges`` (log2 units, spaced by a power of two) and group, ``(groups, len(edges) − 1)``.
+    """Defined pixels per bin of ``edges`` (log2 units, a power-of-two step) and group, ``(groups, len(edges) − 1)``.
 
     A value's bin is ``floor(v / step) − edges[0] / step`` clipped to the first and last bins, ``step`` the
     edges' spacing: exact, where shifting by the first edge before the floor could round up into the next bin.

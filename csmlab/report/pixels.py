@@ -259,7 +259,6 @@ def frame_pixels(frame: Frame, pixels: dict, *, grid: WorldGrid, taa: tuple | No
     touched = np.flatnonzero(counts)
     rho = np.asarray(pixels["rho"], dtype=np.float64)
     cascade = np.asarray(frame.shadow.cascade)
-    C = len(frame.maps.cascades)
     has = np.isfinite(rho) & (rho > 0) & (cascade >= 0)
     # The bin of log2 ρ among RHO_EDGES, whose edges are whole multiples of a power-of-two step
     # (1/8 octave): floor(log2 ρ / step) is exact, as a search among the edges is (log2_histogram).
