@@ -12,6 +12,8 @@
   (``ray_grid``) and its triangles that block them (``irregular``).
 - :mod:`csmlab.kernels.footprint` — texel footprint of a screen pixel (aliasing metric).
 - :mod:`csmlab.kernels.levels` — the clipmap level each virtual shadow map receiver reads.
+- :mod:`csmlab.kernels.records` — the report's per-frame records: ground cells, their sums, ρ histogram, animation
+  blocks (on the host, in NumPy's order).
 - :mod:`csmlab.kernels.threads` — CPU launches split over threads, each writing its own outputs.
 
 Every wrapper takes ``device=`` (``"cpu"`` by default, ``"cuda"`` when asked) and checks it with
