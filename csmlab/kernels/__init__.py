@@ -17,7 +17,8 @@
 - :mod:`csmlab.kernels.threads` — CPU launches split over threads, each writing its own outputs.
 
 Every wrapper takes ``device=`` (``"cpu"`` by default, ``"cuda"`` when asked) and checks it with
-:func:`checked_device` before any upload.
+:func:`checked_device` before any upload — but :mod:`csmlab.kernels.records`'s, which run on the CPU
+always: the report's files they fill must not depend on the device.
 """
 
 from __future__ import annotations

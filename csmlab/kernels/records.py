@@ -1,4 +1,4 @@
-"""The report's per-frame records on the host: the pixels' ground cells, the cells' sums, animation blocks.
+"""The report's per-frame records on the host: the pixels' ground cells, the cells' sums, ρ histogram, animation blocks.
 
 Every frame of every method keeps, for the interactive report (:mod:`csmlab.report.pixels`) and the
 animations (:mod:`csmlab.report.capture`), a few reductions of its full-resolution planes. Each was a
@@ -118,9 +118,8 @@ def animation_codes_kernel(lit: wp.array2d(dtype=wp.float64), change: wp.array2d
         if count > 0:
             mean = total / wp.float64(count)
         lit_codes[i, j] = coded(mean)
-        change_codes[i, j] = NO_VALUE
-        if largest >= wp.float64(0.0):
-            change_codes[i, j] = coded(largest)
+        # -1 where the block has no finite change: coded as no value, as NaN is.
+        change_codes[i, j] = coded(wp.where(largest >= wp.float64(0.0), largest, wp.float64(wp.nan)))
         j += 1
 
 

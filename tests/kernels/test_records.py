@@ -104,12 +104,13 @@ def test_animation_codes_are_the_coded_block_mean_and_max_of_a_numpy_reduction_o
 
 
 def test_animation_codes_round_half_to_even_and_clip():
-    # 254 · 0.5 / 254 … exactly half-way codes, and values beyond [0, 1], in blocks of one pixel.
+    # Half-way codes and values beyond [0, 1], in blocks of one pixel.
     lit = np.array([[0.5 / 254, 1.5 / 254, 2.0, -1.0]], dtype=np.float64)
     change = np.array([[2.5 / 254, -3.5 / 254, 7.0, -np.inf]])
     lit_codes, change_codes = animation_codes(lit, change, k=1)
-    assert lit_codes.tolist() == [[int(np.rint(254 * (0.5 / 254))), int(np.rint(254 * (1.5 / 254))), 254, 0]]
-    assert change_codes.tolist() == [[int(np.rint(254 * (2.5 / 254))), int(np.rint(254 * (3.5 / 254))), 254, 255]]
+    # 254 · v is exactly 0.5, 1.5, 2.5 and 3.5 here: to the even neighbour, as np.rint rounds.
+    assert lit_codes.tolist() == [[0, 2, 254, 0]]
+    assert change_codes.tolist() == [[2, 4, 254, 255]]
 
 
 def test_animation_codes_refuse_blocks_of_eight_pixels_or_more():
