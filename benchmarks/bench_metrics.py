@@ -36,13 +36,13 @@ from csmlab.metrics.aliasing import aliasing_maps, aliasing_summary, utilization
 from csmlab.metrics.cost import cost_summary
 from csmlab.metrics.perceptual import (JND_CIEDE2000, _SSIM_MIN_SIDE, flip_map, perceptual_maps, ssim_map)
 from csmlab.metrics.reference import bias_errors, reference_maps, reference_summary, seam_error
-from csmlab.metrics.shading import AMBIENT, shaded_rgb, view_shading_terms
+from csmlab.metrics.shading import AMBIENT
 from csmlab.metrics.temporal import temporal_maps, temporal_summary
 from csmlab.render import prepare_scene, render_shadow, render_view
 
 MEASURES = ("aliasing_maps", "aliasing_summary", "utilization", "reference_maps", "reference_summary",
             "bias_errors", "seam_error", "cost_summary", "temporal_maps", "temporal_summary", "perceptual_maps",
-            "de2000_summary", "ssim", "flip", "reference_shaded")
+            "de2000_summary", "ssim", "flip")
 
 
 CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
@@ -88,11 +88,6 @@ def measure_costs(frame, previous, *, device: str) -> dict[str, float]:
                                                    device=device))
         _timed(costs, "flip", lambda: flip_map(maps.previous_shaded, maps.shaded, changed=changed,
                                                compared=compared, device=device))
-    g = frame.view.gbuffer
-    if frame.view.reference is not None:
-        _timed(costs, "reference_shaded", lambda: frame.view.shared(("reference_shaded", AMBIENT), lambda: shaded_rgb(
-            g.albedo, g.normal, np.where(g.valid, frame.view.reference, np.nan),
-            light_direction=frame.view.light_direction, ambient=AMBIENT, terms=view_shading_terms(frame.view))))
     return costs
 
 

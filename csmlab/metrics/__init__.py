@@ -41,10 +41,7 @@ class FrameMeasures:
         Per-pixel maps for the report: ``rho`` (H, W) float32 texels per pixel; ``dS`` (H, W)
         float64 |ΔS| (reference change subtracted when the light moved), NaN where not counted or
         at the first frame; ``shaded`` (H, W, 3) float64 linear RGB of frame t, NaN where S is
-        undefined; ``reference_shaded`` (H, W, 3) float64 linear RGB of the same view through the
-        ray-traced shadow (NaN where it is undefined; absent when the view has no reference), the
-        reference sequence of a video metric (:mod:`csmlab.report.video_quality`); ``ref_diff`` (H, W) int8, +1
-        false shadow, −1 false light, 0 otherwise;
+        undefined; ``ref_diff`` (H, W) int8, +1 false shadow, −1 false light, 0 otherwise;
         ``de2000`` (H, W) float64, NaN where not compared or at the first frame; ``flipped`` (H, W)
         bool, the lit/shadowed state changed (all False at the first frame).
     """
@@ -120,9 +117,4 @@ def measure_frame(frame: Frame, previous: Frame | None = None, *, ambient: float
         flipped = temporal.flipped
     pixels = {"rho": alias.rho, "dS": change, "shaded": shaded, "ref_diff": errors.diff, "de2000": de2000,
               "flipped": flipped}
-    if frame.view.reference is not None:
-        # Once per view: every method of the view is compared with the same reference sequence.
-        pixels["reference_shaded"] = frame.view.shared(("reference_shaded", ambient), lambda: shaded_rgb(
-            g.albedo, g.normal, np.where(g.valid, frame.view.reference, np.nan),
-            light_direction=frame.view.light_direction, ambient=ambient, terms=view_shading_terms(frame.view)))
     return FrameMeasures(values={key: values[key] for key in metric_columns(cascades)}, pixels=pixels)

@@ -6,6 +6,8 @@ import numpy as np
 import pytest
 from tests.report.test_capture import _frame
 
+from csmlab.metrics.shading import AMBIENT, shaded_rgb
+
 from csmlab.report.pixels import (
     NO_VALUE,
     RHO_EDGES,
@@ -15,6 +17,7 @@ from csmlab.report.pixels import (
     stack_pixels,
     world_grid,
 )
+from csmlab.srgb import srgb_encoded
 
 GRID = world_grid([[0.0, 0.0, 0.0], [5.0, 1.0, 3.0]], reach=30.0, cells=16)
 
@@ -46,6 +49,19 @@ def test_sampled_values_are_the_frames_own_pixels_on_a_stride_not_averages():
             assert record["valid"][j, i] == valid
             reference = frame.view.reference[y, x]
             assert record["reference"][j, i] == (int(reference > 0.5) if np.isfinite(reference) else NO_VALUE)
+
+
+def test_reference_shading_of_the_sampled_pixels_is_the_whole_images_shading_taken_there():
+    frame, _, record = _record(3)
+    k = record["stride"]
+    g, view = frame.view.gbuffer, frame.view
+    whole = shaded_rgb(g.albedo, g.normal, np.where(g.valid, view.reference, np.nan),
+                       light_direction=view.light_direction, ambient=AMBIENT)[::k, ::k]
+    defined = g.valid[::k, ::k] & np.isfinite(frame.shadow.lit[::k, ::k])
+    whole[~np.isfinite(whole).all(axis=-1)] = 0.0
+    expected = np.rint(255.0 * srgb_encoded(whole)).astype(np.uint8)
+    assert defined.any() and (~defined).any()
+    np.testing.assert_array_equal(record["reference_shaded"], np.where(defined[..., None], expected, 0))
 
 
 def test_rho_code_keeps_rho_to_a_sixteenth_of_an_octave_and_clips_the_ends():
@@ -131,10 +147,11 @@ def test_methods_sharing_a_view_compute_its_view_pixels_once_and_get_the_records
         # A copy of the view holds none of what the shared one keeps (``derived`` is not copied).
         alone = frame_pixels(dataclasses.replace(frame, view=dataclasses.replace(view)), pixels, grid=GRID)
         _assert_same_record(frame_pixels(dataclasses.replace(frame, view=view), pixels, grid=GRID), alone)
-    assert [key[0] for key in view.derived] == ["view_pixels"]
+    # The view's own part and its reference's shading, each once for both records.
+    assert [key[0] for key in view.derived] == ["view_pixels", "shading_terms", "reference_srgb"]
     other_grid = world_grid([[0.0, 0.0, 0.0]], reach=10.0, cells=8)
     frame_pixels(dataclasses.replace(frame, view=view), pixels, grid=other_grid)
-    assert len(view.derived) == 2
+    assert len(view.derived) == 4
 
 
 def test_rho_histogram_bins_values_on_and_one_ulp_beside_every_edge_as_a_search_among_the_edges():
