@@ -14,11 +14,13 @@
 - :mod:`csmlab.kernels.levels` — the clipmap level each virtual shadow map receiver reads.
 - :mod:`csmlab.kernels.records` — the report's per-frame records: ground cells, their sums, ρ histogram, animation
   blocks (on the host, in NumPy's order).
+- :mod:`csmlab.kernels.shading` — the shaded images of the perceptual metrics and the report (on the host, in
+  NumPy's order).
 - :mod:`csmlab.kernels.threads` — CPU launches split over threads, each writing its own outputs.
 
 Every wrapper takes ``device=`` (``"cpu"`` by default, ``"cuda"`` when asked) and checks it with
-:func:`checked_device` before any upload — but :mod:`csmlab.kernels.records`'s, which run on the CPU
-always: the report's files they fill must not depend on the device.
+:func:`checked_device` before any upload — but :mod:`csmlab.kernels.records`'s and :mod:`csmlab.kernels.shading`'s,
+which run on the CPU always: the report's files and the NumPy arrays they fill must not depend on the device.
 """
 
 from __future__ import annotations

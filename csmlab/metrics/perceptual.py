@@ -59,7 +59,7 @@ from csmlab.kernels.flip import flip_error_map, flip_filter_radii, flip_reach, p
 from csmlab.kernels.reach import grown_along
 from csmlab.kernels.ssim import SSIM_RADIUS, SSIM_SIGMA, ssim_where_changed
 from csmlab.metric_registry import finite_mean
-from csmlab.metrics.shading import ShadingTerms, shaded_rgb, view_shading_terms
+from csmlab.metrics.shading import shaded_rgb_pair, view_shading_terms
 from csmlab.registry import dispatch
 from csmlab.srgb import srgb_encoded
 
@@ -143,10 +143,7 @@ def perceptual_maps(frame: Frame, previous_lit, *, ambient: float) -> Perceptual
     if previous_lit.shape != lit.shape:
         raise ValueError(f"previous_lit: expected shape {lit.shape}, got {previous_lit.shape}")
     terms = view_shading_terms(frame.view)
-    shaded = shaded_rgb(g.albedo, g.normal, lit, light_direction=frame.view.light_direction, ambient=ambient,
-                        terms=terms)
-    previous_shaded = _shaded_where_differs(shaded, lit, previous_lit, terms=terms,
-                                            light_direction=frame.view.light_direction, ambient=ambient)
+    shaded, previous_shaded = shaded_rgb_pair(lit, previous_lit, terms=terms, ambient=ambient)
     compared = np.isfinite(lit) & np.isfinite(previous_lit)
     de2000 = np.where(compared, 0.0, np.nan)
     # Equal colours are 0 apart: the difference is computed only where S changed.
@@ -157,26 +154,6 @@ def perceptual_maps(frame: Frame, previous_lit, *, ambient: float) -> Perceptual
     de2000.reshape(-1)[index] = delta_e_2000(lab[:index.size], lab[index.size:])
     return PerceptualMaps(lit=lit, previous_lit=previous_lit, shaded=shaded, previous_shaded=previous_shaded,
                           de2000=de2000, compared=compared)
-
-
-def _shaded_where_differs(shaded: np.ndarray, lit: np.ndarray, other_lit: np.ndarray, *, terms: ShadingTerms,
-                          light_direction, ambient: float) -> np.ndarray:
-    """:func:`shaded_rgb` ``(H, W, 3)`` of ``other_lit`` ``(H, W)``, given ``shaded``, that of ``lit``.
-
-    A pixel's shading is a function of its own S alone: where the two S are equal (or both NaN)
-    it is copied from ``shaded``, the same bits, and only the pixels whose S differs are shaded
-    again — a few dozen of a frame's 230,400 for ``exact``.
-    """
-    out = shaded.copy()
-    same = lit == other_lit
-    same |= np.isnan(lit) & np.isnan(other_lit)
-    differs = np.flatnonzero(~same)
-    if differs.size:
-        some = ShadingTerms(albedo=terms.albedo.reshape(-1, 3)[differs], cosine=terms.cosine.reshape(-1)[differs],
-                            light=terms.light)
-        out.reshape(-1, 3)[differs] = shaded_rgb(None, None, other_lit.reshape(-1)[differs],
-                                                 light_direction=light_direction, ambient=ambient, terms=some)
-    return out
 
 
 def _filled_pair(current: np.ndarray, previous: np.ndarray, compared: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -4,7 +4,7 @@ Linear RGB ``albedo × (ambient + S · max(0, n · l) · c)`` with ``l = −d`` 
 light and ``c`` the light's linear RGB colour (white unless a glTF sun names one; the ambient is
 left uncoloured), encoded for display and for ꟻLIP by :mod:`csmlab.srgb` (docs/design.md, "Metrics"). The
 albedo is the G-buffer's, per pixel: the triangle's base colour times its texture at the hit
-(:mod:`csmlab.kernels.texture`).
+(:mod:`csmlab.kernels.texture`). The per-pixel arithmetic runs in :mod:`csmlab.kernels.shading`, on the host.
 """
 
 from __future__ import annotations
@@ -14,12 +14,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from csmlab.geometry import normalized
+from csmlab.kernels.shading import shaded_pair, shaded_pixels
 
 AMBIENT = 0.25
 """The ambient term of a run's shading, in units of the direct light: the perceptual metrics
 (:func:`csmlab.metrics.measure_frame`) and the report's shaded views (before and after TAA) use it."""
 
-__all__ = ["AMBIENT", "ShadingTerms", "shaded_rgb", "shading_terms", "view_shading_terms"]
+__all__ = ["AMBIENT", "ShadingTerms", "shaded_rgb", "shaded_rgb_pair", "shading_terms", "view_shading_terms"]
 
 
 @dataclass(frozen=True)
@@ -92,28 +93,26 @@ def shaded_rgb(albedo, normal, lit, *, light_direction, ambient: float,
     ValueError
         On a negative or non-finite ``ambient`` or a zero light direction.
     """
-    if not (np.isfinite(ambient) and ambient >= 0):
-        raise ValueError(f"ambient: expected a non-negative fraction of the direct light, got {ambient}")
+    _check_ambient(ambient)
     if terms is None:
         terms = shading_terms(albedo, normal, light_direction=light_direction)
-    # S · cos in float64 (a float32 S widens exactly, in the loop rather than as a copy), then the
-    # ambient added in place: the same products and sums (addition commutes), two temporaries fewer.
-    irradiance = np.multiply(np.asarray(lit), terms.cosine, dtype=np.float64)
-    if terms.light is not None:
-        coloured = _channels_scaled(np.broadcast_to(terms.light, terms.albedo.shape), irradiance)
-        coloured += ambient
-        return terms.albedo * coloured
-    irradiance += ambient
-    return _channels_scaled(terms.albedo, irradiance)
+    return shaded_pixels(terms.albedo, terms.cosine, lit, light=terms.light, ambient=ambient)
 
 
-def _channels_scaled(rgb: np.ndarray, factor: np.ndarray) -> np.ndarray:
-    """``rgb * factor[..., None]`` ``(..., 3)`` float64, one channel at a time: the same products,
-    where a broadcast over the last axis of 3 runs NumPy's inner loop three elements at a time."""
-    out = np.empty(np.broadcast_shapes(rgb.shape, factor.shape + (3,)), dtype=np.float64)
-    for channel in range(3):
-        np.multiply(rgb[..., channel], factor, out=out[..., channel])
-    return out
+def shaded_rgb_pair(lit, other_lit, *, terms: ShadingTerms, ambient: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`shaded_rgb` of two shadows of the same view, ``(H, W, 3)`` float64 each, in one pass.
+
+    ``lit`` and ``other_lit`` ``(H, W)`` float32 (frame t's S and frame t−1's at frame t's points, for
+    the perceptual metrics): a pixel whose two S are equal or both NaN is shaded once for both, the
+    others twice; the values are those of two :func:`shaded_rgb` calls, bit for bit.
+    """
+    _check_ambient(ambient)
+    return shaded_pair(terms.albedo, terms.cosine, lit, other_lit, light=terms.light, ambient=ambient)
+
+
+def _check_ambient(ambient: float) -> None:
+    if not (np.isfinite(ambient) and ambient >= 0):
+        raise ValueError(f"ambient: expected a non-negative fraction of the direct light, got {ambient}")
 
 
 def view_shading_terms(view) -> ShadingTerms:
