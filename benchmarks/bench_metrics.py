@@ -31,6 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from csmlab.config import find_experiment, load_experiment
 from csmlab.experiment import build_workload, shadow_light
 from csmlab.kernels import checked_device, start_warp
+from csmlab.metric_registry import finite_mean
 from csmlab.metrics import measure_frame
 from csmlab.metrics.aliasing import aliasing_maps, aliasing_summary, utilization
 from csmlab.metrics.cost import cost_summary
@@ -80,7 +81,7 @@ def measure_costs(frame, previous, *, device: str) -> dict[str, float]:
 
         def de2000_summary():
             de = maps.de2000[compared]
-            return np.mean(de), np.mean(de > JND_CIEDE2000), np.percentile(de, 99.0)
+            return finite_mean(de), np.count_nonzero(de > JND_CIEDE2000) / de.size, np.percentile(de, 99.0)
 
         _timed(costs, "de2000_summary", de2000_summary)
         if min(maps.lit.shape) >= _SSIM_MIN_SIDE:

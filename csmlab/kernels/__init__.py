@@ -16,11 +16,14 @@
   blocks (on the host, in NumPy's order).
 - :mod:`csmlab.kernels.shading` — the shaded images of the perceptual metrics and the report (on the host, in
   NumPy's order).
+- :mod:`csmlab.kernels.temporal` — the temporal metric's per-pixel maps: S_{t−1} at frame t's pixels, the change,
+  its subsets (on the host, in NumPy's order).
 - :mod:`csmlab.kernels.threads` — CPU launches split over threads, each writing its own outputs.
 
 Every wrapper takes ``device=`` (``"cpu"`` by default, ``"cuda"`` when asked) and checks it with
-:func:`checked_device` before any upload — but :mod:`csmlab.kernels.records`'s and :mod:`csmlab.kernels.shading`'s,
-which run on the CPU always: the report's files and the NumPy arrays they fill must not depend on the device.
+:func:`checked_device` before any upload — but those of :mod:`csmlab.kernels.records`, :mod:`csmlab.kernels.shading`
+and :mod:`csmlab.kernels.temporal`, which run on the CPU always: the report's files and the NumPy arrays
+they fill must not depend on the device.
 """
 
 from __future__ import annotations

@@ -457,7 +457,9 @@ def perceptual_summary(maps: PerceptualMaps, *, device: str = "cpu") -> dict[str
     if not np.any(compared):
         return dict.fromkeys(("de2000_mean", "de2000_p99", "de2000_frac_jnd", "ssim", "flip"), float("nan"))
     de = maps.de2000[compared]
-    mean, frac_jnd = finite_mean(de), finite_mean((de > JND_CIEDE2000).astype(np.float64))
+    mean = finite_mean(de)
+    # A count over N is the mean of the booleans, exactly.
+    frac_jnd = np.count_nonzero(de > JND_CIEDE2000) / de.size
     # ``de`` is a copy: partitioned in place (after the sums, whose order it would change), not copied again.
     out = {
         "de2000_mean": mean,

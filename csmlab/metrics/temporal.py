@@ -37,6 +37,7 @@ import numpy as np
 from csmlab.camera import CameraPose
 from csmlab.filters import noise_frame, receiver_rows, screen_pixels, uses_pixels
 from csmlab.frame import Frame
+from csmlab.kernels.temporal import change_maps
 from csmlab.metric_registry import finite_mean
 from csmlab.quads import quad_lanes
 from csmlab.render import lookup_shadow
@@ -119,31 +120,13 @@ def temporal_maps(frame: Frame, previous: Frame, *, device: str = "cpu") -> Temp
                             rows=frame.view.shared(("receiver_rows_from",) + seen_from,
                                                    lambda: receiver_rows(points, earlier_depth)),
                             device=device)
-    previous_lit = np.full(g.shape, np.nan, dtype=np.float32)
-    previous_lit.reshape(-1)[rows] = earlier.lit
-    # In the lookup's own type (int8): scattered into int64 it was cast element by element, 3× the time.
-    previous_cascade = np.full(g.shape, -1, dtype=earlier.cascade.dtype)
-    previous_cascade.reshape(-1)[rows] = earlier.cascade
-    previous_blend = np.zeros(g.shape, dtype=bool)
-    previous_blend.reshape(-1)[rows] = earlier.blend
-
-    lit = frame.shadow.lit
-    counted = visible & (previous_cascade >= 0) & np.isfinite(previous_lit) & np.isfinite(lit)
-    change = lit.astype(np.float64) - previous_lit.astype(np.float64)
     light_moved = not np.array_equal(frame.maps.cascades.direction, previous.maps.cascades.direction)
-    if light_moved:
-        reference = frame.view.reference
-        previous_reference = previous_reference_at(frame, previous)
-        counted &= np.isfinite(reference) & np.isfinite(previous_reference)
-        change -= reference.astype(np.float64) - previous_reference.astype(np.float64)
-        state_change = (lit > 0.5).astype(np.int8) - (previous_lit > 0.5).astype(np.int8)
-        flipped = state_change != (reference > 0.5).astype(np.int8) - (previous_reference > 0.5).astype(np.int8)
-    else:
-        flipped = (lit > 0.5) != (previous_lit > 0.5)
-    change = np.where(counted, change, np.nan)
-    same = counted & (previous_cascade == frame.shadow.cascade) & ~previous_blend & ~frame.shadow.blend
-    return TemporalMaps(previous_lit=previous_lit, change=change, flipped=flipped & counted, counted=counted,
-                        same_cascade=same, light_moved=light_moved)
+    # Under a moving light the reference's own change is subtracted (module docstring).
+    references = ({"reference": frame.view.reference, "previous_reference": previous_reference_at(frame, previous)}
+                  if light_moved else {})
+    maps = change_maps(rows, earlier.lit, earlier.cascade, earlier.blend, lit=frame.shadow.lit,
+                       cascade=frame.shadow.cascade, blend=frame.shadow.blend, **references)
+    return TemporalMaps(**maps, light_moved=light_moved)
 
 
 def _visible_points(g) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -54,7 +54,7 @@ def test_checked_device_refuses_names_warp_does_not_know():
 
 KERNEL_MODULES = ["depth_storage", "engine", "flip", "footprint", "levels", "moments", "pages", "pcf", "raster.kernels",
                   "raster.tiled", "rays", "records", "reference.irregular", "reference.ray_cast", "reference.ray_grid",
-                  "shading", "shadow", "ssim", "taa", "texture", "usage", "visibility"]
+                  "shading", "shadow", "ssim", "taa", "temporal", "texture", "usage", "visibility"]
 """csmlab's Warp modules: each module under csmlab.kernels (packages included) that defines kernels."""
 
 
