@@ -10,6 +10,8 @@
 - :mod:`csmlab.kernels.reference` — the ray-traced hard shadow (ground truth): what a shadow ray is
   (``shadow_rays``), the BVH ray cast (``ray_cast``), the irregular z-buffer's binned ray starts
   (``ray_grid``) and its triangles that block them (``irregular``).
+- :mod:`csmlab.kernels.flip_inputs` — ꟻLIP's inputs: where the filled pair differs, the colours to encode, the
+  encoded pair (on the host).
 - :mod:`csmlab.kernels.footprint` — texel footprint of a screen pixel (aliasing metric).
 - :mod:`csmlab.kernels.levels` — the clipmap level each virtual shadow map receiver reads.
 - :mod:`csmlab.kernels.records` — the report's per-frame records: ground cells, their sums, ρ histogram, animation
@@ -21,9 +23,9 @@
 - :mod:`csmlab.kernels.threads` — CPU launches split over threads, each writing its own outputs.
 
 Every wrapper takes ``device=`` (``"cpu"`` by default, ``"cuda"`` when asked) and checks it with
-:func:`checked_device` before any upload — but those of :mod:`csmlab.kernels.records`, :mod:`csmlab.kernels.shading`
-and :mod:`csmlab.kernels.temporal`, which run on the CPU always: the report's files and the NumPy arrays
-they fill must not depend on the device.
+:func:`checked_device` before any upload — but those of :mod:`csmlab.kernels.records`, :mod:`csmlab.kernels.shading`,
+:mod:`csmlab.kernels.temporal` and :mod:`csmlab.kernels.flip_inputs`, which run on the CPU always: the report's
+files and the NumPy arrays they fill must not depend on the device.
 """
 
 from __future__ import annotations

@@ -55,7 +55,8 @@ import numpy as np
 from skimage.metrics import structural_similarity
 
 from csmlab.frame import Frame
-from csmlab.kernels.flip import flip_error_map, flip_filter_radii, flip_reach, pixels_differ
+from csmlab.kernels.flip import flip_error_map, flip_filter_radii, flip_reach
+from csmlab.kernels.flip_inputs import colours_read, encoded_pair, filled_differences
 from csmlab.kernels.reach import grown_along
 from csmlab.kernels.ssim import SSIM_RADIUS, SSIM_SIGMA, ssim_where_changed
 from csmlab.metric_registry import finite_mean
@@ -395,37 +396,15 @@ def _encoded_where_read(reference: np.ndarray, test: np.ndarray, *,
     ``nan_to_num``, and the reference's pixels only where compared): the same bits, but filled
     only at the pixels read, not over the whole image first (``none`` reads 45 % of them).
     """
-    reference = np.ascontiguousarray(reference)
-    test = np.ascontiguousarray(test)
-    if compared is None:
-        differs = pixels_differ(reference, test)
-    else:
-        # Filled, the two agree wherever a pixel is not compared; where it is, the filled test is
-        # the test's nan_to_num, an element-wise fill (what _filled_pair's fill gives, inf or not),
-        # which is the test itself but at its non-finite pixels: those few are compared again. A
-        # pixel's channels sum to a non-finite value wherever one is not finite (and where finite
-        # ones overflow, compared again to no effect): one pass over the pixels, not three.
-        compared = np.asarray(compared, dtype=bool)
-        differs = compared & pixels_differ(reference, test)
-        sums = test[..., 0] + test[..., 1]
-        sums += test[..., 2]
-        odd = np.flatnonzero(compared & ~np.isfinite(sums))
-        differs.reshape(-1)[odd] = pixels_differ(reference.reshape(-1, 3)[odd], np.nan_to_num(test.reshape(-1, 3)[odd]))
+    reference = np.ascontiguousarray(reference, dtype=np.float64)
+    test = np.ascontiguousarray(test, dtype=np.float64)
+    differs = filled_differences(reference, test, compared)
     reach = flip_reach(differs, radius=FLIP_SUPPORT)
-    read = np.flatnonzero(reach)
-    test_read = _pixels_taken(test, read)
-    if compared is not None:
-        # The fill is nan_to_num's, an element-wise identity on finite values: applied to the rows it changes.
-        unfinished = np.flatnonzero(~np.isfinite(sums.reshape(-1)[read]))
-        test_read[unfinished] = np.nan_to_num(test_read[unfinished])
-    # Both encoded images in one buffer, zero (calloc'd, untouched) where not read.
-    pair = np.zeros((2, *test.shape), dtype=np.float32)
-    _pixels_put(pair[1], read, srgb_encoded(test_read))
-    np.copyto(pair[0], pair[1])
-    # A pixel that differs is compared: its filled reference is the reference itself.
-    changed = np.flatnonzero(differs)
-    _pixels_put(pair[0], changed, srgb_encoded(_pixels_taken(reference, changed)))
-    return pair[0], pair[1], reach
+    test_read, reference_read = colours_read(reference, test, reach, differs, fill=compared is not None)
+    # Encoded by NumPy (its pow), the same compact arrays as ever; placed back by the kernel.
+    reference_encoded, test_encoded = encoded_pair(reach, differs, srgb_encoded(test_read),
+                                                   srgb_encoded(reference_read))
+    return reference_encoded, test_encoded, reach
 
 
 def _pixels_taken(image: np.ndarray, index: np.ndarray) -> np.ndarray:
@@ -433,13 +412,6 @@ def _pixels_taken(image: np.ndarray, index: np.ndarray) -> np.ndarray:
     of a void view (NumPy gathers those in one pass; a row-wise fancy index takes 4× as long)."""
     pixels = image.reshape(-1).view(np.dtype((np.void, 3 * image.itemsize)))
     return np.take(pixels, index).view(image.dtype).reshape(-1, 3)
-
-
-def _pixels_put(image: np.ndarray, index: np.ndarray, values) -> None:
-    """Set the pixels ``index`` (flat) of a C-contiguous ``(H, W, 3)`` image to ``values`` ``(N, 3)``,
-    cast to the image's dtype as an assignment casts, through a void view as :func:`_pixels_taken`."""
-    void = np.dtype((np.void, 3 * image.itemsize))
-    image.reshape(-1).view(void)[index] = np.ascontiguousarray(values, dtype=image.dtype).reshape(-1).view(void)
 
 
 def perceptual_summary(maps: PerceptualMaps, *, device: str = "cpu") -> dict[str, float]:

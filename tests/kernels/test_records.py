@@ -68,6 +68,14 @@ def test_cell_sums_keep_the_bits_of_bincount_and_of_a_pixel_by_pixel_sum():
     assert counted.dtype == flips.dtype == np.int64
 
 
+def test_cell_sums_count_the_largest_floats_as_finite_and_leave_out_infinities_and_nan():
+    largest = np.finfo(np.float64).max
+    change = np.array([[largest, np.nextafter(largest, 0.0), np.inf, -np.inf, np.nan, 1.0]])
+    change_sum, counted, flips = cell_sums(np.array([[0, 1, 2, 2, 2, 3]]), change, np.ones((1, 6), bool), size=4)
+    assert change_sum.tolist() == [largest, np.nextafter(largest, 0.0), 0.0, 1.0]
+    assert counted.tolist() == [1, 1, 0, 1] and flips.tolist() == [1, 1, 0, 1]
+
+
 def test_cell_sums_refuse_a_cell_beyond_the_grid_and_mismatched_shapes():
     with pytest.raises(ValueError, match="below 4"):
         cell_sums(np.full((2, 2), 4), np.zeros((2, 2)), np.zeros((2, 2), bool), size=4)

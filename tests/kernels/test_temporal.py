@@ -13,7 +13,8 @@ def _inputs(seed):
     visible = rng.random(SHAPE) < 0.8
     rows = np.flatnonzero(visible)
     # Values on both sides of 0.5 and on it, NaN, and infinities, which are not counted.
-    choices = np.float32([0.0, 0.25, 0.5, 0.5000001, 1.0, np.nan, np.inf])
+    largest = np.finfo(np.float32).max
+    choices = np.float32([0.0, 0.25, 0.5, 0.5000001, 1.0, np.nan, np.inf, largest, np.nextafter(largest, 0)])
     earlier_lit = np.where(rng.random(rows.size) < 0.5, rng.choice(choices, rows.size),
                            rng.random(rows.size)).astype(np.float32)
     lit = np.where(rng.random(SHAPE) < 0.5, rng.choice(choices, SHAPE), rng.random(SHAPE)).astype(np.float32)
