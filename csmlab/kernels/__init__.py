@@ -13,8 +13,6 @@
 - :mod:`csmlab.kernels.flip_inputs` — ꟻLIP's inputs: where the filled pair differs, the colours to encode, the
   encoded pair (on the host).
 - :mod:`csmlab.kernels.footprint` — texel footprint of a screen pixel (aliasing metric).
-- :mod:`csmlab.kernels.groups` — a map's values grouped by each pixel's cascade, for the aliasing summary (on the
-  host).
 - :mod:`csmlab.kernels.levels` — the clipmap level each virtual shadow map receiver reads.
 - :mod:`csmlab.kernels.records` — the report's per-frame records: ground cells, their sums, ρ histogram, animation
   blocks (on the host, in NumPy's order).
@@ -26,9 +24,8 @@
 
 Every wrapper takes ``device=`` (``"cpu"`` by default, ``"cuda"`` when asked) and checks it with
 :func:`checked_device` before any upload — but those of :mod:`csmlab.kernels.records`,
-:mod:`csmlab.kernels.shading`, :mod:`csmlab.kernels.temporal`, :mod:`csmlab.kernels.flip_inputs` and
-:mod:`csmlab.kernels.groups`, which run on the CPU always: the report's files and the NumPy arrays they fill
-must not depend on the device.
+:mod:`csmlab.kernels.shading`, :mod:`csmlab.kernels.temporal` and :mod:`csmlab.kernels.flip_inputs`, which run
+on the CPU always: the report's files and the NumPy arrays they fill must not depend on the device.
 """
 
 from __future__ import annotations

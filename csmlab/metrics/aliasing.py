@@ -28,7 +28,6 @@ from csmlab.cascades import CascadeSet
 from csmlab.clipmaps import light_space
 from csmlab.frame import Frame
 from csmlab.kernels.footprint import surface_differentials, texel_footprint, warped_texel_footprint
-from csmlab.kernels.groups import values_by_cascade
 from csmlab.kernels.usage import looked_up_texels
 from csmlab.metric_registry import linear_percentiles
 from csmlab.texels import texel_coordinates
@@ -98,19 +97,22 @@ def aliasing_maps(frame: Frame, *, device: str = "cpu") -> AliasingMaps:
     return AliasingMaps(rho=rho, sigma_min=sigma_min, cascade=cascade)
 
 
-def _rho_statistics(rho: np.ndarray, *, below_one: int, below_half: int) -> dict[str, float]:
-    """:data:`RHO_SUMMARIES` of ``rho`` ``(N,)`` float32 or float64, a scratch array (the percentiles partition it in
-    place), of which ``below_one`` and ``below_half`` values lie below 1 and ½."""
+def _rho_statistics(rho: np.ndarray) -> dict[str, float]:
+    """:data:`RHO_SUMMARIES` of ``rho`` ``(N,)`` float32 or float64, a scratch copy: the percentiles partition it
+    in place."""
     if rho.size == 0:
         return dict.fromkeys(RHO_SUMMARIES, float("nan"))
+    # A count over N is the mean of the booleans, exactly. 1 and ½ are float32 values: the comparisons are those of
+    # the float64 values.
+    below_one = np.count_nonzero(rho < 1.0) / rho.size
+    below_half = np.count_nonzero(rho < 0.5) / rho.size
     p05, median, p95 = linear_percentiles(rho, (5.0, 50.0, 95.0))
-    # A count over N is the mean of the booleans, exactly.
     return {
         "rho_median": float(median),
         "rho_p05": float(p05),
         "rho_p95": float(p95),
-        "rho_frac_lt1": float(int(below_one) / rho.size),
-        "rho_frac_lt05": float(int(below_half) / rho.size),
+        "rho_frac_lt1": float(below_one),
+        "rho_frac_lt05": float(below_half),
     }
 
 
@@ -131,16 +133,14 @@ def aliasing_summary(maps: AliasingMaps, *, cascades: int) -> dict[str, float]:
         cascade i. Percentiles are linear-interpolated (NumPy's default) in float64; a key is NaN
         when no pixel contributes to it.
     """
-    # Each cascade's values and every selected pixel's σ_min in one walk (csmlab.kernels.groups); a group's
-    # statistics partition its own values, then the whole buffer holds every selected ρ. Order statistics do not
-    # depend on the order of their values: the float32 values as they are, interpolated in float64
-    # (linear_percentiles).
-    groups = values_by_cascade(maps.rho, maps.sigma_min, maps.cascade, cascades=cascades)
-    rho, bounds = groups["grouped"], groups["bounds"]
-    per_cascade = [_rho_statistics(rho[bounds[c]:bounds[c + 1]], below_one=groups["below_one"][c],
-                                   below_half=groups["below_half"][c]) for c in range(cascades)]
-    out = _rho_statistics(rho, below_one=groups["below_one"].sum(), below_half=groups["below_half"].sum())
-    out["sigma_min_p05"] = float(linear_percentiles(groups["other"], (5.0,))[0])
+    # Each group's values by a mask of the image, the same values a mask of the selected pixels keeps, as they are
+    # (float32): the percentiles interpolate the order statistics in float64 (linear_percentiles), which do not
+    # depend on the values' order.
+    cascade = maps.cascade
+    per_cascade = [_rho_statistics(maps.rho[cascade == c]) for c in range(cascades)]
+    selected = cascade >= 0
+    out = _rho_statistics(maps.rho[selected])
+    out["sigma_min_p05"] = float(linear_percentiles(maps.sigma_min[selected], (5.0,))[0])
     for c, per in enumerate(per_cascade):
         out.update({f"{key}_c{c}": value for key, value in per.items()})
     return out

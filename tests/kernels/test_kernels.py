@@ -52,7 +52,7 @@ def test_checked_device_refuses_names_warp_does_not_know():
     assert checked_device("cpu") == "cpu"
 
 
-KERNEL_MODULES = ["depth_storage", "engine", "flip", "flip_inputs", "footprint", "groups", "levels", "moments",
+KERNEL_MODULES = ["depth_storage", "engine", "flip", "flip_inputs", "footprint", "levels", "moments",
                   "pages", "pcf", "raster.kernels", "raster.tiled", "rays", "records", "reference.irregular",
                   "reference.ray_cast", "reference.ray_grid", "shading", "shadow", "ssim", "taa", "temporal",
                   "texture", "usage", "visibility"]
