@@ -25,7 +25,8 @@ import warp as wp
 __all__ = ["colours_read", "encoded_pair", "filled_differences"]
 
 LARGEST = float(np.finfo(np.float64).max)
-"""The largest float64, an argument of the kernels: Warp writes a float64 constant into its C++ with 12 digits."""
+"""The largest float64, an argument of the kernels rather than a Warp constant, which the C++ would hold as NumPy
+prints it (12 digits once colour-science's import has set NumPy's legacy printing)."""
 
 
 @wp.func

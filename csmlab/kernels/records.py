@@ -29,8 +29,9 @@ NO_VALUE = wp.constant(wp.uint8(255))
 @wp.func
 def finite(x: wp.float64) -> bool:
     """``x`` is neither NaN nor infinite (``x − x`` is NaN for both): a subtraction and a comparison clang inlines
-    (``wp.isfinite`` is a call into the JIT's runtime, a third of these kernels' time; ``|x| ≤ DBL_MAX`` would
-    need DBL_MAX, which Warp writes into its C++ with 12 digits, a little below it)."""
+    (``wp.isfinite`` is a call into the JIT's runtime, a third of these kernels' time). Not ``|x| ≤ DBL_MAX``: a
+    constant made of a NumPy scalar is written into Warp's C++ as NumPy prints it, and after colour-science's
+    import (legacy printing) DBL_MAX printed as 1.79769313486e+308, below itself."""
     return x - x == wp.float64(0.0)
 
 

@@ -73,6 +73,42 @@ def test_the_list_of_kernel_modules_is_every_module_that_defines_kernels():
     assert sorted(found) == KERNEL_MODULES
 
 
+def _numpy_constants(module) -> list[str]:
+    """Globals of ``module`` that its kernels and functions read and that hold a NumPy scalar (or a Warp scalar made
+    of one)."""
+    import inspect
+    import re
+
+    sources = "\n".join(inspect.getsource(v.func) for v in vars(module).values()
+                        if isinstance(v, (wp.Kernel, wp.Function)) and v.func.__module__ == module.__name__)
+    return [name for name, value in vars(module).items()
+            if isinstance(getattr(value, "value", value), np.generic) and re.search(rf"\b{name}\b", sources)]
+
+
+@pytest.mark.parametrize("name", KERNEL_MODULES)
+def test_no_kernel_reads_a_constant_made_of_a_numpy_scalar(name):
+    """Warp writes a NumPy scalar into its C++ as NumPy prints it, and importing colour-science sets NumPy's
+    legacy printing: ``np.finfo(np.float64).max`` became 1.79769313486e+308, below itself, in a module first
+    compiled by a process that had imported colour. Constants are Python floats (printed exactly) or arguments."""
+    import importlib
+
+    assert _numpy_constants(importlib.import_module(f"csmlab.kernels.{name}")) == []
+
+
+def test_the_numpy_constant_check_finds_one(tmp_path):
+    import importlib.util
+
+    path = tmp_path / "numpy_constant_probe.py"
+    path.write_text("import numpy as np\nimport warp as wp\n\n"
+                    "LARGEST = wp.constant(wp.float64(np.finfo(np.float64).max))\n"
+                    "EXACT = wp.constant(wp.float64(float(np.finfo(np.float64).max)))\n\n\n"
+                    "@wp.func\ndef probe(x: wp.float64) -> wp.float64:\n    return wp.min(wp.min(x, LARGEST), EXACT)\n")
+    spec = importlib.util.spec_from_file_location("numpy_constant_probe", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert _numpy_constants(module) == ["LARGEST"]
+
+
 FMA_FROM_LIBRARIES = {
     "engine": "libdevice's hypot (a warped cascade's receivers; the CPU calls the C library's)",
     "flip": "libdevice's float64 exp and pow",
