@@ -37,7 +37,7 @@ import tempfile
 import numpy as np
 import warp as wp
 
-__all__ = ["CUDA_DRIVER_WARNING", "checked_device", "device_empty", "start_warp"]
+__all__ = ["CUDA_DRIVER_WARNING", "checked_device", "device_empty", "host_array", "start_warp"]
 
 
 def checked_device(device: str) -> str:
@@ -76,6 +76,18 @@ def device_empty(shape, dtype, device: str) -> wp.array:
     scalar = getattr(dtype, "_wp_scalar_type_", dtype)
     lanes = tuple(getattr(dtype, "_shape_", ()))
     return wp.array(np.empty(shape + lanes, dtype=wp.dtype_to_numpy(scalar)), dtype=dtype, device=device,
+                    copy=False)
+
+
+def host_array(array, dtype) -> wp.array:
+    """``array`` as a Warp array of Warp ``dtype`` on the CPU, reading and writing the NumPy array's own memory.
+
+    A vector ``dtype`` takes the array's last axis as its lanes (``(..., 3)`` float64 for ``wp.vec3d``). The array
+    is copied only where it is not C-contiguous in the dtype's scalar type — and an output passed so would be
+    written into that copy: the host kernels' outputs are made C-contiguous of their type (``np.empty``).
+    """
+    scalar = getattr(dtype, "_wp_scalar_type_", dtype)
+    return wp.array(np.ascontiguousarray(array, dtype=wp.dtype_to_numpy(scalar)), dtype=dtype, device="cpu",
                     copy=False)
 
 

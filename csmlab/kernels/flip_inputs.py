@@ -22,6 +22,8 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from csmlab.kernels import host_array
+
 __all__ = ["colours_read", "encoded_pair", "filled_differences"]
 
 LARGEST = float(np.finfo(np.float64).max)
@@ -108,8 +110,11 @@ def _colours(name: str, image) -> np.ndarray:
     return array
 
 
-def _vectors(array: np.ndarray) -> wp.array:
-    return wp.array(array.reshape(-1, 3), dtype=wp.vec3d, device="cpu", copy=False)
+def _flat(array: np.ndarray, dtype) -> wp.array:
+    """An image's or a list's pixels in order, as a 1-D Warp array on the host (a vector ``dtype`` takes the last
+    axis: ``(H, W, 3)`` or ``(N, 3)`` as vectors)."""
+    return host_array(array.reshape(-1, dtype._length_) if wp.types.type_is_vector(dtype) else array.reshape(-1),
+                      dtype)
 
 
 def filled_differences(reference, test, compared=None) -> np.ndarray:
@@ -127,10 +132,9 @@ def filled_differences(reference, test, compared=None) -> np.ndarray:
         raise ValueError(f"compared: expected the images' shape {shape}, got {mask.shape}")
     differs = np.empty(shape, dtype=bool)
     wp.launch(differences_kernel, dim=1,
-              inputs=(_vectors(reference), _vectors(test), wp.array(mask.reshape(-1), dtype=wp.bool, device="cpu",
-                                                                   copy=False), int(compared is not None),
-                      wp.float64(LARGEST)),
-              outputs=(wp.array(differs.reshape(-1), dtype=wp.bool, device="cpu", copy=False),), device="cpu")
+              inputs=(_flat(reference, wp.vec3d), _flat(test, wp.vec3d), _flat(mask, wp.bool),
+                      int(compared is not None), wp.float64(LARGEST)),
+              outputs=(_flat(differs, wp.bool),), device="cpu")
     return differs
 
 
@@ -147,11 +151,9 @@ def colours_read(reference, test, reach, differs, *, fill: bool) -> tuple[np.nda
     test_read = np.empty((np.count_nonzero(reach), 3), dtype=np.float64)
     reference_read = np.empty((np.count_nonzero(differs), 3), dtype=np.float64)
     wp.launch(colours_read_kernel, dim=1,
-              inputs=(_vectors(reference), _vectors(test), wp.array(reach.reshape(-1), dtype=wp.uint8, device="cpu",
-                                                                   copy=False),
-                      wp.array(differs.reshape(-1), dtype=wp.bool, device="cpu", copy=False), int(fill),
-                      wp.float64(LARGEST)),
-              outputs=(_vectors(test_read), _vectors(reference_read)), device="cpu")
+              inputs=(_flat(reference, wp.vec3d), _flat(test, wp.vec3d), _flat(reach, wp.uint8),
+                      _flat(differs, wp.bool), int(fill), wp.float64(LARGEST)),
+              outputs=(_flat(test_read, wp.vec3d), _flat(reference_read, wp.vec3d)), device="cpu")
     return test_read, reference_read
 
 
@@ -169,9 +171,7 @@ def encoded_pair(reach, differs, test_encoded, reference_encoded) -> tuple[np.nd
                          f"that differs within it, got {test_encoded.shape} and {reference_encoded.shape}")
     pair = np.empty((2,) + reach.shape + (3,), dtype=np.float32)
     wp.launch(encoded_pair_kernel, dim=1,
-              inputs=(wp.array(reach.reshape(-1), dtype=wp.uint8, device="cpu", copy=False),
-                      wp.array(differs.reshape(-1), dtype=wp.bool, device="cpu", copy=False),
-                      _vectors(test_encoded), _vectors(reference_encoded)),
-              outputs=(wp.array(pair[0].reshape(-1, 3), dtype=wp.vec3, device="cpu", copy=False),
-                       wp.array(pair[1].reshape(-1, 3), dtype=wp.vec3, device="cpu", copy=False)), device="cpu")
+              inputs=(_flat(reach, wp.uint8), _flat(differs, wp.bool), _flat(test_encoded, wp.vec3d),
+                      _flat(reference_encoded, wp.vec3d)),
+              outputs=(_flat(pair[0], wp.vec3), _flat(pair[1], wp.vec3)), device="cpu")
     return pair[0], pair[1]

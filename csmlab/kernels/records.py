@@ -18,6 +18,8 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from csmlab.kernels import host_array
+
 __all__ = ["animation_codes", "cell_sums", "grid_cells", "log2_histogram"]
 
 # Each product, quotient and sum rounded on its own, as NumPy rounds them.
@@ -147,11 +149,6 @@ def log2_histogram_kernel(log2_values: wp.array2d(dtype=wp.float64), bin_of: wp.
         i += 1
 
 
-def _host(array, dtype) -> wp.array:
-    return wp.array(np.ascontiguousarray(array, dtype=dtype), dtype=wp.dtype_from_numpy(np.dtype(dtype)),
-                    device="cpu", copy=False)
-
-
 def grid_cells(positions, *, x0: float, z0: float, cell: float, nx: int, nz: int) -> np.ndarray:
     """Flat ground-cell index ``row · nx + column`` of each world position; −1 outside the grid or NaN.
 
@@ -177,9 +174,8 @@ def grid_cells(positions, *, x0: float, z0: float, cell: float, nx: int, nz: int
     cells = np.empty(p.shape[:2], dtype=np.int64)
     if cells.size:
         wp.launch(grid_cells_kernel, dim=p.shape[0],
-                  inputs=(wp.array(p, dtype=wp.vec3d, device="cpu", copy=False), wp.float64(x0), wp.float64(z0),
-                          wp.float64(cell), int(nx), int(nz)),
-                  outputs=(wp.array(cells, dtype=wp.int64, device="cpu", copy=False),), device="cpu")
+                  inputs=(host_array(p, wp.vec3d), wp.float64(x0), wp.float64(z0), wp.float64(cell), int(nx), int(nz)),
+                  outputs=(host_array(cells, wp.int64),), device="cpu")
     return cells
 
 
@@ -218,10 +214,10 @@ def cell_sums(cells, change, flipped, *, size: int) -> tuple[np.ndarray, np.ndar
     counted = np.zeros(size, dtype=np.int64)
     flips = np.zeros(size, dtype=np.int64)
     if cells.size:
-        wp.launch(cell_sums_kernel, dim=1, inputs=(_host(cells, np.int64), _host(change, np.float64),
-                                                   _host(flipped, np.bool_)),
-                  outputs=(_host(change_sum, np.float64), _host(counted, np.int64), _host(flips, np.int64)),
-                  device="cpu")
+        wp.launch(cell_sums_kernel, dim=1,
+                  inputs=(host_array(cells, wp.int64), host_array(change, wp.float64), host_array(flipped, wp.bool)),
+                  outputs=(host_array(change_sum, wp.float64), host_array(counted, wp.int64),
+                           host_array(flips, wp.int64)), device="cpu")
     return change_sum, counted, flips
 
 
@@ -253,8 +249,9 @@ def animation_codes(lit, change, *, k: int) -> tuple[np.ndarray, np.ndarray]:
     lit_codes = np.empty(shape, dtype=np.uint8)
     change_codes = np.empty(shape, dtype=np.uint8)
     if lit_codes.size:
-        wp.launch(animation_codes_kernel, dim=shape[0], inputs=(_host(lit, np.float64), _host(change, np.float64), k),
-                  outputs=(_host(lit_codes, np.uint8), _host(change_codes, np.uint8)), device="cpu")
+        wp.launch(animation_codes_kernel, dim=shape[0],
+                  inputs=(host_array(lit, wp.float64), host_array(change, wp.float64), k),
+                  outputs=(host_array(lit_codes, wp.uint8), host_array(change_codes, wp.uint8)), device="cpu")
     return lit_codes, change_codes
 
 
@@ -298,9 +295,9 @@ def log2_histogram(log2_values, group, defined, *, edges, groups: int) -> np.nda
     if defined.size:
         per_step = bins / (edges[-1] - edges[0])
         wp.launch(log2_histogram_kernel, dim=1,
-                  inputs=(_host(values, np.float64), _host(group, np.int32), _host(defined, np.bool_),
+                  inputs=(host_array(values, wp.float64), host_array(group, wp.int32), host_array(defined, wp.bool),
                           wp.float64(per_step), wp.float64(edges[0] * per_step)),
-                  outputs=(_host(counts, np.int64), _host(outside, np.int64)), device="cpu")
+                  outputs=(host_array(counts, wp.int64), host_array(outside, wp.int64)), device="cpu")
     if outside[0]:
         raise ValueError(f"group: expected 0 … {groups - 1} where defined, got {outside[0]} pixels outside")
     return counts

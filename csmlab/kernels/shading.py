@@ -20,6 +20,8 @@ from typing import Any
 import numpy as np
 import warp as wp
 
+from csmlab.kernels import host_array
+
 __all__ = ["shaded_pair", "shaded_pixels"]
 
 # Each product and sum rounded on its own, as NumPy rounds them.
@@ -82,13 +84,12 @@ def _flat_terms(albedo, cosine, light, shape: tuple) -> tuple[wp.array, wp.array
         raise ValueError(f"albedo, cosine: expected shapes {shape + (3,)} and {shape} (the shadow's), got "
                          f"{albedo.shape} and {cosine.shape}")
     colour = wp.vec3d(0.0, 0.0, 0.0) if light is None else wp.vec3d(*np.asarray(light, dtype=np.float64))
-    return (wp.array(albedo.reshape(-1, 3), dtype=wp.vec3d, device="cpu", copy=False),
-            wp.array(cosine.reshape(-1), dtype=wp.float64, device="cpu", copy=False), colour, int(light is not None))
+    return (host_array(albedo.reshape(-1, 3), wp.vec3d), host_array(cosine.reshape(-1), wp.float64), colour,
+            int(light is not None))
 
 
 def _lit_array(lit: np.ndarray) -> wp.array:
-    dtype = wp.float32 if lit.dtype == np.float32 else wp.float64
-    return wp.array(lit.reshape(-1), dtype=dtype, device="cpu", copy=False)
+    return host_array(lit.reshape(-1), wp.float32 if lit.dtype == np.float32 else wp.float64)
 
 
 def shaded_pixels(albedo, cosine, lit, *, light=None, ambient: float) -> np.ndarray:
@@ -118,7 +119,7 @@ def shaded_pixels(albedo, cosine, lit, *, light=None, ambient: float) -> np.ndar
     if lit.size:
         wp.launch(shaded_kernel, dim=-(-lit.size // _RUN),
                   inputs=(albedo, cosine, _lit_array(lit), colour, coloured, wp.float64(ambient), _RUN),
-                  outputs=(wp.array(out.reshape(-1, 3), dtype=wp.vec3d, device="cpu", copy=False),), device="cpu")
+                  outputs=(host_array(out.reshape(-1, 3), wp.vec3d),), device="cpu")
     return out
 
 
@@ -139,7 +140,6 @@ def shaded_pair(albedo, cosine, lit, other, *, light=None, ambient: float) -> tu
         wp.launch(shaded_pair_kernel, dim=-(-lit.size // _RUN),
                   inputs=(albedo, cosine, _lit_array(lit), _lit_array(other), colour, coloured, wp.float64(ambient),
                           _RUN),
-                  outputs=(wp.array(out.reshape(-1, 3), dtype=wp.vec3d, device="cpu", copy=False),
-                           wp.array(other_out.reshape(-1, 3), dtype=wp.vec3d, device="cpu", copy=False)),
+                  outputs=(host_array(out.reshape(-1, 3), wp.vec3d), host_array(other_out.reshape(-1, 3), wp.vec3d)),
                   device="cpu")
     return out, other_out

@@ -17,6 +17,8 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from csmlab.kernels import host_array
+
 __all__ = ["change_maps"]
 
 # Each difference rounded on its own, as NumPy rounds it.
@@ -44,7 +46,8 @@ def change_maps_kernel(rows: wp.array(dtype=wp.int64), earlier_lit: wp.array(dty
                        blend: wp.array(dtype=wp.bool), light_moved: int, reference: wp.array(dtype=wp.float32),
                        previous_reference: wp.array(dtype=wp.float32), previous_lit: wp.array(dtype=wp.float32),
                        change: wp.array(dtype=wp.float64), flipped: wp.array(dtype=wp.bool),
-                       counted: wp.array(dtype=wp.bool), same: wp.array(dtype=wp.bool)):
+                       counted: wp.array(dtype=wp.bool), same: wp.array(dtype=wp.bool),
+                       met: wp.array(dtype=wp.int64)):
     # One thread: the pixels in order, the visible ones (``rows``, ascending) met as the walk reaches them.
     n = int(0)
     p = int(0)
@@ -79,13 +82,14 @@ def change_maps_kernel(rows: wp.array(dtype=wp.int64), earlier_lit: wp.array(dty
         counted[p] = is_counted
         same[p] = is_counted and before_cascade == cascade[p] and not before_blend and not blend[p]
         p += 1
+    met[0] = wp.int64(n)
 
 
 def _flat(name: str, values, dtype, size: int) -> wp.array:
-    array = np.ascontiguousarray(values, dtype=dtype).reshape(-1)
+    array = host_array(np.reshape(values, -1), dtype)
     if array.size != size:
         raise ValueError(f"{name}: expected {size} values, got {array.size}")
-    return wp.array(array, dtype=wp.dtype_from_numpy(np.dtype(dtype)), device="cpu", copy=False)
+    return array
 
 
 def change_maps(rows, earlier_lit, earlier_cascade, earlier_blend, *, lit, cascade, blend, reference=None,
@@ -110,6 +114,12 @@ def change_maps(rows, earlier_lit, earlier_cascade, earlier_blend, *, lit, casca
         ``previous_lit`` float32 (NaN where not visible), ``change`` float64 (NaN where not
         counted), ``flipped``, ``counted`` and ``same_cascade`` bool, as
         :class:`csmlab.metrics.temporal.TemporalMaps` defines them.
+
+    Raises
+    ------
+    ValueError
+        On one reference without the other, arrays of other lengths, or ``rows`` not ascending
+        indices of distinct pixels of the image.
     """
     shape = np.shape(lit)
     size = int(np.prod(shape))
@@ -126,15 +136,19 @@ def change_maps(rows, earlier_lit, earlier_cascade, earlier_blend, *, lit, casca
     out = {"previous_lit": np.empty(shape, dtype=np.float32), "change": np.empty(shape, dtype=np.float64),
            "flipped": np.empty(shape, dtype=bool), "counted": np.empty(shape, dtype=bool),
            "same_cascade": np.empty(shape, dtype=bool)}
-    inputs = (wp.array(rows, dtype=wp.int64, device="cpu", copy=False),
-              _flat("earlier_lit", earlier_lit, np.float32, count),
-              _flat("earlier_cascade", earlier_cascade, np.int8, count),
-              _flat("earlier_blend", earlier_blend, bool, count),
-              _flat("lit", lit, np.float32, size), _flat("cascade", cascade, np.int8, size),
-              _flat("blend", blend, bool, size), int(moved),
-              _flat("reference", reference, np.float32, reference_size),
-              _flat("previous_reference", previous_reference, np.float32, reference_size))
-    outputs = tuple(wp.array(a.reshape(-1), dtype=wp.dtype_from_numpy(a.dtype), device="cpu", copy=False)
-                    for a in out.values())
+    inputs = (host_array(rows, wp.int64),
+              _flat("earlier_lit", earlier_lit, wp.float32, count),
+              _flat("earlier_cascade", earlier_cascade, wp.int8, count),
+              _flat("earlier_blend", earlier_blend, wp.bool, count),
+              _flat("lit", lit, wp.float32, size), _flat("cascade", cascade, wp.int8, size),
+              _flat("blend", blend, wp.bool, size), int(moved),
+              _flat("reference", reference, wp.float32, reference_size),
+              _flat("previous_reference", previous_reference, wp.float32, reference_size))
+    met = np.zeros(1, dtype=np.int64)
+    outputs = (*(host_array(a.reshape(-1), wp.dtype_from_numpy(a.dtype)) for a in out.values()),
+               host_array(met, wp.int64))
     wp.launch(change_maps_kernel, dim=1, inputs=inputs, outputs=outputs, device="cpu")
+    if met[0] != count:
+        raise ValueError(f"rows: expected {count} ascending flat indices below {size}, got indices that the walk over "
+                         f"the pixels met {met[0]} of")
     return out

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from csmlab.kernels import checked_device, device_empty
+from csmlab.kernels import checked_device, device_empty, host_array
 
 
 @wp.kernel
@@ -26,6 +26,19 @@ def test_device_empty_holds_what_a_kernel_writes(device):
     wp.launch(_fill_with_index, dim=1000, outputs=(array,), device=device)
     index = np.arange(1000, dtype=np.float64)
     np.testing.assert_array_equal(array.numpy(), np.stack([index, 2 * index, 3 * index], axis=1))
+
+
+def test_host_array_writes_into_the_numpy_arrays_own_memory_and_copies_only_what_it_must():
+    out = np.zeros((1000, 3))
+    wp.launch(_fill_with_index, dim=1000, outputs=(host_array(out, wp.vec3d),), device="cpu")
+    index = np.arange(1000, dtype=np.float64)
+    np.testing.assert_array_equal(out, np.stack([index, 2 * index, 3 * index], axis=1))
+    image = np.zeros((4, 5, 3))
+    assert host_array(image, wp.vec3d).shape == (4, 5) and host_array(image, wp.vec3d).ptr == image.ctypes.data
+    strided = np.arange(12.0)[::2]
+    copied = host_array(strided, wp.float32)
+    assert copied.dtype == wp.float32 and copied.ptr != strided.ctypes.data
+    np.testing.assert_array_equal(copied.numpy(), strided)
 
 
 class _NotTheDeviceAskedFor:

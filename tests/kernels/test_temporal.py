@@ -84,3 +84,6 @@ def test_one_reference_without_the_other_and_results_of_another_length_are_refus
                     reference=references[0])
     with pytest.raises(ValueError, match=f"earlier_lit: expected {rows.size} values"):
         change_maps(rows, earlier_lit[1:], earlier_cascade, earlier_blend, lit=lit, cascade=cascade, blend=blend)
+    for bad in (rows[::-1], np.concatenate((rows[:1], rows[:-1])), np.append(rows[:-1], rows.size * 10)):
+        with pytest.raises(ValueError, match="rows: expected .* ascending flat indices"):
+            change_maps(bad, earlier_lit, earlier_cascade, earlier_blend, lit=lit, cascade=cascade, blend=blend)
